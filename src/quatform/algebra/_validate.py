@@ -1,0 +1,120 @@
+"""Input checks shared by the algebra layer (private).
+
+Every public algebra function passes its array arguments through these helpers, so that a
+wrong shape, a NaN or a non-unit quaternion is reported once, clearly, with the fix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import NonFiniteError, NonUnitError, ShapeError
+
+#: Largest accepted deviation of a unit quaternion's norm from 1 (``| ||q|| - 1 |``).
+#: Inputs within it are renormalised silently; inputs beyond it raise NonUnitError.
+UNIT_TOLERANCE = 1e-6
+
+
+def _where(mask: np.ndarray) -> str:
+    idx = np.argwhere(mask)
+    if idx.size == 0 or mask.ndim == 0:
+        return ""
+    return f" at index {tuple(int(i) for i in idx[0])}"
+
+
+def as_array(x, name: str, last: int | tuple[int, ...] | None) -> np.ndarray:
+    """Return ``x`` as a finite float64 array whose trailing shape is ``last``.
+
+    Parameters
+    ----------
+    x : array_like
+    name : str
+        Name of the argument, used in error messages.
+    last : int, tuple of int or None
+        Required trailing dimension(s); ``None`` accepts any shape.
+    """
+    try:
+        a = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ShapeError(f"{name} must be a numeric array, got {type(x).__name__}: {exc}") from None
+    if last is not None:
+        tail = (last,) if isinstance(last, int) else tuple(last)
+        if a.ndim < len(tail) or a.shape[a.ndim - len(tail):] != tail:
+            want = "(..., " + ", ".join(str(t) for t in tail) + ")"
+            raise ShapeError(f"{name} must have shape {want}, got shape {a.shape}")
+    # One cheap reduction finds a NaN/inf; only then is the offending entry located.
+    if not np.isfinite(np.add.reduce(a, axis=None)):
+        bad = ~np.isfinite(a)
+        if bad.any():
+            raise NonFiniteError(
+                f"{name} contains {a[bad][0]!r}{_where(bad)}; every entry must be finite "
+                "(check the measurement or the upstream computation that produced it)"
+            )
+    return a
+
+
+def as_quaternion(q, name: str = "q") -> np.ndarray:
+    """Finite ``(..., 4)`` array."""
+    return as_array(q, name, 4)
+
+
+def as_unit_quaternion(q, name: str = "q", tol: float = UNIT_TOLERANCE) -> np.ndarray:
+    """Finite ``(..., 4)`` array of unit quaternions, renormalised within ``tol``.
+
+    Raises
+    ------
+    NonUnitError
+        If some ``| ||q|| - 1 | > tol``.
+    """
+    a = as_quaternion(q, name)
+    n = np.sqrt(np.einsum("...i,...i->...", a, a))
+    dev = np.abs(n - 1.0)
+    if np.any(dev > tol):
+        bad = dev > tol
+        raise NonUnitError(
+            f"{name} must be a unit quaternion but has norm {float(np.asarray(n)[bad].flat[0]):.9g}"
+            f"{_where(np.asarray(bad))} (tolerance {tol:g}); normalise it with "
+            "quatform.algebra.qnormalize if its direction is meaningful"
+        )
+    return a / n[..., None]
+
+
+def as_dual_quaternion(dq, name: str = "dq") -> np.ndarray:
+    """Finite ``(..., 8)`` array."""
+    return as_array(dq, name, 8)
+
+
+def as_unit_dual_quaternion(dq, name: str = "dq", tol: float = UNIT_TOLERANCE) -> np.ndarray:
+    """Finite ``(..., 8)`` array of unit dual quaternions, renormalised within ``tol``.
+
+    A dual quaternion ``r + eps d`` is unit when ``||r|| = 1`` and ``r . d = 0``.
+
+    Raises
+    ------
+    NonUnitError
+        If ``| ||r|| - 1 | > tol`` or ``|r . d| > tol * max(1, ||d||)``.
+    """
+    a = as_dual_quaternion(dq, name)
+    r, d = a[..., :4], a[..., 4:]
+    n = np.sqrt(np.einsum("...i,...i->...", r, r))
+    rd = np.einsum("...i,...i->...", r, d)
+    dn = np.sqrt(np.einsum("...i,...i->...", d, d))
+    bad_n = np.abs(n - 1.0) > tol
+    bad_o = np.abs(rd) > tol * np.maximum(1.0, dn)
+    if np.any(bad_n):
+        raise NonUnitError(
+            f"{name} must be a unit dual quaternion but its primary part has norm "
+            f"{float(np.asarray(n)[bad_n].flat[0]):.9g}{_where(np.asarray(bad_n))} "
+            f"(tolerance {tol:g}); normalise it with quatform.algebra.dqnormalize"
+        )
+    if np.any(bad_o):
+        raise NonUnitError(
+            f"{name} must be a unit dual quaternion but primary . dual = "
+            f"{float(np.asarray(rd)[bad_o].flat[0]):.3g}{_where(np.asarray(bad_o))} "
+            f"(tolerance {tol:g}); normalise it with quatform.algebra.dqnormalize"
+        )
+    # Renormalise within tolerance: divide by the dual-number norm (see dqnormalize).
+    r1 = r / n[..., None]
+    d1 = d / n[..., None]
+    d1 = d1 - np.einsum("...i,...i->...", r1, d1)[..., None] * r1
+    return np.concatenate([r1, d1], axis=-1)

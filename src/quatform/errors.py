@@ -1,0 +1,47 @@
+"""Exception types that quatform raises for bad input.
+
+This module sits below every layer: all of quatform imports it, it imports nothing of
+quatform. Every exception names the offending value and says how to fix it.
+Input errors also derive from :class:`ValueError`, so code written against the standard
+library's conventions catches them too.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "QuatformError",
+    "InvalidInputError",
+    "ShapeError",
+    "NonFiniteError",
+    "NonUnitError",
+    "DegenerateInputError",
+    "NotARotationError",
+]
+
+
+class QuatformError(Exception):
+    """Base class of every error quatform raises on purpose."""
+
+
+class InvalidInputError(QuatformError, ValueError):
+    """An argument is not acceptable: wrong shape, not finite, out of its domain."""
+
+
+class ShapeError(InvalidInputError):
+    """An array does not have the trailing shape a function needs (e.g. ``(..., 4)``)."""
+
+
+class NonFiniteError(InvalidInputError):
+    """An array holds NaN or infinity."""
+
+
+class NonUnitError(InvalidInputError):
+    """A quaternion or dual quaternion that must be unit is not, beyond the tolerance."""
+
+
+class DegenerateInputError(InvalidInputError):
+    """An input sits where the requested quantity is undefined (zero quaternion, zero axis)."""
+
+
+class NotARotationError(InvalidInputError):
+    """A matrix that must be a rotation (orthonormal, det = +1) is not, beyond the tolerance."""

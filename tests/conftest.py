@@ -1,0 +1,66 @@
+"""Shared hypothesis strategies and numerical helpers for the test suite."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import settings, strategies as st
+from hypothesis.extra import numpy as hnp
+
+settings.register_profile("default", max_examples=60, deadline=None)
+settings.load_profile("default")
+
+batch_shapes = hnp.array_shapes(min_dims=0, max_dims=2, min_side=1, max_side=4)
+finite = st.floats(-5.0, 5.0, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def quaternions(draw, shape=None, min_norm=1e-2):
+    """Arbitrary (non-unit) quaternions of norm >= min_norm, shape (*shape, 4)."""
+    shape = draw(batch_shapes) if shape is None else shape
+    q = draw(hnp.arrays(np.float64, tuple(shape) + (4,), elements=finite))
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(n < min_norm, np.array([1.0, 0.0, 0.0, 0.0]), q)
+
+
+@st.composite
+def unit_quaternions(draw, shape=None):
+    q = draw(quaternions(shape=shape, min_norm=1e-2))
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+@st.composite
+def vectors(draw, shape=None, scale=5.0):
+    shape = draw(batch_shapes) if shape is None else shape
+    el = st.floats(-scale, scale, allow_nan=False, allow_infinity=False)
+    return draw(hnp.arrays(np.float64, tuple(shape) + (3,), elements=el))
+
+
+@st.composite
+def unit_dual_quaternions(draw, shape=None):
+    from quatform.algebra import dq_from_pose
+
+    shape = draw(batch_shapes) if shape is None else shape
+    return dq_from_pose(draw(unit_quaternions(shape=shape)), draw(vectors(shape=shape)))
+
+
+def numeric_jacobian(f, x, h=1e-6):
+    """Central-difference Jacobian of f: R^n -> R^m at x (1-D), shape (m, n)."""
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = h
+        cols.append((np.asarray(f(x + e)) - np.asarray(f(x - e))) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+def random_unit_quaternions(n, seed=0):
+    q = np.random.default_rng(seed).normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+@st.composite
+def same_shape(draw, *makers):
+    """Draw one batch shape and one value per strategy factory with that shape."""
+    shape = draw(batch_shapes)
+    return tuple(draw(m(shape=shape)) for m in makers)
