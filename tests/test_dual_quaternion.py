@@ -196,7 +196,7 @@ def test_screw_root_is_not_the_midpoint_but_decoupled_is():
 @given(same_shape(unit_quaternions, vectors, unit_quaternions, vectors))
 def test_seed000_eq26_cluster_frame_is_midway(x):
     """seed 000 eqs. (26)-(27) with the decoupled root: cluster at the midpoint, orientation
-    half-way between the robots; inverse kinematics q1 = qc h* qs, q2 = qc h*."""
+    half-way between the robots, and the printed inverse kinematics hold."""
     q1, p1, q2, p2 = x
     d1, d2 = dq_from_pose(q1, p1), dq_from_pose(q2, p2)
     qs = dqmul(dqconj(d2), d1)  # eq. (27)
@@ -207,8 +207,14 @@ def test_seed000_eq26_cluster_frame_is_midway(x):
     a1, a2 = q_angle_between(rc, q1), q_angle_between(rc, q2)
     np.testing.assert_allclose(a1, a2, atol=1e-7)
     np.testing.assert_allclose(a1 + a2, q_angle_between(q1, q2), atol=1e-7)
+    # inverse kinematics from the same root h: q2 = qc h*, q1 = qc h* qs (exact everywhere)
     np.testing.assert_allclose(dqmul(qc, dqconj(h)), d2, atol=1e-9)
     np.testing.assert_allclose(dqmul(dqmul(qc, dqconj(h)), qs), d1, atol=1e-9)
+    # as printed under eq. (27), q1 = qc ((qs*)^1/2)*: right up to sign, except at a relative
+    # half turn, where the short way of qs* = -qs picks the same root as for qs
+    printed = dq_closest(dqmul(qc, dqconj(dqsqrt_decoupled(dqconj(qs)))), d1)
+    half_turn = np.abs(qs[..., 0]) < 1e-9
+    np.testing.assert_allclose(printed[~half_turn], np.asarray(d1)[~half_turn], atol=1e-9)
 
 
 def test_canonical_and_closest():

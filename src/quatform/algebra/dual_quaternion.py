@@ -375,9 +375,10 @@ def dqsqrt_decoupled(dq, shortest: bool = True) -> np.ndarray:
     This is the root that seed 000 eq. (26) needs: with ``s = q2* q1`` (pose of robot 1 in
     robot 2's frame), ``q2 dqsqrt_decoupled(s)`` has position ``(p1 + p2)/2`` and
     orientation ``q2 (q2* q1)^(1/2)``, half-way between the robots' orientations. Its square
-    is not ``dq`` in general, so the inverse kinematics printed under eq. (27)
-    (``q1 = qc (qs^{*1/2})^*``) must be replaced by ``q1 = qc h* qs`` with
-    ``h = dqsqrt_decoupled(qs)``; see ``docs/derivations.md``.
+    is not ``dq`` in general, so ``qc h`` is *not* robot 1. Invert with the same ``h``:
+    ``q2 = qc h*``, ``q1 = qc h* qs`` (exact). The form printed under eq. (27),
+    ``q1 = qc ((qs*)^(1/2))*``, agrees with it except at a relative half turn, where the
+    short-way roots of ``qs`` and ``qs* = -qs`` coincide; see ``docs/derivations.md``.
     """
     return dqpow_decoupled(dq, 0.5, shortest=shortest)
 
