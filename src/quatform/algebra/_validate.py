@@ -69,7 +69,7 @@ def as_unit_quaternion(q, name: str = "q", tol: float = UNIT_TOLERANCE) -> np.nd
     a = as_quaternion(q, name)
     n = np.sqrt(np.einsum("...i,...i->...", a, a))
     dev = np.abs(n - 1.0)
-    if np.any(dev > tol):
+    if dev.size and dev.max() > tol:
         bad = dev > tol
         raise NonUnitError(
             f"{name} must be a unit quaternion but has norm {float(np.asarray(n)[bad].flat[0]):.9g}"

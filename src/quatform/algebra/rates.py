@@ -155,8 +155,8 @@ def integrate(q, omega, dt, method: str = "exp", frame: str = "world") -> np.nda
     -------
     ``"exp"`` (default)
         ``q <- exp(dt/2 omega) q`` (world) or ``q exp(dt/2 omega)`` (body): exact for
-        constant ``omega`` and unit to rounding. Measured over 10^6 steps in
-        ``benchmarks/bench_integration.py`` (see ``docs/performance.md``).
+        constant ``omega`` and unit to rounding: after 10^6 steps of 10 ms the angle error
+        is 2e-12 rad against 8e-2 for the Euler variants (``docs/performance.md``).
     ``"euler-normalized"``
         seed 001 eqs. (2.36)+(2.37): ``q <- q + dt/2 omega q``, then ``q / ||q||``.
     ``"euler-log"``
@@ -165,6 +165,11 @@ def integrate(q, omega, dt, method: str = "exp", frame: str = "world") -> np.nda
     ``"euler"``
         seed 001 eq. (2.36) alone; the norm grows by ``sqrt(1 + dt^2 |omega|^2 / 4)`` per
         step (not "decreases", as the seed says). Kept to show that drift.
+
+    For every method but ``"euler"`` the input must be unit within
+    :data:`~quatform.algebra.UNIT_TOLERANCE` and is renormalised first; ``"euler"`` takes
+    any quaternion so that its drift can be observed. For a time-varying ``omega``, passing
+    its value at the step's midpoint makes ``"exp"`` second order.
 
     Parameters
     ----------
