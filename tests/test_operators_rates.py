@@ -31,7 +31,7 @@ from quatform.algebra import (
     skew,
 )
 
-from conftest import numeric_jacobian, quaternions, same_shape, unit_dual_quaternions, unit_quaternions, vectors
+from conftest import numeric_jacobian, quaternions, same_shape, unit_dual_quaternions, vectors
 
 
 def _pure(v):

@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DegenerateInputError, InvalidInputError
+from ..errors import InvalidInputError
 from . import _kernels
 from ._validate import as_array, as_dual_quaternion, as_unit_dual_quaternion, as_unit_quaternion
-from .quaternion import _sinc, qcanonical, qconj, qexp, qlog, qmul, qrotate
+from .quaternion import _dot, _nonzero_norm, _norm3, _sinc, qcanonical, qconj, qexp, qlog, qmul, qrotate
 
 __all__ = [
     "DQ_IDENTITY",
@@ -63,10 +63,6 @@ _QCONJ = np.array([1.0, -1.0, -1.0, -1.0])
 #: Below this ``sin(a)`` a primary part next to -1 is treated as -1 in :func:`dqlog`; it
 #: balances the perturbation of ``r`` against the ``eps / sin(a)`` rounding gain.
 _SIN_FLOOR = 1e-8
-
-
-def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
 
 
 def _join(r, d):
@@ -111,13 +107,7 @@ def dqconj_combined(dq) -> np.ndarray:
 
 
 def _primary_norm(r, name):
-    n = np.sqrt(_dot(r, r))
-    if np.any(n == 0.0):
-        raise DegenerateInputError(
-            f"{name} has a zero primary part at index {tuple(np.argwhere(n == 0.0)[0])}; "
-            "such a dual quaternion has no norm, inverse or pose"
-        )
-    return n
+    return _nonzero_norm(r, name, "a zero primary part", "such a dual quaternion has no norm, inverse or pose")
 
 
 def dqnorm(dq) -> np.ndarray:
@@ -197,7 +187,7 @@ def dqexp(h) -> np.ndarray:
     """
     h = as_dual_quaternion(h, "h")
     phi, psi = h[..., 1:4], h[..., 5:8]
-    a = np.sqrt(_dot(phi, phi))
+    a = _norm3(phi)
     sa = _sinc(a)
     pp = _dot(phi, psi)
     out = np.empty(h.shape)
@@ -252,7 +242,7 @@ def dqlog(dq, shortest: bool = False) -> np.ndarray:
         dq = _flip_to_shortest(dq)
     r, d = dq[..., :4], dq[..., 4:]
     # For unit r: sin a = |r_v| and cos a = r_w exactly, with a = atan2(|r_v|, r_w) in [0, pi].
-    sin_a = np.sqrt(_dot(r[..., 1:], r[..., 1:]))
+    sin_a = _norm3(r[..., 1:])
     cos_a = r[..., 0]
     a = np.arctan2(sin_a, cos_a)
     dv = d[..., 1:]
@@ -264,7 +254,7 @@ def dqlog(dq, shortest: bool = False) -> np.ndarray:
     at_minus_one = (sin_a < _SIN_FLOOR) & (cos_a < 0.0)
     has_axis = has_axis & ~at_minus_one
     if np.any(at_minus_one):
-        dvn = np.sqrt(_dot(dv, dv))
+        dvn = _norm3(dv)
         along = np.where((dvn > 0.0)[..., None], dv / np.where(dvn > 0.0, dvn, 1.0)[..., None], [1.0, 0.0, 0.0])
         n = np.where(at_minus_one[..., None], along, n)
     dvn_par = _dot(dv, n)

@@ -50,6 +50,15 @@ def _dot(a, b):
     return np.einsum("...i,...i->...", a, b)
 
 
+def _norm3(v):
+    """Euclidean norm over the last axis of ``(..., 3)`` without under- or overflow.
+
+    ``sqrt(x^2 + y^2 + z^2)`` turns subnormal below ``|v| ~ 1e-154`` and loses relative
+    accuracy there, which the ratios ``angle / |v|`` of the log maps would amplify.
+    """
+    return np.hypot(np.hypot(v[..., 0], v[..., 1]), v[..., 2])
+
+
 def qmul(q, p) -> np.ndarray:
     """Hamilton product ``q p``.
 
@@ -80,13 +89,11 @@ def qnorm(q) -> np.ndarray:
     return np.sqrt(_dot(q, q))
 
 
-def _nonzero_norm(q, name):
+def _nonzero_norm(q, name, what="a zero quaternion", why="its direction is undefined - supply a nonzero quaternion"):
+    """Norms of ``q`` over the last axis; DegenerateInputError naming the first zero."""
     n = np.sqrt(_dot(q, q))
     if np.any(n == 0.0):
-        raise DegenerateInputError(
-            f"{name} has a zero quaternion at index {tuple(np.argwhere(n == 0.0)[0])}; "
-            "its direction is undefined - supply a nonzero quaternion"
-        )
+        raise DegenerateInputError(f"{name} has {what} at index {tuple(np.argwhere(n == 0.0)[0])}; {why}")
     return n
 
 
@@ -135,7 +142,7 @@ def qexp(q) -> np.ndarray:
     """
     q = as_quaternion(q)
     v = q[..., 1:]
-    a = np.sqrt(_dot(v, v))
+    a = _norm3(v)
     s = np.exp(q[..., 0])
     out = np.empty(np.broadcast_shapes(q.shape))
     out[..., 0] = s * np.cos(a)
@@ -151,7 +158,7 @@ def _log_vector(q):
     ``exp(log q) = q`` still holds.
     """
     v = q[..., 1:]
-    s = np.sqrt(_dot(v, v))
+    s = _norm3(v)
     w = q[..., 0]
     half = np.arctan2(s, w)
     # v / s is the unit axis (finite even for subnormal s); where v = 0 the log's vector is 0.
@@ -309,7 +316,7 @@ def axis_angle_from_q(q, shortest: bool = False):
     if shortest:
         q = qcanonical(q)
     v = q[..., 1:]
-    s = np.sqrt(_dot(v, v))
+    s = _norm3(v)
     angle = 2.0 * np.arctan2(s, q[..., 0])
     axis = np.where((s > 0.0)[..., None], v / np.where(s > 0.0, s, 1.0)[..., None], [1.0, 0.0, 0.0])
     return axis, angle
@@ -457,7 +464,7 @@ def q_continuous(q, axis: int = 0) -> np.ndarray:
 def q_angle(q) -> np.ndarray:
     """Rotation angle of unit quaternions in ``[0, pi]`` (sign of ``q`` irrelevant)."""
     q = as_unit_quaternion(q)
-    return 2.0 * np.arctan2(np.sqrt(_dot(q[..., 1:], q[..., 1:])), np.abs(q[..., 0]))
+    return 2.0 * np.arctan2(_norm3(q[..., 1:]), np.abs(q[..., 0]))
 
 
 def q_angle_between(q1, q2) -> np.ndarray:
