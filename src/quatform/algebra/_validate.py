@@ -113,7 +113,14 @@ def as_unit_dual_quaternion(dq, name: str = "dq", tol: float = UNIT_TOLERANCE) -
             f"{float(np.asarray(rd)[bad_o].flat[0]):.3g}{_where(np.asarray(bad_o))} "
             f"(tolerance {tol:g}); normalise it with quatform.algebra.dqnormalize"
         )
-    # Renormalise within tolerance: divide by the dual-number norm (see dqnormalize).
+    return divide_by_dual_norm(r, d, n)
+
+
+def divide_by_dual_norm(r: np.ndarray, d: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """``(r + eps d) / ||r + eps d||`` given ``n = ||r||`` (nonzero), as a ``(..., 8)`` array.
+
+    ``r' = r/n``, ``d' = d/n - (r' . d/n) r'``, so ``||r'|| = 1`` and ``r' . d' = 0``.
+    """
     r1 = r / n[..., None]
     d1 = d / n[..., None]
     d1 = d1 - np.einsum("...i,...i->...", r1, d1)[..., None] * r1

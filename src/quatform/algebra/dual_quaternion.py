@@ -28,7 +28,13 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from . import _kernels
-from ._validate import as_array, as_dual_quaternion, as_unit_dual_quaternion, as_unit_quaternion
+from ._validate import (
+    as_array,
+    as_dual_quaternion,
+    as_unit_dual_quaternion,
+    as_unit_quaternion,
+    divide_by_dual_norm,
+)
 from .quaternion import _dot, _nonzero_norm, _norm3, _sinc, qcanonical, qconj, qexp, qlog, qmul, qrotate
 
 __all__ = [
@@ -140,9 +146,7 @@ def dqnormalize(dq) -> np.ndarray:
     """
     dq = as_dual_quaternion(dq)
     r, d = dq[..., :4], dq[..., 4:]
-    n = _primary_norm(r, "dq")[..., None]
-    r1, d1 = r / n, d / n
-    return _join(r1, d1 - _dot(r1, d1)[..., None] * r1)
+    return divide_by_dual_norm(r, d, _primary_norm(r, "dq"))
 
 
 def dqinv(dq) -> np.ndarray:
