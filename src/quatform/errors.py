@@ -16,6 +16,7 @@ __all__ = [
     "NonUnitError",
     "DegenerateInputError",
     "NotARotationError",
+    "UnreachableError",
 ]
 
 
@@ -45,3 +46,7 @@ class DegenerateInputError(InvalidInputError):
 
 class NotARotationError(InvalidInputError):
     """A matrix that must be a rotation (orthonormal, det = +1) is not, beyond the tolerance."""
+
+
+class UnreachableError(InvalidInputError):
+    """A state or reference that the robots or the chosen description cannot reach."""

@@ -1,0 +1,202 @@
+"""The formation interface: one contract for every cluster-space representation.
+
+Second layer of quatform (above :mod:`quatform.algebra`). A formation maps the stacked
+robot state ``r`` (shape ``(..., n_r)``) to the cluster state ``c`` (shape ``(..., n_c)``)
+and back, gives the Jacobians the controllers need, says how close a state is to a
+singular pose, and converts its state to operator-friendly Euclidean variables. The
+controllers, the references and the simulator only use this interface, so an N-robot
+representation plugs in by subclassing :class:`Formation`.
+
+Choices that a representation leaves open (the sign of a quaternion, the branch of a
+square root, the 2 pi of an angle, the twist of a segment's frame) are resolved by a
+``hint``: a cluster state to stay closest to. Controllers pass the desired state, so the
+measured state is expressed on the same sheet as the reference; without a hint the seed's
+printed convention is used.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DegenerateInputError, ShapeError
+from ..algebra._validate import as_array
+
+__all__ = ["Variable", "Formation", "ROBOT_PAIR_VARIABLES"]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One component of a state vector.
+
+    Attributes
+    ----------
+    name : str
+        Column name (``x_c``, ``q_c_w`` ...), used in time-series files.
+    unit : str
+        ``m``, ``rad`` or ``1`` (quaternion components).
+    kind : str
+        ``position``, ``length``, ``angle`` or ``quaternion`` (a component of a unit
+        quaternion or of a unit dual quaternion's part).
+    """
+
+    name: str
+    unit: str
+    kind: str
+
+
+def _robot_pair_variables():
+    out = []
+    for i in (1, 2):
+        out += [Variable(f"x{i}", "m", "position"), Variable(f"y{i}", "m", "position"),
+                Variable(f"z{i}", "m", "position"), Variable(f"theta{i}", "rad", "angle")]
+    return tuple(out)
+
+
+#: Robot space of two 4-DOF robots: ``r = (x1, y1, z1, theta1, x2, y2, z2, theta2)``.
+ROBOT_PAIR_VARIABLES = _robot_pair_variables()
+
+
+def quaternion_variables(prefix: str):
+    return tuple(Variable(f"{prefix}_{c}", "1", "quaternion") for c in "wxyz")
+
+
+class Formation(ABC):
+    """Cluster-space representation of a team of robots.
+
+    Subclasses set :attr:`name`, :attr:`variables` and implement the abstract methods.
+    Every method accepts leading batch axes.
+    """
+
+    #: Short name used on the command line and in files.
+    name: str = ""
+    #: Layout of the cluster state vector.
+    variables: tuple[Variable, ...] = ()
+    #: Layout of the robot state vector.
+    robot_variables: tuple[Variable, ...] = ROBOT_PAIR_VARIABLES
+
+    @property
+    def n_c(self) -> int:
+        return len(self.variables)
+
+    @property
+    def n_r(self) -> int:
+        return len(self.robot_variables)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(v.name for v in self.variables)
+
+    # -- input checks ---------------------------------------------------------------
+    def check_robot_state(self, r, name: str = "r") -> np.ndarray:
+        """Finite ``(..., n_r)`` array, robots not coincident."""
+        r = as_array(r, name, self.n_r)
+        return r
+
+    def check_cluster_state(self, c, name: str = "c") -> np.ndarray:
+        return as_array(c, name, self.n_c)
+
+    @staticmethod
+    def _check_separation(delta, name="r"):
+        d = np.sqrt(np.einsum("...i,...i->...", delta, delta))
+        if np.any(d < 1e-9):
+            idx = np.argwhere(np.atleast_1d(d < 1e-9))[0]
+            raise DegenerateInputError(
+                f"{name}: the two robots coincide (separation {float(np.atleast_1d(d)[tuple(idx)]):.3g} m"
+                f" at index {tuple(int(i) for i in idx)}); a formation of two robots needs them apart"
+            )
+        return d
+
+    # -- the contract -----------------------------------------------------------------
+    @abstractmethod
+    def forward(self, r, hint=None) -> np.ndarray:
+        """Cluster state of robot state ``r``: ``c = KIN(r)``, shape ``(..., n_c)``."""
+
+    @abstractmethod
+    def inverse(self, c, hint=None) -> np.ndarray:
+        """Robot state of cluster state ``c``: ``r = INVKIN(c)``, shape ``(..., n_r)``.
+
+        ``hint`` (a robot state) picks the branch where the inverse is not unique.
+        """
+
+    @abstractmethod
+    def jacobian(self, r, hint=None) -> np.ndarray:
+        """``J`` with ``c_dot = J(r) r_dot``, shape ``(..., n_c, n_r)``."""
+
+    def inverse_jacobian(self, r, hint=None) -> np.ndarray:
+        """Derivative of ``INVKIN`` at ``c = forward(r, hint)``, shape ``(..., n_r, n_c)``.
+
+        The matrix the seed's controllers use to turn cluster rates into robot rates:
+        ``r_dot = J^-1 c_dot``. It is finite for every reachable state; where the
+        representation is singular it loses rank instead of blowing up.
+        """
+        r = self.check_robot_state(r)
+        return self.inverse_jacobian_at(self.forward(r, hint), r)
+
+    @abstractmethod
+    def inverse_jacobian_at(self, c, r=None) -> np.ndarray:
+        """Derivative of ``INVKIN`` at the cluster state ``c``; ``r``, the robots of ``c``,
+        picks the branch where ``INVKIN`` has several (shape ``(..., n_r, n_c)``)."""
+
+    @abstractmethod
+    def euclidean(self, c, hint=None) -> np.ndarray:
+        """Operator-friendly Euclidean variables ``(x_c, y_c, z_c, beta_c, gamma_c, d_c,
+        phi_1, phi_2)`` of the cluster state ``c``, shape ``(..., 8)``.
+
+        ``hint``: Euclidean variables to stay closest to (the desired ones, for monitoring).
+        """
+
+    @abstractmethod
+    def from_euclidean(self, e, e_dot=None):
+        """Cluster state (and rate) of Euclidean variables ``e`` (and rates ``e_dot``).
+
+        The one place where a motion stated in the operator's variables becomes a motion
+        of this representation. Angles in ``e`` may be unwrapped (``gamma_c`` from 0 to
+        ``2 pi``); the result is continuous wherever ``e`` is.
+
+        Returns
+        -------
+        c : ndarray, shape (..., n_c)
+            If ``e_dot`` is None.
+        (c, c_dot) : tuple of ndarray
+            Otherwise.
+        """
+
+    def errors(self, c, c_des) -> np.ndarray:
+        """Per-variable error ``c - c_des`` with angles wrapped to ``[-pi, pi)``."""
+        e = np.asarray(c) - np.asarray(c_des)
+        ang = [i for i, v in enumerate(self.variables) if v.kind == "angle"]
+        if ang:
+            e[..., ang] = (e[..., ang] + np.pi) % (2 * np.pi) - np.pi
+        return e
+
+    def length_scale(self, r) -> np.ndarray:
+        """Size of the formation (m), used to make Jacobians dimensionless. Shape ``(...)``."""
+        r = np.asarray(r)
+        return 0.5 * np.linalg.norm(r[..., 0:3] - r[..., 4:7], axis=-1)
+
+    def singularity_measure(self, r, hint=None) -> np.ndarray:
+        """Reciprocal condition number of the inverse Jacobian, in ``[0, 1]``; 0 at a singular pose.
+
+        The inverse Jacobian is made dimensionless first (robot and cluster lengths divided
+        by :meth:`length_scale`), so the value does not depend on the unit or the size.
+
+        Returns
+        -------
+        ndarray, shape (...)
+        """
+        r = self.check_robot_state(r)
+        Ji = self.inverse_jacobian(r, hint)
+        L = self.length_scale(r)[..., None]
+        row = np.array([v.kind in ("position", "length") for v in self.robot_variables])
+        col = np.array([v.kind in ("position", "length") for v in self.variables])
+        Ji = Ji / np.where(row, L, 1.0)[..., :, None] * np.where(col, L, 1.0)[..., None, :]
+        s = np.linalg.svd(Ji, compute_uv=False)
+        return s[..., -1] / s[..., 0]
+
+
+def check_shapes_match(a, b, what):
+    if a.shape[:-1] != b.shape[:-1]:
+        raise ShapeError(f"{what}: batch shapes {a.shape[:-1]} and {b.shape[:-1]} differ")

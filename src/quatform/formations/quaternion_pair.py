@@ -1,0 +1,221 @@
+"""Quaternion cluster space of two 4-DOF robots, seed 000 eqs. (9)-(19).
+
+Formations layer. ``c = (x_c, y_c, z_c, q_c[4], d_c, q_c1[4], q_c2[4])``: the centroid, a
+unit quaternion whose x axis points from robot 2 to robot 1, half the separation, and each
+robot's orientation in the cluster frame. 16 numbers for 8 degrees of freedom.
+
+The twist of ``q_c`` about the segment is not a function of the robots' positions. The
+seed fixes it with the minimal rotation from ``i`` (eqs. (14)-(15)), which is undefined
+where ``x1 - x2`` points along ``-i`` (``eta = pi``, ``n_12 = 0/0``); no choice made from
+positions alone can avoid such a point (there is no continuous section of S^3 -> S^2).
+quatform therefore takes the twist from a ``hint`` (the desired cluster state): the
+measured ``q_c`` is the point of its fibre nearest the hint. The only remaining choice is
+a measured segment exactly opposite the hinted one, a 180 deg formation error, where the
+half turn about the hint's z axis is taken.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..algebra._validate import as_unit_quaternion
+from ..algebra.operators import jac_qrotate_quaternion, qminus, qplus, skew
+from ..errors import DegenerateInputError, UnreachableError
+from . import _geometry as g
+from .base import Formation, Variable, quaternion_variables
+from .euclidean_pair import EuclideanPair
+
+__all__ = ["QuaternionPair"]
+
+_XC, _QC, _D, _Q1, _Q2 = slice(0, 3), slice(3, 7), 7, slice(8, 12), slice(12, 16)
+_C = np.diag([1.0, -1.0, -1.0, -1.0])
+_KZ = np.array([0.0, 0.0, 0.0, 1.0])
+#: Largest tilt (rad) of a robot's orientation that a 4-DOF robot is taken to reach.
+TILT_TOL = 1e-6
+
+
+def _yaw_rate_column(q):
+    """``d q / d theta`` for a yaw rotation about world z: ``1/2 (0, 0, 0, 1) q``."""
+    return 0.5 * g.mul(_KZ, q)
+
+
+class QuaternionPair(Formation):
+    """Seed 000 §3.2: centroid, cluster quaternion, half-separation, robot quaternions."""
+
+    name = "quaternion"
+    variables = (
+        Variable("x_c", "m", "position"),
+        Variable("y_c", "m", "position"),
+        Variable("z_c", "m", "position"),
+        *quaternion_variables("q_c"),
+        Variable("d_c", "m", "length"),
+        *quaternion_variables("q_c1"),
+        *quaternion_variables("q_c2"),
+    )
+    #: Index groups of the unit quaternions in ``c`` (for errors and sign handling).
+    quaternion_slices = (_QC, _Q1, _Q2)
+
+    def check_cluster_state(self, c, name="c"):
+        c = super().check_cluster_state(c, name)
+        for s, what in zip(self.quaternion_slices, ("q_c", "q_c1", "q_c2")):
+            as_unit_quaternion(c[..., s], f"{name}[{what}]")
+        return c
+
+    # -- kinematics -------------------------------------------------------------------
+    def forward(self, r, hint=None):
+        r = self.check_robot_state(r)
+        p1, p2 = r[..., 0:3], r[..., 4:7]
+        delta = p1 - p2
+        D = self._check_separation(delta)
+        u = delta / D[..., None]
+        c = np.empty(r.shape[:-1] + (16,))
+        c[..., _XC] = 0.5 * (p1 + p2)  # seed 000 eq. (9)
+        c[..., _D] = 0.5 * D  # eq. (11)
+        q1, q2 = g.q_yaw(r[..., 3]), g.q_yaw(r[..., 7])
+        if hint is None:
+            # eqs. (10), (14), (15): minimal rotation from i to the segment
+            qc = g.swing(g.EX, u, g.EZ)
+            qc1, qc2 = g.mul(g.conj(qc), q1), g.mul(g.conj(qc), q2)  # eqs. (12)-(13)
+        else:
+            hint = self.check_cluster_state(hint, "hint")
+            qh = hint[..., _QC]
+            qc = g.mul(g.swing(g.x_axis(qh), u, g.z_axis(qh)), qh)
+            qc = g.closest_sign(qc, qh)
+            qc1 = g.closest_sign(g.mul(g.conj(qc), q1), hint[..., _Q1])
+            qc2 = g.closest_sign(g.mul(g.conj(qc), q2), hint[..., _Q2])
+        c[..., _QC], c[..., _Q1], c[..., _Q2] = qc, qc1, qc2
+        return c
+
+    def inverse(self, c, hint=None):
+        c = self.check_cluster_state(c)
+        qc = c[..., _QC] / np.linalg.norm(c[..., _QC], axis=-1, keepdims=True)
+        d = c[..., _D]
+        if np.any(d <= 0.0):
+            raise DegenerateInputError(
+                f"d_c must be positive (half the robots' separation), got {float(np.min(d))!r}"
+            )
+        half = d[..., None] * g.x_axis(qc)  # seed 000 eqs. (16), (18)
+        r = np.empty(c.shape[:-1] + (8,))
+        r[..., 0:3] = c[..., _XC] + half
+        r[..., 4:7] = c[..., _XC] - half
+        for k, s in ((3, _Q1), (7, _Q2)):
+            qi = g.mul(qc, c[..., s])  # eqs. (17), (19)
+            tilt = np.linalg.norm(g.z_axis(qi / np.linalg.norm(qi, axis=-1, keepdims=True)) - g.EZ, axis=-1)
+            if np.any(tilt > TILT_TOL):
+                raise UnreachableError(
+                    f"q_c q_c{1 if k == 3 else 2} tilts the robot by {float(np.max(tilt)):.3g} rad; "
+                    "a 4-DOF robot only yaws - give robot quaternions that are rotations about z"
+                )
+            r[..., k] = g.yaw_of(qi)
+            if hint is not None:
+                r[..., k] = g.unwrap_near(r[..., k], np.asarray(hint, dtype=float)[..., k])
+        return r
+
+    # -- Jacobians --------------------------------------------------------------------
+    def jacobian(self, r, hint=None):
+        """``c_dot = J r_dot`` (16 x 8) for the hinted forward map (no twist rate of ``q_c``)."""
+        c = self.forward(r, hint)
+        u = g.x_axis(c[..., _QC])
+        D = 2.0 * c[..., _D]
+        qc = c[..., _QC]
+        # q_c_dot = 1/2 (0, w) q_c with w = u x delta_dot / D (minimal rotation of the segment)
+        G = 0.5 * qminus(qc)[..., :, 1:]
+        dqc = G @ (skew(u) / D[..., None, None])  # d q_c / d delta, (..., 4, 3)
+        J = np.zeros(c.shape[:-1] + (16, 8))
+        J[..., _XC, 0:3] = 0.5 * np.eye(3)
+        J[..., _XC, 4:7] = 0.5 * np.eye(3)
+        J[..., _QC, 0:3] = dqc
+        J[..., _QC, 4:7] = -dqc
+        J[..., _D, 0:3] = 0.5 * u
+        J[..., _D, 4:7] = -0.5 * u
+        conj_dqc = _C @ dqc
+        for s, k in ((_Q1, 3), (_Q2, 7)):
+            qi = g.mul(qc, c[..., s])
+            # q_ci = q_c* q_i: d = qminus(q_i) d(q_c*) + qplus(q_c*) d q_i
+            A = qminus(qi) @ conj_dqc
+            J[..., s, 0:3] = A
+            J[..., s, 4:7] = -A
+            J[..., s, k] = np.einsum("...ij,...j->...i", qplus(g.conj(qc)), _yaw_rate_column(qi))
+        return J
+
+    def inverse_jacobian_at(self, c, r=None):
+        """Derivative of eqs. (16)-(19) at ``c``: the 8 x 16 matrix of seed 000 Fig. 6."""
+        c = np.asarray(c, dtype=float)
+        qc = c[..., _QC]
+        d = c[..., _D]
+        Ji = np.zeros(c.shape[:-1] + (8, 16))
+        dx1 = d[..., None, None] * jac_qrotate_quaternion(qc, g.EX)
+        u = g.x_axis(qc)
+        for rows, s in ((slice(0, 3), 1.0), (slice(4, 7), -1.0)):
+            Ji[..., rows, _XC] = np.eye(3)
+            Ji[..., rows, _QC] = s * dx1
+            Ji[..., rows, _D] = s * u
+        for k, sl in ((3, _Q1), (7, _Q2)):
+            qi = g.mul(qc, c[..., sl])
+            dy = g.d_yaw_of(qi)
+            Ji[..., k, _QC] = np.einsum("...j,...jk->...k", dy, qminus(c[..., sl]))
+            Ji[..., k, sl] = np.einsum("...j,...jk->...k", dy, qplus(qc))
+        return Ji
+
+    # -- monitoring and references ----------------------------------------------------
+    def euclidean(self, c, hint=None):
+        """Euclidean variables of ``c``, with the yaw read from the cluster frame's y axis.
+
+        For a frame without twist (``q_c = q_z(beta + pi/2) q_y(-gamma)``) the y axis is
+        ``(-cos beta, -sin beta, 0)``: ``beta`` and ``gamma`` follow from it on the full
+        circle, regular through ``gamma = +-pi/2``, where eq. (4) is undefined. For a
+        twisted frame they are those of the nearest twist-free frame.
+        """
+        c = self.check_cluster_state(c)
+        qc = c[..., _QC]
+        y = g.rotate(qc, np.array([0.0, 1.0, 0.0]))
+        u = g.x_axis(qc)
+        beta = np.arctan2(-y[..., 1], -y[..., 0])
+        if np.any(np.hypot(y[..., 0], y[..., 1]) < 1e-9):
+            raise DegenerateInputError(
+                "q_c's y axis is vertical (the cluster frame is rolled 90 deg about its segment); "
+                "its yaw is undefined - give a hint or a twist-free q_c"
+            )
+        psi = beta + 0.5 * np.pi
+        ux = np.cos(psi) * u[..., 0] + np.sin(psi) * u[..., 1]
+        gamma = np.arctan2(u[..., 2], ux)
+        e = np.empty(c.shape[:-1] + (8,))
+        e[..., 0:3] = c[..., _XC]
+        e[..., 3] = beta
+        e[..., 4] = gamma
+        e[..., 5] = c[..., _D]
+        e[..., 6] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q1])) - beta)
+        e[..., 7] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q2])) - beta)
+        if hint is not None:
+            hint = np.asarray(hint, dtype=float)
+            for i in (3, 4, 6, 7):
+                e[..., i] = g.unwrap_near(e[..., i], hint[..., i])
+        return e
+
+    def from_euclidean(self, e, e_dot=None):
+        """``q_c = q_z(beta + pi/2) q_y(-gamma)``, ``q_ci = q_c* q_z(phi_i + beta)``: continuous in ``e``."""
+        e = EuclideanPair().check_cluster_state(e, "e")
+        beta, gamma = e[..., 3], e[..., 4]
+        qz, qy = g.q_yaw(beta + 0.5 * np.pi), g.q_pitch_y(-gamma)
+        qc = g.mul(qz, qy)
+        q1, q2 = g.q_yaw(e[..., 6] + beta), g.q_yaw(e[..., 7] + beta)
+        c = np.empty(e.shape[:-1] + (16,))
+        c[..., _XC] = e[..., 0:3]
+        c[..., _QC] = qc
+        c[..., _D] = e[..., 5]
+        c[..., _Q1] = g.mul(g.conj(qc), q1)
+        c[..., _Q2] = g.mul(g.conj(qc), q2)
+        if e_dot is None:
+            return c
+        ed = EuclideanPair().check_cluster_state(e_dot, "e_dot")
+        qc_dot = ed[..., 3, None] * g.mul(_yaw_rate_column(qz), qy) + g.mul(
+            qz, -ed[..., 4, None] * 0.5 * g.mul(qy, np.array([0.0, 0.0, 1.0, 0.0]))
+        )
+        cd = np.empty_like(c)
+        cd[..., _XC] = ed[..., 0:3]
+        cd[..., _QC] = qc_dot
+        cd[..., _D] = ed[..., 5]
+        for sl, qi, k in ((_Q1, q1, 6), (_Q2, q2, 7)):
+            qi_dot = (ed[..., k] + ed[..., 3])[..., None] * _yaw_rate_column(qi)
+            cd[..., sl] = g.mul(g.conj(qc_dot), qi) + g.mul(g.conj(qc), qi_dot)
+        return c, cd

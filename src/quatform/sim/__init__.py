@@ -1,0 +1,8 @@
+"""Sim layer: scenarios, the closed loop and its metrics (above references and control)."""
+
+from .metrics import compute_metrics, errors_from_robots
+from .runner import Run, simulate
+from .scenario import Scenario, builtin_scenarios, load_scenario
+
+__all__ = ["Run", "simulate", "compute_metrics", "errors_from_robots", "Scenario", "load_scenario",
+           "builtin_scenarios"]
