@@ -1,7 +1,8 @@
-"""The quatform command: --help, --version, demo, one-line errors."""
+"""The quatform command: --help, --version, demo, run, compare, scenarios, one-line errors."""
 
 from __future__ import annotations
 
+import csv
 import json
 import subprocess
 import sys
@@ -11,42 +12,82 @@ import pytest
 import quatform
 from quatform import cli
 
+PNG = b"\x89PNG\r\n\x1a\n"
+
 
 def test_version_and_help(capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["--version"])
     assert e.value.code == 0
     assert capsys.readouterr().out.strip() == f"quatform {quatform.__version__}"
-    for argv in (["--help"], ["demo", "--help"]):
+    for argv in (["--help"], ["demo", "--help"], ["run", "--help"], ["compare", "--help"],
+                 ["scenarios", "--help"]):
         with pytest.raises(SystemExit) as e:
             cli.main(argv)
         assert e.value.code == 0
         assert "usage: quatform" in capsys.readouterr().out
 
 
-def test_demo_writes_summary_and_plot(tmp_path, capsys):
-    assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+def test_scenarios_lists_builtins(capsys):
+    assert cli.main(["scenarios"]) == 0
     out = capsys.readouterr().out
-    assert "Cluster frame" in out
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["cluster_frame"]["decoupled"]["distance_to_midpoint_m"] < 1e-12
-    assert summary["cluster_frame"]["screw"]["distance_to_midpoint_m"] > 0.1
-    rows = summary["rate_conditioning"]
-    assert rows[-1]["euler_rate_gain"] == float("inf")
-    assert all(abs(r["quaternion_rate_gain_max"] - 0.5) < 1e-12 for r in rows)
-    assert summary["integrator_drift"]["exp"]["angle_error_rad"] < 1e-10
-    png = (tmp_path / "demo.png").read_bytes()
-    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+    assert "mas-kitts-spiral" in out and "seed 000" in out
 
 
-def test_console_script_error_is_one_line(tmp_path):
-    # a file where the output directory should go: the error is reported, not a traceback
+def test_run_writes_metrics_timeseries_and_plots(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    for key in ("controller", "scenario", "singularity_detected", "first_singular_time_s",
+                "max_cluster_position_error_m", "max_shape_error_m", "max_orientation_error_rad",
+                "max_robot_position_error_m", "min_robot_separation_m",
+                "max_recovered_euclidean_error_rad", "nonfinite_commands"):
+        assert key in m, key
+    assert m["controller"] == "quaternion" and m["scenario"] == "mas-kitts-yaw-step"
+    with open(out / "timeseries.csv") as f:
+        header = next(csv.reader(f))
+        rows = list(csv.reader(f))
+    for col in ("t", "x1", "x1_des", "q_c_w", "q_c_w_des", "q_c1_z", "d_c", "d_c_des",
+                "euclid_beta_c", "euclid_beta_c_des", "u_x1", "singularity_measure"):
+        assert col in header, col
+    assert len(rows) == 1001 and all(len(r) == len(header) for r in rows)
+    pngs = sorted(p.name for p in out.glob("*.png"))
+    assert pngs and all((out / p).read_bytes()[:8] == PNG for p in pngs)
+    assert "quaternion" in capsys.readouterr().out
+
+
+def test_compare_writes_table_and_fig13(tmp_path, capsys):
+    out = tmp_path / "cmp"
+    assert cli.main(["compare", "mas-kitts-yaw-step", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    for name in ("cluster-space", "robot-space", "quaternion", "dual-quaternion"):
+        assert name in text
+        assert (out / name / "metrics.json").exists()
+    rows = json.loads((out / "comparison.json").read_text())
+    assert [r["controller"] for r in rows] == ["cluster-space", "robot-space", "quaternion", "dual-quaternion"]
+    assert (out / "compare_errors.png").read_bytes()[:8] == PNG
+    assert "| controller |" in (out / "comparison.md").read_text()
+
+
+@pytest.mark.parametrize("argv, msg", [
+    (["run", "no-such", "--controller", "quaternion", "--out", "x"], "unknown scenario"),
+])
+def test_errors_are_one_line(tmp_path, argv, msg):
+    proc = subprocess.run([sys.executable, "-m", "quatform.cli", *argv], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("quatform: error:") and msg in lines[0]
+
+
+def test_file_system_error_is_one_line(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     proc = subprocess.run(
-        [sys.executable, "-m", "quatform.cli", "demo", "--out", str(blocker / "sub")],
-        capture_output=True, text=True,
+        [sys.executable, "-m", "quatform.cli", "run", "mas-kitts-yaw-step", "--controller", "quaternion",
+         "--out", str(blocker / "sub")], capture_output=True, text=True,
     )
-    assert proc.returncode != 0
-    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("quatform: error:")
+    assert proc.returncode == 1
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip() and not ln.startswith("\r")]
+    assert lines[-1].startswith("quatform: error:")
+    assert all(ln.startswith("quatform: error:") or "%" in ln for ln in lines)

@@ -225,6 +225,11 @@ def test_dual_quaternion_pair_does_not_fix_the_branch():
     for s in (slice(0, 8), slice(8, 16)):
         assert min(np.abs(c[s] - c2[s]).max(), np.abs(c[s] + c2[s]).max()) < 1e-12
     np.testing.assert_allclose(D.inverse(c, hint=r), r, atol=1e-12)
+    # monitoring needs the robots too: with the turned formation's Euclidean state as the
+    # hint, the measured robots still come back (on the (beta + pi, pi - gamma) branch
+    # nearest the hint)
+    got = EuclideanPair().inverse(D.euclidean(c, EuclideanPair().forward(turned), r))
+    np.testing.assert_allclose(g.wrap(got - r), 0, atol=1e-9)
     back = D.inverse(c, hint=turned)
     np.testing.assert_allclose(back[[0, 1, 2, 4, 5, 6]], turned[[0, 1, 2, 4, 5, 6]], atol=1e-12)
 

@@ -11,6 +11,8 @@ import sys
 from . import __version__
 from .errors import QuatformError
 
+CONTROLLER_NAMES = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
+
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -20,15 +22,49 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"quatform {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
     demo = sub.add_parser(
         "demo",
-        help="show quatform at work on the seeds' questions",
-        description="Show the algebra at work: the seed 000 cluster frame with both "
-        "dual-quaternion square roots, Euler-angle vs quaternion rates through pitch 90 deg, "
-        "and the drift of the seed 001 integrators.",
+        help="compare the four seed 000 controllers on the rising spiral",
+        description="Run 'compare mas-kitts-spiral': the Euclidean cluster-space controller "
+        "meets the singular pose at pitch 90 deg, the robot-space controller mis-reports the "
+        "formation, the quaternion and dual-quaternion controllers track it. Writes every "
+        "run's files and plots and prints the table.",
     )
-    demo.add_argument("--out", metavar="DIR", help="also write summary.json and demo.png to DIR")
+    demo.add_argument("--out", metavar="DIR", default="quatform-demo",
+                      help="output folder (default: ./quatform-demo)")
+
+    run = sub.add_parser(
+        "run",
+        help="simulate one scenario with one controller",
+        description="Simulate SCENARIO (a built-in name or a .toml file) and write DIR/metrics.json, "
+        "DIR/timeseries.csv and PNG plots.",
+    )
+    run.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
+    run.add_argument("--controller", required=True, choices=CONTROLLER_NAMES)
+    run.add_argument("--out", metavar="DIR", required=True, help="output folder")
+    run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+
+    cmp_ = sub.add_parser(
+        "compare",
+        help="run all four controllers on one scenario",
+        description="Run SCENARIO with every controller into DIR/<controller>/, draw the errors in "
+        "Euclidean cluster variables side by side (seed 000 Fig. 13) and print a table.",
+    )
+    cmp_.add_argument("scenario", metavar="SCENARIO")
+    cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
+
+    sub.add_parser("scenarios", help="list the built-in scenarios",
+                   description="List the built-in scenarios with their titles and sources.")
     return parser
+
+
+def _compare(scenario, out):
+    from .runs import compare_scenario, format_table
+
+    rows = compare_scenario(scenario, out)
+    print(format_table(rows))
+    print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,9 +75,20 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         if args.command == "demo":
-            from . import demo
+            _compare("mas-kitts-spiral", args.out)
+        elif args.command == "compare":
+            _compare(args.scenario, args.out)
+        elif args.command == "run":
+            from .runs import format_table, run_scenario
 
-            demo.run(args.out)
+            _, metrics = run_scenario(args.scenario, args.controller, args.out, plots=not args.no_plots)
+            print(format_table([metrics]))
+        elif args.command == "scenarios":
+            from .sim import builtin_scenarios, load_scenario
+
+            for name in sorted(builtin_scenarios()):
+                sc = load_scenario(name)
+                print(f"{name:24s} {sc.title} ({sc.source})")
     except QuatformError as exc:
         print(f"quatform: error: {exc}", file=sys.stderr)
         return 2

@@ -8,17 +8,18 @@ cluster state and rate, send the commands it returns.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..algebra._validate import as_array
-from ..errors import InvalidInputError
+from ..algebra._validate import UNIT_TOLERANCE, as_array
+from ..errors import DegenerateInputError, InvalidInputError, NonUnitError
 from ..formations.base import Formation
 from ..robots import Team
 
-__all__ = ["Reference", "StepResult", "Controller", "sgn"]
+__all__ = ["Reference", "StepResult", "Controller"]
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,7 @@ class StepResult:
         Measured cluster state (forward kinematics with the reference as hint).
     error : ndarray, shape (n_c,)
         ``c - c_des`` (angles wrapped).
-    raw_finite : bool
+    raw_finite : bool or ndarray of bool
         False if the unsaturated command had a NaN or infinity (it was replaced by zero).
     """
 
@@ -57,17 +58,53 @@ class StepResult:
     raw_finite: bool
 
 
-def sgn(x):
-    """Signum with ``sgn(0) = +1``: the seed's ``sgn(q_0)`` must pick a side at a 180 deg error."""
-    return np.where(x < 0.0, -1.0, 1.0)
+def check_units(comps, starts, dual=False, tol=UNIT_TOLERANCE):
+    """Raise NonUnitError if a (dual) quaternion of a reference is not unit beyond ``tol``.
+
+    ``comps``: components of the reference (floats or arrays); ``starts``: ``(index, name)``.
+    """
+    for i, name in starts:
+        q = comps[i:i + 4]
+        n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+        bad = abs(n2 ** 0.5 - 1.0) > tol
+        if dual:
+            d = comps[i + 4:i + 8]
+            bad = bad | (abs(q[0] * d[0] + q[1] * d[1] + q[2] * d[2] + q[3] * d[3]) > tol)
+        if bad if isinstance(bad, bool) else np.any(bad):
+            raise NonUnitError(
+                f"reference {name} is not a unit {'dual ' if dual else ''}quaternion "
+                f"(norm {float(np.max(np.sqrt(n2))):.9g}); build references with formation.from_euclidean "
+                "or normalise them"
+            )
+
+
+def check_separation(r, min_m=1e-9):
+    """Raise DegenerateInputError if the two robots of state components ``r`` coincide."""
+    d2 = (r[0] - r[4]) ** 2 + (r[1] - r[5]) ** 2 + (r[2] - r[6]) ** 2
+    close = d2 <= min_m * min_m
+    if close if isinstance(close, bool) else np.any(close):
+        raise DegenerateInputError(
+            f"measured robots coincide (separation {float(np.min(np.sqrt(d2))):.3g} m); a two-robot "
+            "formation is undefined there - stop the robots and separate them"
+        )
 
 
 def gains(values, n, name):
     """Positive finite gain vector of length ``n`` (a scalar is repeated)."""
-    g = np.broadcast_to(np.asarray(values, dtype=float), (n,)).copy()
+    try:
+        g = np.broadcast_to(np.asarray(values, dtype=float), (n,)).copy()
+    except (TypeError, ValueError):
+        g = np.full(n, np.nan)
     if not np.all(np.isfinite(g)) or np.any(g <= 0):
         raise InvalidInputError(f"{name} must be {n} positive finite gains, got {values!r}")
     return g
+
+
+def _checked(x, name, n):
+    """``as_array`` with a fast path for one finite float64 vector of length ``n``."""
+    if type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64 and math.isfinite(sum(x.tolist())):
+        return x
+    return as_array(x, name, n)
 
 
 class Controller(ABC):
@@ -80,16 +117,29 @@ class Controller(ABC):
     feedforward: bool
 
     def step(self, t: float, measured, reference: Reference) -> np.ndarray:
-        """Robot commands for measured robot state ``measured`` (shape ``(n_r,)``)."""
+        """Robot commands (shape ``(..., n_r)``) for the measured robot state ``measured``.
+
+        Parameters
+        ----------
+        t : float
+            Time, s (the seed's controllers do not use it).
+        measured : array_like, shape (..., n_r)
+            Measured robot state; leading axes are a batch of formations.
+        reference : Reference
+            Desired cluster state and rate, shape ``(..., n_c)`` each.
+        """
         return self.compute(t, measured, reference).commands
 
     def compute(self, t: float, measured, reference: Reference) -> StepResult:
         """One control step, with the intermediate quantities the simulator logs."""
-        r = as_array(measured, "measured robot state", self.formation.n_r)
-        c_des = as_array(reference.c, "reference.c", self.formation.n_c)
-        c_dot = as_array(reference.c_dot, "reference.c_dot", self.formation.n_c)
+        r = _checked(measured, "measured robot state", self.formation.n_r)
+        c_des = _checked(reference.c, "reference.c", self.formation.n_c)
+        c_dot = _checked(reference.c_dot, "reference.c_dot", self.formation.n_c)
         c, err, r_dot = self._control(r, c_des, c_dot)
-        finite = bool(np.all(np.isfinite(r_dot)))
+        if r_dot.ndim == 1:
+            finite = all(map(math.isfinite, r_dot.tolist()))
+        else:
+            finite = np.all(np.isfinite(r_dot), axis=-1)
         return StepResult(self.team.saturate(r_dot), c, err, finite)
 
     @abstractmethod

@@ -44,7 +44,7 @@ class _ProportionalController(Controller):
         c_cmd = -self.k * err
         if self.feedforward:
             c_cmd = c_cmd + c_dot_des
-        return c, err, F.inverse_jacobian_at(c, r) @ c_cmd
+        return c, err, np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r), c_cmd)
 
 
 @dataclass(frozen=True)

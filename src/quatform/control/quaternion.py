@@ -16,9 +16,10 @@ import numpy as np
 
 from ..formations import DualQuaternionPair, QuaternionPair
 from ..formations import _geometry as g
+from ..formations import _pair_kernels as kern
 from ..formations.base import Formation
 from ..robots import Team
-from .base import Controller, gains, sgn
+from .base import Controller, check_separation, check_units, gains
 from .cluster_space import TABLE1
 
 __all__ = [
@@ -100,27 +101,30 @@ class QuaternionController(Controller):
         object.__setattr__(self, "k_x", gains(self.k_x, 3, "k_x"))
         object.__setattr__(self, "k_d", float(gains(self.k_d, 1, "k_d")[0]))
         object.__setattr__(self, "k_w", gains(self.k_w, 3, "k_w"))
+        object.__setattr__(self, "_gains", (self.k_x.tolist(), self.k_d, self.k_w.tolist()))
 
     def _control(self, r, c_des, c_dot_des):
-        F = self.formation
-        c = F.forward(r, c_des)
-        err = c - c_des
-        cmd = np.empty(16)
-        cmd[0:3] = -self.k_x * err[0:3]  # x_c_dot = -K_x e_xc (+ x_c_dot_des)
-        cmd[7] = -self.k_d * err[7]
-        for s in _QSL:
-            q, qd = c[s], c_des[s]
-            qe = g.mul(g.conj(qd), q)  # body-frame error (eq. (20), order corrected)
-            err[s] = qe
-            w = np.zeros(4)
-            w[1:] = -sgn(qe[0]) * self.k_w * qe[1:]
-            cmd[s] = 0.5 * g.mul(q, w)  # eq. (20)
-            if self.feedforward:
-                cmd[s] += g.mul(g.mul(c_dot_des[s], g.conj(qd)), q)
-        if self.feedforward:
-            cmd[0:3] += c_dot_des[0:3]
-            cmd[7] += c_dot_des[7]
-        return c, err, F.inverse_jacobian_at(c, r) @ cmd
+        rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
+        check_units(cd, ((3, "q_c"), (8, "q_c1"), (12, "q_c2")))
+        check_separation(rc)
+        c = kern.quat_forward(rc, cd[3:7], cd[8:12], cd[12:16])
+        kx, kd, kw = self._gains
+        ff = 1.0 if self.feedforward else 0.0
+        err = [c[i] - cd[i] for i in range(16)]
+        cmd = [-kx[i] * err[i] + ff * cdd[i] for i in range(3)] + [None] * 13
+        cmd[7] = -kd * err[7] + ff * cdd[7]
+        for i in (3, 8, 12):
+            q, qd, qdd = c[i:i + 4], cd[i:i + 4], cdd[i:i + 4]
+            qe = kern.qmul(*kern.qconj(qd), *q)  # body-frame error (eq. (20), order corrected)
+            err[i:i + 4] = qe
+            s = 1.0 - 2.0 * (qe[0] < 0.0)  # sgn(qe_0), +1 at 0
+            w = (0.0, -s * kw[0] * qe[1], -s * kw[1] * qe[2], -s * kw[2] * qe[3])
+            qdot = kern.qscale(0.5, kern.qmul(*q, *w))  # eq. (20)
+            if ff:
+                qdot = kern.qadd(qdot, kern.qmul(*kern.qmul(*qdd, *kern.qconj(qd)), *q))
+            cmd[i:i + 4] = qdot
+        r_dot = kern.quat_inverse_jvp(c, tuple(cmd))
+        return kern.pack(c), kern.pack(tuple(err)), kern.pack(r_dot)
 
 
 @dataclass(frozen=True)
@@ -141,21 +145,25 @@ class DualQuaternionController(Controller):
 
     def __post_init__(self):
         object.__setattr__(self, "k_dw", gains(self.k_dw, 3, "k_dw"))
+        object.__setattr__(self, "_gains", self.k_dw.tolist())
 
     def _control(self, r, c_des, c_dot_des):
-        F = self.formation
-        c = F.forward(r, c_des)
-        err = np.empty(16)
-        cmd = np.empty(16)
-        for s in (slice(0, 8), slice(8, 16)):
-            q, qd = c[s], c_des[s]
-            qe = _dqmul(_dqconj(qd), q)  # body-frame error (eq. (28), order corrected)
-            err[s] = qe
-            w = np.zeros(8)
-            k = -sgn(qe[0]) * self.k_dw
-            w[1:4] = k * qe[1:4]
-            w[5:8] = k * qe[5:8]
-            cmd[s] = 0.5 * _dqmul(q, w)  # eq. (28)
+        rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
+        check_units(cd, ((0, "qhat_c"), (8, "qhat_s")), dual=True)
+        check_separation(rc)
+        c = kern.dq_forward(rc, cd[0:4], cd[8:12])
+        kw = self._gains
+        err, cmd = [], []
+        for i in (0, 8):
+            q, qd, qdd = c[i:i + 8], cd[i:i + 8], cdd[i:i + 8]
+            qe = kern.dqmul(kern.dqconj(qd), q)  # body-frame error (eq. (28), order corrected)
+            err += qe
+            s = 1.0 - 2.0 * (qe[0] < 0.0)
+            w = (0.0, -s * kw[0] * qe[1], -s * kw[1] * qe[2], -s * kw[2] * qe[3],
+                 0.0, -s * kw[0] * qe[5], -s * kw[1] * qe[6], -s * kw[2] * qe[7])
+            qdot = kern.qscale(0.5, kern.dqmul(q, w))  # eq. (28)
             if self.feedforward:
-                cmd[s] += _dqmul(_dqmul(c_dot_des[s], _dqconj(qd)), q)
-        return c, err, F.inverse_jacobian_at(c, r) @ cmd
+                qdot = kern.dqadd(qdot, kern.dqmul(kern.dqmul(qdd, kern.dqconj(qd)), q))
+            cmd += qdot
+        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), kern.dq_root_of_robots(rc, c[0:8]))
+        return kern.pack(c), kern.pack(tuple(err)), kern.pack(r_dot)

@@ -141,11 +141,12 @@ class Formation(ABC):
         picks the branch where ``INVKIN`` has several (shape ``(..., n_r, n_c)``)."""
 
     @abstractmethod
-    def euclidean(self, c, hint=None) -> np.ndarray:
+    def euclidean(self, c, hint=None, r=None) -> np.ndarray:
         """Operator-friendly Euclidean variables ``(x_c, y_c, z_c, beta_c, gamma_c, d_c,
         phi_1, phi_2)`` of the cluster state ``c``, shape ``(..., 8)``.
 
-        ``hint``: Euclidean variables to stay closest to (the desired ones, for monitoring).
+        ``hint``: Euclidean variables to stay closest to (the desired ones, for monitoring);
+        ``r``: the robots of ``c``, for a description whose state does not fix them.
         """
 
     @abstractmethod

@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra._validate import as_unit_dual_quaternion
-from ..algebra.operators import dqminus, dqplus, qminus, qplus
 from ..errors import UnreachableError
 from . import _geometry as g
+from . import _pair_kernels as kern
 from .base import Formation, Variable
 from .euclidean_pair import EuclideanPair
 from .quaternion_pair import TILT_TOL, QuaternionPair
@@ -31,7 +31,6 @@ __all__ = ["DualQuaternionPair"]
 
 _QC, _QS = slice(0, 8), slice(8, 16)
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
-_C4 = np.diag([1.0, -1.0, -1.0, -1.0])
 _C8 = np.diag([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
@@ -92,14 +91,10 @@ class DualQuaternionPair(Formation):
         """
         r = self.check_robot_state(r)
         self._check_separation(r[..., 0:3] - r[..., 4:7])
-        qc = _pose_dq(g.q_yaw(0.5 * (r[..., 3] + r[..., 7])), 0.5 * (r[..., 0:3] + r[..., 4:7]))
-        ts = np.einsum("...ij,...j->...i", _rot_z_T(r[..., 7]), r[..., 0:3] - r[..., 4:7])
-        qs = _pose_dq(g.q_yaw(r[..., 3] - r[..., 7]), ts)
-        if hint is not None:
-            hint = self.check_cluster_state(hint, "hint")
-            qc = np.where((g.dot(qc[..., :4], hint[..., 0:4]) < 0)[..., None], -qc, qc)
-            qs = np.where((g.dot(qs[..., :4], hint[..., 8:12]) < 0)[..., None], -qs, qs)
-        return np.concatenate([qc, qs], axis=-1)
+        if hint is None:
+            return kern.pack(kern.dq_forward(kern.unpack(r)))
+        h = kern.unpack(self.check_cluster_state(hint, "hint"))
+        return kern.pack(kern.dq_forward(kern.unpack(r), h[0:4], h[8:12]))
 
     def _branch(self, c, hint_r):
         """Root ``h`` of each state: the one whose robots are nearest ``hint_r`` (short if None)."""
@@ -187,58 +182,26 @@ class DualQuaternionPair(Formation):
         root without them.
         """
         c = np.asarray(c, dtype=float)
-        qc, qs = c[..., _QC], c[..., _QS]
         if r is None:
-            h = self._roots(qs)[0]
+            h = self._roots(c[..., _QS])[0]
         else:
-            r = np.asarray(r, dtype=float)
-            h = _dqmul(_dqconj(_pose_dq(g.q_yaw(r[..., 7]), r[..., 4:7])), qc)
-        dq2 = _dqmul(qc, _dqconj(h))
-        dq1 = _dqmul(dq2, qs)
-        # derivative of the root h(qs): r_h = n(1 + sig r_s) (r_h k on the long branch),
-        # d_h = 1/2 (d_s r_s*) r_h
-        rs, ds = qs[..., :4], qs[..., 4:]
-        sig = np.where(rs[..., 0] < 0, -1.0, 1.0)[..., None, None]
-        v = g.closest_sign(rs, np.array([1.0, 0.0, 0.0, 0.0]))
-        v = v.copy()
-        v[..., 0] += 1.0
-        nv = np.linalg.norm(v, axis=-1)
-        n = v / nv[..., None]
-        d_n = sig * (np.eye(4) - n[..., :, None] * n[..., None, :]) / nv[..., None, None]
-        rh = h[..., :4]
-        long = np.abs(g.dot(rh, n)) < 0.5
-        d_rh = np.where(long[..., None, None], qminus(_KZ) @ d_n, d_n)
-        # h may be either sign of its root: the derivative follows the sign
-        n_b = np.where(long[..., None], g.mul(n, _KZ), n)
-        d_rh = d_rh * np.where(g.dot(rh, n_b) < 0, -1.0, 1.0)[..., None, None]
-        ts2 = g.mul(ds, g.conj(rs))  # t_s / 2 as a quaternion
-        dH = np.zeros(c.shape[:-1] + (8, 8))
-        dH[..., :4, :4] = d_rh
-        dH[..., 4:, :4] = 0.5 * (qminus(rh) @ qplus(ds) @ _C4 + qplus(ts2) @ d_rh)
-        dH[..., 4:, 4:] = 0.5 * qminus(rh) @ qminus(g.conj(rs))
-        # qhat_2 = qhat_c h*, qhat_1 = qhat_2 qhat_s
-        d2_dqc = dqminus(_dqconj(h))
-        d2_dqs = dqplus(qc) @ _C8 @ dH
-        d1_dqc = dqminus(qs) @ d2_dqc
-        d1_dqs = dqminus(qs) @ d2_dqs + dqplus(dq2)
-        Ji = np.zeros(c.shape[:-1] + (8, 16))
-        for k, dq, dqc_, dqs_ in ((0, dq1, d1_dqc, d1_dqs), (4, dq2, d2_dqc, d2_dqs)):
-            P = _pose_partials(dq)  # (..., 4, 8): d(p, theta)/d dq
-            Ji[..., k:k + 4, _QC] = P @ dqc_
-            Ji[..., k:k + 4, _QS] = P @ dqs_
-        return Ji
+            h = kern.pack(kern.dq_root_of_robots(kern.unpack(np.asarray(r, dtype=float)), kern.unpack(c[..., _QC])))
+        return kern.jacobian_from_jvp(kern.dq_inverse_jvp, c, 16, kern.unpack(h))
 
-    def euclidean(self, c, hint=None):
+    def euclidean(self, c, hint=None, r=None):
         """Euclidean variables of the robots of ``c``, read through the quaternion cluster frame.
 
         The dual quaternions carry no frame on the segment, so the branch of ``(beta_c,
         gamma_c)`` near the vertical is taken from ``hint`` (the desired Euclidean state)
-        through :meth:`QuaternionPair.euclidean`; without a hint, eqs. (1)-(8). The hint's
-        robots also pick the square-root branch of the inverse kinematics.
+        through :meth:`QuaternionPair.euclidean`; without a hint, eqs. (1)-(8). The pair
+        does not fix the robots (two branches): give the measured robots ``r``; without
+        them the hint's robots pick the branch, which is wrong right after a step of the
+        reference by half a turn.
         """
+        branch = r if r is not None else (None if hint is None else EuclideanPair().inverse(hint))
+        r = self.inverse(c, branch)
         if hint is None:
-            return EuclideanPair().forward(self.inverse(c))
-        r = self.inverse(c, EuclideanPair().inverse(hint))
+            return EuclideanPair().forward(r)
         qp = QuaternionPair()
         return qp.euclidean(qp.forward(r, qp.from_euclidean(hint)), hint)
 
@@ -271,13 +234,3 @@ def _rot_z_T(theta):
     c, s = np.cos(theta), np.sin(theta)
     z, o = np.zeros_like(c), np.ones_like(c)
     return np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def _pose_partials(dq):
-    """``d(p, theta)/d dq`` at a unit pose ``dq``: ``p = 2 vec(d r*)``, ``theta = yaw(r)``, (..., 4, 8)."""
-    r, d = dq[..., :4], dq[..., 4:]
-    P = np.zeros(dq.shape[:-1] + (4, 8))
-    P[..., 0:3, 0:4] = 2.0 * (qplus(d) @ _C4)[..., 1:, :]
-    P[..., 0:3, 4:8] = 2.0 * qminus(g.conj(r))[..., 1:, :]
-    P[..., 3, 0:4] = g.d_yaw_of(r)
-    return P

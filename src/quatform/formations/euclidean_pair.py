@@ -145,7 +145,7 @@ class EuclideanPair(Formation):
         Ji[..., 7, 3] = Ji[..., 7, 7] = 1.0
         return Ji
 
-    def euclidean(self, c, hint=None):
+    def euclidean(self, c, hint=None, r=None):
         c = self.check_cluster_state(c)
         if hint is None:
             return c.copy()
@@ -195,7 +195,7 @@ class RobotSpace(Formation):
     def length_scale(self, r):
         return np.ones(np.shape(r)[:-1])
 
-    def euclidean(self, c, hint=None):
+    def euclidean(self, c, hint=None, r=None):
         return self._euclidean.euclidean(self._euclidean.forward(c, None), hint)
 
     def from_euclidean(self, e, e_dot=None):

@@ -19,9 +19,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra._validate import as_unit_quaternion
-from ..algebra.operators import jac_qrotate_quaternion, qminus, qplus, skew
+from ..algebra.operators import qminus, qplus, skew
 from ..errors import DegenerateInputError, UnreachableError
 from . import _geometry as g
+from . import _pair_kernels as kern
 from .base import Formation, Variable, quaternion_variables
 from .euclidean_pair import EuclideanPair
 
@@ -64,27 +65,14 @@ class QuaternionPair(Formation):
     # -- kinematics -------------------------------------------------------------------
     def forward(self, r, hint=None):
         r = self.check_robot_state(r)
-        p1, p2 = r[..., 0:3], r[..., 4:7]
-        delta = p1 - p2
-        D = self._check_separation(delta)
-        u = delta / D[..., None]
-        c = np.empty(r.shape[:-1] + (16,))
-        c[..., _XC] = 0.5 * (p1 + p2)  # seed 000 eq. (9)
-        c[..., _D] = 0.5 * D  # eq. (11)
-        q1, q2 = g.q_yaw(r[..., 3]), g.q_yaw(r[..., 7])
+        self._check_separation(r[..., 0:3] - r[..., 4:7])
         if hint is None:
-            # eqs. (10), (14), (15): minimal rotation from i to the segment
-            qc = g.swing(g.EX, u, g.EZ)
-            qc1, qc2 = g.mul(g.conj(qc), q1), g.mul(g.conj(qc), q2)  # eqs. (12)-(13)
+            # eqs. (10), (14), (15): the minimal rotation from i (the hint q_c = 1)
+            out = kern.quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0))
         else:
-            hint = self.check_cluster_state(hint, "hint")
-            qh = hint[..., _QC]
-            qc = g.mul(g.swing(g.x_axis(qh), u, g.z_axis(qh)), qh)
-            qc = g.closest_sign(qc, qh)
-            qc1 = g.closest_sign(g.mul(g.conj(qc), q1), hint[..., _Q1])
-            qc2 = g.closest_sign(g.mul(g.conj(qc), q2), hint[..., _Q2])
-        c[..., _QC], c[..., _Q1], c[..., _Q2] = qc, qc1, qc2
-        return c
+            h = kern.unpack(self.check_cluster_state(hint, "hint"))
+            out = kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16])
+        return kern.pack(out)
 
     def inverse(self, c, hint=None):
         c = self.check_cluster_state(c)
@@ -140,25 +128,10 @@ class QuaternionPair(Formation):
 
     def inverse_jacobian_at(self, c, r=None):
         """Derivative of eqs. (16)-(19) at ``c``: the 8 x 16 matrix of seed 000 Fig. 6."""
-        c = np.asarray(c, dtype=float)
-        qc = c[..., _QC]
-        d = c[..., _D]
-        Ji = np.zeros(c.shape[:-1] + (8, 16))
-        dx1 = d[..., None, None] * jac_qrotate_quaternion(qc, g.EX)
-        u = g.x_axis(qc)
-        for rows, s in ((slice(0, 3), 1.0), (slice(4, 7), -1.0)):
-            Ji[..., rows, _XC] = np.eye(3)
-            Ji[..., rows, _QC] = s * dx1
-            Ji[..., rows, _D] = s * u
-        for k, sl in ((3, _Q1), (7, _Q2)):
-            qi = g.mul(qc, c[..., sl])
-            dy = g.d_yaw_of(qi)
-            Ji[..., k, _QC] = np.einsum("...j,...jk->...k", dy, qminus(c[..., sl]))
-            Ji[..., k, sl] = np.einsum("...j,...jk->...k", dy, qplus(qc))
-        return Ji
+        return kern.jacobian_from_jvp(kern.quat_inverse_jvp, c, 16)
 
     # -- monitoring and references ----------------------------------------------------
-    def euclidean(self, c, hint=None):
+    def euclidean(self, c, hint=None, r=None):
         """Euclidean variables of ``c``, with the yaw read from the cluster frame's y axis.
 
         For a frame without twist (``q_c = q_z(beta + pi/2) q_y(-gamma)``) the y axis is

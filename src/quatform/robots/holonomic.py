@@ -7,6 +7,7 @@ norm (the direction is kept), the yaw rate in magnitude.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,8 @@ class HolonomicRobot:
         -------
         ndarray, shape (..., 4)
         """
+        if isinstance(u, np.ndarray) and u.shape == (4,):
+            return np.array(self._saturate_one(*u.tolist()))
         u = np.array(u, dtype=float)
         if u.shape[-1:] != (4,):
             raise InvalidInputError(f"a 4-DOF robot command has shape (..., 4), got {u.shape}")
@@ -59,6 +62,16 @@ class HolonomicRobot:
         u[..., :3] *= scale[..., None]
         u[..., 3] = np.clip(u[..., 3], -self.max_yaw_rate, self.max_yaw_rate)
         return u
+
+    def _saturate_one(self, vx, vy, vz, wz):
+        """Fast path for one command (Python floats)."""
+        if not all(map(math.isfinite, (vx, vy, vz, wz))):
+            return 0.0, 0.0, 0.0, 0.0
+        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if speed > self.max_speed:
+            s = self.max_speed / speed
+            vx, vy, vz = vx * s, vy * s, vz * s
+        return vx, vy, vz, min(max(wz, -self.max_yaw_rate), self.max_yaw_rate)
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` seconds of the saturated command ``u`` (exact)."""
@@ -79,6 +92,9 @@ class Team:
         u = np.asarray(u, dtype=float)
         if u.shape[-1:] != (self.n,):
             raise InvalidInputError(f"team command must have shape (..., {self.n}), got {u.shape}")
+        if u.ndim == 1:
+            v = u.tolist()
+            return np.array([x for i, rb in enumerate(self.robots) for x in rb._saturate_one(*v[4 * i:4 * i + 4])])
         return np.concatenate(
             [rb.saturate(u[..., 4 * i:4 * i + 4]) for i, rb in enumerate(self.robots)], axis=-1
         )

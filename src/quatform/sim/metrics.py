@@ -82,5 +82,6 @@ def compute_metrics(run: Run) -> dict:
         "min_robot_separation_m": float(err["separation"].min()),
         "max_recovered_euclidean_error_rad": mx("recovered_euclidean"),
         "nonfinite_commands": int((~run.raw_finite).sum()),
-        "max_command_speed_m_s": float(np.max(np.linalg.norm(run.u[:, [0, 1, 2]], axis=1).max(initial=0.0))),
+        "max_command_speed_m_s": float(max(np.linalg.norm(run.u[:, 0:3], axis=1).max(),
+                                            np.linalg.norm(run.u[:, 4:7], axis=1).max())),
     }

@@ -90,6 +90,6 @@ def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool
         state = ctrl.team.step(state, res.commands, dt)
         if progress is not None and (k + 1) % tick == 0:
             progress((k + 1) / n)
-    e = F.euclidean(c, e_des)
+    e = F.euclidean(c, e_des, r)
     sing = F.singularity_measure(r, c_des)
     return Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing)

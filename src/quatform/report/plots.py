@@ -1,0 +1,517 @@
+"""Report layer: PNG figures of runs, like seed 000 Figs. 9-13 (above sim).
+
+Every function draws on its own :class:`matplotlib.figure.Figure` attached to an Agg
+canvas, so nothing here touches pyplot's global state or needs a display. Lines are
+decimated to at most ``MAX_POINTS`` samples; the singular-pose shading is computed on
+every sample.
+
+* :func:`plot_cluster_variables` - each variable of the controller's own description,
+  measured against desired (seed Figs. 9, 11, 12; the recovered Euclidean variables for
+  the robot-space controller, as in Fig. 10).
+* :func:`plot_euclidean` - the eight Euclidean variables an operator monitors.
+* :func:`plot_paths_3d` - both robots' paths in 3-D, with the segment between them drawn
+  as a time-lapse.
+* :func:`plot_compare` - errors of several controllers on one scenario (Fig. 13).
+* :func:`plot_separation` - robot separation against time (Fig. 4).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import MaxNLocator
+from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
+
+from ..errors import InvalidInputError
+from ..formations import EUCLIDEAN_VARIABLES
+from ..sim import Run, errors_from_robots
+from ..sim.metrics import SINGULAR_THRESHOLD
+
+__all__ = [
+    "DPI",
+    "MAX_POINTS",
+    "plot_cluster_variables",
+    "plot_compare",
+    "plot_euclidean",
+    "plot_paths_3d",
+    "plot_separation",
+    "write_compare_plots",
+    "write_run_plots",
+]
+
+#: Most samples drawn per line.
+MAX_POINTS = 2000
+#: Resolution of the written PNG files.
+DPI = 110
+
+_MEAS_STYLE = {"color": "C0", "lw": 1.2, "ls": "-"}
+_DES_STYLE = {"color": "C3", "lw": 1.0, "ls": "--"}
+_SINGULAR_COLOR = "#f4b6b6"
+_ANGLE_TICKS = (-np.pi, -np.pi / 2, 0.0, np.pi / 2, np.pi)
+_ANGLE_LABELS = ("-π", "-π/2", "0", "π/2", "π")
+#: Smallest half-height of a non-angle axes, so round-off (1e-16) is not blown up to fill it.
+_MIN_HALF_SPAN = 1e-3
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _new_figure(figsize) -> Figure:
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+def _wrap(a):
+    """Angles folded into ``[-pi, pi)``."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def _finite(a):
+    """A float copy of ``a`` with infinities replaced by NaN (matplotlib skips NaN)."""
+    a = np.array(a, dtype=float)
+    a[~np.isfinite(a)] = np.nan
+    return a
+
+
+def _decimate(n: int, max_points: int = MAX_POINTS) -> np.ndarray:
+    """Indices of at most about ``max_points`` evenly strided samples, last one kept."""
+    if n <= max_points:
+        return np.arange(n)
+    step = int(np.ceil(n / max_points))
+    idx = np.arange(0, n, step)
+    if idx[-1] != n - 1:
+        idx = np.append(idx, n - 1)
+    return idx
+
+
+def _break_wraps(y):
+    """Insert NaN where a wrapped angle jumps by more than pi, so no vertical line is drawn."""
+    y = np.asarray(y, dtype=float)
+    if y.size < 2:
+        return y
+    jump = np.abs(np.diff(y)) > np.pi
+    out = y.copy()
+    out[1:][jump] = np.nan
+    return out
+
+
+def _intervals(t, mask):
+    """``(start, stop)`` times of the runs of True in ``mask``."""
+    mask = np.asarray(mask, dtype=bool)
+    if not mask.any():
+        return []
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts = np.flatnonzero(edges == 1)
+    stops = np.flatnonzero(edges == -1) - 1
+    dt = float(t[1] - t[0]) if t.size > 1 else 0.0
+    return [(float(t[a]), float(t[b]) + dt) for a, b in zip(starts, stops)]
+
+
+def _shade(ax, spans):
+    for a, b in spans:
+        ax.axvspan(a, b, color=_SINGULAR_COLOR, alpha=0.6, lw=0, zorder=0)
+
+
+def _title(run: Run) -> str:
+    return f"{run.scenario.name} - {run.controller.name}"
+
+
+def _time_xlim(ax, t0: float, t1: float):
+    if t1 > t0:
+        ax.set_xlim(t0, t1)
+
+
+def _floor_ylim(ax, *series):
+    """Give flat signals an axes at least ``2 * _MIN_HALF_SPAN`` high, with no offset text."""
+    ax.ticklabel_format(axis="y", useOffset=False)
+    vals = np.concatenate([np.ravel(s) for s in series])
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return
+    lo, hi = float(vals.min()), float(vals.max())
+    if hi - lo < 2 * _MIN_HALF_SPAN:
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - 1.1 * _MIN_HALF_SPAN, mid + 1.1 * _MIN_HALF_SPAN)
+
+
+def _unit_label(var) -> str:
+    unit = "-" if var.unit in ("1", "") else var.unit
+    return f"{var.name} [{unit}]"
+
+
+def _signal_grid(fig, run: Run, meas, des, variables, ncols=4):
+    """Fill ``fig`` with one small axes per variable: measured (solid) vs desired (dashed)."""
+    n = len(variables)
+    nrows = int(np.ceil(n / ncols))
+    axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False)
+    idx = _decimate(run.t.size)
+    t = run.t[idx]
+    spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    for k, var in enumerate(variables):
+        ax = axes.flat[k]
+        y, yd = _finite(meas[idx, k]), _finite(des[idx, k])
+        if var.kind == "angle":
+            y, yd = _break_wraps(_wrap(y)), _break_wraps(_wrap(yd))
+            ax.set_ylim(-np.pi - 0.35, np.pi + 0.35)
+            ax.set_yticks(_ANGLE_TICKS, _ANGLE_LABELS)
+        else:
+            _floor_ylim(ax, y, yd)
+        _shade(ax, spans)
+        ax.plot(t, y, **_MEAS_STYLE)
+        ax.plot(t, yd, **_DES_STYLE)
+        ax.set_ylabel(_unit_label(var), fontsize=9)
+        ax.tick_params(labelsize=8)
+        ax.grid(True, lw=0.4, alpha=0.5)
+        _time_xlim(ax, float(run.t[0]), float(run.t[-1]))
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    for k in range(n):
+        if k + ncols >= n:  # lowest visible axes of its column
+            axes.flat[k].set_xlabel("time [s]", fontsize=9)
+            axes.flat[k].xaxis.set_tick_params(labelbottom=True)
+    handles = [Line2D([], [], **_MEAS_STYLE, label="measured"),
+               Line2D([], [], **_DES_STYLE, label="desired")]
+    if spans:
+        handles.append(Patch(color=_SINGULAR_COLOR, alpha=0.6,
+                             label=f"singular (measure < {SINGULAR_THRESHOLD:g})"))
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9,
+               frameon=False)
+    return axes
+
+
+def _grid_figsize(n, ncols=4):
+    nrows = int(np.ceil(n / ncols))
+    return (3.2 * ncols, 1.9 * nrows + 1.1)
+
+
+def _check_runs(runs) -> list:
+    runs = list(runs)
+    if not runs:
+        raise InvalidInputError("runs: need at least one Run to compare")
+    return runs
+
+
+# --------------------------------------------------------------------------- one run
+
+
+def plot_cluster_variables(run: Run, path) -> Path:
+    """Each cluster variable of the controller's description, measured against desired.
+
+    Like seed 000 Figs. 9, 11 and 12: one small axes per variable of
+    ``run.controller.formation.variables`` (8 for the Euclidean description, 16 for the
+    quaternion and dual-quaternion ones), measured solid, desired dashed, against time.
+    For the robot-space controller (formation ``'robot'``) the Euclidean variables it
+    recovers, ``run.e`` against ``run.e_des``, are drawn instead, as in Fig. 10. Angles are
+    wrapped to ``[-pi, pi)``, so a fold of the description shows as a jump. Times where
+    the singularity measure is below ``SINGULAR_THRESHOLD`` (0.02) are shaded light red.
+
+    Parameters
+    ----------
+    run : Run
+        A closed-loop run from :func:`quatform.sim.simulate`.
+    path : str or Path
+        PNG file to write; its folder is created if missing.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    F = run.controller.formation
+    if F.name == "robot":
+        variables, meas, des = EUCLIDEAN_VARIABLES, run.e, run.e_des
+        subtitle = "recovered Euclidean variables"
+    else:
+        variables, meas, des = F.variables, run.c, run.c_des
+        subtitle = f"{F.name} cluster variables"
+    fig = _new_figure(_grid_figsize(len(variables)))
+    _signal_grid(fig, run, np.asarray(meas), np.asarray(des), variables)
+    fig.suptitle(f"{_title(run)}\n{subtitle}", fontsize=11)
+    return _save(fig, path)
+
+
+def plot_euclidean(run: Run, path) -> Path:
+    """The eight Euclidean variables recovered by the controller's description.
+
+    The operator's monitoring view: ``run.e`` (solid) against ``run.e_des`` (dashed) for
+    ``x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2``; angles wrapped to
+    ``[-pi, pi)``; singular times shaded as in :func:`plot_cluster_variables`.
+
+    Parameters
+    ----------
+    run : Run
+        A closed-loop run.
+    path : str or Path
+        PNG file to write.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    fig = _new_figure(_grid_figsize(len(EUCLIDEAN_VARIABLES)))
+    _signal_grid(fig, run, np.asarray(run.e), np.asarray(run.e_des), EUCLIDEAN_VARIABLES)
+    fig.suptitle(f"{_title(run)}\nEuclidean variables (monitoring view)", fontsize=11)
+    return _save(fig, path)
+
+
+def _set_equalish_3d(ax, pts, min_fraction=0.25):
+    """Limits with one scale on every axis; an axis spans at least ``min_fraction`` of the largest."""
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if pts.size == 0:
+        return
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    center = 0.5 * (lo + hi)
+    span = hi - lo
+    big = max(float(span.max()), 1e-3)
+    span = np.maximum(span, min_fraction * big) * 1.1
+    ax.set_xlim(center[0] - span[0] / 2, center[0] + span[0] / 2)
+    ax.set_ylim(center[1] - span[1] / 2, center[1] + span[1] / 2)
+    ax.set_zlim(center[2] - span[2] / 2, center[2] + span[2] / 2)
+    ax.set_box_aspect(tuple(span / big))
+
+
+def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
+    """Both robots' paths in 3-D, measured (solid) and desired (dashed).
+
+    Start points are marked (circle: measured, hollow square: desired) and the segment
+    between the robots is drawn as a thin grey line at ``n_segments + 1`` evenly spaced
+    times (about every 10 % of the run), a time-lapse of the formation's attitude. The
+    axes share one scale (each spans at least a quarter of the largest extent).
+
+    Parameters
+    ----------
+    run : Run
+        A closed-loop run.
+    path : str or Path
+        PNG file to write.
+    n_segments : int, optional
+        Number of intervals of the time-lapse (default 10).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    r, rd = _finite(run.r), _finite(run.r_des)
+    fig = _new_figure((8.0, 6.8))
+    ax = fig.add_subplot(projection="3d")
+    idx = _decimate(r.shape[0])
+    ks = np.unique(np.linspace(0, r.shape[0] - 1, max(1, int(n_segments)) + 1).round().astype(int))
+    for k in ks:  # first, so the paths are drawn over them
+        seg = np.stack([r[k, 0:3], r[k, 4:7]])
+        ax.plot(*seg.T, color="0.6", lw=0.8, alpha=0.8)
+    for i, (sl, color) in enumerate(((slice(0, 3), "C0"), (slice(4, 7), "C1")), start=1):
+        p, pd = r[:, sl], rd[:, sl]
+        ax.plot(*p[idx].T, color=color, lw=1.4, ls="-", label=f"robot {i} measured")
+        ax.plot(*pd[idx].T, color=color, lw=1.0, ls="--", alpha=0.8, label=f"robot {i} desired")
+        ax.scatter(*p[0], color=color, marker="o", s=40, depthshade=False)
+        ax.scatter(*pd[0], facecolors="none", edgecolors=color, marker="s", s=60, depthshade=False)
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], color="0.6", lw=0.8, label="segment (every ~10 %)"),
+                Line2D([], [], color="k", marker="o", ls="none", label="start (measured)"),
+                Line2D([], [], color="k", marker="s", mfc="none", ls="none", label="start (desired)")]
+    ax.legend(handles=handles, fontsize=8, loc="upper left")
+    _set_equalish_3d(ax, np.concatenate([r[:, 0:3], r[:, 4:7], rd[:, 0:3], rd[:, 4:7]]))
+    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
+        axis.set_major_locator(MaxNLocator(5))
+        axis.set_tick_params(labelsize=8)
+        axis.set_label_text(f"{name} [m]")
+        axis.labelpad = 8
+    ax.set_title(_title(run), fontsize=11)
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- several runs
+
+
+@np.errstate(invalid="ignore", divide="ignore")
+def _compare_signals(run: Run) -> dict:
+    r, rd = np.asarray(run.r), np.asarray(run.r_des)
+    d_mid = 0.5 * (r[:, 0:3] + r[:, 4:7]) - 0.5 * (rd[:, 0:3] + rd[:, 4:7])
+    D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)
+    return {
+        "x_c": d_mid[:, 0],
+        "y_c": d_mid[:, 1],
+        "z_c": d_mid[:, 2],
+        "d_c": 0.5 * D - np.asarray(run.e_des)[:, 5],
+        "orientation": errors_from_robots(run)["orientation"],
+    }
+
+
+_COMPARE_ROWS = (
+    ("x_c", r"$e_{x_c}$ [m]"),
+    ("y_c", r"$e_{y_c}$ [m]"),
+    ("z_c", r"$e_{z_c}$ [m]"),
+    ("d_c", r"$e_{d_c}$ [m]"),
+    ("orientation", "orientation\nerror [rad]"),
+)
+
+
+def plot_compare(runs, path, linthresh: float = 1e-3) -> Path:
+    """Errors of several controllers on one scenario, like seed 000 Fig. 13.
+
+    Five rows sharing the time axis: the signed errors of the centroid ``x_c, y_c, z_c``
+    (midpoint of the measured robots minus midpoint of the desired ones), of the
+    half-separation ``d_c`` (``|p1 - p2| / 2 - d_c_des``) and the angle between the
+    measured and desired robot-to-robot directions. All are computed from the robots'
+    poses, so every controller is measured the same way. One line per run. The y axes are
+    symmetric-logarithmic (linear within ``linthresh``), so a controller that loses the
+    reference does not flatten the others; the limits ignore non-finite samples.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Runs of the same scenario with different controllers.
+    path : str or Path
+        PNG file to write.
+    linthresh : float, optional
+        Half-width of the linear band of the symlog scale (default 1e-3).
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``runs`` is empty.
+    """
+    runs = _check_runs(runs)
+    sig = [_compare_signals(run) for run in runs]
+    fig = _new_figure((9.0, 10.0))
+    axes = fig.subplots(len(_COMPARE_ROWS), 1, sharex=True)
+    for row, (key, label) in enumerate(_COMPARE_ROWS):
+        ax = axes[row]
+        peak = 0.0
+        for j, (run, s) in enumerate(zip(runs, sig)):
+            idx = _decimate(run.t.size)
+            y = _finite(s[key])
+            if np.isfinite(y).any():
+                peak = max(peak, float(np.nanmax(np.abs(y))))
+            ax.plot(run.t[idx], y[idx], color=f"C{j}", lw=1.1, label=run.controller.name)
+        ax.set_yscale("symlog", linthresh=linthresh)
+        lim = max(peak, linthresh) * 1.5
+        ax.set_ylim(0.0 if key == "orientation" else -lim, lim)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylabel(label, fontsize=9)
+        ax.tick_params(labelsize=8)
+        ax.grid(True, lw=0.4, alpha=0.5)
+    t_end = max(float(run.t[-1]) for run in runs)
+    _time_xlim(axes[-1], min(float(run.t[0]) for run in runs), t_end)
+    axes[-1].set_xlabel("time [s]")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(runs), 4), fontsize=9,
+               frameon=False)
+    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
+    fig.suptitle(f"{names} - errors by controller (symlog, linear within ±{linthresh:g})",
+                 fontsize=11)
+    return _save(fig, path)
+
+
+def plot_separation(runs, path) -> Path:
+    """Distance between the two robots ``|p1 - p2|`` against time, one line per run.
+
+    For the yaw step (seed 000 Fig. 4) this shows the robot-space controller bringing the
+    robots together while the cluster-space controllers keep them apart. The desired
+    separation ``2 d_c`` of the first run is drawn dashed.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Runs to draw (usually one scenario, several controllers).
+    path : str or Path
+        PNG file to write.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``runs`` is empty.
+    """
+    runs = _check_runs(runs)
+    fig = _new_figure((9.0, 4.2))
+    ax = fig.add_subplot()
+    for j, run in enumerate(runs):
+        idx = _decimate(run.t.size)
+        r = _finite(run.r)
+        D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)  # NaN where a robot is not finite
+        ax.plot(run.t[idx], D[idx], color=f"C{j}", lw=1.2, label=run.controller.name)
+    first = runs[0]
+    idx = _decimate(first.t.size)
+    ax.plot(first.t[idx], 2.0 * _finite(first.e_des[idx, 5]), color="k", lw=1.0, ls="--",
+            label="desired (2 d_c)")
+    ax.set_ylim(bottom=0.0)
+    _time_xlim(ax, min(float(run.t[0]) for run in runs), max(float(run.t[-1]) for run in runs))
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("separation |p1 - p2| [m]")
+    ax.grid(True, lw=0.4, alpha=0.5)
+    ax.legend(fontsize=9, loc="lower right")
+    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
+    ax.set_title(f"{names} - robot separation", fontsize=11)
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- files
+
+
+def write_run_plots(run: Run, out_dir) -> list[Path]:
+    """Write ``cluster_variables.png``, ``euclidean.png`` and ``paths_3d.png`` of one run.
+
+    Parameters
+    ----------
+    run : Run
+        A closed-loop run.
+    out_dir : str or Path
+        Folder to write into; created if missing.
+
+    Returns
+    -------
+    list of Path
+        The files written, in that order.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return [plot_cluster_variables(run, out / "cluster_variables.png"),
+            plot_euclidean(run, out / "euclidean.png"),
+            plot_paths_3d(run, out / "paths_3d.png")]
+
+
+def write_compare_plots(runs, out_dir) -> list[Path]:
+    """Write ``compare_errors.png`` and ``separation.png`` of several runs of one scenario.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Runs of one scenario, different controllers.
+    out_dir : str or Path
+        Folder to write into; created if missing.
+
+    Returns
+    -------
+    list of Path
+        The files written, in that order.
+    """
+    runs = _check_runs(runs)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return [plot_compare(runs, out / "compare_errors.png"),
+            plot_separation(runs, out / "separation.png")]

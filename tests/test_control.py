@@ -1,0 +1,181 @@
+"""Controllers of seed 000: contract, error order, Lyapunov functions (21) and (29)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from quatform.control import (
+    ClusterSpaceController,
+    DualQuaternionController,
+    QuaternionController,
+    Reference,
+    RobotSpaceController,
+    dual_quaternion_lyapunov,
+    quaternion_lyapunov,
+)
+from quatform.errors import DegenerateInputError, NonFiniteError, NonUnitError, ShapeError
+from quatform.formations import EuclideanPair
+from quatform.formations import _geometry as g
+from quatform.robots import HolonomicRobot, Team
+
+FREE = Team((HolonomicRobot(1e9, 1e9),) * 2)  # no saturation: the proofs assume none
+ALL = [ClusterSpaceController, RobotSpaceController, QuaternionController, DualQuaternionController]
+
+euclid = st.tuples(
+    *(st.floats(-2, 2) for _ in range(3)), st.floats(-np.pi, np.pi), st.floats(-1.4, 1.4),
+    st.floats(0.3, 2.0), st.floats(-np.pi, np.pi), st.floats(-np.pi, np.pi),
+).map(np.array)
+
+
+def closed_loop(ctrl, e0, e_des, steps=200, dt=0.004):
+    """Constant reference, no feed-forward: states and cluster states along the run."""
+    F = ctrl.formation
+    c_des = F.from_euclidean(e_des)
+    ref = Reference(c_des, np.zeros_like(c_des))
+    r = EuclideanPair().inverse(e0)
+    cs = []
+    for _ in range(steps):
+        res = ctrl.compute(0.0, r, ref)
+        cs.append(res.cluster)
+        r = r + dt * res.commands
+    return np.array(cs), c_des
+
+
+@settings(max_examples=40)
+@given(e0=euclid, e_des=euclid)
+def test_quaternion_lyapunov_21_decreases(e0, e_des):
+    ctrl = QuaternionController(team=FREE, feedforward=False)
+    cs, c_des = closed_loop(ctrl, e0, e_des)
+    V = quaternion_lyapunov(cs, c_des)
+    assert np.all(np.diff(V) <= 1e-9 * max(1.0, V[0]))
+    assert V[-1] < V[0] or V[0] < 1e-12
+
+
+def dq_vdot_formula(c, c_des, k):
+    """dV/dt of eq. (29) under eq. (28), derived without the seed's d_0 = 0:
+    ``-sum_k k |p0| (2 |p_vec|^2 + |d_vec|^2 - d_0^2)``."""
+    total = 0.0
+    for s in (slice(0, 8), slice(8, 16)):
+        qd, q = c_des[s], c[s]
+        r = g.mul(g.conj(qd[:4]), q[:4])
+        d = g.mul(g.conj(qd[:4]), q[4:]) + g.mul(g.conj(qd[4:]), q[:4])
+        total -= k * abs(r[0]) * (2 * r[1:] @ r[1:] + d[1:] @ d[1:] - d[0] ** 2)
+    return total
+
+
+def dq_max_error_angle(c, c_des):
+    return max(2 * np.arccos(min(1.0, abs(g.mul(g.conj(c_des[s]), c[s])[0]))) for s in (slice(0, 4), slice(8, 12)))
+
+
+@settings(max_examples=40)
+@given(e0=euclid, e_des=euclid)
+def test_dual_quaternion_lyapunov_29_rate_and_region(e0, e_des):
+    ctrl = DualQuaternionController(k_dw=[3.0] * 3, team=FREE, feedforward=False)
+    dt = 1e-3
+    cs, c_des = closed_loop(ctrl, e0, e_des, steps=150, dt=dt)
+    V = dual_quaternion_lyapunov(cs, c_des)
+    # the derived rate matches the closed loop (central differences)
+    for i in (10, 75, 140):
+        numeric = (V[i + 1] - V[i - 1]) / (2 * dt)
+        assert numeric == pytest.approx(dq_vdot_formula(cs[i], c_des, 3.0), rel=2e-2, abs=1e-5)
+    # where every rotation error is within 90 deg, (29) decreases (d_0^2 <= |p_vec|^2 |t|^2/4 ...)
+    small = np.array([dq_max_error_angle(c, c_des) <= np.pi / 2 for c in cs])
+    dV = np.diff(V)
+    assert np.all(dV[small[:-1]] <= 1e-9 * max(1.0, V[0]))
+
+
+def test_dual_quaternion_lyapunov_29_can_increase():
+    """The seed's claim (33) drops d_0: with a yaw error near 180 deg and a vertical offset
+    of 4 m the function (29) grows at first although the controller converges. (The shape
+    qhat_s is exact here, so all of V is in qhat_c.)"""
+    ctrl = DualQuaternionController(k_dw=[1.0] * 3, team=FREE, feedforward=False)
+    e_des = np.array([0, 0, 0, 0.0, 0.0, 1.0, 0.0, 0.0])
+    e0 = np.array([0, 0, 4.0, 2.9, 0.0, 1.0, 0.0, 0.0])  # formation yawed 166 deg, 4 m up
+    cs, c_des = closed_loop(ctrl, e0, e_des, steps=400, dt=0.01)
+    V = dual_quaternion_lyapunov(cs, c_des)
+    assert dq_vdot_formula(cs[0], c_des, 1.0) > 0 and V[1] > V[0]
+    assert V[-1] < V[0]
+
+
+def test_printed_error_order_converges_to_the_conjugate():
+    """Eq. (20) as printed, qe = q q_des, has its equilibrium at q = q_des*: wrong unless
+    q_des is a half turn or the identity. quatform's qe = q_des* q converges to q_des."""
+    q_des = np.array([np.cos(0.4), np.sin(0.4) * 0.6, 0.0, np.sin(0.4) * 0.8])
+    for order, want in (("printed", g.conj(q_des)), ("corrected", q_des)):
+        q = np.array([1.0, 0, 0, 0])
+        for _ in range(3000):
+            qe = g.mul(q, q_des) if order == "printed" else g.mul(g.conj(q_des), q)
+            w = np.r_[0.0, -np.sign(qe[0]) * 5.0 * qe[1:]]
+            q = q + 0.002 * 0.5 * g.mul(q, w)
+            q /= np.linalg.norm(q)
+        assert min(np.linalg.norm(q - want), np.linalg.norm(q + want)) < 1e-6
+
+
+@pytest.mark.parametrize("cls", ALL, ids=lambda c: c.name)
+def test_step_contract_batch_and_saturation(cls):
+    ctrl = cls(team=Team((HolonomicRobot(0.5, 0.3),) * 2))
+    F = ctrl.formation
+    rng = np.random.default_rng(2)
+    e = np.array([0.1, 0.2, 1.0, 0.3, 0.4, 1.0, 0.1, 0.2])
+    c, cd = F.from_euclidean(e, rng.normal(size=8))
+    r = EuclideanPair().inverse(e) + rng.normal(size=(5, 8))
+    u = ctrl.step(0.0, r, Reference(np.tile(c, (5, 1)), np.tile(cd, (5, 1))))
+    assert u.shape == (5, 8) and np.all(np.isfinite(u))
+    for i in range(5):
+        np.testing.assert_allclose(u[i], ctrl.step(0.0, r[i], Reference(c, cd)), atol=1e-12)
+    assert np.all(np.linalg.norm(u[:, 0:3], axis=1) <= 0.5 + 1e-12)
+    assert np.all(np.abs(u[:, [3, 7]]) <= 0.3 + 1e-12)
+
+
+@pytest.mark.parametrize("cls", ALL, ids=lambda c: c.name)
+def test_bad_inputs_are_refused(cls):
+    ctrl = cls()
+    F = ctrl.formation
+    e = np.array([0.1, 0.2, 1.0, 0.3, 0.4, 1.0, 0.1, 0.2])
+    c = F.from_euclidean(e)
+    ref = Reference(c, np.zeros_like(c))
+    r = EuclideanPair().inverse(e)
+    with pytest.raises(NonFiniteError):
+        ctrl.step(0.0, np.where(np.arange(8) == 2, np.nan, r), ref)
+    with pytest.raises(ShapeError):
+        ctrl.step(0.0, r[:7], ref)
+    with pytest.raises(NonFiniteError):
+        ctrl.step(0.0, r, Reference(c, np.full_like(c, np.inf)))
+    if cls in (QuaternionController, DualQuaternionController):
+        with pytest.raises(NonUnitError):
+            ctrl.step(0.0, r, Reference(1.5 * c, np.zeros_like(c)))
+        with pytest.raises(DegenerateInputError, match="coincide"):
+            ctrl.step(0.0, np.r_[r[0:4], r[0:3], 0.0], ref)
+
+
+@pytest.mark.parametrize("cls", [ClusterSpaceController, QuaternionController, DualQuaternionController],
+                         ids=lambda c: c.name)
+def test_180_degree_formation_error_still_moves(cls):
+    """At exactly 180 deg the error quaternion's scalar is 0: sgn(0) = +1 picks a side."""
+    ctrl = cls()
+    F = ctrl.formation
+    e_des = np.array([0, 0, 1.0, np.pi, 0, 1.0, 0, 0])
+    c = F.from_euclidean(e_des)
+    r = EuclideanPair().inverse(np.array([0, 0, 1.0, 0.0, 0, 1.0, 0, 0]))
+    u = ctrl.step(0.0, r, Reference(c, np.zeros_like(c)))
+    assert np.linalg.norm(u) > 0.1 and np.all(np.isfinite(u))
+
+
+def test_cluster_space_at_the_singular_pose_is_finite():
+    ctrl = ClusterSpaceController()
+    e = np.array([0, 0, 1.0, 0.3, np.pi / 2, 1.0, 0.2, 0.1])
+    r = EuclideanPair().inverse(e)
+    c_des = e + np.array([0.1, 0, 0, 0.5, 0.1, 0, 0.3, 0.3])
+    u = ctrl.step(0.0, r, Reference(c_des, np.ones(8)))
+    assert np.all(np.isfinite(u))
+
+
+def test_gains_must_be_positive():
+    from quatform.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="k_w"):
+        QuaternionController(k_w=[1, -1, 1])
+    with pytest.raises(InvalidInputError, match="k"):
+        ClusterSpaceController(k=[1] * 7)
