@@ -16,6 +16,7 @@ import numpy as np
 
 from ..algebra._validate import UNIT_TOLERANCE, as_array
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError
+from ..formations._pair_kernels import pack
 from ..formations.base import Formation
 from ..robots import Team
 
@@ -128,20 +129,26 @@ class Controller(ABC):
         reference : Reference
             Desired cluster state and rate, shape ``(..., n_c)`` each.
         """
-        return self.compute(t, measured, reference).commands
+        c, err, r_dot = self._control(*self._inputs(measured, reference))
+        if isinstance(r_dot, tuple) and isinstance(r_dot[0], float):
+            return self.team.saturate_floats(r_dot)  # one formation: no array round trip
+        return self.team.saturate(pack(r_dot))
 
     def compute(self, t: float, measured, reference: Reference) -> StepResult:
         """One control step, with the intermediate quantities the simulator logs."""
-        r = _checked(measured, "measured robot state", self.formation.n_r)
-        c_des = _checked(reference.c, "reference.c", self.formation.n_c)
-        c_dot = _checked(reference.c_dot, "reference.c_dot", self.formation.n_c)
-        c, err, r_dot = self._control(r, c_des, c_dot)
+        c, err, r_dot = self._control(*self._inputs(measured, reference))
+        r_dot = pack(r_dot)
         if r_dot.ndim == 1:
             finite = all(map(math.isfinite, r_dot.tolist()))
         else:
             finite = np.all(np.isfinite(r_dot), axis=-1)
-        return StepResult(self.team.saturate(r_dot), c, err, finite)
+        return StepResult(self.team.saturate(r_dot), pack(c), pack(err), finite)
+
+    def _inputs(self, measured, reference):
+        return (_checked(measured, "measured robot state", self.formation.n_r),
+                _checked(reference.c, "reference.c", self.formation.n_c),
+                _checked(reference.c_dot, "reference.c_dot", self.formation.n_c))
 
     @abstractmethod
     def _control(self, r, c_des, c_dot_des):
-        """Return measured cluster state, error and unsaturated robot rates."""
+        """Measured cluster state, error and unsaturated robot rates (arrays or component tuples)."""

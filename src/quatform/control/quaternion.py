@@ -86,7 +86,8 @@ class QuaternionController(Controller):
     k_d : float
         Gain on ``d_c``, 1/s.
     k_w : array_like, shape (3,)
-        Gains on the vector parts of the error quaternions of ``q_c``, ``q_c1``, ``q_c2``, 1/s.
+        Diagonal of ``K_w``: gains on the three vector components of each error quaternion
+        (of ``q_c``, ``q_c1`` and ``q_c2`` alike, as in eq. (20)), 1/s.
     """
 
     k_x: np.ndarray = field(default_factory=lambda: np.array(TABLE1["quaternion"]["k_x"], float))
@@ -121,10 +122,10 @@ class QuaternionController(Controller):
             w = (0.0, -s * kw[0] * qe[1], -s * kw[1] * qe[2], -s * kw[2] * qe[3])
             qdot = kern.qscale(0.5, kern.qmul(*q, *w))  # eq. (20)
             if ff:
-                qdot = kern.qadd(qdot, kern.qmul(*kern.qmul(*qdd, *kern.qconj(qd)), *q))
+                qdot = kern.qadd(qdot, kern.qmul(*qdd, *qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd[i:i + 4] = qdot
         r_dot = kern.quat_inverse_jvp(c, tuple(cmd))
-        return kern.pack(c), kern.pack(tuple(err)), kern.pack(r_dot)
+        return c, tuple(err), r_dot
 
 
 @dataclass(frozen=True)
@@ -163,7 +164,7 @@ class DualQuaternionController(Controller):
                  0.0, -s * kw[0] * qe[5], -s * kw[1] * qe[6], -s * kw[2] * qe[7])
             qdot = kern.qscale(0.5, kern.dqmul(q, w))  # eq. (28)
             if self.feedforward:
-                qdot = kern.dqadd(qdot, kern.dqmul(kern.dqmul(qdd, kern.dqconj(qd)), q))
+                qdot = kern.dqadd(qdot, kern.dqmul(qdd, qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd += qdot
         r_dot = kern.dq_inverse_jvp(c, tuple(cmd), kern.dq_root_of_robots(rc, c[0:8]))
-        return kern.pack(c), kern.pack(tuple(err)), kern.pack(r_dot)
+        return c, tuple(err), r_dot

@@ -238,7 +238,9 @@ def unpack(a):
 
 
 def pack(comps, axis=-1):
-    """Stack components (floats or arrays) into one array along ``axis``."""
+    """Stack components (floats or arrays) into one array along ``axis``; arrays pass through."""
+    if isinstance(comps, np.ndarray):
+        return comps
     if isinstance(comps[0], float) and isinstance(comps[-1], float):
         try:
             return np.array(comps, dtype=float)

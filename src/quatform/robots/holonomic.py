@@ -99,6 +99,10 @@ class Team:
             [rb.saturate(u[..., 4 * i:4 * i + 4]) for i, rb in enumerate(self.robots)], axis=-1
         )
 
+    def saturate_floats(self, u) -> np.ndarray:
+        """:meth:`saturate` for one command given as a sequence of Python floats."""
+        return np.array([x for i, rb in enumerate(self.robots) for x in rb._saturate_one(*u[4 * i:4 * i + 4])])
+
     def step(self, r, u, dt: float) -> np.ndarray:
         r = as_array(r, "r", self.n)
         return r + dt * self.saturate(u)
