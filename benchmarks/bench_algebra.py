@@ -28,34 +28,21 @@ Run it from the repository root::
 from __future__ import annotations
 
 import argparse
-import importlib
-import os
-import platform
-import time
-import timeit
 from dataclasses import dataclass
-from importlib import metadata
 from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
-
 import quatform.algebra as qa
 
+from _common import best_time, fmt, machine_description, optional_import
 
-def _optional_import(name):
-    try:
-        return importlib.import_module(name)
-    except ImportError:
-        return None
-
-
-pr = _optional_import("pytransform3d.rotations")
-pbr = _optional_import("pytransform3d.batch_rotations")
-pt = _optional_import("pytransform3d.transformations")
-ptr = _optional_import("pytransform3d.trajectories")
-dqr = _optional_import("dqrobotics")
-npq = _optional_import("quaternion")
+pr = optional_import("pytransform3d.rotations")
+pbr = optional_import("pytransform3d.batch_rotations")
+pt = optional_import("pytransform3d.transformations")
+ptr = optional_import("pytransform3d.trajectories")
+dqr = optional_import("dqrobotics")
+npq = optional_import("quaternion")
 
 #: Table columns: distribution name and whether it is importable.
 LIBRARIES = {
@@ -306,57 +293,17 @@ CELL_BUILDERS = {
 }
 
 
-def best_time(fn: Callable[[], object], repeat: int, min_run: float) -> float:
-    """Best-of-``repeat`` seconds per call of ``fn``, :mod:`timeit` style.
-
-    The number of calls per repeat doubles until one repeat lasts ``min_run`` seconds; the
-    minimum over ``repeat`` such repeats (timed with :func:`time.perf_counter`) is
-    divided by that number.
-    """
-    timer = timeit.Timer(fn, timer=time.perf_counter)
-    number = 1
-    while timer.timeit(number) < min_run:
-        number *= 2
-    return min(timer.repeat(repeat=repeat, number=number)) / number
-
-
-def _fmt(value: float) -> str:
-    if value >= 100:
-        return f"{value:.0f}"
-    if value >= 10:
-        return f"{value:.1f}"
-    return f"{value:.2f}"
-
-
 def measure(cell: Cell | None, installed: bool, repeat: int, min_run: float) -> tuple[str, str]:
     """Formatted (single-call µs, batch ns/element) entries of one table cell."""
     if not installed:
         return "n/i", "n/i"
     if cell is None:
         return "-", "-"
-    single = "-" if cell.single is None else _fmt(1e6 * best_time(cell.single, repeat, min_run))
+    single = "-" if cell.single is None else fmt(1e6 * best_time(cell.single, repeat, min_run))
     if cell.batch is None:
         return single, "-"
-    batch = _fmt(1e9 * best_time(cell.batch, repeat, min_run) / cell.batch_n)
+    batch = fmt(1e9 * best_time(cell.batch, repeat, min_run) / cell.batch_n)
     return single, batch + (" L" if cell.loop else "")
-
-
-def machine_description() -> list[str]:
-    """Lines describing the CPU, Python, NumPy and the libraries compared."""
-    uname = platform.uname()
-    cpu = platform.processor()
-    if not cpu and os.path.exists("/proc/cpuinfo"):
-        with open("/proc/cpuinfo") as f:
-            cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
-    lines = [
-        f"machine : {uname.system} {uname.release} {uname.machine}, {cpu or 'unknown CPU'}, "
-        f"{os.cpu_count()} CPUs",
-        f"python  : {platform.python_version()}, numpy {np.__version__}",
-    ]
-    for lib, installed in LIBRARIES.items():
-        version = metadata.version(lib) if installed else "not installed"
-        lines.append(f"{lib:<16}: {version}")
-    return lines
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -372,7 +319,7 @@ def main(argv: list[str] | None = None) -> None:
     repeat, min_run = (3, 0.05) if args.quick else (7, 0.2)
     n_loop = min(args.n_loop, args.n)
 
-    for line in machine_description():
+    for line in machine_description(LIBRARIES):
         print(line)
     print(f"timing  : best of {repeat} repeats of >= {min_run} s each (time.perf_counter)\n")
 

@@ -40,18 +40,10 @@ Run it from the repository root::
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
-import os
-import platform
-import time
-import timeit
-from collections.abc import Callable
 from functools import partial
-from importlib import metadata
 
 import numpy as np
-
 from quatform.control import (
     ClusterSpaceController,
     DualQuaternionController,
@@ -61,15 +53,9 @@ from quatform.control import (
 )
 from quatform.formations import EuclideanPair
 
+from _common import best_time, fmt, machine_description, optional_import
 
-def _optional_import(name):
-    try:
-        return importlib.import_module(name)
-    except ImportError:
-        return None
-
-
-dqr = _optional_import("dqrobotics")
+dqr = optional_import("dqrobotics")
 
 #: Base Euclidean cluster state (x, y, z, beta, gamma, d, phi1, phi2) and its rate.
 E_BASE = np.array([0.1, 0.2, 1.0, 0.3, 0.4, 1.0, 0.1, 0.2])
@@ -390,46 +376,6 @@ PEERS = {
 # --- Timing and output ---------------------------------------------------------------------
 
 
-def best_time(fn: Callable[[], object], repeat: int, min_run: float) -> float:
-    """Best-of-``repeat`` seconds per call of ``fn``, :mod:`timeit` style.
-
-    The number of calls per repeat doubles until one repeat lasts ``min_run`` seconds; the
-    minimum over ``repeat`` such repeats (timed with :func:`time.perf_counter`) is
-    divided by that number.
-    """
-    timer = timeit.Timer(fn, timer=time.perf_counter)
-    number = 1
-    while timer.timeit(number) < min_run:
-        number *= 2
-    return min(timer.repeat(repeat=repeat, number=number)) / number
-
-
-def _fmt(value: float) -> str:
-    if value >= 100:
-        return f"{value:.0f}"
-    if value >= 10:
-        return f"{value:.1f}"
-    return f"{value:.2f}"
-
-
-def machine_description() -> list[str]:
-    """Lines describing the CPU, Python, NumPy and the libraries compared."""
-    uname = platform.uname()
-    cpu = platform.processor()
-    if not cpu and os.path.exists("/proc/cpuinfo"):
-        with open("/proc/cpuinfo") as f:
-            cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
-    lines = [
-        (f"machine : {uname.system} {uname.release} {uname.machine}, {cpu or 'unknown CPU'}, "
-         f"{os.cpu_count()} CPUs"),
-        f"python  : {platform.python_version()}, numpy {np.__version__}",
-    ]
-    for lib, installed in (("quatform", True), ("dqrobotics", dqr is not None)):
-        version = metadata.version(lib) if installed else "not installed"
-        lines.append(f"{lib:<10}: {version}")
-    return lines
-
-
 def peer_difference(peer, ctrl, single, batch) -> float:
     """Max abs difference of the peer's commands from quatform's, over the base formation
     and the first :data:`N_COMPARE` formations of the batch."""
@@ -455,7 +401,7 @@ def time_controller(name: str, ctrl, args) -> tuple[list[str], float, float]:
     r_b, c_b, cd_b = batch
     t1 = best_time(lambda: ctrl.step(0.0, r, Reference(c, cd)), args.repeat, args.min_run)
     tb = best_time(lambda: ctrl.step(0.0, r_b, Reference(c_b, cd_b)), args.repeat, args.min_run)
-    entries = [name, _fmt(1e6 * t1), _fmt(1e9 * tb / args.batch)]
+    entries = [name, fmt(1e6 * t1), fmt(1e9 * tb / args.batch)]
     for jac in ("fd", "jvp"):
         if name not in PEERS:
             entries += ["-", "-"]
@@ -464,7 +410,7 @@ def time_controller(name: str, ctrl, args) -> tuple[list[str], float, float]:
         else:
             peer = PEERS[name](ctrl, jac)
             tp = best_time(partial(peer, r, c, cd), args.repeat, args.min_run)
-            entries += [_fmt(1e6 * tp), f"{peer_difference(peer, ctrl, single, batch):.1e}"]
+            entries += [fmt(1e6 * tp), f"{peer_difference(peer, ctrl, single, batch):.1e}"]
     return entries, 1e6 * t1, batch_consistency(ctrl, batch)
 
 
@@ -480,7 +426,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.batch < 1 or args.repeat < 1 or args.min_run <= 0:
         parser.error("--batch and --repeat must be >= 1 and --min-run > 0")
 
-    for line in machine_description():
+    for line in machine_description({"quatform": True, "dqrobotics": dqr is not None}, width=10):
         print(line)
     print(f"timing    : best of {args.repeat} repeats of >= {args.min_run} s each (time.perf_counter)\n")
 
@@ -502,7 +448,7 @@ def main(argv: list[str] | None = None) -> None:
         print("".join(f"{e:{a}{w}}" for e, (_, w, a) in zip(entries, cols)), flush=True)
 
     verdicts = ", ".join(
-        f"{n} {_fmt(singles[n])} us {'met' if singles[n] <= TARGET_US else 'NOT met'}"
+        f"{n} {fmt(singles[n])} us {'met' if singles[n] <= TARGET_US else 'NOT met'}"
         for n in ("quaternion", "dual-quaternion")
     )
     print(f"\ntarget: one quaternion or dual-quaternion step <= {TARGET_US:.0f} us (quatform, single): {verdicts}")

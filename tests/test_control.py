@@ -179,3 +179,36 @@ def test_gains_must_be_positive():
         QuaternionController(k_w=[1, -1, 1])
     with pytest.raises(InvalidInputError, match="k"):
         ClusterSpaceController(k=[1] * 7)
+
+
+@pytest.mark.parametrize("cls", [QuaternionController, DualQuaternionController], ids=lambda c: c.name)
+def test_reference_quaternion_signs_do_not_matter(cls):
+    """q -> -q of any cluster (dual) quaternion of the reference, with its rate: same commands."""
+    ctrl = cls()
+    F = ctrl.formation
+    e = np.array([0.3, -0.2, 1.0, 0.7, 1.2, 0.8, -0.4, 2.0])
+    c, cd = F.from_euclidean(e, np.linspace(-0.3, 0.4, 8))
+    r = EuclideanPair().inverse(e + 0.05)
+    u = ctrl.step(0.0, r, Reference(c, cd))
+    slices = [slice(3, 7), slice(8, 12), slice(12, 16)] if cls is QuaternionController else [slice(0, 8), slice(8, 16)]
+    for s in slices:
+        c2, cd2 = c.copy(), cd.copy()
+        c2[s], cd2[s] = -c[s], -cd[s]
+        np.testing.assert_allclose(ctrl.step(0.0, r, Reference(c2, cd2)), u, atol=1e-12)
+
+
+def test_robot_yaw_wound_by_2pi():
+    """A robot quaternion's -q is its yaw + 2 pi. The quaternion controller does not see it;
+    the dual-quaternion description does (half-way yaw of th1 + 2 pi and th2 is half a turn
+    away), which is why it needs unwrapped yaws (docs/derivations.md, seed 000 item 11)."""
+    e = np.array([0.3, -0.2, 1.0, 0.7, 0.4, 0.8, -0.4, 2.0])
+    r = EuclideanPair().inverse(e + 0.05)
+    wound = r + np.array([0, 0, 0, 2 * np.pi, 0, 0, 0, 0])
+    q = QuaternionController()
+    c, cd = q.formation.from_euclidean(e, np.zeros(8))
+    np.testing.assert_allclose(q.step(0.0, wound, Reference(c, cd)), q.step(0.0, r, Reference(c, cd)), atol=1e-12)
+    D = DualQuaternionController().formation
+    a, b = D.forward(r), D.forward(wound)
+    qe = g.mul(g.conj(a[0:4]), b[0:4])
+    np.testing.assert_allclose(np.abs(qe), [0, 0, 0, 1], atol=1e-12)  # half turn about z
+    np.testing.assert_allclose(D.inverse(b, hint=wound)[[0, 1, 2, 4, 5, 6]], r[[0, 1, 2, 4, 5, 6]], atol=1e-12)
