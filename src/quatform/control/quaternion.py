@@ -166,5 +166,5 @@ class DualQuaternionController(Controller):
             if self.feedforward:
                 qdot = kern.dqadd(qdot, kern.dqmul(qdd, qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd += qdot
-        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), kern.dq_root_of_robots(rc, c[0:8]))
+        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), rc)
         return c, tuple(err), r_dot

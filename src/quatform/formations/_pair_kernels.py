@@ -188,46 +188,39 @@ def dq_forward(r, qch=None, qsh=None):
     return qc + qs
 
 
-def dq_root_of_robots(r, qc):
-    """The root ``h = qhat_2* qhat_c`` of eq. (26) that the robots ``r`` are on."""
-    return dqmul(dqconj(pose(qyaw(r[7]), r[4:7])), qc)
+def _yaw_and_translation_rates(q, qd):
+    """Yaw rate and translation rate of a unit pose ``q`` moving at ``qd``.
 
-
-def dq_inverse_jvp(c, cd, h):
-    """Robot rates ``d INVKIN(c) [cd]`` on the branch of the root ``h`` (8 components).
-
-    ``INVKIN``: ``qhat_2 = qhat_c h(qhat_s)*``, ``qhat_1 = qhat_2 qhat_s`` with the decoupled
-    root ``h(qhat_s) = (n, 1/2 (d_s r_s*) n)``, ``n = (1 + sig r_s)/|1 + sig r_s|`` (times a
-    half turn about z on the long branch), then ``p = 2 vec(d r*)``, ``theta = yaw(r)``.
+    ``theta_dot = 2 (r_dot r*)_z`` (the z component of the world angular velocity; exact
+    for a yaw, the projection of any other rate) and ``t_dot = 2 vec(d_dot r* + d r_dot*)``.
     """
-    qc, qs, qcd, qsd = c[:8], c[8:], cd[:8], cd[8:]
-    rs, ds, rsd, dsd = qs[:4], qs[4:], qsd[:4], qsd[4:]
-    rh = h[:4]
-    sig = 1.0 - 2.0 * (rs[0] < 0.0)
-    v = (1.0 + sig * rs[0], sig * rs[1], sig * rs[2], sig * rs[3])
-    nv = qdot(v, v) ** 0.5
-    n = qscale(1.0 / nv, v)
-    long = abs(qdot(rh, n)) < 0.5
-    n_long = qmul(*n, 0.0, 0.0, 0.0, 1.0)
-    nb = select(long, n_long, n)
-    s_h = 1.0 - 2.0 * (qdot(rh, nb) < 0.0)
-    proj = qdot(n, rsd)
-    nd = tuple(sig * (x - y * proj) / nv for x, y in zip(rsd, n, strict=True))
-    rhd = qscale(s_h, select(long, qmul(*nd, 0.0, 0.0, 0.0, 1.0), nd))
-    ts2 = qmul(*ds, *qconj(rs))
-    ts2d = qadd(qmul(*dsd, *qconj(rs)), qmul(*ds, *qconj(rsd)))
-    dhd = qscale(0.5, qadd(qmul(*ts2d, *rh), qmul(*ts2, *rhd)))
-    hd = rhd + dhd
-    hc = dqconj(h)
-    q2 = dqmul(qc, hc)
-    q2d = dqadd(dqmul(qcd, hc), dqmul(qc, dqconj(hd)))
-    q1 = dqmul(q2, qs)
-    q1d = dqadd(dqmul(q2d, qs), dqmul(q2, qsd))
-    out = []
-    for q, qd in ((q1, q1d), (q2, q2d)):
-        m = qadd(qmul(*qd[4:], *qconj(q[:4])), qmul(*q[4:], *qconj(qd[:4])))
-        out += [2.0 * m[1], 2.0 * m[2], 2.0 * m[3], yaw_rate(q[:4], qd[:4])]
-    return tuple(out)
+    r, d, rd, dd = q[:4], q[4:], qd[:4], qd[4:]
+    w = qmul(*rd, *qconj(r))
+    m = qadd(qmul(*dd, *qconj(r)), qmul(*d, *qconj(rd)))
+    return 2.0 * w[3], (2.0 * m[1], 2.0 * m[2], 2.0 * m[3])
+
+
+def dq_inverse_jvp(c, cd, r):
+    """Robot rates ``d INVKIN(c) [cd]`` of eqs. (26)-(27) on the branch of the robots ``r``.
+
+    On the description's manifold (both dual quaternions a yaw and a translation) the
+    inverse kinematics reads ``theta_1,2 = theta_c +- theta_s/2``,
+    ``p_1,2 = x_c +- 1/2 R_z(theta_2) t_s``; its derivative along ``cd`` is this. Only
+    ``theta_2`` is taken from ``r``: it fixes the square-root branch. Rates off the
+    manifold are projected (yaw rate = z component of the angular velocity).
+    """
+    thc_d, xc_d = _yaw_and_translation_rates(c[:8], cd[:8])
+    ths_d, ts_d = _yaw_and_translation_rates(c[8:], cd[8:])
+    ts = translation(c[8:])
+    L = lib(r[7])
+    c2, s2 = L.cos(r[7]), L.sin(r[7])
+    th1_d, th2_d = thc_d + 0.5 * ths_d, thc_d - 0.5 * ths_d
+    ax, ay = c2 * ts[0] - s2 * ts[1], s2 * ts[0] + c2 * ts[1]  # R_z(theta_2) t_s = p1 - p2
+    vx = 0.5 * (c2 * ts_d[0] - s2 * ts_d[1] - th2_d * ay)  # half of d/dt (p1 - p2)
+    vy = 0.5 * (s2 * ts_d[0] + c2 * ts_d[1] + th2_d * ax)
+    vz = 0.5 * ts_d[2]
+    return (xc_d[0] + vx, xc_d[1] + vy, xc_d[2] + vz, th1_d,
+            xc_d[0] - vx, xc_d[1] - vy, xc_d[2] - vz, th2_d)
 
 
 # -- packing --------------------------------------------------------------------------------

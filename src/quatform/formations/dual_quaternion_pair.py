@@ -178,15 +178,15 @@ class DualQuaternionPair(Formation):
     def inverse_jacobian_at(self, c, r=None):
         """Derivative of the inverse kinematics at ``c``, shape ``(..., 8, 16)``.
 
-        On the square-root branch of the robots ``r`` (``h = qhat_2* qhat_c``), the short
-        root without them.
+        On the square-root branch of the robots ``r`` (the short root without them). Along
+        the description's 8-dimensional manifold this is the derivative of
+        ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_2 qhat_s``; see
+        :func:`~quatform.formations._pair_kernels.dq_inverse_jvp`.
         """
         c = np.asarray(c, dtype=float)
         if r is None:
-            h = self._roots(c[..., _QS])[0]
-        else:
-            h = kern.pack(kern.dq_root_of_robots(kern.unpack(np.asarray(r, dtype=float)), kern.unpack(c[..., _QC])))
-        return kern.jacobian_from_jvp(kern.dq_inverse_jvp, c, 16, kern.unpack(h))
+            r = self.inverse(c)
+        return kern.jacobian_from_jvp(kern.dq_inverse_jvp, c, 16, kern.unpack(np.asarray(r, dtype=float)))
 
     def euclidean(self, c, hint=None, r=None):
         """Euclidean variables of the robots of ``c``, read through the quaternion cluster frame.
