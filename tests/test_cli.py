@@ -28,6 +28,17 @@ def test_version_and_help(capsys):
         assert "usage: quatform" in capsys.readouterr().out
 
 
+def test_demo_compares_the_four_controllers_on_the_spiral(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert cli.main(["demo", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    rows = {r["controller"]: r for r in json.loads((out / "comparison.json").read_text())}
+    assert set(rows) == {"cluster-space", "robot-space", "quaternion", "dual-quaternion"}
+    assert rows["cluster-space"]["singularity_detected"] and rows["cluster-space"]["reference_lost"]
+    assert not rows["quaternion"]["reference_lost"] and not rows["dual-quaternion"]["reference_lost"]
+    assert "| cluster-space |" in text and (out / "compare_errors.png").exists()
+
+
 def test_scenarios_lists_builtins(capsys):
     assert cli.main(["scenarios"]) == 0
     out = capsys.readouterr().out

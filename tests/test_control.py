@@ -33,7 +33,7 @@ def closed_loop(ctrl, e0, e_des, steps=200, dt=0.004):
     """Constant reference, no feed-forward: states and cluster states along the run."""
     F = ctrl.formation
     c_des = F.from_euclidean(e_des)
-    ref = Reference(c_des, np.zeros_like(c_des))
+    ref = Reference(c_des, np.zeros_like(c_des), EuclideanPair().inverse(e_des))
     r = EuclideanPair().inverse(e0)
     cs = []
     for _ in range(steps):
@@ -121,12 +121,20 @@ def test_step_contract_batch_and_saturation(cls):
     e = np.array([0.1, 0.2, 1.0, 0.3, 0.4, 1.0, 0.1, 0.2])
     c, cd = F.from_euclidean(e, rng.normal(size=8))
     r = EuclideanPair().inverse(e) + rng.normal(size=(5, 8))
-    u = ctrl.step(0.0, r, Reference(np.tile(c, (5, 1)), np.tile(cd, (5, 1))))
-    assert u.shape == (5, 8) and np.all(np.isfinite(u))
+    res = ctrl.compute(0.0, r, Reference(np.tile(c, (5, 1)), np.tile(cd, (5, 1))))
+    u = res.commands
+    assert u.shape == (5, 8) and np.all(res.raw_finite)
+    np.testing.assert_array_equal(u, ctrl.step(0.0, r, Reference(np.tile(c, (5, 1)), np.tile(cd, (5, 1)))))
     for i in range(5):
         np.testing.assert_allclose(u[i], ctrl.step(0.0, r[i], Reference(c, cd)), atol=1e-12)
     assert np.all(np.linalg.norm(u[:, 0:3], axis=1) <= 0.5 + 1e-12)
     assert np.all(np.abs(u[:, [3, 7]]) <= 0.3 + 1e-12)
+    # the team's command is scaled as a whole: its direction is the unsaturated one's
+    raw = cls(team=FREE).step(0.0, r, Reference(np.tile(c, (5, 1)), np.tile(cd, (5, 1))))
+    cos = np.einsum("ij,ij->i", u, raw) / (np.linalg.norm(u, axis=1) * np.linalg.norm(raw, axis=1))
+    np.testing.assert_allclose(cos, 1.0, atol=1e-12)
+    with pytest.raises(ShapeError, match="batch shapes"):
+        ctrl.step(0.0, r, Reference(np.tile(c, (3, 1)), np.tile(cd, (3, 1))))
 
 
 @pytest.mark.parametrize("cls", ALL, ids=lambda c: c.name)
@@ -159,8 +167,36 @@ def test_180_degree_formation_error_still_moves(cls):
     e_des = np.array([0, 0, 1.0, np.pi, 0, 1.0, 0, 0])
     c = F.from_euclidean(e_des)
     r = EuclideanPair().inverse(np.array([0, 0, 1.0, 0.0, 0, 1.0, 0, 0]))
-    u = ctrl.step(0.0, r, Reference(c, np.zeros_like(c)))
-    assert np.linalg.norm(u) > 0.1 and np.all(np.isfinite(u))
+    res = ctrl.compute(0.0, r, Reference(c, np.zeros_like(c), EuclideanPair().inverse(e_des)))
+    assert np.linalg.norm(res.commands) > 0.1 and res.raw_finite
+
+
+def test_dual_quaternion_needs_the_desired_robots_for_a_half_turn():
+    """Without Reference.robots the turned formation is the same dual-quaternion pair: no error."""
+    ctrl = DualQuaternionController()
+    e_des = np.array([0, 0, 1.0, np.pi, 0, 1.0, 0, 0])
+    c = ctrl.formation.from_euclidean(e_des)
+    r = EuclideanPair().inverse(np.array([0, 0, 1.0, 0.0, 0, 1.0, 0, 0]))
+    np.testing.assert_allclose(ctrl.step(0.0, r, Reference(c, np.zeros_like(c))), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("cls", ALL, ids=lambda c: c.name)
+def test_yaw_winding_of_measurement_or_reference_is_not_motion(cls):
+    """A measured yaw reported mod 2 pi, or a reference yaw wound by 2 pi, is the same formation."""
+    ctrl = cls()
+    F = ctrl.formation
+    e = np.array([0.3, -0.2, 1.0, 0.7, 0.4, 0.8, 2.5, -2.9])
+    r_des = EuclideanPair().inverse(e)
+    c, cd = F.from_euclidean(e, np.zeros(8))
+    u = ctrl.step(0.0, r_des, Reference(c, cd, r_des))
+    np.testing.assert_allclose(u, 0.0, atol=1e-9)
+    wrapped = r_des.copy()
+    wrapped[[3, 7]] = g.wrap(r_des[[3, 7]]) + np.array([2 * np.pi, -4 * np.pi])
+    np.testing.assert_allclose(ctrl.step(0.0, wrapped, Reference(c, cd, r_des)), 0.0, atol=1e-9)
+    e_wound = e + np.array([0, 0, 0, 0, 0, 0, 2 * np.pi, 0])
+    c2, cd2 = F.from_euclidean(e_wound, np.zeros(8))
+    r2 = EuclideanPair().inverse(e_wound)
+    np.testing.assert_allclose(ctrl.step(0.0, r_des, Reference(c2, cd2, r2)), 0.0, atol=1e-9)
 
 
 def test_cluster_space_at_the_singular_pose_is_finite():
@@ -168,8 +204,19 @@ def test_cluster_space_at_the_singular_pose_is_finite():
     e = np.array([0, 0, 1.0, 0.3, np.pi / 2, 1.0, 0.2, 0.1])
     r = EuclideanPair().inverse(e)
     c_des = e + np.array([0.1, 0, 0, 0.5, 0.1, 0, 0.3, 0.3])
-    u = ctrl.step(0.0, r, Reference(c_des, np.ones(8)))
-    assert np.all(np.isfinite(u))
+    res = ctrl.compute(0.0, r, Reference(c_des, np.ones(8)))
+    assert res.raw_finite and np.linalg.norm(res.commands) > 0
+
+
+def test_saturation_is_finite_and_keeps_direction_for_huge_commands():
+    team = Team()
+    u = np.array([1e200, -3e200, 2e200, 1e199, 1e200, 0, 0, 0])
+    out = team.saturate(u)
+    assert np.all(np.isfinite(out)) and np.linalg.norm(out[0:3]) == pytest.approx(2.5)
+    w = u / 1e200
+    np.testing.assert_allclose(out / np.linalg.norm(out), w / np.linalg.norm(w), atol=1e-12)
+    np.testing.assert_allclose(team.saturate(np.tile(u, (2, 1)))[1], out, atol=1e-12)
+    assert np.all(team.saturate(np.r_[u[:7], np.nan]) == 0.0)
 
 
 def test_gains_must_be_positive():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import assume, given, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from quatform.algebra import dq_from_pose, dqconj, dqmul, dqsqrt_decoupled, q_angle_between
@@ -95,6 +95,28 @@ def test_monitoring_recovers_full_pitch(F, e):
     """Quaternion descriptions give back beta_c, gamma_c on the whole circle (no fold)."""
     back = F.euclidean(F.from_euclidean(e), e)
     np.testing.assert_allclose(back, e, atol=1e-8)
+
+
+@pytest.mark.parametrize("F", [QuaternionPair(), DualQuaternionPair()], ids=lambda f: f.name)
+@given(r=robot_states(), e_hint=euclidean_states())
+def test_monitoring_is_the_measured_formation_for_any_hint(F, r, e_hint):
+    """Whatever the desired state, the Euclidean variables read back give the measured robots
+    (exactly, away from the vertical; near it the yaw comes from the cluster frame)."""
+    delta = r[0:3] - r[4:7]
+    assume(np.hypot(delta[0], delta[1]) > 0.02 * np.linalg.norm(delta))
+    c = F.forward(r, F.from_euclidean(e_hint))
+    back = EuclideanPair().inverse(F.euclidean(c, e_hint, r))
+    np.testing.assert_allclose(g.wrap(back - r), 0, atol=1e-8)
+
+
+@pytest.mark.parametrize("F", [EuclideanPair(), QuaternionPair(), DualQuaternionPair()], ids=lambda f: f.name)
+def test_singularity_measure_ignores_place_and_size(F):
+    e = np.array([0, 0, 1, 0.3, 0.4, 1.0, 0.1, 0.2])
+    ref = F.singularity_measure(EuclideanPair().inverse(e), F.from_euclidean(e))
+    for x, d in ((1e3, 1.0), (0.0, 1e-2), (-50.0, 1e2)):
+        e2 = e.copy()
+        e2[0], e2[5] = x, d
+        assert F.singularity_measure(EuclideanPair().inverse(e2), F.from_euclidean(e2)) == pytest.approx(ref, rel=1e-6)
 
 
 @given(e=euclidean_states())

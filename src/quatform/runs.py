@@ -13,7 +13,13 @@ import time
 from pathlib import Path
 
 from .control import CONTROLLERS
-from .sim import compute_metrics, load_scenario, simulate, write_metrics, write_timeseries
+from .sim import (
+    compute_metrics,
+    load_scenario,
+    simulate,
+    write_metrics,
+    write_timeseries,
+)
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS"]
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra._validate import UNIT_TOLERANCE, as_array
-from ..errors import DegenerateInputError, InvalidInputError, NonUnitError
+from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations._pair_kernels import pack
 from ..formations.base import Formation
 from ..robots import Team
@@ -29,12 +29,22 @@ class Reference:
 
     Attributes
     ----------
-    c : ndarray, shape (n_c,)
-    c_dot : ndarray, shape (n_c,)
+    c : ndarray, shape (..., n_c)
+    c_dot : ndarray, shape (..., n_c)
+    robots : ndarray, shape (..., n_r), optional
+        The desired robot state (``formation.inverse(c)`` on the intended branch, or the
+        robot-space reference). The measured yaws are unwrapped to within pi of its yaws
+        before the forward kinematics, so a sensor's yaw reported mod 2 pi, or a reference
+        whose yaws are wound by 2 pi, means the same formation. The dual-quaternion
+        description needs it: its pair ``(qhat_c, qhat_s)`` names two formations half a
+        turn apart (``docs/derivations.md``); without it the measured state is put on the
+        sheet of ``c`` nearest the reference's, which fails only where the
+        reference jumps by half a turn.
     """
 
     c: np.ndarray
     c_dot: np.ndarray
+    robots: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -145,10 +155,26 @@ class Controller(ABC):
         return StepResult(self.team.saturate(r_dot), pack(c), pack(err), finite)
 
     def _inputs(self, measured, reference):
-        return (_checked(measured, "measured robot state", self.formation.n_r),
-                _checked(reference.c, "reference.c", self.formation.n_c),
-                _checked(reference.c_dot, "reference.c_dot", self.formation.n_c))
+        F = self.formation
+        r = _checked(measured, "measured robot state", F.n_r)
+        c = _checked(reference.c, "reference.c", F.n_c)
+        c_dot = _checked(reference.c_dot, "reference.c_dot", F.n_c)
+        if not (r.shape[:-1] == c.shape[:-1] == c_dot.shape[:-1]):
+            try:
+                shape = np.broadcast_shapes(r.shape[:-1], c.shape[:-1], c_dot.shape[:-1])
+            except ValueError:
+                raise ShapeError(
+                    f"batch shapes differ: measured {r.shape}, reference.c {c.shape}, "
+                    f"reference.c_dot {c_dot.shape}; give one reference per formation or one for all"
+                ) from None
+            r, c, c_dot = (np.broadcast_to(a, shape + a.shape[-1:]) for a in (r, c, c_dot))
+        if reference.robots is None:
+            return r, c, c_dot, False
+        return F.align(r, _checked(reference.robots, "reference.robots", F.n_r)), c, c_dot, True
 
     @abstractmethod
-    def _control(self, r, c_des, c_dot_des):
-        """Measured cluster state, error and unsaturated robot rates (arrays or component tuples)."""
+    def _control(self, r, c_des, c_dot_des, aligned):
+        """Measured cluster state, error and unsaturated robot rates (arrays or component tuples).
+
+        ``aligned``: whether ``r``'s yaws were unwrapped near the reference's robots.
+        """

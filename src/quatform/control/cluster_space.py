@@ -37,7 +37,7 @@ TABLE2 = {
 
 
 class _ProportionalController(Controller):
-    def _control(self, r, c_des, c_dot_des):
+    def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
         c = F.forward(r, c_des)
         err = F.errors(c, c_des)
@@ -60,7 +60,7 @@ class ClusterSpaceController(_ProportionalController):
     k: np.ndarray = field(default_factory=lambda: np.array(TABLE1["cluster-space"]["k"], float))
     team: Team = Team()
     feedforward: bool = True
-    formation: Formation = field(default_factory=EuclideanPair)
+    formation: Formation = field(default_factory=EuclideanPair, init=False)
     name = "cluster-space"
 
     def __post_init__(self):
@@ -80,7 +80,7 @@ class RobotSpaceController(_ProportionalController):
     k: np.ndarray = field(default_factory=lambda: np.array(TABLE1["robot-space"]["k"], float))
     team: Team = Team()
     feedforward: bool = True
-    formation: Formation = field(default_factory=RobotSpace)
+    formation: Formation = field(default_factory=RobotSpace, init=False)
     name = "robot-space"
 
     def __post_init__(self):

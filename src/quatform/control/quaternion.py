@@ -95,7 +95,7 @@ class QuaternionController(Controller):
     k_w: np.ndarray = field(default_factory=lambda: np.array(TABLE1["quaternion"]["k_w"], float))
     team: Team = Team()
     feedforward: bool = True
-    formation: Formation = field(default_factory=QuaternionPair)
+    formation: Formation = field(default_factory=QuaternionPair, init=False)
     name = "quaternion"
 
     def __post_init__(self):
@@ -104,7 +104,7 @@ class QuaternionController(Controller):
         object.__setattr__(self, "k_w", gains(self.k_w, 3, "k_w"))
         object.__setattr__(self, "_gains", (self.k_x.tolist(), self.k_d, self.k_w.tolist()))
 
-    def _control(self, r, c_des, c_dot_des):
+    def _control(self, r, c_des, c_dot_des, aligned):
         rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
         check_units(cd, ((3, "q_c"), (8, "q_c1"), (12, "q_c2")))
         check_separation(rc)
@@ -141,18 +141,18 @@ class DualQuaternionController(Controller):
     k_dw: np.ndarray = field(default_factory=lambda: np.array(TABLE1["dual-quaternion"]["k_dw"], float))
     team: Team = Team()
     feedforward: bool = True
-    formation: Formation = field(default_factory=DualQuaternionPair)
+    formation: Formation = field(default_factory=DualQuaternionPair, init=False)
     name = "dual-quaternion"
 
     def __post_init__(self):
         object.__setattr__(self, "k_dw", gains(self.k_dw, 3, "k_dw"))
         object.__setattr__(self, "_gains", self.k_dw.tolist())
 
-    def _control(self, r, c_des, c_dot_des):
+    def _control(self, r, c_des, c_dot_des, aligned):
         rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
         check_units(cd, ((0, "qhat_c"), (8, "qhat_s")), dual=True)
         check_separation(rc)
-        c = kern.dq_forward(rc, cd[0:4], cd[8:12])
+        c = kern.dq_forward(rc, cd[0:4], cd[8:12], wind=not aligned)
         kw = self._gains
         err, cmd = [], []
         for i in (0, 8):
@@ -166,5 +166,5 @@ class DualQuaternionController(Controller):
             if self.feedforward:
                 qdot = kern.dqadd(qdot, kern.dqmul(qdd, qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd += qdot
-        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), rc)
+        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), rc)  # theta_2 alone fixes the branch
         return c, tuple(err), r_dot

@@ -7,7 +7,12 @@ description implements :class:`Formation`: ``forward``, ``inverse``, ``jacobian`
 
 from .base import ROBOT_PAIR_VARIABLES, Formation, Variable
 from .dual_quaternion_pair import DualQuaternionPair
-from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace, segment_direction
+from .euclidean_pair import (
+    EUCLIDEAN_VARIABLES,
+    EuclideanPair,
+    RobotSpace,
+    segment_direction,
+)
 from .quaternion_pair import QuaternionPair
 
 #: Descriptions by name.

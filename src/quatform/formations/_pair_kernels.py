@@ -170,11 +170,13 @@ def translation(dq):
     return (2.0 * m[1], 2.0 * m[2], 2.0 * m[3])
 
 
-def dq_forward(r, qch=None, qsh=None):
+def dq_forward(r, qch=None, qsh=None, wind=False):
     """Eqs. (26)-(27) in closed form on the branch of the continuous yaws (16 components).
 
     ``qhat_c``: yaw ``(th1 + th2)/2`` at the midpoint; ``qhat_s``: yaw ``th1 - th2`` at
-    ``R_z(-th2)(p1 - p2)``. ``qch``, ``qsh`` (rotation parts of a hint) set the signs.
+    ``R_z(-th2)(p1 - p2)``. ``qch``, ``qsh`` (rotation parts of a hint) set the signs;
+    with ``wind``, also the branch: the half-way yaw nearer ``qch`` (robot 1's yaw taken
+    2 pi further if that is nearer; the qhat_2-frame shape is unchanged).
     """
     x1, y1, z1, t1, x2, y2, z2, t2 = r
     L = lib(t2)
@@ -183,6 +185,9 @@ def dq_forward(r, qch=None, qsh=None):
     c2, s2 = L.cos(t2), L.sin(t2)
     qs = pose(qyaw(t1 - t2), (c2 * dx + s2 * dy, -s2 * dx + c2 * dy, dz))
     if qch is not None:
+        if wind:  # robot 1's yaw + 2 pi: the other half-way yaw, if it is nearer the hint
+            turned = dqmul(qc, (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0))
+            qc = select(abs(qdot(turned[:4], qch)) > abs(qdot(qc[:4], qch)), turned, qc)
         qc = neg_if(qdot(qc[:4], qch) < 0.0, qc)
         qs = neg_if(qdot(qs[:4], qsh) < 0.0, qs)
     return qc + qs

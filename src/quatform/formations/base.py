@@ -16,15 +16,18 @@ printed convention is used.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DegenerateInputError, ShapeError
 from ..algebra._validate import as_array
+from ..errors import DegenerateInputError
 
 __all__ = ["Variable", "Formation", "ROBOT_PAIR_VARIABLES"]
+
+_TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,25 @@ class Formation(ABC):
             Otherwise.
         """
 
+    def align(self, r, r_ref) -> np.ndarray:
+        """``r`` with each robot yaw moved by whole turns to within pi of ``r_ref``'s.
+
+        The robots' physical state is unchanged; the descriptions that read yaws as real
+        numbers (the dual-quaternion half-way yaw) then see the same sheet as the
+        reference. Fast path for one state (Python floats).
+        """
+        idx = [i for i, v in enumerate(self.robot_variables) if v.kind == "angle"]
+        if r.ndim == 1 and r_ref.ndim == 1:
+            out = r.tolist()
+            ref = r_ref.tolist()
+            for i in idx:
+                out[i] += _TWO_PI * math.floor((ref[i] - out[i]) / _TWO_PI + 0.5)
+            return np.array(out)
+        out = np.array(np.broadcast_to(r, np.broadcast_shapes(r.shape, r_ref.shape)), dtype=float)
+        for i in idx:
+            out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
+        return out
+
     def errors(self, c, c_des) -> np.ndarray:
         """Per-variable error ``c - c_des`` with angles wrapped to ``[-pi, pi)``."""
         e = np.asarray(c) - np.asarray(c_des)
@@ -181,23 +203,21 @@ class Formation(ABC):
     def singularity_measure(self, r, hint=None) -> np.ndarray:
         """Reciprocal condition number of the inverse Jacobian, in ``[0, 1]``; 0 at a singular pose.
 
-        The inverse Jacobian is made dimensionless first (robot and cluster lengths divided
-        by :meth:`length_scale`), so the value does not depend on the unit or the size.
+        Taken on the normalised formation: robot positions moved so that their centroid is
+        at the origin and divided by :meth:`length_scale`, so the value depends on the
+        formation's shape and attitude only, not on where it is, how big, or the unit.
 
         Returns
         -------
         ndarray, shape (...)
         """
         r = self.check_robot_state(r)
-        Ji = self.inverse_jacobian(r, hint)
-        L = self.length_scale(r)[..., None]
-        row = np.array([v.kind in ("position", "length") for v in self.robot_variables])
-        col = np.array([v.kind in ("position", "length") for v in self.variables])
-        Ji = Ji / np.where(row, L, 1.0)[..., :, None] * np.where(col, L, 1.0)[..., None, :]
-        s = np.linalg.svd(Ji, compute_uv=False)
+        pos = [i for i, v in enumerate(self.robot_variables) if v.kind == "position"]
+        rn = np.array(r, dtype=float)
+        if pos:
+            L = self.length_scale(r)[..., None]
+            p = rn[..., pos].reshape(r.shape[:-1] + (-1, 3))
+            p = (p - p.mean(axis=-2, keepdims=True)) / L[..., None]
+            rn[..., pos] = p.reshape(r.shape[:-1] + (len(pos),))
+        s = np.linalg.svd(self.inverse_jacobian(rn, hint), compute_uv=False)
         return s[..., -1] / s[..., 0]
-
-
-def check_shapes_match(a, b, what):
-    if a.shape[:-1] != b.shape[:-1]:
-        raise ShapeError(f"{what}: batch shapes {a.shape[:-1]} and {b.shape[:-1]} differ")

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra._validate import as_unit_dual_quaternion
+from ..algebra._validate import as_array, as_unit_dual_quaternion
 from ..errors import UnreachableError
 from . import _geometry as g
 from . import _pair_kernels as kern
@@ -137,9 +137,10 @@ class DualQuaternionPair(Formation):
                     f"{what} tilts by {float(np.max(tilt)):.3g} rad; with 4-DOF robots its rotation "
                     "must be about z"
                 )
+        if hint is not None:
+            hint = self.check_robot_state(hint, "hint")
         r = self._robots(c, self._branch(c, hint))
         if hint is not None:
-            hint = np.asarray(hint, dtype=float)
             for k in (3, 7):
                 r[..., k] = g.unwrap_near(r[..., k], hint[..., k])
         return r
@@ -218,7 +219,7 @@ class DualQuaternionPair(Formation):
         c = np.concatenate([qc, qs], axis=-1)
         if e_dot is None:
             return c
-        r_dot = np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), E.check_cluster_state(e_dot, "e_dot"))
+        r_dot = np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))
         return c, np.einsum("...ij,...j->...i", self.jacobian(r, c), r_dot)
 
 

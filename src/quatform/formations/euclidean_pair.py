@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra._validate import as_array
 from ..errors import DegenerateInputError
 from . import _geometry as g
 from .base import ROBOT_PAIR_VARIABLES, Formation, Variable
@@ -61,6 +62,15 @@ class EuclideanPair(Formation):
     name = "euclidean"
     variables = EUCLIDEAN_VARIABLES
 
+    def check_cluster_state(self, c, name="c"):
+        c = super().check_cluster_state(c, name)
+        if np.any(c[..., 5] <= 0.0):
+            raise DegenerateInputError(
+                f"{name}: d_c must be positive (half the robots' separation), got "
+                f"{float(np.min(c[..., 5]))!r}; a negative d_c would swap the robots"
+            )
+        return c
+
     def forward(self, r, hint=None):
         r = self.check_robot_state(r)
         p1, p2 = r[..., 0:3], r[..., 4:7]
@@ -93,7 +103,7 @@ class EuclideanPair(Formation):
         r[..., 3] = c[..., 6] + c[..., 3]
         r[..., 7] = c[..., 7] + c[..., 3]
         if hint is not None:
-            hint = np.asarray(hint, dtype=float)
+            hint = self.check_robot_state(hint, "hint")
             r[..., 3] = g.unwrap_near(r[..., 3], hint[..., 3])
             r[..., 7] = g.unwrap_near(r[..., 7], hint[..., 7])
         return r
@@ -159,7 +169,7 @@ class EuclideanPair(Formation):
         e = self.check_cluster_state(e, "e")
         if e_dot is None:
             return e.copy()
-        return e.copy(), self.check_cluster_state(e_dot, "e_dot").copy()
+        return e.copy(), as_array(e_dot, "e_dot", 8).copy()
 
 
 class RobotSpace(Formation):
@@ -204,4 +214,4 @@ class RobotSpace(Formation):
         r = E.inverse(e)
         if e_dot is None:
             return r
-        return r, np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), E.check_cluster_state(e_dot, "e_dot"))
+        return r, np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra._validate import as_unit_quaternion
+from ..algebra._validate import as_array, as_unit_quaternion
 from ..algebra.operators import qminus, qplus, skew
 from ..errors import DegenerateInputError, UnreachableError
 from . import _geometry as g
@@ -31,6 +31,8 @@ __all__ = ["QuaternionPair"]
 _XC, _QC, _D, _Q1, _Q2 = slice(0, 3), slice(3, 7), 7, slice(8, 12), slice(12, 16)
 _C = np.diag([1.0, -1.0, -1.0, -1.0])
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
+#: Below this horizontal fraction of the segment, monitoring reads the yaw from q_c's y axis.
+NEAR_VERTICAL = 1e-2
 #: Largest tilt (rad) of a robot's orientation that a 4-DOF robot is taken to reach.
 TILT_TOL = 1e-6
 
@@ -96,7 +98,7 @@ class QuaternionPair(Formation):
                 )
             r[..., k] = g.yaw_of(qi)
             if hint is not None:
-                r[..., k] = g.unwrap_near(r[..., k], np.asarray(hint, dtype=float)[..., k])
+                r[..., k] = g.unwrap_near(r[..., k], self.check_robot_state(hint, "hint")[..., k])
         return r
 
     # -- Jacobians --------------------------------------------------------------------
@@ -132,26 +134,35 @@ class QuaternionPair(Formation):
 
     # -- monitoring and references ----------------------------------------------------
     def euclidean(self, c, hint=None, r=None):
-        """Euclidean variables of ``c``, with the yaw read from the cluster frame's y axis.
+        """Euclidean variables of ``c`` on the whole circle, regular at ``gamma_c = +-pi/2``.
 
         For a frame without twist (``q_c = q_z(beta + pi/2) q_y(-gamma)``) the y axis is
-        ``(-cos beta, -sin beta, 0)``: ``beta`` and ``gamma`` follow from it on the full
-        circle, regular through ``gamma = +-pi/2``, where eq. (4) is undefined. For a
-        twisted frame they are those of the nearest twist-free frame.
+        ``(-cos beta, -sin beta, 0)``. Within ``NEAR_VERTICAL`` rad of the vertical, where
+        eq. (4) is 0/0 or ill-conditioned, ``beta`` is read from the y axis and ``gamma`` from
+        the segment in the frame turned by ``beta`` (exact for a twist-free frame, off by
+        less than the twist times ``NEAR_VERTICAL`` otherwise); elsewhere ``beta`` and
+        ``gamma`` are eqs. (4)-(5) of the segment, exactly, on the branch (``beta``,
+        ``gamma``) or (``beta + pi``, ``pi - gamma``) that the y axis points to. ``u`` and
+        ``y`` are orthogonal unit vectors, so ``y`` is far from vertical where ``u`` is near it.
         """
         c = self.check_cluster_state(c)
         qc = c[..., _QC]
         y = g.rotate(qc, np.array([0.0, 1.0, 0.0]))
         u = g.x_axis(qc)
-        beta = np.arctan2(-y[..., 1], -y[..., 0])
-        if np.any(np.hypot(y[..., 0], y[..., 1]) < 1e-9):
-            raise DegenerateInputError(
-                "q_c's y axis is vertical (the cluster frame is rolled 90 deg about its segment); "
-                "its yaw is undefined - give a hint or a twist-free q_c"
-            )
-        psi = beta + 0.5 * np.pi
-        ux = np.cos(psi) * u[..., 0] + np.sin(psi) * u[..., 1]
-        gamma = np.arctan2(u[..., 2], ux)
+        rho_u, rho_y = np.hypot(u[..., 0], u[..., 1]), np.hypot(y[..., 0], y[..., 1])
+        # near the vertical: beta from the y axis
+        beta_y = np.arctan2(-y[..., 1], -y[..., 0])
+        psi = beta_y + 0.5 * np.pi
+        gamma_y = np.arctan2(u[..., 2], np.cos(psi) * u[..., 0] + np.sin(psi) * u[..., 1])
+        # elsewhere: eqs. (4)-(5), branch from the y axis
+        beta_u = np.arctan2(-u[..., 0], u[..., 1])
+        gamma_u = np.arctan2(u[..., 2], rho_u)
+        other = -(np.cos(beta_u) * y[..., 0] + np.sin(beta_u) * y[..., 1]) < 0.0
+        beta_u = np.where(other, beta_u + np.pi, beta_u)
+        gamma_u = np.where(other, np.pi - gamma_u, gamma_u)
+        use_y = rho_u < NEAR_VERTICAL * rho_y
+        beta = g.wrap(np.where(use_y, beta_y, beta_u))
+        gamma = g.wrap(np.where(use_y, gamma_y, gamma_u))
         e = np.empty(c.shape[:-1] + (8,))
         e[..., 0:3] = c[..., _XC]
         e[..., 3] = beta
@@ -180,7 +191,7 @@ class QuaternionPair(Formation):
         c[..., _Q2] = g.mul(g.conj(qc), q2)
         if e_dot is None:
             return c
-        ed = EuclideanPair().check_cluster_state(e_dot, "e_dot")
+        ed = as_array(e_dot, "e_dot", 8)
         qc_dot = ed[..., 3, None] * g.mul(_yaw_rate_column(qz), qy) + g.mul(
             qz, -ed[..., 4, None] * 0.5 * g.mul(qy, np.array([0.0, 0.0, 1.0, 0.0]))
         )

@@ -1,8 +1,9 @@
 """Holonomic 4-DOF kinematic robot (velocity commands in x, y, z and yaw), seed 000 §4.1.
 
 Robots layer. State ``(x, y, z, theta)``; command ``(v_x, v_y, v_z, omega_z)`` in the world
-frame, held constant over a step, so the step is exact. The linear speed is limited in
-norm (the direction is kept), the yaw rate in magnitude.
+frame, held constant over a step, so the step is exact. A command beyond the limits
+(linear speed in norm, yaw rate in magnitude) is scaled down as a whole, its direction
+kept; a team scales all its robots' commands by one factor.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ class HolonomicRobot:
                 raise InvalidInputError(f"{name} must be a positive finite number, got {v!r}")
 
     def saturate(self, u) -> np.ndarray:
-        """Commands limited to the robot's speeds; non-finite commands become zero.
+        """Commands limited to the robot's speeds, direction kept; non-finite ones become zero.
 
         Parameters
         ----------
@@ -50,28 +51,42 @@ class HolonomicRobot:
         -------
         ndarray, shape (..., 4)
         """
-        if isinstance(u, np.ndarray) and u.shape == (4,):
-            return np.array(self._saturate_one(*u.tolist()))
         u = np.array(u, dtype=float)
         if u.shape[-1:] != (4,):
             raise InvalidInputError(f"a 4-DOF robot command has shape (..., 4), got {u.shape}")
-        bad = ~np.all(np.isfinite(u), axis=-1)
-        u[bad] = 0.0
-        speed = np.linalg.norm(u[..., :3], axis=-1)
-        scale = np.minimum(1.0, self.max_speed / np.maximum(speed, 1e-300))
-        u[..., :3] *= scale[..., None]
-        u[..., 3] = np.clip(u[..., 3], -self.max_yaw_rate, self.max_yaw_rate)
-        return u
+        return u * self.limit_factor(u)[..., None]
 
-    def _saturate_one(self, vx, vy, vz, wz):
-        """Fast path for one command (Python floats)."""
-        if not all(map(math.isfinite, (vx, vy, vz, wz))):
-            return 0.0, 0.0, 0.0, 0.0
-        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+    def limit_factor(self, u) -> np.ndarray:
+        """Largest ``s`` in ``[0, 1]`` with ``s u`` within the limits (0 for a non-finite ``u``).
+
+        Parameters
+        ----------
+        u : ndarray, shape (..., 4)
+
+        Returns
+        -------
+        ndarray, shape (...)
+        """
+        u = np.asarray(u, dtype=float)
+        finite = np.all(np.isfinite(u), axis=-1)
+        v = np.where(finite[..., None], u, 0.0)
+        big = np.max(np.abs(v[..., :3]), axis=-1)  # norm without overflow
+        speed = big * np.linalg.norm(v[..., :3] / np.where(big > 0, big, 1.0)[..., None], axis=-1)
+        with np.errstate(divide="ignore"):
+            s = np.minimum(self.max_speed / speed, self.max_yaw_rate / np.abs(v[..., 3]))
+        return np.where(finite, np.minimum(1.0, s), 0.0)
+
+    def _factor_one(self, vx, vy, vz, wz):
+        """:meth:`limit_factor` for one command of Python floats."""
+        if not (math.isfinite(vx) and math.isfinite(vy) and math.isfinite(vz) and math.isfinite(wz)):
+            return 0.0
+        s = 1.0
+        speed = math.hypot(vx, vy, vz)
         if speed > self.max_speed:
             s = self.max_speed / speed
-            vx, vy, vz = vx * s, vy * s, vz * s
-        return vx, vy, vz, min(max(wz, -self.max_yaw_rate), self.max_yaw_rate)
+        if abs(wz) * s > self.max_yaw_rate:
+            s = self.max_yaw_rate / abs(wz)
+        return s
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` seconds of the saturated command ``u`` (exact)."""
@@ -89,19 +104,33 @@ class Team:
         return 4 * len(self.robots)
 
     def saturate(self, u) -> np.ndarray:
+        """Team command scaled as a whole into every robot's limits.
+
+        One factor for all robots (the smallest any robot needs), so the formation's motion
+        keeps its direction: limiting each robot on its own would bend the commanded
+        cluster rate and distort the shape. A non-finite entry stops the whole team.
+
+        Parameters
+        ----------
+        u : array_like, shape (..., 4 n)
+
+        Returns
+        -------
+        ndarray, shape (..., 4 n)
+        """
         u = np.asarray(u, dtype=float)
         if u.shape[-1:] != (self.n,):
             raise InvalidInputError(f"team command must have shape (..., {self.n}), got {u.shape}")
         if u.ndim == 1:
-            v = u.tolist()
-            return np.array([x for i, rb in enumerate(self.robots) for x in rb._saturate_one(*v[4 * i:4 * i + 4])])
-        return np.concatenate(
-            [rb.saturate(u[..., 4 * i:4 * i + 4]) for i, rb in enumerate(self.robots)], axis=-1
-        )
+            return self.saturate_floats(u.tolist())
+        s = np.min(np.stack([rb.limit_factor(u[..., 4 * i:4 * i + 4]) for i, rb in enumerate(self.robots)]),
+                   axis=0)
+        return np.where(s[..., None] > 0, u * s[..., None], 0.0)
 
     def saturate_floats(self, u) -> np.ndarray:
         """:meth:`saturate` for one command given as a sequence of Python floats."""
-        return np.array([x for i, rb in enumerate(self.robots) for x in rb._saturate_one(*u[4 * i:4 * i + 4])])
+        s = min(rb._factor_one(*u[4 * i:4 * i + 4]) for i, rb in enumerate(self.robots))
+        return np.array([x * s for x in u]) if s > 0 else np.zeros(self.n)
 
     def step(self, r, u, dt: float) -> np.ndarray:
         r = as_array(r, "r", self.n)

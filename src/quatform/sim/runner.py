@@ -85,7 +85,7 @@ def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool
     dt = scenario.dt_s
     tick = max(1, n // 10)
     for k in range(n):
-        res = ctrl.compute(t[k], state, Reference(c_des[k], cd_des[k]))
+        res = ctrl.compute(t[k], state, Reference(c_des[k], cd_des[k], r_des[k]))
         r[k], c[k], u[k], ok[k] = state, res.cluster, res.commands, res.raw_finite
         state = ctrl.team.step(state, res.commands, dt)
         if progress is not None and (k + 1) % tick == 0:

@@ -102,6 +102,23 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
 
 
 def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
+    """Build a :class:`Scenario` from parsed TOML; every mistake is an InvalidInputError."""
+    try:
+        sc = _scenario_from_dict(data, where)
+        for name in CONTROLLERS:  # the gains must make a controller
+            sc.controller(name)
+    except KeyError as exc:
+        raise InvalidInputError(f"{where}: missing key {exc} (see docs/scenarios.md)") from None
+    except TypeError as exc:
+        raise InvalidInputError(f"{where}: {exc} (see docs/scenarios.md for the keys)") from None
+    except ValueError as exc:
+        if isinstance(exc, InvalidInputError):
+            raise
+        raise InvalidInputError(f"{where}: {exc} (numbers expected; see docs/scenarios.md)") from None
+    return sc
+
+
+def _scenario_from_dict(data: dict, where: str) -> Scenario:
     pdata = data.get("path")
     if not isinstance(pdata, dict):
         raise InvalidInputError(f"{where}: missing [path] table")
@@ -133,6 +150,8 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
             raise InvalidInputError(f"{where}: gains = {g!r}; use 'table1', 'table2' or a [gains] table")
         gains = _TABLES[g]
     else:
+        if g.get("base", "table1") not in _TABLES:
+            raise InvalidInputError(f"{where}: [gains] base = {g['base']!r}; use 'table1' or 'table2'")
         base = _TABLES[g.get("base", "table1")]
         gains = {k: dict(base.get(k, {}), **{kk: vv for kk, vv in g.get(k, {}).items()}) for k in CONTROLLERS}
     duration = _get(data, "duration_s", float, where)
