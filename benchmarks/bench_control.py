@@ -99,7 +99,7 @@ def make_inputs(ctrl, n: int, seed: int = 0):
     e_b[:, 5] = np.maximum(e_b[:, 5], 0.2)  # d_c > 0
     c_b, cd_b = F.from_euclidean(e_b, np.broadcast_to(E_DOT, e_b.shape))
     r_b = E.inverse(e_b + E_OFFSET)
-    return (r, c, c_dot), (r_b, c_b, cd_b)
+    return (r, c, c_dot), (r_b, c_b, cd_b), (E.inverse(E_BASE), E.inverse(e_b))
 
 
 # --- dqrobotics peers ------------------------------------------------------------------------
@@ -109,17 +109,19 @@ def make_inputs(ctrl, n: int, seed: int = 0):
 
 
 def _saturate(u, team):
-    """The team's saturation (speed norm per robot, yaw rate), on a list of 8 floats."""
-    out = []
+    """The team's saturation on a list of 8 floats: one factor for all robots, the smallest
+    any robot needs for its speed norm and yaw rate; a non-finite entry stops the team."""
+    if not all(map(math.isfinite, u)):
+        return [0.0] * len(u)
+    s = 1.0
     for i, rb in enumerate(team.robots):
         vx, vy, vz, wz = u[4 * i:4 * i + 4]
-        if not all(map(math.isfinite, (vx, vy, vz, wz))):
-            out += [0.0, 0.0, 0.0, 0.0]
-            continue
         speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-        s = rb.max_speed / speed if speed > rb.max_speed else 1.0
-        out += [s * vx, s * vy, s * vz, min(max(wz, -rb.max_yaw_rate), rb.max_yaw_rate)]
-    return out
+        if speed > rb.max_speed:
+            s = min(s, rb.max_speed / speed)
+        if abs(wz) > rb.max_yaw_rate:
+            s = min(s, rb.max_yaw_rate / abs(wz))
+    return [s * x for x in u]
 
 
 def _wrap(a):
@@ -396,11 +398,12 @@ def batch_consistency(ctrl, batch) -> float:
 
 def time_controller(name: str, ctrl, args) -> tuple[list[str], float, float]:
     """Table entries of one controller, its single-step time (us) and its batch check."""
-    single, batch = make_inputs(ctrl, args.batch)
+    single, batch, (r_des, r_des_b) = make_inputs(ctrl, args.batch)
     r, c, cd = single
     r_b, c_b, cd_b = batch
-    t1 = best_time(lambda: ctrl.step(0.0, r, Reference(c, cd)), args.repeat, args.min_run)
-    tb = best_time(lambda: ctrl.step(0.0, r_b, Reference(c_b, cd_b)), args.repeat, args.min_run)
+    # as the simulator calls it: the desired robots come with the reference (Reference.robots)
+    t1 = best_time(lambda: ctrl.step(0.0, r, Reference(c, cd, r_des)), args.repeat, args.min_run)
+    tb = best_time(lambda: ctrl.step(0.0, r_b, Reference(c_b, cd_b, r_des_b)), args.repeat, args.min_run)
     entries = [name, fmt(1e6 * t1), fmt(1e9 * tb / args.batch)]
     for jac in ("fd", "jvp"):
         if name not in PEERS:
@@ -458,7 +461,7 @@ def main(argv: list[str] | None = None) -> None:
         + ", ".join(f"{k} {v:.1e}" for k, v in consistency.items())
     )
 
-    print("\nquatform: ctrl.step(0.0, r, Reference(c, c_dot)), Reference built inside the timed call;")
+    print("\nquatform: ctrl.step(0.0, r, Reference(c, c_dot, r_des)), Reference built inside the timed call;")
     print("  single = (8,) robot state, batch = one call on (N, 8) / (N, n_c) inputs; gains of")
     print("  Table 1, feed-forward on, commands saturated by the default Team.")
     print("-        : no dqrobotics peer (the cluster-space and robot-space controllers use no")

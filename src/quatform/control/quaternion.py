@@ -118,9 +118,9 @@ class QuaternionController(Controller):
             q, qd, qdd = c[i:i + 4], cd[i:i + 4], cdd[i:i + 4]
             qe = kern.qmul(*kern.qconj(qd), *q)  # body-frame error (eq. (20), order corrected)
             err[i:i + 4] = qe
-            s = 1.0 - 2.0 * (qe[0] < 0.0)  # sgn(qe_0), +1 at 0
-            w = (0.0, -s * kw[0] * qe[1], -s * kw[1] * qe[2], -s * kw[2] * qe[3])
-            qdot = kern.qscale(0.5, kern.qmul(*q, *w))  # eq. (20)
+            h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
+            w = (0.0, h * kw[0] * qe[1], h * kw[1] * qe[2], h * kw[2] * qe[3])
+            qdot = kern.qmul(*q, *w)  # eq. (20): 1/2 q (0, -sgn K_w qe_vec)
             if ff:
                 qdot = kern.qadd(qdot, kern.qmul(*qdd, *qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd[i:i + 4] = qdot
@@ -159,10 +159,10 @@ class DualQuaternionController(Controller):
             q, qd, qdd = c[i:i + 8], cd[i:i + 8], cdd[i:i + 8]
             qe = kern.dqmul(kern.dqconj(qd), q)  # body-frame error (eq. (28), order corrected)
             err += qe
-            s = 1.0 - 2.0 * (qe[0] < 0.0)
-            w = (0.0, -s * kw[0] * qe[1], -s * kw[1] * qe[2], -s * kw[2] * qe[3],
-                 0.0, -s * kw[0] * qe[5], -s * kw[1] * qe[6], -s * kw[2] * qe[7])
-            qdot = kern.qscale(0.5, kern.dqmul(q, w))  # eq. (28)
+            h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_p0)/2, sgn(0) = +1
+            w = (0.0, h * kw[0] * qe[1], h * kw[1] * qe[2], h * kw[2] * qe[3],
+                 0.0, h * kw[0] * qe[5], h * kw[1] * qe[6], h * kw[2] * qe[7])
+            qdot = kern.dqmul(q, w)  # eq. (28): 1/2 qhat (0, -sgn K qe_p; 0, -sgn K qe_d)
             if self.feedforward:
                 qdot = kern.dqadd(qdot, kern.dqmul(qdd, qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd += qdot

@@ -16,6 +16,7 @@ printed convention is used.
 
 from __future__ import annotations
 
+import functools
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -60,6 +61,11 @@ def _robot_pair_variables():
 
 #: Robot space of two 4-DOF robots: ``r = (x1, y1, z1, theta1, x2, y2, z2, theta2)``.
 ROBOT_PAIR_VARIABLES = _robot_pair_variables()
+
+
+@functools.lru_cache(maxsize=None)
+def _angle_indices(variables):
+    return tuple(i for i, v in enumerate(variables) if v.kind == "angle")
 
 
 def quaternion_variables(prefix: str):
@@ -175,7 +181,7 @@ class Formation(ABC):
         numbers (the dual-quaternion half-way yaw) then see the same sheet as the
         reference. Fast path for one state (Python floats).
         """
-        idx = [i for i, v in enumerate(self.robot_variables) if v.kind == "angle"]
+        idx = _angle_indices(self.robot_variables)
         if r.ndim == 1 and r_ref.ndim == 1:
             out = r.tolist()
             ref = r_ref.tolist()
