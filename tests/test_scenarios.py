@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from quatform.errors import InvalidInputError
-from quatform.sim import builtin_scenarios, compute_metrics, errors_from_robots, load_scenario, simulate
+from quatform.sim import builtin_scenarios, compute_metrics, load_scenario, simulate
 
 CONTROLLERS = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
 

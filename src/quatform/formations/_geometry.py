@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra._kernels import qmul_components
+from . import _pair_kernels as kern
 
 EX = np.array([1.0, 0.0, 0.0])
 EZ = np.array([0.0, 0.0, 1.0])
@@ -36,10 +37,7 @@ def norm(v):
 def q_yaw(theta):
     """Rotation by ``theta`` about ``z``: ``(cos theta/2, 0, 0, sin theta/2)``, shape ``(..., 4)``."""
     theta = np.asarray(theta, dtype=float)
-    q = np.zeros(theta.shape + (4,))
-    q[..., 0] = np.cos(0.5 * theta)
-    q[..., 3] = np.sin(0.5 * theta)
-    return q
+    return _pack(kern.qyaw(theta), theta.shape)
 
 
 def q_pitch_y(angle):
@@ -52,25 +50,8 @@ def q_pitch_y(angle):
 
 
 def yaw_of(q):
-    """Yaw (z-y-x convention) of any nonzero quaternion; degree-2 homogeneous, so scale-free.
-
-    ``atan2(2 (w z + x y), w^2 + x^2 - y^2 - z^2)``; for a pure yaw ``(cos a/2, 0, 0, sin a/2)``
-    it is ``a`` wrapped to ``(-pi, pi]``. Undefined only at pitch +-90 deg, which a 4-DOF
-    robot's orientation never reaches.
-    """
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
-
-
-def d_yaw_of(q):
-    """Gradient of :func:`yaw_of` with respect to ``(w, x, y, z)``, shape ``(..., 4)``."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    n = 2.0 * (w * z + x * y)
-    d = w * w + x * x - y * y - z * z
-    s = n * n + d * d
-    dn = np.stack([2 * z, 2 * y, 2 * x, 2 * w], axis=-1)
-    dd = np.stack([2 * w, 2 * x, -2 * y, -2 * z], axis=-1)
-    return (d[..., None] * dn - n[..., None] * dd) / s[..., None]
+    """Yaw (z-y-x) of nonzero quaternions ``(..., 4)``; see :func:`_pair_kernels.yaw_of`."""
+    return kern.yaw_of(tuple(np.moveaxis(np.asarray(q, dtype=float), -1, 0)))
 
 
 def rotate(q, v):
@@ -82,15 +63,19 @@ def rotate(q, v):
 
 
 def x_axis(q):
-    """First column of ``R(q)`` for unit ``q``: ``q (0, 1, 0, 0) q*``."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=-1)
+    """First column of ``R(q)`` for unit ``q``, shape ``(..., 3)``."""
+    q = np.asarray(q, dtype=float)
+    return _pack(kern.x_axis(tuple(np.moveaxis(q, -1, 0))), q.shape[:-1])
 
 
 def z_axis(q):
-    """Third column of ``R(q)`` for unit ``q``."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], axis=-1)
+    """Third column of ``R(q)`` for unit ``q``, shape ``(..., 3)``."""
+    q = np.asarray(q, dtype=float)
+    return _pack(kern.z_axis(tuple(np.moveaxis(q, -1, 0))), q.shape[:-1])
+
+
+def _pack(comps, shape):
+    return np.stack([np.broadcast_to(x, shape) for x in comps], axis=-1)
 
 
 def closest_sign(q, ref):
