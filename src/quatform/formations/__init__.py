@@ -14,6 +14,7 @@ from .euclidean_pair import (
     segment_direction,
 )
 from .quaternion_pair import QuaternionPair
+from .ugv_uav import SPHERICAL_VARIABLES, UGV_UAV_VARIABLES, UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 
 #: Descriptions by name.
 FORMATIONS = {
@@ -31,4 +32,9 @@ __all__ = [
     "DualQuaternionPair",
     "FORMATIONS",
     "segment_direction",
+    "UgvUavSpherical",
+    "UgvUavRestricted",
+    "UgvUavQuaternion",
+    "UGV_UAV_VARIABLES",
+    "SPHERICAL_VARIABLES",
 ]

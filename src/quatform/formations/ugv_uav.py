@@ -1,0 +1,323 @@
+"""Descriptions of a ground robot (UGV) and a quadrotor (UAV) formation, seed 001 §4.1-4.2.
+
+Formations layer. Robot state ``r = (x_p, y_p, z_p, x_b, y_b, z_b)``: the Pioneer's
+control point and the Bebop's position (yaws are controlled outside the formation, seed
+001 §4.3.3). Three descriptions, all with the cluster point at the UGV:
+
+* ``UgvUavSpherical`` (Rabelo et al.), eqs. (4.1)-(4.12): ``(x_c, y_c, z_c, rho_c,
+  alpha_c, beta_c)``; singular with the UAV straight above the UGV (``alpha_c`` undefined).
+* ``UgvUavRestricted`` (Ernandes-Neto et al.), eqs. (4.13)-(4.24): ``(x_f, y_f, z_f, rho_f,
+  alpha_f, beta_f)`` with ``alpha_f = asin(dx/rho)``, ``beta_f = asin(dy/rho)``; regular
+  over the UGV, but only ``0 <= alpha_f, beta_f <= 45 deg`` is used (the UAV above the
+  platform); other states are refused with ``UnreachableError``.
+* ``UgvUavQuaternion`` (Marciano), eqs. (4.25)-(4.41): ``(x_c[3], q_c[4], d_c[3])`` with
+  ``d_c = (d, 0, 0)``, 10 values; the 6 x 10 inverse Jacobian (4.39). The twist of
+  ``q_c`` is taken from a hint, as for :class:`QuaternionPair`.
+
+Their common operator variables (``euclidean``) are the spherical ones.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..algebra._validate import as_array, as_unit_quaternion
+from ..algebra.operators import jac_qrotate_quaternion, jac_qrotate_vector, qminus, skew
+from ..errors import DegenerateInputError, UnreachableError
+from . import _geometry as g
+from .base import Formation, Variable, quaternion_variables
+
+__all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_VARIABLES",
+           "SPHERICAL_VARIABLES"]
+
+UGV_UAV_VARIABLES = (
+    Variable("x_p", "m", "position"), Variable("y_p", "m", "position"), Variable("z_p", "m", "position"),
+    Variable("x_b", "m", "position"), Variable("y_b", "m", "position"), Variable("z_b", "m", "position"),
+)
+SPHERICAL_VARIABLES = (
+    Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),
+    Variable("rho_c", "m", "length"), Variable("alpha_c", "rad", "angle"), Variable("beta_c", "rad", "angle"),
+)
+#: Below this ratio of horizontal to full separation, alpha_c of eq. (4.5) is undefined.
+OVERHEAD_TOL = 1e-12
+
+
+class _UgvUav(Formation):
+    robot_variables = UGV_UAV_VARIABLES
+
+    def length_scale(self, r):
+        r = np.asarray(r)
+        return np.linalg.norm(r[..., 3:6] - r[..., 0:3], axis=-1)
+
+    def _delta(self, r, name="r"):
+        r = self.check_robot_state(r, name)
+        delta = r[..., 3:6] - r[..., 0:3]
+        self._check_separation(delta, name)
+        return r, delta
+
+    def euclidean(self, c, hint=None, r=None):
+        return UgvUavSpherical().forward(self.inverse(c) if r is None else r, hint)
+
+    def align(self, r, r_ref):
+        return np.asarray(r, dtype=float)
+
+
+class UgvUavSpherical(_UgvUav):
+    """Eqs. (4.1)-(4.12). ``alpha_c = atan2(dy, dx)`` (the printed arctan of a ratio loses
+    the quadrant), ``beta_c = atan2(dz, |d_xy|)``."""
+
+    name = "spherical"
+    variables = SPHERICAL_VARIABLES
+
+    def forward(self, r, hint=None):
+        r, d = self._delta(r)
+        rho_h = np.hypot(d[..., 0], d[..., 1])
+        c = np.empty(r.shape[:-1] + (6,))
+        c[..., 0:3] = r[..., 0:3]  # (4.1)-(4.3)
+        c[..., 3] = np.linalg.norm(d, axis=-1)  # (4.4)
+        alpha = np.arctan2(d[..., 1], d[..., 0])  # (4.5)
+        if hint is not None:
+            hint = as_array(hint, "hint", 6)
+            alpha = np.where(rho_h <= OVERHEAD_TOL * c[..., 3], hint[..., 4], g.unwrap_near(alpha, hint[..., 4]))
+        c[..., 4] = alpha
+        c[..., 5] = np.arctan2(d[..., 2], rho_h)  # (4.6)
+        return c
+
+    def inverse(self, c, hint=None):
+        c = self.check_cluster_state(c)
+        if np.any(c[..., 3] <= 0):
+            raise DegenerateInputError(f"rho_c must be positive, got {float(np.min(c[..., 3]))!r}")
+        a, b = c[..., 4], c[..., 5]
+        r = np.empty(c.shape[:-1] + (6,))
+        r[..., 0:3] = c[..., 0:3]  # (4.7)-(4.9)
+        r[..., 3] = c[..., 0] + c[..., 3] * np.cos(a) * np.cos(b)  # (4.10)
+        r[..., 4] = c[..., 1] + c[..., 3] * np.sin(a) * np.cos(b)  # (4.11)
+        r[..., 5] = c[..., 2] + c[..., 3] * np.sin(b)  # (4.12)
+        return r
+
+    def jacobian(self, r, hint=None):
+        """6 x 6; undefined (raises) with the UAV straight above or below the UGV."""
+        r, d = self._delta(r)
+        dx, dy, dz = np.moveaxis(d, -1, 0)
+        h2 = dx * dx + dy * dy
+        D = np.sqrt(h2 + dz * dz)
+        if np.any(h2 <= (OVERHEAD_TOL * D) ** 2):
+            raise DegenerateInputError(
+                "the spherical formation's Jacobian is undefined with the UAV straight above the UGV "
+                "(alpha_c undefined, seed 001 §4.1.1); use the quaternion description"
+            )
+        h = np.sqrt(h2)
+        z = np.zeros_like(dx)
+        grads = [d / D[..., None], np.stack([-dy, dx, z], -1) / h2[..., None],
+                 np.stack([-dz * dx / h, -dz * dy / h, h], -1) / (D * D)[..., None]]
+        J = np.zeros(r.shape[:-1] + (6, 6))
+        J[..., 0:3, 0:3] = np.eye(3)
+        for row, gr in zip((3, 4, 5), grads, strict=True):
+            J[..., row, 0:3] = -gr
+            J[..., row, 3:6] = gr
+        return J
+
+    def inverse_jacobian_at(self, c, r=None):
+        """Derivative of (4.7)-(4.12); rank 5 with the UAV overhead (``cos beta_c = 0``)."""
+        c = np.asarray(c, dtype=float)
+        rho, a, b = c[..., 3], c[..., 4], c[..., 5]
+        ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+        Ji = np.zeros(c.shape[:-1] + (6, 6))
+        Ji[..., 0:3, 0:3] = np.eye(3)
+        Ji[..., 3:6, 0:3] = np.eye(3)
+        Ji[..., 3:6, 3] = np.stack([ca * cb, sa * cb, sb], -1)
+        Ji[..., 3:6, 4] = rho[..., None] * np.stack([-sa * cb, ca * cb, 0 * cb], -1)
+        Ji[..., 3:6, 5] = rho[..., None] * np.stack([-ca * sb, -sa * sb, cb], -1)
+        return Ji
+
+    def euclidean(self, c, hint=None, r=None):
+        c = self.check_cluster_state(c)
+        if hint is None:
+            return c.copy()
+        e = c.copy()
+        e[..., 4] = g.unwrap_near(c[..., 4], np.asarray(hint, dtype=float)[..., 4])
+        return e
+
+    def from_euclidean(self, e, e_dot=None):
+        e = self.check_cluster_state(e, "e")
+        if e_dot is None:
+            return e.copy()
+        return e.copy(), as_array(e_dot, "e_dot", 6).copy()
+
+
+class UgvUavRestricted(_UgvUav):
+    """Eqs. (4.13)-(4.24), with the operating range ``0 <= alpha_f, beta_f <= 45 deg``.
+
+    Parameters
+    ----------
+    range_deg : tuple of float
+        Allowed range of ``alpha_f`` and ``beta_f`` (seed 001 §4.1.2: 0 to 45 deg).
+    """
+
+    name = "restricted"
+    variables = (
+        Variable("x_f", "m", "position"), Variable("y_f", "m", "position"), Variable("z_f", "m", "position"),
+        Variable("rho_f", "m", "length"), Variable("alpha_f", "rad", "angle"), Variable("beta_f", "rad", "angle"),
+    )
+
+    def __init__(self, range_deg=(0.0, 45.0)):
+        self.range = tuple(math.radians(x) for x in range_deg)
+
+    def check_reachable(self, c, what="state"):
+        """Raise UnreachableError if ``alpha_f`` or ``beta_f`` leaves the operating range."""
+        lo, hi = self.range
+        tol = 1e-9
+        for i, name in ((4, "alpha_f"), (5, "beta_f")):
+            v = c[..., i]
+            bad = (v < lo - tol) | (v > hi + tol)
+            if np.any(bad):
+                val = float(np.asarray(v)[bad].flat[0])
+                raise UnreachableError(
+                    f"{what}: {name} = {math.degrees(val):.1f} deg is outside the restricted description's "
+                    f"range [{math.degrees(lo):.0f}, {math.degrees(hi):.0f}] deg (seed 001 §4.1.2: the UAV must "
+                    "be above the platform, ahead and to the left within 45 deg); use the quaternion description"
+                )
+
+    def forward(self, r, hint=None):
+        r, d = self._delta(r)
+        rho = np.linalg.norm(d, axis=-1)
+        c = np.empty(r.shape[:-1] + (6,))
+        c[..., 0:3] = r[..., 0:3]  # (4.13)-(4.15)
+        c[..., 3] = rho  # (4.16)
+        c[..., 4] = np.arcsin(np.clip(d[..., 0] / rho, -1, 1))  # (4.17)
+        c[..., 5] = np.arcsin(np.clip(d[..., 1] / rho, -1, 1))  # (4.18)
+        return c
+
+    def inverse(self, c, hint=None):
+        c = self.check_cluster_state(c)
+        self.check_reachable(c, "cluster state")
+        sa, sb = np.sin(c[..., 4]), np.sin(c[..., 5])
+        r = np.empty(c.shape[:-1] + (6,))
+        r[..., 0:3] = c[..., 0:3]  # (4.19)-(4.21)
+        r[..., 3] = c[..., 0] + c[..., 3] * sa  # (4.22)
+        r[..., 4] = c[..., 1] + c[..., 3] * sb  # (4.23)
+        r[..., 5] = c[..., 2] + c[..., 3] * np.sqrt(np.maximum(0.0, 1 - sa * sa - sb * sb))  # (4.24)
+        return r
+
+    def jacobian(self, r, hint=None):
+        """6 x 6; singular where ``sin^2 alpha_f + sin^2 beta_f = 1`` (UAV at platform level)."""
+        r, d = self._delta(r)
+        rho = np.linalg.norm(d, axis=-1)
+        u = d / rho[..., None]
+        J = np.zeros(r.shape[:-1] + (6, 6))
+        J[..., 0:3, 0:3] = np.eye(3)
+        dd = np.eye(3) - u[..., :, None] * u[..., None, :]  # d u / d delta * rho
+        rows = [u, dd[..., 0, :] / (rho * np.sqrt(np.maximum(1e-300, 1 - u[..., 0] ** 2)))[..., None],
+                dd[..., 1, :] / (rho * np.sqrt(np.maximum(1e-300, 1 - u[..., 1] ** 2)))[..., None]]
+        for row, gr in zip((3, 4, 5), rows, strict=True):
+            J[..., row, 0:3] = -gr
+            J[..., row, 3:6] = gr
+        return J
+
+    def inverse_jacobian_at(self, c, r=None):
+        c = np.asarray(c, dtype=float)
+        rho, a, b = c[..., 3], c[..., 4], c[..., 5]
+        sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
+        w = np.sqrt(np.maximum(1e-300, 1 - sa * sa - sb * sb))
+        Ji = np.zeros(c.shape[:-1] + (6, 6))
+        Ji[..., 0:3, 0:3] = np.eye(3)
+        Ji[..., 3:6, 0:3] = np.eye(3)
+        Ji[..., 3:6, 3] = np.stack([sa, sb, w], -1)
+        Ji[..., 3:6, 4] = rho[..., None] * np.stack([ca, 0 * ca, -sa * ca / w], -1)
+        Ji[..., 3:6, 5] = rho[..., None] * np.stack([0 * cb, cb, -sb * cb / w], -1)
+        return Ji
+
+    def from_euclidean(self, e, e_dot=None):
+        S = UgvUavSpherical()
+        r = S.inverse(e)
+        c = self.forward(r)
+        self.check_reachable(c, "reference")
+        if e_dot is None:
+            return c
+        r_dot = np.einsum("...ij,...j->...i", S.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 6))
+        return c, np.einsum("...ij,...j->...i", self.jacobian(r), r_dot)
+
+
+class UgvUavQuaternion(_UgvUav):
+    """Eqs. (4.25)-(4.41): cluster point at the UGV, ``q_c`` on the segment, ``d_c = (d, 0, 0)``."""
+
+    name = "quaternion"
+    variables = (
+        Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),
+        *quaternion_variables("q_c"),
+        Variable("d_c_x", "m", "length"), Variable("d_c_y", "m", "length"), Variable("d_c_z", "m", "length"),
+    )
+
+    def check_cluster_state(self, c, name="c"):
+        c = super().check_cluster_state(c, name)
+        as_unit_quaternion(c[..., 3:7], f"{name}[q_c]")
+        return c
+
+    def forward(self, r, hint=None):
+        r, d = self._delta(r)
+        D = np.linalg.norm(d, axis=-1)
+        u = d / D[..., None]
+        if hint is None:  # eqs. (4.26), (4.28), (4.29): minimal rotation from i
+            qh = np.array([1.0, 0.0, 0.0, 0.0])
+        else:
+            qh = self.check_cluster_state(hint, "hint")[..., 3:7]
+        qc = g.mul(g.swing(g.x_axis(qh), u, g.z_axis(qh)), qh)
+        c = np.zeros(r.shape[:-1] + (10,))
+        c[..., 0:3] = r[..., 0:3]  # (4.25)
+        c[..., 3:7] = g.closest_sign(qc, qh)
+        c[..., 7] = D  # (4.27)
+        return c
+
+    def inverse(self, c, hint=None):
+        c = self.check_cluster_state(c)
+        qc = c[..., 3:7] / np.linalg.norm(c[..., 3:7], axis=-1, keepdims=True)
+        if np.any(np.linalg.norm(c[..., 7:10], axis=-1) <= 0):
+            raise DegenerateInputError("d_c must be nonzero (the robots would coincide)")
+        r = np.empty(c.shape[:-1] + (6,))
+        r[..., 0:3] = c[..., 0:3]  # (4.30)
+        r[..., 3:6] = c[..., 0:3] + g.rotate(qc, c[..., 7:10])  # (4.31)
+        return r
+
+    def jacobian(self, r, hint=None):
+        """``c_dot = J r_dot`` (10 x 6) for the hinted forward map (no twist rate)."""
+        c = self.forward(r, hint)
+        u = g.x_axis(c[..., 3:7])
+        D = c[..., 7]
+        dq = 0.5 * qminus(c[..., 3:7])[..., :, 1:] @ (skew(u) / D[..., None, None])
+        J = np.zeros(c.shape[:-1] + (10, 6))
+        J[..., 0:3, 0:3] = np.eye(3)
+        J[..., 3:7, 0:3] = -dq
+        J[..., 3:7, 3:6] = dq
+        J[..., 7, 0:3] = -u
+        J[..., 7, 3:6] = u
+        return J
+
+    def inverse_jacobian_at(self, c, r=None):
+        """Eq. (4.39): ``[[I, 0, 0], [I, d(q d q*)/dq (4.40), d(q d q*)/dd (4.41)]]``, 6 x 10."""
+        c = np.asarray(c, dtype=float)
+        Ji = np.zeros(c.shape[:-1] + (6, 10))
+        Ji[..., 0:3, 0:3] = np.eye(3)
+        Ji[..., 3:6, 0:3] = np.eye(3)
+        Ji[..., 3:6, 3:7] = jac_qrotate_quaternion(c[..., 3:7], c[..., 7:10])
+        Ji[..., 3:6, 7:10] = jac_qrotate_vector(c[..., 3:7])
+        return Ji
+
+    def from_euclidean(self, e, e_dot=None):
+        """``q_c = q_z(alpha) q_y(-beta)`` (x axis along the segment, no twist): continuous in ``e``."""
+        e = UgvUavSpherical().check_cluster_state(e, "e")
+        qz, qy = g.q_yaw(e[..., 4]), g.q_pitch_y(-e[..., 5])
+        c = np.zeros(e.shape[:-1] + (10,))
+        c[..., 0:3] = e[..., 0:3]
+        c[..., 3:7] = g.mul(qz, qy)
+        c[..., 7] = e[..., 3]
+        if e_dot is None:
+            return c
+        ed = as_array(e_dot, "e_dot", 6)
+        cd = np.zeros_like(c)
+        cd[..., 0:3] = ed[..., 0:3]
+        cd[..., 3:7] = ed[..., 4, None] * 0.5 * g.mul(np.array([0.0, 0, 0, 1]), g.mul(qz, qy)) + g.mul(
+            qz, -ed[..., 5, None] * 0.5 * g.mul(qy, np.array([0.0, 0.0, 1.0, 0.0])))
+        cd[..., 7] = ed[..., 3]
+        return c, cd

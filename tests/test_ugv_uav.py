@@ -1,0 +1,152 @@
+"""UGV-UAV formation of seed 001: robots (Pioneer, Bebop) and the three descriptions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from conftest import numeric_jacobian
+from quatform.errors import DegenerateInputError, UnreachableError
+from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from quatform.robots import TABLE2_K, Bebop, Pioneer, yaw_matrix
+
+ALL = [UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion()]
+coord = st.floats(-2, 2, allow_nan=False)
+
+
+@st.composite
+def uav_above(draw):
+    """UGV anywhere, UAV above it and ahead/left within 45 deg (every description's domain)."""
+    p = np.array([draw(coord), draw(coord), 0.0])
+    rho = draw(st.floats(0.3, 2.0))
+    a, b = draw(st.floats(0.01, 0.7)), draw(st.floats(0.01, 0.7))
+    d = rho * np.array([np.sin(a), np.sin(b), np.sqrt(1 - np.sin(a) ** 2 - np.sin(b) ** 2)])
+    return np.r_[p, p + d]
+
+
+@pytest.mark.parametrize("F", ALL, ids=lambda f: f.name)
+@given(r=uav_above(), flip=st.booleans())
+def test_round_trip_and_jacobians(F, r, flip):
+    c = F.forward(r)
+    hint = c.copy()
+    if flip and F.name == "quaternion":
+        hint[3:7] = -hint[3:7]  # q -> -q of the hint
+    ch = F.forward(r, hint)
+    np.testing.assert_allclose(F.inverse(ch), r, atol=1e-12)
+    J = F.jacobian(r, hint)
+    np.testing.assert_allclose(J, numeric_jacobian(lambda x: F.forward(x, ch), r), atol=1e-6 * max(1, np.abs(J).max()))
+    np.testing.assert_allclose(F.inverse_jacobian(r, hint) @ J, np.eye(6), atol=1e-9)
+
+
+def test_spherical_is_singular_with_the_uav_overhead():
+    F = UgvUavSpherical()
+    r = np.array([0.3, -0.2, 0.0, 0.3, -0.2, 1.5])
+    with pytest.raises(DegenerateInputError, match="straight above"):
+        F.jacobian(r)
+    Ji = F.inverse_jacobian(r)
+    assert np.all(np.isfinite(Ji)) and np.linalg.matrix_rank(Ji) == 5
+    assert F.singularity_measure(r) < 1e-12
+    for eps in (1e-3, 1e-6):
+        near = r + np.array([0, 0, 0, eps, 0, 0])
+        assert F.singularity_measure(near) < 2 * eps / 1.5
+        assert np.abs(F.jacobian(near)[4]).max() > 0.5 / eps  # d alpha / d x_b ~ 1 / (rho cos beta)
+
+
+def test_quaternion_is_regular_overhead_and_matches_eq_5_3():
+    F = UgvUavQuaternion()
+    e = np.array([0.0, 0.0, 0.0, 1.5, 0.0, np.pi / 2])
+    c = F.from_euclidean(e)
+    np.testing.assert_allclose(c[3:7], [np.sqrt(2) / 2, 0, -np.sqrt(2) / 2, 0], atol=1e-15)  # (5.3)
+    r = UgvUavSpherical().inverse(e)
+    for eps in (0.0, 1e-8, 1e-4):
+        rr = r + np.array([0, 0, 0, eps, 0, 0])
+        assert F.singularity_measure(rr, c) > 0.3
+        np.testing.assert_allclose(F.inverse_jacobian(rr, c) @ F.jacobian(rr, c), np.eye(6), atol=1e-9)
+
+
+def test_quaternion_seed_forward_behind_the_ugv():
+    """(4.28)-(4.29) are 0/0 with the UAV behind the UGV along -x (eta = pi): the §5.3 path
+    passes there. With a hint the description is regular."""
+    F = UgvUavQuaternion()
+    r = np.array([0.0, 0.0, 0.0, -0.75, 0.0, 0.0])
+    c0 = F.forward(r)
+    assert np.all(np.isfinite(c0))
+    e = np.array([0.0, 0.0, 0.0, 0.75, np.pi, 0.0])
+    hint = F.from_euclidean(e)
+    for dy in (1e-7, -1e-7):
+        c = F.forward(r + np.array([0, 0, 0, 0, dy, 0]), hint)
+        np.testing.assert_allclose(np.abs(c[3:7] @ hint[3:7]), 1.0, atol=1e-12)
+
+
+def test_restricted_refuses_the_platform_level_front_configuration():
+    F = UgvUavRestricted()
+    front = np.array([0.0, 0.0, 0.0, 0.0, 0.75, 0.0])  # UAV ahead at platform level
+    c = F.forward(front)
+    assert math.degrees(c[5]) == pytest.approx(90.0)
+    with pytest.raises(UnreachableError, match="beta_f = 90.0 deg"):
+        F.inverse(c)
+    with pytest.raises(UnreachableError, match="outside the restricted"):
+        F.from_euclidean(np.array([0, 0, 0, 0.75, np.pi / 2, 0.0]))
+    # overhead is fine (alpha_f = beta_f = 0)
+    over = F.from_euclidean(np.array([0, 0, 0, 1.5, 0.0, np.pi / 2]))
+    np.testing.assert_allclose(over[4:], 0.0, atol=1e-12)
+    assert np.all(np.isfinite(F.inverse(over)))
+
+
+def test_descriptions_agree_on_the_robots():
+    e = np.array([0.2, -0.1, 0.0, 1.2, 0.4, 1.1])
+    r = UgvUavSpherical().inverse(e)
+    for F in ALL:
+        np.testing.assert_allclose(F.inverse(F.from_euclidean(e)), r, atol=1e-12)
+        np.testing.assert_allclose(F.euclidean(F.from_euclidean(e), e), e, atol=1e-12)
+
+
+def test_coincident_robots_refused():
+    for F in ALL:
+        with pytest.raises(DegenerateInputError, match="coincide"):
+            F.forward(np.zeros(6))
+
+
+# -- robots ------------------------------------------------------------------------------------
+
+def test_pioneer_step_is_the_exact_unicycle():
+    p = Pioneer()
+    s0, u = np.array([0.2, -0.1, 0.3]), np.array([0.5, 0.8])
+    x, n = s0.copy(), 20000
+    for _ in range(n):  # fine Euler of eq. (3.4) with psi_dot = omega
+        x = x + (1.0 / n) * np.r_[p.forward_matrix(x[2]) @ u, u[1]]
+    np.testing.assert_allclose(p.step(s0, u, 1.0), x, atol=5e-5)
+    straight = p.step(s0, np.array([0.5, 0.0]), 2.0)
+    np.testing.assert_allclose(straight, s0 + np.array([np.cos(0.3), np.sin(0.3), 0]) * [1.0, 1.0, 0], atol=1e-12)
+
+
+def test_pioneer_inverse_kinematics_eq_3_5():
+    p = Pioneer()
+    psi = np.linspace(-3, 3, 7)
+    xy = np.stack([np.cos(psi * 2), np.sin(psi)], -1)
+    vw = p.commands_from_velocity(psi, xy)
+    np.testing.assert_allclose(np.einsum("...ij,...j->...i", p.forward_matrix(psi), vw), xy, atol=1e-12)
+    sat = p.saturate(np.array([3.0, 0.5]))
+    assert abs(sat[0]) <= p.max_v + 1e-12 and sat[1] / sat[0] == pytest.approx(0.5 / 3.0)
+    np.testing.assert_array_equal(p.saturate(np.array([np.nan, 1.0])), [0.0, 0.0])
+
+
+def test_bebop_dynamics_table2():
+    b = Bebop()
+    assert b.k == TABLE2_K
+    np.testing.assert_allclose(b.max_velocity, np.array(TABLE2_K[0::2]) / np.array(TABLE2_K[1::2]))
+    s = np.zeros(8)
+    u = np.array([0.2, -0.1, 0.3, 0.1])
+    for _ in range(6000):
+        s = b.step(s, u, 0.01)
+    np.testing.assert_allclose(s[4:], b.k_u / b.k_v * u, rtol=1e-4)  # steady state of (3.11)
+    slow = Bebop(max_fraction=0.4)
+    np.testing.assert_allclose(slow.saturate(np.array([1.0, -1.0, 0.2, 0.5])), [0.4, -0.4, 0.2, 0.4])
+    np.testing.assert_array_equal(b.saturate(np.array([np.inf, 0, 0, 0])), np.zeros(4))
+    # world velocity = A_b body velocity (3.9)
+    s = np.array([0, 0, 0, 0.7, 1.0, 0.0, 0.0, 0.0])
+    s1 = Bebop(dynamic=False).step(s, np.array([b.k_v[0] / b.k_u[0], 0, 0, 0]), 0.01)
+    np.testing.assert_allclose(s1[0:2] / 0.01, (yaw_matrix(0.7) @ [1.0, 0, 0, 0])[0:2], atol=1e-12)
