@@ -102,3 +102,25 @@ def test_file_system_error_is_one_line(tmp_path):
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip() and not ln.startswith("\r")]
     assert lines[-1].startswith("quatform: error:")
     assert all(ln.startswith("quatform: error:") or "%" in ln for ln in lines)
+
+
+def test_ugv_uav_run_and_compare(tmp_path, capsys):
+    out = tmp_path / "uu"
+    assert cli.main(["run", "marciano-front-to-over", "--formation", "quaternion", "--out", str(out),
+                     "--mocap-noise-m", "0.002", "--mocap-latency-s", "0.005"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    for key in ("max_ugv_position_error_m", "max_uav_position_error_m", "max_uav_yaw_error_rad",
+                "unreachable_reference", "singularity_detected", "nonfinite_commands"):
+        assert key in m, key
+    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+    assert {"x_b", "x_b_des", "q_c_w", "q_c_w_des", "u_v_p", "euclid_alpha_c"} <= set(header)
+    assert (out / "paths_3d.png").read_bytes()[:8] == PNG
+    cmp_dir = tmp_path / "cmp"
+    assert cli.main(["compare", "marciano-front-to-over", "--out", str(cmp_dir)]) == 0
+    text = capsys.readouterr().out
+    rows = json.loads((cmp_dir / "comparison.json").read_text())
+    assert [r["formation"] for r in rows] == ["spherical", "restricted", "quaternion"]
+    assert rows[1]["unreachable_reference"] and not rows[2]["unreachable_reference"]
+    assert "| restricted | True |" in text and (cmp_dir / "compare_formations.png").exists()
+    # a two-robot scenario needs --controller
+    assert cli.main(["run", "mas-kitts-yaw-step", "--out", str(tmp_path / "x")]) == 2

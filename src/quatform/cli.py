@@ -12,6 +12,32 @@ from . import __version__
 from .errors import QuatformError
 
 CONTROLLER_NAMES = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
+FORMATION_NAMES = ("spherical", "restricted", "quaternion")
+
+
+def _measurement_options(p):
+    p.add_argument("--mocap-noise-m", type=float, metavar="SIGMA",
+                   help="UGV-UAV: motion-capture position noise, standard deviation in m")
+    p.add_argument("--mocap-latency-s", type=float, metavar="S", help="UGV-UAV: motion-capture latency in s")
+
+
+def _with_measurement(sc, args):
+    import dataclasses
+
+    from .errors import InvalidInputError
+
+    changes = {}
+    for opt, field in (("mocap_noise_m", "mocap_noise_m"), ("mocap_latency_s", "mocap_latency_s")):
+        v = getattr(args, opt, None)
+        if v is not None:
+            if not (v >= 0):
+                raise InvalidInputError(f"--{opt.replace('_', '-')} must be >= 0, got {v!r}")
+            changes[field] = v
+    if not changes:
+        return sc
+    if not hasattr(sc, "mocap_noise_m"):
+        raise InvalidInputError("--mocap-noise-m and --mocap-latency-s apply to UGV-UAV scenarios only")
+    return dataclasses.replace(sc, **changes)
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -38,31 +64,46 @@ def _build_parser() -> argparse.ArgumentParser:
         "run",
         help="simulate one scenario with one controller",
         description="Simulate SCENARIO (a built-in name or a .toml file) and write DIR/metrics.json, "
-        "DIR/timeseries.csv and PNG plots.",
+        "DIR/timeseries.csv and PNG plots. Two-robot scenarios (seed 000) take --controller; "
+        "UGV-UAV scenarios (seed 001) take --formation and the motion-capture options.",
     )
     run.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
-    run.add_argument("--controller", required=True, choices=CONTROLLER_NAMES)
+    run.add_argument("--controller", choices=CONTROLLER_NAMES,
+                     help="controller of a two-robot (seed 000) scenario")
+    run.add_argument("--formation", choices=FORMATION_NAMES, default="quaternion",
+                     help="formation description of a UGV-UAV (seed 001) scenario (default: quaternion)")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+    _measurement_options(run)
 
     cmp_ = sub.add_parser(
         "compare",
         help="run all four controllers on one scenario",
-        description="Run SCENARIO with every controller into DIR/<controller>/, draw the errors in "
-        "Euclidean cluster variables side by side (seed 000 Fig. 13) and print a table.",
+        description="Run SCENARIO with every controller (seed 000) or every formation description "
+        "(seed 001 UGV-UAV) into DIR/<name>/, draw the errors side by side (seed 000 Fig. 13) and "
+        "print a table.",
     )
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
+    _measurement_options(cmp_)
 
     sub.add_parser("scenarios", help="list the built-in scenarios",
                    description="List the built-in scenarios with their titles and sources.")
     return parser
 
 
-def _compare(scenario, out):
-    from .runs import compare_scenario, format_table
+def _compare(scenario, out, args=None):
+    from .runs import UGV_UAV_COLUMNS, compare_scenario, compare_ugv_uav, format_table
+    from .sim import load_scenario
 
-    rows = compare_scenario(scenario, out)
+    sc = load_scenario(scenario)
+    if args is not None:
+        sc = _with_measurement(sc, args)
+    if hasattr(sc, "mocap_noise_m"):
+        print(format_table(compare_ugv_uav(sc, out), UGV_UAV_COLUMNS))
+        print(f"\nfiles in {out}/ (one folder per formation, compare_formations.png, comparison.md)")
+        return
+    rows = compare_scenario(sc, out)
     print(format_table(rows))
     print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 
@@ -77,12 +118,23 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "demo":
             _compare("mas-kitts-spiral", args.out)
         elif args.command == "compare":
-            _compare(args.scenario, args.out)
+            _compare(args.scenario, args.out, args)
         elif args.command == "run":
-            from .runs import format_table, run_scenario
+            from .errors import InvalidInputError
+            from .runs import UGV_UAV_COLUMNS, format_table, run_scenario, run_ugv_uav
+            from .sim import load_scenario
 
-            _, metrics = run_scenario(args.scenario, args.controller, args.out, plots=not args.no_plots)
-            print(format_table([metrics]))
+            sc = _with_measurement(load_scenario(args.scenario), args)
+            if hasattr(sc, "mocap_noise_m"):
+                _, metrics = run_ugv_uav(sc, args.formation, args.out, plots=not args.no_plots)
+                print(format_table([metrics], UGV_UAV_COLUMNS))
+            else:
+                if args.controller is None:
+                    raise InvalidInputError(
+                        f"{sc.name} is a two-robot scenario: give --controller "
+                        f"{{{','.join(CONTROLLER_NAMES)}}}")
+                _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots)
+                print(format_table([metrics]))
         elif args.command == "scenarios":
             from .sim import builtin_scenarios, load_scenario
 

@@ -21,7 +21,8 @@ from .sim import (
     write_timeseries,
 )
 
-__all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS"]
+__all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
+           "compare_ugv_uav", "UGV_UAV_COLUMNS"]
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
@@ -48,6 +49,64 @@ def _progress(label):
     return report
 
 
+def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False):
+    """A seed 001 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``."""
+    import numpy as np
+
+    from .sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_timeseries
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    run = simulate_ugv_uav(sc, formation, progress=None if quiet else _progress(f"{sc.name} / {formation}"))
+    metrics = ugv_uav_metrics(run)
+    metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
+    write_metrics(metrics, out / "metrics.json")
+    names, data = ugv_uav_timeseries(run)
+    np.savetxt(out / "timeseries.csv", data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+    if plots:
+        from .report.ugv_uav_plots import write_ugv_uav_run_plots
+
+        write_ugv_uav_run_plots(run, out)
+    if not quiet:
+        if run.unreachable_at is not None:
+            print(f"  {sc.name} / {formation}: reference unreachable from t = {run.unreachable_at:.2f} s: "
+                  f"{run.unreachable_message}", file=sys.stderr)
+        print(f"\r  {sc.name} / {formation}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
+    return run, metrics
+
+
+UGV_UAV_COLUMNS = (
+    ("formation", "formation", "{}"),
+    ("unreachable_reference", "unreachable", "{}"),
+    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
+    ("max_ugv_position_error_m", "UGV (m)", "{:.3f}"),
+    ("max_uav_position_error_m", "UAV (m)", "{:.3f}"),
+    ("max_uav_yaw_error_rad", "UAV yaw (rad)", "{:.3f}"),
+    ("max_unexplained_cluster_jump", "state jump", "{:.1e}"),
+    ("nonfinite_commands", "NaN cmds", "{}"),
+)
+
+
+def compare_ugv_uav(sc, out, quiet: bool = False):
+    """Run the three descriptions of seed 001 on one scenario; plots, table; return the rows."""
+    from .sim.ugv_uav import UGV_UAV_FORMATIONS
+
+    out = Path(out)
+    runs, rows = [], []
+    for name in UGV_UAV_FORMATIONS:
+        run, m = run_ugv_uav(sc, name, out / name, quiet=quiet)
+        runs.append(run)
+        rows.append(m)
+    from .report.ugv_uav_plots import write_ugv_uav_compare_plots
+
+    write_ugv_uav_compare_plots(runs, out)
+    (out / "comparison.json").write_text(json.dumps(rows, indent=2) + "\n")
+    table = format_table(rows, UGV_UAV_COLUMNS)
+    (out / "comparison.md").write_text(f"# {sc.name}: {sc.title}\n\nSource: {sc.source}\n\n{table}\n")
+    return rows
+
+
 def run_scenario(scenario, controller: str, out, plots: bool = True, quiet: bool = False):
     """Simulate, write ``out/metrics.json``, ``out/timeseries.csv`` and plots; return the metrics."""
     sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
@@ -68,13 +127,13 @@ def run_scenario(scenario, controller: str, out, plots: bool = True, quiet: bool
     return run, metrics
 
 
-def format_table(rows) -> str:
-    """A Markdown table of metrics rows (``TABLE_COLUMNS``)."""
-    head = "| " + " | ".join(h for _, h, _ in TABLE_COLUMNS) + " |"
-    sep = "|" + "|".join("---" for _ in TABLE_COLUMNS) + "|"
+def format_table(rows, columns=TABLE_COLUMNS) -> str:
+    """A Markdown table of metrics rows."""
+    head = "| " + " | ".join(h for _, h, _ in columns) + " |"
+    sep = "|" + "|".join("---" for _ in columns) + "|"
     lines = [head, sep]
     for m in rows:
-        cells = ["-" if m.get(k) is None else fmt.format(m[k]) for k, _, fmt in TABLE_COLUMNS]
+        cells = ["-" if m.get(k) is None else fmt.format(m[k]) for k, _, fmt in columns]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -12,6 +12,7 @@ from .quaternion import (
     dual_quaternion_lyapunov,
     quaternion_lyapunov,
 )
+from .ugv_uav import COMMAND_NAMES, MEASURED_NAMES, UgvUavController, UgvUavStep
 
 #: Controller classes by command-line name.
 CONTROLLERS = {
@@ -34,4 +35,8 @@ __all__ = [
     "TABLE1",
     "TABLE2",
     "CONTROLLERS",
+    "UgvUavController",
+    "UgvUavStep",
+    "MEASURED_NAMES",
+    "COMMAND_NAMES",
 ]

@@ -84,7 +84,11 @@ def _get(d, key, kind, where, default=None):
 
 
 def load_scenario(name_or_file: str | Path) -> Scenario:
-    """Load a built-in scenario by name or a TOML file by path."""
+    """Load a built-in scenario by name or a TOML file by path.
+
+    Returns a :class:`Scenario` (two 4-DOF robots, seed 000) or, for ``kind = "ugv-uav"``,
+    a :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001).
+    """
     p = Path(name_or_file)
     builtin = builtin_scenarios()
     if str(name_or_file) in builtin:
@@ -98,6 +102,12 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
         data = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise InvalidInputError(f"{p}: not valid TOML: {exc}") from None
+    if data.get("kind", "pair") == "ugv-uav":
+        from .ugv_uav import ugv_uav_scenario_from_dict
+
+        return ugv_uav_scenario_from_dict(data, where=str(p))
+    if data.get("kind", "pair") != "pair":
+        raise InvalidInputError(f"{p}: kind = {data['kind']!r}; use 'pair' (seed 000) or 'ugv-uav' (seed 001)")
     return scenario_from_dict(data, where=str(p))
 
 

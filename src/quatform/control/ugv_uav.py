@@ -1,0 +1,177 @@
+"""The UGV-UAV formation controller of seed 001 §4.3-4.4 (Fig. 18), with what a lab adds.
+
+Control layer. One step: measured positions -> cluster state (forward kinematics, the
+reference as hint) -> cluster rate references with tanh saturation, eqs. (4.43)-(4.45)
+(the error quaternion order corrected as in seed 000) -> robot rates through the inverse
+Jacobian (4.42) -> the Pioneer's commands by eq. (3.5) -> the Bebop's body-frame velocity
+reference by eq. (3.10), its yaw rate by eqs. (4.50)-(4.51), and the dynamic compensation
+(4.47)-(4.49). Around it: an arena box whose walls no command may push through, the
+robots' limits, and an emergency stop (the thesis's joystick override) that halts both.
+
+Measured state (11 values): ``(x_p, y_p, psi_p, x_b, y_b, z_b, psi_b, v_x, v_y, z_dot,
+psi_dot)``: the Pioneer's control point and heading, the Bebop's pose and its body-frame
+velocity (from its own odometry). Commands (6 values): ``(v, omega, u_x, u_y, u_z, u_psi)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..algebra._validate import as_array
+from ..errors import InvalidInputError
+from ..formations import UgvUavQuaternion
+from ..formations import _geometry as g
+from ..formations.base import Formation
+from ..robots import Bebop, Pioneer, yaw_matrix
+from .base import Reference
+
+__all__ = ["UgvUavController", "UgvUavStep", "MEASURED_NAMES", "COMMAND_NAMES"]
+
+MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
+COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
+
+
+@dataclass(frozen=True)
+class UgvUavStep:
+    """What one step computed: ``commands`` (6), ``cluster`` and ``error`` (formation's
+    size), ``robot_rates`` (the 6 world rates of eq. (4.42)), ``raw_finite``, ``stopped``."""
+
+    commands: np.ndarray
+    cluster: np.ndarray
+    error: np.ndarray
+    robot_rates: np.ndarray
+    raw_finite: bool
+    stopped: bool
+
+
+def _positive(values, n, name):
+    v = np.broadcast_to(np.asarray(values, dtype=float), (n,)).copy()
+    if not np.all(np.isfinite(v)) or np.any(v <= 0):
+        raise InvalidInputError(f"{name} must be {n} positive numbers, got {values!r}")
+    return v
+
+
+class UgvUavController:
+    """Seed 001's formation controller for a Pioneer 3-DX and a Bebop 2.
+
+    Parameters
+    ----------
+    formation : Formation
+        ``UgvUavQuaternion`` (default), ``UgvUavSpherical`` or ``UgvUavRestricted``.
+    k_x, k_d, k_w : gains of (4.43)-(4.45): ``K_x = I``, ``K_d = 1``, ``K_w = I`` (seed 001 §5).
+        For the Euclidean descriptions ``k_w`` (first two) act on the two angles.
+    k_psi : float
+        UAV yaw gain (4.51), 3.
+    l_d : array_like, shape (4,)
+        ``L_d`` of the dynamic compensation (4.47), ``diag(2, 2, 1.8, 5)``.
+    compensation : bool
+        Use (4.47); otherwise the kinematic command ``u = K_u^-1 K_v v_r``.
+    pioneer, bebop : robot models (limits, ``a``, ``K1..K8``).
+    z_ugv : float
+        Height of the UGV's landing platform, m (the cluster point's z).
+    arena : ((x_min, x_max), (y_min, y_max), (z_min, z_max))
+        Box no command may push a robot out of (seed 001 §3.4: 6 x 4 x 3 m).
+    """
+
+    def __init__(self, formation: Formation | None = None, k_x=1.0, k_d=1.0, k_w=1.0, k_psi=3.0,
+                 l_d=(2.0, 2.0, 1.8, 5.0), compensation=True, feedforward=True, pioneer=None, bebop=None,
+                 z_ugv=0.0, arena=((-3.0, 3.0), (-2.0, 2.0), (0.0, 3.0))):
+        self.formation = formation if formation is not None else UgvUavQuaternion()
+        self.k_x = _positive(k_x, 3, "k_x")
+        self.k_d = float(_positive(k_d, 1, "k_d")[0])
+        self.k_w = _positive(k_w, 3, "k_w")
+        self.k_psi = float(_positive(k_psi, 1, "k_psi")[0])
+        self.l_d = _positive(l_d, 4, "l_d")
+        self.compensation = bool(compensation)
+        self.feedforward = bool(feedforward)
+        self.pioneer = pioneer if pioneer is not None else Pioneer()
+        self.bebop = bebop if bebop is not None else Bebop()
+        self.z_ugv = float(z_ugv)
+        self.arena = np.asarray(arena, dtype=float)
+        if self.arena.shape != (3, 2) or np.any(self.arena[:, 0] >= self.arena[:, 1]):
+            raise InvalidInputError(f"arena must be ((x_min, x_max), (y_min, y_max), (z_min, z_max)), got {arena!r}")
+        self.reset()
+
+    @property
+    def name(self) -> str:
+        return self.formation.name
+
+    # -- state: the compensation's derivative and the emergency stop ------------------
+    def reset(self):
+        """Forget the previous velocity reference and release the emergency stop."""
+        self._prev = None
+        self.stopped = False
+
+    def emergency_stop(self):
+        """Halt both robots until :meth:`release` (the UAV hovers: zero velocity commands)."""
+        self.stopped = True
+
+    def release(self):
+        self.stopped = False
+        self._prev = None
+
+    # -- the chain of Fig. 18 ---------------------------------------------------------
+    def step(self, t: float, measured, reference: Reference) -> np.ndarray:
+        """Commands ``(v, omega, u_x, u_y, u_z, u_psi)`` for the measured state (11 values)."""
+        return self.compute(t, measured, reference).commands
+
+    def cluster_rates(self, c, c_des, c_dot_des):
+        """Cluster error and rate reference, eqs. (4.43)-(4.45)."""
+        F = self.formation
+        ff = 1.0 if self.feedforward else 0.0
+        if isinstance(F, UgvUavQuaternion):
+            err = c - c_des
+            rate = np.zeros(10)
+            rate[0:3] = ff * c_dot_des[0:3] - self.k_x * np.tanh(err[0:3])  # (4.43)
+            rate[7] = ff * c_dot_des[7] - self.k_d * np.tanh(err[7])  # (4.44), d_c = (d, 0, 0)
+            q, qd = c[3:7], c_des[3:7]
+            qe = g.mul(g.conj(qd), q)  # (4.45) prints q_c q_cd; the body-frame error is q_cd* q_c
+            err[3:7] = qe
+            s = -1.0 if qe[0] < 0 else 1.0
+            rate[3:7] = 0.5 * g.mul(q, np.r_[0.0, -s * self.k_w * qe[1:]]) + ff * g.mul(c_dot_des[3:7], qe)
+            return err, rate
+        err = F.errors(c, c_des)
+        k = np.r_[self.k_x, self.k_d, self.k_w[:2]]
+        return err, ff * c_dot_des - k * np.tanh(err)
+
+    def compute(self, t: float, measured, reference: Reference) -> UgvUavStep:
+        m = as_array(measured, "measured state", 11)
+        F = self.formation
+        c_des = as_array(reference.c, "reference.c", F.n_c)
+        c_dot = as_array(reference.c_dot, "reference.c_dot", F.n_c)
+        r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
+        c = F.forward(r, c_des)
+        err, c_rate = self.cluster_rates(c, c_des, c_dot)
+        x_rate = F.inverse_jacobian_at(c, r) @ c_rate  # (4.42)
+        finite = bool(np.all(np.isfinite(x_rate)))
+        if not finite:
+            x_rate = np.zeros(6)
+        x_rate = self._keep_inside(m, x_rate)
+        if self.stopped:
+            self._prev = None
+            return UgvUavStep(np.zeros(6), c, err, x_rate, finite, True)
+        ugv = self.pioneer.saturate(self.pioneer.commands_from_velocity(m[2], x_rate[0:2]))  # (3.5)
+        psi_rate = self.k_psi * np.tanh(g.wrap(m[2] - m[6]))  # (4.50)-(4.51), psi_bd = psi_p
+        v_r = yaw_matrix(-m[6]) @ np.r_[x_rate[3:6], psi_rate]  # (3.10): A_b^-1 = A_b(-psi)
+        b = self.bebop
+        if self.compensation:
+            v_r_dot = np.zeros(4) if self._prev is None or t <= self._prev[0] else (v_r - self._prev[1]) / (t - self._prev[0])
+            v = m[7:11]
+            u = (v_r_dot + self.l_d * (v_r - v) + b.k_v * v) / b.k_u  # (4.47)-(4.49)
+        else:
+            u = b.k_v / b.k_u * v_r
+        self._prev = (t, v_r)
+        cmd = np.r_[ugv, b.saturate(u)]
+        return UgvUavStep(cmd, c, err, x_rate, finite, False)
+
+    def _keep_inside(self, m, x_rate):
+        """Remove velocity components that push a robot through a wall of the arena."""
+        out = x_rate.copy()
+        for k, pos in ((0, np.array([m[0], m[1], self.z_ugv])), (3, m[3:6])):
+            for axis in range(3):
+                lo, hi = self.arena[axis]
+                if (pos[axis] >= hi and out[k + axis] > 0) or (pos[axis] <= lo and out[k + axis] < 0):
+                    out[k + axis] = 0.0
+        return out

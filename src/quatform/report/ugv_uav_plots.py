@@ -1,0 +1,558 @@
+"""Report layer: PNG figures of UGV-UAV runs, like seed 001 Figs. 19-39 (above sim).
+
+The figures of :class:`quatform.sim.ugv_uav.UgvUavRun`: a Pioneer (UGV) and a Bebop (UAV)
+in one of the descriptions ``'quaternion'``, ``'spherical'`` or ``'restricted'``. As in
+:mod:`quatform.report.plots` (whose helpers are reused), every function draws on its own
+:class:`matplotlib.figure.Figure` attached to an Agg canvas, lines are decimated to at
+most ``MAX_POINTS`` samples, and the singular-pose shading is computed on every sample.
+
+The robots are drawn at their logged (true) poses, ``run.ugv`` and ``run.uav``, against
+the desired ones ``UgvUavSpherical().inverse(run.e_des)``. A run whose reference the
+description cannot express from the start has no samples; its figures then carry the
+reason instead of axes.
+
+* :func:`plot_ugv_uav_paths_3d` - both robots' paths in 3-D, with the segment between them
+  drawn as a time-lapse.
+* :func:`plot_ugv_uav_cluster` - the cluster variables of the run's description against
+  desired, and their errors.
+* :func:`plot_ugv_uav_robots` - each robot's position and heading against its reference.
+* :func:`plot_ugv_uav_compare` - several descriptions on one scenario: robot errors, the
+  recovered ``alpha_c`` and the singularity measure.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import MaxNLocator
+from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
+
+from ..formations import UgvUavSpherical
+from ..sim.metrics import SINGULAR_THRESHOLD
+from ..sim.ugv_uav import UGV_UAV_FORMATIONS, UgvUavRun
+from .plots import (
+    _ANGLE_LABELS,
+    _ANGLE_TICKS,
+    _DES_STYLE,
+    _MEAS_STYLE,
+    _SINGULAR_COLOR,
+    _break_wraps,
+    _check_runs,
+    _decimate,
+    _finite,
+    _floor_ylim,
+    _intervals,
+    _new_figure,
+    _save,
+    _set_equalish_3d,
+    _shade,
+    _time_xlim,
+    _wrap,
+)
+
+__all__ = [
+    "plot_ugv_uav_cluster",
+    "plot_ugv_uav_compare",
+    "plot_ugv_uav_paths_3d",
+    "plot_ugv_uav_robots",
+    "write_ugv_uav_compare_plots",
+    "write_ugv_uav_run_plots",
+]
+
+_SWITCH_STYLE = {"color": "0.35", "lw": 0.9, "ls": "--"}
+_XYZ_COLORS = ("C0", "C1", "C2")
+_Q_COLORS = ("C0", "C1", "C2", "C4")
+#: Half-width of the linear band of the symlog error axes.
+_LINTHRESH = 1e-3
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _title(run: UgvUavRun) -> str:
+    sc = run.scenario
+    head = f"{sc.name} - ugv-uav-{run.formation}"
+    return f"{head}\n{sc.title}" if sc.title else head
+
+
+def _unreachable_text(run: UgvUavRun) -> str:
+    msg = run.unreachable_message or "no samples"
+    return f"reference unreachable for the {run.formation} description: {msg}"
+
+
+def _unreachable_note(run: UgvUavRun) -> str:
+    """Short tag for legends and titles: ``''`` for a run that kept its reference."""
+    if run.unreachable_at is None:
+        return ""
+    return f"unreachable from t = {run.unreachable_at:g} s"
+
+
+def _empty_figure(run: UgvUavRun, path, figsize) -> Path:
+    """A figure with only the reason why ``run`` has no samples."""
+    fig = _new_figure(figsize)
+    ax = fig.add_subplot()
+    ax.set_axis_off()
+    width = max(30, int(9.5 * figsize[0]))
+    ax.text(0.5, 0.5, textwrap.fill(_unreachable_text(run), width), ha="center", va="center",
+            fontsize=11, color="C3", transform=ax.transAxes)
+    fig.suptitle(_title(run), fontsize=11)
+    return _save(fig, path)
+
+
+def _desired_robots(run: UgvUavRun) -> np.ndarray:
+    """Desired ``(x_p, y_p, z_p, x_b, y_b, z_b)`` of every sample, (T, 6)."""
+    if run.t.size == 0:
+        return np.zeros((0, 6))
+    return UgvUavSpherical().inverse(np.asarray(run.e_des, dtype=float))
+
+
+def _actual_robots(run: UgvUavRun) -> np.ndarray:
+    """Logged (true) ``(x_p, y_p, z_p, x_b, y_b, z_b)``, the UGV at the platform height."""
+    ugv, uav = np.asarray(run.ugv, dtype=float), np.asarray(run.uav, dtype=float)
+    z = np.full(run.t.size, float(run.scenario.center[2]))
+    return np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
+
+
+def _angle_axis(ax):
+    ax.set_ylim(-np.pi - 0.35, np.pi + 0.35)
+    ax.set_yticks(_ANGLE_TICKS, _ANGLE_LABELS)
+
+
+def _wrapped(y):
+    """``y`` folded into ``[-pi, pi)`` with NaN at the folds, so no vertical line is drawn."""
+    return _break_wraps(_wrap(_finite(y)))
+
+
+def _switch_time(run: UgvUavRun):
+    """Time of the front -> over switch of seed 001 §5.3 inside the run, or None."""
+    ts = float(run.scenario.uav_front_until_s)
+    if ts <= 0 or run.t.size == 0 or not (run.t[0] <= ts <= run.t[-1]):
+        return None
+    return ts
+
+
+def _decorate_time_axes(ax, run: UgvUavRun, spans):
+    _shade(ax, spans)
+    ts = _switch_time(run)
+    if ts is not None:
+        ax.axvline(ts, **_SWITCH_STYLE, zorder=1)
+    ax.tick_params(labelsize=8)
+    ax.grid(True, lw=0.4, alpha=0.5)
+    _time_xlim(ax, float(run.t[0]), float(run.t[-1]))
+
+
+def _extra_handles(run: UgvUavRun, spans) -> list:
+    """Legend entries of the singular shading and the switch line, where drawn."""
+    handles = []
+    if spans:
+        handles.append(Patch(color=_SINGULAR_COLOR, alpha=0.6,
+                             label=f"singular (measure < {SINGULAR_THRESHOLD:g})"))
+    ts = _switch_time(run)
+    if ts is not None:
+        handles.append(Line2D([], [], **_SWITCH_STYLE, label=f"UAV front → over (t = {ts:g} s)"))
+    return handles
+
+
+def _subtitle_note(run: UgvUavRun) -> str:
+    note = _unreachable_note(run)
+    return f" ({note})" if note else ""
+
+
+def _quaternion_angle(q, q_des):
+    """Rotation angle between unit quaternions, ``2 acos|q_des . q|``, in ``[0, pi]``.
+
+    Evaluated as ``4 atan2(|q - s q_des|, |q + s q_des|)`` with ``s = sign(q_des . q)``,
+    which is the same angle without the loss of ``acos`` near 1.
+    """
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    p = q_des / np.linalg.norm(q_des, axis=-1, keepdims=True)
+    s = np.where(np.einsum("...i,...i->...", q, p) < 0, -1.0, 1.0)[..., None]
+    return 4.0 * np.arctan2(np.linalg.norm(q - s * p, axis=-1), np.linalg.norm(q + s * p, axis=-1))
+
+
+def _symlog_error_axis(ax, y, nonnegative=False):
+    """Symmetric-log y axis (linear within ``_LINTHRESH``) sized to the finite samples of ``y``."""
+    y = np.asarray(y, dtype=float)
+    peak = float(np.nanmax(np.abs(y))) if np.isfinite(y).any() else 0.0
+    ax.set_yscale("symlog", linthresh=_LINTHRESH)
+    lim = max(peak, _LINTHRESH) * 1.5
+    ax.set_ylim(0.0 if nonnegative else -lim, lim)
+    ax.axhline(0.0, color="k", lw=0.5)
+
+
+# --------------------------------------------------------------------------- one run
+
+
+def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
+    """Both robots' paths in 3-D, logged (solid) and desired (dashed).
+
+    Like seed 001 Figs. 19, 26 and 33: the UGV's control point at the platform height
+    ``scenario.center[2]`` and the UAV's position. Start points are marked (circle:
+    measured, hollow square: desired) and the segment between the robots is drawn as a
+    thin grey line at ``n_segments + 1`` evenly spaced times (about every 10 % of the
+    run). The axes share one scale (each spans at least a quarter of the largest extent).
+    A run with no samples gets the reason its reference was unreachable instead.
+
+    Parameters
+    ----------
+    run : UgvUavRun
+        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    path : str or Path
+        PNG file to write; its folder is created if missing.
+    n_segments : int, optional
+        Number of intervals of the time-lapse (default 10).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    if run.t.size == 0:
+        return _empty_figure(run, path, (8.0, 6.8))
+    r, rd = _finite(_actual_robots(run)), _finite(_desired_robots(run))
+    fig = _new_figure((8.0, 6.8))
+    ax = fig.add_subplot(projection="3d")
+    idx = _decimate(r.shape[0])
+    ks = np.unique(np.linspace(0, r.shape[0] - 1, max(1, int(n_segments)) + 1).round().astype(int))
+    for k in ks:  # first, so the paths are drawn over them
+        seg = np.stack([r[k, 0:3], r[k, 3:6]])
+        ax.plot(*seg.T, color="0.6", lw=0.8, alpha=0.8)
+    for sl, color, name in ((slice(0, 3), "C0", "UGV"), (slice(3, 6), "C1", "UAV")):
+        p, pd = r[:, sl], rd[:, sl]
+        ax.plot(*p[idx].T, color=color, lw=1.4, ls="-", label=f"{name} measured")
+        ax.plot(*pd[idx].T, color=color, lw=1.0, ls="--", alpha=0.8, label=f"{name} desired")
+        ax.scatter(*p[0], color=color, marker="o", s=40, depthshade=False)
+        ax.scatter(*pd[0], facecolors="none", edgecolors=color, marker="s", s=60, depthshade=False)
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], color="0.6", lw=0.8, label="segment (every ~10 %)"),
+                Line2D([], [], color="k", marker="o", ls="none", label="start (measured)"),
+                Line2D([], [], color="k", marker="s", mfc="none", ls="none", label="start (desired)")]
+    ax.legend(handles=handles, fontsize=8, loc="upper left")
+    _set_equalish_3d(ax, np.concatenate([r[:, 0:3], r[:, 3:6], rd[:, 0:3], rd[:, 3:6]]))
+    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
+        axis.set_major_locator(MaxNLocator(5))
+        axis.set_tick_params(labelsize=8)
+        axis.set_label_text(f"{name} [m]")
+        axis.labelpad = 8
+    ax.set_title(f"{_title(run)}{_subtitle_note(run)}", fontsize=11)
+    return _save(fig, path)
+
+
+def _cluster_rows(run: UgvUavRun):
+    """``(label, measured, desired, error, kind)`` per row of :func:`plot_ugv_uav_cluster`.
+
+    ``kind`` is ``'angle'``, ``'quaternion'`` (4 columns; the error is the rotation angle)
+    or ``'linear'``.
+    """
+    c, cd = _finite(run.c), _finite(run.c_des)
+    variables = UGV_UAV_FORMATIONS[run.formation].variables
+    if run.formation == "quaternion":
+        q_err = _quaternion_angle(c[:, 3:7], cd[:, 3:7])
+        rows = [(f"{variables[k].name} [m]", c[:, k], cd[:, k], c[:, k] - cd[:, k], "linear")
+                for k in range(3)]
+        rows.append(("q_c [-]", c[:, 3:7], cd[:, 3:7], q_err, "quaternion"))
+        rows.append(("d_c [m]", c[:, 7], cd[:, 7], c[:, 7] - cd[:, 7], "linear"))
+        return rows
+    rows = []
+    for k, var in enumerate(variables):
+        if var.kind == "angle":
+            rows.append((f"{var.name} [rad]", c[:, k], cd[:, k], _wrap(c[:, k] - cd[:, k]), "angle"))
+        else:
+            rows.append((f"{var.name} [m]", c[:, k], cd[:, k], c[:, k] - cd[:, k], "linear"))
+    return rows
+
+
+def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
+    """The cluster variables of the run's description against desired, and their errors.
+
+    Like seed 001 Figs. 20-22, 27-29 and 34-36. Left column: each variable of the
+    description, ``run.c`` (solid) against ``run.c_des`` (dashed), against time; for the
+    quaternion description ``x_c, y_c, z_c``, the four components of ``q_c`` in one axes
+    (one colour each) and ``d_c = c[:, 7]``; for the spherical and restricted ones their
+    six variables, angles wrapped to ``[-pi, pi)``. Right column: the errors (measured
+    minus desired, angles wrapped; for ``q_c`` the rotation angle ``2 acos|q_des . q|``)
+    on symmetric-logarithmic axes, linear within 1e-3. Times where the singularity
+    measure is below ``SINGULAR_THRESHOLD`` (0.02) are shaded light red, and the front ->
+    over switch of seed 001 §5.3 (``scenario.uav_front_until_s``) is a grey dashed line.
+
+    Parameters
+    ----------
+    run : UgvUavRun
+        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    path : str or Path
+        PNG file to write; its folder is created if missing.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    if run.t.size == 0:
+        return _empty_figure(run, path, (11.0, 6.0))
+    rows = _cluster_rows(run)
+    n = len(rows)
+    fig = _new_figure((11.0, 1.65 * n + 1.4))
+    axes = fig.subplots(n, 2, sharex=True, squeeze=False)
+    idx = _decimate(run.t.size)
+    t = run.t[idx]
+    spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    for row, (label, y, yd, err, kind) in enumerate(rows):
+        ax, ax_e = axes[row]
+        _decorate_time_axes(ax, run, spans)
+        _decorate_time_axes(ax_e, run, spans)
+        if kind == "quaternion":
+            for j, comp in enumerate("wxyz"):
+                ax.plot(t, y[idx, j], color=_Q_COLORS[j], lw=1.2, ls="-", label=comp)
+                ax.plot(t, yd[idx, j], color=_Q_COLORS[j], lw=1.0, ls="--")
+            ax.set_ylim(-1.1, 1.1)
+            ax.legend(fontsize=7, ncols=4, loc="lower right", framealpha=0.7, handlelength=1.2)
+            ax_e.set_ylabel("q_c error:\nangle [rad]", fontsize=9)
+        elif kind == "angle":
+            ax.plot(t, _wrapped(y[idx]), **_MEAS_STYLE)
+            ax.plot(t, _wrapped(yd[idx]), **_DES_STYLE)
+            _angle_axis(ax)
+            ax_e.set_ylabel(f"e({label.split(' ')[0]})\n[rad]", fontsize=9)
+        else:
+            ax.plot(t, y[idx], **_MEAS_STYLE)
+            ax.plot(t, yd[idx], **_DES_STYLE)
+            _floor_ylim(ax, y[idx], yd[idx])
+            ax_e.set_ylabel(f"e({label.split(' ')[0]})\n[m]", fontsize=9)
+        ax.set_ylabel(label, fontsize=9)
+        e = _finite(err)
+        ax_e.plot(t, e[idx], color="C2", lw=1.1)
+        _symlog_error_axis(ax_e, e, nonnegative=(kind == "quaternion"))
+    axes[0, 0].set_title(f"{run.formation} cluster variables", fontsize=10)
+    axes[0, 1].set_title(f"errors (symlog, linear within ±{_LINTHRESH:g})", fontsize=10)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]", fontsize=9)
+    handles = [Line2D([], [], **_MEAS_STYLE, label="measured"),
+               Line2D([], [], **_DES_STYLE, label="desired"),
+               Line2D([], [], color="C2", lw=1.1, label="error (measured - desired)")]
+    handles += _extra_handles(run, spans)
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 5), fontsize=9,
+               frameon=False)
+    fig.suptitle(f"{_title(run)}{_subtitle_note(run)}", fontsize=11)
+    return _save(fig, path)
+
+
+def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
+    """Each robot's position and heading against its reference, 2 x 2 axes.
+
+    Like seed 001 Figs. 23-24, 30-31 and 37-38. Top: the UGV's control point ``x, y``
+    (solid) against desired (dashed), and its heading ``psi``. Bottom: the UAV's ``x, y,
+    z`` against desired, and its yaw ``psi`` against the UGV's heading, which is its yaw
+    reference (seed 001 eq. 4.50). Angles are wrapped to ``[-pi, pi)``; singular times
+    shaded and the front -> over switch marked as in :func:`plot_ugv_uav_cluster`.
+
+    Parameters
+    ----------
+    run : UgvUavRun
+        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    path : str or Path
+        PNG file to write; its folder is created if missing.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    if run.t.size == 0:
+        return _empty_figure(run, path, (11.0, 6.4))
+    r, rd = _finite(_actual_robots(run)), _finite(_desired_robots(run))
+    ugv_psi, uav_psi = _finite(run.ugv[:, 2]), _finite(run.uav[:, 3])
+    fig = _new_figure((11.0, 6.4))
+    axes = fig.subplots(2, 2, sharex=True)
+    idx = _decimate(run.t.size)
+    t = run.t[idx]
+    spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    for row, (name, cols) in enumerate((("UGV", (0, 1)), ("UAV", (3, 4, 5)))):
+        ax = axes[row, 0]
+        _decorate_time_axes(ax, run, spans)
+        series = []
+        for j, col in enumerate(cols):
+            ax.plot(t, r[idx, col], color=_XYZ_COLORS[j], lw=1.2, ls="-", label="xyz"[j])
+            ax.plot(t, rd[idx, col], color=_XYZ_COLORS[j], lw=1.0, ls="--")
+            series += [r[idx, col], rd[idx, col]]
+        _floor_ylim(ax, *series)
+        ax.set_ylabel(f"{name} position [m]", fontsize=9)
+        ax.legend(fontsize=8, ncols=len(cols), loc="upper right", framealpha=0.7, handlelength=1.5)
+    ax = axes[0, 1]
+    _decorate_time_axes(ax, run, spans)
+    ax.plot(t, _wrapped(ugv_psi[idx]), color="C0", lw=1.2, label="UGV ψ")
+    _angle_axis(ax)
+    ax.set_ylabel("UGV heading ψ [rad]", fontsize=9)
+    ax.legend(fontsize=8, loc="upper right", framealpha=0.7)
+    ax = axes[1, 1]
+    _decorate_time_axes(ax, run, spans)
+    ax.plot(t, _wrapped(uav_psi[idx]), color="C1", lw=1.2, label="UAV ψ")
+    ax.plot(t, _wrapped(ugv_psi[idx]), color="C0", lw=1.0, ls="--", label="reference (UGV ψ)")
+    _angle_axis(ax)
+    ax.set_ylabel("UAV yaw ψ [rad]", fontsize=9)
+    ax.legend(fontsize=8, loc="upper right", framealpha=0.7)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]", fontsize=9)
+    handles = [Line2D([], [], color="k", lw=1.2, ls="-", label="measured"),
+               Line2D([], [], color="k", lw=1.0, ls="--", label="desired")]
+    handles += _extra_handles(run, spans)
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9,
+               frameon=False)
+    fig.suptitle(f"{_title(run)}{_subtitle_note(run)}\nrobots", fontsize=11)
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- several runs
+
+
+def _compare_label(run: UgvUavRun) -> str:
+    note = _unreachable_note(run)
+    return f"{run.formation} ({note})" if note else run.formation
+
+
+@np.errstate(invalid="ignore")
+def _robot_errors(run: UgvUavRun):
+    """Position errors ``|p_ugv - p_ugv_des|`` (x, y) and ``|p_uav - p_uav_des|`` (x, y, z)."""
+    r, rd = _finite(_actual_robots(run)), _finite(_desired_robots(run))
+    return (np.linalg.norm(r[:, 0:2] - rd[:, 0:2], axis=1),
+            np.linalg.norm(r[:, 3:6] - rd[:, 3:6], axis=1))
+
+
+def plot_ugv_uav_compare(runs, path) -> Path:
+    """Several descriptions on one UGV-UAV scenario, one line per run.
+
+    Like seed 001 Figs. 25, 32 and 39. Four rows sharing the time axis: the UGV's
+    position error ``|(x, y) - (x, y)_des|``, the UAV's ``|(x, y, z) - (x, y, z)_des|``
+    (both from the logged poses, so every description is measured the same way; symlog,
+    linear within 1e-3), the azimuth ``alpha_c`` each description recovers (``run.e``,
+    wrapped to ``[-pi, pi)``) against the desired one (black dashed), and the
+    singularity measure with its threshold ``SINGULAR_THRESHOLD`` (dotted). A run whose
+    reference became unreachable says so in its legend label (with no line if it has no
+    samples). The front -> over switch is a grey dashed line.
+
+    Parameters
+    ----------
+    runs : sequence of UgvUavRun
+        Runs of the same scenario with different formations.
+    path : str or Path
+        PNG file to write; its folder is created if missing.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``runs`` is empty.
+    """
+    runs = _check_runs(runs)
+    fig = _new_figure((9.0, 9.0))
+    axes = fig.subplots(4, 1, sharex=True)
+    peaks = [0.0, 0.0]
+    for j, run in enumerate(runs):
+        color, label = f"C{j}", _compare_label(run)
+        if run.t.size == 0:
+            for ax in axes:
+                ax.plot([], [], color=color, lw=1.1, label=label)
+            continue
+        idx = _decimate(run.t.size)
+        t = run.t[idx]
+        for row, err in enumerate(_robot_errors(run)):
+            if np.isfinite(err).any():
+                peaks[row] = max(peaks[row], float(np.nanmax(err)))
+            axes[row].plot(t, err[idx], color=color, lw=1.1, label=label)
+        axes[2].plot(t, _wrapped(np.asarray(run.e)[idx, 4]), color=color, lw=1.1, label=label)
+        axes[3].plot(t, _finite(run.singularity)[idx], color=color, lw=1.1, label=label)
+    for row, label in enumerate(("UGV position\nerror [m]", "UAV position\nerror [m]")):
+        ax = axes[row]
+        ax.set_yscale("symlog", linthresh=_LINTHRESH)
+        ax.set_ylim(0.0, max(peaks[row], _LINTHRESH) * 1.5)
+        ax.set_ylabel(label, fontsize=9)
+    longest = max(runs, key=lambda run: run.t.size)
+    extra = []
+    if longest.t.size:
+        idx = _decimate(longest.t.size)
+        axes[2].plot(longest.t[idx], _wrapped(np.asarray(longest.e_des)[idx, 4]), color="k", lw=1.0,
+                     ls="--", zorder=3)
+        extra.append(Line2D([], [], color="k", lw=1.0, ls="--", label="desired α_c"))
+        ts = _switch_time(longest)
+        if ts is not None:
+            for ax in axes:
+                ax.axvline(ts, **_SWITCH_STYLE, zorder=1)
+            extra.append(Line2D([], [], **_SWITCH_STYLE, label=f"UAV front → over (t = {ts:g} s)"))
+    _angle_axis(axes[2])
+    axes[2].set_ylabel("recovered α_c\n[rad]", fontsize=9)
+    axes[3].axhline(SINGULAR_THRESHOLD, color="k", lw=0.8, ls=":")
+    axes[3].set_ylim(bottom=0.0)
+    axes[3].set_ylabel("singularity\nmeasure [-]", fontsize=9)
+    extra.append(Line2D([], [], color="k", lw=0.8, ls=":", label=f"threshold {SINGULAR_THRESHOLD:g}"))
+    for ax in axes:
+        ax.tick_params(labelsize=8)
+        ax.grid(True, lw=0.4, alpha=0.5)
+    ran = [run for run in runs if run.t.size]
+    if ran:
+        _time_xlim(axes[-1], min(float(run.t[0]) for run in ran),
+                   max(float(run.t[-1]) for run in ran))
+    axes[-1].set_xlabel("time [s]")
+    handles, _ = axes[0].get_legend_handles_labels()
+    handles += extra
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 3), fontsize=9,
+               frameon=False)
+    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
+    fig.suptitle(f"{names} - UGV-UAV descriptions compared", fontsize=11)
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- files
+
+
+def write_ugv_uav_run_plots(run: UgvUavRun, out_dir) -> list[Path]:
+    """Write ``paths_3d.png``, ``cluster_variables.png`` and ``robots.png`` of one run.
+
+    Parameters
+    ----------
+    run : UgvUavRun
+        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    out_dir : str or Path
+        Folder to write into; created if missing.
+
+    Returns
+    -------
+    list of Path
+        The files written, in that order.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return [plot_ugv_uav_paths_3d(run, out / "paths_3d.png"),
+            plot_ugv_uav_cluster(run, out / "cluster_variables.png"),
+            plot_ugv_uav_robots(run, out / "robots.png")]
+
+
+def write_ugv_uav_compare_plots(runs, out_dir) -> list[Path]:
+    """Write ``compare_formations.png`` of several runs of one scenario.
+
+    Parameters
+    ----------
+    runs : sequence of UgvUavRun
+        Runs of one scenario, different formations.
+    out_dir : str or Path
+        Folder to write into; created if missing.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``runs`` is empty.
+    """
+    runs = _check_runs(runs)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return [plot_ugv_uav_compare(runs, out / "compare_formations.png")]

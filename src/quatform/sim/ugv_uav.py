@@ -1,0 +1,332 @@
+"""UGV-UAV scenarios of seed 001 §5: references, motion capture, the closed loop, metrics.
+
+Sim layer. A scenario (TOML, ``kind = "ugv-uav"``) gives the cluster path (circle or
+lemniscate of the UGV, eqs. (5.1)-(5.7)), the UAV's place relative to the UGV (over it,
+eq. (5.3); or in front of it at platform level, then over it), the robots' limits and the
+measurement: motion-capture rate, noise and latency, and the Bebop's odometry period
+(200 ms). The plant is integrated every ``dt_s``; the controller runs every
+``control_period_s`` on the measurements available then (zero-order hold).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control import Reference, UgvUavController
+from ..errors import InvalidInputError, UnreachableError
+from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from ..robots import Bebop
+
+__all__ = ["UgvUavScenario", "UgvUavRun", "simulate_ugv_uav", "ugv_uav_metrics", "UGV_UAV_FORMATIONS",
+           "ugv_uav_scenario_from_dict"]
+
+UGV_UAV_FORMATIONS = {"spherical": UgvUavSpherical, "restricted": UgvUavRestricted, "quaternion": UgvUavQuaternion}
+
+
+@dataclass(frozen=True)
+class UgvUavScenario:
+    """A seed 001 experiment (see ``docs/scenarios.md``)."""
+
+    name: str
+    duration_s: float
+    path: str = "circle"  # "circle" (5.1) or "lemniscate" (5.4)
+    r_x: float = 1.0
+    r_y: float = 1.0
+    omega: float = math.pi / 15
+    center: tuple = (0.0, 0.0, 0.0)
+    d_c: float = 1.5
+    uav_front_until_s: float = 0.0  # §5.3: UAV in front at platform level until this time
+    title: str = ""
+    source: str = ""
+    dt_s: float = 0.005
+    control_period_s: float = 0.03  # a multiple of dt_s (rounded to one)
+    mocap_rate_hz: float = 100.0
+    mocap_noise_m: float = 0.0
+    mocap_latency_s: float = 0.0
+    odometry_period_s: float = 0.2
+    seed: int = 0
+    max_fraction: float = 1.0
+    transient_s: float = 20.0
+    switch_transient_s: float = 15.0  # after the front -> over switch of §5.3
+    uav_start: tuple = (-0.6, 0.0, 0.0)  # relative to the UGV; on the ground
+    gains: dict = field(default_factory=dict)
+
+    def e_reference(self, t):
+        """Desired spherical variables and rates (``x_c, y_c, z_c, rho_c, alpha_c, beta_c``), (T, 6)."""
+        t = np.asarray(t, dtype=float)
+        w = self.omega
+        cx, cy, cz = self.center
+        if self.path == "circle":  # (5.1)-(5.2), (5.6)-(5.7)
+            x, y = self.r_x * np.sin(w * t) + cx, self.r_y * np.cos(w * t) + cy
+            xd, yd = w * self.r_x * np.cos(w * t), -w * self.r_y * np.sin(w * t)
+            xdd, ydd = -w * w * self.r_x * np.sin(w * t), -w * w * self.r_y * np.cos(w * t)
+        elif self.path == "lemniscate":  # (5.4)-(5.5)
+            x, y = self.r_x * np.sin(w * t) + cx, self.r_y * np.sin(2 * w * t) + cy
+            xd, yd = w * self.r_x * np.cos(w * t), 2 * w * self.r_y * np.cos(2 * w * t)
+            xdd, ydd = -w * w * self.r_x * np.sin(w * t), -4 * w * w * self.r_y * np.sin(2 * w * t)
+        else:
+            raise InvalidInputError(f"path must be 'circle' or 'lemniscate', got {self.path!r}")
+        e = np.zeros(t.shape + (6,))
+        ed = np.zeros_like(e)
+        e[..., 0], e[..., 1], e[..., 2], e[..., 3] = x, y, cz, self.d_c
+        ed[..., 0], ed[..., 1] = xd, yd
+        front = t < self.uav_front_until_s
+        heading = np.unwrap(np.arctan2(yd, xd)) if t.ndim else np.arctan2(yd, xd)
+        e[..., 4] = np.where(front, heading, 0.0)  # §5.3: alpha_c = atan2(y_dot, x_dot), beta_c = 0
+        ed[..., 4] = np.where(front, (xd * ydd - yd * xdd) / (xd * xd + yd * yd), 0.0)
+        e[..., 5] = np.where(front, 0.0, 0.5 * np.pi)  # over the UGV: beta_c = 90 deg, (5.3)
+        return e, ed
+
+    def controller(self, formation: str) -> UgvUavController:
+        if formation not in UGV_UAV_FORMATIONS:
+            raise InvalidInputError(f"unknown formation {formation!r}; choose {', '.join(UGV_UAV_FORMATIONS)}")
+        return UgvUavController(UGV_UAV_FORMATIONS[formation](), bebop=Bebop(max_fraction=self.max_fraction),
+                                z_ugv=self.center[2], **self.gains)
+
+
+@dataclass(frozen=True)
+class UgvUavRun:
+    """Logged signals (T samples of the control loop): ``t``; true ``ugv`` (x, y, psi) and
+    ``uav`` (x, y, z, psi, body velocities); ``measured`` robot positions (6); ``c``,
+    ``c_des`` (the controller's, hinted by the reference); ``c_continuous`` (the formation
+    recovered from the measurements, each sample continued from the previous); ``e``,
+    ``e_des`` (spherical variables recovered through the formation, and desired);
+    ``u`` (6); ``raw_finite``; ``singularity``; ``unreachable_at`` (first time the
+    reference left the description's reachable set, or None)."""
+
+    scenario: UgvUavScenario
+    formation: str
+    t: np.ndarray
+    ugv: np.ndarray
+    uav: np.ndarray
+    measured: np.ndarray
+    c: np.ndarray
+    c_des: np.ndarray
+    e: np.ndarray
+    e_des: np.ndarray
+    u: np.ndarray
+    raw_finite: np.ndarray
+    singularity: np.ndarray
+    unreachable_at: float | None
+    unreachable_message: str = ""
+    c_continuous: np.ndarray | None = None
+
+
+def _reachable_prefix(F, e, ed, t):
+    """Cluster references for as long as the description can express them."""
+    try:
+        c, cd = F.from_euclidean(e, ed)
+        return c, cd, None, ""
+    except UnreachableError as exc:
+        ok = np.ones(len(t), dtype=bool)
+        for k in range(len(t)):
+            try:
+                F.from_euclidean(e[k])
+            except UnreachableError:
+                ok[k] = False
+                break
+        n = int(np.argmin(ok)) if not ok.all() else len(t)
+        c, cd = F.from_euclidean(e[:n], ed[:n]) if n else (np.zeros((0, F.n_c)), np.zeros((0, F.n_c)))
+        return c, cd, float(t[n]), str(exc)
+
+
+def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress=None) -> UgvUavRun:
+    """Run the closed loop of Fig. 18 on the Pioneer and Bebop models with motion capture."""
+    ctrl = sc.controller(formation)
+    F = ctrl.formation
+    pioneer, bebop = ctrl.pioneer, ctrl.bebop
+    steps_per_control = max(1, int(round(sc.control_period_s / sc.dt_s)))
+    n_ctrl = int(sc.duration_s / (steps_per_control * sc.dt_s)) + 1
+    t_ctrl = np.arange(n_ctrl) * steps_per_control * sc.dt_s
+    e_des, ed_des = sc.e_reference(t_ctrl)
+    c_des, cd_des, unreachable_at, message = _reachable_prefix(F, e_des, ed_des, t_ctrl)
+    n = len(c_des)
+    rng = np.random.default_rng(sc.seed)
+    # initial state: the UGV on the path heading along it, the UAV on the ground beside it
+    heading0 = math.atan2(ed_des[0, 1], ed_des[0, 0])
+    ugv = np.array([e_des[0, 0], e_des[0, 1], heading0])
+    uav = np.r_[ugv[0:2] + np.asarray(sc.uav_start[0:2]), sc.center[2] + sc.uav_start[2], heading0, np.zeros(4)]
+    history = []  # (time, ugv, uav) for latency
+    mocap_dt = 1.0 / sc.mocap_rate_hz
+    last_mocap, last_odo = -np.inf, -np.inf
+    pose_meas, vel_meas = None, np.zeros(4)
+    log = {k: [] for k in ("ugv", "uav", "measured", "c", "e", "u", "ok")}
+    time = 0.0
+    tick = max(1, n // 10)
+    for k in range(n):
+        t = t_ctrl[k]
+        history.append((t, ugv.copy(), uav.copy()))
+        if t - last_mocap >= mocap_dt - 1e-12:  # a new motion-capture frame, `latency` old
+            _, gu, ga = _at(history, t - sc.mocap_latency_s)
+            noise = rng.normal(0.0, sc.mocap_noise_m, 5) if sc.mocap_noise_m > 0 else np.zeros(5)
+            pose_meas = np.r_[gu[0:2] + noise[0:2], gu[2], ga[0:3] + noise[2:5], ga[3]]
+            last_mocap = t
+        if t - last_odo >= sc.odometry_period_s - 1e-12:  # the Bebop's own state, every 200 ms
+            vel_meas = uav[4:8].copy()
+            last_odo = t
+        m = np.r_[pose_meas, vel_meas]
+        res = ctrl.compute(t, m, Reference(c_des[k], cd_des[k]))
+        log["ugv"].append(ugv.copy())
+        log["uav"].append(uav.copy())
+        log["measured"].append(m)
+        log["c"].append(res.cluster)
+        log["u"].append(res.commands)
+        log["ok"].append(res.raw_finite)
+        for _ in range(steps_per_control):
+            ugv = pioneer.step(ugv, res.commands[0:2], sc.dt_s)
+            uav = bebop.step(uav, res.commands[2:6], sc.dt_s)
+            uav[2] = max(uav[2], 0.0)  # the floor
+        time = t
+        if progress is not None and (k + 1) % tick == 0:
+            progress((k + 1) / n)
+    del time
+    ugv_log, uav_log = np.array(log["ugv"]).reshape(n, 3), np.array(log["uav"]).reshape(n, 8)
+    r_true = np.c_[ugv_log[:, 0:2], np.full(n, sc.center[2]), uav_log[:, 0:3]]
+    c_log = np.array(log["c"]).reshape(n, F.n_c)
+    e_rec = F.euclidean(c_log, e_des[:n], r_true) if n else np.zeros((0, 6))
+    sing = F.singularity_measure(r_true, c_des) if n else np.zeros(0)
+    # the formation as recovered from the measurements, each sample continued from the last
+    c_cont = np.zeros((n, F.n_c))
+    r_meas = np.c_[np.array(log["measured"]).reshape(n, 11)[:, [0, 1]], np.full(n, sc.center[2]),
+                   np.array(log["measured"]).reshape(n, 11)[:, [3, 4, 5]]]
+    for k in range(n):
+        c_cont[k] = F.forward(r_meas[k], c_cont[k - 1] if k else c_des[0])
+    return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
+                     np.array(log["u"]).reshape(n, 6), np.array(log["ok"], dtype=bool), sing, unreachable_at,
+                     message, c_cont)
+
+
+def _at(history, t):
+    """The latest logged state at or before ``t`` (the first one before the log starts)."""
+    for item in reversed(history):
+        if item[0] <= t + 1e-12:
+            return item
+    return history[0]
+
+
+def ugv_uav_metrics(run: UgvUavRun) -> dict:
+    """metrics.json of a UGV-UAV run (errors from the true robot poses, after the transient)."""
+    sc = run.scenario
+    r_des = UgvUavSpherical().inverse(run.e_des) if len(run.t) else np.zeros((0, 6))
+    ugv_err = np.linalg.norm(run.ugv[:, 0:2] - r_des[:, 0:2], axis=1)
+    uav_err = np.linalg.norm(run.uav[:, 0:3] - r_des[:, 3:6], axis=1)
+    d_true = run.uav[:, 0:3] - np.c_[run.ugv[:, 0:2], np.full(len(run.t), sc.center[2])]
+    sep = np.linalg.norm(d_true, axis=1)
+    d_des = r_des[:, 3:6] - r_des[:, 0:3]
+    cosang = np.einsum("ij,ij->i", d_true, d_des) / np.maximum(sep * np.linalg.norm(d_des, axis=1), 1e-300)
+    orient = np.arccos(np.clip(cosang, -1, 1))
+    yaw_err = np.abs((run.ugv[:, 2] - run.uav[:, 3] + np.pi) % (2 * np.pi) - np.pi)
+    late = run.t >= sc.transient_s
+    if sc.uav_front_until_s > 0:
+        late &= ~((run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s))
+    singular = run.singularity < 0.02
+
+    def mx(a, mask=late):
+        return float(a[mask].max()) if np.any(mask) else None
+
+    jumps, explained = _quaternion_jumps(run)
+    first_sing = float(run.t[np.argmax(singular)]) if singular.any() else None
+    return {
+        "scenario": sc.name,
+        "controller": f"ugv-uav-{run.formation}",
+        "formation": run.formation,
+        "duration_s": float(run.t[-1]) if len(run.t) else 0.0,
+        "transient_s": sc.transient_s,
+        "unreachable_reference": run.unreachable_at is not None,
+        "first_unreachable_time_s": run.unreachable_at,
+        "unreachable_message": run.unreachable_message or None,
+        "singularity_detected": bool(singular.any()),
+        "first_singular_time_s": first_sing,
+        "max_cluster_position_error_m": mx(ugv_err),
+        "max_shape_error_m": mx(np.abs(sep - sc.d_c)),
+        "max_orientation_error_rad": mx(orient),
+        "max_robot_position_error_m": mx(np.maximum(ugv_err, uav_err)),
+        "max_ugv_position_error_m": mx(ugv_err),
+        "max_uav_position_error_m": mx(uav_err),
+        "max_uav_yaw_error_rad": mx(yaw_err),
+        "min_robot_separation_m": float(sep.min()) if len(sep) else None,
+        "max_recovered_euclidean_error_rad": mx(np.abs((run.e[:, 5] - run.e_des[:, 5] + np.pi) % (2 * np.pi) - np.pi)),
+        "max_cluster_state_jump": float(jumps.max()) if len(jumps) else 0.0,
+        "max_unexplained_cluster_jump": float(np.maximum(jumps - explained, 0.0).max()) if len(jumps) else 0.0,
+        "max_uav_position_error_m_at_switch": mx(uav_err, (run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s)) if sc.uav_front_until_s > 0 else None,
+        "nonfinite_commands": int((~run.raw_finite).sum()),
+        "max_uav_command_fraction": float(np.abs(run.u[:, 2:6]).max()) if len(run.t) else 0.0,
+        "uav_command_chatter": float(np.sqrt(np.mean(np.diff(run.u[late][:, 2:4], axis=0) ** 2)))
+        if late.sum() > 1 else 0.0,
+    }
+
+
+def _quaternion_jumps(run):
+    """Change of the recovered formation between consecutive samples, the segment's
+    direction change (rad) plus its length change (m), and the bound the measured robot
+    motion puts on it; quaternion signs and twists, which are choices of the description,
+    do not count."""
+    c = run.c_continuous
+    if c is None or len(c) < 2:
+        return np.zeros(0), np.zeros(0)
+    F = UGV_UAV_FORMATIONS[run.formation]()
+    r = F.inverse(c) if run.formation != "restricted" else run.measured
+    d = r[:, 3:6] - r[:, 0:3]
+    n = np.linalg.norm(d, axis=1)
+    u = d / n[:, None]
+    ang = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))
+    # what the measured motion explains: |delta d| / min |d| (direction) + |delta d| (length)
+    dd = np.linalg.norm(np.diff(run.measured[:, 3:6] - run.measured[:, 0:3], axis=0), axis=1)
+    explained = dd / np.minimum(n[1:], n[:-1]) + dd + 1e-9
+    return ang + np.abs(np.diff(n)), explained
+
+
+def ugv_uav_scenario_from_dict(data: dict, where: str) -> UgvUavScenario:
+    """Build a :class:`UgvUavScenario` from parsed TOML (``kind = "ugv-uav"``)."""
+    allowed = set(UgvUavScenario.__dataclass_fields__) - {"gains"}
+    kw = {}
+    for key, value in data.items():
+        if key in ("kind",):
+            continue
+        if key == "gains":
+            if not isinstance(value, dict):
+                raise InvalidInputError(f"{where}: [gains] must be a table")
+            kw["gains"] = dict(value)
+            continue
+        if key not in allowed:
+            raise InvalidInputError(f"{where}: unknown key {key!r}; see docs/scenarios.md")
+        kw[key] = tuple(value) if isinstance(value, list) else value
+    try:
+        sc = UgvUavScenario(**kw)
+        sc.controller("quaternion")
+        sc.e_reference(np.array([0.0]))
+    except TypeError as exc:
+        raise InvalidInputError(f"{where}: {exc}") from None
+    return sc
+
+
+def ugv_uav_timeseries(run: UgvUavRun):
+    """Column names and the ``(T, n)`` array of a UGV-UAV run's time series."""
+    from ..formations import SPHERICAL_VARIABLES, UGV_UAV_VARIABLES
+
+    F = UGV_UAV_FORMATIONS[run.formation]()
+    r_des = UgvUavSpherical().inverse(run.e_des) if len(run.t) else np.zeros((0, 6))
+    r_true = np.c_[run.ugv[:, 0:2], np.full(len(run.t), run.scenario.center[2]), run.uav[:, 0:3]]
+    names, cols = ["t"], [run.t[:, None]]
+
+    def add(vars_, meas, des, prefix=""):
+        for i, v in enumerate(vars_):
+            names.extend([prefix + v.name, prefix + v.name + "_des"])
+            cols.extend([meas[:, i:i + 1], des[:, i:i + 1]])
+
+    add(UGV_UAV_VARIABLES, r_true, r_des)
+    names.extend(["psi_p", "psi_b", "psi_b_des"])
+    cols.extend([run.ugv[:, 2:3], run.uav[:, 3:4], run.ugv[:, 2:3]])
+    if run.formation != "spherical":
+        add(F.variables, run.c, run.c_des)
+    add(SPHERICAL_VARIABLES, run.e, run.e_des, prefix="euclid_")
+    from ..control import COMMAND_NAMES
+
+    names.extend("u_" + n for n in COMMAND_NAMES)
+    cols.append(run.u)
+    names.append("singularity_measure")
+    cols.append(run.singularity[:, None])
+    return names, np.hstack(cols) if len(run.t) else np.zeros((0, len(names)))
