@@ -14,6 +14,7 @@ from ..control import Reference
 from ..control.base import Controller
 from ..formations import EuclideanPair, RobotSpace
 from ..references import sample_reference
+from .loop import PerfectMeasurement, closed_loop
 from .scenario import Scenario
 
 __all__ = ["Run", "simulate"]
@@ -76,20 +77,9 @@ def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool
     r_des = RobotSpace().from_euclidean(e_des)
     if r0 is None:
         r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
-    n = t.size
-    r = np.empty((n, 8))
-    c = np.empty((n, F.n_c))
-    u = np.empty((n, 8))
-    ok = np.ones(n, dtype=bool)
-    state = np.asarray(r0, dtype=float)
-    dt = scenario.dt_s
-    tick = max(1, n // 10)
-    for k in range(n):
-        res = ctrl.compute(t[k], state, Reference(c_des[k], cd_des[k], r_des[k]))
-        r[k], c[k], u[k], ok[k] = state, res.cluster, res.commands, res.raw_finite
-        state = ctrl.team.step(state, res.commands, dt)
-        if progress is not None and (k + 1) % tick == 0:
-            progress((k + 1) / n)
+    log = closed_loop(t, 1, scenario.dt_s, r0, ctrl.team.step, PerfectMeasurement(), ctrl.compute,
+                      lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
+    r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
     e = F.euclidean(c, e_des, r)
     sing = F.singularity_measure(r, c_des)
     return Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing)

@@ -15,10 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..algebra import q_from_axis_angle
 from ..control import Reference, UgvUavController
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from ..formations import _geometry as g
 from ..robots import Bebop
+from .loop import History, closed_loop
 
 __all__ = ["UgvUavScenario", "UgvUavRun", "simulate_ugv_uav", "ugv_uav_metrics", "UGV_UAV_FORMATIONS",
            "ugv_uav_scenario_from_dict"]
@@ -45,6 +48,7 @@ class UgvUavScenario:
     control_period_s: float = 0.03  # a multiple of dt_s (rounded to one)
     mocap_rate_hz: float = 100.0
     mocap_noise_m: float = 0.0
+    mocap_noise_rad: float = 0.0
     mocap_latency_s: float = 0.0
     odometry_period_s: float = 0.2
     seed: int = 0
@@ -133,6 +137,48 @@ def _reachable_prefix(F, e, ed, t):
         return c, cd, float(t[n]), str(exc)
 
 
+class MotionCapture:
+    """Seed 001 §3.2: the lab's measurements of the two robots.
+
+    Poses come from the motion-capture system at ``rate_hz``, ``latency_s`` old, each
+    position coordinate with Gaussian noise of ``noise_m``, the orientation as a quaternion
+    (rotated by a random angle of standard deviation ``noise_rad``) from which the yaw is
+    read; the Bebop's body velocity comes from its own odometry every ``odometry_period_s``
+    (200 ms). ``read`` returns the controller's 11 values (see ``control.ugv_uav``).
+    """
+
+    def __init__(self, rate_hz=100.0, noise_m=0.0, noise_rad=0.0, latency_s=0.0, odometry_period_s=0.2,
+                 seed=0):
+        if not (rate_hz > 0 and noise_m >= 0 and noise_rad >= 0 and latency_s >= 0 and odometry_period_s > 0):
+            raise InvalidInputError("motion capture: rate_hz, odometry_period_s > 0 and noise, latency >= 0")
+        self.rate, self.noise_m, self.noise_rad = rate_hz, noise_m, noise_rad
+        self.latency, self.odo = latency_s, odometry_period_s
+        self.rng = np.random.default_rng(seed)
+        self.history = History(latency_s + odometry_period_s + 1.0)
+        self._frame_t, self._pose = None, None
+
+    def observe(self, t, x):
+        self.history.add(t, x)
+
+    def _orientation(self, psi):
+        q = g.q_yaw(psi)
+        if self.noise_rad > 0:
+            axis = self.rng.normal(size=3)
+            q = g.mul(q_from_axis_angle(axis / np.linalg.norm(axis), self.rng.normal(0.0, self.noise_rad)), q)
+        return g.yaw_of(q)  # the lab receives a quaternion; the controllers need the yaw
+
+    def read(self, t):
+        frame_t = math.floor(t * self.rate + 1e-9) / self.rate
+        if frame_t != self._frame_t:
+            x = self.history.at(frame_t - self.latency)
+            noise = self.rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
+            self._pose = np.r_[x[0:2] + noise[0:2], self._orientation(x[2]), x[3:6] + noise[2:5],
+                               self._orientation(x[6])]
+            self._frame_t = frame_t
+        odo_t = math.floor(t / self.odo + 1e-9) * self.odo
+        return np.r_[self._pose, self.history.at(odo_t)[7:11]]
+
+
 def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress=None) -> UgvUavRun:
     """Run the closed loop of Fig. 18 on the Pioneer and Bebop models with motion capture."""
     ctrl = sc.controller(formation)
@@ -144,67 +190,36 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     e_des, ed_des = sc.e_reference(t_ctrl)
     c_des, cd_des, unreachable_at, message = _reachable_prefix(F, e_des, ed_des, t_ctrl)
     n = len(c_des)
-    rng = np.random.default_rng(sc.seed)
-    # initial state: the UGV on the path heading along it, the UAV on the ground beside it
+    # initial state: the UGV on the path heading along it, the UAV on the ground behind it
     heading0 = math.atan2(ed_des[0, 1], ed_des[0, 0])
     ugv = np.array([e_des[0, 0], e_des[0, 1], heading0])
     uav = np.r_[ugv[0:2] + np.asarray(sc.uav_start[0:2]), sc.center[2] + sc.uav_start[2], heading0, np.zeros(4)]
-    history = []  # (time, ugv, uav) for latency
-    mocap_dt = 1.0 / sc.mocap_rate_hz
-    last_mocap, last_odo = -np.inf, -np.inf
-    pose_meas, vel_meas = None, np.zeros(4)
-    log = {k: [] for k in ("ugv", "uav", "measured", "c", "e", "u", "ok")}
-    time = 0.0
-    tick = max(1, n // 10)
-    for k in range(n):
-        t = t_ctrl[k]
-        history.append((t, ugv.copy(), uav.copy()))
-        if t - last_mocap >= mocap_dt - 1e-12:  # a new motion-capture frame, `latency` old
-            _, gu, ga = _at(history, t - sc.mocap_latency_s)
-            noise = rng.normal(0.0, sc.mocap_noise_m, 5) if sc.mocap_noise_m > 0 else np.zeros(5)
-            pose_meas = np.r_[gu[0:2] + noise[0:2], gu[2], ga[0:3] + noise[2:5], ga[3]]
-            last_mocap = t
-        if t - last_odo >= sc.odometry_period_s - 1e-12:  # the Bebop's own state, every 200 ms
-            vel_meas = uav[4:8].copy()
-            last_odo = t
-        m = np.r_[pose_meas, vel_meas]
-        res = ctrl.compute(t, m, Reference(c_des[k], cd_des[k]))
-        log["ugv"].append(ugv.copy())
-        log["uav"].append(uav.copy())
-        log["measured"].append(m)
-        log["c"].append(res.cluster)
-        log["u"].append(res.commands)
-        log["ok"].append(res.raw_finite)
-        for _ in range(steps_per_control):
-            ugv = pioneer.step(ugv, res.commands[0:2], sc.dt_s)
-            uav = bebop.step(uav, res.commands[2:6], sc.dt_s)
-            uav[2] = max(uav[2], 0.0)  # the floor
-        time = t
-        if progress is not None and (k + 1) % tick == 0:
-            progress((k + 1) / n)
-    del time
-    ugv_log, uav_log = np.array(log["ugv"]).reshape(n, 3), np.array(log["uav"]).reshape(n, 8)
+    floor = sc.center[2] + min(0.0, sc.uav_start[2])
+
+    def plant(x, u, dt):
+        b = bebop.step(x[3:11], u[2:6], dt)
+        b[2] = max(b[2], floor)  # the floor
+        return np.r_[pioneer.step(x[0:3], u[0:2], dt), b]
+
+    mocap = MotionCapture(sc.mocap_rate_hz, sc.mocap_noise_m, sc.mocap_noise_rad, sc.mocap_latency_s,
+                          sc.odometry_period_s, sc.seed)
+    log = closed_loop(t_ctrl[:n], steps_per_control, sc.dt_s, np.r_[ugv, uav], plant, mocap, ctrl.compute,
+                      lambda k: Reference(c_des[k], cd_des[k]), progress)
+    ugv_log, uav_log = log.states[:, 0:3], log.states[:, 3:11]
+
     r_true = np.c_[ugv_log[:, 0:2], np.full(n, sc.center[2]), uav_log[:, 0:3]]
-    c_log = np.array(log["c"]).reshape(n, F.n_c)
+    c_log = log.cluster.reshape(n, F.n_c)
     e_rec = F.euclidean(c_log, e_des[:n], r_true) if n else np.zeros((0, 6))
     sing = F.singularity_measure(r_true, c_des) if n else np.zeros(0)
     # the formation as recovered from the measurements, each sample continued from the last
     c_cont = np.zeros((n, F.n_c))
-    r_meas = np.c_[np.array(log["measured"]).reshape(n, 11)[:, [0, 1]], np.full(n, sc.center[2]),
-                   np.array(log["measured"]).reshape(n, 11)[:, [3, 4, 5]]]
+    r_meas = np.c_[log.measured.reshape(n, 11)[:, [0, 1]], np.full(n, sc.center[2]),
+                   log.measured.reshape(n, 11)[:, [3, 4, 5]]]
     for k in range(n):
         c_cont[k] = F.forward(r_meas[k], c_cont[k - 1] if k else c_des[0])
     return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
-                     np.array(log["u"]).reshape(n, 6), np.array(log["ok"], dtype=bool), sing, unreachable_at,
+                     log.commands.reshape(n, 6), log.raw_finite, sing, unreachable_at,
                      message, c_cont)
-
-
-def _at(history, t):
-    """The latest logged state at or before ``t`` (the first one before the log starts)."""
-    for item in reversed(history):
-        if item[0] <= t + 1e-12:
-            return item
-    return history[0]
 
 
 def ugv_uav_metrics(run: UgvUavRun) -> dict:
