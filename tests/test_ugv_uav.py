@@ -81,6 +81,23 @@ def test_quaternion_seed_forward_behind_the_ugv():
         np.testing.assert_allclose(np.abs(c[3:7] @ hint[3:7]), 1.0, atol=1e-12)
 
 
+def test_quaternion_opposite_to_the_hint_and_the_seed_convention_near_minus_x():
+    """Exactly opposite the desired segment: the half turn about the desired frame's z axis.
+    And the continuity check of the runs is not vacuous: (4.26)-(4.29) without a hint jump
+    by about pi between two states 2e-7 rad apart behind the UGV; continued, they do not."""
+    from quatform.algebra import q_angle_between
+
+    F = UgvUavQuaternion()
+    hint = F.from_euclidean(np.array([0, 0, 0, 0.75, 0.0, 0.0]))  # UAV ahead along +x
+    c = F.forward(np.array([0, 0, 0, -0.75, 0, 0.0]), hint)  # UAV behind
+    qe = np.abs(np.array([hint[3], -hint[4], -hint[5], -hint[6]]) @ np.array([[c[3], c[4], c[5], c[6]]]).T)
+    assert qe[0] < 1e-12  # a half turn
+    a, b = np.array([0, 0, 0, -0.75, 1e-7, 0.0]), np.array([0, 0, 0, -0.75, 0.0, 1e-7])
+    assert q_angle_between(F.forward(a)[3:7], F.forward(b)[3:7]) > 3.0
+    ca = F.forward(a, hint)
+    assert q_angle_between(ca[3:7], F.forward(b, ca)[3:7]) < 1e-6
+
+
 def test_restricted_refuses_the_platform_level_front_configuration():
     F = UgvUavRestricted()
     front = np.array([0.0, 0.0, 0.0, 0.0, 0.75, 0.0])  # UAV ahead at platform level

@@ -70,7 +70,7 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
     run.add_argument("--controller", choices=CONTROLLER_NAMES,
                      help="controller of a two-robot (seed 000) scenario")
-    run.add_argument("--formation", choices=FORMATION_NAMES, default="quaternion",
+    run.add_argument("--formation", choices=FORMATION_NAMES,
                      help="formation description of a UGV-UAV (seed 001) scenario (default: quaternion)")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
@@ -126,9 +126,15 @@ def main(argv: list[str] | None = None) -> int:
 
             sc = _with_measurement(load_scenario(args.scenario), args)
             if hasattr(sc, "mocap_noise_m"):
-                _, metrics = run_ugv_uav(sc, args.formation, args.out, plots=not args.no_plots)
+                if args.controller is not None:
+                    raise InvalidInputError(
+                        f"{sc.name} is a UGV-UAV scenario: choose its description with --formation "
+                        f"{{{','.join(FORMATION_NAMES)}}}, not --controller")
+                _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots)
                 print(format_table([metrics], UGV_UAV_COLUMNS))
             else:
+                if args.formation is not None:
+                    raise InvalidInputError(f"{sc.name} is a two-robot scenario: --formation does not apply")
                 if args.controller is None:
                     raise InvalidInputError(
                         f"{sc.name} is a two-robot scenario: give --controller "

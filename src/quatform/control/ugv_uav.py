@@ -72,12 +72,18 @@ class UgvUavController:
     z_ugv : float
         Height of the UGV's landing platform, m (the cluster point's z).
     arena : ((x_min, x_max), (y_min, y_max), (z_min, z_max))
-        Box no command may push a robot out of (seed 001 §3.4: 6 x 4 x 3 m).
+        The flight arena (seed 001 §3.4: 6 x 4 m, 3 m high; z from the floor below the
+        platform). Velocity references toward a wall are limited to ``wall_gain`` times the
+        distance left before ``wall_margin``, so the robots stop short of it.
+    derivative_filter_s : float
+        Time constant of the first-order filter on the differentiated velocity reference
+        ``v_r_dot`` of (4.47) (the thesis differentiates without one; 0 disables it).
     """
 
     def __init__(self, formation: Formation | None = None, k_x=1.0, k_d=1.0, k_w=1.0, k_psi=3.0,
                  l_d=(2.0, 2.0, 1.8, 5.0), compensation=True, feedforward=True, pioneer=None, bebop=None,
-                 z_ugv=0.0, arena=((-3.0, 3.0), (-2.0, 2.0), (0.0, 3.0))):
+                 z_ugv=0.0, arena=((-3.0, 3.0), (-2.0, 2.0), (-0.5, 3.0)), wall_margin=0.3, wall_gain=1.0,
+                 derivative_filter_s=0.1):
         self.formation = formation if formation is not None else UgvUavQuaternion()
         self.k_x = _positive(k_x, 3, "k_x")
         self.k_d = float(_positive(k_d, 1, "k_d")[0])
@@ -89,6 +95,11 @@ class UgvUavController:
         self.pioneer = pioneer if pioneer is not None else Pioneer()
         self.bebop = bebop if bebop is not None else Bebop()
         self.z_ugv = float(z_ugv)
+        self.wall_margin = float(wall_margin)
+        self.wall_gain = float(_positive(wall_gain, 1, "wall_gain")[0])
+        self.derivative_filter_s = float(derivative_filter_s)
+        if not (self.derivative_filter_s >= 0 and self.wall_margin >= 0):
+            raise InvalidInputError("derivative_filter_s and wall_margin must be >= 0")
         self.arena = np.asarray(arena, dtype=float)
         if self.arena.shape != (3, 2) or np.any(self.arena[:, 0] >= self.arena[:, 1]):
             raise InvalidInputError(f"arena must be ((x_min, x_max), (y_min, y_max), (z_min, z_max)), got {arena!r}")
@@ -102,15 +113,18 @@ class UgvUavController:
     def reset(self):
         """Forget the previous velocity reference and release the emergency stop."""
         self._prev = None
+        self._vdot = np.zeros(4)
         self.stopped = False
 
     def emergency_stop(self):
-        """Halt both robots until :meth:`release` (the UAV hovers: zero velocity commands)."""
+        """Halt both robots until :meth:`release`: the UGV stops, the UAV brakes to a hover
+        (the compensation law with a zero velocity reference, rate ``L_d``)."""
         self.stopped = True
 
     def release(self):
         self.stopped = False
         self._prev = None
+        self._vdot = np.zeros(4)
 
     # -- the chain of Fig. 18 ---------------------------------------------------------
     def step(self, t: float, measured, reference: Reference) -> np.ndarray:
@@ -136,11 +150,25 @@ class UgvUavController:
         k = np.r_[self.k_x, self.k_d, self.k_w[:2]]
         return err, ff * c_dot_des - k * np.tanh(err)
 
+    def _brake(self, m):
+        """Commands that stop the UGV and brake the UAV to a hover (v_r = 0 in (4.47))."""
+        v = np.where(np.isfinite(m[7:11]), m[7:11], 0.0)
+        b = self.bebop
+        return np.r_[0.0, 0.0, b.saturate((-self.l_d * v + b.k_v * v) / b.k_u)]
+
     def compute(self, t: float, measured, reference: Reference) -> UgvUavStep:
-        m = as_array(measured, "measured state", 11)
+        """One step; a measurement with NaN (a lost motion-capture frame) brakes both robots
+        for that step instead of raising, and is reported with ``raw_finite = False``."""
         F = self.formation
+        m = np.asarray(measured, dtype=float)
+        if m.shape != (11,):
+            m = as_array(measured, "measured state", 11)
         c_des = as_array(reference.c, "reference.c", F.n_c)
         c_dot = as_array(reference.c_dot, "reference.c_dot", F.n_c)
+        if not np.all(np.isfinite(m)):
+            self._prev = None
+            return UgvUavStep(self._brake(m), np.full(F.n_c, np.nan), np.full(F.n_c, np.nan), np.zeros(6),
+                              False, self.stopped)
         r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
         c = F.forward(r, c_des)
         err, c_rate = self.cluster_rates(c, c_des, c_dot)
@@ -151,15 +179,19 @@ class UgvUavController:
         x_rate = self._keep_inside(m, x_rate)
         if self.stopped:
             self._prev = None
-            return UgvUavStep(np.zeros(6), c, err, x_rate, finite, True)
+            return UgvUavStep(self._brake(m), c, err, x_rate, finite, True)
         ugv = self.pioneer.saturate(self.pioneer.commands_from_velocity(m[2], x_rate[0:2]))  # (3.5)
         psi_rate = self.k_psi * np.tanh(g.wrap(m[2] - m[6]))  # (4.50)-(4.51), psi_bd = psi_p
         v_r = yaw_matrix(-m[6]) @ np.r_[x_rate[3:6], psi_rate]  # (3.10): A_b^-1 = A_b(-psi)
         b = self.bebop
         if self.compensation:
-            v_r_dot = np.zeros(4) if self._prev is None or t <= self._prev[0] else (v_r - self._prev[1]) / (t - self._prev[0])
+            if self._prev is not None and t > self._prev[0]:
+                raw = (v_r - self._prev[1]) / (t - self._prev[0])
+                # first-order filter on the differentiated reference (it carries the noise)
+                alpha = (t - self._prev[0]) / (self.derivative_filter_s + t - self._prev[0])
+                self._vdot = self._vdot + alpha * (raw - self._vdot)
             v = m[7:11]
-            u = (v_r_dot + self.l_d * (v_r - v) + b.k_v * v) / b.k_u  # (4.47)-(4.49)
+            u = (self._vdot + self.l_d * (v_r - v) + b.k_v * v) / b.k_u  # (4.47)-(4.49)
         else:
             u = b.k_v / b.k_u * v_r
         self._prev = (t, v_r)
@@ -167,11 +199,16 @@ class UgvUavController:
         return UgvUavStep(cmd, c, err, x_rate, finite, False)
 
     def _keep_inside(self, m, x_rate):
-        """Remove velocity components that push a robot through a wall of the arena."""
+        """Slow velocity components toward an arena wall to ``wall_gain`` times the distance
+        left before the wall's margin, so robots stop short of it (and never push out)."""
         out = x_rate.copy()
         for k, pos in ((0, np.array([m[0], m[1], self.z_ugv])), (3, m[3:6])):
             for axis in range(3):
                 lo, hi = self.arena[axis]
-                if (pos[axis] >= hi and out[k + axis] > 0) or (pos[axis] <= lo and out[k + axis] < 0):
-                    out[k + axis] = 0.0
+                room_hi = max(0.0, hi - self.wall_margin - pos[axis])
+                room_lo = max(0.0, pos[axis] - (lo + self.wall_margin))
+                if k == 0 and axis == 2:
+                    continue  # the UGV's platform height is fixed
+                out[k + axis] = min(out[k + axis], self.wall_gain * room_hi)
+                out[k + axis] = max(out[k + axis], -self.wall_gain * room_lo)
         return out

@@ -14,7 +14,13 @@ from .euclidean_pair import (
     segment_direction,
 )
 from .quaternion_pair import QuaternionPair
-from .ugv_uav import SPHERICAL_VARIABLES, UGV_UAV_VARIABLES, UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from .ugv_uav import (
+    SPHERICAL_VARIABLES,
+    UGV_UAV_VARIABLES,
+    UgvUavQuaternion,
+    UgvUavRestricted,
+    UgvUavSpherical,
+)
 
 #: Descriptions by name.
 FORMATIONS = {

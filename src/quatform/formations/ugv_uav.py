@@ -40,6 +40,8 @@ SPHERICAL_VARIABLES = (
     Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),
     Variable("rho_c", "m", "length"), Variable("alpha_c", "rad", "angle"), Variable("beta_c", "rad", "angle"),
 )
+#: Smallest vertical fraction of the segment the restricted inverse Jacobian divides by.
+W_MIN = 1e-3
 #: Below this ratio of horizontal to full separation, alpha_c of eq. (4.5) is undefined.
 OVERHEAD_TOL = 1e-12
 
@@ -220,7 +222,8 @@ class UgvUavRestricted(_UgvUav):
         c = np.asarray(c, dtype=float)
         rho, a, b = c[..., 3], c[..., 4], c[..., 5]
         sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
-        w = np.sqrt(np.maximum(1e-300, 1 - sa * sa - sb * sb))
+        # (4.24)'s root: its derivative is infinite at platform level; clipped at W_MIN
+        w = np.sqrt(np.maximum(W_MIN ** 2, 1 - sa * sa - sb * sb))
         Ji = np.zeros(c.shape[:-1] + (6, 6))
         Ji[..., 0:3, 0:3] = np.eye(3)
         Ji[..., 3:6, 0:3] = np.eye(3)

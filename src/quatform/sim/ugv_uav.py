@@ -15,13 +15,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..algebra import q_from_axis_angle
+from ..algebra import q_angle_between, q_from_axis_angle
 from ..control import Reference, UgvUavController
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from ..formations import _geometry as g
 from ..robots import Bebop
 from .loop import History, closed_loop
+from .metrics import SINGULAR_THRESHOLD
+
+#: Errors after the transient beyond these mean the formation lost the reference.
+LOST_UGV_M = 0.1
+LOST_UAV_M = 0.4
 
 __all__ = ["UgvUavScenario", "UgvUavRun", "simulate_ugv_uav", "ugv_uav_metrics", "UGV_UAV_FORMATIONS",
            "ugv_uav_scenario_from_dict"]
@@ -55,7 +60,8 @@ class UgvUavScenario:
     max_fraction: float = 1.0
     transient_s: float = 20.0
     switch_transient_s: float = 15.0  # after the front -> over switch of §5.3
-    uav_start: tuple = (-0.6, 0.0, 0.0)  # relative to the UGV; on the ground
+    uav_start: tuple = (0.0, -0.6, -0.3)  # relative to the UGV's control point; on the floor
+    floor_below_platform_m: float = 0.3  # the UGV's landing platform is z0; the floor is below
     gains: dict = field(default_factory=dict)
 
     def e_reference(self, t):
@@ -87,8 +93,13 @@ class UgvUavScenario:
     def controller(self, formation: str) -> UgvUavController:
         if formation not in UGV_UAV_FORMATIONS:
             raise InvalidInputError(f"unknown formation {formation!r}; choose {', '.join(UGV_UAV_FORMATIONS)}")
-        return UgvUavController(UGV_UAV_FORMATIONS[formation](), bebop=Bebop(max_fraction=self.max_fraction),
-                                z_ugv=self.center[2], **self.gains)
+        cz = self.center[2]
+        arena = ((-3.0, 3.0), (-2.0, 2.0), (cz - self.floor_below_platform_m, cz - self.floor_below_platform_m + 3.0))
+        try:
+            return UgvUavController(UGV_UAV_FORMATIONS[formation](), bebop=Bebop(max_fraction=self.max_fraction),
+                                    z_ugv=cz, arena=arena, **self.gains)
+        except TypeError as exc:
+            raise InvalidInputError(f"scenario {self.name}: [gains]: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -194,7 +205,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     heading0 = math.atan2(ed_des[0, 1], ed_des[0, 0])
     ugv = np.array([e_des[0, 0], e_des[0, 1], heading0])
     uav = np.r_[ugv[0:2] + np.asarray(sc.uav_start[0:2]), sc.center[2] + sc.uav_start[2], heading0, np.zeros(4)]
-    floor = sc.center[2] + min(0.0, sc.uav_start[2])
+    floor = sc.center[2] - sc.floor_below_platform_m
 
     def plant(x, u, dt):
         b = bebop.step(x[3:11], u[2:6], dt)
@@ -235,9 +246,10 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
     orient = np.arccos(np.clip(cosang, -1, 1))
     yaw_err = np.abs((run.ugv[:, 2] - run.uav[:, 3] + np.pi) % (2 * np.pi) - np.pi)
     late = run.t >= sc.transient_s
+    lost = late & ((ugv_err > LOST_UGV_M) | (uav_err > LOST_UAV_M))
     if sc.uav_front_until_s > 0:
         late &= ~((run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s))
-    singular = run.singularity < 0.02
+    singular = run.singularity < SINGULAR_THRESHOLD
 
     def mx(a, mask=late):
         return float(a[mask].max()) if np.any(mask) else None
@@ -250,11 +262,17 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "formation": run.formation,
         "duration_s": float(run.t[-1]) if len(run.t) else 0.0,
         "transient_s": sc.transient_s,
+        "dt_s": sc.dt_s,
+        "control_period_s": float(run.t[1] - run.t[0]) if len(run.t) > 1 else sc.control_period_s,
+        "metrics_from_s": sc.transient_s,
         "unreachable_reference": run.unreachable_at is not None,
         "first_unreachable_time_s": run.unreachable_at,
         "unreachable_message": run.unreachable_message or None,
         "singularity_detected": bool(singular.any()),
         "first_singular_time_s": first_sing,
+        "min_singularity_measure": float(run.singularity.min()) if len(run.t) else None,
+        "reference_lost": bool(lost.any()),
+        "first_lost_time_s": float(run.t[np.argmax(lost)]) if lost.any() else None,
         "max_cluster_position_error_m": mx(ugv_err),
         "max_shape_error_m": mx(np.abs(sep - sc.d_c)),
         "max_orientation_error_rad": mx(orient),
@@ -262,6 +280,9 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "max_ugv_position_error_m": mx(ugv_err),
         "max_uav_position_error_m": mx(uav_err),
         "max_uav_yaw_error_rad": mx(yaw_err),
+        "max_robot_yaw_error_rad": mx(yaw_err),
+        "max_command_speed_m_s": float(np.abs(run.u[:, 0]).max()) if len(run.t) else 0.0,
+        "measured_outside_description_s": _outside_time(run),
         "min_robot_separation_m": float(sep.min()) if len(sep) else None,
         "max_recovered_euclidean_error_rad": mx(np.abs((run.e[:, 5] - run.e_des[:, 5] + np.pi) % (2 * np.pi) - np.pi)),
         "max_cluster_state_jump": float(jumps.max()) if len(jumps) else 0.0,
@@ -275,23 +296,40 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
 
 
 def _quaternion_jumps(run):
-    """Change of the recovered formation between consecutive samples, the segment's
-    direction change (rad) plus its length change (m), and the bound the measured robot
-    motion puts on it; quaternion signs and twists, which are choices of the description,
-    do not count."""
+    """How much the formation recovered from the measurements moves between samples, and
+    how much of that the measured robot motion explains.
+
+    Quaternion description: the sign-invariant angle between consecutive ``q_c`` against
+    the angle the measured segment turned; the Euclidean descriptions: the change of their
+    angles against the same. A recovered state that is continuous has no unexplained part;
+    a description that is undefined somewhere (``alpha_c`` overhead) jumps there.
+    """
     c = run.c_continuous
     if c is None or len(c) < 2:
         return np.zeros(0), np.zeros(0)
-    F = UGV_UAV_FORMATIONS[run.formation]()
-    r = F.inverse(c) if run.formation != "restricted" else run.measured
-    d = r[:, 3:6] - r[:, 0:3]
-    n = np.linalg.norm(d, axis=1)
-    u = d / n[:, None]
-    ang = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))
-    # what the measured motion explains: |delta d| / min |d| (direction) + |delta d| (length)
-    dd = np.linalg.norm(np.diff(run.measured[:, 3:6] - run.measured[:, 0:3], axis=0), axis=1)
-    explained = dd / np.minimum(n[1:], n[:-1]) + dd + 1e-9
-    return ang + np.abs(np.diff(n)), explained
+    d = run.measured[:, 3:6] - run.measured[:, 0:3]
+    u = d / np.linalg.norm(d, axis=1)[:, None]
+    turned = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))
+    if run.formation == "quaternion":
+        jump = q_angle_between(c[1:, 3:7], c[:-1, 3:7])
+    else:
+        da = np.abs((np.diff(c[:, 4:6], axis=0) + np.pi) % (2 * np.pi) - np.pi)
+        jump = da.max(axis=1)
+    return jump, turned + 1e-9
+
+
+def _outside_time(run):
+    """Seconds the measured robots spent where the description cannot express them (the
+    restricted one: more than 1 deg outside its angle range, or the UAV below the platform)."""
+    if run.formation != "restricted" or len(run.t) < 2:
+        return 0.0
+    F = UgvUavRestricted()
+    c = F.forward(run.measured)
+    lo, hi = F.range
+    tol = math.radians(1.0)  # measurement noise about the range's edge at the overhead pose
+    out = (c[:, 4] < lo - tol) | (c[:, 4] > hi + tol) | (c[:, 5] < lo - tol) | (c[:, 5] > hi + tol)
+    out |= run.measured[:, 5] < run.measured[:, 2]
+    return float(out.sum() * (run.t[1] - run.t[0]))
 
 
 def ugv_uav_scenario_from_dict(data: dict, where: str) -> UgvUavScenario:
