@@ -23,6 +23,7 @@ from .base import Controller, check_separation, check_units, gains
 from .cluster_space import TABLE1
 
 __all__ = [
+    "quaternion_feedback",
     "QuaternionController",
     "DualQuaternionController",
     "quaternion_lyapunov",
@@ -39,6 +40,33 @@ def _dqmul(a, b):
 
 def _dqconj(a):
     return a * np.array([1.0, -1, -1, -1, 1, -1, -1, -1])
+
+
+def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
+    """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
+
+    ``qe = q_des* q`` (body frame), ``q_dot = 1/2 q (0, -sgn(qe_0) K qe_vec) + q_dot_des qe``
+    with ``sgn(0) = +1``; ``q_dot_des qe = q_dot_des q_des* q`` keeps ``qe`` still when there
+    is no feedback. Used by the two-robot and the UGV-UAV (seed 001 eq. (4.45)) controllers.
+
+    Parameters
+    ----------
+    q, q_des, q_des_dot : sequences of 4 components (floats or arrays)
+    k : sequence of 3 gains (diagonal of ``K``)
+    feedforward : float
+        1 to add the feed-forward, 0 not to.
+
+    Returns
+    -------
+    qe, q_dot : tuples of 4 components
+    """
+    qe = kern.qmul(*kern.qconj(q_des), *q)
+    h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
+    w = (0.0 * h, h * k[0] * qe[1], h * k[1] * qe[2], h * k[2] * qe[3])
+    q_dot = kern.qmul(*q, *w)  # 1/2 q (0, -sgn K qe_vec)
+    if feedforward:
+        q_dot = kern.qadd(q_dot, kern.qmul(*q_des_dot, *qe))
+    return qe, q_dot
 
 
 def quaternion_lyapunov(c, c_des, formation: QuaternionPair | None = None):
@@ -115,15 +143,7 @@ class QuaternionController(Controller):
         cmd = [-kx[i] * err[i] + ff * cdd[i] for i in range(3)] + [None] * 13
         cmd[7] = -kd * err[7] + ff * cdd[7]
         for i in (3, 8, 12):
-            q, qd, qdd = c[i:i + 4], cd[i:i + 4], cdd[i:i + 4]
-            qe = kern.qmul(*kern.qconj(qd), *q)  # body-frame error (eq. (20), order corrected)
-            err[i:i + 4] = qe
-            h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
-            w = (0.0, h * kw[0] * qe[1], h * kw[1] * qe[2], h * kw[2] * qe[3])
-            qdot = kern.qmul(*q, *w)  # eq. (20): 1/2 q (0, -sgn K_w qe_vec)
-            if ff:
-                qdot = kern.qadd(qdot, kern.qmul(*qdd, *qe))  # q_dot_des q_des* q = q_dot_des qe
-            cmd[i:i + 4] = qdot
+            err[i:i + 4], cmd[i:i + 4] = quaternion_feedback(c[i:i + 4], cd[i:i + 4], cdd[i:i + 4], kw, ff)
         r_dot = kern.quat_inverse_jvp(c, tuple(cmd))
         return c, tuple(err), r_dot
 

@@ -26,6 +26,7 @@ from ..formations import _geometry as g
 from ..formations.base import Formation
 from ..robots import Bebop, Pioneer, yaw_matrix
 from .base import Reference
+from .quaternion import quaternion_feedback
 
 __all__ = ["UgvUavController", "UgvUavStep", "MEASURED_NAMES", "COMMAND_NAMES"]
 
@@ -140,11 +141,10 @@ class UgvUavController:
             rate = np.zeros(10)
             rate[0:3] = ff * c_dot_des[0:3] - self.k_x * np.tanh(err[0:3])  # (4.43)
             rate[7] = ff * c_dot_des[7] - self.k_d * np.tanh(err[7])  # (4.44), d_c = (d, 0, 0)
-            q, qd = c[3:7], c_des[3:7]
-            qe = g.mul(g.conj(qd), q)  # (4.45) prints q_c q_cd; the body-frame error is q_cd* q_c
-            err[3:7] = qe
-            s = -1.0 if qe[0] < 0 else 1.0
-            rate[3:7] = 0.5 * g.mul(q, np.r_[0.0, -s * self.k_w * qe[1:]]) + ff * g.mul(c_dot_des[3:7], qe)
+            # (4.45) prints q_c q_cd; the body-frame error is q_cd* q_c (seed 000 eq. (20))
+            qe, q_dot = quaternion_feedback(c[3:7].tolist(), c_des[3:7].tolist(), c_dot_des[3:7].tolist(),
+                                            self.k_w.tolist(), ff)
+            err[3:7], rate[3:7] = qe, q_dot
             return err, rate
         err = F.errors(c, c_des)
         k = np.r_[self.k_x, self.k_d, self.k_w[:2]]
