@@ -1,0 +1,97 @@
+"""Serial arms in the modified Denavit-Hartenberg convention (Craig), seed 003 Fig. 1.
+
+Teleop layer. Link ``i`` is ``(alpha_{i-1}, a_{i-1}, d_i, theta_offset_i)``: the frame
+``i-1 -> i`` transform is ``Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)`` with
+``theta_i = q_i + theta_offset_i``. Forward kinematics returns the tool position and a
+unit quaternion ``(w, x, y, z)``; the Jacobian is the geometric one in the base frame,
+``[p_dot; omega] = J q_dot`` (seed 003 eq. (15), the "force-reflecting" Jacobian).
+All functions take joint vectors with leading batch axes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..algebra import q_from_matrix
+from ..algebra._validate import as_array
+from ..errors import ShapeError
+
+__all__ = ["DHLink", "SerialArm"]
+
+
+@dataclass(frozen=True)
+class DHLink:
+    """One revolute link, modified DH: ``alpha_prev`` (rad), ``a_prev`` (m), ``d`` (m), ``offset`` (rad)."""
+
+    alpha_prev: float
+    a_prev: float
+    d: float
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class SerialArm:
+    """A chain of revolute :class:`DHLink`, optionally with a fixed tool offset along the last z.
+
+    Parameters
+    ----------
+    links : tuple of DHLink
+    name : str
+    actuated : tuple of bool
+        Which joints have actuators (the Kraft master's wrist roll has none).
+    """
+
+    links: tuple
+    name: str = "arm"
+    actuated: tuple | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.links)
+
+    def _q(self, q):
+        q = as_array(q, "q", None)
+        if q.shape[-1:] != (self.n,):
+            raise ShapeError(f"{self.name}: joint vector must have shape (..., {self.n}), got {q.shape}")
+        return q
+
+    def frames(self, q) -> np.ndarray:
+        """Homogeneous transforms ``0_T_i`` of every link frame, shape ``(..., n, 4, 4)``."""
+        q = self._q(q)
+        T = np.broadcast_to(np.eye(4), q.shape[:-1] + (4, 4)).copy()
+        out = []
+        for i, L in enumerate(self.links):
+            ca, sa = np.cos(L.alpha_prev), np.sin(L.alpha_prev)
+            th = q[..., i] + L.offset
+            ct, st = np.cos(th), np.sin(th)
+            A = np.zeros(q.shape[:-1] + (4, 4))
+            # Rx(alpha) Tx(a) Rz(theta) Tz(d), Craig eq. (3.6)
+            A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, L.a_prev
+            A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * L.d
+            A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * L.d
+            A[..., 3, 3] = 1.0
+            T = T @ A
+            out.append(T)
+        return np.stack(out, axis=-3)
+
+    def forward(self, q):
+        """Tool position (``(..., 3)``, m) and orientation (unit quaternion ``(..., 4)``)."""
+        T = self.frames(q)[..., -1, :, :]
+        return T[..., 0:3, 3], q_from_matrix(T[..., 0:3, 0:3])
+
+    def jacobian(self, q) -> np.ndarray:
+        """Geometric Jacobian ``[p_dot; omega] = J q_dot`` in the base frame, ``(..., 6, n)``.
+
+        Column ``i``: ``[z_i x (p - o_i); z_i]`` with ``z_i``, ``o_i`` the axis and origin of
+        joint ``i`` (frame ``i`` of the modified convention).
+        """
+        F = self.frames(q)
+        p = F[..., -1, 0:3, 3]
+        z = F[..., :, 0:3, 2]
+        o = F[..., :, 0:3, 3]
+        J = np.zeros(F.shape[:-3] + (6, self.n))
+        J[..., 0:3, :] = np.swapaxes(np.cross(z, p[..., None, :] - o), -1, -2)
+        J[..., 3:6, :] = np.swapaxes(z, -1, -2)
+        return J

@@ -1,0 +1,111 @@
+"""Seed 003 kinematics: modified DH chains, the Kraft master, Euler-parameter task Jacobians."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from quatform.algebra import (
+    angular_velocity_from_qdot,
+    matrix_from_q,
+    q_from_axis_angle,
+    qmul,
+)
+from quatform.errors import ShapeError
+from quatform.teleop import KRAFT_MASTER, orientation_error, task_jacobian
+
+joints = hnp.arrays(np.float64, 6, elements=st.floats(-math.pi, math.pi))
+
+
+def _frames_by_oracle(q):
+    """The same chain composed with pytransform3d's elementary rotations (independent code)."""
+    from pytransform3d.rotations import active_matrix_from_angle
+    from pytransform3d.transformations import transform_from
+
+    T = np.eye(4)
+    for L, qi in zip(KRAFT_MASTER.links, q, strict=True):
+        Rx = transform_from(active_matrix_from_angle(0, L.alpha_prev), np.zeros(3))
+        Tx = transform_from(np.eye(3), [L.a_prev, 0, 0])
+        Rz = transform_from(active_matrix_from_angle(2, qi + L.offset), np.zeros(3))
+        Tz = transform_from(np.eye(3), [0, 0, L.d])
+        T = T @ Rx @ Tx @ Rz @ Tz
+    return T
+
+
+@given(q=joints)
+def test_kraft_forward_kinematics_against_pytransform3d(q):
+    p, quat = KRAFT_MASTER.forward(q)
+    T = _frames_by_oracle(q)
+    np.testing.assert_allclose(p, T[0:3, 3], atol=1e-12)
+    np.testing.assert_allclose(matrix_from_q(quat), T[0:3, 0:3], atol=1e-12)
+
+
+def test_kraft_table_values():
+    assert [L.d for L in KRAFT_MASTER.links] == [0, 0.073, 0, 0.084, 0, 0.114]
+    assert [L.a_prev for L in KRAFT_MASTER.links] == [0, 0, 0.178, 0.203, 0, 0]
+    assert KRAFT_MASTER.actuated == (True,) * 5 + (False,)
+    # at the pictured pose: reach = a2 + a3 + d6 along the arm, d2 - d4 sideways (eq. check by hand)
+    p, _ = KRAFT_MASTER.forward(np.zeros(6))
+    np.testing.assert_allclose(p, [0.203 + 0.114, -0.073, 0.178 + 0.084], atol=1e-12)
+
+
+@given(q=joints, qd=hnp.arrays(np.float64, 6, elements=st.floats(-1, 1)))
+def test_force_reflecting_jacobian_eq_15(q, qd):
+    """J_mf q_dot = [p_dot; omega], omega in the base frame, against central differences."""
+    h = 1e-6
+    (p1, r1), (p0, r0) = KRAFT_MASTER.forward(q + h * qd), KRAFT_MASTER.forward(q - h * qd)
+    r1 = r1 if r1 @ r0 >= 0 else -r1
+    v = KRAFT_MASTER.jacobian(q) @ qd
+    np.testing.assert_allclose(v[0:3], (p1 - p0) / (2 * h), atol=1e-7)
+    _, r = KRAFT_MASTER.forward(q)
+    r = r if r @ r0 >= 0 else -r
+    w = angular_velocity_from_qdot(r, (r1 - r0) / (2 * h), frame="world")
+    np.testing.assert_allclose(v[3:6], w, atol=1e-7)
+
+
+@given(q_m=joints, q_s=joints, qd=hnp.arrays(np.float64, 6, elements=st.floats(-1, 1)))
+def test_task_jacobians_eqs_16_18(q_m, q_s, qd):
+    """diag(I, W) J_f maps the slave's joint rates to the rate of delta_eps (master still),
+    and minus it the master's (slave still)."""
+    arm = KRAFT_MASTER  # any arm: the slave role only needs a chain
+    _, rm = arm.forward(q_m)
+    _, rs = arm.forward(q_s)
+    if abs(rm @ rs) < 0.05:  # near a 180 deg error the short-way sign flips
+        return
+    h = 1e-6
+    Js = task_jacobian(arm.jacobian(q_s), rm, rs)
+    num = (orientation_error(rm, arm.forward(q_s + h * qd)[1]) - orientation_error(rm, arm.forward(q_s - h * qd)[1])) / (2 * h)
+    sign = 1.0 if (qmul(np.array([rm[0], -rm[1], -rm[2], -rm[3]]), rs))[0] >= 0 else -1.0
+    np.testing.assert_allclose(num, sign * (Js @ qd)[3:6], atol=2e-6)
+    Jm = task_jacobian(arm.jacobian(q_m), rm, rs)
+    num_m = (orientation_error(arm.forward(q_m + h * qd)[1], rs) - orientation_error(arm.forward(q_m - h * qd)[1], rs)) / (2 * h)
+    np.testing.assert_allclose(num_m, -sign * (Jm @ qd)[3:6], atol=2e-6)
+
+
+@pytest.mark.parametrize("angle", [1e-6, 1e-3, 0.1, 1.0, 2.5, math.pi])
+def test_orientation_error_is_half_angle_then_saturates(angle):
+    """Seed 003 conclusion: |delta_eps| ~ angle/2 for small errors, sin(angle/2) for large."""
+    axis = np.array([0.3, -0.4, 0.866])
+    axis /= np.linalg.norm(axis)
+    rm = q_from_axis_angle([0, 1, 0], 0.4)
+    rs = qmul(rm, q_from_axis_angle(axis, angle))
+    e = orientation_error(rm, rs)
+    assert np.linalg.norm(e) == pytest.approx(math.sin(angle / 2), rel=1e-9, abs=1e-15)
+    np.testing.assert_allclose(e / np.linalg.norm(e), axis, atol=1e-9)  # in {M}
+    if angle < 1e-2:
+        assert np.linalg.norm(e) == pytest.approx(angle / 2, rel=1e-4)
+    np.testing.assert_allclose(orientation_error(rm, -rs), e, atol=1e-12)  # q vs -q
+
+
+def test_bad_joint_vectors():
+    with pytest.raises(ShapeError, match="Kraft master"):
+        KRAFT_MASTER.forward(np.zeros(5))
+    batch = np.random.default_rng(0).normal(size=(4, 6))
+    p, r = KRAFT_MASTER.forward(batch)
+    assert p.shape == (4, 3) and r.shape == (4, 4)
+    assert KRAFT_MASTER.jacobian(batch).shape == (4, 6, 6)
