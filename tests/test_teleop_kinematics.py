@@ -22,19 +22,20 @@ from quatform.teleop import KRAFT_MASTER, orientation_error, task_jacobian
 joints = hnp.arrays(np.float64, 6, elements=st.floats(-math.pi, math.pi))
 
 
-def _frames_by_oracle(q):
+def _frames_by_oracle(q, arm=None):
     """The same chain composed with pytransform3d's elementary rotations (independent code)."""
     from pytransform3d.rotations import active_matrix_from_angle
     from pytransform3d.transformations import transform_from
 
+    arm = KRAFT_MASTER if arm is None else arm
     T = np.eye(4)
-    for L, qi in zip(KRAFT_MASTER.links, q, strict=True):
+    for L, qi in zip(arm.links, q, strict=True):
         Rx = transform_from(active_matrix_from_angle(0, L.alpha_prev), np.zeros(3))
         Tx = transform_from(np.eye(3), [L.a_prev, 0, 0])
         Rz = transform_from(active_matrix_from_angle(2, qi + L.offset), np.zeros(3))
         Tz = transform_from(np.eye(3), [0, 0, L.d])
         T = T @ Rx @ Tx @ Rz @ Tz
-    return T
+    return T @ transform_from(np.eye(3), [0, 0, arm.tool_d])
 
 
 @given(q=joints)
@@ -109,3 +110,60 @@ def test_bad_joint_vectors():
     p, r = KRAFT_MASTER.forward(batch)
     assert p.shape == (4, 3) and r.shape == (4, 4)
     assert KRAFT_MASTER.jacobian(batch).shape == (4, 6, 6)
+
+
+# -- the 7-DOF slave ----------------------------------------------------------------------------
+
+from quatform.teleop import PANDA, PANDA_SLAVE  # noqa: E402
+
+joints7 = hnp.arrays(np.float64, 7, elements=st.floats(-2.5, 2.5))
+
+
+@given(q=joints7)
+def test_slave_kinematics_against_pytransform3d_and_jacobian(q):
+    p, quat = PANDA.forward(q)
+    T = _frames_by_oracle(q, PANDA)
+    np.testing.assert_allclose(p, T[0:3, 3], atol=1e-12)
+    np.testing.assert_allclose(matrix_from_q(quat), T[0:3, 0:3], atol=1e-12)
+    h, qd = 1e-6, np.linspace(-1, 1, 7)
+    v = PANDA.jacobian(q) @ qd
+    np.testing.assert_allclose(v[0:3], (PANDA.forward(q + h * qd)[0] - PANDA.forward(q - h * qd)[0]) / (2 * h),
+                               atol=1e-7)
+
+
+@given(q=joints7, qd=hnp.arrays(np.float64, 7, elements=st.floats(-1, 1)))
+def test_mass_matrix_is_the_kinetic_energy(q, qd):
+    """1/2 qd^T M qd equals the rods' kinetic energy computed from finite-difference motion."""
+    M = PANDA_SLAVE.mass_matrix(q)
+    np.testing.assert_allclose(M, M.T, atol=1e-12)
+    assert np.linalg.eigvalsh(M).min() > 0
+    h = 1e-6
+    Fp, cp, up, Lp = PANDA_SLAVE._coms(q + h * qd)
+    Fm, cm, um, Lm = PANDA_SLAVE._coms(q - h * qd)
+    F0, c0, u0, L0 = PANDA_SLAVE._coms(q)
+    energy = 0.0
+    for i, m in enumerate(PANDA_SLAVE.masses):
+        v = (cp[i] - cm[i]) / (2 * h)
+        Rd = (Fp[i, 0:3, 0:3] - Fm[i, 0:3, 0:3]) / (2 * h)
+        W = Rd @ F0[i, 0:3, 0:3].T  # [omega]x in the base frame
+        w = np.array([W[2, 1], W[0, 2], W[1, 0]])
+        across, along = m * L0[i] ** 2 / 12, m * PANDA_SLAVE.radius ** 2 / 2
+        I = across * (np.eye(3) - np.outer(u0[i], u0[i])) + along * np.outer(u0[i], u0[i])
+        energy += 0.5 * m * v @ v + 0.5 * w @ I @ w
+    assert 0.5 * qd @ M @ qd == pytest.approx(energy, rel=1e-6, abs=1e-12)
+
+
+@given(q=joints7, xd=hnp.arrays(np.float64, 6, elements=st.floats(-1, 1)))
+def test_generalized_inverse_eq_13_minimises_kinetic_energy(q, xd):
+    J = PANDA.jacobian(q)
+    if np.linalg.svd(J, compute_uv=False)[-1] < 1e-2:
+        return  # near a kinematic singularity of the slave
+    Jb = PANDA_SLAVE.generalized_inverse(q)
+    np.testing.assert_allclose(J @ Jb, np.eye(6), atol=1e-9)
+    M = PANDA_SLAVE.mass_matrix(q)
+    best = Jb @ xd
+    null = np.linalg.svd(J)[2][-1]  # the redundant direction
+    for s in (-0.3, 0.1, 0.5):
+        other = best + s * null
+        np.testing.assert_allclose(J @ other, J @ best, atol=1e-9)
+        assert other @ M @ other >= best @ M @ best - 1e-12

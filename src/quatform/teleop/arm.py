@@ -41,11 +41,14 @@ class SerialArm:
     name : str
     actuated : tuple of bool
         Which joints have actuators (the Kraft master's wrist roll has none).
+    tool_d : float
+        Tool point's distance along the last joint's z axis, m (a flange).
     """
 
     links: tuple
     name: str = "arm"
     actuated: tuple | None = None
+    tool_d: float = 0.0
 
     @property
     def n(self) -> int:
@@ -76,10 +79,14 @@ class SerialArm:
             out.append(T)
         return np.stack(out, axis=-3)
 
+    def tool(self, F) -> np.ndarray:
+        """Tool point of the frames ``F``: ``tool_d`` along the last frame's z axis, ``(..., 3)``."""
+        return F[..., -1, 0:3, 3] + self.tool_d * F[..., -1, 0:3, 2]
+
     def forward(self, q):
         """Tool position (``(..., 3)``, m) and orientation (unit quaternion ``(..., 4)``)."""
-        T = self.frames(q)[..., -1, :, :]
-        return T[..., 0:3, 3], q_from_matrix(T[..., 0:3, 0:3])
+        F = self.frames(q)
+        return self.tool(F), q_from_matrix(F[..., -1, 0:3, 0:3])
 
     def jacobian(self, q) -> np.ndarray:
         """Geometric Jacobian ``[p_dot; omega] = J q_dot`` in the base frame, ``(..., 6, n)``.
@@ -88,7 +95,7 @@ class SerialArm:
         joint ``i`` (frame ``i`` of the modified convention).
         """
         F = self.frames(q)
-        p = F[..., -1, 0:3, 3]
+        p = self.tool(F)
         z = F[..., :, 0:3, 2]
         o = F[..., :, 0:3, 3]
         J = np.zeros(F.shape[:-3] + (6, self.n))

@@ -1,0 +1,98 @@
+"""A 7-DOF slave arm with a joint-space mass matrix (seed 003's slave is not specified).
+
+Teleop layer. Kinematics: the Franka Emika Panda in the modified DH convention of its
+maker's documentation (``alpha_{i-1}, a_{i-1}, d_i``: ``(0, 0, 0.333)``, ``(-pi/2, 0, 0)``,
+``(pi/2, 0, 0.316)``, ``(pi/2, 0.0825, 0)``, ``(-pi/2, -0.0825, 0.384)``, ``(pi/2, 0, 0)``,
+``(pi/2, 0.088, 0)``, flange ``d = 0.107``). Inertia: an explicit approximation, stated
+here and in ``docs/derivations.md``: link masses as in the arm's public description
+(rounded: 4.97, 0.65, 3.23, 3.59, 1.23, 1.67, 0.74 kg), each link a slender rod from its
+joint to the next (centre of mass at the middle, ``m L^2 / 12`` across, a radius of
+5 cm along), not the identified values. Enough for the kinetic-energy-weighted inverse
+``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` of eq. (13) and for simulation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .arm import DHLink, SerialArm
+
+__all__ = ["PANDA", "RigidArm", "PANDA_SLAVE"]
+
+_H = math.pi / 2
+#: Franka Emika Panda, modified DH (Craig), flange 0.107 m along the last z.
+PANDA = SerialArm(
+    links=(
+        DHLink(0.0, 0.0, 0.333), DHLink(-_H, 0.0, 0.0), DHLink(_H, 0.0, 0.316), DHLink(_H, 0.0825, 0.0),
+        DHLink(-_H, -0.0825, 0.384), DHLink(_H, 0.0, 0.0), DHLink(_H, 0.088, 0.0),
+    ),
+    name="Panda slave",
+    tool_d=0.107,
+)
+
+
+@dataclass(frozen=True)
+class RigidArm:
+    """A :class:`SerialArm` with link masses: mass matrix, kinetic energy, weighted inverse.
+
+    Parameters
+    ----------
+    arm : SerialArm
+    masses : tuple of float
+        Mass of each link, kg.
+    radius : float
+        Radius of gyration about each rod's own axis, m.
+    """
+
+    arm: SerialArm
+    masses: tuple = field(default=(4.97, 0.65, 3.23, 3.59, 1.23, 1.67, 0.74))
+    radius: float = 0.05
+
+    def _coms(self, q):
+        """Centres of mass ``(..., n, 3)``, rod directions ``(..., n, 3)`` and lengths ``(..., n)``."""
+        F = self.arm.frames(q)
+        o = F[..., :, 0:3, 3]
+        tip = self.arm.tool(F)
+        ends = np.concatenate([o[..., 1:, :], tip[..., None, :]], axis=-2)
+        seg = ends - o
+        L = np.linalg.norm(seg, axis=-1)
+        u = np.where(L[..., None] > 1e-9, seg / np.maximum(L, 1e-12)[..., None], F[..., :, 0:3, 2])
+        return F, 0.5 * (o + ends), u, L
+
+    def mass_matrix(self, q) -> np.ndarray:
+        """``M(q)`` (``(..., n, n)``): ``sum_i m_i J_ci^T J_ci + J_wi^T I_i J_wi``."""
+        F, com, u, L = self._coms(q)
+        z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
+        n = self.arm.n
+        M = np.zeros(F.shape[:-3] + (n, n))
+        eye = np.eye(3)
+        for i, m in enumerate(self.masses):
+            Jv = np.zeros(F.shape[:-3] + (3, n))
+            Jw = np.zeros(F.shape[:-3] + (3, n))
+            for j in range(i + 1):
+                Jv[..., :, j] = np.cross(z[..., j, :], com[..., i, :] - o[..., j, :])
+                Jw[..., :, j] = z[..., j, :]
+            across = m * L[..., i] ** 2 / 12.0
+            along = m * self.radius ** 2 / 2.0
+            ui = u[..., i, :]
+            inertia = (across[..., None, None] * (eye - ui[..., :, None] * ui[..., None, :])
+                       + along * ui[..., :, None] * ui[..., None, :])
+            M = M + m * np.swapaxes(Jv, -1, -2) @ Jv + np.swapaxes(Jw, -1, -2) @ inertia @ Jw
+        return M
+
+    def generalized_inverse(self, q, J=None) -> np.ndarray:
+        """``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` (seed 003 eq. (13)), shape ``(..., n, 6)``.
+
+        Of all joint rates that produce a task rate, ``J_bar`` gives the one of least kinetic
+        energy.
+        """
+        J = self.arm.jacobian(q) if J is None else J
+        M = self.mass_matrix(q)
+        MiJt = np.linalg.solve(M, np.swapaxes(J, -1, -2))
+        return MiJt @ np.linalg.inv(J @ MiJt)
+
+
+PANDA_SLAVE = RigidArm(PANDA)
