@@ -1,0 +1,144 @@
+"""Stiffness control of a master and a slave with an Euler-parameter orientation error, seed 003.
+
+Teleop layer. The task error is ``e = x_s - x_m``: the position difference in the base
+frame and ``delta_eps``, the vector part of the Euler parameters of ``R_M^T R_S``
+(eqs. (8)-(10)). Its rate is ``J_s q_s_dot - J_m q_m_dot`` with ``J = diag(I, W) J_f``
+(eqs. (16), (18)). The torques are the generalized forces of the spring ``1/2 e^T K_p e``
+plus damping, eqs. (14a), (14b):
+
+* master: ``tau_m = J_m^T (K_pm e + K_vm e_dot) + v J_mf^T F_s`` (eq. (14a) prints
+  ``J_m^T F_s``; a wrench is mapped by the force-reflecting Jacobian, as in eq. (11));
+* slave: ``tau_s = -J_s^T (K_ps e + K_vs e_dot) + tau_red``.
+
+``F_s`` is the wrench the slave exerts on its environment (the wrist sensor's reading),
+so a negative ``v`` pushes the operator back. ``tau_red`` is a null-space objective
+projected with the dynamically consistent projector ``I - J^T J_bar^T``, so that
+``J_bar^T tau_red = 0`` and eq. (13) holds exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..algebra._validate import as_array, as_unit_quaternion
+from ..errors import InvalidInputError
+from .task import orientation_error, task_jacobian
+
+__all__ = ["StiffnessGains", "task_error", "master_torque", "slave_torque", "redundancy_torque",
+           "force_stability_term", "preload", "deadband", "virtual_wall_force"]
+
+
+@dataclass(frozen=True)
+class StiffnessGains:
+    """Diagonal stiffness and damping of the task error: ``K_p = diag(kp_pos*I, kp_rot*I)``.
+
+    ``kp_rot`` multiplies ``delta_eps`` (dimensionless, ``sin(angle/2)``), so it is a torque
+    per unit of ``delta_eps`` (N m), twice the torque per radian for small errors.
+    """
+
+    kp_pos: float = 300.0
+    kp_rot: float = 10.0
+    kv_pos: float = 20.0
+    kv_rot: float = 0.5
+
+    def __post_init__(self):
+        for name in ("kp_pos", "kp_rot", "kv_pos", "kv_rot"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise InvalidInputError(f"{name} must be finite and >= 0, got {v!r}")
+
+    @property
+    def kp(self) -> np.ndarray:
+        return np.r_[np.full(3, self.kp_pos), np.full(3, self.kp_rot)]
+
+    @property
+    def kv(self) -> np.ndarray:
+        return np.r_[np.full(3, self.kv_pos), np.full(3, self.kv_rot)]
+
+
+def task_error(p_m, q_m, p_s, q_s) -> np.ndarray:
+    """``e = [p_s - p_m; delta_eps(q_m, q_s)]``, shape ``(..., 6)`` (seed 003 eq. (12) with (9))."""
+    p_m, p_s = as_array(p_m, "p_m", 3), as_array(p_s, "p_s", 3)
+    q_m, q_s = as_unit_quaternion(q_m, "q_m"), as_unit_quaternion(q_s, "q_s")
+    return np.concatenate([p_s - p_m, orientation_error(q_m, q_s)], axis=-1)
+
+
+def _short_way(q_m, q_s):
+    """+1 or -1: the sign that puts ``R_M^T R_S``'s Euler parameters on the short way."""
+    d = np.sum(q_m * q_s, axis=-1, keepdims=True)
+    return np.where(d < 0, -1.0, 1.0)
+
+
+def master_torque(J_mf, q_m, q_s, e, e_dot, gains: StiffnessGains, F_s=None, v=0.0) -> np.ndarray:
+    """Eq. (14a): ``J_m^T (K_pm e + K_vm e_dot) + v J_mf^T F_s``, shape ``(..., n_m)``."""
+    q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
+    J_m = task_jacobian(J_mf, q_m, q_s * _short_way(q_m, q_s))
+    wrench = gains.kp * np.asarray(e, float) + gains.kv * np.asarray(e_dot, float)
+    tau = np.einsum("...ji,...j->...i", J_m, wrench)
+    if F_s is not None:
+        tau = tau + np.asarray(v, float)[..., None] * np.einsum("...ji,...j->...i", J_mf, np.asarray(F_s, float))
+    return tau
+
+
+def slave_torque(J_sf, q_m, q_s, e, e_dot, gains: StiffnessGains, tau_red=None) -> np.ndarray:
+    """Eq. (14b): ``-J_s^T (K_ps e + K_vs e_dot) + tau_red``, shape ``(..., n_s)``."""
+    q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
+    J_s = task_jacobian(J_sf, q_m, q_s * _short_way(q_m, q_s))
+    wrench = gains.kp * np.asarray(e, float) + gains.kv * np.asarray(e_dot, float)
+    tau = -np.einsum("...ji,...j->...i", J_s, wrench)
+    return tau if tau_red is None else tau + tau_red
+
+
+def redundancy_torque(J_sf, J_bar, q, q_dot, q_rest, k_null=5.0, d_null=1.0) -> np.ndarray:
+    """``(I - J^T J_bar^T)(-k (q - q_rest) - d q_dot)``: a posture spring in the null space.
+
+    The projector is the dynamically consistent one, so ``J_bar^T tau_red = 0``: the
+    redundancy torque produces no task-space force (eq. (13)'s last term vanishes).
+    """
+    n = J_sf.shape[-1]
+    N = np.eye(n) - np.swapaxes(J_sf, -1, -2) @ np.swapaxes(J_bar, -1, -2)
+    return N @ (-k_null * (np.asarray(q, float) - q_rest) - d_null * np.asarray(q_dot, float))
+
+
+def force_stability_term(x_m_dot=None, F_s=None, k_for=None, constant=-0.5):
+    """``v`` of eq. (11): a negative constant, or ``-k_for x_m_dot^T F_s`` if ``k_for`` is given."""
+    if k_for is None:
+        if not constant < 0:
+            raise InvalidInputError(f"the constant force-stability term must be negative, got {constant!r}")
+        return constant
+    return -k_for * float(np.dot(np.asarray(x_m_dot, float), np.asarray(F_s, float)))
+
+
+def deadband(tau, width) -> np.ndarray:
+    """A joint that needs ``width`` to move: ``sign(tau) max(|tau| - width, 0)``."""
+    tau, width = np.asarray(tau, float), np.asarray(width, float)
+    return np.sign(tau) * np.maximum(np.abs(tau) - width, 0.0)
+
+
+def preload(tau, offset, switch=None) -> np.ndarray:
+    """The preload function (the inverse of a deadband), seed 003's implementation section.
+
+    ``tau + offset sign(tau)``, with the sign replaced by a ramp ``tau / switch`` for
+    ``|tau| < switch`` (default ``offset / 2``) so the command does not chatter at zero.
+    """
+    tau, offset = np.asarray(tau, float), np.asarray(offset, float)
+    switch = offset / 2.0 if switch is None else np.asarray(switch, float)
+    ramp = np.clip(tau / np.where(switch > 0, switch, 1.0), -1.0, 1.0)
+    ramp = np.where(switch > 0, ramp, np.sign(tau))
+    return tau + offset * ramp
+
+
+def virtual_wall_force(p, p_dot, normal, offset, stiffness, damping=0.0) -> np.ndarray:
+    """Repelling force of a virtual wall ``n . p <= offset`` in the master's Cartesian space.
+
+    Zero on the free side; inside, ``-(k depth + b n . p_dot) n`` (the damping only resists
+    motion into the wall). Shape ``(..., 3)``.
+    """
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    depth = np.einsum("...i,i->...", np.asarray(p, float), n) - offset
+    inward = np.maximum(np.einsum("...i,i->...", np.asarray(p_dot, float), n), 0.0)
+    mag = np.where(depth > 0, stiffness * depth + damping * inward, 0.0)
+    return -mag[..., None] * n
