@@ -46,6 +46,16 @@ W_MIN = 1e-3
 OVERHEAD_TOL = 1e-12
 
 
+def _jacobian_from_gradients(grads):
+    """``[[I, 0], [-g_k, g_k]]``: the cluster point is the UGV; rows 3-5 depend on ``x_b - x_p``."""
+    J = np.zeros(grads[0].shape[:-1] + (6, 6))
+    J[..., 0:3, 0:3] = np.eye(3)
+    for row, gr in zip((3, 4, 5), grads, strict=True):
+        J[..., row, 0:3] = -gr
+        J[..., row, 3:6] = gr
+    return J
+
+
 class _UgvUav(Formation):
     robot_variables = UGV_UAV_VARIABLES
 
@@ -114,12 +124,7 @@ class UgvUavSpherical(_UgvUav):
         z = np.zeros_like(dx)
         grads = [d / D[..., None], np.stack([-dy, dx, z], -1) / h2[..., None],
                  np.stack([-dz * dx / h, -dz * dy / h, h], -1) / (D * D)[..., None]]
-        J = np.zeros(r.shape[:-1] + (6, 6))
-        J[..., 0:3, 0:3] = np.eye(3)
-        for row, gr in zip((3, 4, 5), grads, strict=True):
-            J[..., row, 0:3] = -gr
-            J[..., row, 3:6] = gr
-        return J
+        return _jacobian_from_gradients(grads)
 
     def inverse_jacobian_at(self, c, r=None):
         """Derivative of (4.7)-(4.12); rank 5 with the UAV overhead (``cos beta_c = 0``)."""
@@ -208,15 +213,15 @@ class UgvUavRestricted(_UgvUav):
         r, d = self._delta(r)
         rho = np.linalg.norm(d, axis=-1)
         u = d / rho[..., None]
-        J = np.zeros(r.shape[:-1] + (6, 6))
-        J[..., 0:3, 0:3] = np.eye(3)
+        cos_a2, cos_b2 = 1 - u[..., 0] ** 2, 1 - u[..., 1] ** 2
+        if np.any(np.minimum(cos_a2, cos_b2) < 1e-24):
+            raise DegenerateInputError(
+                "the restricted formation's Jacobian is undefined with the UAV along the x or y axis "
+                "through the UGV (alpha_f or beta_f = +-90 deg, asin at its end)"
+            )
         dd = np.eye(3) - u[..., :, None] * u[..., None, :]  # d u / d delta * rho
-        rows = [u, dd[..., 0, :] / (rho * np.sqrt(np.maximum(1e-300, 1 - u[..., 0] ** 2)))[..., None],
-                dd[..., 1, :] / (rho * np.sqrt(np.maximum(1e-300, 1 - u[..., 1] ** 2)))[..., None]]
-        for row, gr in zip((3, 4, 5), rows, strict=True):
-            J[..., row, 0:3] = -gr
-            J[..., row, 3:6] = gr
-        return J
+        return _jacobian_from_gradients([u, dd[..., 0, :] / (rho * np.sqrt(cos_a2))[..., None],
+                                         dd[..., 1, :] / (rho * np.sqrt(cos_b2))[..., None]])
 
     def inverse_jacobian_at(self, c, r=None):
         c = np.asarray(c, dtype=float)
