@@ -63,25 +63,26 @@ class RigidArm:
         return F, 0.5 * (o + ends), u, L
 
     def mass_matrix(self, q) -> np.ndarray:
-        """``M(q)`` (``(..., n, n)``): ``sum_i m_i J_ci^T J_ci + J_wi^T I_i J_wi``."""
+        """``M(q)`` (``(..., n, n)``): ``sum_i m_i J_ci^T J_ci + J_wi^T I_i J_wi``.
+
+        ``J_ci`` column ``j <= i`` is ``z_j x (c_i - o_j)``, ``J_wi`` column ``j <= i`` is
+        ``z_j`` (zero beyond link ``i``); all links at once.
+        """
         F, com, u, L = self._coms(q)
         z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
         n = self.arm.n
-        M = np.zeros(F.shape[:-3] + (n, n))
-        eye = np.eye(3)
-        for i, m in enumerate(self.masses):
-            Jv = np.zeros(F.shape[:-3] + (3, n))
-            Jw = np.zeros(F.shape[:-3] + (3, n))
-            for j in range(i + 1):
-                Jv[..., :, j] = np.cross(z[..., j, :], com[..., i, :] - o[..., j, :])
-                Jw[..., :, j] = z[..., j, :]
-            across = m * L[..., i] ** 2 / 12.0
-            along = m * self.radius ** 2 / 2.0
-            ui = u[..., i, :]
-            inertia = (across[..., None, None] * (eye - ui[..., :, None] * ui[..., None, :])
-                       + along * ui[..., :, None] * ui[..., None, :])
-            M = M + m * np.swapaxes(Jv, -1, -2) @ Jv + np.swapaxes(Jw, -1, -2) @ inertia @ Jw
-        return M
+        m = np.asarray(self.masses, dtype=float)
+        lower = np.tril(np.ones((n, n)))[..., None]  # [i, j]: joint j moves link i
+        # (..., i, j, 3)
+        Jv = np.cross(z[..., None, :, :], com[..., :, None, :] - o[..., None, :, :]) * lower
+        Jw = np.broadcast_to(z[..., None, :, :], Jv.shape) * lower
+        across = m * L ** 2 / 12.0  # (..., i)
+        along = m * self.radius ** 2 / 2.0
+        # I_i w = across (w - u (u.w)) + along u (u.w), for each column w = Jw[..., i, j, :]
+        uw = np.einsum("...ik,...ijk->...ij", u, Jw)
+        Iw = across[..., None, None] * (Jw - u[..., :, None, :] * uw[..., None]) + (along[:, None, None] * u[..., :, None, :] * uw[..., None])
+        return (np.einsum("i,...ijk,...ilk->...jl", m, Jv, Jv)
+                + np.einsum("...ijk,...ilk->...jl", Jw, Iw))
 
     def generalized_inverse(self, q, J=None) -> np.ndarray:
         """``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` (seed 003 eq. (13)), shape ``(..., n, 6)``.
