@@ -31,13 +31,14 @@ PRELOAD = np.array([0.1, 0.1, 0.1, 0.05, 0.05, 0.0])
 
 
 def control_step(q_m, qd_m, q_s, qd_s, F_s, q_rest):
-    p_m, r_m = KRAFT_MASTER.forward(q_m)
-    p_s, r_s = PANDA.forward(q_s)
-    J_mf, J_sf = KRAFT_MASTER.jacobian(q_m), PANDA.jacobian(q_s)
+    F_m, F_ss = KRAFT_MASTER.frames(q_m), PANDA.frames(q_s)  # each arm's frames, once
+    p_m, r_m = KRAFT_MASTER.forward(q_m, F_m)
+    p_s, r_s = PANDA.forward(q_s, F_ss)
+    J_mf, J_sf = KRAFT_MASTER.jacobian(q_m, F_m), PANDA.jacobian(q_s, F_ss)
     e = task_error(p_m, r_m, p_s, r_s)
     e_dot = task_jacobian(J_sf, r_m, r_s) @ qd_s - task_jacobian(J_mf, r_m, r_s) @ qd_m
     tau_m = master_torque(J_mf, r_m, r_s, e, e_dot, GAINS, F_s, -0.5)
-    J_bar = PANDA_SLAVE.generalized_inverse(q_s, J_sf)
+    J_bar = PANDA_SLAVE.generalized_inverse(q_s, J_sf, F_ss)
     tau_s = slave_torque(J_sf, r_m, r_s, e, e_dot, GAINS, redundancy_torque(J_sf, J_bar, q_s, qd_s, q_rest))
     return preload(tau_m, PRELOAD), tau_s
 

@@ -83,18 +83,22 @@ class SerialArm:
         """Tool point of the frames ``F``: ``tool_d`` along the last frame's z axis, ``(..., 3)``."""
         return F[..., -1, 0:3, 3] + self.tool_d * F[..., -1, 0:3, 2]
 
-    def forward(self, q):
-        """Tool position (``(..., 3)``, m) and orientation (unit quaternion ``(..., 4)``)."""
-        F = self.frames(q)
+    def forward(self, q, F=None):
+        """Tool position (``(..., 3)``, m) and orientation (unit quaternion ``(..., 4)``).
+
+        ``F``: this arm's :meth:`frames` at ``q`` if already computed (shared with
+        :meth:`jacobian` and a mass matrix, so a control step computes them once).
+        """
+        F = self.frames(q) if F is None else F
         return self.tool(F), q_from_matrix(F[..., -1, 0:3, 0:3])
 
-    def jacobian(self, q) -> np.ndarray:
+    def jacobian(self, q, F=None) -> np.ndarray:
         """Geometric Jacobian ``[p_dot; omega] = J q_dot`` in the base frame, ``(..., 6, n)``.
 
         Column ``i``: ``[z_i x (p - o_i); z_i]`` with ``z_i``, ``o_i`` the axis and origin of
         joint ``i`` (frame ``i`` of the modified convention).
         """
-        F = self.frames(q)
+        F = self.frames(q) if F is None else F
         p = self.tool(F)
         z = F[..., :, 0:3, 2]
         o = F[..., :, 0:3, 3]

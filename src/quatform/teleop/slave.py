@@ -51,9 +51,9 @@ class RigidArm:
     masses: tuple = field(default=(4.97, 0.65, 3.23, 3.59, 1.23, 1.67, 0.74))
     radius: float = 0.05
 
-    def _coms(self, q):
+    def _coms(self, q, F=None):
         """Centres of mass ``(..., n, 3)``, rod directions ``(..., n, 3)`` and lengths ``(..., n)``."""
-        F = self.arm.frames(q)
+        F = self.arm.frames(q) if F is None else F
         o = F[..., :, 0:3, 3]
         tip = self.arm.tool(F)
         ends = np.concatenate([o[..., 1:, :], tip[..., None, :]], axis=-2)
@@ -62,13 +62,13 @@ class RigidArm:
         u = np.where(L[..., None] > 1e-9, seg / np.maximum(L, 1e-12)[..., None], F[..., :, 0:3, 2])
         return F, 0.5 * (o + ends), u, L
 
-    def mass_matrix(self, q) -> np.ndarray:
+    def mass_matrix(self, q, F=None) -> np.ndarray:
         """``M(q)`` (``(..., n, n)``): ``sum_i m_i J_ci^T J_ci + J_wi^T I_i J_wi``.
 
         ``J_ci`` column ``j <= i`` is ``z_j x (c_i - o_j)``, ``J_wi`` column ``j <= i`` is
         ``z_j`` (zero beyond link ``i``); all links at once.
         """
-        F, com, u, L = self._coms(q)
+        F, com, u, L = self._coms(q, F)
         z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
         n = self.arm.n
         m = np.asarray(self.masses, dtype=float)
@@ -84,14 +84,15 @@ class RigidArm:
         return (np.einsum("i,...ijk,...ilk->...jl", m, Jv, Jv)
                 + np.einsum("...ijk,...ilk->...jl", Jw, Iw))
 
-    def generalized_inverse(self, q, J=None) -> np.ndarray:
+    def generalized_inverse(self, q, J=None, F=None) -> np.ndarray:
         """``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` (seed 003 eq. (13)), shape ``(..., n, 6)``.
 
         Of all joint rates that produce a task rate, ``J_bar`` gives the one of least kinetic
         energy.
         """
-        J = self.arm.jacobian(q) if J is None else J
-        M = self.mass_matrix(q)
+        F = self.arm.frames(q) if F is None else F
+        J = self.arm.jacobian(q, F) if J is None else J
+        M = self.mass_matrix(q, F)
         MiJt = np.linalg.solve(M, np.swapaxes(J, -1, -2))
         return MiJt @ np.linalg.inv(J @ MiJt)
 
