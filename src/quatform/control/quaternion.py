@@ -33,15 +33,6 @@ __all__ = [
 _QSL = (slice(3, 7), slice(8, 12), slice(12, 16))
 
 
-def _dqmul(a, b):
-    return np.concatenate([g.mul(a[..., :4], b[..., :4]),
-                           g.mul(a[..., :4], b[..., 4:]) + g.mul(a[..., 4:], b[..., :4])], axis=-1)
-
-
-def _dqconj(a):
-    return a * np.array([1.0, -1, -1, -1, 1, -1, -1, -1])
-
-
 def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
 
@@ -97,7 +88,7 @@ def dual_quaternion_lyapunov(c, c_des):
     c, c_des = np.asarray(c, float), np.asarray(c_des, float)
     v = 0.0
     for s in (slice(0, 8), slice(8, 16)):
-        qe = _dqmul(_dqconj(c_des[..., s]), c[..., s])
+        qe = kern.pack(kern.dqmul(kern.dqconj(kern.unpack(c_des[..., s])), kern.unpack(c[..., s])))
         v = v + 1.0 - qe[..., 0] ** 2 + np.einsum("...i,...i->...", qe[..., 1:4], qe[..., 1:4]) \
             + np.einsum("...i,...i->...", qe[..., 5:8], qe[..., 5:8])
     return v

@@ -31,29 +31,27 @@ __all__ = ["DualQuaternionPair"]
 
 _QC, _QS = slice(0, 8), slice(8, 16)
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
-_C8 = np.diag([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
 def _dq_variables(prefix):
     return tuple(Variable(f"{prefix}_{p}{c}", "1", "quaternion") for p in "rd" for c in "wxyz")
 
 
+# Array forms of the component kernels (one formula each, in _pair_kernels).
 def _dqmul(a, b):
-    ra, da, rb, db = a[..., :4], a[..., 4:], b[..., :4], b[..., 4:]
-    return np.concatenate([g.mul(ra, rb), g.mul(ra, db) + g.mul(da, rb)], axis=-1)
+    return kern.pack(kern.dqmul(kern.unpack(a), kern.unpack(b)))
 
 
 def _dqconj(a):
-    return a @ _C8
+    return kern.pack(kern.dqconj(kern.unpack(a)))
 
 
 def _pose_dq(q, t):
-    tq = np.concatenate([np.zeros(t.shape[:-1] + (1,)), t], axis=-1)
-    return np.concatenate([q, 0.5 * g.mul(tq, q)], axis=-1)
+    return kern.pack(kern.pose(kern.unpack(np.asarray(q)), kern.unpack(np.asarray(t))))
 
 
 def _translation(dq):
-    return 2.0 * g.mul(dq[..., 4:], g.conj(dq[..., :4]))[..., 1:]
+    return kern.pack(kern.translation(kern.unpack(np.asarray(dq))))
 
 
 class DualQuaternionPair(Formation):
