@@ -133,7 +133,7 @@ def test_slave_kinematics_against_pytransform3d_and_jacobian(q):
 
 @given(q=joints7, qd=hnp.arrays(np.float64, 7, elements=st.floats(-1, 1)))
 def test_mass_matrix_is_the_kinetic_energy(q, qd):
-    """1/2 qd^T M qd equals the rods' kinetic energy computed from finite-difference motion."""
+    """1/2 qd^T M qd equals the rods' and rotors' kinetic energy from finite-difference motion."""
     M = PANDA_SLAVE.mass_matrix(q)
     np.testing.assert_allclose(M, M.T, atol=1e-12)
     assert np.linalg.eigvalsh(M).min() > 0
@@ -141,7 +141,8 @@ def test_mass_matrix_is_the_kinetic_energy(q, qd):
     Fp, cp, up, Lp = PANDA_SLAVE._coms(q + h * qd)
     Fm, cm, um, Lm = PANDA_SLAVE._coms(q - h * qd)
     F0, c0, u0, L0 = PANDA_SLAVE._coms(q)
-    energy = 0.0
+    energy = 0.5 * PANDA_SLAVE.armature * qd @ qd
+    assert PANDA_SLAVE.armature > 0
     for i, m in enumerate(PANDA_SLAVE.masses):
         v = (cp[i] - cm[i]) / (2 * h)
         Rd = (Fp[i, 0:3, 0:3] - Fm[i, 0:3, 0:3]) / (2 * h)

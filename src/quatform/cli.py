@@ -87,6 +87,21 @@ def _build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
     _measurement_options(cmp_)
 
+    tele = sub.add_parser(
+        "teleop",
+        help="simulate a master-slave teleoperation scenario (seed 003)",
+        description="Simulate SCENARIO (a built-in teleop-* name or a .toml file with kind = 'teleop'): "
+        "the Kraft master, a 7-DOF slave, the operator's hand and the environment under seed 003's "
+        "Euler-parameter stiffness controllers. Writes DIR/metrics.json, DIR/timeseries.csv and PNG plots.",
+    )
+    tele.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
+    tele.add_argument("--out", metavar="DIR", required=True, help="output folder")
+    tele.add_argument("--orientation-error", choices=("euler-parameters", "rpy"),
+                      help="the controllers' orientation error (default: the scenario's)")
+    tele.add_argument("--preload", choices=("on", "off"),
+                      help="the preload function on the master's actuators (default: the scenario's)")
+    tele.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+
     sub.add_parser("scenarios", help="list the built-in scenarios",
                    description="List the built-in scenarios with their titles and sources.")
     return parser
@@ -97,6 +112,11 @@ def _compare(scenario, out, args=None):
     from .sim import load_scenario
 
     sc = load_scenario(scenario)
+    if hasattr(sc, "hand"):
+        from .errors import InvalidInputError
+
+        raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with 'quatform teleop {scenario} "
+                                "--out DIR' (with --orientation-error or --preload to compare)")
     if args is not None:
         sc = _with_measurement(sc, args)
     if hasattr(sc, "mocap_noise_m"):
@@ -124,7 +144,11 @@ def main(argv: list[str] | None = None) -> int:
             from .runs import UGV_UAV_COLUMNS, format_table, run_scenario, run_ugv_uav
             from .sim import load_scenario
 
-            sc = _with_measurement(load_scenario(args.scenario), args)
+            sc = load_scenario(args.scenario)
+            if hasattr(sc, "hand"):
+                raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with "
+                                        f"'quatform teleop {args.scenario} --out DIR'")
+            sc = _with_measurement(sc, args)
             if hasattr(sc, "mocap_noise_m"):
                 if args.controller is not None:
                     raise InvalidInputError(
@@ -141,6 +165,18 @@ def main(argv: list[str] | None = None) -> int:
                         f"{{{','.join(CONTROLLER_NAMES)}}}")
                 _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots)
                 print(format_table([metrics]))
+        elif args.command == "teleop":
+            from .errors import InvalidInputError
+            from .runs import TELEOP_COLUMNS, format_table, run_teleop
+            from .sim import load_scenario
+
+            sc = load_scenario(args.scenario)
+            if not hasattr(sc, "hand"):
+                raise InvalidInputError(f"{sc.name} is not a teleoperation scenario: run it with "
+                                        f"'quatform run {args.scenario} ...'")
+            preload = None if args.preload is None else args.preload == "on"
+            _, metrics = run_teleop(sc, args.out, args.orientation_error, preload, plots=not args.no_plots)
+            print(format_table([metrics], TELEOP_COLUMNS))
         elif args.command == "scenarios":
             from .sim import builtin_scenarios, load_scenario
 

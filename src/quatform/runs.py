@@ -22,7 +22,7 @@ from .sim import (
 )
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
-           "compare_ugv_uav", "UGV_UAV_COLUMNS"]
+           "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS"]
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
@@ -156,3 +156,43 @@ def compare_scenario(scenario, out, quiet: bool = False):
     table = format_table(rows)
     (out / "comparison.md").write_text(f"# {sc.name}: {sc.title}\n\nSource: {sc.source}\n\n{table}\n")
     return rows
+
+
+#: Columns of the teleoperation table.
+TELEOP_COLUMNS = (
+    ("orientation_error", "orientation error", "{}"),
+    ("preload", "preload", "{}"),
+    ("final_position_error_m", "final pos (m)", "{:.2e}"),
+    ("peak_position_error_m", "peak pos (m)", "{:.2e}"),
+    ("final_orientation_error_rad", "final orient (rad)", "{:.2e}"),
+    ("peak_orientation_error_rad", "peak orient (rad)", "{:.3f}"),
+    ("peak_slave_torque_nm", "peak slave tau (N m)", "{:.2f}"),
+    ("contact_force_error_pct", "eq.13 err (%)", "{:.2f}"),
+    ("reversal_hysteresis_m", "hysteresis (m)", "{:.4f}"),
+    ("wall_penetration_m", "wall depth (m)", "{:.4f}"),
+    ("nonfinite_torques", "NaN torques", "{}"),
+)
+
+
+def run_teleop(sc, out, orientation_error=None, preload=None, plots: bool = True, quiet: bool = False):
+    """A seed 003 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``."""
+    import numpy as np
+
+    from .sim.teleop import simulate_teleop, teleop_metrics, teleop_timeseries
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    run = simulate_teleop(sc, orientation_error, preload, progress=None if quiet else _progress(sc.name))
+    metrics = teleop_metrics(run)
+    metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
+    write_metrics(metrics, out / "metrics.json")
+    names, data = teleop_timeseries(run)
+    np.savetxt(out / "timeseries.csv", data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+    if plots:
+        from .report.teleop_plots import write_teleop_plots
+
+        write_teleop_plots(run, out)
+    if not quiet:
+        print(f"\r  {sc.name}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
+    return run, metrics

@@ -86,8 +86,9 @@ def _get(d, key, kind, where, default=None):
 def load_scenario(name_or_file: str | Path) -> Scenario:
     """Load a built-in scenario by name or a TOML file by path.
 
-    Returns a :class:`Scenario` (two 4-DOF robots, seed 000) or, for ``kind = "ugv-uav"``,
-    a :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001).
+    Returns a :class:`Scenario` (two 4-DOF robots, seed 000), for ``kind = "ugv-uav"`` a
+    :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001), for ``kind = "teleop"`` a
+    :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
     """
     p = Path(name_or_file)
     builtin = builtin_scenarios()
@@ -106,8 +107,13 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
         from .ugv_uav import ugv_uav_scenario_from_dict
 
         return ugv_uav_scenario_from_dict(data, where=str(p))
+    if data.get("kind", "pair") == "teleop":
+        from .teleop import teleop_scenario_from_dict
+
+        return teleop_scenario_from_dict(data, where=str(p))
     if data.get("kind", "pair") != "pair":
-        raise InvalidInputError(f"{p}: kind = {data['kind']!r}; use 'pair' (seed 000) or 'ugv-uav' (seed 001)")
+        raise InvalidInputError(f"{p}: kind = {data['kind']!r}; use 'pair' (seed 000), 'ugv-uav' (seed 001) "
+                                "or 'teleop' (seed 003)")
     return scenario_from_dict(data, where=str(p))
 
 

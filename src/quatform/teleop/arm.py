@@ -11,12 +11,14 @@ All functions take joint vectors with leading batch axes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ..algebra import q_from_matrix
 from ..algebra._validate import as_array
 from ..errors import ShapeError
+from ._kernels import cross, q_from_rotation
 
 __all__ = ["DHLink", "SerialArm"]
 
@@ -60,24 +62,31 @@ class SerialArm:
             raise ShapeError(f"{self.name}: joint vector must have shape (..., {self.n}), got {q.shape}")
         return q
 
+    @cached_property
+    def _constants(self):
+        """Per-link ``(offset, cos alpha, sin alpha, a, d)`` as arrays, computed once."""
+        L = self.links
+        alpha = np.array([x.alpha_prev for x in L])
+        return (np.array([x.offset for x in L]), np.cos(alpha), np.sin(alpha), np.array([x.a_prev for x in L]),
+                np.array([x.d for x in L]))
+
     def frames(self, q) -> np.ndarray:
         """Homogeneous transforms ``0_T_i`` of every link frame, shape ``(..., n, 4, 4)``."""
         q = self._q(q)
-        T = np.broadcast_to(np.eye(4), q.shape[:-1] + (4, 4)).copy()
-        out = []
-        for i, L in enumerate(self.links):
-            ca, sa = np.cos(L.alpha_prev), np.sin(L.alpha_prev)
-            th = q[..., i] + L.offset
-            ct, st = np.cos(th), np.sin(th)
-            A = np.zeros(q.shape[:-1] + (4, 4))
-            # Rx(alpha) Tx(a) Rz(theta) Tz(d), Craig eq. (3.6)
-            A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, L.a_prev
-            A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * L.d
-            A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * L.d
-            A[..., 3, 3] = 1.0
-            T = T @ A
-            out.append(T)
-        return np.stack(out, axis=-3)
+        offset, ca, sa, a, d = self._constants
+        th = q + offset
+        ct, st = np.cos(th), np.sin(th)
+        # every link's Rx(alpha) Tx(a) Rz(theta) Tz(d) at once, Craig eq. (3.6)
+        A = np.zeros(q.shape + (4, 4))
+        A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, a
+        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
+        A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
+        A[..., 3, 3] = 1.0
+        out = np.empty_like(A)
+        T = out[..., 0, :, :] = A[..., 0, :, :]
+        for i in range(1, self.n):
+            T = out[..., i, :, :] = T @ A[..., i, :, :]
+        return out
 
     def tool(self, F) -> np.ndarray:
         """Tool point of the frames ``F``: ``tool_d`` along the last frame's z axis, ``(..., 3)``."""
@@ -90,7 +99,9 @@ class SerialArm:
         :meth:`jacobian` and a mass matrix, so a control step computes them once).
         """
         F = self.frames(q) if F is None else F
-        return self.tool(F), q_from_matrix(F[..., -1, 0:3, 0:3])
+        R = F[..., -1, 0:3, 0:3]
+        # the frames are orthonormal by construction: one configuration takes the float path
+        return self.tool(F), (np.array(q_from_rotation(R)) if R.ndim == 2 else q_from_matrix(R))
 
     def jacobian(self, q, F=None) -> np.ndarray:
         """Geometric Jacobian ``[p_dot; omega] = J q_dot`` in the base frame, ``(..., 6, n)``.
@@ -103,6 +114,6 @@ class SerialArm:
         z = F[..., :, 0:3, 2]
         o = F[..., :, 0:3, 3]
         J = np.zeros(F.shape[:-3] + (6, self.n))
-        J[..., 0:3, :] = np.swapaxes(np.cross(z, p[..., None, :] - o), -1, -2)
+        J[..., 0:3, :] = np.swapaxes(cross(z, p[..., None, :] - o), -1, -2)
         J[..., 3:6, :] = np.swapaxes(z, -1, -2)
         return J

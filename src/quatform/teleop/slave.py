@@ -7,20 +7,23 @@ maker's documentation (``alpha_{i-1}, a_{i-1}, d_i``: ``(0, 0, 0.333)``, ``(-pi/
 here and in ``docs/derivations.md``: link masses as in the arm's public description
 (rounded: 4.97, 0.65, 3.23, 3.59, 1.23, 1.67, 0.74 kg), each link a slender rod from its
 joint to the next (centre of mass at the middle, ``m L^2 / 12`` across, a radius of
-5 cm along), not the identified values. Enough for the kinetic-energy-weighted inverse
-``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` of eq. (13) and for simulation.
+5 cm along), not the identified values, plus each joint's reflected motor-rotor inertia
+("armature", 0.1 kg m^2: a rotor of ~1e-5 kg m^2 behind a 100:1 harmonic drive). Enough
+for the kinetic-energy-weighted inverse ``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` of eq. (13)
+and for simulation.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from .arm import DHLink, SerialArm
 
-__all__ = ["PANDA", "RigidArm", "PANDA_SLAVE"]
+__all__ = ["PANDA", "RigidArm", "PANDA_SLAVE", "PANDA_TORQUE_LIMITS"]
 
 _H = math.pi / 2
 #: Franka Emika Panda, modified DH (Craig), flange 0.107 m along the last z.
@@ -32,6 +35,9 @@ PANDA = SerialArm(
     name="Panda slave",
     tool_d=0.107,
 )
+
+#: The Panda's joint torque limits as its maker publishes them, N m.
+PANDA_TORQUE_LIMITS = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
 
 
 @dataclass(frozen=True)
@@ -45,44 +51,73 @@ class RigidArm:
         Mass of each link, kg.
     radius : float
         Radius of gyration about each rod's own axis, m.
+    armature : float
+        Reflected rotor inertia added to each joint (the diagonal of ``M``), kg m^2.
     """
 
     arm: SerialArm
     masses: tuple = field(default=(4.97, 0.65, 3.23, 3.59, 1.23, 1.67, 0.74))
     radius: float = 0.05
+    armature: float = 0.0
 
-    def _coms(self, q, F=None):
-        """Centres of mass ``(..., n, 3)``, rod directions ``(..., n, 3)`` and lengths ``(..., n)``."""
-        F = self.arm.frames(q) if F is None else F
-        o = F[..., :, 0:3, 3]
-        tip = self.arm.tool(F)
-        ends = np.concatenate([o[..., 1:, :], tip[..., None, :]], axis=-2)
-        seg = ends - o
-        L = np.linalg.norm(seg, axis=-1)
-        u = np.where(L[..., None] > 1e-9, seg / np.maximum(L, 1e-12)[..., None], F[..., :, 0:3, 2])
-        return F, 0.5 * (o + ends), u, L
-
-    def mass_matrix(self, q, F=None) -> np.ndarray:
-        """``M(q)`` (``(..., n, n)``): ``sum_i m_i J_ci^T J_ci + J_wi^T I_i J_wi``.
-
-        ``J_ci`` column ``j <= i`` is ``z_j x (c_i - o_j)``, ``J_wi`` column ``j <= i`` is
-        ``z_j`` (zero beyond link ``i``); all links at once.
-        """
-        F, com, u, L = self._coms(q, F)
-        z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
+    @cached_property
+    def _constants(self):
+        """What does not change with ``q``: each rod's length (the distance between
+        consecutive joint origins is fixed by the DH geometry), its inertia across and
+        along, the suffix sums of the former, index helpers."""
+        F = self.arm.frames(np.zeros(self.arm.n))
+        o = F[:, 0:3, 3]
+        ends = np.vstack([o[1:], self.arm.tool(F)[None]])
+        L = np.linalg.norm(ends - o, axis=-1)
         n = self.arm.n
         m = np.asarray(self.masses, dtype=float)
-        lower = np.tril(np.ones((n, n)))[..., None]  # [i, j]: joint j moves link i
-        # (..., i, j, 3)
-        Jv = np.cross(z[..., None, :, :], com[..., :, None, :] - o[..., None, :, :]) * lower
-        Jw = np.broadcast_to(z[..., None, :, :], Jv.shape) * lower
-        across = m * L ** 2 / 12.0  # (..., i)
+        across = m * L ** 2 / 12.0
         along = m * self.radius ** 2 / 2.0
-        # I_i w = across (w - u (u.w)) + along u (u.w), for each column w = Jw[..., i, j, :]
-        uw = np.einsum("...ik,...ijk->...ij", u, Jw)
-        Iw = across[..., None, None] * (Jw - u[..., :, None, :] * uw[..., None]) + (along[:, None, None] * u[..., :, None, :] * uw[..., None])
-        return (np.einsum("i,...ijk,...ilk->...jl", m, Jv, Jv)
-                + np.einsum("...ijk,...ilk->...jl", Jw, Iw))
+        tail = np.cumsum(across[::-1])[::-1]  # sum over links i >= k
+        k = np.maximum.outer(np.arange(n), np.arange(n))
+        levi = np.zeros((3, 3, 3))  # [z]x = z @ levi.reshape(3, 9)
+        levi[0, 2, 1], levi[0, 1, 2], levi[1, 0, 2], levi[1, 2, 0], levi[2, 1, 0], levi[2, 0, 1] = 1, -1, 1, -1, 1, -1
+        return {"L": L, "rod": L > 1e-9, "inv_L": np.where(L > 1e-9, 1.0 / np.maximum(L, 1e-12), 0.0),
+                "sqrt_m": np.sqrt(m)[:, None, None], "lower": np.tril(np.ones((n, n))),
+                "G_weight": tail[k], "c": (along - across)[:, None], "armature": self.armature * np.eye(n),
+                "levi": levi.reshape(3, 9)}
+
+    def _coms(self, q, F=None):
+        """Centres of mass ``(..., n, 3)``, rod directions ``(..., n, 3)`` and lengths ``(n,)``.
+
+        A rod of zero length (two coincident joint origins) takes its joint's axis as its
+        direction; its inertia is then the "along" value about every axis that matters.
+        """
+        F = self.arm.frames(q) if F is None else F
+        K = self._constants
+        o = F[..., :, 0:3, 3]
+        ends = np.empty_like(o)
+        ends[..., :-1, :] = o[..., 1:, :]
+        ends[..., -1, :] = self.arm.tool(F)
+        seg = ends - o
+        u = np.where(K["rod"][:, None], seg * K["inv_L"][:, None], F[..., :, 0:3, 2])
+        return F, 0.5 * (o + ends), u, K["L"]
+
+    def mass_matrix(self, q, F=None) -> np.ndarray:
+        """``M(q)`` (``(..., n, n)``): ``sum_i m_i J_ci^T J_ci + J_wi^T I_i J_wi + armature I``.
+
+        ``J_ci`` column ``j <= i`` is ``z_j x (c_i - o_j)``, ``J_wi`` column ``j <= i`` is
+        ``z_j`` (zero beyond link ``i``). A rod's inertia is ``across I + (along - across) u u^T``,
+        so the rotational part is ``(z_j . z_l) sum_{i >= max(j, l)} across_i`` plus
+        ``B^T diag(along - across) B`` with ``B_ij = u_i . z_j`` (``j <= i``): all links at once.
+        """
+        F, com, u, _ = self._coms(q, F)
+        K = self._constants
+        z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
+        n = self.arm.n
+        Zx = (z @ K["levi"]).reshape(z.shape[:-1] + (3, 3))  # [z_j]x
+        D = com[..., :, None, :, None] - o[..., None, :, :, None]  # (..., i, j, 3, 1)
+        Jv = (Zx[..., None, :, :, :] @ D)[..., 0] * (K["lower"][..., None] * K["sqrt_m"])
+        A = np.swapaxes(Jv, -3, -2).reshape(Jv.shape[:-3] + (n, 3 * n))
+        zt = np.swapaxes(z, -1, -2)
+        B = (u @ zt) * K["lower"]  # (..., i, j)
+        return (A @ np.swapaxes(A, -1, -2) + (z @ zt) * K["G_weight"] + np.swapaxes(B, -1, -2) @ (K["c"] * B)
+                + K["armature"])
 
     def generalized_inverse(self, q, J=None, F=None) -> np.ndarray:
         """``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` (seed 003 eq. (13)), shape ``(..., n, 6)``.
@@ -97,4 +132,4 @@ class RigidArm:
         return MiJt @ np.linalg.inv(J @ MiJt)
 
 
-PANDA_SLAVE = RigidArm(PANDA)
+PANDA_SLAVE = RigidArm(PANDA, armature=0.1)

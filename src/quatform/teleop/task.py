@@ -4,16 +4,22 @@ Teleop layer. The orientation part of ``x_s - x_m`` is ``delta_eps``, the vector
 the Euler parameters of ``R_M^T R_S`` (eqs. (8)-(10), in {M}); its rate is
 ``W (omega_S - omega_M)`` with ``W`` of eq. (19) (``docs/derivations.md``, seed 003 item 3),
 so ``J = diag(I, W) J_f`` (eqs. (16), (18)) maps joint rates to the task-error rate.
+
+The roll-pitch-yaw alternative the seed argues against is here too, as the baseline that
+shows the artificial singularity: ZYX angles ``R = Rz(yaw) Ry(pitch) Rx(roll)``, an error
+``rpy_S - rpy_M`` (wrapped) and the rate map ``E(rpy)^-1``, which divides by
+``cos(pitch)`` (``docs/derivations.md``, seed 003 item 8).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..algebra import relative_euler_parameters, w_matrix
+from ..algebra import matrix_from_q, relative_euler_parameters, w_matrix
 from ..algebra._validate import as_array
 
-__all__ = ["orientation_error", "task_jacobian"]
+__all__ = ["orientation_error", "task_jacobian", "rpy_from_q", "rpy_from_matrix", "rpy_error", "wrap_angle",
+           "rpy_rate_from_angular_velocity", "rpy_task_jacobian"]
 
 
 def orientation_error(q_m, q_s) -> np.ndarray:
@@ -36,4 +42,66 @@ def task_jacobian(J_f, q_m, q_s) -> np.ndarray:
     W = w_matrix(q_m, q_s)
     out = J_f.copy()
     out[..., 3:6, :] = W @ J_f[..., 3:6, :]
+    return out
+
+
+def rpy_from_q(q) -> np.ndarray:
+    """ZYX angles ``(roll, pitch, yaw)`` of unit quaternions, ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+
+    ``pitch = asin(-R_20)`` in ``[-pi/2, pi/2]``; at ``|pitch| = pi/2`` roll and yaw are not
+    separately defined (gimbal lock) and this returns ``roll = atan2(R_21, R_22)`` of the
+    rounded matrix, whatever that is. Shape ``(..., 3)``.
+    """
+    return rpy_from_matrix(matrix_from_q(q))
+
+
+def rpy_from_matrix(R) -> np.ndarray:
+    """:func:`rpy_from_q` of rotation matrices ``(..., 3, 3)`` (not validated)."""
+    R = np.asarray(R, dtype=float)
+    pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
+    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def rpy_error(q_m, q_s) -> np.ndarray:
+    """``rpy(q_s) - rpy(q_m)`` with each difference wrapped to ``[-pi, pi)``, shape ``(..., 3)``."""
+    return wrap_angle(rpy_from_q(q_s) - rpy_from_q(q_m))
+
+
+def wrap_angle(a) -> np.ndarray:
+    """Angles wrapped to ``[-pi, pi)``."""
+    a = np.asarray(a, dtype=float)
+    return a - 2.0 * np.pi * np.floor((a + np.pi) / (2.0 * np.pi))
+
+
+def rpy_rate_from_angular_velocity(rpy) -> np.ndarray:
+    """``E(rpy)^-1`` (shape ``(..., 3, 3)``): ``d/dt (roll, pitch, yaw) = E^-1 omega`` (base frame).
+
+    ``omega = z yaw_dot + Rz(yaw) y pitch_dot + Rz(yaw) Ry(pitch) x roll_dot``; its inverse
+    has ``1 / cos(pitch)`` in the roll and yaw rows: infinite at ``pitch = +-pi/2``. Returned
+    as computed (``inf``/``nan`` there): the baseline is meant to show the singularity.
+    """
+    rpy = as_array(rpy, "rpy", 3)
+    p, y = rpy[..., 1], rpy[..., 2]
+    cp, sp, cy, sy = np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tp = sp / cp
+        rows = [
+            [cy / cp, sy / cp, np.zeros_like(p)],
+            [-sy, cy, np.zeros_like(p)],
+            [cy * tp, sy * tp, np.ones_like(p)],
+        ]
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def rpy_task_jacobian(J_f, q=None, rpy=None) -> np.ndarray:
+    """``diag(I_3, E(rpy)^-1) J_f``: joint rates to ``(p_dot, rpy_dot)``, shape ``(..., 6, n)``.
+
+    The angles are ``rpy_from_q(q)`` or given as ``rpy``.
+    """
+    J_f = as_array(J_f, "J_f", None)
+    rpy = rpy_from_q(q) if rpy is None else rpy
+    out = J_f.copy()
+    out[..., 3:6, :] = rpy_rate_from_angular_velocity(rpy) @ J_f[..., 3:6, :]
     return out

@@ -1,0 +1,199 @@
+"""Report layer: PNG figures of a teleoperation run (seed 003; above sim).
+
+* :func:`plot_teleop_tracking` - master (registered) and slave tool positions, the
+  position error and the true orientation error against time;
+* :func:`plot_teleop_torques` - master and slave joint torques with their limits;
+* :func:`plot_teleop_orientation` - roll-pitch-yaw angles of both tools, the pitch ±90 deg
+  lines marked (where the RPY error is singular);
+* :func:`plot_teleop_contact` - the slave's contact force against eq. (13)'s prediction
+  and the force reflected to the operator (scenarios with a wall);
+* :func:`plot_teleop_hysteresis` - master-slave error against the slave's position along
+  the push (scenarios with a push: the preload's hysteresis loop);
+* :func:`plot_teleop_virtual_wall` - the master's depth into its virtual walls and the
+  hand's force.
+
+Each figure is drawn on its own Agg canvas; nothing touches pyplot's global state.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..sim.teleop import TeleopRun
+from ..teleop import rpy_from_q
+from .plots import _break_wraps, _decimate, _new_figure, _save
+
+__all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
+           "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
+
+
+def _title(run: TeleopRun) -> str:
+    c = run.controller
+    return (f"{run.scenario.name}: {c.orientation_error} error, preload {'on' if c.preload_nm is not None else 'off'}")
+
+
+def plot_teleop_tracking(run: TeleopRun, path) -> Path:
+    """Tool positions of master and slave, and the errors between them."""
+    i = _decimate(len(run.t))
+    t = run.t[i]
+    fig = _new_figure((10, 7))
+    axes = fig.subplots(2, 2, sharex=True)
+    for k, lab in enumerate("xyz"):
+        ax = axes.flat[k]
+        ax.plot(t, run.p_m[i, k], color="C3", ls="--", lw=1.0, label="master (registered)")
+        ax.plot(t, run.p_s[i, k], color="C0", lw=1.2, label="slave")
+        ax.set_ylabel(f"{lab} (m)")
+        ax.grid(alpha=0.3)
+    axes.flat[0].legend(fontsize=8)
+    ax = axes.flat[3]
+    ax.semilogy(t, np.maximum(np.linalg.norm(run.p_s - run.p_m, axis=1)[i], 1e-9), color="C0", label="position (m)")
+    ax.semilogy(t, np.maximum(run.angle[i], 1e-9), color="C2", label="orientation (rad)")
+    ax.set_ylabel("|slave - master|")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+    for ax in axes[1]:
+        ax.set_xlabel("t (s)")
+    fig.suptitle(_title(run))
+    return _save(fig, path)
+
+
+def plot_teleop_torques(run: TeleopRun, path) -> Path:
+    """Joint torques sent to each arm, with the limits dashed."""
+    i = _decimate(len(run.t))
+    t = run.t[i]
+    fig = _new_figure((10, 6))
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, tau, lim, name in ((axes[0], run.tau_m, run.controller.master_limits, "master"),
+                               (axes[1], run.tau_s, run.controller.slave_limits, "slave")):
+        for j in range(tau.shape[1]):
+            if lim[j] > 0:
+                ax.plot(t, tau[i, j], lw=1.0, color=f"C{j}", label=f"joint {j + 1}")
+        ax.set_ylabel(f"{name} torque (N m)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=4)
+        top = float(np.abs(tau).max())
+        for j in np.unique(lim[lim > 0]):
+            if j <= 1.5 * max(top, 1e-9):
+                ax.axhline(j, color="k", ls=":", lw=0.8)
+                ax.axhline(-j, color="k", ls=":", lw=0.8)
+    axes[1].set_xlabel("t (s)")
+    fig.suptitle(_title(run) + " - torques (limits dotted)")
+    return _save(fig, path)
+
+
+def plot_teleop_orientation(run: TeleopRun, path) -> Path:
+    """Roll, pitch, yaw of both tools (slave base axes); pitch ±90 deg marked."""
+    i = _decimate(len(run.t))
+    t = run.t[i]
+    a_m, a_s = rpy_from_q(run.r_m[i]), rpy_from_q(run.r_s[i])
+    # roll and yaw wrap at +-180 deg (and jump by 180 deg through the lock): no vertical lines
+    a_m, a_s = (np.degrees(np.stack([_break_wraps(a[:, k]) for k in range(3)], axis=1)) for a in (a_m, a_s))
+    fig = _new_figure((10, 6.5))
+    axes = fig.subplots(4, 1, sharex=True)
+    for k, name in enumerate(("roll", "pitch", "yaw")):
+        ax = axes[k]
+        ax.plot(t, a_m[:, k], color="C3", ls="--", lw=1.0, label="master")
+        ax.plot(t, a_s[:, k], color="C0", lw=1.2, label="slave")
+        ax.set_ylabel(f"{name} (deg)")
+        ax.grid(alpha=0.3)
+        if name == "pitch":
+            for y in (-90, 90):
+                ax.axhline(y, color="r", ls=":", lw=0.8)
+    axes[0].legend(fontsize=8)
+    axes[3].semilogy(t, np.maximum(run.angle[i], 1e-9), color="C2")
+    axes[3].set_ylabel("error (rad)")
+    axes[3].set_xlabel("t (s)")
+    axes[3].grid(alpha=0.3, which="both")
+    fig.suptitle(_title(run) + " - roll-pitch-yaw (gimbal lock at pitch ±90°)")
+    return _save(fig, path)
+
+
+def plot_teleop_contact(run: TeleopRun, path) -> Path:
+    """Contact force against eq. (13), and the force reflected to the operator."""
+    sc = run.scenario
+    i = _decimate(len(run.t))
+    t = run.t[i]
+    n = np.asarray(sc.wall.normal, float)
+    n = n / np.linalg.norm(n)
+    F = -run.F_s @ n  # the wall's push on the slave, along its normal
+    F13 = -(sc.gains_slave.kp[0:3] * (run.p_m - run.p_s)) @ n
+    refl = np.linalg.norm(run.F_reflected, axis=1)
+    fig = _new_figure((10, 4.5))
+    ax = fig.subplots()
+    ax.plot(t, F[i], color="C0", lw=1.4, label="contact force (N)")
+    ax.plot(t, F13[i], color="C3", ls="--", lw=1.0, label="eq. (13): K_ps (x_m - x_s)")
+    ax.plot(t, refl[i], color="C2", lw=1.0, label="reflected to the operator (N)")
+    for h in sc.holds:
+        ax.axvline(h, color="k", ls=":", lw=0.8)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("force (N)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.suptitle(_title(run) + " - contact (holds dotted)")
+    return _save(fig, path)
+
+
+def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
+    """Master-slave error against the slave's displacement along the first push."""
+    sc = run.scenario
+    steps = [np.asarray(k[1], float) for k in sc.push.keys]
+    nz = [s for s in steps if np.linalg.norm(s) > 1e-9]
+    u = nz[0] / np.linalg.norm(nz[0]) if nz else np.array([1.0, 0.0, 0.0])
+    i = _decimate(len(run.t))
+    x = (run.p_s[i] - run.p_s[0]) @ u
+    e = (run.p_m[i] - run.p_s[i]) @ u
+    fig = _new_figure((10, 4.5))
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.plot(1e3 * x, 1e3 * e, color="C0", lw=1.0)
+    ax1.set_xlabel("slave displacement along the push (mm)")
+    ax1.set_ylabel("master - slave (mm)")
+    ax1.grid(alpha=0.3)
+    ax2.plot(run.t[i], 1e3 * e, color="C0", lw=1.0)
+    for h in sc.holds:
+        ax2.axvline(h, color="k", ls=":", lw=0.8)
+    ax2.set_xlabel("t (s)")
+    ax2.set_ylabel("master - slave along the push (mm)")
+    ax2.grid(alpha=0.3)
+    fig.suptitle(_title(run) + " - hysteresis of the master")
+    return _save(fig, path)
+
+
+def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
+    """Depth of the master's tool into its virtual walls, and the hand's force."""
+    i = _decimate(len(run.t))
+    t = run.t[i]
+    fig = _new_figure((10, 4.5))
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.plot(t, 1e3 * run.wall_depth[i], color="C0")
+    for w in run.scenario.virtual_walls:
+        ax1.axhline(1e3 * w.thickness_m, color="r", ls=":", lw=0.9, label=f"thickness ({w.resist_force_n:g} N)")
+    ax1.axhline(0.0, color="k", lw=0.6)
+    ax1.set_xlabel("t (s)")
+    ax1.set_ylabel("depth into the wall (mm)")
+    ax1.legend(fontsize=8)
+    ax1.grid(alpha=0.3)
+    ax2.plot(t, np.linalg.norm(run.F_hand[i], axis=1), color="C3")
+    for w in run.scenario.virtual_walls:
+        ax2.axhline(w.resist_force_n, color="r", ls=":", lw=0.9)
+    ax2.set_xlabel("t (s)")
+    ax2.set_ylabel("hand force on the master (N)")
+    ax2.grid(alpha=0.3)
+    fig.suptitle(_title(run) + " - virtual wall")
+    return _save(fig, path)
+
+
+def write_teleop_plots(run: TeleopRun, out_dir) -> list[Path]:
+    """The figures that apply to ``run``, written into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [plot_teleop_tracking(run, out / "tracking.png"), plot_teleop_torques(run, out / "torques.png"),
+             plot_teleop_orientation(run, out / "orientation_rpy.png")]
+    if run.scenario.wall is not None:
+        paths.append(plot_teleop_contact(run, out / "contact.png"))
+    if run.scenario.push is not None:
+        paths.append(plot_teleop_hysteresis(run, out / "hysteresis.png"))
+    if run.scenario.virtual_walls:
+        paths.append(plot_teleop_virtual_wall(run, out / "virtual_wall.png"))
+    return paths

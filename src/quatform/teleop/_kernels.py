@@ -1,0 +1,48 @@
+"""Small helpers of the teleoperation fast path (private; teleop layer).
+
+A control cycle works on one configuration of each arm: a handful of 3-vectors and
+3x3 matrices. NumPy's general routines (``np.cross``, validated conversions) cost more
+in call overhead than in arithmetic there, so these do the same on plain slices or
+Python floats. Each is checked against its general counterpart in the tests.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def cross(a, b) -> np.ndarray:
+    """``a x b`` on ``(..., 3)`` arrays (broadcasting), as ``np.cross`` without its axis handling."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
+def q_from_rotation(R) -> tuple:
+    """Unit quaternion ``(w, x, y, z)``, ``w >= 0``, of one orthonormal 3x3 matrix (Shepperd).
+
+    No validation: for matrices that are rotations by construction (products of DH
+    transforms). The branch takes the largest of ``4w^2, 4x^2, 4y^2, 4z^2``.
+    """
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist() if hasattr(R, "tolist") else R
+    c = (1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22)
+    k = max(range(4), key=c.__getitem__)
+    big = 0.5 * math.sqrt(c[k])
+    f = 0.25 / big
+    if k == 0:
+        q = (big, (m21 - m12) * f, (m02 - m20) * f, (m10 - m01) * f)
+    elif k == 1:
+        q = ((m21 - m12) * f, big, (m01 + m10) * f, (m02 + m20) * f)
+    elif k == 2:
+        q = ((m02 - m20) * f, (m01 + m10) * f, big, (m12 + m21) * f)
+    else:
+        q = ((m10 - m01) * f, (m02 + m20) * f, (m12 + m21) * f, big)
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    s = 1.0 / n if q[0] >= 0 else -1.0 / n
+    return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)

@@ -1,0 +1,319 @@
+"""The bilateral teleoperation controller of seed 003, usable on real arms or in simulation.
+
+Teleop layer. :class:`TeleopController` turns one measurement of both arms (joint angles
+and rates, the slave's wrist force) into the master's and the slave's joint torques:
+eqs. (14a)/(14b) with the Euler-parameter error (or, as the baseline the seed argues
+against, a roll-pitch-yaw error), force reflection ``v J_mf^T F_s``, the null-space
+redundancy torque, virtual walls in the master's Cartesian space, the preload function
+on the master's actuators, and saturation to each joint's limit. Commands are always
+finite: a non-finite torque (the RPY baseline at gimbal lock) is replaced by zero and
+reported. Gravity is taken as compensated on both arms (``tau_grav`` of (11)-(12)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..algebra import matrix_from_q, qconj, qmul
+from ..algebra._validate import as_array, as_unit_quaternion
+from ..errors import InvalidInputError, NonFiniteError, ShapeError
+from ._kernels import q_from_rotation
+from .arm import SerialArm
+from .control import StiffnessGains, force_stability_term, preload, virtual_wall_force
+from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
+from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
+from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
+
+__all__ = ["ORIENTATION_ERRORS", "Registration", "VirtualWall", "TeleopMeasurement", "TeleopCommand",
+           "TeleopController"]
+
+#: The orientation errors a controller can use.
+ORIENTATION_ERRORS = ("euler-parameters", "rpy")
+
+
+@dataclass(frozen=True)
+class Registration:
+    """The fixed map of the master's tool pose into the slave's workspace.
+
+    ``p -> scale R_base (p - p_master0) + p_slave0`` and ``q -> q_base q q_tool``: the
+    master's base axes are turned onto the slave's by ``q_base`` (identity: pushing the
+    handle forward moves the slave forward), and the constant tool offset ``q_tool`` makes
+    the two home orientations coincide. A master rotation about a base axis becomes the
+    same rotation of the slave about the corresponding base axis.
+    """
+
+    base: np.ndarray
+    tool: np.ndarray
+    p_master0: np.ndarray
+    p_slave0: np.ndarray
+    scale: float = 1.0
+
+    @classmethod
+    def from_homes(cls, master: SerialArm, slave: SerialArm, q_m0, q_s0, scale: float = 1.0,
+                   base=(1.0, 0.0, 0.0, 0.0)) -> Registration:
+        """The registration that makes the tool poses at ``q_m0`` and ``q_s0`` coincide."""
+        p_m0, r_m0 = master.forward(q_m0)
+        p_s0, r_s0 = slave.forward(q_s0)
+        if not (np.isfinite(scale) and scale > 0):
+            raise InvalidInputError(f"registration scale must be finite and > 0, got {scale!r}")
+        base = as_unit_quaternion(base, "base")
+        return cls(base, qmul(qconj(qmul(base, r_m0)), r_s0), p_m0, p_s0, float(scale))
+
+    def apply(self, p_m, r_m, J_mf):
+        """The master's tool position, orientation and Jacobian in the slave's workspace."""
+        R = matrix_from_q(self.base)
+        J = np.array(J_mf, dtype=float)
+        J[..., 0:3, :] = self.scale * (R @ J[..., 0:3, :])
+        J[..., 3:6, :] = R @ J[..., 3:6, :]
+        p = self.scale * np.einsum("ij,...j->...i", R, np.asarray(p_m) - self.p_master0) + self.p_slave0
+        return p, qmul(qmul(self.base, r_m), self.tool), J
+
+
+@dataclass(frozen=True)
+class VirtualWall:
+    """A plane in the master's Cartesian space the tool point must not cross (seed 003 §7).
+
+    The forbidden side is ``normal . p > offset`` (master base frame, m). The wall pushes
+    back with ``resist_force_n / thickness_m`` N per metre of depth (plus ``damping``
+    against motion into it), so an operator must push with more than ``resist_force_n`` to
+    get through its ``thickness_m``.
+    """
+
+    normal: tuple
+    offset: float
+    resist_force_n: float = 8.0
+    thickness_m: float = 0.02
+    damping: float = 20.0
+
+    def __post_init__(self):
+        n = np.asarray(self.normal, float)
+        if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-9:
+            raise InvalidInputError(f"virtual wall normal must be a nonzero 3-vector, got {self.normal!r}")
+        for name in ("resist_force_n", "thickness_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise InvalidInputError(f"virtual wall {name} must be finite and > 0, got {v!r}")
+
+    @property
+    def stiffness(self) -> float:
+        return self.resist_force_n / self.thickness_m
+
+    def depth(self, p) -> np.ndarray:
+        n = np.asarray(self.normal, float)
+        return np.asarray(p, float) @ (n / np.linalg.norm(n)) - self.offset
+
+    def force(self, p, p_dot) -> np.ndarray:
+        return virtual_wall_force(p, p_dot, self.normal, self.offset, self.stiffness, self.damping)
+
+
+@dataclass(frozen=True)
+class TeleopMeasurement:
+    """What a teleoperator reads each cycle (SI units).
+
+    ``q_m``, ``qd_m``: master joints ``(n_m,)``; ``q_s``, ``qd_s``: slave joints ``(n_s,)``;
+    ``F_s``: the wrench the slave exerts on its environment (wrist sensor, base axes),
+    ``(6,)`` ``[force; moment]``.
+    """
+
+    q_m: np.ndarray
+    qd_m: np.ndarray
+    q_s: np.ndarray
+    qd_s: np.ndarray
+    F_s: np.ndarray = field(default_factory=lambda: np.zeros(6))
+
+
+@dataclass(frozen=True)
+class TeleopCommand:
+    """Torques to send (finite, saturated) and what they came from.
+
+    ``tau_m`` ``(n_m,)`` after preload and saturation (zero on unactuated joints), ``tau_s``
+    ``(n_s,)``; ``e`` the task error (position m; ``delta_eps`` or RPY rad); ``p_m``, ``r_m``
+    the master's registered pose, ``p_s``, ``r_s`` the slave's; ``wall_force`` the virtual
+    walls' force on the master (master axes); ``raw_finite`` False if a torque had to be
+    replaced; ``saturated`` True if any torque hit its limit; ``J_mf``, ``J_sf`` the arms'
+    own Jacobians and ``M_s`` the slave's mass matrix at the measured configuration.
+    """
+
+    tau_m: np.ndarray
+    tau_s: np.ndarray
+    e: np.ndarray
+    p_m: np.ndarray
+    r_m: np.ndarray
+    p_s: np.ndarray
+    r_s: np.ndarray
+    wall_force: np.ndarray
+    raw_finite: bool
+    saturated: bool
+    J_mf: np.ndarray
+    J_sf: np.ndarray
+    M_s: np.ndarray
+
+
+def _limits(values, n, name):
+    a = np.broadcast_to(np.asarray(values, float), (n,)).copy()
+    if not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise InvalidInputError(f"{name} must be finite and >= 0 for each of {n} joints, got {values!r}")
+    return a
+
+
+@dataclass(frozen=True)
+class TeleopController:
+    """Seed 003's master and slave stiffness controllers as one object.
+
+    Parameters
+    ----------
+    registration : Registration
+        Master tool pose -> slave workspace (:meth:`Registration.from_homes`).
+    q_rest : array_like, shape (n_s,)
+        The slave posture the null-space torque pulls toward (the redundancy of joint 7).
+    gains_master, gains_slave : StiffnessGains
+        ``K_pm, K_vm`` and ``K_ps, K_vs``.
+    orientation_error : {"euler-parameters", "rpy"}
+    reflection : float
+        The constant ``v`` of eq. (11) (negative), used when ``k_for`` is None.
+    k_for : float, optional
+        State-dependent ``v = -k_for x_m_dot^T F_s``.
+    preload_nm : array_like, shape (n_m,), optional
+        Preload offsets of the master's actuators (N m); None: off.
+    master_limits, slave_limits : array_like
+        Torque limits, N m (0 on an unactuated joint).
+    walls : tuple of VirtualWall
+    """
+
+    registration: Registration
+    q_rest: np.ndarray
+    master: SerialArm = KRAFT_MASTER
+    slave: RigidArm = PANDA_SLAVE
+    gains_master: StiffnessGains = StiffnessGains()
+    gains_slave: StiffnessGains = StiffnessGains()
+    orientation_error: str = "euler-parameters"
+    reflection: float = -0.5
+    k_for: float | None = None
+    preload_nm: np.ndarray | None = None
+    master_limits: np.ndarray = field(default_factory=lambda: np.array(KRAFT_FULL_SCALE))
+    slave_limits: np.ndarray = field(default_factory=lambda: np.array(PANDA_TORQUE_LIMITS))
+    walls: tuple = ()
+    k_null: float = 5.0
+    d_null: float = 1.0
+
+    def __post_init__(self):
+        if self.orientation_error not in ORIENTATION_ERRORS:
+            raise InvalidInputError(f"orientation_error must be one of {', '.join(ORIENTATION_ERRORS)}, "
+                                    f"got {self.orientation_error!r}")
+        n_m, n_s = self.master.n, self.slave.arm.n
+        object.__setattr__(self, "q_rest", as_array(self.q_rest, "q_rest", n_s).copy())
+        object.__setattr__(self, "master_limits", _limits(self.master_limits, n_m, "master_limits"))
+        object.__setattr__(self, "slave_limits", _limits(self.slave_limits, n_s, "slave_limits"))
+        if self.preload_nm is not None:
+            object.__setattr__(self, "preload_nm", _limits(self.preload_nm, n_m, "preload_nm"))
+        if self.k_for is None:
+            force_stability_term(constant=self.reflection)  # validates: v < 0
+
+    @classmethod
+    def default_preload(cls) -> np.ndarray:
+        """Seed 003's preload: ~10 % of full scale, 5 % on wrist pitch and yaw (N m)."""
+        return np.asarray(KRAFT_PRELOAD) * np.asarray(KRAFT_FULL_SCALE)
+
+    def step(self, t: float, measured: TeleopMeasurement, reference=None) -> tuple[np.ndarray, np.ndarray]:
+        """Master and slave torques ``(tau_m, tau_s)`` (N m) for one measurement.
+
+        In bilateral teleoperation each arm's reference is the other arm, so ``reference``
+        is unused (accepted for the common controller signature).
+        """
+        c = self.compute(t, measured)
+        return c.tau_m, c.tau_s
+
+    @cached_property
+    def _fixed(self):
+        """Per-controller constants: the registration as a 6x6 block map, gains, masks."""
+        R = matrix_from_q(self.registration.base)
+        G6 = np.zeros((6, 6))
+        G6[0:3, 0:3], G6[3:6, 3:6] = self.registration.scale * R, R
+        act = np.array([1.0 if a else 0.0 for a in (self.master.actuated or (True,) * self.master.n)])
+        gm, gs = self.gains_master, self.gains_slave
+        return {"R_base": R, "R_tool": matrix_from_q(self.registration.tool), "G6": G6, "actuated": act, "kp_m": gm.kp, "kv_m": gm.kv, "kp_s": gs.kp, "kv_s": gs.kv}
+
+    def compute(self, t: float, measured: TeleopMeasurement) -> TeleopCommand:
+        """:meth:`step` with everything it computed (:class:`TeleopCommand`).
+
+        One configuration of each arm: the arms' frames are computed once and shared by
+        the forward kinematics, the Jacobians and the mass matrix; the orientation error
+        comes from ``R_M^T R_S`` directly. ``tests/test_teleop_controller.py`` checks it
+        against the general functions of :mod:`.control` and :mod:`.task`.
+        """
+        M, S, K = self.master, self.slave.arm, self._fixed
+        q_m, qd_m = _measured(measured.q_m, "q_m", M.n), _measured(measured.qd_m, "qd_m", M.n)
+        q_s, qd_s = _measured(measured.q_s, "q_s", S.n), _measured(measured.qd_s, "qd_s", S.n)
+        F_s = _measured(measured.F_s, "F_s", 6)
+        Fm, Fs = M.frames(q_m), S.frames(q_s)  # each arm's frames once per cycle
+        J_mf, J_sf = M.jacobian(q_m, Fm), S.jacobian(q_s, Fs)
+        reg = self.registration
+        p_m = reg.scale * (K["R_base"] @ (M.tool(Fm) - reg.p_master0)) + reg.p_slave0
+        R_m = K["R_base"] @ Fm[-1, 0:3, 0:3] @ K["R_tool"]
+        Jm = K["G6"] @ J_mf  # the master's Jacobian in the slave's workspace
+        p_s, R_s = S.tool(Fs), Fs[-1, 0:3, 0:3]
+        if self.orientation_error == "euler-parameters":
+            # seed 003 eqs. (8)-(10): {d_eps4, d_eps_hat} of R_M^T R_S, the short way (d_eps4 >= 0)
+            w, x, y, z = q_from_rotation(R_m.T @ R_s)
+            # seed 003 eq. (19): d/dt d_eps_hat = W (omega_S - omega_M), W = 1/2 (d_eps4 I - [d_eps_hat]x) R_M^T
+            rot = 0.5 * np.array([[w, z, -y], [-z, w, x], [y, -x, w]]) @ R_m.T
+            e = np.array([*(p_s - p_m), x, y, z])
+        else:
+            rpy_m, rpy_s = rpy_from_matrix(R_m), rpy_from_matrix(R_s)
+            e = np.concatenate([p_s - p_m, wrap_angle(rpy_s - rpy_m)])
+        T6 = np.eye(6)
+        with np.errstate(all="ignore"):  # the RPY baseline divides by cos(pitch)
+            if self.orientation_error == "euler-parameters":
+                T6[3:6, 3:6] = rot
+                J_m, J_s = T6 @ Jm, T6 @ J_sf  # seed 003 eqs. (16), (18)
+            else:
+                J_m, J_s = T6.copy(), T6
+                J_m[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_m)
+                J_s[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_s)
+                J_m, J_s = J_m @ Jm, J_s @ J_sf
+            e_dot = J_s @ qd_s - J_m @ qd_m
+            tau_m = J_m.T @ (K["kp_m"] * e + K["kv_m"] * e_dot)  # seed 003 eq. (14a)
+            tau_s = -(J_s.T @ (K["kp_s"] * e + K["kv_s"] * e_dot))  # seed 003 eq. (14b)
+            # tau_red = (I - J^T J_bar^T) y with J_bar = M^-1 J^T (J M^-1 J^T)^-1 (eq. (13)):
+            # J^T J_bar^T y = J^T (J X)^-1 X^T y, X = M^-1 J^T
+            M_s = self.slave.mass_matrix(q_s, Fs)
+            X = np.linalg.solve(M_s, J_sf.T)
+            y_null = -self.k_null * (q_s - self.q_rest) - self.d_null * qd_s
+            tau_s = tau_s + y_null - J_sf.T @ np.linalg.solve(J_sf @ X, X.T @ y_null)
+            # force reflection, seed 003 eq. (11): v J_mf^T F_s, with the registered J_mf
+            # (F_s is in the slave's base axes)
+            v = self.reflection if self.k_for is None else force_stability_term(Jm @ qd_m, F_s, self.k_for)
+            tau_m = tau_m + v * (Jm.T @ F_s)
+            wall = np.zeros(3)
+            if self.walls:
+                p_master, v_master = M.tool(Fm), J_mf[0:3] @ qd_m
+                for wl in self.walls:
+                    wall = wall + wl.force(p_master, v_master)
+                tau_m = tau_m + J_mf[0:3].T @ wall
+        tau_m = tau_m * K["actuated"]
+        finite = bool(np.isfinite(tau_m).all() and np.isfinite(tau_s).all())
+        if not finite:
+            tau_m = np.where(np.isfinite(tau_m), tau_m, 0.0)
+            tau_s = np.where(np.isfinite(tau_s), tau_s, 0.0)
+        if self.preload_nm is not None:
+            tau_m = preload(tau_m, self.preload_nm)  # seed 003 §6, the inverse of the deadband
+        lim_m, lim_s = self.master_limits, self.slave_limits
+        saturated = bool((np.abs(tau_m) > lim_m).any() or (np.abs(tau_s) > lim_s).any())
+        if saturated:
+            tau_m, tau_s = np.clip(tau_m, -lim_m, lim_m), np.clip(tau_s, -lim_s, lim_s)
+        return TeleopCommand(tau_m, tau_s, e, p_m, np.array(q_from_rotation(R_m)), p_s,
+                             np.array(q_from_rotation(R_s)), wall, finite, saturated, J_mf, J_sf, M_s)
+
+
+def _measured(x, name, n):
+    """A measured vector as a float array of shape ``(n,)``, finite (one clear error otherwise)."""
+    a = np.asarray(x, dtype=float)
+    if a.shape != (n,):
+        raise ShapeError(f"{name} must have shape ({n},), got {a.shape}")
+    if not np.isfinite(a).all():
+        raise NonFiniteError(f"{name} = {a.tolist()} is not finite; a controller cannot act on NaN or inf "
+                             "measurements - check the sensor reading")
+    return a
