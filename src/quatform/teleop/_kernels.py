@@ -13,15 +13,20 @@ import math
 import numpy as np
 
 
+#: ``a @ LEVI`` reshaped to ``(..., 3, 3)`` is ``[a]x``: ``LEVI[j, 3 i + k] = epsilon_ijk``.
+LEVI = np.zeros((3, 3, 3))
+LEVI[0, 2, 1], LEVI[0, 1, 2], LEVI[1, 0, 2], LEVI[1, 2, 0], LEVI[2, 1, 0], LEVI[2, 0, 1] = 1, -1, 1, -1, 1, -1
+LEVI = LEVI.reshape(3, 9)
+
+
+def skew_rows(a) -> np.ndarray:
+    """``[a]x`` of ``(..., 3)`` vectors, shape ``(..., 3, 3)``, in one product."""
+    return (a @ LEVI).reshape(a.shape[:-1] + (3, 3))
+
+
 def cross(a, b) -> np.ndarray:
-    """``a x b`` on ``(..., 3)`` arrays (broadcasting), as ``np.cross`` without its axis handling."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a1 * b2 - a2 * b1
-    out[..., 1] = a2 * b0 - a0 * b2
-    out[..., 2] = a0 * b1 - a1 * b0
-    return out
+    """``a x b`` on ``(..., 3)`` arrays (broadcasting) as ``[a]x b``: two products, no axis handling."""
+    return (skew_rows(a) @ b[..., None])[..., 0]
 
 
 def q_from_rotation(R) -> tuple:

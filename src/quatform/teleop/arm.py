@@ -72,7 +72,10 @@ class SerialArm:
 
     def frames(self, q) -> np.ndarray:
         """Homogeneous transforms ``0_T_i`` of every link frame, shape ``(..., n, 4, 4)``."""
-        q = self._q(q)
+        return self.frames_unchecked(self._q(q))
+
+    def frames_unchecked(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`frames` of a float array already validated (the control cycle's fast path)."""
         offset, ca, sa, a, d = self._constants
         th = q + offset
         ct, st = np.cos(th), np.sin(th)

@@ -125,9 +125,9 @@ def preload(tau, offset, switch=None) -> np.ndarray:
     """
     tau, offset = np.asarray(tau, float), np.asarray(offset, float)
     switch = offset / 2.0 if switch is None else np.asarray(switch, float)
-    ramp = np.clip(tau / np.where(switch > 0, switch, 1.0), -1.0, 1.0)
-    ramp = np.where(switch > 0, ramp, np.sign(tau))
-    return tau + offset * ramp
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ramp = np.minimum(np.maximum(tau / switch, -1.0), 1.0)
+    return tau + offset * np.where(switch > 0, ramp, np.sign(tau))
 
 
 def virtual_wall_force(p, p_dot, normal, offset, stiffness, damping=0.0) -> np.ndarray:

@@ -248,7 +248,7 @@ class TeleopController:
         q_m, qd_m = _measured(measured.q_m, "q_m", M.n), _measured(measured.qd_m, "qd_m", M.n)
         q_s, qd_s = _measured(measured.q_s, "q_s", S.n), _measured(measured.qd_s, "qd_s", S.n)
         F_s = _measured(measured.F_s, "F_s", 6)
-        Fm, Fs = M.frames(q_m), S.frames(q_s)  # each arm's frames once per cycle
+        Fm, Fs = M.frames_unchecked(q_m), S.frames_unchecked(q_s)  # each arm's frames once per cycle
         J_mf, J_sf = M.jacobian(q_m, Fm), S.jacobian(q_s, Fs)
         reg = self.registration
         p_m = reg.scale * (K["R_base"] @ (M.tool(Fm) - reg.p_master0)) + reg.p_slave0
@@ -303,7 +303,8 @@ class TeleopController:
         lim_m, lim_s = self.master_limits, self.slave_limits
         saturated = bool((np.abs(tau_m) > lim_m).any() or (np.abs(tau_s) > lim_s).any())
         if saturated:
-            tau_m, tau_s = np.clip(tau_m, -lim_m, lim_m), np.clip(tau_s, -lim_s, lim_s)
+            tau_m = np.minimum(np.maximum(tau_m, -lim_m), lim_m)
+            tau_s = np.minimum(np.maximum(tau_s, -lim_s), lim_s)
         return TeleopCommand(tau_m, tau_s, e, p_m, np.array(q_from_rotation(R_m)), p_s,
                              np.array(q_from_rotation(R_s)), wall, finite, saturated, J_mf, J_sf, M_s)
 

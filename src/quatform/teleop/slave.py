@@ -21,6 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ._kernels import skew_rows
 from .arm import DHLink, SerialArm
 
 __all__ = ["PANDA", "RigidArm", "PANDA_SLAVE", "PANDA_TORQUE_LIMITS"]
@@ -75,12 +76,12 @@ class RigidArm:
         along = m * self.radius ** 2 / 2.0
         tail = np.cumsum(across[::-1])[::-1]  # sum over links i >= k
         k = np.maximum.outer(np.arange(n), np.arange(n))
-        levi = np.zeros((3, 3, 3))  # [z]x = z @ levi.reshape(3, 9)
-        levi[0, 2, 1], levi[0, 1, 2], levi[1, 0, 2], levi[1, 2, 0], levi[2, 1, 0], levi[2, 0, 1] = 1, -1, 1, -1, 1, -1
-        return {"L": L, "rod": L > 1e-9, "inv_L": np.where(L > 1e-9, 1.0 / np.maximum(L, 1e-12), 0.0),
-                "sqrt_m": np.sqrt(m)[:, None, None], "lower": np.tril(np.ones((n, n))),
+        lower = np.tril(np.ones((n, n)))
+        return {"L": L, "inv_L": np.where(L > 1e-9, 1.0 / np.maximum(L, 1e-12), 0.0)[:, None],
+                "no_rod": (L <= 1e-9).astype(float)[:, None], "lower": lower,
+                "lower_sqrt_m": lower[:, :, None] * np.sqrt(m)[:, None, None],
                 "G_weight": tail[k], "c": (along - across)[:, None], "armature": self.armature * np.eye(n),
-                "levi": levi.reshape(3, 9)}
+}
 
     def _coms(self, q, F=None):
         """Centres of mass ``(..., n, 3)``, rod directions ``(..., n, 3)`` and lengths ``(n,)``.
@@ -95,7 +96,7 @@ class RigidArm:
         ends[..., :-1, :] = o[..., 1:, :]
         ends[..., -1, :] = self.arm.tool(F)
         seg = ends - o
-        u = np.where(K["rod"][:, None], seg * K["inv_L"][:, None], F[..., :, 0:3, 2])
+        u = seg * K["inv_L"] + K["no_rod"] * F[..., :, 0:3, 2]
         return F, 0.5 * (o + ends), u, K["L"]
 
     def mass_matrix(self, q, F=None) -> np.ndarray:
@@ -110,9 +111,9 @@ class RigidArm:
         K = self._constants
         z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
         n = self.arm.n
-        Zx = (z @ K["levi"]).reshape(z.shape[:-1] + (3, 3))  # [z_j]x
+        Zx = skew_rows(z)  # [z_j]x
         D = com[..., :, None, :, None] - o[..., None, :, :, None]  # (..., i, j, 3, 1)
-        Jv = (Zx[..., None, :, :, :] @ D)[..., 0] * (K["lower"][..., None] * K["sqrt_m"])
+        Jv = (Zx[..., None, :, :, :] @ D)[..., 0] * K["lower_sqrt_m"]
         A = np.swapaxes(Jv, -3, -2).reshape(Jv.shape[:-3] + (n, 3 * n))
         zt = np.swapaxes(z, -1, -2)
         B = (u @ zt) * K["lower"]  # (..., i, j)
