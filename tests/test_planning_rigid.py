@@ -100,7 +100,7 @@ def test_airplanes_keep_formation_reach_the_end_poses_and_fly_forward(plans, cas
     met = p.metrics()
     assert met["max_distance_change_m"] < 1e-12
     assert met["end_position_error_m"] < 1e-12
-    assert met["end_orientation_error_rad"] < 1e-7  # arccos near 1: sqrt of round-off
+    assert met["end_orientation_error_rad"] < 1e-12
     assert met["solve_time_s"] > 0
     s = p.sample(np.array([0.0, 1.0]))
     np.testing.assert_allclose(s.centroid, [[0, 0, 0], [X_, 0, Z_]], atol=1e-12)
