@@ -331,3 +331,21 @@ def test_sample_rejects_times_outside_the_plan(plans):
         plans["a"].sample(1.5)
     assert np.allclose(plans["a"].sample(0.0).positions, airplanes_spec("a")["body_points"], atol=1e-12)
     assert q_from_matrix(np.eye(3)) @ plans["a"].sample(0.0).orientations[0] == pytest.approx(1.0)
+
+
+def test_figure4_and_single_plan_plots(plans, tmp_path):
+    from matplotlib.image import imread
+
+    from quatform.report.planning_plots import (
+        plot_airplanes_figure4,
+        plot_rigid_formation_paths,
+    )
+
+    out = plot_airplanes_figure4(tmp_path / "fig4.png", plans)
+    img = imread(out)
+    assert img.shape[1] > 2 * img.shape[0]  # three panels side by side
+    assert img[..., :3].std() > 0.05  # something drawn
+    one = plot_rigid_formation_paths(plans["b"], tmp_path / "b.png", title="case (b)")
+    assert one.stat().st_size > 10_000
+    with pytest.raises(InvalidInputError, match="lacks"):
+        plot_airplanes_figure4(tmp_path / "x.png", {"a": plans["a"]})

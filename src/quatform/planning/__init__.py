@@ -5,6 +5,7 @@ from GA(3) (:mod:`.se3`, :mod:`.rigid_formation`).
 """
 
 from .rigid_formation import (
+    AIRPLANE_CASES,
     RigidFormationPlan,
     RigidFormationSample,
     airplane_constraint_matrix,
@@ -28,6 +29,7 @@ from .se3 import (
 )
 
 __all__ = [
+    "AIRPLANE_CASES",
     "ProjectedCurve",
     "RigidFormationPlan",
     "RigidFormationSample",
