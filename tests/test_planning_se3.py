@@ -202,9 +202,16 @@ def test_bi_invariant_geodesic_is_slerp_reparametrised(seed, angle):
 
 def test_bi_invariant_geodesic_through_a_half_turn_is_refused():
     R1 = Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix()
-    curve = ProjectedCurve.geodesic(np.eye(3), np.zeros(3), R1, np.zeros(3), np.eye(3))
+    with pytest.raises(DegenerateInputError, match="half turn"):
+        ProjectedCurve.geodesic(np.eye(3), np.zeros(3), R1, np.zeros(3), np.diag([1.0, 2.0, 3.0]))
+    # the midpoint of that line is rank 1: the projection itself refuses it
     with pytest.raises(DegenerateInputError, match="not unique"):
-        curve.evaluate(0.5)
+        project_to_so3(0.5 * (np.eye(3) + R1), np.diag([1.0, 2.0, 3.0]))
+    # just short of a half turn: unique and continuous, the turn concentrated near t = 1/2
+    R1 = Rotation.from_rotvec([0.0, 0.0, np.pi - 1e-3]).as_matrix()
+    curve = ProjectedCurve.geodesic(np.eye(3), np.zeros(3), R1, np.zeros(3), np.eye(3))
+    R, om, *_ = curve.evaluate(np.linspace(0, 1, 101))
+    assert np.all(np.abs(np.linalg.det(R) - 1) < 1e-12) and om[50, 2] > 100
 
 
 @given(seeds)

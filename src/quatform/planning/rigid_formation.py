@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -610,8 +610,7 @@ def _plan(masses, body_points, inertias, airplane, start, end, duration, samples
             c.evaluate(times)
     if airplane.any():
         plan = _with_airplane_attitudes(plan, np.flatnonzero(airplane), start, end)
-    object.__setattr__(plan, "solve_time_s", time.perf_counter() - t_start)
-    return plan
+    return replace(plan, solve_time_s=time.perf_counter() - t_start)
 
 
 def _barycentric(x, nodes, weights, values):
@@ -702,8 +701,7 @@ def _with_airplane_attitudes(plan: RigidFormationPlan, index, start, end) -> Rig
     roll = np.where(sin_half[:, None] > 0, qr[:, 1:] / np.where(sin_half > 0, sin_half, 1.0)[:, None], 0.0)
     roll = roll * ang[:, None]
     att = _AirplaneAttitudes(index=index, solution=sol.sol, roll=roll)
-    object.__setattr__(plan, "_airplanes", att)
-    return plan
+    return replace(plan, _airplanes=att)
 
 
 def rigid_plan_from_spec(spec: Mapping) -> RigidFormationPlan:

@@ -427,6 +427,15 @@ class ProjectedCurve:
         """Straight line ``M = R0 + (R1 - R0) tau``, ``d = d0 + (d1 - d0) tau`` (seed 004 §2.4)."""
         R0, R1 = _check_rotation(R0, "R0"), _check_rotation(R1, "R1")
         d0, d1 = as_array(d0, "d0", 3), as_array(d1, "d1", 3)
+        # Q = R0^T R1 a half turn about n: M(1/2) = R0 (I + Q) / 2 = R0 n n^T has rank 1,
+        # so M W has rank 1 for every W and the projection is not unique there.
+        cos_angle = 0.5 * (np.trace(R0.T @ R1) - 1.0)
+        if cos_angle < -1.0 + 1e-12:
+            raise DegenerateInputError(
+                f"R0 and R1 are a half turn apart (cos angle = {cos_angle:.15f}): the line between "
+                "them passes through a rank-1 matrix at its midpoint, where no closest rotation is "
+                "unique; split the motion at an intermediate rotation"
+            )
         z3, z = np.zeros((3, 3)), np.zeros(3)
         return cls(
             np.stack([R0, R1 - R0, z3, z3]), np.stack([d0, d1 - d0, z, z]), _sym(W, "W"), float(w),
