@@ -32,6 +32,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from numbers import Integral, Real
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -263,7 +264,7 @@ def _inertias(x, n) -> np.ndarray:
 
 
 def _actuation(x, n) -> np.ndarray:
-    items = [x] * n if isinstance(x, str) else list(x) if isinstance(x, Sequence) else None
+    items = [x] * n if isinstance(x, str) else list(x) if isinstance(x, (Sequence, np.ndarray)) else None
     if items is None or len(items) != n or any(a not in ACTUATIONS for a in items):
         raise InvalidInputError(
             f"actuation must be one of {ACTUATIONS} or a list of {n} of them, got {x!r}"
@@ -751,10 +752,10 @@ def rigid_plan_from_spec(spec: Mapping) -> RigidFormationPlan:
     start = _pose(spec["start"], n, "start")
     end = _pose(spec["end"], n, "end")
     duration = spec.get("duration", 1.0)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (np.isfinite(duration) and duration > 0):
+    if isinstance(duration, bool) or not isinstance(duration, Real) or not (np.isfinite(duration) and duration > 0):
         raise InvalidInputError(f"duration must be a finite number of seconds > 0, got {duration!r}")
     samples = spec.get("samples", 201)
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 2:
+    if isinstance(samples, bool) or not isinstance(samples, Integral) or samples < 2:
         raise InvalidInputError(f"samples must be an integer >= 2, got {samples!r}")
     return _plan(m, r, H, airplane, start, end, float(duration), int(samples))
 
