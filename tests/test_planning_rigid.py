@@ -39,6 +39,12 @@ from quatform.planning.rigid_formation import gamma_matrix
 M_, A_, H_, X_, Z_ = 1.0, 5.0, 10.0, 20.0, 20.0
 
 
+def _trapezoid(y, x):
+    """Trapezoid rule (``numpy.trapezoid`` needs NumPy 2)."""
+    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
+
+
+
 @pytest.fixture(scope="module")
 def plans():
     return {case: airplanes_plan(case) for case in ("holonomic", "a", "b")}
@@ -177,7 +183,7 @@ def test_seed_a1_comes_from_its_misprinted_dx():
 
     def cost(a1):
         xd = a1 + 6 * X_ * t + 3 * (a1 - 2 * X_) * t**2
-        return np.trapezoid(xd**2, t)
+        return _trapezoid(xd**2, t)
 
     a1 = minimize(lambda x: cost(x[0]), [0.0]).x[0]
     assert a1 == pytest.approx(-19 * X_ / 48, rel=1e-6)
@@ -202,7 +208,7 @@ def test_energy_minimum_matches_scipy_optimize(plans, case):
         t = np.linspace(0, 1, 2001)  # independent of the Gauss rule inside .energy()
         _, Md, _, _, dd, _ = curve.ambient(t)
         f = np.einsum("tki,tkj,ji->t", Md, Md, W) + p.w * np.sum(dd * dd, axis=-1)
-        return np.trapezoid(f, t)
+        return _trapezoid(f, t)
 
     res = minimize(energy, [1.0, -1.0], method="BFGS", options={"gtol": 1e-8})
     assert res.fun == pytest.approx(p.metrics()["energy"], rel=1e-6)
@@ -258,7 +264,7 @@ def test_random_full_formations_keep_their_shape(seed):
     m = rng.uniform(0.5, 3.0, n)
     r = rng.normal(size=(n, 3)) * 2
     r -= m @ r / m.sum()
-    q = Rotation.random(2 + 2 * n, random_state=rng).as_quat(scalar_first=True)
+    q = np.roll(Rotation.random(2 + 2 * n, random_state=rng).as_quat(), 1, axis=-1)  # (w, x, y, z)
     spec = {
         "masses": m, "body_points": r, "inertias": rng.uniform(1.0, 1.5, (n, 3)),
         "start": {"position": rng.normal(size=3), "orientation": q[0], "robot_orientations": q[2:2 + n]},
