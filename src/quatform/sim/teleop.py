@@ -527,6 +527,9 @@ def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScen
     reflection = float(ctrl.get("reflection", -0.5))
     if not reflection < 0:
         raise InvalidInputError(f"{where} [controller]: reflection (v of eq. (11)) must be negative, got {reflection!r}")
+    k_for = ctrl.get("k_for")
+    if k_for is not None:
+        k_for = _number(ctrl, "k_for", f"{where} [controller]", 0.0)
     duration = _number(data, "duration_s", where, None, positive=True) if "duration_s" in data else None
     if duration is None:
         raise InvalidInputError(f"{where}: missing key 'duration_s'")
@@ -546,7 +549,7 @@ def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScen
         hand=hand, push=push, wall=wall, virtual_walls=tuple(vwalls), orientation_error=oe, preload=pl,
         gains_master=_gains(ctrl.get("gains_master", {}), f"{where} [controller.gains_master]"),
         gains_slave=_gains(ctrl.get("gains_slave", {}), f"{where} [controller.gains_slave]"),
-        reflection=reflection, holds=holds,
+        reflection=reflection, k_for=k_for, holds=holds,
     )
     if any(i <= 0 for i in sc.master_inertia):
         raise InvalidInputError(f"{where} [master]: inertia must be > 0 for every joint, got {sc.master_inertia}")
