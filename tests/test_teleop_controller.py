@@ -64,6 +64,9 @@ def test_fast_path_equals_the_general_functions(dm, dmd, ds, dsd, F):
     assert cmd.tau_m[5] == 0.0  # the wrist roll has no actuator
     np.testing.assert_allclose(cmd.tau_s, tau_s, atol=1e-9)
     assert cmd.raw_finite and not cmd.saturated
+    tau_m2, tau_s2 = c.step(0.0, meas)  # the lean path sends the same torques
+    np.testing.assert_array_equal(tau_m2, cmd.tau_m)
+    np.testing.assert_array_equal(tau_s2, cmd.tau_s)
 
 
 def test_kernels_match_numpy():

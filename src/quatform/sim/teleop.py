@@ -240,13 +240,13 @@ def _qconj_f(q):
     return (q[0], -q[1], -q[2], -q[3])
 
 
-def _friction_step(qd, I, tau, static, dt):
+def _friction_step(qd, inertia, tau, static, dt):
     """Per-joint velocity update with static and Coulomb friction of size ``static``.
 
     A joint at rest stays at rest while ``|tau| <= static``; a moving joint feels
     ``-static sign(qd)``, and friction alone never reverses its velocity within a step.
     """
-    qd_new = qd + dt * tau / I
+    qd_new = qd + dt * tau / inertia
     if not np.any(static > 0):
         return qd_new
     out = qd_new.copy()
@@ -258,7 +258,7 @@ def _friction_step(qd, I, tau, static, dt):
             out[j] = 0.0
             continue
         direction = math.copysign(1.0, qd[j]) if qd[j] != 0.0 else math.copysign(1.0, tau[j])
-        v = qd[j] + dt * (tau[j] - f * direction) / I[j]
+        v = qd[j] + dt * (tau[j] - f * direction) / inertia[j]
         if v * direction < 0:  # friction stops the joint within this step
             v = 0.0
         out[j] = v
@@ -310,7 +310,8 @@ def simulate_teleop(scenario: TeleopScenario, orientation_error: str | None = No
         wall_depth = max((w.depth(p_master) for w in sc.virtual_walls), default=-np.inf)
         for key, val in (("q_m", q_m), ("q_s", q_s), ("p_m", cmd.p_m), ("r_m", cmd.r_m), ("p_s", cmd.p_s),
                          ("r_s", cmd.r_s), ("p_master", p_master), ("e", cmd.e),
-                         ("angle", 2.0 * math.acos(min(1.0, abs(float(cmd.r_m @ cmd.r_s))))), ("tau_m", cmd.tau_m), ("tau_s", cmd.tau_s),
+                         ("angle", 2.0 * math.acos(min(1.0, abs(float(cmd.r_m @ cmd.r_s))))),
+                         ("tau_m", cmd.tau_m), ("tau_s", cmd.tau_s),
                          ("F_s", F_s[0:3]), ("F_hand", wrench[0:3]), ("F_reflected", F_refl),
                          ("wall_depth", wall_depth), ("raw_finite", cmd.raw_finite), ("saturated", cmd.saturated)):
             log[key].append(val)
@@ -526,7 +527,8 @@ def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScen
         raise InvalidInputError(f"{where} [controller]: preload must be true or false, got {pl!r}")
     reflection = float(ctrl.get("reflection", -0.5))
     if not reflection < 0:
-        raise InvalidInputError(f"{where} [controller]: reflection (v of eq. (11)) must be negative, got {reflection!r}")
+        raise InvalidInputError(f"{where} [controller]: reflection (v of eq. (11)) must be negative, "
+                                f"got {reflection!r}")
     k_for = ctrl.get("k_for")
     if k_for is not None:
         k_for = _number(ctrl, "k_for", f"{where} [controller]", 0.0)

@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 
-
 #: ``a @ LEVI`` reshaped to ``(..., 3, 3)`` is ``[a]x``: ``LEVI[j, 3 i + k] = epsilon_ijk``.
 LEVI = np.zeros((3, 3, 3))
 LEVI[0, 2, 1], LEVI[0, 1, 2], LEVI[1, 0, 2], LEVI[1, 2, 0], LEVI[2, 1, 0], LEVI[2, 0, 1] = 1, -1, 1, -1, 1, -1

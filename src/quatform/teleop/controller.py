@@ -223,8 +223,7 @@ class TeleopController:
         In bilateral teleoperation each arm's reference is the other arm, so ``reference``
         is unused (accepted for the common controller signature).
         """
-        c = self.compute(t, measured)
-        return c.tau_m, c.tau_s
+        return self._cycle(measured, details=False)
 
     @cached_property
     def _fixed(self):
@@ -234,10 +233,15 @@ class TeleopController:
         G6[0:3, 0:3], G6[3:6, 3:6] = self.registration.scale * R, R
         act = np.array([1.0 if a else 0.0 for a in (self.master.actuated or (True,) * self.master.n)])
         gm, gs = self.gains_master, self.gains_slave
-        return {"R_base": R, "R_tool": matrix_from_q(self.registration.tool), "G6": G6, "actuated": act, "kp_m": gm.kp, "kv_m": gm.kv, "kp_s": gs.kp, "kv_s": gs.kv}
+        return {"R_base": R, "R_tool": matrix_from_q(self.registration.tool), "G6": G6, "actuated": act,
+                "kp_m": gm.kp, "kv_m": gm.kv, "kp_s": gs.kp, "kv_s": gs.kv}
 
     def compute(self, t: float, measured: TeleopMeasurement) -> TeleopCommand:
-        """:meth:`step` with everything it computed (:class:`TeleopCommand`).
+        """:meth:`step` with everything it computed (:class:`TeleopCommand`)."""
+        return self._cycle(measured, details=True)
+
+    def _cycle(self, measured: TeleopMeasurement, details: bool):
+        """One control cycle; ``details``: return a :class:`TeleopCommand`, else the torques.
 
         One configuration of each arm: the arms' frames are computed once and shared by
         the forward kinematics, the Jacobians and the mass matrix; the orientation error
@@ -305,6 +309,8 @@ class TeleopController:
         if saturated:
             tau_m = np.minimum(np.maximum(tau_m, -lim_m), lim_m)
             tau_s = np.minimum(np.maximum(tau_s, -lim_s), lim_s)
+        if not details:
+            return tau_m, tau_s
         return TeleopCommand(tau_m, tau_s, e, p_m, np.array(q_from_rotation(R_m)), p_s,
                              np.array(q_from_rotation(R_s)), wall, finite, saturated, J_mf, J_sf, M_s)
 
