@@ -7,6 +7,10 @@ rate, both stiffness torques (14a)/(14b) with force reflection and the redundanc
 the preload function and saturation, with the measurement validated. The 1990
 implementation ran at about 60 Hz on a 68020; the target here is 5 kHz (200 us).
 
+Beside it, the slave's kinematics and mass matrix alone, quatform's against the peer that
+could have supplied them: roboticstoolbox-python's Panda (DH model; ``fkine``, ``jacob0``,
+``inertia``, its C back end), when installed (``pip install roboticstoolbox-python``).
+
 Usage: ``python benchmarks/bench_teleop.py [--repeat 7]``.
 """
 
@@ -15,9 +19,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from _common import best_time, fmt, machine_description
+from _common import best_time, fmt, machine_description, optional_import
 
-from quatform.teleop import KRAFT_MASTER, PANDA, Registration, TeleopController, TeleopMeasurement
+from quatform.teleop import KRAFT_MASTER, PANDA, PANDA_SLAVE, Registration, TeleopController, TeleopMeasurement
 
 Q_M0 = np.array([0.0, 0.3, -0.4, 0.2, 0.3, 0.0])
 Q_S0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
@@ -28,7 +32,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--min-run", type=float, default=0.2)
     args = ap.parse_args(argv)
-    for line in machine_description({"quatform": True}, width=10):
+    rtb = optional_import("roboticstoolbox")
+    for line in machine_description({"quatform": True, "roboticstoolbox-python": rtb is not None}, width=22):
         print(line)
     rng = np.random.default_rng(0)
     meas = TeleopMeasurement(Q_M0 + rng.uniform(-0.3, 0.3, 6), rng.uniform(-0.5, 0.5, 6),
@@ -43,6 +48,17 @@ def main(argv=None):
         rate = 1.0 / t
         print(f"one master + slave control step, {label:26s}: {fmt(t * 1e6)} us  ->  {fmt(rate / 1e3)} kHz "
               f"(1990: ~60 Hz; target >= 5 kHz: {'met' if rate >= 5e3 else 'NOT met'})")
+    print("\nslave (7 DOF) alone, one configuration:      quatform    roboticstoolbox")
+    arm, q = PANDA_SLAVE, meas.q_s
+    rows = [("frames + tool pose", lambda: arm.arm.forward(q, arm.arm.frames(q)), "fkine"),
+            ("geometric Jacobian", lambda: arm.arm.jacobian(q), "jacob0"),
+            ("mass matrix", lambda: arm.mass_matrix(q), "inertia")]
+    robot = rtb.models.DH.Panda() if rtb is not None else None
+    for label, fn, peer in rows:
+        ours = best_time(fn, args.repeat, args.min_run)
+        theirs = "-" if robot is None else fmt(best_time(lambda p=peer: getattr(robot, p)(q), args.repeat,
+                                                         args.min_run) * 1e6) + " us"
+        print(f"  {label:40s} {fmt(ours * 1e6):>7s} us  {theirs:>12s}")
 
 
 if __name__ == "__main__":
