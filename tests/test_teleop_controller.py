@@ -42,31 +42,46 @@ vec = lambda n, lim=0.6: hnp.arrays(np.float64, n, elements=st.floats(-lim, lim)
 
 
 @settings(max_examples=40, deadline=None)
-@given(dm=vec(6), dmd=vec(6, 1), ds=vec(7), dsd=vec(7, 1), F=vec(6, 20))
-def test_fast_path_equals_the_general_functions(dm, dmd, ds, dsd, F):
-    """compute() (frames shared, error from R_M^T R_S) = eqs. (12), (14a), (14b) written out."""
-    c = TeleopController(REG, Q_S0, **UNLIMITED)
+@given(dm=vec(6, 2.5), dmd=vec(6, 1), ds=vec(7, 2.5), dsd=vec(7, 1), F=vec(6, 20), base=vec(3, 2.0),
+       scale=st.floats(0.3, 3.0))
+def test_fast_path_equals_the_general_functions(dm, dmd, ds, dsd, F, base, scale):
+    """compute() (frames shared, error from R_M^T R_S) = eqs. (12), (14a), (14b) written out
+    with the general functions, for any registration (base rotation, scale) and either
+    hemisphere of the two orientations."""
+    angle = float(np.linalg.norm(base))
+    q_base = q_from_axis_angle(base / angle, angle) if angle > 1e-6 else np.array([1.0, 0, 0, 0])
+    reg = Registration.from_homes(KRAFT_MASTER, PANDA, Q_M0, Q_S0, scale=scale, base=q_base)
+    c = TeleopController(reg, Q_S0, **UNLIMITED)
     meas = _measurement(dm, dmd, ds, dsd, F)
+    J_sf = PANDA.jacobian(meas.q_s)
+    if np.linalg.svd(J_sf, compute_uv=False)[-1] < 1e-3:
+        return  # the slave at a kinematic singularity: tested separately
     cmd = c.compute(0.0, meas)
     p_m, r_m = KRAFT_MASTER.forward(meas.q_m)
-    pm, rm, Jm = REG.apply(p_m, r_m, KRAFT_MASTER.jacobian(meas.q_m))
+    pm, rm, Jm = reg.apply(p_m, r_m, KRAFT_MASTER.jacobian(meas.q_m))
     p_s, r_s = PANDA.forward(meas.q_s)
-    J_sf = PANDA.jacobian(meas.q_s)
     e = task_error(pm, rm, p_s, r_s)
-    sign = 1.0 if rm @ r_s >= 0 else -1.0
-    e_dot = task_jacobian(J_sf, rm, sign * r_s) @ meas.qd_s - task_jacobian(Jm, rm, sign * r_s) @ meas.qd_m
-    tau_m = master_torque(Jm, rm, r_s, e, e_dot, c.gains_master) + c.reflection * Jm.T @ F
+    e_dot = task_jacobian(J_sf, rm, r_s) @ meas.qd_s - task_jacobian(Jm, rm, r_s) @ meas.qd_m
+    tau_m = master_torque(Jm, rm, r_s, e, e_dot, c.gains_master, F_s=F, v=c.reflection)
     J_bar = PANDA_SLAVE.generalized_inverse(meas.q_s)
     tau_s = slave_torque(J_sf, rm, r_s, e, e_dot, c.gains_slave,
                          redundancy_torque(J_sf, J_bar, meas.q_s, meas.qd_s, Q_S0))
     np.testing.assert_allclose(cmd.e, e, atol=1e-12)
-    np.testing.assert_allclose(cmd.tau_m[:5], tau_m[:5], atol=1e-9)
+    np.testing.assert_allclose(cmd.tau_m[:5], tau_m[:5], rtol=1e-9, atol=1e-8)
     assert cmd.tau_m[5] == 0.0  # the wrist roll has no actuator
-    np.testing.assert_allclose(cmd.tau_s, tau_s, atol=1e-9)
-    assert cmd.raw_finite and not cmd.saturated
+    np.testing.assert_allclose(cmd.tau_s, tau_s, rtol=1e-9, atol=1e-8)
+    assert cmd.raw_finite and not cmd.saturated and cmd.null_space_ok
     tau_m2, tau_s2 = c.step(0.0, meas)  # the lean path sends the same torques
     np.testing.assert_array_equal(tau_m2, cmd.tau_m)
     np.testing.assert_array_equal(tau_s2, cmd.tau_s)
+
+
+def test_slave_singularity_leaves_out_the_redundancy_torque():
+    """At q_s = 0 the Panda's J M^-1 J^T is singular: the command stays finite, without tau_red."""
+    c = TeleopController(REG, Q_S0)
+    cmd = c.compute(0.0, TeleopMeasurement(Q_M0, np.zeros(6), np.zeros(7), np.zeros(7)))
+    assert not cmd.null_space_ok and cmd.raw_finite
+    assert np.all(np.isfinite(cmd.tau_s)) and np.abs(cmd.tau_s).max() > 0
 
 
 def test_kernels_match_numpy():
@@ -121,8 +136,8 @@ def test_rpy_rate_map_is_infinite_at_pitch_90_and_error_wraps():
 
 
 def test_rpy_controller_at_gimbal_lock_sends_finite_saturated_torques():
-    """Put the slave's tool exactly at pitch -90 deg: the RPY law divides by zero; the
-    command is still finite and within the limits, and the cycle is reported."""
+    """Put the slave's tool at pitch -90 deg (to 1e-5 rad): the RPY law's rate map is ~1e5;
+    the command is still finite and within the limits, and the saturation is reported."""
     from scipy.optimize import minimize_scalar
 
     qs = np.array([0.0, -0.2446, 0.0, -2.6831, 0.0, 3.5392, 0.0])
@@ -161,8 +176,11 @@ def test_limits_preload_and_walls():
     p_master = KRAFT_MASTER.forward(Q_M0)[0]
     wall = VirtualWall(normal=(0.0, 0.0, -1.0), offset=-(p_master[2] + 0.01), resist_force_n=8.0, thickness_m=0.02)
     assert wall.depth(p_master) == pytest.approx(0.01)
-    cw = TeleopController(REG, Q_S0, walls=(wall,)).compute(0.0, _measurement(*(np.zeros(n) for n in (6, 6, 7, 7, 6))))
+    still = _measurement(*(np.zeros(n) for n in (6, 6, 7, 7, 6)))
+    cw = TeleopController(REG, Q_S0, walls=(wall,), **UNLIMITED).compute(0.0, still)
     np.testing.assert_allclose(cw.wall_force, [0.0, 0.0, 4.0], atol=1e-9)  # 400 N/m x 1 cm, upward
+    J = KRAFT_MASTER.jacobian(Q_M0)  # ... and it reaches the master's joints as J^T F
+    np.testing.assert_allclose(cw.tau_m[:5], (J[0:3].T @ cw.wall_force)[:5], atol=1e-9)
     with pytest.raises(InvalidInputError, match="normal"):
         VirtualWall(normal=(0.0, 0.0, 0.0), offset=0.0)
 
@@ -179,6 +197,16 @@ def test_bad_measurements_and_settings_are_refused():
         TeleopController(REG, Q_S0, reflection=0.2)
     with pytest.raises(InvalidInputError, match="master_limits"):
         TeleopController(REG, Q_S0, master_limits=[1.0, -1.0, 1, 1, 1, 0])
+    for bad in (dict(reflection=-np.inf), dict(k_for=np.nan), dict(k_for=-1.0), dict(k_null=np.nan),
+                dict(d_null=-1.0)):
+        with pytest.raises(InvalidInputError):
+            TeleopController(REG, Q_S0, **bad)
+    with pytest.raises(InvalidInputError, match="scale"):
+        Registration(REG.base, REG.tool, REG.p_master0, REG.p_slave0, scale=np.nan)
+    with pytest.raises(InvalidInputError, match="offset"):
+        VirtualWall(normal=(0.0, 0.0, 1.0), offset=np.nan)
+    with pytest.raises(InvalidInputError, match="damping"):
+        VirtualWall(normal=(0.0, 0.0, 1.0), offset=0.0, damping=-5.0)
     tau_m, tau_s = c.step(0.0, TeleopMeasurement(Q_M0, np.zeros(6), Q_S0, np.zeros(7)))
     np.testing.assert_allclose(tau_m, 0.0, atol=1e-12)  # at the registered homes: nothing to do
     np.testing.assert_allclose(tau_s, 0.0, atol=1e-12)

@@ -78,7 +78,7 @@ def w_matrix(q_m, q_s) -> np.ndarray:
     So ``J_s = diag(I, W) J_sf`` (eq. (18)) maps slave joint rates to the rate of the error
     vector, and the master's motion enters with the opposite sign.
 
-    Equivalently ``W = 1/2 R_M^T (d_eps4 I - [d_eps_hat]x)``: its singular values are
+    Equivalently ``W = 1/2 (d_eps4 I - [d_eps_hat]x) R_M^T``: its singular values are
     ``1/2, 1/2, |cos(theta/2)|/2`` for an orientation error ``theta``. It is polynomial in
     the parameters (no representation singularity, unlike Euler-angle rates); it loses rank
     only at a 180-degree error, where ``|d_eps_hat| = sin(theta/2)`` is at its maximum.

@@ -166,9 +166,10 @@ def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
     t = run.t[i]
     fig = _new_figure((10, 4.5))
     ax1, ax2 = fig.subplots(1, 2)
-    ax1.plot(t, 1e3 * run.wall_depth[i], color="C0")
-    for w in run.scenario.virtual_walls:
-        ax1.axhline(1e3 * w.thickness_m, color="r", ls=":", lw=0.9, label=f"thickness ({w.resist_force_n:g} N)")
+    for k, w in enumerate(run.scenario.virtual_walls):
+        ax1.plot(t, 1e3 * w.thickness_m * run.wall_depth[i, k], color=f"C{k}", label=f"wall {k + 1}")
+        ax1.axhline(1e3 * w.thickness_m, color=f"C{k}", ls=":", lw=0.9,
+                    label=f"its thickness ({w.resist_force_n:g} N to cross)")
     ax1.axhline(0.0, color="k", lw=0.6)
     ax1.set_xlabel("t (s)")
     ax1.set_ylabel("depth into the wall (mm)")

@@ -6,10 +6,13 @@ Sim layer (above :mod:`quatform.teleop`). One control cycle every ``dt_s`` (zero
   Coulomb friction that makes each actuated joint need ~15 % of full scale to move, the
   "dead region" of seed 003 §6; joint 6 unactuated) is driven by the controller's torques
   and by a **hand**, a spring-damper pulling the handle toward a commanded pose path;
-* the **slave** (the 7-DOF arm with its mass matrix and joint damping) is driven by the
+* the **slave** (the 7-DOF arm with its mass matrix, Coriolis and centrifugal torques and
+  joint damping) is driven by the
   controller's torques and by its environment: a **wall** of given stiffness and damping,
   and optionally a **push**, an external spring moving its tool (what moves the slave
   when the master follows it);
+* the master's joints are modelled as decoupled constant inertias (a light, counterbalanced
+  desk arm), so it has no Coriolis terms;
 * both arms are gravity compensated (``tau_grav`` of seed 003 (11)-(12)), so gravity is
   left out of both plants.
 
@@ -210,7 +213,8 @@ class TeleopRun:
     ``tau_m``/``tau_s``: the torques sent; ``F_s``: the slave's wrist force (what it
     exerts on its environment); ``F_hand``: the hand's force on the master (master axes);
     ``F_reflected``: the master actuators' commanded force at the handle (master axes);
-    ``wall_depth``: the master's depth into its virtual walls (m, <= 0 outside);
+    ``wall_depth``: the master's depth into each virtual wall over that wall's thickness
+    (``(T, n_walls)``; <= 0 outside, > 1 through it);
     ``raw_finite``: False where the controller produced a non-finite torque.
     """
 
@@ -238,6 +242,12 @@ class TeleopRun:
 
 def _qconj_f(q):
     return (q[0], -q[1], -q[2], -q[3])
+
+
+def _angle_between(q1, q2) -> float:
+    """Rotation angle of ``q1* q2`` (rad, in ``[0, pi]``), precise for small angles."""
+    d = qmul_components(*_qconj_f(q1), *q2)
+    return 2.0 * math.atan2(math.sqrt(d[1] * d[1] + d[2] * d[2] + d[3] * d[3]), abs(d[0]))
 
 
 def _friction_step(qd, inertia, tau, static, dt):
@@ -297,7 +307,8 @@ def simulate_teleop(scenario: TeleopScenario, orientation_error: str | None = No
         wrench = np.r_[h.stiffness * (p_h - p_master) - h.damping * v_m[0:3],
                        h.rot_stiffness * 2.0 * np.array(d[1:]) - h.rot_damping * v_m[3:6]]
         tau_m_net = cmd.tau_m + J_mf.T @ wrench - sc.master_viscous * qd_m
-        F_refl = np.linalg.lstsq(J_mf[0:3].T, cmd.tau_m, rcond=None)[0]
+        # the force at the handle the actuators' torques make (the Kraft's 6x6 J_mf^T [F; m] = tau)
+        F_refl = np.linalg.lstsq(J_mf.T, cmd.tau_m, rcond=None)[0][0:3]
         # the slave, touching its environment
         p_s = cmd.p_s
         v_s = J_sf[0:3] @ qd_s
@@ -307,17 +318,18 @@ def simulate_teleop(scenario: TeleopScenario, orientation_error: str | None = No
         if sc.push is not None:
             F_env = F_env + sc.push.stiffness * (sc.push.target(t, p_s0) - p_s) - sc.push.damping * v_s
         tau_s_net = cmd.tau_s + J_sf[0:3].T @ F_env - sc.slave_damping * qd_s
-        wall_depth = max((w.depth(p_master) for w in sc.virtual_walls), default=-np.inf)
+        wall_depth = [w.depth(p_master) / w.thickness_m for w in sc.virtual_walls]
         for key, val in (("q_m", q_m), ("q_s", q_s), ("p_m", cmd.p_m), ("r_m", cmd.r_m), ("p_s", cmd.p_s),
                          ("r_s", cmd.r_s), ("p_master", p_master), ("e", cmd.e),
-                         ("angle", 2.0 * math.acos(min(1.0, abs(float(cmd.r_m @ cmd.r_s))))),
+                         ("angle", _angle_between(cmd.r_m, cmd.r_s)),
                          ("tau_m", cmd.tau_m), ("tau_s", cmd.tau_s),
                          ("F_s", F_s[0:3]), ("F_hand", wrench[0:3]), ("F_reflected", F_refl),
                          ("wall_depth", wall_depth), ("raw_finite", cmd.raw_finite), ("saturated", cmd.saturated)):
             log[key].append(val)
         # semi-implicit Euler, torques held over the cycle
         qd_m = _friction_step(qd_m, I_m, tau_m_net, static, sc.dt_s)
-        qd_s = qd_s + sc.dt_s * np.linalg.solve(cmd.M_s, tau_s_net)
+        coriolis = S.coriolis(q_s, qd_s, cmd.M_s)
+        qd_s = qd_s + sc.dt_s * np.linalg.solve(cmd.M_s, tau_s_net - coriolis)
         q_m = q_m + sc.dt_s * qd_m
         q_s = q_s + sc.dt_s * qd_s
         F_s = np.r_[-F_env, 0.0, 0.0, 0.0]  # the wrist sensor: what the slave exerts on its environment
@@ -350,10 +362,11 @@ def teleop_metrics(run: TeleopRun) -> dict:
       first push direction at the end of the holds that follow a negative move, minus the
       same after a positive move (the master stops short of the slave on each side: the
       width of its hysteresis); ``limit_cycle_amplitude_m``: the master's largest
-      peak-to-peak motion over the last second;
+      peak-to-peak motion over the last second, when that second lies after every
+      commanded motion;
     * ``wall_penetration_m``: the master's deepest point in a virtual wall (0 if never in);
-      ``virtual_wall_crossed``: deeper than the wall's thickness; ``final_hand_force_n``:
-      the hand's force on the master at the end;
+      ``virtual_wall_crossed``: deeper than a wall's thickness;
+    * ``final_hand_force_n``: the hand's force on the master at the end;
     * ``nonfinite_torques``: cycles whose raw torque was not finite (replaced by zero).
     """
     sc = run.scenario
@@ -371,6 +384,7 @@ def teleop_metrics(run: TeleopRun) -> dict:
         "peak_slave_torque_nm": float(np.abs(run.tau_s).max()),
         "saturated_fraction": float(run.saturated.mean()),
         "nonfinite_torques": int((~run.raw_finite).sum()),
+        "final_hand_force_n": float(np.linalg.norm(run.F_hand[-1])),
         "contact_force_error_pct": None,
         "reflected_force_ratio": None,
         "hand_force_ratio": None,
@@ -389,10 +403,9 @@ def teleop_metrics(run: TeleopRun) -> dict:
             if np.linalg.norm(F) < 1e-6:
                 continue
             F13 = kp * (run.p_m[k] - run.p_s[k])  # seed 003 eq. (13), tau_red contributes nothing
-            errs.append(100.0 * np.linalg.norm(F - F13) / np.linalg.norm(F13))
-            R = matrix_from_q(run.controller.registration.base)
+            errs.append(100.0 * np.linalg.norm(F - F13) / max(np.linalg.norm(F13), 1e-12))
             refl.append(np.linalg.norm(run.F_reflected[k]) / np.linalg.norm(F))
-            felt.append(np.linalg.norm(R @ run.F_hand[k]) / np.linalg.norm(F))
+            felt.append(np.linalg.norm(run.F_hand[k]) / np.linalg.norm(F))
             force.append(float(np.linalg.norm(F)))
         if errs:
             m.update(contact_force_error_pct=float(max(errs)), reflected_force_ratio=[float(x) for x in refl],
@@ -409,13 +422,15 @@ def teleop_metrics(run: TeleopRun) -> dict:
             after_neg = [e for e, st, mv in zip(err, steps, moved) if mv and st @ u < 0]
             if after_pos and after_neg:
                 m["reversal_hysteresis_m"] = float(np.mean(after_neg) - np.mean(after_pos))
-        last = run.t >= run.t[-1] - 1.0
-        m["limit_cycle_amplitude_m"] = float(np.ptp(run.p_m[last], axis=0).max())
+        # over the last second, if it lies in the final hold (after every commanded motion)
+        still_from = max(max(k[0] for k in sc.push.keys), max(k.t_s for k in sc.hand.keys))
+        last = run.t >= max(run.t[-1] - 1.0, still_from)
+        if still_from < run.t[-1] - 0.5:
+            m["limit_cycle_amplitude_m"] = float(np.ptp(run.p_m[last], axis=0).max())
     if sc.virtual_walls:
-        depth = float(max(run.wall_depth.max(), 0.0))
-        thick = min(w.thickness_m for w in sc.virtual_walls)
-        m.update(wall_penetration_m=depth, virtual_wall_crossed=bool(depth > thick),
-                 final_hand_force_n=float(np.linalg.norm(run.F_hand[-1])))
+        thick = np.array([w.thickness_m for w in sc.virtual_walls])
+        depth = run.wall_depth.max(axis=0) * thick  # each wall's deepest point, m
+        m.update(wall_penetration_m=float(max(depth.max(), 0.0)), virtual_wall_crossed=bool(np.any(depth > thick)))
     return m
 
 
@@ -467,7 +482,7 @@ def _gains(d, where, base=StiffnessGains()):
     if unknown:
         raise InvalidInputError(f"{where}: unknown gain(s) {', '.join(sorted(unknown))}; use kp_pos, kp_rot, kv_pos, "
                                 "kv_rot")
-    return dataclasses.replace(base, **{k: float(v) for k, v in d.items()})
+    return dataclasses.replace(base, **{k: _number(d, k, where, 0.0) for k in d})
 
 
 def _times(keys, where):
@@ -476,14 +491,50 @@ def _times(keys, where):
         raise InvalidInputError(f"{where}: key times must start at >= 0 and increase, got {ts}")
 
 
+_KEYS = {
+    "": {"kind", "name", "title", "source", "duration_s", "dt_s", "holds_s", "master", "slave", "hand", "push",
+         "wall", "virtual_walls", "controller"},
+    "master": {"q0", "inertia", "viscous", "deadband"},
+    "slave": {"q0", "damping"},
+    "hand": {"keys", "stiffness", "damping", "rot_stiffness", "rot_damping"},
+    "push": {"keys", "stiffness", "damping"},
+    "wall": {"point", "normal", "stiffness", "damping"},
+    "controller": {"orientation_error", "preload", "reflection", "k_for", "gains_master", "gains_slave"},
+}
+
+
+def _check_keys(data: dict, where: str):
+    for section, allowed in _KEYS.items():
+        table = data if section == "" else data.get(section, {})
+        if not isinstance(table, dict):
+            raise InvalidInputError(f"{where}: [{section}] must be a table")
+        unknown = set(table) - allowed
+        if unknown:
+            place = "top level" if section == "" else f"[{section}]"
+            raise InvalidInputError(f"{where}: unknown key(s) {', '.join(sorted(unknown))} at {place}; "
+                                    f"allowed: {', '.join(sorted(allowed))} (see docs/scenarios.md)")
+
+
 def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScenario:
     """Build a :class:`TeleopScenario` from parsed TOML; every mistake is an InvalidInputError."""
+    _check_keys(data, where)
+    try:
+        return _teleop_scenario_from_dict(data, where)
+    except (TypeError, ValueError, KeyError) as exc:
+        if isinstance(exc, InvalidInputError):
+            raise
+        raise InvalidInputError(f"{where}: {exc} (see docs/scenarios.md for the keys and their types)") from None
+
+
+def _teleop_scenario_from_dict(data: dict, where: str) -> TeleopScenario:
     d = TeleopScenario(name=str(data.get("name", Path(where).stem)))
     master, slave, hand_d = data.get("master", {}), data.get("slave", {}), data.get("hand", {})
     ctrl = data.get("controller", {})
     hand_keys = []
     for i, k in enumerate(hand_d.get("keys", [{"t_s": 0.0}])):
         wk = f"{where} [[hand.keys]] #{i + 1}"
+        if "q" in k and ("move" in k or "turn" in k):
+            raise InvalidInputError(f"{wk}: give either q (master joints) or move/turn, not both")
         hand_keys.append(HandKey(
             t_s=_number(k, "t_s", wk, 0.0),
             q=_floats(k, "q", 6, wk) if "q" in k else None,
@@ -513,7 +564,7 @@ def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScen
     for i, v in enumerate(data.get("virtual_walls", [])):
         wv = f"{where} [[virtual_walls]] #{i + 1}"
         offset = v.get("offset", 0.0)
-        if not isinstance(offset, (int, float)) or not np.isfinite(offset):
+        if isinstance(offset, bool) or not isinstance(offset, (int, float)) or not np.isfinite(offset):
             raise InvalidInputError(f"{wv}: offset must be a finite number (m), got {offset!r}")
         vwalls.append(VirtualWall(_floats(v, "normal", 3, wv), float(offset),
                                   _number(v, "resist_force_n", wv, 8.0, positive=True),
@@ -539,6 +590,8 @@ def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScen
     if dt > duration:
         raise InvalidInputError(f"{where}: dt_s = {dt} exceeds duration_s = {duration}")
     holds = tuple(float(x) for x in data.get("holds_s", []))
+    if not all(np.isfinite(h) and 0.0 <= h <= duration for h in holds):
+        raise InvalidInputError(f"{where}: holds_s must be times within [0, duration_s = {duration}], got {list(holds)}")
     sc = TeleopScenario(
         name=d.name, duration_s=duration, dt_s=dt, title=str(data.get("title", "")),
         source=str(data.get("source", "")),
@@ -555,6 +608,8 @@ def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScen
     )
     if any(i <= 0 for i in sc.master_inertia):
         raise InvalidInputError(f"{where} [master]: inertia must be > 0 for every joint, got {sc.master_inertia}")
+    if any(b < 0 for b in sc.master_deadband):
+        raise InvalidInputError(f"{where} [master]: deadband fractions must be >= 0, got {sc.master_deadband}")
     sc.controller()  # the registration and limits must make a controller
     return sc
 

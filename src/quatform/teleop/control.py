@@ -34,8 +34,9 @@ __all__ = ["StiffnessGains", "task_error", "master_torque", "slave_torque", "red
 class StiffnessGains:
     """Diagonal stiffness and damping of the task error: ``K_p = diag(kp_pos*I, kp_rot*I)``.
 
-    ``kp_rot`` multiplies ``delta_eps`` (dimensionless, ``sin(angle/2)``), so it is a torque
-    per unit of ``delta_eps`` (N m), twice the torque per radian for small errors.
+    ``kp_rot`` multiplies ``delta_eps`` (dimensionless, ``sin(angle/2)``), and the torque it
+    makes goes through ``W ~ R^T / 2``: for a small error of ``theta`` rad the restoring
+    torque is ``kp_rot theta / 4`` N m (``kv_rot`` likewise: ``kv_rot / 4`` N m s/rad).
     """
 
     kp_pos: float = 300.0
@@ -65,16 +66,10 @@ def task_error(p_m, q_m, p_s, q_s) -> np.ndarray:
     return np.concatenate([p_s - p_m, orientation_error(q_m, q_s)], axis=-1)
 
 
-def _short_way(q_m, q_s):
-    """+1 or -1: the sign that puts ``R_M^T R_S``'s Euler parameters on the short way."""
-    d = np.sum(q_m * q_s, axis=-1, keepdims=True)
-    return np.where(d < 0, -1.0, 1.0)
-
-
 def master_torque(J_mf, q_m, q_s, e, e_dot, gains: StiffnessGains, F_s=None, v=0.0) -> np.ndarray:
     """Eq. (14a): ``J_m^T (K_pm e + K_vm e_dot) + v J_mf^T F_s``, shape ``(..., n_m)``."""
     q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
-    J_m = task_jacobian(J_mf, q_m, q_s * _short_way(q_m, q_s))
+    J_m = task_jacobian(J_mf, q_m, q_s)
     wrench = gains.kp * np.asarray(e, float) + gains.kv * np.asarray(e_dot, float)
     tau = np.einsum("...ji,...j->...i", J_m, wrench)
     if F_s is not None:
@@ -85,7 +80,7 @@ def master_torque(J_mf, q_m, q_s, e, e_dot, gains: StiffnessGains, F_s=None, v=0
 def slave_torque(J_sf, q_m, q_s, e, e_dot, gains: StiffnessGains, tau_red=None) -> np.ndarray:
     """Eq. (14b): ``-J_s^T (K_ps e + K_vs e_dot) + tau_red``, shape ``(..., n_s)``."""
     q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
-    J_s = task_jacobian(J_sf, q_m, q_s * _short_way(q_m, q_s))
+    J_s = task_jacobian(J_sf, q_m, q_s)
     wrench = gains.kp * np.asarray(e, float) + gains.kv * np.asarray(e_dot, float)
     tau = -np.einsum("...ji,...j->...i", J_s, wrench)
     return tau if tau_red is None else tau + tau_red
@@ -105,9 +100,12 @@ def redundancy_torque(J_sf, J_bar, q, q_dot, q_rest, k_null=5.0, d_null=1.0) -> 
 def force_stability_term(x_m_dot=None, F_s=None, k_for=None, constant=-0.5):
     """``v`` of eq. (11): a negative constant, or ``-k_for x_m_dot^T F_s`` if ``k_for`` is given."""
     if k_for is None:
-        if not constant < 0:
-            raise InvalidInputError(f"the constant force-stability term must be negative, got {constant!r}")
+        if not (np.isfinite(constant) and constant < 0):
+            raise InvalidInputError(f"the constant force-stability term v must be finite and negative, "
+                                    f"got {constant!r}")
         return constant
+    if not (np.isfinite(k_for) and k_for >= 0):
+        raise InvalidInputError(f"k_for must be finite and >= 0 (v = -k_for x_m_dot . F_s), got {k_for!r}")
     return -k_for * float(np.dot(np.asarray(x_m_dot, float), np.asarray(F_s, float)))
 
 

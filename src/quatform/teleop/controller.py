@@ -5,9 +5,11 @@ and rates, the slave's wrist force) into the master's and the slave's joint torq
 eqs. (14a)/(14b) with the Euler-parameter error (or, as the baseline the seed argues
 against, a roll-pitch-yaw error), force reflection ``v J_mf^T F_s``, the null-space
 redundancy torque, virtual walls in the master's Cartesian space, the preload function
-on the master's actuators, and saturation to each joint's limit. Commands are always
-finite: a non-finite torque (the RPY baseline at gimbal lock) is replaced by zero and
-reported. Gravity is taken as compensated on both arms (``tau_grav`` of (11)-(12)).
+on the master's actuators, and saturation to each joint's limit. Settings and
+measurements are validated, so commands are finite; should a torque still come out
+non-finite, both arms get zero torque and the cycle is reported. (The RPY baseline at
+gimbal lock is finite but huge, ``1 / cos(pitch)`` ~ 1e16, and is saturated.) Gravity is
+taken as compensated on both arms (``tau_grav`` of (11)-(12)).
 """
 
 from __future__ import annotations
@@ -51,14 +53,20 @@ class Registration:
     p_slave0: np.ndarray
     scale: float = 1.0
 
+    def __post_init__(self):
+        object.__setattr__(self, "base", as_unit_quaternion(self.base, "base"))
+        object.__setattr__(self, "tool", as_unit_quaternion(self.tool, "tool"))
+        object.__setattr__(self, "p_master0", as_array(self.p_master0, "p_master0", 3))
+        object.__setattr__(self, "p_slave0", as_array(self.p_slave0, "p_slave0", 3))
+        if not (np.isfinite(self.scale) and self.scale > 0):
+            raise InvalidInputError(f"registration scale must be finite and > 0, got {self.scale!r}")
+
     @classmethod
     def from_homes(cls, master: SerialArm, slave: SerialArm, q_m0, q_s0, scale: float = 1.0,
                    base=(1.0, 0.0, 0.0, 0.0)) -> Registration:
         """The registration that makes the tool poses at ``q_m0`` and ``q_s0`` coincide."""
         p_m0, r_m0 = master.forward(q_m0)
         p_s0, r_s0 = slave.forward(q_s0)
-        if not (np.isfinite(scale) and scale > 0):
-            raise InvalidInputError(f"registration scale must be finite and > 0, got {scale!r}")
         base = as_unit_quaternion(base, "base")
         return cls(base, qmul(qconj(qmul(base, r_m0)), r_s0), p_m0, p_s0, float(scale))
 
@@ -96,6 +104,10 @@ class VirtualWall:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise InvalidInputError(f"virtual wall {name} must be finite and > 0, got {v!r}")
+        if not np.isfinite(self.offset):
+            raise InvalidInputError(f"virtual wall offset must be finite (m), got {self.offset!r}")
+        if not (np.isfinite(self.damping) and self.damping >= 0):
+            raise InvalidInputError(f"virtual wall damping must be finite and >= 0, got {self.damping!r}")
 
     @property
     def stiffness(self) -> float:
@@ -132,9 +144,11 @@ class TeleopCommand:
     ``tau_m`` ``(n_m,)`` after preload and saturation (zero on unactuated joints), ``tau_s``
     ``(n_s,)``; ``e`` the task error (position m; ``delta_eps`` or RPY rad); ``p_m``, ``r_m``
     the master's registered pose, ``p_s``, ``r_s`` the slave's; ``wall_force`` the virtual
-    walls' force on the master (master axes); ``raw_finite`` False if a torque had to be
-    replaced; ``saturated`` True if any torque hit its limit; ``J_mf``, ``J_sf`` the arms'
-    own Jacobians and ``M_s`` the slave's mass matrix at the measured configuration.
+    walls' force on the master (master axes); ``raw_finite`` False if a torque was not finite
+    (both arms then get zero torque); ``saturated`` True if any torque hit its limit;
+    ``null_space_ok`` False if the slave was at a kinematic singularity and the redundancy
+    torque was left out; ``J_mf``, ``J_sf`` the arms' own Jacobians and ``M_s`` the slave's
+    mass matrix at the measured configuration.
     """
 
     tau_m: np.ndarray
@@ -147,6 +161,7 @@ class TeleopCommand:
     wall_force: np.ndarray
     raw_finite: bool
     saturated: bool
+    null_space_ok: bool
     J_mf: np.ndarray
     J_sf: np.ndarray
     M_s: np.ndarray
@@ -209,8 +224,16 @@ class TeleopController:
         object.__setattr__(self, "slave_limits", _limits(self.slave_limits, n_s, "slave_limits"))
         if self.preload_nm is not None:
             object.__setattr__(self, "preload_nm", _limits(self.preload_nm, n_m, "preload_nm"))
-        if self.k_for is None:
-            force_stability_term(constant=self.reflection)  # validates: v < 0
+        force_stability_term(constant=self.reflection)  # validates: finite, v < 0
+        if self.k_for is not None:
+            force_stability_term(np.zeros(3), np.zeros(3), k_for=self.k_for)  # validates: finite, >= 0
+        for name in ("k_null", "d_null"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise InvalidInputError(f"{name} must be finite and >= 0, got {v!r}")
+        if not isinstance(self.registration, Registration):
+            raise InvalidInputError(f"registration must be a Registration, got {type(self.registration).__name__}; "
+                                    "use Registration.from_homes(master, slave, q_m0, q_s0)")
 
     @classmethod
     def default_preload(cls) -> np.ndarray:
@@ -233,8 +256,10 @@ class TeleopController:
         G6[0:3, 0:3], G6[3:6, 3:6] = self.registration.scale * R, R
         act = np.array([1.0 if a else 0.0 for a in (self.master.actuated or (True,) * self.master.n)])
         gm, gs = self.gains_master, self.gains_slave
+        quarter = np.r_[1.0, 1.0, 1.0, 0.25, 0.25, 0.25]
         return {"R_base": R, "R_tool": matrix_from_q(self.registration.tool), "G6": G6, "actuated": act,
-                "kp_m": gm.kp, "kv_m": gm.kv, "kp_s": gs.kp, "kv_s": gs.kv}
+                "kp_m": gm.kp, "kv_m": gm.kv, "kp_s": gs.kp, "kv_s": gs.kv, "kp_m_rpy": quarter * gm.kp,
+                "kv_m_rpy": quarter * gm.kv, "kp_s_rpy": quarter * gs.kp, "kv_s_rpy": quarter * gs.kv}
 
     def compute(self, t: float, measured: TeleopMeasurement) -> TeleopCommand:
         """:meth:`step` with everything it computed (:class:`TeleopCommand`)."""
@@ -269,39 +294,47 @@ class TeleopController:
             rpy_m, rpy_s = rpy_from_matrix(R_m), rpy_from_matrix(R_s)
             e = np.concatenate([p_s - p_m, wrap_angle(rpy_s - rpy_m)])
         T6 = np.eye(6)
-        with np.errstate(all="ignore"):  # the RPY baseline divides by cos(pitch)
-            if self.orientation_error == "euler-parameters":
-                T6[3:6, 3:6] = rot
-                J_m, J_s = T6 @ Jm, T6 @ J_sf  # seed 003 eqs. (16), (18)
-            else:
-                J_m, J_s = T6.copy(), T6
+        if self.orientation_error == "euler-parameters":
+            T6[3:6, 3:6] = rot
+            J_m, J_s = T6 @ Jm, T6 @ J_sf  # seed 003 eqs. (16), (18)
+            kp_m, kv_m, kp_s, kv_s = K["kp_m"], K["kv_m"], K["kp_s"], K["kv_s"]
+        else:
+            J_m, J_s = T6.copy(), T6
+            with np.errstate(divide="ignore", invalid="ignore"):  # E^-1 divides by cos(pitch)
                 J_m[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_m)
                 J_s[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_s)
-                J_m, J_s = J_m @ Jm, J_s @ J_sf
-            e_dot = J_s @ qd_s - J_m @ qd_m
-            tau_m = J_m.T @ (K["kp_m"] * e + K["kv_m"] * e_dot)  # seed 003 eq. (14a)
-            tau_s = -(J_s.T @ (K["kp_s"] * e + K["kv_s"] * e_dot))  # seed 003 eq. (14b)
-            # tau_red = (I - J^T J_bar^T) y with J_bar = M^-1 J^T (J M^-1 J^T)^-1 (eq. (13)):
-            # J^T J_bar^T y = J^T (J X)^-1 X^T y, X = M^-1 J^T
-            M_s = self.slave.mass_matrix(q_s, Fs)
-            X = np.linalg.solve(M_s, J_sf.T)
-            y_null = -self.k_null * (q_s - self.q_rest) - self.d_null * qd_s
-            tau_s = tau_s + y_null - J_sf.T @ np.linalg.solve(J_sf @ X, X.T @ y_null)
-            # force reflection, seed 003 eq. (11): v J_mf^T F_s, with the registered J_mf
-            # (F_s is in the slave's base axes)
-            v = self.reflection if self.k_for is None else force_stability_term(Jm @ qd_m, F_s, self.k_for)
-            tau_m = tau_m + v * (Jm.T @ F_s)
-            wall = np.zeros(3)
-            if self.walls:
-                p_master, v_master = M.tool(Fm), J_mf[0:3] @ qd_m
-                for wl in self.walls:
-                    wall = wall + wl.force(p_master, v_master)
-                tau_m = tau_m + J_mf[0:3].T @ wall
+            J_m, J_s = J_m @ Jm, J_s @ J_sf
+            # the same small-angle stiffness and damping as the Euler-parameter law, whose
+            # torque per radian is kp_rot / 4 (delta_eps ~ angle / 2, W ~ R^T / 2)
+            kp_m, kv_m, kp_s, kv_s = K["kp_m_rpy"], K["kv_m_rpy"], K["kp_s_rpy"], K["kv_s_rpy"]
+        e_dot = J_s @ qd_s - J_m @ qd_m
+        tau_m = J_m.T @ (kp_m * e + kv_m * e_dot)  # seed 003 eq. (14a)
+        tau_s = -(J_s.T @ (kp_s * e + kv_s * e_dot))  # seed 003 eq. (14b)
+        # tau_red = (I - J^T J_bar^T) y with J_bar = M^-1 J^T (J M^-1 J^T)^-1 (eq. (13)):
+        # J^T J_bar^T y = J^T (J X)^-1 X^T y, X = M^-1 J^T
+        M_s = self.slave.mass_matrix(q_s, Fs)
+        X = np.linalg.solve(M_s, J_sf.T)
+        y_null = -self.k_null * (q_s - self.q_rest) - self.d_null * qd_s
+        try:
+            tau_red = y_null - J_sf.T @ np.linalg.solve(J_sf @ X, X.T @ y_null)
+            null_ok = bool(np.isfinite(tau_red).all())
+        except np.linalg.LinAlgError:  # the slave at a kinematic singularity: J M^-1 J^T singular
+            null_ok = False
+        tau_s = tau_s + tau_red if null_ok else tau_s
+        # force reflection, seed 003 eq. (11): v J_mf^T F_s, with the registered J_mf
+        # (F_s is in the slave's base axes)
+        v = self.reflection if self.k_for is None else force_stability_term(Jm @ qd_m, F_s, self.k_for)
+        tau_m = tau_m + v * (Jm.T @ F_s)
+        wall = np.zeros(3)
+        if self.walls:
+            p_master, v_master = M.tool(Fm), J_mf[0:3] @ qd_m
+            for wl in self.walls:
+                wall = wall + wl.force(p_master, v_master)
+            tau_m = tau_m + J_mf[0:3].T @ wall
         tau_m = tau_m * K["actuated"]
         finite = bool(np.isfinite(tau_m).all() and np.isfinite(tau_s).all())
-        if not finite:
-            tau_m = np.where(np.isfinite(tau_m), tau_m, 0.0)
-            tau_s = np.where(np.isfinite(tau_s), tau_s, 0.0)
+        if not finite:  # never send part of a broken command: hold both arms
+            tau_m, tau_s = np.zeros_like(tau_m), np.zeros_like(tau_s)
         if self.preload_nm is not None:
             tau_m = preload(tau_m, self.preload_nm)  # seed 003 §6, the inverse of the deadband
         lim_m, lim_s = self.master_limits, self.slave_limits
@@ -312,7 +345,7 @@ class TeleopController:
         if not details:
             return tau_m, tau_s
         return TeleopCommand(tau_m, tau_s, e, p_m, np.array(q_from_rotation(R_m)), p_s,
-                             np.array(q_from_rotation(R_s)), wall, finite, saturated, J_mf, J_sf, M_s)
+                             np.array(q_from_rotation(R_s)), wall, finite, saturated, null_ok, J_mf, J_sf, M_s)
 
 
 def _measured(x, name, n):

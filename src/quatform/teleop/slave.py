@@ -120,6 +120,26 @@ class RigidArm:
         return (A @ np.swapaxes(A, -1, -2) + (z @ zt) * K["G_weight"] + np.swapaxes(B, -1, -2) @ (K["c"] * B)
                 + K["armature"])
 
+    def coriolis(self, q, qd, M=None, h: float = 1e-7) -> np.ndarray:
+        """Coriolis and centrifugal torques ``C(q, qd) qd`` (``(n,)``, N m) of one configuration.
+
+        From the mass matrix (the Lagrange equations): ``C qd = M_dot qd - 1/2 d/dq
+        (qd^T M qd)``, with ``M_dot = dM/dq . qd`` and the gradient by forward differences of
+        ``M`` (step ``h`` rad; relative error ~1e-7), the ``n + 1`` shifted configurations in
+        one batched call; ``M``: the mass matrix at ``q`` if already computed. Its power is
+        ``qd^T C qd = 1/2 qd^T M_dot qd``, so without torques the kinetic energy is conserved.
+        """
+        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        n = self.arm.n
+        speed = float(np.linalg.norm(qd))
+        if speed == 0.0:
+            return np.zeros(n)
+        M = self.mass_matrix(q) if M is None else M
+        Ms = self.mass_matrix(q + h * np.vstack([qd / speed, np.eye(n)])) - M
+        M_dot = (speed / h) * Ms[0]
+        grad = np.einsum("i,kij,j->k", qd, Ms[1:], qd) / h
+        return M_dot @ qd - 0.5 * grad
+
     def generalized_inverse(self, q, J=None, F=None) -> np.ndarray:
         """``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` (seed 003 eq. (13)), shape ``(..., n, 6)``.
 

@@ -37,9 +37,14 @@ def task_jacobian(J_f, q_m, q_s) -> np.ndarray:
     """``diag(I_3, W(q_m, q_s)) J_f`` (eqs. (16), (18)), shape ``(..., 6, n)``.
 
     ``J_f``: a force-reflecting Jacobian (``[p_dot; omega]``, base frame) of either arm.
+    ``W`` takes the same short-way sign as :func:`orientation_error`, so ``J_s q_s_dot -
+    J_m q_m_dot`` is the rate of the error that function returns, whichever signs the two
+    quaternions have.
     """
     J_f = as_array(J_f, "J_f", None)
-    W = w_matrix(q_m, q_s)
+    q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
+    sign = np.where(np.sum(q_m * q_s, axis=-1) < 0, -1.0, 1.0)[..., None, None]
+    W = sign * w_matrix(q_m, q_s)
     out = J_f.copy()
     out[..., 3:6, :] = W @ J_f[..., 3:6, :]
     return out
@@ -79,8 +84,9 @@ def rpy_rate_from_angular_velocity(rpy) -> np.ndarray:
     """``E(rpy)^-1`` (shape ``(..., 3, 3)``): ``d/dt (roll, pitch, yaw) = E^-1 omega`` (base frame).
 
     ``omega = z yaw_dot + Rz(yaw) y pitch_dot + Rz(yaw) Ry(pitch) x roll_dot``; its inverse
-    has ``1 / cos(pitch)`` in the roll and yaw rows: infinite at ``pitch = +-pi/2``. Returned
-    as computed (``inf``/``nan`` there): the baseline is meant to show the singularity.
+    has ``1 / cos(pitch)`` in the roll and yaw rows: unbounded toward ``pitch = +-pi/2``
+    (about 1e16 at the rounded pi/2). Returned as computed: the baseline is meant to show
+    the singularity.
     """
     rpy = as_array(rpy, "rpy", 3)
     p, y = rpy[..., 1], rpy[..., 2]
