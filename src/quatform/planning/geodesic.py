@@ -1,0 +1,216 @@
+"""Geodesics of the shaped metric between two formations: seed 002 eqs. (14)-(15).
+
+Planning layer. :func:`solve_geodesic` solves the two-point boundary-value problem
+``q̈ = -Gamma(q)[q̇, q̇]``, ``q(0) = q^0``, ``q(1) = q^1`` with
+:func:`scipy.integrate.solve_bvp` and a continuation in ``alpha``: at ``alpha = 0.5`` the
+geodesic is the uniform straight line (exact start), and each next ``alpha`` starts from the
+previous solution; a failed step is halved. The result is then *checked*: the initial
+state is integrated forward as an initial-value problem (DOP853) and must land on ``q^1``,
+and the energy ``q̇^T M_alpha q̇`` must stay constant. Anything else raises
+:class:`~quatform.errors.ConvergenceError`; a wrong path is never returned.
+
+Geodesics may not exist: the shaped metric of two bodies is a cone in the relative
+coordinates (``docs/derivations.md``, seed 002 item 3), and when ``alpha`` is small enough
+the only energy-minimising curve passes through the robots meeting, where the metric is
+singular. The continuation then stalls and the error says how far it got.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_bvp, solve_ivp
+
+from ..algebra._validate import as_array
+from ..errors import (
+    ConvergenceError,
+    DegenerateInputError,
+    InvalidInputError,
+    ShapeError,
+)
+from .shaping import check_alpha, check_masses, geodesic_acceleration, metric_energy
+
+__all__ = ["GeodesicSolution", "plan_from_geodesic", "solve_geodesic"]
+
+#: Largest accepted miss of the forward-integrated end point, as a fraction of the travel.
+ENDPOINT_TOLERANCE = 1e-5
+#: Largest accepted relative drift of ``q̇^T M_alpha q̇`` along the returned geodesic.
+ENERGY_TOLERANCE = 1e-4
+
+
+@dataclass(frozen=True)
+class GeodesicSolution:
+    """A verified geodesic of ``M_alpha`` on ``s in [0, 1]``.
+
+    Attributes
+    ----------
+    alpha : float
+    masses : ndarray, shape (N,)
+    dim : int
+        2 (plane) or 3 (space).
+    s : ndarray, shape (K,)
+        Collocation mesh of ``solve_bvp`` on ``[0, 1]``.
+    q, q_dot : ndarray, shape (K, N*d)
+        Configuration and its derivative with respect to ``s`` on the mesh.
+    endpoint_error_m : float
+        Distance between ``q^1`` and the forward integration of the initial state.
+    energy_drift : float
+        ``max |E - E(0)| / E(0)`` of ``E = q̇^T M_alpha q̇`` on a fine grid.
+    continuation : tuple of float
+        The ``alpha`` values solved on the way, in order.
+    solve_time_s : float
+        Wall time of the continuation, the check included.
+    """
+
+    alpha: float
+    masses: np.ndarray
+    dim: int
+    s: np.ndarray
+    q: np.ndarray
+    q_dot: np.ndarray
+    endpoint_error_m: float
+    energy_drift: float
+    continuation: tuple
+    solve_time_s: float
+    _spline: object = None
+
+    def state(self, s):
+        """``(q, q')`` at parameters ``s`` (shape ``(K,)``), each shape ``(K, N*d)``: the
+        collocation polynomial of ``solve_bvp``."""
+        y = self._spline(np.asarray(s, dtype=float))
+        n = self.q.shape[-1]
+        return y[:n].T, y[n:].T
+
+    def acceleration(self, q, q_dot):
+        """``q''`` from the geodesic equation (seed 002 eq. (15))."""
+        return geodesic_acceleration(q, q_dot, self.masses, self.alpha)
+
+
+def _check_ends(q0, q1, masses):
+    m = check_masses(masses)
+    a = as_array(q0, "start positions", None)
+    b = as_array(q1, "goal positions", None)
+    if a.ndim != 2 or a.shape[0] != m.size or a.shape[1] not in (2, 3) or b.shape != a.shape:
+        raise ShapeError(
+            f"start and goal positions must both have shape (N, d) with N = {m.size} (len(masses)) and "
+            f"d = 2 or 3; got {a.shape} and {b.shape}"
+        )
+    for name, p in (("start", a), ("goal", b)):
+        if np.max(np.linalg.norm(p - p.mean(axis=0), axis=1)) <= 1e-12 * max(1.0, np.abs(p).max()):
+            raise DegenerateInputError(f"all robots coincide in the {name} configuration; separate them")
+    return a, b, m
+
+
+def _fun(masses, alpha, n):
+    def f(s, y):
+        q, qd = y[:n].T, y[n:].T
+        return np.concatenate([y[n:], geodesic_acceleration(q, qd, masses, alpha).T], axis=0)
+    return f
+
+
+def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int = 5000,
+                   min_step: float = 1e-3) -> GeodesicSolution:
+    """Geodesic of the shaped metric from ``q0`` (s = 0) to ``q1`` (s = 1).
+
+    Parameters
+    ----------
+    q0, q1 : array_like, shape (N, d)
+        Start and goal positions of the N robots, m (``d = 2`` or 3).
+    masses : array_like, shape (N,)
+        Only their ratios matter (seed 002 §5).
+    alpha : float
+        Shaping weight in ``(0, 1)``: 0.5 straight lines, towards 1 rigid, towards 0 clustering.
+    tol : float
+        ``solve_bvp`` residual tolerance.
+    max_nodes : int
+        ``solve_bvp`` mesh limit.
+    min_step : float
+        Smallest continuation step in ``alpha`` before giving up.
+
+    Raises
+    ------
+    ConvergenceError
+        No geodesic found, or the one found fails the forward-integration or energy check.
+    """
+    a0, b0, m = _check_ends(q0, q1, masses)
+    target = check_alpha(alpha)
+    N, d = a0.shape
+    n = N * d
+    qa, qb = a0.reshape(-1), b0.reshape(-1)
+    travel = float(np.max(np.linalg.norm(b0 - a0, axis=1)))
+    scale = max(travel, float(np.max(np.linalg.norm(a0 - a0.mean(axis=0), axis=1))))
+    t_start = time.perf_counter()
+
+    s = np.linspace(0.0, 1.0, 21)
+    y = np.concatenate([qa[:, None] + np.outer(qb - qa, s), np.repeat((qb - qa)[:, None], s.size, 1)])
+
+    def bc(ya, yb):
+        return np.concatenate([ya[:n] - qa, yb[:n] - qb])
+
+    cur, step, done, sol = 0.5, 0.1 * np.sign(target - 0.5), [], None
+    while True:
+        nxt = target if abs(target - cur) <= abs(step) else cur + step
+        try:
+            res = solve_bvp(_fun(m, nxt, n), bc, s, y, tol=tol, max_nodes=max_nodes)
+            ok = res.status == 0 and np.all(np.isfinite(res.y))
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
+            ok = False
+        if ok:
+            cur, sol = nxt, res
+            done.append(float(cur))
+            s, y = res.x, res.y
+            if cur == target:
+                break
+            step *= 1.5
+        else:
+            step /= 2.0
+            if abs(step) < min_step:
+                where = (f"the continuation from alpha = 0.5 stalled at alpha = {cur:.4g}"
+                         if done else "no geodesic was found")
+                raise ConvergenceError(
+                    f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
+                    f"({res.message if 'res' in locals() else 'solver error'}). For small alpha the "
+                    "energy-minimising motion may pass through the robots meeting, where the metric "
+                    "is singular (docs/planning.md); raise alpha or change the end configurations"
+                )
+    f = _fun(m, target, n)
+    ivp = solve_ivp(f, (0.0, 1.0), sol.y[:, 0], method="DOP853", rtol=1e-11, atol=1e-12 * max(scale, 1.0),
+                    vectorized=True)
+    miss = float(np.max(np.abs(ivp.y[:n, -1] - qb))) if ivp.success else float("inf")
+    grid = np.linspace(0.0, 1.0, 401)
+    yy = sol.sol(grid)
+    E = metric_energy(yy[:n].T, yy[n:].T, m, target)
+    drift = float(np.max(np.abs(E - E[0])) / max(E[0], 1e-300))
+    if not (miss <= ENDPOINT_TOLERANCE * max(scale, 1e-9)) or not (drift <= ENERGY_TOLERANCE):
+        raise ConvergenceError(
+            f"the boundary-value solution for alpha = {target:g} is not an accurate geodesic: integrating "
+            f"its initial velocity misses the goal by {miss:.3g} m and the energy drifts by {drift:.2g} "
+            "(relative); the geodesic flow is too sensitive here - try an alpha closer to 0.5"
+        )
+    return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
+                            time.perf_counter() - t_start, sol.sol)
+
+
+def plan_from_geodesic(sol: GeodesicSolution, duration_s: float, knots: int = 201, info: dict | None = None):
+    """The geodesic as a :class:`~quatform.planning.plan.Plan` over ``[0, duration_s]``.
+
+    A geodesic keeps its shape under ``t = s T`` (constant speed): positions from the
+    collocation solution at ``knots`` uniform times, velocities ``q'/T`` and accelerations
+    ``q''/T^2`` with ``q''`` from the geodesic equation (seed 002 eq. (15)).
+    """
+    from .plan import Plan
+
+    T = float(duration_s)
+    if not (np.isfinite(T) and T > 0):
+        raise InvalidInputError(f"duration_s must be a positive number of seconds, got {duration_s!r}")
+    if int(knots) < 2:
+        raise InvalidInputError(f"knots must be at least 2, got {knots!r}")
+    s = np.linspace(0.0, 1.0, int(knots))
+    q, qd = sol.state(s)
+    qdd = sol.acceleration(q, qd)
+    N, d = sol.masses.size, sol.dim
+    shape = (s.size, N, d)
+    return Plan(s * T, q.reshape(shape), (qd / T).reshape(shape), (qdd / (T * T)).reshape(shape), sol.masses,
+                dict(info or {}))

@@ -1,0 +1,187 @@
+"""Plan specifications: TOML files with a ``kind`` key, and the planners that read them.
+
+Planning layer. A spec names the robots (masses, start and goal positions), the plan's
+duration and sampling, and a table of options for its ``kind``. ``make_plan`` dispatches on
+``kind`` through :data:`PLANNERS`; this module provides ``"shaped-geodesic"`` (seed 002),
+and another kind registers its own function there. Built-in specs live in
+``quatform/plans/*.toml``; keys in ``docs/planning.md``.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidInputError, QuatformError
+from .geodesic import plan_from_geodesic, solve_geodesic
+from .measures import min_separation, rigid_motion, straight_line_motion
+from .plan import Plan
+from .shaping import check_alpha, check_masses
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["PLANNERS", "PlanSpec", "builtin_plan_specs", "load_plan_spec", "make_plan", "plan_metrics"]
+
+
+@dataclass(frozen=True, eq=False)
+class PlanSpec:
+    """A planning problem (see ``docs/planning.md``).
+
+    Attributes
+    ----------
+    name, title, source : str
+    kind : str
+        Planner name, a key of :data:`PLANNERS` (``"shaped-geodesic"``).
+    masses : ndarray, shape (N,)
+    start, goal : ndarray, shape (N, d)
+        Robot positions at ``t = 0`` and ``t = duration_s``, m.
+    duration_s : float
+    knots : int
+        Knots of the saved plan (its ``sample`` interpolates between them).
+    min_clearance_m : float
+        Robots closer than this anywhere on the plan are flagged (``robots_meet``).
+    options : dict
+        The ``[kind]``-specific table (``[shaping]`` for ``"shaped-geodesic"``: ``alpha``).
+    """
+
+    name: str
+    kind: str
+    masses: np.ndarray
+    start: np.ndarray
+    goal: np.ndarray
+    duration_s: float = 1.0
+    knots: int = 201
+    min_clearance_m: float = 0.05
+    title: str = ""
+    source: str = ""
+    options: dict = field(default_factory=dict)
+
+
+def builtin_plan_specs() -> dict[str, Path]:
+    """Built-in plan specs by name."""
+    root = resources.files("quatform") / "plans"
+    return {Path(p.name).stem: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
+
+
+def load_plan_spec(name_or_file) -> PlanSpec:
+    """A built-in spec by name, or a TOML file by path; every mistake is an InvalidInputError."""
+    builtin = builtin_plan_specs()
+    p = Path(name_or_file)
+    if str(name_or_file) in builtin:
+        p = builtin[str(name_or_file)]
+    elif not (p.suffix == ".toml" or p.exists()):
+        raise InvalidInputError(
+            f"unknown plan spec {str(name_or_file)!r}; built-in: {', '.join(sorted(builtin))}, "
+            "or give the path of a .toml file"
+        )
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise InvalidInputError(f"{p}: not valid TOML: {exc}") from None
+    return plan_spec_from_dict(data, where=str(p))
+
+
+def plan_spec_from_dict(data: dict, where: str = "plan spec") -> PlanSpec:
+    """Build a :class:`PlanSpec` from parsed TOML."""
+    kind = data.get("kind")
+    if kind not in PLANNERS:
+        raise InvalidInputError(f"{where}: kind = {kind!r}; use one of {', '.join(sorted(PLANNERS))}")
+    rb = data.get("robots")
+    if not isinstance(rb, dict):
+        raise InvalidInputError(f"{where}: missing [robots] table with masses, start and goal")
+    try:
+        masses = check_masses(rb["masses"])
+        start = np.asarray(rb["start"], dtype=float)
+        goal = np.asarray(rb["goal"], dtype=float)
+        duration = float(data.get("duration_s", 1.0))
+        knots = int(data.get("knots", 201))
+        clearance = float(data.get("min_clearance_m", 0.05))
+    except KeyError as exc:
+        raise InvalidInputError(f"{where}: [robots] misses key {exc} (see docs/planning.md)") from None
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, QuatformError):
+            raise InvalidInputError(f"{where}: {exc}") from None
+        raise InvalidInputError(f"{where}: {exc} (numbers expected; see docs/planning.md)") from None
+    if start.ndim != 2 or start.shape != goal.shape or start.shape[0] != masses.size or start.shape[1] not in (2, 3):
+        raise InvalidInputError(
+            f"{where}: [robots] start and goal must be lists of N = {masses.size} positions of 2 or 3 "
+            f"coordinates each (one per mass); got shapes {start.shape} and {goal.shape}"
+        )
+    if not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal)) and np.isfinite(duration) and duration > 0
+            and knots >= 2 and clearance >= 0):
+        raise InvalidInputError(f"{where}: need finite positions, duration_s > 0, knots >= 2, min_clearance_m >= 0")
+    table = PLANNERS[kind][0]
+    options = data.get(table, {})
+    if not isinstance(options, dict):
+        raise InvalidInputError(f"{where}: [{table}] must be a table")
+    return PlanSpec(name=str(data.get("name", Path(where).stem)), kind=kind, masses=masses, start=start,
+                    goal=goal, duration_s=duration, knots=knots, min_clearance_m=clearance,
+                    title=str(data.get("title", "")), source=str(data.get("source", "")), options=dict(options))
+
+
+def plan_metrics(plan: Plan, spec: PlanSpec, samples: int = 1001) -> dict:
+    """Separation and deviation measures of ``plan`` (JSON-ready, units in the key names).
+
+    ``max_straight_line_deviation_m``: largest distance of a robot from its uniform straight
+    line; ``max_rigid_deviation_m``: from the optimal rigid motion
+    (:func:`~quatform.planning.measures.rigid_motion`; None where the ends are not a rigid
+    displacement or it is not a fixed-axis rotation). ``robots_meet``: the minimum
+    separation is below ``spec.min_clearance_m``.
+    """
+    t = np.linspace(plan.times[0], plan.times[-1], samples)
+    s = (t - t[0]) / (t[-1] - t[0])
+    pos, _, _ = plan.sample(t)
+    dmin, k, (i, j) = min_separation(pos)
+    straight = straight_line_motion(spec.start, spec.goal, s)
+    rigid = rigid_motion(spec.start, spec.goal, spec.masses, s)
+    return {
+        "plan": spec.name,
+        "kind": spec.kind,
+        "n_robots": int(plan.n_robots),
+        "dim": int(plan.dim),
+        "duration_s": plan.duration_s,
+        "min_separation_m": dmin,
+        "min_separation_time_s": float(t[k]),
+        "min_separation_robots": [i + 1, j + 1],
+        "min_clearance_m": spec.min_clearance_m,
+        "robots_meet": bool(dmin < spec.min_clearance_m),
+        "max_straight_line_deviation_m": float(np.linalg.norm(pos - straight, axis=-1).max()),
+        "max_rigid_deviation_m": None if rigid is None else float(np.linalg.norm(pos - rigid, axis=-1).max()),
+    }
+
+
+def _shaped_geodesic(spec: PlanSpec):
+    unknown = set(spec.options) - {"alpha"}
+    if unknown:
+        raise InvalidInputError(f"{spec.name}: [shaping] has unknown keys {sorted(unknown)}; only alpha")
+    if "alpha" not in spec.options:
+        raise InvalidInputError(f"{spec.name}: [shaping] needs alpha (0 < alpha < 1)")
+    alpha = check_alpha(spec.options["alpha"])
+    sol = solve_geodesic(spec.start, spec.goal, spec.masses, alpha)
+    info = {"kind": spec.kind, "name": spec.name, "alpha": alpha, "masses": spec.masses.tolist(),
+            "source": spec.source}
+    plan = plan_from_geodesic(sol, spec.duration_s, spec.knots, info)
+    extra = {"alpha": alpha, "solve_time_s": sol.solve_time_s, "endpoint_error_m": sol.endpoint_error_m,
+             "energy_drift": sol.energy_drift, "collocation_nodes": int(sol.s.size),
+             "continuation_alphas": list(sol.continuation)}
+    return plan, extra
+
+
+#: Each spec ``kind``: ``(name of its options table, planner)``; the planner is
+#: ``f(spec) -> (Plan, dict of solver metrics)``.
+PLANNERS = {"shaped-geodesic": ("shaping", _shaped_geodesic)}
+
+
+def make_plan(spec: PlanSpec):
+    """Solve ``spec``: returns ``(plan, metrics)`` with ``converged = True`` and the measures of
+    :func:`plan_metrics`; a planner that fails raises (e.g. ConvergenceError)."""
+    plan, extra = PLANNERS[spec.kind][1](spec)
+    metrics = {"converged": True, **extra, **plan_metrics(plan, spec)}
+    return plan, metrics
