@@ -110,8 +110,8 @@ def _fun(masses, alpha, n):
     return f
 
 
-def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int = 5000,
-                   min_step: float = 1e-3) -> GeodesicSolution:
+def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int = 2000,
+                   min_step: float = 1e-2) -> GeodesicSolution:
     """Geodesic of the shaped metric from ``q0`` (s = 0) to ``q1`` (s = 1).
 
     Parameters
