@@ -20,6 +20,7 @@ from quatform.planning import (
     PlanPairPath,
     christoffel_symbols,
     geodesic_acceleration,
+    geodesic_jacobian,
     horizontal_basis,
     load_plan,
     load_plan_spec,
@@ -140,6 +141,20 @@ def test_metric_derivative_and_christoffel_symbols_by_finite_differences(p):
     np.testing.assert_allclose(G, np.swapaxes(G, -1, -2), atol=1e-12)
     np.testing.assert_allclose(geodesic_acceleration(q, v, m, a), -np.einsum("kij,i,j->k", G, v, v),
                                atol=1e-9 * max(1.0, np.abs(G).max() * v @ v))
+
+
+@settings(max_examples=20)
+@given(problems(n_max=6))
+def test_geodesic_jacobian_by_central_differences(p):
+    m, q, v, a = p
+    Jq, Jv = geodesic_jacobian(q, v, m, a)
+    h = 1e-6
+    eye = np.eye(q.size)
+    fq = np.stack([(geodesic_acceleration(q + h * e, v, m, a) - geodesic_acceleration(q - h * e, v, m, a)) / (2 * h)
+                   for e in eye], -1)
+    fv = np.stack([(geodesic_acceleration(q, v + e, m, a) - geodesic_acceleration(q, v - e, m, a)) / 2 for e in eye], -1)
+    np.testing.assert_allclose(Jv, fv, atol=1e-9 * max(1.0, np.abs(fv).max()))
+    np.testing.assert_allclose(Jq, fq, atol=2e-5 * max(1.0, np.abs(fq).max()))
 
 
 @settings(max_examples=40)
@@ -293,7 +308,7 @@ def test_plan_samples_consistent_rates_and_round_trips(tmp_path):
     pm, vm, _ = plan.sample(t - h)
     np.testing.assert_allclose((pp - pm) / (2 * h), v, atol=1e-7)
     np.testing.assert_allclose((vp - vm) / (2 * h), a, atol=1e-7)
-    pk, vk, ak = plan.sample(plan.times)
+    pk, _, ak = plan.sample(plan.times)
     np.testing.assert_allclose(pk, plan.positions, atol=1e-13)
     np.testing.assert_allclose(ak, plan.accelerations, atol=1e-12)
     # the plan's accelerations are the geodesic equation's, rescaled to seconds

@@ -20,6 +20,7 @@ from .plan import Plan, load_plan
 from .shaping import (
     christoffel_symbols,
     geodesic_acceleration,
+    geodesic_jacobian,
     horizontal_basis,
     metric_energy,
     rigid_generators,
@@ -45,6 +46,7 @@ __all__ = [
     "builtin_plan_specs",
     "christoffel_symbols",
     "geodesic_acceleration",
+    "geodesic_jacobian",
     "horizontal_basis",
     "load_plan",
     "load_plan_spec",

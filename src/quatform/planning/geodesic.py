@@ -30,7 +30,13 @@ from ..errors import (
     InvalidInputError,
     ShapeError,
 )
-from .shaping import check_alpha, check_masses, geodesic_acceleration, metric_energy
+from .shaping import (
+    check_alpha,
+    check_masses,
+    geodesic_acceleration,
+    geodesic_jacobian,
+    metric_energy,
+)
 
 __all__ = ["GeodesicSolution", "plan_from_geodesic", "solve_geodesic"]
 
@@ -110,6 +116,18 @@ def _fun(masses, alpha, n):
     return f
 
 
+def _fun_jac(masses, alpha, n):
+    """``d f / d y`` of the first-order system ``y = (q, q̇)``, shape ``(2n, 2n, m)``."""
+    def jac(s, y):
+        Jq, Jv = geodesic_jacobian(y[:n].T, y[n:].T, masses, alpha)
+        out = np.zeros((2 * n, 2 * n, y.shape[1]))
+        out[:n, n:] = np.eye(n)[:, :, None]
+        out[n:, :n] = np.moveaxis(Jq, 0, -1)
+        out[n:, n:] = np.moveaxis(Jv, 0, -1)
+        return out
+    return jac
+
+
 def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int = 2000,
                    min_step: float = 1e-2) -> GeodesicSolution:
     """Geodesic of the shaped metric from ``q0`` (s = 0) to ``q1`` (s = 1).
@@ -149,11 +167,17 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
     def bc(ya, yb):
         return np.concatenate([ya[:n] - qa, yb[:n] - qb])
 
+    def bc_jac(ya, yb):
+        sel = np.hstack([np.eye(n), np.zeros((n, n))])
+        zero = np.zeros_like(sel)
+        return np.vstack([sel, zero]), np.vstack([zero, sel])
+
     cur, step, done, sol = 0.5, 0.1 * np.sign(target - 0.5), [], None
     while True:
         nxt = target if abs(target - cur) <= abs(step) else cur + step
         try:
-            res = solve_bvp(_fun(m, nxt, n), bc, s, y, tol=tol, max_nodes=max_nodes)
+            res = solve_bvp(_fun(m, nxt, n), bc, s, y, tol=tol, max_nodes=max_nodes,
+                            fun_jac=_fun_jac(m, nxt, n), bc_jac=bc_jac)
             ok = res.status == 0 and np.all(np.isfinite(res.y))
         except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
             ok = False
