@@ -114,6 +114,7 @@ def test_quaternion_tracks_the_vertical_pass_that_cluster_space_cannot(tmp_path,
         assert m["max_robot_position_error_m"] < 1e-3 and m["duration_s"] == pytest.approx(20.0)
     cs = rows["cluster-space"]
     assert cs["singularity_detected"] and cs["reference_lost"]
+    assert 12.0 < cs["first_singular_time_s"] < 13.2  # as the pair nears the vertical (t = 13.2 s)
     # the run followed the plan: the reference's separation dips as planned (0.924 m at t = 10 s)
     with open(tmp_path / "quaternion" / "timeseries.csv") as f:
         names = f.readline().strip().split(",")
