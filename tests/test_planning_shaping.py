@@ -219,8 +219,25 @@ def test_bvp_matches_the_closed_form_two_body_geodesic(alpha):
 
 def test_no_geodesic_below_the_cone_bound_raises_convergence_error():
     # Fig. 3 turns the pair by 3 pi/4: a smooth geodesic needs k 3pi/4 < pi, alpha > 9/25
-    with pytest.raises(ConvergenceError, match="alpha = 0.2.*stalled at alpha = 0.36"):
+    with pytest.raises(ConvergenceError, match=r"turns by 2.356 rad.*only for alpha > 0.36\b"):
         solve_geodesic(FIG3_START, FIG3_GOAL, FIG3_MASSES, 0.2)
+    solve_geodesic(FIG3_START, FIG3_GOAL, FIG3_MASSES, 0.37)  # just above: exists
+    # three equal bodies (Fig. 4): no closed-form check; the continuation stalls at the same bound
+    q0, q1 = fig4_ends()
+    with pytest.raises(ConvergenceError, match=r"alpha = 0.2: the continuation .* stalled at alpha = 0.3[67]"):
+        solve_geodesic(q0, q1, np.ones(3), 0.2)
+
+
+@pytest.mark.parametrize("alpha", [0.6, 0.9])
+def test_swapping_robots_go_round_each_other(alpha):
+    # the straight lines meet (the metric's singular point): the guess is bent sideways; the
+    # geodesic's closest approach on the unrolled cone is r cos(k pi / 2)
+    q0 = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    sol = solve_geodesic(q0, -q0, [1.0, 1.0], alpha)
+    k = np.sqrt((1 - alpha) / alpha)
+    dmin = min_separation(sol.state(np.linspace(0, 1, 2001))[0].reshape(-1, 2, 2))[0]
+    assert dmin == pytest.approx(2.0 * np.cos(k * np.pi / 2), abs=1e-5)
+    np.testing.assert_allclose(solve_geodesic(q0, -q0, [1.0, 1.0], 0.5).q[10], 0.0, atol=1e-15)
 
 
 def test_masses_scaled_leave_the_geodesic_unchanged():
@@ -255,6 +272,9 @@ def test_bad_input_raises_clear_errors():
         solve_geodesic(np.zeros((2, 2)), FIG3_GOAL, FIG3_MASSES, 0.7)
     with pytest.raises(DegenerateInputError, match="coincide"):
         shaped_metric(np.zeros(6), np.ones(3), 0.3)
+    line = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    with pytest.raises(DegenerateInputError, match="collinear"):
+        solve_geodesic(line, line + [[0, 1, 0], [0, 0, 1], [1, 1, 1]], np.ones(3), 0.7)
 
 
 # ---------------------------------------------------------------- Figs. 3 and 4

@@ -12,7 +12,8 @@ and the energy ``q̇^T M_alpha q̇`` must stay constant. Anything else raises
 Geodesics may not exist: the shaped metric of two bodies is a cone in the relative
 coordinates (``docs/derivations.md``, seed 002 item 3), and when ``alpha`` is small enough
 the only energy-minimising curve passes through the robots meeting, where the metric is
-singular. The continuation then stalls and the error says how far it got.
+singular. For two robots that bound is checked before solving; for more, the continuation
+stalls and the error says how far it got.
 """
 
 from __future__ import annotations
@@ -104,9 +105,62 @@ def _check_ends(q0, q1, masses):
             f"d = 2 or 3; got {a.shape} and {b.shape}"
         )
     for name, p in (("start", a), ("goal", b)):
-        if np.max(np.linalg.norm(p - p.mean(axis=0), axis=1)) <= 1e-12 * max(1.0, np.abs(p).max()):
+        X = p - p.mean(axis=0)
+        if np.max(np.linalg.norm(X, axis=1)) <= 1e-12 * max(1.0, np.abs(p).max()):
             raise DegenerateInputError(f"all robots coincide in the {name} configuration; separate them")
+        sv = np.linalg.svd(X, compute_uv=False)
+        if p.shape[1] == 3 and p.shape[0] >= 3 and sv[1] <= 1e-6 * sv[0]:
+            raise DegenerateInputError(
+                f"the {name} robots are collinear: for three or more robots in space the shaped metric "
+                "jumps there (the spin about their line moves no mass, docs/planning.md); move one robot "
+                "off the line or plan in the plane (d = 2)"
+            )
     return a, b, m
+
+
+def _two_body_bound(a, b, alpha):
+    """Seed 002 item 3 of docs/derivations.md: two bodies have a geodesic only if the relative
+    direction turns by less than ``pi / k``, ``k = sqrt((1 - alpha) / alpha)`` (a cone)."""
+    d0, d1 = a[0] - a[1], b[0] - b[1]
+    turn = float(np.arccos(np.clip(d0 @ d1 / (np.linalg.norm(d0) * np.linalg.norm(d1)), -1.0, 1.0)))
+    k = np.sqrt((1.0 - alpha) / alpha)
+    if alpha != 0.5 and k * turn >= np.pi * (1.0 - 1e-9):
+        raise ConvergenceError(
+            f"no geodesic of the shaped metric for alpha = {alpha:g}: the two robots' relative direction "
+            f"turns by {turn:.4g} rad, and a geodesic exists only for alpha > {1.0 / (1.0 + (np.pi / turn) ** 2):.4g} "
+            "(the shaped metric is a cone in the relative position, docs/planning.md); below, the "
+            "energy-minimising motion passes through the robots meeting - raise alpha"
+        )
+
+
+def _side_step(a, b, m, s, scale):
+    """Initial-guess correction where the straight lines make two robots meet.
+
+    Off ``alpha = 0.5`` the metric is singular where robots meet, and the straight line
+    through such a point is symmetric (a swap can turn either way): the guess is bent
+    sideways by 0.2 of the formation's size for the closest pair, centre of mass kept.
+    Returns the change of ``(q, q')``, shape ``(2 N d, K)``; zero when no pair comes
+    within 5 % of the size.
+    """
+    N, d = a.shape
+    fine = np.linspace(0.0, 1.0, 201)[:, None, None]
+    lines = (1.0 - fine) * a + fine * b
+    D = np.where(np.eye(N, dtype=bool), np.inf, np.linalg.norm(lines[:, :, None] - lines[:, None], axis=-1))
+    k, i, j = np.unravel_index(int(np.argmin(D)), D.shape)
+    out = np.zeros((2 * N * d, s.size))
+    if D[k, i, j] >= 0.05 * scale:
+        return out
+    w = (b[i] - a[i]) - (b[j] - a[j])
+    if d == 2:
+        nrm = np.array([-w[1], w[0]])
+    else:
+        nrm = np.cross(w, np.eye(3)[int(np.argmin(np.abs(w)))])
+    nrm = nrm / max(np.linalg.norm(nrm), 1e-300)
+    bump, rate = 0.2 * scale * np.sin(np.pi * s), 0.2 * scale * np.pi * np.cos(np.pi * s)
+    for r, share in ((i, m[j] / (m[i] + m[j])), (j, -m[i] / (m[i] + m[j]))):
+        out[r * d:(r + 1) * d] += share * np.outer(nrm, bump)
+        out[N * d + r * d:N * d + (r + 1) * d] += share * np.outer(nrm, rate)
+    return out
 
 
 def _fun(masses, alpha, n):
@@ -154,6 +208,8 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
     """
     a0, b0, m = _check_ends(q0, q1, masses)
     target = check_alpha(alpha)
+    if m.size == 2:
+        _two_body_bound(a0, b0, target)
     N, d = a0.shape
     n = N * d
     qa, qb = a0.reshape(-1), b0.reshape(-1)
@@ -163,6 +219,8 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
 
     s = np.linspace(0.0, 1.0, 21)
     y = np.concatenate([qa[:, None] + np.outer(qb - qa, s), np.repeat((qb - qa)[:, None], s.size, 1)])
+    if target != 0.5:
+        y = y + _side_step(a0, b0, m, s, scale)
 
     def bc(ya, yb):
         return np.concatenate([ya[:n] - qa, yb[:n] - qb])
@@ -196,8 +254,8 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
                 raise ConvergenceError(
                     f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
                     f"({res.message if 'res' in locals() else 'solver error'}). For small alpha the "
-                    "energy-minimising motion may pass through the robots meeting, where the metric "
-                    "is singular (docs/planning.md); raise alpha or change the end configurations"
+                    "energy-minimising motion may pass through robots meeting, where the metric is "
+                    "singular (docs/planning.md); try an alpha closer to 0.5"
                 )
     f = _fun(m, target, n)
     ivp = solve_ivp(f, (0.0, 1.0), sol.y[:, 0], method="DOP853", rtol=1e-11, atol=1e-12 * max(scale, 1.0),

@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DegenerateInputError, InvalidInputError
-from ..formations.euclidean_pair import _direction_partials
 from .plan import Plan
 
 __all__ = ["PlanPairPath"]
@@ -31,6 +30,13 @@ def _angles(u):
     beta = np.arctan2(-u[..., 0], u[..., 1])  # seed 000 eq. (4)
     gamma = np.arctan2(u[..., 2], np.hypot(u[..., 0], u[..., 1]))  # eq. (5)
     return beta, gamma
+
+
+def _partials(beta, gamma):
+    """``d u / d beta`` and ``d u / d gamma`` of ``u = segment_direction(beta, gamma)``."""
+    cb, sb, cg, sg = np.cos(beta), np.sin(beta), np.cos(gamma), np.sin(gamma)
+    return (np.stack([-cb * cg, -sb * cg, np.zeros_like(cb)], axis=-1),
+            np.stack([sb * sg, -cb * sg, cg], axis=-1))
 
 
 def _near(a, ref):
@@ -111,7 +117,7 @@ class PlanPairPath:
         beta = _near(np.where(other, b0 + np.pi, b0), bref)
         vertical = np.abs(np.cos(gamma)) < VERTICAL_COS
         beta = np.where(vertical, bref, beta)
-        u_b, u_g = _direction_partials(beta, gamma)
+        u_b, u_g = _partials(beta, gamma)
         u_dot = (ddelta - u * np.einsum("...i,...i->...", u, ddelta)[..., None]) / D[..., None]
         cg2 = np.cos(gamma) ** 2
         beta_dot = np.where(vertical, 0.0, np.einsum("...i,...i->...", u_dot, u_b) / np.where(vertical, 1.0, cg2))

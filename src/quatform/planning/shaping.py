@@ -250,6 +250,8 @@ def geodesic_acceleration(q, q_dot, masses, alpha) -> np.ndarray:
     q, m, d = _dims(q, masses)
     a = check_alpha(alpha)
     qd = as_array(q_dot, "q_dot", q.shape[-1])
+    if a == 0.5:  # the unshaped metric: flat, also where robots meet
+        return np.zeros(np.broadcast_shapes(q.shape, qd.shape))
     return _acceleration(_thin(q, m, d), qd, d, a)
 
 
@@ -325,6 +327,9 @@ def geodesic_jacobian(q, q_dot, masses, alpha):
     a = check_alpha(alpha)
     qd = as_array(q_dot, "q_dot", q.shape[-1])
     n = q.shape[-1]
+    if a == 0.5:
+        zero = np.zeros(np.broadcast_shapes(q.shape, qd.shape) + (n,))
+        return zero, zero.copy()
     split = _thin(q, m, d)
     eye = np.eye(n)
     # the same SVD for every column: broadcast it over a new axis of the n unit vectors
@@ -344,7 +349,10 @@ def metric_energy(q, q_dot, masses, alpha) -> np.ndarray:
     q, m, d = _dims(q, masses)
     a = check_alpha(alpha)
     qd = as_array(q_dot, "q_dot", q.shape[-1])
-    sq, P, _ = _split(q, m, d)
+    sq = np.repeat(np.sqrt(m), d)
     u = sq * qd
+    if a == 0.5:  # M / 2, defined also where robots meet
+        return 0.5 * np.einsum("...i,...i->...", u, u)
+    _, P, _ = _split(q, m, d)
     Pu = np.einsum("...ij,...j->...i", P, u)
     return (1.0 - a) * np.einsum("...i,...i->...", Pu, Pu) + a * np.einsum("...i,...i->...", u - Pu, u - Pu)
