@@ -86,11 +86,23 @@ def test_errors_are_one_line(tmp_path, capsys, argv, needle):
     assert len(err) == 1 and err[0].startswith("quatform: error:") and needle in err[0]
 
 
-def test_bad_spec_kind_is_one_line(tmp_path, capsys):
+ROBOTS = "[robots]\nmasses = [1, 1]\nstart = [[0, 0], [1, 0]]\ngoal = [[0, 1], [1, 1]]\n"
+
+
+@pytest.mark.parametrize("text,needle", [
+    ('kind = "rigid-se3"\n' + ROBOTS, "kind = 'rigid-se3'; use one of shaped-geodesic"),
+    ('kind = "shaped-geodesic"\n[shaping]\nalpha = 0.7\n', "missing [robots] table"),
+    ('kind = "shaped-geodesic"\nalpah = 0.7\n' + ROBOTS, "unknown key(s) ['alpah'] at top level"),
+    ('kind = "shaped-geodesic"\n[shaping]\nalpha = 0.7\n' + ROBOTS.replace("[[0, 1], [1, 1]]", "[[0, 1]]"),
+     "start and goal must be lists of N = 2 positions"),
+    ('kind = "shaped-geodesic"\n' + ROBOTS, "[shaping] needs alpha"),
+])
+def test_bad_spec_is_one_line(tmp_path, capsys, text, needle):
     spec = tmp_path / "k.toml"
-    spec.write_text('kind = "rigid-se3"\n[robots]\nmasses = [1, 1]\nstart = [[0, 0], [1, 0]]\ngoal = [[0, 0], [1, 0]]\n')
+    spec.write_text(text)
     assert cli.main(["plan", str(spec), "--out", str(tmp_path / "o")]) == 2
-    assert "kind = 'rigid-se3'; use one of shaped-geodesic" in capsys.readouterr().err
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0]
 
 
 def test_a_planar_plan_is_refused_as_a_pair_reference(tmp_path, capsys):

@@ -64,6 +64,10 @@ class PlanSpec:
     options: dict = field(default_factory=dict)
 
 
+#: Keys every spec may have at the top level (besides its kind's options table).
+_TOP_KEYS = {"kind", "name", "title", "source", "duration_s", "knots", "min_clearance_m", "robots"}
+
+
 def builtin_plan_specs() -> dict[str, Path]:
     """Built-in plan specs by name."""
     root = resources.files("quatform") / "plans"
@@ -96,6 +100,11 @@ def plan_spec_from_dict(data: dict, where: str = "plan spec") -> PlanSpec:
     rb = data.get("robots")
     if not isinstance(rb, dict):
         raise InvalidInputError(f"{where}: missing [robots] table with masses, start and goal")
+    table = PLANNERS[kind][0]
+    for keys, allowed, what in ((data, _TOP_KEYS | {table}, "top level"), (rb, {"masses", "start", "goal"}, "[robots]")):
+        unknown = sorted(set(keys) - allowed)
+        if unknown:
+            raise InvalidInputError(f"{where}: unknown key(s) {unknown} at {what}; see docs/planning.md")
     try:
         masses = check_masses(rb["masses"])
         start = np.asarray(rb["start"], dtype=float)
@@ -117,7 +126,6 @@ def plan_spec_from_dict(data: dict, where: str = "plan spec") -> PlanSpec:
     if not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal)) and np.isfinite(duration) and duration > 0
             and knots >= 2 and clearance >= 0):
         raise InvalidInputError(f"{where}: need finite positions, duration_s > 0, knots >= 2, min_clearance_m >= 0")
-    table = PLANNERS[kind][0]
     options = data.get(table, {})
     if not isinstance(options, dict):
         raise InvalidInputError(f"{where}: [{table}] must be a table")
@@ -170,7 +178,7 @@ def _shaped_geodesic(spec: PlanSpec):
     plan = plan_from_geodesic(sol, spec.duration_s, spec.knots, info)
     extra = {"alpha": alpha, "solve_time_s": sol.solve_time_s, "endpoint_error_m": sol.endpoint_error_m,
              "energy_drift": sol.energy_drift, "collocation_nodes": int(sol.s.size),
-             "continuation_alphas": list(sol.continuation)}
+             "continuation_alphas": [round(a, 12) for a in sol.continuation]}
     return plan, extra
 
 
