@@ -328,6 +328,9 @@ def test_plan_samples_consistent_rates_and_round_trips(tmp_path):
     pm, vm, _ = plan.sample(t - h)
     np.testing.assert_allclose((pp - pm) / (2 * h), v, atol=1e-7)
     np.testing.assert_allclose((vp - vm) / (2 * h), a, atol=1e-7)
+    p_out, v_out, a_out = plan.sample([-1.0, plan.duration_s + 1.0])  # at rest outside
+    np.testing.assert_array_equal(p_out, plan.positions[[0, -1]])
+    assert not v_out.any() and not a_out.any()
     pk, _, ak = plan.sample(plan.times)
     np.testing.assert_allclose(pk, plan.positions, atol=1e-13)
     np.testing.assert_allclose(ak, plan.accelerations, atol=1e-12)

@@ -237,8 +237,9 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
             res = solve_bvp(_fun(m, nxt, n), bc, s, y, tol=tol, max_nodes=max_nodes,
                             fun_jac=_fun_jac(m, nxt, n), bc_jac=bc_jac)
             ok = res.status == 0 and np.all(np.isfinite(res.y))
-        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
-            ok = False
+            why = res.message
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            ok, why = False, f"{type(exc).__name__}: {exc}"
         if ok:
             cur, sol = nxt, res
             done.append(float(cur))
@@ -253,7 +254,7 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
                          if done else "no geodesic was found")
                 raise ConvergenceError(
                     f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
-                    f"({res.message if 'res' in locals() else 'solver error'}). For small alpha the "
+                    f"(last attempt: {why}). For small alpha the "
                     "energy-minimising motion may pass through robots meeting, where the metric is "
                     "singular (docs/planning.md); try an alpha closer to 0.5"
                 )
