@@ -74,7 +74,29 @@ def _build_parser() -> argparse.ArgumentParser:
                      help="formation description of a UGV-UAV (seed 001) scenario (default: quaternion)")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+    run.add_argument("--reference", metavar="PLAN",
+                     help="two-robot scenarios: follow this plan file (from 'quatform plan', 2 robots in "
+                     "space) instead of the scenario's path; yaws held at 0")
     _measurement_options(run)
+
+    plan = sub.add_parser(
+        "plan",
+        help="plan a formation motion (seed 002 shaped geodesics, seed 004 rigid formations on SE(3))",
+        description="Solve SPEC (a built-in plan name, see 'quatform plans', or a .toml file) and write "
+        "DIR/plan.npz, DIR/metrics.json (converged, solve_time_s, min_separation_m, deviations from the "
+        "straight lines and from the rigid motion; for rigid-se3 specs also max_distance_change_m, "
+        "max_nonholonomic_violation and energy) and PNG plots. Repeat --alpha to draw seed 002's "
+        "panels: one folder per alpha and DIR/paths_by_alpha.png.",
+    )
+    plan.add_argument("spec", metavar="SPEC", help="built-in plan name or file.toml")
+    plan.add_argument("--out", metavar="DIR", required=True, help="output folder")
+    plan.add_argument("--alpha", type=float, action="append", metavar="A",
+                      help="shaping weight in (0, 1) (overrides the spec's; repeatable)")
+    plan.add_argument("--case", choices=("holonomic", "a", "b"),
+                      help="seed 004 §4 airplanes: fully actuated robots, or airplanes ending as in case (a) or (b)")
+    plan.add_argument("--no-plots", action="store_true", help="write the plan and metrics only")
+    sub.add_parser("plans", help="list the built-in plan specs",
+                   description="List the built-in plan specs with their titles and sources.")
 
     cmp_ = sub.add_parser(
         "compare",
@@ -128,6 +150,37 @@ def _compare(scenario, out, args=None):
     print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 
 
+def _plan(args):
+    from .errors import ConvergenceError
+    from .plan_runs import meet_warning, plan_alphas_to_dir, plan_to_dir
+
+    keys = ("converged", "solve_time_s", "min_separation_m", "max_straight_line_deviation_m",
+            "max_rigid_deviation_m", "max_distance_change_m", "max_nonholonomic_violation", "energy")
+    if args.case is not None:
+        from .plan_runs import plan_case_to_dir
+
+        rows = {None: plan_case_to_dir(args.spec, args.out, args.case, plots=not args.no_plots)[1]}
+    elif args.alpha is not None and len(args.alpha) > 1:
+        rows = plan_alphas_to_dir(args.spec, args.out, args.alpha, plots=not args.no_plots)
+    else:
+        alpha = args.alpha[0] if args.alpha else None
+        _, m = plan_to_dir(args.spec, args.out, alpha, plots=not args.no_plots)
+        rows = {m.get("alpha"): m}
+    failed = []
+    for a, m in rows.items():
+        cells = ", ".join(f"{k} = {m[k]:.4g}" if isinstance(m.get(k), float) else f"{k} = {m.get(k)}"
+                          for k in keys if k in m)
+        print(f"alpha = {a}: {cells}" if a is not None else cells)
+        warning = meet_warning(m)
+        if warning:
+            print(f"quatform: warning: {warning}", file=sys.stderr)
+        if not m["converged"]:
+            failed.append(m["error"])
+    print(f"files in {args.out}/")
+    if failed:
+        raise ConvergenceError(failed[0])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -149,6 +202,12 @@ def main(argv: list[str] | None = None) -> int:
                 raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with "
                                         f"'quatform teleop {args.scenario} --out DIR'")
             sc = _with_measurement(sc, args)
+            if args.reference is not None:
+                if hasattr(sc, "mocap_noise_m"):
+                    raise InvalidInputError(f"--reference applies to two-robot scenarios; {sc.name} is UGV-UAV")
+                from .plan_runs import scenario_with_plan
+
+                sc = scenario_with_plan(sc, args.reference)
             if hasattr(sc, "mocap_noise_m"):
                 if args.controller is not None:
                     raise InvalidInputError(
@@ -177,6 +236,14 @@ def main(argv: list[str] | None = None) -> int:
             preload = None if args.preload is None else args.preload == "on"
             _, metrics = run_teleop(sc, args.out, args.orientation_error, preload, plots=not args.no_plots)
             print(format_table([metrics], TELEOP_COLUMNS))
+        elif args.command == "plan":
+            _plan(args)
+        elif args.command == "plans":
+            from .planning import builtin_plan_specs, load_plan_spec
+
+            for name in sorted(builtin_plan_specs()):
+                spec = load_plan_spec(name)
+                print(f"{name:32s} {spec.title} ({spec.source})")
         elif args.command == "scenarios":
             from .sim import builtin_scenarios, load_scenario
 

@@ -17,6 +17,7 @@ __all__ = [
     "DegenerateInputError",
     "NotARotationError",
     "UnreachableError",
+    "ConvergenceError",
 ]
 
 
@@ -50,3 +51,7 @@ class NotARotationError(InvalidInputError):
 
 class UnreachableError(InvalidInputError):
     """A state or reference that the robots or the chosen description cannot reach."""
+
+
+class ConvergenceError(QuatformError, RuntimeError):
+    """A numerical solver (e.g. a geodesic boundary-value problem) found no acceptable solution."""

@@ -1,0 +1,111 @@
+"""Plan a motion and write its files; use a plan as a run's reference (top layer, used by the CLI).
+
+``plan_to_dir`` solves a plan spec and writes ``plan.npz``, ``metrics.json`` and the plots;
+``scenario_with_plan`` makes a two-robot scenario follow a saved two-robot spatial plan.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+from .errors import ConvergenceError, InvalidInputError
+from .planning import PlanPairPath, load_plan, load_plan_spec, make_plan
+
+__all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
+
+#: Name of the plan file ``quatform plan`` writes.
+PLAN_FILE = "plan.npz"
+
+
+def _spec_with_alpha(spec, alpha):
+    if alpha is None:
+        return spec
+    if spec.kind != "shaped-geodesic":
+        raise InvalidInputError(f"--alpha applies to shaped-geodesic specs; {spec.name} is {spec.kind!r}")
+    return dataclasses.replace(spec, options={**spec.options, "alpha": alpha})
+
+
+def plan_to_dir(spec, out, alpha=None, plots: bool = True):
+    """Solve ``spec`` (a name, path or :class:`~quatform.planning.PlanSpec`) into ``out``.
+
+    Writes ``out/plan.npz``, ``out/metrics.json`` and, with ``plots``, ``plan_paths.png``
+    and ``plan_separation.png``. Returns ``(plan, metrics)``. A planner failure writes
+    ``metrics.json`` with ``converged = false`` and the message, then raises.
+    """
+    spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
+    spec = _spec_with_alpha(spec, alpha)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        plan, metrics = make_plan(spec)
+    except ConvergenceError as exc:
+        failed = {"converged": False, "plan": spec.name, "kind": spec.kind, **spec.options, "error": str(exc)}
+        (out / "metrics.json").write_text(json.dumps(failed, indent=2) + "\n")
+        raise
+    plan.save(out / PLAN_FILE)
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    if plots:
+        from .report.plan_plots import write_plan_plots
+
+        write_plan_plots(plan, out, f"{spec.name} ({spec.source})", spec.min_clearance_m)
+        if spec.kind == "rigid-se3":
+            from .planning import rigid_formation_dict, rigid_plan_from_spec
+            from .report.planning_plots import plot_rigid_formation_paths
+
+            title = f"{spec.name}" + (f", case {metrics['case']}" if "case" in metrics else "")
+            plot_rigid_formation_paths(rigid_plan_from_spec(rigid_formation_dict(spec)), out / "formation_3d.png",
+                                       title)
+    return plan, metrics
+
+
+def plan_case_to_dir(spec, out, case: str, plots: bool = True):
+    """:func:`plan_to_dir` of a seed 004 ``[airplanes]`` spec with its ``case`` replaced."""
+    spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
+    if "airplanes" not in spec.options:
+        raise InvalidInputError(f"--case applies to specs with an [airplanes] table (seed 004 §4); {spec.name} "
+                                "has none")
+    spec = dataclasses.replace(spec, options={"airplanes": {**spec.options["airplanes"], "case": case}})
+    return plan_to_dir(spec, out, plots=plots)
+
+
+def plan_alphas_to_dir(spec, out, alphas, plots: bool = True):
+    """One plan per ``alpha`` in ``out/alpha-<A>/`` and, with ``plots``, ``out/paths_by_alpha.png``
+    (seed 002 Figs. 3-4). Returns ``{alpha: metrics}``; a failed alpha has ``converged = false``."""
+    spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
+    out = Path(out)
+    plans, rows = {}, {}
+    for a in alphas:
+        try:
+            plans[a], rows[a] = plan_to_dir(spec, out / f"alpha-{a:g}", a, plots)
+        except ConvergenceError:
+            rows[a] = json.loads((out / f"alpha-{a:g}" / "metrics.json").read_text())
+    if plots and plans:
+        from .report.plan_plots import DPI, plot_alpha_panels
+
+        plot_alpha_panels(plans, spec.name).savefig(out / "paths_by_alpha.png", dpi=DPI)
+    return rows
+
+
+def meet_warning(metrics) -> str | None:
+    """The warning line for a plan whose robots come closer than the clearance, else None."""
+    if not metrics.get("robots_meet"):
+        return None
+    i, j = metrics["min_separation_robots"]
+    return (f"robots {i} and {j} come within {metrics['min_separation_m']:.3g} m of each other at "
+            f"t = {metrics['min_separation_time_s']:.3g} s (clearance {metrics['min_clearance_m']:g} m)")
+
+
+def scenario_with_plan(sc, plan_file, yaws=(0.0, 0.0)):
+    """Scenario ``sc`` (two robots, seed 000) with its path replaced by the saved plan.
+
+    The plan's robot positions become the Euclidean cluster reference
+    (:class:`~quatform.planning.PlanPairPath`, constant yaws ``yaws``); the run lasts the
+    plan's duration; ``metrics_from_s`` is kept if it lies inside it, else 0.
+    """
+    plan = load_plan(plan_file)
+    path = PlanPairPath(plan, yaws)
+    T = plan.duration_s
+    return dataclasses.replace(sc, path=path, duration_s=T, name=f"{sc.name}+{plan.info.get('name', 'plan')}",
+                               metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)

@@ -1,0 +1,299 @@
+"""Geodesics of the shaped metric between two formations: seed 002 eqs. (14)-(15).
+
+Planning layer. :func:`solve_geodesic` solves the two-point boundary-value problem
+``q̈ = -Gamma(q)[q̇, q̇]``, ``q(0) = q^0``, ``q(1) = q^1`` with
+:func:`scipy.integrate.solve_bvp` and a continuation in ``alpha``: at ``alpha = 0.5`` the
+geodesic is the uniform straight line (exact start), and each next ``alpha`` starts from the
+previous solution; a failed step is halved. The result is then *checked*: the initial
+state is integrated forward as an initial-value problem (DOP853) and must land on ``q^1``,
+and the energy ``q̇^T M_alpha q̇`` must stay constant. Anything else raises
+:class:`~quatform.errors.ConvergenceError`; a wrong path is never returned.
+
+Geodesics may not exist: the shaped metric of two bodies is a cone in the relative
+coordinates (``docs/derivations.md``, seed 002 item 3), and when ``alpha`` is small enough
+the only energy-minimising curve passes through the robots meeting, where the metric is
+singular. For two robots that bound is checked before solving; for more, the continuation
+stalls and the error says how far it got.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_bvp, solve_ivp
+
+from ..algebra._validate import as_array
+from ..errors import (
+    ConvergenceError,
+    DegenerateInputError,
+    InvalidInputError,
+    ShapeError,
+)
+from .shaping import (
+    check_alpha,
+    check_masses,
+    geodesic_acceleration,
+    geodesic_jacobian,
+    metric_energy,
+)
+
+__all__ = ["GeodesicSolution", "plan_from_geodesic", "solve_geodesic"]
+
+#: Largest accepted miss of the forward-integrated end point, as a fraction of the travel.
+ENDPOINT_TOLERANCE = 1e-5
+#: Largest accepted relative drift of ``q̇^T M_alpha q̇`` along the returned geodesic.
+ENERGY_TOLERANCE = 1e-4
+
+
+@dataclass(frozen=True)
+class GeodesicSolution:
+    """A verified geodesic of ``M_alpha`` on ``s in [0, 1]``.
+
+    Attributes
+    ----------
+    alpha : float
+    masses : ndarray, shape (N,)
+    dim : int
+        2 (plane) or 3 (space).
+    s : ndarray, shape (K,)
+        Collocation mesh of ``solve_bvp`` on ``[0, 1]``.
+    q, q_dot : ndarray, shape (K, N*d)
+        Configuration and its derivative with respect to ``s`` on the mesh.
+    endpoint_error_m : float
+        Distance between ``q^1`` and the forward integration of the initial state.
+    energy_drift : float
+        ``max |E - E(0)| / E(0)`` of ``E = q̇^T M_alpha q̇`` on a fine grid.
+    continuation : tuple of float
+        The ``alpha`` values solved on the way, in order.
+    solve_time_s : float
+        Wall time of the continuation, the check included.
+    """
+
+    alpha: float
+    masses: np.ndarray
+    dim: int
+    s: np.ndarray
+    q: np.ndarray
+    q_dot: np.ndarray
+    endpoint_error_m: float
+    energy_drift: float
+    continuation: tuple
+    solve_time_s: float
+    _spline: object = None
+
+    def state(self, s):
+        """``(q, q')`` at parameters ``s`` (shape ``(K,)``), each shape ``(K, N*d)``: the
+        collocation polynomial of ``solve_bvp``."""
+        y = self._spline(np.asarray(s, dtype=float))
+        n = self.q.shape[-1]
+        return y[:n].T, y[n:].T
+
+    def acceleration(self, q, q_dot):
+        """``q''`` from the geodesic equation (seed 002 eq. (15))."""
+        return geodesic_acceleration(q, q_dot, self.masses, self.alpha)
+
+
+def _check_ends(q0, q1, masses):
+    m = check_masses(masses)
+    a = as_array(q0, "start positions", None)
+    b = as_array(q1, "goal positions", None)
+    if a.ndim != 2 or a.shape[0] != m.size or a.shape[1] not in (2, 3) or b.shape != a.shape:
+        raise ShapeError(
+            f"start and goal positions must both have shape (N, d) with N = {m.size} (len(masses)) and "
+            f"d = 2 or 3; got {a.shape} and {b.shape}"
+        )
+    for name, p in (("start", a), ("goal", b)):
+        X = p - p.mean(axis=0)
+        if np.max(np.linalg.norm(X, axis=1)) <= 1e-12 * max(1.0, np.abs(p).max()):
+            raise DegenerateInputError(f"all robots coincide in the {name} configuration; separate them")
+        sv = np.linalg.svd(X, compute_uv=False)
+        if p.shape[1] == 3 and p.shape[0] >= 3 and sv[1] <= 1e-6 * sv[0]:
+            raise DegenerateInputError(
+                f"the {name} robots are collinear: for three or more robots in space the shaped metric "
+                "jumps there (the spin about their line moves no mass, docs/planning.md); move one robot "
+                "off the line or plan in the plane (d = 2)"
+            )
+    return a, b, m
+
+
+def _two_body_bound(a, b, alpha):
+    """Seed 002 item 3 of docs/derivations.md: two bodies have a geodesic only if the relative
+    direction turns by less than ``pi / k``, ``k = sqrt((1 - alpha) / alpha)`` (a cone)."""
+    d0, d1 = a[0] - a[1], b[0] - b[1]
+    turn = float(np.arccos(np.clip(d0 @ d1 / (np.linalg.norm(d0) * np.linalg.norm(d1)), -1.0, 1.0)))
+    k = np.sqrt((1.0 - alpha) / alpha)
+    if alpha != 0.5 and k * turn >= np.pi * (1.0 - 1e-9):
+        raise ConvergenceError(
+            f"no geodesic of the shaped metric for alpha = {alpha:g}: the two robots' relative direction "
+            f"turns by {turn:.4g} rad, and a geodesic exists only for alpha > {1.0 / (1.0 + (np.pi / turn) ** 2):.4g} "
+            "(the shaped metric is a cone in the relative position, docs/planning.md); below, the "
+            "energy-minimising motion passes through the robots meeting - raise alpha"
+        )
+
+
+def _side_step(a, b, m, s, scale):
+    """Initial-guess correction where the straight lines make two robots meet.
+
+    Off ``alpha = 0.5`` the metric is singular where robots meet, and the straight line
+    through such a point is symmetric (a swap can turn either way): the guess is bent
+    sideways by 0.2 of the formation's size for the closest pair, centre of mass kept.
+    Returns the change of ``(q, q')``, shape ``(2 N d, K)``; zero when no pair comes
+    within 5 % of the size.
+    """
+    N, d = a.shape
+    fine = np.linspace(0.0, 1.0, 201)[:, None, None]
+    lines = (1.0 - fine) * a + fine * b
+    D = np.where(np.eye(N, dtype=bool), np.inf, np.linalg.norm(lines[:, :, None] - lines[:, None], axis=-1))
+    k, i, j = np.unravel_index(int(np.argmin(D)), D.shape)
+    out = np.zeros((2 * N * d, s.size))
+    if D[k, i, j] >= 0.05 * scale:
+        return out
+    w = (b[i] - a[i]) - (b[j] - a[j])
+    if d == 2:
+        nrm = np.array([-w[1], w[0]])
+    else:
+        nrm = np.cross(w, np.eye(3)[int(np.argmin(np.abs(w)))])
+    nrm = nrm / max(np.linalg.norm(nrm), 1e-300)
+    bump, rate = 0.2 * scale * np.sin(np.pi * s), 0.2 * scale * np.pi * np.cos(np.pi * s)
+    for r, share in ((i, m[j] / (m[i] + m[j])), (j, -m[i] / (m[i] + m[j]))):
+        out[r * d:(r + 1) * d] += share * np.outer(nrm, bump)
+        out[N * d + r * d:N * d + (r + 1) * d] += share * np.outer(nrm, rate)
+    return out
+
+
+def _fun(masses, alpha, n):
+    def f(s, y):
+        q, qd = y[:n].T, y[n:].T
+        return np.concatenate([y[n:], geodesic_acceleration(q, qd, masses, alpha).T], axis=0)
+    return f
+
+
+def _fun_jac(masses, alpha, n):
+    """``d f / d y`` of the first-order system ``y = (q, q̇)``, shape ``(2n, 2n, m)``."""
+    def jac(s, y):
+        Jq, Jv = geodesic_jacobian(y[:n].T, y[n:].T, masses, alpha)
+        out = np.zeros((2 * n, 2 * n, y.shape[1]))
+        out[:n, n:] = np.eye(n)[:, :, None]
+        out[n:, :n] = np.moveaxis(Jq, 0, -1)
+        out[n:, n:] = np.moveaxis(Jv, 0, -1)
+        return out
+    return jac
+
+
+def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int = 2000,
+                   min_step: float = 1e-2) -> GeodesicSolution:
+    """Geodesic of the shaped metric from ``q0`` (s = 0) to ``q1`` (s = 1).
+
+    Parameters
+    ----------
+    q0, q1 : array_like, shape (N, d)
+        Start and goal positions of the N robots, m (``d = 2`` or 3).
+    masses : array_like, shape (N,)
+        Only their ratios matter (seed 002 §5).
+    alpha : float
+        Shaping weight in ``(0, 1)``: 0.5 straight lines, towards 1 rigid, towards 0 clustering.
+    tol : float
+        ``solve_bvp`` residual tolerance.
+    max_nodes : int
+        ``solve_bvp`` mesh limit.
+    min_step : float
+        Smallest continuation step in ``alpha`` before giving up.
+
+    Raises
+    ------
+    ConvergenceError
+        No geodesic found, or the one found fails the forward-integration or energy check.
+    """
+    a0, b0, m = _check_ends(q0, q1, masses)
+    target = check_alpha(alpha)
+    if m.size == 2:
+        _two_body_bound(a0, b0, target)
+    N, d = a0.shape
+    n = N * d
+    qa, qb = a0.reshape(-1), b0.reshape(-1)
+    travel = float(np.max(np.linalg.norm(b0 - a0, axis=1)))
+    scale = max(travel, float(np.max(np.linalg.norm(a0 - a0.mean(axis=0), axis=1))))
+    t_start = time.perf_counter()
+
+    s = np.linspace(0.0, 1.0, 21)
+    y = np.concatenate([qa[:, None] + np.outer(qb - qa, s), np.repeat((qb - qa)[:, None], s.size, 1)])
+    if target != 0.5:
+        y = y + _side_step(a0, b0, m, s, scale)
+
+    def bc(ya, yb):
+        return np.concatenate([ya[:n] - qa, yb[:n] - qb])
+
+    def bc_jac(ya, yb):
+        sel = np.hstack([np.eye(n), np.zeros((n, n))])
+        zero = np.zeros_like(sel)
+        return np.vstack([sel, zero]), np.vstack([zero, sel])
+
+    cur, step, done, sol = 0.5, 0.1 * np.sign(target - 0.5), [], None
+    while True:
+        nxt = target if abs(target - cur) <= abs(step) else cur + step
+        try:
+            res = solve_bvp(_fun(m, nxt, n), bc, s, y, tol=tol, max_nodes=max_nodes,
+                            fun_jac=_fun_jac(m, nxt, n), bc_jac=bc_jac)
+            ok = res.status == 0 and np.all(np.isfinite(res.y))
+            why = res.message
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            ok, why = False, f"{type(exc).__name__}: {exc}"
+        if ok:
+            cur, sol = nxt, res
+            done.append(float(cur))
+            s, y = res.x, res.y
+            if cur == target:
+                break
+            step *= 1.5
+        else:
+            step /= 2.0
+            if abs(step) < min_step:
+                where = (f"the continuation from alpha = 0.5 stalled at alpha = {cur:.4g}"
+                         if done else "no geodesic was found")
+                raise ConvergenceError(
+                    f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
+                    f"(last attempt: {why}). For small alpha the "
+                    "energy-minimising motion may pass through robots meeting, where the metric is "
+                    "singular (docs/planning.md); try an alpha closer to 0.5"
+                )
+    f = _fun(m, target, n)
+    ivp = solve_ivp(f, (0.0, 1.0), sol.y[:, 0], method="DOP853", rtol=1e-11, atol=1e-12 * max(scale, 1.0),
+                    vectorized=True)
+    miss = float(np.max(np.abs(ivp.y[:n, -1] - qb))) if ivp.success else float("inf")
+    grid = np.linspace(0.0, 1.0, 401)
+    yy = sol.sol(grid)
+    E = metric_energy(yy[:n].T, yy[n:].T, m, target)
+    drift = float(np.max(np.abs(E - E[0])) / max(E[0], 1e-300))
+    if not (miss <= ENDPOINT_TOLERANCE * max(scale, 1e-9)) or not (drift <= ENERGY_TOLERANCE):
+        raise ConvergenceError(
+            f"the boundary-value solution for alpha = {target:g} is not an accurate geodesic: integrating "
+            f"its initial velocity misses the goal by {miss:.3g} m and the energy drifts by {drift:.2g} "
+            "(relative); the geodesic flow is too sensitive here - try an alpha closer to 0.5"
+        )
+    return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
+                            time.perf_counter() - t_start, sol.sol)
+
+
+def plan_from_geodesic(sol: GeodesicSolution, duration_s: float, knots: int = 201, info: dict | None = None):
+    """The geodesic as a :class:`~quatform.planning.plan.Plan` over ``[0, duration_s]``.
+
+    A geodesic keeps its shape under ``t = s T`` (constant speed): positions from the
+    collocation solution at ``knots`` uniform times, velocities ``q'/T`` and accelerations
+    ``q''/T^2`` with ``q''`` from the geodesic equation (seed 002 eq. (15)).
+    """
+    from .plan import Plan
+
+    T = float(duration_s)
+    if not (np.isfinite(T) and T > 0):
+        raise InvalidInputError(f"duration_s must be a positive number of seconds, got {duration_s!r}")
+    if int(knots) < 2:
+        raise InvalidInputError(f"knots must be at least 2, got {knots!r}")
+    s = np.linspace(0.0, 1.0, int(knots))
+    q, qd = sol.state(s)
+    qdd = sol.acceleration(q, qd)
+    N, d = sol.masses.size, sol.dim
+    shape = (s.size, N, d)
+    return Plan(s * T, q.reshape(shape), (qd / T).reshape(shape), (qdd / (T * T)).reshape(shape), sol.masses,
+                dict(info or {}))
