@@ -74,6 +74,9 @@ def _build_parser() -> argparse.ArgumentParser:
                      help="formation description of a UGV-UAV (seed 001) scenario (default: quaternion)")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+    run.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
+                     help="robot models (default) or MuJoCo physics (needs: pip install quatform[mujoco]); "
+                     "mujoco adds collisions and a time-lapse picture")
     _measurement_options(run)
 
     cmp_ = sub.add_parser(
@@ -108,6 +111,22 @@ def _compare(scenario, out, args=None):
     print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 
 
+def _print_run(metrics, columns=None):
+    """The run's table row; a physics run: the kinematic row above it, and its collisions."""
+    from .runs import TABLE_COLUMNS, format_table, physics_rows
+
+    columns = columns or TABLE_COLUMNS
+    if metrics.get("backend") != "mujoco":
+        print(format_table([metrics], columns))
+        return
+    print(format_table(physics_rows(metrics), columns))
+    c = metrics["collisions"]
+    print(f"\ncollisions: {c['count']}" + (f" (first at t = {c['first_time_s']:.2f} s: {', '.join(c['bodies'])})"
+                                           if c["count"] else ""))
+    if metrics.get("render"):
+        print(f"picture: {metrics['render']} ({metrics['render_backend']})")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -121,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
             _compare(args.scenario, args.out, args)
         elif args.command == "run":
             from .errors import InvalidInputError
-            from .runs import UGV_UAV_COLUMNS, format_table, run_scenario, run_ugv_uav
+            from .runs import UGV_UAV_COLUMNS, run_scenario, run_ugv_uav
             from .sim import load_scenario
 
             sc = _with_measurement(load_scenario(args.scenario), args)
@@ -130,8 +149,9 @@ def main(argv: list[str] | None = None) -> int:
                     raise InvalidInputError(
                         f"{sc.name} is a UGV-UAV scenario: choose its description with --formation "
                         f"{{{','.join(FORMATION_NAMES)}}}, not --controller")
-                _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots)
-                print(format_table([metrics], UGV_UAV_COLUMNS))
+                _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots,
+                                         backend=args.backend)
+                _print_run(metrics, UGV_UAV_COLUMNS)
             else:
                 if args.formation is not None:
                     raise InvalidInputError(f"{sc.name} is a two-robot scenario: --formation does not apply")
@@ -139,8 +159,9 @@ def main(argv: list[str] | None = None) -> int:
                     raise InvalidInputError(
                         f"{sc.name} is a two-robot scenario: give --controller "
                         f"{{{','.join(CONTROLLER_NAMES)}}}")
-                _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots)
-                print(format_table([metrics]))
+                _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots,
+                                          backend=args.backend)
+                _print_run(metrics)
         elif args.command == "scenarios":
             from .sim import builtin_scenarios, load_scenario
 

@@ -17,6 +17,7 @@ __all__ = [
     "DegenerateInputError",
     "NotARotationError",
     "UnreachableError",
+    "MissingDependencyError",
 ]
 
 
@@ -50,3 +51,8 @@ class NotARotationError(InvalidInputError):
 
 class UnreachableError(InvalidInputError):
     """A state or reference that the robots or the chosen description cannot reach."""
+
+
+class MissingDependencyError(QuatformError, ImportError):
+    """An optional package that the requested feature needs is not installed (the message
+    names the ``pip install`` command)."""
