@@ -88,6 +88,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
+    cmp_.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
+                      help="robot models (default) or MuJoCo physics (two-robot scenarios)")
     _measurement_options(cmp_)
 
     sub.add_parser("scenarios", help="list the built-in scenarios",
@@ -103,10 +105,15 @@ def _compare(scenario, out, args=None):
     if args is not None:
         sc = _with_measurement(sc, args)
     if hasattr(sc, "mocap_noise_m"):
+        if getattr(args, "backend", "kinematic") != "kinematic":
+            from .errors import InvalidInputError
+
+            raise InvalidInputError("compare --backend mujoco takes two-robot scenarios; run a UGV-UAV one "
+                                    "with: quatform run SCENARIO --backend mujoco")
         print(format_table(compare_ugv_uav(sc, out), UGV_UAV_COLUMNS))
         print(f"\nfiles in {out}/ (one folder per formation, compare_formations.png, comparison.md)")
         return
-    rows = compare_scenario(sc, out)
+    rows = compare_scenario(sc, out, backend=getattr(args, "backend", "kinematic"))
     print(format_table(rows))
     print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 

@@ -131,7 +131,8 @@ def _check_backend(backend):
 
 
 #: Metrics of the kinematic run that a physics run's ``metrics.json`` repeats beside its own.
-_COMPARED_KEYS = ("reference_lost", "nonfinite_commands", "first_lost_time_s", "first_singular_time_s", "max_cluster_position_error_m",
+_COMPARED_KEYS = ("reference_lost", "nonfinite_commands", "unreachable_reference", "max_unexplained_cluster_jump",
+                  "first_lost_time_s", "first_singular_time_s", "max_cluster_position_error_m",
                   "max_shape_error_m", "max_orientation_error_rad", "max_robot_position_error_m",
                   "max_robot_yaw_error_rad", "max_recovered_euclidean_error_rad", "min_robot_separation_m",
                   "max_ugv_position_error_m", "max_uav_position_error_m", "max_uav_yaw_error_rad")
@@ -204,17 +205,18 @@ def format_table(rows, columns=TABLE_COLUMNS) -> str:
     return "\n".join(lines)
 
 
-def compare_scenario(scenario, out, quiet: bool = False):
+def compare_scenario(scenario, out, quiet: bool = False, backend: str = "kinematic"):
     """Run every controller; write their folders, ``compare_errors.png``, ``separation.png``,
-    ``comparison.json`` and ``comparison.md``; return the metrics rows."""
+    ``comparison.json`` and ``comparison.md``; return the metrics rows (a physics backend:
+    each run's kinematic row above its own)."""
     sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs, rows = [], []
     for name in CONTROLLERS:
-        run, m = run_scenario(sc, name, out / name, quiet=quiet)
+        run, m = run_scenario(sc, name, out / name, quiet=quiet, backend=backend)
         runs.append(run)
-        rows.append(m)
+        rows.extend(physics_rows(m) if backend == "mujoco" else [m])
     from .report import write_compare_plots
 
     write_compare_plots(runs, out)

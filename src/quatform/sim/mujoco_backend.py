@@ -51,7 +51,7 @@ __all__ = ["IRIS_IDENTIFIED_K", "ContactMonitor", "PhysicsRecord", "PhysicsWorld
 #: attitude mode by :func:`identify_k` (steps and chirps, least squares; see
 #: ``docs/physics.md``). Seed 001 Table 2 for the Bebop 2: 0.8417, 0.1823, 0.8354, 0.1710,
 #: 3.966, 4.001, 9.8524, 4.7295.
-IRIS_IDENTIFIED_K = (0.8067, 0.1714, 0.8067, 0.1714, 3.856, 3.784, 9.565, 4.663)
+IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 
 
 def import_mujoco():

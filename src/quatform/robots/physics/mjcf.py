@@ -39,7 +39,7 @@ def world_mjcf(bodies, actuators, timestep: float = 0.0025, floor_z: float = 0.0
     return "\n".join([
         '<mujoco model="quatform">',
         f'  <option timestep="{timestep:g}" integrator="{integrator}" gravity="0 0 -9.81"{fluid}/>',
-        ('  <visual><global offwidth="1600" offheight="1200"/><quality shadowsize="4096"/>'
+        ('  <visual><global offwidth="1600" offheight="1200"/>'
         '<headlight ambient="0.35 0.35 0.35" diffuse="0.5 0.5 0.5"/></visual>'),
         "  <asset>",
         ('    <texture name="grid" type="2d" builtin="checker" rgb1="0.82 0.84 0.86" rgb2="0.72 0.74 0.77" '
@@ -49,7 +49,7 @@ def world_mjcf(bodies, actuators, timestep: float = 0.0025, floor_z: float = 0.0
         'width="256" height="256"/>'),
         "  </asset>",
         "  <worldbody>",
-        '    <light name="sun" directional="true" pos="0 0 10" dir="0.3 0.2 -1" diffuse="0.6 0.6 0.6" castshadow="true"/>',
+        '    <light name="sun" directional="true" pos="0 0 10" dir="0.3 0.2 -1" diffuse="0.6 0.6 0.6" castshadow="false"/>',
         f'    <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 {floor_z:g}" material="grid"/>',
         *("    " + line for b in bodies for line in b.splitlines()),
         "  </worldbody>",
