@@ -53,9 +53,9 @@ def test_mixer_round_trip_and_saturation():
     cas = QuadrotorCascade()
     A = IRIS.mixer()
     wrench = np.array([15.0, 0.2, -0.1, 0.05])
-    f = cas.mix(wrench[0], wrench[1:])
+    f = np.array(cas.mix(wrench[0], wrench[1:]))
     assert np.allclose(A @ f, wrench, atol=1e-12)
-    f = cas.mix(40.0, np.array([3.0, 0.0, 1.0]))  # beyond the rotors: clipped to [0, f_max]
+    f = np.array(cas.mix(40.0, [3.0, 0.0, 1.0]))  # beyond the rotors: clipped to [0, f_max]
     assert f.min() >= 0.0 and f.max() <= IRIS.max_thrust + 1e-12
 
 

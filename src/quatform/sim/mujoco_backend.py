@@ -242,7 +242,7 @@ class PhysicsWorld:
 
     # -- commands and stepping --------------------------------------------------------
     def command_quad(self, name, u):
-        self._quad_cmd[name] = np.where(np.isfinite(u), np.asarray(u, dtype=float), 0.0)
+        self._quad_cmd[name] = np.where(np.isfinite(u), np.asarray(u, dtype=float), 0.0).tolist()
 
     def command_ugv(self, name, v_omega):
         self._ugv_cmd[name] = np.asarray(v_omega, dtype=float)
@@ -254,17 +254,20 @@ class PhysicsWorld:
         for name in self.ugv_names:
             w = wheel_speeds(*self._ugv_cmd[name], params=self.ugv_params)
             d.ctrl[self._wheels[name]] = w
+        R = np.empty(9)
+        quads = [(self._qadr[nm], self._vadr[nm], self._motors[nm], self._body[nm], self.cascades[nm],
+                  self._quad_cmd[nm]) for nm in self.quad_names]
+        velocity = self.quad_mode == "velocity"
         for _ in range(n):
-            for name in self.quad_names:
-                _, v, R, w, _ = self.quad_pose(name)
-                cas, u = self.cascades[name], self._quad_cmd[name]
-                if self.quad_mode == "velocity":
-                    f = cas.velocity_mode(u[0:3], u[3], v, R, w, dt)
+            for a, va, motors, body, cas, u in quads:
+                mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+                Rl, vw = R.tolist(), d.qvel[va:va + 6].tolist()
+                if velocity:
+                    f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
                 else:
-                    f = cas.attitude_mode(u, v, R, w)
-                d.ctrl[self._motors[name]] = f
-                thrust = d.actuator_force[self._motors[name]]
-                d.xfrc_applied[self._body[name], 0:3] = cas.rotor_drag(thrust, v, R)
+                    f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
+                d.ctrl[motors] = f
+                d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
             mj.mj_step(m, d)
             self.contacts.check(m, d)
 

@@ -44,7 +44,7 @@ def world_mjcf(bodies, actuators, timestep: float = 0.0025, floor_z: float = 0.0
         "  <asset>",
         ('    <texture name="grid" type="2d" builtin="checker" rgb1="0.82 0.84 0.86" rgb2="0.72 0.74 0.77" '
         'width="512" height="512"/>'),
-        '    <material name="grid" texture="grid" texrepeat="1 1" texuniform="true" reflectance="0.05"/>',
+        '    <material name="grid" texture="grid" texrepeat="1 1" texuniform="true" reflectance="0"/>',
         ('    <texture name="sky" type="skybox" builtin="gradient" rgb1="0.75 0.85 0.95" rgb2="1 1 1" '
         'width="256" height="256"/>'),
         "  </asset>",

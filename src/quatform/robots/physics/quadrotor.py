@@ -108,16 +108,14 @@ class QuadrotorParams:
 IRIS = QuadrotorParams()
 
 
-def _cross(a, b) -> np.ndarray:
-    """``a x b`` of two 3-vectors (``np.cross`` costs ~20 us per call on one vector)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+def _floats(x) -> list:
+    """A flat list of Python floats (rows first) from a list or an array."""
+    return x if type(x) is list else np.ravel(x).tolist()
 
 
-def _vee_skew_error(Rd, R):
-    """``1/2 vee(R_d^T R - R^T R_d)`` (Lee et al. 2010, eq. (10))."""
-    E = Rd.T @ R
-    M = 0.5 * (E - E.T)
-    return np.array([M[2, 1], M[0, 2], M[1, 0]])
+def _cross(a, b) -> tuple:
+    """``a x b`` of two 3-vectors of floats (``np.cross`` costs ~20 us per call on one vector)."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 @dataclass
@@ -168,17 +166,20 @@ class QuadrotorCascade:
                 raise InvalidInputError(f"QuadrotorCascade {name} must be positive and finite, got {v!r}")
         if not self.tilt_max < 0.5 * math.pi:
             raise InvalidInputError(f"tilt_max must be below pi/2, got {self.tilt_max!r}")
-        self._vp = np.asarray(self.vel_p, dtype=float)
-        self._vi = np.asarray(self.vel_i, dtype=float)
-        self._kr = np.asarray(self.rate_p, dtype=float)
-        self._J = np.asarray(self.params.inertia, dtype=float)
-        self._mix_inv = np.linalg.inv(self.params.mixer())
+        # the loops run every physics step on one vehicle: Python floats, not 3-vectors of
+        # NumPy (each NumPy call on a 3-vector costs about a microsecond)
+        self._vp = [float(x) for x in self.vel_p]
+        self._vi = [float(x) for x in self.vel_i]
+        self._J = [float(x) for x in self.params.inertia]
+        self._kJ = [j * float(k) for j, k in zip(self._J, self.rate_p)]
+        self._mix_inv = np.linalg.inv(self.params.mixer()).tolist()
         self._fmax = self.params.max_thrust
+        self._tan_tilt = math.tan(self.tilt_max)
         self.reset()
 
     def reset(self):
         """Clear the velocity integrator."""
-        self._integral = np.zeros(3)
+        self._integral = [0.0, 0.0, 0.0]
 
     # -- outer loops ------------------------------------------------------------------
     def velocity_mode(self, v_cmd, yaw_rate_cmd: float, v, R, omega, dt: float) -> np.ndarray:
@@ -193,70 +194,95 @@ class QuadrotorCascade:
         omega : (3,) body-frame angular velocity, rad/s
         dt : float, s (the integrator's step)
         """
-        err = np.asarray(v_cmd, dtype=float) - v
-        self._integral = np.clip(self._integral + self._vi * err * dt, -self.vel_i_limit, self.vel_i_limit)
-        a = self._vp * err + self._integral
+        lim_i = self.vel_i_limit
+        a = [0.0, 0.0, 0.0]
+        v_cmd, v = _floats(v_cmd), _floats(v)
+        for i in range(3):
+            err = v_cmd[i] - v[i]
+            self._integral[i] = min(max(self._integral[i] + self._vi[i] * err * dt, -lim_i), lim_i)
+            a[i] = self._vp[i] * err + self._integral[i]
         m, g = self.params.mass, GRAVITY
         fz = m * (g + min(max(a[2], -0.7 * g), g))
-        fxy = m * a[0:2]
-        nxy = math.hypot(fxy[0], fxy[1])
-        lim = fz * math.tan(self.tilt_max)
+        fx, fy = m * a[0], m * a[1]
+        nxy = math.hypot(fx, fy)
+        lim = fz * self._tan_tilt
         if nxy > lim:  # tilt limit: the horizontal demand gives way to altitude
-            fxy = fxy * (lim / nxy)
-        return self._attitude_chain(np.array([fxy[0], fxy[1], fz]), yaw_rate_cmd, v, R, omega)
+            fx, fy = fx * lim / nxy, fy * lim / nxy
+        return np.array(self._attitude_chain(fx, fy, fz, float(yaw_rate_cmd), _floats(R), _floats(omega)))
 
     def attitude_mode(self, u, v, R, omega) -> np.ndarray:
         """Rotor forces (4,) for a Bebop-like command ``(u_x, u_y, u_z, u_psi)`` in [-1, 1]
         (seed 001 eq. (3.6)): pitch and roll fractions of ``bebop_tilt_max`` in the heading
         frame, climb-rate and yaw-rate fractions."""
-        u = np.clip(np.where(np.isfinite(u), u, 0.0), -1.0, 1.0)
+        u = [min(max(float(x), -1.0), 1.0) if math.isfinite(x) else 0.0 for x in u]
         m, g = self.params.mass, GRAVITY
-        az = self.bebop_climb_p * (u[2] * self.bebop_climb_max - v[2])
+        az = self.bebop_climb_p * (u[2] * self.bebop_climb_max - float(v[2]))
         fz = m * (g + min(max(az, -0.7 * g), g))
         tx, ty = math.tan(u[0] * self.bebop_tilt_max), math.tan(u[1] * self.bebop_tilt_max)
-        c, s = R[0, 0], R[1, 0]
+        Rl = _floats(R)
+        c, s = Rl[0], Rl[3]
         h = math.hypot(c, s) or 1.0
         c, s = c / h, s / h
-        F = fz * np.array([c * tx - s * ty, s * tx + c * ty, 1.0])
-        return self._attitude_chain(F, u[3] * self.bebop_yaw_rate_max, v, R, omega)
+        return np.array(self._attitude_chain(fz * (c * tx - s * ty), fz * (s * tx + c * ty), fz,
+                                             u[3] * self.bebop_yaw_rate_max, Rl, _floats(omega)))
 
     # -- inner loops ------------------------------------------------------------------
-    def _attitude_chain(self, F, yaw_rate_cmd, v, R, omega) -> np.ndarray:
-        """Thrust vector -> attitude set point (heading kept) -> rates -> torques -> forces."""
-        b3d = F / np.linalg.norm(F)
-        xc = np.array([R[0, 0], R[1, 0], 0.0])  # the current heading
-        if xc @ xc < 1e-12:
-            xc = np.array([1.0, 0.0, 0.0])
-        b2d = _cross(b3d, xc)
-        b2d /= np.linalg.norm(b2d)
-        Rd = np.column_stack([_cross(b2d, b3d), b2d, b3d])
-        e_R = _vee_skew_error(Rd, R)
-        w_sp = -self.att_p * e_R
-        w_sp[2] = 0.0  # heading is rate-controlled
-        w_sp = w_sp + yaw_rate_cmd * R[2, :]  # world z rate in body axes
-        thrust = max(float(F @ R[:, 2]), 0.0)
-        J = self._J
-        tau = J * self._kr * (w_sp - omega) + _cross(omega, J * omega)
+    def _attitude_chain(self, fx, fy, fz, yaw_rate, R, w) -> list:
+        """Thrust vector -> attitude set point (heading kept) -> rates -> torques -> forces.
+
+        ``R``: the rotation's 9 entries row by row; ``w``: body rates; all Python floats.
+        """
+        n = math.sqrt(fx * fx + fy * fy + fz * fz)
+        b3 = (fx / n, fy / n, fz / n)
+        xc = (R[0], R[3], 0.0) if R[0] * R[0] + R[3] * R[3] > 1e-12 else (1.0, 0.0, 0.0)  # the heading
+        b2 = _cross(b3, xc)
+        nb = math.sqrt(b2[0] * b2[0] + b2[1] * b2[1] + b2[2] * b2[2])
+        b2 = (b2[0] / nb, b2[1] / nb, b2[2] / nb)
+        b1 = _cross(b2, b3)
+        # e_R = 1/2 vee(Rd^T R - R^T Rd), (Rd^T R)_ij = (column i of Rd) . (column j of R)
+        cols = ((R[0], R[3], R[6]), (R[1], R[4], R[7]), (R[2], R[5], R[8]))
+
+        def E(di, j):
+            c = cols[j]
+            return di[0] * c[0] + di[1] * c[1] + di[2] * c[2]
+
+        e = (0.5 * (E(b3, 1) - E(b2, 2)), 0.5 * (E(b1, 2) - E(b3, 0)))
+        # rate set point: attitude P on roll and pitch; the yaw rate (world z) in body axes
+        kp = self.att_p
+        w_sp = (-kp * e[0] + yaw_rate * R[6], -kp * e[1] + yaw_rate * R[7], yaw_rate * R[8])
+        thrust = max(fx * R[2] + fy * R[5] + fz * R[8], 0.0)
+        J, kJ = self._J, self._kJ
+        Jw = (J[0] * w[0], J[1] * w[1], J[2] * w[2])
+        gyro = _cross(w, Jw)
+        tau = [kJ[i] * (w_sp[i] - w[i]) + gyro[i] for i in range(3)]
         return self.mix(thrust, tau)
 
-    def mix(self, thrust: float, tau) -> np.ndarray:
-        """Rotor forces for collective thrust and body torques, within ``[0, f_max]``.
+    def mix(self, thrust: float, tau) -> list:
+        """Rotor forces (4 floats) for collective thrust and body torques, within ``[0, f_max]``.
 
         Roll and pitch come first: when a rotor would leave its range the yaw torque is
         dropped, then the forces are clipped (PX4's mixer likewise gives up yaw first).
         """
-        f = self._mix_inv @ np.array([thrust, tau[0], tau[1], tau[2]])
-        if f.min() < 0.0 or f.max() > self._fmax:
-            f = self._mix_inv @ np.array([thrust, tau[0], tau[1], 0.0])
-        return np.clip(f, 0.0, self._fmax)
+        M, fmax = self._mix_inv, self._fmax
+        t0, t1, t2, t3 = float(thrust), float(tau[0]), float(tau[1]), float(tau[2])
+        f = [r[0] * t0 + r[1] * t1 + r[2] * t2 + r[3] * t3 for r in M]
+        if min(f) < 0.0 or max(f) > fmax:
+            f = [r[0] * t0 + r[1] * t1 + r[2] * t2 for r in M]
+        return [min(max(x, 0.0), fmax) for x in f]
 
-    def rotor_drag(self, forces, v, R) -> np.ndarray:
-        """World-frame in-plane rotor drag, N: ``-c sum_i(omega_i) v_perp`` (RotorS motor model)."""
+    def rotor_drag(self, forces, v, R) -> tuple:
+        """World-frame in-plane rotor drag, N: ``-c sum_i(omega_i) v_perp`` (RotorS motor model).
+
+        ``R``: the rotation (3, 3) or its 9 entries row by row.
+        """
         p = self.params
-        speed = np.sqrt(np.maximum(forces, 0.0) / p.motor_constant).sum()
-        vb = R.T @ v
-        vb[2] = 0.0
-        return -(p.rotor_drag_coefficient * speed) * (R @ vb)
+        speed = sum(math.sqrt(max(float(f), 0.0) / p.motor_constant) for f in forces)
+        Rl = _floats(R)
+        vx, vy, vz = _floats(v)
+        bx = Rl[0] * vx + Rl[3] * vy + Rl[6] * vz  # body x, y components (R^T v)
+        by = Rl[1] * vx + Rl[4] * vy + Rl[7] * vz
+        k = -p.rotor_drag_coefficient * speed
+        return (k * (Rl[0] * bx + Rl[1] * by), k * (Rl[3] * bx + Rl[4] * by), k * (Rl[6] * bx + Rl[7] * by))
 
 
 def quadrotor_mjcf(name: str, pos, yaw: float = 0.0, rgba=(0.2, 0.3, 0.8, 1.0),
