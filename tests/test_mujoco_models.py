@@ -4,14 +4,18 @@ differential drive, and the identification of seed 001 eq. (3.11) from the simul
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
 
-if not os.environ.get("DISPLAY"):  # offscreen GL is chosen when mujoco is first imported
-    os.environ.setdefault("MUJOCO_GL", "egl")
-mujoco = pytest.importorskip("mujoco")
+from quatform.errors import MissingDependencyError
+from quatform.sim.mujoco_backend import import_mujoco
+
+try:  # quatform's import first: it picks the offscreen OpenGL before mujoco loads one
+    import_mujoco()
+except MissingDependencyError:
+    pass
+mujoco = pytest.importorskip("mujoco")  # the optional extra
 
 from quatform.errors import InvalidInputError
 from quatform.robots import Pioneer

@@ -10,9 +10,14 @@ import os
 import numpy as np
 import pytest
 
-if not os.environ.get("DISPLAY"):  # offscreen GL is chosen when mujoco is first imported
-    os.environ.setdefault("MUJOCO_GL", "egl")
-mujoco = pytest.importorskip("mujoco")
+from quatform.errors import MissingDependencyError
+from quatform.sim.mujoco_backend import import_mujoco
+
+try:  # quatform's import first: it picks the offscreen OpenGL before mujoco loads one
+    import_mujoco()
+except MissingDependencyError:
+    pass
+mujoco = pytest.importorskip("mujoco")  # the optional extra
 
 from quatform.cli import main
 from quatform.sim import compute_metrics, load_scenario, simulate
@@ -105,3 +110,38 @@ def test_cli_runs_the_physics_backend_and_writes_collisions_and_picture(tmp_path
     assert "max_shape_error_m" in m["kinematic"]
     text = capsys.readouterr().out
     assert "dual-quaternion (kinematic)" in text and "dual-quaternion (mujoco)" in text and "collisions: 0" in text
+
+
+def test_picture_falls_back_to_matplotlib_without_offscreen_gl(tmp_path):
+    """MUJOCO_GL=disable: the physics runs, the picture is matplotlib's and says why."""
+    import subprocess
+    import sys
+
+    toml = tmp_path / "short.toml"
+    toml.write_text('name = "short"\nduration_s = 1.0\n[path]\ncentroid = "line"\ncenter = [0.0, 0.0, 2.0]\n')
+    out = tmp_path / "run"
+    env = dict(os.environ, MUJOCO_GL="disable")
+    code = ("import sys; from quatform.cli import main; sys.exit(main(['run', sys.argv[1], '--backend', "
+            "'mujoco', '--controller', 'quaternion', '--out', sys.argv[2]]))")
+    res = subprocess.run([sys.executable, "-c", code, str(toml), str(out)], env=env, capture_output=True,
+                         text=True, check=False, timeout=120)
+    assert res.returncode == 0, res.stderr
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["render"] == "time_lapse.png" and (out / "time_lapse.png").stat().st_size > 10_000
+    assert m["render_backend"].startswith("matplotlib (MUJOCO_GL=disable")
+
+
+def test_time_lapse_renders_offscreen(tmp_path):
+    from matplotlib.image import imread
+
+    from quatform.report.physics_render import render_time_lapse
+
+    sc = _pair({"velocity": [0.0, 0.3, 0.0]}, 1.0, z=2.0)
+    _, rec = simulate_physics(sc, "dual-quaternion")
+    try:
+        path = render_time_lapse(rec, tmp_path / "t.png", n_snapshots=3, width=320, height=240)
+    except Exception as exc:  # noqa: BLE001 - whichever way the OpenGL of this machine fails
+        pytest.skip(f"no offscreen OpenGL here ({type(exc).__name__}: {exc})")
+    img = imread(path)
+    assert img.shape[:2] == (240, 320)
+    assert img[..., :3].std() > 0.02  # a scene, not a blank frame

@@ -12,6 +12,7 @@ time-lapse with matplotlib from the same physics states and says so.
 from __future__ import annotations
 
 import math
+import os
 from itertools import pairwise
 from pathlib import Path
 
@@ -110,7 +111,7 @@ def render_or_fallback(record, run, path, **kw) -> tuple[Path, str]:
     try:
         return render_time_lapse(record, path, **kw), "mujoco"
     except Exception as exc:  # noqa: BLE001 - any GL failure: fall back, and say why
-        reason = f"{type(exc).__name__}: {exc}".splitlines()[0][:200]
+        reason = f"MUJOCO_GL={os.environ.get('MUJOCO_GL', '')}: {type(exc).__name__}: {exc}".splitlines()[0][:200]
     if hasattr(run, "ugv"):
         from .ugv_uav_plots import plot_ugv_uav_paths_3d
 

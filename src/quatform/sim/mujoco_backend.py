@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import math
 import os
+import sys
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -58,7 +60,10 @@ def import_mujoco():
     """The ``mujoco`` module, imported on first use.
 
     With no display (``DISPLAY`` unset) and no ``MUJOCO_GL`` chosen, offscreen rendering
-    uses EGL (Debian: ``libegl1``, ``libegl-mesa0``, ``libgl1-mesa-dri``).
+    uses EGL (Debian: ``libegl1``, ``libegl-mesa0``, ``libgl1-mesa-dri``). Where the chosen
+    OpenGL library is missing (MuJoCo loads it at import), MuJoCo is loaded without
+    rendering (``MUJOCO_GL=disable``) with a ``RuntimeWarning``: the physics runs, the
+    pictures fall back to matplotlib.
     """
     if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
         os.environ["MUJOCO_GL"] = "egl"
@@ -69,6 +74,15 @@ def import_mujoco():
             f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
             "install it with: pip install quatform[mujoco]"
         ) from None
+    except Exception as exc:  # noqa: BLE001 - mujoco loads the chosen OpenGL at import
+        # the OpenGL library MUJOCO_GL names is missing: physics without MuJoCo pictures
+        warnings.warn(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} failed ({type(exc).__name__}: {exc}); "
+                      "MuJoCo runs without offscreen rendering (pictures fall back to matplotlib); "
+                      "see docs/physics.md for the packages", RuntimeWarning, stacklevel=2)
+        for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
+            del sys.modules[name]
+        os.environ["MUJOCO_GL"] = "disable"
+        import mujoco
     return mujoco
 
 
