@@ -96,6 +96,10 @@ def test_ugv_and_quadrotor_hold_the_formation_with_identified_compensation():
     assert rec.collisions["count"] == 0  # taking off from the floor is not a collision
     assert run.uav[-1, 2] > 1.3  # in the air, 1.5 m over the platform
     assert tuple(run.scenario.controller("quaternion").bebop.k) != IRIS_IDENTIFIED_K  # the scenario keeps Table 2
+    # without the compensation (4.47) the quadrotor's 6 s velocity lag (1/K2) loses the formation
+    run_nc, _ = simulate_ugv_uav_physics(sc, "quaternion", compensation=False)
+    m_nc = ugv_uav_metrics(run_nc)
+    assert m_nc["reference_lost"] and m_nc["max_uav_position_error_m"] > 10 * m["max_uav_position_error_m"]
 
 
 def test_cli_runs_the_physics_backend_and_writes_collisions_and_picture(tmp_path, capsys):

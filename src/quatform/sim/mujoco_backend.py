@@ -226,6 +226,10 @@ class PhysicsWorld:
         self._yaw[name] = y
         return y
 
+    def continue_yaw(self, name, yaw: float):
+        """Report ``name``'s yaw continued from ``yaw`` (rad) from now on (not wrapped)."""
+        self._yaw[name] = float(yaw)
+
     def quad_pose(self, name):
         """``(position (3,), world velocity (3,), R (3, 3), body angular velocity (3,), yaw)``;
         the yaw is continued from the previous call (not wrapped)."""
@@ -331,8 +335,8 @@ def simulate_physics(scenario, controller, feedforward: bool = True, progress=No
     world = PhysicsWorld(quads=[("robot1", r0[0:3], r0[3]), ("robot2", r0[4:7], r0[7])], timestep=h,
                          cascade_options=cascade_options)
     substeps = round(scenario.dt_s / h)
-    world.quad_state("robot1"), world.quad_state("robot2")
-    world._yaw = {"robot1": float(r0[3]), "robot2": float(r0[7])}
+    world.continue_yaw("robot1", r0[3])  # yaws continued from the scenario's, not wrapped
+    world.continue_yaw("robot2", r0[7])
     qpos = []
 
     def plant(x, u, dt):
