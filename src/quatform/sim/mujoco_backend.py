@@ -33,6 +33,7 @@ from ..formations import EuclideanPair, RobotSpace
 from ..references import sample_reference
 from ..robots import Bebop
 from ..robots.physics import (
+    GRAVITY,
     IRIS,
     PIONEER_3DX,
     DiffDriveParams,
@@ -211,7 +212,7 @@ class PhysicsWorld:
         self._quad_cmd = {n: np.zeros(4) for n in self.quad_names}
         self._ugv_cmd = {n: np.zeros(2) for n in self.ugv_names}
         # start at rest: the motors already spin at hover thrust in the air
-        hover = quad_params.mass * 9.81 / 4.0
+        hover = quad_params.mass * GRAVITY / 4.0
         for n, pos, _ in quads:
             airborne = pos[2] > floor_z + quad_params.leg_height + 0.05
             for a in self._motors[n]:
@@ -231,8 +232,8 @@ class PhysicsWorld:
         self._yaw[name] = float(yaw)
 
     def quad_pose(self, name):
-        """``(position (3,), world velocity (3,), R (3, 3), body angular velocity (3,), yaw)``;
-        the yaw is continued from the previous call (not wrapped)."""
+        """``(position (3,), world velocity (3,), R (3, 3), body angular velocity (3,), yaw)``
+        at the current time; the yaw in ``(-pi, pi]`` (:meth:`quad_state` continues it)."""
         # from qpos, not xpos/xmat: after mj_step those still hold the step's start
         d, a, va = self.data, self._qadr[name], self._vadr[name]
         R = np.empty(9)

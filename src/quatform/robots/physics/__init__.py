@@ -13,16 +13,17 @@ physics stepping lives in :mod:`quatform.sim.mujoco_backend` (sim layer).
 
 from .ground import PIONEER_3DX, DiffDriveParams, diff_drive_mjcf, wheel_speeds
 from .mjcf import world_mjcf
-from .quadrotor import IRIS, QuadrotorCascade, QuadrotorParams, quadrotor_mjcf
+from .quadrotor import GRAVITY, IRIS, QuadrotorCascade, QuadrotorParams, quadrotor_mjcf
 
 __all__ = [
-           "IRIS",
-           "PIONEER_3DX",
-           "DiffDriveParams",
-           "QuadrotorCascade",
-           "QuadrotorParams",
-           "diff_drive_mjcf",
-           "quadrotor_mjcf",
-           "wheel_speeds",
-           "world_mjcf",
+    "GRAVITY",
+    "IRIS",
+    "PIONEER_3DX",
+    "DiffDriveParams",
+    "QuadrotorCascade",
+    "QuadrotorParams",
+    "diff_drive_mjcf",
+    "quadrotor_mjcf",
+    "wheel_speeds",
+    "world_mjcf",
 ]
