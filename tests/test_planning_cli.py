@@ -90,7 +90,8 @@ ROBOTS = "[robots]\nmasses = [1, 1]\nstart = [[0, 0], [1, 0]]\ngoal = [[0, 1], [
 
 
 @pytest.mark.parametrize("text,needle", [
-    ('kind = "rigid-se3"\n' + ROBOTS, "kind = 'rigid-se3'; use one of shaped-geodesic"),
+    ('kind = "straight"\n' + ROBOTS, "kind = 'straight'; use one of rigid-se3, shaped-geodesic"),
+    ('kind = "rigid-se3"\n' + ROBOTS, "exactly one of [airplanes]"),
     ('kind = "shaped-geodesic"\n[shaping]\nalpha = 0.7\n', "missing [robots] table"),
     ('kind = "shaped-geodesic"\nalpah = 0.7\n' + ROBOTS, "unknown key(s) ['alpah'] at top level"),
     ('kind = "shaped-geodesic"\n[shaping]\nalpha = 0.7\n' + ROBOTS.replace("[[0, 1], [1, 1]]", "[[0, 1]]"),

@@ -77,6 +77,9 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--reference", metavar="PLAN",
                      help="two-robot scenarios: follow this plan file (from 'quatform plan', 2 robots in "
                      "space) instead of the scenario's path; yaws held at 0")
+    run.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
+                     help="robot models (default) or MuJoCo physics (needs: pip install quatform[mujoco]); "
+                     "mujoco adds collisions and a time-lapse picture")
     _measurement_options(run)
 
     plan = sub.add_parser(
@@ -107,6 +110,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
+    cmp_.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
+                      help="robot models (default) or MuJoCo physics (two-robot scenarios)")
     _measurement_options(cmp_)
 
     tele = sub.add_parser(
@@ -142,10 +147,15 @@ def _compare(scenario, out, args=None):
     if args is not None:
         sc = _with_measurement(sc, args)
     if hasattr(sc, "mocap_noise_m"):
+        if getattr(args, "backend", "kinematic") != "kinematic":
+            from .errors import InvalidInputError
+
+            raise InvalidInputError("compare --backend mujoco takes two-robot scenarios; run a UGV-UAV one "
+                                    "with: quatform run SCENARIO --backend mujoco")
         print(format_table(compare_ugv_uav(sc, out), UGV_UAV_COLUMNS))
         print(f"\nfiles in {out}/ (one folder per formation, compare_formations.png, comparison.md)")
         return
-    rows = compare_scenario(sc, out)
+    rows = compare_scenario(sc, out, backend=getattr(args, "backend", "kinematic"))
     print(format_table(rows))
     print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 
@@ -181,6 +191,22 @@ def _plan(args):
         raise ConvergenceError(failed[0])
 
 
+def _print_run(metrics, columns=None):
+    """The run's table row; a physics run: the kinematic row above it, and its collisions."""
+    from .runs import TABLE_COLUMNS, format_table, physics_rows
+
+    columns = columns or TABLE_COLUMNS
+    if metrics.get("backend") != "mujoco":
+        print(format_table([metrics], columns))
+        return
+    print(format_table(physics_rows(metrics), columns))
+    c = metrics["collisions"]
+    print(f"\ncollisions: {c['count']}" + (f" (first at t = {c['first_time_s']:.2f} s: {', '.join(c['bodies'])})"
+                                           if c["count"] else ""))
+    if metrics.get("render"):
+        print(f"picture: {metrics['render']} ({metrics['render_backend']})")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -194,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
             _compare(args.scenario, args.out, args)
         elif args.command == "run":
             from .errors import InvalidInputError
-            from .runs import UGV_UAV_COLUMNS, format_table, run_scenario, run_ugv_uav
+            from .runs import UGV_UAV_COLUMNS, run_scenario, run_ugv_uav
             from .sim import load_scenario
 
             sc = load_scenario(args.scenario)
@@ -213,8 +239,9 @@ def main(argv: list[str] | None = None) -> int:
                     raise InvalidInputError(
                         f"{sc.name} is a UGV-UAV scenario: choose its description with --formation "
                         f"{{{','.join(FORMATION_NAMES)}}}, not --controller")
-                _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots)
-                print(format_table([metrics], UGV_UAV_COLUMNS))
+                _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots,
+                                         backend=args.backend)
+                _print_run(metrics, UGV_UAV_COLUMNS)
             else:
                 if args.formation is not None:
                     raise InvalidInputError(f"{sc.name} is a two-robot scenario: --formation does not apply")
@@ -222,8 +249,9 @@ def main(argv: list[str] | None = None) -> int:
                     raise InvalidInputError(
                         f"{sc.name} is a two-robot scenario: give --controller "
                         f"{{{','.join(CONTROLLER_NAMES)}}}")
-                _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots)
-                print(format_table([metrics]))
+                _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots,
+                                          backend=args.backend)
+                _print_run(metrics)
         elif args.command == "teleop":
             from .errors import InvalidInputError
             from .runs import TELEOP_COLUMNS, format_table, run_teleop

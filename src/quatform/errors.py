@@ -18,6 +18,9 @@ __all__ = [
     "NotARotationError",
     "UnreachableError",
     "ConvergenceError",
+
+
+    "MissingDependencyError",
 ]
 
 
@@ -55,3 +58,8 @@ class UnreachableError(InvalidInputError):
 
 class ConvergenceError(QuatformError, RuntimeError):
     """A numerical solver (e.g. a geodesic boundary-value problem) found no acceptable solution."""
+
+
+class MissingDependencyError(QuatformError, ImportError):
+    """An optional package that the requested feature needs is not installed (the message
+    names the ``pip install`` command)."""

@@ -22,7 +22,10 @@ from .sim import (
 )
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
-           "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS"]
+           "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS", "BACKENDS", "physics_rows"]
+
+#: Simulation backends: the robots' models (``kinematic``) or MuJoCo physics (``mujoco``).
+BACKENDS = ("kinematic", "mujoco")
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
@@ -49,18 +52,31 @@ def _progress(label):
     return report
 
 
-def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False):
-    """A seed 001 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``."""
+def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False, backend: str = "kinematic"):
+    """A seed 001 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``.
+
+    ``backend="mujoco"``: a Pioneer-like UGV and an IRIS-like quadrotor in MuJoCo; the
+    metrics add ``collisions``, ``render`` and the kinematic run's errors (``kinematic``).
+    """
     import numpy as np
 
     from .sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_timeseries
 
+    _check_backend(backend)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    run = simulate_ugv_uav(sc, formation, progress=None if quiet else _progress(f"{sc.name} / {formation}"))
+    progress = None if quiet else _progress(f"{sc.name} / {formation} / {backend}")
+    if backend == "mujoco":
+        from .sim.mujoco_backend import simulate_ugv_uav_physics
+
+        run, record = simulate_ugv_uav_physics(sc, formation, progress=progress)
+    else:
+        run = simulate_ugv_uav(sc, formation, progress=progress)
     metrics = ugv_uav_metrics(run)
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
+    if backend == "mujoco":
+        _add_physics(metrics, record, run, ugv_uav_metrics(simulate_ugv_uav(sc, formation)), out, plots)
     write_metrics(metrics, out / "metrics.json")
     names, data = ugv_uav_timeseries(run)
     np.savetxt(out / "timeseries.csv", data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
@@ -107,15 +123,66 @@ def compare_ugv_uav(sc, out, quiet: bool = False):
     return rows
 
 
-def run_scenario(scenario, controller: str, out, plots: bool = True, quiet: bool = False):
-    """Simulate, write ``out/metrics.json``, ``out/timeseries.csv`` and plots; return the metrics."""
+def _check_backend(backend):
+    if backend not in BACKENDS:
+        from .errors import InvalidInputError
+
+        raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+
+
+#: Metrics of the kinematic run that a physics run's ``metrics.json`` repeats beside its own.
+_COMPARED_KEYS = ("reference_lost", "nonfinite_commands", "unreachable_reference", "max_unexplained_cluster_jump",
+                  "first_lost_time_s", "first_singular_time_s", "max_cluster_position_error_m",
+                  "max_shape_error_m", "max_orientation_error_rad", "max_robot_position_error_m",
+                  "max_robot_yaw_error_rad", "max_recovered_euclidean_error_rad", "min_robot_separation_m",
+                  "max_ugv_position_error_m", "max_uav_position_error_m", "max_uav_yaw_error_rad")
+
+
+def _add_physics(metrics, record, run, kinematic_metrics, out, plots):
+    """The physics run's own keys: backend, step, collisions, picture, the kinematic errors."""
+    metrics["backend"] = "mujoco"
+    metrics["physics_timestep_s"] = record.timestep
+    metrics["collisions"] = record.collisions
+    metrics["render"] = None
+    if plots:
+        from .report.physics_render import RENDER_FILE, render_or_fallback
+
+        file, how = render_or_fallback(record, run, out / RENDER_FILE)
+        metrics["render"], metrics["render_backend"] = file.name, how
+    metrics["kinematic"] = {k: kinematic_metrics[k] for k in _COMPARED_KEYS if k in kinematic_metrics}
+
+
+def physics_rows(metrics) -> list:
+    """Two table rows of a physics run: the kinematic run's errors, then the physics run's."""
+    label = metrics["controller"]
+    return [dict(metrics["kinematic"], controller=f"{label} (kinematic)", formation=f"{metrics['formation']} (kinematic)"),
+            dict(metrics, controller=f"{label} (mujoco)", formation=f"{metrics['formation']} (mujoco)")]
+
+
+def run_scenario(scenario, controller: str, out, plots: bool = True, quiet: bool = False,
+                 backend: str = "kinematic"):
+    """Simulate, write ``out/metrics.json``, ``out/timeseries.csv`` and plots; return the metrics.
+
+    ``backend="mujoco"``: two IRIS-like quadrotors in MuJoCo; the metrics add
+    ``collisions``, ``render`` (the time-lapse picture) and the kinematic run's errors
+    (``kinematic``).
+    """
+    _check_backend(backend)
     sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    run = simulate(sc, controller, progress=None if quiet else _progress(f"{sc.name} / {controller}"))
+    progress = None if quiet else _progress(f"{sc.name} / {controller} / {backend}")
+    if backend == "mujoco":
+        from .sim.mujoco_backend import simulate_physics
+
+        run, record = simulate_physics(sc, controller, progress=progress)
+    else:
+        run = simulate(sc, controller, progress=progress)
     metrics = compute_metrics(run)
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
+    if backend == "mujoco":
+        _add_physics(metrics, record, run, compute_metrics(simulate(sc, controller)), out, plots)
     write_metrics(metrics, out / "metrics.json")
     write_timeseries(run, out / "timeseries.csv")
     if plots:
@@ -138,17 +205,18 @@ def format_table(rows, columns=TABLE_COLUMNS) -> str:
     return "\n".join(lines)
 
 
-def compare_scenario(scenario, out, quiet: bool = False):
+def compare_scenario(scenario, out, quiet: bool = False, backend: str = "kinematic"):
     """Run every controller; write their folders, ``compare_errors.png``, ``separation.png``,
-    ``comparison.json`` and ``comparison.md``; return the metrics rows."""
+    ``comparison.json`` and ``comparison.md``; return the metrics rows (a physics backend:
+    each run's kinematic row above its own)."""
     sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs, rows = [], []
     for name in CONTROLLERS:
-        run, m = run_scenario(sc, name, out / name, quiet=quiet)
+        run, m = run_scenario(sc, name, out / name, quiet=quiet, backend=backend)
         runs.append(run)
-        rows.append(m)
+        rows.extend(physics_rows(m) if backend == "mujoco" else [m])
     from .report import write_compare_plots
 
     write_compare_plots(runs, out)

@@ -218,12 +218,13 @@ def _robot_positions(form: dict, which: str) -> np.ndarray:
 
 
 def _rigid_spec_from_dict(data: dict, where: str) -> PlanSpec:
+    if ("airplanes" in data) == ("formation" in data):
+        raise InvalidInputError(f"{where}: a rigid-se3 spec needs exactly one of [airplanes] (seed 004 §4) or "
+                                "[formation] (masses, body_points, inertias, start, end, actuation), "
+                                "not [robots]")
     unknown = sorted(set(data) - (_TOP_KEYS - {"robots"}) - {"airplanes", "formation"})
     if unknown:
         raise InvalidInputError(f"{where}: unknown key(s) {unknown} at top level; see docs/planning.md")
-    if ("airplanes" in data) == ("formation" in data):
-        raise InvalidInputError(f"{where}: a rigid-se3 spec needs exactly one of [airplanes] (seed 004 §4) or "
-                                "[formation] (masses, body_points, inertias, start, end, actuation)")
     table = "airplanes" if "airplanes" in data else "formation"
     if not isinstance(data[table], dict):
         raise InvalidInputError(f"{where}: [{table}] must be a table")

@@ -90,14 +90,18 @@ class UgvUavScenario:
         e[..., 5] = np.where(front, 0.0, 0.5 * np.pi)  # over the UGV: beta_c = 90 deg, (5.3)
         return e, ed
 
-    def controller(self, formation: str) -> UgvUavController:
+    def controller(self, formation: str, bebop: Bebop | None = None, **options) -> UgvUavController:
+        """The seed 001 controller for ``formation``; ``bebop``: the UAV model it compensates
+        (default: Table 2's ``K1..K8`` with this scenario's ``max_fraction``); ``options``
+        override the scenario's gains."""
         if formation not in UGV_UAV_FORMATIONS:
             raise InvalidInputError(f"unknown formation {formation!r}; choose {', '.join(UGV_UAV_FORMATIONS)}")
         cz = self.center[2]
         arena = ((-3.0, 3.0), (-2.0, 2.0), (cz - self.floor_below_platform_m, cz - self.floor_below_platform_m + 3.0))
         try:
-            return UgvUavController(UGV_UAV_FORMATIONS[formation](), bebop=Bebop(max_fraction=self.max_fraction),
-                                    z_ugv=cz, arena=arena, **self.gains)
+            bebop = bebop if bebop is not None else Bebop(max_fraction=self.max_fraction)
+            return UgvUavController(UGV_UAV_FORMATIONS[formation](), bebop=bebop, z_ugv=cz, arena=arena,
+                                    **{**self.gains, **options})
         except TypeError as exc:
             raise InvalidInputError(f"scenario {self.name}: [gains]: {exc}") from None
 
@@ -190,9 +194,15 @@ class MotionCapture:
         return np.r_[self._pose, self.history.at(odo_t)[7:11]]
 
 
-def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress=None) -> UgvUavRun:
-    """Run the closed loop of Fig. 18 on the Pioneer and Bebop models with motion capture."""
-    ctrl = sc.controller(formation)
+def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress=None, plant_factory=None,
+                     bebop: Bebop | None = None, **controller_options) -> UgvUavRun:
+    """Run the closed loop of Fig. 18 on the Pioneer and Bebop models with motion capture.
+
+    ``plant_factory(x0, floor) -> (x0, plant_step)`` replaces the models by another plant
+    (the physics backend) that starts near ``x0`` (11 values, see ``control.ugv_uav``);
+    ``bebop`` and ``controller_options`` go to :meth:`UgvUavScenario.controller`.
+    """
+    ctrl = sc.controller(formation, bebop=bebop, **controller_options)
     F = ctrl.formation
     pioneer, bebop = ctrl.pioneer, ctrl.bebop
     steps_per_control = max(1, int(round(sc.control_period_s / sc.dt_s)))
@@ -212,9 +222,13 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
         b[2] = max(b[2], floor)  # the floor
         return np.r_[pioneer.step(x[0:3], u[0:2], dt), b]
 
+    x0 = np.r_[ugv, uav]
+    if plant_factory is not None:
+        x0, plant = plant_factory(x0, floor)
+
     mocap = MotionCapture(sc.mocap_rate_hz, sc.mocap_noise_m, sc.mocap_noise_rad, sc.mocap_latency_s,
                           sc.odometry_period_s, sc.seed)
-    log = closed_loop(t_ctrl[:n], steps_per_control, sc.dt_s, np.r_[ugv, uav], plant, mocap, ctrl.compute,
+    log = closed_loop(t_ctrl[:n], steps_per_control, sc.dt_s, x0, plant, mocap, ctrl.compute,
                       lambda k: Reference(c_des[k], cd_des[k]), progress)
     ugv_log, uav_log = log.states[:, 0:3], log.states[:, 3:11]
 

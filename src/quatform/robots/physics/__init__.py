@@ -1,0 +1,29 @@
+"""Robots layer, physical models: MJCF descriptions and low-level controllers (issue 7).
+
+Nothing here imports MuJoCo: the models are MJCF text and the low-level controllers are
+NumPy, so they can be read, tested and reused without the optional dependency. The
+physics stepping lives in :mod:`quatform.sim.mujoco_backend` (sim layer).
+
+* :mod:`.quadrotor` - an IRIS-like quadrotor (PX4 SITL ``iris`` numbers) and its
+  cascaded low-level controller (velocity -> acceleration -> attitude and thrust ->
+  body rates -> rotor forces), in PX4 velocity mode or Bebop-like attitude mode.
+* :mod:`.ground` - a Pioneer 3-DX-like differential-drive robot driven by ``(v, omega)``.
+* :mod:`.mjcf` - the world: floor, light, robots, integrator options.
+"""
+
+from .ground import PIONEER_3DX, DiffDriveParams, diff_drive_mjcf, wheel_speeds
+from .mjcf import world_mjcf
+from .quadrotor import GRAVITY, IRIS, QuadrotorCascade, QuadrotorParams, quadrotor_mjcf
+
+__all__ = [
+    "GRAVITY",
+    "IRIS",
+    "PIONEER_3DX",
+    "DiffDriveParams",
+    "QuadrotorCascade",
+    "QuadrotorParams",
+    "diff_drive_mjcf",
+    "quadrotor_mjcf",
+    "wheel_speeds",
+    "world_mjcf",
+]

@@ -1,0 +1,327 @@
+"""An IRIS-like quadrotor for the physics backend: its numbers, its MJCF, its autopilot.
+
+Robots layer (physical models; no MuJoCo import). The vehicle is one free rigid body
+with four rotor actuators; each rotor pushes along the body z axis and twists the body
+about it by its drag moment (``k_m`` times its thrust, against its spin), with a
+first-order motor lag. The numbers are those of the PX4 SITL ``iris`` model
+(PX4-SITL_gazebo ``models/iris/iris.sdf``, the RotorS multirotor plug-in): they are the
+vehicles seed 000 §4.2 flies in Gazebo (3DR IRIS under PX4).
+
+:class:`QuadrotorCascade` is a PX4-style cascaded low-level controller:
+
+* velocity mode (PX4 ``OFFBOARD`` velocity set points, what seed 000's formation
+  controllers send): world velocity error -> desired acceleration (PI, PX4 defaults
+  ``MPC_XY_VEL_P/I_ACC``, ``MPC_Z_VEL_P/I_ACC``) -> thrust vector with tilt limit ->
+  attitude (body z along the thrust, heading kept) and collective thrust -> body-rate set
+  point -> rate loop -> torques -> rotor forces by the mixer, each clipped to
+  ``[0, f_max]``;
+* Bebop-like attitude mode (what seed 001's controller sends, eq. (3.6)): body-frame
+  ``(u_x, u_y)`` in ``[-1, 1]`` are pitch and roll as fractions of a small tilt limit
+  (seed 001 §3.1.2: +-5 deg), ``u_z`` a climb-rate and ``u_psi`` a yaw-rate fraction.
+  A vehicle so driven behaves like eq. (3.11): ``x_ddot ~ g tan(5 deg) u_x - (rotor drag)
+  x_dot``, which is why ``K1 ... K8`` can be identified from it.
+
+The attitude error is the geometric one of Lee, Leok & McClamroch (2010),
+``e_R = 1/2 vee(R_d^T R - R^T R_d)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...errors import InvalidInputError
+
+__all__ = ["GRAVITY", "IRIS", "QuadrotorCascade", "QuadrotorParams", "quadrotor_mjcf"]
+
+#: Standard gravity, m/s^2 (MuJoCo's default too).
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class QuadrotorParams:
+    """Physical numbers of a quadrotor (SI units).
+
+    Attributes
+    ----------
+    mass : float
+        kg (iris.sdf ``base_link``: 1.5).
+    inertia : tuple of 3 floats
+        Principal moments about body x, y, z, kg m^2 (iris.sdf: 0.029125, 0.029125, 0.055225).
+    rotors : tuple of 4 (x, y) pairs
+        Rotor hub positions in the body frame, m (iris.sdf ``rotor_0..3``: (0.13, -0.22),
+        (-0.13, 0.20), (0.13, 0.22), (-0.13, -0.20); "arm length" ~0.25 m).
+    spin : tuple of 4 ints
+        +1 for a rotor spinning counter-clockwise seen from above (iris: rotors 0, 1), -1
+        clockwise (2, 3). Its drag moment on the body is ``-spin k_m f``.
+    motor_constant : float
+        Thrust per squared rotor speed, N s^2 (iris.sdf ``motorConstant``: 5.84e-6).
+    moment_constant : float
+        Drag moment per unit thrust, m (iris.sdf ``momentConstant``: 0.06).
+    max_rotor_speed : float
+        rad/s (iris.sdf ``maxRotVelocity``: 1100), so ``f_max = 5.84e-6 * 1100^2 = 7.07 N``
+        per rotor, thrust-to-weight 1.9.
+    motor_time_constant : float
+        First-order motor lag, s (iris.sdf ``timeConstantUp``: 0.0125; its slower
+        ``timeConstantDown`` 0.025 is not modelled: MuJoCo's filter has one constant).
+    rotor_drag_coefficient : float
+        In-plane rotor drag per rotor speed, N s / (m rad) (iris.sdf
+        ``rotorDragCoefficient``: 8.06428e-5): ``F = -c sum_i(omega_i) v_perp``, linear in
+        the body's in-plane velocity; at hover it is ~0.26 N s/m, a drag rate of 0.17 1/s,
+        close to seed 001 Table 2's ``K2, K4`` (0.18, 0.17).
+    rotor_radius : float
+        m (the iris's 10-inch propellers: 0.127).
+    leg_height : float
+        Height of the body origin above the ground when landed, m.
+    """
+
+    mass: float = 1.5
+    inertia: tuple = (0.029125, 0.029125, 0.055225)
+    rotors: tuple = ((0.13, -0.22), (-0.13, 0.20), (0.13, 0.22), (-0.13, -0.20))
+    spin: tuple = (1, 1, -1, -1)
+    motor_constant: float = 5.84e-6
+    moment_constant: float = 0.06
+    max_rotor_speed: float = 1100.0
+    motor_time_constant: float = 0.0125
+    rotor_drag_coefficient: float = 8.06428e-5
+    rotor_radius: float = 0.127
+    leg_height: float = 0.12
+
+    @property
+    def max_thrust(self) -> float:
+        """Largest thrust of one rotor, N."""
+        return self.motor_constant * self.max_rotor_speed ** 2
+
+    def mixer(self) -> np.ndarray:
+        """``A`` with ``(T, tau_x, tau_y, tau_z) = A f`` for rotor forces ``f``, shape (4, 4).
+
+        A force ``f`` along body z at ``(x, y, 0)`` has moment ``(y f, -x f, 0)``; the rotor's
+        drag moment is ``-spin k_m f`` about z.
+        """
+        r = np.asarray(self.rotors, dtype=float)
+        return np.array([np.ones(4), r[:, 1], -r[:, 0], -np.asarray(self.spin) * self.moment_constant])
+
+
+#: The PX4 SITL iris (see :class:`QuadrotorParams`).
+IRIS = QuadrotorParams()
+
+
+def _floats(x) -> list:
+    """A flat list of Python floats (rows first) from a list or an array."""
+    return x if type(x) is list else np.ravel(x).tolist()
+
+
+def _cross(a, b) -> tuple:
+    """``a x b`` of two 3-vectors of floats (``np.cross`` costs ~20 us per call on one vector)."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@dataclass
+class QuadrotorCascade:
+    """PX4-style cascaded low-level controller of one quadrotor (stateful: the velocity
+    integrator).
+
+    Parameters
+    ----------
+    params : QuadrotorParams
+    vel_p, vel_i : (3,) gains, 1/s and 1/s^2
+        Velocity PI (PX4 defaults: xy 1.8 / 0.4, z 4 / 2).
+    tilt_max : float
+        Largest tilt in velocity mode, rad (PX4 ``MPC_TILTMAX_AIR`` is 45 deg; 35 deg here).
+    att_p : float
+        Attitude gain, 1/s (PX4 ``MC_ROLL_P`` 6.5).
+    rate_p : (3,) gains, 1/s
+        Body-rate loop bandwidths (roll, pitch, yaw); torques are ``J rate_p (w_sp - w)``
+        plus the gyroscopic term.
+    bebop_tilt_max, bebop_climb_max, bebop_yaw_rate_max : float
+        Full-scale commands of the Bebop-like attitude mode: tilt (rad; seed 001 §3.1.2:
+        5 deg), climb rate (m/s) and yaw rate (rad/s).
+    bebop_climb_p : float
+        Climb-rate loop gain of the attitude mode, 1/s (PX4's ``MPC_Z_VEL_P_ACC`` = 4).
+    """
+
+    params: QuadrotorParams = field(default_factory=QuadrotorParams)
+    vel_p: tuple = (1.8, 1.8, 4.0)
+    vel_i: tuple = (0.4, 0.4, 2.0)
+    vel_i_limit: float = 3.0
+    tilt_max: float = math.radians(35.0)
+    att_p: float = 6.5
+    rate_p: tuple = (25.0, 25.0, 5.0)
+    bebop_tilt_max: float = math.radians(5.0)
+    bebop_climb_max: float = 1.0
+    bebop_yaw_rate_max: float = 2.0
+    bebop_climb_p: float = 4.0
+
+    def __post_init__(self):
+        for name in ("vel_p", "vel_i", "rate_p"):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)) or np.any(v < 0):
+                raise InvalidInputError(f"QuadrotorCascade {name} must be 3 non-negative gains, got {getattr(self, name)!r}")
+        for name in ("tilt_max", "att_p", "bebop_tilt_max", "bebop_climb_max", "bebop_yaw_rate_max",
+                     "bebop_climb_p", "vel_i_limit"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InvalidInputError(f"QuadrotorCascade {name} must be positive and finite, got {v!r}")
+        if not self.tilt_max < 0.5 * math.pi:
+            raise InvalidInputError(f"tilt_max must be below pi/2, got {self.tilt_max!r}")
+        # the loops run every physics step on one vehicle: Python floats, not 3-vectors of
+        # NumPy (each NumPy call on a 3-vector costs about a microsecond)
+        self._vp = [float(x) for x in self.vel_p]
+        self._vi = [float(x) for x in self.vel_i]
+        self._J = [float(x) for x in self.params.inertia]
+        self._kJ = [j * float(k) for j, k in zip(self._J, self.rate_p)]
+        self._mix_inv = np.linalg.inv(self.params.mixer()).tolist()
+        self._fmax = self.params.max_thrust
+        self._tan_tilt = math.tan(self.tilt_max)
+        self.reset()
+
+    def reset(self):
+        """Clear the velocity integrator."""
+        self._integral = [0.0, 0.0, 0.0]
+
+    # -- outer loops ------------------------------------------------------------------
+    def velocity_mode(self, v_cmd, yaw_rate_cmd: float, v, R, omega, dt: float) -> np.ndarray:
+        """Rotor forces (4,) for a world-frame velocity and yaw-rate set point.
+
+        Parameters
+        ----------
+        v_cmd : (3,) m/s, world frame
+        yaw_rate_cmd : float, rad/s
+        v : (3,) world-frame velocity, m/s
+        R : (3, 3) body-to-world rotation
+        omega : (3,) body-frame angular velocity, rad/s
+        dt : float, s (the integrator's step)
+        """
+        lim_i = self.vel_i_limit
+        a = [0.0, 0.0, 0.0]
+        v_cmd, v = _floats(v_cmd), _floats(v)
+        for i in range(3):
+            err = v_cmd[i] - v[i]
+            self._integral[i] = min(max(self._integral[i] + self._vi[i] * err * dt, -lim_i), lim_i)
+            a[i] = self._vp[i] * err + self._integral[i]
+        m, g = self.params.mass, GRAVITY
+        fz = m * (g + min(max(a[2], -0.7 * g), g))
+        fx, fy = m * a[0], m * a[1]
+        nxy = math.hypot(fx, fy)
+        lim = fz * self._tan_tilt
+        if nxy > lim:  # tilt limit: the horizontal demand gives way to altitude
+            fx, fy = fx * lim / nxy, fy * lim / nxy
+        return np.array(self._attitude_chain(fx, fy, fz, float(yaw_rate_cmd), _floats(R), _floats(omega)))
+
+    def attitude_mode(self, u, v, R, omega) -> np.ndarray:
+        """Rotor forces (4,) for a Bebop-like command ``(u_x, u_y, u_z, u_psi)`` in [-1, 1]
+        (seed 001 eq. (3.6)): pitch and roll fractions of ``bebop_tilt_max`` in the heading
+        frame, climb-rate and yaw-rate fractions."""
+        u = [min(max(float(x), -1.0), 1.0) if math.isfinite(x) else 0.0 for x in u]
+        m, g = self.params.mass, GRAVITY
+        az = self.bebop_climb_p * (u[2] * self.bebop_climb_max - float(v[2]))
+        fz = m * (g + min(max(az, -0.7 * g), g))
+        tx, ty = math.tan(u[0] * self.bebop_tilt_max), math.tan(u[1] * self.bebop_tilt_max)
+        Rl = _floats(R)
+        c, s = Rl[0], Rl[3]
+        h = math.hypot(c, s) or 1.0
+        c, s = c / h, s / h
+        return np.array(self._attitude_chain(fz * (c * tx - s * ty), fz * (s * tx + c * ty), fz,
+                                             u[3] * self.bebop_yaw_rate_max, Rl, _floats(omega)))
+
+    # -- inner loops ------------------------------------------------------------------
+    def _attitude_chain(self, fx, fy, fz, yaw_rate, R, w) -> list:
+        """Thrust vector -> attitude set point (heading kept) -> rates -> torques -> forces.
+
+        ``R``: the rotation's 9 entries row by row; ``w``: body rates; all Python floats.
+        """
+        n = math.sqrt(fx * fx + fy * fy + fz * fz)
+        b3 = (fx / n, fy / n, fz / n)
+        xc = (R[0], R[3], 0.0) if R[0] * R[0] + R[3] * R[3] > 1e-12 else (1.0, 0.0, 0.0)  # the heading
+        b2 = _cross(b3, xc)
+        nb = math.sqrt(b2[0] * b2[0] + b2[1] * b2[1] + b2[2] * b2[2])
+        b2 = (b2[0] / nb, b2[1] / nb, b2[2] / nb)
+        b1 = _cross(b2, b3)
+        # e_R = 1/2 vee(Rd^T R - R^T Rd), (Rd^T R)_ij = (column i of Rd) . (column j of R)
+        cols = ((R[0], R[3], R[6]), (R[1], R[4], R[7]), (R[2], R[5], R[8]))
+
+        def E(di, j):
+            c = cols[j]
+            return di[0] * c[0] + di[1] * c[1] + di[2] * c[2]
+
+        e = (0.5 * (E(b3, 1) - E(b2, 2)), 0.5 * (E(b1, 2) - E(b3, 0)))
+        # rate set point: attitude P on roll and pitch; the yaw rate (world z) in body axes
+        kp = self.att_p
+        w_sp = (-kp * e[0] + yaw_rate * R[6], -kp * e[1] + yaw_rate * R[7], yaw_rate * R[8])
+        thrust = max(fx * R[2] + fy * R[5] + fz * R[8], 0.0)
+        J, kJ = self._J, self._kJ
+        Jw = (J[0] * w[0], J[1] * w[1], J[2] * w[2])
+        gyro = _cross(w, Jw)
+        tau = [kJ[i] * (w_sp[i] - w[i]) + gyro[i] for i in range(3)]
+        return self.mix(thrust, tau)
+
+    def mix(self, thrust: float, tau) -> list:
+        """Rotor forces (4 floats) for collective thrust and body torques, within ``[0, f_max]``.
+
+        Roll and pitch come first: when a rotor would leave its range the yaw torque is
+        dropped, then the forces are clipped (PX4's mixer likewise gives up yaw first).
+        """
+        M, fmax = self._mix_inv, self._fmax
+        t0, t1, t2, t3 = float(thrust), float(tau[0]), float(tau[1]), float(tau[2])
+        f = [r[0] * t0 + r[1] * t1 + r[2] * t2 + r[3] * t3 for r in M]
+        if min(f) < 0.0 or max(f) > fmax:
+            f = [r[0] * t0 + r[1] * t1 + r[2] * t2 for r in M]
+        return [min(max(x, 0.0), fmax) for x in f]
+
+    def rotor_drag(self, forces, v, R) -> tuple:
+        """World-frame in-plane rotor drag, N: ``-c sum_i(omega_i) v_perp`` (RotorS motor model).
+
+        ``R``: the rotation (3, 3) or its 9 entries row by row.
+        """
+        p = self.params
+        speed = sum(math.sqrt(max(float(f), 0.0) / p.motor_constant) for f in forces)
+        Rl = _floats(R)
+        vx, vy, vz = _floats(v)
+        bx = Rl[0] * vx + Rl[3] * vy + Rl[6] * vz  # body x, y components (R^T v)
+        by = Rl[1] * vx + Rl[4] * vy + Rl[7] * vz
+        k = -p.rotor_drag_coefficient * speed
+        return (k * (Rl[0] * bx + Rl[1] * by), k * (Rl[3] * bx + Rl[4] * by), k * (Rl[6] * bx + Rl[7] * by))
+
+
+def quadrotor_mjcf(name: str, pos, yaw: float = 0.0, rgba=(0.2, 0.3, 0.8, 1.0),
+                   params: QuadrotorParams = IRIS) -> tuple[str, str]:
+    """MJCF of one quadrotor: ``(body, actuators)`` fragments for :func:`world_mjcf`.
+
+    The body carries the iris's mass and inertia explicitly (its geoms only collide and
+    show); its collision shape is the hull, two arms, four rotor discs and two skids. Rotor
+    ``i`` is a ``general`` actuator on site ``{name}_rotor{i}`` with gear
+    ``(0, 0, 1, 0, 0, -spin k_m)``: thrust along body z and the drag moment, control in
+    ``[0, f_max]`` N, filtered by the motor lag.
+    """
+    p = params
+    x, y, z = (float(a) for a in pos)
+    cr, sr = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    col = " ".join(f"{c:g}" for c in rgba)
+    (x0, y0), (x1, y1), (x2, y2), (x3, y3) = p.rotors
+    h = p.leg_height
+    lines = [
+        f'<body name="{name}" pos="{x:.6g} {y:.6g} {z:.6g}" quat="{cr:.9g} 0 0 {sr:.9g}">',
+        f'  <freejoint name="{name}_root"/>',
+        f'  <inertial pos="0 0 0" mass="{p.mass:g}" diaginertia="{p.inertia[0]:g} {p.inertia[1]:g} {p.inertia[2]:g}"/>',
+        f'  <geom name="{name}_hull" type="box" size="0.1 0.07 0.04" rgba="{col}"/>',
+        f'  <geom name="{name}_arm0" type="capsule" size="0.012" fromto="{x0:g} {y0:g} 0.02 {x1:g} {y1:g} 0.02" rgba="0.15 0.15 0.15 1"/>',
+        f'  <geom name="{name}_arm1" type="capsule" size="0.012" fromto="{x2:g} {y2:g} 0.02 {x3:g} {y3:g} 0.02" rgba="0.15 0.15 0.15 1"/>',
+    ]
+    for i, (rx, ry) in enumerate(p.rotors):
+        shade = "0.9 0.3 0.2 0.6" if i in (0, 2) else "0.7 0.7 0.7 0.6"  # front rotors red
+        lines.append(f'  <geom name="{name}_prop{i}" type="cylinder" size="{p.rotor_radius:g} 0.004" '
+                     f'pos="{rx:g} {ry:g} 0.035" rgba="{shade}"/>')
+        lines.append(f'  <site name="{name}_rotor{i}" pos="{rx:g} {ry:g} 0.02"/>')
+    for side in (-1, 1):
+        lines.append(f'  <geom name="{name}_skid{(side + 1) // 2}" type="capsule" size="0.008" '
+                     f'fromto="-0.1 {0.1 * side:g} {-h + 0.008:g} 0.1 {0.1 * side:g} {-h + 0.008:g}" rgba="0.1 0.1 0.1 1"/>')
+        for sx in (-1, 1):
+            lines.append(f'  <geom type="capsule" size="0.006" fromto="{0.05 * sx:g} {0.06 * side:g} -0.04 '
+                         f'{0.05 * sx:g} {0.1 * side:g} {-h + 0.008:g}" rgba="0.1 0.1 0.1 1" contype="0" conaffinity="0"/>')
+    lines.append("</body>")
+    acts = [f'<general name="{name}_motor{i}" site="{name}_rotor{i}" gear="0 0 1 0 0 {-s * p.moment_constant:g}" '
+            f'ctrllimited="true" ctrlrange="0 {p.max_thrust:.6g}" dyntype="filter" dynprm="{p.motor_time_constant:g}"/>'
+            for i, s in enumerate(p.spin)]
+    return "\n".join(lines), "\n".join(acts)

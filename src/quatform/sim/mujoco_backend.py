@@ -1,0 +1,464 @@
+"""MuJoCo physics backend: the same controllers drive physical robots (issue 7).
+
+Sim layer. MuJoCo is optional: it is imported only when a physics run starts
+(:func:`import_mujoco`), never when quatform is imported; without it a physics run
+raises :class:`~quatform.errors.MissingDependencyError` naming
+``pip install quatform[mujoco]``.
+
+* :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
+  (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
+  loop, with a :class:`ContactMonitor` that reports collisions.
+* :func:`simulate_physics` - a seed 000 scenario (two quadrotors) in closed loop with
+  any of the four formation controllers, through the same ``closed_loop`` as the
+  kinematic :func:`~quatform.sim.simulate`; returns the same :class:`~quatform.sim.Run`
+  and a :class:`PhysicsRecord` (collisions, MJCF, body poses for the pictures).
+* :func:`simulate_ugv_uav_physics` - a seed 001 scenario with a Pioneer-like UGV and a
+  quadrotor flown in Bebop-like attitude mode, the controller's dynamic compensation
+  (4.47) using ``K1..K8`` identified from the simulated quadrotor (:func:`identify_k`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control import Reference
+from ..errors import InvalidInputError, MissingDependencyError
+from ..formations import EuclideanPair, RobotSpace
+from ..references import sample_reference
+from ..robots import Bebop
+from ..robots.physics import (
+    GRAVITY,
+    IRIS,
+    PIONEER_3DX,
+    DiffDriveParams,
+    QuadrotorCascade,
+    QuadrotorParams,
+    diff_drive_mjcf,
+    quadrotor_mjcf,
+    wheel_speeds,
+    world_mjcf,
+)
+from .loop import PerfectMeasurement, closed_loop
+from .runner import Run
+
+__all__ = ["IRIS_IDENTIFIED_K", "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco",
+           "physics_timestep", "simulate_physics", "simulate_ugv_uav_physics"]
+
+#: ``K1..K8`` of seed 001 eq. (3.11) identified from the simulated IRIS in Bebop-like
+#: attitude mode by :func:`identify_k` (steps and chirps, least squares; see
+#: ``docs/physics.md``). Seed 001 Table 2 for the Bebop 2: 0.8417, 0.1823, 0.8354, 0.1710,
+#: 3.966, 4.001, 9.8524, 4.7295.
+IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
+
+
+def import_mujoco():
+    """The ``mujoco`` module, imported on first use.
+
+    With no display (``DISPLAY`` unset) and no ``MUJOCO_GL`` chosen, offscreen rendering
+    uses EGL (Debian: ``libegl1``, ``libegl-mesa0``, ``libgl1-mesa-dri``). Where the chosen
+    OpenGL library is missing (MuJoCo loads it at import), MuJoCo is loaded without
+    rendering (``MUJOCO_GL=disable``) with a ``RuntimeWarning``: the physics runs, the
+    pictures fall back to matplotlib.
+    """
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"
+    try:
+        import mujoco
+    except ImportError as exc:
+        raise MissingDependencyError(
+            f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
+            "install it with: pip install quatform[mujoco]"
+        ) from None
+    except Exception as exc:  # noqa: BLE001 - mujoco loads the chosen OpenGL at import
+        # the OpenGL library MUJOCO_GL names is missing: physics without MuJoCo pictures
+        warnings.warn(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} failed ({type(exc).__name__}: {exc}); "
+                      "MuJoCo runs without offscreen rendering (pictures fall back to matplotlib); "
+                      "see docs/physics.md for the packages", RuntimeWarning, stacklevel=2)
+        for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
+            del sys.modules[name]
+        os.environ["MUJOCO_GL"] = "disable"
+        import mujoco
+    return mujoco
+
+
+def physics_timestep(dt: float, largest: float = 0.0025) -> float:
+    """The largest physics step not above ``largest`` that divides ``dt`` evenly, s."""
+    if not (math.isfinite(dt) and dt > 0):
+        raise InvalidInputError(f"dt must be positive and finite, got {dt!r}")
+    return dt / max(1, math.ceil(dt / largest - 1e-9))
+
+
+def _wrap(a):
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass
+class ContactMonitor:
+    """Collisions among robots and with the ground.
+
+    A collision is the start of a contact between two different robots, or between a robot
+    and the ground other than through its wheels or caster. Contacts made while the world
+    settles (the first ``settle_s`` seconds: a quadrotor standing on the floor) are
+    resting, not collisions, until they have stayed broken for ``release_s`` (a take-off
+    scrapes the floor for a moment before it leaves it).
+    """
+
+    names: dict  # root body id -> robot name (0: "ground")
+    support: frozenset  # geom ids allowed to touch the ground (wheels, caster)
+    settle_s: float = 0.05
+    release_s: float = 0.5
+    events: list = field(default_factory=list)  # (time, "a/b")
+    _active: set = field(default_factory=set)
+    _resting: dict = field(default_factory=dict)  # pair -> last time in contact
+
+    def check(self, model, data):
+        now = set()
+        for i in range(data.ncon):
+            c = data.contact[i]
+            if c.dist > 0.0:
+                continue
+            g1, g2 = int(c.geom1), int(c.geom2)
+            b1, b2 = int(model.body_rootid[model.geom_bodyid[g1]]), int(model.body_rootid[model.geom_bodyid[g2]])
+            if b1 == b2:
+                continue
+            if (b1 == 0 and g2 in self.support) or (b2 == 0 and g1 in self.support):
+                continue
+            now.add(tuple(sorted((self.names.get(b1, str(b1)), self.names.get(b2, str(b2))))))
+        t = float(data.time)
+        for pair in now:
+            if t <= self.settle_s or pair in self._resting:
+                self._resting[pair] = t
+        for pair, last in list(self._resting.items()):
+            if t - last > self.release_s:  # it has left: its next touch counts
+                del self._resting[pair]
+        for pair in now - self._active - self._resting.keys():
+            self.events.append((t, "/".join(pair)))
+        self._active = now
+
+    def summary(self) -> dict:
+        """``{"count", "first_time_s", "bodies"}`` (bodies: the pairs in order of first contact)."""
+        pairs = []
+        for _, p in self.events:
+            if p not in pairs:
+                pairs.append(p)
+        return {"count": len(self.events), "first_time_s": self.events[0][0] if self.events else None,
+                "bodies": pairs}
+
+
+class PhysicsWorld:
+    """Quadrotors and differential-drive robots in one MuJoCo model, stepped with their
+    low-level controllers.
+
+    Parameters
+    ----------
+    quads : sequence of (name, position (3,), yaw)
+    ugvs : sequence of (name, control point (2,), heading)
+    floor_z : float
+        Ground height, m.
+    timestep : float
+        Physics step, s.
+    quad_params, ugv_params : physical numbers
+    quad_mode : "velocity" or "attitude"
+        How quadrotor commands are read: world ``(v_x, v_y, v_z, yaw rate)`` (seed 000) or
+        Bebop-like ``(u_x, u_y, u_z, u_psi)`` fractions (seed 001).
+    """
+
+    def __init__(self, quads=(), ugvs=(), floor_z: float = 0.0, timestep: float = 0.0025,
+                 quad_params: QuadrotorParams = IRIS, ugv_params: DiffDriveParams = PIONEER_3DX,
+                 quad_mode: str = "velocity", cascade_options: dict | None = None):
+        mj = import_mujoco()
+        if quad_mode not in ("velocity", "attitude"):
+            raise InvalidInputError(f"quad_mode must be 'velocity' or 'attitude', got {quad_mode!r}")
+        self.mj, self.quad_mode = mj, quad_mode
+        self.quad_params, self.ugv_params = quad_params, ugv_params
+        palette = ((0.15, 0.35, 0.85, 1), (0.9, 0.55, 0.1, 1), (0.2, 0.7, 0.3, 1), (0.6, 0.2, 0.7, 1))
+        bodies, acts = [], []
+        for i, (name, pos, yaw) in enumerate(quads):
+            b, a = quadrotor_mjcf(name, pos, yaw, palette[i % 4], quad_params)
+            bodies.append(b)
+            acts.append(a)
+        for name, cp, psi in ugvs:
+            axle = np.asarray(cp, dtype=float) - ugv_params.a * np.array([math.cos(psi), math.sin(psi)])
+            b, a = diff_drive_mjcf(name, axle, psi, floor_z, params=ugv_params)
+            bodies.append(b)
+            acts.append(a)
+        self.xml = world_mjcf(bodies, acts, timestep=timestep, floor_z=floor_z)
+        self.model = mj.MjModel.from_xml_string(self.xml)
+        self.data = mj.MjData(self.model)
+        m = self.model
+        self.quad_names = [q[0] for q in quads]
+        self.ugv_names = [u[0] for u in ugvs]
+        body = {n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, n) for n in self.quad_names + self.ugv_names}
+        self._qadr = {n: int(m.jnt_qposadr[m.body_jntadr[body[n]]]) for n in body}
+        self._vadr = {n: int(m.jnt_dofadr[m.body_jntadr[body[n]]]) for n in body}
+        self._body = body
+        act = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, n)
+        self._motors = {n: [act(f"{n}_motor{i}") for i in range(4)] for n in self.quad_names}
+        self._wheels = {n: [act(f"{n}_left"), act(f"{n}_right")] for n in self.ugv_names}
+        self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
+        support = set()
+        for n in self.ugv_names:
+            for g in ("left_tyre", "right_tyre", "caster"):
+                support.add(mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, f"{n}_{g}"))
+        names = {0: "ground", **{v: k for k, v in body.items()}}
+        self.contacts = ContactMonitor(names, frozenset(support))
+        self._yaw = {}
+        self._quad_cmd = {n: np.zeros(4) for n in self.quad_names}
+        self._ugv_cmd = {n: np.zeros(2) for n in self.ugv_names}
+        # start at rest: the motors already spin at hover thrust in the air
+        hover = quad_params.mass * GRAVITY / 4.0
+        for n, pos, _ in quads:
+            airborne = pos[2] > floor_z + quad_params.leg_height + 0.05
+            for a in self._motors[n]:
+                self.data.act[m.actuator_actadr[a]] = hover if airborne else 0.0
+        mj.mj_forward(m, self.data)
+        self.contacts.check(m, self.data)
+
+    # -- states ----------------------------------------------------------------------
+    def _unwrap(self, name, raw):
+        prev = self._yaw.get(name)
+        y = raw if prev is None else prev + _wrap(raw - prev)
+        self._yaw[name] = y
+        return y
+
+    def continue_yaw(self, name, yaw: float):
+        """Report ``name``'s yaw continued from ``yaw`` (rad) from now on (not wrapped)."""
+        self._yaw[name] = float(yaw)
+
+    def quad_pose(self, name):
+        """``(position (3,), world velocity (3,), R (3, 3), body angular velocity (3,), yaw)``
+        at the current time; the yaw in ``(-pi, pi]`` (:meth:`quad_state` continues it)."""
+        # from qpos, not xpos/xmat: after mj_step those still hold the step's start
+        d, a, va = self.data, self._qadr[name], self._vadr[name]
+        R = np.empty(9)
+        self.mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+        R = R.reshape(3, 3)
+        return d.qpos[a:a + 3].copy(), d.qvel[va:va + 3].copy(), R, d.qvel[va + 3:va + 6].copy(), \
+            math.atan2(R[1, 0], R[0, 0])
+
+    def quad_state(self, name) -> np.ndarray:
+        """``(x, y, z, yaw)`` with a continuous yaw (seed 000's robot state)."""
+        p, _, _, _, yaw = self.quad_pose(name)
+        return np.array([p[0], p[1], p[2], self._unwrap(name, yaw)])
+
+    def ugv_state(self, name) -> np.ndarray:
+        """``(x, y, heading)`` of the control point ``a`` ahead of the axle (seed 001 §3.1.1)."""
+        d, a = self.data, self._qadr[name]
+        R = np.empty(9)
+        self.mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+        psi = math.atan2(R[3], R[0])
+        cp = d.qpos[a:a + 2] + self.ugv_params.a * np.array([R[0], R[3]])
+        return np.array([cp[0], cp[1], self._unwrap(name, psi)])
+
+    def qpos(self) -> np.ndarray:
+        return self.data.qpos.copy()
+
+    # -- commands and stepping --------------------------------------------------------
+    def command_quad(self, name, u):
+        self._quad_cmd[name] = np.where(np.isfinite(u), np.asarray(u, dtype=float), 0.0).tolist()
+
+    def command_ugv(self, name, v_omega):
+        self._ugv_cmd[name] = np.asarray(v_omega, dtype=float)
+
+    def step(self, n: int = 1):
+        """``n`` physics steps, the low-level controllers and the rotor drag in the loop."""
+        mj, m, d = self.mj, self.model, self.data
+        dt = m.opt.timestep
+        for name in self.ugv_names:
+            w = wheel_speeds(*self._ugv_cmd[name], params=self.ugv_params)
+            d.ctrl[self._wheels[name]] = w
+        R = np.empty(9)
+        quads = [(self._qadr[nm], self._vadr[nm], self._motors[nm], self._body[nm], self.cascades[nm],
+                  self._quad_cmd[nm]) for nm in self.quad_names]
+        velocity = self.quad_mode == "velocity"
+        for _ in range(n):
+            for a, va, motors, body, cas, u in quads:
+                mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+                Rl, vw = R.tolist(), d.qvel[va:va + 6].tolist()
+                if velocity:
+                    f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
+                else:
+                    f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
+                d.ctrl[motors] = f
+                d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
+            mj.mj_step(m, d)
+            self.contacts.check(m, d)
+
+
+@dataclass(frozen=True)
+class PhysicsRecord:
+    """What a physics run adds to the logged signals.
+
+    Attributes
+    ----------
+    xml : str
+        The MJCF of the world (to render it again).
+    t : ndarray, shape (T,)
+    qpos : ndarray, shape (T, nq)
+        MuJoCo positions at every control tick.
+    robots : dict
+        Robot name -> ``(T, 3)`` positions (the quadrotors' centres, the UGVs' control points).
+    collisions : dict
+        :meth:`ContactMonitor.summary`.
+    timestep : float
+        The physics step, s.
+    """
+
+    xml: str
+    t: np.ndarray
+    qpos: np.ndarray
+    robots: dict
+    collisions: dict
+    timestep: float
+
+
+def simulate_physics(scenario, controller, feedforward: bool = True, progress=None,
+                     cascade_options: dict | None = None):
+    """Run a seed 000 scenario on two simulated IRIS quadrotors; returns ``(Run, PhysicsRecord)``.
+
+    The formation controller runs every ``scenario.dt_s`` on the true robot states (as the
+    kinematic run does), sends its ``(v_x, v_y, v_z, yaw rate)`` per robot to each
+    quadrotor's PX4-like velocity mode, and the physics advances between ticks.
+    """
+    ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
+    F = ctrl.formation
+    t = scenario.times
+    e_des, _, c_des, cd_des = sample_reference(scenario.path, t, F)
+    r_des = RobotSpace().from_euclidean(e_des)
+    r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
+    h = physics_timestep(scenario.dt_s)
+    world = PhysicsWorld(quads=[("robot1", r0[0:3], r0[3]), ("robot2", r0[4:7], r0[7])], timestep=h,
+                         cascade_options=cascade_options)
+    substeps = round(scenario.dt_s / h)
+    world.continue_yaw("robot1", r0[3])  # yaws continued from the scenario's, not wrapped
+    world.continue_yaw("robot2", r0[7])
+    qpos = []
+
+    def plant(x, u, dt):
+        qpos.append(world.qpos())
+        world.command_quad("robot1", u[0:4])
+        world.command_quad("robot2", u[4:8])
+        world.step(substeps)
+        return np.r_[world.quad_state("robot1"), world.quad_state("robot2")]
+
+    log = closed_loop(t, 1, scenario.dt_s, r0, plant, PerfectMeasurement(), ctrl.compute,
+                      lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
+    r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
+    e = F.euclidean(c, e_des, r)
+    sing = F.singularity_measure(r, c_des)
+    run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing)
+    q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
+    rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
+                        world.contacts.summary(), h)
+    return run, rec
+
+
+# -- seed 001: UGV + quadrotor --------------------------------------------------------------
+def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIED_K, progress=None,
+                             compensation: bool = True):
+    """A seed 001 scenario with a Pioneer-like UGV and an IRIS in Bebop-like attitude mode.
+
+    The controller is seed 001's (Fig. 18) with the dynamic compensation (4.47) using
+    ``k`` (default: identified from this quadrotor); the motion capture and odometry are
+    those of :class:`~quatform.sim.ugv_uav.MotionCapture`. Returns ``(UgvUavRun, PhysicsRecord)``.
+    """
+    from .ugv_uav import simulate_ugv_uav
+
+    holder = {}
+
+    def plant_factory(x0, floor):
+        h = physics_timestep(sc.dt_s)
+        z0 = max(x0[5], floor + IRIS.leg_height)
+        world = PhysicsWorld(quads=[("uav", (x0[3], x0[4], z0), x0[6])], ugvs=[("ugv", x0[0:2], x0[2])],
+                             floor_z=floor, timestep=h, quad_mode="attitude")
+        holder["world"], holder["qpos"], holder["h"] = world, [], h
+        n = round(sc.dt_s / h)
+
+        def state():
+            _, v, R, w, _ = world.quad_pose("uav")
+            s = world.quad_state("uav")
+            c, si = math.cos(s[3]), math.sin(s[3])
+            psi_dot = float(R[2, :] @ w)  # world z component of the body rate
+            return np.r_[world.ugv_state("ugv"), s, c * v[0] + si * v[1], -si * v[0] + c * v[1], v[2], psi_dot]
+
+        def plant(x, u, dt):
+            holder["qpos"].append(world.qpos())
+            world.command_ugv("ugv", u[0:2])
+            world.command_quad("uav", u[2:6])
+            world.step(n)
+            return state()
+
+        return state(), plant
+
+    bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)
+    run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop,
+                           compensation=compensation)
+    world = holder["world"]
+    spc = max(1, round(sc.control_period_s / sc.dt_s))  # plant calls per control tick
+    q = np.array(holder["qpos"][::spc][:len(run.t)])
+    rec = PhysicsRecord(world.xml, run.t[:len(q)], q,
+                        {"ugv": np.c_[run.ugv[:, 0:2], np.full(len(run.t), sc.center[2])], "uav": run.uav[:, 0:3]},
+                        world.contacts.summary(), holder["h"])
+    return run, rec
+
+
+#: Excitation of :func:`identify_k` per channel: (duration s, step period s, chirp end Hz).
+#: The horizontal channels are slow (time constant ``1/K2`` ~ 6 s): their steps last long
+#: enough to show the drag, their chirp stays below the attitude loop's bandwidth.
+IDENTIFICATION_EXCITATION = {"x": (40.0, 10.0, 0.3), "y": (40.0, 10.0, 0.3), "z": (8.0, 1.5, 1.0),
+                             "psi": (8.0, 1.5, 1.0)}
+
+
+def identify_k(timestep: float = 0.0025, excitation: dict | None = None):
+    """``K1..K8`` of seed 001 eq. (3.11) identified from the simulated quadrotor.
+
+    Each channel of the Bebop-like attitude mode is excited alone from a hover: during the
+    first half of its run, steps of +-0.5 that alternate every ``period``; during the second,
+    a chirp of amplitude 0.5 from 0.02 Hz to ``f_end`` (:data:`IDENTIFICATION_EXCITATION`).
+    The body-frame velocity ``v`` is recorded at every physics step, differentiated by
+    central differences, and ``v_dot = K_u u - K_v v`` (the body-frame model; seed 001
+    prints it in the world frame, ``docs/derivations.md``) is fitted by least squares per
+    channel.
+
+    Returns
+    -------
+    k : tuple of 8 floats
+        ``(K1, K2, ..., K8)``.
+    fit : dict
+        Per channel: ``r2`` of the fit of ``v_dot`` and the number of ``samples``.
+    """
+    exc = dict(IDENTIFICATION_EXCITATION, **(excitation or {}))
+    k, fit = [], {}
+    for ch, name in enumerate(("x", "y", "z", "psi")):
+        duration, period, f_end = exc[name]
+        n = round(duration / timestep)
+        t = np.arange(n) * timestep
+        half = 0.5 * duration
+        steps = 0.5 * np.where((t // period) % 2 == 0, 1.0, -1.0)
+        f = 0.02 + (f_end - 0.02) * (t - half) / half
+        chirp = 0.5 * np.sin(2 * np.pi * np.cumsum(np.where(t >= half, f, 0.0)) * timestep)
+        u_ch = np.where(t < half, steps, chirp)
+        world = PhysicsWorld(quads=[("uav", (0.0, 0.0, 3.0), 0.0)], floor_z=-100.0, timestep=timestep,
+                             quad_mode="attitude")
+        v = np.zeros(n)
+        u = np.zeros(4)
+        for i in range(n):
+            u[ch] = u_ch[i]
+            world.command_quad("uav", u)
+            _, vel, R, w, yaw = world.quad_pose("uav")
+            c, s = math.cos(yaw), math.sin(yaw)
+            v[i] = (c * vel[0] + s * vel[1], -s * vel[0] + c * vel[1], vel[2], float(R[2, :] @ w))[ch]
+            world.step(1)
+        vdot = (v[2:] - v[:-2]) / (2 * timestep)
+        A = np.c_[u_ch[1:-1], -v[1:-1]]
+        sol, *_ = np.linalg.lstsq(A, vdot, rcond=None)
+        r2 = 1.0 - np.sum((vdot - A @ sol) ** 2) / np.sum((vdot - vdot.mean()) ** 2)
+        k.extend(float(x) for x in sol)
+        fit[name] = {"r2": float(r2), "samples": len(vdot)}
+    return tuple(k), fit

@@ -1,0 +1,43 @@
+"""Issue 7: MuJoCo is optional. quatform imports, and every kinematic feature works,
+without it; asking for the physics backend then fails with a message naming the extra.
+(This file needs no MuJoCo: it hides it from a fresh interpreter.)"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+SCRIPT = textwrap.dedent("""
+    import sys
+    sys.modules["mujoco"] = None  # "not installed": importing it raises ImportError
+    import quatform, quatform.cli, quatform.runs, quatform.sim, quatform.robots.physics, quatform.report
+    from quatform.robots.physics import quadrotor_mjcf, QuadrotorCascade
+    quadrotor_mjcf("q", (0, 0, 1)); QuadrotorCascade()  # the models need no MuJoCo
+    from quatform.sim import mujoco_backend
+    from quatform.errors import MissingDependencyError
+    try:
+        mujoco_backend.PhysicsWorld(quads=[("q", (0, 0, 1), 0.0)])
+    except MissingDependencyError as exc:
+        assert isinstance(exc, ImportError)
+        print("MESSAGE:", exc)
+    rc = quatform.cli.main(["run", "mas-kitts-helix", "--backend", "mujoco", "--controller", "quaternion",
+                            "--out", sys.argv[1]])
+    print("RC:", rc)
+""")
+
+
+def test_quatform_imports_without_mujoco_and_names_the_extra(tmp_path):
+    out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "run")], capture_output=True, text=True, check=False,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "MESSAGE:" in out.stdout and "pip install quatform[mujoco]" in out.stdout
+    assert "RC: 2" in out.stdout and "pip install quatform[mujoco]" in out.stderr
+
+
+def test_importing_quatform_does_not_import_mujoco():
+    code = ("import sys, quatform, quatform.cli, quatform.runs, quatform.sim, quatform.robots.physics, "
+            "quatform.sim.mujoco_backend, quatform.report.physics_render; print('mujoco' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
