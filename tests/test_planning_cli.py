@@ -44,19 +44,24 @@ def test_plan_writes_plan_metrics_and_plots(tmp_path, capsys):
     assert "converged = True" in capsys.readouterr().out
 
 
-def test_seed_panels_and_the_infeasible_alpha(tmp_path, capsys):
+def test_seed_panels_and_alpha_below_the_geodesic_bound(tmp_path, capsys):
+    """alpha = 0.2 (seed Fig. 3): no smooth geodesic (bound 0.36); the plan is the minimiser
+    through the robots' meeting, and the user is told they meet."""
     out = tmp_path / "fig3"
     rc = cli.main(["plan", "belta-kumar-2002-two-bodies", "--out", str(out), "--alpha", "0.5",
                    "--alpha", "0.2", "--no-plots"])
     captured = capsys.readouterr()
-    assert rc == 2
+    assert rc == 0
     err = captured.err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("quatform: error: no geodesic") and "alpha = 0.2" in err[0]
+    assert len(err) == 1 and err[0].startswith("quatform: warning: robots 1 and 2 come within 0 m")
     ok = json.loads((out / "alpha-0.5" / "metrics.json").read_text())
-    bad = json.loads((out / "alpha-0.2" / "metrics.json").read_text())
-    assert ok["converged"] and ok["max_straight_line_deviation_m"] < 1e-9
-    assert bad["converged"] is False and "only for alpha > 0.36" in bad["error"]
-    assert not (out / "alpha-0.2" / "plan.npz").exists()
+    low = json.loads((out / "alpha-0.2" / "metrics.json").read_text())
+    assert ok["converged"] and ok["max_straight_line_deviation_m"] < 1e-9 and not ok["through_meeting"]
+    assert low["through_meeting"] and low["robots_meet"] and low["min_separation_m"] < 1e-9
+    assert low["geodesic_bound_alpha"] == pytest.approx(0.36)
+    plan = load_plan(out / "alpha-0.2" / "plan.npz")
+    np.testing.assert_allclose(plan.positions[[0, -1]], [[[1.0, 0.0], [-0.5, 0.0]], [
+        [2.2928932188134525, -0.7071067811865476], [3.3535533905932737, 0.3535533905932738]]], atol=1e-12)
 
 
 def test_close_robots_are_flagged(tmp_path, capsys):

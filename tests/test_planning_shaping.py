@@ -371,3 +371,31 @@ def test_pair_reference_passes_the_vertical_continuously():
     planar = make_plan(load_plan_spec("belta-kumar-2002-two-bodies"))[0]
     with pytest.raises(InvalidInputError, match="d = 3"):
         PlanPairPath(planar)
+
+
+def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics():
+    """Below the two-body bound the minimiser runs through the robots' meeting; above it,
+    every geodesic has less energy than that path, and the gap closes as alpha -> bound."""
+    from quatform.planning.geodesic import plan_through_meeting, two_body_bound
+    from quatform.planning.shaping import metric_energy
+
+    m = np.array([1.0, 2.0])
+    q0 = np.array([[1.0, 0.0], [-0.5, 0.0]])
+    q1 = np.array([[2.2928932188134525, -0.7071067811865476], [3.3535533905932737, 0.3535533905932738]])
+    bound = two_body_bound(q0, q1, m)
+    assert bound == pytest.approx(0.36)
+    low = plan_through_meeting(q0, q1, m, 0.2, 1.0, 101)
+    k = np.argmin(np.linalg.norm(low.positions[:, 0] - low.positions[:, 1], axis=-1))
+    assert np.linalg.norm(low.positions[k, 0] - low.positions[k, 1]) < 1e-12
+    # constant metric energy on both halves, equal to the closed form
+    keep = np.abs(low.times - low.info["meeting_time_s"]) > 1e-9
+    E = metric_energy(low.positions[keep].reshape(-1, 4), low.velocities[keep].reshape(-1, 4), m, 0.2)
+    np.testing.assert_allclose(E, low.info["energy"], rtol=1e-9)
+    gaps = []
+    for a in (0.5, 0.42, 0.38):
+        sol = solve_geodesic(q0, q1, m, a)
+        e_geo = float(np.mean(metric_energy(*sol.state(np.linspace(0, 1, 11)), m, a)))
+        e_meet = plan_through_meeting(q0, q1, m, a, 1.0, 11).info["energy"]
+        assert e_geo < e_meet
+        gaps.append(e_meet - e_geo)
+    assert gaps[0] > gaps[1] > gaps[2]  # the geodesics approach the path through the meeting

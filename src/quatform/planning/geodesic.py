@@ -12,8 +12,9 @@ and the energy ``q̇^T M_alpha q̇`` must stay constant. Anything else raises
 Geodesics may not exist: the shaped metric of two bodies is a cone in the relative
 coordinates (``docs/derivations.md``, seed 002 item 3), and when ``alpha`` is small enough
 the only energy-minimising curve passes through the robots meeting, where the metric is
-singular. For two robots that bound is checked before solving; for more, the continuation
-stalls and the error says how far it got.
+singular. For two robots that bound is checked before solving (:func:`two_body_bound`) and
+:func:`plan_through_meeting` gives the minimising motion through the meeting instead; for
+more, the continuation stalls and the error says how far it got.
 """
 
 from __future__ import annotations
@@ -274,6 +275,60 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
         )
     return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
                             time.perf_counter() - t_start, sol.sol)
+
+
+def two_body_bound(q0, q1, masses) -> float:
+    """The smallest ``alpha`` for which two robots have a geodesic between ``q0`` and ``q1``.
+
+    The relative position lives on a cone of opening ``sqrt(alpha / (1 - alpha))``; a
+    straight line on the unrolled cone joins the ends only if ``sqrt((1 - alpha) / alpha)``
+    times the turn of the relative direction is below ``pi`` (docs/derivations.md, seed 002).
+    """
+    a, b, _ = _check_ends(q0, q1, masses)
+    d0, d1 = a[0] - a[1], b[0] - b[1]
+    turn = float(np.arccos(np.clip(d0 @ d1 / (np.linalg.norm(d0) * np.linalg.norm(d1)), -1.0, 1.0)))
+    return 0.0 if turn == 0.0 else 1.0 / (1.0 + (np.pi / turn) ** 2)
+
+
+def plan_through_meeting(q0, q1, masses, alpha, duration_s: float, knots: int = 201, info: dict | None = None):
+    """Two robots below :func:`two_body_bound`: the energy-minimising motion, through their meeting.
+
+    In the metric's completion the shortest curve between the ends runs through the cone's
+    apex: the centre of mass moves uniformly on its straight line (the rigid part of the
+    metric is flat), and the relative position shrinks along its start direction to zero and
+    grows along its goal direction, its length changing at a constant rate (``|r0| + |r1|``
+    in all). Its metric energy is constant on both halves and equals
+    ``alpha mu (|r0| + |r1|)^2 + (1 - alpha) M |c1 - c0|^2`` (times ``1/T^2``). The robots
+    *meet* at ``s* = |r0| / (|r0| + |r1|)``: the plan says so (``robots_meet``). At the
+    meeting the relative velocity reverses; the :class:`Plan` knot there has zero velocity,
+    so its C2 interpolation stops the robots where they meet (within one knot interval).
+    """
+    from .plan import Plan
+
+    a, b, m = _check_ends(q0, q1, masses)
+    if m.size != 2:
+        raise InvalidInputError(f"a path through the robots' meeting is defined for two robots, got {m.size}")
+    T = float(duration_s)
+    if not (np.isfinite(T) and T > 0) or int(knots) < 2:
+        raise InvalidInputError(f"need duration_s > 0 and knots >= 2, got {duration_s!r}, {knots!r}")
+    w = m / m.sum()
+    c0, c1 = w @ a, w @ b
+    d0, d1 = a[0] - a[1], b[0] - b[1]
+    r0, r1 = float(np.linalg.norm(d0)), float(np.linalg.norm(d1))
+    s_meet = r0 / (r0 + r1)
+    s = np.union1d(np.linspace(0.0, 1.0, int(knots)), [s_meet])
+    before = s <= s_meet
+    rel = np.where(before[:, None], (1.0 - s / s_meet)[:, None] * d0,
+                   ((s - s_meet) / (1.0 - s_meet))[:, None] * d1)
+    rel_dot = np.where(before[:, None], -d0 / s_meet, d1 / (1.0 - s_meet))
+    rel_dot[np.isclose(s, s_meet, rtol=0.0, atol=1e-12)] = 0.0
+    com = c0 + s[:, None] * (c1 - c0)
+    pos = np.stack([com + w[1] * rel, com - w[0] * rel], axis=1)
+    vel = np.stack([(c1 - c0) + w[1] * rel_dot, (c1 - c0) - w[0] * rel_dot], axis=1) / T
+    info = {**(info or {}), "through_meeting": True, "meeting_time_s": s_meet * T,
+            "energy": float((alpha * (m[0] * m[1] / m.sum()) * (r0 + r1) ** 2
+                             + (1.0 - alpha) * m.sum() * float((c1 - c0) @ (c1 - c0))) / (T * T))}
+    return Plan(s * T, pos, vel, np.zeros_like(pos), m, info)
 
 
 def plan_from_geodesic(sol: GeodesicSolution, duration_s: float, knots: int = 201, info: dict | None = None):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import time
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -20,7 +21,7 @@ import numpy as np
 
 from ..algebra import matrix_from_q
 from ..errors import InvalidInputError, QuatformError
-from .geodesic import plan_from_geodesic, solve_geodesic
+from .geodesic import plan_from_geodesic, plan_through_meeting, solve_geodesic, two_body_bound
 from .measures import min_separation, rigid_motion, straight_line_motion
 from .plan import Plan
 from .rigid_formation import AIRPLANE_CASES, airplanes_spec, rigid_plan_from_spec
@@ -179,13 +180,21 @@ def _shaped_geodesic(spec: PlanSpec):
     if "alpha" not in spec.options:
         raise InvalidInputError(f"{spec.name}: [shaping] needs alpha (0 < alpha < 1)")
     alpha = check_alpha(spec.options["alpha"])
-    sol = solve_geodesic(spec.start, spec.goal, spec.masses, alpha)
     info = {"kind": spec.kind, "name": spec.name, "alpha": alpha, "masses": spec.masses.tolist(),
             "source": spec.source}
+    if spec.masses.size == 2 and alpha != 0.5 and alpha <= two_body_bound(spec.start, spec.goal, spec.masses):
+        # no smooth geodesic: the minimiser runs through the robots' meeting (the plan flags it)
+        t0 = time.perf_counter()
+        plan = plan_through_meeting(spec.start, spec.goal, spec.masses, alpha, spec.duration_s, spec.knots, info)
+        extra = {"alpha": alpha, "solve_time_s": time.perf_counter() - t0, "through_meeting": True,
+                 "geodesic_bound_alpha": two_body_bound(spec.start, spec.goal, spec.masses),
+                 "meeting_time_s": plan.info["meeting_time_s"]}
+        return plan, extra
+    sol = solve_geodesic(spec.start, spec.goal, spec.masses, alpha)
     plan = plan_from_geodesic(sol, spec.duration_s, spec.knots, info)
     extra = {"alpha": alpha, "solve_time_s": sol.solve_time_s, "endpoint_error_m": sol.endpoint_error_m,
              "energy_drift": sol.energy_drift, "collocation_nodes": int(sol.s.size),
-             "continuation_alphas": [round(a, 12) for a in sol.continuation]}
+             "continuation_alphas": [round(a, 12) for a in sol.continuation], "through_meeting": False}
     return plan, extra
 
 
