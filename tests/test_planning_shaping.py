@@ -373,23 +373,37 @@ def test_pair_reference_passes_the_vertical_continuously():
         PlanPairPath(planar)
 
 
-def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics():
-    """Below the two-body bound the minimiser runs through the robots' meeting; above it,
-    every geodesic has less energy than that path, and the gap closes as alpha -> bound."""
-    from quatform.planning.geodesic import plan_through_meeting, two_body_bound
+def _fig4_ends():
+    ang = np.pi / 2 + 2 * np.pi / 3 * np.arange(3) - np.pi / 2  # robot 1 on +x
+    r = np.stack([np.cos(ang), np.sin(ang)], axis=1) / np.sqrt(3)  # unit sides
+    c, s = np.cos(-3 * np.pi / 4), np.sin(-3 * np.pi / 4)
+    return np.ones(3), r, r @ np.array([[c, -s], [s, c]]).T + [3.0, 0.0]
+
+
+@pytest.mark.parametrize("case", ["two bodies", "equilateral"])
+def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics(case):
+    """Below the cone bound the minimiser runs through the robots' meeting; above it, every
+    geodesic has less energy than that path, and the gap closes as alpha -> bound (two
+    bodies, Fig. 3; three equal masses on a triangle, Fig. 4)."""
+    from quatform.planning.geodesic import meeting_bound, plan_through_meeting
     from quatform.planning.shaping import metric_energy
 
-    m = np.array([1.0, 2.0])
-    q0 = np.array([[1.0, 0.0], [-0.5, 0.0]])
-    q1 = np.array([[2.2928932188134525, -0.7071067811865476], [3.3535533905932737, 0.3535533905932738]])
-    bound = two_body_bound(q0, q1, m)
-    assert bound == pytest.approx(0.36)
+    if case == "two bodies":
+        m = np.array([1.0, 2.0])
+        q0 = np.array([[1.0, 0.0], [-0.5, 0.0]])
+        q1 = np.array([[2.2928932188134525, -0.7071067811865476], [3.3535533905932737, 0.3535533905932738]])
+    else:
+        m, q0, q1 = _fig4_ends()
+    n = q0.size
+    bound, turn = meeting_bound(q0, q1, m)
+    assert bound == pytest.approx(0.36) and turn == pytest.approx(3 * np.pi / 4)
     low = plan_through_meeting(q0, q1, m, 0.2, 1.0, 101)
     k = np.argmin(np.linalg.norm(low.positions[:, 0] - low.positions[:, 1], axis=-1))
-    assert np.linalg.norm(low.positions[k, 0] - low.positions[k, 1]) < 1e-12
+    assert np.abs(low.positions[k] - low.positions[k, 0]).max() < 1e-12  # all meet
+    np.testing.assert_allclose(low.positions[[0, -1]], [q0, q1], atol=1e-12)
     # constant metric energy on both halves, equal to the closed form
     keep = np.abs(low.times - low.info["meeting_time_s"]) > 1e-9
-    E = metric_energy(low.positions[keep].reshape(-1, 4), low.velocities[keep].reshape(-1, 4), m, 0.2)
+    E = metric_energy(low.positions[keep].reshape(-1, n), low.velocities[keep].reshape(-1, n), m, 0.2)
     np.testing.assert_allclose(E, low.info["energy"], rtol=1e-9)
     gaps = []
     for a in (0.5, 0.42, 0.38):
@@ -399,3 +413,17 @@ def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics():
         assert e_geo < e_meet
         gaps.append(e_meet - e_geo)
     assert gaps[0] > gaps[1] > gaps[2]  # the geodesics approach the path through the meeting
+    assert gaps[2] < 0.25 * gaps[0]
+
+
+def test_no_meeting_path_where_the_geometry_is_not_known():
+    """Unequal masses on the triangle, or a triangle that is not regular: no closed form."""
+    from quatform.errors import InvalidInputError
+    from quatform.planning.geodesic import meeting_bound, plan_through_meeting
+
+    m, q0, q1 = _fig4_ends()
+    assert meeting_bound(q0, q1, [1.0, 1.0, 2.0]) is None
+    skew = q0 * [1.0, 1.3]
+    assert meeting_bound(skew, skew + 1.0, m) is None
+    with pytest.raises(InvalidInputError, match="regular polygon"):
+        plan_through_meeting(skew, skew + 1.0, m, 0.2, 1.0)

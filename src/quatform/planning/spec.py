@@ -21,7 +21,7 @@ import numpy as np
 
 from ..algebra import matrix_from_q
 from ..errors import InvalidInputError, QuatformError
-from .geodesic import plan_from_geodesic, plan_through_meeting, solve_geodesic, two_body_bound
+from .geodesic import meeting_bound, plan_from_geodesic, plan_through_meeting, solve_geodesic
 from .measures import min_separation, rigid_motion, straight_line_motion
 from .plan import Plan
 from .rigid_formation import AIRPLANE_CASES, airplanes_spec, rigid_plan_from_spec
@@ -182,13 +182,13 @@ def _shaped_geodesic(spec: PlanSpec):
     alpha = check_alpha(spec.options["alpha"])
     info = {"kind": spec.kind, "name": spec.name, "alpha": alpha, "masses": spec.masses.tolist(),
             "source": spec.source}
-    if spec.masses.size == 2 and alpha != 0.5 and alpha <= two_body_bound(spec.start, spec.goal, spec.masses):
+    known = meeting_bound(spec.start, spec.goal, spec.masses)
+    if known is not None and alpha != 0.5 and alpha <= known[0]:
         # no smooth geodesic: the minimiser runs through the robots' meeting (the plan flags it)
         t0 = time.perf_counter()
         plan = plan_through_meeting(spec.start, spec.goal, spec.masses, alpha, spec.duration_s, spec.knots, info)
         extra = {"alpha": alpha, "solve_time_s": time.perf_counter() - t0, "through_meeting": True,
-                 "geodesic_bound_alpha": two_body_bound(spec.start, spec.goal, spec.masses),
-                 "meeting_time_s": plan.info["meeting_time_s"]}
+                 "geodesic_bound_alpha": known[0], "meeting_time_s": plan.info["meeting_time_s"]}
         return plan, extra
     sol = solve_geodesic(spec.start, spec.goal, spec.masses, alpha)
     plan = plan_from_geodesic(sol, spec.duration_s, spec.knots, info)
