@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..algebra import matrix_from_q, q_from_axis_angle, qmul, qslerp
+from ..algebra import q_from_axis_angle, qmul, qslerp
 from ..algebra._kernels import qmul_components
 from ..errors import InvalidInputError
 from ..teleop import (
@@ -211,7 +211,8 @@ class TeleopRun:
     ``r_s``: the slave's; ``p_master``: the master's tool in its own base frame; ``e``: the
     controller's task error; ``angle``: the true angle between the two orientations;
     ``tau_m``/``tau_s``: the torques sent; ``F_s``: the slave's wrist force (what it
-    exerts on its environment); ``F_hand``: the hand's force on the master (master axes);
+    exerts on its environment) as the controller read it in that cycle (sensed at the end
+    of the previous one); ``F_hand``: the hand's force on the master (master axes);
     ``F_reflected``: the master actuators' commanded force at the handle (master axes);
     ``wall_depth``: the master's depth into each virtual wall over that wall's thickness
     (``(T, n_walls)``; <= 0 outside, > 1 through it);
@@ -591,7 +592,8 @@ def _teleop_scenario_from_dict(data: dict, where: str) -> TeleopScenario:
         raise InvalidInputError(f"{where}: dt_s = {dt} exceeds duration_s = {duration}")
     holds = tuple(float(x) for x in data.get("holds_s", []))
     if not all(np.isfinite(h) and 0.0 <= h <= duration for h in holds):
-        raise InvalidInputError(f"{where}: holds_s must be times within [0, duration_s = {duration}], got {list(holds)}")
+        raise InvalidInputError(f"{where}: holds_s must be times within [0, duration_s = {duration}], "
+                                f"got {list(holds)}")
     sc = TeleopScenario(
         name=d.name, duration_s=duration, dt_s=dt, title=str(data.get("title", "")),
         source=str(data.get("source", "")),
