@@ -42,8 +42,8 @@ vec = lambda n, lim=0.6: hnp.arrays(np.float64, n, elements=st.floats(-lim, lim)
 
 
 @settings(max_examples=40, deadline=None)
-@given(dm=vec(6, 2.5), dmd=vec(6, 1), ds=vec(7, 2.5), dsd=vec(7, 1), F=vec(6, 20), base=vec(3, 2.0),
-       scale=st.floats(0.3, 3.0))
+@given(dm=vec(6, 2.5), dmd=vec(6, 1), ds=vec(7, 2.5), dsd=vec(7, 1), F=vec(6, 20),
+       base=st.one_of(st.just(np.zeros(3)), vec(3, 2.0)), scale=st.one_of(st.just(1.0), st.floats(0.3, 3.0)))
 def test_fast_path_equals_the_general_functions(dm, dmd, ds, dsd, F, base, scale):
     """compute() (frames shared, error from R_M^T R_S) = eqs. (12), (14a), (14b) written out
     with the general functions, for any registration (base rotation, scale) and either
@@ -172,6 +172,14 @@ def test_limits_preload_and_walls():
     on = TeleopController(REG, Q_S0, preload_nm=TeleopController.default_preload()).compute(0.0, small_meas).tau_m
     big = np.abs(off) > TeleopController.default_preload()
     np.testing.assert_allclose(on[big], off[big] + np.sign(off[big]) * TeleopController.default_preload()[big])
+    from quatform.teleop.control import preload
+
+    pre = TeleopController.default_preload()
+    for scale in (0.001, 0.01, 0.1):  # inside the ramp, across it, beyond it: the general function
+        meas = _measurement(np.full(6, scale), np.zeros(6), np.zeros(7), np.zeros(7), np.zeros(6))
+        raw = TeleopController(REG, Q_S0, **UNLIMITED).compute(0.0, meas).tau_m
+        fast = TeleopController(REG, Q_S0, preload_nm=pre, **UNLIMITED).compute(0.0, meas).tau_m
+        np.testing.assert_allclose(fast, preload(raw, pre), atol=1e-12)
     # a virtual wall the master's tool is inside pushes it out along -normal
     p_master = KRAFT_MASTER.forward(Q_M0)[0]
     wall = VirtualWall(normal=(0.0, 0.0, -1.0), offset=-(p_master[2] + 0.01), resist_force_n=8.0, thickness_m=0.02)

@@ -64,11 +64,16 @@ class SerialArm:
 
     @cached_property
     def _constants(self):
-        """Per-link ``(offset, cos alpha, sin alpha, a, d)`` as arrays, computed once."""
+        """Per-link offsets, ``cos alpha``, ``sin alpha`` and the transform's constant entries
+        (``a``, ``-sin(alpha) d``, ``cos(alpha) d``, the third column), computed once."""
         L = self.links
         alpha = np.array([x.alpha_prev for x in L])
-        return (np.array([x.offset for x in L]), np.cos(alpha), np.sin(alpha), np.array([x.a_prev for x in L]),
-                np.array([x.d for x in L]))
+        ca, sa = np.cos(alpha), np.sin(alpha)
+        a, d = np.array([x.a_prev for x in L]), np.array([x.d for x in L])
+        template = np.zeros((len(L), 4, 4))
+        template[:, 0, 3], template[:, 1, 2], template[:, 1, 3] = a, -sa, -sa * d
+        template[:, 2, 2], template[:, 2, 3], template[:, 3, 3] = ca, ca * d, 1.0
+        return np.array([x.offset for x in L]), ca, sa, template
 
     def frames(self, q) -> np.ndarray:
         """Homogeneous transforms ``0_T_i`` of every link frame, shape ``(..., n, 4, 4)``."""
@@ -76,15 +81,15 @@ class SerialArm:
 
     def frames_unchecked(self, q: np.ndarray) -> np.ndarray:
         """:meth:`frames` of a float array already validated (the control cycle's fast path)."""
-        offset, ca, sa, a, d = self._constants
+        offset, ca, sa, template = self._constants
         th = q + offset
         ct, st = np.cos(th), np.sin(th)
-        # every link's Rx(alpha) Tx(a) Rz(theta) Tz(d) at once, Craig eq. (3.6)
-        A = np.zeros(q.shape + (4, 4))
-        A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, a
-        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
-        A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
-        A[..., 3, 3] = 1.0
+        # every link's Rx(alpha) Tx(a) Rz(theta) Tz(d) at once, Craig eq. (3.6): the constant
+        # entries come from the template, the rotation's first two columns from theta
+        A = np.broadcast_to(template, q.shape + (4, 4)).copy()
+        A[..., 0, 0], A[..., 0, 1] = ct, -st
+        A[..., 1, 0], A[..., 1, 1] = st * ca, ct * ca
+        A[..., 2, 0], A[..., 2, 1] = st * sa, ct * sa
         out = np.empty_like(A)
         T = out[..., 0, :, :] = A[..., 0, :, :]
         for i in range(1, self.n):

@@ -14,6 +14,7 @@ taken as compensated on both arms (``tau_grav`` of (11)-(12)).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -24,7 +25,7 @@ from ..algebra._validate import as_array, as_unit_quaternion
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ._kernels import q_from_rotation
 from .arm import SerialArm
-from .control import StiffnessGains, force_stability_term, preload, virtual_wall_force
+from .control import StiffnessGains, force_stability_term, virtual_wall_force
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
@@ -257,9 +258,14 @@ class TeleopController:
         act = np.array([1.0 if a else 0.0 for a in (self.master.actuated or (True,) * self.master.n)])
         gm, gs = self.gains_master, self.gains_slave
         quarter = np.r_[1.0, 1.0, 1.0, 0.25, 0.25, 0.25]
+        off = np.zeros(self.master.n) if self.preload_nm is None else self.preload_nm
+        switch = off / 2.0  # the preload function's ramp (control.preload's default)
+        aligned = bool(np.array_equal(R, np.eye(3)) and self.registration.scale == 1.0)
         return {"R_base": R, "R_tool": matrix_from_q(self.registration.tool), "G6": G6, "actuated": act,
+                "aligned": aligned,
                 "kp_m": gm.kp, "kv_m": gm.kv, "kp_s": gs.kp, "kv_s": gs.kv, "kp_m_rpy": quarter * gm.kp,
-                "kv_m_rpy": quarter * gm.kv, "kp_s_rpy": quarter * gs.kp, "kv_s_rpy": quarter * gs.kv}
+                "kv_m_rpy": quarter * gm.kv, "kp_s_rpy": quarter * gs.kp, "kv_s_rpy": quarter * gs.kv,
+                "preload": off, "inv_switch": np.where(switch > 0, 1.0 / np.where(switch > 0, switch, 1.0), 0.0)}
 
     def compute(self, t: float, measured: TeleopMeasurement) -> TeleopCommand:
         """:meth:`step` with everything it computed (:class:`TeleopCommand`)."""
@@ -280,16 +286,21 @@ class TeleopController:
         Fm, Fs = M.frames_unchecked(q_m), S.frames_unchecked(q_s)  # each arm's frames once per cycle
         J_mf, J_sf = M.jacobian(q_m, Fm), S.jacobian(q_s, Fs)
         reg = self.registration
-        p_m = reg.scale * (K["R_base"] @ (M.tool(Fm) - reg.p_master0)) + reg.p_slave0
-        R_m = K["R_base"] @ Fm[-1, 0:3, 0:3] @ K["R_tool"]
-        Jm = K["G6"] @ J_mf  # the master's Jacobian in the slave's workspace
+        if K["aligned"]:  # base axes aligned, scale 1 (the default): no products needed
+            p_m = M.tool(Fm) - reg.p_master0 + reg.p_slave0
+            R_m, Jm = Fm[-1, 0:3, 0:3] @ K["R_tool"], J_mf
+        else:
+            p_m = reg.scale * (K["R_base"] @ (M.tool(Fm) - reg.p_master0)) + reg.p_slave0
+            R_m = K["R_base"] @ Fm[-1, 0:3, 0:3] @ K["R_tool"]
+            Jm = K["G6"] @ J_mf  # the master's Jacobian in the slave's workspace
         p_s, R_s = S.tool(Fs), Fs[-1, 0:3, 0:3]
         if self.orientation_error == "euler-parameters":
             # seed 003 eqs. (8)-(10): {d_eps4, d_eps_hat} of R_M^T R_S, the short way (d_eps4 >= 0)
             w, x, y, z = q_from_rotation(R_m.T @ R_s)
             # seed 003 eq. (19): d/dt d_eps_hat = W (omega_S - omega_M), W = 1/2 (d_eps4 I - [d_eps_hat]x) R_M^T
             rot = 0.5 * np.array([[w, z, -y], [-z, w, x], [y, -x, w]]) @ R_m.T
-            e = np.array([*(p_s - p_m), x, y, z])
+            e = np.empty(6)
+            e[0:3], e[3:6] = p_s - p_m, (x, y, z)
         else:
             rpy_m, rpy_s = rpy_from_matrix(R_m), rpy_from_matrix(R_s)
             e = np.concatenate([p_s - p_m, wrap_angle(rpy_s - rpy_m)])
@@ -332,16 +343,18 @@ class TeleopController:
                 wall = wall + wl.force(p_master, v_master)
             tau_m = tau_m + J_mf[0:3].T @ wall
         tau_m = tau_m * K["actuated"]
-        finite = bool(np.isfinite(tau_m).all() and np.isfinite(tau_s).all())
+        # one sum per arm: NaN or inf in any component makes it non-finite
+        finite = math.isfinite(float(tau_m.sum())) and math.isfinite(float(tau_s.sum()))
         if not finite:  # never send part of a broken command: hold both arms
             tau_m, tau_s = np.zeros_like(tau_m), np.zeros_like(tau_s)
         if self.preload_nm is not None:
-            tau_m = preload(tau_m, self.preload_nm)  # seed 003 §6, the inverse of the deadband
+            # seed 003 §6, the inverse of the deadband: preload(tau_m, preload_nm) with its
+            # constants precomputed (tests check the two agree)
+            tau_m = tau_m + K["preload"] * np.minimum(np.maximum(tau_m * K["inv_switch"], -1.0), 1.0)
         lim_m, lim_s = self.master_limits, self.slave_limits
-        saturated = bool((np.abs(tau_m) > lim_m).any() or (np.abs(tau_s) > lim_s).any())
-        if saturated:
-            tau_m = np.minimum(np.maximum(tau_m, -lim_m), lim_m)
-            tau_s = np.minimum(np.maximum(tau_s, -lim_s), lim_s)
+        saturated = details and bool((np.abs(tau_m) > lim_m).any() or (np.abs(tau_s) > lim_s).any())
+        tau_m = np.minimum(np.maximum(tau_m, -lim_m), lim_m)
+        tau_s = np.minimum(np.maximum(tau_s, -lim_s), lim_s)
         if not details:
             return tau_m, tau_s
         return TeleopCommand(tau_m, tau_s, e, p_m, np.array(q_from_rotation(R_m)), p_s,
@@ -353,7 +366,7 @@ def _measured(x, name, n):
     a = np.asarray(x, dtype=float)
     if a.shape != (n,):
         raise ShapeError(f"{name} must have shape ({n},), got {a.shape}")
-    if not np.isfinite(a).all():
+    if not math.isfinite(float(a.sum())) and not np.isfinite(a).all():  # the sum: one cheap test
         raise NonFiniteError(f"{name} = {a.tolist()} is not finite; a controller cannot act on NaN or inf "
                              "measurements - check the sensor reading")
     return a
