@@ -172,3 +172,39 @@ def test_case_needs_an_airplanes_spec(tmp_path, capsys):
     bad.write_text('kind = "rigid-se3"\n[airplanes]\ncase = "c"\n')
     assert cli.main(["plan", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "case" in capsys.readouterr().err
+
+
+def test_rigid_spec_inputs_and_plan_files_are_checked(tmp_path, capsys):
+    assert cli.main(["plan", "belta-kumar-2001-airplanes", "--case", "a", "--alpha", "0.5",
+                     "--out", str(tmp_path / "x")]) == 2
+    assert "do not go together" in capsys.readouterr().err
+    f = tmp_path / "f.toml"
+    f.write_text('kind = "rigid-se3"\nknots = 2.7\n[airplanes]\ncase = "a"\n')
+    assert cli.main(["plan", str(f), "--out", str(tmp_path / "y")]) == 2
+    assert "knots must be an integer" in capsys.readouterr().err
+    g = tmp_path / "g.toml"
+    g.write_text('kind = "rigid-se3"\n[formation]\nmasses = [1, 1, 1]\nduration = 3.0\n'
+                 'body_points = [[1, 0, 0], [-0.5, 0.8, 0], [-0.5, -0.8, 0]]\n'
+                 'inertias = [[1, 1, 1], [1, 1, 1], [1, 1, 1]]\n'
+                 'start = { position = [0, 0, 0], orientation = [1, 0, 0, 0] }\n'
+                 'end = { position = [1, 0, 0], orientation = [1, 0, 0, 0] }\n')
+    assert cli.main(["plan", str(g), "--out", str(tmp_path / "z")]) == 2
+    assert "duration_s and knots" in capsys.readouterr().err
+    bad = tmp_path / "truncated.npz"
+    bad.write_bytes(b"PK\x03\x04 not a zip")
+    with pytest.raises(cli.QuatformError):
+        load_plan(bad)
+
+
+def test_rigid_plan_metrics_and_orientations_between_knots(tmp_path):
+    from quatform.algebra import q_angle_between
+    from quatform.planning import airplanes_plan
+
+    out = tmp_path / "b"
+    assert cli.main(["plan", "belta-kumar-2001-airplanes", "--out", str(out), "--no-plots"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["max_rigid_deviation_m"] is None  # the SE(2)-style reference does not apply
+    plan = load_plan(out / "plan.npz")
+    t = 0.5 * (plan.times[:-1] + plan.times[1:])  # mid-knot: slerp against the exact plan
+    exact = airplanes_plan("b").sample(t).orientations
+    assert q_angle_between(plan.orientations_at(t), exact).max() < 1e-3

@@ -373,27 +373,13 @@ def test_pair_reference_passes_the_vertical_continuously():
         PlanPairPath(planar)
 
 
-def _fig4_ends():
-    ang = np.pi / 2 + 2 * np.pi / 3 * np.arange(3) - np.pi / 2  # robot 1 on +x
-    r = np.stack([np.cos(ang), np.sin(ang)], axis=1) / np.sqrt(3)  # unit sides
-    c, s = np.cos(-3 * np.pi / 4), np.sin(-3 * np.pi / 4)
-    return np.ones(3), r, r @ np.array([[c, -s], [s, c]]).T + [3.0, 0.0]
-
-
-@pytest.mark.parametrize("case", ["two bodies", "equilateral"])
-def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics(case):
-    """Below the cone bound the minimiser runs through the robots' meeting; above it, every
-    geodesic has less energy than that path, and the gap closes as alpha -> bound (two
-    bodies, Fig. 3; three equal masses on a triangle, Fig. 4)."""
+def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics():
+    """Below the cone bound two robots' minimiser runs through their meeting; above it,
+    every geodesic has less energy than that path, and the gap closes as alpha -> bound."""
     from quatform.planning.geodesic import meeting_bound, plan_through_meeting
     from quatform.planning.shaping import metric_energy
 
-    if case == "two bodies":
-        m = np.array([1.0, 2.0])
-        q0 = np.array([[1.0, 0.0], [-0.5, 0.0]])
-        q1 = np.array([[2.2928932188134525, -0.7071067811865476], [3.3535533905932737, 0.3535533905932738]])
-    else:
-        m, q0, q1 = _fig4_ends()
+    m, q0, q1 = FIG3_MASSES, FIG3_START, FIG3_GOAL
     n = q0.size
     bound, turn = meeting_bound(q0, q1, m)
     assert bound == pytest.approx(0.36) and turn == pytest.approx(3 * np.pi / 4)
@@ -405,25 +391,33 @@ def test_the_path_through_the_meeting_is_the_limit_of_the_geodesics(case):
     keep = np.abs(low.times - low.info["meeting_time_s"]) > 1e-9
     E = metric_energy(low.positions[keep].reshape(-1, n), low.velocities[keep].reshape(-1, n), m, 0.2)
     np.testing.assert_allclose(E, low.info["energy"], rtol=1e-9)
+    # the meeting path's energy, written out: alpha mu (r0 + r1)^2 + (1 - alpha) M |dc|^2
+    mu, M = m[0] * m[1] / m.sum(), m.sum()
+    r = np.linalg.norm(q0[0] - q0[1]) + np.linalg.norm(q1[0] - q1[1])
+    dc = (m @ q1 - m @ q0) / M
+    assert low.info["energy"] == pytest.approx(0.2 * mu * r**2 + 0.8 * M * dc @ dc)
     gaps = []
     for a in (0.5, 0.42, 0.38):
         sol = solve_geodesic(q0, q1, m, a)
         e_geo = float(np.mean(metric_energy(*sol.state(np.linspace(0, 1, 11)), m, a)))
-        e_meet = plan_through_meeting(q0, q1, m, a, 1.0, 11).info["energy"]
+        e_meet = a * mu * r**2 + (1 - a) * M * dc @ dc
         assert e_geo < e_meet
         gaps.append(e_meet - e_geo)
     assert gaps[0] > gaps[1] > gaps[2]  # the geodesics approach the path through the meeting
     assert gaps[2] < 0.25 * gaps[0]
 
 
-def test_no_meeting_path_where_the_geometry_is_not_known():
-    """Unequal masses on the triangle, or a triangle that is not regular: no closed form."""
+def test_no_meeting_path_for_three_robots_or_above_the_bound():
+    """The cone bound and the meeting path are for two robots (three can deform); alpha is
+    checked against the bound."""
     from quatform.errors import InvalidInputError
     from quatform.planning.geodesic import meeting_bound, plan_through_meeting
 
-    m, q0, q1 = _fig4_ends()
-    assert meeting_bound(q0, q1, [1.0, 1.0, 2.0]) is None
-    skew = q0 * [1.0, 1.3]
-    assert meeting_bound(skew, skew + 1.0, m) is None
-    with pytest.raises(InvalidInputError, match="regular polygon"):
-        plan_through_meeting(skew, skew + 1.0, m, 0.2, 1.0)
+    q0, q1 = fig4_ends()
+    assert meeting_bound(q0, q1, np.ones(3)) is None
+    with pytest.raises(InvalidInputError, match="two robots"):
+        plan_through_meeting(q0, q1, np.ones(3), 0.2, 1.0)
+    with pytest.raises(InvalidInputError, match="above the bound"):
+        plan_through_meeting(FIG3_START, FIG3_GOAL, FIG3_MASSES, 0.9, 1.0)
+    with pytest.raises(InvalidInputError):
+        plan_through_meeting(FIG3_START, FIG3_GOAL, FIG3_MASSES, float("nan"), 1.0)

@@ -167,7 +167,11 @@ def _plan(args):
     keys = ("converged", "solve_time_s", "min_separation_m", "max_straight_line_deviation_m",
             "max_rigid_deviation_m", "max_distance_change_m", "max_nonholonomic_violation", "energy")
     if args.case is not None:
+        from .errors import InvalidInputError
         from .plan_runs import plan_case_to_dir
+
+        if args.alpha is not None:
+            raise InvalidInputError("--alpha (seed 002 shaping) and --case (seed 004 airplanes) do not go together")
 
         rows = {None: plan_case_to_dir(args.spec, args.out, args.case, plots=not args.no_plots)[1]}
     elif args.alpha is not None and len(args.alpha) > 1:

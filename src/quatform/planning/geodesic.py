@@ -12,10 +12,11 @@ and the energy ``q̇^T M_alpha q̇`` must stay constant. Anything else raises
 Geodesics may not exist: the shaped metric of two bodies is a cone in the relative
 coordinates (``docs/derivations.md``, seed 002 item 3), and when ``alpha`` is small enough
 the only energy-minimising curve passes through the robots meeting, where the metric is
-singular. For two robots that bound is checked before solving (:func:`meeting_bound`);
-:func:`plan_through_meeting` gives the minimising motion through the meeting instead, for
-two robots and for equal masses on a regular polygon moved rigidly (seed 002 Fig. 4). For
-other formations the continuation stalls and the error says how far it got.
+singular. For two robots that bound is checked before solving (:func:`meeting_bound`), and
+:func:`plan_through_meeting` gives the minimising motion through the meeting instead. For
+three or more robots no such bound holds (their shapes can deform, and a geodesic may
+exist that breaks the formation's symmetry); where the continuation stalls, the error says
+how far it got.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from .shaping import (
     metric_energy,
 )
 
-__all__ = ["GeodesicSolution", "plan_from_geodesic", "solve_geodesic"]
+__all__ = ["GeodesicSolution", "meeting_bound", "plan_from_geodesic", "plan_through_meeting", "solve_geodesic"]
 
 #: Largest accepted miss of the forward-integrated end point, as a fraction of the travel.
 ENDPOINT_TOLERANCE = 1e-5
@@ -120,11 +121,10 @@ def _check_ends(q0, q1, masses):
     return a, b, m
 
 
-def _two_body_bound(a, b, alpha):
+def _two_body_bound(a, b, masses, alpha):
     """Seed 002 item 3 of docs/derivations.md: two bodies have a geodesic only if the relative
     direction turns by less than ``pi / k``, ``k = sqrt((1 - alpha) / alpha)`` (a cone)."""
-    d0, d1 = a[0] - a[1], b[0] - b[1]
-    turn = float(np.arccos(np.clip(d0 @ d1 / (np.linalg.norm(d0) * np.linalg.norm(d1)), -1.0, 1.0)))
+    _, turn = meeting_bound(a, b, masses)
     k = np.sqrt((1.0 - alpha) / alpha)
     if alpha != 0.5 and k * turn >= np.pi * (1.0 - 1e-9):
         raise ConvergenceError(
@@ -211,7 +211,7 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
     a0, b0, m = _check_ends(q0, q1, masses)
     target = check_alpha(alpha)
     if m.size == 2:
-        _two_body_bound(a0, b0, target)
+        _two_body_bound(a0, b0, m, target)
     N, d = a0.shape
     n = N * d
     qa, qb = a0.reshape(-1), b0.reshape(-1)
@@ -278,93 +278,69 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
                             time.perf_counter() - t_start, sol.sol)
 
 
-def _regular_polygon(r, m) -> bool:
-    """Equal masses on a regular polygon about their centre, in the plane, in cyclic order."""
-    if r.shape[1] != 2 or not np.allclose(m, m[0], rtol=1e-9):
-        return False
-    z = r[:, 0] + 1j * r[:, 1]
-    n = z.size
-    for w in (np.exp(2j * np.pi / n), np.exp(-2j * np.pi / n)):
-        if np.allclose(np.roll(z, -1), w * z, atol=1e-9 * max(1.0, float(np.abs(z).max()))):
-            return True
-    return False
-
-
 def meeting_bound(q0, q1, masses):
-    """The smallest ``alpha`` with a geodesic between ``q0`` and ``q1``, where it is known.
+    """For two robots: the smallest ``alpha`` with a geodesic between ``q0`` and ``q1``.
 
-    Known for two robots (any ends), and for equal masses on a regular polygon moved
-    rigidly (seed 002 Fig. 4): there the formations similar to the start are a totally
-    geodesic cone (for the polygon, the fixed set of "relabel and turn by 2 pi / N"), the
-    metric on it is ``alpha d rho^2 + (1 - alpha) rho^2 d theta^2`` plus the flat centre of
-    mass, and a straight line on the unrolled cone joins the ends only if
-    ``sqrt((1 - alpha) / alpha)`` times the turn is below ``pi`` (docs/derivations.md,
-    seed 002 item 3). Returns ``(bound, turn)``, or ``None`` where no such formula applies.
+    The relative position lives on a cone, ``mu (alpha dr^2 + (1 - alpha) r^2 dOmega^2)``
+    (plus the flat centre of mass); geodesics lie in planes through the apex, and a straight
+    line on the unrolled cone joins the ends only if ``sqrt((1 - alpha) / alpha)`` times the
+    turn of the relative direction is below ``pi`` (docs/derivations.md, seed 002 item 3).
+    Returns ``(bound, turn)``; ``None`` for three or more robots, where no such bound holds:
+    their shapes can deform, and the minimiser need not pass through a meeting.
     """
     a, b, m = _check_ends(q0, q1, masses)
-    w = m / m.sum()
-    r0, r1 = a - w @ a, b - w @ b
-    if m.size == 2:
-        d0, d1 = r0[0] - r0[1], r1[0] - r1[1]
-        turn = float(np.arccos(np.clip(d0 @ d1 / (np.linalg.norm(d0) * np.linalg.norm(d1)), -1.0, 1.0)))
-    elif _regular_polygon(r0, m) and _regular_polygon(r1, m):
-        z0, z1 = r0[:, 0] + 1j * r0[:, 1], r1[:, 0] + 1j * r1[:, 1]
-        ratio = z1 / z0
-        if not (np.allclose(ratio, ratio[0], rtol=1e-9) and np.isclose(abs(ratio[0]), 1.0, rtol=1e-9)):
-            return None  # not a rigid displacement of the labelled robots
-        turn = abs(float(np.angle(ratio[0])))
-    else:
+    if m.size != 2:
         return None
+    d0, d1 = a[0] - a[1], b[0] - b[1]
+    turn = float(np.arccos(np.clip(d0 @ d1 / (np.linalg.norm(d0) * np.linalg.norm(d1)), -1.0, 1.0)))
     return (0.0 if turn == 0.0 else 1.0 / (1.0 + (np.pi / turn) ** 2)), turn
 
 
-def two_body_bound(q0, q1, masses) -> float:
-    """:func:`meeting_bound` of two robots."""
-    _, _, m = _check_ends(q0, q1, masses)
-    if m.size != 2:
-        raise InvalidInputError(f"two_body_bound takes two robots, got {m.size}")
-    return meeting_bound(q0, q1, masses)[0]
-
-
 def plan_through_meeting(q0, q1, masses, alpha, duration_s: float, knots: int = 201, info: dict | None = None):
-    """Below :func:`meeting_bound`: the energy-minimising motion, through the robots' meeting.
+    """Two robots at or below :func:`meeting_bound`: the energy minimiser, through their meeting.
 
     In the metric's completion the shortest curve between the ends runs through the cone's
     apex: the centre of mass moves uniformly on its straight line (the rigid part of the
-    metric is flat), and every robot's offset from it shrinks along its start direction to
-    zero and grows along its goal direction, the size ``rho = sqrt(sum m_i |r_i|^2)``
-    changing at a constant rate (``rho_0 + rho_1`` in all). Its metric energy is constant on
-    both halves: ``alpha (rho_0 + rho_1)^2 + (1 - alpha) M |c1 - c0|^2`` (times ``1/T^2``).
-    The robots *meet* at ``s* = rho_0 / (rho_0 + rho_1)``: the plan says so. At the meeting
-    the velocities reverse; the :class:`Plan` knot there has zero velocity, so its C2
-    interpolation stops the robots where they meet (within one knot interval). Only where
-    :func:`meeting_bound` knows the geometry (two robots; equal masses on a regular polygon
-    moved rigidly).
+    metric is flat), and the relative position shrinks along its start direction to zero and
+    grows along its goal direction at a constant rate (``r0 + r1`` in all). Its metric
+    energy is constant on both halves: ``alpha mu (r0 + r1)^2 + (1 - alpha) M |c1 - c0|^2``
+    (times ``1/T^2``), stored as ``info["energy"]``. The robots *meet* at
+    ``s* = r0 / (r0 + r1)``: the plan says so. There the relative velocity reverses; the
+    :class:`Plan` knot at the meeting has zero velocity, so the sampled motion slows to rest
+    over the knot interval before it and speeds up over the one after (accelerations of
+    about ``3 |v| / h`` there, ``h = T / (knots - 1)``: a physical stop at contact, where the
+    ideal path has a velocity jump).
     """
     from .plan import Plan
 
     a, b, m = _check_ends(q0, q1, masses)
-    if meeting_bound(a, b, m) is None:
-        raise InvalidInputError("a path through the robots' meeting is known for two robots, or equal masses on a "
-                                "regular polygon moved rigidly; not for these ends")
+    alpha = check_alpha(alpha)
+    known = meeting_bound(a, b, m)
+    if known is None:
+        raise InvalidInputError(f"a path through the robots' meeting is defined for two robots, got {m.size}")
+    if alpha > known[0] and alpha != 0.5:
+        raise InvalidInputError(f"alpha = {alpha:g} is above the bound {known[0]:.4g}: a geodesic exists, use "
+                                "solve_geodesic")
     T = float(duration_s)
     if not (np.isfinite(T) and T > 0) or int(knots) < 2:
         raise InvalidInputError(f"need duration_s > 0 and knots >= 2, got {duration_s!r}, {knots!r}")
     w = m / m.sum()
     c0, c1 = w @ a, w @ b
-    r0, r1 = a - c0, b - c1
-    rho0, rho1 = (float(np.sqrt(np.sum(m * np.sum(r * r, axis=1)))) for r in (r0, r1))
-    s_meet = rho0 / (rho0 + rho1)
+    d0, d1 = a[0] - a[1], b[0] - b[1]
+    r0, r1 = float(np.linalg.norm(d0)), float(np.linalg.norm(d1))
+    s_meet = r0 / (r0 + r1)
     s = np.union1d(np.linspace(0.0, 1.0, int(knots)), [s_meet])
-    before = (s <= s_meet)[:, None, None]
-    off = np.where(before, (1.0 - s / s_meet)[:, None, None] * r0, ((s - s_meet) / (1.0 - s_meet))[:, None, None] * r1)
-    off_dot = np.where(before, -r0 / s_meet, r1 / (1.0 - s_meet))
-    off_dot[np.isclose(s, s_meet, rtol=0.0, atol=1e-12)] = 0.0
-    pos = c0 + s[:, None, None] * (c1 - c0) + off
-    vel = ((c1 - c0) + off_dot) / T
+    before = s <= s_meet
+    rel = np.where(before[:, None], (1.0 - s / s_meet)[:, None] * d0,
+                   ((s - s_meet) / (1.0 - s_meet))[:, None] * d1)
+    rel_dot = np.where(before[:, None], -d0 / s_meet, d1 / (1.0 - s_meet))
+    rel_dot[np.isclose(s, s_meet, rtol=0.0, atol=1e-12)] = 0.0
+    com = c0 + s[:, None] * (c1 - c0)
+    pos = np.stack([com + w[1] * rel, com - w[0] * rel], axis=1)
+    vel = np.stack([(c1 - c0) + w[1] * rel_dot, (c1 - c0) - w[0] * rel_dot], axis=1) / T
     info = {**(info or {}), "through_meeting": True, "meeting_time_s": s_meet * T,
-            "energy": float((alpha * (rho0 + rho1) ** 2 + (1.0 - alpha) * m.sum() * float((c1 - c0) @ (c1 - c0)))
-                            / (T * T))}
+            "energy": float((alpha * (m[0] * m[1] / m.sum()) * (r0 + r1) ** 2
+                             + (1.0 - alpha) * m.sum() * float((c1 - c0) @ (c1 - c0))) / (T * T))}
     return Plan(s * T, pos, vel, np.zeros_like(pos), m, info)
 
 

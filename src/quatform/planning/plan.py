@@ -9,6 +9,7 @@ positions, velocities and accelerations that are exact derivatives of one anothe
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -150,7 +151,7 @@ def load_plan(path) -> Plan:
                 raise InvalidInputError(f"{path} is not a quatform plan file (format {PLAN_FORMAT!r})")
             return Plan(z["times"], z["positions"], z["velocities"], z["accelerations"], z["masses"],
                         json.loads(str(z["info"])), z["orientations"] if "orientations" in z.files else None)
-    except (ValueError, KeyError) as exc:
+    except (ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
         if isinstance(exc, InvalidInputError):
             raise
         raise InvalidInputError(f"{path} is not a readable quatform plan file: {exc}") from None
