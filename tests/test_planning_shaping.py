@@ -222,10 +222,27 @@ def test_no_geodesic_below_the_cone_bound_raises_convergence_error():
     with pytest.raises(ConvergenceError, match=r"turns by 2.356 rad.*only for alpha > 0.36\b"):
         solve_geodesic(FIG3_START, FIG3_GOAL, FIG3_MASSES, 0.2)
     solve_geodesic(FIG3_START, FIG3_GOAL, FIG3_MASSES, 0.37)  # just above: exists
-    # three equal bodies (Fig. 4): no closed-form check; the continuation stalls at the same bound
+
+
+def test_three_bodies_below_the_symmetric_bound_break_the_symmetry():
+    """Fig. 4 at alpha = 0.2: the equilateral geodesics end at 0.36 (the continuation, which
+    keeps the symmetry, stalls there), but a geodesic exists that deforms the triangle; it is
+    found from a minimiser of the discretised path energy, verified like any other, and has
+    less energy than the collapse through a triple meeting."""
     q0, q1 = fig4_ends()
-    with pytest.raises(ConvergenceError, match=r"alpha = 0.2: the continuation .* stalled at alpha = 0.3[67]"):
-        solve_geodesic(q0, q1, np.ones(3), 0.2)
+    m = np.ones(3)
+    sol = solve_geodesic(q0, q1, m, 0.2)
+    assert sol.guess == "energy minimisation" and sol.continuation == (0.2,)
+    assert sol.endpoint_error_m < 1e-6 and sol.energy_drift < 1e-6
+    q, qd = sol.state(np.linspace(0.0, 1.0, 201))
+    E = metric_energy(q, qd, m, 0.2)
+    # the collapse through the meeting: relative 0.2 (rho0 + rho1)^2 = 0.8, centre of mass 0.8 * 3 * 9
+    assert E.mean() < 0.8 + 0.8 * 3 * 9
+    P = q.reshape(-1, 3, 2)
+    sides = np.linalg.norm(P[:, [0, 0, 1]] - P[:, [1, 2, 2]], axis=-1)
+    k = np.argmin(sides.sum(axis=1))
+    assert sides.min() < 0.1  # much closer mid-way than at the ends (unit sides) ...
+    assert sides[k].max() > 1.5 * sides[k].min()  # ... and far from equilateral there
 
 
 @pytest.mark.parametrize("alpha", [0.6, 0.9])

@@ -72,6 +72,10 @@ class GeodesicSolution:
         The ``alpha`` values solved on the way, in order.
     solve_time_s : float
         Wall time of the continuation, the check included.
+    guess : str
+        ``"continuation"`` (from the straight lines at alpha = 0.5) or ``"energy
+        minimisation"`` (where the continuation stalled: a minimiser of the discretised
+        path energy, which may break the formation's symmetry).
     """
 
     alpha: float
@@ -85,6 +89,7 @@ class GeodesicSolution:
     continuation: tuple
     solve_time_s: float
     _spline: object = None
+    guess: str = "continuation"
 
     def state(self, s):
         """``(q, q')`` at parameters ``s`` (shape ``(K,)``), each shape ``(K, N*d)``: the
@@ -232,7 +237,7 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
         zero = np.zeros_like(sel)
         return np.vstack([sel, zero]), np.vstack([zero, sel])
 
-    cur, step, done, sol = 0.5, 0.1 * np.sign(target - 0.5), [], None
+    cur, step, done, sol, guess = 0.5, 0.1 * np.sign(target - 0.5), [], None, "continuation"
     while True:
         nxt = target if abs(target - cur) <= abs(step) else cur + step
         try:
@@ -254,12 +259,18 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
             if abs(step) < min_step:
                 where = (f"the continuation from alpha = 0.5 stalled at alpha = {cur:.4g}"
                          if done else "no geodesic was found")
-                raise ConvergenceError(
-                    f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
-                    f"(last attempt: {why}). For small alpha the "
-                    "energy-minimising motion may pass through robots meeting, where the metric is "
-                    "singular (docs/planning.md); try an alpha closer to 0.5"
-                )
+                # the continuation keeps the start's symmetry; the geodesic may break it: start
+                # again from a minimiser of the discretised path energy (three or more robots)
+                sol = _solve_from_energy_guess(a0, b0, m, target, bc, bc_jac, tol, max_nodes) if N >= 3 else None
+                if sol is None:
+                    raise ConvergenceError(
+                        f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
+                        f"(last attempt: {why}). For small alpha the "
+                        "energy-minimising motion may pass through robots meeting, where the metric is "
+                        "singular (docs/planning.md); try an alpha closer to 0.5"
+                    )
+                done, guess = [target], "energy minimisation"
+                break
     f = _fun(m, target, n)
     ivp = solve_ivp(f, (0.0, 1.0), sol.y[:, 0], method="DOP853", rtol=1e-11, atol=1e-12 * max(scale, 1.0),
                     vectorized=True)
@@ -275,7 +286,71 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
             "(relative); the geodesic flow is too sensitive here - try an alpha closer to 0.5"
         )
     return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
-                            time.perf_counter() - t_start, sol.sol)
+                            time.perf_counter() - t_start, sol.sol, guess)
+
+
+#: Most unknowns of the discretised path-energy minimisation (it uses numerical gradients).
+ENERGY_GUESS_MAX_UNKNOWNS = 400
+
+
+def _solve_from_energy_guess(a0, b0, m, alpha, bc, bc_jac, tol, max_nodes, segments: int = 32):
+    """A geodesic from a minimiser of the discretised path energy, or None.
+
+    The centre of mass moves on its straight line (flat, decoupled); the robots' offsets
+    from it are free at ``segments - 1`` interior times and minimise ``sum E_k / K`` with
+    ``E_k`` the metric energy of segment ``k`` (L-BFGS, numerical gradient). The start is
+    the similar-shape path (shrinking mid-way, turning uniformly in the plane) with a fixed
+    seeded perturbation that breaks its symmetry. ``solve_bvp`` then refines it, first at a
+    loose tolerance, then at ``tol``.
+    """
+    from scipy.optimize import minimize
+
+    N, d = a0.shape
+    K = segments
+    if (K - 1) * N * d > ENERGY_GUESS_MAX_UNKNOWNS:
+        return None
+    w = m / m.sum()
+    c0, c1 = w @ a0, w @ b0
+    r0, r1 = a0 - c0, b0 - c1
+    s = np.linspace(0.0, 1.0, K + 1)
+    ss = s[1:-1, None, None]
+    rho = float(np.sqrt(np.sum(m * np.sum(r0 * r0, axis=1))) / np.sqrt(m.sum()))
+    if d == 2:
+        z0, z1 = r0[:, 0] + 1j * r0[:, 1], r1[:, 0] + 1j * r1[:, 1]
+        turn = float(np.angle(np.sum(m * z1 * np.conj(z0))))
+        z = z0 * np.exp(1j * turn * ss[..., 0]) * (1.0 - 0.8 * np.sin(np.pi * ss[..., 0]))
+        X = np.stack([z.real, z.imag], axis=-1)
+    else:
+        X = (r0 + ss * (r1 - r0)) * (1.0 - 0.8 * np.sin(np.pi * ss))
+    X = X + 0.3 * rho * np.random.default_rng(0).normal(size=X.shape) * np.sin(np.pi * ss)
+
+    def offsets(x):
+        Y = np.concatenate([r0[None], x.reshape(K - 1, N, d), r1[None]])
+        return Y - np.einsum("i,kij->kj", w, Y)[:, None, :]
+
+    def energy(x):
+        Y = offsets(x)
+        mid, vel = 0.5 * (Y[1:] + Y[:-1]), (Y[1:] - Y[:-1]) * K
+        return float(np.sum(metric_energy(mid.reshape(K, -1), vel.reshape(K, -1), m, alpha)) / K)
+
+    try:
+        res = minimize(energy, X.ravel(), method="L-BFGS-B", options={"maxiter": 3000, "maxfun": 10**7})
+    except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError, ValueError):
+        return None
+    q = (offsets(res.x) + c0 + s[:, None, None] * (c1 - c0)).reshape(K + 1, -1).T
+    y = np.vstack([q, np.gradient(q, s, axis=1)])
+    n = N * d
+    sol = None
+    for t in (max(tol, 1e-4), tol):
+        try:
+            r = solve_bvp(_fun(m, alpha, n), bc, s if sol is None else sol.x, y if sol is None else sol.y,
+                          tol=t, max_nodes=max(max_nodes, 30000), fun_jac=_fun_jac(m, alpha, n), bc_jac=bc_jac)
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+        if r.status != 0 or not np.all(np.isfinite(r.y)):
+            return None
+        sol = r
+    return sol
 
 
 def meeting_bound(q0, q1, masses):

@@ -202,7 +202,8 @@ def _shaped_geodesic(spec: PlanSpec):
     plan = plan_from_geodesic(sol, spec.duration_s, spec.knots, info)
     extra = {"alpha": alpha, "solve_time_s": sol.solve_time_s, "endpoint_error_m": sol.endpoint_error_m,
              "energy_drift": sol.energy_drift, "collocation_nodes": int(sol.s.size),
-             "continuation_alphas": [round(a, 12) for a in sol.continuation], "through_meeting": False}
+             "continuation_alphas": [round(a, 12) for a in sol.continuation], "initial_guess": sol.guess,
+             "through_meeting": False}
     return plan, extra
 
 
