@@ -59,8 +59,98 @@ def test_mixer_round_trip_and_saturation():
     wrench = np.array([15.0, 0.2, -0.1, 0.05])
     f = np.array(cas.mix(wrench[0], wrench[1:]))
     assert np.allclose(A @ f, wrench, atol=1e-12)
-    f = np.array(cas.mix(40.0, [3.0, 0.0, 1.0]))  # beyond the rotors: clipped to [0, f_max]
+    f = np.array(cas.mix(40.0, [3.0, 0.0, 1.0]))  # beyond the rotors: within [0, f_max]
     assert f.min() >= 0.0 and f.max() <= IRIS.max_thrust + 1e-12
+
+
+@pytest.mark.parametrize("tau_z", [0.3, 0.9, -2.0])
+def test_mixer_scales_yaw_into_range_and_keeps_roll_pitch(tau_z):
+    """Yaw is scaled by the largest s in [0, 1] that fits (PX4's desaturation), never
+    dropped while some fits; roll, pitch and the thrust stay whole."""
+    cas = QuadrotorCascade()
+    A = IRIS.mixer()
+    hover = IRIS.mass * 9.81
+    f = np.array(cas.mix(hover, [0.1, -0.05, tau_z]))
+    w = A @ f
+    assert f.min() >= -1e-12 and f.max() <= IRIS.max_thrust + 1e-12
+    assert np.allclose(w[0:3], [hover, 0.1, -0.05], atol=1e-9)
+    s = w[3] / tau_z
+    assert 0.0 < s <= 1.0 + 1e-12 and abs(w[3]) > min(abs(tau_z), 0.7)  # hover leaves ~0.8 N m of yaw
+    # the largest s: some rotor sits on a bound unless the whole torque fitted
+    assert s > 1.0 - 1e-9 or np.isclose(f, 0.0).any() or np.isclose(f, IRIS.max_thrust).any()
+
+
+def test_mixer_keeps_roll_pitch_by_moving_the_collective():
+    """Attitude priority: a thrust the rotors cannot give with the torque is lowered (or
+    raised) until the roll and pitch torques fit; the collective is capped with headroom."""
+    cas = QuadrotorCascade()
+    A = IRIS.mixer()
+    f = np.array(cas.mix(2 * IRIS.mass * 9.81, [0.5, 0.3, 0.0]))  # 29.4 N > 4 f_max = 28.3 N
+    w = A @ f
+    assert np.allclose(w[1:3], [0.5, 0.3], atol=1e-9) and w[0] < 4 * IRIS.max_thrust
+    assert f.min() >= -1e-12 and f.max() <= IRIS.max_thrust + 1e-12
+    f = np.array(cas.mix(1.0, [0.5, 0.0, 0.0]))  # too little thrust for the roll: raised
+    assert np.allclose(A @ f, [(A @ f)[0], 0.5, 0.0, 0.0], atol=1e-9) and (A @ f)[0] > 1.0
+    f = np.array(cas.mix(100.0, [0.0, 0.0, 0.0]))
+    assert A[0] @ f == pytest.approx(0.85 * 4 * IRIS.max_thrust)
+
+
+def _yaw_rate(w, name="q"):
+    _, _, R, om, _ = w.quad_pose(name)
+    return float(R[2, :] @ om)
+
+
+def test_yaw_rate_step_from_hover_is_followed():
+    """A 3 rad/s yaw-rate command at hover (more than the rotors give at once): the yaw is
+    scaled, not dropped, and the rate reaches the command; beyond MC_YAWRATE_MAX it is clamped."""
+    w = PhysicsWorld(quads=[("q", (0, 0, 2), 0.0)])
+    w.step(200)
+    w.command_quad("q", np.array([0.0, 0.0, 0.0, 3.0]))
+    w.step(800)  # 2 s
+    assert _yaw_rate(w) == pytest.approx(3.0, abs=0.03)
+    p = w.quad_pose("q")[0]
+    assert np.linalg.norm(p - [0, 0, 2]) < 0.05  # and the hover holds
+    w.command_quad("q", np.array([0.0, 0.0, 0.0, 10.0]))
+    w.step(1200)
+    assert _yaw_rate(w) == pytest.approx(QuadrotorCascade().yaw_rate_max, abs=0.05)
+
+
+def test_attitude_mode_yaw_reversal():
+    """Bebop-like u_psi +1 then -1: the rate follows to -2 rad/s (it used to stay at +2)."""
+    w = PhysicsWorld(quads=[("q", (0, 0, 2), 0.0)], quad_mode="attitude")
+    w.command_quad("q", [0.0, 0.0, 0.0, 1.0])
+    w.step(800)
+    assert _yaw_rate(w) == pytest.approx(2.0, abs=0.03)
+    w.command_quad("q", [0.0, 0.0, 0.0, -1.0])
+    w.step(800)
+    assert _yaw_rate(w) == pytest.approx(-2.0, abs=0.03)
+
+
+def _peak_roll_after_kick(v_cmd):
+    w = PhysicsWorld(quads=[("q", (0, 0, 2), 0.0)])
+    w.step(200)
+    w.data.qvel[3] = 1.0  # a 1 rad/s roll-rate kick
+    w.command_quad("q", np.array(v_cmd))
+    peak, all_saturated = 0.0, 0
+    for _ in range(200):  # 0.5 s
+        w.step(1)
+        peak = max(peak, abs(w.quad_pose("q")[2][2, 1]))
+        all_saturated += bool(np.all(w.data.ctrl[w._motors["q"]] >= IRIS.max_thrust - 1e-9))
+    return peak, all_saturated, w
+
+
+def test_full_climb_keeps_attitude_authority():
+    """A climb command far beyond the rotors (3 m/s from hover asks 2 m g = 29.4 N > 4 f_max):
+    the collective is capped, roll and pitch keep their authority (a roll kick is caught as
+    at hover) and a horizontal command still tilts the vehicle."""
+    peak_hover, _, _ = _peak_roll_after_kick([0.0, 0.0, 0.0, 0.0])
+    peak_climb, saturated, w = _peak_roll_after_kick([0.0, 0.0, 3.0, 0.0])
+    assert saturated == 0 and w.quad_pose("q")[1][2] > 1.0  # climbing
+    assert peak_climb < 1.1 * peak_hover
+    _, _, w = _peak_roll_after_kick([1.0, 0.0, 3.0, 0.0])
+    w.step(200)
+    _, v, R, _, _ = w.quad_pose("q")
+    assert R[0, 2] > math.sin(math.radians(2.0)) and v[0] > 0.5  # pitched forward, moving in x
 
 
 def test_bad_gains_and_options_are_refused():
