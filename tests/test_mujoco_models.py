@@ -222,3 +222,74 @@ def test_identified_model_is_the_stored_one_and_bebop_like():
     assert all(fit[c]["r2"] > 0.9 for c in ("x", "z", "psi")) and np.all(k > 0)
     # the IRIS flown like a Bebop (5 deg tilt, 1 m/s climb, 2 rad/s yaw) has Table 2's dynamics
     assert np.allclose(stored, table2, rtol=0.1)
+
+
+# -- start placement, contacts, failed steps -------------------------------------------------
+def test_start_overlap_or_below_the_floor_is_refused():
+    with pytest.raises(InvalidInputError, match="overlap"):  # the quadrotor inside the UGV's chassis
+        PhysicsWorld(quads=[("q", (-0.2, 0.0, 0.0), 0.0)], ugvs=[("g", (0.0, 0.0), 0.0)], floor_z=-0.3)
+    with pytest.raises(InvalidInputError, match="overlap"):
+        PhysicsWorld(quads=[("a", (0, 0, 1), 0.0), ("b", (0.3, 0, 1), 0.0)])
+    with pytest.raises(InvalidInputError, match="below the floor"):
+        PhysicsWorld(quads=[("q", (0, 0, 0.05), 0.0)])
+    w = PhysicsWorld(quads=[("q", (1.0, 0, -0.3 + IRIS.leg_height), 0.0)], ugvs=[("g", (0.0, 0.0), 0.0)], floor_z=-0.3)
+    assert w.contacts.summary()["count"] == 0  # standing on its skids beside the UGV is fine
+
+
+class _Contact:
+    def __init__(self, g1, g2, dist=-1e-4):
+        self.geom1, self.geom2, self.dist = g1, g2, dist
+
+
+class _Data:
+    def __init__(self, t, contacts):
+        self.time, self.contact, self.ncon = t, contacts, len(contacts)
+
+
+class _Model:
+    # geoms: 0 floor (world), 1 skid of robot A, 2 hull of A, 3 hull of B; bodies 0 world, 1 A, 2 B
+    geom_bodyid = np.array([0, 1, 1, 2])
+    body_rootid = np.array([0, 1, 2])
+
+
+def _monitor(sequence):
+    from quatform.sim.mujoco_backend import ContactMonitor
+
+    mon = ContactMonitor({0: "ground", 1: "A", 2: "B"}, support=frozenset(), landing=frozenset({1}))
+    for t, contacts in sequence:
+        mon.check(_Model, _Data(t, [_Contact(*c) for c in contacts]))
+    return mon.summary()
+
+
+def test_contact_monitor_whitelists_only_landing_gear_on_the_floor():
+    dt = 0.0025
+    # a skid on the floor from the start, then a take-off: resting, no collision
+    assert _monitor([(k * dt, [(0, 1)]) for k in range(10)] + [(1.0, [])])["count"] == 0
+    # the hull on the floor from the start: a collision, even in the first 0.05 s
+    assert _monitor([(0.0, [(0, 2)])])["bodies"] == ["A/ground"]
+    # two robots touching from the start: never resting
+    assert _monitor([(0.0, [(2, 3)]), (0.01, [(2, 3)])])["bodies"] == ["A/B"]
+    # resting on its skid, then the hull hits the floor: a collision
+    assert _monitor([(0.0, [(0, 1)]), (0.2, [(0, 1), (0, 2)])])["count"] == 1
+    # after take-off and release, the skid touching down again counts
+    assert _monitor([(0.0, [(0, 1)]), (0.1, []), (1.0, [(0, 1)])])["count"] == 1
+
+
+def test_contact_monitor_counts_episodes_not_contact_starts():
+    # A and B touch, part for 0.1 s, touch again (a bounce): one episode
+    seq = [(0.1, [(2, 3)]), (0.2, []), (0.3, [(2, 3)]), (0.35, []), (0.4, [(2, 3)])]
+    assert _monitor(seq)["count"] == 1
+    # apart for longer than release_s (0.5 s): a second episode
+    assert _monitor(seq + [(0.5, []), (1.2, [(2, 3)])])["count"] == 2
+
+
+def test_failed_step_raises_instead_of_a_silent_reset(tmp_path, monkeypatch):
+    from quatform.errors import NonFiniteError
+
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to MUJOCO_LOG.TXT here
+
+    w = PhysicsWorld(quads=[("q", (0, 0, 1), 0.0)])
+    w.step(10)
+    w.data.qvel[0] = np.nan  # MuJoCo would reset the state and only log a warning
+    with pytest.raises(NonFiniteError, match="MuJoCo step failed"):
+        w.step(1)

@@ -102,6 +102,21 @@ def test_ugv_and_quadrotor_hold_the_formation_with_identified_compensation():
     assert m_nc["reference_lost"] and m_nc["max_uav_position_error_m"] > 10 * m["max_uav_position_error_m"]
 
 
+def test_uav_starts_where_uav_start_says_in_the_ugv_frame():
+    """The lemniscate starts with the UGV heading 72 deg: uav_start (0, -0.6) is to its right
+    in its own frame (it was added in world axes, inside the UGV), kinematic and physics."""
+    from quatform.sim.ugv_uav import simulate_ugv_uav
+
+    sc = dataclasses.replace(load_scenario("marciano-lemniscate"), duration_s=1.0)
+    for run in (simulate_ugv_uav(sc), simulate_ugv_uav_physics(sc)[0]):
+        psi = run.ugv[0, 2]
+        assert abs(psi) > 1.0  # the case that matters: not heading along x
+        d = run.uav[0, 0:2] - run.ugv[0, 0:2]
+        body = [np.cos(psi) * d[0] + np.sin(psi) * d[1], -np.sin(psi) * d[0] + np.cos(psi) * d[1]]
+        assert np.allclose(body, sc.uav_start[0:2], atol=0.02)
+    assert simulate_ugv_uav_physics(sc)[1].collisions["count"] == 0
+
+
 def test_cli_runs_the_physics_backend_and_writes_collisions_and_picture(tmp_path, capsys):
     toml = tmp_path / "short.toml"
     toml.write_text('name = "short"\nduration_s = 2.0\ngains = "table2"\n[path]\ncentroid = "line"\n'

@@ -60,7 +60,7 @@ class UgvUavScenario:
     max_fraction: float = 1.0
     transient_s: float = 20.0
     switch_transient_s: float = 15.0  # after the front -> over switch of §5.3
-    uav_start: tuple = (0.0, -0.6, -0.3)  # relative to the UGV's control point; on the floor
+    uav_start: tuple = (0.0, -0.6, -0.3)  # from the UGV's control point in its frame (x ahead, y left); on the floor
     floor_below_platform_m: float = 0.3  # the UGV's landing platform is z0; the floor is below
     gains: dict = field(default_factory=dict)
 
@@ -211,10 +211,14 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     e_des, ed_des = sc.e_reference(t_ctrl)
     c_des, cd_des, unreachable_at, message = _reachable_prefix(F, e_des, ed_des, t_ctrl)
     n = len(c_des)
-    # initial state: the UGV on the path heading along it, the UAV on the ground behind it
+    # initial state: the UGV on the path heading along it, the UAV on the ground at
+    # uav_start in the UGV's frame (x ahead, y to its left): (0, -0.6) is 0.6 m to its right
     heading0 = math.atan2(ed_des[0, 1], ed_des[0, 0])
     ugv = np.array([e_des[0, 0], e_des[0, 1], heading0])
-    uav = np.r_[ugv[0:2] + np.asarray(sc.uav_start[0:2]), sc.center[2] + sc.uav_start[2], heading0, np.zeros(4)]
+    ch, sh = math.cos(heading0), math.sin(heading0)
+    sx, sy = float(sc.uav_start[0]), float(sc.uav_start[1])
+    uav = np.r_[ugv[0] + ch * sx - sh * sy, ugv[1] + sh * sx + ch * sy, sc.center[2] + sc.uav_start[2], heading0,
+                np.zeros(4)]
     floor = sc.center[2] - sc.floor_below_platform_m
 
     def plant(x, u, dt):
