@@ -52,8 +52,9 @@ __all__ = ["IRIS_IDENTIFIED_K", "ContactMonitor", "PhysicsRecord", "PhysicsWorld
 
 #: ``K1..K8`` of seed 001 eq. (3.11) identified from the simulated IRIS in Bebop-like
 #: attitude mode by :func:`identify_k` (steps and chirps, least squares; see
-#: ``docs/physics.md``). Seed 001 Table 2 for the Bebop 2: 0.8417, 0.1823, 0.8354, 0.1710,
-#: 3.966, 4.001, 9.8524, 4.7295.
+#: ``docs/physics.md``). K1 = K3 follow from the chosen 5 deg tilt, K5, K6 from the climb
+#: loop's gain and full scale, K7, K8 from the yaw-rate loop's; only K2 = K4 (rotor drag over
+#: mass) is a physical result.
 IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 
 

@@ -114,7 +114,8 @@ class UgvUavRun:
     recovered from the measurements, each sample continued from the previous); ``e``,
     ``e_des`` (spherical variables recovered through the formation, and desired);
     ``u`` (6); ``raw_finite``; ``singularity``; ``unreachable_at`` (first time the
-    reference left the description's reachable set, or None)."""
+    reference left the description's reachable set, or None); ``uav_model_k``: the
+    ``K1..K8`` of eq. (3.11) the controller's UAV model (its compensation (4.47)) used."""
 
     scenario: UgvUavScenario
     formation: str
@@ -132,6 +133,7 @@ class UgvUavRun:
     unreachable_at: float | None
     unreachable_message: str = ""
     c_continuous: np.ndarray | None = None
+    uav_model_k: tuple | None = None
 
 
 def _reachable_prefix(F, e, ed, t):
@@ -248,7 +250,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
         c_cont[k] = F.forward(r_meas[k], c_cont[k - 1] if k else c_des[0])
     return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
                      log.commands.reshape(n, 6), log.raw_finite, sing, unreachable_at,
-                     message, c_cont)
+                     message, c_cont, tuple(bebop.k))
 
 
 def ugv_uav_metrics(run: UgvUavRun) -> dict:
@@ -307,6 +309,7 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "max_unexplained_cluster_jump": float(np.maximum(jumps - explained, 0.0).max()) if len(jumps) else 0.0,
         "max_uav_position_error_m_at_switch": mx(uav_err, (run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s)) if sc.uav_front_until_s > 0 else None,
         "nonfinite_commands": int((~run.raw_finite).sum()),
+        "uav_model_k": list(run.uav_model_k) if run.uav_model_k is not None else None,
         "max_uav_command_fraction": float(np.abs(run.u[:, 2:6]).max()) if len(run.t) else 0.0,
         "uav_command_chatter": float(np.sqrt(np.mean(np.diff(run.u[late][:, 2:4], axis=0) ** 2)))
         if late.sum() > 1 else 0.0,
