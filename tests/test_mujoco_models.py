@@ -308,3 +308,60 @@ def test_failed_step_raises_instead_of_a_silent_reset(tmp_path, monkeypatch):
     w.data.qvel[0] = np.nan  # MuJoCo would reset the state and only log a warning
     with pytest.raises(NonFiniteError, match="MuJoCo step failed"):
         w.step(1)
+
+
+def test_bad_quadrotor_numbers_and_cascade_options_are_refused():
+    from quatform.errors import DegenerateInputError
+    from quatform.robots.physics import QuadrotorParams
+
+    for bad in ({"mass": -1.0}, {"inertia": (0.03, 0.0, 0.05)}, {"rotors": ((0.1, 0.1),) * 3},
+                {"spin": (1, 1, 1, 0)}, {"max_rotor_speed": float("nan")}, {"motor_constant": True}):
+        with pytest.raises(InvalidInputError, match=next(iter(bad))):
+            QuadrotorParams(**bad)
+    with pytest.raises(DegenerateInputError, match="singular mixer"):
+        QuadrotorParams(spin=(1, 1, 1, 1))
+    with pytest.raises(InvalidInputError, match="cascade_options"):
+        PhysicsWorld(quads=[("q", (0, 0, 1), 0.0)], cascade_options={"tilt": 0.3})
+    with pytest.raises(InvalidInputError, match="thrust_headroom"):
+        QuadrotorCascade(thrust_headroom=1.2)
+
+
+def test_velocity_mode_holds_on_a_nan_set_point_and_refuses_a_nan_state():
+    from quatform.errors import NonFiniteError
+
+    cas = QuadrotorCascade()
+    hover = [0.0, 0.0, 0.0]
+    f = cas.velocity_mode([np.nan, 0.0, np.inf], np.nan, hover, np.eye(3), hover, 0.0025)
+    assert np.all(np.isfinite(f)) and np.allclose(IRIS.mixer() @ f, [IRIS.mass * 9.81, 0, 0, 0], atol=1e-9)
+    assert np.all(np.isfinite(cas._integral))
+    with pytest.raises(NonFiniteError, match="not finite"):
+        cas.velocity_mode([0.0, 0.0, 0.0], 0.0, [np.nan, 0.0, 0.0], np.eye(3), hover, 0.0025)
+
+
+_GL_FAILS_ONCE = """
+import os, sys, warnings
+class GlFailsOnce:  # mujoco 3.x raised its OpenGL's ImportError from `import mujoco`
+    def find_spec(self, name, path=None, target=None):
+        if name == "mujoco":
+            sys.meta_path.remove(self)
+            raise ImportError("libEGL.so.1: cannot open shared object file", name="OpenGL")
+sys.meta_path.insert(0, GlFailsOnce())
+os.environ["MUJOCO_GL"] = "egl"
+from quatform.sim.mujoco_backend import import_mujoco
+with warnings.catch_warnings(record=True) as w:
+    warnings.simplefilter("always")
+    mj = import_mujoco()
+print(os.environ["MUJOCO_GL"], mj.MjModel.from_xml_string("<mujoco/>").nq, w[0].category.__name__)
+"""
+
+
+def test_a_gl_import_failure_is_not_reported_as_mujoco_missing():
+    """An ImportError from mujoco's OpenGL falls back to MUJOCO_GL=disable with a warning;
+    only mujoco itself missing is "not installed"."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _GL_FAILS_ONCE], capture_output=True, text=True, check=False,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["disable", "0", "RuntimeWarning"]

@@ -72,19 +72,30 @@ def import_mujoco():
     try:
         import mujoco
     except ImportError as exc:
-        raise MissingDependencyError(
-            f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
-            "install it with: pip install quatform[mujoco]"
-        ) from None
+        if exc.name == "mujoco":  # the package itself is missing
+            raise MissingDependencyError(
+                f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
+                "install it with: pip install quatform[mujoco]"
+            ) from None
+        failure = exc  # something mujoco imports for its OpenGL (PyOpenGL, libEGL, ...)
     except Exception as exc:  # noqa: BLE001 - mujoco loads the chosen OpenGL at import
-        # the OpenGL library MUJOCO_GL names is missing: physics without MuJoCo pictures
-        warnings.warn(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} failed ({type(exc).__name__}: {exc}); "
-                      "MuJoCo runs without offscreen rendering (pictures fall back to matplotlib); "
-                      "see docs/physics.md for the packages", RuntimeWarning, stacklevel=2)
-        for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
-            del sys.modules[name]
-        os.environ["MUJOCO_GL"] = "disable"
+        failure = exc
+    else:
+        return mujoco
+    # the OpenGL library MUJOCO_GL names is missing: physics without MuJoCo pictures
+    warnings.warn(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} failed ({type(failure).__name__}: {failure}); "
+                  "MuJoCo runs without offscreen rendering (pictures fall back to matplotlib); "
+                  "see docs/physics.md for the packages", RuntimeWarning, stacklevel=2)
+    for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
+        del sys.modules[name]
+    os.environ["MUJOCO_GL"] = "disable"
+    try:
         import mujoco
+    except ImportError as exc:
+        raise MissingDependencyError(
+            f"the MuJoCo physics backend could not import 'mujoco' even without rendering ({exc}; first: "
+            f"{failure}); reinstall it with: pip install quatform[mujoco]"
+        ) from None
     return mujoco
 
 
@@ -214,7 +225,11 @@ class PhysicsWorld:
         act = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, n)
         self._motors = {n: [act(f"{n}_motor{i}") for i in range(4)] for n in self.quad_names}
         self._wheels = {n: [act(f"{n}_left"), act(f"{n}_right")] for n in self.ugv_names}
-        self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
+        try:
+            self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
+        except TypeError as exc:
+            raise InvalidInputError(f"cascade_options {cascade_options!r}: {exc}; see QuadrotorCascade's "
+                                    "parameters") from None
         geom = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, n)
         support = frozenset(geom(f"{n}_{g}") for n in self.ugv_names for g in ("left_tyre", "right_tyre", "caster"))
         landing = frozenset(geom(f"{n}_skid{i}") for n in self.quad_names for i in (0, 1))

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...errors import InvalidInputError
+from ...errors import DegenerateInputError, InvalidInputError, NonFiniteError
 
 __all__ = ["GRAVITY", "IRIS", "QuadrotorCascade", "QuadrotorParams", "quadrotor_mjcf"]
 
@@ -88,6 +88,29 @@ class QuadrotorParams:
     rotor_drag_coefficient: float = 8.06428e-5
     rotor_radius: float = 0.127
     leg_height: float = 0.12
+
+    def __post_init__(self):
+        for name in ("mass", "motor_constant", "moment_constant", "max_rotor_speed", "motor_time_constant",
+                     "rotor_drag_coefficient", "rotor_radius", "leg_height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise InvalidInputError(f"QuadrotorParams {name} must be positive and finite, got {v!r}")
+        try:
+            inertia = np.asarray(self.inertia, dtype=float)
+            rotors = np.asarray(self.rotors, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"QuadrotorParams inertia must be 3 numbers and rotors 4 (x, y) pairs, "
+                                    f"got {self.inertia!r} and {self.rotors!r}") from None
+        if inertia.shape != (3,) or not np.all(np.isfinite(inertia)) or np.any(inertia <= 0):
+            raise InvalidInputError(f"QuadrotorParams inertia must be 3 positive moments, kg m^2, got {self.inertia!r}")
+        if rotors.shape != (4, 2) or not np.all(np.isfinite(rotors)):
+            raise InvalidInputError(f"QuadrotorParams rotors must be 4 finite (x, y) pairs, m, got {self.rotors!r}")
+        if len(self.spin) != 4 or any(s not in (1, -1) for s in self.spin):
+            raise InvalidInputError(f"QuadrotorParams spin must be 4 values of +1 or -1, got {self.spin!r}")
+        if abs(np.linalg.det(self.mixer())) < 1e-9:
+            raise DegenerateInputError(f"QuadrotorParams: rotors {self.rotors!r} with spins {self.spin!r} cannot "
+                                       "give independent thrust, roll, pitch and yaw (singular mixer); place "
+                                       "the rotors around the centre with two spinning each way")
 
     @property
     def max_thrust(self) -> float:
@@ -215,7 +238,13 @@ class QuadrotorCascade:
         """
         lim_i = self.vel_i_limit
         a = [0.0, 0.0, 0.0]
-        v_cmd, v = _floats(v_cmd), _floats(v)
+        # a non-finite set point component means "hold" (0), as in attitude_mode; a
+        # non-finite state is an error (it would poison the integrator for good)
+        v_cmd = [x if math.isfinite(x) else 0.0 for x in _floats(v_cmd)]
+        v = _floats(v)
+        if not math.isfinite(sum(v) + sum(_floats(R)) + sum(_floats(omega))):
+            raise NonFiniteError(f"velocity_mode: the vehicle's state is not finite (v = {v!r}); "
+                                 "check the physics step")
         for i in range(3):
             err = v_cmd[i] - v[i]
             self._integral[i] = min(max(self._integral[i] + self._vi[i] * err * dt, -lim_i), lim_i)
