@@ -277,7 +277,7 @@ class PhysicsWorld:
         accelerations, velocities or positions go bad; a physics run must not go on from a
         reset as if nothing happened."""
         counts = self._warning_counts()
-        if counts != self._warnings or not math.isfinite(float(np.sum(self.data.qpos))):
+        if counts != self._warnings or not math.isfinite(float(np.sum(self.data.qpos))) or self.data.time <= 0.0:
             what = [n for n, a, b in zip(("accelerations", "velocities", "positions"), self._warnings, counts) if b > a]
             self._warnings = counts
             raise NonFiniteError(f"MuJoCo step failed at t = {self.data.time:.4f} s: non-finite or huge "
@@ -352,9 +352,12 @@ class PhysicsWorld:
                     f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
                 d.ctrl[motors] = f
                 d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
+            t_before = d.time
             mj.mj_step(m, d)
-            self._check_step()
+            if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
+                self._check_step()
             self.contacts.check(m, d)
+        self._check_step()  # the warning counters and the positions, once per call
 
 
 @dataclass(frozen=True)
