@@ -20,6 +20,7 @@ except MissingDependencyError:
 mujoco = pytest.importorskip("mujoco")  # the optional extra
 
 from quatform.cli import main
+from quatform.robots.bebop import TABLE2_K
 from quatform.sim import compute_metrics, load_scenario, simulate
 from quatform.sim.mujoco_backend import (
     IRIS_IDENTIFIED_K,
@@ -27,7 +28,7 @@ from quatform.sim.mujoco_backend import (
     simulate_ugv_uav_physics,
 )
 from quatform.sim.scenario import scenario_from_dict
-from quatform.sim.ugv_uav import ugv_uav_metrics
+from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 
 
 @pytest.fixture(scope="module")
@@ -95,11 +96,25 @@ def test_ugv_and_quadrotor_hold_the_formation_with_identified_compensation():
     assert not m["reference_lost"] and m["nonfinite_commands"] == 0
     assert rec.collisions["count"] == 0  # taking off from the floor is not a collision
     assert run.uav[-1, 2] > 1.3  # in the air, 1.5 m over the platform
-    assert tuple(run.scenario.controller("quaternion").bebop.k) != IRIS_IDENTIFIED_K  # the scenario keeps Table 2
+    assert m["uav_model_k"] == list(IRIS_IDENTIFIED_K)  # the physics run compensated with the identified K
+    assert ugv_uav_metrics(simulate_ugv_uav(sc))["uav_model_k"] == list(TABLE2_K)  # the kinematic one: Table 2
     # without the compensation (4.47) the quadrotor's 6 s velocity lag (1/K2) loses the formation
     run_nc, _ = simulate_ugv_uav_physics(sc, "quaternion", compensation=False)
     m_nc = ugv_uav_metrics(run_nc)
     assert m_nc["reference_lost"] and m_nc["max_uav_position_error_m"] > 10 * m["max_uav_position_error_m"]
+
+
+def test_uav_starts_where_uav_start_says_in_the_ugv_frame():
+    """The lemniscate starts with the UGV heading 72 deg: uav_start (0, -0.6) is to its right
+    in its own frame (it was added in world axes, inside the UGV), kinematic and physics."""
+    sc = dataclasses.replace(load_scenario("marciano-lemniscate"), duration_s=1.0)
+    for run in (simulate_ugv_uav(sc), simulate_ugv_uav_physics(sc)[0]):
+        psi = run.ugv[0, 2]
+        assert abs(psi) > 1.0  # the case that matters: not heading along x
+        d = run.uav[0, 0:2] - run.ugv[0, 0:2]
+        body = [np.cos(psi) * d[0] + np.sin(psi) * d[1], -np.sin(psi) * d[0] + np.cos(psi) * d[1]]
+        assert np.allclose(body, sc.uav_start[0:2], atol=0.02)
+    assert simulate_ugv_uav_physics(sc)[1].collisions["count"] == 0
 
 
 def test_cli_runs_the_physics_backend_and_writes_collisions_and_picture(tmp_path, capsys):
@@ -136,16 +151,23 @@ def test_picture_falls_back_to_matplotlib_without_offscreen_gl(tmp_path):
 
 
 def test_time_lapse_renders_offscreen(tmp_path):
+    """Where an offscreen OpenGL context can be made, the picture is MuJoCo's, not the
+    fallback's (skipped only where the context itself cannot be made)."""
     from matplotlib.image import imread
 
-    from quatform.report.physics_render import render_time_lapse
+    from quatform.report.physics_render import render_or_fallback
 
-    sc = _pair({"velocity": [0.0, 0.3, 0.0]}, 1.0, z=2.0)
-    _, rec = simulate_physics(sc, "dual-quaternion")
     try:
-        path = render_time_lapse(rec, tmp_path / "t.png", n_snapshots=3, width=320, height=240)
+        ctx = mujoco.GLContext(64, 64)
+        ctx.make_current()
+        ctx.free()
     except Exception as exc:  # noqa: BLE001 - whichever way the OpenGL of this machine fails
-        pytest.skip(f"no offscreen OpenGL here ({type(exc).__name__}: {exc})")
+        pytest.skip(f"no offscreen OpenGL context here (MUJOCO_GL={os.environ.get('MUJOCO_GL')}: "
+                    f"{type(exc).__name__}: {exc})")
+    sc = _pair({"velocity": [0.0, 0.3, 0.0]}, 1.0, z=2.0)
+    run, rec = simulate_physics(sc, "dual-quaternion")
+    path, how = render_or_fallback(rec, run, tmp_path / "t.png", n_snapshots=3, width=320, height=240)
+    assert how == "mujoco"
     img = imread(path)
     assert img.shape[:2] == (240, 320)
     assert img[..., :3].std() > 0.02  # a scene, not a blank frame

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..control import Reference
-from ..errors import InvalidInputError, MissingDependencyError
+from ..errors import InvalidInputError, MissingDependencyError, NonFiniteError
 from ..formations import EuclideanPair, RobotSpace
 from ..references import sample_reference
 from ..robots import Bebop
@@ -52,8 +52,9 @@ __all__ = ["IRIS_IDENTIFIED_K", "ContactMonitor", "PhysicsRecord", "PhysicsWorld
 
 #: ``K1..K8`` of seed 001 eq. (3.11) identified from the simulated IRIS in Bebop-like
 #: attitude mode by :func:`identify_k` (steps and chirps, least squares; see
-#: ``docs/physics.md``). Seed 001 Table 2 for the Bebop 2: 0.8417, 0.1823, 0.8354, 0.1710,
-#: 3.966, 4.001, 9.8524, 4.7295.
+#: ``docs/physics.md``). K1 = K3 follow from the chosen 5 deg tilt, K5, K6 from the climb
+#: loop's gain and full scale, K7, K8 from the yaw-rate loop's; only K2 = K4 (rotor drag over
+#: mass) is a physical result.
 IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 
 
@@ -71,19 +72,30 @@ def import_mujoco():
     try:
         import mujoco
     except ImportError as exc:
-        raise MissingDependencyError(
-            f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
-            "install it with: pip install quatform[mujoco]"
-        ) from None
+        if exc.name == "mujoco":  # the package itself is missing
+            raise MissingDependencyError(
+                f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
+                "install it with: pip install quatform[mujoco]"
+            ) from None
+        failure = exc  # something mujoco imports for its OpenGL (PyOpenGL, libEGL, ...)
     except Exception as exc:  # noqa: BLE001 - mujoco loads the chosen OpenGL at import
-        # the OpenGL library MUJOCO_GL names is missing: physics without MuJoCo pictures
-        warnings.warn(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} failed ({type(exc).__name__}: {exc}); "
-                      "MuJoCo runs without offscreen rendering (pictures fall back to matplotlib); "
-                      "see docs/physics.md for the packages", RuntimeWarning, stacklevel=2)
-        for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
-            del sys.modules[name]
-        os.environ["MUJOCO_GL"] = "disable"
+        failure = exc
+    else:
+        return mujoco
+    # the OpenGL library MUJOCO_GL names is missing: physics without MuJoCo pictures
+    warnings.warn(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} failed ({type(failure).__name__}: {failure}); "
+                  "MuJoCo runs without offscreen rendering (pictures fall back to matplotlib); "
+                  "see docs/physics.md for the packages", RuntimeWarning, stacklevel=2)
+    for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
+        del sys.modules[name]
+    os.environ["MUJOCO_GL"] = "disable"
+    try:
         import mujoco
+    except ImportError as exc:
+        raise MissingDependencyError(
+            f"the MuJoCo physics backend could not import 'mujoco' even without rendering ({exc}; first: "
+            f"{failure}); reinstall it with: pip install quatform[mujoco]"
+        ) from None
     return mujoco
 
 
@@ -100,25 +112,30 @@ def _wrap(a):
 
 @dataclass
 class ContactMonitor:
-    """Collisions among robots and with the ground.
+    """Collisions among robots and with the ground, counted as episodes.
 
-    A collision is the start of a contact between two different robots, or between a robot
-    and the ground other than through its wheels or caster. Contacts made while the world
-    settles (the first ``settle_s`` seconds: a quadrotor standing on the floor) are
-    resting, not collisions, until they have stayed broken for ``release_s`` (a take-off
-    scrapes the floor for a moment before it leaves it).
+    A contact is a collision unless it is a wheel or caster (``support``) on the ground.
+    A landing gear (``landing``: the quadrotors' skids) on the ground in the first
+    ``settle_s`` seconds is resting, not a collision (a quadrotor standing on the floor):
+    only those geoms against the floor are whitelisted, never another part of the robot
+    and never two robots. A resting pair stays so until it has been apart for ``release_s``
+    (a take-off scrapes the floor for a moment before it leaves it); then its next touch
+    counts. Collisions are counted per pair as episodes: a pair in contact again less than
+    ``release_s`` after its last contact is the same episode (a bounce, a scrape), not a
+    new collision.
     """
 
     names: dict  # root body id -> robot name (0: "ground")
     support: frozenset  # geom ids allowed to touch the ground (wheels, caster)
+    landing: frozenset = frozenset()  # geom ids resting on the ground at the start (skids)
     settle_s: float = 0.05
     release_s: float = 0.5
-    events: list = field(default_factory=list)  # (time, "a/b")
-    _active: set = field(default_factory=set)
-    _resting: dict = field(default_factory=dict)  # pair -> last time in contact
+    events: list = field(default_factory=list)  # (time, "a/b"): the start of each episode
+    _last: dict = field(default_factory=dict)  # pair -> last time in contact
+    _resting: set = field(default_factory=set)
 
     def check(self, model, data):
-        now = set()
+        now = {}  # pair -> only landing gear on the ground so far
         for i in range(data.ncon):
             c = data.contact[i]
             if c.dist > 0.0:
@@ -129,20 +146,27 @@ class ContactMonitor:
                 continue
             if (b1 == 0 and g2 in self.support) or (b2 == 0 and g1 in self.support):
                 continue
-            now.add(tuple(sorted((self.names.get(b1, str(b1)), self.names.get(b2, str(b2))))))
+            gear = (b1 == 0 and g2 in self.landing) or (b2 == 0 and g1 in self.landing)
+            pair = tuple(sorted((self.names.get(b1, str(b1)), self.names.get(b2, str(b2)))))
+            now[pair] = now.get(pair, True) and gear
         t = float(data.time)
-        for pair in now:
-            if t <= self.settle_s or pair in self._resting:
-                self._resting[pair] = t
-        for pair, last in list(self._resting.items()):
-            if t - last > self.release_s:  # it has left: its next touch counts
-                del self._resting[pair]
-        for pair in now - self._active - self._resting.keys():
+        for pair in [p for p in self._resting if t - self._last[p] > self.release_s]:
+            self._resting.discard(pair)  # it has left: its next touch counts
+        for pair, gear_only in now.items():
+            last = self._last.get(pair)
+            self._last[pair] = t
+            if gear_only and (pair in self._resting or (t <= self.settle_s and last is None)):
+                self._resting.add(pair)
+                continue
+            if pair in self._resting:  # a resting robot touches the ground with another part
+                self._resting.discard(pair)
+            elif last is not None and t - last <= self.release_s:
+                continue  # the same episode
             self.events.append((t, "/".join(pair)))
-        self._active = now
 
     def summary(self) -> dict:
-        """``{"count", "first_time_s", "bodies"}`` (bodies: the pairs in order of first contact)."""
+        """``{"count", "first_time_s", "bodies"}``: collision episodes, the first one's time,
+        and the pairs in order of first collision."""
         pairs = []
         for _, p in self.events:
             if p not in pairs:
@@ -201,13 +225,16 @@ class PhysicsWorld:
         act = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, n)
         self._motors = {n: [act(f"{n}_motor{i}") for i in range(4)] for n in self.quad_names}
         self._wheels = {n: [act(f"{n}_left"), act(f"{n}_right")] for n in self.ugv_names}
-        self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
-        support = set()
-        for n in self.ugv_names:
-            for g in ("left_tyre", "right_tyre", "caster"):
-                support.add(mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, f"{n}_{g}"))
+        try:
+            self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
+        except TypeError as exc:
+            raise InvalidInputError(f"cascade_options {cascade_options!r}: {exc}; see QuadrotorCascade's "
+                                    "parameters") from None
+        geom = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, n)
+        support = frozenset(geom(f"{n}_{g}") for n in self.ugv_names for g in ("left_tyre", "right_tyre", "caster"))
+        landing = frozenset(geom(f"{n}_skid{i}") for n in self.quad_names for i in (0, 1))
         names = {0: "ground", **{v: k for k, v in body.items()}}
-        self.contacts = ContactMonitor(names, frozenset(support))
+        self.contacts = ContactMonitor(names, support, landing)
         self._yaw = {}
         self._quad_cmd = {n: np.zeros(4) for n in self.quad_names}
         self._ugv_cmd = {n: np.zeros(2) for n in self.ugv_names}
@@ -218,7 +245,45 @@ class PhysicsWorld:
             for a in self._motors[n]:
                 self.data.act[m.actuator_actadr[a]] = hover if airborne else 0.0
         mj.mj_forward(m, self.data)
+        self._check_start_clearance(names, support | landing)
         self.contacts.check(m, self.data)
+        self._warnings = self._warning_counts()
+
+    def _check_start_clearance(self, names, gear, tol: float = 0.005):
+        """Refuse a start where robots overlap each other, or sink into the floor deeper than
+        ``tol`` (a landing gear or wheel standing on it is fine; another part touching it is not)."""
+        m, d = self.model, self.data
+        for i in range(d.ncon):
+            c = d.contact[i]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            b1, b2 = int(m.body_rootid[m.geom_bodyid[g1]]), int(m.body_rootid[m.geom_bodyid[g2]])
+            if b1 == b2:
+                continue
+            n1, n2 = names.get(b1, str(b1)), names.get(b2, str(b2))
+            if b1 != 0 and b2 != 0 and c.dist < 0.0:
+                raise InvalidInputError(f"robots {n1} and {n2} overlap at the start ({-c.dist:.3f} m): "
+                                        "place them apart (for a UGV-UAV scenario: change uav_start)")
+            if (b1 == 0 or b2 == 0) and (c.dist < -tol or (g1 not in gear and g2 not in gear and c.dist < 0.0)):
+                robot = n2 if b1 == 0 else n1
+                raise InvalidInputError(f"robot {robot} starts below the floor ({-c.dist:.3f} m into it): "
+                                        "raise it to stand on its wheels or skids")
+
+    def _warning_counts(self) -> tuple:
+        w, W = self.data.warning, self.mj.mjtWarning
+        return tuple(int(w[k].number) for k in (W.mjWARN_BADQACC, W.mjWARN_BADQVEL, W.mjWARN_BADQPOS))
+
+    def _check_step(self):
+        """After ``mj_step``: MuJoCo resets the state and only logs a warning when the
+        accelerations, velocities or positions go bad; a physics run must not go on from a
+        reset as if nothing happened."""
+        counts = self._warning_counts()
+        if counts != self._warnings or not math.isfinite(float(np.sum(self.data.qpos))) or self.data.time <= 0.0:
+            what = [n for n, a, b in zip(("accelerations", "velocities", "positions"), self._warnings, counts) if b > a]
+            self._warnings = counts
+            raise NonFiniteError(f"MuJoCo step failed at t = {self.data.time:.4f} s: non-finite or huge "
+                                 f"{', '.join(what) or 'positions'} (MuJoCo reset the state); a robot was "
+                                 "commanded or pushed beyond what the integrator can follow: check the "
+                                 "commands, the timestep and the start poses")
 
     # -- states ----------------------------------------------------------------------
     def _unwrap(self, name, raw):
@@ -287,8 +352,12 @@ class PhysicsWorld:
                     f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
                 d.ctrl[motors] = f
                 d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
+            t_before = d.time
             mj.mj_step(m, d)
+            if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
+                self._check_step()
             self.contacts.check(m, d)
+        self._check_step()  # the warning counters and the positions, once per call
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,7 @@ class UgvUavScenario:
     max_fraction: float = 1.0
     transient_s: float = 20.0
     switch_transient_s: float = 15.0  # after the front -> over switch of §5.3
-    uav_start: tuple = (0.0, -0.6, -0.3)  # relative to the UGV's control point; on the floor
+    uav_start: tuple = (0.0, -0.6, -0.3)  # from the UGV's control point in its frame (x ahead, y left); on the floor
     floor_below_platform_m: float = 0.3  # the UGV's landing platform is z0; the floor is below
     gains: dict = field(default_factory=dict)
 
@@ -114,7 +114,8 @@ class UgvUavRun:
     recovered from the measurements, each sample continued from the previous); ``e``,
     ``e_des`` (spherical variables recovered through the formation, and desired);
     ``u`` (6); ``raw_finite``; ``singularity``; ``unreachable_at`` (first time the
-    reference left the description's reachable set, or None)."""
+    reference left the description's reachable set, or None); ``uav_model_k``: the
+    ``K1..K8`` of eq. (3.11) the controller's UAV model (its compensation (4.47)) used."""
 
     scenario: UgvUavScenario
     formation: str
@@ -132,6 +133,7 @@ class UgvUavRun:
     unreachable_at: float | None
     unreachable_message: str = ""
     c_continuous: np.ndarray | None = None
+    uav_model_k: tuple | None = None
 
 
 def _reachable_prefix(F, e, ed, t):
@@ -211,10 +213,14 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     e_des, ed_des = sc.e_reference(t_ctrl)
     c_des, cd_des, unreachable_at, message = _reachable_prefix(F, e_des, ed_des, t_ctrl)
     n = len(c_des)
-    # initial state: the UGV on the path heading along it, the UAV on the ground behind it
+    # initial state: the UGV on the path heading along it, the UAV on the ground at
+    # uav_start in the UGV's frame (x ahead, y to its left): (0, -0.6) is 0.6 m to its right
     heading0 = math.atan2(ed_des[0, 1], ed_des[0, 0])
     ugv = np.array([e_des[0, 0], e_des[0, 1], heading0])
-    uav = np.r_[ugv[0:2] + np.asarray(sc.uav_start[0:2]), sc.center[2] + sc.uav_start[2], heading0, np.zeros(4)]
+    ch, sh = math.cos(heading0), math.sin(heading0)
+    sx, sy = float(sc.uav_start[0]), float(sc.uav_start[1])
+    uav = np.r_[ugv[0] + ch * sx - sh * sy, ugv[1] + sh * sx + ch * sy, sc.center[2] + sc.uav_start[2], heading0,
+                np.zeros(4)]
     floor = sc.center[2] - sc.floor_below_platform_m
 
     def plant(x, u, dt):
@@ -244,7 +250,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
         c_cont[k] = F.forward(r_meas[k], c_cont[k - 1] if k else c_des[0])
     return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
                      log.commands.reshape(n, 6), log.raw_finite, sing, unreachable_at,
-                     message, c_cont)
+                     message, c_cont, tuple(bebop.k))
 
 
 def ugv_uav_metrics(run: UgvUavRun) -> dict:
@@ -303,6 +309,7 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "max_unexplained_cluster_jump": float(np.maximum(jumps - explained, 0.0).max()) if len(jumps) else 0.0,
         "max_uav_position_error_m_at_switch": mx(uav_err, (run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s)) if sc.uav_front_until_s > 0 else None,
         "nonfinite_commands": int((~run.raw_finite).sum()),
+        "uav_model_k": list(run.uav_model_k) if run.uav_model_k is not None else None,
         "max_uav_command_fraction": float(np.abs(run.u[:, 2:6]).max()) if len(run.t) else 0.0,
         "uav_command_chatter": float(np.sqrt(np.mean(np.diff(run.u[late][:, 2:4], axis=0) ** 2)))
         if late.sum() > 1 else 0.0,

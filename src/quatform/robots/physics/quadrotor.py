@@ -13,8 +13,8 @@ vehicles seed 000 §4.2 flies in Gazebo (3DR IRIS under PX4).
   controllers send): world velocity error -> desired acceleration (PI, PX4 defaults
   ``MPC_XY_VEL_P/I_ACC``, ``MPC_Z_VEL_P/I_ACC``) -> thrust vector with tilt limit ->
   attitude (body z along the thrust, heading kept) and collective thrust -> body-rate set
-  point -> rate loop -> torques -> rotor forces by the mixer, each clipped to
-  ``[0, f_max]``;
+  point -> rate loop -> torques -> rotor forces by the mixer (:meth:`QuadrotorCascade.mix`:
+  roll and pitch first, then the collective thrust, then as much yaw as fits);
 * Bebop-like attitude mode (what seed 001's controller sends, eq. (3.6)): body-frame
   ``(u_x, u_y)`` in ``[-1, 1]`` are pitch and roll as fractions of a small tilt limit
   (seed 001 §3.1.2: +-5 deg), ``u_z`` a climb-rate and ``u_psi`` a yaw-rate fraction.
@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...errors import InvalidInputError
+from ...errors import DegenerateInputError, InvalidInputError, NonFiniteError
 
 __all__ = ["GRAVITY", "IRIS", "QuadrotorCascade", "QuadrotorParams", "quadrotor_mjcf"]
 
@@ -89,6 +89,29 @@ class QuadrotorParams:
     rotor_radius: float = 0.127
     leg_height: float = 0.12
 
+    def __post_init__(self):
+        for name in ("mass", "motor_constant", "moment_constant", "max_rotor_speed", "motor_time_constant",
+                     "rotor_drag_coefficient", "rotor_radius", "leg_height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise InvalidInputError(f"QuadrotorParams {name} must be positive and finite, got {v!r}")
+        try:
+            inertia = np.asarray(self.inertia, dtype=float)
+            rotors = np.asarray(self.rotors, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"QuadrotorParams inertia must be 3 numbers and rotors 4 (x, y) pairs, "
+                                    f"got {self.inertia!r} and {self.rotors!r}") from None
+        if inertia.shape != (3,) or not np.all(np.isfinite(inertia)) or np.any(inertia <= 0):
+            raise InvalidInputError(f"QuadrotorParams inertia must be 3 positive moments, kg m^2, got {self.inertia!r}")
+        if rotors.shape != (4, 2) or not np.all(np.isfinite(rotors)):
+            raise InvalidInputError(f"QuadrotorParams rotors must be 4 finite (x, y) pairs, m, got {self.rotors!r}")
+        if len(self.spin) != 4 or any(s not in (1, -1) for s in self.spin):
+            raise InvalidInputError(f"QuadrotorParams spin must be 4 values of +1 or -1, got {self.spin!r}")
+        if abs(np.linalg.det(self.mixer())) < 1e-9:
+            raise DegenerateInputError(f"QuadrotorParams: rotors {self.rotors!r} with spins {self.spin!r} cannot "
+                                       "give independent thrust, roll, pitch and yaw (singular mixer); place "
+                                       "the rotors around the centre with two spinning each way")
+
     @property
     def max_thrust(self) -> float:
         """Largest thrust of one rotor, N."""
@@ -140,6 +163,15 @@ class QuadrotorCascade:
         5 deg), climb rate (m/s) and yaw rate (rad/s).
     bebop_climb_p : float
         Climb-rate loop gain of the attitude mode, 1/s (PX4's ``MPC_Z_VEL_P_ACC`` = 4).
+    yaw_rate_max : float
+        Largest yaw-rate set point, rad/s (PX4 ``MC_YAWRATE_MAX``: 200 deg/s = 3.49 rad/s).
+    thrust_headroom : float
+        The collective thrust is capped at this fraction of the most the four rotors give
+        together (0.85 of 4 f_max = 24.0 N for the iris, 1.63 m g), so roll and pitch keep
+        at least 15 % of each rotor's range (PX4 likewise caps ``MPC_THR_MAX`` below full).
+    thrust_xy_margin : float
+        Velocity mode: the fraction of that cap kept for the horizontal demand when the
+        vertical one would take it all (PX4 ``MPC_THR_XY_MARG``: 0.3).
     """
 
     params: QuadrotorParams = field(default_factory=QuadrotorParams)
@@ -153,6 +185,9 @@ class QuadrotorCascade:
     bebop_climb_max: float = 1.0
     bebop_yaw_rate_max: float = 2.0
     bebop_climb_p: float = 4.0
+    yaw_rate_max: float = math.radians(200.0)
+    thrust_headroom: float = 0.85
+    thrust_xy_margin: float = 0.3
 
     def __post_init__(self):
         for name in ("vel_p", "vel_i", "rate_p"):
@@ -160,12 +195,17 @@ class QuadrotorCascade:
             if v.shape != (3,) or not np.all(np.isfinite(v)) or np.any(v < 0):
                 raise InvalidInputError(f"QuadrotorCascade {name} must be 3 non-negative gains, got {getattr(self, name)!r}")
         for name in ("tilt_max", "att_p", "bebop_tilt_max", "bebop_climb_max", "bebop_yaw_rate_max",
-                     "bebop_climb_p", "vel_i_limit"):
+                     "bebop_climb_p", "vel_i_limit", "yaw_rate_max", "thrust_headroom"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise InvalidInputError(f"QuadrotorCascade {name} must be positive and finite, got {v!r}")
         if not self.tilt_max < 0.5 * math.pi:
             raise InvalidInputError(f"tilt_max must be below pi/2, got {self.tilt_max!r}")
+        if not self.thrust_headroom < 1.0:
+            raise InvalidInputError(f"thrust_headroom must be below 1 (roll and pitch need room), "
+                                    f"got {self.thrust_headroom!r}")
+        if not (isinstance(self.thrust_xy_margin, (int, float)) and 0.0 <= self.thrust_xy_margin < 1.0):
+            raise InvalidInputError(f"thrust_xy_margin must be in [0, 1), got {self.thrust_xy_margin!r}")
         # the loops run every physics step on one vehicle: Python floats, not 3-vectors of
         # NumPy (each NumPy call on a 3-vector costs about a microsecond)
         self._vp = [float(x) for x in self.vel_p]
@@ -174,6 +214,8 @@ class QuadrotorCascade:
         self._kJ = [j * float(k) for j, k in zip(self._J, self.rate_p)]
         self._mix_inv = np.linalg.inv(self.params.mixer()).tolist()
         self._fmax = self.params.max_thrust
+        # the largest collective thrust every rotor can share (f_i = M_i0 T), with headroom
+        self._thrust_max = self.thrust_headroom * min(self._fmax / r[0] for r in self._mix_inv)
         self._tan_tilt = math.tan(self.tilt_max)
         self.reset()
 
@@ -196,17 +238,27 @@ class QuadrotorCascade:
         """
         lim_i = self.vel_i_limit
         a = [0.0, 0.0, 0.0]
-        v_cmd, v = _floats(v_cmd), _floats(v)
+        # a non-finite set point component means "hold" (0), as in attitude_mode; a
+        # non-finite state is an error (it would poison the integrator for good)
+        v_cmd = [x if math.isfinite(x) else 0.0 for x in _floats(v_cmd)]
+        v = _floats(v)
+        if not math.isfinite(sum(v) + sum(_floats(R)) + sum(_floats(omega))):
+            raise NonFiniteError(f"velocity_mode: the vehicle's state is not finite (v = {v!r}); "
+                                 "check the physics step")
         for i in range(3):
             err = v_cmd[i] - v[i]
             self._integral[i] = min(max(self._integral[i] + self._vi[i] * err * dt, -lim_i), lim_i)
             a[i] = self._vp[i] * err + self._integral[i]
-        m, g = self.params.mass, GRAVITY
-        fz = m * (g + min(max(a[2], -0.7 * g), g))
+        m, g, t_max = self.params.mass, GRAVITY, self._thrust_max
         fx, fy = m * a[0], m * a[1]
         nxy = math.hypot(fx, fy)
-        lim = fz * self._tan_tilt
-        if nxy > lim:  # tilt limit: the horizontal demand gives way to altitude
+        # the thrust vector within the rotors' reach (PX4 PositionControl::_accelerationControl
+        # and MPC_THR_XY_MARG): vertical first, less a margin kept for the horizontal demand,
+        # then the horizontal within what is left and the tilt limit
+        margin = min(nxy, self.thrust_xy_margin * t_max)
+        fz = min(m * (g + min(max(a[2], -0.7 * g), g)), math.sqrt(t_max * t_max - margin * margin))
+        lim = min(fz * self._tan_tilt, math.sqrt(max(t_max * t_max - fz * fz, 0.0)))
+        if nxy > lim:
             fx, fy = fx * lim / nxy, fy * lim / nxy
         return np.array(self._attitude_chain(fx, fy, fz, float(yaw_rate_cmd), _floats(R), _floats(omega)))
 
@@ -217,7 +269,7 @@ class QuadrotorCascade:
         u = [min(max(float(x), -1.0), 1.0) if math.isfinite(x) else 0.0 for x in u]
         m, g = self.params.mass, GRAVITY
         az = self.bebop_climb_p * (u[2] * self.bebop_climb_max - float(v[2]))
-        fz = m * (g + min(max(az, -0.7 * g), g))
+        fz = min(m * (g + min(max(az, -0.7 * g), g)), self._thrust_max * math.cos(self.bebop_tilt_max))
         tx, ty = math.tan(u[0] * self.bebop_tilt_max), math.tan(u[1] * self.bebop_tilt_max)
         Rl = _floats(R)
         c, s = Rl[0], Rl[3]
@@ -249,8 +301,10 @@ class QuadrotorCascade:
         e = (0.5 * (E(b3, 1) - E(b2, 2)), 0.5 * (E(b1, 2) - E(b3, 0)))
         # rate set point: attitude P on roll and pitch; the yaw rate (world z) in body axes
         kp = self.att_p
+        lim = self.yaw_rate_max  # PX4 MC_YAWRATE_MAX
+        yaw_rate = min(max(yaw_rate, -lim), lim) if math.isfinite(yaw_rate) else 0.0
         w_sp = (-kp * e[0] + yaw_rate * R[6], -kp * e[1] + yaw_rate * R[7], yaw_rate * R[8])
-        thrust = max(fx * R[2] + fy * R[5] + fz * R[8], 0.0)
+        thrust = min(max(fx * R[2] + fy * R[5] + fz * R[8], 0.0), self._thrust_max)
         J, kJ = self._J, self._kJ
         Jw = (J[0] * w[0], J[1] * w[1], J[2] * w[2])
         gyro = _cross(w, Jw)
@@ -260,15 +314,44 @@ class QuadrotorCascade:
     def mix(self, thrust: float, tau) -> list:
         """Rotor forces (4 floats) for collective thrust and body torques, within ``[0, f_max]``.
 
-        Roll and pitch come first: when a rotor would leave its range the yaw torque is
-        dropped, then the forces are clipped (PX4's mixer likewise gives up yaw first).
+        Where the wrench is out of the rotors' reach, PX4's priorities (its mixer's
+        desaturation, ``ControlAllocationSequentialDesaturation``): roll and pitch first,
+        kept whole by moving the collective thrust as far as needed (scaled down together
+        only where no thrust fits them); then the yaw torque, scaled by the largest
+        ``s`` in ``[0, 1]`` that keeps every rotor in range. The thrust is first capped at
+        the headroom's limit, so a thrust alone always fits.
         """
         M, fmax = self._mix_inv, self._fmax
-        t0, t1, t2, t3 = float(thrust), float(tau[0]), float(tau[1]), float(tau[2])
+        t0 = min(max(float(thrust), 0.0), self._thrust_max)
+        t1, t2, t3 = float(tau[0]), float(tau[1]), float(tau[2])
         f = [r[0] * t0 + r[1] * t1 + r[2] * t2 + r[3] * t3 for r in M]
-        if min(f) < 0.0 or max(f) > fmax:
-            f = [r[0] * t0 + r[1] * t1 + r[2] * t2 for r in M]
-        return [min(max(x, 0.0), fmax) for x in f]
+        if min(f) >= 0.0 and max(f) <= fmax:
+            return f
+        # rotor i: 0 <= m_i (T + dT) + k rp_i <= fmax, i.e. -T - k a_i <= dT <= u_i - T - k a_i
+        # with a_i = rp_i / m_i, u_i = fmax / m_i; some dT fits iff k (a_j - a_i) <= u_j, all i, j
+        m0 = [r[0] for r in M]
+        rp = [r[1] * t1 + r[2] * t2 for r in M]
+        a = [rp[i] / m0[i] for i in range(4)]
+        u = [fmax / m0[i] for i in range(4)]
+        k = 1.0
+        for j in range(4):
+            for i in range(4):
+                if a[j] - a[i] > u[j] * k:
+                    k = u[j] / (a[j] - a[i])
+        lo = max(-t0 - k * a[i] for i in range(4))
+        hi = min(u[i] - t0 - k * a[i] for i in range(4))
+        d = min(max(0.0, lo), hi)  # the least change of the collective thrust
+        f = [m0[i] * (t0 + d) + k * rp[i] for i in range(4)]
+        # yaw: the largest s in [0, 1] with 0 <= f_i + s y_i <= fmax for every rotor
+        y = [r[3] * t3 for r in M]
+        s = 1.0
+        for fi, yi in zip(f, y):
+            if yi > 0.0:
+                s = min(s, (fmax - fi) / yi)
+            elif yi < 0.0:
+                s = min(s, fi / -yi)
+        s = max(s, 0.0)
+        return [min(max(fi + s * yi, 0.0), fmax) for fi, yi in zip(f, y)]
 
     def rotor_drag(self, forces, v, R) -> tuple:
         """World-frame in-plane rotor drag, N: ``-c sum_i(omega_i) v_perp`` (RotorS motor model).
