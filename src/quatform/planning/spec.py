@@ -11,14 +11,13 @@ duration and sampling, and a table of options for its ``kind``. ``make_plan`` di
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from .._toml import builtin_files, read_toml
 from ..algebra import matrix_from_q
 from ..errors import InvalidInputError, QuatformError
 from .geodesic import meeting_bound, plan_from_geodesic, plan_through_meeting, solve_geodesic
@@ -26,11 +25,6 @@ from .measures import min_separation, rigid_motion, straight_line_motion
 from .plan import Plan
 from .rigid_formation import AIRPLANE_CASES, airplanes_spec, rigid_plan_from_spec
 from .shaping import check_alpha, check_masses
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["PLANNERS", "PlanSpec", "builtin_plan_specs", "load_plan_spec", "make_plan", "plan_metrics",
            "rigid_formation_dict"]
@@ -74,6 +68,15 @@ class PlanSpec:
 _TOP_KEYS = {"kind", "name", "title", "source", "duration_s", "knots", "min_clearance_m", "robots"}
 
 
+def _input_error(exc, where, table) -> InvalidInputError:
+    """The one-line error for a spec table that could not be read."""
+    if isinstance(exc, KeyError):
+        return InvalidInputError(f"{where}: [{table}] misses key {exc} (see docs/planning.md)")
+    if isinstance(exc, QuatformError):
+        return InvalidInputError(f"{where}: {exc}")
+    return InvalidInputError(f"{where}: {exc} (numbers expected; see docs/planning.md)")
+
+
 def _knots(v, where) -> int:
     if isinstance(v, bool) or not isinstance(v, int):
         raise InvalidInputError(f"{where}: knots must be an integer (>= 2), got {v!r}")
@@ -82,25 +85,12 @@ def _knots(v, where) -> int:
 
 def builtin_plan_specs() -> dict[str, Path]:
     """Built-in plan specs by name."""
-    root = resources.files("quatform") / "plans"
-    return {Path(p.name).stem: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
+    return builtin_files("plans")
 
 
 def load_plan_spec(name_or_file) -> PlanSpec:
     """A built-in spec by name, or a TOML file by path; every mistake is an InvalidInputError."""
-    builtin = builtin_plan_specs()
-    p = Path(name_or_file)
-    if str(name_or_file) in builtin:
-        p = builtin[str(name_or_file)]
-    elif not (p.suffix == ".toml" or p.exists()):
-        raise InvalidInputError(
-            f"unknown plan spec {str(name_or_file)!r}; built-in: {', '.join(sorted(builtin))}, "
-            "or give the path of a .toml file"
-        )
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InvalidInputError(f"{p}: not valid TOML: {exc}") from None
+    data, p = read_toml(name_or_file, builtin_plan_specs(), "plan spec")
     return plan_spec_from_dict(data, where=str(p))
 
 
@@ -126,12 +116,8 @@ def plan_spec_from_dict(data: dict, where: str = "plan spec") -> PlanSpec:
         duration = float(data.get("duration_s", 1.0))
         knots = _knots(data.get("knots", 201), where)
         clearance = float(data.get("min_clearance_m", 0.05))
-    except KeyError as exc:
-        raise InvalidInputError(f"{where}: [robots] misses key {exc} (see docs/planning.md)") from None
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, QuatformError):
-            raise InvalidInputError(f"{where}: {exc}") from None
-        raise InvalidInputError(f"{where}: {exc} (numbers expected; see docs/planning.md)") from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise _input_error(exc, where, "robots") from None
     if start.ndim != 2 or start.shape != goal.shape or start.shape[0] != masses.size or start.shape[1] not in (2, 3):
         raise InvalidInputError(
             f"{where}: [robots] start and goal must be lists of N = {masses.size} positions of 2 or 3 "
@@ -265,12 +251,8 @@ def _rigid_spec_from_dict(data: dict, where: str) -> PlanSpec:
         form = rigid_formation_dict(spec)
         masses = check_masses(form["masses"])
         start, goal = _robot_positions(form, "start"), _robot_positions(form, "end")
-    except KeyError as exc:
-        raise InvalidInputError(f"{where}: [{table}] misses key {exc} (see docs/planning.md)") from None
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, QuatformError):
-            raise InvalidInputError(f"{where}: {exc}") from None
-        raise InvalidInputError(f"{where}: {exc} (numbers expected; see docs/planning.md)") from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise _input_error(exc, where, table) from None
     if not (np.isfinite(duration) and duration > 0 and knots >= 2 and clearance >= 0):
         raise InvalidInputError(f"{where}: need duration_s > 0, knots >= 2, min_clearance_m >= 0")
     if start.shape != (masses.size, 3):

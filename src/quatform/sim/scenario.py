@@ -6,23 +6,17 @@ passed by path. See ``docs/scenarios.md`` for the keys.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from .._toml import builtin_files, read_toml
 from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES
 from ..references import EuclideanPath, Ramp, Step
 from ..robots import HolonomicRobot, Team
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["Scenario", "load_scenario", "builtin_scenarios"]
 
@@ -59,8 +53,7 @@ class Scenario:
 
 def builtin_scenarios() -> dict[str, Path]:
     """Built-in scenario files by name."""
-    root = resources.files("quatform") / "scenarios"
-    return {Path(p.name).stem: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
+    return builtin_files("scenarios")
 
 
 def _get(d, key, kind, where, default=None):
@@ -90,19 +83,7 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
     :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001), for ``kind = "teleop"`` a
     :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
     """
-    p = Path(name_or_file)
-    builtin = builtin_scenarios()
-    if str(name_or_file) in builtin:
-        p = builtin[str(name_or_file)]
-    elif not (p.suffix == ".toml" or p.exists()):
-        raise InvalidInputError(
-            f"unknown scenario {str(name_or_file)!r}; built-in: {', '.join(sorted(builtin))}, "
-            "or give the path of a .toml file"
-        )
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InvalidInputError(f"{p}: not valid TOML: {exc}") from None
+    data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
     if data.get("kind", "pair") == "ugv-uav":
         from .ugv_uav import ugv_uav_scenario_from_dict
 
