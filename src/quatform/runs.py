@@ -17,6 +17,7 @@ from .sim import (
     compute_metrics,
     load_scenario,
     simulate,
+    write_columns,
     write_metrics,
     write_timeseries,
 )
@@ -58,8 +59,6 @@ def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False
     ``backend="mujoco"``: a Pioneer-like UGV and an IRIS-like quadrotor in MuJoCo; the
     metrics add ``collisions``, ``render`` and the kinematic run's errors (``kinematic``).
     """
-    import numpy as np
-
     from .sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_timeseries
 
     _check_backend(backend)
@@ -78,8 +77,7 @@ def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False
     if backend == "mujoco":
         _add_physics(metrics, record, run, ugv_uav_metrics(simulate_ugv_uav(sc, formation)), out, plots)
     write_metrics(metrics, out / "metrics.json")
-    names, data = ugv_uav_timeseries(run)
-    np.savetxt(out / "timeseries.csv", data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+    write_columns(*ugv_uav_timeseries(run), out / "timeseries.csv")
     if plots:
         from .report.ugv_uav_plots import write_ugv_uav_run_plots
 
@@ -244,8 +242,6 @@ TELEOP_COLUMNS = (
 
 def run_teleop(sc, out, orientation_error=None, preload=None, plots: bool = True, quiet: bool = False):
     """A seed 003 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``."""
-    import numpy as np
-
     from .sim.teleop import simulate_teleop, teleop_metrics, teleop_timeseries
 
     out = Path(out)
@@ -255,8 +251,7 @@ def run_teleop(sc, out, orientation_error=None, preload=None, plots: bool = True
     metrics = teleop_metrics(run)
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     write_metrics(metrics, out / "metrics.json")
-    names, data = teleop_timeseries(run)
-    np.savetxt(out / "timeseries.csv", data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+    write_columns(*teleop_timeseries(run), out / "timeseries.csv")
     if plots:
         from .report.teleop_plots import write_teleop_plots
 

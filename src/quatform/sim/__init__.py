@@ -1,9 +1,9 @@
 """Sim layer: scenarios, the closed loop and its metrics (above references and control)."""
 
 from .metrics import compute_metrics, errors_from_robots
-from .output import write_metrics, write_timeseries
+from .output import write_columns, write_metrics, write_timeseries
 from .runner import Run, simulate
 from .scenario import Scenario, builtin_scenarios, load_scenario
 
 __all__ = ["Run", "simulate", "compute_metrics", "errors_from_robots", "Scenario", "load_scenario",
-           "builtin_scenarios", "write_metrics", "write_timeseries"]
+           "builtin_scenarios", "write_columns", "write_metrics", "write_timeseries"]

@@ -17,7 +17,7 @@ import numpy as np
 from ..formations import EUCLIDEAN_VARIABLES, ROBOT_PAIR_VARIABLES
 from .runner import Run
 
-__all__ = ["timeseries_columns", "write_timeseries", "write_metrics"]
+__all__ = ["timeseries_columns", "write_columns", "write_timeseries", "write_metrics"]
 
 
 def timeseries_columns(run: Run):
@@ -41,11 +41,15 @@ def timeseries_columns(run: Run):
     return names, np.hstack(cols)
 
 
-def write_timeseries(run: Run, path) -> Path:
+def write_columns(names, data, path) -> Path:
+    """A CSV file with a header row ``names`` and the ``(T, n)`` array ``data`` (9 digits)."""
     path = Path(path)
-    names, data = timeseries_columns(run)
     np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
     return path
+
+
+def write_timeseries(run: Run, path) -> Path:
+    return write_columns(*timeseries_columns(run), path)
 
 
 def write_metrics(metrics: dict, path) -> Path:
