@@ -7,6 +7,7 @@ norm where required, see :mod:`quatform.errors`) and returns a new array.
 """
 
 from ._validate import UNIT_TOLERANCE
+from .angles import wrap_angle
 from .dual_quaternion import (
     DQ_IDENTITY,
     dq_closest,
@@ -101,4 +102,6 @@ __all__ = [
     # Euler parameters (seed 003)
     "euler_parameters_from_q", "q_from_euler_parameters", "relative_euler_parameters",
     "w_matrix",
+    # plane angles
+    "wrap_angle",
 ]

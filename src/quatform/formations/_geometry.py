@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra import wrap_angle
 from ..algebra._kernels import qmul_components
 from . import _pair_kernels as kern
 
@@ -102,9 +103,7 @@ def swing(a, b, fallback_axis):
     return q / n[..., None]
 
 
-def wrap(a):
-    """Angles wrapped to ``[-pi, pi)``."""
-    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+wrap = wrap_angle  # the algebra layer's rule, under the short name this layer's kernels use
 
 
 def unwrap_near(a, ref):

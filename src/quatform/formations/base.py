@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra import wrap_angle
 from ..algebra._validate import as_array
 from ..errors import DegenerateInputError
 
@@ -198,7 +199,7 @@ class Formation(ABC):
         e = np.asarray(c) - np.asarray(c_des)
         ang = [i for i, v in enumerate(self.variables) if v.kind == "angle"]
         if ang:
-            e[..., ang] = (e[..., ang] + np.pi) % (2 * np.pi) - np.pi
+            e[..., ang] = wrap_angle(e[..., ang])
         return e
 
     def length_scale(self, r) -> np.ndarray:

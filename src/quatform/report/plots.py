@@ -27,6 +27,7 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
+from ..algebra import wrap_angle
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES
 from ..sim import Run, errors_from_robots
@@ -74,9 +75,6 @@ def _save(fig: Figure, path) -> Path:
     return path
 
 
-def _wrap(a):
-    """Angles folded into ``[-pi, pi)``."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def _finite(a):
@@ -164,7 +162,7 @@ def _signal_grid(fig, run: Run, meas, des, variables, ncols=4):
         ax = axes.flat[k]
         y, yd = _finite(meas[idx, k]), _finite(des[idx, k])
         if var.kind == "angle":
-            y, yd = _break_wraps(_wrap(y)), _break_wraps(_wrap(yd))
+            y, yd = _break_wraps(wrap_angle(y)), _break_wraps(wrap_angle(yd))
             ax.set_ylim(-np.pi - 0.35, np.pi + 0.35)
             ax.set_yticks(_ANGLE_TICKS, _ANGLE_LABELS)
         else:

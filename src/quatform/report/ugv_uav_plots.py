@@ -31,6 +31,7 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
+from ..algebra import wrap_angle
 from ..formations import UgvUavSpherical
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.ugv_uav import UGV_UAV_FORMATIONS, UgvUavRun
@@ -51,7 +52,6 @@ from .plots import (
     _set_equalish_3d,
     _shade,
     _time_xlim,
-    _wrap,
 )
 
 __all__ = [
@@ -124,7 +124,7 @@ def _angle_axis(ax):
 
 def _wrapped(y):
     """``y`` folded into ``[-pi, pi)`` with NaN at the folds, so no vertical line is drawn."""
-    return _break_wraps(_wrap(_finite(y)))
+    return _break_wraps(wrap_angle(_finite(y)))
 
 
 def _switch_time(run: UgvUavRun):
@@ -260,7 +260,7 @@ def _cluster_rows(run: UgvUavRun):
     rows = []
     for k, var in enumerate(variables):
         if var.kind == "angle":
-            rows.append((f"{var.name} [rad]", c[:, k], cd[:, k], _wrap(c[:, k] - cd[:, k]), "angle"))
+            rows.append((f"{var.name} [rad]", c[:, k], cd[:, k], wrap_angle(c[:, k] - cd[:, k]), "angle"))
         else:
             rows.append((f"{var.name} [m]", c[:, k], cd[:, k], c[:, k] - cd[:, k], "linear"))
     return rows

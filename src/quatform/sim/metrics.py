@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra import wrap_angle
 from ..formations import segment_direction
 from .runner import Run
 
@@ -21,8 +22,6 @@ LOST_POSITION_M = 0.1
 LOST_ANGLE_RAD = 0.1
 
 
-def _wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 def _first(t, mask):
@@ -45,9 +44,9 @@ def errors_from_robots(run: Run) -> dict:
         "orientation": np.arccos(np.clip(np.einsum("ij,ij->i", u, u_d), -1.0, 1.0)),
         "robot_position": np.maximum(np.linalg.norm(r[:, 0:3] - rd[:, 0:3], axis=1),
                                      np.linalg.norm(r[:, 4:7] - rd[:, 4:7], axis=1)),
-        "robot_yaw": np.maximum(np.abs(_wrap(r[:, 3] - rd[:, 3])), np.abs(_wrap(r[:, 7] - rd[:, 7]))),
+        "robot_yaw": np.maximum(np.abs(wrap_angle(r[:, 3] - rd[:, 3])), np.abs(wrap_angle(r[:, 7] - rd[:, 7]))),
         "separation": D,
-        "recovered_euclidean": np.max(np.abs(_wrap(run.e[:, [3, 4, 6, 7]] - run.e_des[:, [3, 4, 6, 7]])), axis=1),
+        "recovered_euclidean": np.max(np.abs(wrap_angle(run.e[:, [3, 4, 6, 7]] - run.e_des[:, [3, 4, 6, 7]])), axis=1),
     }
 
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..algebra import wrap_angle
 from ..control import Reference
 from ..errors import InvalidInputError, MissingDependencyError, NonFiniteError
 from ..formations import EuclideanPair, RobotSpace
@@ -106,8 +107,6 @@ def physics_timestep(dt: float, largest: float = 0.0025) -> float:
     return dt / max(1, math.ceil(dt / largest - 1e-9))
 
 
-def _wrap(a):
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass
@@ -288,7 +287,7 @@ class PhysicsWorld:
     # -- states ----------------------------------------------------------------------
     def _unwrap(self, name, raw):
         prev = self._yaw.get(name)
-        y = raw if prev is None else prev + _wrap(raw - prev)
+        y = raw if prev is None else prev + float(wrap_angle(raw - prev))
         self._yaw[name] = y
         return y
 

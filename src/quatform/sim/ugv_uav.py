@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..algebra import q_angle_between, q_from_axis_angle
+from ..algebra import q_angle_between, q_from_axis_angle, wrap_angle
 from ..control import Reference, UgvUavController
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
@@ -264,7 +264,7 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
     d_des = r_des[:, 3:6] - r_des[:, 0:3]
     cosang = np.einsum("ij,ij->i", d_true, d_des) / np.maximum(sep * np.linalg.norm(d_des, axis=1), 1e-300)
     orient = np.arccos(np.clip(cosang, -1, 1))
-    yaw_err = np.abs((run.ugv[:, 2] - run.uav[:, 3] + np.pi) % (2 * np.pi) - np.pi)
+    yaw_err = np.abs(wrap_angle(run.ugv[:, 2] - run.uav[:, 3]))
     late = run.t >= sc.transient_s
     lost = late & ((ugv_err > LOST_UGV_M) | (uav_err > LOST_UAV_M))
     if sc.uav_front_until_s > 0:
@@ -304,7 +304,7 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "max_command_speed_m_s": float(np.abs(run.u[:, 0]).max()) if len(run.t) else 0.0,
         "measured_outside_description_s": _outside_time(run),
         "min_robot_separation_m": float(sep.min()) if len(sep) else None,
-        "max_recovered_euclidean_error_rad": mx(np.abs((run.e[:, 5] - run.e_des[:, 5] + np.pi) % (2 * np.pi) - np.pi)),
+        "max_recovered_euclidean_error_rad": mx(np.abs(wrap_angle(run.e[:, 5] - run.e_des[:, 5]))),
         "max_cluster_state_jump": float(jumps.max()) if len(jumps) else 0.0,
         "max_unexplained_cluster_jump": float(np.maximum(jumps - explained, 0.0).max()) if len(jumps) else 0.0,
         "max_uav_position_error_m_at_switch": mx(uav_err, (run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s)) if sc.uav_front_until_s > 0 else None,
@@ -334,7 +334,7 @@ def _quaternion_jumps(run):
     if run.formation == "quaternion":
         jump = q_angle_between(c[1:, 3:7], c[:-1, 3:7])
     else:
-        da = np.abs((np.diff(c[:, 4:6], axis=0) + np.pi) % (2 * np.pi) - np.pi)
+        da = np.abs(wrap_angle(np.diff(c[:, 4:6], axis=0)))
         jump = da.max(axis=1)
     return jump, turned + 1e-9
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra import matrix_from_q, relative_euler_parameters, w_matrix
+from ..algebra import matrix_from_q, relative_euler_parameters, w_matrix, wrap_angle
 from ..algebra._validate import as_array
 
 __all__ = ["orientation_error", "task_jacobian", "rpy_from_q", "rpy_from_matrix", "rpy_error", "wrap_angle",
@@ -74,10 +74,6 @@ def rpy_error(q_m, q_s) -> np.ndarray:
     return wrap_angle(rpy_from_q(q_s) - rpy_from_q(q_m))
 
 
-def wrap_angle(a) -> np.ndarray:
-    """Angles wrapped to ``[-pi, pi)``."""
-    a = np.asarray(a, dtype=float)
-    return a - 2.0 * np.pi * np.floor((a + np.pi) / (2.0 * np.pi))
 
 
 def rpy_rate_from_angular_velocity(rpy) -> np.ndarray:
