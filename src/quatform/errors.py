@@ -18,14 +18,30 @@ __all__ = [
     "NotARotationError",
     "UnreachableError",
     "ConvergenceError",
-
-
+    "ResourceLimitError",
     "MissingDependencyError",
 ]
 
 
+#: Longest message an error keeps; the rest is cut (a 2e5-element array quoted in a message
+#: would otherwise print 600 kB).
+MAX_MESSAGE_CHARS = 500
+
+
 class QuatformError(Exception):
-    """Base class of every error quatform raises on purpose."""
+    """Base class of every error quatform raises on purpose.
+
+    Its message is one line (newlines and runs of spaces collapse to one space) of at most
+    :data:`MAX_MESSAGE_CHARS` characters.
+    """
+
+    def __init__(self, *args):
+        if len(args) == 1 and isinstance(args[0], str):
+            msg = " ".join(args[0].split())
+            if len(msg) > MAX_MESSAGE_CHARS:
+                msg = msg[: MAX_MESSAGE_CHARS - 5] + " ..."
+            args = (msg,)
+        super().__init__(*args)
 
 
 class InvalidInputError(QuatformError, ValueError):
@@ -58,6 +74,11 @@ class UnreachableError(InvalidInputError):
 
 class ConvergenceError(QuatformError, RuntimeError):
     """A numerical solver (e.g. a geodesic boundary-value problem) found no acceptable solution."""
+
+
+class ResourceLimitError(InvalidInputError):
+    """The requested work cannot fit in this machine's memory or the time budget (estimated
+    up front; the message names the key that sets the amount of work and the limit)."""
 
 
 class MissingDependencyError(QuatformError, ImportError):
