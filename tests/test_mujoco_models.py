@@ -74,7 +74,8 @@ def test_mixer_scales_yaw_into_range_and_keeps_roll_pitch(tau_z):
     assert f.min() >= -1e-12 and f.max() <= IRIS.max_thrust + 1e-12
     assert np.allclose(w[0:3], [hover, 0.1, -0.05], atol=1e-9)
     s = w[3] / tau_z
-    assert 0.0 < s <= 1.0 + 1e-12 and abs(w[3]) > min(abs(tau_z), 0.7)  # hover leaves ~0.8 N m of yaw
+    # all of the yaw when it fits (w[3] == tau_z up to round-off), else at least the ~0.8 N m hover leaves
+    assert 0.0 < s <= 1.0 + 1e-12 and abs(w[3]) >= min(abs(tau_z), 0.7) - 1e-9
     # the largest s: some rotor sits on a bound unless the whole torque fitted
     assert s > 1.0 - 1e-9 or np.isclose(f, 0.0).any() or np.isclose(f, IRIS.max_thrust).any()
 
