@@ -1,0 +1,184 @@
+"""Issue 12, two-robot scenarios (seed 000): strict loader, metrics window, resource limits,
+feed-forward key, plots."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quatform.errors import InvalidInputError, ResourceLimitError
+from quatform.references import EuclideanPath, Ramp, Step
+from quatform.sim import Scenario, compute_metrics, load_scenario, simulate
+from quatform.sim.scenario import scenario_from_dict
+
+GOOD = 'duration_s = 2.0\ndt_s = 0.01\nmetrics_from_s = 0.5\n[path]\ncenter = [0, 0, 1]\nd_c = 1.0\n'
+
+
+def _file(tmp_path, text, name="s.toml"):
+    f = tmp_path / name
+    f.write_text(text)
+    return f
+
+
+def _one_line_error(tmp_path, text, exc=InvalidInputError):
+    with pytest.raises(exc) as info:
+        load_scenario(_file(tmp_path, text))
+    msg = str(info.value)
+    assert "\n" not in msg and "Traceback" not in msg
+    return msg
+
+
+# ----------------------------------------------------------------- item 1: metrics window
+
+
+@pytest.mark.parametrize("start", ["2.0", "3.0", "1e6"])
+def test_metrics_from_at_or_after_the_end_is_refused_at_load(tmp_path, start):
+    text = GOOD.replace("metrics_from_s = 0.5", f"metrics_from_s = {start}")
+    msg = _one_line_error(tmp_path, text)
+    assert "metrics_from_s" in msg and "duration_s" in msg
+
+
+def test_metrics_from_just_before_the_end_is_kept(tmp_path):
+    sc = load_scenario(_file(tmp_path, GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = 1.99")))
+    m = compute_metrics(simulate(sc, "quaternion"))
+    assert m["metrics_from_s"] == pytest.approx(1.99)
+
+
+def test_compute_metrics_refuses_a_run_with_no_sample_in_the_window(tmp_path):
+    """A failed run (the cluster-space controller through gamma_c = pi/2) must not read 0."""
+    sc = load_scenario("mas-kitts-spiral")
+    sc = dataclasses.replace(sc, duration_s=30.0)
+    run = simulate(sc, "cluster-space")
+    assert compute_metrics(run)["reference_lost"]
+    bad = dataclasses.replace(run, t=run.t - 100.0)  # a Run built through the API
+    with pytest.raises(InvalidInputError, match="metrics_from_s"):
+        compute_metrics(bad)
+
+
+def test_scenario_built_through_the_api_refuses_an_empty_window():
+    with pytest.raises(InvalidInputError, match="metrics_from_s"):
+        Scenario(name="api", path=EuclideanPath(), duration_s=3.0)  # default metrics_from_s = 5 s
+    Scenario(name="api", path=EuclideanPath(), duration_s=3.0, metrics_from_s=0.0)
+
+
+def test_short_file_without_metrics_from_is_measured_from_the_start(tmp_path):
+    sc = load_scenario(_file(tmp_path, GOOD.replace("metrics_from_s = 0.5\n", "")))
+    assert sc.metrics_from_s == 0.0
+
+
+# ----------------------------------------------------------------- item 2: unknown keys, types
+
+
+@pytest.mark.parametrize("text, key, nearest", [
+    (GOOD.replace("d_c = 1.0", 'centroid = "circle"\nraduis = 2.0\nd_c = 1.0'), "raduis", "radius"),
+    (GOOD.replace("d_c = 1.0", "perid_s = 3.0\nd_c = 1.0"), "perid_s", "period_s"),
+    (GOOD + "[initial_ofset]\nx_c = 0.1\n", "initial_ofset", "initial_offset"),
+    ("dt = 0.01\n" + GOOD, "dt", "dt_s"),
+    ("feed_forward = false\n" + GOOD, "feed_forward", "feedforward"),
+    (GOOD + "[robots]\nmax_speed = 2.0\n", "max_speed", "max_speed_m_s"),
+    (GOOD + "[initial_offset]\nxc = 0.1\n", "xc", "x_c"),
+    (GOOD + '[[path.ramps]]\nvariable = "d_c"\nstart = 0.0\nduration_s = 1.0\nchange = 0.1\n', "start", "start_s"),
+    (GOOD + '[[path.steps]]\nvariable = "d_c"\ntime = 1.0\nchange = 0.1\n', "time", "time_s"),
+    (GOOD + "[gains]\n[gains.quaternion]\nkx = [1, 1, 1]\n", "kx", "k_x"),
+    (GOOD + "[gains]\n[gains.quaternoin]\nk_x = [1, 1, 1]\n", "quaternoin", "quaternion"),
+])
+def test_unknown_key_names_it_and_the_nearest_valid_one(tmp_path, text, key, nearest):
+    msg = _one_line_error(tmp_path, text)
+    assert f"unknown key '{key}'" in msg and f"did you mean '{nearest}'" in msg
+
+
+# ----------------------------------------------------------------- item 3: one line per mistake
+
+BAD_FILES = [
+    ("initial_offset = 5\n" + GOOD, "initial_offset"),
+    ("gains = 5\n" + GOOD, "gains"),
+    ("robots = [1]\n" + GOOD, "robots"),
+    ("duration_s = true\n" + GOOD.replace("duration_s = 2.0\n", ""), "duration_s"),
+    (GOOD.replace("duration_s = 2.0", "duration_s = nan"), "duration_s"),
+    (GOOD.replace("duration_s = 2.0", "duration_s = -2.0"), "duration_s"),
+    (GOOD.replace("dt_s = 0.01", "dt_s = inf"), "dt_s"),
+    (GOOD.replace("dt_s = 0.01", "dt_s = -0.01"), "dt_s"),
+    (GOOD.replace("dt_s = 0.01", 'dt_s = "0.01"'), "dt_s"),
+    (GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = -1.0"), "metrics_from_s"),
+    (GOOD.replace("center = [0, 0, 1]", "center = [1, 2]"), "center"),
+    (GOOD.replace("center = [0, 0, 1]", "center = [0, nan, 1]"), "center"),
+    (GOOD.replace("d_c = 1.0", "d_c = nan"), "d_c"),
+    (GOOD.replace("d_c = 1.0", "d_c = -1.0"), "d_c"),
+    (GOOD.replace("d_c = 1.0", 'd_c = 1.0\ncentroid = "circle"\nradius = inf'), "radius"),
+    (GOOD.replace("d_c = 1.0", 'd_c = 1.0\ncentroid = "circle"\nperiod_s = 0.0'), "period_s"),
+    (GOOD.replace("d_c = 1.0", "d_c = 1.0\nbeta_c = -inf"), "beta_c"),
+    (GOOD.replace("d_c = 1.0", "d_c = 1.0\nvelocity = 0.1"), "velocity"),
+    (GOOD.replace("d_c = 1.0", "d_c = 1.0\nramps = 3"), "ramps"),
+    (GOOD + '[[path.ramps]]\nvariable = "d_c"\nstart_s = nan\nduration_s = 1.0\nchange = 0.1\n', "start_s"),
+    (GOOD + '[[path.ramps]]\nvariable = "dc"\nstart_s = 0.0\nduration_s = 1.0\nchange = 0.1\n', "variable"),
+    (GOOD + '[[path.steps]]\nvariable = "d_c"\ntime_s = 1.0\nchange = "big"\n', "change"),
+    (GOOD + "[initial_offset]\nx_c = nan\n", "x_c"),
+    (GOOD + '[initial_offset]\nx_c = "a"\n', "x_c"),
+    (GOOD + "[robots]\nmax_speed_m_s = -1.0\n", "max_speed_m_s"),
+    (GOOD + "[robots]\nmax_yaw_rate_rad_s = inf\n", "max_yaw_rate_rad_s"),
+    (GOOD + '[gains]\nbase = "table3"\n', "base"),
+    (GOOD + "[gains]\n[gains.quaternion]\nk_x = [1, nan, 1]\n", "k_x"),
+    (GOOD + "[gains]\n[gains.quaternion]\nk_d = -20\n", "k_d"),
+    (GOOD + "[gains]\n[gains.dual-quaternion]\nk_dw = [1, 1]\n", "k_dw"),
+    (GOOD + "[gains]\nquaternion = 5\n", "quaternion"),
+    ('seed = "abc"\n' + GOOD, "seed"),
+    ("feedforward = 1\n" + GOOD, "feedforward"),
+    ("name = 5\n" + GOOD, "name"),
+    ("path = 5\nduration_s = 2.0\n", "path"),
+    ("duration_s = 2.0\n", "path"),
+    ('kind = "pairs"\n' + GOOD, "kind"),
+    (GOOD + "[initial_offset]\nd_c = -1.0\n", "d_c"),
+]
+
+
+@pytest.mark.parametrize("text, key", BAD_FILES, ids=[f"{i}-{k}" for i, (_, k) in enumerate(BAD_FILES)])
+def test_bad_file_is_one_line_naming_the_key(tmp_path, text, key):
+    f = _file(tmp_path, text)
+    msg = _one_line_error(tmp_path, text)
+    assert key in msg and str(f) in msg, msg
+    assert "contains nan at index" not in msg
+
+
+# ----------------------------------------------------------------- item 4: resource limits
+
+
+@pytest.mark.parametrize("repl", ["duration_s = 1e9", "duration_s = 1e300"])
+def test_huge_duration_is_refused_up_front(tmp_path, repl):
+    msg = _one_line_error(tmp_path, GOOD.replace("duration_s = 2.0", repl), ResourceLimitError)
+    assert "duration_s / dt_s" in msg and ("GB" in msg or " h " in msg)
+
+
+def test_tiny_dt_is_refused_up_front(tmp_path):
+    msg = _one_line_error(tmp_path, GOOD.replace("dt_s = 0.01", "dt_s = 1e-300"), ResourceLimitError)
+    assert "duration_s / dt_s" in msg and "dt_s" in msg
+
+
+def test_scenario_built_through_the_api_is_checked_and_simulate_rechecks():
+    with pytest.raises(ResourceLimitError, match="duration_s / dt_s"):
+        Scenario(name="api", path=EuclideanPath(), duration_s=1e9, metrics_from_s=0.0)
+    sc = Scenario(name="api", path=EuclideanPath(), duration_s=1.0, metrics_from_s=0.0)
+    object.__setattr__(sc, "dt_s", 1e-300)  # bypasses __post_init__
+    with pytest.raises(ResourceLimitError, match="duration_s / dt_s"):
+        simulate(sc, "quaternion")
+
+
+def test_time_budget_is_read_from_the_environment(tmp_path, monkeypatch):
+    monkeypatch.setenv("QUATFORM_MAX_WORK_S", "1")
+    msg = _one_line_error(tmp_path, GOOD.replace("duration_s = 2.0", "duration_s = 100.0"), ResourceLimitError)
+    assert "QUATFORM_MAX_WORK_S" in msg
+
+
+def test_api_numbers_must_be_finite():
+    for kw in ({"duration_s": float("nan")}, {"duration_s": 1.0, "dt_s": float("inf")},
+               {"duration_s": 1.0, "metrics_from_s": float("nan")}, {"duration_s": True}):
+        with pytest.raises(InvalidInputError):
+            Scenario(name="api", path=EuclideanPath(), **{"metrics_from_s": 0.0, **kw})
+    for bad in (lambda: Ramp("d_c", float("nan"), 1.0, 0.1), lambda: Step("d_c", 1.0, float("inf")),
+                lambda: EuclideanPath(center=[0, float("nan"), 0]), lambda: EuclideanPath(radius=float("inf"))):
+        with pytest.raises(InvalidInputError):
+            bad()
