@@ -182,3 +182,48 @@ def test_api_numbers_must_be_finite():
                 lambda: EuclideanPath(center=[0, float("nan"), 0]), lambda: EuclideanPath(radius=float("inf"))):
         with pytest.raises(InvalidInputError):
             bad()
+
+
+# ----------------------------------------------------------------- item 5: feedforward key
+
+
+def _spiral_without_feedforward(tmp_path, duration_s=10.0):
+    from quatform.sim import builtin_scenarios
+
+    text = builtin_scenarios()["mas-kitts-spiral"].read_text()
+    text = text.replace("duration_s = 60.0\n", f"duration_s = {duration_s}\nfeedforward = false\n", 1)
+    return load_scenario(_file(tmp_path, text, "spiral-noff.toml"))
+
+
+def test_feedforward_key_shows_fig13_steady_state_errors(tmp_path):
+    """Without feed-forward a proportional loop lags a ramp of rate v by v / k (seed 000 §4.1,
+    Fig. 13: "steady state error corresponding to the lack of integral compensation"). The
+    centroid moves at |v| = sqrt((2 pi 2 m / 60 s)^2 + (0.05 m/s)^2) = 0.2153 m/s; the
+    quaternion loop's gain on x_c is k_x = 2 (Table 1), the dual-quaternion loop's on the
+    translation is k_dw / 2 = 7.5 (the dual part is t q / 2), the cluster-space one's k = 1."""
+    sc = _spiral_without_feedforward(tmp_path)
+    assert sc.feedforward is False
+    v = np.hypot(2 * np.pi * 2.0 / 60.0, 0.05)
+    from quatform.sim import errors_from_robots
+
+    for name, k in (("quaternion", 2.0), ("dual-quaternion", 7.5), ("cluster-space", 1.0)):
+        run = simulate(sc, name)
+        m = compute_metrics(run)
+        assert m["feedforward"] is False and run.controller.feedforward is False
+        err = errors_from_robots(run)["cluster_position"][run.t >= 5.0]
+        assert np.mean(err) == pytest.approx(v / k, rel=0.03), name
+        assert m["max_cluster_position_error_m"] == pytest.approx(v / k, rel=0.03), name
+    # the caller's word wins over the scenario's, and with feed-forward the lag is gone
+    on = compute_metrics(simulate(sc, "quaternion", feedforward=True))
+    assert on["feedforward"] is True and on["max_cluster_position_error_m"] < 1e-3
+    on = compute_metrics(simulate(dataclasses.replace(sc, feedforward=True), "quaternion"))
+    assert on["feedforward"] is True and on["max_cluster_position_error_m"] < 1e-3
+
+
+def test_feedforward_defaults_to_true_and_is_recorded(tmp_path):
+    sc = load_scenario(_file(tmp_path, GOOD))
+    assert sc.feedforward is True and sc.controller("dual-quaternion").feedforward is True
+    assert sc.controller("dual-quaternion", feedforward=False).feedforward is False
+    m = compute_metrics(simulate(sc, "robot-space"))
+    assert m["feedforward"] is True
+    json.dumps(m)
