@@ -89,7 +89,8 @@ class Scenario:
     ----------
     name : str
     path : EuclideanPath
-        The desired motion in Euclidean cluster variables.
+        The desired motion in Euclidean cluster variables (any callable ``t -> (e, e_dot)``,
+        e.g. a plan's :class:`~quatform.planning.PlanPairPath`).
     duration_s : float
         Length of the run, s (> 0).
     dt_s : float
@@ -139,8 +140,9 @@ class Scenario:
         _check_window(where, self.metrics_from_s, self.duration_s, self.dt_s)
         if not isinstance(self.feedforward, (bool, np.bool_)):
             raise InvalidInputError(f"{where}: feedforward = {short(self.feedforward)} must be True or False")
-        if not isinstance(self.path, EuclideanPath):
-            raise InvalidInputError(f"{where}: path must be an EuclideanPath, got {type(self.path).__name__}")
+        if not callable(self.path):  # an EuclideanPath, or a plan's PlanPairPath: t -> (e, e_dot)
+            raise InvalidInputError(f"{where}: path must map times to (e, e_dot), like an EuclideanPath; got "
+                                    f"{type(self.path).__name__}")
         off = np.asarray(self.initial_offset, dtype=float)
         if off.shape != (8,) or not np.all(np.isfinite(off)):
             raise InvalidInputError(f"{where}: initial_offset must be 8 finite numbers, got {short(self.initial_offset)}")
