@@ -296,9 +296,14 @@ def test_spiral_angle_traces_unwrapped(monkeypatch):
     assert np.nanmax(np.abs(ym - yd)[t >= 5.0]) < 0.01  # the dual-quaternion run tracks it
 
 
-def test_euclidean_png_only_where_it_differs(tmp_path, yaw_step_runs):
-    from quatform.report import write_run_plots
+def test_euclidean_png_only_where_it_differs(tmp_path, monkeypatch, yaw_step_runs):
+    from quatform.report import plots, write_run_plots
 
+    def quick_3d(run, path):  # the 3-D view is the slow one and not in question here
+        path.write_bytes(b"x" * 2000)
+        return path
+
+    monkeypatch.setattr(plots, "plot_paths_3d", quick_3d)
     for name, run in yaw_step_runs.items():
         out = tmp_path / name
         out.mkdir()
@@ -321,3 +326,55 @@ def test_titles_name_the_paper(monkeypatch, yaw_step_runs):
               _figure_of(monkeypatch, plot_paths_3d, run).axes[0].get_title()]
     for title in titles:
         assert "Mas & Kitts 2017" in title and "seed 000" not in title, title
+
+
+@pytest.mark.parametrize("text", [BAD_FILES[0][0], BAD_FILES[22][0], GOOD.replace("duration_s = 2.0", "duration_s = 1e9"),
+                                  GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = 2.0")])
+def test_cli_prints_one_line_and_no_traceback(tmp_path, capsys, text):
+    from quatform import cli
+
+    f = _file(tmp_path, text)
+    assert cli.main(["run", str(f), "--controller", "quaternion", "--out", str(tmp_path / "o"), "--no-plots"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err and str(f) in err, err
+
+
+_DATA = {"path": {"center": [0, 0, 1]}}
+
+
+@settings(max_examples=200, deadline=None)
+@given(duration=st.floats(0.05, 50.0), steps=st.integers(1, 400), frac=st.floats(0.0, 1.5))
+def test_an_accepted_metrics_window_always_holds_a_sample(duration, steps, frac):
+    dt = duration / steps * _jitter(steps)
+    m = frac * duration
+    try:
+        sc = scenario_from_dict({**_DATA, "duration_s": duration, "dt_s": dt, "metrics_from_s": m}, "h")
+    except InvalidInputError as exc:
+        assert "metrics_from_s" in str(exc) or "dt_s" in str(exc)
+        assert m >= duration or m > _last_sample(duration, dt) or dt > duration
+        return
+    assert m < duration and np.any(sc.times >= m)
+
+
+def _jitter(steps):
+    return 1.0 + 0.37 / (steps + 1)  # dt_s not dividing duration_s: the last sample falls short
+
+
+def _last_sample(duration, dt):
+    return int(round(duration / dt)) * dt
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=60))
+def test_drawn_angle_gap_is_the_wrapped_error(pairs):
+    from quatform.report.plots import _angle_traces
+
+    meas, des = (np.array(v, dtype=float) for v in zip(*pairs))
+    ym, yd = _angle_traces(meas, des, np.arange(meas.size))
+    true = np.abs((meas - des + np.pi) % (2 * np.pi) - np.pi)
+    ok = np.isfinite(ym) & np.isfinite(yd)
+    assert np.allclose(np.abs(ym - yd)[ok], true[ok], atol=1e-9)
+    # every drawn value is the true angle modulo 2 pi
+    for drawn, raw in ((ym, meas), (yd, des)):
+        d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
+        assert np.all(d < 1e-9)
