@@ -139,7 +139,7 @@ def test_scenario_file_errors(tmp_path):
     for text, msg in (
         ('duration_s = 10\n[path]\n[[path.ramps]]\nvariable = "d_c"\nduration_s = 5\nchange = 1\n', "start_s"),
         ('duration_s = 10\n[path]\n[gains]\nbase = "table3"\n', "table3"),
-        ('duration_s = 10\n[path]\n[initial_offset]\nx_c = "a"\n', "numbers expected"),
+        ('duration_s = 10\n[path]\n[initial_offset]\nx_c = "a"\n', "x_c = 'a' must be a number"),
         ('duration_s = 10\n[path]\n[gains.quaternion]\nk_q = [1, 1, 1]\n', "k_q"),
         ('duration_s = 10\n[path]\nd_c = -1.0\n', "d_c"),
     ):

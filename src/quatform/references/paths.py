@@ -9,6 +9,8 @@ with a climb (the rising spiral of §4.1) or on a line (§4.2), linear ramps of 
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +22,13 @@ from ..formations.base import Formation
 __all__ = ["Ramp", "Step", "EuclideanPath", "sample_reference"]
 
 _INDEX = {v.name: i for i, v in enumerate(EUCLIDEAN_VARIABLES)}
+
+
+def _finite(owner, **values):
+    """Refuse a value that is not a finite real number, naming it."""
+    for key, v in values.items():
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+            raise InvalidInputError(f"{owner}: {key} must be a finite number, got {v!r}")
 
 
 def _index(name):
@@ -42,6 +51,7 @@ class Ramp:
 
     def __post_init__(self):
         _index(self.variable)
+        _finite(f"ramp of {self.variable}", start_s=self.start_s, duration_s=self.duration_s, change=self.change)
         if not self.duration_s > 0:
             raise InvalidInputError(f"ramp of {self.variable}: duration_s must be > 0, got {self.duration_s!r}")
 
@@ -61,6 +71,7 @@ class Step:
 
     def __post_init__(self):
         _index(self.variable)
+        _finite(f"step of {self.variable}", time_s=self.time_s, change=self.change)
 
     def value_rate(self, t):
         return np.where(t >= self.time_s, self.change, 0.0), np.zeros_like(t)
@@ -99,6 +110,11 @@ class EuclideanPath:
             object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
         if self.initial.shape != (8,) or not np.all(np.isfinite(self.initial)):
             raise InvalidInputError(f"initial must be 8 finite numbers, got {self.initial!r}")
+        for name in ("center", "velocity"):
+            v = getattr(self, name)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise InvalidInputError(f"{name} must be 3 finite numbers, got {v!r}")
+        _finite("path", radius=self.radius, period_s=self.period_s, climb_m_s=self.climb_m_s)
         if self.centroid not in ("circle", "line", "fixed"):
             raise InvalidInputError(
                 f"centroid must be 'circle', 'line' or 'fixed', got {self.centroid!r}"

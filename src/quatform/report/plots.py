@@ -1,4 +1,4 @@
-"""Report layer: PNG figures of runs, like seed 000 Figs. 9-13 (above sim).
+"""Report layer: PNG figures of runs, like Mas & Kitts 2017 (seed 000) Figs. 9-13 (above sim).
 
 Every function draws on its own :class:`matplotlib.figure.Figure` attached to an Agg
 canvas, so nothing here touches pyplot's global state or needs a display. Lines are
@@ -8,7 +8,9 @@ every sample.
 * :func:`plot_cluster_variables` - each variable of the controller's own description,
   measured against desired (seed Figs. 9, 11, 12; the recovered Euclidean variables for
   the robot-space controller, as in Fig. 10).
-* :func:`plot_euclidean` - the eight Euclidean variables an operator monitors.
+* :func:`plot_euclidean` - the eight Euclidean variables an operator monitors (written
+  for the quaternion and dual-quaternion runs only; the others' cluster variables are
+  these).
 * :func:`plot_paths_3d` - both robots' paths in 3-D, with the segment between them drawn
   as a time-lapse.
 * :func:`plot_compare` - errors of several controllers on one scenario (Fig. 13).
@@ -24,7 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator, MultipleLocator
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
 from ..algebra import wrap_angle
@@ -36,6 +38,7 @@ from ..sim.metrics import SINGULAR_THRESHOLD
 __all__ = [
     "DPI",
     "MAX_POINTS",
+    "PAPERS",
     "plot_cluster_variables",
     "plot_compare",
     "plot_euclidean",
@@ -53,6 +56,7 @@ DPI = 110
 _MEAS_STYLE = {"color": "C0", "lw": 1.2, "ls": "-"}
 _DES_STYLE = {"color": "C3", "lw": 1.0, "ls": "--"}
 _SINGULAR_COLOR = "#f4b6b6"
+#: Ticks of a wrapped-angle axes (the UGV-UAV plots use them).
 _ANGLE_TICKS = (-np.pi, -np.pi / 2, 0.0, np.pi / 2, np.pi)
 _ANGLE_LABELS = ("-π", "-π/2", "0", "π/2", "π")
 #: Smallest half-height of a non-angle axes, so round-off (1e-16) is not blown up to fill it.
@@ -96,14 +100,81 @@ def _decimate(n: int, max_points: int = MAX_POINTS) -> np.ndarray:
 
 
 def _break_wraps(y):
-    """Insert NaN where a wrapped angle jumps by more than pi, so no vertical line is drawn."""
+    """Insert NaN where an angle trace jumps by more than pi, so no vertical line is drawn."""
     y = np.asarray(y, dtype=float)
     if y.size < 2:
         return y
-    jump = np.abs(np.diff(y)) > np.pi
+    with np.errstate(invalid="ignore"):
+        jump = np.abs(np.diff(y)) > np.pi
     out = y.copy()
     out[1:][jump] = np.nan
     return out
+
+
+def _unwrap(y):
+    """``np.unwrap`` of the finite samples of ``y`` (NaN stays NaN and does not spread)."""
+    y = np.array(y, dtype=float)
+    ok = np.isfinite(y)
+    if ok.any():
+        y[ok] = np.unwrap(y[ok])
+    return y
+
+
+#: A desired angle that moves more than this between samples has stepped (a [[path.steps]]).
+_STEP_RAD = 0.5
+
+
+def _angle_traces(meas, des, idx):
+    """Measured and desired angle traces, at the samples ``idx``, that draw no wrap artefact.
+
+    The desired trace is unwrapped on every sample, so a reference through +-pi stays
+    continuous; after a step (a jump of more than ``_STEP_RAD``) it continues on the 2 pi
+    branch nearest the measured trace (a step of pi to +pi or to -pi is the same formation).
+    The measured trace is drawn on the branch nearest the desired, ``des + wrap(meas -
+    des)``, so the gap between the two lines is the wrapped error, never a 2 pi that is not
+    there. Where a drawn trace turns by more than pi between drawn samples (the error
+    passing +-pi) it is broken instead of joined by a vertical line.
+    """
+    d, m = _unwrap(des), _unwrap(meas)
+    fin = np.flatnonzero(np.isfinite(d))
+    if fin.size:
+        cuts = fin[1:][np.abs(np.diff(d[fin])) > _STEP_RAD]
+        for a, b in zip(cuts, [*cuts[1:], fin[-1] + 1]):  # each segment after a step
+            gap = (m[a:b] - d[a:b])[np.isfinite(m[a:b] - d[a:b])]
+            if gap.size:
+                d[a:b] += 2 * np.pi * np.round(np.median(gap) / (2 * np.pi))
+    meas = np.asarray(meas, dtype=float)
+    aligned = np.where(np.isfinite(d), d + wrap_angle(np.nan_to_num(meas - d)), m)
+    aligned[~np.isfinite(meas)] = np.nan
+    return _break_wraps(aligned[idx]), _break_wraps(d[idx])
+
+
+def _angle_axis(ax, *series):
+    """y limits spanning at least [-pi, pi] about the data, ticks at multiples of pi/2."""
+    vals = np.concatenate([np.ravel(v) for v in series])
+    vals = vals[np.isfinite(vals)]
+    lo, hi = (float(vals.min()), float(vals.max())) if vals.size else (-np.pi, np.pi)
+    if hi - lo < 2 * np.pi:
+        mid = 0.5 * (lo + hi) if vals.size else 0.0
+        mid = np.pi / 2 * np.round(mid / (np.pi / 2))  # centre on a tick
+        lo, hi = min(lo, mid - np.pi), max(hi, mid + np.pi)
+    ax.set_ylim(lo - 0.35, hi + 0.35)
+    step = np.pi / 2 * max(1, int(np.ceil((hi - lo) / (4 * np.pi))))  # at most about 9 ticks
+    ax.yaxis.set_major_locator(MultipleLocator(step))
+    ax.yaxis.set_major_formatter(FuncFormatter(_pi_label))
+
+
+def _pi_label(value, _pos=None) -> str:
+    """``value`` in multiples of pi/2: ``-π/2``, ``0``, ``π``, ``3π/2`` ..."""
+    n = int(np.round(value / (np.pi / 2)))
+    if abs(value - n * np.pi / 2) > 1e-6:
+        return f"{value:.2g}"
+    if n == 0:
+        return "0"
+    if n % 2 == 0:
+        k = n // 2
+        return "π" if k == 1 else "-π" if k == -1 else f"{k}π"
+    return f"{'-' if n < 0 else ''}{'' if abs(n) == 1 else abs(n)}π/2"
 
 
 def _intervals(t, mask):
@@ -123,8 +194,33 @@ def _shade(ax, spans):
         ax.axvspan(a, b, color=_SINGULAR_COLOR, alpha=0.6, lw=0, zorder=0)
 
 
+#: The research documents the scenarios cite as "seed NNN" (docs/), named in plot titles.
+PAPERS = {
+    "seed 000": "Mas & Kitts 2017",
+    "seed 001": "Marciano 2021",
+    "seed 002": "Belta & Kumar 2002",
+    "seed 003": "Jansen et al. 1990",
+    "seed 004": "Belta & Kumar 2001",
+}
+
+
+def _paper(source: str) -> str:
+    """A scenario's ``source`` with the seed numbers replaced by the papers' names."""
+    out = str(source)
+    for seed, paper in PAPERS.items():
+        out = out.replace(seed, paper)
+    return out
+
+
 def _title(run: Run) -> str:
-    return f"{run.scenario.name} - {run.controller.name}"
+    source = _paper(getattr(run.scenario, "source", ""))
+    return f"{run.scenario.name} - {run.controller.name}" + (f" ({source})" if source else "")
+
+
+def _runs_title(runs) -> str:
+    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
+    sources = ", ".join(dict.fromkeys(_paper(run.scenario.source) for run in runs if run.scenario.source))
+    return names + (f" ({sources})" if sources else "")
 
 
 def _time_xlim(ax, t0: float, t1: float):
@@ -160,12 +256,11 @@ def _signal_grid(fig, run: Run, meas, des, variables, ncols=4):
     spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
     for k, var in enumerate(variables):
         ax = axes.flat[k]
-        y, yd = _finite(meas[idx, k]), _finite(des[idx, k])
-        if var.kind == "angle":
-            y, yd = _break_wraps(wrap_angle(y)), _break_wraps(wrap_angle(yd))
-            ax.set_ylim(-np.pi - 0.35, np.pi + 0.35)
-            ax.set_yticks(_ANGLE_TICKS, _ANGLE_LABELS)
+        if var.kind == "angle":  # on every sample, then decimated
+            y, yd = _angle_traces(_finite(meas[:, k]), _finite(des[:, k]), idx)
+            _angle_axis(ax, y, yd)
         else:
+            y, yd = _finite(meas[idx, k]), _finite(des[idx, k])
             _floor_ylim(ax, y, yd)
         _shade(ax, spans)
         ax.plot(t, y, **_MEAS_STYLE)
@@ -213,8 +308,12 @@ def plot_cluster_variables(run: Run, path) -> Path:
     quaternion and dual-quaternion ones), measured solid, desired dashed, against time.
     For the robot-space controller (formation ``'robot'``) the Euclidean variables it
     recovers, ``run.e`` against ``run.e_des``, are drawn instead, as in Fig. 10. Angles are
-    wrapped to ``[-pi, pi)``, so a fold of the description shows as a jump. Times where
-    the singularity measure is below ``SINGULAR_THRESHOLD`` (0.02) are shaded light red.
+    drawn without wrap artefacts: the desired trace unwrapped (after a step, on the branch
+    nearest the measured one), the measured one on the branch nearest it, so the gap
+    between them is the wrapped error (a fold of the description shows as a gap of pi, a
+    2 pi wind as none); a trace is broken where it turns by more than pi between samples. Times where the singularity measure is
+    below ``SINGULAR_THRESHOLD`` (0.02) are shaded light red. The title names the paper
+    the scenario comes from (``source``, "seed 000" read as "Mas & Kitts 2017").
 
     Parameters
     ----------
@@ -245,8 +344,8 @@ def plot_euclidean(run: Run, path) -> Path:
     """The eight Euclidean variables recovered by the controller's description.
 
     The operator's monitoring view: ``run.e`` (solid) against ``run.e_des`` (dashed) for
-    ``x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2``; angles wrapped to
-    ``[-pi, pi)``; singular times shaded as in :func:`plot_cluster_variables`.
+    ``x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2``; angles and singular times
+    drawn as in :func:`plot_cluster_variables`.
 
     Parameters
     ----------
@@ -415,8 +514,7 @@ def plot_compare(runs, path, linthresh: float = 1e-3) -> Path:
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(runs), 4), fontsize=9,
                frameon=False)
-    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
-    fig.suptitle(f"{names} - errors by controller (symlog, linear within ±{linthresh:g})",
+    fig.suptitle(f"{_runs_title(runs)}\nerrors by controller (symlog, linear within ±{linthresh:g})",
                  fontsize=11)
     return _save(fig, path)
 
@@ -463,16 +561,25 @@ def plot_separation(runs, path) -> Path:
     ax.set_ylabel("separation |p1 - p2| [m]")
     ax.grid(True, lw=0.4, alpha=0.5)
     ax.legend(fontsize=9, loc="lower right")
-    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
-    ax.set_title(f"{names} - robot separation", fontsize=11)
+    ax.set_title(f"{_runs_title(runs)}\nrobot separation", fontsize=11)
     return _save(fig, path)
 
 
 # --------------------------------------------------------------------------- files
 
 
+#: Descriptions whose ``cluster_variables.png`` already shows the Euclidean variables (the
+#: cluster-space controller's own; the robot-space one's recovered ones, Fig. 10).
+_EUCLIDEAN_SHOWN = ("euclidean", "robot")
+
+
 def write_run_plots(run: Run, out_dir) -> list[Path]:
     """Write ``cluster_variables.png``, ``euclidean.png`` and ``paths_3d.png`` of one run.
+
+    ``euclidean.png`` is written only for the quaternion and dual-quaternion descriptions:
+    for the cluster-space and robot-space controllers ``cluster_variables.png`` already
+    shows the same eight Euclidean variables, and a stale ``euclidean.png`` in ``out_dir``
+    is removed.
 
     Parameters
     ----------
@@ -488,9 +595,13 @@ def write_run_plots(run: Run, out_dir) -> list[Path]:
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [plot_cluster_variables(run, out / "cluster_variables.png"),
-            plot_euclidean(run, out / "euclidean.png"),
-            plot_paths_3d(run, out / "paths_3d.png")]
+    files = [plot_cluster_variables(run, out / "cluster_variables.png")]
+    if run.controller.formation.name in _EUCLIDEAN_SHOWN:
+        (out / "euclidean.png").unlink(missing_ok=True)  # a previous run's, of another controller
+    else:
+        files.append(plot_euclidean(run, out / "euclidean.png"))
+    files.append(plot_paths_3d(run, out / "paths_3d.png"))
+    return files
 
 
 def write_compare_plots(runs, out_dir) -> list[Path]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
+from ..errors import InvalidInputError
 from ..formations import segment_direction
 from .runner import Run
 
@@ -20,8 +21,6 @@ SINGULAR_THRESHOLD = 0.02
 #: Errors beyond these (after ``metrics_from_s``) mean the controller lost the reference.
 LOST_POSITION_M = 0.1
 LOST_ANGLE_RAD = 0.1
-
-
 
 
 def _first(t, mask):
@@ -52,14 +51,19 @@ def errors_from_robots(run: Run) -> dict:
 
 def compute_metrics(run: Run) -> dict:
     """The metrics of one run as a JSON-ready dict (units in the key names)."""
-    err = errors_from_robots(run)
     late = run.t >= run.scenario.metrics_from_s
+    if not late.any():  # every max error would read 0: a failed run would look perfect
+        last = float(run.t[-1]) if len(run.t) else float("nan")
+        raise InvalidInputError(
+            f"scenario {run.scenario.name!r}: metrics_from_s = {run.scenario.metrics_from_s:g} s is after the "
+            f"run's last sample ({last:g} s), so no error would be measured; choose metrics_from_s < duration_s")
+    err = errors_from_robots(run)
     singular = run.singularity < SINGULAR_THRESHOLD
     lost = late & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
                    | (err["robot_position"] > LOST_POSITION_M))
 
     def mx(key):
-        return float(err[key][late].max()) if late.any() else 0.0
+        return float(err[key][late].max())
 
     return {
         "controller": run.controller.name,
@@ -68,6 +72,7 @@ def compute_metrics(run: Run) -> dict:
         "duration_s": float(run.t[-1]),
         "dt_s": run.scenario.dt_s,
         "metrics_from_s": run.scenario.metrics_from_s,
+        "feedforward": bool(getattr(run.controller, "feedforward", True)),
         "singularity_detected": bool(singular.any()),
         "first_singular_time_s": _first(run.t, singular),
         "min_singularity_measure": float(run.singularity.min()),

@@ -12,10 +12,11 @@ import numpy as np
 
 from ..control import Reference
 from ..control.base import Controller
+from ..errors import InvalidInputError
 from ..formations import EuclideanPair, RobotSpace
 from ..references import sample_reference
 from .loop import PerfectMeasurement, closed_loop
-from .scenario import Scenario
+from .scenario import Scenario, check_scenario_work
 
 __all__ = ["Run", "simulate"]
 
@@ -58,18 +59,26 @@ class Run:
     singularity: np.ndarray
 
 
-def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool = True,
+def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool | None = None,
              r0=None, progress=None) -> Run:
     """Run ``scenario`` with ``controller`` (a name or an instance).
 
     Parameters
     ----------
+    feedforward : bool, optional
+        For a controller given by name: feed the reference's rate forward; default: the
+        scenario's ``feedforward`` (an instance keeps its own).
     r0 : array_like, shape (8,), optional
         Initial robot state; default: the reference at ``t = 0`` displaced by the
         scenario's ``initial_offset`` (in Euclidean variables).
     progress : callable, optional
         Called as ``progress(fraction)`` about every 10 % of the run.
     """
+    if not isinstance(scenario, Scenario):
+        raise InvalidInputError(f"simulate: scenario must be a two-robot Scenario, got {type(scenario).__name__}")
+    # up front, before the reference is sampled (a Scenario checks this when built; its
+    # fields may have been swapped since by object.__setattr__)
+    check_scenario_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s)
     ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
     F = ctrl.formation
     t = scenario.times

@@ -1,32 +1,119 @@
 """Scenarios: plain TOML files that state a motion, the robots, the gains and the run.
 
 Sim layer. Built-in scenarios live in ``quatform/scenarios/*.toml``; a user's own file is
-passed by path. See ``docs/scenarios.md`` for the keys.
+passed by path. See ``docs/scenarios.md`` for the keys. Every key is read with the shared
+typed readers of :mod:`quatform.checks`: an unknown key names the nearest valid one, a
+wrong type, NaN, infinity or an out-of-range number is refused naming the key, and a run
+too long for this machine is refused before it starts (:func:`check_scenario_work`).
 """
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .._toml import builtin_files, read_toml
+from ..checks import check_keys, check_work, flag, number, short, table, text, vector
 from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES
 from ..references import EuclideanPath, Ramp, Step
 from ..robots import HolonomicRobot, Team
 
-__all__ = ["Scenario", "load_scenario", "builtin_scenarios"]
+__all__ = ["Scenario", "load_scenario", "builtin_scenarios", "scenario_from_dict", "check_scenario_work",
+           "BYTES_PER_STEP", "SECONDS_PER_STEP"]
 
 _TABLES = {"table1": TABLE1, "table2": TABLE2}
 _NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
+_HINT = "see docs/scenarios.md"
+
+#: Memory one logged step of a two-robot run may take, bytes: the Run's arrays, the loop's
+#: per-step Python lists, the references and the time-series CSV. Measured peak (tracemalloc,
+#: spiral, 2001 steps): 1.4-4.6 kB per step, the quaternion controller the most; 12 kB is
+#: about 2.6 times that (docs/derivations.md, "Hardening (issue 12): two-robot scenarios").
+BYTES_PER_STEP = 12e3
+#: Wall time one step may take, s: measured 0.19-0.46 ms per step of the loop (the
+#: cluster-space controller the slowest) on this project's 2-core machine; 2 ms covers the
+#: metrics, the CSV and a loaded machine (about 4 times the slowest).
+SECONDS_PER_STEP = 2e-3
+
+#: Keys of each table of a two-robot scenario file.
+_TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "gains", "feedforward",
+             "robots", "path", "initial_offset")
+_ROBOT_KEYS = ("max_speed_m_s", "max_yaw_rate_rad_s")
+_PATH_KEYS = ("centroid", "center", "velocity", "radius", "period_s", "climb_m_s", *_NAMES[3:], "ramps", "steps")
+_RAMP_KEYS = ("variable", "start_s", "duration_s", "change")
+_STEP_KEYS = ("variable", "time_s", "change")
+#: Gains each controller takes and their lengths (1: a scalar), seed 000 Tables 1-2.
+_GAIN_KEYS = {
+    "cluster-space": {"k": 8},
+    "robot-space": {"k": 8},
+    "quaternion": {"k_x": 3, "k_d": 1, "k_w": 3},
+    "dual-quaternion": {"k_dw": 3},
+}
+
+
+def check_scenario_work(where: str, duration_s: float, dt_s: float) -> None:
+    """Refuse a run of ``duration_s / dt_s`` steps that cannot fit in memory or the time budget.
+
+    Raises :class:`~quatform.errors.ResourceLimitError` naming ``duration_s / dt_s`` and the
+    limit (:func:`quatform.checks.check_work` with :data:`BYTES_PER_STEP` and
+    :data:`SECONDS_PER_STEP`).
+    """
+    with np.errstate(over="ignore"):
+        steps = float(duration_s) / float(dt_s) + 1.0 if dt_s > 0 else math.inf
+    check_work(where, f"duration_s / dt_s = {duration_s:g} / {dt_s:g}", steps, bytes_per_step=BYTES_PER_STEP,
+               seconds_per_step=SECONDS_PER_STEP, fix="shorten duration_s or raise dt_s")
+
+
+def _check_window(where: str, metrics_from_s: float, duration_s: float, dt_s: float) -> None:
+    """Refuse a metrics window that holds no sample (every max error would read 0, a failed
+    run would look perfect): need ``0 <= metrics_from_s < duration_s`` and a sample after it."""
+    number({"metrics_from_s": metrics_from_s}, "metrics_from_s", where, low=0.0)
+    last = int(round(duration_s / dt_s)) * dt_s  # the last of Scenario.times
+    if not (metrics_from_s < duration_s and metrics_from_s <= last):
+        raise InvalidInputError(
+            f"{where}: metrics_from_s = {metrics_from_s:g} must be < duration_s = {duration_s:g} and at most the "
+            f"last sample time {last:g} s; else no sample is measured and every error would read 0")
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A run's definition (see ``docs/scenarios.md``)."""
+    """A two-robot run's definition (seed 000; see ``docs/scenarios.md``).
+
+    Attributes
+    ----------
+    name : str
+    path : EuclideanPath
+        The desired motion in Euclidean cluster variables (any callable ``t -> (e, e_dot)``,
+        e.g. a plan's :class:`~quatform.planning.PlanPairPath`).
+    duration_s : float
+        Length of the run, s (> 0).
+    dt_s : float
+        Control and integration step, s (``0 < dt_s <= duration_s``).
+    title, source : str
+    team : Team
+        The two robots.
+    initial_offset : ndarray, shape (8,)
+        The robots start at the reference at ``t = 0`` plus this (Euclidean variables).
+    gains : dict
+        Gains by controller name.
+    metrics_from_s : float
+        Max errors are taken from this time on (``0 <= metrics_from_s <=`` the last sample).
+    feedforward : bool
+        Whether the controllers feed the reference's rate forward (default of
+        :meth:`controller` and :func:`~quatform.sim.simulate`).
+
+    Raises
+    ------
+    InvalidInputError
+        For a non-finite or out-of-range number; :class:`~quatform.errors.ResourceLimitError`
+        when ``duration_s / dt_s`` steps cannot fit in memory or the time budget.
+    """
 
     name: str
     path: EuclideanPath
@@ -38,42 +125,47 @@ class Scenario:
     initial_offset: np.ndarray = field(default_factory=lambda: np.zeros(8))
     gains: dict = field(default_factory=lambda: TABLE1)
     metrics_from_s: float = 5.0
+    feedforward: bool = True
+
+    def __post_init__(self):
+        where = f"scenario {self.name!r}"
+        for key in ("duration_s", "dt_s", "metrics_from_s"):  # finite real numbers (numpy scalars too)
+            v = getattr(self, key)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+                raise InvalidInputError(f"{where}: {key} = {short(v)} must be a finite number")
+            object.__setattr__(self, key, float(v))
+        number({"duration_s": self.duration_s}, "duration_s", where, low=0.0, low_open=True)
+        number({"dt_s": self.dt_s}, "dt_s", where, low=0.0, low_open=True, high=self.duration_s)
+        check_scenario_work(where, self.duration_s, self.dt_s)
+        _check_window(where, self.metrics_from_s, self.duration_s, self.dt_s)
+        if not isinstance(self.feedforward, (bool, np.bool_)):
+            raise InvalidInputError(f"{where}: feedforward = {short(self.feedforward)} must be True or False")
+        if not callable(self.path):  # an EuclideanPath, or a plan's PlanPairPath: t -> (e, e_dot)
+            raise InvalidInputError(f"{where}: path must map times to (e, e_dot), like an EuclideanPath; got "
+                                    f"{type(self.path).__name__}")
+        off = np.asarray(self.initial_offset, dtype=float)
+        if off.shape != (8,) or not np.all(np.isfinite(off)):
+            raise InvalidInputError(f"{where}: initial_offset must be 8 finite numbers, got {short(self.initial_offset)}")
+        object.__setattr__(self, "initial_offset", off)
 
     @property
     def times(self) -> np.ndarray:
+        """Sample times ``0, dt_s, ..., round(duration_s / dt_s) dt_s``, s."""
         n = int(round(self.duration_s / self.dt_s))
         return np.arange(n + 1) * self.dt_s
 
-    def controller(self, name: str, feedforward: bool = True):
-        """The controller ``name`` with this scenario's gains and robots."""
+    def controller(self, name: str, feedforward: bool | None = None):
+        """The controller ``name`` with this scenario's gains and robots; ``feedforward``
+        defaults to the scenario's."""
         if name not in CONTROLLERS:
             raise InvalidInputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLERS)}")
-        return CONTROLLERS[name](**self.gains.get(name, {}), team=self.team, feedforward=feedforward)
+        ff = self.feedforward if feedforward is None else feedforward
+        return CONTROLLERS[name](**self.gains.get(name, {}), team=self.team, feedforward=bool(ff))
 
 
 def builtin_scenarios() -> dict[str, Path]:
     """Built-in scenario files by name."""
     return builtin_files("scenarios")
-
-
-def _get(d, key, kind, where, default=None):
-    if key not in d:
-        if default is None:
-            raise InvalidInputError(f"{where}: missing key {key!r}")
-        return default
-    v = d[key]
-    try:
-        if kind is float:
-            v = float(v)
-            if not np.isfinite(v):
-                raise ValueError
-        elif kind == "vec3":
-            v = np.asarray(v, dtype=float)
-            if v.shape != (3,) or not np.all(np.isfinite(v)):
-                raise ValueError
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{where}: {key} = {d[key]!r} is not a valid {getattr(kind, '__name__', kind)}") from None
-    return v
 
 
 def load_scenario(name_or_file: str | Path) -> Scenario:
@@ -84,86 +176,134 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
     :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
     """
     data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
-    if data.get("kind", "pair") == "ugv-uav":
+    kind = text(data, "kind", str(p), "pair", choices=("pair", "ugv-uav", "teleop"))
+    if kind == "ugv-uav":
         from .ugv_uav import ugv_uav_scenario_from_dict
 
         return ugv_uav_scenario_from_dict(data, where=str(p))
-    if data.get("kind", "pair") == "teleop":
+    if kind == "teleop":
         from .teleop import teleop_scenario_from_dict
 
         return teleop_scenario_from_dict(data, where=str(p))
-    if data.get("kind", "pair") != "pair":
-        raise InvalidInputError(f"{p}: kind = {data['kind']!r}; use 'pair' (seed 000), 'ugv-uav' (seed 001) "
-                                "or 'teleop' (seed 003)")
     return scenario_from_dict(data, where=str(p))
 
 
 def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
-    """Build a :class:`Scenario` from parsed TOML; every mistake is an InvalidInputError."""
+    """Build a :class:`Scenario` from parsed TOML; every mistake is one InvalidInputError line
+    naming the key (see ``docs/scenarios.md``)."""
+    check_keys(data, _TOP_KEYS, where, hint=_HINT)
+    text(data, "kind", where, "pair", choices=("pair",))
+    duration = number(data, "duration_s", where, low=0.0, low_open=True)
+    dt = number(data, "dt_s", where, 0.01, low=0.0, low_open=True, high=duration)
+    check_scenario_work(where, duration, dt)  # before anything is sampled
+    # default 5 s (seed 000's transient); a run of 5 s or less is measured from its start
+    metrics_from = number(data, "metrics_from_s", where, 5.0 if duration > 5.0 else 0.0, low=0.0)
+    _check_window(where, metrics_from, duration, dt)
     try:
-        sc = _scenario_from_dict(data, where)
+        path = _path(table(data, "path", where), where)
+        robots = table(data, "robots", where, default={})
+        check_keys(robots, _ROBOT_KEYS, where, "[robots]", _HINT)
+        robot = HolonomicRobot(
+            max_speed=number(robots, "max_speed_m_s", where, 2.5, place="[robots]", low=0.0, low_open=True),
+            max_yaw_rate=number(robots, "max_yaw_rate_rad_s", where, 3.0, place="[robots]", low=0.0,
+                                low_open=True))
+        off = table(data, "initial_offset", where, default={})
+        check_keys(off, _NAMES, where, "[initial_offset]", _HINT)
+        offset = np.array([number(off, n, where, 0.0, place="[initial_offset]") for n in _NAMES])
+        sc = Scenario(
+            name=text(data, "name", where, Path(where).stem),
+            title=text(data, "title", where, ""),
+            source=text(data, "source", where, ""),
+            path=path,
+            duration_s=duration,
+            dt_s=dt,
+            team=Team((robot, robot)),
+            initial_offset=offset,
+            gains=_gains(data, where),
+            metrics_from_s=metrics_from,
+            feedforward=flag(data, "feedforward", where, True),
+        )
+        d0 = float(path(0.0)[0][5] + offset[5])
+        if not d0 > 0:
+            raise InvalidInputError(f"{where}: [path] d_c + [initial_offset] d_c = {d0:g} m at t = 0; the robots "
+                                    "would start on top of each other: make it > 0")
         for name in CONTROLLERS:  # the gains must make a controller
             sc.controller(name)
-    except KeyError as exc:
-        raise InvalidInputError(f"{where}: missing key {exc} (see docs/scenarios.md)") from None
-    except TypeError as exc:
-        raise InvalidInputError(f"{where}: {exc} (see docs/scenarios.md for the keys)") from None
-    except ValueError as exc:
-        if isinstance(exc, InvalidInputError):
-            raise
-        raise InvalidInputError(f"{where}: {exc} (numbers expected; see docs/scenarios.md)") from None
+    except InvalidInputError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
     return sc
 
 
-def _scenario_from_dict(data: dict, where: str) -> Scenario:
-    pdata = data.get("path")
-    if not isinstance(pdata, dict):
-        raise InvalidInputError(f"{where}: missing [path] table")
-    wp = f"{where} [path]"
+def _path(p: dict, where: str) -> EuclideanPath:
+    """The ``[path]`` table of the file ``where``."""
+    check_keys(p, _PATH_KEYS, where, "[path]", _HINT)
+    at = {"place": "[path]"}
     initial = np.zeros(8)
     for i, n in enumerate(_NAMES[3:], start=3):
-        initial[i] = _get(pdata, n, float, wp, default=1.0 if n == "d_c" else 0.0)
-    ramps = tuple(Ramp(r["variable"], float(r["start_s"]), float(r["duration_s"]), float(r["change"]))
-                  for r in pdata.get("ramps", []))
-    steps = tuple(Step(s["variable"], float(s["time_s"]), float(s["change"])) for s in pdata.get("steps", []))
-    path = EuclideanPath(
+        kw = {"low": 0.0, "low_open": True} if n == "d_c" else {}
+        initial[i] = number(p, n, where, 1.0 if n == "d_c" else 0.0, **at, **kw)
+    ramps = tuple(Ramp(text(r, "variable", w, choices=_NAMES), number(r, "start_s", w, low=0.0),
+                       number(r, "duration_s", w, low=0.0, low_open=True), number(r, "change", w))
+                  for r, w in _records(p, "ramps", _RAMP_KEYS, where))
+    steps = tuple(Step(text(s, "variable", w, choices=_NAMES), number(s, "time_s", w, low=0.0), number(s, "change", w))
+                  for s, w in _records(p, "steps", _STEP_KEYS, where))
+    return EuclideanPath(
         initial=initial,
-        centroid=pdata.get("centroid", "fixed"),
-        center=_get(pdata, "center", "vec3", wp, default=np.zeros(3)),
-        velocity=_get(pdata, "velocity", "vec3", wp, default=np.zeros(3)),
-        radius=_get(pdata, "radius", float, wp, default=0.0),
-        period_s=_get(pdata, "period_s", float, wp, default=1.0),
-        climb_m_s=_get(pdata, "climb_m_s", float, wp, default=0.0),
+        centroid=text(p, "centroid", where, "fixed", **at, choices=("circle", "line", "fixed")),
+        center=vector(p, "center", 3, where, (0.0, 0.0, 0.0), **at),
+        velocity=vector(p, "velocity", 3, where, (0.0, 0.0, 0.0), **at),
+        radius=number(p, "radius", where, 0.0, **at, low=0.0),
+        period_s=number(p, "period_s", where, 1.0, **at, low=0.0, low_open=True),
+        climb_m_s=number(p, "climb_m_s", where, 0.0, **at),
         ramps=ramps,
         steps=steps,
     )
-    offset = np.array([float(data.get("initial_offset", {}).get(n, 0.0)) for n in _NAMES])
-    rb = data.get("robots", {})
-    robot = HolonomicRobot(max_speed=float(rb.get("max_speed_m_s", 2.5)),
-                           max_yaw_rate=float(rb.get("max_yaw_rate_rad_s", 3.0)))
+
+
+def _records(p: dict, key: str, keys, where: str):
+    """``(table, where)`` of each entry of the array of tables ``[[path.<key>]]``."""
+    items = p.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(r, dict) for r in items):
+        raise InvalidInputError(f"{where}: [path] {key} = {short(items)} must be an array of tables "
+                                f"([[path.{key}]] entries; {_HINT})")
+    for i, r in enumerate(items):
+        w = f"{where} [[path.{key}]] #{i + 1}"
+        check_keys(r, keys, w, f"[[path.{key}]]", _HINT)
+        yield r, w
+
+
+def _gains(data: dict, where: str) -> dict:
+    """``gains = "table1" | "table2"`` or a ``[gains]`` table (``base`` and per-controller tables)."""
     g = data.get("gains", "table1")
     if isinstance(g, str):
-        if g not in _TABLES:
-            raise InvalidInputError(f"{where}: gains = {g!r}; use 'table1', 'table2' or a [gains] table")
-        gains = _TABLES[g]
+        return _TABLES[text(data, "gains", where, "table1", choices=tuple(_TABLES))]
+    if not isinstance(g, dict):
+        raise InvalidInputError(f"{where}: gains = {short(g)} must be 'table1', 'table2' or a [gains] table")
+    check_keys(g, ("base", *CONTROLLERS), where, "[gains]", _HINT)
+    base = _TABLES[text(g, "base", where, "table1", place="[gains]", choices=tuple(_TABLES))]
+    gains = {}
+    for name, shapes in _GAIN_KEYS.items():
+        place = f"[gains.{name}]"
+        own = table(g, name, where, "[gains]", default={})
+        check_keys(own, shapes, where, place, _HINT)
+        gains[name] = dict(base.get(name, {}))
+        for key, n in shapes.items():
+            if key in own:
+                gains[name][key] = _gain(own, key, n, where, place)
+    return gains
+
+
+def _gain(d: dict, key: str, n: int, where: str, place: str):
+    """A positive gain: a number, or for ``n > 1`` also a list of ``n`` numbers."""
+    v = d[key]
+    if n > 1 and isinstance(v, list):
+        vals = list(vector(d, key, n, where, place=place))
     else:
-        if g.get("base", "table1") not in _TABLES:
-            raise InvalidInputError(f"{where}: [gains] base = {g['base']!r}; use 'table1' or 'table2'")
-        base = _TABLES[g.get("base", "table1")]
-        gains = {k: dict(base.get(k, {}), **{kk: vv for kk, vv in g.get(k, {}).items()}) for k in CONTROLLERS}
-    duration = _get(data, "duration_s", float, where)
-    dt = _get(data, "dt_s", float, where, default=0.01)
-    if not (duration > 0 and 0 < dt <= duration):
-        raise InvalidInputError(f"{where}: need duration_s > 0 and 0 < dt_s <= duration_s")
-    return Scenario(
-        name=str(data.get("name", Path(where).stem)),
-        title=str(data.get("title", "")),
-        source=str(data.get("source", "")),
-        path=path,
-        duration_s=duration,
-        dt_s=dt,
-        team=Team((robot, robot)),
-        initial_offset=offset,
-        gains=gains,
-        metrics_from_s=_get(data, "metrics_from_s", float, where, default=5.0),
-    )
+        if isinstance(v, list):
+            raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be one number")
+        vals = [number(d, key, where, place=place)]
+    for x in vals:
+        if not x > 0:
+            raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be positive (seed 000 Tables 1-2)")
+    return vals if n > 1 and isinstance(v, list) else vals[0]

@@ -1,0 +1,380 @@
+"""Issue 12, two-robot scenarios (seed 000): strict loader, metrics window, resource limits,
+feed-forward key, plots."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quatform.errors import InvalidInputError, ResourceLimitError
+from quatform.references import EuclideanPath, Ramp, Step
+from quatform.sim import Scenario, compute_metrics, load_scenario, simulate
+from quatform.sim.scenario import scenario_from_dict
+
+GOOD = 'duration_s = 2.0\ndt_s = 0.01\nmetrics_from_s = 0.5\n[path]\ncenter = [0, 0, 1]\nd_c = 1.0\n'
+
+
+def _file(tmp_path, text, name="s.toml"):
+    f = tmp_path / name
+    f.write_text(text)
+    return f
+
+
+def _one_line_error(tmp_path, text, exc=InvalidInputError):
+    with pytest.raises(exc) as info:
+        load_scenario(_file(tmp_path, text))
+    msg = str(info.value)
+    assert "\n" not in msg and "Traceback" not in msg
+    return msg
+
+
+# ----------------------------------------------------------------- item 1: metrics window
+
+
+@pytest.mark.parametrize("start", ["2.0", "3.0", "1e6"])
+def test_metrics_from_at_or_after_the_end_is_refused_at_load(tmp_path, start):
+    text = GOOD.replace("metrics_from_s = 0.5", f"metrics_from_s = {start}")
+    msg = _one_line_error(tmp_path, text)
+    assert "metrics_from_s" in msg and "duration_s" in msg
+
+
+def test_metrics_from_just_before_the_end_is_kept(tmp_path):
+    sc = load_scenario(_file(tmp_path, GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = 1.99")))
+    m = compute_metrics(simulate(sc, "quaternion"))
+    assert m["metrics_from_s"] == pytest.approx(1.99)
+
+
+def test_compute_metrics_refuses_a_run_with_no_sample_in_the_window(tmp_path):
+    """A failed run (the cluster-space controller through gamma_c = pi/2) must not read 0."""
+    sc = load_scenario("mas-kitts-spiral")
+    sc = dataclasses.replace(sc, duration_s=30.0)
+    run = simulate(sc, "cluster-space")
+    assert compute_metrics(run)["reference_lost"]
+    bad = dataclasses.replace(run, t=run.t - 100.0)  # a Run built through the API
+    with pytest.raises(InvalidInputError, match="metrics_from_s"):
+        compute_metrics(bad)
+
+
+def test_scenario_built_through_the_api_refuses_an_empty_window():
+    with pytest.raises(InvalidInputError, match="metrics_from_s"):
+        Scenario(name="api", path=EuclideanPath(), duration_s=3.0)  # default metrics_from_s = 5 s
+    Scenario(name="api", path=EuclideanPath(), duration_s=3.0, metrics_from_s=0.0)
+
+
+def test_short_file_without_metrics_from_is_measured_from_the_start(tmp_path):
+    sc = load_scenario(_file(tmp_path, GOOD.replace("metrics_from_s = 0.5\n", "")))
+    assert sc.metrics_from_s == 0.0
+
+
+# ----------------------------------------------------------------- item 2: unknown keys, types
+
+
+@pytest.mark.parametrize("text, key, nearest", [
+    (GOOD.replace("d_c = 1.0", 'centroid = "circle"\nraduis = 2.0\nd_c = 1.0'), "raduis", "radius"),
+    (GOOD.replace("d_c = 1.0", "perid_s = 3.0\nd_c = 1.0"), "perid_s", "period_s"),
+    (GOOD + "[initial_ofset]\nx_c = 0.1\n", "initial_ofset", "initial_offset"),
+    ("dt = 0.01\n" + GOOD, "dt", "dt_s"),
+    ("feed_forward = false\n" + GOOD, "feed_forward", "feedforward"),
+    (GOOD + "[robots]\nmax_speed = 2.0\n", "max_speed", "max_speed_m_s"),
+    (GOOD + "[initial_offset]\nxc = 0.1\n", "xc", "x_c"),
+    (GOOD + '[[path.ramps]]\nvariable = "d_c"\nstart = 0.0\nduration_s = 1.0\nchange = 0.1\n', "start", "start_s"),
+    (GOOD + '[[path.steps]]\nvariable = "d_c"\ntime = 1.0\nchange = 0.1\n', "time", "time_s"),
+    (GOOD + "[gains]\n[gains.quaternion]\nkx = [1, 1, 1]\n", "kx", "k_x"),
+    (GOOD + "[gains]\n[gains.quaternoin]\nk_x = [1, 1, 1]\n", "quaternoin", "quaternion"),
+])
+def test_unknown_key_names_it_and_the_nearest_valid_one(tmp_path, text, key, nearest):
+    msg = _one_line_error(tmp_path, text)
+    assert f"unknown key '{key}'" in msg and f"did you mean '{nearest}'" in msg
+
+
+# ----------------------------------------------------------------- item 3: one line per mistake
+
+BAD_FILES = [
+    ("initial_offset = 5\n" + GOOD, "initial_offset"),
+    ("gains = 5\n" + GOOD, "gains"),
+    ("robots = [1]\n" + GOOD, "robots"),
+    ("duration_s = true\n" + GOOD.replace("duration_s = 2.0\n", ""), "duration_s"),
+    (GOOD.replace("duration_s = 2.0", "duration_s = nan"), "duration_s"),
+    (GOOD.replace("duration_s = 2.0", "duration_s = -2.0"), "duration_s"),
+    (GOOD.replace("dt_s = 0.01", "dt_s = inf"), "dt_s"),
+    (GOOD.replace("dt_s = 0.01", "dt_s = -0.01"), "dt_s"),
+    (GOOD.replace("dt_s = 0.01", 'dt_s = "0.01"'), "dt_s"),
+    (GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = -1.0"), "metrics_from_s"),
+    (GOOD.replace("center = [0, 0, 1]", "center = [1, 2]"), "center"),
+    (GOOD.replace("center = [0, 0, 1]", "center = [0, nan, 1]"), "center"),
+    (GOOD.replace("d_c = 1.0", "d_c = nan"), "d_c"),
+    (GOOD.replace("d_c = 1.0", "d_c = -1.0"), "d_c"),
+    (GOOD.replace("d_c = 1.0", 'd_c = 1.0\ncentroid = "circle"\nradius = inf'), "radius"),
+    (GOOD.replace("d_c = 1.0", 'd_c = 1.0\ncentroid = "circle"\nperiod_s = 0.0'), "period_s"),
+    (GOOD.replace("d_c = 1.0", "d_c = 1.0\nbeta_c = -inf"), "beta_c"),
+    (GOOD.replace("d_c = 1.0", "d_c = 1.0\nvelocity = 0.1"), "velocity"),
+    (GOOD.replace("d_c = 1.0", "d_c = 1.0\nramps = 3"), "ramps"),
+    (GOOD + '[[path.ramps]]\nvariable = "d_c"\nstart_s = nan\nduration_s = 1.0\nchange = 0.1\n', "start_s"),
+    (GOOD + '[[path.ramps]]\nvariable = "dc"\nstart_s = 0.0\nduration_s = 1.0\nchange = 0.1\n', "variable"),
+    (GOOD + '[[path.steps]]\nvariable = "d_c"\ntime_s = 1.0\nchange = "big"\n', "change"),
+    (GOOD + "[initial_offset]\nx_c = nan\n", "x_c"),
+    (GOOD + '[initial_offset]\nx_c = "a"\n', "x_c"),
+    (GOOD + "[robots]\nmax_speed_m_s = -1.0\n", "max_speed_m_s"),
+    (GOOD + "[robots]\nmax_yaw_rate_rad_s = inf\n", "max_yaw_rate_rad_s"),
+    (GOOD + '[gains]\nbase = "table3"\n', "base"),
+    (GOOD + "[gains]\n[gains.quaternion]\nk_x = [1, nan, 1]\n", "k_x"),
+    (GOOD + "[gains]\n[gains.quaternion]\nk_d = -20\n", "k_d"),
+    (GOOD + "[gains]\n[gains.dual-quaternion]\nk_dw = [1, 1]\n", "k_dw"),
+    (GOOD + "[gains]\nquaternion = 5\n", "quaternion"),
+    ('seed = "abc"\n' + GOOD, "seed"),
+    ("feedforward = 1\n" + GOOD, "feedforward"),
+    ("name = 5\n" + GOOD, "name"),
+    ("path = 5\nduration_s = 2.0\n", "path"),
+    ("duration_s = 2.0\n", "path"),
+    ('kind = "pairs"\n' + GOOD, "kind"),
+    (GOOD + "[initial_offset]\nd_c = -1.0\n", "d_c"),
+]
+
+
+@pytest.mark.parametrize("text, key", BAD_FILES, ids=[f"{i}-{k}" for i, (_, k) in enumerate(BAD_FILES)])
+def test_bad_file_is_one_line_naming_the_key(tmp_path, text, key):
+    f = _file(tmp_path, text)
+    msg = _one_line_error(tmp_path, text)
+    assert key in msg and str(f) in msg, msg
+    assert "contains nan at index" not in msg
+
+
+# ----------------------------------------------------------------- item 4: resource limits
+
+
+@pytest.mark.parametrize("repl", ["duration_s = 1e9", "duration_s = 1e300"])
+def test_huge_duration_is_refused_up_front(tmp_path, repl):
+    msg = _one_line_error(tmp_path, GOOD.replace("duration_s = 2.0", repl), ResourceLimitError)
+    assert "duration_s / dt_s" in msg and ("GB" in msg or " h " in msg)
+
+
+def test_tiny_dt_is_refused_up_front(tmp_path):
+    msg = _one_line_error(tmp_path, GOOD.replace("dt_s = 0.01", "dt_s = 1e-300"), ResourceLimitError)
+    assert "duration_s / dt_s" in msg and "dt_s" in msg
+
+
+def test_scenario_built_through_the_api_is_checked_and_simulate_rechecks():
+    with pytest.raises(ResourceLimitError, match="duration_s / dt_s"):
+        Scenario(name="api", path=EuclideanPath(), duration_s=1e9, metrics_from_s=0.0)
+    sc = Scenario(name="api", path=EuclideanPath(), duration_s=1.0, metrics_from_s=0.0)
+    object.__setattr__(sc, "dt_s", 1e-300)  # bypasses __post_init__
+    with pytest.raises(ResourceLimitError, match="duration_s / dt_s"):
+        simulate(sc, "quaternion")
+
+
+def test_time_budget_is_read_from_the_environment(tmp_path, monkeypatch):
+    monkeypatch.setenv("QUATFORM_MAX_WORK_S", "1")
+    msg = _one_line_error(tmp_path, GOOD.replace("duration_s = 2.0", "duration_s = 100.0"), ResourceLimitError)
+    assert "QUATFORM_MAX_WORK_S" in msg
+
+
+def test_api_numbers_must_be_finite():
+    for kw in ({"duration_s": float("nan")}, {"duration_s": 1.0, "dt_s": float("inf")},
+               {"duration_s": 1.0, "metrics_from_s": float("nan")}, {"duration_s": True}):
+        with pytest.raises(InvalidInputError):
+            Scenario(name="api", path=EuclideanPath(), **{"metrics_from_s": 0.0, **kw})
+    for bad in (lambda: Ramp("d_c", float("nan"), 1.0, 0.1), lambda: Step("d_c", 1.0, float("inf")),
+                lambda: EuclideanPath(center=[0, float("nan"), 0]), lambda: EuclideanPath(radius=float("inf"))):
+        with pytest.raises(InvalidInputError):
+            bad()
+
+
+# ----------------------------------------------------------------- item 5: feedforward key
+
+
+def _spiral_without_feedforward(tmp_path, duration_s=10.0):
+    from quatform.sim import builtin_scenarios
+
+    text = builtin_scenarios()["mas-kitts-spiral"].read_text()
+    text = text.replace("duration_s = 60.0\n", f"duration_s = {duration_s}\nfeedforward = false\n", 1)
+    return load_scenario(_file(tmp_path, text, "spiral-noff.toml"))
+
+
+def test_feedforward_key_shows_fig13_steady_state_errors(tmp_path):
+    """Without feed-forward a proportional loop lags a ramp of rate v by v / k (seed 000 §4.1,
+    Fig. 13: "steady state error corresponding to the lack of integral compensation"). The
+    centroid moves at |v| = sqrt((2 pi 2 m / 60 s)^2 + (0.05 m/s)^2) = 0.2153 m/s; the
+    quaternion loop's gain on x_c is k_x = 2 (Table 1), the dual-quaternion loop's on the
+    translation is k_dw / 2 = 7.5 (the dual part is t q / 2), the cluster-space one's k = 1."""
+    sc = _spiral_without_feedforward(tmp_path)
+    assert sc.feedforward is False
+    v = np.hypot(2 * np.pi * 2.0 / 60.0, 0.05)
+    from quatform.sim import errors_from_robots
+
+    for name, k in (("quaternion", 2.0), ("dual-quaternion", 7.5), ("cluster-space", 1.0)):
+        run = simulate(sc, name)
+        m = compute_metrics(run)
+        assert m["feedforward"] is False and run.controller.feedforward is False
+        err = errors_from_robots(run)["cluster_position"][run.t >= 5.0]
+        assert np.mean(err) == pytest.approx(v / k, rel=0.03), name
+        assert m["max_cluster_position_error_m"] == pytest.approx(v / k, rel=0.03), name
+    # the caller's word wins over the scenario's, and with feed-forward the lag is gone
+    on = compute_metrics(simulate(sc, "quaternion", feedforward=True))
+    assert on["feedforward"] is True and on["max_cluster_position_error_m"] < 1e-3
+    on = compute_metrics(simulate(dataclasses.replace(sc, feedforward=True), "quaternion"))
+    assert on["feedforward"] is True and on["max_cluster_position_error_m"] < 1e-3
+
+
+def test_feedforward_defaults_to_true_and_is_recorded(tmp_path):
+    sc = load_scenario(_file(tmp_path, GOOD))
+    assert sc.feedforward is True and sc.controller("dual-quaternion").feedforward is True
+    assert sc.controller("dual-quaternion", feedforward=False).feedforward is False
+    m = compute_metrics(simulate(sc, "robot-space"))
+    assert m["feedforward"] is True
+    json.dumps(m)
+
+
+# ----------------------------------------------------------------- item 6: plots
+
+
+@pytest.fixture(scope="module")
+def yaw_step_runs():
+    sc = load_scenario("mas-kitts-yaw-step")
+    return {name: simulate(sc, name) for name in ("cluster-space", "robot-space", "quaternion")}
+
+
+def _figure_of(monkeypatch, draw, *args):
+    """The matplotlib Figure a plotting function saves (its ``_save`` intercepted)."""
+    from quatform.report import plots
+
+    got = []
+
+    def keep(fig, path):
+        got.append(fig)
+        return path
+
+    monkeypatch.setattr(plots, "_save", keep)
+    draw(*args, "unused.png")
+    return got[0]
+
+
+def _axes_named(fig, label):
+    return next(ax for ax in fig.axes if ax.get_ylabel().startswith(label))
+
+
+@pytest.mark.parametrize("name", ["cluster-space", "robot-space", "quaternion"])
+def test_yaw_step_plot_draws_no_2pi_error(monkeypatch, yaw_step_runs, name):
+    """beta_c steps to pi: wrapped, the desired sat at -pi and the measured at +pi, a 2 pi
+    gap that is no error. Now the drawn gap is the wrapped error (0 once settled)."""
+    from quatform.report import plot_cluster_variables, plot_euclidean
+
+    run = yaw_step_runs[name]
+    draw = plot_euclidean if name == "quaternion" else plot_cluster_variables
+    fig = _figure_of(monkeypatch, draw, run)
+    ax = _axes_named(fig, "beta_c")
+    meas, des = ax.lines[0], ax.lines[1]
+    t = np.asarray(meas.get_xdata())
+    ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
+    settled = t >= 5.0
+    assert np.nanmax(np.abs(ym[settled] - yd[settled])) < 1e-2
+    after = yd[t >= 1.0]  # the desired drawn flat at +pi or -pi (the same formation)
+    assert np.all(np.abs(np.abs(after) - np.pi) < 1e-9) and np.ptp(after) < 1e-9
+    ok = np.isfinite(ym)
+    jumps = np.abs(np.diff(ym))[ok[1:] & ok[:-1]]
+    assert jumps.max() <= np.pi + 1e-9  # no vertical line of a wrap
+    plotted_err = np.abs(ym - yd)[ok]
+    true_err = np.abs((run.e[:, 3] - run.e_des[:, 3] + np.pi) % (2 * np.pi) - np.pi)
+    assert plotted_err.max() <= true_err.max() + 1e-9
+
+
+def test_spiral_angle_traces_unwrapped(monkeypatch):
+    """gamma_c runs 0 -> 2 pi: the desired trace is drawn as one continuous ramp."""
+    from quatform.report import plot_euclidean
+
+    sc = dataclasses.replace(load_scenario("mas-kitts-spiral"), duration_s=36.0)
+    fig = _figure_of(monkeypatch, plot_euclidean, simulate(sc, "dual-quaternion"))
+    meas, des = _axes_named(fig, "gamma_c").lines[:2]
+    t = np.asarray(meas.get_xdata())
+    ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
+    assert np.all(np.isfinite(yd)) and np.abs(np.diff(yd)).max() < 0.1
+    assert yd[-1] == pytest.approx(2 * np.pi, abs=1e-6)
+    assert np.nanmax(np.abs(ym - yd)[t >= 5.0]) < 0.01  # the dual-quaternion run tracks it
+
+
+def test_euclidean_png_only_where_it_differs(tmp_path, monkeypatch, yaw_step_runs):
+    from quatform.report import plots, write_run_plots
+
+    def quick_3d(run, path):  # the 3-D view is the slow one and not in question here
+        path.write_bytes(b"x" * 2000)
+        return path
+
+    monkeypatch.setattr(plots, "plot_paths_3d", quick_3d)
+    for name, run in yaw_step_runs.items():
+        out = tmp_path / name
+        out.mkdir()
+        (out / "euclidean.png").write_bytes(b"stale")
+        files = {p.name for p in write_run_plots(run, out)}
+        dup = name in ("cluster-space", "robot-space")
+        assert files == ({"cluster_variables.png", "paths_3d.png"} if dup
+                         else {"cluster_variables.png", "euclidean.png", "paths_3d.png"}), name
+        assert (out / "euclidean.png").exists() is not dup
+        assert all((out / f).stat().st_size > 1000 for f in files)
+
+
+def test_titles_name_the_paper(monkeypatch, yaw_step_runs):
+    from quatform.report import plot_cluster_variables, plot_compare, plot_paths_3d, plot_separation
+
+    run = yaw_step_runs["quaternion"]
+    titles = [_figure_of(monkeypatch, plot_cluster_variables, run).get_suptitle(),
+              _figure_of(monkeypatch, plot_compare, list(yaw_step_runs.values())).get_suptitle(),
+              _figure_of(monkeypatch, plot_separation, list(yaw_step_runs.values())).axes[0].get_title(),
+              _figure_of(monkeypatch, plot_paths_3d, run).axes[0].get_title()]
+    for title in titles:
+        assert "Mas & Kitts 2017" in title and "seed 000" not in title, title
+
+
+@pytest.mark.parametrize("text", [BAD_FILES[0][0], BAD_FILES[22][0], GOOD.replace("duration_s = 2.0", "duration_s = 1e9"),
+                                  GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = 2.0")])
+def test_cli_prints_one_line_and_no_traceback(tmp_path, capsys, text):
+    from quatform import cli
+
+    f = _file(tmp_path, text)
+    assert cli.main(["run", str(f), "--controller", "quaternion", "--out", str(tmp_path / "o"), "--no-plots"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err and str(f) in err, err
+
+
+_DATA = {"path": {"center": [0, 0, 1]}}
+
+
+@settings(max_examples=200, deadline=None)
+@given(duration=st.floats(0.05, 50.0), steps=st.integers(1, 400), frac=st.floats(0.0, 1.5))
+def test_an_accepted_metrics_window_always_holds_a_sample(duration, steps, frac):
+    dt = duration / steps * _jitter(steps)
+    m = frac * duration
+    try:
+        sc = scenario_from_dict({**_DATA, "duration_s": duration, "dt_s": dt, "metrics_from_s": m}, "h")
+    except InvalidInputError as exc:
+        assert "metrics_from_s" in str(exc) or "dt_s" in str(exc)
+        assert m >= duration or m > _last_sample(duration, dt) or dt > duration
+        return
+    assert m < duration and np.any(sc.times >= m)
+
+
+def _jitter(steps):
+    return 1.0 + 0.37 / (steps + 1)  # dt_s not dividing duration_s: the last sample falls short
+
+
+def _last_sample(duration, dt):
+    return int(round(duration / dt)) * dt
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=60))
+def test_drawn_angle_gap_is_the_wrapped_error(pairs):
+    from quatform.report.plots import _angle_traces
+
+    meas, des = (np.array(v, dtype=float) for v in zip(*pairs))
+    ym, yd = _angle_traces(meas, des, np.arange(meas.size))
+    true = np.abs((meas - des + np.pi) % (2 * np.pi) - np.pi)
+    ok = np.isfinite(ym) & np.isfinite(yd)
+    assert np.allclose(np.abs(ym - yd)[ok], true[ok], atol=1e-9)
+    # every drawn value is the true angle modulo 2 pi
+    for drawn, raw in ((ym, meas), (yd, des)):
+        d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
+        assert np.all(d < 1e-9)
