@@ -1,0 +1,173 @@
+"""Issue 12 hardening of teleoperation (seed 003, Jansen et al. 1990): each test fails on the
+code before the fix. Simulations here are short (teleop runs in about real time)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from quatform.errors import InvalidInputError, ResourceLimitError
+from quatform.sim import load_scenario
+from quatform.sim.teleop import (
+    check_teleop_stiffness,
+    simulate_teleop,
+    teleop_scenario_from_dict,
+    teleop_stiffness_limits,
+)
+from quatform.teleop import TeleopMeasurement, VirtualWall
+from quatform.teleop.control import explicit_stiffness_limit
+
+BASE = {"kind": "teleop", "duration_s": 1.0}
+
+
+# -- item 1: springs beyond the explicit integrator's stability limit -------------------------
+
+
+@pytest.mark.parametrize("factor, stable", [(0.98, True), (1.02, False)])
+@pytest.mark.parametrize("m, c", [(2.9, 0.0), (2.9, 160.0), (0.061, 60.0)])
+def test_stiffness_limit_is_the_semi_implicit_euler_boundary(m, c, factor, stable):
+    """k dt^2 + 2 c dt < 4 m: below it the sampled mass-spring-damper decays, above it grows."""
+    dt = 1e-3
+    k = factor * float(explicit_stiffness_limit(m, c, dt))
+    x, v, peak = 1e-3, 0.0, 0.0
+    for _ in range(4000):  # the simulator's step: force at the start, velocity first
+        v = v + dt * (-k * x - c * v) / m
+        x = x + dt * v
+        peak = max(peak, abs(x))
+    assert (peak < 0.1) == stable  # bounded (undamped: it neither grows nor decays) or blown up
+    if not stable:
+        assert peak > 1e3
+
+
+def test_a_stiff_contact_wall_is_refused_not_integrated():
+    """A 1e10 N/m wall used to fling the slave 1.38 m and exit 0."""
+    wall = {"point": [0.4937, 0.0, 0.5], "normal": [-1.0, 0.0, 0.0], "stiffness": 1e10}
+    with pytest.raises(InvalidInputError, match=r"\[wall\] stiffness = 1e\+10 N/m is beyond the stability limit"):
+        teleop_scenario_from_dict({**BASE, "wall": wall})
+    sc = load_scenario("teleop-wall-contact")
+    stiff = dataclasses.replace(sc, wall=dataclasses.replace(sc.wall, stiffness=1e10))
+    with pytest.raises(InvalidInputError, match="stability limit"):
+        simulate_teleop(stiff)  # the simulator checks too (scenarios built in code)
+
+
+@pytest.mark.parametrize("section, key, value, names", [
+    ("hand", "stiffness", 1e9, r"\[hand\] stiffness"),
+    ("hand", "damping", 1e4, r"\[hand\] stiffness"),  # a damper alone: c dt < 2 m
+    ("hand", "rot_stiffness", 1e5, r"\[hand\] rot_stiffness"),
+    ("push", "stiffness", 1e10, r"\[push\] stiffness"),
+    ("controller", "gains_slave", {"kp_pos": 1e9}, r"\[controller.gains_slave\] kp_pos"),
+])
+def test_hand_push_and_gain_springs_beyond_the_limit_are_refused(section, key, value, names):
+    data = {**BASE, section: {key: value}}
+    if section == "push":
+        data[section]["keys"] = [{"t_s": 0.0, "move": [0.0, 0.0, 0.0]}]
+    with pytest.raises(InvalidInputError, match=names):
+        teleop_scenario_from_dict(data)
+
+
+def test_a_virtual_wall_beyond_the_masters_limit_is_refused():
+    # 2e5 N/m: finite and below VirtualWall's cap, beyond the Kraft's 1.25e5 N/m at 1 kHz
+    wall = {"normal": [0.0, 0.0, -1.0], "offset": -0.2362, "resist_force_n": 2000.0, "thickness_m": 0.01}
+    with pytest.raises(InvalidInputError, match=r"virtual_walls\]\] #1 resist_force_n / thickness_m = 2e\+05"):
+        teleop_scenario_from_dict({**BASE, "virtual_walls": [wall]})
+    ok = teleop_scenario_from_dict({**BASE, "virtual_walls": [wall], "dt_s": 5e-4})  # a faster loop holds it
+    check_teleop_stiffness(ok)
+
+
+def test_every_built_in_scenario_is_within_its_stability_limit():
+    for name in ("teleop-free-motion", "teleop-wall-contact", "teleop-virtual-wall", "teleop-preload",
+                 "teleop-pitch-through-90", "teleop-pitch-hold-at-90"):
+        for e in teleop_stiffness_limits(load_scenario(name)):
+            assert e["stiffness"] <= 0.02 * e["limit"], (name, e["what"])
+
+
+# -- item 2: resource limits up front ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("extra", [{"duration_s": 1e9}, {"dt_s": 1e-300}])
+def test_runs_too_long_are_refused_up_front_naming_the_keys(extra):
+    with pytest.raises(ResourceLimitError, match=r"duration_s / dt_s"):
+        teleop_scenario_from_dict({**BASE, **extra})
+
+
+def test_the_simulator_refuses_a_run_too_long_itself():
+    sc = dataclasses.replace(load_scenario("teleop-free-motion"), duration_s=1e9)
+    with pytest.raises(ResourceLimitError, match=r"teleop-free-motion: duration_s / dt_s"):
+        simulate_teleop(sc)
+
+
+# -- item 3: infinite virtual walls, non-numeric measurements ---------------------------------
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"resist_force_n": 1e300, "thickness_m": 1e-300}, "resist_force_n / thickness_m"),
+    ({"resist_force_n": 1e12, "thickness_m": 1.0}, "resist_force_n / thickness_m"),
+    ({"resist_force_n": "8"}, "resist_force_n = '8' must be a number"),
+    ({"thickness_m": math.inf}, "thickness_m = inf must be finite"),
+    ({"damping": math.nan}, "damping = nan must be finite"),
+    ({"normal": ("a", 0, 1)}, "normal must be a nonzero 3-vector"),
+])
+def test_virtual_walls_beyond_reach_or_not_numbers_are_refused_at_construction(kw, match):
+    with pytest.raises(InvalidInputError, match=match):
+        VirtualWall(**{"normal": (0.0, 0.0, -1.0), "offset": -0.2, **kw})
+
+
+@pytest.mark.parametrize("field", ["q_m", "qd_m", "q_s", "qd_s", "F_s"])
+def test_non_numeric_measurements_name_the_field(field):
+    sc = load_scenario("teleop-free-motion")
+    ctrl = sc.controller()
+    good = {"q_m": np.array(sc.q_m0), "qd_m": np.zeros(6), "q_s": np.array(sc.q_s0), "qd_s": np.zeros(7),
+            "F_s": np.zeros(6)}
+    good[field] = ["x"] * len(good[field])
+    with pytest.raises(InvalidInputError, match=f"measurement {field} = "):
+        ctrl.compute(0.0, TeleopMeasurement(**good))
+
+
+# -- item 4: every loader mistake is one quatform error naming the key -------------------------
+
+
+@pytest.mark.parametrize("data, match", [
+    ({"virtual_walls": [5]}, r"virtual_walls = \[5\] must be a list of tables"),
+    ({"virtual_walls": {"normal": [0, 0, 1]}}, r"virtual_walls = .* must be a list of tables"),
+    ({"virtual_walls": [{"normal": [0, 0, 1], "ofset": 0.1}]}, r"unknown key 'ofset'.*did you mean 'offset'"),
+    ({"duration_s": {"a": 1}}, r"duration_s = \{'a': 1\} must be a number"),
+    ({"duration_s": "4"}, "duration_s = '4' must be a number"),
+    ({"duration_s": math.nan}, "duration_s = nan must be finite"),
+    ({"duration_s": -1.0}, "duration_s = -1.0 must be > 0"),
+    ({"dt_s": math.inf}, "dt_s = inf must be finite"),
+    ({"master": 5}, r"master must be a table"),
+    ({"master": {"q0": [0, 0, 0, 0, 0, "a"]}}, r"\[master\] q0 = 'a' must be a number"),
+    ({"master": {"inertia": [0.02, 0.02, 0.0, 0.004, 0.004, 0.002]}}, r"\[master\] inertia .* must be > 0"),
+    ({"master": {"viscous": -0.1}}, r"\[master\] viscous = -0.1 must be >= 0"),
+    ({"master": {"inertai": [1] * 6}}, r"did you mean 'inertia'"),
+    ({"slave": {"damping": math.inf}}, r"\[slave\] damping = inf must be finite"),
+    ({"hand": {"keys": 3}}, r"\[hand\] keys = 3 must be a list of tables"),
+    ({"hand": {"keys": [{"t_s": "0"}]}}, r"\[hand\] keys #1 t_s = '0' must be a number"),
+    ({"hand": {"keys": [{"ts": 0.0}]}}, r"did you mean 't_s'"),
+    ({"hand": {"keys": [{"t_s": 0.0}, {"t_s": 5.0}]}}, r"after duration_s"),
+    ({"hand": {"stiffnes": 1.0}}, r"did you mean 'stiffness'"),
+    ({"hand": {"rot_damping": -1.0}}, r"\[hand\] rot_damping = -1.0 must be >= 0"),
+    ({"push": {"keys": [{"t_s": 0.0, "move": {"x": 1}}]}}, r"\[push\] keys #1 move = .* must be a list of 3"),
+    ({"push": 1.0}, r"push must be a table"),
+    ({"wall": {"point": [0, 0, 0], "normal": [0, 0, 0]}}, r"\[wall\] normal = .* must be a nonzero vector"),
+    ({"wall": {"point": [0, 0, 0], "normal": [1, 0, 0], "stiffness": "stiff"}}, r"\[wall\] stiffness = 'stiff'"),
+    ({"wall": {"point": [0, 0, 0], "normal": [1, 0, 0], "stifness": 1.0}}, r"did you mean 'stiffness'"),
+    ({"controller": {"gains_master": 5}}, r"gains_master must be a table"),
+    ({"controller": {"gains_master": {"kp_pos": math.nan}}}, r"\[controller.gains_master\] kp_pos = nan"),
+    ({"controller": {"gains_master": {"kp_pso": 1.0}}}, r"did you mean 'kp_pos'"),
+    ({"controller": {"preload": 1}}, r"\[controller\] preload = 1 must be true or false"),
+    ({"controller": {"orientation_error": "euler"}}, r"orientation_error = 'euler' is not one of euler-parameters, rpy"),
+    ({"controller": {"reflection": 0.0}}, r"\[controller\] reflection = 0.0 must be < 0"),
+    ({"controller": {"k_for": -1.0}}, r"\[controller\] k_for = -1.0 must be >= 0"),
+    ({"holds_s": 3.0}, r"holds_s = 3.0 must be a list"),
+    ({"holds_s": [math.nan]}, r"holds_s = nan must be finite"),
+    ({"name": 5}, r"name = 5 must be a string"),
+    ({"duraton_s": 1.0}, r"did you mean 'duration_s'"),
+])
+def test_loader_mistakes_are_one_quatform_error_naming_the_key(data, match):
+    with pytest.raises(InvalidInputError, match=match) as exc:
+        teleop_scenario_from_dict({**BASE, **data}, where="my.toml")
+    assert str(exc.value).startswith("my.toml: ") and "\n" not in str(exc.value)
