@@ -14,6 +14,7 @@ from quatform.sim import load_scenario
 from quatform.sim.teleop import (
     check_teleop_stiffness,
     simulate_teleop,
+    teleop_metrics,
     teleop_scenario_from_dict,
     teleop_stiffness_limits,
 )
@@ -171,3 +172,33 @@ def test_loader_mistakes_are_one_quatform_error_naming_the_key(data, match):
     with pytest.raises(InvalidInputError, match=match) as exc:
         teleop_scenario_from_dict({**BASE, **data}, where="my.toml")
     assert str(exc.value).startswith("my.toml: ") and "\n" not in str(exc.value)
+
+
+# -- item 5: held at the lock; torque chatter and the errors after the hold ------------------
+
+
+@pytest.fixture(scope="module")
+def lock_runs():
+    """The hand stops at pitch -90 deg at t = 3 s; 0.8 s of the hold is enough to see it."""
+    sc = dataclasses.replace(load_scenario("teleop-pitch-hold-at-90"), duration_s=3.8, holds=(3.8,))
+    return {oe: teleop_metrics(simulate_teleop(sc, orientation_error=oe)) for oe in ("euler-parameters", "rpy")}
+
+
+def test_holding_at_the_lock_shows_in_torque_chatter_and_the_error_after_the_hold(lock_runs):
+    ep, rpy = lock_runs["euler-parameters"], lock_runs["rpy"]
+    assert ep["slave_torque_chatter_nm"] < 0.01 and rpy["slave_torque_chatter_nm"] > 10.0
+    assert rpy["master_torque_chatter_nm"] > 100 * ep["master_torque_chatter_nm"]
+    # the errors at the end of the hold and over it (the approach's tracking lag excluded)
+    assert ep["hold_orientation_error_rad"][0] < 0.005 and rpy["hold_orientation_error_rad"][0] > 0.3
+    assert ep["hold_peak_orientation_error_rad"][0] < 0.01 < 0.3 < rpy["hold_peak_orientation_error_rad"][0]
+    assert ep["hold_position_error_m"][0] < 1e-3 and rpy["hold_position_error_m"][0] > 0.05
+    assert ep["hold_peak_orientation_error_rad"][0] < 0.5 * ep["peak_orientation_error_rad"]  # the lag is left out
+
+
+def test_chatter_and_hold_windows_are_what_the_docs_say():
+    from quatform.sim.teleop import _chatter, _settled_since
+
+    tau = np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 4.0]])
+    assert _chatter(tau) == pytest.approx(math.sqrt((25.0 + 0.0) / 2))
+    sc = load_scenario("teleop-wall-contact")  # hand keys 0, 0.3, 1.5 (moved), 3.0 (same), 4.5 (moved)
+    assert [_settled_since(sc, t) for t in (1.0, 3.0, 6.0)] == [1.0, 1.5, 4.5]

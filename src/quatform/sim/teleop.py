@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..algebra import q_from_axis_angle, qmul, qslerp
+from ..algebra import matrix_from_q, q_from_axis_angle, qmul, qslerp
 from ..algebra._kernels import qmul_components
 from ..checks import check_keys, check_work, flag, number, short, table, text, vector
 from ..errors import InvalidInputError
@@ -346,6 +346,27 @@ def _at(run, t_s):
     return int(min(max(round(t_s / run.scenario.dt_s), 0), len(run.t) - 1))
 
 
+def _chatter(tau) -> float:
+    """``sqrt(mean_k |tau[k+1] - tau[k]|^2)``, N m per cycle (0 for a single sample)."""
+    d = np.diff(np.asarray(tau, float), axis=0)
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) if len(d) else 0.0
+
+
+def _settled_since(sc, t_end) -> float:
+    """When the commanded motion (hand and push keys) last stopped before ``t_end`` (0: never
+    moved; ``t_end``: still moving then)."""
+    since = 0.0
+    hand = [(a.t_s, b.t_s, a.q != b.q or a.move != b.move or a.turn != b.turn)
+            for a, b in zip(sc.hand.keys, sc.hand.keys[1:])]
+    push = [] if sc.push is None else [(a[0], b[0], tuple(a[1]) != tuple(b[1]))
+                                       for a, b in zip(sc.push.keys, sc.push.keys[1:])]
+    for a, b, moves in hand + push:
+        if not moves or a >= t_end:
+            continue
+        since = max(since, min(b, t_end))
+    return since
+
+
 def teleop_metrics(run: TeleopRun) -> dict:
     """The numbers of a run (``metrics.json``); entries that do not apply are None.
 
@@ -363,8 +384,22 @@ def teleop_metrics(run: TeleopRun) -> dict:
       peak-to-peak motion over the last second, when that second lies after every
       commanded motion;
     * ``wall_penetration_m``: the master's deepest point in a virtual wall (0 if never in);
-      ``virtual_wall_crossed``: deeper than a wall's thickness;
+      ``virtual_wall_crossed``: deeper than a wall's thickness; ``virtual_wall_force_n``: the
+      wall's spring force ``resist_force_n / thickness_m * depth`` at that deepest point (at
+      rest, the push it holds); ``slave_zone_penetration_m``: the slave's deepest point in the
+      zone the wall maps to in its workspace (through the registration; slave metres). A
+      virtual wall is a spring of finite stiffness: the master, and the slave that follows
+      it, enter the zone by ``push / stiffness``, and a push above about ``resist_force_n``
+      takes them through its thickness (``docs/derivations.md``, Hardening (issue 12));
     * ``final_hand_force_n``: the hand's force on the master at the end;
+    * ``slave_torque_chatter_nm``, ``master_torque_chatter_nm``: the root mean square of the
+      torque's change from one cycle to the next, ``sqrt(mean_k |tau[k+1] - tau[k]|^2)``
+      (Euclidean norm over the joints, N m per cycle): a smooth command changes by little per
+      cycle, a chattering one by up to twice its limit;
+    * ``hold_position_error_m``, ``hold_orientation_error_rad``: with ``holds``, the errors at
+      the end of each hold; ``hold_peak_position_error_m``, ``hold_peak_orientation_error_rad``:
+      their peaks over each hold, from the moment the commanded motion (hand and push keys)
+      stopped to the hold's end, so the tracking lag of the motion before it does not count;
     * ``nonfinite_torques``: cycles whose raw torque was not finite (replaced by zero).
     """
     sc = run.scenario
@@ -391,7 +426,22 @@ def teleop_metrics(run: TeleopRun) -> dict:
         "limit_cycle_amplitude_m": None,
         "wall_penetration_m": None,
         "virtual_wall_crossed": None,
+        "virtual_wall_force_n": None,
+        "slave_zone_penetration_m": None,
+        "slave_torque_chatter_nm": _chatter(run.tau_s),
+        "master_torque_chatter_nm": _chatter(run.tau_m),
+        "hold_position_error_m": None,
+        "hold_orientation_error_rad": None,
+        "hold_peak_position_error_m": None,
+        "hold_peak_orientation_error_rad": None,
     }
+    if sc.holds:
+        ends = [_at(run, t) for t in sc.holds]
+        starts = [_at(run, _settled_since(sc, t)) for t in sc.holds]
+        m.update(hold_position_error_m=[float(pos_err[k]) for k in ends],
+                 hold_orientation_error_rad=[float(run.angle[k]) for k in ends],
+                 hold_peak_position_error_m=[float(pos_err[a:b + 1].max()) for a, b in zip(starts, ends)],
+                 hold_peak_orientation_error_rad=[float(run.angle[a:b + 1].max()) for a, b in zip(starts, ends)])
     kp = sc.gains_slave.kp[0:3]
     if sc.wall is not None and sc.holds:
         errs, refl, felt, force = [], [], [], []
@@ -428,7 +478,17 @@ def teleop_metrics(run: TeleopRun) -> dict:
     if sc.virtual_walls:
         thick = np.array([w.thickness_m for w in sc.virtual_walls])
         depth = run.wall_depth.max(axis=0) * thick  # each wall's deepest point, m
-        m.update(wall_penetration_m=float(max(depth.max(), 0.0)), virtual_wall_crossed=bool(np.any(depth > thick)))
+        deepest = int(np.argmax(depth))
+        reg = run.controller.registration
+        R = matrix_from_q(reg.base)
+        zone = []
+        for w in sc.virtual_walls:  # the wall's plane carried into the slave's workspace
+            n = np.asarray(w.normal, float) / np.linalg.norm(w.normal)
+            p_master = (R.T @ (run.p_s - reg.p_slave0).T).T / reg.scale + reg.p_master0
+            zone.append(reg.scale * float((p_master @ n - w.offset).max()))
+        m.update(wall_penetration_m=float(max(depth.max(), 0.0)), virtual_wall_crossed=bool(np.any(depth > thick)),
+                 virtual_wall_force_n=float(sc.virtual_walls[deepest].stiffness * max(depth[deepest], 0.0)),
+                 slave_zone_penetration_m=float(max(max(zone), 0.0)))
     return m
 
 
