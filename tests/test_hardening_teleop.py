@@ -202,3 +202,26 @@ def test_chatter_and_hold_windows_are_what_the_docs_say():
     assert _chatter(tau) == pytest.approx(math.sqrt((25.0 + 0.0) / 2))
     sc = load_scenario("teleop-wall-contact")  # hand keys 0, 0.3, 1.5 (moved), 3.0 (same), 4.5 (moved)
     assert [_settled_since(sc, t) for t in (1.0, 3.0, 6.0)] == [1.0, 1.5, 4.5]
+
+
+# -- item 8: the RPY plot draws wrapped differences; titles name the paper --------------------
+
+
+def test_rpy_plot_traces_do_not_draw_the_wrap_at_180_as_an_error():
+    from quatform.algebra import q_from_axis_angle
+    from quatform.report.teleop_plots import _rpy_traces
+
+    roll = np.linspace(np.pi - 0.02, np.pi + 0.02, 41)  # both tools roll through +-180 deg
+    r_m = q_from_axis_angle(np.array([1.0, 0.0, 0.0]), roll)
+    r_s = q_from_axis_angle(np.array([1.0, 0.0, 0.0]), roll + 1e-3)  # the slave 1 mrad ahead
+    a_m, a_s = _rpy_traces(r_m, r_s)
+    np.testing.assert_allclose(a_s[:, 0] - a_m[:, 0], 1e-3, atol=1e-9)  # not 2 pi where one has wrapped
+    assert np.all(np.isfinite(a_m[:, 0])) and np.all(np.abs(np.diff(a_m[:, 0])) < 0.01)  # unwrapped
+
+
+def test_plot_titles_name_the_paper(tmp_path):
+    from quatform.report.teleop_plots import _title, write_teleop_plots
+
+    run = simulate_teleop(dataclasses.replace(load_scenario("teleop-free-motion"), duration_s=0.05))
+    assert _title(run).startswith("Jansen et al. 1990, teleop-free-motion") and "seed" not in _title(run)
+    assert len(write_teleop_plots(run, tmp_path)) == 3
