@@ -225,3 +225,75 @@ def test_plot_titles_name_the_paper(tmp_path):
     run = simulate_teleop(dataclasses.replace(load_scenario("teleop-free-motion"), duration_s=0.05))
     assert _title(run).startswith("Jansen et al. 1990, teleop-free-motion") and "seed" not in _title(run)
     assert len(write_teleop_plots(run, tmp_path)) == 3
+
+
+# -- item 7: what the docs now say, measured --------------------------------------------------
+
+
+def test_euler_parameter_moment_is_k_over_4_sin_theta_zero_at_180_deg():
+    """W^T K delta_eps about the error axis is (K/4) sin(theta): largest at 90 deg, 0 at 180."""
+    from quatform.algebra import matrix_from_q, q_from_axis_angle, qmul
+    from quatform.teleop import orientation_error, task_jacobian
+
+    k, axis = 10.0, np.array([0.0, 0.6, 0.8])
+    q_m = q_from_axis_angle(np.array([1.0, 0.0, 0.0]), 0.4)
+    for theta in np.radians([10.0, 60.0, 90.0, 150.0, 179.0, 180.0]):
+        q_s = qmul(q_m, q_from_axis_angle(axis, theta))  # theta from the master, about its axis
+        W = task_jacobian(np.eye(6), q_m, q_s)[3:6, 3:6]
+        moment = W.T @ (k * orientation_error(q_m, q_s))  # base frame
+        along = moment @ (matrix_from_q(q_m) @ axis)
+        assert along == pytest.approx(k / 4 * np.sin(theta), abs=1e-12)
+
+
+@pytest.mark.parametrize("pitch_deg", [0.0, -30.0, -63.0654, -80.0])
+def test_rpy_small_angle_stiffness_equals_euler_parameters_only_at_pitch_0(pitch_deg):
+    """The RPY law's moment per radian is (kp/4) E^-T E^-1: eigenvalues 1/(1 + |sin p|), 1,
+    1/(1 - |sin p|) times the Euler-parameter law's (x0.53, x1, x9.2 at the -63 deg start)."""
+    from quatform.algebra import q_from_axis_angle, qmul
+    from quatform.teleop import rpy_error
+    from quatform.teleop.task import rpy_from_q, rpy_rate_from_angular_velocity
+
+    p = np.radians(pitch_deg)
+    q_m = qmul(q_from_axis_angle(np.array([0.0, 1.0, 0.0]), p), q_from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi))
+    E_inv = rpy_rate_from_angular_velocity(rpy_from_q(q_m))
+    K = np.empty((3, 3))  # moment per radian over kp/4, by small rotations about the base axes
+    h = 1e-6
+    for j in range(3):
+        q_s = qmul(q_from_axis_angle(np.eye(3)[j], h), q_m)
+        K[:, j] = E_inv.T @ rpy_error(q_m, q_s) / h
+    eig = np.linalg.eigvalsh(0.5 * (K + K.T))
+    s = abs(np.sin(p))
+    np.testing.assert_allclose(eig, sorted([1 / (1 + s), 1.0, 1 / (1 - s)]), rtol=1e-4)
+    if pitch_deg == -63.0654:
+        np.testing.assert_allclose(eig, [0.53, 1.0, 9.2], atol=0.02)
+
+
+def test_docs_no_longer_claim_more_than_the_runs_show():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    vw = (root / "src/quatform/scenarios/teleop-virtual-wall.toml").read_text()
+    wc = (root / "src/quatform/scenarios/teleop-wall-contact.toml").read_text()
+    der = (root / "docs/derivations.md").read_text()
+    assert "stays out of the matching zone" not in vw and "8.9 mm into the matching zone" in vw
+    assert "the operator feels K_pm/K_ps - v times it" not in wc and "0.97 and 0.56" in wc
+    assert "so the controller is not affected" not in der and "(K/4) sin θ" in der
+    assert "The RPY law gets the same small-angle stiffness and damping as the Euler-parameter law," not in der
+
+
+# -- item 6: the virtual wall is a spring; the metrics say how far in and what it holds -------
+
+
+def test_virtual_wall_metrics_report_the_zone_entered_and_the_force_held():
+    sc = dataclasses.replace(load_scenario("teleop-virtual-wall"), duration_s=2.6)  # the hand arrives at 2 s
+    run = simulate_teleop(sc)
+    m = teleop_metrics(run)
+    wall = sc.virtual_walls[0]
+    # the master and the slave that follows it enter the zone (not absolute), by about as much
+    assert 0.005 < m["wall_penetration_m"] < wall.thickness_m and not m["virtual_wall_crossed"]
+    assert m["slave_zone_penetration_m"] == pytest.approx(m["wall_penetration_m"], abs=1e-3)
+    z_s = run.p_s[:, 2] - run.p_s[0, 2] + run.p_master[0, 2]  # slave height in master axes (identity registration)
+    assert m["slave_zone_penetration_m"] == pytest.approx(float((-z_s - wall.offset).max()), abs=1e-12)
+    # the force it holds there: its spring at the deepest point, below what it is set to resist
+    assert m["virtual_wall_force_n"] == pytest.approx(wall.stiffness * m["wall_penetration_m"], rel=1e-12)
+    assert m["virtual_wall_force_n"] < wall.resist_force_n

@@ -94,8 +94,12 @@ class VirtualWall:
 
     The forbidden side is ``normal . p > offset`` (master base frame, m). The wall pushes
     back with ``resist_force_n / thickness_m`` N per metre of depth (plus ``damping``
-    against motion into it), so an operator must push with more than ``resist_force_n`` to
-    get through its ``thickness_m``.
+    against motion into it): a spring, not a hard stop. A push of ``F`` below
+    ``resist_force_n`` still takes the tool ``F / stiffness`` into the zone (and a slave that
+    follows the master as far into the matching zone); at rest a push of more than
+    ``resist_force_n`` (plus what the master's own friction holds) gets through its
+    ``thickness_m``. Its stiffness must be finite and at most :data:`MAX_WALL_STIFFNESS`; a
+    given master and control period hold less (:func:`.control.explicit_stiffness_limit`).
     """
 
     normal: tuple
@@ -335,8 +339,11 @@ class TeleopController:
                 J_m[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_m)
                 J_s[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_s)
             J_m, J_s = J_m @ Jm, J_s @ J_sf
-            # the same small-angle stiffness and damping as the Euler-parameter law, whose
-            # torque per radian is kp_rot / 4 (delta_eps ~ angle / 2, W ~ R^T / 2)
+            # gains kp_rot / 4: at pitch 0 the same small-angle stiffness and damping as the
+            # Euler-parameter law, whose moment per radian is kp_rot / 4 (delta_eps ~ angle / 2,
+            # W ~ R^T / 2); elsewhere the RPY law's is (kp_rot / 4) E^-T E^-1, whose eigenvalues
+            # are 1 / (1 + |sin pitch|), 1 and 1 / (1 - |sin pitch|) (x0.53, x1, x9.2 at pitch
+            # -63 deg, unbounded toward +-90 deg; docs/derivations.md, Hardening (issue 12))
             kp_m, kv_m, kp_s, kv_s = K["kp_m_rpy"], K["kv_m_rpy"], K["kp_s_rpy"], K["kv_s_rpy"]
         e_dot = J_s @ qd_s - J_m @ qd_m
         tau_m = J_m.T @ (kp_m * e + kv_m * e_dot)  # seed 003 eq. (14a)
