@@ -297,3 +297,19 @@ def test_virtual_wall_metrics_report_the_zone_entered_and_the_force_held():
     # the force it holds there: its spring at the deepest point, below what it is set to resist
     assert m["virtual_wall_force_n"] == pytest.approx(wall.stiffness * m["wall_penetration_m"], rel=1e-12)
     assert m["virtual_wall_force_n"] < wall.resist_force_n
+
+
+@pytest.mark.parametrize("body, names", [
+    ("virtual_walls = [5]\n", "virtual_walls"),
+    ("[wall]\npoint = [0.49, 0.0, 0.5]\nnormal = [-1.0, 0.0, 0.0]\nstiffness = 1e10\n", "[wall] stiffness"),
+    ("dt_s = 1e-300\n", "duration_s / dt_s"),
+    ("[controller]\ngains_master = { kp_pos = nan }\n", "kp_pos = nan"),
+])
+def test_the_cli_answers_bad_teleop_files_with_one_line(tmp_path, capsys, body, names):
+    from quatform.cli import main
+
+    f = tmp_path / "bad.toml"
+    f.write_text('kind = "teleop"\nduration_s = 1.0\n' + body)
+    assert main(["teleop", str(f), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and names in err[0] and "Traceback" not in err[0]
