@@ -160,7 +160,7 @@ def test_non_numeric_measurements_name_the_field(field):
     ({"controller": {"gains_master": {"kp_pos": math.nan}}}, r"\[controller.gains_master\] kp_pos = nan"),
     ({"controller": {"gains_master": {"kp_pso": 1.0}}}, r"did you mean 'kp_pos'"),
     ({"controller": {"preload": 1}}, r"\[controller\] preload = 1 must be true or false"),
-    ({"controller": {"orientation_error": "euler"}}, r"orientation_error = 'euler' is not one of euler-parameters, rpy"),
+    ({"controller": {"orientation_error": "euler"}}, r"orientation_error = 'euler' is not one of euler-param"),
     ({"controller": {"reflection": 0.0}}, r"\[controller\] reflection = 0.0 must be < 0"),
     ({"controller": {"k_for": -1.0}}, r"\[controller\] k_for = -1.0 must be >= 0"),
     ({"holds_s": 3.0}, r"holds_s = 3.0 must be a list"),

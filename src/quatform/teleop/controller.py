@@ -31,8 +31,8 @@ from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
 
-__all__ = ["ORIENTATION_ERRORS", "MAX_WALL_STIFFNESS", "Registration", "VirtualWall", "TeleopMeasurement", "TeleopCommand",
-           "TeleopController"]
+__all__ = ["ORIENTATION_ERRORS", "MAX_WALL_STIFFNESS", "Registration", "VirtualWall", "TeleopMeasurement",
+           "TeleopCommand", "TeleopController"]
 
 #: The orientation errors a controller can use.
 ORIENTATION_ERRORS = ("euler-parameters", "rpy")
