@@ -71,4 +71,4 @@ def test_teleop_help_and_errors(tmp_path, capsys):
     bad.write_text('kind = "teleop"\nduration_s = 1.0\n[master]\nq0 = [0, 1]\n')
     assert main(["teleop", str(bad), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "q0 must be 6 finite numbers" in err[0]
+    assert len(err) == 1 and "[master] q0 = [0, 1] must be a list of 6 numbers" in err[0]

@@ -22,8 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from ..sim.teleop import TeleopRun
+from ..algebra import wrap_angle
 from ..teleop import rpy_from_q
-from .plots import _break_wraps, _decimate, _new_figure, _save
+from .plots import _decimate, _new_figure, _save
 
 __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
            "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
@@ -31,7 +32,32 @@ __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientati
 
 def _title(run: TeleopRun) -> str:
     c = run.controller
-    return (f"{run.scenario.name}: {c.orientation_error} error, preload {'on' if c.preload_nm is not None else 'off'}")
+    return (f"Jansen et al. 1990, {run.scenario.name}: {c.orientation_error} error, "
+            f"preload {'on' if c.preload_nm is not None else 'off'}")
+
+
+def _rpy_traces(r_m, r_s):
+    """Roll, pitch, yaw of both tools for plotting, rad, ``(T, 3)`` each.
+
+    The master's angles are unwrapped (no jump of 2 pi at +-180 deg); the slave's are drawn
+    as the master's plus the wrapped difference ``wrap(rpy_s - rpy_m)``, so a slave roll of
+    -180 deg against a master's +180 deg (the same orientation) reads as no error, and the
+    gap between the two lines is what the RPY law takes as its error. Jumps that are left
+    (roll and yaw jump by 180 deg through pitch +-90 deg: the angles are not defined there)
+    are broken, not drawn as vertical lines.
+    """
+    a_m, a_s = rpy_from_q(r_m), rpy_from_q(r_s)
+    m = np.unwrap(a_m, axis=0)
+    s = m + wrap_angle(a_s - a_m)
+    return tuple(np.stack([_break_jumps(x[:, k]) for k in range(3)], axis=1) for x in (m, s))
+
+
+def _break_jumps(y, limit=np.pi / 2):
+    """NaN where ``y`` jumps by more than ``limit`` between samples (no vertical line)."""
+    out = np.asarray(y, dtype=float).copy()
+    if out.size > 1:
+        out[1:][np.abs(np.diff(y)) > limit] = np.nan
+    return out
 
 
 def plot_teleop_tracking(run: TeleopRun, path) -> Path:
@@ -79,17 +105,15 @@ def plot_teleop_torques(run: TeleopRun, path) -> Path:
                 ax.axhline(j, color="k", ls=":", lw=0.8)
                 ax.axhline(-j, color="k", ls=":", lw=0.8)
     axes[1].set_xlabel("t (s)")
-    fig.suptitle(_title(run) + " - torques (limits dotted)")
+    fig.suptitle(_title(run) + " - torques (limits dotted)", fontsize=10)
     return _save(fig, path)
 
 
 def plot_teleop_orientation(run: TeleopRun, path) -> Path:
-    """Roll, pitch, yaw of both tools (slave base axes); pitch ±90 deg marked."""
+    """Roll, pitch, yaw of both tools (slave base axes, :func:`_rpy_traces`); pitch ±90 deg marked."""
     i = _decimate(len(run.t))
     t = run.t[i]
-    a_m, a_s = rpy_from_q(run.r_m[i]), rpy_from_q(run.r_s[i])
-    # roll and yaw wrap at +-180 deg (and jump by 180 deg through the lock): no vertical lines
-    a_m, a_s = (np.degrees(np.stack([_break_wraps(a[:, k]) for k in range(3)], axis=1)) for a in (a_m, a_s))
+    a_m, a_s = (np.degrees(a) for a in _rpy_traces(run.r_m[i], run.r_s[i]))
     fig = _new_figure((10, 6.5))
     axes = fig.subplots(4, 1, sharex=True)
     for k, name in enumerate(("roll", "pitch", "yaw")):
@@ -98,15 +122,24 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
         ax.plot(t, a_s[:, k], color="C0", lw=1.2, label="slave")
         ax.set_ylabel(f"{name} (deg)")
         ax.grid(alpha=0.3)
+        both = np.concatenate([a_m[:, k], a_s[:, k]])
+        lo, hi = np.nanmin(both), np.nanmax(both)
+        if hi - lo < 2.0:  # a still angle: a 2 deg window, not an axis of 1e-10 deg with an offset
+            ax.set_ylim(0.5 * (lo + hi) - 1.0, 0.5 * (lo + hi) + 1.0)
         if name == "pitch":
             for y in (-90, 90):
                 ax.axhline(y, color="r", ls=":", lw=0.8)
     axes[0].legend(fontsize=8)
-    axes[3].semilogy(t, np.maximum(run.angle[i], 1e-9), color="C2")
+    wrapped = np.linalg.norm(wrap_angle(rpy_from_q(run.r_s[i]) - rpy_from_q(run.r_m[i])), axis=1)
+    axes[3].semilogy(t, np.maximum(run.angle[i], 1e-9), color="C2", label="angle between the tools")
+    axes[3].semilogy(t, np.maximum(wrapped, 1e-9), color="C1", ls="--", lw=1.0,
+                     label="|wrapped RPY difference| (the RPY law's error)")
+    axes[3].legend(fontsize=7)
     axes[3].set_ylabel("error (rad)")
     axes[3].set_xlabel("t (s)")
     axes[3].grid(alpha=0.3, which="both")
-    fig.suptitle(_title(run) + " - roll-pitch-yaw (gimbal lock at pitch ±90°)")
+    fig.suptitle(_title(run) + "\nroll-pitch-yaw (gimbal lock at pitch ±90°); the slave drawn as the master + the "
+                 "wrapped difference", fontsize=10)
     return _save(fig, path)
 
 
@@ -131,7 +164,7 @@ def plot_teleop_contact(run: TeleopRun, path) -> Path:
     ax.set_ylabel("force (N)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.suptitle(_title(run) + " - contact (holds dotted)")
+    fig.suptitle(_title(run) + " - contact (holds dotted)", fontsize=10)
     return _save(fig, path)
 
 
@@ -156,7 +189,7 @@ def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("master - slave along the push (mm)")
     ax2.grid(alpha=0.3)
-    fig.suptitle(_title(run) + " - hysteresis of the master")
+    fig.suptitle(_title(run) + " - hysteresis of the master", fontsize=10)
     return _save(fig, path)
 
 
@@ -181,7 +214,7 @@ def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("hand force on the master (N)")
     ax2.grid(alpha=0.3)
-    fig.suptitle(_title(run) + " - virtual wall")
+    fig.suptitle(_title(run) + " - virtual wall", fontsize=10)
     return _save(fig, path)
 
 

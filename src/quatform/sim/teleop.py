@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..algebra import q_from_axis_angle, qmul, qslerp
+from ..algebra import matrix_from_q, q_from_axis_angle, qmul, qslerp
 from ..algebra._kernels import qmul_components
+from ..checks import check_keys, check_work, flag, number, short, table, text, vector
 from ..errors import InvalidInputError
 from ..teleop import (
     KRAFT_DEADBAND,
@@ -43,22 +44,16 @@ from ..teleop import (
     TeleopMeasurement,
     VirtualWall,
 )
-from ..teleop.control import StiffnessGains
+from ..teleop.control import StiffnessGains, effective_mass, explicit_stiffness_limit
 
 __all__ = ["HandKey", "Hand", "SlavePush", "ContactWall", "TeleopScenario", "TeleopRun", "simulate_teleop",
-           "teleop_metrics", "teleop_timeseries", "teleop_scenario_from_dict"]
+           "teleop_metrics", "teleop_timeseries", "teleop_scenario_from_dict", "check_teleop_work",
+           "check_teleop_stiffness", "teleop_stiffness_limits"]
 
 
 def _smooth(s):
     s = min(max(s, 0.0), 1.0)
     return s * s * (3.0 - 2.0 * s)
-
-
-def _vec(x, n, what):
-    a = np.asarray(x, dtype=float)
-    if a.shape != (n,) or not np.all(np.isfinite(a)):
-        raise InvalidInputError(f"{what} must be {n} finite numbers, got {x!r}")
-    return a
 
 
 @dataclass(frozen=True)
@@ -280,6 +275,8 @@ def simulate_teleop(scenario: TeleopScenario, orientation_error: str | None = No
                     progress=None) -> TeleopRun:
     """Run ``scenario`` (optionally with another orientation error or preload setting)."""
     sc = scenario
+    check_teleop_work(sc.name, sc.duration_s, sc.dt_s)  # up front, as the loader does
+    check_teleop_stiffness(sc)
     ctrl = sc.controller(orientation_error, preload)
     M, S = KRAFT_MASTER, PANDA_SLAVE
     q_m, qd_m = np.array(sc.q_m0, float), np.zeros(6)
@@ -349,6 +346,27 @@ def _at(run, t_s):
     return int(min(max(round(t_s / run.scenario.dt_s), 0), len(run.t) - 1))
 
 
+def _chatter(tau) -> float:
+    """``sqrt(mean_k |tau[k+1] - tau[k]|^2)``, N m per cycle (0 for a single sample)."""
+    d = np.diff(np.asarray(tau, float), axis=0)
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) if len(d) else 0.0
+
+
+def _settled_since(sc, t_end) -> float:
+    """When the commanded motion (hand and push keys) last stopped before ``t_end`` (0: never
+    moved; ``t_end``: still moving then)."""
+    since = 0.0
+    hand = [(a.t_s, b.t_s, a.q != b.q or a.move != b.move or a.turn != b.turn)
+            for a, b in zip(sc.hand.keys, sc.hand.keys[1:])]
+    push = [] if sc.push is None else [(a[0], b[0], tuple(a[1]) != tuple(b[1]))
+                                       for a, b in zip(sc.push.keys, sc.push.keys[1:])]
+    for a, b, moves in hand + push:
+        if not moves or a >= t_end:
+            continue
+        since = max(since, min(b, t_end))
+    return since
+
+
 def teleop_metrics(run: TeleopRun) -> dict:
     """The numbers of a run (``metrics.json``); entries that do not apply are None.
 
@@ -366,8 +384,22 @@ def teleop_metrics(run: TeleopRun) -> dict:
       peak-to-peak motion over the last second, when that second lies after every
       commanded motion;
     * ``wall_penetration_m``: the master's deepest point in a virtual wall (0 if never in);
-      ``virtual_wall_crossed``: deeper than a wall's thickness;
+      ``virtual_wall_crossed``: deeper than a wall's thickness; ``virtual_wall_force_n``: the
+      wall's spring force ``resist_force_n / thickness_m * depth`` at that deepest point (at
+      rest, the push it holds); ``slave_zone_penetration_m``: the slave's deepest point in the
+      zone the wall maps to in its workspace (through the registration; slave metres). A
+      virtual wall is a spring of finite stiffness: the master, and the slave that follows
+      it, enter the zone by ``push / stiffness``, and a push above about ``resist_force_n``
+      takes them through its thickness (``docs/derivations.md``, Hardening (issue 12));
     * ``final_hand_force_n``: the hand's force on the master at the end;
+    * ``slave_torque_chatter_nm``, ``master_torque_chatter_nm``: the root mean square of the
+      torque's change from one cycle to the next, ``sqrt(mean_k |tau[k+1] - tau[k]|^2)``
+      (Euclidean norm over the joints, N m per cycle): a smooth command changes by little per
+      cycle, a chattering one by up to twice its limit;
+    * ``hold_position_error_m``, ``hold_orientation_error_rad``: with ``holds``, the errors at
+      the end of each hold; ``hold_peak_position_error_m``, ``hold_peak_orientation_error_rad``:
+      their peaks over each hold, from the moment the commanded motion (hand and push keys)
+      stopped to the hold's end, so the tracking lag of the motion before it does not count;
     * ``nonfinite_torques``: cycles whose raw torque was not finite (replaced by zero).
     """
     sc = run.scenario
@@ -394,7 +426,22 @@ def teleop_metrics(run: TeleopRun) -> dict:
         "limit_cycle_amplitude_m": None,
         "wall_penetration_m": None,
         "virtual_wall_crossed": None,
+        "virtual_wall_force_n": None,
+        "slave_zone_penetration_m": None,
+        "slave_torque_chatter_nm": _chatter(run.tau_s),
+        "master_torque_chatter_nm": _chatter(run.tau_m),
+        "hold_position_error_m": None,
+        "hold_orientation_error_rad": None,
+        "hold_peak_position_error_m": None,
+        "hold_peak_orientation_error_rad": None,
     }
+    if sc.holds:
+        ends = [_at(run, t) for t in sc.holds]
+        starts = [_at(run, _settled_since(sc, t)) for t in sc.holds]
+        m.update(hold_position_error_m=[float(pos_err[k]) for k in ends],
+                 hold_orientation_error_rad=[float(run.angle[k]) for k in ends],
+                 hold_peak_position_error_m=[float(pos_err[a:b + 1].max()) for a, b in zip(starts, ends)],
+                 hold_peak_orientation_error_rad=[float(run.angle[a:b + 1].max()) for a, b in zip(starts, ends)])
     kp = sc.gains_slave.kp[0:3]
     if sc.wall is not None and sc.holds:
         errs, refl, felt, force = [], [], [], []
@@ -431,7 +478,17 @@ def teleop_metrics(run: TeleopRun) -> dict:
     if sc.virtual_walls:
         thick = np.array([w.thickness_m for w in sc.virtual_walls])
         depth = run.wall_depth.max(axis=0) * thick  # each wall's deepest point, m
-        m.update(wall_penetration_m=float(max(depth.max(), 0.0)), virtual_wall_crossed=bool(np.any(depth > thick)))
+        deepest = int(np.argmax(depth))
+        reg = run.controller.registration
+        R = matrix_from_q(reg.base)
+        zone = []
+        for w in sc.virtual_walls:  # the wall's plane carried into the slave's workspace
+            n = np.asarray(w.normal, float) / np.linalg.norm(w.normal)
+            p_master = (R.T @ (run.p_s - reg.p_slave0).T).T / reg.scale + reg.p_master0
+            zone.append(reg.scale * float((p_master @ n - w.offset).max()))
+        m.update(wall_penetration_m=float(max(depth.max(), 0.0)), virtual_wall_crossed=bool(np.any(depth > thick)),
+                 virtual_wall_force_n=float(sc.virtual_walls[deepest].stiffness * max(depth[deepest], 0.0)),
+                 slave_zone_penetration_m=float(max(max(zone), 0.0)))
     return m
 
 
@@ -457,161 +514,236 @@ def teleop_timeseries(run: TeleopRun):
 # TOML
 
 
-def _floats(d, key, n, where, default=None):
-    if key not in d:
-        if default is None:
-            raise InvalidInputError(f"{where}: missing key {key!r}")
-        return tuple(default)
-    return tuple(_vec(d[key], n, f"{where}: {key}"))
-
-
-def _number(d, key, where, default, positive=False):
-    v = d.get(key, default)
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{where}: {key} = {d[key]!r} is not a number") from None
-    if not np.isfinite(v) or (positive and v <= 0) or v < 0:
-        raise InvalidInputError(f"{where}: {key} must be finite and {'> 0' if positive else '>= 0'}, got {v!r}")
-    return v
-
-
-def _gains(d, where, base=StiffnessGains()):
-    if not d:
-        return base
-    unknown = set(d) - {f.name for f in dataclasses.fields(StiffnessGains)}
-    if unknown:
-        raise InvalidInputError(f"{where}: unknown gain(s) {', '.join(sorted(unknown))}; use kp_pos, kp_rot, kv_pos, "
-                                "kv_rot")
-    return dataclasses.replace(base, **{k: _number(d, k, where, 0.0) for k in d})
-
-
-def _times(keys, where):
-    ts = [k[0] for k in keys]
-    if any(b <= a for a, b in zip(ts, ts[1:])) or (ts and ts[0] < 0):
-        raise InvalidInputError(f"{where}: key times must start at >= 0 and increase, got {ts}")
-
-
-_KEYS = {
-    "": {"kind", "name", "title", "source", "duration_s", "dt_s", "holds_s", "master", "slave", "hand", "push",
-         "wall", "virtual_walls", "controller"},
-    "master": {"q0", "inertia", "viscous", "deadband"},
-    "slave": {"q0", "damping"},
-    "hand": {"keys", "stiffness", "damping", "rot_stiffness", "rot_damping"},
-    "push": {"keys", "stiffness", "damping"},
-    "wall": {"point", "normal", "stiffness", "damping"},
-    "controller": {"orientation_error", "preload", "reflection", "k_for", "gains_master", "gains_slave"},
+_TOP = ("kind", "name", "title", "source", "duration_s", "dt_s", "holds_s", "master", "slave", "hand", "push",
+        "wall", "virtual_walls", "controller")
+_SECTIONS = {
+    "master": ("q0", "inertia", "viscous", "deadband"),
+    "slave": ("q0", "damping"),
+    "hand": ("keys", "stiffness", "damping", "rot_stiffness", "rot_damping"),
+    "push": ("keys", "stiffness", "damping"),
+    "wall": ("point", "normal", "stiffness", "damping"),
+    "controller": ("orientation_error", "preload", "reflection", "k_for", "gains_master", "gains_slave"),
 }
+_GAINS = tuple(f.name for f in dataclasses.fields(StiffnessGains))
+_WALL_KEYS = ("normal", "offset", "resist_force_n", "thickness_m", "damping")
+_HINT = "see docs/scenarios.md"
+
+#: Generous per-cycle cost of :func:`simulate_teleop` (measured about 1.4 ms and 3 kB of logs
+#: per cycle on one core; ``docs/performance.md``), for :func:`check_teleop_work`.
+SECONDS_PER_STEP = 3e-3
+BYTES_PER_STEP = 4000.0
 
 
-def _check_keys(data: dict, where: str):
-    for section, allowed in _KEYS.items():
-        table = data if section == "" else data.get(section, {})
-        if not isinstance(table, dict):
-            raise InvalidInputError(f"{where}: [{section}] must be a table")
-        unknown = set(table) - allowed
-        if unknown:
-            place = "top level" if section == "" else f"[{section}]"
-            raise InvalidInputError(f"{where}: unknown key(s) {', '.join(sorted(unknown))} at {place}; "
-                                    f"allowed: {', '.join(sorted(allowed))} (see docs/scenarios.md)")
+def _list_of_tables(data, key, where, place):
+    """``data[key]``, a TOML array of tables (``[[key]]`` or ``key = [{...}, ...]``)."""
+    value = data.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise InvalidInputError(f"{where}: {place}{key} = {short(value)} must be a list of tables "
+                                f"({{t_s = ...}} entries or [[{key}]] blocks; {_HINT})")
+    return value
+
+
+def _key_times(ts, where, place, duration):
+    if any(b <= a for a, b in zip(ts, ts[1:])):
+        raise InvalidInputError(f"{where}: {place} key times t_s must increase, got {short(list(ts))}")
+    if ts and ts[-1] > duration:
+        raise InvalidInputError(f"{where}: {place} key time t_s = {ts[-1]:g} is after duration_s = {duration:g}; "
+                                "move it inside the run or lengthen it")
+
+
+def _gains(ctrl, key, where):
+    place = f"[controller.{key}]"
+    d = table(ctrl, key, where, "[controller]", default={})
+    check_keys(d, _GAINS, where, place, _HINT)
+    base = StiffnessGains()
+    return StiffnessGains(**{g: number(d, g, where, getattr(base, g), place=place, low=0.0) for g in _GAINS})
 
 
 def teleop_scenario_from_dict(data: dict, where: str = "scenario") -> TeleopScenario:
-    """Build a :class:`TeleopScenario` from parsed TOML; every mistake is an InvalidInputError."""
-    _check_keys(data, where)
-    try:
-        return _teleop_scenario_from_dict(data, where)
-    except (TypeError, ValueError, KeyError) as exc:
-        if isinstance(exc, InvalidInputError):
-            raise
-        raise InvalidInputError(f"{where}: {exc} (see docs/scenarios.md for the keys and their types)") from None
+    """Build a :class:`TeleopScenario` from parsed TOML (``docs/scenarios.md``).
 
+    Every mistake is one :class:`~quatform.errors.InvalidInputError` line naming the file,
+    the key, the value and the fix (unknown keys name the nearest valid one); the run's
+    size is checked up front (:func:`check_teleop_work`) and so are the springs against
+    the integrator's stability limit (:func:`check_teleop_stiffness`).
+    """
+    if not isinstance(data, dict):
+        raise InvalidInputError(f"{where}: a teleop scenario must be a TOML table, got {short(data)}")
+    check_keys(data, _TOP, where, hint=_HINT)
+    sec = {name: table(data, name, where, default={}) for name in _SECTIONS if name not in ("push", "wall")}
+    for name, allowed in _SECTIONS.items():
+        if name in sec:
+            check_keys(sec[name], allowed, where, f"[{name}]", _HINT)
+    d = TeleopScenario(name="defaults")
+    name = text(data, "name", where, Path(where).stem)
+    duration = number(data, "duration_s", where, low=0.0, low_open=True)
+    dt = number(data, "dt_s", where, 0.001, low=0.0, low_open=True)
+    if dt > duration:
+        raise InvalidInputError(f"{where}: dt_s = {dt:g} exceeds duration_s = {duration:g}; choose dt_s <= duration_s")
+    check_teleop_work(where, duration, dt)
+    holds = data.get("holds_s", [])
+    if not isinstance(holds, list):
+        raise InvalidInputError(f"{where}: holds_s = {short(holds)} must be a list of times (s)")
+    holds = tuple(number({"holds_s": h}, "holds_s", where, low=0.0, high=duration) for h in holds)
+    master, slave, hand_d, ctrl = sec["master"], sec["slave"], sec["hand"], sec["controller"]
 
-def _teleop_scenario_from_dict(data: dict, where: str) -> TeleopScenario:
-    d = TeleopScenario(name=str(data.get("name", Path(where).stem)))
-    master, slave, hand_d = data.get("master", {}), data.get("slave", {}), data.get("hand", {})
-    ctrl = data.get("controller", {})
     hand_keys = []
-    for i, k in enumerate(hand_d.get("keys", [{"t_s": 0.0}])):
-        wk = f"{where} [[hand.keys]] #{i + 1}"
+    for i, k in enumerate(_list_of_tables(hand_d, "keys", where, "[hand] ") or [{"t_s": 0.0}]):
+        place = f"[hand] keys #{i + 1}"
+        check_keys(k, ("t_s", "q", "move", "turn"), where, place, _HINT)
         if "q" in k and ("move" in k or "turn" in k):
-            raise InvalidInputError(f"{wk}: give either q (master joints) or move/turn, not both")
+            raise InvalidInputError(f"{where}: {place}: give either q (master joints) or move/turn, not both")
         hand_keys.append(HandKey(
-            t_s=_number(k, "t_s", wk, 0.0),
-            q=_floats(k, "q", 6, wk) if "q" in k else None,
-            move=_floats(k, "move", 3, wk, (0, 0, 0)), turn=_floats(k, "turn", 3, wk, (0, 0, 0))))
-    _times([(k.t_s,) for k in hand_keys], f"{where} [hand]")
-    hand = Hand(tuple(hand_keys), *(_number(hand_d, key, f"{where} [hand]", getattr(d.hand, key))
+            t_s=number(k, "t_s", where, 0.0, place=place, low=0.0),
+            q=vector(k, "q", 6, where, place=place) if "q" in k else None,
+            move=vector(k, "move", 3, where, (0.0, 0.0, 0.0), place=place),
+            turn=vector(k, "turn", 3, where, (0.0, 0.0, 0.0), place=place)))
+    _key_times([k.t_s for k in hand_keys], where, "[hand]", duration)
+    hand = Hand(tuple(hand_keys), *(number(hand_d, key, where, getattr(d.hand, key), place="[hand]", low=0.0)
                                     for key in ("stiffness", "damping", "rot_stiffness", "rot_damping")))
+
     push = None
     if "push" in data:
-        pd = data["push"]
-        keys = tuple((_number(k, "t_s", f"{where} [push]", 0.0), _floats(k, "move", 3, f"{where} [push]"))
-                     for k in pd.get("keys", []))
+        pd = table(data, "push", where)
+        check_keys(pd, _SECTIONS["push"], where, "[push]", _HINT)
+        keys = []
+        for i, k in enumerate(_list_of_tables(pd, "keys", where, "[push] ")):
+            place = f"[push] keys #{i + 1}"
+            check_keys(k, ("t_s", "move"), where, place, _HINT)
+            keys.append((number(k, "t_s", where, 0.0, place=place, low=0.0), vector(k, "move", 3, where, place=place)))
         if not keys:
             raise InvalidInputError(f"{where}: [push] needs keys = [{{t_s = ..., move = [dx, dy, dz]}}, ...]")
-        _times(keys, f"{where} [push]")
-        push = SlavePush(keys, _number(pd, "stiffness", f"{where} [push]", 2000.0),
-                         _number(pd, "damping", f"{where} [push]", 60.0))
+        _key_times([k[0] for k in keys], where, "[push]", duration)
+        push = SlavePush(tuple(keys), number(pd, "stiffness", where, 2000.0, place="[push]", low=0.0),
+                         number(pd, "damping", where, 60.0, place="[push]", low=0.0))
+
     wall = None
     if "wall" in data:
-        wd = data["wall"]
-        ww = f"{where} [wall]"
-        wall = ContactWall(_floats(wd, "point", 3, ww), _floats(wd, "normal", 3, ww),
-                           _number(wd, "stiffness", ww, 5000.0, positive=True), _number(wd, "damping", ww, 50.0))
-        if np.linalg.norm(wall.normal) < 1e-9:
-            raise InvalidInputError(f"{ww}: normal must be nonzero")
+        wd = table(data, "wall", where)
+        check_keys(wd, _SECTIONS["wall"], where, "[wall]", _HINT)
+        normal = vector(wd, "normal", 3, where, place="[wall]")
+        if math.hypot(*normal) < 1e-9:
+            raise InvalidInputError(f"{where}: [wall] normal = {list(normal)} must be a nonzero vector (the free side)")
+        wall = ContactWall(vector(wd, "point", 3, where, place="[wall]"), normal,
+                           number(wd, "stiffness", where, 5000.0, place="[wall]", low=0.0, low_open=True),
+                           number(wd, "damping", where, 50.0, place="[wall]", low=0.0))
+
     vwalls = []
-    for i, v in enumerate(data.get("virtual_walls", [])):
-        wv = f"{where} [[virtual_walls]] #{i + 1}"
-        offset = v.get("offset", 0.0)
-        if isinstance(offset, bool) or not isinstance(offset, (int, float)) or not np.isfinite(offset):
-            raise InvalidInputError(f"{wv}: offset must be a finite number (m), got {offset!r}")
-        vwalls.append(VirtualWall(_floats(v, "normal", 3, wv), float(offset),
-                                  _number(v, "resist_force_n", wv, 8.0, positive=True),
-                                  _number(v, "thickness_m", wv, 0.02, positive=True), _number(v, "damping", wv, 20.0)))
-    oe = ctrl.get("orientation_error", "euler-parameters")
-    if oe not in ORIENTATION_ERRORS:
-        raise InvalidInputError(f"{where} [controller]: orientation_error = {oe!r}; use one of "
-                                f"{', '.join(ORIENTATION_ERRORS)}")
-    pl = ctrl.get("preload", False)
-    if not isinstance(pl, bool):
-        raise InvalidInputError(f"{where} [controller]: preload must be true or false, got {pl!r}")
-    reflection = float(ctrl.get("reflection", -0.5))
-    if not reflection < 0:
-        raise InvalidInputError(f"{where} [controller]: reflection (v of eq. (11)) must be negative, "
-                                f"got {reflection!r}")
-    k_for = ctrl.get("k_for")
-    if k_for is not None:
-        k_for = _number(ctrl, "k_for", f"{where} [controller]", 0.0)
-    duration = _number(data, "duration_s", where, None, positive=True) if "duration_s" in data else None
-    if duration is None:
-        raise InvalidInputError(f"{where}: missing key 'duration_s'")
-    dt = _number(data, "dt_s", where, 0.001, positive=True)
-    if dt > duration:
-        raise InvalidInputError(f"{where}: dt_s = {dt} exceeds duration_s = {duration}")
-    holds = tuple(float(x) for x in data.get("holds_s", []))
-    if not all(np.isfinite(h) and 0.0 <= h <= duration for h in holds):
-        raise InvalidInputError(f"{where}: holds_s must be times within [0, duration_s = {duration}], "
-                                f"got {list(holds)}")
+    for i, v in enumerate(_list_of_tables(data, "virtual_walls", where, "")):
+        place = f"[[virtual_walls]] #{i + 1}"
+        check_keys(v, _WALL_KEYS, where, place, _HINT)
+        normal = vector(v, "normal", 3, where, place=place)
+        args = (number(v, "offset", where, 0.0, place=place),
+                number(v, "resist_force_n", where, 8.0, place=place, low=0.0, low_open=True),
+                number(v, "thickness_m", where, 0.02, place=place, low=0.0, low_open=True),
+                number(v, "damping", where, 20.0, place=place, low=0.0))
+        try:
+            vwalls.append(VirtualWall(normal, *args))
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{where}: {place}: {exc}") from None
+
+    oe = text(ctrl, "orientation_error", where, "euler-parameters", place="[controller]", choices=ORIENTATION_ERRORS)
+    pl = flag(ctrl, "preload", where, False, place="[controller]")
+    reflection = number(ctrl, "reflection", where, -0.5, place="[controller]", high=0.0, high_open=True)
+    k_for = number(ctrl, "k_for", where, None, place="[controller]", low=0.0)
     sc = TeleopScenario(
-        name=d.name, duration_s=duration, dt_s=dt, title=str(data.get("title", "")),
-        source=str(data.get("source", "")),
-        q_m0=_floats(master, "q0", 6, f"{where} [master]", d.q_m0),
-        q_s0=_floats(slave, "q0", 7, f"{where} [slave]", d.q_s0),
-        master_inertia=_floats(master, "inertia", 6, f"{where} [master]", d.master_inertia),
-        master_viscous=_number(master, "viscous", f"{where} [master]", d.master_viscous),
-        master_deadband=_floats(master, "deadband", 6, f"{where} [master]", d.master_deadband),
-        slave_damping=_number(slave, "damping", f"{where} [slave]", d.slave_damping),
+        name=name, duration_s=duration, dt_s=dt, title=text(data, "title", where, ""),
+        source=text(data, "source", where, ""),
+        q_m0=vector(master, "q0", 6, where, d.q_m0, place="[master]"),
+        q_s0=vector(slave, "q0", 7, where, d.q_s0, place="[slave]"),
+        master_inertia=vector(master, "inertia", 6, where, d.master_inertia, place="[master]"),
+        master_viscous=number(master, "viscous", where, d.master_viscous, place="[master]", low=0.0),
+        master_deadband=vector(master, "deadband", 6, where, d.master_deadband, place="[master]"),
+        slave_damping=number(slave, "damping", where, d.slave_damping, place="[slave]", low=0.0),
         hand=hand, push=push, wall=wall, virtual_walls=tuple(vwalls), orientation_error=oe, preload=pl,
-        gains_master=_gains(ctrl.get("gains_master", {}), f"{where} [controller.gains_master]"),
-        gains_slave=_gains(ctrl.get("gains_slave", {}), f"{where} [controller.gains_slave]"),
+        gains_master=_gains(ctrl, "gains_master", where), gains_slave=_gains(ctrl, "gains_slave", where),
         reflection=reflection, k_for=k_for, holds=holds,
     )
     if any(i <= 0 for i in sc.master_inertia):
-        raise InvalidInputError(f"{where} [master]: inertia must be > 0 for every joint, got {sc.master_inertia}")
-    if any(b < 0 for b in sc.master_deadband):
-        raise InvalidInputError(f"{where} [master]: deadband fractions must be >= 0, got {sc.master_deadband}")
-    sc.controller()  # the registration and limits must make a controller
+        raise InvalidInputError(f"{where}: [master] inertia = {list(sc.master_inertia)} must be > 0 for every "
+                                "joint (kg m^2)")
+    if any(not 0.0 <= b <= 1.0 for b in sc.master_deadband):
+        raise InvalidInputError(f"{where}: [master] deadband = {list(sc.master_deadband)} must be fractions of full "
+                                "scale in [0, 1]")
+    try:
+        sc.controller()  # the registration and limits must make a controller
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{where}: {exc}") from None
+    check_teleop_stiffness(sc, where)
     return sc
 
+
+def check_teleop_work(where: str, duration_s: float, dt_s: float) -> None:
+    """Refuse a run whose cycles (``duration_s / dt_s``) cannot fit in memory or the time budget."""
+    steps = duration_s / dt_s + 1.0 if dt_s > 0 else math.inf
+    check_work(where, "duration_s / dt_s", steps, bytes_per_step=BYTES_PER_STEP, seconds_per_step=SECONDS_PER_STEP,
+               fix="shorten duration_s or lengthen dt_s")
+
+
+def teleop_stiffness_limits(sc: TeleopScenario) -> list[dict]:
+    """Each arm's springs against the explicit integration's stability limit, at the homes.
+
+    One entry per arm and motion (``"master translation"``, ``"master rotation"``,
+    ``"slave translation"``, ``"slave rotation"``, and the joint dampers): the springs and
+    dampers acting on that tool summed as if in one direction (``parts``), the tool's
+    effective mass or inertia in its lightest direction at the home configuration
+    (:func:`~quatform.teleop.control.effective_mass`), and the limit
+    ``(4 m - 2 c dt) / dt^2`` (:func:`~quatform.teleop.control.explicit_stiffness_limit`).
+    The Euler-parameter controller's rotational springs count ``kp_rot / 4`` N m/rad (its
+    small-angle stiffness).
+    """
+    M, S = KRAFT_MASTER, PANDA_SLAVE
+    q_m, q_s = np.asarray(sc.q_m0, float), np.asarray(sc.q_s0, float)
+    I_inv = np.diag(1.0 / np.asarray(sc.master_inertia, float))
+    J_m, J_s = M.jacobian(q_m), S.arm.jacobian(q_s)
+    M_s = S.mass_matrix(q_s)
+    Ms_inv = np.linalg.inv(M_s)
+    gm, gs, h = sc.gains_master, sc.gains_slave, sc.hand
+    springs = {
+        "master translation": (effective_mass(J_m[0:3], I_inv), "kg", "N/m", "N s/m", [
+            ("[controller.gains_master] kp_pos", gm.kp_pos, gm.kv_pos), ("[hand] stiffness", h.stiffness, h.damping)]
+            + [(f"[[virtual_walls]] #{i + 1} resist_force_n / thickness_m", w.stiffness, w.damping)
+               for i, w in enumerate(sc.virtual_walls)]),
+        "master rotation": (effective_mass(J_m[3:6], I_inv), "kg m^2", "N m/rad", "N m s/rad", [
+            ("[controller.gains_master] kp_rot / 4", gm.kp_rot / 4, gm.kv_rot / 4),
+            ("[hand] rot_stiffness", h.rot_stiffness, h.rot_damping)]),
+        "slave translation": (effective_mass(J_s[0:3], Ms_inv), "kg", "N/m", "N s/m", [
+            ("[controller.gains_slave] kp_pos", gs.kp_pos, gs.kv_pos)]
+            + ([("[wall] stiffness", sc.wall.stiffness, sc.wall.damping)] if sc.wall is not None else [])
+            + ([("[push] stiffness", sc.push.stiffness, sc.push.damping)] if sc.push is not None else [])),
+        "slave rotation": (effective_mass(J_s[3:6], Ms_inv), "kg m^2", "N m/rad", "N m s/rad", [
+            ("[controller.gains_slave] kp_rot / 4", gs.kp_rot / 4, gs.kv_rot / 4)]),
+        # joint dampers alone: c dt < 2 m on the lightest joint (mode) of each arm
+        "master joints": (float(np.min(sc.master_inertia)), "kg m^2", "N m/rad", "N m s/rad",
+                          [("[master] viscous", 0.0, sc.master_viscous)]),
+        "slave joints": (float(np.linalg.eigvalsh(M_s)[0]), "kg m^2", "N m/rad", "N m s/rad",
+                         [("[slave] damping", 0.0, sc.slave_damping)]),
+    }
+    out = []
+    for what, (m, mu, ku, cu, parts) in springs.items():
+        k, c = sum(p[1] for p in parts), sum(p[2] for p in parts)
+        out.append({"what": what, "mass": float(m), "mass_unit": mu, "stiffness": k, "damping": c, "parts": parts,
+                    "limit": float(explicit_stiffness_limit(m, c, sc.dt_s)), "units": (ku, cu)})
+    return out
+
+
+def check_teleop_stiffness(sc: TeleopScenario, where: str = "") -> None:
+    """Refuse springs or dampers beyond the explicit integration's stability limit.
+
+    Every spring of the scenario (the controllers', the hand's, the push's, the contact wall's
+    and the virtual walls') acts through an explicit step of ``dt_s`` (the digital controller's
+    zero-order hold and the simulator's semi-implicit Euler step): beyond
+    ``k dt^2 + 2 c dt < 4 m`` (:func:`teleop_stiffness_limits`) the run diverges and flings
+    the arm (a 1e10 N/m wall threw the slave 1.38 m before this check).
+    """
+    where = where or sc.name
+    for e in teleop_stiffness_limits(sc):
+        if e["stiffness"] <= e["limit"] and e["limit"] > 0.0:
+            continue
+        ku, cu = e["units"]
+        big = max(e["parts"], key=lambda p: p[1] if e["stiffness"] > 0 else p[2])
+        raise InvalidInputError(
+            f"{where}: {big[0]} = {big[1]:.3g} {ku} is beyond the stability limit of the {1 / sc.dt_s:g} Hz explicit "
+            f"integration: on the {e['what']} (effective mass {e['mass']:.3g} {e['mass_unit']} at home) springs of "
+            f"{e['stiffness']:.3g} {ku} in all with dampers of {e['damping']:.3g} {cu} need k dt^2 + 2 c dt < 4 m, "
+            f"i.e. k < {max(e['limit'], 0.0):.3g} {ku}; lower it or dt_s (docs/derivations.md)")

@@ -27,7 +27,8 @@ from ..errors import InvalidInputError
 from .task import orientation_error, task_jacobian
 
 __all__ = ["StiffnessGains", "task_error", "master_torque", "slave_torque", "redundancy_torque",
-           "force_stability_term", "preload", "deadband", "virtual_wall_force"]
+           "force_stability_term", "preload", "deadband", "virtual_wall_force", "explicit_stiffness_limit",
+           "effective_mass"]
 
 
 @dataclass(frozen=True)
@@ -140,3 +141,51 @@ def virtual_wall_force(p, p_dot, normal, offset, stiffness, damping=0.0) -> np.n
     inward = np.maximum(np.einsum("...i,i->...", np.asarray(p_dot, float), n), 0.0)
     mag = np.where(depth > 0, stiffness * depth + damping * inward, 0.0)
     return -mag[..., None] * n
+
+
+def explicit_stiffness_limit(mass, damping, dt) -> np.ndarray:
+    """The stiffest spring a sampled, explicitly integrated mass-spring-damper holds stably, N/m.
+
+    A mass ``m`` on a spring ``k`` and a damper ``c`` whose force is computed at the start of
+    each period ``dt`` and held over it (a digital controller's zero-order hold, and the
+    simulator's semi-implicit Euler step ``v' = v + dt (-k x - c v) / m``, ``x' = x + dt v'``)
+    has the step matrix ``[[1 - dt^2 k/m, dt (1 - dt c/m)], [-dt k/m, 1 - dt c/m]]``, of trace
+    ``2 - dt^2 k/m - dt c/m`` and determinant ``1 - dt c/m``. By the Jury criterion its
+    eigenvalues lie inside the unit circle iff ``0 < dt c/m < 2`` and
+    ``k dt^2 + 2 c dt < 4 m``, i.e. ``k < (4 m - 2 c dt) / dt^2`` (``docs/derivations.md``,
+    Hardening (issue 12): teleoperation). Rotations likewise, with an inertia (kg m^2), a
+    stiffness (N m/rad) and a damping (N m s/rad).
+
+    Parameters
+    ----------
+    mass : array_like
+        Effective mass (kg) or inertia (kg m^2), ``> 0``.
+    damping : array_like
+        Damping in parallel with the spring (N s/m or N m s/rad), ``>= 0``.
+    dt : float
+        Period, s.
+
+    Returns
+    -------
+    ndarray
+        The limit (same shape as the broadcast inputs); ``<= 0`` when the damping alone is
+        unstable (``c dt >= 2 m``).
+    """
+    m, c = np.asarray(mass, float), np.asarray(damping, float)
+    return (4.0 * m - 2.0 * c * dt) / (dt * dt)
+
+
+def effective_mass(J, M_inv, direction=None) -> np.ndarray:
+    """Mass (or inertia) a tool has along ``direction`` or, if None, its lightest direction.
+
+    ``1 / (u^T J M^-1 J^T u)`` (operational-space inertia, Khatib): ``J`` ``(..., 3, n)`` the
+    translational (or rotational) rows of a base-frame Jacobian, ``M_inv`` ``(..., n, n)`` the
+    inverse joint-space mass matrix. Without a direction, ``1 / lambda_max(J M^-1 J^T)``, the
+    least over all directions.
+    """
+    A = np.asarray(J, float) @ np.asarray(M_inv, float) @ np.swapaxes(np.asarray(J, float), -1, -2)
+    if direction is None:
+        return 1.0 / np.linalg.eigvalsh(A)[..., -1]
+    u = np.asarray(direction, float)
+    u = u / np.linalg.norm(u)
+    return 1.0 / np.einsum("i,...ij,j->...", u, A, u)

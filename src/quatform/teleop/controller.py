@@ -22,6 +22,7 @@ import numpy as np
 
 from ..algebra import matrix_from_q, qconj, qmul
 from ..algebra._validate import as_array, as_unit_quaternion
+from ..checks import short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ._kernels import q_from_rotation
 from .arm import SerialArm
@@ -30,11 +31,17 @@ from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
 
-__all__ = ["ORIENTATION_ERRORS", "Registration", "VirtualWall", "TeleopMeasurement", "TeleopCommand",
-           "TeleopController"]
+__all__ = ["ORIENTATION_ERRORS", "MAX_WALL_STIFFNESS", "Registration", "VirtualWall", "TeleopMeasurement",
+           "TeleopCommand", "TeleopController"]
 
 #: The orientation errors a controller can use.
 ORIENTATION_ERRORS = ("euler-parameters", "rpy")
+
+#: The stiffest virtual wall a :class:`VirtualWall` accepts, N/m. A sampled controller holds a
+#: wall of stiffness k on a tool of effective mass m stably only while k dt^2 + 2 c dt < 4 m
+#: (:func:`.control.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg tool and a 10 kHz
+#: loop with no damping; the simulator checks the limit of its own master and period.
+MAX_WALL_STIFFNESS = 1e9
 
 
 @dataclass(frozen=True)
@@ -87,8 +94,12 @@ class VirtualWall:
 
     The forbidden side is ``normal . p > offset`` (master base frame, m). The wall pushes
     back with ``resist_force_n / thickness_m`` N per metre of depth (plus ``damping``
-    against motion into it), so an operator must push with more than ``resist_force_n`` to
-    get through its ``thickness_m``.
+    against motion into it): a spring, not a hard stop. A push of ``F`` below
+    ``resist_force_n`` still takes the tool ``F / stiffness`` into the zone (and a slave that
+    follows the master as far into the matching zone); at rest a push of more than
+    ``resist_force_n`` (plus what the master's own friction holds) gets through its
+    ``thickness_m``. Its stiffness must be finite and at most :data:`MAX_WALL_STIFFNESS`; a
+    given master and control period hold less (:func:`.control.explicit_stiffness_limit`).
     """
 
     normal: tuple
@@ -98,17 +109,30 @@ class VirtualWall:
     damping: float = 20.0
 
     def __post_init__(self):
-        n = np.asarray(self.normal, float)
-        if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-9:
-            raise InvalidInputError(f"virtual wall normal must be a nonzero 3-vector, got {self.normal!r}")
-        for name in ("resist_force_n", "thickness_m"):
+        try:
+            n = np.asarray(self.normal, float)
+        except (TypeError, ValueError):
+            n = None
+        if n is None or n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-9:
+            raise InvalidInputError(f"virtual wall normal must be a nonzero 3-vector of finite numbers, "
+                                    f"got {short(self.normal)}")
+        for name, low in (("offset", None), ("resist_force_n", 0.0), ("thickness_m", 0.0), ("damping", 0.0)):
             v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise InvalidInputError(f"virtual wall {name} must be finite and > 0, got {v!r}")
-        if not np.isfinite(self.offset):
-            raise InvalidInputError(f"virtual wall offset must be finite (m), got {self.offset!r}")
-        if not (np.isfinite(self.damping) and self.damping >= 0):
-            raise InvalidInputError(f"virtual wall damping must be finite and >= 0, got {self.damping!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise InvalidInputError(f"virtual wall {name} = {short(v)} must be a number")
+            if not math.isfinite(v) or (low is not None and (v < low if name == "damping" else v <= low)):
+                unit = {"offset": "m", "resist_force_n": "N", "thickness_m": "m", "damping": "N s/m"}[name]
+                cond = "finite" if low is None else ("finite and >= 0" if name == "damping" else "finite and > 0")
+                raise InvalidInputError(f"virtual wall {name} = {short(v)} must be {cond} ({unit})")
+        # resist_force_n / thickness_m can overflow (1e300 / 1e-300): an infinite stiffness
+        # makes an infinite force, whose torques the controller would zero on both arms
+        k = self.resist_force_n / self.thickness_m
+        if not (math.isfinite(k) and k <= MAX_WALL_STIFFNESS):
+            raise InvalidInputError(
+                f"virtual wall resist_force_n / thickness_m = {self.resist_force_n:g} / {self.thickness_m:g} N/m "
+                f"= {k:g} N/m is beyond any sampled controller's reach (at most {MAX_WALL_STIFFNESS:g} N/m here; "
+                "the limit of a given master and control period is teleop.control.explicit_stiffness_limit); "
+                "make the wall thicker or its resist force smaller")
 
     @property
     def stiffness(self) -> float:
@@ -315,8 +339,11 @@ class TeleopController:
                 J_m[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_m)
                 J_s[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_s)
             J_m, J_s = J_m @ Jm, J_s @ J_sf
-            # the same small-angle stiffness and damping as the Euler-parameter law, whose
-            # torque per radian is kp_rot / 4 (delta_eps ~ angle / 2, W ~ R^T / 2)
+            # gains kp_rot / 4: at pitch 0 the same small-angle stiffness and damping as the
+            # Euler-parameter law, whose moment per radian is kp_rot / 4 (delta_eps ~ angle / 2,
+            # W ~ R^T / 2); elsewhere the RPY law's is (kp_rot / 4) E^-T E^-1, whose eigenvalues
+            # are 1 / (1 + |sin pitch|), 1 and 1 / (1 - |sin pitch|) (x0.53, x1, x9.2 at pitch
+            # -63 deg, unbounded toward +-90 deg; docs/derivations.md, Hardening (issue 12))
             kp_m, kv_m, kp_s, kv_s = K["kp_m_rpy"], K["kv_m_rpy"], K["kp_s_rpy"], K["kv_s_rpy"]
         e_dot = J_s @ qd_s - J_m @ qd_m
         tau_m = J_m.T @ (kp_m * e + kv_m * e_dot)  # seed 003 eq. (14a)
@@ -363,10 +390,14 @@ class TeleopController:
 
 def _measured(x, name, n):
     """A measured vector as a float array of shape ``(n,)``, finite (one clear error otherwise)."""
-    a = np.asarray(x, dtype=float)
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"measurement {name} = {short(x)} must be {n} numbers (SI units); "
+                                "check the sensor reading") from None
     if a.shape != (n,):
-        raise ShapeError(f"{name} must have shape ({n},), got {a.shape}")
+        raise ShapeError(f"measurement {name} must have shape ({n},), got {a.shape}")
     if not math.isfinite(float(a.sum())) and not np.isfinite(a).all():  # the sum: one cheap test
-        raise NonFiniteError(f"{name} = {a.tolist()} is not finite; a controller cannot act on NaN or inf "
-                             "measurements - check the sensor reading")
+        raise NonFiniteError(f"measurement {name} = {short(a.tolist())} is not finite; a controller cannot act on "
+                             "NaN or inf measurements - check the sensor reading")
     return a
