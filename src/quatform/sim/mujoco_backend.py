@@ -131,8 +131,8 @@ _UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "fee
                        "wall_gain", "derivative_filter_s")
 
 
-#: How to install the optional extra, run in the quatform checkout (``pip install
-#: quatform[mujoco]`` asks a package index for quatform instead of installing this one).
+#: How to install the optional extra, run in the quatform checkout (the extra named by the
+#: package's name, ``quatform[mujoco]``, is looked up on a package index, not in the checkout).
 INSTALL_HINT = 'pip install -e ".[mujoco]"'
 
 
