@@ -139,7 +139,7 @@ def short_pair():
 
 
 def _texts(fig):
-    out = []
+    out = [""] + [t.get_text() for t in fig.texts]
     for ax in fig.axes:
         out += [""] + [t.get_text() for t in ax.texts] + [ax.get_title(loc) for loc in ("left", "center")]
         if ax.get_legend() is not None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import textwrap
 from itertools import pairwise
 from pathlib import Path
 
@@ -240,7 +241,8 @@ def annotate_render(img, record, ks, project, origin) -> Figure:
         if np.isfinite(uu) and np.isfinite(vv):
             ax.text(uu, vv, f"{name} (1 m)", color=_AXIS_COLORS[i][:3], fontsize=fs * 0.85, ha="center",
                     va="center", fontweight="bold")
-    ax.set_title(time_lapse_title(record, ks), fontsize=fs, loc="left", x=0.01, y=0.99, va="top")
+    fig.text(0.01, 0.99, time_lapse_title(record, ks), fontsize=fs, ha="left", va="top",
+             bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.6})
     handles = _legend_handles(record, ghosts=True)
     handles.append(Line2D([], [], color="0.3", lw=2, label="axes: 1 m each (x red, y green, z blue)"))
     ax.legend(handles=handles, loc="upper right", fontsize=fs * 0.8, framealpha=0.85)
@@ -300,7 +302,8 @@ def time_lapse_figure(record, n_snapshots: int = 9, note: str = "", width: int =
     handles += [Line2D([], [], color="0.5", marker="o", ls="none", alpha=0.4, label="earlier poses (lighter)"),
                 Line2D([], [], color="0.2", marker="o", ls="none", label="last pose")]
     ax.legend(handles=handles, loc="upper right", fontsize=8)
-    ax.set_title(time_lapse_title(record, ks, f"\n(picture: matplotlib{note})"), fontsize=10, loc="left")
+    note = textwrap.fill(f"(picture: matplotlib{note})", width=max(40, int(width / 8)))
+    fig.text(0.02, 0.98, time_lapse_title(record, ks, "\n" + note), fontsize=10, ha="left", va="top")
     return fig
 
 
