@@ -160,7 +160,7 @@ def render_time_lapse(record, path, n_snapshots: int = 9, width: int = 1200, hei
     names = list(record.robots)
     pts = _finite_points(record)
     origin = _triad_origin(pts, _floor_height(model), azimuth, elevation)
-    cam = _camera_for(np.vstack([pts, origin]), mj, azimuth=azimuth, elevation=elevation)
+    cam = _camera_for(np.vstack([pts, origin, origin + 1.1 * np.eye(3)]), mj, azimuth=azimuth, elevation=elevation)
     fovy = float(model.vis.global_.fovy)
     opt = mj.MjvOption()
     pert = mj.MjvPerturb()
@@ -231,8 +231,16 @@ def annotate_render(img, record, ks, project, origin) -> Figure:
     t = np.asarray(record.t)
     first = np.asarray(next(iter(record.robots.values())), dtype=float)
     u, v = project(first[ks] + [0.0, 0.0, 0.3])
-    for (uu, vv), label in _time_labels(np.c_[u, v], t[ks], 3.5 * fs):
+    px = 0.85 * fs * dpi / 72.0  # the labels' font size in pixels
+    placed = []  # boxes (u0, u1, v0, v1) of the labels drawn so far
+    for (uu, vv), label in _time_labels(np.c_[u, v], t[ks], 1.5 * px):
+        half, tall = 0.3 * px * len(label) + 4, 1.5 * px
+        for _ in range(8):  # lift a label off the ones it would cover
+            if not any(uu - half < b[1] and uu + half > b[0] and vv - tall < b[3] and vv > b[2] for b in placed):
+                break
+            vv -= tall
         if 0 <= uu <= w and 0 <= vv <= h:
+            placed.append((uu - half, uu + half, vv - tall, vv))
             ax.text(uu, vv, label, fontsize=fs * 0.85, ha="center", va="bottom",
                     bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "0.6", "alpha": 0.8})
     tips = origin + 1.08 * np.eye(3)
