@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from quatform.errors import MissingDependencyError
+from quatform.errors import InvalidInputError, MissingDependencyError
 from quatform.sim.mujoco_backend import INSTALL_HINT, import_mujoco
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -127,6 +127,10 @@ def test_given_gains_and_controller_objects_are_recorded():
     assert rec.gains == {"k_dw": [0.5, 0.5, 0.5], "feedforward": True} and rec.gains_source == "argument"
     _, rec = simulate_physics(sc, sc.controller("dual-quaternion"))
     assert rec.gains["k_dw"] == [15.0, 15.0, 15.0] and rec.gains_source == "controller"
+    with pytest.raises(InvalidInputError, match="k_w.*k_dw"):
+        simulate_physics(sc, "dual-quaternion", gains={"k_w": [1, 1, 1]})
+    with pytest.raises(InvalidInputError, match="compensation"):
+        simulate_ugv_uav_physics(load_scenario("marciano-circle"), compensation="no")
 
 
 # -- item 4: annotated pictures ----------------------------------------------------------------

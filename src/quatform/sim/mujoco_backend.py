@@ -498,8 +498,12 @@ def simulate_physics(scenario, controller, feedforward: bool = True, progress=No
             gains, source = physics_gains(scenario, controller)
         else:
             source = "argument"
-        ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
-            controller, feedforward)
+        try:
+            ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
+                controller, feedforward)
+        except TypeError as exc:  # an unknown gain name
+            raise InvalidInputError(f"simulate_physics: gains {gains!r} for {controller}: {exc}; use the "
+                                    f"controller's gain names ({', '.join(TABLE1[controller])})") from None
     else:
         if gains is not None:
             raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
@@ -579,6 +583,9 @@ def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIE
         return state(), plant
 
     bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)
+    if compensation is not None and not isinstance(compensation, bool | np.bool_):
+        raise InvalidInputError(f"simulate_ugv_uav_physics: compensation must be true, false or None (the "
+                                f"scenario's), got {compensation!r}")
     options = dict(controller_options, **({} if compensation is None else {"compensation": bool(compensation)}))
     ctrl = sc.controller(formation, bebop=bebop, **options)  # the one simulate_ugv_uav builds: its gains
     used = {n: _plain(getattr(ctrl, n)) for n in _UGV_UAV_GAIN_NAMES if hasattr(ctrl, n)}
