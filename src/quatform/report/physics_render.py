@@ -17,6 +17,7 @@ the MuJoCo scene, axes in m in matplotlib's).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import textwrap
@@ -50,13 +51,14 @@ def _finite_points(record) -> np.ndarray:
     return pts[np.abs(pts).max(axis=1) < 1e3]
 
 
-def time_lapse_title(record, ks, fallback: str = "") -> str:
-    """``"MuJoCo physics - <scenario>: <controller> controller"`` and the poses' times."""
+def time_lapse_title(record, ks, extra: str = "") -> str:
+    """``"MuJoCo physics - <scenario>: <controller> controller"``, the poses' times (samples
+    ``ks`` of the record) and ``extra``."""
     t = np.asarray(record.t)
     what = record.title or "physics run"
     step = f", every {t[ks[1]] - t[ks[0]]:.3g} s" if len(ks) > 1 else ""
     head = f"{record.backend_label} - {what}"
-    return f"{head}\n{len(ks)} poses at t = {t[ks[0]]:.3g} to {t[ks[-1]]:.3g} s{step}{fallback}"
+    return f"{head}\n{len(ks)} poses at t = {t[ks[0]]:.3g} to {t[ks[-1]]:.3g} s{step}{extra}"
 
 
 def _legend_handles(record, ghosts: bool):
@@ -322,8 +324,6 @@ def render_or_fallback(record, run, path, **kw) -> tuple[Path, str]:
     ``run`` (the run the record belongs to) names the picture where the record does not.
     """
     if not record.title and run is not None:
-        import dataclasses
-
         label = getattr(getattr(run, "controller", None), "name", None)
         what = f"{label} controller" if label else f"{getattr(run, 'formation', '?')} formation"
         record = dataclasses.replace(record, title=f"{run.scenario.name}: {what}")
