@@ -71,10 +71,12 @@ IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 #: ~1 1/s ring (Table 1's k_d = 20 limit-cycles ``d_c`` by ~0.8 m at ~0.5 Hz). Seed 000
 #: Table 2 (§4.2) is what the paper flew on the Gazebo IRIS, gains 0.02-1 1/s; they are
 #: made for the slow helix (time constants up to 50 s) and are kept for it. These sit
-#: between the two: each controller's fastest gains that settle the 180 deg formation yaw
-#: step of ``mas-kitts-yaw-step`` (seed 000 Fig. 4) without ringing, found by a grid search
-#: on this physics model (``docs/physics.md``, "Gains on physics"); the centroid gains are
-#: 1 1/s. Seed 000 Table 2 and a scenario's own ``[gains]`` reach the physics unchanged.
+#: between the two: for each controller the gains that best settle the 180 deg formation
+#: yaw step of ``mas-kitts-yaw-step`` (seed 000 Fig. 4) by ``metrics_from_s`` without
+#: ringing, found by a grid search on this physics model (``docs/physics.md``, "Gains on
+#: physics": the dual-quaternion controller still misses it by a little); the centroid
+#: gains are 1 1/s. Seed 000 Table 2 and a scenario's own ``[gains]`` reach the physics
+#: unchanged.
 PHYSICS_GAINS = {
     "cluster-space": {"k": [1.0, 1.0, 1.0, 0.55, 0.55, 5.0, 1.5, 1.5]},  # (x, y, z, beta, gamma, d, phi1, phi2)
     "robot-space": {"k": [1.5, 1.5, 1.5, 2.0, 2.0, 1.5, 1.5, 1.5]},  # Table 1 capped at 2 1/s
