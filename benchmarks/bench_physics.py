@@ -21,6 +21,7 @@ import numpy as np
 from _common import fmt, machine_description, optional_import
 
 from quatform.sim import load_scenario, simulate
+from quatform.sim.mujoco_backend import INSTALL_HINT
 
 
 def best_of(fn, repeat):
@@ -63,7 +64,7 @@ def main(argv=None):
     for name, wall in rows:
         print(f"| {name} | {fmt(wall)} | {fmt(args.duration / wall)} |")
     if mj is None:
-        print("\n(mujoco not installed: pip install quatform[mujoco])")
+        print(f"\n(mujoco not installed: {INSTALL_HINT} in the quatform checkout)")
     return np.array([w for _, w in rows])
 
 

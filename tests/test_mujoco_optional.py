@@ -31,8 +31,8 @@ def test_quatform_imports_without_mujoco_and_names_the_extra(tmp_path):
     out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "run")], capture_output=True, text=True, check=False,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    assert "MESSAGE:" in out.stdout and "pip install quatform[mujoco]" in out.stdout
-    assert "RC: 2" in out.stdout and "pip install quatform[mujoco]" in out.stderr
+    assert "MESSAGE:" in out.stdout and "pip install -e \".[mujoco]\"" in out.stdout
+    assert "RC: 2" in out.stdout and "pip install -e \".[mujoco]\"" in out.stderr
 
 
 def test_importing_quatform_does_not_import_mujoco():

@@ -3,7 +3,7 @@
 Sim layer. MuJoCo is optional: it is imported only when a physics run starts
 (:func:`import_mujoco`), never when quatform is imported; without it a physics run
 raises :class:`~quatform.errors.MissingDependencyError` naming
-``pip install quatform[mujoco]``.
+``pip install -e ".[mujoco]"`` (run in the quatform checkout: :data:`INSTALL_HINT`).
 
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
@@ -19,6 +19,7 @@ raises :class:`~quatform.errors.MissingDependencyError` naming
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sys
@@ -28,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..control import Reference
+from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
 from ..errors import InvalidInputError, MissingDependencyError, NonFiniteError
 from ..formations import EuclideanPair, RobotSpace
 from ..references import sample_reference
@@ -48,8 +49,12 @@ from ..robots.physics import (
 from .loop import PerfectMeasurement, closed_loop
 from .runner import Run
 
-__all__ = ["IRIS_IDENTIFIED_K", "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco",
-           "physics_timestep", "simulate_physics", "simulate_ugv_uav_physics"]
+__all__ = ["BACKEND_LABEL", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "ContactMonitor", "PhysicsRecord",
+           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "simulate_physics",
+           "simulate_ugv_uav_physics"]
+
+#: How figures and tables name this backend (``PhysicsRecord.backend_label``).
+BACKEND_LABEL = "MuJoCo physics"
 
 #: ``K1..K8`` of seed 001 eq. (3.11) identified from the simulated IRIS in Bebop-like
 #: attitude mode by :func:`identify_k` (steps and chirps, least squares; see
@@ -57,6 +62,80 @@ __all__ = ["IRIS_IDENTIFIED_K", "ContactMonitor", "PhysicsRecord", "PhysicsWorld
 #: loop's gain and full scale, K7, K8 from the yaw-rate loop's; only K2 = K4 (rotor drag over
 #: mass) is a physical result.
 IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
+
+#: Seed 000 gains for two IRIS quadrotors, used by :func:`simulate_physics` where a
+#: scenario asks for Table 1 (seed 000 §4.1: kinematic MATLAB robots). Table 1's loops are
+#: up to 20 1/s fast; the quadrotor follows a velocity command through its PX4-like PI
+#: velocity loop (1.8, 0.4: a lag of ~0.55 s), so a proportional outer loop on it has a
+#: decay rate of at most ~1/(2 x 0.55 s) = 0.9 1/s whatever its gain, and gains well above
+#: ~1 1/s ring (Table 1's k_d = 20 limit-cycles ``d_c`` by ~0.8 m at ~0.5 Hz). Seed 000
+#: Table 2 (§4.2) is what the paper flew on the Gazebo IRIS, gains 0.02-1 1/s; they are
+#: made for the slow helix (time constants up to 50 s) and are kept for it. These sit
+#: between the two: for each controller the gains that best settle the 180 deg formation
+#: yaw step of ``mas-kitts-yaw-step`` (seed 000 Fig. 4) by ``metrics_from_s`` without
+#: ringing, found by a grid search on this physics model (``docs/physics.md``, "Gains on
+#: physics": the dual-quaternion controller still misses it by a little); the centroid
+#: gains are 1 1/s. Seed 000 Table 2 and a scenario's own ``[gains]`` reach the physics
+#: unchanged.
+PHYSICS_GAINS = {
+    "cluster-space": {"k": [1.0, 1.0, 1.0, 0.55, 0.55, 5.0, 1.5, 1.5]},  # (x, y, z, beta, gamma, d, phi1, phi2)
+    "robot-space": {"k": [1.5, 1.5, 1.5, 2.0, 2.0, 1.5, 1.5, 1.5]},  # Table 1 capped at 2 1/s
+    "quaternion": {"k_x": [1.0, 1.0, 1.0], "k_d": 5.0, "k_w": [1.3, 1.3, 1.3]},
+    "dual-quaternion": {"k_dw": [3.0, 3.0, 1.3]},  # (x, y, z) parts: z turns the yaw, x, y hold the shape
+}
+
+#: ``gains_source`` of a physics run: where its gains came from.
+GAINS_SOURCES = {
+    "physics": "quatform's PHYSICS_GAINS for the MuJoCo IRIS, in place of the scenario's seed 000 Table 1",
+    "table2": "seed 000 Table 2 (the paper's ROS/Gazebo IRIS gains), as the scenario asks",
+    "scenario": "the scenario's gains (its [gains] over the controller's defaults)",
+    "argument": "the gains passed to the physics run",
+    "controller": "the controller object passed to the physics run",
+}
+
+
+def _plain(value):
+    """A gain as JSON-ready numbers (float or list of floats; bools stay bools)."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    a = np.asarray(value, dtype=float)
+    return a.tolist() if a.ndim else float(a)
+
+
+def _same_gains(a: dict, b: dict) -> bool:
+    return set(a) == set(b) and all(np.shape(a[k]) == np.shape(b[k]) and
+                                    np.array_equal(np.asarray(a[k], float), np.asarray(b[k], float)) for k in a)
+
+
+def physics_gains(scenario, controller: str) -> tuple[dict, str]:
+    """The gains a physics run of ``scenario`` gives ``controller``, and their source.
+
+    A scenario on seed 000 Table 1 (made for kinematic robots) gets :data:`PHYSICS_GAINS`
+    (``"physics"``); Table 2 (``"table2"``) and any other gains (``"scenario"``) are used
+    as the scenario gives them. Returns ``(gains, source)``: keyword arguments of the
+    controller class and a key of :data:`GAINS_SOURCES`.
+    """
+    if controller not in CONTROLLERS:
+        raise InvalidInputError(f"unknown controller {controller!r}; choose one of {', '.join(CONTROLLERS)}")
+    given = dict(scenario.gains.get(controller, {}))
+    if _same_gains(given, TABLE1[controller]):
+        return {k: list(v) if isinstance(v, list) else v for k, v in PHYSICS_GAINS[controller].items()}, "physics"
+    return given, "table2" if _same_gains(given, TABLE2[controller]) else "scenario"
+
+
+def _controller_gains(ctrl) -> dict:
+    """The gains a seed 000 controller (a dataclass) runs with: its init fields but the team."""
+    return {f.name: _plain(getattr(ctrl, f.name)) for f in dataclasses.fields(ctrl) if f.init and f.name != "team"}
+
+
+#: The settings of a seed 001 controller that shape its commands (seed 001 §5, eq. (4.47)).
+_UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "feedforward", "wall_margin",
+                       "wall_gain", "derivative_filter_s")
+
+
+#: How to install the optional extra, run in the quatform checkout (the extra named by the
+#: package's name, ``quatform[mujoco]``, is looked up on a package index, not in the checkout).
+INSTALL_HINT = 'pip install -e ".[mujoco]"'
 
 
 def import_mujoco():
@@ -76,7 +155,7 @@ def import_mujoco():
         if exc.name == "mujoco":  # the package itself is missing
             raise MissingDependencyError(
                 f"the MuJoCo physics backend needs the optional package 'mujoco' ({exc}); "
-                "install it with: pip install quatform[mujoco]"
+                f"install it from the quatform checkout with: {INSTALL_HINT}"
             ) from None
         failure = exc  # something mujoco imports for its OpenGL (PyOpenGL, libEGL, ...)
     except Exception as exc:  # noqa: BLE001 - mujoco loads the chosen OpenGL at import
@@ -95,7 +174,7 @@ def import_mujoco():
     except ImportError as exc:
         raise MissingDependencyError(
             f"the MuJoCo physics backend could not import 'mujoco' even without rendering ({exc}; first: "
-            f"{failure}); reinstall it with: pip install quatform[mujoco]"
+            f"{failure}); reinstall it from the quatform checkout with: {INSTALL_HINT}"
         ) from None
     return mujoco
 
@@ -376,6 +455,14 @@ class PhysicsRecord:
         :meth:`ContactMonitor.summary`.
     timestep : float
         The physics step, s.
+    gains : dict
+        The controller's gains and settings in this run (JSON-ready).
+    gains_source : str
+        Where they came from: a key of :data:`GAINS_SOURCES`.
+    title : str
+        The scenario and controller or formation, for the pictures.
+    backend_label : str
+        How figures name the backend (:data:`BACKEND_LABEL`).
     """
 
     xml: str
@@ -384,17 +471,46 @@ class PhysicsRecord:
     robots: dict
     collisions: dict
     timestep: float
+    gains: dict = field(default_factory=dict)
+    gains_source: str = ""
+    title: str = ""
+    backend_label: str = BACKEND_LABEL
+
+    def metrics(self) -> dict:
+        """The keys a physics run adds to ``metrics.json`` beside the errors: ``gains``,
+        ``gains_source`` (and its meaning, ``gains_source_note``) and ``physics_timestep_s``."""
+        return {"gains": self.gains, "gains_source": self.gains_source,
+                "gains_source_note": GAINS_SOURCES.get(self.gains_source, ""), "physics_timestep_s": self.timestep}
 
 
 def simulate_physics(scenario, controller, feedforward: bool = True, progress=None,
-                     cascade_options: dict | None = None):
+                     cascade_options: dict | None = None, gains: dict | None = None):
     """Run a seed 000 scenario on two simulated IRIS quadrotors; returns ``(Run, PhysicsRecord)``.
 
     The formation controller runs every ``scenario.dt_s`` on the true robot states (as the
     kinematic run does), sends its ``(v_x, v_y, v_z, yaw rate)`` per robot to each
     quadrotor's PX4-like velocity mode, and the physics advances between ticks.
+
+    ``controller``: a name (its gains from :func:`physics_gains`, or ``gains``: keyword
+    arguments of its class) or a controller object (run as it is). The record says which
+    gains ran (``gains``, ``gains_source``).
     """
-    ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
+    if isinstance(controller, str):
+        if gains is None:
+            gains, source = physics_gains(scenario, controller)
+        else:
+            source = "argument"
+        try:
+            ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
+                controller, feedforward)
+        except TypeError as exc:  # an unknown gain name
+            raise InvalidInputError(f"simulate_physics: gains {gains!r} for {controller}: {exc}; use the "
+                                    f"controller's gain names ({', '.join(TABLE1[controller])})") from None
+    else:
+        if gains is not None:
+            raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
+                                    f"object ({type(controller).__name__} already has its gains)")
+        ctrl, source = controller, "controller"
     F = ctrl.formation
     t = scenario.times
     e_des, _, c_des, cd_des = sample_reference(scenario.path, t, F)
@@ -423,18 +539,22 @@ def simulate_physics(scenario, controller, feedforward: bool = True, progress=No
     run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing)
     q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
     rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
-                        world.contacts.summary(), h)
+                        world.contacts.summary(), h, _controller_gains(ctrl), source,
+                        f"{scenario.name}: {ctrl.name} controller")
     return run, rec
 
 
 # -- seed 001: UGV + quadrotor --------------------------------------------------------------
 def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIED_K, progress=None,
-                             compensation: bool = True):
+                             compensation: bool | None = None, **controller_options):
     """A seed 001 scenario with a Pioneer-like UGV and an IRIS in Bebop-like attitude mode.
 
-    The controller is seed 001's (Fig. 18) with the dynamic compensation (4.47) using
-    ``k`` (default: identified from this quadrotor); the motion capture and odometry are
-    those of :class:`~quatform.sim.ugv_uav.MotionCapture`. Returns ``(UgvUavRun, PhysicsRecord)``.
+    The controller is seed 001's (Fig. 18) with the scenario's ``[gains]`` (all of them:
+    ``compensation = false`` turns the dynamic compensation (4.47) off), its compensation
+    using ``k`` (default: identified from this quadrotor); the motion capture and odometry
+    are those of :class:`~quatform.sim.ugv_uav.MotionCapture`. ``compensation`` (where not
+    None) and ``controller_options`` override the scenario's gains. Returns
+    ``(UgvUavRun, PhysicsRecord)``; the record's ``gains`` are the controller's.
     """
     from .ugv_uav import simulate_ugv_uav
 
@@ -465,14 +585,20 @@ def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIE
         return state(), plant
 
     bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)
-    run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop,
-                           compensation=compensation)
+    if compensation is not None and not isinstance(compensation, bool | np.bool_):
+        raise InvalidInputError(f"simulate_ugv_uav_physics: compensation must be true, false or None (the "
+                                f"scenario's), got {compensation!r}")
+    options = dict(controller_options, **({} if compensation is None else {"compensation": bool(compensation)}))
+    ctrl = sc.controller(formation, bebop=bebop, **options)  # the one simulate_ugv_uav builds: its gains
+    used = {n: _plain(getattr(ctrl, n)) for n in _UGV_UAV_GAIN_NAMES if hasattr(ctrl, n)}
+    run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop, **options)
     world = holder["world"]
     spc = max(1, round(sc.control_period_s / sc.dt_s))  # plant calls per control tick
     q = np.array(holder["qpos"][::spc][:len(run.t)])
     rec = PhysicsRecord(world.xml, run.t[:len(q)], q,
                         {"ugv": np.c_[run.ugv[:, 0:2], np.full(len(run.t), sc.center[2])], "uav": run.uav[:, 0:3]},
-                        world.contacts.summary(), holder["h"])
+                        world.contacts.summary(), holder["h"], used, "argument" if options else "scenario",
+                        f"{sc.name}: {formation} formation")
     return run, rec
 
 
