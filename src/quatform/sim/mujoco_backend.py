@@ -483,13 +483,16 @@ class PhysicsRecord:
                 "gains_source_note": GAINS_SOURCES.get(self.gains_source, ""), "physics_timestep_s": self.timestep}
 
 
-def simulate_physics(scenario, controller, feedforward: bool = True, progress=None,
+def simulate_physics(scenario, controller, feedforward: bool | None = None, progress=None,
                      cascade_options: dict | None = None, gains: dict | None = None):
     """Run a seed 000 scenario on two simulated IRIS quadrotors; returns ``(Run, PhysicsRecord)``.
 
     The formation controller runs every ``scenario.dt_s`` on the true robot states (as the
     kinematic run does), sends its ``(v_x, v_y, v_z, yaw rate)`` per robot to each
     quadrotor's PX4-like velocity mode, and the physics advances between ticks.
+
+    ``feedforward``: ``None`` keeps the scenario's (``scenario.feedforward``), as
+    :func:`quatform.sim.simulate` does.
 
     ``controller``: a name (its gains from :func:`physics_gains`, or ``gains``: keyword
     arguments of its class) or a controller object (run as it is). The record says which
