@@ -28,10 +28,12 @@ from ..robots import Bebop, Pioneer, yaw_matrix
 from .base import Reference
 from .quaternion import quaternion_feedback
 
-__all__ = ["UgvUavController", "UgvUavStep", "MEASURED_NAMES", "COMMAND_NAMES"]
+__all__ = ["UgvUavController", "UgvUavStep", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES"]
 
-MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
-COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
+#: Layout of the 11 measured values the UGV-UAV controller reads.
+UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
+#: Layout of the 6 commands it sends (the Pioneer's, then the Bebop's).
+UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algebra import q_angle_between, q_from_axis_angle, wrap_angle
-from ..control import Reference, UgvUavController
+from ..control import UGV_UAV_COMMAND_NAMES, Reference, UgvUavController
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from ..formations import _geometry as g
@@ -397,9 +397,7 @@ def ugv_uav_timeseries(run: UgvUavRun):
     if run.formation != "spherical":
         add(F.variables, run.c, run.c_des)
     add(SPHERICAL_VARIABLES, run.e, run.e_des, prefix="euclid_")
-    from ..control import COMMAND_NAMES
-
-    names.extend("u_" + n for n in COMMAND_NAMES)
+    names.extend("u_" + n for n in UGV_UAV_COMMAND_NAMES)
     cols.append(run.u)
     names.append("singularity_measure")
     cols.append(run.singularity[:, None])
