@@ -17,6 +17,7 @@ import numpy as np
 
 from ..algebra import q_angle_between, q_from_axis_angle, wrap_angle
 from ..control import UGV_UAV_COMMAND_NAMES, Reference, UgvUavController
+from .. import checks
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from ..formations import _geometry as g
@@ -62,6 +63,9 @@ class UgvUavScenario:
     switch_transient_s: float = 15.0  # after the front -> over switch of §5.3
     uav_start: tuple = (0.0, -0.6, -0.3)  # from the UGV's control point in its frame (x ahead, y left); on the floor
     floor_below_platform_m: float = 0.3  # the UGV's landing platform is z0; the floor is below
+    mocap_dropout_rate: float = 0.0  # probability that a motion-capture frame is lost (NaN)
+    mocap_glitch_rate: float = 0.0  # probability that a frame reads the UAV's marker at the UGV
+    mocap_max_hold_s: float = 0.5  # longest the controller holds the last good frame, then stops
     gains: dict = field(default_factory=dict)
 
     def e_reference(self, t):
@@ -204,6 +208,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     (the physics backend) that starts near ``x0`` (11 values, see ``control.ugv_uav``);
     ``bebop`` and ``controller_options`` go to :meth:`UgvUavScenario.controller`.
     """
+    check_ugv_uav_scenario(sc)
     ctrl = sc.controller(formation, bebop=bebop, **controller_options)
     F = ctrl.formation
     pioneer, bebop = ctrl.pioneer, ctrl.bebop
@@ -353,27 +358,113 @@ def _outside_time(run):
     return float(out.sum() * (run.t[1] - run.t[0]))
 
 
+#: Bounds of the scenario's numbers: ``key: (low, low_open, high, high_open)``.
+_NUMBER_BOUNDS = {
+    "duration_s": (0.0, True, None, False),
+    "r_x": (0.0, True, None, False),
+    "r_y": (0.0, True, None, False),
+    "omega": (None, False, None, False),  # nonzero, checked below
+    "d_c": (0.0, True, None, False),
+    "uav_front_until_s": (0.0, False, None, False),
+    "dt_s": (0.0, True, None, False),
+    "control_period_s": (0.0, True, None, False),  # >= dt_s, checked below
+    "mocap_rate_hz": (0.0, True, None, False),
+    "mocap_noise_m": (0.0, False, None, False),
+    "mocap_noise_rad": (0.0, False, None, False),
+    "mocap_latency_s": (0.0, False, None, False),
+    "odometry_period_s": (0.0, True, None, False),
+    "max_fraction": (0.0, True, 1.0, False),
+    "transient_s": (0.0, False, None, False),
+    "switch_transient_s": (0.0, False, None, False),
+    "floor_below_platform_m": (0.0, False, None, False),
+    "mocap_dropout_rate": (0.0, False, 1.0, True),
+    "mocap_glitch_rate": (0.0, False, 1.0, True),
+    "mocap_max_hold_s": (0.0, True, None, False),
+}
+#: ``[gains]`` keys (keywords of :class:`~quatform.control.UgvUavController`) and how many
+#: numbers each takes (1: a number; n > 1: a number or a list of n), or ``bool``.
+_GAIN_KEYS = {"k_x": 3, "k_d": 1, "k_w": 3, "k_psi": 1, "l_d": 4, "wall_gain": 1, "wall_margin": 1,
+              "derivative_filter_s": 1, "compensation": bool, "feedforward": bool}
+#: Generous costs of one control tick, for :func:`quatform.checks.check_work`: the logs and
+#: the post-processed arrays keep about 200 floats plus the list entries of the loop, and
+#: one plant step of the Pioneer and Bebop models takes well under a millisecond.
+_BYTES_PER_TICK = 4000.0
+_SECONDS_PER_PLANT_STEP = 1e-3
+
+
+def _gains(data, where):
+    g_ = checks.table(data, "gains", where, default={})
+    checks.check_keys(g_, _GAIN_KEYS, where, "[gains]", "see docs/scenarios.md; the keywords of UgvUavController")
+    out = {}
+    for key, n in _GAIN_KEYS.items():
+        if key not in g_:
+            continue
+        if n is bool:
+            out[key] = checks.flag(g_, key, where, place="[gains]")
+        elif isinstance(g_[key], (list, tuple)) and n > 1:
+            out[key] = checks.vector(g_, key, n, where, place="[gains]")
+            for v in out[key]:
+                checks.number({key: v}, key, where, place="[gains]", low=0.0, low_open=key != "wall_margin")
+        else:
+            low_open = key not in ("wall_margin", "derivative_filter_s")
+            out[key] = checks.number(g_, key, where, place="[gains]", low=0.0, low_open=low_open)
+            if n > 1:
+                out[key] = (out[key],) * n
+    return out
+
+
+def _scenario_fields(data, where: str) -> dict:
+    """The keyword arguments of :class:`UgvUavScenario` read from ``data``, each typed and
+    range-checked by :mod:`quatform.checks` (one line naming the key on any mistake)."""
+    fields = UgvUavScenario.__dataclass_fields__
+    checks.check_keys(data, set(fields) | {"kind"}, where)
+    kw = {"name": checks.text(data, "name", where)}
+    for key in ("title", "source"):
+        kw[key] = checks.text(data, key, where, default=fields[key].default)
+    kw["path"] = checks.text(data, "path", where, default=fields["path"].default, choices=("circle", "lemniscate"))
+    for key, (low, low_open, high, high_open) in _NUMBER_BOUNDS.items():
+        default = checks.MISSING if key == "duration_s" else fields[key].default
+        kw[key] = checks.number(data, key, where, default, low=low, low_open=low_open, high=high,
+                                high_open=high_open)
+    if kw["omega"] == 0.0:
+        raise InvalidInputError(f"{where}: omega = 0.0 must be nonzero (rad/s; the path would stand still)")
+    if kw["control_period_s"] < kw["dt_s"]:
+        raise InvalidInputError(f"{where}: control_period_s = {kw['control_period_s']!r} must be >= dt_s = "
+                                f"{kw['dt_s']!r} (the controller runs every whole number of plant steps)")
+    for key in ("center", "uav_start"):
+        kw[key] = checks.vector(data, key, 3, where, default=fields[key].default)
+    if kw["uav_start"][2] < -kw["floor_below_platform_m"]:
+        raise InvalidInputError(
+            f"{where}: uav_start z = {kw['uav_start'][2]!r} m is below the floor (floor_below_platform_m = "
+            f"{kw['floor_below_platform_m']!r}); the UAV starts at or above -floor_below_platform_m")
+    kw["seed"] = checks.integer(data, "seed", where, default=fields["seed"].default, low=0, high=2**63 - 1)
+    kw["gains"] = _gains(data, where)
+    return kw
+
+
+def check_ugv_uav_scenario(sc: UgvUavScenario, where: str | None = None) -> None:
+    """Refuse a scenario (also one changed with :func:`dataclasses.replace`) whose values are
+    out of range, and one whose run cannot fit in memory or the time budget (estimated up
+    front, :func:`quatform.checks.check_work`, naming ``duration_s``)."""
+    where = where or f"scenario {sc.name}"
+    data = {key: getattr(sc, key) for key in UgvUavScenario.__dataclass_fields__}
+    _scenario_fields(data, where)
+    substeps = max(1, int(round(sc.control_period_s / sc.dt_s)))
+    ticks = sc.duration_s / (substeps * sc.dt_s) + 1
+    checks.check_work(where, "duration_s / control_period_s", ticks, bytes_per_step=_BYTES_PER_TICK,
+                      seconds_per_step=(substeps + 1) * _SECONDS_PER_PLANT_STEP,
+                      fix="shorten duration_s or lengthen control_period_s")
+
+
 def ugv_uav_scenario_from_dict(data: dict, where: str) -> UgvUavScenario:
-    """Build a :class:`UgvUavScenario` from parsed TOML (``kind = "ugv-uav"``)."""
-    allowed = set(UgvUavScenario.__dataclass_fields__) - {"gains"}
-    kw = {}
-    for key, value in data.items():
-        if key in ("kind",):
-            continue
-        if key == "gains":
-            if not isinstance(value, dict):
-                raise InvalidInputError(f"{where}: [gains] must be a table")
-            kw["gains"] = dict(value)
-            continue
-        if key not in allowed:
-            raise InvalidInputError(f"{where}: unknown key {key!r}; see docs/scenarios.md")
-        kw[key] = tuple(value) if isinstance(value, list) else value
-    try:
-        sc = UgvUavScenario(**kw)
-        sc.controller("quaternion")
-        sc.e_reference(np.array([0.0]))
-    except TypeError as exc:
-        raise InvalidInputError(f"{where}: {exc}") from None
+    """Build a :class:`UgvUavScenario` from parsed TOML (``kind = "ugv-uav"``).
+
+    Every key is typed and range-checked (``docs/scenarios.md``); an unknown key names the
+    nearest valid one; the run's memory and time are estimated up front.
+    """
+    sc = UgvUavScenario(**_scenario_fields(data, where))
+    check_ugv_uav_scenario(sc, where)
+    sc.controller("quaternion")  # the gains make a controller
     return sc
 
 
