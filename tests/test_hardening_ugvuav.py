@@ -98,3 +98,186 @@ def test_huge_duration_is_refused_up_front_naming_the_key():
         simulate_ugv_uav(sc)
     with pytest.raises(InvalidInputError, match="mocap_noise_m = nan must be finite"):
         simulate_ugv_uav(dataclasses.replace(_load(), mocap_noise_m=float("nan")))
+
+
+# -- item 1: the restricted description refuses what it cannot express ------------------------------
+
+import math  # noqa: E402
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from quatform.control import Reference, UgvUavController  # noqa: E402
+from quatform.errors import UnreachableError  # noqa: E402
+from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical  # noqa: E402
+from quatform.sim.ugv_uav import ugv_uav_metrics  # noqa: E402
+
+
+def test_restricted_refuses_the_uav_below_the_platform_single_and_batch():
+    F = UgvUavRestricted()
+    below = np.array([0.0, 0.0, 0.0, 0.0, 0.3, -0.966])  # the issue's state
+    with pytest.raises(UnreachableError, match=r"z_b - z_p = -0.966 m: the UAV is below the platform.*quaternion"):
+        F.forward(below)
+    above = below * np.array([1, 1, 1, 1, 1, -1])
+    batch = np.stack([above, below, above])
+    with pytest.raises(UnreachableError, match=r"-0.966 m at index \(1,\)"):
+        F.forward(batch)
+    np.testing.assert_allclose(F.inverse(F.forward(above)), above, atol=1e-12)
+    np.testing.assert_array_equal(F.outside(batch), [False, True, False])
+    # a cluster state whose (4.24) has no real root is refused, not clipped to platform level
+    wide = UgvUavRestricted(range_deg=(-90.0, 90.0))
+    with pytest.raises(UnreachableError, match="no real root"):
+        wide.inverse(np.array([[0, 0, 0, 1.0, 0.2, 0.2], [0, 0, 0, 1.0, 1.0, 1.0]]))
+    with pytest.raises(UnreachableError, match="below the platform"):
+        F.from_euclidean(np.array([0, 0, 0, 1.0, 0.3, -0.2]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(d=st.tuples(st.floats(-2, 2), st.floats(-2, 2), st.floats(-2, 2)))
+def test_restricted_forward_and_inverse_agree_on_their_domain(d):
+    F = UgvUavRestricted()
+    r = np.r_[0.1, -0.2, 0.0, np.array([0.1, -0.2, 0.0]) + np.array(d)]
+    if np.linalg.norm(d) < 1e-3:
+        return
+    if F.outside(r):
+        with pytest.raises(UnreachableError):
+            F.forward(r)
+    else:  # every state forward accepts comes back from inverse exactly
+        np.testing.assert_allclose(F.inverse(F.forward(r)), r, atol=1e-9)
+
+
+def _short(name="marciano-circle", **changes):
+    return dataclasses.replace(load_scenario(name), **{"duration_s": 25.0, "dt_s": 0.01, **changes})
+
+
+def test_restricted_run_reports_the_take_off_from_below_the_platform():
+    """The UAV starts on the floor below the platform: outside the restricted description.
+    The controller drives it in robot space until it is inside, and the run says for how long."""
+    run = simulate_ugv_uav(_short(mocap_noise_m=0.002), "restricted")
+    m = ugv_uav_metrics(run)
+    assert run.outside[0] and not run.outside[-1]
+    assert 2.0 <= m["measured_outside_description_s"] <= 8.0
+    assert np.all(np.isnan(run.c[run.outside])) and np.all(np.isfinite(run.c[~run.outside]))
+    assert np.all(np.isnan(run.singularity[UgvUavRestricted().outside(
+        np.c_[run.ugv[:, 0:2], np.zeros(len(run.t)), run.uav[:, 0:3]])]))
+    assert m["nonfinite_commands"] == 0 and not m["reference_lost"]
+    assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
+
+
+# -- item 2: a designed switch of the reference is not a loss ---------------------------------------
+
+def test_front_to_over_switch_is_not_a_lost_reference():
+    # the §5.3 scenario with its switch 35 s earlier (at 25 s, after the 20 s take-off)
+    sc = dataclasses.replace(load_scenario("marciano-front-to-over"), uav_front_until_s=25.0, duration_s=45.0,
+                             dt_s=0.01)
+    m = ugv_uav_metrics(simulate_ugv_uav(sc, "quaternion"))
+    assert not m["reference_lost"] and m["first_lost_time_s"] is None
+    assert m["max_uav_position_error_m_at_switch"] >= 0.4  # the switch itself moves the reference far
+    assert m["max_uav_position_error_m"] <= 0.4
+
+
+# -- item 4: motion-capture dropouts and glitches ---------------------------------------------------
+
+def _overhead_reference():
+    F = UgvUavQuaternion()
+    return Reference(*F.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6)))
+
+
+def test_controller_holds_the_last_good_frame_through_a_dropout_and_a_glitch():
+    ctrl, ref = UgvUavController(), _overhead_reference()
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.1, 0, 0, 0])
+    first = ctrl.compute(0.0, good, ref)
+    assert first.frame == "good" and not first.held
+    dropped = ctrl.compute(0.03, np.full(11, np.nan), ref)
+    assert dropped.frame == "dropped" and dropped.held and dropped.raw_finite
+    np.testing.assert_array_equal(dropped.measured[:7], good[:7])
+    np.testing.assert_allclose(dropped.cluster, first.cluster)
+    glitch = good.copy()
+    glitch[3:6] = [0.0, 0.0, 0.0]  # the UAV's marker read at the UGV
+    res = ctrl.compute(0.06, glitch, ref)
+    assert res.frame == "rejected" and res.held and np.all(np.isfinite(res.commands))
+    jump = good.copy()
+    jump[3] += 1.5  # 1.5 m in 0.09 s: faster than a Bebop flies (K1/K2 = 4.6 m/s, Table 2)
+    assert ctrl.compute(0.09, jump, ref).frame == "rejected"
+    moved = good.copy()
+    moved[3] += 0.1  # 0.1 m in 0.12 s: possible
+    assert ctrl.compute(0.12, moved, ref).frame == "good"
+
+
+def test_controller_stops_safely_after_too_many_bad_frames():
+    ctrl, ref = UgvUavController(max_hold_s=0.2), _overhead_reference()
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.5, 0, 0, 0])
+    ctrl.compute(0.0, good, ref)
+    res = [ctrl.compute(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
+    assert [r.stopped for r in res].index(True) == 7  # 0.24 s after the last good frame
+    assert "no good frame" in res[-1].stop_reason and "max_hold_s = 0.2 s" in res[-1].stop_reason
+    assert res[-1].commands[0] == 0 and res[-1].commands[1] == 0 and res[-1].commands[2] < 0  # braking
+    assert ctrl.compute(0.5, good, ref).stopped  # a good frame does not restart it
+
+
+def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():
+    sc = _short(mocap_noise_m=0.002, mocap_latency_s=0.005, mocap_dropout_rate=0.05, mocap_glitch_rate=0.02)
+    run = simulate_ugv_uav(sc, "quaternion")
+    m = ugv_uav_metrics(run)
+    assert m["mocap_dropped_frames"] >= 10 and m["mocap_rejected_frames"] >= 5
+    assert m["mocap_held_frames"] == m["mocap_dropped_frames"] + m["mocap_rejected_frames"]
+    assert not m["run_stopped"] and m["nonfinite_commands"] == 0 and not m["reference_lost"]
+    assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
+    assert np.all(np.isfinite(run.c)) and np.all(np.isfinite(run.c_continuous))
+
+
+def test_run_that_loses_the_motion_capture_stops_and_says_so():
+    run = simulate_ugv_uav(_short(mocap_dropout_rate=0.9, duration_s=6.0), "quaternion")
+    m = ugv_uav_metrics(run)
+    assert m["run_stopped"] and m["run_stopped_at_s"] <= 6.0
+    assert m["run_stopped_reason"].startswith("motion capture: no good frame")
+    after = run.t > m["run_stopped_at_s"]
+    assert np.all(run.u[after, 0] == 0) and np.all(run.u[after, 1] == 0)  # the UGV stays stopped
+
+
+# -- huge finite positions -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("F", [UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion()], ids=lambda f: f.name)
+def test_huge_positions_are_refused_not_overflowed(F):
+    r = np.array([0, 0, 0, 1e154, 1e154, 1e154])
+    for f in (F.forward, F.jacobian, F.singularity_measure):
+        with pytest.raises(InvalidInputError, match=r"r\[3\] = 1e\+154: a coordinate beyond 1e\+150 m"):
+            f(r)
+    c = np.zeros(F.n_c)
+    c[3] = 1.0 if F.name == "quaternion" else 1e154
+    c[-3 if F.name == "quaternion" else 0] = 1e154
+    with pytest.raises(InvalidInputError, match="beyond 1e\\+150 m"):
+        F.inverse(c)
+    ok = np.array([0, 0, 0, 1e140, 1e140, 1e140]) * (1 if F.name != "restricted" else 1)
+    if F.name != "restricted":
+        assert np.all(np.isfinite(F.forward(ok)))
+
+
+# -- item 6: plots ---------------------------------------------------------------------------------
+
+import quatform.report.ugv_uav_plots as uplots  # noqa: E402
+
+
+def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 0.03
+    y = rng.normal(0.0, 0.002, t.size)  # 2 mm motion-capture noise on a zero error
+    mean, lo, hi = uplots._filtered(t, y, stride=2)
+    assert np.std(mean) <= 0.6e-3  # the line shows the error, not the noise (was the raw samples)
+    assert np.all(lo <= y + 1e-15) and np.all(y <= hi + 1e-15)  # the band holds every sample
+    y[100:110] = np.nan
+    mean, lo, hi = uplots._filtered(t, y)
+    assert np.isfinite(mean[105]) and np.isnan(uplots._filtered(t, np.full(10, np.nan))[0]).all()
+
+
+def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, tmp_path):
+    sc = _short("marciano-front-to-over", uav_front_until_s=5.0, duration_s=12.0, transient_s=2.0)
+    run = simulate_ugv_uav(sc, "restricted")
+    assert run.t.size == 401 and not run.reachable[0] and run.reachable[-1]
+    figs = []
+    monkeypatch.setattr(uplots, "_save", lambda fig, path: figs.append(fig) or path)
+    uplots.write_ugv_uav_run_plots(run, tmp_path)
+    uplots.write_ugv_uav_compare_plots([run], tmp_path)
+    for fig in figs:
+        title = fig._suptitle.get_text() if fig._suptitle is not None else fig.axes[0].get_title()
+        assert "Marciano 2021" in title and "seed 001" not in title
+        assert sum(len(ax.lines) for ax in fig.axes) >= 4  # axes with data, not a text-only figure
