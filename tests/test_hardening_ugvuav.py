@@ -201,6 +201,11 @@ def test_controller_holds_the_last_good_frame_through_a_dropout_and_a_glitch():
     moved = good.copy()
     moved[3] += 0.1  # 0.1 m in 0.12 s: possible
     assert ctrl.compute(0.12, moved, ref).frame == "good"
+    no_odometry = moved.copy()
+    no_odometry[7:11] = np.nan  # the Bebop's own odometry, not the motion capture
+    res = ctrl.compute(0.15, no_odometry, ref)
+    assert res.frame == "good" and not res.held
+    np.testing.assert_array_equal(res.measured, moved)  # the pose read now, the last odometry
 
 
 def test_controller_stops_safely_after_too_many_bad_frames():

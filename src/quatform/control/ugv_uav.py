@@ -200,12 +200,12 @@ class UgvUavController:
         """Classify the motion-capture frame ``m`` (11 values) at time ``t``.
 
         Returns ``(frame, measured)``: ``frame`` is ``"good"``, ``"dropped"`` (a NaN or
-        infinity in it) or ``"rejected"`` (the robots within ``min_separation_m`` of each
+        infinity in the poses, the first 7 values) or ``"rejected"`` (the robots within ``min_separation_m`` of each
         other, or one of them farther from its last good position than its top speed
         allows in the time since, plus ``jump_margin_m``); ``measured`` is ``m`` if good,
         else the last good frame, or None if there is none yet.
         """
-        if not np.all(np.isfinite(m)):
+        if not np.all(np.isfinite(m[0:7])):
             frame = FRAME_DROPPED
         else:
             p_ugv, p_uav = np.array([m[0], m[1], self.z_ugv]), m[3:6]
@@ -219,6 +219,9 @@ class UgvUavController:
                         or np.linalg.norm(m[3:6] - g_[3:6]) > self._top_speed[1] * dt + self.jump_margin_m):
                     frame = FRAME_REJECTED
         if frame == FRAME_GOOD:
+            if not np.all(np.isfinite(m[7:11])):  # the Bebop's odometry: the last finite one, or rest
+                m = np.r_[m[0:7], np.where(np.isfinite(m[7:11]), m[7:11],
+                                           0.0 if self._good is None else self._good[1][7:11])]
             self._good, self._bad_since = (t, m.copy()), None
             return frame, m
         if self._bad_since is None:
