@@ -3,10 +3,19 @@ of the hardening brief has its own test here."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import quatform.control as control
+import quatform.report.ugv_uav_plots as uplots
+from quatform.control import Reference, UgvUavController
+from quatform.errors import InvalidInputError, ResourceLimitError, UnreachableError
+from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from quatform.sim import load_scenario
+from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
 
 
 # -- item 7: the UGV-UAV layouts carry their name ------------------------------------------------
@@ -21,11 +30,6 @@ def test_ugv_uav_layout_names_are_not_the_generic_ones():
 
 # -- items 3 and 5: the scenario loader ------------------------------------------------------------
 
-import dataclasses  # noqa: E402
-
-from quatform.errors import InvalidInputError, ResourceLimitError  # noqa: E402
-from quatform.sim import load_scenario  # noqa: E402
-from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_scenario_from_dict  # noqa: E402
 
 BASE = {"kind": "ugv-uav", "name": "t", "path": "circle", "r_x": 1.0, "r_y": 1.0, "omega": 0.2, "d_c": 1.5,
         "duration_s": 2.0, "gains": {"k_psi": 3.0}}
@@ -102,15 +106,6 @@ def test_huge_duration_is_refused_up_front_naming_the_key():
 
 # -- item 1: the restricted description refuses what it cannot express ------------------------------
 
-import math  # noqa: E402
-
-from hypothesis import given, settings, strategies as st  # noqa: E402
-
-from quatform.control import Reference, UgvUavController  # noqa: E402
-from quatform.errors import UnreachableError  # noqa: E402
-from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical  # noqa: E402
-from quatform.sim.ugv_uav import ugv_uav_metrics  # noqa: E402
-
 
 def test_restricted_refuses_the_uav_below_the_platform_single_and_batch():
     F = UgvUavRestricted()
@@ -141,8 +136,9 @@ def test_restricted_forward_and_inverse_agree_on_their_domain(d):
     if F.outside(r):
         with pytest.raises(UnreachableError):
             F.forward(r)
-    else:  # every state forward accepts comes back from inverse exactly
-        np.testing.assert_allclose(F.inverse(F.forward(r)), r, atol=1e-9)
+    else:  # every state forward accepts comes back from inverse (to rho sqrt(eps) at platform
+        # level, where the root of (4.24) amplifies round-off: 2e-8 m at the 45/45 deg corner)
+        np.testing.assert_allclose(F.inverse(F.forward(r)), r, atol=1e-7)
 
 
 def _short(name="marciano-circle", **changes):
@@ -258,8 +254,6 @@ def test_huge_positions_are_refused_not_overflowed(F):
 
 
 # -- item 6: plots ---------------------------------------------------------------------------------
-
-import quatform.report.ugv_uav_plots as uplots  # noqa: E402
 
 
 def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():

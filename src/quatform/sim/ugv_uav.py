@@ -480,7 +480,7 @@ def _gains(data, where):
         elif isinstance(g_[key], (list, tuple)) and n > 1:
             out[key] = checks.vector(g_, key, n, where, place="[gains]")
             for v in out[key]:
-                checks.number({key: v}, key, where, place="[gains]", low=0.0, low_open=key != "wall_margin")
+                checks.number({key: v}, key, where, place="[gains]", low=0.0, low_open=True)
         else:
             low_open = key not in ("wall_margin", "derivative_filter_s")
             out[key] = checks.number(g_, key, where, place="[gains]", low=0.0, low_open=low_open)
