@@ -101,8 +101,9 @@ def test_quaternion_opposite_to_the_hint_and_the_seed_convention_near_minus_x():
 def test_restricted_refuses_the_platform_level_front_configuration():
     F = UgvUavRestricted()
     front = np.array([0.0, 0.0, 0.0, 0.0, 0.75, 0.0])  # UAV ahead at platform level
-    c = F.forward(front)
-    assert math.degrees(c[5]) == pytest.approx(90.0)
+    with pytest.raises(UnreachableError, match="beta_f = 90.0 deg"):  # issue 12: forward refuses it too
+        F.forward(front)
+    c = np.array([0.0, 0.0, 0.0, 0.75, 0.0, math.pi / 2])  # what (4.13)-(4.18) give there
     with pytest.raises(UnreachableError, match="beta_f = 90.0 deg"):
         F.inverse(c)
     with pytest.raises(UnreachableError, match="outside the restricted"):

@@ -74,7 +74,14 @@ def test_restricted_cannot_fly_ahead_at_platform_level():
     m = ugv_uav_metrics(run)
     assert m["unreachable_reference"] and m["first_unreachable_time_s"] == 0.0
     assert "outside the restricted" in m["unreachable_message"]
-    assert len(run.t) == 0
+    # issue 12: the run goes on; the robots wait (brake) while the reference is outside the
+    # description and join the formation once it is inside (the §5.3 switch at 60 s)
+    assert len(run.t) == int(sc.duration_s / 0.03) + 1
+    assert m["unreachable_reference_s"] == pytest.approx(60.0, abs=1.0)
+    assert np.all(np.isnan(run.c_des[~run.reachable])) and np.all(np.isfinite(run.c_des[run.reachable]))
+    wait = run.t < 55
+    assert np.all(run.uav[wait, 2] < -0.25)  # the UAV stays on the floor
+    assert not m["reference_lost"] and m["max_uav_position_error_m"] < 0.05
 
 
 def _fly(ctrl, ref, ugv, uav, seconds, dt=0.01):

@@ -12,7 +12,7 @@ from .quaternion import (
     dual_quaternion_lyapunov,
     quaternion_lyapunov,
 )
-from .ugv_uav import COMMAND_NAMES, MEASURED_NAMES, UgvUavController, UgvUavStep
+from .ugv_uav import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UgvUavController, UgvUavStep
 
 #: Controller classes by command-line name.
 CONTROLLERS = {
@@ -37,6 +37,6 @@ __all__ = [
     "CONTROLLERS",
     "UgvUavController",
     "UgvUavStep",
-    "MEASURED_NAMES",
-    "COMMAND_NAMES",
+    "UGV_UAV_MEASURED_NAMES",
+    "UGV_UAV_COMMAND_NAMES",
 ]

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra._validate import as_array
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion
 from ..formations import _geometry as g
 from ..formations.base import Formation
@@ -28,16 +28,27 @@ from ..robots import Bebop, Pioneer, yaw_matrix
 from .base import Reference
 from .quaternion import quaternion_feedback
 
-__all__ = ["UgvUavController", "UgvUavStep", "MEASURED_NAMES", "COMMAND_NAMES"]
+__all__ = ["UgvUavController", "UgvUavStep", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES"]
 
-MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
-COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
+#: Layout of the 11 measured values the UGV-UAV controller reads.
+UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
+#: Layout of the 6 commands it sends (the Pioneer's, then the Bebop's).
+UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
+
+
+#: What the controller made of a motion-capture frame (``UgvUavStep.frame``).
+FRAME_GOOD, FRAME_DROPPED, FRAME_REJECTED = "good", "dropped", "rejected"
 
 
 @dataclass(frozen=True)
 class UgvUavStep:
     """What one step computed: ``commands`` (6), ``cluster`` and ``error`` (formation's
-    size), ``robot_rates`` (the 6 world rates of eq. (4.42)), ``raw_finite``, ``stopped``."""
+    size; NaN where the description cannot express the measured robots), ``robot_rates``
+    (the 6 world rates of eq. (4.42)), ``raw_finite``, ``stopped``; ``frame``: the
+    measurement was ``"good"``, ``"dropped"`` (NaN) or ``"rejected"`` (implausible);
+    ``held``: the last good measurement was used instead; ``outside``: the measured robots
+    were outside the formation's description (robot-space control was used);
+    ``measured``: the 11 values the step used (NaN where none was usable)."""
 
     commands: np.ndarray
     cluster: np.ndarray
@@ -45,6 +56,11 @@ class UgvUavStep:
     robot_rates: np.ndarray
     raw_finite: bool
     stopped: bool
+    frame: str = FRAME_GOOD
+    held: bool = False
+    outside: bool = False
+    measured: np.ndarray | None = None
+    stop_reason: str = ""
 
 
 def _positive(values, n, name):
@@ -79,12 +95,23 @@ class UgvUavController:
     derivative_filter_s : float
         Time constant of the first-order filter on the differentiated velocity reference
         ``v_r_dot`` of (4.47) (the thesis differentiates without one; 0 disables it).
+    max_hold_s : float
+        Longest time, s, the last good measurement stands in for dropped (NaN) or rejected
+        frames; beyond it the controller stops both robots (:meth:`emergency_stop`) and
+        says so in ``UgvUavStep.stop_reason``.
+    speed_margin, jump_margin_m : float
+        A frame is implausible when a robot moved farther since the last good frame than
+        ``speed_margin`` times its top speed (the Pioneer's control point:
+        ``hypot(max_v, a max_omega)``; the Bebop: ``|K_u / K_v| max_fraction``) allows, plus
+        ``jump_margin_m`` (the measurement noise), or when the robots are closer than
+        ``min_separation_m``.
     """
 
     def __init__(self, formation: Formation | None = None, k_x=1.0, k_d=1.0, k_w=1.0, k_psi=3.0,
                  l_d=(2.0, 2.0, 1.8, 5.0), compensation=True, feedforward=True, pioneer=None, bebop=None,
                  z_ugv=0.0, arena=((-3.0, 3.0), (-2.0, 2.0), (-0.5, 3.0)), wall_margin=0.3, wall_gain=1.0,
-                 derivative_filter_s=0.1):
+                 derivative_filter_s=0.1, max_hold_s=0.5, speed_margin=1.5, jump_margin_m=0.05,
+                 min_separation_m=0.05):
         self.formation = formation if formation is not None else UgvUavQuaternion()
         self.k_x = _positive(k_x, 3, "k_x")
         self.k_d = float(_positive(k_d, 1, "k_d")[0])
@@ -101,6 +128,13 @@ class UgvUavController:
         self.derivative_filter_s = float(derivative_filter_s)
         if not (self.derivative_filter_s >= 0 and self.wall_margin >= 0):
             raise InvalidInputError("derivative_filter_s and wall_margin must be >= 0")
+        self.max_hold_s = float(_positive(max_hold_s, 1, "max_hold_s")[0])
+        self.speed_margin = float(_positive(speed_margin, 1, "speed_margin")[0])
+        self.jump_margin_m = float(_positive(jump_margin_m, 1, "jump_margin_m")[0])
+        self.min_separation_m = float(_positive(min_separation_m, 1, "min_separation_m")[0])
+        p = self.pioneer
+        self._top_speed = (self.speed_margin * float(np.hypot(p.max_v, p.a * p.max_omega)),
+                           self.speed_margin * float(np.linalg.norm(self.bebop.max_velocity[0:3])))
         self.arena = np.asarray(arena, dtype=float)
         if self.arena.shape != (3, 2) or np.any(self.arena[:, 0] >= self.arena[:, 1]):
             raise InvalidInputError(f"arena must be ((x_min, x_max), (y_min, y_max), (z_min, z_max)), got {arena!r}")
@@ -112,18 +146,24 @@ class UgvUavController:
 
     # -- state: the compensation's derivative and the emergency stop ------------------
     def reset(self):
-        """Forget the previous velocity reference and release the emergency stop."""
+        """Forget the previous velocity reference and measurement; release the emergency stop."""
         self._prev = None
         self._vdot = np.zeros(4)
         self.stopped = False
+        self.stop_reason = ""
+        self._good = None  # (t, measured) of the last good frame
+        self._bad_since = None  # time of the first bad frame of the current run of them
 
-    def emergency_stop(self):
+    def emergency_stop(self, reason: str = "emergency stop"):
         """Halt both robots until :meth:`release`: the UGV stops, the UAV brakes to a hover
         (the compensation law with a zero velocity reference, rate ``L_d``)."""
         self.stopped = True
+        self.stop_reason = reason
 
     def release(self):
         self.stopped = False
+        self.stop_reason = ""
+        self._bad_since = None
         self._prev = None
         self._vdot = np.zeros(4)
 
@@ -156,30 +196,111 @@ class UgvUavController:
         b = self.bebop
         return np.r_[0.0, 0.0, b.saturate((-self.l_d * v + b.k_v * v) / b.k_u)]
 
-    def compute(self, t: float, measured, reference: Reference) -> UgvUavStep:
-        """One step; a measurement with NaN (a lost motion-capture frame) brakes both robots
-        for that step instead of raising, and is reported with ``raw_finite = False``."""
-        F = self.formation
+    def screen(self, t: float, m: np.ndarray):
+        """Classify the motion-capture frame ``m`` (11 values) at time ``t``.
+
+        Returns ``(frame, measured)``: ``frame`` is ``"good"``, ``"dropped"`` (a NaN or
+        infinity in the poses, the first 7 values) or ``"rejected"`` (the robots within ``min_separation_m`` of each
+        other, or one of them farther from its last good position than its top speed
+        allows in the time since, plus ``jump_margin_m``); ``measured`` is ``m`` if good,
+        else the last good frame, or None if there is none yet.
+        """
+        if not np.all(np.isfinite(m[0:7])):
+            frame = FRAME_DROPPED
+        else:
+            p_ugv, p_uav = np.array([m[0], m[1], self.z_ugv]), m[3:6]
+            frame = FRAME_GOOD
+            if np.linalg.norm(p_uav - p_ugv) < self.min_separation_m:
+                frame = FRAME_REJECTED
+            elif self._good is not None:
+                dt = max(t - self._good[0], 0.0)
+                g_ = self._good[1]
+                if (np.hypot(m[0] - g_[0], m[1] - g_[1]) > self._top_speed[0] * dt + self.jump_margin_m
+                        or np.linalg.norm(m[3:6] - g_[3:6]) > self._top_speed[1] * dt + self.jump_margin_m):
+                    frame = FRAME_REJECTED
+        if frame == FRAME_GOOD:
+            if not np.all(np.isfinite(m[7:11])):  # the Bebop's odometry: the last finite one, or rest
+                m = np.r_[m[0:7], np.where(np.isfinite(m[7:11]), m[7:11],
+                                           0.0 if self._good is None else self._good[1][7:11])]
+            self._good, self._bad_since = (t, m.copy()), None
+            return frame, m
+        if self._bad_since is None:
+            self._bad_since = t
+        return frame, (None if self._good is None else self._good[1])
+
+    def _screened(self, t, measured):
+        """``(frame, measured to use or None, held)`` (:meth:`screen`); stops both robots
+        after ``max_hold_s`` without a good frame."""
         m = np.asarray(measured, dtype=float)
         if m.shape != (11,):
             m = as_array(measured, "measured state", 11)
+        frame, used = self.screen(t, m)
+        if frame != FRAME_GOOD and not self.stopped and t - self._bad_since > self.max_hold_s + 1e-9:
+            self.emergency_stop(f"motion capture: no good frame for {t - self._bad_since:.3g} s (more than "
+                                f"max_hold_s = {self.max_hold_s:g} s) from t = {self._bad_since:.6g} s; both robots "
+                                "stopped")
+        if used is None or frame == FRAME_GOOD:
+            return frame, used, False
+        # the pose is held; the Bebop's own odometry is not from the motion capture
+        return frame, np.r_[used[0:7], np.where(np.isfinite(m[7:11]), m[7:11], used[7:11])], True
+
+    def _braking(self, m, c, frame, held=False, outside=False, used=None) -> UgvUavStep:
+        self._prev = None
+        m = np.asarray(m, dtype=float)
+        return UgvUavStep(self._brake(m), c, np.full_like(c, np.nan), np.zeros(6), used is not None,
+                          self.stopped, frame, held, outside, used, self.stop_reason)
+
+    def hold(self, t: float, measured) -> UgvUavStep:
+        """A step without a reference (none the description can express at ``t``): the
+        frame is screened as by :meth:`compute` and both robots brake (the UGV stops, the
+        UAV brakes to a hover, or stays on the floor)."""
+        F = self.formation
+        frame, m, held = self._screened(t, measured)
+        if m is None:
+            return self._braking(measured, np.full(F.n_c, np.nan), frame)
+        r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
+        outside = bool(F.outside(r))
+        c = np.full(F.n_c, np.nan) if outside else F.forward(r)
+        return self._braking(m, c, frame, held, outside, m)
+
+    def compute(self, t: float, measured, reference: Reference) -> UgvUavStep:
+        """One step. A dropped (NaN) or implausible motion-capture frame (:meth:`screen`) is
+        replaced by the last good one for up to ``max_hold_s``; without one, or for longer,
+        both robots brake (then stay stopped, :meth:`emergency_stop`). Robots the
+        description cannot express (the restricted one, the UAV below the platform) are
+        driven in robot space toward the reference's robot positions (seed 000 §3.1)."""
+        F = self.formation
         c_des = as_array(reference.c, "reference.c", F.n_c)
         c_dot = as_array(reference.c_dot, "reference.c_dot", F.n_c)
-        if not np.all(np.isfinite(m)):
-            self._prev = None
-            return UgvUavStep(self._brake(m), np.full(F.n_c, np.nan), np.full(F.n_c, np.nan), np.zeros(6),
-                              False, self.stopped)
+        frame, m, held = self._screened(t, measured)
+        nan_c = np.full(F.n_c, np.nan)
+        if m is None:  # nothing to go on: brake (the odometry's velocities where finite)
+            return self._braking(measured, nan_c, frame)
         r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
-        c = F.forward(r, c_des)
-        err, c_rate = self.cluster_rates(c, c_des, c_dot)
-        x_rate = F.inverse_jacobian_at(c, r) @ c_rate  # (4.42)
+        ff = 1.0 if self.feedforward else 0.0
+        try:
+            c = F.forward(r, c_des)
+            outside = False
+            err, c_rate = self.cluster_rates(c, c_des, c_dot)
+            x_rate = F.inverse_jacobian_at(c, r) @ c_rate  # (4.42)
+        except UnreachableError:
+            # robot-space control (seed 000 §3.1): track INVKIN(c_des) with the position law
+            # of (4.43) on each robot, r_dot = r_dot_des - K_x tanh(r - r_des)
+            c, err, outside = nan_c, nan_c, True
+            r_des = F.inverse(c_des)
+            x_rate = ff * (F.inverse_jacobian_at(c_des, r_des) @ c_dot) - np.r_[self.k_x, self.k_x] * np.tanh(r - r_des)
         finite = bool(np.all(np.isfinite(x_rate)))
         if not finite:
             x_rate = np.zeros(6)
         x_rate = self._keep_inside(m, x_rate)
         if self.stopped:
             self._prev = None
-            return UgvUavStep(self._brake(m), c, err, x_rate, finite, True)
+            return UgvUavStep(self._brake(m), c, err, x_rate, finite, True, frame, held, outside, m,
+                              self.stop_reason)
+        return self._commands(t, m, c, err, x_rate, finite, frame, held, outside)
+
+    def _commands(self, t, m, c, err, x_rate, finite, frame, held, outside) -> UgvUavStep:
+        """Robot commands for the world rates ``x_rate``: (3.5), (3.10), (4.47)-(4.51)."""
         ugv = self.pioneer.saturate(self.pioneer.commands_from_velocity(m[2], x_rate[0:2]))  # (3.5)
         psi_rate = self.k_psi * np.tanh(g.wrap(m[2] - m[6]))  # (4.50)-(4.51), psi_bd = psi_p
         v_r = yaw_matrix(-m[6]) @ np.r_[x_rate[3:6], psi_rate]  # (3.10): A_b^-1 = A_b(-psi)
@@ -196,7 +317,7 @@ class UgvUavController:
             u = b.k_v / b.k_u * v_r
         self._prev = (t, v_r)
         cmd = np.r_[ugv, b.saturate(u)]
-        return UgvUavStep(cmd, c, err, x_rate, finite, False)
+        return UgvUavStep(cmd, c, err, x_rate, finite, False, frame, held, outside, m)
 
     def _keep_inside(self, m, x_rate):
         """Slow velocity components toward an arena wall to ``wall_gain`` times the distance

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..algebra._validate import as_array, as_unit_quaternion
 from ..algebra.operators import jac_qrotate_quaternion, jac_qrotate_vector, qminus, skew
-from ..errors import DegenerateInputError, UnreachableError
+from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import _geometry as g
 from .base import Formation, Variable, quaternion_variables
 
@@ -44,6 +44,20 @@ SPHERICAL_VARIABLES = (
 W_MIN = 1e-3
 #: Below this ratio of horizontal to full separation, alpha_c of eq. (4.5) is undefined.
 OVERHEAD_TOL = 1e-12
+#: Largest coordinate accepted, m: the squared separation of robots farther apart than
+#: ~1.3e154 m overflows float64 (eqs. (4.4), (4.16), (4.27) take its square root).
+MAX_COORD_M = 1e150
+
+
+def _check_magnitude(a, name, what="coordinate"):
+    """Refuse entries beyond :data:`MAX_COORD_M` (their squares would overflow to inf)."""
+    big = np.abs(a) > MAX_COORD_M
+    if np.any(big):
+        idx = tuple(int(i) for i in np.argwhere(big)[0])
+        raise InvalidInputError(
+            f"{name}[{', '.join(map(str, idx))}] = {float(a[idx]):.3g}: a {what} beyond {MAX_COORD_M:.0e} m "
+            "overflows the squared separation (float64); move the origin nearer or use larger units"
+        )
 
 
 def _jacobian_from_gradients(grads):
@@ -58,6 +72,20 @@ def _jacobian_from_gradients(grads):
 
 class _UgvUav(Formation):
     robot_variables = UGV_UAV_VARIABLES
+
+    def check_robot_state(self, r, name="r"):
+        r = super().check_robot_state(r, name)
+        _check_magnitude(r, name)
+        return r
+
+    def check_cluster_state(self, c, name="c"):
+        c = super().check_cluster_state(c, name)
+        _check_magnitude(c, name, "value")
+        return c
+
+    def outside(self, r):
+        """Where the robot state ``r`` (..., 6) is outside the description: a bool array (...)."""
+        return np.zeros(np.shape(r)[:-1], dtype=bool)
 
     def length_scale(self, r):
         r = np.asarray(r)
@@ -118,7 +146,7 @@ class UgvUavSpherical(_UgvUav):
         if np.any(h2 <= (OVERHEAD_TOL * D) ** 2):
             raise DegenerateInputError(
                 "the spherical formation's Jacobian is undefined with the UAV straight above the UGV "
-                "(alpha_c undefined, seed 001 §4.1.1); use the quaternion description"
+                "(alpha_c undefined, Marciano 2021 §4.1.1); use the quaternion description"
             )
         h = np.sqrt(h2)
         z = np.zeros_like(dx)
@@ -157,10 +185,20 @@ class UgvUavSpherical(_UgvUav):
 class UgvUavRestricted(_UgvUav):
     """Eqs. (4.13)-(4.24), with the operating range ``0 <= alpha_f, beta_f <= 45 deg``.
 
+    The description exists only with the UAV at or above the platform: (4.24) takes the
+    positive root, so a UAV ``h`` below would come back ``h`` above (``forward`` reads only
+    ``dx / rho`` and ``dy / rho``, eqs. (4.17)-(4.18)). ``forward`` and ``inverse`` refuse
+    such states, and angles more than ``tolerance_deg`` outside the operating range (the
+    measurement noise about the range's edge at the overhead pose ``alpha_f = beta_f = 0``),
+    with :class:`~quatform.errors.UnreachableError`; ``from_euclidean`` (references) holds
+    them to the range itself.
+
     Parameters
     ----------
     range_deg : tuple of float
         Allowed range of ``alpha_f`` and ``beta_f`` (seed 001 §4.1.2: 0 to 45 deg).
+    tolerance_deg : float
+        How far outside the range measured states are still accepted, deg (1).
     """
 
     name = "restricted"
@@ -169,37 +207,86 @@ class UgvUavRestricted(_UgvUav):
         Variable("rho_f", "m", "length"), Variable("alpha_f", "rad", "angle"), Variable("beta_f", "rad", "angle"),
     )
 
-    def __init__(self, range_deg=(0.0, 45.0)):
-        self.range = tuple(math.radians(x) for x in range_deg)
+    def __init__(self, range_deg=(0.0, 45.0), tolerance_deg=1.0):
+        lo, hi = (float(x) for x in range_deg)
+        if not (-90.0 <= lo < hi <= 90.0) or not (0.0 <= tolerance_deg <= 10.0):
+            raise InvalidInputError(
+                f"restricted description: range_deg = {range_deg!r} must satisfy -90 <= low < high <= 90 and "
+                f"tolerance_deg = {tolerance_deg!r} must be in [0, 10]"
+            )
+        self.range = (math.radians(lo), math.radians(hi))
+        self.tolerance = math.radians(tolerance_deg)
 
-    def check_reachable(self, c, what="state"):
-        """Raise UnreachableError if ``alpha_f`` or ``beta_f`` leaves the operating range."""
+    def _angles_out(self, c, tol):
         lo, hi = self.range
-        tol = 1e-9
-        for i, name in ((4, "alpha_f"), (5, "beta_f")):
-            v = c[..., i]
-            bad = (v < lo - tol) | (v > hi + tol)
-            if np.any(bad):
-                val = float(np.asarray(v)[bad].flat[0])
-                raise UnreachableError(
-                    f"{what}: {name} = {math.degrees(val):.1f} deg is outside the restricted description's "
-                    f"range [{math.degrees(lo):.0f}, {math.degrees(hi):.0f}] deg (seed 001 §4.1.2: the UAV must "
-                    "be above the platform, ahead and to the left within 45 deg); use the quaternion description"
-                )
+        return [(name, (c[..., i] < lo - tol) | (c[..., i] > hi + tol)) for i, name in ((4, "alpha_f"), (5, "beta_f"))]
 
-    def forward(self, r, hint=None):
-        r, d = self._delta(r)
+    @staticmethod
+    def _formulas(r):
+        """Eqs. (4.13)-(4.18) without checks, and ``z_b - z_p``: ``(c (..., 6), dz (...))``."""
+        d = r[..., 3:6] - r[..., 0:3]
         rho = np.linalg.norm(d, axis=-1)
         c = np.empty(r.shape[:-1] + (6,))
         c[..., 0:3] = r[..., 0:3]  # (4.13)-(4.15)
         c[..., 3] = rho  # (4.16)
-        c[..., 4] = np.arcsin(np.clip(d[..., 0] / rho, -1, 1))  # (4.17)
-        c[..., 5] = np.arcsin(np.clip(d[..., 1] / rho, -1, 1))  # (4.18)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c[..., 4] = np.arcsin(np.clip(d[..., 0] / rho, -1, 1))  # (4.17)
+            c[..., 5] = np.arcsin(np.clip(d[..., 1] / rho, -1, 1))  # (4.18)
+        return c, d[..., 2]
+
+    def outside(self, r):
+        """Where ``r`` is outside the description: the UAV below the platform, or an angle more
+        than ``tolerance_deg`` outside the range; a bool array (...). Raises nothing."""
+        c, dz = self._formulas(np.asarray(r, dtype=float))
+        out = dz < 0
+        for _, bad in self._angles_out(c, self.tolerance):
+            out |= bad
+        return out
+
+    @staticmethod
+    def _refuse_below(dz, what, fix):
+        below = dz < 0
+        if np.any(below):
+            idx = tuple(int(i) for i in np.argwhere(np.atleast_1d(below))[0])
+            h = float(np.atleast_1d(dz)[idx])
+            at = f" at index {idx}" if np.ndim(dz) else ""
+            raise UnreachableError(
+                f"{what}: z_b - z_p = {h:.6g} m{at}: the UAV is below the platform, which the "
+                f"restricted description cannot express (eq. (4.24) would put it {-h:.6g} m above; Marciano 2021 "
+                f"§4.1.2); {fix}"
+            )
+
+    def check_reachable(self, c, what="state", tol=1e-9):
+        """Raise UnreachableError if ``alpha_f`` or ``beta_f`` leaves the operating range by
+        more than ``tol`` rad, or (4.24) has no real root (``sin^2 alpha_f + sin^2 beta_f > 1``)."""
+        lo, hi = self.range
+        for name, bad in self._angles_out(c, tol):
+            if np.any(bad):
+                val = float(np.asarray(c[..., 4 if name == "alpha_f" else 5])[bad].flat[0])
+                raise UnreachableError(
+                    f"{what}: {name} = {math.degrees(val):.1f} deg is outside the restricted description's "
+                    f"range [{math.degrees(lo):.0f}, {math.degrees(hi):.0f}] deg (Marciano 2021 §4.1.2: the UAV must "
+                    "be above the platform, ahead and to the left within 45 deg); use the quaternion description"
+                )
+        w2 = 1 - np.sin(c[..., 4]) ** 2 - np.sin(c[..., 5]) ** 2
+        if np.any(w2 < -1e-12):
+            raise UnreachableError(
+                f"{what}: sin^2 alpha_f + sin^2 beta_f = {float(1 - np.min(w2)):.6g} > 1: eq. (4.24) has no real "
+                "root (Marciano 2021 §4.1.2); use the quaternion description"
+            )
+
+    def forward(self, r, hint=None):
+        r, _ = self._delta(r)
+        c, dz = self._formulas(r)  # (4.13)-(4.18)
+        self._refuse_below(dz, "r", "use the spherical or quaternion description")
+        self.check_reachable(c, "r", self.tolerance)
         return c
 
     def inverse(self, c, hint=None):
         c = self.check_cluster_state(c)
-        self.check_reachable(c, "cluster state")
+        if np.any(c[..., 3] <= 0):
+            raise DegenerateInputError(f"rho_f must be positive, got {float(np.min(c[..., 3]))!r}")
+        self.check_reachable(c, "cluster state", self.tolerance)
         sa, sb = np.sin(c[..., 4]), np.sin(c[..., 5])
         r = np.empty(c.shape[:-1] + (6,))
         r[..., 0:3] = c[..., 0:3]  # (4.19)-(4.21)
@@ -240,7 +327,8 @@ class UgvUavRestricted(_UgvUav):
     def from_euclidean(self, e, e_dot=None):
         S = UgvUavSpherical()
         r = S.inverse(e)
-        c = self.forward(r)
+        c, dz = self._formulas(r)
+        self._refuse_below(dz, "reference", "use the quaternion description")
         self.check_reachable(c, "reference")
         if e_dot is None:
             return c

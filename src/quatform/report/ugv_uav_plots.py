@@ -23,6 +23,7 @@ reason instead of axes.
 from __future__ import annotations
 
 import textwrap
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -68,15 +69,51 @@ _XYZ_COLORS = ("C0", "C1", "C2")
 _Q_COLORS = ("C0", "C1", "C2", "C4")
 #: Half-width of the linear band of the symlog error axes.
 _LINTHRESH = 1e-3
+#: Width of the centred moving mean drawn over noisy errors, s (with its min-max envelope).
+FILTER_WINDOW_S = 0.5
+_UNREACHABLE_COLOR = "0.82"
+_PAPER = "Marciano 2021"
 
 
 # --------------------------------------------------------------------------- helpers
 
 
 def _title(run: UgvUavRun) -> str:
+    """``name - ugv-uav-<formation> (Marciano 2021 §..., Figs. ...)`` and the scenario title."""
     sc = run.scenario
-    head = f"{sc.name} - ugv-uav-{run.formation}"
+    paper = sc.source if _PAPER in sc.source else (f"{_PAPER}, {sc.source}" if sc.source else _PAPER)
+    head = f"{sc.name} - ugv-uav-{run.formation} ({paper})"
     return f"{head}\n{sc.title}" if sc.title else head
+
+
+def _filtered(t, y, window_s: float = FILTER_WINDOW_S, stride: int = 1):
+    """Centred moving mean of ``y`` over ``window_s`` and the min-max envelope over the
+    same window (at least ``2 stride + 1`` samples, so a plot decimated by ``stride`` still
+    shows every sample's extent); NaN samples are skipped. Three arrays like ``y``."""
+    y = np.asarray(y, dtype=float)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    half = max(int(round(0.5 * window_s / dt)), 0)
+    half_env = max(half, stride)
+    pad = np.pad(y, max(half, half_env), constant_values=np.nan)
+    windows = np.lib.stride_tricks.sliding_window_view
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows stay NaN
+        off = half_env - half
+        mean = np.nanmean(windows(pad[off:len(pad) - off], 2 * half + 1), axis=-1)
+        env = windows(pad, 2 * half_env + 1)
+        return mean, np.nanmin(env, axis=-1), np.nanmax(env, axis=-1)
+
+
+def _unreachable_spans(run: UgvUavRun):
+    """Intervals where the description could not express the reference (the robots waited)."""
+    if run.reachable is None or run.t.size == 0:
+        return []
+    return _intervals(run.t, ~np.asarray(run.reachable, dtype=bool))
+
+
+def _shade_unreachable(ax, spans):
+    for a, b in spans:
+        ax.axvspan(a, b, color=_UNREACHABLE_COLOR, alpha=0.6, lw=0, zorder=0)
 
 
 def _unreachable_text(run: UgvUavRun) -> str:
@@ -88,6 +125,9 @@ def _unreachable_note(run: UgvUavRun) -> str:
     """Short tag for legends and titles: ``''`` for a run that kept its reference."""
     if run.unreachable_at is None:
         return ""
+    if run.reachable is not None and run.t.size > 1:
+        gone = float((~np.asarray(run.reachable)).sum() * (run.t[1] - run.t[0]))
+        return f"reference unreachable {gone:.3g} s from t = {run.unreachable_at:g} s"
     return f"unreachable from t = {run.unreachable_at:g} s"
 
 
@@ -137,6 +177,7 @@ def _switch_time(run: UgvUavRun):
 
 def _decorate_time_axes(ax, run: UgvUavRun, spans):
     _shade(ax, spans)
+    _shade_unreachable(ax, _unreachable_spans(run))
     ts = _switch_time(run)
     if ts is not None:
         ax.axvline(ts, **_SWITCH_STYLE, zorder=1)
@@ -151,6 +192,9 @@ def _extra_handles(run: UgvUavRun, spans) -> list:
     if spans:
         handles.append(Patch(color=_SINGULAR_COLOR, alpha=0.6,
                              label=f"singular (measure < {SINGULAR_THRESHOLD:g})"))
+    if _unreachable_spans(run):
+        handles.append(Patch(color=_UNREACHABLE_COLOR, alpha=0.6,
+                             label=f"reference outside the {run.formation} description (robots wait)"))
     ts = _switch_time(run)
     if ts is not None:
         handles.append(Line2D([], [], **_SWITCH_STYLE, label=f"UAV front → over (t = {ts:g} s)"))
@@ -323,17 +367,21 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
             ax_e.set_ylabel(f"e({label.split(' ')[0]})\n[m]", fontsize=9)
         ax.set_ylabel(label, fontsize=9)
         e = _finite(err)
-        ax_e.plot(t, e[idx], color="C2", lw=1.1)
+        mean, lo, hi = _filtered(run.t, e, stride=max(1, idx[1] - idx[0]) if len(idx) > 1 else 1)
+        ax_e.fill_between(t, lo[idx], hi[idx], color="C2", alpha=0.25, lw=0)
+        ax_e.plot(t, mean[idx], color="C2", lw=1.1)
         _symlog_error_axis(ax_e, e, nonnegative=(kind == "quaternion"))
     axes[0, 0].set_title(f"{run.formation} cluster variables", fontsize=10)
-    axes[0, 1].set_title(f"errors (symlog, linear within ±{_LINTHRESH:g})", fontsize=10)
+    axes[0, 1].set_title(f"errors (symlog, linear within ±{_LINTHRESH:g}); {FILTER_WINDOW_S:g} s mean",
+                         fontsize=10)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]", fontsize=9)
     handles = [Line2D([], [], **_MEAS_STYLE, label="measured"),
                Line2D([], [], **_DES_STYLE, label="desired"),
-               Line2D([], [], color="C2", lw=1.1, label="error (measured - desired)")]
+               Line2D([], [], color="C2", lw=1.1, label=f"error (measured - desired), {FILTER_WINDOW_S:g} s mean"),
+               Patch(color="C2", alpha=0.25, label=f"error min-max over {FILTER_WINDOW_S:g} s")]
     handles += _extra_handles(run, spans)
-    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 5), fontsize=9,
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 3), fontsize=9,
                frameon=False)
     fig.suptitle(f"{_title(run)}{_subtitle_note(run)}", fontsize=11)
     return _save(fig, path)
@@ -398,7 +446,7 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
     handles = [Line2D([], [], color="k", lw=1.2, ls="-", label="measured"),
                Line2D([], [], color="k", lw=1.0, ls="--", label="desired")]
     handles += _extra_handles(run, spans)
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9,
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 3), fontsize=9,
                frameon=False)
     fig.suptitle(f"{_title(run)}{_subtitle_note(run)}\nrobots", fontsize=11)
     return _save(fig, path)
@@ -461,12 +509,16 @@ def plot_ugv_uav_compare(runs, path) -> Path:
             continue
         idx = _decimate(run.t.size)
         t = run.t[idx]
+        stride = max(1, idx[1] - idx[0]) if len(idx) > 1 else 1
         for row, err in enumerate(_robot_errors(run)):
             if np.isfinite(err).any():
                 peaks[row] = max(peaks[row], float(np.nanmax(err)))
-            axes[row].plot(t, err[idx], color=color, lw=1.1, label=label)
+            mean, lo, hi = _filtered(run.t, err, stride=stride)
+            axes[row].fill_between(t, lo[idx], hi[idx], color=color, alpha=0.2, lw=0)
+            axes[row].plot(t, mean[idx], color=color, lw=1.1, label=label)
         axes[2].plot(t, _wrapped(np.asarray(run.e)[idx, 4]), color=color, lw=1.1, label=label)
         axes[3].plot(t, _finite(run.singularity)[idx], color=color, lw=1.1, label=label)
+    axes[0].set_title(f"position errors: {FILTER_WINDOW_S:g} s moving mean, band: min-max", fontsize=9)
     for row, label in enumerate(("UGV position\nerror [m]", "UAV position\nerror [m]")):
         ax = axes[row]
         ax.set_yscale("symlog", linthresh=_LINTHRESH)
@@ -503,7 +555,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
     fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 3), fontsize=9,
                frameon=False)
     names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
-    fig.suptitle(f"{names} - UGV-UAV descriptions compared", fontsize=11)
+    fig.suptitle(f"{names} - UGV-UAV descriptions compared ({_PAPER})", fontsize=11)
     return _save(fig, path)
 
 

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algebra import q_angle_between, q_from_axis_angle, wrap_angle
-from ..control import Reference, UgvUavController
+from ..control import UGV_UAV_COMMAND_NAMES, Reference, UgvUavController
+from .. import checks
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from ..formations import _geometry as g
@@ -62,6 +63,9 @@ class UgvUavScenario:
     switch_transient_s: float = 15.0  # after the front -> over switch of §5.3
     uav_start: tuple = (0.0, -0.6, -0.3)  # from the UGV's control point in its frame (x ahead, y left); on the floor
     floor_below_platform_m: float = 0.3  # the UGV's landing platform is z0; the floor is below
+    mocap_dropout_rate: float = 0.0  # probability that a motion-capture frame is lost (NaN)
+    mocap_glitch_rate: float = 0.0  # probability that a frame reads the UAV's marker at the UGV
+    mocap_max_hold_s: float = 0.5  # longest the controller holds the last good frame, then stops
     gains: dict = field(default_factory=dict)
 
     def e_reference(self, t):
@@ -114,8 +118,16 @@ class UgvUavRun:
     recovered from the measurements, each sample continued from the previous); ``e``,
     ``e_des`` (spherical variables recovered through the formation, and desired);
     ``u`` (6); ``raw_finite``; ``singularity``; ``unreachable_at`` (first time the
-    reference left the description's reachable set, or None); ``uav_model_k``: the
-    ``K1..K8`` of eq. (3.11) the controller's UAV model (its compensation (4.47)) used."""
+    reference left the description's reachable set, or None); ``reachable``: per sample,
+    whether it could express the reference (elsewhere the robots wait, braking, and
+    ``c_des`` is NaN); ``uav_model_k``: the
+    ``K1..K8`` of eq. (3.11) the controller's UAV model (its compensation (4.47)) used;
+    ``mocap_frame``: per sample 0 (good), 1 (dropped, NaN) or 2 (rejected as implausible);
+    ``held``: the controller used the last good frame instead; ``outside``: the measured
+    robots were outside the description; ``stopped_at``, ``stop_reason``: when and why the
+    controller stopped both robots (too long without a good frame), or None.
+    ``measured`` holds the robot positions the controller used (held frames repeated; NaN
+    where it had none)."""
 
     scenario: UgvUavScenario
     formation: str
@@ -134,24 +146,32 @@ class UgvUavRun:
     unreachable_message: str = ""
     c_continuous: np.ndarray | None = None
     uav_model_k: tuple | None = None
+    mocap_frame: np.ndarray | None = None
+    held: np.ndarray | None = None
+    outside: np.ndarray | None = None
+    stopped_at: float | None = None
+    stop_reason: str = ""
+    reachable: np.ndarray | None = None
 
 
-def _reachable_prefix(F, e, ed, t):
-    """Cluster references for as long as the description can express them."""
+def _reachable(F, e, ed, t):
+    """Cluster references and rates where the description can express them (NaN rows
+    elsewhere), the mask of those samples, the first time it cannot, and why."""
     try:
         c, cd = F.from_euclidean(e, ed)
-        return c, cd, None, ""
+        return c, cd, np.ones(len(t), dtype=bool), None, ""
     except UnreachableError as exc:
-        ok = np.ones(len(t), dtype=bool)
-        for k in range(len(t)):
-            try:
-                F.from_euclidean(e[k])
-            except UnreachableError:
-                ok[k] = False
-                break
-        n = int(np.argmin(ok)) if not ok.all() else len(t)
-        c, cd = F.from_euclidean(e[:n], ed[:n]) if n else (np.zeros((0, F.n_c)), np.zeros((0, F.n_c)))
-        return c, cd, float(t[n]), str(exc)
+        message = str(exc)
+    ok = np.ones(len(t), dtype=bool)
+    for k in range(len(t)):
+        try:
+            F.from_euclidean(e[k])
+        except UnreachableError:
+            ok[k] = False
+    c, cd = np.full((len(t), F.n_c), np.nan), np.full((len(t), F.n_c), np.nan)
+    if ok.any():
+        c[ok], cd[ok] = F.from_euclidean(e[ok], ed[ok])
+    return c, cd, ok, float(t[np.argmin(ok)]), message
 
 
 class MotionCapture:
@@ -162,15 +182,22 @@ class MotionCapture:
     (rotated by a random angle of standard deviation ``noise_rad``) from which the yaw is
     read; the Bebop's body velocity comes from its own odometry every ``odometry_period_s``
     (200 ms). ``read`` returns the controller's 11 values (see ``control.ugv_uav``).
+    Faults for testing: each frame is lost (all NaN) with probability ``dropout_rate``, or
+    else reads the UAV's marker at the UGV (at height ``ugv_z``) with ``glitch_rate``.
     """
 
     def __init__(self, rate_hz=100.0, noise_m=0.0, noise_rad=0.0, latency_s=0.0, odometry_period_s=0.2,
-                 seed=0):
-        if not (rate_hz > 0 and noise_m >= 0 and noise_rad >= 0 and latency_s >= 0 and odometry_period_s > 0):
-            raise InvalidInputError("motion capture: rate_hz, odometry_period_s > 0 and noise, latency >= 0")
+                 seed=0, dropout_rate=0.0, glitch_rate=0.0, ugv_z=0.0):
+        if not (rate_hz > 0 and noise_m >= 0 and noise_rad >= 0 and latency_s >= 0 and odometry_period_s > 0
+                and 0 <= dropout_rate < 1 and 0 <= glitch_rate < 1):
+            raise InvalidInputError("motion capture: rate_hz, odometry_period_s > 0, noise, latency >= 0 and "
+                                    "dropout_rate, glitch_rate in [0, 1)")
         self.rate, self.noise_m, self.noise_rad = rate_hz, noise_m, noise_rad
         self.latency, self.odo = latency_s, odometry_period_s
         self.rng = np.random.default_rng(seed)
+        # faults from their own stream, so the noise is the same with and without them
+        self.dropout_rate, self.glitch_rate, self.ugv_z = dropout_rate, glitch_rate, ugv_z
+        self.fault_rng = np.random.default_rng([seed, 1])
         self.history = History(latency_s + odometry_period_s + 1.0)
         self._frame_t, self._pose = None, None
 
@@ -191,6 +218,10 @@ class MotionCapture:
             noise = self.rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
             self._pose = np.r_[x[0:2] + noise[0:2], self._orientation(x[2]), x[3:6] + noise[2:5],
                                self._orientation(x[6])]
+            if self.dropout_rate > 0 and self.fault_rng.random() < self.dropout_rate:
+                self._pose[:] = np.nan  # a lost frame
+            elif self.glitch_rate > 0 and self.fault_rng.random() < self.glitch_rate:
+                self._pose[3:6] = [self._pose[0], self._pose[1], self.ugv_z]  # the UAV's marker read at the UGV
             self._frame_t = frame_t
         odo_t = math.floor(t / self.odo + 1e-9) * self.odo
         return np.r_[self._pose, self.history.at(odo_t)[7:11]]
@@ -204,6 +235,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     (the physics backend) that starts near ``x0`` (11 values, see ``control.ugv_uav``);
     ``bebop`` and ``controller_options`` go to :meth:`UgvUavScenario.controller`.
     """
+    check_ugv_uav_scenario(sc)
     ctrl = sc.controller(formation, bebop=bebop, **controller_options)
     F = ctrl.formation
     pioneer, bebop = ctrl.pioneer, ctrl.bebop
@@ -211,7 +243,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     n_ctrl = int(sc.duration_s / (steps_per_control * sc.dt_s)) + 1
     t_ctrl = np.arange(n_ctrl) * steps_per_control * sc.dt_s
     e_des, ed_des = sc.e_reference(t_ctrl)
-    c_des, cd_des, unreachable_at, message = _reachable_prefix(F, e_des, ed_des, t_ctrl)
+    c_des, cd_des, reachable, unreachable_at, message = _reachable(F, e_des, ed_des, t_ctrl)
     n = len(c_des)
     # initial state: the UGV on the path heading along it, the UAV on the ground at
     # uav_start in the UGV's frame (x ahead, y to its left): (0, -0.6) is 0.6 m to its right
@@ -233,24 +265,45 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
         x0, plant = plant_factory(x0, floor)
 
     mocap = MotionCapture(sc.mocap_rate_hz, sc.mocap_noise_m, sc.mocap_noise_rad, sc.mocap_latency_s,
-                          sc.odometry_period_s, sc.seed)
-    log = closed_loop(t_ctrl[:n], steps_per_control, sc.dt_s, x0, plant, mocap, ctrl.compute,
-                      lambda k: Reference(c_des[k], cd_des[k]), progress)
+                          sc.odometry_period_s, sc.seed, sc.mocap_dropout_rate, sc.mocap_glitch_rate, sc.center[2])
+    steps = []  # what the controller made of each frame (the loop logs the raw frame)
+
+    def compute(t, m, k):
+        # where the description cannot express the reference, the robots wait (brake)
+        res = ctrl.compute(t, m, Reference(c_des[k], cd_des[k])) if reachable[k] else ctrl.hold(t, m)
+        steps.append(res)
+        return res
+
+    log = closed_loop(t_ctrl[:n], steps_per_control, sc.dt_s, x0, plant, mocap, compute, lambda k: k, progress)
     ugv_log, uav_log = log.states[:, 0:3], log.states[:, 3:11]
 
     r_true = np.c_[ugv_log[:, 0:2], np.full(n, sc.center[2]), uav_log[:, 0:3]]
     c_log = log.cluster.reshape(n, F.n_c)
     e_rec = F.euclidean(c_log, e_des[:n], r_true) if n else np.zeros((0, 6))
-    sing = F.singularity_measure(r_true, c_des) if n else np.zeros(0)
-    # the formation as recovered from the measurements, each sample continued from the last
-    c_cont = np.zeros((n, F.n_c))
-    r_meas = np.c_[log.measured.reshape(n, 11)[:, [0, 1]], np.full(n, sc.center[2]),
-                   log.measured.reshape(n, 11)[:, [3, 4, 5]]]
+    # the singularity measure where the description exists (NaN where it cannot express the robots)
+    sing = np.full(n, np.nan)
+    inside = ~F.outside(r_true)
+    for rows, hint in ((inside & reachable, c_des), (inside & ~reachable, None)):
+        if rows.any():
+            sing[rows] = F.singularity_measure(r_true[rows], None if hint is None else hint[rows])
+    frame = np.array([{"good": 0, "dropped": 1, "rejected": 2}[s_.frame] for s_ in steps], dtype=np.int8)
+    used = np.array([s_.measured if s_.measured is not None else np.full(11, np.nan) for s_ in steps]).reshape(n, 11)
+    outside = np.array([s_.outside for s_ in steps], dtype=bool)
+    stopped = [k for k, s_ in enumerate(steps) if s_.stop_reason]
+    # the formation as recovered from the measurements used, each sample continued from the
+    # last (NaN where the controller had none or the description cannot express them)
+    r_meas = np.c_[used[:, [0, 1]], np.full(n, sc.center[2]), used[:, [3, 4, 5]]]
+    c_cont = np.full((n, F.n_c), np.nan)
+    ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
     for k in range(n):
-        c_cont[k] = F.forward(r_meas[k], c_cont[k - 1] if k else c_des[0])
+        if ok[k]:
+            hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
+            c_cont[k] = F.forward(r_meas[k], hint)
     return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
                      log.commands.reshape(n, 6), log.raw_finite, sing, unreachable_at,
-                     message, c_cont, tuple(bebop.k))
+                     message, c_cont, tuple(bebop.k), frame, np.array([s_.held for s_ in steps], dtype=bool),
+                     outside, float(t_ctrl[stopped[0]]) if stopped else None,
+                     steps[stopped[0]].stop_reason if stopped else "", reachable)
 
 
 def ugv_uav_metrics(run: UgvUavRun) -> dict:
@@ -265,11 +318,18 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
     cosang = np.einsum("ij,ij->i", d_true, d_des) / np.maximum(sep * np.linalg.norm(d_des, axis=1), 1e-300)
     orient = np.arccos(np.clip(cosang, -1, 1))
     yaw_err = np.abs(wrap_angle(run.ugv[:, 2] - run.uav[:, 3]))
-    late = run.t >= sc.transient_s
+    # errors count after the take-off transient, outside the settle window after each
+    # designed switch of the reference (§5.3: front -> over at uav_front_until_s; a planned
+    # change is not a loss), and while the controller still runs (not after a safe stop)
+    settle = _settle_window(run)
+    late = (run.t >= sc.transient_s) & ~settle
+    if run.reachable is not None:
+        late &= run.reachable
+    if run.stopped_at is not None:
+        late &= run.t < run.stopped_at
     lost = late & ((ugv_err > LOST_UGV_M) | (uav_err > LOST_UAV_M))
-    if sc.uav_front_until_s > 0:
-        late &= ~((run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s))
-    singular = run.singularity < SINGULAR_THRESHOLD
+    singular = run.singularity < SINGULAR_THRESHOLD  # NaN (outside the description): not singular
+    frames = run.mocap_frame if run.mocap_frame is not None else np.zeros(len(run.t), dtype=np.int8)
 
     def mx(a, mask=late):
         return float(a[mask].max()) if np.any(mask) else None
@@ -288,9 +348,11 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "unreachable_reference": run.unreachable_at is not None,
         "first_unreachable_time_s": run.unreachable_at,
         "unreachable_message": run.unreachable_message or None,
+        "unreachable_reference_s": float((~run.reachable).sum() * (run.t[1] - run.t[0]))
+        if run.reachable is not None and len(run.t) > 1 else 0.0,
         "singularity_detected": bool(singular.any()),
         "first_singular_time_s": first_sing,
-        "min_singularity_measure": float(run.singularity.min()) if len(run.t) else None,
+        "min_singularity_measure": float(np.nanmin(run.singularity)) if np.isfinite(run.singularity).any() else None,
         "reference_lost": bool(lost.any()),
         "first_lost_time_s": float(run.t[np.argmax(lost)]) if lost.any() else None,
         "max_cluster_position_error_m": mx(ugv_err),
@@ -307,13 +369,36 @@ def ugv_uav_metrics(run: UgvUavRun) -> dict:
         "max_recovered_euclidean_error_rad": mx(np.abs(wrap_angle(run.e[:, 5] - run.e_des[:, 5]))),
         "max_cluster_state_jump": float(jumps.max()) if len(jumps) else 0.0,
         "max_unexplained_cluster_jump": float(np.maximum(jumps - explained, 0.0).max()) if len(jumps) else 0.0,
-        "max_uav_position_error_m_at_switch": mx(uav_err, (run.t >= sc.uav_front_until_s) & (run.t < sc.uav_front_until_s + sc.switch_transient_s)) if sc.uav_front_until_s > 0 else None,
+        "max_uav_position_error_m_at_switch": mx(uav_err, settle) if sc.uav_front_until_s > 0 else None,
+        "mocap_dropped_frames": int((frames == 1).sum()),
+        "mocap_rejected_frames": int((frames == 2).sum()),
+        "mocap_held_frames": int(run.held.sum()) if run.held is not None else 0,
+        "run_stopped": run.stopped_at is not None,
+        "run_stopped_at_s": run.stopped_at,
+        "run_stopped_reason": run.stop_reason or None,
         "nonfinite_commands": int((~run.raw_finite).sum()),
         "uav_model_k": list(run.uav_model_k) if run.uav_model_k is not None else None,
         "max_uav_command_fraction": float(np.abs(run.u[:, 2:6]).max()) if len(run.t) else 0.0,
         "uav_command_chatter": float(np.sqrt(np.mean(np.diff(run.u[late][:, 2:4], axis=0) ** 2)))
         if late.sum() > 1 else 0.0,
     }
+
+
+def _switch_times(run):
+    """Times the reference changes by design: the front -> over switch of seed 001 §5.3 at
+    ``uav_front_until_s``, and each return of the reference into the description."""
+    times = [run.scenario.uav_front_until_s] if run.scenario.uav_front_until_s > 0 else []
+    if run.reachable is not None and len(run.t) > 1:
+        times += [float(t) for t in run.t[1:][run.reachable[1:] & ~run.reachable[:-1]]]
+    return sorted(set(times))
+
+
+def _settle_window(run):
+    """Samples within ``switch_transient_s`` after a designed switch (:func:`_switch_times`)."""
+    out = np.zeros(len(run.t), dtype=bool)
+    for ts in _switch_times(run):
+        out |= (run.t >= ts) & (run.t < ts + run.scenario.switch_transient_s)
+    return out
 
 
 def _quaternion_jumps(run):
@@ -331,49 +416,131 @@ def _quaternion_jumps(run):
     d = run.measured[:, 3:6] - run.measured[:, 0:3]
     u = d / np.linalg.norm(d, axis=1)[:, None]
     turned = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))
+    ok = np.all(np.isfinite(c[1:]), axis=1) & np.all(np.isfinite(c[:-1]), axis=1) & np.isfinite(turned)
+    c1, c0 = c[1:][ok], c[:-1][ok]
     if run.formation == "quaternion":
-        jump = q_angle_between(c[1:, 3:7], c[:-1, 3:7])
+        jump = q_angle_between(c1[:, 3:7], c0[:, 3:7])
     else:
-        da = np.abs(wrap_angle(np.diff(c[:, 4:6], axis=0)))
-        jump = da.max(axis=1)
-    return jump, turned + 1e-9
+        jump = np.abs(wrap_angle(c1[:, 4:6] - c0[:, 4:6])).max(axis=1, initial=0.0)
+    return jump, turned[ok] + 1e-9
 
 
 def _outside_time(run):
     """Seconds the measured robots spent where the description cannot express them (the
-    restricted one: more than 1 deg outside its angle range, or the UAV below the platform)."""
-    if run.formation != "restricted" or len(run.t) < 2:
+    restricted one: more than its tolerance, 1 deg, outside its angle range, or the UAV
+    below the platform), as the controller found them (it then controls in robot space)."""
+    if run.outside is None or len(run.t) < 2:
         return 0.0
-    F = UgvUavRestricted()
-    c = F.forward(run.measured)
-    lo, hi = F.range
-    tol = math.radians(1.0)  # measurement noise about the range's edge at the overhead pose
-    out = (c[:, 4] < lo - tol) | (c[:, 4] > hi + tol) | (c[:, 5] < lo - tol) | (c[:, 5] > hi + tol)
-    out |= run.measured[:, 5] < run.measured[:, 2]
-    return float(out.sum() * (run.t[1] - run.t[0]))
+    return float(run.outside.sum() * (run.t[1] - run.t[0]))
+
+
+#: Bounds of the scenario's numbers: ``key: (low, low_open, high, high_open)``.
+_NUMBER_BOUNDS = {
+    "duration_s": (0.0, True, None, False),
+    "r_x": (0.0, True, None, False),
+    "r_y": (0.0, True, None, False),
+    "omega": (None, False, None, False),  # nonzero, checked below
+    "d_c": (0.0, True, None, False),
+    "uav_front_until_s": (0.0, False, None, False),
+    "dt_s": (0.0, True, None, False),
+    "control_period_s": (0.0, True, None, False),  # >= dt_s, checked below
+    "mocap_rate_hz": (0.0, True, None, False),
+    "mocap_noise_m": (0.0, False, None, False),
+    "mocap_noise_rad": (0.0, False, None, False),
+    "mocap_latency_s": (0.0, False, None, False),
+    "odometry_period_s": (0.0, True, None, False),
+    "max_fraction": (0.0, True, 1.0, False),
+    "transient_s": (0.0, False, None, False),
+    "switch_transient_s": (0.0, False, None, False),
+    "floor_below_platform_m": (0.0, False, None, False),
+    "mocap_dropout_rate": (0.0, False, 1.0, True),
+    "mocap_glitch_rate": (0.0, False, 1.0, True),
+    "mocap_max_hold_s": (0.0, True, None, False),
+}
+#: ``[gains]`` keys (keywords of :class:`~quatform.control.UgvUavController`) and how many
+#: numbers each takes (1: a number; n > 1: a number or a list of n), or ``bool``.
+_GAIN_KEYS = {"k_x": 3, "k_d": 1, "k_w": 3, "k_psi": 1, "l_d": 4, "wall_gain": 1, "wall_margin": 1,
+              "derivative_filter_s": 1, "compensation": bool, "feedforward": bool}
+#: Generous costs of one control tick, for :func:`quatform.checks.check_work`: the logs and
+#: the post-processed arrays keep about 200 floats plus the list entries of the loop, and
+#: one plant step of the Pioneer and Bebop models takes well under a millisecond.
+_BYTES_PER_TICK = 4000.0
+_SECONDS_PER_PLANT_STEP = 1e-3
+
+
+def _gains(data, where):
+    g_ = checks.table(data, "gains", where, default={})
+    checks.check_keys(g_, _GAIN_KEYS, where, "[gains]", "see docs/scenarios.md; the keywords of UgvUavController")
+    out = {}
+    for key, n in _GAIN_KEYS.items():
+        if key not in g_:
+            continue
+        if n is bool:
+            out[key] = checks.flag(g_, key, where, place="[gains]")
+        elif isinstance(g_[key], (list, tuple)) and n > 1:
+            out[key] = checks.vector(g_, key, n, where, place="[gains]")
+            for v in out[key]:
+                checks.number({key: v}, key, where, place="[gains]", low=0.0, low_open=True)
+        else:
+            low_open = key not in ("wall_margin", "derivative_filter_s")
+            out[key] = checks.number(g_, key, where, place="[gains]", low=0.0, low_open=low_open)
+            if n > 1:
+                out[key] = (out[key],) * n
+    return out
+
+
+def _scenario_fields(data, where: str) -> dict:
+    """The keyword arguments of :class:`UgvUavScenario` read from ``data``, each typed and
+    range-checked by :mod:`quatform.checks` (one line naming the key on any mistake)."""
+    fields = UgvUavScenario.__dataclass_fields__
+    checks.check_keys(data, set(fields) | {"kind"}, where)
+    kw = {"name": checks.text(data, "name", where)}
+    for key in ("title", "source"):
+        kw[key] = checks.text(data, key, where, default=fields[key].default)
+    kw["path"] = checks.text(data, "path", where, default=fields["path"].default, choices=("circle", "lemniscate"))
+    for key, (low, low_open, high, high_open) in _NUMBER_BOUNDS.items():
+        default = checks.MISSING if key == "duration_s" else fields[key].default
+        kw[key] = checks.number(data, key, where, default, low=low, low_open=low_open, high=high,
+                                high_open=high_open)
+    if kw["omega"] == 0.0:
+        raise InvalidInputError(f"{where}: omega = 0.0 must be nonzero (rad/s; the path would stand still)")
+    if kw["control_period_s"] < kw["dt_s"]:
+        raise InvalidInputError(f"{where}: control_period_s = {kw['control_period_s']!r} must be >= dt_s = "
+                                f"{kw['dt_s']!r} (the controller runs every whole number of plant steps)")
+    for key in ("center", "uav_start"):
+        kw[key] = checks.vector(data, key, 3, where, default=fields[key].default)
+    if kw["uav_start"][2] < -kw["floor_below_platform_m"]:
+        raise InvalidInputError(
+            f"{where}: uav_start z = {kw['uav_start'][2]!r} m is below the floor (floor_below_platform_m = "
+            f"{kw['floor_below_platform_m']!r}); the UAV starts at or above -floor_below_platform_m")
+    kw["seed"] = checks.integer(data, "seed", where, default=fields["seed"].default, low=0, high=2**63 - 1)
+    kw["gains"] = _gains(data, where)
+    return kw
+
+
+def check_ugv_uav_scenario(sc: UgvUavScenario, where: str | None = None) -> None:
+    """Refuse a scenario (also one changed with :func:`dataclasses.replace`) whose values are
+    out of range, and one whose run cannot fit in memory or the time budget (estimated up
+    front, :func:`quatform.checks.check_work`, naming ``duration_s``)."""
+    where = where or f"scenario {sc.name}"
+    data = {key: getattr(sc, key) for key in UgvUavScenario.__dataclass_fields__}
+    _scenario_fields(data, where)
+    substeps = max(1, int(round(sc.control_period_s / sc.dt_s)))
+    ticks = sc.duration_s / (substeps * sc.dt_s) + 1
+    checks.check_work(where, "duration_s / control_period_s", ticks, bytes_per_step=_BYTES_PER_TICK,
+                      seconds_per_step=(substeps + 1) * _SECONDS_PER_PLANT_STEP,
+                      fix="shorten duration_s or lengthen control_period_s")
 
 
 def ugv_uav_scenario_from_dict(data: dict, where: str) -> UgvUavScenario:
-    """Build a :class:`UgvUavScenario` from parsed TOML (``kind = "ugv-uav"``)."""
-    allowed = set(UgvUavScenario.__dataclass_fields__) - {"gains"}
-    kw = {}
-    for key, value in data.items():
-        if key in ("kind",):
-            continue
-        if key == "gains":
-            if not isinstance(value, dict):
-                raise InvalidInputError(f"{where}: [gains] must be a table")
-            kw["gains"] = dict(value)
-            continue
-        if key not in allowed:
-            raise InvalidInputError(f"{where}: unknown key {key!r}; see docs/scenarios.md")
-        kw[key] = tuple(value) if isinstance(value, list) else value
-    try:
-        sc = UgvUavScenario(**kw)
-        sc.controller("quaternion")
-        sc.e_reference(np.array([0.0]))
-    except TypeError as exc:
-        raise InvalidInputError(f"{where}: {exc}") from None
+    """Build a :class:`UgvUavScenario` from parsed TOML (``kind = "ugv-uav"``).
+
+    Every key is typed and range-checked (``docs/scenarios.md``); an unknown key names the
+    nearest valid one; the run's memory and time are estimated up front.
+    """
+    sc = UgvUavScenario(**_scenario_fields(data, where))
+    check_ugv_uav_scenario(sc, where)
+    sc.controller("quaternion")  # the gains make a controller
     return sc
 
 
@@ -397,9 +564,7 @@ def ugv_uav_timeseries(run: UgvUavRun):
     if run.formation != "spherical":
         add(F.variables, run.c, run.c_des)
     add(SPHERICAL_VARIABLES, run.e, run.e_des, prefix="euclid_")
-    from ..control import COMMAND_NAMES
-
-    names.extend("u_" + n for n in COMMAND_NAMES)
+    names.extend("u_" + n for n in UGV_UAV_COMMAND_NAMES)
     cols.append(run.u)
     names.append("singularity_measure")
     cols.append(run.singularity[:, None])

@@ -1,0 +1,282 @@
+"""Issue 12, the UGV-UAV formation of Marciano 2021 (seed 001), kinematic side: each item
+of the hardening brief has its own test here."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+import quatform.control as control
+import quatform.report.ugv_uav_plots as uplots
+from quatform.control import Reference, UgvUavController
+from quatform.errors import InvalidInputError, ResourceLimitError, UnreachableError
+from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from quatform.sim import load_scenario
+from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
+
+
+# -- item 7: the UGV-UAV layouts carry their name ------------------------------------------------
+
+def test_ugv_uav_layout_names_are_not_the_generic_ones():
+    assert control.UGV_UAV_MEASURED_NAMES[:3] == ("x_p", "y_p", "psi_p")
+    assert len(control.UGV_UAV_MEASURED_NAMES) == 11
+    assert control.UGV_UAV_COMMAND_NAMES == ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
+    assert not hasattr(control, "COMMAND_NAMES") and not hasattr(control, "MEASURED_NAMES")
+    assert "UGV_UAV_COMMAND_NAMES" in control.__all__ and "COMMAND_NAMES" not in control.__all__
+
+
+# -- items 3 and 5: the scenario loader ------------------------------------------------------------
+
+
+BASE = {"kind": "ugv-uav", "name": "t", "path": "circle", "r_x": 1.0, "r_y": 1.0, "omega": 0.2, "d_c": 1.5,
+        "duration_s": 2.0, "gains": {"k_psi": 3.0}}
+
+
+def _load(**changes):
+    data = {**BASE, **changes}
+    return ugv_uav_scenario_from_dict({k: v for k, v in data.items() if v is not None}, "my.toml")
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("floor_below_platform_m", float("nan"), "floor_below_platform_m = nan must be finite"),
+    ("uav_front_until_s", float("nan"), "uav_front_until_s = nan must be finite"),
+    ("gains", 5, "gains must be a table"),
+    ("d_c", {"a": 1}, "d_c = {'a': 1} must be a number"),
+    ("r_x", "1.0", "r_x = '1.0' must be a number"),
+    ("duration_s", -1.0, "duration_s = -1.0 must be > 0"),
+    ("mocap_noise_m", -0.001, "mocap_noise_m = -0.001 must be >= 0"),
+    ("center", [1, 2], "center = [1, 2] must be a list of 3 numbers"),
+    ("seed", "abc", "seed = 'abc' must be an integer"),
+    ("seed", 1.5, "seed = 1.5 must be an integer"),
+    ("duraton_s", 3.0, "unknown key 'duraton_s' at top level (did you mean 'duration_s'?)"),
+    ("path", "cirle", "path = 'cirle' is not one of circle, lemniscate (did you mean 'circle'?)"),
+    ("max_fraction", 1.5, "max_fraction = 1.5 must be <= 1"),
+    ("omega", 0.0, "omega = 0.0 must be nonzero"),
+    ("control_period_s", 0.001, "control_period_s = 0.001 must be >= dt_s"),
+    ("uav_start", [0.0, -0.6, -0.5], "uav_start z = -0.5 m is below the floor"),
+    ("name", None, "missing key name"),
+    ("duration_s", None, "missing key duration_s"),
+    ("title", 3, "title = 3 must be a string"),
+    ("mocap_dropout_rate", 1.0, "mocap_dropout_rate = 1.0 must be < 1"),
+])
+def test_loader_refuses_each_bad_value_naming_the_key(key, value, words):
+    with pytest.raises(InvalidInputError, match=None) as info:
+        _load(**{key: value})
+    msg = str(info.value)
+    assert msg.startswith("my.toml: ") and words in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("gains, words", [
+    ({"k_x": "big"}, "[gains] k_x = 'big' must be a number"),
+    ({"k_x": [1.0, 2.0]}, "[gains] k_x = [1.0, 2.0] must be a list of 3 numbers"),
+    ({"k_w": [1.0, -1.0, 1.0]}, "[gains] k_w = -1.0 must be > 0"),
+    ({"k_psi": float("inf")}, "[gains] k_psi = inf must be finite"),
+    ({"l_d": {"x": 1}}, "[gains] l_d = {'x': 1} must be a number"),
+    ({"compensation": 1}, "[gains] compensation = 1 must be true or false"),
+    ({"k_pis": 3.0}, "unknown key 'k_pis' at [gains] (did you mean 'k_psi'?)"),
+    ({"arena": 1.0}, "unknown key 'arena' at [gains]"),
+])
+def test_loader_refuses_bad_gains(gains, words):
+    with pytest.raises(InvalidInputError) as info:
+        _load(gains=gains)
+    assert words in str(info.value)
+
+
+def test_loader_reads_good_values_and_lists():
+    sc = _load(center=[0.5, -0.5, 0.2], gains={"k_x": [1.0, 2.0, 3.0], "l_d": 2.0, "compensation": False})
+    assert sc.center == (0.5, -0.5, 0.2) and sc.gains["k_x"] == (1.0, 2.0, 3.0)
+    assert sc.gains["l_d"] == (2.0,) * 4 and sc.gains["compensation"] is False
+    for name in ("marciano-circle", "marciano-lemniscate", "marciano-front-to-over"):
+        assert load_scenario(name).name == name
+
+
+def test_huge_duration_is_refused_up_front_naming_the_key():
+    with pytest.raises(ResourceLimitError, match="my.toml: duration_s / control_period_s needs 3.33e"):
+        _load(duration_s=1e9)
+    # a scenario changed after loading (as the CLI does) is checked again when run
+    sc = dataclasses.replace(_load(), duration_s=1e9)
+    with pytest.raises(ResourceLimitError, match="duration_s"):
+        simulate_ugv_uav(sc)
+    with pytest.raises(InvalidInputError, match="mocap_noise_m = nan must be finite"):
+        simulate_ugv_uav(dataclasses.replace(_load(), mocap_noise_m=float("nan")))
+
+
+# -- item 1: the restricted description refuses what it cannot express ------------------------------
+
+
+def test_restricted_refuses_the_uav_below_the_platform_single_and_batch():
+    F = UgvUavRestricted()
+    below = np.array([0.0, 0.0, 0.0, 0.0, 0.3, -0.966])  # the issue's state
+    with pytest.raises(UnreachableError, match=r"z_b - z_p = -0.966 m: the UAV is below the platform.*quaternion"):
+        F.forward(below)
+    above = below * np.array([1, 1, 1, 1, 1, -1])
+    batch = np.stack([above, below, above])
+    with pytest.raises(UnreachableError, match=r"-0.966 m at index \(1,\)"):
+        F.forward(batch)
+    np.testing.assert_allclose(F.inverse(F.forward(above)), above, atol=1e-12)
+    np.testing.assert_array_equal(F.outside(batch), [False, True, False])
+    # a cluster state whose (4.24) has no real root is refused, not clipped to platform level
+    wide = UgvUavRestricted(range_deg=(-90.0, 90.0))
+    with pytest.raises(UnreachableError, match="no real root"):
+        wide.inverse(np.array([[0, 0, 0, 1.0, 0.2, 0.2], [0, 0, 0, 1.0, 1.0, 1.0]]))
+    with pytest.raises(UnreachableError, match="below the platform"):
+        F.from_euclidean(np.array([0, 0, 0, 1.0, 0.3, -0.2]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(d=st.tuples(st.floats(-2, 2), st.floats(-2, 2), st.floats(-2, 2)))
+def test_restricted_forward_and_inverse_agree_on_their_domain(d):
+    F = UgvUavRestricted()
+    r = np.r_[0.1, -0.2, 0.0, np.array([0.1, -0.2, 0.0]) + np.array(d)]
+    if np.linalg.norm(d) < 1e-3:
+        return
+    if F.outside(r):
+        with pytest.raises(UnreachableError):
+            F.forward(r)
+    else:  # every state forward accepts comes back from inverse (to rho sqrt(eps) at platform
+        # level, where the root of (4.24) amplifies round-off: 2e-8 m at the 45/45 deg corner)
+        np.testing.assert_allclose(F.inverse(F.forward(r)), r, atol=1e-7)
+
+
+def _short(name="marciano-circle", **changes):
+    return dataclasses.replace(load_scenario(name), **{"duration_s": 25.0, "dt_s": 0.01, **changes})
+
+
+def test_restricted_run_reports_the_take_off_from_below_the_platform():
+    """The UAV starts on the floor below the platform: outside the restricted description.
+    The controller drives it in robot space until it is inside, and the run says for how long."""
+    run = simulate_ugv_uav(_short(mocap_noise_m=0.002), "restricted")
+    m = ugv_uav_metrics(run)
+    assert run.outside[0] and not run.outside[-1]
+    assert 2.0 <= m["measured_outside_description_s"] <= 8.0
+    assert np.all(np.isnan(run.c[run.outside])) and np.all(np.isfinite(run.c[~run.outside]))
+    assert np.all(np.isnan(run.singularity[UgvUavRestricted().outside(
+        np.c_[run.ugv[:, 0:2], np.zeros(len(run.t)), run.uav[:, 0:3]])]))
+    assert m["nonfinite_commands"] == 0 and not m["reference_lost"]
+    assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
+
+
+# -- item 2: a designed switch of the reference is not a loss ---------------------------------------
+
+def test_front_to_over_switch_is_not_a_lost_reference():
+    # the §5.3 scenario with its switch 35 s earlier (at 25 s, after the 20 s take-off)
+    sc = dataclasses.replace(load_scenario("marciano-front-to-over"), uav_front_until_s=25.0, duration_s=45.0,
+                             dt_s=0.01)
+    m = ugv_uav_metrics(simulate_ugv_uav(sc, "quaternion"))
+    assert not m["reference_lost"] and m["first_lost_time_s"] is None
+    assert m["max_uav_position_error_m_at_switch"] >= 0.4  # the switch itself moves the reference far
+    assert m["max_uav_position_error_m"] <= 0.4
+
+
+# -- item 4: motion-capture dropouts and glitches ---------------------------------------------------
+
+def _overhead_reference():
+    F = UgvUavQuaternion()
+    return Reference(*F.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6)))
+
+
+def test_controller_holds_the_last_good_frame_through_a_dropout_and_a_glitch():
+    ctrl, ref = UgvUavController(), _overhead_reference()
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.1, 0, 0, 0])
+    first = ctrl.compute(0.0, good, ref)
+    assert first.frame == "good" and not first.held
+    dropped = ctrl.compute(0.03, np.full(11, np.nan), ref)
+    assert dropped.frame == "dropped" and dropped.held and dropped.raw_finite
+    np.testing.assert_array_equal(dropped.measured[:7], good[:7])
+    np.testing.assert_allclose(dropped.cluster, first.cluster)
+    glitch = good.copy()
+    glitch[3:6] = [0.0, 0.0, 0.0]  # the UAV's marker read at the UGV
+    res = ctrl.compute(0.06, glitch, ref)
+    assert res.frame == "rejected" and res.held and np.all(np.isfinite(res.commands))
+    jump = good.copy()
+    jump[3] += 1.5  # 1.5 m in 0.09 s: faster than a Bebop flies (K1/K2 = 4.6 m/s, Table 2)
+    assert ctrl.compute(0.09, jump, ref).frame == "rejected"
+    moved = good.copy()
+    moved[3] += 0.1  # 0.1 m in 0.12 s: possible
+    assert ctrl.compute(0.12, moved, ref).frame == "good"
+    no_odometry = moved.copy()
+    no_odometry[7:11] = np.nan  # the Bebop's own odometry, not the motion capture
+    res = ctrl.compute(0.15, no_odometry, ref)
+    assert res.frame == "good" and not res.held
+    np.testing.assert_array_equal(res.measured, moved)  # the pose read now, the last odometry
+
+
+def test_controller_stops_safely_after_too_many_bad_frames():
+    ctrl, ref = UgvUavController(max_hold_s=0.2), _overhead_reference()
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.5, 0, 0, 0])
+    ctrl.compute(0.0, good, ref)
+    res = [ctrl.compute(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
+    assert [r.stopped for r in res].index(True) == 7  # 0.24 s after the last good frame
+    assert "no good frame" in res[-1].stop_reason and "max_hold_s = 0.2 s" in res[-1].stop_reason
+    assert res[-1].commands[0] == 0 and res[-1].commands[1] == 0 and res[-1].commands[2] < 0  # braking
+    assert ctrl.compute(0.5, good, ref).stopped  # a good frame does not restart it
+
+
+def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():
+    sc = _short(mocap_noise_m=0.002, mocap_latency_s=0.005, mocap_dropout_rate=0.05, mocap_glitch_rate=0.02)
+    run = simulate_ugv_uav(sc, "quaternion")
+    m = ugv_uav_metrics(run)
+    assert m["mocap_dropped_frames"] >= 10 and m["mocap_rejected_frames"] >= 5
+    assert m["mocap_held_frames"] == m["mocap_dropped_frames"] + m["mocap_rejected_frames"]
+    assert not m["run_stopped"] and m["nonfinite_commands"] == 0 and not m["reference_lost"]
+    assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
+    assert np.all(np.isfinite(run.c)) and np.all(np.isfinite(run.c_continuous))
+
+
+def test_run_that_loses_the_motion_capture_stops_and_says_so():
+    run = simulate_ugv_uav(_short(mocap_dropout_rate=0.9, duration_s=6.0), "quaternion")
+    m = ugv_uav_metrics(run)
+    assert m["run_stopped"] and m["run_stopped_at_s"] <= 6.0
+    assert m["run_stopped_reason"].startswith("motion capture: no good frame")
+    after = run.t > m["run_stopped_at_s"]
+    assert np.all(run.u[after, 0] == 0) and np.all(run.u[after, 1] == 0)  # the UGV stays stopped
+
+
+# -- huge finite positions -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("F", [UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion()], ids=lambda f: f.name)
+def test_huge_positions_are_refused_not_overflowed(F):
+    r = np.array([0, 0, 0, 1e154, 1e154, 1e154])
+    for f in (F.forward, F.jacobian, F.singularity_measure):
+        with pytest.raises(InvalidInputError, match=r"r\[3\] = 1e\+154: a coordinate beyond 1e\+150 m"):
+            f(r)
+    c = np.zeros(F.n_c)
+    c[3] = 1.0 if F.name == "quaternion" else 1e154
+    c[-3 if F.name == "quaternion" else 0] = 1e154
+    with pytest.raises(InvalidInputError, match="beyond 1e\\+150 m"):
+        F.inverse(c)
+    ok = np.array([0, 0, 0, 1e140, 1e140, 1e140]) * (1 if F.name != "restricted" else 1)
+    if F.name != "restricted":
+        assert np.all(np.isfinite(F.forward(ok)))
+
+
+# -- item 6: plots ---------------------------------------------------------------------------------
+
+
+def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 0.03
+    y = rng.normal(0.0, 0.002, t.size)  # 2 mm motion-capture noise on a zero error
+    mean, lo, hi = uplots._filtered(t, y, stride=2)
+    assert np.std(mean) <= 0.6e-3  # the line shows the error, not the noise (was the raw samples)
+    assert np.all(lo <= y + 1e-15) and np.all(y <= hi + 1e-15)  # the band holds every sample
+    y[100:110] = np.nan
+    mean, lo, hi = uplots._filtered(t, y)
+    assert np.isfinite(mean[105]) and np.isnan(uplots._filtered(t, np.full(10, np.nan))[0]).all()
+
+
+def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, tmp_path):
+    sc = _short("marciano-front-to-over", uav_front_until_s=5.0, duration_s=12.0, transient_s=2.0)
+    run = simulate_ugv_uav(sc, "restricted")
+    assert run.t.size == 401 and not run.reachable[0] and run.reachable[-1]
+    figs = []
+    monkeypatch.setattr(uplots, "_save", lambda fig, path: figs.append(fig) or path)
+    uplots.write_ugv_uav_run_plots(run, tmp_path)
+    uplots.write_ugv_uav_compare_plots([run], tmp_path)
+    for fig in figs:
+        title = fig._suptitle.get_text() if fig._suptitle is not None else fig.axes[0].get_title()
+        assert "Marciano 2021" in title and "seed 001" not in title
+        assert sum(len(ax.lines) for ax in fig.axes) >= 4  # axes with data, not a text-only figure
