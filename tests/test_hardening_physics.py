@@ -122,7 +122,7 @@ def test_yaw_step_dual_quaternion_on_physics_is_close():
 
 
 def test_given_gains_and_controller_objects_are_recorded():
-    sc = dataclasses.replace(load_scenario("mas-kitts-yaw-step"), duration_s=0.05)
+    sc = dataclasses.replace(load_scenario("mas-kitts-yaw-step"), duration_s=0.05, metrics_from_s=0.0)
     _, rec = simulate_physics(sc, "dual-quaternion", gains={"k_dw": [0.5, 0.5, 0.5]})
     assert rec.gains == {"k_dw": [0.5, 0.5, 0.5], "feedforward": True} and rec.gains_source == "argument"
     _, rec = simulate_physics(sc, sc.controller("dual-quaternion"))
