@@ -51,15 +51,15 @@ def _read_text(p: Path, what: str) -> str:
     if not stat.S_ISREG(st.st_mode):
         raise InvalidInputError(f"{p}: is not a regular file (a device, pipe or socket); {fix}")
     if st.st_size > MAX_TOML_BYTES:
-        raise InvalidInputError(f"{p}: {st.st_size / 1e6:.3g} MB is too large for a {what} file (at most "
-                                f"{MAX_TOML_BYTES / 1e6:g} MB); {fix} (a few kB)")
+        raise InvalidInputError(f"{p}: {st.st_size:,} bytes is too large for a {what} file (at most "
+                                f"{MAX_TOML_BYTES:,}); {fix} (a few kB)")
     try:
         with open(p, "rb") as f:
             raw = f.read(MAX_TOML_BYTES + 1)
     except OSError as exc:
         raise InvalidInputError(f"{p}: cannot read it ({exc.strerror or exc}); check its permissions or {fix}") from None
     if len(raw) > MAX_TOML_BYTES:  # grew since stat
-        raise InvalidInputError(f"{p}: too large for a {what} file (at most {MAX_TOML_BYTES / 1e6:g} MB); {fix}")
+        raise InvalidInputError(f"{p}: too large for a {what} file (at most {MAX_TOML_BYTES:,} bytes); {fix}")
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:

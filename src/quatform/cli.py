@@ -83,8 +83,8 @@ def _with_measurement(sc, args):
     for opt, field in (("mocap_noise_m", "mocap_noise_m"), ("mocap_latency_s", "mocap_latency_s")):
         v = getattr(args, opt, None)
         if v is not None:
-            if not (v >= 0):
-                raise InvalidInputError(f"--{opt.replace('_', '-')} must be >= 0, got {v!r}")
+            if not (0 <= v < float("inf")):
+                raise InvalidInputError(f"--{opt.replace('_', '-')} must be a finite number >= 0, got {v!r}")
             changes[field] = v
     if not changes:
         return sc
@@ -93,8 +93,18 @@ def _with_measurement(sc, args):
     return dataclasses.replace(sc, **changes)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit 2), naming the command's --help."""
+
+    def error(self, message):
+        text = " ".join(str(message).split())
+        if len(text) > 400:
+            text = text[:396] + " ..."
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {text} (see '{self.prog} --help')\n")
+
+
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="quatform",
         description="Singularity-free control of robot teams and robot arms with quaternions, "
         "dual quaternions and Euler parameters.",
@@ -345,6 +355,13 @@ def _say(line: str) -> None:
     print(f"{lead}quatform: {line}", file=sys.stderr)
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """A Python warning (e.g. NumPy's overflow) as one line, without the source line under it."""
+    text = " ".join(str(message).split())[:300]
+    print(f"quatform: warning: {category.__name__}: {text} ({os.path.basename(str(filename))}:{lineno})",
+          file=sys.stderr if file is None else file)
+
+
 def _what(args) -> str:
     """`` (COMMAND TARGET)`` for the one-line messages of :func:`main`."""
     target = getattr(args, "scenario", None) or getattr(args, "spec", None)
@@ -356,6 +373,10 @@ def main(argv: list[str] | None = None) -> int:
     input or too large, 3 internal error, 130 interrupted). Nothing but one line reaches stderr."""
     parser = _build_parser()
     args = None
+    import warnings
+
+    shown = warnings.showwarning
+    warnings.showwarning = _one_line_warning
     try:
         args = parser.parse_args(argv)
         if args.command is None:
@@ -388,8 +409,10 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_FILE_SYSTEM
     except OSError as exc:
         msg = exc.strerror or str(exc) or type(exc).__name__
-        name = exc.filename if exc.filename is not None else ""
-        _say(f"error: {' '.join(f'{msg}: {name}'.split())}".rstrip(": "))
+        name = str(exc.filename) if exc.filename is not None else ""
+        if len(name) > 200:
+            name = name[:90] + "..." + name[-90:]
+        _say(f"error: {' '.join(f'{msg}: {name}'.split())}".rstrip(": ")[:500])
         return EXIT_FILE_SYSTEM
     except Exception as exc:  # noqa: BLE001 - no traceback may reach a user
         if os.environ.get("QUATFORM_TRACEBACK"):
@@ -398,6 +421,8 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"internal error: {type(exc).__name__}: {text} (running {_what(args) if args is not None else 'quatform'}); "
              "please report it with the command line; QUATFORM_TRACEBACK=1 shows the traceback")
         return EXIT_INTERNAL
+    finally:
+        warnings.showwarning = shown
     return 0
 
 

@@ -248,6 +248,10 @@ def staged_dir(out):
     pathlib.Path
         The temporary folder to write into.
     """
+    if "\x00" in str(out):
+        from ..errors import InvalidInputError
+
+        raise InvalidInputError(f"output folder {str(out)!r} holds a NUL character; give a folder name without it")
     out = Path(out)
     final = Path(os.path.abspath(out))
     _check_out(out, final)
