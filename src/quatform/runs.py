@@ -70,7 +70,7 @@ def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False
 
 
 def _ugv_uav_into(sc, formation, out, label, plots, quiet, backend):
-    """:func:`run_ugv_uav` writing into the existing folder ``out`` (``label``: the name printed)."""
+    """:func:`run_ugv_uav` writing into the folder ``out`` (made here; ``label``: the name printed)."""
     from .sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_timeseries
 
     out.mkdir(exist_ok=True)

@@ -177,13 +177,14 @@ def _check_out(out: Path, final: Path) -> None:
     entries = _entries(final)
     if not entries:
         return
-    owned: list = []
+    owned: set = set()
     marker = final / OUTPUT_MARKER
     if marker.is_file():
         try:
-            owned = json.loads(marker.read_text(encoding="utf-8")).get("entries", [])
+            listed = json.loads(marker.read_text(encoding="utf-8")).get("entries", [])
+            owned = {n for n in listed if isinstance(n, str)} if isinstance(listed, list) else set()
         except (OSError, ValueError, AttributeError):
-            owned = []
+            owned = set()
     foreign = [n for n in entries if n not in owned]
     if foreign:
         raise InvalidInputError(
