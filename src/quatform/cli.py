@@ -1,15 +1,37 @@
 """Command-line interface ``quatform`` (top layer).
 
-Errors are printed as one line: bad input exits with status 2, file-system errors with 1.
+Errors are printed as one line, never a traceback: bad input (and a run too large for the
+machine's memory) exits with status 2, file-system errors with 1, Ctrl-C with 130 and an
+unexpected internal error with 3 (``QUATFORM_TRACEBACK=1`` shows its traceback).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import sys
 
 from . import __version__
 from .errors import QuatformError
+
+#: The documents quatform implements, by the tag the scenario and plan files cite them with
+#: (``source = "seed 000 §4.1 ..."``); ``quatform scenarios`` and ``quatform plans`` print them.
+SOURCES = {
+    "000": 'I. Mas, C. Kitts, 2017, "Quaternions and Dual Quaternions: Singularity-Free Multirobot Formation '
+           'Control", J. Intell. Robot. Syst.',
+    "001": 'H. N. Marciano, 2021, "Using Quaternions to Avoid Singularities in UAV-UGV Multi Robot Systems", '
+           "MSc thesis, UFES",
+    "002": 'C. Belta, V. Kumar, 2002, "Trajectory design for formations of robots by kinetic energy shaping", '
+           "ICRA 2002",
+    "003": 'J. F. Jansen, R. L. Kress, S. M. Babcock, W. R. Hamel, 1990, "Controller design for a teleoperator '
+           'system with dissimilar kinematics and force feedback", ORNL CONF-910223-4',
+    "004": 'C. Belta, V. Kumar, 2001, "Motion generation for formations of robots: a geometric approach", '
+           "ICRA 2001",
+}
+
+#: Exit statuses.
+EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 2, 3, 130
 
 CONTROLLER_NAMES = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
 FORMATION_NAMES = ("spherical", "restricted", "quaternion")
@@ -21,6 +43,37 @@ def _measurement_options(p):
     p.add_argument("--mocap-latency-s", type=float, metavar="S", help="UGV-UAV: motion-capture latency in s")
 
 
+def _feedforward_option(p):
+    p.add_argument("--no-feedforward", action="store_true",
+                   help="two-robot scenarios: drop the reference-velocity feedforward of the controllers "
+                   "(seed 000 Fig. 13's runs; overrides the scenario's feedforward key)")
+
+
+def _feedforward(sc, args):
+    """The run's feedforward switch: off with --no-feedforward, else the scenario's (default on)."""
+    if not getattr(args, "no_feedforward", False):
+        return getattr(sc, "feedforward", True)
+    if hasattr(sc, "mocap_noise_m") or hasattr(sc, "hand"):
+        from .errors import InvalidInputError
+
+        raise InvalidInputError(f"--no-feedforward applies to two-robot (seed 000) scenarios; {sc.name} is not one")
+    return False
+
+
+def _cited(source: str) -> list[str]:
+    """The citations of the seed documents that a scenario's or plan's ``source`` names."""
+    tags = dict.fromkeys(re.findall(r"seed (\d{3})", str(source)))
+    return [f"seed {t}: {SOURCES[t]}" for t in tags if t in SOURCES]
+
+
+def _list(items):
+    """``name  title (source)`` and, below it, the documents the source cites (authors, year, title)."""
+    for name, title, source in items:
+        print(f"{name:32s} {title} ({source})")
+        for line in _cited(source):
+            print(f"{'':32s}   {line}")
+
+
 def _with_measurement(sc, args):
     import dataclasses
 
@@ -30,8 +83,8 @@ def _with_measurement(sc, args):
     for opt, field in (("mocap_noise_m", "mocap_noise_m"), ("mocap_latency_s", "mocap_latency_s")):
         v = getattr(args, opt, None)
         if v is not None:
-            if not (v >= 0):
-                raise InvalidInputError(f"--{opt.replace('_', '-')} must be >= 0, got {v!r}")
+            if not (0 <= v < float("inf")):
+                raise InvalidInputError(f"--{opt.replace('_', '-')} must be a finite number >= 0, got {v!r}")
             changes[field] = v
     if not changes:
         return sc
@@ -40,8 +93,18 @@ def _with_measurement(sc, args):
     return dataclasses.replace(sc, **changes)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit 2), naming the command's --help."""
+
+    def error(self, message):
+        text = " ".join(str(message).split())
+        if len(text) > 400:
+            text = text[:396] + " ..."
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {text} (see '{self.prog} --help')\n")
+
+
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="quatform",
         description="Singularity-free control of robot teams and robot arms with quaternions, "
         "dual quaternions and Euler parameters.",
@@ -78,8 +141,9 @@ def _build_parser() -> argparse.ArgumentParser:
                      help="two-robot scenarios: follow this plan file (from 'quatform plan', 2 robots in "
                      "space) instead of the scenario's path; yaws held at 0")
     run.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
-                     help="robot models (default) or MuJoCo physics (needs: pip install quatform[mujoco]); "
+                     help='robot models (default) or MuJoCo physics (needs: pip install -e ".[mujoco]"); '
                      "mujoco adds collisions and a time-lapse picture")
+    _feedforward_option(run)
     _measurement_options(run)
 
     plan = sub.add_parser(
@@ -111,7 +175,9 @@ def _build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
     cmp_.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
-                      help="robot models (default) or MuJoCo physics (two-robot scenarios)")
+                      help='robot models (default) or MuJoCo physics (two-robot scenarios; needs: '
+                      'pip install -e ".[mujoco]")')
+    _feedforward_option(cmp_)
     _measurement_options(cmp_)
 
     tele = sub.add_parser(
@@ -147,6 +213,7 @@ def _compare(scenario, out, args=None):
     if args is not None:
         sc = _with_measurement(sc, args)
     if hasattr(sc, "mocap_noise_m"):
+        _feedforward(sc, args)  # refuses --no-feedforward
         if getattr(args, "backend", "kinematic") != "kinematic":
             from .errors import InvalidInputError
 
@@ -155,7 +222,9 @@ def _compare(scenario, out, args=None):
         print(format_table(compare_ugv_uav(sc, out), UGV_UAV_COLUMNS))
         print(f"\nfiles in {out}/ (one folder per formation, compare_formations.png, comparison.md)")
         return
-    rows = compare_scenario(sc, out, backend=getattr(args, "backend", "kinematic"))
+    rows = compare_scenario(sc, out, backend=getattr(args, "backend", "kinematic"), feedforward=_feedforward(sc, args))
+    if not rows[0].get("feedforward", True):
+        print("feedforward: off (--no-feedforward)")
     print(format_table(rows))
     print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
 
@@ -211,83 +280,149 @@ def _print_run(metrics, columns=None):
         print(f"picture: {metrics['render']} ({metrics['render_backend']})")
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = _build_parser()
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 0
-    try:
-        if args.command == "demo":
-            _compare("mas-kitts-spiral", args.out)
-        elif args.command == "compare":
-            _compare(args.scenario, args.out, args)
-        elif args.command == "run":
-            from .errors import InvalidInputError
-            from .runs import UGV_UAV_COLUMNS, run_scenario, run_ugv_uav
-            from .sim import load_scenario
+def _command(args) -> None:
+    """Run the parsed command (every error propagates to :func:`main`)."""
+    if args.command == "demo":
+        _compare("mas-kitts-spiral", args.out)
+    elif args.command == "compare":
+        _compare(args.scenario, args.out, args)
+    elif args.command == "run":
+        from .errors import InvalidInputError
+        from .runs import UGV_UAV_COLUMNS, run_scenario, run_ugv_uav
+        from .sim import load_scenario
 
-            sc = load_scenario(args.scenario)
-            if hasattr(sc, "hand"):
-                raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with "
-                                        f"'quatform teleop {args.scenario} --out DIR'")
-            sc = _with_measurement(sc, args)
-            if args.reference is not None:
-                if hasattr(sc, "mocap_noise_m"):
-                    raise InvalidInputError(f"--reference applies to two-robot scenarios; {sc.name} is UGV-UAV")
-                from .plan_runs import scenario_with_plan
-
-                sc = scenario_with_plan(sc, args.reference)
+        sc = load_scenario(args.scenario)
+        if hasattr(sc, "hand"):
+            raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with "
+                                    f"'quatform teleop {args.scenario} --out DIR'")
+        sc = _with_measurement(sc, args)
+        if args.reference is not None:
             if hasattr(sc, "mocap_noise_m"):
-                if args.controller is not None:
-                    raise InvalidInputError(
-                        f"{sc.name} is a UGV-UAV scenario: choose its description with --formation "
-                        f"{{{','.join(FORMATION_NAMES)}}}, not --controller")
-                _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots,
-                                         backend=args.backend)
-                _print_run(metrics, UGV_UAV_COLUMNS)
-            else:
-                if args.formation is not None:
-                    raise InvalidInputError(f"{sc.name} is a two-robot scenario: --formation does not apply")
-                if args.controller is None:
-                    raise InvalidInputError(
-                        f"{sc.name} is a two-robot scenario: give --controller "
-                        f"{{{','.join(CONTROLLER_NAMES)}}}")
-                _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots,
-                                          backend=args.backend)
-                _print_run(metrics)
-        elif args.command == "teleop":
-            from .errors import InvalidInputError
-            from .runs import TELEOP_COLUMNS, format_table, run_teleop
-            from .sim import load_scenario
+                raise InvalidInputError(f"--reference applies to two-robot scenarios; {sc.name} is UGV-UAV")
+            from .plan_runs import scenario_with_plan
 
-            sc = load_scenario(args.scenario)
-            if not hasattr(sc, "hand"):
-                raise InvalidInputError(f"{sc.name} is not a teleoperation scenario: run it with "
-                                        f"'quatform run {args.scenario} ...'")
-            preload = None if args.preload is None else args.preload == "on"
-            _, metrics = run_teleop(sc, args.out, args.orientation_error, preload, plots=not args.no_plots)
-            print(format_table([metrics], TELEOP_COLUMNS))
-        elif args.command == "plan":
-            _plan(args)
-        elif args.command == "plans":
-            from .planning import builtin_plan_specs, load_plan_spec
+            sc = scenario_with_plan(sc, args.reference)
+        ff = _feedforward(sc, args)
+        if hasattr(sc, "mocap_noise_m"):
+            if args.controller is not None:
+                raise InvalidInputError(
+                    f"{sc.name} is a UGV-UAV scenario: choose its description with --formation "
+                    f"{{{','.join(FORMATION_NAMES)}}}, not --controller")
+            _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots,
+                                     backend=args.backend)
+            _print_run(metrics, UGV_UAV_COLUMNS)
+        else:
+            if args.formation is not None:
+                raise InvalidInputError(f"{sc.name} is a two-robot scenario: --formation does not apply")
+            if args.controller is None:
+                raise InvalidInputError(
+                    f"{sc.name} is a two-robot scenario: give --controller "
+                    f"{{{','.join(CONTROLLER_NAMES)}}}")
+            _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots,
+                                      backend=args.backend, feedforward=ff)
+            if not ff:
+                print("feedforward: off (--no-feedforward)")
+            _print_run(metrics)
+    elif args.command == "teleop":
+        from .errors import InvalidInputError
+        from .runs import TELEOP_COLUMNS, format_table, run_teleop
+        from .sim import load_scenario
 
-            for name in sorted(builtin_plan_specs()):
-                spec = load_plan_spec(name)
-                print(f"{name:32s} {spec.title} ({spec.source})")
-        elif args.command == "scenarios":
-            from .sim import builtin_scenarios, load_scenario
+        sc = load_scenario(args.scenario)
+        if not hasattr(sc, "hand"):
+            raise InvalidInputError(f"{sc.name} is not a teleoperation scenario: run it with "
+                                    f"'quatform run {args.scenario} ...'")
+        preload = None if args.preload is None else args.preload == "on"
+        _, metrics = run_teleop(sc, args.out, args.orientation_error, preload, plots=not args.no_plots)
+        print(format_table([metrics], TELEOP_COLUMNS))
+    elif args.command == "plan":
+        _plan(args)
+    elif args.command == "plans":
+        from .planning import builtin_plan_specs, load_plan_spec
 
-            for name in sorted(builtin_scenarios()):
-                sc = load_scenario(name)
-                print(f"{name:24s} {sc.title} ({sc.source})")
+        _list((name, spec.title, spec.source) for name, spec in
+              ((name, load_plan_spec(name)) for name in sorted(builtin_plan_specs())))
+    elif args.command == "scenarios":
+        from .sim import builtin_scenarios, load_scenario
+
+        _list((name, sc.title, sc.source) for name, sc in
+              ((name, load_scenario(name)) for name in sorted(builtin_scenarios())))
+
+
+def _say(line: str) -> None:
+    """One line on stderr (after a newline if a progress line is open on a terminal)."""
+    lead = "\n" if sys.stderr.isatty() else ""
+    print(f"{lead}quatform: {line}", file=sys.stderr)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """A Python warning (e.g. NumPy's overflow) as one line, without the source line under it."""
+    text = " ".join(str(message).split())[:300]
+    print(f"quatform: warning: {category.__name__}: {text} ({os.path.basename(str(filename))}:{lineno})",
+          file=sys.stderr if file is None else file)
+
+
+def _what(args) -> str:
+    """`` (COMMAND TARGET)`` for the one-line messages of :func:`main`."""
+    target = getattr(args, "scenario", None) or getattr(args, "spec", None)
+    return f"{args.command} {target}" if target else str(args.command)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``quatform`` command; return its exit status (0 success, 1 file system, 2 bad
+    input or too large, 3 internal error, 130 interrupted). Nothing but one line reaches stderr."""
+    parser = _build_parser()
+    args = None
+    import warnings
+
+    shown = warnings.showwarning
+    warnings.showwarning = _one_line_warning
+    try:
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return 0
+        _command(args)
     except QuatformError as exc:
-        print(f"quatform: error: {exc}", file=sys.stderr)
-        return 2
+        _say(f"error: {exc}")
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        out = getattr(args, "out", None)
+        _say("interrupted (Ctrl-C)" + (f"; {out} left as it was, no partial files written" if out else ""))
+        return EXIT_INTERRUPTED
+    except MemoryError:
+        what = _what(args) if args is not None else "quatform"
+        _say(f"error: out of memory running {what}; shorten the run or coarsen it (scenario duration_s / dt_s, "
+             "plan knots) or set QUATFORM_MAX_MEMORY_BYTES lower so the work is refused up front")
+        return EXIT_INPUT
+    except RecursionError:
+        _say(f"error: input nested too deeply for {_what(args) if args is not None else 'quatform'}; "
+             "flatten the nested arrays or tables of the input file")
+        return EXIT_INPUT
+    except BrokenPipeError:
+        # stdout went away (e.g. `quatform scenarios | head -1`): stop quietly, as other tools do
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        return EXIT_FILE_SYSTEM
     except OSError as exc:
-        print(f"quatform: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
-        return 1
+        msg = exc.strerror or str(exc) or type(exc).__name__
+        name = str(exc.filename) if exc.filename is not None else ""
+        if len(name) > 200:
+            name = name[:90] + "..." + name[-90:]
+        _say(f"error: {' '.join(f'{msg}: {name}'.split())}".rstrip(": ")[:500])
+        return EXIT_FILE_SYSTEM
+    except Exception as exc:  # noqa: BLE001 - no traceback may reach a user
+        if os.environ.get("QUATFORM_TRACEBACK"):
+            raise
+        text = " ".join(str(exc).split())[:300]
+        _say(f"internal error: {type(exc).__name__}: {text} (running {_what(args) if args is not None else 'quatform'}); "
+             "please report it with the command line; QUATFORM_TRACEBACK=1 shows the traceback")
+        return EXIT_INTERNAL
+    finally:
+        warnings.showwarning = shown
     return 0
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from .errors import ConvergenceError, InvalidInputError
 from .planning import PlanPairPath, load_plan, load_plan_spec, make_plan
+from .sim.output import staged_dir, write_json
 
 __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
 
@@ -32,20 +33,30 @@ def plan_to_dir(spec, out, alpha=None, plots: bool = True):
 
     Writes ``out/plan.npz``, ``out/metrics.json`` and, with ``plots``, ``plan_paths.png``
     and ``plan_separation.png``. Returns ``(plan, metrics)``. A planner failure writes
-    ``metrics.json`` with ``converged = false`` and the message, then raises.
+    ``metrics.json`` with ``converged = false`` and the message, then raises. The folder is
+    built by :func:`~quatform.sim.output.staged_dir` (it appears only when complete;
+    ``metrics.json`` is written last).
     """
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     spec = _spec_with_alpha(spec, alpha)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        plan, metrics = make_plan(spec)
-    except ConvergenceError as exc:
-        failed = {"converged": False, "plan": spec.name, "kind": spec.kind, **spec.options, "error": str(exc)}
-        (out / "metrics.json").write_text(json.dumps(failed, indent=2) + "\n")
-        raise
+    failure = None
+    with staged_dir(out) as tmp:
+        try:
+            plan, metrics = make_plan(spec)
+        except ConvergenceError as exc:
+            failure = exc
+            write_json({"converged": False, "plan": spec.name, "kind": spec.kind, **spec.options, "error": str(exc)},
+                       tmp / "metrics.json")
+        else:
+            _write_plan(spec, plan, metrics, tmp, plots)
+    if failure is not None:
+        raise failure
+    return plan, metrics
+
+
+def _write_plan(spec, plan, metrics, out, plots):
+    """The files of a solved plan in the folder ``out``; ``metrics.json`` last."""
     plan.save(out / PLAN_FILE)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     if plots:
         from .report.plan_plots import write_plan_plots
 
@@ -57,7 +68,7 @@ def plan_to_dir(spec, out, alpha=None, plots: bool = True):
             title = f"{spec.name}" + (f", case {metrics['case']}" if "case" in metrics else "")
             plot_rigid_formation_paths(rigid_plan_from_spec(rigid_formation_dict(spec)), out / "formation_3d.png",
                                        title)
-    return plan, metrics
+    write_json(metrics, out / "metrics.json")
 
 
 def plan_case_to_dir(spec, out, case: str, plots: bool = True):
@@ -74,17 +85,17 @@ def plan_alphas_to_dir(spec, out, alphas, plots: bool = True):
     """One plan per ``alpha`` in ``out/alpha-<A>/`` and, with ``plots``, ``out/paths_by_alpha.png``
     (seed 002 Figs. 3-4). Returns ``{alpha: metrics}``; a failed alpha has ``converged = false``."""
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
-    out = Path(out)
     plans, rows = {}, {}
-    for a in alphas:
-        try:
-            plans[a], rows[a] = plan_to_dir(spec, out / f"alpha-{a:g}", a, plots)
-        except ConvergenceError:
-            rows[a] = json.loads((out / f"alpha-{a:g}" / "metrics.json").read_text())
-    if plots and plans:
-        from .report.plan_plots import DPI, plot_alpha_panels
+    with staged_dir(out) as tmp:
+        for a in alphas:
+            try:
+                plans[a], rows[a] = plan_to_dir(spec, tmp / f"alpha-{a:g}", a, plots)
+            except ConvergenceError:
+                rows[a] = json.loads((tmp / f"alpha-{a:g}" / "metrics.json").read_text())
+        if plots and plans:
+            from .report.plan_plots import DPI, plot_alpha_panels
 
-        plot_alpha_panels(plans, spec.name).savefig(out / "paths_by_alpha.png", dpi=DPI)
+            plot_alpha_panels(plans, spec.name).savefig(tmp / "paths_by_alpha.png", dpi=DPI)
     return rows
 
 

@@ -3,11 +3,15 @@
 ``run_scenario`` writes ``metrics.json``, ``timeseries.csv`` and the PNG plots of one
 controller; ``compare_scenario`` runs all four controllers of seed 000 into
 sub-folders and adds Fig. 13 and a table.
+
+Every public ``run_*`` / ``compare_*`` function builds its output folder with
+:func:`~quatform.sim.output.staged_dir`: the files appear under ``out`` only when the whole
+run has finished (``metrics.json`` is written last); a failed or interrupted run leaves
+``out`` as it was.
 """
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -21,6 +25,7 @@ from .sim import (
     write_metrics,
     write_timeseries,
 )
+from .sim.output import atomic_write_text, staged_dir, write_json
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
            "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS", "BACKENDS", "physics_rows"]
@@ -59,11 +64,16 @@ def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False
     ``backend="mujoco"``: a Pioneer-like UGV and an IRIS-like quadrotor in MuJoCo; the
     metrics add ``collisions``, ``render`` and the kinematic run's errors (``kinematic``).
     """
+    _check_backend(backend)
+    with staged_dir(out) as tmp:
+        return _ugv_uav_into(sc, formation, tmp, Path(out), plots, quiet, backend)
+
+
+def _ugv_uav_into(sc, formation, out, label, plots, quiet, backend):
+    """:func:`run_ugv_uav` writing into the folder ``out`` (made here; ``label``: the name printed)."""
     from .sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_timeseries
 
-    _check_backend(backend)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     progress = None if quiet else _progress(f"{sc.name} / {formation} / {backend}")
     if backend == "mujoco":
@@ -76,17 +86,17 @@ def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     if backend == "mujoco":
         _add_physics(metrics, record, run, ugv_uav_metrics(simulate_ugv_uav(sc, formation)), out, plots)
-    write_metrics(metrics, out / "metrics.json")
     write_columns(*ugv_uav_timeseries(run), out / "timeseries.csv")
     if plots:
         from .report.ugv_uav_plots import write_ugv_uav_run_plots
 
         write_ugv_uav_run_plots(run, out)
+    write_metrics(metrics, out / "metrics.json")
     if not quiet:
         if run.unreachable_at is not None:
             print(f"  {sc.name} / {formation}: reference unreachable from t = {run.unreachable_at:.2f} s: "
                   f"{run.unreachable_message}", file=sys.stderr)
-        print(f"\r  {sc.name} / {formation}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
+        print(f"\r  {sc.name} / {formation}: done in {metrics['wall_time_s']:.1f} s -> {label}", file=sys.stderr)
     return run, metrics
 
 
@@ -106,18 +116,18 @@ def compare_ugv_uav(sc, out, quiet: bool = False):
     """Run the three descriptions of seed 001 on one scenario; plots, table; return the rows."""
     from .sim.ugv_uav import UGV_UAV_FORMATIONS
 
-    out = Path(out)
-    runs, rows = [], []
-    for name in UGV_UAV_FORMATIONS:
-        run, m = run_ugv_uav(sc, name, out / name, quiet=quiet)
-        runs.append(run)
-        rows.append(m)
-    from .report.ugv_uav_plots import write_ugv_uav_compare_plots
+    with staged_dir(out) as tmp:
+        runs, rows = [], []
+        for name in UGV_UAV_FORMATIONS:
+            run, m = _ugv_uav_into(sc, name, tmp / name, Path(out) / name, True, quiet, "kinematic")
+            runs.append(run)
+            rows.append(m)
+        from .report.ugv_uav_plots import write_ugv_uav_compare_plots
 
-    write_ugv_uav_compare_plots(runs, out)
-    (out / "comparison.json").write_text(json.dumps(rows, indent=2) + "\n")
-    table = format_table(rows, UGV_UAV_COLUMNS)
-    (out / "comparison.md").write_text(f"# {sc.name}: {sc.title}\n\nSource: {sc.source}\n\n{table}\n")
+        write_ugv_uav_compare_plots(runs, tmp)
+        table = format_table(rows, UGV_UAV_COLUMNS)
+        atomic_write_text(tmp / "comparison.md", f"# {sc.name}: {sc.title}\n\nSource: {sc.source}\n\n{table}\n")
+        write_json(rows, tmp / "comparison.json")
     return rows
 
 
@@ -157,38 +167,51 @@ def physics_rows(metrics) -> list:
             dict(metrics, controller=f"{label} (mujoco)", formation=f"{metrics['formation']} (mujoco)")]
 
 
+def _feedforward(sc, feedforward):
+    """The feedforward switch of a run: ``feedforward`` when given, else the scenario's (default on)."""
+    return bool(getattr(sc, "feedforward", True)) if feedforward is None else bool(feedforward)
+
+
 def run_scenario(scenario, controller: str, out, plots: bool = True, quiet: bool = False,
-                 backend: str = "kinematic"):
+                 backend: str = "kinematic", feedforward: bool | None = None):
     """Simulate, write ``out/metrics.json``, ``out/timeseries.csv`` and plots; return the metrics.
 
     ``backend="mujoco"``: two IRIS-like quadrotors in MuJoCo; the metrics add
     ``collisions``, ``render`` (the time-lapse picture) and the kinematic run's errors
-    (``kinematic``).
+    (``kinematic``). ``feedforward=False`` drops the reference-velocity feedforward of the
+    controller (seed 000 Fig. 13 runs without it); ``None`` takes the scenario's setting.
+    ``metrics.json`` records it as ``feedforward``.
     """
     _check_backend(backend)
     sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with staged_dir(out) as tmp:
+        return _pair_into(sc, controller, tmp, Path(out), plots, quiet, backend, _feedforward(sc, feedforward))
+
+
+def _pair_into(sc, controller, out, label, plots, quiet, backend, ff):
+    """:func:`run_scenario` writing into the folder ``out`` (made here; ``label``: the name printed)."""
+    out.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     progress = None if quiet else _progress(f"{sc.name} / {controller} / {backend}")
     if backend == "mujoco":
         from .sim.mujoco_backend import simulate_physics
 
-        run, record = simulate_physics(sc, controller, progress=progress)
+        run, record = simulate_physics(sc, controller, feedforward=ff, progress=progress)
     else:
-        run = simulate(sc, controller, progress=progress)
+        run = simulate(sc, controller, feedforward=ff, progress=progress)
     metrics = compute_metrics(run)
+    metrics["feedforward"] = ff
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     if backend == "mujoco":
-        _add_physics(metrics, record, run, compute_metrics(simulate(sc, controller)), out, plots)
-    write_metrics(metrics, out / "metrics.json")
+        _add_physics(metrics, record, run, compute_metrics(simulate(sc, controller, feedforward=ff)), out, plots)
     write_timeseries(run, out / "timeseries.csv")
     if plots:
         from .report import write_run_plots
 
         write_run_plots(run, out)
+    write_metrics(metrics, out / "metrics.json")
     if not quiet:
-        print(f"\r  {sc.name} / {controller}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
+        print(f"\r  {sc.name} / {controller}: done in {metrics['wall_time_s']:.1f} s -> {label}", file=sys.stderr)
     return run, metrics
 
 
@@ -203,24 +226,28 @@ def format_table(rows, columns=TABLE_COLUMNS) -> str:
     return "\n".join(lines)
 
 
-def compare_scenario(scenario, out, quiet: bool = False, backend: str = "kinematic"):
+def compare_scenario(scenario, out, quiet: bool = False, backend: str = "kinematic",
+                     feedforward: bool | None = None):
     """Run every controller; write their folders, ``compare_errors.png``, ``separation.png``,
     ``comparison.json`` and ``comparison.md``; return the metrics rows (a physics backend:
-    each run's kinematic row above its own)."""
+    each run's kinematic row above its own). ``feedforward`` as in :func:`run_scenario`."""
+    _check_backend(backend)
     sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    runs, rows = [], []
-    for name in CONTROLLERS:
-        run, m = run_scenario(sc, name, out / name, quiet=quiet, backend=backend)
-        runs.append(run)
-        rows.extend(physics_rows(m) if backend == "mujoco" else [m])
-    from .report import write_compare_plots
+    ff = _feedforward(sc, feedforward)
+    with staged_dir(out) as tmp:
+        runs, rows = [], []
+        for name in CONTROLLERS:
+            run, m = _pair_into(sc, name, tmp / name, Path(out) / name, True, quiet, backend, ff)
+            runs.append(run)
+            rows.extend(physics_rows(m) if backend == "mujoco" else [m])
+        from .report import write_compare_plots
 
-    write_compare_plots(runs, out)
-    (out / "comparison.json").write_text(json.dumps(rows, indent=2) + "\n")
-    table = format_table(rows)
-    (out / "comparison.md").write_text(f"# {sc.name}: {sc.title}\n\nSource: {sc.source}\n\n{table}\n")
+        write_compare_plots(runs, tmp)
+        table = format_table(rows)
+        feed = "" if ff else " (no feedforward)"
+        atomic_write_text(tmp / "comparison.md",
+                          f"# {sc.name}: {sc.title}{feed}\n\nSource: {sc.source}\n\n{table}\n")
+        write_json(rows, tmp / "comparison.json")
     return rows
 
 
@@ -244,18 +271,17 @@ def run_teleop(sc, out, orientation_error=None, preload=None, plots: bool = True
     """A seed 003 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``."""
     from .sim.teleop import simulate_teleop, teleop_metrics, teleop_timeseries
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    run = simulate_teleop(sc, orientation_error, preload, progress=None if quiet else _progress(sc.name))
-    metrics = teleop_metrics(run)
-    metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-    write_metrics(metrics, out / "metrics.json")
-    write_columns(*teleop_timeseries(run), out / "timeseries.csv")
-    if plots:
-        from .report.teleop_plots import write_teleop_plots
+    with staged_dir(out) as tmp:
+        t0 = time.perf_counter()
+        run = simulate_teleop(sc, orientation_error, preload, progress=None if quiet else _progress(sc.name))
+        metrics = teleop_metrics(run)
+        metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
+        write_columns(*teleop_timeseries(run), tmp / "timeseries.csv")
+        if plots:
+            from .report.teleop_plots import write_teleop_plots
 
-        write_teleop_plots(run, out)
+            write_teleop_plots(run, tmp)
+        write_metrics(metrics, tmp / "metrics.json")
     if not quiet:
         print(f"\r  {sc.name}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
     return run, metrics

@@ -15,11 +15,29 @@ from ..errors import NonFiniteError, NonUnitError, ShapeError
 UNIT_TOLERANCE = 1e-6
 
 
-def _where(mask: np.ndarray) -> str:
-    idx = np.argwhere(mask)
-    if idx.size == 0 or mask.ndim == 0:
+def _first(mask: np.ndarray) -> int:
+    """Flat index of the first True of ``mask`` (-1 if none), without listing every True entry
+    (``np.argwhere`` of a huge bad array would allocate ndim integers per entry)."""
+    flat = np.ravel(mask)
+    if flat.size == 0:
+        return -1
+    i = int(np.argmax(flat))
+    return i if flat[i] else -1
+
+
+def _where(mask: np.ndarray, first: int | None = None) -> str:
+    """`` at index (i, j, ...)`` of the first True of ``mask``, or ``""`` (0-d or none)."""
+    mask = np.asarray(mask)
+    first = _first(mask) if first is None else first
+    if first < 0 or mask.ndim == 0:
         return ""
-    return f" at index {tuple(int(i) for i in idx[0])}"
+    return f" at index {tuple(int(i) for i in np.unravel_index(first, mask.shape))}"
+
+
+def _value_at(values, mask: np.ndarray) -> tuple[float, str]:
+    """The first entry of ``values`` where ``mask`` holds, and its `` at index ...`` (cheap)."""
+    first = _first(mask)
+    return float(np.ravel(values)[first]), _where(mask, first)
 
 
 def as_array(x, name: str, last: int | tuple[int, ...] | None) -> np.ndarray:
@@ -36,7 +54,7 @@ def as_array(x, name: str, last: int | tuple[int, ...] | None) -> np.ndarray:
     try:
         a = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ShapeError(f"{name} must be a numeric array, got {type(x).__name__}: {exc}") from None
+        raise ShapeError(f"{name} must be a numeric array, got {type(x).__name__}: {str(exc)[:200]}") from None
     if last is not None:
         tail = (last,) if isinstance(last, int) else tuple(last)
         if a.ndim < len(tail) or a.shape[a.ndim - len(tail):] != tail:
@@ -46,8 +64,9 @@ def as_array(x, name: str, last: int | tuple[int, ...] | None) -> np.ndarray:
     if not np.isfinite(np.add.reduce(a, axis=None)):
         bad = ~np.isfinite(a)
         if bad.any():
+            value, where = _value_at(a, bad)
             raise NonFiniteError(
-                f"{name} contains {a[bad][0]!r}{_where(bad)}; every entry must be finite "
+                f"{name} contains {value!r}{where}; every entry must be finite "
                 "(check the measurement or the upstream computation that produced it)"
             )
     return a
@@ -70,10 +89,10 @@ def as_unit_quaternion(q, name: str = "q", tol: float = UNIT_TOLERANCE) -> np.nd
     n = np.sqrt(np.einsum("...i,...i->...", a, a))
     dev = np.abs(n - 1.0)
     if dev.size and dev.max() > tol:
-        bad = dev > tol
+        value, where = _value_at(n, dev > tol)
         raise NonUnitError(
-            f"{name} must be a unit quaternion but has norm {float(np.asarray(n)[bad].flat[0]):.9g}"
-            f"{_where(np.asarray(bad))} (tolerance {tol:g}); normalise it with "
+            f"{name} must be a unit quaternion but has norm {value:.9g}"
+            f"{where} (tolerance {tol:g}); normalise it with "
             "quatform.algebra.qnormalize if its direction is meaningful"
         )
     return a / n[..., None]
@@ -102,15 +121,17 @@ def as_unit_dual_quaternion(dq, name: str = "dq", tol: float = UNIT_TOLERANCE) -
     bad_n = np.abs(n - 1.0) > tol
     bad_o = np.abs(rd) > tol * np.maximum(1.0, dn)
     if np.any(bad_n):
+        value, where = _value_at(n, bad_n)
         raise NonUnitError(
             f"{name} must be a unit dual quaternion but its primary part has norm "
-            f"{float(np.asarray(n)[bad_n].flat[0]):.9g}{_where(np.asarray(bad_n))} "
+            f"{value:.9g}{where} "
             f"(tolerance {tol:g}); normalise it with quatform.algebra.dqnormalize"
         )
     if np.any(bad_o):
+        value, where = _value_at(rd, bad_o)
         raise NonUnitError(
             f"{name} must be a unit dual quaternion but primary . dual = "
-            f"{float(np.asarray(rd)[bad_o].flat[0]):.3g}{_where(np.asarray(bad_o))} "
+            f"{value:.3g}{where} "
             f"(tolerance {tol:g}); normalise it with quatform.algebra.dqnormalize"
         )
     return divide_by_dual_norm(r, d, n)
