@@ -108,6 +108,8 @@ UGV_UAV_COLUMNS = (
     ("max_uav_position_error_m", "UAV (m)", "{:.3f}"),
     ("max_uav_yaw_error_rad", "UAV yaw (rad)", "{:.3f}"),
     ("max_unexplained_cluster_jump", "state jump", "{:.1e}"),
+    ("mocap_dropped_frames", "mocap dropped", "{}"),
+    ("mocap_rejected_frames", "mocap rejected", "{}"),
     ("nonfinite_commands", "NaN cmds", "{}"),
 )
 
@@ -149,7 +151,7 @@ _COMPARED_KEYS = ("reference_lost", "nonfinite_commands", "unreachable_reference
 def _add_physics(metrics, record, run, kinematic_metrics, out, plots):
     """The physics run's own keys: backend, step, collisions, picture, the kinematic errors."""
     metrics["backend"] = "mujoco"
-    metrics["physics_timestep_s"] = record.timestep
+    metrics.update(record.metrics())  # gains, gains_source (+ note), physics_timestep_s
     metrics["collisions"] = record.collisions
     metrics["render"] = None
     if plots:
@@ -260,9 +262,11 @@ TELEOP_COLUMNS = (
     ("final_orientation_error_rad", "final orient (rad)", "{:.2e}"),
     ("peak_orientation_error_rad", "peak orient (rad)", "{:.3f}"),
     ("peak_slave_torque_nm", "peak slave tau (N m)", "{:.2f}"),
+    ("slave_torque_chatter_nm", "slave tau chatter (N m)", "{:.3g}"),
     ("contact_force_error_pct", "eq.13 err (%)", "{:.2f}"),
     ("reversal_hysteresis_m", "hysteresis (m)", "{:.4f}"),
     ("wall_penetration_m", "wall depth (m)", "{:.4f}"),
+    ("slave_zone_penetration_m", "slave zone depth (m)", "{:.4f}"),
     ("nonfinite_torques", "NaN torques", "{}"),
 )
 

@@ -208,19 +208,25 @@ def _paper(source: str) -> str:
     """A scenario's ``source`` with the seed numbers replaced by the papers' names."""
     out = str(source)
     for seed, paper in PAPERS.items():
-        out = out.replace(seed, paper)
+        out = out.replace(f" ({seed})", "") if paper in out else out.replace(seed, paper)
     return out
+
+
+def _backend(runs) -> str:
+    """``" on MuJoCo physics"`` where a run's robots were not the kinematic models, else ``""``."""
+    labels = dict.fromkeys(run.backend for run in runs if run.backend != "kinematic")
+    return f" on {', '.join(labels)}" if labels else ""
 
 
 def _title(run: Run) -> str:
     source = _paper(getattr(run.scenario, "source", ""))
-    return f"{run.scenario.name} - {run.controller.name}" + (f" ({source})" if source else "")
+    return f"{run.scenario.name} - {run.controller.name}{_backend([run])}" + (f" ({source})" if source else "")
 
 
 def _runs_title(runs) -> str:
     names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
     sources = ", ".join(dict.fromkeys(_paper(run.scenario.source) for run in runs if run.scenario.source))
-    return names + (f" ({sources})" if sources else "")
+    return names + _backend(runs) + (f" ({sources})" if sources else "")
 
 
 def _time_xlim(ax, t0: float, t1: float):

@@ -82,7 +82,8 @@ def _title(run: UgvUavRun) -> str:
     """``name - ugv-uav-<formation> (Marciano 2021 §..., Figs. ...)`` and the scenario title."""
     sc = run.scenario
     paper = sc.source if _PAPER in sc.source else (f"{_PAPER}, {sc.source}" if sc.source else _PAPER)
-    head = f"{sc.name} - ugv-uav-{run.formation} ({paper})"
+    on = "" if run.backend == "kinematic" else f" on {run.backend}"
+    head = f"{sc.name} - ugv-uav-{run.formation}{on} ({paper})"
     return f"{head}\n{sc.title}" if sc.title else head
 
 

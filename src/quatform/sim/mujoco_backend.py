@@ -539,7 +539,7 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
     r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
     e = F.euclidean(c, e_des, r)
     sing = F.singularity_measure(r, c_des)
-    run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing)
+    run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing, backend=BACKEND_LABEL)
     q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
     rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
                         world.contacts.summary(), h, _controller_gains(ctrl), source,
@@ -595,6 +595,7 @@ def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIE
     ctrl = sc.controller(formation, bebop=bebop, **options)  # the one simulate_ugv_uav builds: its gains
     used = {n: _plain(getattr(ctrl, n)) for n in _UGV_UAV_GAIN_NAMES if hasattr(ctrl, n)}
     run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop, **options)
+    run = dataclasses.replace(run, backend=BACKEND_LABEL)
     world = holder["world"]
     spc = max(1, round(sc.control_period_s / sc.dt_s))  # plant calls per control tick
     q = np.array(holder["qpos"][::spc][:len(run.t)])

@@ -43,6 +43,9 @@ class Run:
         False where the controller's unsaturated command was not finite.
     singularity : ndarray, shape (T,)
         ``formation.singularity_measure`` of the measured state.
+    backend : str
+        What moved the robots: ``"kinematic"`` (the robots' models) or the physics
+        backend's label (``"MuJoCo physics"``); figures name it.
     """
 
     scenario: Scenario
@@ -57,6 +60,7 @@ class Run:
     u: np.ndarray
     raw_finite: np.ndarray
     singularity: np.ndarray
+    backend: str = "kinematic"
 
 
 def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool | None = None,

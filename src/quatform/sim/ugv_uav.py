@@ -152,6 +152,7 @@ class UgvUavRun:
     stopped_at: float | None = None
     stop_reason: str = ""
     reachable: np.ndarray | None = None
+    backend: str = "kinematic"
 
 
 def _reachable(F, e, ed, t):
@@ -445,8 +446,8 @@ _NUMBER_BOUNDS = {
     "dt_s": (0.0, True, None, False),
     "control_period_s": (0.0, True, None, False),  # >= dt_s, checked below
     "mocap_rate_hz": (0.0, True, None, False),
-    "mocap_noise_m": (0.0, False, None, False),
-    "mocap_noise_rad": (0.0, False, None, False),
+    "mocap_noise_m": (0.0, False, 1.0, False),  # a 1 m standard deviation is no motion capture
+    "mocap_noise_rad": (0.0, False, math.pi, False),
     "mocap_latency_s": (0.0, False, None, False),
     "odometry_period_s": (0.0, True, None, False),
     "max_fraction": (0.0, True, 1.0, False),
@@ -504,6 +505,10 @@ def _scenario_fields(data, where: str) -> dict:
                                 high_open=high_open)
     if kw["omega"] == 0.0:
         raise InvalidInputError(f"{where}: omega = 0.0 must be nonzero (rad/s; the path would stand still)")
+    if kw["mocap_latency_s"] >= kw["duration_s"]:
+        raise InvalidInputError(
+            f"{where}: mocap_latency_s = {kw['mocap_latency_s']!r} must be < duration_s = {kw['duration_s']!r} "
+            "(the controller would never see a frame)")
     if kw["control_period_s"] < kw["dt_s"]:
         raise InvalidInputError(f"{where}: control_period_s = {kw['control_period_s']!r} must be >= dt_s = "
                                 f"{kw['dt_s']!r} (the controller runs every whole number of plant steps)")
