@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import DegenerateInputError, UnreachableError
 from ..formations import DualQuaternionPair, QuaternionPair
 from ..formations import _geometry as g
-from ..errors import DegenerateInputError, UnreachableError
 from ..formations import _pair_kernels as kern
 from ..formations.base import MIN_SEPARATION_M, Formation
 from ..formations.quaternion_pair import TILT_TOL
@@ -105,11 +105,11 @@ def dual_quaternion_lyapunov(c, c_des):
 
 
 def dual_quaternion_law_lyapunov(c, c_des):
-    """``sum_k |qhat_e_k - 1|^2 = sum_k (2 (1 - p0_k) + |d_k|^2)``, ``k = c, s``: the function the
-    law as implemented decreases (``docs/derivations.md``, Hardening (issue 12)).
+    """``sum_k |qhat_e_k - sigma_k|^2 = sum_k (2 (1 - sigma_k p0_k) + |d_k|^2)``, ``k = c, s``: the
+    function the law as implemented decreases (``docs/derivations.md``, Hardening (issue 12)).
 
-    ``qhat_e = qhat_des* qhat`` as in eq. (28); the sign of ``qhat_c``'s error is taken with
-    ``p0 >= 0`` (it means nothing), the shape's as it is (it is the branch). Under the law with
+    ``qhat_e = qhat_des* qhat`` as in eq. (28); ``sigma_c = sgn(p0_c)`` (the sign of ``qhat_c``
+    means nothing), ``sigma_s = +1`` (the sign of ``qhat_s`` is the branch). Under the law with
     ``K = k I`` and a still reference, ``dV/dt = -sum_k k (|p_vec_k|^2 + |p0_k| |d_k|^2) <= 0``
     everywhere (for ``qhat_c`` this is also the seed's eq. (28), for which eq. (29) is not a
     Lyapunov function beyond 90 deg).
@@ -131,11 +131,9 @@ def dual_quaternion_law_lyapunov(c, c_des):
     return v
 
 
-def _worst(x):
-    """``(any, largest)`` of a float or an array of floats."""
-    if isinstance(x, float):
-        return x, x
-    return x, float(np.max(x))
+def _largest(x):
+    """Largest of a float or an array of floats."""
+    return x if isinstance(x, float) else float(np.max(x))
 
 
 def check_yaw_only(q, what, tol=TILT_TOL):
@@ -148,7 +146,7 @@ def check_yaw_only(q, what, tol=TILT_TOL):
     bad = tilt > tol
     if bad if isinstance(bad, bool) else np.any(bad):
         raise UnreachableError(
-            f"reference {what} tilts by {_worst(tilt)[1]:.3g} rad (limit {tol:g}); a 4-DOF robot only "
+            f"reference {what} tilts by {_largest(tilt):.3g} rad (limit {tol:g}); a 4-DOF robot only "
             "yaws - build references with formation.from_euclidean"
         )
 
