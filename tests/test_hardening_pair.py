@@ -340,3 +340,10 @@ def test_eq29_shape_term_rises_past_half_a_turn_but_the_law_function_falls():
     VL = dual_quaternion_law_lyapunov(cs, c_des)
     assert V29[1] > V29[0] and np.all(np.diff(VL) <= 1e-12)
     assert same_robots(r, EuclideanPair().inverse(e_des)) < 1e-3
+
+
+def test_euclidean_inverse_has_a_numpydoc_docstring():
+    """EuclideanPair.inverse had none."""
+    doc = EuclideanPair.inverse.__doc__ or ""
+    for section in ("Parameters", "Returns", "Raises", "(..., 8)", "eqs. (1)-(8)"):
+        assert section in doc
