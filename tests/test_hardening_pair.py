@@ -173,6 +173,14 @@ def test_item3_round_trip_property(r):
         assert same_robots(back, r) < 1e-9 * max(1.0, np.abs(r).max()), F.name
 
 
+def test_item3_quaternion_round_trip_beside_the_minus_i_direction():
+    """Segment 1.75e-6 rad from -i (the seed's n_12 = 0/0 point, eqs. (14)-(15)): 1 + a.u
+    cancelled and the round trip was 6e-8 m off at 46 m (found by the property test)."""
+    r = np.array([-46.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.7520607149571205e-06, 0.0])
+    Q = QuaternionPair()
+    assert same_robots(Q.inverse(Q.forward(r)), r) < 1e-12 * 46
+
+
 def test_item3_hint_does_not_change_the_formation():
     """forward with any hint (the formation turned, yaws wound) is an encoding of r itself."""
     D = DualQuaternionPair()

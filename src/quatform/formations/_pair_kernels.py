@@ -102,8 +102,16 @@ def quat_forward(r, qh, q1h=None, q2h=None):
     D = (dx * dx + dy * dy + dz * dz) ** 0.5
     ux, uy, uz = dx / D, dy / D, dz / D
     ax, ay, az = x_axis(qh)
-    # minimal rotation taking the hint's x axis to the segment: (1 + a.u, a x u), normalised
-    s = (1.0 + ax * ux + ay * uy + az * uz, ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
+    # minimal rotation taking the hint's x axis to the segment: (1 + a.u, a x u), normalised;
+    # for a.u < 0, 1 + a.u = |a x u|^2 / (1 - a.u) (no cancellation near the opposite direction)
+    c = ax * ux + ay * uy + az * uz
+    vx, vy, vz = ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux
+    vv = vx * vx + vy * vy + vz * vz
+    if isinstance(c, float):
+        w = 1.0 + c if c >= 0.0 else vv / (1.0 - c)
+    else:
+        w = np.where(c >= 0.0, 1.0 + c, vv / np.maximum(1.0 - c, 1.0))  # 1 - c >= 1 where used
+    s = (w, vx, vy, vz)
     n = qdot(s, s) ** 0.5
     anti = n < _EPS_ANTI
     if anti if isinstance(anti, bool) else np.any(anti):  # segment opposite the hint: half turn about the hint's z axis
