@@ -232,9 +232,10 @@ def test_dual_quaternion_closed_form_is_eq26_with_decoupled_root():
         assert same == (abs(g.wrap(0.5 * (r[3] + r[7]) - (r[7] + 0.5 * rel))) < 1e-9)
 
 
-def test_dual_quaternion_pair_does_not_fix_the_branch():
-    """(qhat_c, qhat_s) of a formation and of the same formation turned half a turn about the
-    cluster z axis with yaws wound by 2 pi are equal: the inverse needs the robots' branch."""
+def test_dual_quaternion_pair_tells_the_branch_by_the_sign_of_qhat_s():
+    """A formation and the same formation turned half a turn about the cluster z axis (yaws
+    wound by +-pi) have the same pair up to the sign of qhat_s; that sign tells them apart,
+    so the inverse needs no hint (it used to return the turned one without a hint, issue 12)."""
     D = DualQuaternionPair()
     r = np.array([1.0, 0.5, 1.0, 0.3, -1.0, -0.5, 1.2, -0.4])
     c = D.forward(r)
@@ -244,16 +245,15 @@ def test_dual_quaternion_pair_does_not_fix_the_branch():
         turned[k:k + 2] = 2 * mid[:2] - r[k:k + 2]
     turned[[3, 7]] = r[[3, 7]] + np.array([np.pi, -np.pi])
     c2 = D.forward(turned)
-    for s in (slice(0, 8), slice(8, 16)):
-        assert min(np.abs(c[s] - c2[s]).max(), np.abs(c[s] + c2[s]).max()) < 1e-12
-    np.testing.assert_allclose(D.inverse(c, hint=r), r, atol=1e-12)
-    # monitoring needs the robots too: with the turned formation's Euclidean state as the
-    # hint, the measured robots still come back (on the (beta + pi, pi - gamma) branch
-    # nearest the hint)
+    np.testing.assert_allclose(c2[0:8], c[0:8], atol=1e-12)
+    np.testing.assert_allclose(c2[8:16], -c[8:16], atol=1e-12)
+    np.testing.assert_allclose(g.wrap(D.inverse(c) - r), 0, atol=1e-12)
+    np.testing.assert_allclose(g.wrap(D.inverse(c2) - turned), 0, atol=1e-12)
+    # a hint only unwraps the yaws: the turned formation's robots as hint give r back
+    np.testing.assert_allclose(D.inverse(c, hint=turned)[[0, 1, 2, 4, 5, 6]], r[[0, 1, 2, 4, 5, 6]], atol=1e-12)
+    # monitoring with the turned formation's Euclidean state as the hint: the measured robots
     got = EuclideanPair().inverse(D.euclidean(c, EuclideanPair().forward(turned), r))
     np.testing.assert_allclose(g.wrap(got - r), 0, atol=1e-9)
-    back = D.inverse(c, hint=turned)
-    np.testing.assert_allclose(back[[0, 1, 2, 4, 5, 6]], turned[[0, 1, 2, 4, 5, 6]], atol=1e-12)
 
 
 def test_dual_quaternion_half_turn_relative_yaw_is_continuous():

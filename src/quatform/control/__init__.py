@@ -9,6 +9,7 @@ from .cluster_space import TABLE1, TABLE2, ClusterSpaceController, RobotSpaceCon
 from .quaternion import (
     DualQuaternionController,
     QuaternionController,
+    dual_quaternion_law_lyapunov,
     dual_quaternion_lyapunov,
     quaternion_lyapunov,
 )
@@ -32,6 +33,7 @@ __all__ = [
     "DualQuaternionController",
     "quaternion_lyapunov",
     "dual_quaternion_lyapunov",
+    "dual_quaternion_law_lyapunov",
     "TABLE1",
     "TABLE2",
     "CONTROLLERS",

@@ -17,7 +17,7 @@ import numpy as np
 from ..algebra._validate import UNIT_TOLERANCE, as_array
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations._pair_kernels import pack
-from ..formations.base import Formation
+from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, Formation, check_magnitude
 from ..robots import Team
 
 __all__ = ["Reference", "StepResult", "Controller"]
@@ -32,14 +32,12 @@ class Reference:
     c : ndarray, shape (..., n_c)
     c_dot : ndarray, shape (..., n_c)
     robots : ndarray, shape (..., n_r), optional
-        The desired robot state (``formation.inverse(c)`` on the intended branch, or the
-        robot-space reference). The measured yaws are unwrapped to within pi of its yaws
-        before the forward kinematics, so a sensor's yaw reported mod 2 pi, or a reference
-        whose yaws are wound by 2 pi, means the same formation. The dual-quaternion
-        description needs it: its pair ``(qhat_c, qhat_s)`` names two formations half a
-        turn apart (``docs/derivations.md``); without it the measured state is put on the
-        sheet of ``c`` nearest the reference's, which fails only where the
-        reference jumps by half a turn.
+        The desired robot state (the robot-space reference). The measured yaws are
+        unwrapped to within pi of its yaws before the forward kinematics, so a sensor's yaw
+        reported mod 2 pi, or a reference whose yaws are wound by 2 pi, means the same
+        formation. No description needs it any more: the dual-quaternion controller reads
+        the desired robots from ``c`` itself (the sign of ``qhat_s`` is the branch of the
+        half-way yaw, ``docs/derivations.md``, Hardening (issue 12)) and aligns to those.
     """
 
     c: np.ndarray
@@ -89,8 +87,12 @@ def check_units(comps, starts, dual=False, tol=UNIT_TOLERANCE):
             )
 
 
-def check_separation(r, min_m=1e-9):
-    """Raise DegenerateInputError if the two robots of state components ``r`` coincide."""
+def check_separation(r, min_m=MIN_SEPARATION_M):
+    """Raise DegenerateInputError if the two robots of state components ``r`` coincide.
+
+    The components are within :data:`~quatform.formations.base.MAX_MAGNITUDE` (checked on
+    entry), so the squares are finite.
+    """
     d2 = (r[0] - r[4]) ** 2 + (r[1] - r[5]) ** 2 + (r[2] - r[6]) ** 2
     close = d2 <= min_m * min_m
     if close if isinstance(close, bool) else np.any(close):
@@ -112,10 +114,12 @@ def gains(values, n, name):
 
 
 def _checked(x, name, n):
-    """``as_array`` with a fast path for one finite float64 vector of length ``n``."""
-    if type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64 and math.isfinite(sum(x.tolist())):
-        return x
-    return as_array(x, name, n)
+    """``as_array`` and the magnitude limit, with a fast path for one float64 vector of length ``n``."""
+    if type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64:
+        v = x.tolist()
+        if math.isfinite(sum(v)) and max(v) <= MAX_MAGNITUDE and min(v) >= -MAX_MAGNITUDE:
+            return x
+    return check_magnitude(as_array(x, name, n), name)
 
 
 class Controller(ABC):

@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import DegenerateInputError
 from ..formations import EuclideanPair, RobotSpace
-from ..formations.base import Formation
+from ..formations.base import MIN_SEPARATION_M, Formation
 from ..robots import Team
 from .base import Controller, gains
 
@@ -85,3 +86,14 @@ class RobotSpaceController(_ProportionalController):
 
     def __post_init__(self):
         object.__setattr__(self, "k", gains(self.k, 8, "k"))
+
+    def _control(self, r, c_des, c_dot_des, aligned):
+        # a reference with the robots on each other is no formation (the cluster-space
+        # controller refuses d_c below MIN_SEPARATION_M / 2 the same way)
+        d = np.linalg.norm(c_des[..., 0:3] - c_des[..., 4:7], axis=-1)
+        if np.any(d < MIN_SEPARATION_M):
+            raise DegenerateInputError(
+                f"reference robots are {float(np.min(d)):.3g} m apart: no formation (at least "
+                f"{MIN_SEPARATION_M:g} m); give desired robots apart"
+            )
+        return super()._control(r, c_des, c_dot_des, aligned)

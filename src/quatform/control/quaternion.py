@@ -5,7 +5,14 @@ Control layer. Errors are taken in the body frame, ``qe = q_des* q`` (the seed p
 omega`` with the command ``q_dot = 1/2 q omega``; see ``docs/derivations.md``). The
 feedback ``omega = -sgn(qe_0) K qe_vec`` (with ``sgn(0) = +1``) drives ``qe`` to ``+-1``,
 whichever is nearer; the feed-forward ``q_dot_des q_des* q`` makes ``qe`` constant when
-there is no feedback.
+there is no feedback. The rotation of the dual-quaternion shape ``qhat_s`` is the
+exception: its sign is the branch of the half-way yaw (``-qhat_s`` is the formation turned
+half a turn), so it is driven to ``+qhat_s_des`` (``omega_p = -K qe_vec``, no sgn); its
+translation keeps the seed's ``-sgn(qe_p0) K qe_d_vec``, which makes the translation error
+shrink (``docs/derivations.md``, Hardening (issue 12)).
+
+Both controllers refuse a reference that is no formation of two 4-DOF robots (robots on
+each other, a robot rolled or pitched) before computing anything.
 """
 
 from __future__ import annotations
@@ -14,10 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import DegenerateInputError, UnreachableError
 from ..formations import DualQuaternionPair, QuaternionPair
 from ..formations import _geometry as g
 from ..formations import _pair_kernels as kern
-from ..formations.base import Formation
+from ..formations.base import MIN_SEPARATION_M, Formation
+from ..formations.quaternion_pair import TILT_TOL
 from ..robots import Team
 from .base import Controller, check_separation, check_units, gains
 from .cluster_space import TABLE1
@@ -28,6 +37,7 @@ __all__ = [
     "DualQuaternionController",
     "quaternion_lyapunov",
     "dual_quaternion_lyapunov",
+    "dual_quaternion_law_lyapunov",
 ]
 
 _QSL = (slice(3, 7), slice(8, 12), slice(12, 16))
@@ -94,6 +104,83 @@ def dual_quaternion_lyapunov(c, c_des):
     return v
 
 
+def dual_quaternion_law_lyapunov(c, c_des):
+    """``sum_k |qhat_e_k - sigma_k|^2 = sum_k (2 (1 - sigma_k p0_k) + |d_k|^2)``, ``k = c, s``: the
+    function the law as implemented decreases (``docs/derivations.md``, Hardening (issue 12)).
+
+    ``qhat_e = qhat_des* qhat`` as in eq. (28); ``sigma_c = sgn(p0_c)`` (the sign of ``qhat_c``
+    means nothing), ``sigma_s = +1`` (the sign of ``qhat_s`` is the branch). Under the law with
+    ``K = k I`` and a still reference, ``dV/dt = -sum_k k (|p_vec_k|^2 + |p0_k| |d_k|^2) <= 0``
+    everywhere (for ``qhat_c`` this is also the seed's eq. (28), for which eq. (29) is not a
+    Lyapunov function beyond 90 deg).
+
+    Parameters
+    ----------
+    c, c_des : array_like, shape (..., 16)
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    c, c_des = np.asarray(c, float), np.asarray(c_des, float)
+    v = 0.0
+    for s in (slice(0, 8), slice(8, 16)):
+        qe = kern.pack(kern.dqmul(kern.dqconj(kern.unpack(c_des[..., s])), kern.unpack(c[..., s])))
+        p0 = np.abs(qe[..., 0]) if s.start == 0 else qe[..., 0]
+        v = v + 2.0 * (1.0 - p0) + np.einsum("...i,...i->...", qe[..., 4:8], qe[..., 4:8])
+    return v
+
+
+def _largest(x):
+    """Largest of a float or an array of floats."""
+    return x if isinstance(x, float) else float(np.max(x))
+
+
+def check_yaw_only(q, what, tol=TILT_TOL):
+    """Raise UnreachableError if the rotation ``q`` (4 components, unit within the unit
+    tolerance) is not about z beyond ``tol``: the tilt ``|R(q) e_z - e_z|`` that
+    ``formation.inverse`` refuses."""
+    n2 = kern.qdot(q, q)
+    zx, zy, zz = kern.z_axis(q)
+    tilt = ((zx / n2) ** 2 + (zy / n2) ** 2 + (zz / n2 - 1.0) ** 2) ** 0.5
+    bad = tilt > tol
+    if bad if isinstance(bad, bool) else np.any(bad):
+        raise UnreachableError(
+            f"reference {what} tilts by {_largest(tilt):.3g} rad (limit {tol:g}); a 4-DOF robot only "
+            "yaws - build references with formation.from_euclidean"
+        )
+
+
+def check_quaternion_reference(cd):
+    """Seed 000 eqs. (16)-(19) must give two robots apart, each yawed only: refuse
+    ``d_c < MIN_SEPARATION_M / 2`` and a robot quaternion ``q_c q_ci`` that tilts."""
+    d = cd[7]
+    bad = d < 0.5 * MIN_SEPARATION_M
+    if bad if isinstance(bad, bool) else np.any(bad):
+        raise DegenerateInputError(
+            f"reference d_c = {float(np.min(d))!r} m puts the robots on each other (it must be at least "
+            f"{0.5 * MIN_SEPARATION_M:g} m, half their separation)"
+        )
+    for i, name in ((8, "q_c q_c1"), (12, "q_c q_c2")):
+        check_yaw_only(kern.qmul(*cd[3:7], *cd[i:i + 4]), name)  # eqs. (17), (19)
+
+
+def check_dual_quaternion_reference(cd):
+    """Eqs. (26)-(27) must give two robots apart, each yawed only: refuse rotations of
+    ``qhat_c``, ``qhat_s`` that tilt and a shape that translates less than
+    ``MIN_SEPARATION_M`` (``qhat_s`` carries ``p1 - p2`` in robot 2's frame)."""
+    check_yaw_only(cd[0:4], "qhat_c")
+    check_yaw_only(cd[8:12], "qhat_s")
+    tx, ty, tz = kern.translation(cd[8:16])
+    sep = (tx * tx + ty * ty + tz * tz) ** 0.5
+    bad = sep < MIN_SEPARATION_M
+    if bad if isinstance(bad, bool) else np.any(bad):
+        raise DegenerateInputError(
+            f"reference qhat_s translates by {float(np.min(sep)):.3g} m: the robots would be on each "
+            f"other (the shape must separate them by at least {MIN_SEPARATION_M:g} m)"
+        )
+
+
 @dataclass(frozen=True)
 class QuaternionController(Controller):
     """Seed 000 eq. (20) with position and shape loops (§3.2), on eqs. (9)-(19).
@@ -126,6 +213,7 @@ class QuaternionController(Controller):
     def _control(self, r, c_des, c_dot_des, aligned):
         rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
         check_units(cd, ((3, "q_c"), (8, "q_c1"), (12, "q_c2")))
+        check_quaternion_reference(cd)
         check_separation(rc)
         c = kern.quat_forward(rc, cd[3:7], cd[8:12], cd[12:16])
         kx, kd, kw = self._gains
@@ -162,8 +250,12 @@ class DualQuaternionController(Controller):
     def _control(self, r, c_des, c_dot_des, aligned):
         rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
         check_units(cd, ((0, "qhat_c"), (8, "qhat_s")), dual=True)
+        check_dual_quaternion_reference(cd)
+        # The measured yaws on the desired state's branch (read from c_des itself): each
+        # within pi of the desired robot's, the shape's relative-yaw error within 3 pi / 2.
+        rc = kern.dq_align_yaws(rc, *kern.dq_yaws(cd))
         check_separation(rc)
-        c = kern.dq_forward(rc, cd[0:4], cd[8:12], wind=not aligned)
+        c = kern.dq_forward(rc, cd[0:4])
         kw = self._gains
         err, cmd = [], []
         for i in (0, 8):
@@ -171,11 +263,12 @@ class DualQuaternionController(Controller):
             qe = kern.dqmul(kern.dqconj(qd), q)  # body-frame error (eq. (28), order corrected)
             err += qe
             h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_p0)/2, sgn(0) = +1
-            w = (0.0, h * kw[0] * qe[1], h * kw[1] * qe[2], h * kw[2] * qe[3],
+            hp = h if i == 0 else -0.5  # qhat_s's rotation -> +qhat_s_des (its sign is the branch)
+            w = (0.0, hp * kw[0] * qe[1], hp * kw[1] * qe[2], hp * kw[2] * qe[3],
                  0.0, h * kw[0] * qe[5], h * kw[1] * qe[6], h * kw[2] * qe[7])
             qdot = kern.dqmul(q, w)  # eq. (28): 1/2 qhat (0, -sgn K qe_p; 0, -sgn K qe_d)
             if self.feedforward:
                 qdot = kern.dqadd(qdot, kern.dqmul(qdd, qe))  # q_dot_des q_des* q = q_dot_des qe
             cmd += qdot
-        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), rc)  # theta_2 alone fixes the branch
+        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), rc)
         return c, tuple(err), r_dot

@@ -102,8 +102,16 @@ def quat_forward(r, qh, q1h=None, q2h=None):
     D = (dx * dx + dy * dy + dz * dz) ** 0.5
     ux, uy, uz = dx / D, dy / D, dz / D
     ax, ay, az = x_axis(qh)
-    # minimal rotation taking the hint's x axis to the segment: (1 + a.u, a x u), normalised
-    s = (1.0 + ax * ux + ay * uy + az * uz, ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
+    # minimal rotation taking the hint's x axis to the segment: (1 + a.u, a x u), normalised;
+    # for a.u < 0, 1 + a.u = |a x u|^2 / (1 - a.u) (no cancellation near the opposite direction)
+    c = ax * ux + ay * uy + az * uz
+    vx, vy, vz = ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux
+    vv = vx * vx + vy * vy + vz * vz
+    if isinstance(c, float):
+        w = 1.0 + c if c >= 0.0 else vv / (1.0 - c)
+    else:
+        w = np.where(c >= 0.0, 1.0 + c, vv / np.maximum(1.0 - c, 1.0))  # 1 - c >= 1 where used
+    s = (w, vx, vy, vz)
     n = qdot(s, s) ** 0.5
     anti = n < _EPS_ANTI
     if anti if isinstance(anti, bool) else np.any(anti):  # segment opposite the hint: half turn about the hint's z axis
@@ -170,13 +178,14 @@ def translation(dq):
     return (2.0 * m[1], 2.0 * m[2], 2.0 * m[3])
 
 
-def dq_forward(r, qch=None, qsh=None, wind=False):
-    """Eqs. (26)-(27) in closed form on the branch of the continuous yaws (16 components).
+def dq_forward(r, qch=None):
+    """Eqs. (26)-(27) in closed form on the branch of the given (real) yaws (16 components).
 
     ``qhat_c``: yaw ``(th1 + th2)/2`` at the midpoint; ``qhat_s``: yaw ``th1 - th2`` at
-    ``R_z(-th2)(p1 - p2)``. ``qch``, ``qsh`` (rotation parts of a hint) set the signs;
-    with ``wind``, also the branch: the half-way yaw nearer ``qch`` (robot 1's yaw taken
-    2 pi further if that is nearer; the qhat_2-frame shape is unchanged).
+    ``R_z(-th2)(p1 - p2)``. ``qch`` (the rotation part of a hint's ``qhat_c``) sets the sign
+    of ``qhat_c``, which means nothing. The sign of ``qhat_s`` is the branch of the
+    half-way yaw and is never flipped: ``(qhat_c, -qhat_s)`` is the formation turned half a
+    turn (``docs/derivations.md``, Hardening (issue 12)).
     """
     x1, y1, z1, t1, x2, y2, z2, t2 = r
     L = lib(t2)
@@ -185,12 +194,50 @@ def dq_forward(r, qch=None, qsh=None, wind=False):
     c2, s2 = L.cos(t2), L.sin(t2)
     qs = pose(qyaw(t1 - t2), (c2 * dx + s2 * dy, -s2 * dx + c2 * dy, dz))
     if qch is not None:
-        if wind:  # robot 1's yaw + 2 pi: the other half-way yaw, if it is nearer the hint
-            turned = dqmul(qc, (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0))
-            qc = select(abs(qdot(turned[:4], qch)) > abs(qdot(qc[:4], qch)), turned, qc)
         qc = neg_if(qdot(qc[:4], qch) < 0.0, qc)
-        qs = neg_if(qdot(qs[:4], qsh) < 0.0, qs)
     return qc + qs
+
+
+def dq_yaws(c):
+    """Real yaws ``(theta_1, theta_2)`` that :func:`dq_forward` maps to the state ``c``.
+
+    ``theta_c = 2 atan2(qc_z, qc_w)`` (mod 4 pi: the sign of ``qhat_c``) and
+    ``theta_s / 2 = atan2(qs_z, qs_w)`` (mod 2 pi: the sign of ``qhat_s``);
+    ``theta_1,2 = theta_c +- theta_s / 2``, the inverse of ``qhat_c = q_yaw((th1 + th2)/2)``,
+    ``qhat_s = q_yaw(th1 - th2)``. Exact for yaw rotations; the yaw part of any other.
+    """
+    at = math.atan2 if isinstance(c[0], float) else np.arctan2
+    th_c = 2.0 * at(c[3], c[0])
+    half_s = at(c[11], c[8])
+    return th_c + half_s, th_c - half_s
+
+
+_TWO_PI = 2.0 * math.pi
+_THREE_HALF_PI = 1.5 * math.pi
+
+
+def dq_align_yaws(r, t1, t2):
+    """``r`` (8 components) with its yaws moved by whole turns onto the branch of the
+    desired yaws ``t1``, ``t2`` (real numbers, :func:`dq_yaws` of the desired state).
+
+    Each yaw goes to within pi of its desired one (``theta - t`` in ``(-pi, pi]``, the rule of
+    :meth:`Formation.align`): the cluster's yaw error ``(a1 + a2)/2`` is then within pi and
+    the shape's ``a1 - a2`` within 2 pi. Where the shape's exceeds ``3 pi / 2`` robot 1's yaw
+    is taken a turn back (the other lift of the same formation): the shape law drives
+    ``qhat_s`` to ``+qhat_s_des`` and has its unstable equilibrium at a shape error of
+    ``2 pi`` (``qe_s = -1``), which this keeps at least ``pi / 2`` away
+    (``docs/derivations.md``, Hardening (issue 12)).
+    """
+    flt = isinstance(r[3], float) and isinstance(t1, float)
+    fl = math.floor if flt else np.floor
+    a1 = r[3] + _TWO_PI * fl((t1 - r[3]) / _TWO_PI + 0.5)
+    a2 = r[7] + _TWO_PI * fl((t2 - r[7]) / _TWO_PI + 0.5)
+    rel = (a1 - t1) - (a2 - t2)
+    if flt:
+        a1 -= _TWO_PI if rel > _THREE_HALF_PI else (-_TWO_PI if rel < -_THREE_HALF_PI else 0.0)
+    else:
+        a1 = a1 - _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)
+    return (r[0], r[1], r[2], a1, r[4], r[5], r[6], a2)
 
 
 def _yaw_and_translation_rates(q, qd):

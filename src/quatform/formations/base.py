@@ -25,11 +25,31 @@ import numpy as np
 
 from ..algebra import wrap_angle
 from ..algebra._validate import as_array
-from ..errors import DegenerateInputError
+from ..errors import DegenerateInputError, InvalidInputError
 
-__all__ = ["Variable", "Formation", "ROBOT_PAIR_VARIABLES"]
+__all__ = ["Variable", "Formation", "ROBOT_PAIR_VARIABLES", "MIN_SEPARATION_M", "MAX_MAGNITUDE"]
 
 _TWO_PI = 2.0 * math.pi
+
+#: Closest two robots may be (m); below it a two-robot formation is undefined.
+MIN_SEPARATION_M = 1e-9
+#: Largest magnitude of a state entry (m, rad, m/s ...). The formations square lengths
+#: (norms, Lyapunov functions) and multiply them by gains and rates; below 1e150 every such
+#: product of two or three of them is finite in float64, above about 1.3e154 a squared
+#: separation overflows to infinity.
+MAX_MAGNITUDE = 1e150
+
+
+def check_magnitude(a, name):
+    """Raise InvalidInputError if an entry of the finite array ``a`` exceeds :data:`MAX_MAGNITUDE`."""
+    if a.size and not (np.max(a) <= MAX_MAGNITUDE and np.min(a) >= -MAX_MAGNITUDE):
+        idx = np.unravel_index(int(np.argmax(np.abs(a))), a.shape)
+        raise InvalidInputError(
+            f"{name}{list(int(i) for i in idx)} = {float(a[idx]):.6g} is beyond the {MAX_MAGNITUDE:g} "
+            "quatform accepts (squared lengths would overflow); express the state in larger units "
+            "or nearer the origin"
+        )
+    return a
 
 
 @dataclass(frozen=True)
@@ -101,18 +121,18 @@ class Formation(ABC):
 
     # -- input checks ---------------------------------------------------------------
     def check_robot_state(self, r, name: str = "r") -> np.ndarray:
-        """Finite ``(..., n_r)`` array, robots not coincident."""
-        r = as_array(r, name, self.n_r)
-        return r
+        """Finite ``(..., n_r)`` array, entries within :data:`MAX_MAGNITUDE`."""
+        return check_magnitude(as_array(r, name, self.n_r), name)
 
     def check_cluster_state(self, c, name: str = "c") -> np.ndarray:
-        return as_array(c, name, self.n_c)
+        """Finite ``(..., n_c)`` array, entries within :data:`MAX_MAGNITUDE`."""
+        return check_magnitude(as_array(c, name, self.n_c), name)
 
     @staticmethod
     def _check_separation(delta, name="r"):
         d = np.sqrt(np.einsum("...i,...i->...", delta, delta))
-        if np.any(d < 1e-9):
-            idx = np.argwhere(np.atleast_1d(d < 1e-9))[0]
+        if np.any(d < MIN_SEPARATION_M):
+            idx = np.argwhere(np.atleast_1d(d < MIN_SEPARATION_M))[0]
             raise DegenerateInputError(
                 f"{name}: the two robots coincide (separation {float(np.atleast_1d(d)[tuple(idx)]):.3g} m"
                 f" at index {tuple(int(i) for i in idx)}); a formation of two robots needs them apart"

@@ -6,13 +6,15 @@ pose in robot 2's frame (the shape), ``qhat_c = qhat_2 h`` the cluster frame, wi
 translation), so that ``qhat_c`` sits at the robots' midpoint with the half-way yaw
 (``docs/derivations.md``, seed 000 items 2-3).
 
-The half-way orientation has two candidates, half a turn apart, at every relative yaw;
-the short-way root jumps between them where the relative yaw crosses ``pi``. quatform
-takes the branch of the robots' continuous yaws, ``(theta_1 + theta_2)/2``, so the state
-is continuous along every motion. The pair ``(qhat_c, qhat_s)`` alone does not tell the
-branch: the formation turned half a turn about the cluster's z axis has the same pair on
-the other branch. The inverse kinematics therefore picks the root whose robots are
-nearest a robot-state hint (the short root without one).
+The half-way yaw of two yaws is only defined mod pi: two cluster frames, half a turn
+apart, sit half-way between the robots. quatform takes the branch of the robots'
+continuous yaws, ``(theta_1 + theta_2)/2``, so the state is continuous along every motion,
+and records the branch in the **sign of** ``qhat_s``: ``h`` is the root of ``qhat_s``
+itself (``h^2 = +qhat_s``), unique up to sign. So ``(+-qhat_c, qhat_s)`` and
+``(+-qhat_c k, -qhat_s)`` (``k`` the half turn about the cluster's z axis) are one
+formation, and ``(qhat_c, -qhat_s)`` is that formation turned half a turn about the
+cluster's z axis (the robots swapped): ``inverse(forward(r)) = r`` without a hint
+(``docs/derivations.md``, Hardening (issue 12)).
 """
 
 from __future__ import annotations
@@ -20,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra._validate import as_array, as_unit_dual_quaternion
-from ..errors import UnreachableError
+from ..errors import DegenerateInputError, UnreachableError
 from . import _geometry as g
 from . import _pair_kernels as kern
-from .base import Formation, Variable
+from .base import MIN_SEPARATION_M, Formation, Variable
 from .euclidean_pair import EuclideanPair
 from .quaternion_pair import TILT_TOL, QuaternionPair
 
@@ -68,47 +70,43 @@ class DualQuaternionPair(Formation):
         return c
 
     @staticmethod
-    def _roots(qs):
-        """Both decoupled square roots of the shape ``qs`` (short one first), shape ``(..., 8)``."""
-        rs = g.closest_sign(qs[..., :4], np.array([1.0, 0.0, 0.0, 0.0]))
-        one = np.zeros_like(rs)
-        one[..., 0] = 1.0
-        v = one + rs  # w >= 1: never zero
-        rh = v / np.linalg.norm(v, axis=-1, keepdims=True)
-        rh_long = g.mul(rh, _KZ)  # the other half-way yaw: half a turn more
-        half_t = 0.5 * _translation(qs)
-        return _pose_dq(rh, half_t), _pose_dq(rh_long, half_t)
+    def _root(qs):
+        """The decoupled square root ``h`` of the signed shape ``qs``, shape ``(..., 8)``.
+
+        ``h = (q_yaw(theta_s / 2), t_s / 2)`` with ``theta_s / 2 = atan2(qs_z, qs_w)``, so that
+        ``h_p^2 = +qs_p`` (not ``-qs_p``): the root of ``qs`` and of ``-qs`` are half a turn
+        apart, and which one is meant is the sign of ``qs`` (seed 000 eq. (26)). The yaw
+        part of the rotation is used (the state is checked to be a yaw first).
+        """
+        rh = g.q_yaw(np.arctan2(qs[..., 3], qs[..., 0]))
+        return _pose_dq(rh, 0.5 * _translation(qs))
 
     def forward(self, r, hint=None):
         """Eqs. (26)-(27) in closed form: ``qhat_c`` = yaw ``(th1 + th2)/2`` at the midpoint,
         ``qhat_s`` = yaw ``th1 - th2`` at ``R_z(-th2)(p1 - p2)``.
 
-        This is ``qhat_2 (qhat_2* qhat_1)^(1/2)`` with the root on the branch of the robots'
-        continuous yaws (``r`` holds unwrapped angles: report yaws mod 2 pi and the mean of
-        two angles is only known mod pi). ``hint`` sets the signs.
+        Parameters
+        ----------
+        r : array_like, shape (..., 8)
+            Robot states, m and rad; the yaws are read as real numbers (their branch sets
+            the sign of ``qhat_s``; every branch is the same formation, see the module).
+        hint : array_like, shape (..., 16), optional
+            A cluster state to stay near: the yaws of ``r`` are first moved by whole turns
+            onto the hint's branch (:func:`~._pair_kernels.dq_align_yaws`, as the controller
+            does), and ``qhat_c`` takes the hint's sign. The result is the same formation as
+            ``r`` whatever the hint.
+
+        Returns
+        -------
+        ndarray, shape (..., 16)
         """
         r = self.check_robot_state(r)
         self._check_separation(r[..., 0:3] - r[..., 4:7])
         if hint is None:
             return kern.pack(kern.dq_forward(kern.unpack(r)))
         h = kern.unpack(self.check_cluster_state(hint, "hint"))
-        return kern.pack(kern.dq_forward(kern.unpack(r), h[0:4], h[8:12]))
-
-    def _branch(self, c, hint_r):
-        """Root ``h`` of each state: the one whose robots are nearest ``hint_r`` (short if None)."""
-        h, h_long = self._roots(c[..., _QS])
-        if hint_r is None:
-            return h
-        r_short = self._robots(c, h)
-        r_long = self._robots(c, h_long)
-        hint_r = np.asarray(hint_r, dtype=float)
-
-        def dist(rr):
-            dp = np.linalg.norm(rr[..., 0:3] - hint_r[..., 0:3], axis=-1) + np.linalg.norm(
-                rr[..., 4:7] - hint_r[..., 4:7], axis=-1)
-            return dp + np.abs(g.wrap(rr[..., 3] - hint_r[..., 3])) + np.abs(g.wrap(rr[..., 7] - hint_r[..., 7]))
-
-        return np.where((dist(r_long) < dist(r_short))[..., None], h_long, h)
+        rr = kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h))
+        return kern.pack(kern.dq_forward(rr, h[0:4]))
 
     @staticmethod
     def _robots(c, h):
@@ -124,7 +122,29 @@ class DualQuaternionPair(Formation):
         """Robots of ``c``: ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_c h* qhat_s``.
 
         The form printed under eq. (27) fails at a relative half turn; this one is exact
-        (``docs/derivations.md``, seed 000 item 3).
+        (``docs/derivations.md``, seed 000 item 3). ``h`` is the root of the signed
+        ``qhat_s`` (:meth:`_root`), so the result needs no hint.
+
+        Parameters
+        ----------
+        c : array_like, shape (..., 16)
+            Unit dual quaternions ``qhat_c``, ``qhat_s`` whose rotations are yaws.
+        hint : array_like, shape (..., 8), optional
+            Robot state whose yaws the result's are unwrapped near (within pi); it does not
+            change the formation.
+
+        Returns
+        -------
+        ndarray, shape (..., 8)
+            ``(x1, y1, z1, theta1, x2, y2, z2, theta2)``, m and rad (yaws in ``(-pi, pi]``
+            without a hint).
+
+        Raises
+        ------
+        UnreachableError
+            If a rotation is not about z (a 4-DOF robot cannot roll or pitch).
+        DegenerateInputError
+            If the shape's translation is shorter than the robots' minimum separation.
         """
         c = self.check_cluster_state(c)
         for s, what in ((_QC, "qhat_c"), (_QS, "qhat_s")):
@@ -135,9 +155,15 @@ class DualQuaternionPair(Formation):
                     f"{what} tilts by {float(np.max(tilt)):.3g} rad; with 4-DOF robots its rotation "
                     "must be about z"
                 )
+        sep = np.linalg.norm(_translation(c[..., _QS]), axis=-1)
+        if np.any(sep < MIN_SEPARATION_M):
+            raise DegenerateInputError(
+                f"qhat_s translates by {float(np.min(sep)):.3g} m: the two robots would coincide; "
+                f"the shape must separate them by at least {MIN_SEPARATION_M:g} m"
+            )
         if hint is not None:
             hint = self.check_robot_state(hint, "hint")
-        r = self._robots(c, self._branch(c, hint))
+        r = self._robots(c, self._root(c[..., _QS]))
         if hint is not None:
             for k in (3, 7):
                 r[..., k] = g.unwrap_near(r[..., k], hint[..., k])
@@ -177,7 +203,8 @@ class DualQuaternionPair(Formation):
     def inverse_jacobian_at(self, c, r=None):
         """Derivative of the inverse kinematics at ``c``, shape ``(..., 8, 16)``.
 
-        On the square-root branch of the robots ``r`` (the short root without them). Along
+        ``r``, the robots of ``c`` (computed by :meth:`inverse` if not given), supplies
+        ``theta_2``. Along
         the description's 8-dimensional manifold this is the derivative of
         ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_2 qhat_s``; see
         :func:`~quatform.formations._pair_kernels.dq_inverse_jvp`.
@@ -192,13 +219,12 @@ class DualQuaternionPair(Formation):
 
         The dual quaternions carry no frame on the segment, so the branch of ``(beta_c,
         gamma_c)`` near the vertical is taken from ``hint`` (the desired Euclidean state)
-        through :meth:`QuaternionPair.euclidean`; without a hint, eqs. (1)-(8). The pair
-        does not fix the robots (two branches): give the measured robots ``r``; without
-        them the hint's robots pick the branch, which is wrong right after a step of the
-        reference by half a turn.
+        through :meth:`QuaternionPair.euclidean`; without a hint, eqs. (1)-(8). ``r`` (the
+        measured robots) or else the hint's robots only unwrap the yaws: ``c`` itself fixes
+        the formation.
         """
-        branch = r if r is not None else (None if hint is None else EuclideanPair().inverse(hint))
-        r = self.inverse(c, branch)
+        near = r if r is not None else (None if hint is None else EuclideanPair().inverse(hint))
+        r = self.inverse(c, near)
         if hint is None:
             return EuclideanPair().forward(r)
         qp = QuaternionPair()

@@ -14,7 +14,7 @@ import numpy as np
 from ..algebra._validate import as_array
 from ..errors import DegenerateInputError
 from . import _geometry as g
-from .base import ROBOT_PAIR_VARIABLES, Formation, Variable
+from .base import MIN_SEPARATION_M, ROBOT_PAIR_VARIABLES, Formation, Variable
 
 __all__ = ["EuclideanPair", "RobotSpace", "EUCLIDEAN_VARIABLES"]
 
@@ -64,10 +64,11 @@ class EuclideanPair(Formation):
 
     def check_cluster_state(self, c, name="c"):
         c = super().check_cluster_state(c, name)
-        if np.any(c[..., 5] <= 0.0):
+        if np.any(c[..., 5] < 0.5 * MIN_SEPARATION_M):
             raise DegenerateInputError(
-                f"{name}: d_c must be positive (half the robots' separation), got "
-                f"{float(np.min(c[..., 5]))!r}; a negative d_c would swap the robots"
+                f"{name}: d_c must be at least {0.5 * MIN_SEPARATION_M:g} m (half the robots' "
+                f"separation), got {float(np.min(c[..., 5]))!r}; a smaller d_c puts the robots on "
+                "each other, a negative one would swap them"
             )
         return c
 
@@ -94,6 +95,35 @@ class EuclideanPair(Formation):
         return c
 
     def inverse(self, c, hint=None):
+        """Robots of the Euclidean cluster state ``c``: the inverse of eqs. (1)-(8).
+
+        ``x1,2 = x_c +- d_c (-sin beta cos gamma, cos beta cos gamma, sin gamma)`` (seed 000
+        eqs. (1)-(6) solved for the positions) and ``theta_i = phi_i + beta_c`` (eqs.
+        (7)-(8)). Single-valued: every ``c`` names one formation. A pitch beyond
+        ``[-pi/2, pi/2]`` is accepted: its positions are those of ``(beta + pi, pi - gamma)``
+        (the fold of seed 000 §4.1), its yaws ``phi_i + beta`` as given. At ``gamma_c =
+        +-pi/2`` the positions do not depend on ``beta_c`` (the vertical singularity), the
+        yaws still do.
+
+        Parameters
+        ----------
+        c : array_like, shape (..., 8)
+            ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2)``: m, rad, ``d_c`` in m
+            (at least ``MIN_SEPARATION_M / 2``).
+        hint : array_like, shape (..., 8), optional
+            Robot state whose yaws the result's are unwrapped near (within pi); without it
+            the yaws are ``phi_i + beta_c`` as given.
+
+        Returns
+        -------
+        ndarray, shape (..., 8)
+            ``(x1, y1, z1, theta1, x2, y2, z2, theta2)``, m and rad.
+
+        Raises
+        ------
+        DegenerateInputError
+            If ``d_c`` is below half the minimum separation (the robots would coincide).
+        """
         c = self.check_cluster_state(c)
         u = segment_direction(c[..., 3], c[..., 4])
         half = c[..., 5:6] * u

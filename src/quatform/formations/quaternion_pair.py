@@ -23,7 +23,7 @@ from ..algebra.operators import qminus, qplus, skew
 from ..errors import DegenerateInputError, UnreachableError
 from . import _geometry as g
 from . import _pair_kernels as kern
-from .base import Formation, Variable, quaternion_variables
+from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
 from .euclidean_pair import EuclideanPair
 
 __all__ = ["QuaternionPair"]
@@ -80,9 +80,10 @@ class QuaternionPair(Formation):
         c = self.check_cluster_state(c)
         qc = c[..., _QC] / np.linalg.norm(c[..., _QC], axis=-1, keepdims=True)
         d = c[..., _D]
-        if np.any(d <= 0.0):
+        if np.any(d < 0.5 * MIN_SEPARATION_M):
             raise DegenerateInputError(
-                f"d_c must be positive (half the robots' separation), got {float(np.min(d))!r}"
+                f"d_c must be at least {0.5 * MIN_SEPARATION_M:g} m (half the robots' separation), "
+                f"got {float(np.min(d))!r}; a smaller d_c puts the robots on each other"
             )
         half = d[..., None] * g.x_axis(qc)  # seed 000 eqs. (16), (18)
         r = np.empty(c.shape[:-1] + (8,))
