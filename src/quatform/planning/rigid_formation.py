@@ -683,7 +683,7 @@ def _with_airplane_attitudes(plan: RigidFormationPlan, index, start, end) -> Rig
         for x, when in ((x0[k], "start"), (x1[k], "end")):
             if x <= 0:
                 raise UnreachableError(
-                    f"the energy-optimal formation twist makes airplane robot {i} fly backwards at "
+                    f"the end twist minimising the cubic's energy makes airplane robot {i} fly backwards at "
                     f"the {when} (body x speed {x:.6g} m/s): reverse its {when} heading"
                 )
 
@@ -741,7 +741,7 @@ def rigid_plan_from_spec(spec: Mapping) -> RigidFormationPlan:
         apart (the projected curve is not unique).
     UnreachableError
         Airplane-like robots whose end headings admit no formation twist, or whose
-        energy-optimal motion would stop or fly backwards.
+        cubic of least energy (§3.2) would stop or fly backwards.
     """
     if not isinstance(spec, Mapping):
         raise InvalidInputError(f"spec must be a dict, got {type(spec).__name__}")
