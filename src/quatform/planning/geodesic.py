@@ -276,7 +276,7 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
         checked = _verify(res, m, a, qb, scale)
         if checked is None:
             return None
-        out = _lowest_energy(res, "continuation", *checked, m, a, qa, qb, bc, bc_jac, tol, max_nodes, scale)
+        out = _lowest_energy(res, "continuation", *checked, m, a, qa, qb, bc, bc_jac, tol, scale)
         return out[0] if out[5] else None
 
     def leap(res):
@@ -299,7 +299,7 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
     alternatives, lowest = (), None
     if N >= 3 and target != 0.5:
         sol, guess, miss, drift, energy, alternatives, lowest = _lowest_energy(
-            sol, guess, miss, drift, energy, m, target, qa, qb, bc, bc_jac, tol, max_nodes, scale)
+            sol, guess, miss, drift, energy, m, target, qa, qb, bc, bc_jac, tol, scale)
     return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
                             time.perf_counter() - t_start, sol.sol, guess, energy, alternatives, lowest)
 
@@ -560,7 +560,7 @@ def _second_variation(sol, m, alpha, qa, qb, scale):
 SECOND_VARIATION_TOLERANCE = 0.05
 
 
-def _lowest_energy(sol, guess, miss, drift, energy, m, alpha, qa, qb, bc, bc_jac, tol, max_nodes, scale,
+def _lowest_energy(sol, guess, miss, drift, energy, m, alpha, qa, qb, bc, bc_jac, tol, scale,
                    restarts: int = 3):
     """The lower-energy geodesic: restart where the second variation at ``sol`` is negative.
 
