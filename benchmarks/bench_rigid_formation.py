@@ -3,8 +3,9 @@
 For each case the script measures, best of ``--repeat`` runs (:mod:`timeit` style):
 
 * **plan**: ``airplanes_plan(case)``, the whole planning procedure: input checks, the
-  formation metric (eq. (15)), the constraint null spaces and the energy-optimal end
-  twists (airplanes, §3.2), the projected GA(3) curve, each robot's projected SO(3)
+  formation metric (eq. (15)), the constraint null spaces and the end twists that
+  minimise the energy of the cubic (airplanes, §3.2; optimal within the cubic family
+  only), the projected GA(3) curve, each robot's projected SO(3)
   geodesic (holonomic) or its velocity-aligned attitude (airplanes: an interpolated frame
   rate and an ODE solve, rtol 1e-12);
 * **sample**: ``plan.sample(plan.times)``, all robots on the 201-sample grid (one
@@ -13,7 +14,8 @@ For each case the script measures, best of ``--repeat`` runs (:mod:`timeit` styl
 
 It also prints the checks of ``plan.metrics()``: the largest change of a pairwise
 distance, the lateral speed of the airplanes at the ends and along the path, and the
-ambient energy.
+ambient energy of the cubic (not the least over all curves with those ends and twists:
+docs/derivations.md, hardening section, item 4).
 
 Run it from the repository root::
 

@@ -323,7 +323,7 @@ def test_unreachable_airplanes():
     s["end"] = {**s["end"], "robot_orientations": q}
     with pytest.raises(UnreachableError, match="cannot move"):
         rigid_plan_from_spec(s)
-    # the energy-optimal end speed is backwards when the airplanes end facing -x in case (a)
+    # the end speed minimising the cubic's energy is backwards when the airplanes end facing -x in case (a)
     s = _spec()
     s["end"] = {**s["end"], "robot_orientations": np.broadcast_to(Rotation.from_rotvec([0, 0, np.pi]).as_matrix(), (5, 3, 3))}
     with pytest.raises(UnreachableError, match="backwards"):

@@ -232,7 +232,9 @@ def test_three_bodies_below_the_symmetric_bound_break_the_symmetry():
     q0, q1 = fig4_ends()
     m = np.ones(3)
     sol = solve_geodesic(q0, q1, m, 0.2)
-    assert sol.guess == "energy minimisation" and sol.continuation == (0.2,)
+    # the continuation switches to the symmetry-breaking branch where the symmetric geodesic
+    # stops being a minimiser (alpha = 0.4, second variation negative), then reaches 0.2
+    assert sol.guess.startswith("second-variation restart") and sol.continuation[-1] == 0.2
     assert sol.endpoint_error_m < 1e-6 and sol.energy_drift < 1e-6
     q, qd = sol.state(np.linspace(0.0, 1.0, 201))
     E = metric_energy(q, qd, m, 0.2)
@@ -324,10 +326,15 @@ def test_figures_3_and_4(fig):
     D = {a: np.min(pair_separations(p) + np.eye(len(m)) * 1e9, axis=(1, 2)) for a, p in plans.items()}
     assert D[0.4][100] < 0.5 * min(D[0.4][0], D[0.4][-1])
     assert D[0.4].min() < D[0.5].min() < D[0.99].min()
-    if fig == 4:  # equal masses: the triangle stays equilateral, shrinking as alpha falls
-        for p in plans.values():
+    if fig == 4:  # equal masses: the triangle stays equilateral at 0.99 and 0.5 (the seed's
+        # claim); at 0.4 the equilateral geodesic is not the energy minimiser and the returned
+        # one deforms the triangle (issue 12; test_hardening_planning.py has the energies)
+        for a, p in plans.items():
             sides = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=-1)
-            np.testing.assert_allclose(sides, sides[:, :1] * np.ones(3), rtol=1e-6)
+            if a == 0.4:
+                assert np.ptp(sides, axis=1).max() > 0.05
+            else:
+                np.testing.assert_allclose(sides, sides[:, :1] * np.ones(3), rtol=1e-6)
 
 
 # ---------------------------------------------------------------- Plan

@@ -10,6 +10,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+from .checks import check_work
 from .errors import ConvergenceError, InvalidInputError
 from .planning import PlanPairPath, load_plan, load_plan_spec, make_plan
 from .sim.output import staged_dir, write_json
@@ -18,6 +19,9 @@ __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir"
 
 #: Name of the plan file ``quatform plan`` writes.
 PLAN_FILE = "plan.npz"
+#: Generous cost of one step of a two-robot run (time series kept, controller and simulator):
+#: seed 000's helix runs 8000 steps in 0.8 s (docs/performance.md).
+RUN_BYTES_PER_STEP, RUN_SECONDS_PER_STEP = 1024.0, 2e-4
 
 
 def _spec_with_alpha(spec, alpha):
@@ -65,7 +69,7 @@ def _write_plan(spec, plan, metrics, out, plots):
             from .planning import rigid_formation_dict, rigid_plan_from_spec
             from .report.planning_plots import plot_rigid_formation_paths
 
-            title = f"{spec.name}" + (f", case {metrics['case']}" if "case" in metrics else "")
+            title = f"{spec.name} ({spec.source})" + (f", case {metrics['case']}" if "case" in metrics else "")
             plot_rigid_formation_paths(rigid_plan_from_spec(rigid_formation_dict(spec)), out / "formation_3d.png",
                                        title)
     write_json(metrics, out / "metrics.json")
@@ -95,7 +99,8 @@ def plan_alphas_to_dir(spec, out, alphas, plots: bool = True):
         if plots and plans:
             from .report.plan_plots import DPI, plot_alpha_panels
 
-            plot_alpha_panels(plans, spec.name).savefig(tmp / "paths_by_alpha.png", dpi=DPI)
+            title = f"{spec.name} ({spec.source})" if spec.source else spec.name
+            plot_alpha_panels(plans, title).savefig(tmp / "paths_by_alpha.png", dpi=DPI)
     return rows
 
 
@@ -116,7 +121,12 @@ def scenario_with_plan(sc, plan_file, yaws=(0.0, 0.0)):
     plan's duration; ``metrics_from_s`` is kept if it lies inside it, else 0.
     """
     plan = load_plan(plan_file)
-    path = PlanPairPath(plan, yaws)
     T = plan.duration_s
+    # the run steps the plan's whole duration at the scenario's dt_s: estimate it before the
+    # reference path is built (a plan lasting 1e9 s would otherwise run for days)
+    check_work(str(plan_file), f"the plan's duration ({T:.6g} s) / the scenario's dt_s ({sc.dt_s:g} s)",
+               T / sc.dt_s, bytes_per_step=RUN_BYTES_PER_STEP, seconds_per_step=RUN_SECONDS_PER_STEP,
+               fix="plan a shorter motion (duration_s of the plan spec)")
+    path = PlanPairPath(plan, yaws)
     return dataclasses.replace(sc, path=path, duration_s=T, name=f"{sc.name}+{plan.info.get('name', 'plan')}",
                                metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)

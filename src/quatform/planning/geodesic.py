@@ -17,12 +17,19 @@ singular. For two robots that bound is checked before solving (:func:`meeting_bo
 three or more robots no such bound holds (their shapes can deform, and a geodesic may
 exist that breaks the formation's symmetry); where the continuation stalls, the error says
 how far it got.
+
+Between the same ends there may be several geodesics: two robots take the closed-form one
+(:func:`_cone_geodesic`); for three or more the second variation of the discretised path
+energy is checked (:func:`_second_variation`, Morse index theorem) and where it is negative
+the solver restarts and returns the geodesic of lower energy (issue 12: Fig. 4's symmetric
+geodesic is a saddle below alpha ~ 0.425).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.integrate import solve_bvp, solve_ivp
@@ -73,9 +80,21 @@ class GeodesicSolution:
     solve_time_s : float
         Wall time of the continuation, the check included.
     guess : str
-        ``"continuation"`` (from the straight lines at alpha = 0.5) or ``"energy
-        minimisation"`` (where the continuation stalled: a minimiser of the discretised
-        path energy, which may break the formation's symmetry).
+        ``"continuation"`` (from the straight lines at alpha = 0.5), ``"closed form
+        (cone)"`` (two robots: the exact geodesic, refined), ``"energy minimisation"``
+        (where the continuation stalled: a minimiser of the discretised path energy, which
+        may break the formation's symmetry) or ``"second-variation restart"`` (the
+        continuation's geodesic was not a minimiser: see ``alternatives``).
+    energy : float
+        ``int_0^1 q'^T M_alpha q' ds`` (seed 002 eq. (12), ``M = diag(m_i I_d)``), in
+        mass x length^2 units; constant integrand along a geodesic.
+    alternatives : tuple of (str, float)
+        Geodesics found and rejected for a higher energy, as ``(guess, energy)``.
+    second_variation : float or None
+        Smallest eigenvalue of the discretised second variation at the returned geodesic
+        over the flat metric's (``_PathEnergy.floor``): positive for a local energy
+        minimiser. None where it was not checked (two robots, ``alpha = 0.5``, more than
+        ``ENERGY_GUESS_MAX_UNKNOWNS`` unknowns, or a geodesic reached by a restart).
     """
 
     alpha: float
@@ -90,6 +109,9 @@ class GeodesicSolution:
     solve_time_s: float
     _spline: object = None
     guess: str = "continuation"
+    energy: float = float("nan")
+    alternatives: tuple = ()
+    second_variation: float | None = None
 
     def state(self, s):
         """``(q, q')`` at parameters ``s`` (shape ``(K,)``), each shape ``(K, N*d)``: the
@@ -191,7 +213,8 @@ def _fun_jac(masses, alpha, n):
 
 def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int = 2000,
                    min_step: float = 1e-2) -> GeodesicSolution:
-    """Geodesic of the shaped metric from ``q0`` (s = 0) to ``q1`` (s = 1).
+    """Geodesic of the shaped metric from ``q0`` (s = 0) to ``q1`` (s = 1), the energy minimiser
+    among those found.
 
     Parameters
     ----------
@@ -207,6 +230,15 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
         ``solve_bvp`` mesh limit.
     min_step : float
         Smallest continuation step in ``alpha`` before giving up.
+
+    Notes
+    -----
+    Two robots start from the closed-form cone geodesic (:func:`_cone_guess`), refined by
+    ``solve_bvp``. Three or more start from the continuation in ``alpha``; the geodesic it
+    returns keeps the start's symmetry and need not minimise the energy: the second
+    variation of the discretised path energy at it is checked (:func:`_second_variation`),
+    and where it is not positive the solver restarts along its most negative direction and
+    returns the geodesic of lower energy (the other is kept in ``alternatives``).
 
     Raises
     ------
@@ -224,11 +256,6 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
     scale = max(travel, float(np.max(np.linalg.norm(a0 - a0.mean(axis=0), axis=1))))
     t_start = time.perf_counter()
 
-    s = np.linspace(0.0, 1.0, 21)
-    y = np.concatenate([qa[:, None] + np.outer(qb - qa, s), np.repeat((qb - qa)[:, None], s.size, 1)])
-    if target != 0.5:
-        y = y + _side_step(a0, b0, m, s, scale)
-
     def bc(ya, yb):
         return np.concatenate([ya[:n] - qa, yb[:n] - qb])
 
@@ -237,7 +264,65 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
         zero = np.zeros_like(sel)
         return np.vstack([sel, zero]), np.vstack([zero, sel])
 
-    cur, step, done, sol, guess = 0.5, 0.1 * np.sign(target - 0.5), [], None, "continuation"
+    sol, done, guess = None, [], "continuation"
+    if N == 2 and target != 0.5:
+        cone = _cone_geodesic(a0, b0, m, target)
+        if cone is not None:  # exact; checked below like any other
+            mesh = np.linspace(0.0, 1.0, 401)
+            sol = SimpleNamespace(x=mesh, y=cone(mesh), sol=cone)
+            done, guess = [target], "closed form (cone)"
+    def branch(res, a):
+        """At an intermediate alpha: the lower-energy geodesic where ``res`` is not a minimiser."""
+        checked = _verify(res, m, a, qb, scale)
+        if checked is None:
+            return None
+        out = _lowest_energy(res, "continuation", *checked, m, a, qa, qb, bc, bc_jac, tol, scale)
+        return out[0] if out[5] else None
+
+    def leap(res):
+        """From a geodesic at another alpha: a minimiser of the discretised path energy at
+        ``target`` started from it, refined (or None)."""
+        return _minimise_and_refine(m, target, qa, qb, scale, lambda s: res.sol(s)[:n, 1:-1].T, bc, bc_jac, tol)
+
+    if sol is None:
+        sol, done, guess = _continuation(a0, b0, m, target, bc, bc_jac, tol, max_nodes, min_step, scale,
+                                         branch if N >= 3 else None, leap)
+    checked = _verify(sol, m, target, qb, scale)
+    if checked is None:
+        miss, drift = _miss_and_drift(sol, m, target, qb, scale)
+        raise ConvergenceError(
+            f"the boundary-value solution for alpha = {target:g} is not an accurate geodesic: integrating "
+            f"its initial velocity misses the goal by {miss:.3g} m and the energy drifts by {drift:.2g} "
+            "(relative); the geodesic flow is too sensitive here - try an alpha closer to 0.5"
+        )
+    miss, drift, energy = checked
+    alternatives, lowest = (), None
+    if N >= 3 and target != 0.5:
+        sol, guess, miss, drift, energy, alternatives, lowest = _lowest_energy(
+            sol, guess, miss, drift, energy, m, target, qa, qb, bc, bc_jac, tol, scale)
+    return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
+                            time.perf_counter() - t_start, sol.sol, guess, energy, alternatives, lowest)
+
+
+def _continuation(a0, b0, m, target, bc, bc_jac, tol, max_nodes, min_step, scale, branch=None, leap=None):
+    """Continuation in alpha from the straight lines at 0.5: ``(solve_bvp result, alphas, guess)``.
+
+    Each next alpha starts from the last solution; steps grow by 1.5 after a success and
+    halve after a failure. ``branch(res, alpha)``, when given, is asked at each intermediate
+    alpha for a lower-energy geodesic (the continuation keeps the start's symmetry, the
+    minimiser may break it); from the first it returns, ``leap(res)`` tries to reach the
+    target alpha at once (a path-energy minimiser started from that branch), else the
+    continuation follows that branch. Where a step falls below ``min_step`` three or more robots start again from a
+    minimiser of the discretised path energy; otherwise ConvergenceError.
+    """
+    N, d = a0.shape
+    n = N * d
+    qa, qb = a0.reshape(-1), b0.reshape(-1)
+    s = np.linspace(0.0, 1.0, 21)
+    y = np.concatenate([qa[:, None] + np.outer(qb - qa, s), np.repeat((qb - qa)[:, None], s.size, 1)])
+    if target != 0.5:
+        y = y + _side_step(a0, b0, m, s, scale)
+    cur, step, done, sol, label = 0.5, 0.1 * np.sign(target - 0.5), [], None, "continuation"
     while True:
         nxt = target if abs(target - cur) <= abs(step) else cur + step
         try:
@@ -252,59 +337,276 @@ def solve_geodesic(q0, q1, masses, alpha, *, tol: float = 1e-6, max_nodes: int =
             done.append(float(cur))
             s, y = res.x, res.y
             if cur == target:
-                break
+                return sol, done, label
+            if branch is not None and label == "continuation":
+                other = branch(res, cur)
+                if other is not None:
+                    sol, s, y = other, other.x, other.y
+                    label = f"second-variation restart at alpha = {cur:.4g}"
+                    jump = None if leap is None else leap(other)
+                    if jump is not None:
+                        return jump, done + [float(target)], label
             step *= 1.5
-        else:
-            step /= 2.0
-            if abs(step) < min_step:
-                where = (f"the continuation from alpha = 0.5 stalled at alpha = {cur:.4g}"
-                         if done else "no geodesic was found")
-                # the continuation keeps the start's symmetry; the geodesic may break it: start
-                # again from a minimiser of the discretised path energy (three or more robots)
-                sol = _solve_from_energy_guess(a0, b0, m, target, bc, bc_jac, tol, max_nodes) if N >= 3 else None
-                if sol is None:
-                    raise ConvergenceError(
-                        f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
-                        f"(last attempt: {why}). For small alpha the "
-                        "energy-minimising motion may pass through robots meeting, where the metric is "
-                        "singular (docs/planning.md); try an alpha closer to 0.5"
-                    )
-                done, guess = [target], "energy minimisation"
-                break
-    f = _fun(m, target, n)
-    ivp = solve_ivp(f, (0.0, 1.0), sol.y[:, 0], method="DOP853", rtol=1e-11, atol=1e-12 * max(scale, 1.0),
-                    vectorized=True)
-    miss = float(np.max(np.abs(ivp.y[:n, -1] - qb))) if ivp.success else float("inf")
-    grid = np.linspace(0.0, 1.0, 401)
-    yy = sol.sol(grid)
-    E = metric_energy(yy[:n].T, yy[n:].T, m, target)
-    drift = float(np.max(np.abs(E - E[0])) / max(E[0], 1e-300))
+            continue
+        step /= 2.0
+        if abs(step) >= min_step:
+            continue
+        where = (f"the continuation from alpha = 0.5 stalled at alpha = {cur:.4g}" if done
+                 else "no geodesic was found")
+        # the continuation keeps the start's symmetry; the geodesic may break it: start
+        # again from a minimiser of the discretised path energy (three or more robots)
+        sol = _solve_from_energy_guess(a0, b0, m, target, bc, bc_jac, tol, scale) if N >= 3 else None
+        if sol is None:
+            raise ConvergenceError(
+                f"no geodesic of the shaped metric for alpha = {target:g}: {where} "
+                f"(last attempt: {why}). For small alpha the "
+                "energy-minimising motion may pass through robots meeting, where the metric is "
+                "singular (docs/planning.md); try an alpha closer to 0.5"
+            )
+        return sol, [target], "energy minimisation"
+
+
+def _miss_and_drift(sol, m, alpha, qb, scale):
+    """Forward-integration miss of the goal (m) and relative drift of ``q̇^T M_alpha q̇``."""
+    n = qb.size
+    f = _fun(m, alpha, n)
+    try:
+        ivp = solve_ivp(f, (0.0, 1.0), sol.y[:, 0], method="DOP853", rtol=1e-11,
+                        atol=1e-12 * max(scale, 1.0), vectorized=True)
+        miss = float(np.max(np.abs(ivp.y[:n, -1] - qb))) if ivp.success else float("inf")
+    except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
+        miss = float("inf")
+    yy = sol.sol(np.linspace(0.0, 1.0, 401))
+    E = metric_energy(yy[:n].T, yy[n:].T, m, alpha)
+    return miss, float(np.max(np.abs(E - E[0])) / max(E[0], 1e-300))
+
+
+def _verify(sol, m, alpha, qb, scale):
+    """``(miss, drift, energy)`` of a solve_bvp result that passes the geodesic checks, else None.
+
+    ``energy`` is ``int_0^1 q̇^T M_alpha q̇ ds`` (seed 002 eq. (12); constant along a geodesic,
+    so its mean on the check grid)."""
+    miss, drift = _miss_and_drift(sol, m, alpha, qb, scale)
     if not (miss <= ENDPOINT_TOLERANCE * max(scale, 1e-9)) or not (drift <= ENERGY_TOLERANCE):
-        raise ConvergenceError(
-            f"the boundary-value solution for alpha = {target:g} is not an accurate geodesic: integrating "
-            f"its initial velocity misses the goal by {miss:.3g} m and the energy drifts by {drift:.2g} "
-            "(relative); the geodesic flow is too sensitive here - try an alpha closer to 0.5"
-        )
-    return GeodesicSolution(target, m, d, sol.x, sol.y[:n].T, sol.y[n:].T, miss, drift, tuple(done),
-                            time.perf_counter() - t_start, sol.sol, guess)
+        return None
+    n = qb.size
+    yy = sol.sol(np.linspace(0.0, 1.0, 401))
+    return miss, drift, float(np.mean(metric_energy(yy[:n].T, yy[n:].T, m, alpha)))
 
 
-#: Most unknowns of the discretised path-energy minimisation (it uses numerical gradients).
+def _refine(m, alpha, bc, bc_jac, s, y, tols, max_nodes):
+    """``solve_bvp`` from the guess ``(s, y)`` at each tolerance of ``tols`` in turn, or None."""
+    n = y.shape[0] // 2
+    sol = None
+    for t in tols:
+        try:
+            r = solve_bvp(_fun(m, alpha, n), bc, s if sol is None else sol.x, y if sol is None else sol.y,
+                          tol=t, max_nodes=max_nodes, fun_jac=_fun_jac(m, alpha, n), bc_jac=bc_jac)
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+        if r.status != 0 or not np.all(np.isfinite(r.y)):
+            return None
+        sol = r
+    return sol
+
+
+def _cone_geodesic(a0, b0, m, alpha):
+    """Two robots: the closed-form geodesic, as ``y(s) -> (q, q')`` stacked, shape ``(2 n, K)``.
+
+    docs/derivations.md, seed 002 item 3: the centre of mass moves uniformly on its line and
+    the relative vector ``d = x1 - x2`` on the cone ``alpha dr^2 + (1 - alpha) r^2 dtheta^2``,
+    which unrolls with ``phi = k theta``, ``k = sqrt((1 - alpha) / alpha)``, to a plane where
+    the geodesic is the uniform straight line ``z(s) = (1 - s) r0 + s r1 exp(i k turn)``. It
+    lies in the plane of ``d0`` and ``d1``; None where that plane is not defined (``d0``
+    parallel to ``d1``: no turn, or a half turn, where the side is a choice) or beyond the
+    bound ``k turn < pi``.
+    """
+    d0, d1 = a0[0] - a0[1], b0[0] - b0[1]
+    r0, r1 = float(np.linalg.norm(d0)), float(np.linalg.norm(d1))
+    e1 = d0 / r0
+    perp = d1 - e1 * (e1 @ d1)
+    if np.linalg.norm(perp) <= 1e-9 * r1:
+        return None
+    e2 = perp / np.linalg.norm(perp)
+    turn = float(np.arctan2(d1 @ e2, d1 @ e1))  # in (0, pi)
+    k = np.sqrt((1.0 - alpha) / alpha)
+    if not k * turn < np.pi:
+        return None
+    w = m / m.sum()
+    c0, c1 = w @ a0, w @ b0
+    end = r1 * np.exp(1j * k * turn)
+
+    def y(s):
+        s = np.asarray(s, dtype=float)
+        z = (1.0 - s) * r0 + s * end
+        dz = end - r0
+        r, th = np.abs(z), np.angle(z) / k  # arg z in [0, k turn] within (-pi, pi): no wrap
+        r_dot = (dz * np.conj(z)).real / r
+        th_dot = (dz * np.conj(z)).imag / (r * r * k)
+        u = np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2
+        u_perp = -np.sin(th)[:, None] * e1 + np.cos(th)[:, None] * e2
+        rel, rel_dot = r[:, None] * u, r_dot[:, None] * u + (r * th_dot)[:, None] * u_perp
+        com = c0 + s[:, None] * (c1 - c0)
+        q = np.concatenate([com + w[1] * rel, com - w[0] * rel], axis=1)
+        q_dot = np.concatenate([(c1 - c0) + w[1] * rel_dot, (c1 - c0) - w[0] * rel_dot], axis=1)
+        return np.vstack([q.T, q_dot.T])
+
+    return y
+
+
+#: Most unknowns of the discretised path energy (its Hessian is checked densely).
 ENERGY_GUESS_MAX_UNKNOWNS = 400
+#: Segments of the discretised path energy.
+ENERGY_SEGMENTS = 32
 
 
-def _solve_from_energy_guess(a0, b0, m, alpha, bc, bc_jac, tol, max_nodes, segments: int = 32):
+class _PathEnergy:
+    """The discretised path energy ``sum_k e(mid_k, K (Y_{k+1} - Y_k)) / K``, ``K`` segments.
+
+    ``e = q̇^T M_alpha q̇`` (seed 002 eq. (12)) at the segment's midpoint; ``Y_0 = q^0`` and
+    ``Y_K = q^1`` are fixed, the ``K - 1`` interior configurations ``x`` are free. Each
+    segment depends on its two ends only, so the gradient (central differences) and the
+    Hessian (second differences, block tridiagonal) come from one batched metric evaluation
+    per segment and variable (pair) instead of one path evaluation per unknown.
+    """
+
+    def __init__(self, qa, qb, m, alpha, K, scale):
+        self.qa, self.qb, self.m, self.alpha, self.K = qa, qb, m, alpha, K
+        self.n = qa.size
+        self.h1, self.h2 = 1e-6 * scale, 1e-4 * scale
+
+    def full(self, x):
+        return np.concatenate([self.qa[None], np.reshape(x, (self.K - 1, self.n)), self.qb[None]])
+
+    def _segments(self, Z):
+        n = self.n
+        Y0, Y1 = Z[..., :n], Z[..., n:]
+        return metric_energy(0.5 * (Y0 + Y1), (Y1 - Y0) * self.K, self.m, self.alpha) / self.K
+
+    def _pairs(self, x):
+        Y = self.full(x)
+        return np.concatenate([Y[:-1], Y[1:]], axis=1)  # (K, 2n): each segment's two ends
+
+    def value_and_grad(self, x):
+        n, Z = self.n, self._pairs(x)
+        E = np.eye(2 * n) * self.h1
+        f = self._segments(np.stack([Z[:, None] + E, Z[:, None] - E]))
+        g = (f[0] - f[1]) / (2.0 * self.h1)  # (K, 2n)
+        G = np.zeros((self.K + 1, n))
+        G[:-1] += g[:, :n]
+        G[1:] += g[:, n:]
+        return float(self._segments(Z).sum()), G[1:-1].ravel()
+
+    def hessian(self, x):
+        n, K, h, Z = self.n, self.K, self.h2, self._pairs(x)
+        E = np.eye(2 * n) * h
+        pp, pm = E[:, None] + E[None], E[:, None] - E[None]
+        Zc = Z[:, None, None]
+        f = self._segments(np.stack([Zc + pp, Zc + pm, Zc - pm, Zc - pp]))
+        Hs = (f[0] - f[1] - f[2] + f[3]) / (4.0 * h * h)  # (K, 2n, 2n)
+        H = np.zeros(((K + 1) * n, (K + 1) * n))
+        for k in range(K):
+            H[k * n:(k + 2) * n, k * n:(k + 2) * n] += Hs[k]
+        H = H[n:-n, n:-n]
+        return 0.5 * (H + H.T)
+
+    def floor(self):
+        """Smallest Hessian eigenvalue of the flat metric ``min(alpha, 1 - alpha) min(m)``:
+        ``2 K (2 - 2 cos(pi / K)) w``, the scale a second variation is judged against."""
+        w = min(self.alpha, 1.0 - self.alpha) * float(np.min(self.m))
+        return 2.0 * self.K * (2.0 - 2.0 * np.cos(np.pi / self.K)) * w
+
+    def minimise(self, x0):
+        from scipy.optimize import minimize
+
+        res = minimize(self.value_and_grad, x0, jac=True, method="L-BFGS-B", options={"maxiter": 5000})
+        return res.x
+
+
+#: Most unknowns of the second-variation check (its Hessian is dense).
+SECOND_VARIATION_MAX_UNKNOWNS = 800
+
+
+def _second_variation(sol, m, alpha, qa, qb, scale):
+    """Smallest eigenvalue of the second variation of the path energy at ``sol`` over its
+    floor, with the ``(K - 1) * n`` direction and the ``_PathEnergy`` and knots ``(K + 1, n)``
+    of the coarse discretisation; None when there are too many unknowns to check.
+
+    A geodesic whose second variation has a negative direction (a conjugate point before
+    ``s = 1``, Morse index theorem) is not an energy minimiser: nearby curves cost less.
+    The discretised Hessian at the geodesic's samples is off by ``O(1/K^2)``, and minimisers
+    that break Fig. 4's symmetry have an (almost) flat direction whose discretised
+    eigenvalue comes out ``-0.28`` (K = 32), ``-0.07`` (64), ``-0.03`` (96) of the floor at
+    alpha = 0.3: the eigenvalue is extrapolated from K = 32 and 64 (Richardson,
+    ``(4 l_64 - l_32) / 3``; ``-0.001`` there, ``-2.13`` at the symmetric geodesic of alpha = 0.4).
+    """
+    n = qa.size
+    out = []
+    for K in (ENERGY_SEGMENTS, 2 * ENERGY_SEGMENTS):
+        if (K - 1) * n > SECOND_VARIATION_MAX_UNKNOWNS:
+            return None
+        P = _PathEnergy(qa, qb, m, alpha, K, scale)
+        q = sol.sol(np.linspace(0.0, 1.0, K + 1))[:n].T
+        try:
+            w, V = np.linalg.eigh(P.hessian(q[1:-1].ravel()))
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+        out.append((float(w[0] / P.floor()), V[:, 0], P, q))
+    (l1, v, P, q), (l2, *_) = out
+    return (4.0 * l2 - l1) / 3.0, v, P, q
+
+
+#: A second variation below ``-SECOND_VARIATION_TOLERANCE`` times its floor counts as negative.
+SECOND_VARIATION_TOLERANCE = 0.05
+
+
+def _lowest_energy(sol, guess, miss, drift, energy, m, alpha, qa, qb, bc, bc_jac, tol, scale,
+                   restarts: int = 3):
+    """The lower-energy geodesic: restart where the second variation at ``sol`` is negative.
+
+    The restart perturbs the geodesic along the most negative direction (0.1 of ``scale``),
+    minimises the discretised path energy from there, refines with ``solve_bvp`` and checks
+    it; the geodesic of lower energy is kept, the other is listed in the returned
+    ``alternatives`` as ``(guess, energy)``. Returns the chosen geodesic's
+    ``(sol, guess, miss, drift, energy, alternatives, lowest)``, ``lowest`` the smallest
+    eigenvalue of its second variation over its floor (None where not checked).
+    """
+    alternatives = []
+    lowest = None
+    for _ in range(restarts):
+        sv = _second_variation(sol, m, alpha, qa, qb, scale)
+        if sv is None:
+            break
+        lowest, v, P, q = sv
+        if lowest >= -SECOND_VARIATION_TOLERANCE:
+            break
+        v = v / np.max(np.abs(v))
+        new = None
+        V = np.vstack([np.zeros(qa.size), v.reshape(P.K - 1, -1), np.zeros(qa.size)])
+        for sign in (1.0, -1.0):
+            def start(s, sign=sign):  # the geodesic bent along the negative direction
+                bend = np.stack([np.interp(s, np.linspace(0.0, 1.0, P.K + 1), c) for c in V.T], axis=-1)
+                return (sol.sol(s)[:qa.size].T + sign * 0.1 * scale * bend)[1:-1]
+            cand = _minimise_and_refine(m, alpha, qa, qb, scale, start, bc, bc_jac, tol)
+            checked = None if cand is None else _verify(cand, m, alpha, qb, scale)
+            if checked is not None and checked[2] < energy * (1.0 - 1e-9):
+                new = (cand, checked)
+                break
+        if new is None:
+            break  # no cheaper geodesic found: keep this one (its second variation says so)
+        alternatives.append((guess, energy))
+        sol, (miss, drift, energy) = new[0], new[1]
+        guess = "second-variation restart"
+        lowest = None
+    return sol, guess, miss, drift, energy, tuple(alternatives), lowest
+
+
+def _solve_from_energy_guess(a0, b0, m, alpha, bc, bc_jac, tol, scale, segments: int = ENERGY_SEGMENTS):
     """A geodesic from a minimiser of the discretised path energy, or None.
 
-    The centre of mass moves on its straight line (flat, decoupled); the robots' offsets
-    from it are free at ``segments - 1`` interior times and minimise ``sum E_k / K`` with
-    ``E_k`` the metric energy of segment ``k`` (L-BFGS, numerical gradient). The start is
-    the similar-shape path (shrinking mid-way, turning uniformly in the plane) with a fixed
-    seeded perturbation that breaks its symmetry. ``solve_bvp`` then refines it, first at a
-    loose tolerance, then at ``tol``.
+    The start is the similar-shape path (shrinking mid-way, turning uniformly in the plane)
+    with a fixed seeded perturbation that breaks its symmetry (:func:`_minimise_and_refine`).
     """
-    from scipy.optimize import minimize
-
     N, d = a0.shape
     K = segments
     if (K - 1) * N * d > ENERGY_GUESS_MAX_UNKNOWNS:
@@ -312,8 +614,8 @@ def _solve_from_energy_guess(a0, b0, m, alpha, bc, bc_jac, tol, max_nodes, segme
     w = m / m.sum()
     c0, c1 = w @ a0, w @ b0
     r0, r1 = a0 - c0, b0 - c1
-    s = np.linspace(0.0, 1.0, K + 1)
-    ss = s[1:-1, None, None]
+    grid = np.linspace(0.0, 1.0, K + 1)
+    ss = grid[1:-1, None, None]
     rho = float(np.sqrt(np.sum(m * np.sum(r0 * r0, axis=1))) / np.sqrt(m.sum()))
     if d == 2:
         z0, z1 = r0[:, 0] + 1j * r0[:, 1], r1[:, 0] + 1j * r1[:, 1]
@@ -323,34 +625,40 @@ def _solve_from_energy_guess(a0, b0, m, alpha, bc, bc_jac, tol, max_nodes, segme
     else:
         X = (r0 + ss * (r1 - r0)) * (1.0 - 0.8 * np.sin(np.pi * ss))
     X = X + 0.3 * rho * np.random.default_rng(0).normal(size=X.shape) * np.sin(np.pi * ss)
+    X = X + c0 + ss * (c1 - c0)
 
-    def offsets(x):
-        Y = np.concatenate([r0[None], x.reshape(K - 1, N, d), r1[None]])
-        return Y - np.einsum("i,kij->kj", w, Y)[:, None, :]
+    def start(t):  # the guess above, interpolated to the segments' knots
+        flat = np.vstack([a0.reshape(1, -1), X.reshape(K - 1, -1), b0.reshape(1, -1)])
+        return np.stack([np.interp(t, grid, c) for c in flat.T], axis=-1)[1:-1]
 
-    def energy(x):
-        Y = offsets(x)
-        mid, vel = 0.5 * (Y[1:] + Y[:-1]), (Y[1:] - Y[:-1]) * K
-        return float(np.sum(metric_energy(mid.reshape(K, -1), vel.reshape(K, -1), m, alpha)) / K)
+    return _minimise_and_refine(m, alpha, a0.reshape(-1), b0.reshape(-1), scale, start, bc, bc_jac, tol)
 
-    try:
-        res = minimize(energy, X.ravel(), method="L-BFGS-B", options={"maxiter": 3000, "maxfun": 10**7})
-    except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError, ValueError):
-        return None
-    q = (offsets(res.x) + c0 + s[:, None, None] * (c1 - c0)).reshape(K + 1, -1).T
-    y = np.vstack([q, np.gradient(q, s, axis=1)])
-    n = N * d
-    sol = None
-    for t in (max(tol, 1e-4), tol):
+
+def _minimise_and_refine(m, alpha, qa, qb, scale, start, bc, bc_jac, tol, segments=(ENERGY_SEGMENTS, 48),
+                         max_nodes: int = 5000):
+    """A geodesic from a minimiser of the discretised path energy, or None.
+
+    For each number of segments ``K`` in turn, :class:`_PathEnergy` is minimised (L-BFGS)
+    from ``start(s)`` (the interior configurations at ``s = k / K``, shape ``(K - 1, n)``),
+    and ``solve_bvp`` refines it at tolerances 1e-4, 1e-5 and ``tol`` (each from the last);
+    the first that converges within ``max_nodes`` nodes is returned. (A 32-segment guess
+    sometimes sends the 1e-6 refinement past 20000 nodes where 48 segments need 600.)
+    """
+    n = qa.size
+    tols = tuple(t for t in (1e-4, 1e-5) if t > tol) + (tol,)
+    for K in segments:
+        if (K - 1) * n > ENERGY_GUESS_MAX_UNKNOWNS:
+            continue
+        s = np.linspace(0.0, 1.0, K + 1)
+        P = _PathEnergy(qa, qb, m, alpha, K, scale)
         try:
-            r = solve_bvp(_fun(m, alpha, n), bc, s if sol is None else sol.x, y if sol is None else sol.y,
-                          tol=t, max_nodes=max(max_nodes, 30000), fun_jac=_fun_jac(m, alpha, n), bc_jac=bc_jac)
-        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError):
-            return None
-        if r.status != 0 or not np.all(np.isfinite(r.y)):
-            return None
-        sol = r
-    return sol
+            Q = P.full(P.minimise(np.asarray(start(s), dtype=float).ravel())).T
+        except (DegenerateInputError, FloatingPointError, np.linalg.LinAlgError, ValueError):
+            continue
+        sol = _refine(m, alpha, bc, bc_jac, s, np.vstack([Q, np.gradient(Q, s, axis=1)]), tols, max_nodes)
+        if sol is not None:
+            return sol
+    return None
 
 
 def meeting_bound(q0, q1, masses):

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..algebra import q_continuous, qslerp
 from ..algebra._validate import as_array, as_unit_quaternion
+from ..checks import check_work, short
 from ..errors import InvalidInputError, ShapeError
 
 __all__ = ["PLAN_FORMAT", "Plan", "load_plan"]
@@ -142,16 +143,89 @@ class Plan:
         return path
 
 
+#: Arrays a plan file may hold, and the dtype kind each must have (``"f"`` float, ``"U"`` text).
+_PLAN_ARRAYS = {"format": "U", "times": "f", "positions": "f", "velocities": "f", "accelerations": "f",
+                "masses": "f", "info": "U", "orientations": "f"}
+#: Longest ``info`` JSON string accepted, characters, and its deepest nesting.
+INFO_MAX_CHARS = 1_000_000
+INFO_MAX_DEPTH = 8
+
+
+def _check_headers(path: Path) -> None:
+    """Read every ``.npy`` header of the archive before any array, and refuse what would not
+    fit: unknown or object dtypes, and sizes beyond this machine's memory
+    (:func:`~quatform.checks.check_work`), so a header that claims 1e13 elements is refused
+    before anything is allocated."""
+    with zipfile.ZipFile(path) as zf:
+        total = 0.0
+        for item in zf.infolist():
+            name = item.filename[:-4] if item.filename.endswith(".npy") else item.filename
+            if name not in _PLAN_ARRAYS:
+                raise InvalidInputError(f"{path}: unexpected entry {short(item.filename)} in a plan file; "
+                                        f"a plan holds {', '.join(_PLAN_ARRAYS)} (docs/planning.md)")
+            with zf.open(item) as f:
+                try:
+                    version = np.lib.format.read_magic(f)
+                    if version not in ((1, 0), (2, 0)):
+                        raise ValueError(f"unsupported .npy format version {version}")
+                    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                            else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = read(f)
+                except (ValueError, OSError, EOFError) as exc:
+                    raise InvalidInputError(f"{path}: entry {name!r} is not a NumPy array ({exc})") from None
+            if dtype.hasobject or dtype.kind != _PLAN_ARRAYS[name]:
+                raise InvalidInputError(f"{path}: entry {name!r} has dtype {dtype}; a plan file stores "
+                                        f"{'text' if _PLAN_ARRAYS[name] == 'U' else 'floats'} there")
+            count = float(np.prod([float(k) for k in shape])) if shape else 1.0
+            if name in ("format", "info") and shape != ():
+                raise InvalidInputError(f"{path}: entry {name!r} must be a single string, got shape {shape}")
+            total += count * dtype.itemsize
+        check_work(str(path), "the array sizes in its .npy headers", total, bytes_per_step=1.0,
+                   fix="this is not a plan quatform wrote; re-plan it")
+
+
+def _depth(value, limit: int) -> int:
+    """Nesting depth of JSON ``value`` (stops counting past ``limit``)."""
+    if limit < 0 or not isinstance(value, (dict, list)):
+        return 0
+    items = value.values() if isinstance(value, dict) else value
+    return 1 + max((_depth(v, limit - 1) for v in items), default=0)
+
+
+def _read_info(path: Path, text_: str) -> dict:
+    """The plan's ``info``: a JSON object of bounded size and depth, else one line."""
+    if len(text_) > INFO_MAX_CHARS:
+        raise InvalidInputError(f"{path}: info is {len(text_)} characters, more than {INFO_MAX_CHARS}; "
+                                "it should be a short JSON description (docs/planning.md)")
+    try:
+        info = json.loads(text_)
+    except (ValueError, RecursionError) as exc:
+        raise InvalidInputError(f"{path}: info is not JSON ({short(str(exc))}); re-plan it") from None
+    if not isinstance(info, dict):
+        raise InvalidInputError(f"{path}: info must be a JSON object (kind, name, alpha, ...), got a "
+                                f"{type(info).__name__}: {short(info)}")
+    if _depth(info, INFO_MAX_DEPTH + 1) > INFO_MAX_DEPTH:
+        raise InvalidInputError(f"{path}: info is nested more than {INFO_MAX_DEPTH} levels deep; a plan's info "
+                                "is a flat description (docs/planning.md)")
+    return info
+
+
 def load_plan(path) -> Plan:
-    """Read a plan written by :meth:`Plan.save`; a file of another kind raises InvalidInputError."""
+    """Read a plan written by :meth:`Plan.save`; a file of another kind raises InvalidInputError.
+
+    The archive's ``.npy`` headers are read first: entries that are not plan arrays, object
+    or unexpected dtypes and sizes beyond this machine's memory are refused before any
+    array is read; ``info`` must be a JSON object at most :data:`INFO_MAX_DEPTH` deep.
+    """
     path = Path(path)
     try:
+        _check_headers(path)
         with np.load(path, allow_pickle=False) as z:
             if "format" not in z.files or str(z["format"]) != PLAN_FORMAT:
                 raise InvalidInputError(f"{path} is not a quatform plan file (format {PLAN_FORMAT!r})")
             return Plan(z["times"], z["positions"], z["velocities"], z["accelerations"], z["masses"],
-                        json.loads(str(z["info"])), z["orientations"] if "orientations" in z.files else None)
-    except (ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+                        _read_info(path, str(z["info"])), z["orientations"] if "orientations" in z.files else None)
+    except (ValueError, KeyError, zipfile.BadZipFile, EOFError, OSError) as exc:
         if isinstance(exc, InvalidInputError):
             raise
-        raise InvalidInputError(f"{path} is not a readable quatform plan file: {exc}") from None
+        raise InvalidInputError(f"{path} is not a readable quatform plan file: {short(str(exc), 200)}") from None

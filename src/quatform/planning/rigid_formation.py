@@ -15,7 +15,12 @@ and each robot's own rotation, with ``G_i = H_i / 2`` (§3.1).
   formation's twist at each end must lie in the null space of ``C`` (eq. (16)). The
   formation moves on the projected GA(3) minimum-acceleration curve (eqs. (13)-(14))
   whose end twists, free in those null spaces, minimise the ambient energy
-  ``E = int Tr(Mdot^T Mdot W) + w |ddot|^2 dt`` (a quadratic, solved exactly).
+  ``E = int Tr(Mdot^T Mdot W) + w |ddot|^2 dt`` *within that two-parameter cubic family*
+  (a quadratic, solved exactly). It is not the least energy over all admissible curves:
+  with the same ends and end twists, curves of lower energy exist (seed 004 §4 case (b):
+  2126.8 J against the cubic's 2409.3 J for a degree-11 polynomial correction; the
+  infimum, the straight line's 2105 J, is not attained since the end velocities are
+  prescribed; docs/derivations.md, hardening section).
   The seed leaves an airplane's attitude between the ends to a path-tracking controller;
   quatform gives it the frame that keeps the body x axis on the velocity with no spin
   about it (the rotation-minimising frame, integrated from ``R_i^0``), plus a smooth roll
@@ -78,7 +83,7 @@ AIRPLANE_CASES = ("holonomic", "a", "b")
 #: Rows selecting a robot's body y and z velocity: seed 004 eq. (16).
 _LATERAL = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
 #: Keys of a formation spec (see :func:`rigid_plan_from_spec`).
-_SPEC_KEYS = ("masses", "body_points", "inertias", "start", "end", "actuation", "duration", "samples")
+RIGID_SPEC_KEYS = ("masses", "body_points", "inertias", "start", "end", "actuation", "duration", "samples")
 _POSE_KEYS = ("position", "orientation", "robot_orientations")
 
 
@@ -445,7 +450,8 @@ class RigidFormationPlan:
             ``end_position_error_m``, ``end_orientation_error_rad``: largest deviation of the
             robots from the requested end poses; ``energy``: ambient energy
             ``int Tr(Mdot^T Mdot W) + w |ddot|^2 dt`` of the formation's GA(3) curve, the
-            quantity §3.2 minimises (J); ``energy_se3``: ``int zeta^T G~ zeta dt`` of the
+            quantity §3.2 minimises over the cubic (minimum-acceleration) family only, not
+            over all curves with the same ends and end twists (J); ``energy_se3``: ``int zeta^T G~ zeta dt`` of the
             projected motion (J); ``energy_robot_rotations``: ``sum int omega_i^T G_i
             omega_i dt`` (J); ``solve_time_s``.
         """
@@ -541,7 +547,8 @@ def _ga_vector_map(R):
 
 
 def _optimal_end_twists(W, w, start, end, N0, N1):
-    """End twists (tau units) ``zeta0 = N0 a``, ``zeta1 = N1 b`` minimising the ambient energy.
+    """End twists (tau units) ``zeta0 = N0 a``, ``zeta1 = N1 b`` minimising the ambient energy
+    of the cubic Hermite curve (the minimum within that family, not over all curves).
 
     ``E(a, b) = sum_kl Gamma_kl y_k^T K y_l`` over the Hermite end data
     ``y = (p0, v0, p1, v1)`` in GA(3) written as 12-vectors, ``K = diag(I3 (x) W, w I3)``:
@@ -676,7 +683,7 @@ def _with_airplane_attitudes(plan: RigidFormationPlan, index, start, end) -> Rig
         for x, when in ((x0[k], "start"), (x1[k], "end")):
             if x <= 0:
                 raise UnreachableError(
-                    f"the energy-optimal formation twist makes airplane robot {i} fly backwards at "
+                    f"the end twist minimising the cubic's energy makes airplane robot {i} fly backwards at "
                     f"the {when} (body x speed {x:.6g} m/s): reverse its {when} heading"
                 )
 
@@ -734,15 +741,15 @@ def rigid_plan_from_spec(spec: Mapping) -> RigidFormationPlan:
         apart (the projected curve is not unique).
     UnreachableError
         Airplane-like robots whose end headings admit no formation twist, or whose
-        energy-optimal motion would stop or fly backwards.
+        cubic of least energy (§3.2) would stop or fly backwards.
     """
     if not isinstance(spec, Mapping):
         raise InvalidInputError(f"spec must be a dict, got {type(spec).__name__}")
-    unknown = sorted(set(spec) - set(_SPEC_KEYS))
+    unknown = sorted(set(spec) - set(RIGID_SPEC_KEYS))
     missing = sorted({"masses", "body_points", "inertias", "start", "end"} - set(spec))
     if unknown or missing:
         raise InvalidInputError(
-            f"formation spec: unknown keys {unknown}, missing keys {missing}; allowed keys {_SPEC_KEYS}"
+            f"formation spec: unknown keys {unknown}, missing keys {missing}; allowed keys {RIGID_SPEC_KEYS}"
         )
     m = _masses(spec["masses"])
     n = m.size

@@ -19,11 +19,13 @@ import numpy as np
 
 from .._toml import builtin_files, read_toml
 from ..algebra import matrix_from_q
+from ..checks import check_keys, check_work, integer, number, short, text, vector
+from ..checks import table as table_
 from ..errors import InvalidInputError, QuatformError
 from .geodesic import meeting_bound, plan_from_geodesic, plan_through_meeting, solve_geodesic
 from .measures import min_separation, rigid_motion, straight_line_motion
 from .plan import Plan
-from .rigid_formation import AIRPLANE_CASES, airplanes_spec, rigid_plan_from_spec
+from .rigid_formation import AIRPLANE_CASES, RIGID_SPEC_KEYS, airplanes_spec, rigid_plan_from_spec
 from .shaping import check_alpha, check_masses
 
 __all__ = ["PLANNERS", "PlanSpec", "builtin_plan_specs", "load_plan_spec", "make_plan", "plan_metrics",
@@ -77,10 +79,39 @@ def _input_error(exc, where, table) -> InvalidInputError:
     return InvalidInputError(f"{where}: {exc} (numbers expected; see docs/planning.md)")
 
 
-def _knots(v, where) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise InvalidInputError(f"{where}: knots must be an integer (>= 2), got {v!r}")
-    return v
+_HINT = "see docs/planning.md"
+#: Bytes and seconds a knot of a saved plan costs (generous: the sampled arrays, the spline or
+#: projected-curve evaluation, the npz write), per robot coordinate.
+_BYTES_PER_KNOT_COORD, _SECONDS_PER_KNOT_COORD = 400.0, 2e-6
+
+
+def _common(data: dict, where: str) -> tuple[float, int, float]:
+    """``duration_s``, ``knots`` and ``min_clearance_m`` of a spec, read with quatform.checks."""
+    duration = number(data, "duration_s", where, 1.0, low=0.0, low_open=True)
+    knots = integer(data, "knots", where, 201, low=2)
+    clearance = number(data, "min_clearance_m", where, 0.05, low=0.0)
+    return duration, knots, clearance
+
+
+def _check_knots(where: str, knots: int, coords: int) -> None:
+    """Refuse a plan whose knots would not fit in memory or time (``coords`` = N * d)."""
+    check_work(where, "knots", float(knots), bytes_per_step=_BYTES_PER_KNOT_COORD * max(coords, 1),
+               seconds_per_step=_SECONDS_PER_KNOT_COORD * max(coords, 1), fix="use fewer knots (201 is plenty: "
+               "Plan.sample interpolates between them)")
+
+
+def _positions(data: dict, key: str, n: int, where: str) -> np.ndarray:
+    """``data[key]``: a list of ``n`` positions of 2 or 3 finite numbers each, shape (n, d)."""
+    if key not in data:
+        raise InvalidInputError(f"{where}: missing key [robots] {key}")
+    value = data[key]
+    if not isinstance(value, list) or len(value) != n or not all(isinstance(p, list) for p in value):
+        raise InvalidInputError(f"{where}: [robots] {key} = {short(value)} must be a list of N = {n} positions "
+                                "(one per mass) of 2 or 3 numbers each")
+    d = len(value[0])
+    if d not in (2, 3):
+        raise InvalidInputError(f"{where}: [robots] {key} positions need 2 or 3 coordinates, got {short(value[0])}")
+    return np.array([vector({key: p}, key, d, where, place="[robots]") for p in value])
 
 
 def builtin_plan_specs() -> dict[str, Path]:
@@ -95,43 +126,32 @@ def load_plan_spec(name_or_file) -> PlanSpec:
 
 
 def plan_spec_from_dict(data: dict, where: str = "plan spec") -> PlanSpec:
-    """Build a :class:`PlanSpec` from parsed TOML."""
-    kind = data.get("kind")
-    if kind not in PLANNERS:
-        raise InvalidInputError(f"{where}: kind = {kind!r}; use one of {', '.join(sorted(PLANNERS))}")
+    """Build a :class:`PlanSpec` from parsed TOML (every value read with :mod:`quatform.checks`)."""
+    kind = text(data, "kind", where, choices=sorted(PLANNERS))
     if kind == "rigid-se3":
         return _rigid_spec_from_dict(data, where)
-    rb = data.get("robots")
-    if not isinstance(rb, dict):
-        raise InvalidInputError(f"{where}: missing [robots] table with masses, start and goal")
     table = PLANNERS[kind][0]
-    for keys, allowed, what in ((data, _TOP_KEYS | {table}, "top level"), (rb, {"masses", "start", "goal"}, "[robots]")):
-        unknown = sorted(set(keys) - allowed)
-        if unknown:
-            raise InvalidInputError(f"{where}: unknown key(s) {unknown} at {what}; see docs/planning.md")
-    try:
-        masses = check_masses(rb["masses"])
-        start = np.asarray(rb["start"], dtype=float)
-        goal = np.asarray(rb["goal"], dtype=float)
-        duration = float(data.get("duration_s", 1.0))
-        knots = _knots(data.get("knots", 201), where)
-        clearance = float(data.get("min_clearance_m", 0.05))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise _input_error(exc, where, "robots") from None
-    if start.ndim != 2 or start.shape != goal.shape or start.shape[0] != masses.size or start.shape[1] not in (2, 3):
-        raise InvalidInputError(
-            f"{where}: [robots] start and goal must be lists of N = {masses.size} positions of 2 or 3 "
-            f"coordinates each (one per mass); got shapes {start.shape} and {goal.shape}"
-        )
-    if not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal)) and np.isfinite(duration) and duration > 0
-            and knots >= 2 and clearance >= 0):
-        raise InvalidInputError(f"{where}: need finite positions, duration_s > 0, knots >= 2, min_clearance_m >= 0")
-    options = data.get(table, {})
-    if not isinstance(options, dict):
-        raise InvalidInputError(f"{where}: [{table}] must be a table")
-    return PlanSpec(name=str(data.get("name", Path(where).stem)), kind=kind, masses=masses, start=start,
+    check_keys(data, _TOP_KEYS | {table}, where, hint=_HINT)
+    rb = table_(data, "robots", where)
+    check_keys(rb, {"masses", "start", "goal"}, where, "[robots]", _HINT)
+    if "masses" not in rb:
+        raise InvalidInputError(f"{where}: missing key [robots] masses")
+    masses = rb["masses"]
+    if not isinstance(masses, list) or not masses:
+        raise InvalidInputError(f"{where}: [robots] masses = {short(masses)} must be a list of N >= 2 numbers")
+    masses = check_masses(vector(rb, "masses", len(masses), where, place="[robots]"))
+    start = _positions(rb, "start", masses.size, where)
+    goal = _positions(rb, "goal", masses.size, where)
+    if goal.shape != start.shape:
+        raise InvalidInputError(f"{where}: [robots] start and goal must have the same number of coordinates; "
+                                f"got shapes {start.shape} and {goal.shape}")
+    duration, knots, clearance = _common(data, where)
+    _check_knots(where, knots, start.size)
+    options = table_(data, table, where, default={})
+    return PlanSpec(name=text(data, "name", where, Path(where).stem), kind=kind, masses=masses, start=start,
                     goal=goal, duration_s=duration, knots=knots, min_clearance_m=clearance,
-                    title=str(data.get("title", "")), source=str(data.get("source", "")), options=dict(options))
+                    title=text(data, "title", where, ""), source=text(data, "source", where, ""),
+                    options=dict(options))
 
 
 def plan_metrics(plan: Plan, spec: PlanSpec, samples: int = 1001) -> dict:
@@ -168,12 +188,9 @@ def plan_metrics(plan: Plan, spec: PlanSpec, samples: int = 1001) -> dict:
 
 
 def _shaped_geodesic(spec: PlanSpec):
-    unknown = set(spec.options) - {"alpha"}
-    if unknown:
-        raise InvalidInputError(f"{spec.name}: [shaping] has unknown keys {sorted(unknown)}; only alpha")
-    if "alpha" not in spec.options:
-        raise InvalidInputError(f"{spec.name}: [shaping] needs alpha (0 < alpha < 1)")
-    alpha = check_alpha(spec.options["alpha"])
+    check_keys(spec.options, {"alpha"}, spec.name, "[shaping]", _HINT)
+    alpha = check_alpha(number(spec.options, "alpha", spec.name, place="[shaping]", low=0.0, high=1.0,
+                               low_open=True, high_open=True))
     info = {"kind": spec.kind, "name": spec.name, "alpha": alpha, "masses": spec.masses.tolist(),
             "source": spec.source}
     known = meeting_bound(spec.start, spec.goal, spec.masses)
@@ -182,14 +199,20 @@ def _shaped_geodesic(spec: PlanSpec):
         t0 = time.perf_counter()
         plan = plan_through_meeting(spec.start, spec.goal, spec.masses, alpha, spec.duration_s, spec.knots, info)
         extra = {"alpha": alpha, "solve_time_s": time.perf_counter() - t0, "through_meeting": True,
-                 "geodesic_bound_alpha": known[0], "meeting_time_s": plan.info["meeting_time_s"]}
+                 "geodesic_bound_alpha": known[0], "meeting_time_s": plan.info["meeting_time_s"],
+                 # info["energy"] is the constant integrand q̇^T M_alpha q̇; its integral over [0, T]
+                 "energy": plan.info["energy"] * spec.duration_s}
         return plan, extra
     sol = solve_geodesic(spec.start, spec.goal, spec.masses, alpha)
     plan = plan_from_geodesic(sol, spec.duration_s, spec.knots, info)
     extra = {"alpha": alpha, "solve_time_s": sol.solve_time_s, "endpoint_error_m": sol.endpoint_error_m,
              "energy_drift": sol.energy_drift, "collocation_nodes": int(sol.s.size),
              "continuation_alphas": [round(a, 12) for a in sol.continuation], "initial_guess": sol.guess,
-             "through_meeting": False}
+             "through_meeting": False,
+             # int_0^T q̇^T M_alpha q̇ dt with q̇ = q' / T (seed 002 eq. (12)): the s-energy over T
+             "energy": sol.energy / spec.duration_s,
+             "second_variation": sol.second_variation,
+             "rejected_geodesics": [{"initial_guess": g, "energy": e / spec.duration_s} for g, e in sol.alternatives]}
     return plan, extra
 
 
@@ -203,10 +226,11 @@ def rigid_formation_dict(spec: PlanSpec) -> dict:
     """The :func:`~quatform.planning.rigid_plan_from_spec` input of a ``"rigid-se3"`` spec."""
     opts = spec.options
     if "airplanes" in opts:
-        a = {**_AIRPLANE_KEYS, **opts["airplanes"]}
-        if a["case"] not in AIRPLANE_CASES:
-            raise InvalidInputError(f"{spec.name}: [airplanes] case = {a['case']!r}; use one of {AIRPLANE_CASES}")
-        form = airplanes_spec(a["case"], *(float(a[k]) for k in ("m", "a", "h", "X", "Y")))
+        a = opts["airplanes"]
+        check_keys(a, _AIRPLANE_KEYS, spec.name, "[airplanes]", _HINT)
+        case = text(a, "case", spec.name, _AIRPLANE_KEYS["case"], place="[airplanes]", choices=AIRPLANE_CASES)
+        form = airplanes_spec(case, *(number(a, k, spec.name, _AIRPLANE_KEYS[k], place="[airplanes]", low=0.0,
+                                             low_open=k in ("m", "a", "h")) for k in ("m", "a", "h", "X", "Y")))
     else:
         form = dict(opts["formation"])
         clash = sorted({"duration", "samples"} & set(form))
@@ -230,31 +254,27 @@ def _rigid_spec_from_dict(data: dict, where: str) -> PlanSpec:
         raise InvalidInputError(f"{where}: a rigid-se3 spec needs exactly one of [airplanes] (seed 004 §4) or "
                                 "[formation] (masses, body_points, inertias, start, end, actuation), "
                                 "not [robots]")
-    unknown = sorted(set(data) - (_TOP_KEYS - {"robots"}) - {"airplanes", "formation"})
-    if unknown:
-        raise InvalidInputError(f"{where}: unknown key(s) {unknown} at top level; see docs/planning.md")
+    check_keys(data, (_TOP_KEYS - {"robots"}) | {"airplanes", "formation"}, where, hint=_HINT)
     table = "airplanes" if "airplanes" in data else "formation"
-    if not isinstance(data[table], dict):
-        raise InvalidInputError(f"{where}: [{table}] must be a table")
-    if table == "airplanes":
-        bad = sorted(set(data[table]) - set(_AIRPLANE_KEYS))
-        if bad:
-            raise InvalidInputError(f"{where}: [airplanes] unknown key(s) {bad}; allowed {sorted(_AIRPLANE_KEYS)}")
+    options = table_(data, table, where)
+    if table == "formation":
+        clash = sorted({"duration", "samples"} & set(options))
+        if clash:
+            raise InvalidInputError(f"{where}: [formation] {', '.join(clash)} - give the plan's length and "
+                                    "knots at the top level as duration_s and knots")
+        check_keys(options, set(RIGID_SPEC_KEYS) - {"duration", "samples"}, where, "[formation]", _HINT)
+    duration, knots, clearance = _common(data, where)
+    spec = PlanSpec(name=text(data, "name", where, Path(where).stem), kind="rigid-se3", masses=np.ones(1),
+                    start=np.zeros((1, 3)), goal=np.zeros((1, 3)), duration_s=duration, knots=knots,
+                    min_clearance_m=clearance, title=text(data, "title", where, ""),
+                    source=text(data, "source", where, ""), options={table: options})
     try:
-        duration = float(data.get("duration_s", 1.0))
-        knots = _knots(data.get("knots", 201), where)
-        clearance = float(data.get("min_clearance_m", 0.05))
-        spec = PlanSpec(name=str(data.get("name", Path(where).stem)), kind="rigid-se3", masses=np.ones(1),
-                        start=np.zeros((1, 3)), goal=np.zeros((1, 3)), duration_s=duration, knots=knots,
-                        min_clearance_m=clearance, title=str(data.get("title", "")),
-                        source=str(data.get("source", "")), options={table: dict(data[table])})
         form = rigid_formation_dict(spec)
         masses = check_masses(form["masses"])
         start, goal = _robot_positions(form, "start"), _robot_positions(form, "end")
     except (KeyError, TypeError, ValueError) as exc:
         raise _input_error(exc, where, table) from None
-    if not (np.isfinite(duration) and duration > 0 and knots >= 2 and clearance >= 0):
-        raise InvalidInputError(f"{where}: need duration_s > 0, knots >= 2, min_clearance_m >= 0")
+    _check_knots(where, knots, 3 * masses.size)
     if start.shape != (masses.size, 3):
         raise InvalidInputError(f"{where}: body_points must give one 3-D point per mass, got {start.shape}")
     return dataclasses.replace(spec, masses=masses, start=start, goal=goal)

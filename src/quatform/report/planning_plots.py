@@ -115,7 +115,7 @@ def plot_rigid_formation_paths(plan: RigidFormationPlan, path, title: str | None
 
 
 def plot_airplanes_figure4(path, plans: dict | None = None, n_markers: int = 6) -> Path:
-    """Seed 004 Fig. 4: the five airplanes (m = 1, a = 5, h = 10, X = Y = 20).
+    """Belta & Kumar 2001 (seed 004) Fig. 4: the five airplanes (m = 1, a = 5, h = 10, X = Y = 20).
 
     Parameters
     ----------
@@ -140,6 +140,6 @@ def plot_airplanes_figure4(path, plans: dict | None = None, n_markers: int = 6) 
         ax = fig.add_subplot(1, 3, k + 1, projection="3d")
         handles = draw_rigid_formation(ax, plans[case], n_markers, _TITLES[case])
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8)
-    fig.suptitle("Seed 004 Fig. 4: five airplanes in rigid formation, m = 1, a = 5, h = 10, X = Y = 20",
+    fig.suptitle("Belta & Kumar 2001, Fig. 4: five airplanes in rigid formation, m = 1, a = 5, h = 10, X = Y = 20",
                  fontsize=11)
     return _save(fig, path)
