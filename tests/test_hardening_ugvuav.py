@@ -241,12 +241,12 @@ def test_run_that_loses_the_motion_capture_stops_and_says_so():
 def test_huge_positions_are_refused_not_overflowed(F):
     r = np.array([0, 0, 0, 1e154, 1e154, 1e154])
     for f in (F.forward, F.jacobian, F.singularity_measure):
-        with pytest.raises(InvalidInputError, match=r"r\[3\] = 1e\+154: a coordinate beyond 1e\+150 m"):
+        with pytest.raises(InvalidInputError, match=r"r\[3\] = 1e\+154 is beyond the 1e\+150"):
             f(r)
     c = np.zeros(F.n_c)
     c[3] = 1.0 if F.name == "quaternion" else 1e154
     c[-3 if F.name == "quaternion" else 0] = 1e154
-    with pytest.raises(InvalidInputError, match="beyond 1e\\+150 m"):
+    with pytest.raises(InvalidInputError, match="beyond the 1e\\+150"):
         F.inverse(c)
     ok = np.array([0, 0, 0, 1e140, 1e140, 1e140]) * (1 if F.name != "restricted" else 1)
     if F.name != "restricted":

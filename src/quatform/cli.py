@@ -9,26 +9,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import sys
 
 from . import __version__
 from .errors import QuatformError
-
-#: The documents quatform implements, by the tag the scenario and plan files cite them with
-#: (``source = "seed 000 §4.1 ..."``); ``quatform scenarios`` and ``quatform plans`` print them.
-SOURCES = {
-    "000": 'I. Mas, C. Kitts, 2017, "Quaternions and Dual Quaternions: Singularity-Free Multirobot Formation '
-           'Control", J. Intell. Robot. Syst.',
-    "001": 'H. N. Marciano, 2021, "Using Quaternions to Avoid Singularities in UAV-UGV Multi Robot Systems", '
-           "MSc thesis, UFES",
-    "002": 'C. Belta, V. Kumar, 2002, "Trajectory design for formations of robots by kinetic energy shaping", '
-           "ICRA 2002",
-    "003": 'J. F. Jansen, R. L. Kress, S. M. Babcock, W. R. Hamel, 1990, "Controller design for a teleoperator '
-           'system with dissimilar kinematics and force feedback", ORNL CONF-910223-4',
-    "004": 'C. Belta, V. Kumar, 2001, "Motion generation for formations of robots: a geometric approach", '
-           "ICRA 2001",
-}
+from .papers import cited
 
 #: Exit statuses.
 EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 2, 3, 130
@@ -62,8 +47,7 @@ def _feedforward(sc, args):
 
 def _cited(source: str) -> list[str]:
     """The citations of the seed documents that a scenario's or plan's ``source`` names."""
-    tags = dict.fromkeys(re.findall(r"seed (\d{3})", str(source)))
-    return [f"seed {t}: {SOURCES[t]}" for t in tags if t in SOURCES]
+    return [f"{p.tag}: {p.citation}" for p in cited(source)]
 
 
 def _list(items):

@@ -44,20 +44,6 @@ SPHERICAL_VARIABLES = (
 W_MIN = 1e-3
 #: Below this ratio of horizontal to full separation, alpha_c of eq. (4.5) is undefined.
 OVERHEAD_TOL = 1e-12
-#: Largest coordinate accepted, m: the squared separation of robots farther apart than
-#: ~1.3e154 m overflows float64 (eqs. (4.4), (4.16), (4.27) take its square root).
-MAX_COORD_M = 1e150
-
-
-def _check_magnitude(a, name, what="coordinate"):
-    """Refuse entries beyond :data:`MAX_COORD_M` (their squares would overflow to inf)."""
-    big = np.abs(a) > MAX_COORD_M
-    if np.any(big):
-        idx = tuple(int(i) for i in np.argwhere(big)[0])
-        raise InvalidInputError(
-            f"{name}[{', '.join(map(str, idx))}] = {float(a[idx]):.3g}: a {what} beyond {MAX_COORD_M:.0e} m "
-            "overflows the squared separation (float64); move the origin nearer or use larger units"
-        )
 
 
 def _jacobian_from_gradients(grads):
@@ -72,16 +58,6 @@ def _jacobian_from_gradients(grads):
 
 class _UgvUav(Formation):
     robot_variables = UGV_UAV_VARIABLES
-
-    def check_robot_state(self, r, name="r"):
-        r = super().check_robot_state(r, name)
-        _check_magnitude(r, name)
-        return r
-
-    def check_cluster_state(self, c, name="c"):
-        c = super().check_cluster_state(c, name)
-        _check_magnitude(c, name, "value")
-        return c
 
     def outside(self, r):
         """Where the robot state ``r`` (..., 6) is outside the description: a bool array (...)."""

@@ -32,13 +32,13 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 from ..algebra import wrap_angle
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES
+from ..papers import with_names
 from ..sim import Run, errors_from_robots
 from ..sim.metrics import SINGULAR_THRESHOLD
 
 __all__ = [
     "DPI",
     "MAX_POINTS",
-    "PAPERS",
     "plot_cluster_variables",
     "plot_compare",
     "plot_euclidean",
@@ -194,22 +194,6 @@ def _shade(ax, spans):
         ax.axvspan(a, b, color=_SINGULAR_COLOR, alpha=0.6, lw=0, zorder=0)
 
 
-#: The research documents the scenarios cite as "seed NNN" (docs/), named in plot titles.
-PAPERS = {
-    "seed 000": "Mas & Kitts 2017",
-    "seed 001": "Marciano 2021",
-    "seed 002": "Belta & Kumar 2002",
-    "seed 003": "Jansen et al. 1990",
-    "seed 004": "Belta & Kumar 2001",
-}
-
-
-def _paper(source: str) -> str:
-    """A scenario's ``source`` with the seed numbers replaced by the papers' names."""
-    out = str(source)
-    for seed, paper in PAPERS.items():
-        out = out.replace(f" ({seed})", "") if paper in out else out.replace(seed, paper)
-    return out
 
 
 def _backend(runs) -> str:
@@ -219,13 +203,13 @@ def _backend(runs) -> str:
 
 
 def _title(run: Run) -> str:
-    source = _paper(getattr(run.scenario, "source", ""))
+    source = with_names(getattr(run.scenario, "source", ""))
     return f"{run.scenario.name} - {run.controller.name}{_backend([run])}" + (f" ({source})" if source else "")
 
 
 def _runs_title(runs) -> str:
     names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
-    sources = ", ".join(dict.fromkeys(_paper(run.scenario.source) for run in runs if run.scenario.source))
+    sources = ", ".join(dict.fromkeys(with_names(run.scenario.source) for run in runs if run.scenario.source))
     return names + _backend(runs) + (f" ({sources})" if sources else "")
 
 

@@ -34,6 +34,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 
 from ..algebra import wrap_angle
 from ..formations import UgvUavSpherical
+from ..papers import PAPERS
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.ugv_uav import UGV_UAV_FORMATIONS, UgvUavRun
 from .plots import (
@@ -72,7 +73,7 @@ _LINTHRESH = 1e-3
 #: Width of the centred moving mean drawn over noisy errors, s (with its min-max envelope).
 FILTER_WINDOW_S = 0.5
 _UNREACHABLE_COLOR = "0.82"
-_PAPER = "Marciano 2021"
+_PAPER = PAPERS["001"].short
 
 
 # --------------------------------------------------------------------------- helpers
