@@ -313,3 +313,16 @@ def test_the_cli_answers_bad_teleop_files_with_one_line(tmp_path, capsys, body, 
     assert main(["teleop", str(f), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and names in err[0] and "Traceback" not in err[0]
+
+
+def test_peak_orientation_error_is_not_the_shared_lag():
+    """Issue 12 §4: in teleop-pitch-through-90 the whole-run peak is the 0.025 rad lag of the
+    moving hand for both laws; ``peak_orientation_error_rad`` is taken where the motion rests
+    (the holds), so it shows the RPY law's error and not the lag."""
+    from quatform.sim.teleop import simulate_teleop, teleop_metrics
+
+    sc = load_scenario("teleop-pitch-through-90")
+    ep = teleop_metrics(simulate_teleop(sc))
+    assert ep["peak_orientation_error_whole_run_rad"] == pytest.approx(0.025, abs=0.004)  # the lag
+    assert ep["peak_orientation_error_rad"] < 0.5 * ep["peak_orientation_error_whole_run_rad"]
+    assert ep["peak_orientation_error_rad"] == pytest.approx(max(ep["hold_peak_orientation_error_rad"]))
