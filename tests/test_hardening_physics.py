@@ -38,6 +38,10 @@ def test_no_install_hint_names_the_package_index_form():
     assert not bad, bad
 
 
+try:  # quatform's import first: it picks the offscreen OpenGL (EGL) before mujoco loads one;
+    import_mujoco()  # a bare 'import mujoco' here, collected before test_mujoco_runs, chose GLFW
+except MissingDependencyError:  # and made that file's EGL picture abort the process
+    pass
 mujoco = pytest.importorskip("mujoco")
 
 from quatform.control import TABLE1, TABLE2  # noqa: E402
