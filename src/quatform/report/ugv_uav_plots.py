@@ -34,7 +34,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 
 from ..algebra import wrap_angle
 from ..formations import UgvUavSpherical
-from ..papers import PAPERS
+from ..papers import PAPERS, with_names
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.ugv_uav import UGV_UAV_FORMATIONS, UgvUavRun
 from .plots import (
@@ -82,7 +82,8 @@ _PAPER = PAPERS["001"].short
 def _title(run: UgvUavRun) -> str:
     """``name - ugv-uav-<formation> (Marciano 2021 §..., Figs. ...)`` and the scenario title."""
     sc = run.scenario
-    paper = sc.source if _PAPER in sc.source else (f"{_PAPER}, {sc.source}" if sc.source else _PAPER)
+    source = with_names(sc.source)
+    paper = source if _PAPER in source else (f"{_PAPER}, {source}" if source else _PAPER)
     on = "" if run.backend == "kinematic" else f" on {run.backend}"
     head = f"{sc.name} - ugv-uav-{run.formation}{on} ({paper})"
     return f"{head}\n{sc.title}" if sc.title else head
