@@ -432,3 +432,20 @@ def test_every_command_has_help_and_the_mujoco_hint_is_the_editable_install(caps
         if name in ("run", "compare"):
             assert 'pip install -e ".[mujoco]"' in text and "quatform[mujoco]" not in text
             assert "--no-feedforward" in text
+
+
+@pytest.mark.parametrize("kind,line,key", [
+    ("pair", "d_c = 1e200", "d_c"),
+    ("ugv-uav", "r_x = 1e160", "r_x"),
+    ("teleop", "duration_s = 1e300", "duration_s"),
+    ("plan", "X = 1e300", "X"),
+])
+def test_huge_finite_numbers_are_refused_at_load_naming_the_key(tmp_path, kind, line, key):
+    """Issue 12 §3 (review): a huge finite number in any file kind was refused late, from an
+    internal array, or overflowed into warnings; now the reader refuses it, naming the key."""
+    from quatform.checks import MAX_NUMBER, number
+    from quatform.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=rf"f.toml: {key} = .* is beyond \+-1e\+12"):
+        number({key: float(line.split("=")[1])}, key, "f.toml")
+    assert number({key: MAX_NUMBER}, key, "f.toml") == MAX_NUMBER

@@ -6,8 +6,9 @@ one line naming the file, the key, the value and the fix.
 
 - :func:`check_keys` refuses unknown keys and names the nearest valid one;
 - :func:`table`, :func:`number`, :func:`integer`, :func:`vector`, :func:`flag`, :func:`text`
-  read one typed value from a parsed TOML table (NaN, infinity, booleans where numbers belong,
-  tables where numbers belong and numbers out of range are refused, naming the key);
+  read one typed value from a parsed TOML table (NaN, infinity, magnitudes beyond
+  :data:`MAX_NUMBER`, booleans or tables where numbers belong and numbers out of range are
+  refused, naming the key);
 - :func:`check_work` estimates the memory and time of a run up front and refuses what
   cannot finish;
 - :func:`short` is the one-line, bounded ``repr`` that error messages quote values with.
@@ -24,6 +25,7 @@ from .errors import InvalidInputError, ResourceLimitError
 
 __all__ = [
     "MISSING",
+    "MAX_NUMBER",
     "short",
     "nearest",
     "check_keys",
@@ -37,6 +39,12 @@ __all__ = [
     "memory_budget_bytes",
     "time_budget_s",
 ]
+
+
+#: Largest magnitude :func:`number` accepts. quatform's files hold SI values (m, s, rad, N, kg,
+#: N/m); nothing physical in a formation, a plan or a teleoperation scenario comes near 1e12,
+#: while 1e154 m overflows a squared distance and 1e300 a product of two of them.
+MAX_NUMBER = 1e12
 
 
 class _Missing:
@@ -127,6 +135,9 @@ def number(data: Mapping, key: str, where: str, default=MISSING, *, place: str =
     v = float(value) if abs(value) < 1e308 or isinstance(value, float) else math.inf
     if not math.isfinite(v):
         raise InvalidInputError(f"{where}: {label} = {short(value)} must be finite")
+    if abs(v) > MAX_NUMBER:
+        raise InvalidInputError(f"{where}: {label} = {short(value)} is beyond +-{MAX_NUMBER:g}; the files hold SI "
+                                "values (m, s, rad, N, kg): give a physical one")
     if low is not None and (v <= low if low_open else v < low):
         raise InvalidInputError(f"{where}: {label} = {short(value)} must be {'>' if low_open else '>='} {low:g}")
     if high is not None and (v >= high if high_open else v > high):
