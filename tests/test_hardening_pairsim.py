@@ -471,6 +471,13 @@ def test_d_c_ramp_below_zero_names_the_ramp(tmp_path):
     assert "[[path.ramps]] #2 (d_c from 1 s for 0.5 s" in msg and "t = 1.5 s" in msg and "s.toml" in msg
 
 
+def test_d_c_ramp_below_zero_before_a_step_back_up_is_refused(tmp_path):
+    """d_c is piecewise linear with jumps: its least value can be just before a step."""
+    text = GOOD + _RAMP.format(v="d_c", t=0.0, d=2.0, c=-1.5) + _STEP.format(v="d_c", t=1.5, c=1.0)
+    msg = _one_line_error(tmp_path, text)  # d_c(1.5 s-) = 1 - 1.125 < 0, d_c(1.5 s) = 0.875
+    assert "[[path.ramps]] #1 (d_c from 0 s for 2 s" in msg and "t = 1.5 s" in msg
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(st.booleans(), st.floats(0.0, 2.0), st.floats(0.05, 3.0), st.floats(-1.5, 1.5)),
                 max_size=4))
@@ -484,6 +491,7 @@ def test_an_accepted_path_keeps_d_c_positive_and_a_refused_one_names_its_change(
         assert str(exc).startswith("h.toml: [[path.") and "d_c <= 0" in str(exc)
         return
     fine = np.linspace(0.0, 2.0, 4001)
+    fine = np.concatenate([fine, [c.time_s - 1e-9 for c in sc.path.steps if c.time_s > 0]])  # before each step
     assert np.all(sc.path(fine)[0][:, 5] > 0)
 
 

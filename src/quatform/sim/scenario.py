@@ -345,22 +345,27 @@ def _check_separation(path: EuclideanPath, where: str, duration: float) -> None:
     for _, c in changes:
         times.update((c.start_s, min(c.start_s + c.duration_s, duration)) if isinstance(c, Ramp) else (c.time_s,))
     times = np.array(sorted(times))
-    d = path.initial[5] + sum(c.value_rate(times)[0] for _, c in changes)
-    bad = np.flatnonzero(d <= 0.0)
+    ramps = path.initial[5] + sum(c.value_rate(times)[0] for _, c in changes if isinstance(c, Ramp))
+    steps = [c for _, c in changes if isinstance(c, Step)]
+    right = ramps + sum(np.where(times >= c.time_s, c.change, 0.0) for c in steps)  # d_c(t)
+    left = ramps + sum(np.where(times > c.time_s, c.change, 0.0) for c in steps)  # d_c(t-), before a step
+    bad = np.flatnonzero(np.minimum(left, right) <= 0.0)
     if bad.size == 0:
         return
-    t = float(times[bad[0]])
+    k = bad[0]
+    t, by_step = float(times[k]), bool(left[k] > 0.0)  # reached 0 by a jump at t, else by a ramp up to t
     for name, c in changes:  # the step at t, else the ramp running up to t, that lowers d_c
-        if isinstance(c, Step) and c.time_s == t and c.change < 0:
+        if by_step and isinstance(c, Step) and c.time_s == t and c.change < 0:
             label = f"{name} (d_c at {t:g} s, change = {c.change:g})"
             break
-        if isinstance(c, Ramp) and c.start_s < t <= c.start_s + c.duration_s and c.change < 0:
+        if not by_step and isinstance(c, Ramp) and c.start_s < t <= c.start_s + c.duration_s and c.change < 0:
             label = f"{name} (d_c from {c.start_s:g} s for {c.duration_s:g} s, change = {c.change:g})"
             break
     else:  # pragma: no cover - d_c > 0 at t = 0, so some change lowered it
         label = "the d_c ramps and steps"
+    d = float(min(left[k], right[k]))
     raise InvalidInputError(
-        f"{where}: {label} makes d_c <= 0 ({float(d[bad[0]]):.3g} m at t = {t:g} s): the robots would meet; "
+        f"{where}: {label} makes d_c <= 0 ({d:.3g} m at t = {t:g} s): the robots would meet; "
         f"make the change smaller in size or raise [path] d_c = {path.initial[5]:g} m")
 
 
