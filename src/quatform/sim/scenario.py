@@ -25,7 +25,7 @@ from ..references import EuclideanPath, Ramp, Step
 from ..robots import HolonomicRobot, Team
 
 __all__ = ["Scenario", "load_scenario", "builtin_scenarios", "scenario_from_dict", "check_scenario_work",
-           "BYTES_PER_STEP", "SECONDS_PER_STEP"]
+           "check_step_stable", "BYTES_PER_STEP", "SECONDS_PER_STEP"]
 
 _TABLES = {"table1": TABLE1, "table2": TABLE2}
 _NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
@@ -91,9 +91,12 @@ def _last_step(duration_s: float, dt_s: float) -> int:
     return int(math.floor(duration_s / dt_s + _STEP_SLACK))
 
 
-def largest_gain(gains: dict) -> float:
+def _largest_gain(where: str, gains: dict) -> float:
     """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
-    vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
+    try:
+        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
     return max(vals, default=0.0)
 
 
@@ -105,7 +108,7 @@ def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
     by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
     largest gain of any controller the scenario can run (``docs/derivations.md``, Hardening
     (issue 12): two-robot scenario loader)."""
-    k = largest_gain(gains)
+    k = _largest_gain(where, gains)
     if k * dt_s >= 2.0:
         raise InvalidInputError(
             f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
