@@ -193,6 +193,9 @@ def _spiral_without_feedforward(tmp_path, duration_s=10.0):
 
     text = builtin_scenarios()["mas-kitts-spiral"].read_text()
     text = text.replace("duration_s = 60.0\n", f"duration_s = {duration_s}\nfeedforward = false\n", 1)
+    head, *ramps = text.split("[[path.ramps]]")  # keep the ramps that start in the shortened run
+    keep = [r for r in ramps if float(r.split("start_s = ")[1].split()[0]) <= duration_s]
+    text = "[[path.ramps]]".join([head, *keep])
     return load_scenario(_file(tmp_path, text, "spiral-noff.toml"))
 
 
@@ -352,7 +355,8 @@ def test_an_accepted_metrics_window_always_holds_a_sample(duration, steps, frac)
         sc = scenario_from_dict({**_DATA, "duration_s": duration, "dt_s": dt, "metrics_from_s": m}, "h")
     except InvalidInputError as exc:
         assert "metrics_from_s" in str(exc) or "dt_s" in str(exc)
-        assert m >= duration or m > _last_sample(duration, dt) or dt > duration
+        # or dt_s too long for Table 1's largest gain, 20 1/s (k dt_s < 2, check_step_stable)
+        assert m >= duration or m > _last_sample(duration, dt) or dt > duration or 20.0 * dt >= 2.0
         return
     assert m < duration and np.any(sc.times >= m)
 
@@ -362,7 +366,7 @@ def _jitter(steps):
 
 
 def _last_sample(duration, dt):
-    return int(round(duration / dt)) * dt
+    return int(np.floor(duration / dt + 1e-9)) * dt  # Scenario.times: never past duration_s
 
 
 @settings(max_examples=100, deadline=None)
@@ -379,3 +383,155 @@ def test_drawn_angle_gap_is_the_wrapped_error(pairs):
     for drawn, raw in ((ym, meas), (yd, des)):
         d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
         assert np.all(d < 1e-9)
+
+
+# ------------------------------------------- reviewer findings on the loader (fixa, issue 12)
+
+def _with_path(extra, base=GOOD):
+    return base.replace("d_c = 1.0", f"{extra}\nd_c = 1.0")
+
+
+@pytest.mark.parametrize("extra, key", [
+    ('centroid = "circle"', "radius"),
+    ('centroid = "circle"\nradius = 2.0', "period_s"),
+    ('centroid = "circle"\nperiod_s = 10.0', "radius"),
+])
+def test_circle_without_radius_or_period_is_refused_naming_the_missing_key(tmp_path, extra, key):
+    """Old: radius 0 and period_s 1 by default, a 'circle' that is a fixed point, exit 0."""
+    msg = _one_line_error(tmp_path, _with_path(extra))
+    assert f"needs {key}" in msg and "centroid = 'circle'" in msg and "s.toml" in msg
+
+
+def test_circle_of_radius_zero_is_refused(tmp_path):
+    msg = _one_line_error(tmp_path, _with_path('centroid = "circle"\nradius = 0.0\nperiod_s = 10.0'))
+    assert "radius = 0.0 must be > 0" in msg
+    with pytest.raises(InvalidInputError, match="radius must be > 0"):
+        EuclideanPath(centroid="circle", period_s=10.0)  # through the API too
+    sc = load_scenario(_file(tmp_path, _with_path('centroid = "circle"\nradius = 2.0\nperiod_s = 10.0')))
+    assert sc.path.radius == 2.0 and sc.path.period_s == 10.0
+
+
+@pytest.mark.parametrize("centroid, extra, key, kind", [
+    ("line", "radius = 2.0", "radius", "circle"),
+    ("fixed", "radius = 2.0", "radius", "circle"),
+    ("line", "period_s = 10.0", "period_s", "circle"),
+    ("fixed", "period_s = 10.0", "period_s", "circle"),
+    ("line", "climb_m_s = 0.1", "climb_m_s", "circle"),
+    ("fixed", "velocity = [0.1, 0, 0]", "velocity", "line"),
+    ("circle", "radius = 2.0\nperiod_s = 9.0\nvelocity = [0.1, 0, 0]", "velocity", "line"),
+])
+def test_keys_the_centroid_kind_does_not_use_are_refused(tmp_path, centroid, extra, key, kind):
+    """Old: silently ignored, the run was not the one the file describes."""
+    msg = _one_line_error(tmp_path, _with_path(f'centroid = "{centroid}"\n{extra}'))
+    assert f"{key} applies to centroid = '{kind}' only" in msg and "s.toml" in msg
+
+
+def test_default_centroid_is_fixed_and_refuses_a_radius(tmp_path):
+    msg = _one_line_error(tmp_path, _with_path("radius = 2.0"))
+    assert "radius applies to centroid = 'circle' only, not 'fixed'" in msg
+
+
+_STEP = '[[path.steps]]\nvariable = "{v}"\ntime_s = {t}\nchange = {c}\n'
+_RAMP = '[[path.ramps]]\nvariable = "{v}"\nstart_s = {t}\nduration_s = {d}\nchange = {c}\n'
+
+
+@pytest.mark.parametrize("extra, key", [
+    (_STEP.format(v="beta_c", t=5.0, c=1.0), "time_s = 5.0"),
+    (_STEP.format(v="beta_c", t=2.001, c=1.0), "time_s = 2.001"),
+    (_RAMP.format(v="gamma_c", t=3.0, d=1.0, c=1.0), "start_s = 3.0"),
+])
+def test_step_or_ramp_outside_the_run_is_refused(tmp_path, extra, key):
+    """Old: a step at 5 s in a 2 s run was accepted and the run read perfect."""
+    msg = _one_line_error(tmp_path, GOOD + extra)
+    assert key in msg and "outside the run [0, duration_s = 2 s]" in msg and "[[path." in msg
+
+
+def test_step_and_ramp_at_the_ends_of_the_run_are_kept(tmp_path):
+    extra = _STEP.format(v="beta_c", t=2.0, c=1.0) + _RAMP.format(v="gamma_c", t=0.0, d=5.0, c=1.0)
+    sc = load_scenario(_file(tmp_path, GOOD + extra))
+    assert sc.path.steps[0].time_s == 2.0 and sc.path.ramps[0].duration_s == 5.0  # a ramp may run past the end
+
+
+def test_d_c_step_to_zero_names_the_file_the_step_and_the_fix(tmp_path, capsys):
+    """Old: 'quatform: error: the path makes d_c <= 0 (min 0 m): the robots would meet'."""
+    text = GOOD + _STEP.format(v="beta_c", t=0.5, c=1.0) + _STEP.format(v="d_c", t=1.5, c=-1.0)
+    msg = _one_line_error(tmp_path, text)
+    assert msg.startswith(str(tmp_path / "s.toml") + ": [[path.steps]] #2 (d_c at 1.5 s")
+    assert "d_c <= 0" in msg and "raise [path] d_c" in msg
+    from quatform import cli
+
+    f = _file(tmp_path, text, "cli.toml")
+    assert cli.main(["run", str(f), "--controller", "quaternion", "--out", str(tmp_path / "o"), "--no-plots"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cli.toml" in err and "[[path.steps]] #2" in err, err
+
+
+def test_d_c_ramp_below_zero_names_the_ramp(tmp_path):
+    text = GOOD + _RAMP.format(v="d_c", t=0.5, d=1.0, c=0.5) + _RAMP.format(v="d_c", t=1.0, d=0.5, c=-2.0)
+    msg = _one_line_error(tmp_path, text)
+    assert "[[path.ramps]] #2 (d_c from 1 s for 0.5 s" in msg and "t = 1.5 s" in msg and "s.toml" in msg
+
+
+def test_d_c_ramp_below_zero_before_a_step_back_up_is_refused(tmp_path):
+    """d_c is piecewise linear with jumps: its least value can be just before a step."""
+    text = GOOD + _RAMP.format(v="d_c", t=0.0, d=2.0, c=-1.5) + _STEP.format(v="d_c", t=1.5, c=1.0)
+    msg = _one_line_error(tmp_path, text)  # d_c(1.5 s-) = 1 - 1.125 < 0, d_c(1.5 s) = 0.875
+    assert "[[path.ramps]] #1 (d_c from 0 s for 2 s" in msg and "t = 1.5 s" in msg
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.booleans(), st.floats(0.0, 2.0), st.floats(0.05, 3.0), st.floats(-1.5, 1.5)),
+                max_size=4))
+def test_an_accepted_path_keeps_d_c_positive_and_a_refused_one_names_its_change(changes):
+    text = GOOD.replace("dt_s = 0.01", "dt_s = 0.05")
+    for is_step, t, d, c in changes:
+        text += _STEP.format(v="d_c", t=t, c=c) if is_step else _RAMP.format(v="d_c", t=t, d=d, c=c)
+    try:
+        sc = scenario_from_dict(__import__("tomllib").loads(text), "h.toml")
+    except InvalidInputError as exc:
+        assert str(exc).startswith("h.toml: [[path.") and "d_c <= 0" in str(exc)
+        return
+    fine = np.linspace(0.0, 2.0, 4001)
+    fine = np.concatenate([fine, [c.time_s - 1e-9 for c in sc.path.steps if c.time_s > 0]])  # before each step
+    assert np.all(sc.path(fine)[0][:, 5] > 0)
+
+
+def test_long_dt_is_refused_as_unstable(tmp_path):
+    """Old: dt_s = 0.7 in a 2 s run ran to t = 2.1 s with 20 1/s x 0.7 s = 14 (diverging steps)."""
+    msg = _one_line_error(tmp_path, GOOD.replace("dt_s = 0.01", "dt_s = 0.7"))
+    assert "dt_s = 0.7" in msg and "unstable" in msg and "dt_s < 0.1" in msg
+    with pytest.raises(InvalidInputError, match="unstable"):
+        Scenario(name="api", path=EuclideanPath(), duration_s=2.0, dt_s=0.7, metrics_from_s=0.0)
+    # just inside the bound of Table 1's largest gain (20 1/s): kept
+    assert load_scenario(_file(tmp_path, GOOD.replace("dt_s = 0.01", "dt_s = 0.099"))).dt_s == 0.099
+
+
+def test_stability_bound_follows_the_scenario_gains(tmp_path):
+    gains = ('gains = "table2"\n')  # largest gain 1 1/s: dt_s < 2 s
+    sc = load_scenario(_file(tmp_path, gains + GOOD.replace("dt_s = 0.01", "dt_s = 0.7")))
+    assert sc.times[-1] == pytest.approx(1.4) and sc.times[-1] <= sc.duration_s
+    run = simulate(sc, "quaternion")
+    assert run.t[-1] <= sc.duration_s
+    own = GOOD.replace("dt_s = 0.01", "dt_s = 0.7") + "[gains]\nbase = \"table2\"\n[gains.quaternion]\nk_d = 3.0\n"
+    msg = _one_line_error(tmp_path, own)
+    assert "largest gain of 3" in msg and "dt_s < 0.667" in msg
+
+
+def test_euler_step_of_a_proportional_law_diverges_at_k_dt_2():
+    """The bound itself: e <- (1 - k dt) e shrinks only for k dt < 2 (check_step_stable)."""
+    for kdt, grows in ((1.9, False), (2.1, True)):
+        e = 1.0
+        for _ in range(200):
+            e *= 1.0 - kdt
+        assert (abs(e) > 1.0) is grows
+
+
+@settings(max_examples=200, deadline=None)
+@given(duration=st.floats(0.05, 50.0), ratio=st.floats(1.0, 400.0))
+def test_sample_times_never_pass_the_duration(duration, ratio):
+    dt = duration / ratio
+    sc = Scenario(name="h", path=EuclideanPath(), duration_s=duration, dt_s=dt, metrics_from_s=0.0,
+                  gains={"quaternion": {"k_d": 1e-3}})
+    t = sc.times
+    assert t[-1] <= duration and duration - t[-1] < dt * (1 + 1e-9)
+    assert np.allclose(np.diff(t), dt)

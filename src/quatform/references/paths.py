@@ -119,8 +119,11 @@ class EuclideanPath:
             raise InvalidInputError(
                 f"centroid must be 'circle', 'line' or 'fixed', got {self.centroid!r}"
             )
-        if self.centroid == "circle" and not self.period_s > 0:
-            raise InvalidInputError(f"circle period_s must be > 0, got {self.period_s!r}")
+        if self.centroid == "circle":  # seed 000 §4.1: a circle needs a radius and a lap time
+            for key in ("radius", "period_s"):
+                if not getattr(self, key) > 0:
+                    raise InvalidInputError(f"circle {key} must be > 0, got {getattr(self, key)!r} (a circle of "
+                                            "radius 0 is a fixed point: use centroid='fixed')")
 
     def __call__(self, t):
         """``e(t)`` and ``e_dot(t)``, each shape ``(len(t), 8)`` (or ``(8,)`` for scalar ``t``)."""
@@ -145,8 +148,11 @@ class EuclideanPath:
             e[..., i] += val
             ed[..., i] += rate
         if np.any(e[..., 5] <= 0):
+            first = float(np.broadcast_to(t, e.shape[:-1])[e[..., 5] <= 0].min())
+            names = [f"{type(c).__name__.lower()} of d_c" for c in (*self.ramps, *self.steps) if c.variable == "d_c"]
             raise InvalidInputError(
-                f"the path makes d_c <= 0 (min {float(e[..., 5].min()):.3g} m): the robots would meet"
+                f"the path makes d_c <= 0 (min {float(e[..., 5].min()):.3g} m, first at t = {first:g} s): the robots "
+                f"would meet; raise initial d_c or shrink the {' and '.join(names) or 'd_c changes'}"
             )
         return e, ed
 

@@ -25,7 +25,7 @@ from ..references import EuclideanPath, Ramp, Step
 from ..robots import HolonomicRobot, Team
 
 __all__ = ["Scenario", "load_scenario", "builtin_scenarios", "scenario_from_dict", "check_scenario_work",
-           "BYTES_PER_STEP", "SECONDS_PER_STEP"]
+           "check_step_stable", "BYTES_PER_STEP", "SECONDS_PER_STEP"]
 
 _TABLES = {"table1": TABLE1, "table2": TABLE2}
 _NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
@@ -74,11 +74,46 @@ def _check_window(where: str, metrics_from_s: float, duration_s: float, dt_s: fl
     """Refuse a metrics window that holds no sample (every max error would read 0, a failed
     run would look perfect): need ``0 <= metrics_from_s < duration_s`` and a sample after it."""
     number({"metrics_from_s": metrics_from_s}, "metrics_from_s", where, low=0.0)
-    last = int(round(duration_s / dt_s)) * dt_s  # the last of Scenario.times
+    last = _last_step(duration_s, dt_s) * dt_s  # the last of Scenario.times
     if not (metrics_from_s < duration_s and metrics_from_s <= last):
         raise InvalidInputError(
             f"{where}: metrics_from_s = {metrics_from_s:g} must be < duration_s = {duration_s:g} and at most the "
             f"last sample time {last:g} s; else no sample is measured and every error would read 0")
+
+
+#: Slack, in steps, for a dt_s that divides duration_s up to rounding (0.3 / 0.1 = 2.9999...).
+_STEP_SLACK = 1e-9
+
+
+def _last_step(duration_s: float, dt_s: float) -> int:
+    """Index of the last sample: the most whole steps of ``dt_s`` that fit in ``duration_s``
+    (never past it; a ``dt_s`` that does not divide ``duration_s`` ends the run short)."""
+    return int(math.floor(duration_s / dt_s + _STEP_SLACK))
+
+
+def _largest_gain(where: str, gains: dict) -> float:
+    """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
+    try:
+        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
+    return max(vals, default=0.0)
+
+
+def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
+    """Refuse a ``dt_s`` at which the explicit Euler loop of a proportional law diverges.
+
+    Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
+    (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
+    by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
+    largest gain of any controller the scenario can run (``docs/derivations.md``, Hardening
+    (issue 12): two-robot scenario loader)."""
+    k = _largest_gain(where, gains)
+    if k * dt_s >= 2.0:
+        raise InvalidInputError(
+            f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
+            f">= 2: the discrete control loop would be unstable; use dt_s < {2.0 / k:.3g} s (smaller gains "
+            "allow a larger step)")
 
 
 @dataclass(frozen=True)
@@ -94,7 +129,8 @@ class Scenario:
     duration_s : float
         Length of the run, s (> 0).
     dt_s : float
-        Control and integration step, s (``0 < dt_s <= duration_s``).
+        Control and integration step, s (``0 < dt_s <= duration_s`` and largest gain
+        ``* dt_s < 2``, :func:`check_step_stable`).
     title, source : str
     team : Team
         The two robots.
@@ -138,6 +174,9 @@ class Scenario:
         number({"dt_s": self.dt_s}, "dt_s", where, low=0.0, low_open=True, high=self.duration_s)
         check_scenario_work(where, self.duration_s, self.dt_s)
         _check_window(where, self.metrics_from_s, self.duration_s, self.dt_s)
+        if not isinstance(self.gains, dict) or not all(isinstance(g, dict) for g in self.gains.values()):
+            raise InvalidInputError(f"{where}: gains must map controller names to their gains, got {short(self.gains)}")
+        check_step_stable(where, self.dt_s, self.gains)
         if not isinstance(self.feedforward, (bool, np.bool_)):
             raise InvalidInputError(f"{where}: feedforward = {short(self.feedforward)} must be True or False")
         if not callable(self.path):  # an EuclideanPath, or a plan's PlanPairPath: t -> (e, e_dot)
@@ -150,9 +189,10 @@ class Scenario:
 
     @property
     def times(self) -> np.ndarray:
-        """Sample times ``0, dt_s, ..., round(duration_s / dt_s) dt_s``, s."""
-        n = int(round(self.duration_s / self.dt_s))
-        return np.arange(n + 1) * self.dt_s
+        """Sample times ``0, dt_s, ..., n dt_s``, s, ``n = floor(duration_s / dt_s)``: the run
+        never goes past ``duration_s``."""
+        n = _last_step(self.duration_s, self.dt_s)
+        return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
 
     def controller(self, name: str, feedforward: bool | None = None):
         """The controller ``name`` with this scenario's gains and robots; ``feedforward``
@@ -200,7 +240,7 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
     metrics_from = number(data, "metrics_from_s", where, 5.0 if duration > 5.0 else 0.0, low=0.0)
     _check_window(where, metrics_from, duration, dt)
     try:
-        path = _path(table(data, "path", where), where)
+        path = _path(table(data, "path", where), where, duration)
         robots = table(data, "robots", where, default={})
         check_keys(robots, _ROBOT_KEYS, where, "[robots]", _HINT)
         robot = HolonomicRobot(
@@ -210,6 +250,8 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
         off = table(data, "initial_offset", where, default={})
         check_keys(off, _NAMES, where, "[initial_offset]", _HINT)
         offset = np.array([number(off, n, where, 0.0, place="[initial_offset]") for n in _NAMES])
+        gains = _gains(data, where)
+        check_step_stable(where, dt, gains)
         sc = Scenario(
             name=text(data, "name", where, Path(where).stem),
             title=text(data, "title", where, ""),
@@ -219,7 +261,7 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
             dt_s=dt,
             team=Team((robot, robot)),
             initial_offset=offset,
-            gains=_gains(data, where),
+            gains=gains,
             metrics_from_s=metrics_from,
             feedforward=flag(data, "feedforward", where, True),
         )
@@ -235,30 +277,99 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
     return sc
 
 
-def _path(p: dict, where: str) -> EuclideanPath:
-    """The ``[path]`` table of the file ``where``."""
+#: Keys of ``[path]`` that only one centroid kind uses (seed 000 §4: the circle of §4.1, the
+#: line of §4.2); the other kinds would silently ignore them.
+_CENTROID_ONLY = {"radius": "circle", "period_s": "circle", "climb_m_s": "circle", "velocity": "line"}
+
+
+def _path(p: dict, where: str, duration: float) -> EuclideanPath:
+    """The ``[path]`` table of the file ``where``, for a run of ``duration`` s."""
     check_keys(p, _PATH_KEYS, where, "[path]", _HINT)
     at = {"place": "[path]"}
+    centroid = text(p, "centroid", where, "fixed", **at, choices=("circle", "line", "fixed"))
+    for key, kind in _CENTROID_ONLY.items():
+        if key in p and centroid != kind:
+            raise InvalidInputError(f"{where}: [path] {key} applies to centroid = {kind!r} only, not {centroid!r}: "
+                                    f"remove it or set centroid = {kind!r}")
     initial = np.zeros(8)
     for i, n in enumerate(_NAMES[3:], start=3):
         kw = {"low": 0.0, "low_open": True} if n == "d_c" else {}
         initial[i] = number(p, n, where, 1.0 if n == "d_c" else 0.0, **at, **kw)
-    ramps = tuple(Ramp(text(r, "variable", w, choices=_NAMES), number(r, "start_s", w, low=0.0),
+    circle = {}
+    if centroid == "circle":  # seed 000 §4.1: the centroid on a circle of radius r, one lap per period
+        for key in ("radius", "period_s"):  # both checked before a missing one is named
+            circle[key] = number(p, key, where, None, **at, low=0.0, low_open=True)
+        for key, what in (("radius", "the circle's radius, m"), ("period_s", "the time of one lap, s")):
+            if circle[key] is None:
+                raise InvalidInputError(f"{where}: [path] centroid = 'circle' needs {key} ({what}, > 0); add it "
+                                        "to [path] or use centroid = 'fixed'")
+    ramps = tuple(Ramp(text(r, "variable", w, choices=_NAMES), _time(r, "start_s", w, duration),
                        number(r, "duration_s", w, low=0.0, low_open=True), number(r, "change", w))
                   for r, w in _records(p, "ramps", _RAMP_KEYS, where))
-    steps = tuple(Step(text(s, "variable", w, choices=_NAMES), number(s, "time_s", w, low=0.0), number(s, "change", w))
+    steps = tuple(Step(text(s, "variable", w, choices=_NAMES), _time(s, "time_s", w, duration),
+                       number(s, "change", w))
                   for s, w in _records(p, "steps", _STEP_KEYS, where))
-    return EuclideanPath(
+    path = EuclideanPath(
         initial=initial,
-        centroid=text(p, "centroid", where, "fixed", **at, choices=("circle", "line", "fixed")),
+        centroid=centroid,
         center=vector(p, "center", 3, where, (0.0, 0.0, 0.0), **at),
         velocity=vector(p, "velocity", 3, where, (0.0, 0.0, 0.0), **at),
-        radius=number(p, "radius", where, 0.0, **at, low=0.0),
-        period_s=number(p, "period_s", where, 1.0, **at, low=0.0, low_open=True),
+        radius=circle.get("radius", 0.0),
+        period_s=circle.get("period_s", 1.0),
         climb_m_s=number(p, "climb_m_s", where, 0.0, **at),
         ramps=ramps,
         steps=steps,
     )
+    _check_separation(path, where, duration)
+    return path
+
+
+def _time(r: dict, key: str, where: str, duration: float) -> float:
+    """A ramp's start or a step's time ``r[key]``, within the run ``[0, duration]`` s (a ramp
+    may run past the end: the run shows the part of it that falls inside)."""
+    t = number(r, key, where)
+    if not 0.0 <= t <= duration:
+        raise InvalidInputError(f"{where}: {key} = {short(r[key])} s is outside the run [0, duration_s = "
+                                f"{duration:g} s]; the change would not happen in it: move it into the run or "
+                                "lengthen duration_s")
+    return t
+
+
+def _check_separation(path: EuclideanPath, where: str, duration: float) -> None:
+    """Refuse a path whose ``d_c`` reaches 0 in ``[0, duration]``, naming the ramp or step that
+    brings it there. ``d_c`` (entry 5) is ``[path] d_c`` plus the d_c ramps and steps, piecewise
+    linear in t, so its least value lies at 0, ``duration`` or a ramp's or step's time."""
+    changes = [(f"[[path.ramps]] #{i + 1}", r) for i, r in enumerate(path.ramps)] + \
+              [(f"[[path.steps]] #{i + 1}", s) for i, s in enumerate(path.steps)]
+    changes = [(name, c) for name, c in changes if c.variable == "d_c"]
+    if not changes:
+        return
+    times = {0.0, duration}
+    for _, c in changes:
+        times.update((c.start_s, min(c.start_s + c.duration_s, duration)) if isinstance(c, Ramp) else (c.time_s,))
+    times = np.array(sorted(times))
+    ramps = path.initial[5] + sum(c.value_rate(times)[0] for _, c in changes if isinstance(c, Ramp))
+    steps = [c for _, c in changes if isinstance(c, Step)]
+    right = ramps + sum(np.where(times >= c.time_s, c.change, 0.0) for c in steps)  # d_c(t)
+    left = ramps + sum(np.where(times > c.time_s, c.change, 0.0) for c in steps)  # d_c(t-), before a step
+    bad = np.flatnonzero(np.minimum(left, right) <= 0.0)
+    if bad.size == 0:
+        return
+    k = bad[0]
+    t, by_step = float(times[k]), bool(left[k] > 0.0)  # reached 0 by a jump at t, else by a ramp up to t
+    for name, c in changes:  # the step at t, else the ramp running up to t, that lowers d_c
+        if by_step and isinstance(c, Step) and c.time_s == t and c.change < 0:
+            label = f"{name} (d_c at {t:g} s, change = {c.change:g})"
+            break
+        if not by_step and isinstance(c, Ramp) and c.start_s < t <= c.start_s + c.duration_s and c.change < 0:
+            label = f"{name} (d_c from {c.start_s:g} s for {c.duration_s:g} s, change = {c.change:g})"
+            break
+    else:  # pragma: no cover - d_c > 0 at t = 0, so some change lowered it
+        label = "the d_c ramps and steps"
+    d = float(min(left[k], right[k]))
+    raise InvalidInputError(
+        f"{where}: {label} makes d_c <= 0 ({d:.3g} m at t = {t:g} s): the robots would meet; "
+        f"make the change smaller in size or raise [path] d_c = {path.initial[5]:g} m")
 
 
 def _records(p: dict, key: str, keys, where: str):
