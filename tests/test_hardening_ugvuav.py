@@ -327,3 +327,43 @@ def test_shipped_ugv_uav_scenarios_still_load():
     for name in ("marciano-circle", "marciano-lemniscate", "marciano-front-to-over"):
         assert load_scenario(name).transient_s < load_scenario(name).duration_s
 
+
+def test_restricted_rate_maps_refuse_what_forward_refuses():
+    """jacobian([0, 0, 0, 0.5, 0.5, -0.966]) returned a 6 x 6 matrix (of the state mirrored
+    above the platform) while forward refused it."""
+    F = UgvUavRestricted()
+    r = np.array([0, 0, 0, 0.5, 0.5, -0.966])
+    for f in (F.forward, F.jacobian, F.inverse_jacobian, F.singularity_measure):
+        with pytest.raises(UnreachableError, match=r"r: z_b - z_p = -0\.966 m: the UAV is below the platform"):
+            f(r)
+    c_up = F.forward(r * [1, 1, 1, 1, 1, -1])
+    with pytest.raises(UnreachableError, match="below the platform"):
+        F.inverse_jacobian_at(c_up, r)
+    with pytest.raises(UnreachableError, match="alpha_f = 70.5 deg is outside"):
+        F.inverse_jacobian_at(c_up + [0, 0, 0, 0, 0.8, 0])  # what inverse refuses
+    assert F.inverse_jacobian_at(c_up, r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
+
+
+robot_pair = st.tuples(*(st.floats(-2.0, 2.0) for _ in range(6))).map(np.array)
+
+
+@settings(max_examples=150, deadline=None)
+@given(r=robot_pair)
+def test_restricted_rate_maps_exist_exactly_where_forward_does(r):
+    """One check for all: on random robot pairs (UAV above and below, angles in and out of
+    range), jacobian, inverse_jacobian and singularity_measure raise iff forward raises."""
+    F = UgvUavRestricted()
+    if np.linalg.norm(r[3:6] - r[0:3]) < 0.05:
+        return  # robots on each other: refused by every map alike, not the point here
+
+    def refused(f):
+        try:
+            f(r)
+        except UnreachableError:
+            return True
+        return False
+
+    expected = refused(F.forward)
+    assert expected == bool(F.outside(r))
+    assert refused(F.jacobian) == expected and refused(F.inverse_jacobian) == expected
+    assert refused(F.singularity_measure) == expected
