@@ -297,10 +297,10 @@ def test_loader_refuses_a_metrics_window_without_a_sample(transient):
 
 
 def test_loader_keeps_a_metrics_window_with_samples_and_it_measures():
-    """The last sample still counts: the window [24.99, 25] s holds one sample, and the
+    """The last sample still counts: the window [24.98, 25] s holds one (24.99 s), and the
     run's errors are numbers, not null."""
-    assert _load(duration_s=25.0, transient_s=24.99).transient_s == 24.99
-    sc = _load(duration_s=0.3, transient_s=0.27)  # the last of 0, 0.03, ..., 0.27 s (0.3 / 0.03 floors to 9)
+    assert _load(duration_s=25.0, transient_s=24.98).transient_s == 24.98
+    sc = _load(duration_s=0.3, transient_s=0.26)  # only the last of 0, 0.03, ..., 0.27 s (0.3 / 0.03 floors to 9)
     m = ugv_uav_metrics(simulate_ugv_uav(sc, "quaternion"))
     assert m["max_ugv_position_error_m"] is not None and m["max_uav_position_error_m"] is not None
 
@@ -318,7 +318,7 @@ def test_loader_refuses_a_front_to_over_switch_after_the_run(until):
 def test_loader_keeps_a_switch_within_the_run_and_no_switch():
     """0 means no front phase (no switch to check); a switch at the last sample happens."""
     assert _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=0.0).uav_front_until_s == 0.0
-    sc = _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=24.99)
+    sc = _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=24.98)
     e, _ = sc.e_reference(np.array([24.96, 24.99]))
     assert e[0, 5] == 0.0 and e[1, 5] == pytest.approx(np.pi / 2)  # front, then over at the last sample
 
