@@ -32,7 +32,7 @@ def test_ugv_uav_layout_names_are_not_the_generic_ones():
 
 
 BASE = {"kind": "ugv-uav", "name": "t", "path": "circle", "r_x": 1.0, "r_y": 1.0, "omega": 0.2, "d_c": 1.5,
-        "duration_s": 2.0, "gains": {"k_psi": 3.0}}
+        "duration_s": 2.0, "transient_s": 1.0, "gains": {"k_psi": 3.0}}
 
 
 def _load(**changes):
@@ -280,3 +280,90 @@ def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, t
         title = fig._suptitle.get_text() if fig._suptitle is not None else fig.axes[0].get_title()
         assert "Marciano 2021" in title and "seed 001" not in title
         assert sum(len(ax.lines) for ax in fig.axes) >= 4  # axes with data, not a text-only figure
+
+
+# -- reviewer findings (brief fixb) ----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("transient", [25.0, 40.0, 24.995])
+def test_loader_refuses_a_metrics_window_without_a_sample(transient):
+    """transient_s of 25 or 40 in a 25 s run loaded and ran, every error metric null. The
+    last control sample of a 25 s run at 30 ms is 24.99 s, so 24.995 s leaves none either."""
+    with pytest.raises(InvalidInputError) as info:
+        _load(duration_s=25.0, transient_s=transient)
+    msg = str(info.value)
+    assert msg.startswith(f"my.toml: transient_s = {transient!r} must be < duration_s = 25.0") and "\n" not in msg
+    assert "24.99 s" in msg and "lower transient_s or lengthen duration_s" in msg
+
+
+def test_loader_keeps_a_metrics_window_with_samples_and_it_measures():
+    """The last sample still counts: the window [24.98, 25] s holds one (24.99 s), and the
+    run's errors are numbers, not null."""
+    assert _load(duration_s=25.0, transient_s=24.98).transient_s == 24.98
+    sc = _load(duration_s=0.3, transient_s=0.26)  # only the last of 0, 0.03, ..., 0.27 s (0.3 / 0.03 floors to 9)
+    m = ugv_uav_metrics(simulate_ugv_uav(sc, "quaternion"))
+    assert m["max_ugv_position_error_m"] is not None and m["max_uav_position_error_m"] is not None
+
+
+@pytest.mark.parametrize("until", [100.0, 25.0, 24.995])
+def test_loader_refuses_a_front_to_over_switch_after_the_run(until):
+    """uav_front_until_s = 100 in a 25 s run was accepted and the switch of §5.3 never came."""
+    with pytest.raises(InvalidInputError) as info:
+        _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=until)
+    msg = str(info.value)
+    assert msg.startswith(f"my.toml: uav_front_until_s = {until!r} must be < duration_s = 25.0") and "\n" not in msg
+    assert "never happen" in msg and "set it to 0 for no front phase" in msg
+
+
+def test_loader_keeps_a_switch_within_the_run_and_no_switch():
+    """0 means no front phase (no switch to check); a switch at the last sample happens."""
+    assert _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=0.0).uav_front_until_s == 0.0
+    sc = _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=24.98)
+    e, _ = sc.e_reference(np.array([24.96, 24.99]))
+    assert e[0, 5] == 0.0 and e[1, 5] == pytest.approx(np.pi / 2)  # front, then over at the last sample
+
+
+def test_shipped_ugv_uav_scenarios_still_load():
+    for name in ("marciano-circle", "marciano-lemniscate", "marciano-front-to-over"):
+        assert load_scenario(name).transient_s < load_scenario(name).duration_s
+
+
+def test_restricted_rate_maps_refuse_what_forward_refuses():
+    """jacobian([0, 0, 0, 0.5, 0.5, -0.966]) returned a 6 x 6 matrix (of the state mirrored
+    above the platform) while forward refused it."""
+    F = UgvUavRestricted()
+    r = np.array([0, 0, 0, 0.5, 0.5, -0.966])
+    for f in (F.forward, F.jacobian, F.inverse_jacobian, F.singularity_measure):
+        with pytest.raises(UnreachableError, match=r"r: z_b - z_p = -0\.966 m: the UAV is below the platform"):
+            f(r)
+    c_up = F.forward(r * [1, 1, 1, 1, 1, -1])
+    with pytest.raises(UnreachableError, match="below the platform"):
+        F.inverse_jacobian_at(c_up, r)
+    with pytest.raises(UnreachableError, match="alpha_f = 70.5 deg is outside"):
+        F.inverse_jacobian_at(c_up + [0, 0, 0, 0, 0.8, 0])  # what inverse refuses
+    assert F.inverse_jacobian_at(c_up, r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
+
+
+robot_pair = st.tuples(*(st.floats(-2.0, 2.0) for _ in range(6))).map(np.array)
+
+
+@settings(max_examples=150, deadline=None)
+@given(r=robot_pair)
+def test_restricted_rate_maps_exist_exactly_where_forward_does(r):
+    """One check for all: on random robot pairs (UAV above and below, angles in and out of
+    range), jacobian, inverse_jacobian and singularity_measure raise iff forward raises."""
+    F = UgvUavRestricted()
+    if np.linalg.norm(r[3:6] - r[0:3]) < 0.05:
+        return  # robots on each other: refused by every map alike, not the point here
+
+    def refused(f):
+        try:
+            f(r)
+        except UnreachableError:
+            return True
+        return False
+
+    expected = refused(F.forward)
+    assert expected == bool(F.outside(r))
+    assert refused(F.jacobian) == expected and refused(F.inverse_jacobian) == expected
+    assert refused(F.singularity_measure) == expected

@@ -111,12 +111,24 @@ def dual_quaternion_law_lyapunov(c, c_des):
     ``qhat_e = qhat_des* qhat`` as in eq. (28); ``sigma_c = sgn(p0_c)`` (the sign of ``qhat_c``
     means nothing), ``sigma_s = +1`` (the sign of ``qhat_s`` is the branch). Under the law with
     ``K = k I`` and a still reference, ``dV/dt = -sum_k k (|p_vec_k|^2 + |p0_k| |d_k|^2) <= 0``
-    everywhere (for ``qhat_c`` this is also the seed's eq. (28), for which eq. (29) is not a
-    Lyapunov function beyond 90 deg).
+    for every error (for ``qhat_c`` this is also the seed's eq. (28), for which eq. (29) is not a
+    Lyapunov function beyond 90 deg) -- **of the cluster state the controller computes**, not of
+    every cluster state of the same robots.
+
+    ``c`` must be that state: ``DualQuaternionController.compute(t, r, ref).cluster``, eqs.
+    (26)-(27) of the robots with their yaws moved by whole turns onto the branch of
+    ``c_des`` (each within pi of the desired robot's yaw, the shape's yaw error within
+    3 pi / 2; ``docs/derivations.md``, Hardening (issue 12)). ``DualQuaternionPair.forward(r)``
+    of the robots' own yaws is another lift of the same formation when a yaw has wound a
+    turn away, and ``V`` of it need not decrease: from yaw errors of (2.83, -3.02) rad it rises
+    in 814 of 1500 steps of 1 ms, while ``V`` of the controller's state falls in every one.
 
     Parameters
     ----------
-    c, c_des : array_like, shape (..., 16)
+    c : array_like, shape (..., 16)
+        The controller's cluster state (``StepResult.cluster``; see above).
+    c_des : array_like, shape (..., 16)
+        The desired cluster state the controller was given (``Reference.c``).
 
     Returns
     -------

@@ -251,18 +251,31 @@ class UgvUavRestricted(_UgvUav):
                 "root (Marciano 2021 §4.1.2); use the quaternion description"
             )
 
-    def forward(self, r, hint=None):
-        r, _ = self._delta(r)
+    def _expressible(self, r, name="r"):
+        """The one check of a robot state that :meth:`forward`, :meth:`jacobian` and so
+        :meth:`inverse_jacobian` and :meth:`singularity_measure` share: refuse the UAV below
+        the platform and angles more than ``tolerance_deg`` outside the range
+        (UnreachableError, as :meth:`outside` marks them). Returns ``(r, delta, c)``."""
+        r, d = self._delta(r, name)
         c, dz = self._formulas(r)  # (4.13)-(4.18)
-        self._refuse_below(dz, "r", "use the spherical or quaternion description")
-        self.check_reachable(c, "r", self.tolerance)
-        return c
+        self._refuse_below(dz, name, "use the spherical or quaternion description")
+        self.check_reachable(c, name, self.tolerance)
+        return r, d, c
 
-    def inverse(self, c, hint=None):
-        c = self.check_cluster_state(c)
+    def _expressible_cluster(self, c, name="cluster state"):
+        """The check of a cluster state that :meth:`inverse` and :meth:`inverse_jacobian_at`
+        share: ``rho_f > 0`` and the angles within the range and its tolerance."""
+        c = self.check_cluster_state(c, "c")
         if np.any(c[..., 3] <= 0):
             raise DegenerateInputError(f"rho_f must be positive, got {float(np.min(c[..., 3]))!r}")
-        self.check_reachable(c, "cluster state", self.tolerance)
+        self.check_reachable(c, name, self.tolerance)
+        return c
+
+    def forward(self, r, hint=None):
+        return self._expressible(r)[2]
+
+    def inverse(self, c, hint=None):
+        c = self._expressible_cluster(c)
         sa, sb = np.sin(c[..., 4]), np.sin(c[..., 5])
         r = np.empty(c.shape[:-1] + (6,))
         r[..., 0:3] = c[..., 0:3]  # (4.19)-(4.21)
@@ -272,8 +285,10 @@ class UgvUavRestricted(_UgvUav):
         return r
 
     def jacobian(self, r, hint=None):
-        """6 x 6; singular where ``sin^2 alpha_f + sin^2 beta_f = 1`` (UAV at platform level)."""
-        r, d = self._delta(r)
+        """6 x 6; singular where ``sin^2 alpha_f + sin^2 beta_f = 1`` (UAV at platform level).
+        Refuses what :meth:`forward` refuses (UnreachableError: the UAV below the platform,
+        angles outside the range): there the description, so its rate, does not exist."""
+        r, d, _ = self._expressible(r)
         rho = np.linalg.norm(d, axis=-1)
         u = d / rho[..., None]
         cos_a2, cos_b2 = 1 - u[..., 0] ** 2, 1 - u[..., 1] ** 2
@@ -286,8 +301,18 @@ class UgvUavRestricted(_UgvUav):
         return _jacobian_from_gradients([u, dd[..., 0, :] / (rho * np.sqrt(cos_a2))[..., None],
                                          dd[..., 1, :] / (rho * np.sqrt(cos_b2))[..., None]])
 
+    def singularity_measure(self, r, hint=None):
+        """As :meth:`Formation.singularity_measure`; refuses what :meth:`forward` refuses, naming
+        the state as given (not the normalised one the measure is taken on)."""
+        self._expressible(r)
+        return super().singularity_measure(r, hint)
+
     def inverse_jacobian_at(self, c, r=None):
-        c = np.asarray(c, dtype=float)
+        """Derivative of eqs. (4.19)-(4.24) at ``c`` (..., 6), shape (..., 6, 6); refuses what
+        :meth:`inverse` refuses, and ``r`` (if given) where :meth:`forward` refuses it."""
+        c = self._expressible_cluster(c)
+        if r is not None:
+            self._expressible(r)
         rho, a, b = c[..., 3], c[..., 4], c[..., 5]
         sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
         # (4.24)'s root: its derivative is infinite at platform level; clipped at W_MIN

@@ -490,9 +490,37 @@ def _gains(data, where):
     return out
 
 
-def _scenario_fields(data, where: str) -> dict:
+def _last_sample_s(kw) -> float:
+    """Time of the last control sample of a run (the ``t_ctrl`` of :func:`simulate_ugv_uav`)."""
+    steps = max(1, int(round(kw["control_period_s"] / kw["dt_s"])))
+    return float(int(kw["duration_s"] / (steps * kw["dt_s"])) * steps * kw["dt_s"])
+
+
+def _check_report_times(kw, where: str) -> None:
+    """Refuse times that leave the report without meaning: a metrics window (after
+    ``transient_s``) that holds no sample, where every error would read null (the two-robot
+    rule for ``metrics_from_s``), and a §5.3 front -> over switch (``uav_front_until_s > 0``)
+    that would come after the last sample, so never happen."""
+    last = _last_sample_s(kw)
+    for key, active, what, fix in (
+            ("transient_s", True, "errors are taken after it, so no sample would be measured and every error "
+             "metric would read null", "lower transient_s or lengthen duration_s"),
+            ("uav_front_until_s", kw["uav_front_until_s"] > 0, "the UAV would stay in front for the whole run and "
+             "the front -> over switch of Marciano 2021 §5.3 would never happen",
+             "lower uav_front_until_s, or set it to 0 for no front phase")):
+        if active and not (kw[key] < kw["duration_s"] and kw[key] <= last):
+            raise InvalidInputError(
+                f"{where}: {key} = {kw[key]!r} must be < duration_s = {kw['duration_s']!r} and at most the last "
+                f"control sample time {last:g} s; else {what}; {fix}")
+
+
+def _scenario_fields(data, where: str, report: bool = True) -> dict:
     """The keyword arguments of :class:`UgvUavScenario` read from ``data``, each typed and
-    range-checked by :mod:`quatform.checks` (one line naming the key on any mistake)."""
+    range-checked by :mod:`quatform.checks` (one line naming the key on any mistake).
+
+    ``report``: also refuse times that leave the report without meaning
+    (:func:`_check_report_times`). A scenario file must pass; a run made in code (a few
+    seconds of the dynamics in a test, no metrics) need not."""
     fields = UgvUavScenario.__dataclass_fields__
     checks.check_keys(data, set(fields) | {"kind"}, where)
     kw = {"name": checks.text(data, "name", where)}
@@ -520,6 +548,8 @@ def _scenario_fields(data, where: str) -> dict:
             f"{kw['floor_below_platform_m']!r}); the UAV starts at or above -floor_below_platform_m")
     kw["seed"] = checks.integer(data, "seed", where, default=fields["seed"].default, low=0, high=2**63 - 1)
     kw["gains"] = _gains(data, where)
+    if report:
+        _check_report_times(kw, where)
     return kw
 
 
@@ -529,7 +559,7 @@ def check_ugv_uav_scenario(sc: UgvUavScenario, where: str | None = None) -> None
     front, :func:`quatform.checks.check_work`, naming ``duration_s``)."""
     where = where or f"scenario {sc.name}"
     data = {key: getattr(sc, key) for key in UgvUavScenario.__dataclass_fields__}
-    _scenario_fields(data, where)
+    _scenario_fields(data, where, report=False)
     substeps = max(1, int(round(sc.control_period_s / sc.dt_s)))
     ticks = sc.duration_s / (substeps * sc.dt_s) + 1
     checks.check_work(where, "duration_s / control_period_s", ticks, bytes_per_step=_BYTES_PER_TICK,
