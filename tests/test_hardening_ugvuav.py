@@ -94,7 +94,7 @@ def test_loader_reads_good_values_and_lists():
 
 
 def test_huge_duration_is_refused_up_front_naming_the_key():
-    with pytest.raises(ResourceLimitError, match="my.toml: duration_s / control_period_s needs 3.33e"):
+    with pytest.raises(ResourceLimitError, match="my.toml: duration_s / dt_s needs 2e"):
         _load(duration_s=1e9)
     # a scenario changed after loading (as the CLI does) is checked again when run
     sc = dataclasses.replace(_load(), duration_s=1e9)
@@ -367,3 +367,13 @@ def test_restricted_rate_maps_exist_exactly_where_forward_does(r):
     assert expected == bool(F.outside(r))
     assert refused(F.jacobian) == expected and refused(F.inverse_jacobian) == expected
     assert refused(F.singularity_measure) == expected
+
+
+def test_control_period_not_a_multiple_of_dt_is_refused_and_tiny_dt_names_dt():
+    """Review: control_period_s = 0.007 with dt_s = 0.005 ran at 0.005 s and said so only in
+    metrics.json; dt_s = 1e-300 was blamed on duration_s / control_period_s ("67.7 steps")."""
+    with pytest.raises(InvalidInputError, match=r"control_period_s = 0.007 is not a whole multiple of dt_s = 0.005"):
+        _load(control_period_s=0.007, dt_s=0.005)
+    assert _load(control_period_s=0.03, dt_s=0.005).control_period_s == 0.03
+    with pytest.raises(ResourceLimitError, match=r"duration_s / dt_s needs 2e\+300 steps"):
+        _load(dt_s=1e-300, control_period_s=0.03)

@@ -51,7 +51,7 @@ class UgvUavScenario:
     title: str = ""
     source: str = ""
     dt_s: float = 0.005
-    control_period_s: float = 0.03  # a multiple of dt_s (rounded to one)
+    control_period_s: float = 0.03  # a whole multiple of dt_s
     mocap_rate_hz: float = 100.0
     mocap_noise_m: float = 0.0
     mocap_noise_rad: float = 0.0
@@ -540,6 +540,12 @@ def _scenario_fields(data, where: str, report: bool = True) -> dict:
     if kw["control_period_s"] < kw["dt_s"]:
         raise InvalidInputError(f"{where}: control_period_s = {kw['control_period_s']!r} must be >= dt_s = "
                                 f"{kw['dt_s']!r} (the controller runs every whole number of plant steps)")
+    ratio = kw["control_period_s"] / kw["dt_s"]
+    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        raise InvalidInputError(
+            f"{where}: control_period_s = {kw['control_period_s']!r} is not a whole multiple of dt_s = "
+            f"{kw['dt_s']!r} ({ratio:.6g} plant steps); the controller runs every whole number of plant steps: "
+            f"use control_period_s = {max(1, round(ratio)) * kw['dt_s']:.6g}")
     for key in ("center", "uav_start"):
         kw[key] = checks.vector(data, key, 3, where, default=fields[key].default)
     if kw["uav_start"][2] < -kw["floor_below_platform_m"]:
@@ -560,11 +566,11 @@ def check_ugv_uav_scenario(sc: UgvUavScenario, where: str | None = None) -> None
     where = where or f"scenario {sc.name}"
     data = {key: getattr(sc, key) for key in UgvUavScenario.__dataclass_fields__}
     _scenario_fields(data, where, report=False)
-    substeps = max(1, int(round(sc.control_period_s / sc.dt_s)))
-    ticks = sc.duration_s / (substeps * sc.dt_s) + 1
-    checks.check_work(where, "duration_s / control_period_s", ticks, bytes_per_step=_BYTES_PER_TICK,
-                      seconds_per_step=(substeps + 1) * _SECONDS_PER_PLANT_STEP,
-                      fix="shorten duration_s or lengthen control_period_s")
+    substeps = max(1, round(sc.control_period_s / sc.dt_s))
+    plant_steps = sc.duration_s / sc.dt_s + 1  # the plant's steps; one control tick every `substeps`
+    checks.check_work(where, "duration_s / dt_s", plant_steps, bytes_per_step=_BYTES_PER_TICK / substeps,
+                      seconds_per_step=_SECONDS_PER_PLANT_STEP * (1 + 1 / substeps),
+                      fix="shorten duration_s or lengthen dt_s (and control_period_s, a multiple of it)")
 
 
 def ugv_uav_scenario_from_dict(data: dict, where: str) -> UgvUavScenario:
