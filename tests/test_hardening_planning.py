@@ -5,6 +5,7 @@ Each test fails on the code before the fix (the reason is in its docstring)."""
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import zipfile
@@ -281,3 +282,10 @@ def test_builtin_plan_sources_name_the_papers():
         assert "seed" not in src.lower() and ("Belta & Kumar 2002" in src or "Belta & Kumar 2001" in src)
     text = inspect.getsource(planning_plots.plot_airplanes_figure4)
     assert "Belta & Kumar 2001, Fig. 4" in text and "Seed 004 Fig" not in text
+
+
+def test_a_plan_with_a_negative_mass_is_refused(tmp_path):
+    """Review: a plan.npz with masses = [-1, 1] was accepted by 'run --reference'."""
+    plan, _ = make_plan(load_plan_spec("belta-kumar-2002-two-bodies"))
+    with pytest.raises(InvalidInputError, match=r"plan masses\[0\] = -1 kg must be > 0"):
+        dataclasses.replace(plan, masses=np.array([-1.0, 1.0]))

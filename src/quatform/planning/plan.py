@@ -67,6 +67,10 @@ class Plan:
                 f"velocities and accelerations must have the positions' shape {p.shape} and masses "
                 f"shape ({p.shape[1]},); got {v.shape}, {a.shape}, {m.shape}"
             )
+        if not np.all(m > 0):  # seed 002 eq. (5): the kinetic energy needs positive masses
+            k = int(np.argmax(~(m > 0)))
+            raise InvalidInputError(f"plan masses[{k}] = {m[k]:g} kg must be > 0 (the robots' masses weigh the "
+                                    "kinetic energy, seed 002 eq. (5)); plan again with positive masses")
         for name, val in (("times", t), ("positions", p), ("velocities", v), ("accelerations", a),
                           ("masses", m)):
             val.flags.writeable = False
