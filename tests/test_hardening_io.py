@@ -449,3 +449,17 @@ def test_huge_finite_numbers_are_refused_at_load_naming_the_key(tmp_path, kind, 
     with pytest.raises(InvalidInputError, match=rf"f.toml: {key} = .* is beyond \+-1e\+12"):
         number({key: float(line.split("=")[1])}, key, "f.toml")
     assert number({key: MAX_NUMBER}, key, "f.toml") == MAX_NUMBER
+
+
+def test_a_second_ctrl_c_while_reporting_the_first_is_ignored(tmp_path, monkeypatch):
+    """Review: a second Ctrl-C while the first was being reported ended the process by the
+    signal (exit -2); SIGINT is ignored while the one line is written, restored after."""
+    import signal
+
+    seen = []
+    monkeypatch.setattr(cli, "_say", lambda text: seen.append((text, signal.getsignal(signal.SIGINT))))
+    _interrupt_at(monkeypatch, 0)
+    before = signal.getsignal(signal.SIGINT)
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "r")]) == 130
+    assert seen and seen[-1][0].startswith("interrupted") and seen[-1][1] is signal.SIG_IGN
+    assert signal.getsignal(signal.SIGINT) is before

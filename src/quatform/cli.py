@@ -8,6 +8,7 @@ unexpected internal error with 3 (``QUATFORM_TRACEBACK=1`` shows its traceback).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 
@@ -356,6 +357,22 @@ def _what(args) -> str:
     return f"{args.command} {target}" if target else str(args.command)
 
 
+@contextlib.contextmanager
+def _sigint_ignored():
+    """SIGINT ignored (not queued) inside the block, in the main thread; restored after it."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``quatform`` command; return its exit status (0 success, 1 file system, 2 bad
     input or too large, 3 internal error, 130 interrupted). Nothing but one line reaches stderr."""
@@ -375,8 +392,9 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"error: {exc}")
         return EXIT_INPUT
     except KeyboardInterrupt:
-        out = getattr(args, "out", None)
-        _say("interrupted (Ctrl-C)" + (f"; {out} left as it was, no partial files written" if out else ""))
+        with _sigint_ignored():  # a second Ctrl-C while saying so must not end the process by the signal
+            out = getattr(args, "out", None)
+            _say("interrupted (Ctrl-C)" + (f"; {out} left as it was, no partial files written" if out else ""))
         return EXIT_INTERRUPTED
     except MemoryError:
         what = _what(args) if args is not None else "quatform"

@@ -285,8 +285,9 @@ def staged_dir(out):
                 os.rename(tmp, final)
         shutil.rmtree(old, ignore_errors=True)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        for p in reversed(made):
-            with contextlib.suppress(OSError):
-                p.rmdir()
+        with _no_sigint():  # a second Ctrl-C waits until the partial folder is gone
+            shutil.rmtree(tmp, ignore_errors=True)
+            for p in reversed(made):
+                with contextlib.suppress(OSError):
+                    p.rmdir()
         raise
