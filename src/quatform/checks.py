@@ -102,6 +102,15 @@ def _name(key: str, place: str) -> str:
     return key if place in ("", "top level") else f"{place} {key}"
 
 
+def _absent(data: Mapping, key: str, where: str, default, place: str) -> bool:
+    """True where ``data`` lacks ``key`` and ``default`` stands in; refuses a missing required key."""
+    if key in data:
+        return False
+    if default is MISSING:
+        raise InvalidInputError(f"{where}: missing key {_name(key, place)}")
+    return True
+
+
 def table(data: Mapping, key: str, where: str, place: str = "top level", default=MISSING) -> dict:
     """The sub-table ``data[key]``; a number or list there is refused, naming the key."""
     if key not in data:
@@ -124,9 +133,7 @@ def number(data: Mapping, key: str, where: str, default=MISSING, *, place: str =
     ``low``/``high`` bound it, inclusively unless ``low_open``/``high_open``. A missing key
     gives ``default`` (refused when ``default`` is :data:`MISSING`).
     """
-    if key not in data:
-        if default is MISSING:
-            raise InvalidInputError(f"{where}: missing key {_name(key, place)}")
+    if _absent(data, key, where, default, place):
         return default
     value = data[key]
     label = _name(key, place)
@@ -148,9 +155,7 @@ def number(data: Mapping, key: str, where: str, default=MISSING, *, place: str =
 def integer(data: Mapping, key: str, where: str, default=MISSING, *, place: str = "top level",
             low: int | None = None, high: int | None = None) -> int:
     """The integer ``data[key]`` (a TOML integer, not a bool or float), within ``[low, high]``."""
-    if key not in data:
-        if default is MISSING:
-            raise InvalidInputError(f"{where}: missing key {_name(key, place)}")
+    if _absent(data, key, where, default, place):
         return default
     value = data[key]
     label = _name(key, place)
@@ -166,9 +171,7 @@ def integer(data: Mapping, key: str, where: str, default=MISSING, *, place: str 
 def vector(data: Mapping, key: str, n: int, where: str, default=MISSING, *,
            place: str = "top level") -> tuple[float, ...]:
     """The list of ``n`` finite numbers ``data[key]``, as a tuple of floats."""
-    if key not in data:
-        if default is MISSING:
-            raise InvalidInputError(f"{where}: missing key {_name(key, place)}")
+    if _absent(data, key, where, default, place):
         return tuple(default)
     value = data[key]
     label = _name(key, place)
@@ -179,9 +182,7 @@ def vector(data: Mapping, key: str, n: int, where: str, default=MISSING, *,
 
 def flag(data: Mapping, key: str, where: str, default=MISSING, *, place: str = "top level") -> bool:
     """The boolean ``data[key]`` (``true``/``false``; numbers and strings are refused)."""
-    if key not in data:
-        if default is MISSING:
-            raise InvalidInputError(f"{where}: missing key {_name(key, place)}")
+    if _absent(data, key, where, default, place):
         return default
     value = data[key]
     if not isinstance(value, bool):
@@ -192,9 +193,7 @@ def flag(data: Mapping, key: str, where: str, default=MISSING, *, place: str = "
 def text(data: Mapping, key: str, where: str, default=MISSING, *, place: str = "top level",
          choices: Iterable[str] | None = None) -> str:
     """The string ``data[key]``, one of ``choices`` when given (the nearest is named)."""
-    if key not in data:
-        if default is MISSING:
-            raise InvalidInputError(f"{where}: missing key {_name(key, place)}")
+    if _absent(data, key, where, default, place):
         return default
     value = data[key]
     label = _name(key, place)
