@@ -326,3 +326,44 @@ def test_peak_orientation_error_is_not_the_shared_lag():
     assert ep["peak_orientation_error_whole_run_rad"] == pytest.approx(0.025, abs=0.004)  # the lag
     assert ep["peak_orientation_error_rad"] < 0.5 * ep["peak_orientation_error_whole_run_rad"]
     assert ep["peak_orientation_error_rad"] == pytest.approx(max(ep["hold_peak_orientation_error_rad"]))
+
+
+# -- fixc item 1: physically impossible measurements are refused, naming the field -----------
+
+
+@pytest.mark.parametrize("field, entry, value, match", [
+    ("q_m", None, 1e300, r"measurement q_m\[0\] = 1e\+300 rad is beyond \+-1000 rad"),
+    ("q_s", 3, -2e3, r"measurement q_s\[3\] = -2000 rad is beyond \+-1000 rad"),
+    ("qd_m", 1, 1e5, r"measurement qd_m\[1\] = 100000 rad/s is beyond \+-100 rad/s"),
+    ("qd_s", 6, -150.0, r"measurement qd_s\[6\] = -150 rad/s is beyond \+-100 rad/s"),
+    ("F_s", 2, 1e6, r"measurement F_s\[2\] = 1e\+06 N is beyond \+-8700 N.*MAX_WRIST_FORCE"),
+    ("F_s", 4, 1e4, r"measurement F_s\[4\] = 10000 N m is beyond \+-870 N m.*MAX_WRIST_MOMENT"),
+])
+def test_impossible_measurements_are_refused_not_saturated(field, entry, value, match):
+    """q_m = 1e300 used to give saturated torques; now one line naming the field and value."""
+    sc = load_scenario("teleop-free-motion")
+    ctrl = sc.controller()
+    good = {"q_m": np.array(sc.q_m0), "qd_m": np.zeros(6), "q_s": np.array(sc.q_s0), "qd_s": np.zeros(7),
+            "F_s": np.zeros(6)}
+    bad = good[field].copy()
+    if entry is None:
+        bad[:] = value
+    else:
+        bad[entry] = value
+    with pytest.raises(InvalidInputError, match=match) as exc:
+        ctrl.step(0.0, TeleopMeasurement(**{**good, field: bad}))
+    assert "\n" not in str(exc.value)
+
+
+def test_measurements_within_each_bound_are_accepted():
+    """Entries each within reach pass, though their norm is beyond the bound (per entry, not norm)."""
+    from quatform.teleop.controller import (MAX_JOINT_ANGLE, MAX_JOINT_RATE, MAX_WRIST_FORCE, MAX_WRIST_MOMENT,
+                                            _measured)
+
+    np.testing.assert_array_equal(_measured(np.full(6, 0.99 * MAX_JOINT_ANGLE), "q_m", 6), 0.99 * MAX_JOINT_ANGLE)
+    np.testing.assert_array_equal(_measured(np.full(7, -0.99 * MAX_JOINT_RATE), "qd_s", 7), -0.99 * MAX_JOINT_RATE)
+    w = np.r_[np.full(3, 0.99 * MAX_WRIST_FORCE), np.full(3, 0.99 * MAX_WRIST_MOMENT)]
+    np.testing.assert_array_equal(_measured(w, "F_s", 6), w)
+    with pytest.raises(InvalidInputError, match="not finite"):
+        _measured(np.r_[np.inf, 0.0, 0.0, 0.0, 0.0, 0.0], "qd_m", 6)
+
