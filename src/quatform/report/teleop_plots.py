@@ -170,12 +170,13 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
     tr = _orientation_traces(run.r_m[i], run.r_s[i], run.angle[i])
     a_m, a_s = np.degrees(tr.master), np.degrees(tr.slave)
     spans = _spans(t, tr.lock)
+    lock_label = f"gimbal lock (|pitch| > {90 - GIMBAL_LOCK_DEG:g}°): roll, yaw undefined"
     fig = _new_figure((10, 6.5))
     axes = fig.subplots(4, 1, sharex=True)
     for ax in axes:
         for k, (t0, t1) in enumerate(spans):
             ax.axvspan(t0, t1, color="0.8", alpha=0.6, lw=0,
-                       label=f"gimbal lock (|pitch| > {90 - GIMBAL_LOCK_DEG:g}°): roll, yaw undefined" if k == 0 else None)
+                       label=lock_label if k == 0 else None)
     for k, name in enumerate(("roll", "pitch", "yaw")):
         ax = axes[k]
         ax.plot(t, a_m[:, k], color="C3", ls="--", lw=1.0, label="master")
