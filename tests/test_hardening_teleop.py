@@ -326,3 +326,70 @@ def test_peak_orientation_error_is_not_the_shared_lag():
     assert ep["peak_orientation_error_whole_run_rad"] == pytest.approx(0.025, abs=0.004)  # the lag
     assert ep["peak_orientation_error_rad"] < 0.5 * ep["peak_orientation_error_whole_run_rad"]
     assert ep["peak_orientation_error_rad"] == pytest.approx(max(ep["hold_peak_orientation_error_rad"]))
+
+
+# -- fixc item 1: physically impossible measurements are refused, naming the field -----------
+
+
+@pytest.mark.parametrize("field, entry, value, match", [
+    ("q_m", None, 1e300, r"measurement q_m\[0\] = 1e\+300 rad is beyond \+-1000 rad"),
+    ("q_s", 3, -2e3, r"measurement q_s\[3\] = -2000 rad is beyond \+-1000 rad"),
+    ("qd_m", 1, 1e5, r"measurement qd_m\[1\] = 100000 rad/s is beyond \+-100 rad/s"),
+    ("qd_s", 6, -150.0, r"measurement qd_s\[6\] = -150 rad/s is beyond \+-100 rad/s"),
+    ("F_s", 2, 1e6, r"measurement F_s\[2\] = 1e\+06 N is beyond \+-8700 N.*MAX_WRIST_FORCE"),
+    ("F_s", 4, 1e4, r"measurement F_s\[4\] = 10000 N m is beyond \+-870 N m.*MAX_WRIST_MOMENT"),
+])
+def test_impossible_measurements_are_refused_not_saturated(field, entry, value, match):
+    """q_m = 1e300 used to give saturated torques; now one line naming the field and value."""
+    sc = load_scenario("teleop-free-motion")
+    ctrl = sc.controller()
+    good = {"q_m": np.array(sc.q_m0), "qd_m": np.zeros(6), "q_s": np.array(sc.q_s0), "qd_s": np.zeros(7),
+            "F_s": np.zeros(6)}
+    bad = good[field].copy()
+    if entry is None:
+        bad[:] = value
+    else:
+        bad[entry] = value
+    with pytest.raises(InvalidInputError, match=match) as exc:
+        ctrl.step(0.0, TeleopMeasurement(**{**good, field: bad}))
+    assert "\n" not in str(exc.value)
+
+
+def test_measurements_within_each_bound_are_accepted():
+    """Entries each within reach pass, though their norm is beyond the bound (per entry, not norm)."""
+    from quatform.teleop.controller import (MAX_JOINT_ANGLE, MAX_JOINT_RATE, MAX_WRIST_FORCE, MAX_WRIST_MOMENT,
+                                            _measured)
+
+    np.testing.assert_array_equal(_measured(np.full(6, 0.99 * MAX_JOINT_ANGLE), "q_m", 6), 0.99 * MAX_JOINT_ANGLE)
+    np.testing.assert_array_equal(_measured(np.full(7, -0.99 * MAX_JOINT_RATE), "qd_s", 7), -0.99 * MAX_JOINT_RATE)
+    w = np.r_[np.full(3, 0.99 * MAX_WRIST_FORCE), np.full(3, 0.99 * MAX_WRIST_MOMENT)]
+    np.testing.assert_array_equal(_measured(w, "F_s", 6), w)
+    with pytest.raises(InvalidInputError, match="not finite"):
+        _measured(np.r_[np.inf, 0.0, 0.0, 0.0, 0.0, 0.0], "qd_m", 6)
+
+
+# -- fixc item 2: near pitch +-90 deg roll and yaw are undefined: shaded, not drawn as errors --
+
+
+def test_orientation_plot_masks_roll_yaw_and_their_difference_in_gimbal_lock():
+    """Both tools pass pitch -90 deg 1e-2 rad apart, the slave lagging: the RPY branches switch at
+    different samples, so roll read -180 against 0 and the wrapped difference ~3 rad there."""
+    from quatform.algebra import q_from_axis_angle
+    from quatform.report.teleop_plots import GIMBAL_LOCK_DEG, _orientation_traces
+    from quatform.teleop import rpy_from_q
+
+    pitch = np.radians(np.linspace(-70.0, -110.0, 401))  # about y: pitch -70 -> -90 -> back to -70 (flipped)
+    r_m = q_from_axis_angle(np.array([0.0, 1.0, 0.0]), pitch)
+    r_s = q_from_axis_angle(np.array([0.0, 1.0, 0.0]), pitch + 1e-2)
+    angle = np.full(pitch.size, 1e-2)
+    tr = _orientation_traces(r_m, r_s, angle)
+    rpy_m, rpy_s = rpy_from_q(r_m), rpy_from_q(r_s)
+    raw = np.linalg.norm((rpy_s - rpy_m + np.pi) % (2 * np.pi) - np.pi, axis=1)
+    assert raw.max() > 3.0  # what the old figure drew
+    near = np.maximum(np.abs(rpy_m[:, 1]), np.abs(rpy_s[:, 1])) >= np.radians(90.0 - GIMBAL_LOCK_DEG - 1e-9)
+    np.testing.assert_array_equal(tr.lock, near)
+    assert tr.lock.any() and not tr.lock.all()
+    assert np.all(np.isnan(tr.rpy_difference[tr.lock])) and np.all(np.isnan(tr.master[tr.lock][:, [0, 2]]))
+    assert np.all(np.isnan(tr.slave[tr.lock][:, [0, 2]])) and np.all(np.isfinite(tr.slave[tr.lock][:, 1]))
+    np.testing.assert_allclose(tr.rpy_difference[~tr.lock], 1e-2, rtol=1e-6)  # outside: the true angle
+    np.testing.assert_array_equal(tr.angle, angle)  # the error line, drawn everywhere

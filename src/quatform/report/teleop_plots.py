@@ -4,7 +4,8 @@
   position error and the true orientation error against time;
 * :func:`plot_teleop_torques` - master and slave joint torques with their limits;
 * :func:`plot_teleop_orientation` - roll-pitch-yaw angles of both tools, the pitch ±90 deg
-  lines marked (where the RPY error is singular);
+  lines marked and the samples within :data:`GIMBAL_LOCK_DEG` of them shaded (roll and yaw
+  undefined there: neither they nor their difference is drawn);
 * :func:`plot_teleop_contact` - the slave's contact force against eq. (13)'s prediction
   and the force reflected to the operator (scenarios with a wall);
 * :func:`plot_teleop_hysteresis` - master-slave error against the slave's position along
@@ -17,6 +18,7 @@ Each figure is drawn on its own Agg canvas; nothing touches pyplot's global stat
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +52,53 @@ def _rpy_traces(r_m, r_s):
     m = np.unwrap(a_m, axis=0)
     s = m + wrap_angle(a_s - a_m)
     return tuple(np.stack([_break_jumps(x[:, k]) for k in range(3)], axis=1) for x in (m, s))
+
+
+#: Half-width of the band around pitch ±90 deg shaded as gimbal lock, deg: within it roll and
+#: yaw are individually undefined (only roll - yaw at +90 deg, roll + yaw at -90 deg is), so a
+#: roll of -180 deg against 0 deg there is the same orientation, not an error. 3 deg holds the
+#: whole branch switch of teleop-pitch-through-90 (both tools within 1.4 deg of -90 deg).
+GIMBAL_LOCK_DEG = 3.0
+
+
+@dataclass(frozen=True)
+class _OrientationTraces:
+    """What :func:`plot_teleop_orientation` draws, rad, ``T`` samples.
+
+    ``master``, ``slave`` ``(T, 3)``: roll, pitch, yaw (:func:`_rpy_traces`), roll and yaw NaN
+    where ``lock``; ``lock`` ``(T,)``: either tool's ``|pitch|`` within ``lock_deg`` of 90 deg;
+    ``rpy_difference`` ``(T,)``: ``|wrap(rpy_s - rpy_m)|``, NaN where ``lock``; ``angle``
+    ``(T,)``: the angle between the tools (defined everywhere: the error line).
+    """
+
+    master: np.ndarray
+    slave: np.ndarray
+    lock: np.ndarray
+    rpy_difference: np.ndarray
+    angle: np.ndarray
+
+
+def _orientation_traces(r_m, r_s, angle, lock_deg: float = GIMBAL_LOCK_DEG) -> _OrientationTraces:
+    """The traces of the orientation figure with the gimbal-lock band masked (:class:`_OrientationTraces`)."""
+    rpy_m, rpy_s = rpy_from_q(r_m), rpy_from_q(r_s)
+    lock = np.maximum(np.abs(rpy_m[:, 1]), np.abs(rpy_s[:, 1])) >= np.radians(90.0 - lock_deg)
+    a_m, a_s = _rpy_traces(r_m, r_s)
+    for a in (a_m, a_s):
+        a[lock, 0] = np.nan
+        a[lock, 2] = np.nan
+    diff = np.linalg.norm(wrap_angle(rpy_s - rpy_m), axis=1)
+    diff[lock] = np.nan
+    return _OrientationTraces(a_m, a_s, lock, diff, np.asarray(angle, dtype=float))
+
+
+def _spans(t, mask):
+    """``(start, end)`` times of each run of True in ``mask`` (half a sample beyond each end)."""
+    t, mask = np.asarray(t, dtype=float), np.asarray(mask, dtype=bool)
+    if not mask.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
+    half = 0.5 * (t[1] - t[0]) if t.size > 1 else 0.0
+    return [(t[a] - half, t[b - 1] + half) for a, b in zip(edges[0::2], edges[1::2])]
 
 
 def _break_jumps(y, limit=np.pi / 2):
@@ -110,12 +159,24 @@ def plot_teleop_torques(run: TeleopRun, path) -> Path:
 
 
 def plot_teleop_orientation(run: TeleopRun, path) -> Path:
-    """Roll, pitch, yaw of both tools (slave base axes, :func:`_rpy_traces`); pitch ±90 deg marked."""
+    """Roll, pitch, yaw of both tools (slave base axes, :func:`_rpy_traces`); pitch ±90 deg marked.
+
+    The samples within :data:`GIMBAL_LOCK_DEG` of pitch ±90 deg are shaded; roll, yaw and the
+    wrapped RPY difference are not drawn there (:func:`_orientation_traces`), the angle
+    between the tools is.
+    """
     i = _decimate(len(run.t))
     t = run.t[i]
-    a_m, a_s = (np.degrees(a) for a in _rpy_traces(run.r_m[i], run.r_s[i]))
+    tr = _orientation_traces(run.r_m[i], run.r_s[i], run.angle[i])
+    a_m, a_s = np.degrees(tr.master), np.degrees(tr.slave)
+    spans = _spans(t, tr.lock)
+    lock_label = f"gimbal lock (|pitch| > {90 - GIMBAL_LOCK_DEG:g}°): roll, yaw undefined"
     fig = _new_figure((10, 6.5))
     axes = fig.subplots(4, 1, sharex=True)
+    for ax in axes:
+        for k, (t0, t1) in enumerate(spans):
+            ax.axvspan(t0, t1, color="0.8", alpha=0.6, lw=0,
+                       label=lock_label if k == 0 else None)
     for k, name in enumerate(("roll", "pitch", "yaw")):
         ax = axes[k]
         ax.plot(t, a_m[:, k], color="C3", ls="--", lw=1.0, label="master")
@@ -123,17 +184,17 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
         ax.set_ylabel(f"{name} (deg)")
         ax.grid(alpha=0.3)
         both = np.concatenate([a_m[:, k], a_s[:, k]])
-        lo, hi = np.nanmin(both), np.nanmax(both)
-        if hi - lo < 2.0:  # a still angle: a 2 deg window, not an axis of 1e-10 deg with an offset
-            ax.set_ylim(0.5 * (lo + hi) - 1.0, 0.5 * (lo + hi) + 1.0)
+        if np.isfinite(both).any():
+            lo, hi = np.nanmin(both), np.nanmax(both)
+            if hi - lo < 2.0:  # a still angle: a 2 deg window, not an axis of 1e-10 deg with an offset
+                ax.set_ylim(0.5 * (lo + hi) - 1.0, 0.5 * (lo + hi) + 1.0)
         if name == "pitch":
             for y in (-90, 90):
                 ax.axhline(y, color="r", ls=":", lw=0.8)
     axes[0].legend(fontsize=8)
-    wrapped = np.linalg.norm(wrap_angle(rpy_from_q(run.r_s[i]) - rpy_from_q(run.r_m[i])), axis=1)
-    axes[3].semilogy(t, np.maximum(run.angle[i], 1e-9), color="C2", label="angle between the tools")
-    axes[3].semilogy(t, np.maximum(wrapped, 1e-9), color="C1", ls="--", lw=1.0,
-                     label="|wrapped RPY difference| (the RPY law's error)")
+    axes[3].semilogy(t, np.maximum(tr.angle, 1e-9), color="C2", label="angle between the tools")
+    axes[3].semilogy(t, np.maximum(tr.rpy_difference, 1e-9), color="C1", ls="--", lw=1.0,
+                     label="|wrapped RPY difference| (the RPY law's error; not drawn in gimbal lock)")
     axes[3].legend(fontsize=7)
     axes[3].set_ylabel("error (rad)")
     axes[3].set_xlabel("t (s)")

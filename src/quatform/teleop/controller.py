@@ -31,7 +31,8 @@ from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
 
-__all__ = ["ORIENTATION_ERRORS", "MAX_WALL_STIFFNESS", "Registration", "VirtualWall", "TeleopMeasurement",
+__all__ = ["ORIENTATION_ERRORS", "MAX_WALL_STIFFNESS", "MAX_JOINT_ANGLE", "MAX_JOINT_RATE", "MAX_WRIST_FORCE",
+           "MAX_WRIST_MOMENT", "Registration", "VirtualWall", "TeleopMeasurement",
            "TeleopCommand", "TeleopController"]
 
 #: The orientation errors a controller can use.
@@ -152,7 +153,10 @@ class TeleopMeasurement:
 
     ``q_m``, ``qd_m``: master joints ``(n_m,)``; ``q_s``, ``qd_s``: slave joints ``(n_s,)``;
     ``F_s``: the wrench the slave exerts on its environment (wrist sensor, base axes),
-    ``(6,)`` ``[force; moment]``.
+    ``(6,)`` ``[force; moment]``. The controller refuses a measurement that is not finite or
+    is beyond what the arms can do: an angle beyond :data:`MAX_JOINT_ANGLE`, a rate beyond
+    :data:`MAX_JOINT_RATE`, a force or moment beyond :data:`MAX_WRIST_FORCE` /
+    :data:`MAX_WRIST_MOMENT`.
     """
 
     q_m: np.ndarray
@@ -388,8 +392,37 @@ class TeleopController:
                              np.array(q_from_rotation(R_s)), wall, finite, saturated, null_ok, J_mf, J_sf, M_s)
 
 
+#: Largest joint angle a measurement may hold, rad: a revolute joint wound many turns (an
+#: unlimited wrist roll) stays far below; 1e3 rad is 159 turns. Beyond it the reading is a
+#: sensor fault (a unit mistake, a raw encoder count), not a pose.
+MAX_JOINT_ANGLE = 1e3
+#: Largest joint rate a measurement may hold, rad/s: 38 times the fastest rated joint of the
+#: Panda slave (2.61 rad/s, :data:`.slave.PANDA_VELOCITY_LIMITS`) and 6 times the fastest the
+#: simulator reaches (15.7 rad/s: the RPY baseline held at gimbal lock, whose simulated slave
+#: has no speed limit); a hand-driven master is slower still.
+MAX_JOINT_RATE = 100.0
+#: Largest wrist force, N, and moment, N m, a measurement ``F_s`` may hold: ten times what the
+#: slave's strongest joint (87 N m, :data:`.slave.PANDA_TORQUE_LIMITS`) balances at a 0.1 m
+#: lever arm (a moment at the tool loads each joint by ``z_i . m``, with no lever arm: ten times
+#: 87 N m). An arm pushed beyond them is back-driven or broken, not measured.
+MAX_WRIST_FORCE = 10.0 * max(PANDA_TORQUE_LIMITS) / 0.1
+MAX_WRIST_MOMENT = 10.0 * max(PANDA_TORQUE_LIMITS)
+_ANGLE = (MAX_JOINT_ANGLE, "rad", "a joint angle", "MAX_JOINT_ANGLE")
+_RATE = (MAX_JOINT_RATE, "rad/s", "a joint rate", "MAX_JOINT_RATE")
+_BOUNDS = {"q_m": _ANGLE, "q_s": _ANGLE, "qd_m": _RATE, "qd_s": _RATE}
+_FORCE = (MAX_WRIST_FORCE, "N", "a wrist force", "MAX_WRIST_FORCE")
+_MOMENT = (MAX_WRIST_MOMENT, "N m", "a wrist moment", "MAX_WRIST_MOMENT")
+#: Each entry's bound of ``F_s`` (forces, then moments).
+_WRENCH_BOUND = np.r_[np.full(3, MAX_WRIST_FORCE), np.full(3, MAX_WRIST_MOMENT)]
+
+
 def _measured(x, name, n):
-    """A measured vector as a float array of shape ``(n,)``, finite (one clear error otherwise)."""
+    """A measured vector as a float array of shape ``(n,)``, finite and physically possible.
+
+    Each entry within :data:`MAX_JOINT_ANGLE`, :data:`MAX_JOINT_RATE` or (``F_s``)
+    :data:`MAX_WRIST_FORCE` / :data:`MAX_WRIST_MOMENT`. One reduction per field in the usual
+    case (the largest magnitude); only a field that fails it is searched entry by entry.
+    """
     try:
         a = np.asarray(x, dtype=float)
     except (TypeError, ValueError):
@@ -397,7 +430,22 @@ def _measured(x, name, n):
                                 "check the sensor reading") from None
     if a.shape != (n,):
         raise ShapeError(f"measurement {name} must have shape ({n},), got {a.shape}")
-    if not math.isfinite(float(a.sum())) and not np.isfinite(a).all():  # the sum: one cheap test
-        raise NonFiniteError(f"measurement {name} = {short(a.tolist())} is not finite; a controller cannot act on "
-                             "NaN or inf measurements - check the sensor reading")
+    # the one cheap reduction: the largest magnitude (NaN propagates, no overflow) within the
+    # field's bound (for F_s the smaller, the moments') means every entry is finite and within
+    # its own; anything else falls through to the exact, per-entry test
+    wrench = name == "F_s"
+    bound, unit, what, const = _MOMENT if wrench else _BOUNDS[name]
+    if float(np.abs(a).max()) <= bound:
+        return a
+    if not np.isfinite(a).all():
+        raise NonFiniteError(f"measurement {name} = {short(a.tolist())} is not finite; a controller cannot act "
+                             "on NaN or inf measurements - check the sensor reading")
+    over = np.abs(a) / (_WRENCH_BOUND if wrench else bound)
+    i = int(np.argmax(over))
+    if over[i] > 1.0:
+        if wrench and i < 3:
+            bound, unit, what, const = _FORCE
+        raise InvalidInputError(
+            f"measurement {name}[{i}] = {a[i]:g} {unit} is beyond +-{bound:g} {unit}, more than {what} of these "
+            f"arms can be (teleop.controller.{const}); check the sensor reading and its units")
     return a

@@ -24,7 +24,7 @@ import numpy as np
 from ._kernels import skew_rows
 from .arm import DHLink, SerialArm
 
-__all__ = ["PANDA", "RigidArm", "PANDA_SLAVE", "PANDA_TORQUE_LIMITS"]
+__all__ = ["PANDA", "RigidArm", "PANDA_SLAVE", "PANDA_TORQUE_LIMITS", "PANDA_VELOCITY_LIMITS"]
 
 _H = math.pi / 2
 #: Franka Emika Panda, modified DH (Craig), flange 0.107 m along the last z.
@@ -39,6 +39,10 @@ PANDA = SerialArm(
 
 #: The Panda's joint torque limits as its maker publishes them, N m.
 PANDA_TORQUE_LIMITS = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
+#: The Panda's rated joint speeds as its maker publishes them, rad/s (the bound on measured
+#: rates, :data:`.controller.MAX_JOINT_RATE`, is derived from them; the simulator does not
+#: enforce them).
+PANDA_VELOCITY_LIMITS = (2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61)
 
 
 @dataclass(frozen=True)
