@@ -79,7 +79,7 @@ IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 #: formation and the robots' headings (1.0 is 0.4 rad off at 5 s; up to 2.0 holds, the
 #: shape ballooning more), x settles the end of the turn (1.25 is still 0.14 rad off at
 #: 5 s, 1.75 overshoots more), y pulls in the separation that the velocity lag swings
-#: outwards while turning (with 3 half of it grows by 0.63 m and is 0.11 off at 5 s, with
+#: outwards while turning (with 3 half of it grows by 0.63 m and is 0.11 rad off at 5 s, with
 #: 7 by 0.49 m, back within 0.02 m by 5 s). Seed 000 Table 2 and a scenario's own
 #: ``[gains]`` reach the physics unchanged.
 PHYSICS_GAINS = {
