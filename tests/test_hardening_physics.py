@@ -52,6 +52,7 @@ from quatform.report.physics_render import (  # noqa: E402
     time_lapse_figure,
 )
 from quatform.sim import compute_metrics, load_scenario  # noqa: E402
+from quatform.sim.metrics import errors_from_robots  # noqa: E402
 from quatform.sim.mujoco_backend import (  # noqa: E402
     PHYSICS_GAINS,
     physics_gains,
@@ -117,12 +118,18 @@ def test_yaw_step_holds_the_formation_on_physics(controller):
 
 
 def test_yaw_step_dual_quaternion_on_physics_is_close():
-    """Its one gain per axis drives the shape and the turn together: the shape balloons while
-    turning and is 0.14 m off at 5 s (0.63 m with Table 1), still counted lost."""
-    run, rec = simulate_physics(load_scenario("mas-kitts-yaw-step"), "dual-quaternion")
+    """The shape balloons while the formation turns (the quadrotors' velocity lag); the y gain
+    (7) pulls it in by 5 s: 0.046 m / 0.042 rad off (0.144 m / 0.100 rad, lost, with the
+    former (3, 3, 1.3); 0.63 m with Table 1), without a second swing of the yaw."""
+    sc = load_scenario("mas-kitts-yaw-step")
+    run, rec = simulate_physics(sc, "dual-quaternion")
     m = compute_metrics(run)
-    assert m["max_shape_error_m"] < 0.2 and m["max_orientation_error_rad"] < 0.12
-    assert m["max_robot_position_error_m"] < 0.2
+    assert not m["reference_lost"], m
+    assert m["max_orientation_error_rad"] < 0.07 and m["max_robot_position_error_m"] < 0.07
+    assert m["max_shape_error_m"] < 0.04
+    assert rec.gains_source == "physics" and rec.gains == {**PHYSICS_GAINS["dual-quaternion"], "feedforward": True}
+    err, settled = errors_from_robots(run), run.t >= 8.0  # no ringing: settled 3 s after metrics_from_s
+    assert err["orientation"][settled].max() < 0.02 and err["robot_position"][settled].max() < 0.02
 
 
 def test_given_gains_and_controller_objects_are_recorded():

@@ -74,14 +74,19 @@ IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 #: between the two: for each controller the gains that best settle the 180 deg formation
 #: yaw step of ``mas-kitts-yaw-step`` (seed 000 Fig. 4) by ``metrics_from_s`` without
 #: ringing, found by a grid search on this physics model (``docs/physics.md``, "Gains on
-#: physics": the dual-quaternion controller still misses it by a little); the centroid
-#: gains are 1 1/s. Seed 000 Table 2 and a scenario's own ``[gains]`` reach the physics
-#: unchanged.
+#: physics"); the centroid gains are 1 1/s. The dual-quaternion controller's three gains
+#: act on both parts of each error dual quaternion (seed 000 eq. (28)): z turns the
+#: formation and the robots' headings (1.0 is 0.4 rad off at 5 s; up to 2.0 holds, the
+#: shape ballooning more), x settles the end of the turn (1.25 is still 0.14 rad off at
+#: 5 s, 1.75 overshoots more), y pulls in the separation that the velocity lag swings
+#: outwards while turning (with 3 half of it grows by 0.63 m and is 0.11 rad off at 5 s, with
+#: 7 by 0.49 m, back within 0.02 m by 5 s). Seed 000 Table 2 and a scenario's own
+#: ``[gains]`` reach the physics unchanged.
 PHYSICS_GAINS = {
     "cluster-space": {"k": [1.0, 1.0, 1.0, 0.55, 0.55, 5.0, 1.5, 1.5]},  # (x, y, z, beta, gamma, d, phi1, phi2)
     "robot-space": {"k": [1.5, 1.5, 1.5, 2.0, 2.0, 1.5, 1.5, 1.5]},  # Table 1 capped at 2 1/s
     "quaternion": {"k_x": [1.0, 1.0, 1.0], "k_d": 5.0, "k_w": [1.3, 1.3, 1.3]},
-    "dual-quaternion": {"k_dw": [3.0, 3.0, 1.3]},  # (x, y, z) parts: z turns the yaw, x, y hold the shape
+    "dual-quaternion": {"k_dw": [1.5, 7.0, 1.5]},  # (x, y, z) parts: z turns, x settles, y holds the shape
 }
 
 #: ``gains_source`` of a physics run: where its gains came from.
