@@ -36,6 +36,7 @@ __all__ = [
     "flag",
     "text",
     "check_work",
+    "check_within_run",
     "memory_budget_bytes",
     "time_budget_s",
 ]
@@ -206,6 +207,17 @@ def text(data: Mapping, key: str, where: str, default=MISSING, *, place: str = "
                 f"{where}: {label} = {short(value)} is not one of {', '.join(choices)}{nearest(value, choices)}"
             )
     return value
+
+
+def check_within_run(where: str, key: str, value: float, duration_s: float, last_sample_s: float,
+                     consequence: str) -> None:
+    """Refuse a time ``value`` (a metrics window's start, a designed switch) that no sample of
+    the run reaches: it must be ``< duration_s`` and at most ``last_sample_s``; ``consequence``
+    says what would happen otherwise (every error reading 0 or null, a switch never made)."""
+    if not (value < duration_s and value <= last_sample_s):
+        raise InvalidInputError(
+            f"{where}: {key} = {value!r} must be < duration_s = {duration_s!r} and at most the last sample "
+            f"time {last_sample_s:g} s; else {consequence}")
 
 
 def memory_budget_bytes() -> float:

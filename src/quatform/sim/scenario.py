@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .._toml import builtin_files, read_toml
-from ..checks import check_keys, check_work, flag, number, short, table, text, vector
+from ..checks import check_keys, check_within_run, check_work, flag, number, short, table, text, vector
 from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES
@@ -74,11 +74,9 @@ def _check_window(where: str, metrics_from_s: float, duration_s: float, dt_s: fl
     """Refuse a metrics window that holds no sample (every max error would read 0, a failed
     run would look perfect): need ``0 <= metrics_from_s < duration_s`` and a sample after it."""
     number({"metrics_from_s": metrics_from_s}, "metrics_from_s", where, low=0.0)
-    last = _last_step(duration_s, dt_s) * dt_s  # the last of Scenario.times
-    if not (metrics_from_s < duration_s and metrics_from_s <= last):
-        raise InvalidInputError(
-            f"{where}: metrics_from_s = {metrics_from_s:g} must be < duration_s = {duration_s:g} and at most the "
-            f"last sample time {last:g} s; else no sample is measured and every error would read 0")
+    check_within_run(where, "metrics_from_s", metrics_from_s, duration_s,
+                     _last_step(duration_s, dt_s) * dt_s,  # the last of Scenario.times
+                     "no sample is measured and every error would read 0")
 
 
 #: Slack, in steps, for a dt_s that divides duration_s up to rounding (0.3 / 0.1 = 2.9999...).

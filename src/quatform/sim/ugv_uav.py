@@ -508,10 +508,8 @@ def _check_report_times(kw, where: str) -> None:
             ("uav_front_until_s", kw["uav_front_until_s"] > 0, "the UAV would stay in front for the whole run and "
              "the front -> over switch of Marciano 2021 §5.3 would never happen",
              "lower uav_front_until_s, or set it to 0 for no front phase")):
-        if active and not (kw[key] < kw["duration_s"] and kw[key] <= last):
-            raise InvalidInputError(
-                f"{where}: {key} = {kw[key]!r} must be < duration_s = {kw['duration_s']!r} and at most the last "
-                f"control sample time {last:g} s; else {what}; {fix}")
+        if active:
+            checks.check_within_run(where, key, kw[key], kw["duration_s"], last, f"{what}; {fix}")
 
 
 def _scenario_fields(data, where: str, report: bool = True) -> dict:
