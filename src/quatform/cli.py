@@ -64,13 +64,9 @@ def _with_measurement(sc, args):
 
     from .errors import InvalidInputError
 
-    changes = {}
-    for opt, field in (("mocap_noise_m", "mocap_noise_m"), ("mocap_latency_s", "mocap_latency_s")):
-        v = getattr(args, opt, None)
-        if v is not None:
-            if not (0 <= v < float("inf")):
-                raise InvalidInputError(f"--{opt.replace('_', '-')} must be a finite number >= 0, got {v!r}")
-            changes[field] = v
+    # the values are checked with the scenario's own bounds (check_ugv_uav_scenario) below
+    changes = {key: getattr(args, key) for key in ("mocap_noise_m", "mocap_latency_s")
+               if getattr(args, key, None) is not None}
     if not changes:
         return sc
     if not hasattr(sc, "mocap_noise_m"):
