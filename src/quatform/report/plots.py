@@ -99,13 +99,14 @@ def _decimate(n: int, max_points: int = MAX_POINTS) -> np.ndarray:
     return idx
 
 
-def _break_wraps(y):
-    """Insert NaN where an angle trace jumps by more than pi, so no vertical line is drawn."""
+def _break_wraps(y, limit=np.pi):
+    """Insert NaN where an angle trace jumps by more than ``limit`` (rad) between samples, so
+    no vertical line is drawn."""
     y = np.asarray(y, dtype=float)
     if y.size < 2:
         return y
     with np.errstate(invalid="ignore"):
-        jump = np.abs(np.diff(y)) > np.pi
+        jump = np.abs(np.diff(y)) > limit
     out = y.copy()
     out[1:][jump] = np.nan
     return out

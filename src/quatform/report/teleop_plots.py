@@ -26,7 +26,7 @@ import numpy as np
 from ..sim.teleop import TeleopRun
 from ..algebra import wrap_angle
 from ..teleop import rpy_from_q
-from .plots import _decimate, _new_figure, _save
+from .plots import _break_wraps, _decimate, _new_figure, _save
 
 __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
            "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
@@ -51,7 +51,7 @@ def _rpy_traces(r_m, r_s):
     a_m, a_s = rpy_from_q(r_m), rpy_from_q(r_s)
     m = np.unwrap(a_m, axis=0)
     s = m + wrap_angle(a_s - a_m)
-    return tuple(np.stack([_break_jumps(x[:, k]) for k in range(3)], axis=1) for x in (m, s))
+    return tuple(np.stack([_break_wraps(x[:, k], np.pi / 2) for k in range(3)], axis=1) for x in (m, s))
 
 
 #: Half-width of the band around pitch ±90 deg shaded as gimbal lock, deg: within it roll and
@@ -99,14 +99,6 @@ def _spans(t, mask):
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
     half = 0.5 * (t[1] - t[0]) if t.size > 1 else 0.0
     return [(t[a] - half, t[b - 1] + half) for a, b in zip(edges[0::2], edges[1::2])]
-
-
-def _break_jumps(y, limit=np.pi / 2):
-    """NaN where ``y`` jumps by more than ``limit`` between samples (no vertical line)."""
-    out = np.asarray(y, dtype=float).copy()
-    if out.size > 1:
-        out[1:][np.abs(np.diff(y)) > limit] = np.nan
-    return out
 
 
 def plot_teleop_tracking(run: TeleopRun, path) -> Path:
