@@ -57,7 +57,7 @@ from typing import Callable
 import numpy as np
 
 import quatform.algebra as qa
-from quatform.algebra._kernels import qmul_components
+from quatform.algebra.kernels import qmul_components
 
 Quat = tuple[float, float, float, float]
 Vec = tuple[float, float, float]

@@ -18,7 +18,7 @@ from quatform.control import (
 )
 from quatform.errors import DegenerateInputError, NonFiniteError, NonUnitError, ShapeError
 from quatform.formations import EuclideanPair
-from quatform.formations import _geometry as g
+from quatform.formations import geometry as g
 from quatform.robots import HolonomicRobot, Team
 
 FREE = Team((HolonomicRobot(1e9, 1e9),) * 2)  # no saturation: the proofs assume none

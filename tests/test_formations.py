@@ -16,7 +16,7 @@ from quatform.formations import (
     RobotSpace,
     segment_direction,
 )
-from quatform.formations import _geometry as g
+from quatform.formations import geometry as g
 
 from conftest import numeric_jacobian
 

@@ -18,8 +18,8 @@ from hypothesis import given, settings, strategies as st
 
 import quatform.runs as runs
 from quatform import cli
-from quatform._toml import read_toml
-from quatform.algebra import _validate
+from quatform.tomlio import read_toml
+from quatform.algebra import validate
 from quatform.errors import InvalidInputError, NonFiniteError
 from quatform.sim import output
 from quatform.sim.output import OUTPUT_MARKER, atomic_write_text, staged_dir, strict_json, write_columns
@@ -326,16 +326,16 @@ def test_validator_messages_are_cheap_to_build():
     tracemalloc.start()
     try:
         with pytest.raises(NonFiniteError, match=r"contains nan at index \(1, 0\)"):
-            _validate.as_array(a, "q", 4)
+            validate.as_array(a, "q", 4)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
     assert peak < 0.5 * a.nbytes
     q = np.ones((3, 5, 4))
     with pytest.raises(InvalidInputError, match=r"has norm 2 at index \(0, 0\)"):
-        _validate.as_unit_quaternion(q)
+        validate.as_unit_quaternion(q)
     with pytest.raises(InvalidInputError, match=r"primary \. dual = 1 \(tolerance"):
-        _validate.as_unit_dual_quaternion(np.r_[1.0, 0, 0, 0, 1.0, 0, 0, 0])
+        validate.as_unit_dual_quaternion(np.r_[1.0, 0, 0, 0, 1.0, 0, 0, 0])
 
 
 # --------------------------------------------------------------------------- F: the TOML reader
@@ -361,7 +361,7 @@ def test_a_device_and_an_unreadable_file_are_one_line(tmp_path, monkeypatch):
         read_toml("/dev/null", {}, "scenario")
     p = tmp_path / "s.toml"
     p.write_text("x = 1\n")
-    import quatform._toml as toml_module
+    import quatform.tomlio as toml_module
 
     def denied(*a, **k):
         raise PermissionError(13, "Permission denied", str(p))

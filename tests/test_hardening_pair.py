@@ -20,7 +20,7 @@ from quatform.control import (
 )
 from quatform.errors import DegenerateInputError, InvalidInputError, UnreachableError
 from quatform.formations import DualQuaternionPair, EuclideanPair, QuaternionPair, RobotSpace
-from quatform.formations import _geometry as g
+from quatform.formations import geometry as g
 from quatform.formations.base import MAX_MAGNITUDE
 from quatform.robots import HolonomicRobot, Team
 from quatform.sim import compute_metrics, load_scenario, simulate

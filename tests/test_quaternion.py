@@ -96,9 +96,9 @@ def test_batch_broadcasting():
 
 
 def test_blocked_kernel_matches_loop_across_block_boundary():
-    from quatform.algebra import _kernels
+    from quatform.algebra import kernels
 
-    n = _kernels.BLOCK * 2 + 17
+    n = kernels.BLOCK * 2 + 17
     q, p = random_unit_quaternions(n, 2), random_unit_quaternions(n, 3)
     np.testing.assert_allclose(qmul(q, p), _hamilton_reference(q, p), atol=1e-15)
     np.testing.assert_allclose(qmul(q[:1], p), _hamilton_reference(q[:1], p), atol=1e-15)

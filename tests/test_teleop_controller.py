@@ -23,7 +23,7 @@ from quatform.teleop import (
     rpy_task_jacobian,
     task_jacobian,
 )
-from quatform.teleop._kernels import cross, q_from_rotation
+from quatform.teleop.kernels import cross, q_from_rotation
 from quatform.teleop.control import master_torque, redundancy_torque, slave_torque, task_error
 from quatform.teleop.task import rpy_error, rpy_rate_from_angular_velocity, wrap_angle
 

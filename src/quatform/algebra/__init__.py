@@ -6,7 +6,7 @@ Every function broadcasts over leading axes, validates its input (shape, finiten
 norm where required, see :mod:`quatform.errors`) and returns a new array.
 """
 
-from ._validate import UNIT_TOLERANCE
+from .validate import UNIT_TOLERANCE
 from .angles import wrap_angle
 from .dual_quaternion import (
     DQ_IDENTITY,

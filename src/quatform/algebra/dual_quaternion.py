@@ -27,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
-from . import _kernels
-from ._validate import (
+from . import kernels
+from .validate import (
     as_array,
     as_dual_quaternion,
     as_unit_dual_quaternion,
@@ -88,7 +88,7 @@ def dqmul(a, b) -> np.ndarray:
     """
     a = as_dual_quaternion(a, "a")
     b = as_dual_quaternion(b, "b")
-    return _kernels.run_blocked(_kernels.dqmul_components, (a, b), 8)
+    return kernels.run_blocked(kernels.dqmul_components, (a, b), 8)
 
 
 def dqconj(dq) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_array, as_unit_quaternion
+from .validate import as_array, as_unit_quaternion
 from .operators import skew
 
 __all__ = [

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_array, as_dual_quaternion, as_quaternion
+from .validate import as_array, as_dual_quaternion, as_quaternion
 
 __all__ = [
     "CONJ",

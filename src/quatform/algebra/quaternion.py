@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DegenerateInputError, NotARotationError
-from . import _kernels
-from ._validate import as_array, as_quaternion, as_unit_quaternion
+from . import kernels
+from .validate import as_array, as_quaternion, as_unit_quaternion
 
 __all__ = [
     "IDENTITY",
@@ -75,7 +75,7 @@ def qmul(q, p) -> np.ndarray:
     """
     q = as_quaternion(q, "q")
     p = as_quaternion(p, "p")
-    return _kernels.run_blocked(_kernels.qmul_components, (q, p), 4)
+    return kernels.run_blocked(kernels.qmul_components, (q, p), 4)
 
 
 def qconj(q) -> np.ndarray:

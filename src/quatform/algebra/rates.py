@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
-from ._validate import as_array, as_quaternion, as_unit_quaternion
+from .validate import as_array, as_quaternion, as_unit_quaternion
 from .operators import qminus, qplus
 from .quaternion import qconj, qexp, qlog, qmul
 

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..algebra._validate import UNIT_TOLERANCE, as_array
+from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
-from ..formations._pair_kernels import pack
+from ..formations.pair_kernels import pack
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, Formation, check_magnitude
 from ..robots import Team
 

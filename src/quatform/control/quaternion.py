@@ -23,8 +23,8 @@ import numpy as np
 
 from ..errors import DegenerateInputError, UnreachableError
 from ..formations import DualQuaternionPair, QuaternionPair
-from ..formations import _geometry as g
-from ..formations import _pair_kernels as kern
+from ..formations import geometry as g
+from ..formations import pair_kernels as kern
 from ..formations.base import MIN_SEPARATION_M, Formation
 from ..formations.quaternion_pair import TILT_TOL
 from ..robots import Team

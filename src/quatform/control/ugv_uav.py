@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion
-from ..formations import _geometry as g
+from ..formations import geometry as g
 from ..formations.base import Formation
 from ..robots import Bebop, Pioneer, yaw_matrix
 from .base import Reference

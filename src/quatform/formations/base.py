@@ -19,13 +19,13 @@ from __future__ import annotations
 import functools
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import DegenerateInputError, InvalidInputError
+from .layout import RobotLayout, Variable
 
 __all__ = ["Variable", "Formation", "ROBOT_PAIR_VARIABLES", "MIN_SEPARATION_M", "MAX_MAGNITUDE"]
 
@@ -51,26 +51,6 @@ def check_magnitude(a, name):
             "or nearer the origin"
         )
     return a
-
-
-@dataclass(frozen=True)
-class Variable:
-    """One component of a state vector.
-
-    Attributes
-    ----------
-    name : str
-        Column name (``x_c``, ``q_c_w`` ...), used in time-series files.
-    unit : str
-        ``m``, ``rad`` or ``1`` (quaternion components).
-    kind : str
-        ``position``, ``length``, ``angle`` or ``quaternion`` (a component of a unit
-        quaternion or of a unit dual quaternion's part).
-    """
-
-    name: str
-    unit: str
-    kind: str
 
 
 def _robot_pair_variables():

@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra._validate import as_array, as_unit_dual_quaternion
+from ..algebra.validate import as_array, as_unit_dual_quaternion
 from ..errors import DegenerateInputError, UnreachableError
-from . import _geometry as g
-from . import _pair_kernels as kern
+from . import geometry as g
+from . import pair_kernels as kern
 from .base import MIN_SEPARATION_M, Formation, Variable
 from .euclidean_pair import EuclideanPair
 from .quaternion_pair import TILT_TOL, QuaternionPair
@@ -39,7 +39,7 @@ def _dq_variables(prefix):
     return tuple(Variable(f"{prefix}_{p}{c}", "1", "quaternion") for p in "rd" for c in "wxyz")
 
 
-# Array forms of the component kernels (one formula each, in _pair_kernels).
+# Array forms of the component kernels (one formula each, in pair_kernels).
 def _dqmul(a, b):
     return kern.pack(kern.dqmul(kern.unpack(a), kern.unpack(b)))
 
@@ -92,7 +92,7 @@ class DualQuaternionPair(Formation):
             the sign of ``qhat_s``; every branch is the same formation, see the module).
         hint : array_like, shape (..., 16), optional
             A cluster state to stay near: the yaws of ``r`` are first moved by whole turns
-            onto the hint's branch (:func:`~._pair_kernels.dq_align_yaws`, as the controller
+            onto the hint's branch (:func:`~.pair_kernels.dq_align_yaws`, as the controller
             does), and ``qhat_c`` takes the hint's sign. The result is the same formation as
             ``r`` whatever the hint.
 
@@ -207,7 +207,7 @@ class DualQuaternionPair(Formation):
         ``theta_2``. Along
         the description's 8-dimensional manifold this is the derivative of
         ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_2 qhat_s``; see
-        :func:`~quatform.formations._pair_kernels.dq_inverse_jvp`.
+        :func:`~quatform.formations.pair_kernels.dq_inverse_jvp`.
         """
         c = np.asarray(c, dtype=float)
         if r is None:

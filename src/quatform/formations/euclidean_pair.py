@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import DegenerateInputError
-from . import _geometry as g
+from . import geometry as g
 from .base import MIN_SEPARATION_M, ROBOT_PAIR_VARIABLES, Formation, Variable
 
 __all__ = ["EuclideanPair", "RobotSpace", "EUCLIDEAN_VARIABLES"]

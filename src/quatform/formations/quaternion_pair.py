@@ -18,11 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra._validate import as_array, as_unit_quaternion
+from ..algebra.validate import as_array, as_unit_quaternion
 from ..algebra.operators import qminus, qplus, skew
 from ..errors import DegenerateInputError, UnreachableError
-from . import _geometry as g
-from . import _pair_kernels as kern
+from . import geometry as g
+from . import pair_kernels as kern
 from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
 from .euclidean_pair import EuclideanPair
 

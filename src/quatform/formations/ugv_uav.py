@@ -23,10 +23,10 @@ import math
 
 import numpy as np
 
-from ..algebra._validate import as_array, as_unit_quaternion
+from ..algebra.validate import as_array, as_unit_quaternion
 from ..algebra.operators import jac_qrotate_quaternion, jac_qrotate_vector, qminus, skew
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
-from . import _geometry as g
+from . import geometry as g
 from .base import Formation, Variable, quaternion_variables
 
 __all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_VARIABLES",

@@ -34,7 +34,7 @@ from types import SimpleNamespace
 import numpy as np
 from scipy.integrate import solve_bvp, solve_ivp
 
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import (
     ConvergenceError,
     DegenerateInputError,

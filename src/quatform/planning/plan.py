@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..algebra import q_continuous, qslerp
-from ..algebra._validate import as_array, as_unit_quaternion
+from ..algebra.validate import as_array, as_unit_quaternion
 from ..checks import check_work, short
 from ..errors import InvalidInputError, ShapeError
 

@@ -52,7 +52,7 @@ from ..algebra import (
     qnormalize,
     skew,
 )
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import (
     DegenerateInputError,
     InvalidInputError,

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra import skew
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import DegenerateInputError, InvalidInputError, NotARotationError
 
 __all__ = [

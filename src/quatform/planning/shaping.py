@@ -30,7 +30,7 @@ import functools
 
 import numpy as np
 
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 
 __all__ = [

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._toml import builtin_files, read_toml
+from ..tomlio import builtin_files, read_toml
 from ..algebra import matrix_from_q
 from ..checks import check_keys, check_work, integer, number, short, text, vector
 from ..checks import table as table_

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 
 __all__ = ["Bebop", "TABLE2_K"]

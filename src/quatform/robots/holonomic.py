@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 
 __all__ = ["HolonomicRobot", "Team"]

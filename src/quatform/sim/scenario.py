@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._toml import builtin_files, read_toml
+from ..tomlio import builtin_files, read_toml
 from ..checks import check_keys, check_within_run, check_work, flag, number, short, table, text, vector
 from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError

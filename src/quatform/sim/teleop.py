@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..algebra import matrix_from_q, q_from_axis_angle, qmul, qslerp
-from ..algebra._kernels import qmul_components
+from ..algebra.kernels import qmul_components
 from ..checks import check_keys, check_work, flag, number, short, table, text, vector
 from ..errors import InvalidInputError
 from ..teleop import (

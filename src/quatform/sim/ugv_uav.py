@@ -20,7 +20,7 @@ from ..control import UGV_UAV_COMMAND_NAMES, Reference, UgvUavController
 from .. import checks
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
-from ..formations import _geometry as g
+from ..formations import geometry as g
 from ..robots import Bebop
 from .loop import History, closed_loop
 from .metrics import SINGULAR_THRESHOLD

@@ -16,9 +16,9 @@ from functools import cached_property
 import numpy as np
 
 from ..algebra import q_from_matrix
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 from ..errors import ShapeError
-from ._kernels import cross, q_from_rotation
+from .kernels import cross, q_from_rotation
 
 __all__ = ["DHLink", "SerialArm"]
 

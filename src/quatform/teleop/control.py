@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..algebra._validate import as_array, as_unit_quaternion
+from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import InvalidInputError
 from .task import orientation_error, task_jacobian
 

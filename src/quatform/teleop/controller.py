@@ -21,10 +21,10 @@ from functools import cached_property
 import numpy as np
 
 from ..algebra import matrix_from_q, qconj, qmul
-from ..algebra._validate import as_array, as_unit_quaternion
+from ..algebra.validate import as_array, as_unit_quaternion
 from ..checks import short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
-from ._kernels import q_from_rotation
+from .kernels import q_from_rotation
 from .arm import SerialArm
 from .control import StiffnessGains, force_stability_term, virtual_wall_force
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD

@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ._kernels import skew_rows
+from .kernels import skew_rows
 from .arm import DHLink, SerialArm
 
 __all__ = ["PANDA", "RigidArm", "PANDA_SLAVE", "PANDA_TORQUE_LIMITS", "PANDA_VELOCITY_LIMITS"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import matrix_from_q, relative_euler_parameters, w_matrix, wrap_angle
-from ..algebra._validate import as_array
+from ..algebra.validate import as_array
 
 __all__ = ["orientation_error", "task_jacobian", "rpy_from_q", "rpy_from_matrix", "rpy_error", "wrap_angle",
            "rpy_rate_from_angular_velocity", "rpy_task_jacobian"]

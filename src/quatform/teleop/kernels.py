@@ -1,4 +1,4 @@
-"""Small helpers of the teleoperation fast path (private; teleop layer).
+"""Small helpers of the teleoperation fast path (internal; teleop layer).
 
 A control cycle works on one configuration of each arm: a handful of 3-vectors and
 3x3 matrices. NumPy's general routines (``np.cross``, validated conversions) cost more

@@ -1,4 +1,4 @@
-"""Component kernels of the two-robot quaternion and dual-quaternion descriptions (private).
+"""Component kernels of the two-robot quaternion and dual-quaternion descriptions (internal: shared by quatform's layers, not part of the user API).
 
 Each kernel takes and returns tuples of components. The components are either Python
 floats (one formation: the fast path, no NumPy call overhead) or broadcastable arrays
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..algebra._kernels import qmul_components as qmul
+from ..algebra.kernels import qmul_components as qmul
 
 _EPS_ANTI = 1e-12
 

@@ -1,4 +1,4 @@
-"""Unchecked quaternion helpers for the formations layer (private).
+"""Unchecked quaternion helpers for the formations layer (internal: shared by quatform's layers, not part of the user API).
 
 The public algebra functions validate every argument; a formation validates its input once
 at the entry point and then calls these, which only compute. Layout and products follow
@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..algebra._kernels import qmul_components
-from . import _pair_kernels as kern
+from ..algebra.kernels import qmul_components
+from . import pair_kernels as kern
 
 EX = np.array([1.0, 0.0, 0.0])
 EZ = np.array([0.0, 0.0, 1.0])
@@ -51,7 +51,7 @@ def q_pitch_y(angle):
 
 
 def yaw_of(q):
-    """Yaw (z-y-x) of nonzero quaternions ``(..., 4)``; see :func:`_pair_kernels.yaw_of`."""
+    """Yaw (z-y-x) of nonzero quaternions ``(..., 4)``; see :func:`pair_kernels.yaw_of`."""
     return kern.yaw_of(tuple(np.moveaxis(np.asarray(q, dtype=float), -1, 0)))
 
 

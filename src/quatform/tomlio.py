@@ -1,4 +1,4 @@
-"""Reading the package's TOML files: built-in ones by name, or a user's by path (private).
+"""Reading the package's TOML files: built-in ones by name, or a user's by path (internal: shared by quatform's layers, not part of the user API).
 
 Below every layer (like :mod:`quatform.errors`): the scenario loader (sim) and the plan-spec
 loader (planning) resolve names and report unreadable files the same way.

@@ -1,4 +1,4 @@
-"""Component-wise product kernels and the blocked driver that runs them (private).
+"""Component-wise product kernels and the blocked driver that runs them (internal: shared by quatform's layers, not part of the user API).
 
 The Hamilton product is 16 multiplications and 12 additions per quaternion. Written on
 ``(..., 4)`` arrays with strided component views, NumPy spends most of its time moving

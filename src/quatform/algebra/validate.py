@@ -1,4 +1,4 @@
-"""Input checks shared by the algebra layer (private).
+"""Input checks shared by the algebra layer (internal: shared by quatform's layers, not part of the user API).
 
 Every public algebra function passes its array arguments through these helpers, so that a
 wrong shape, a NaN or a non-unit quaternion is reported once, clearly, with the fix.
