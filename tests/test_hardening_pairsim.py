@@ -243,7 +243,7 @@ def yaw_step_runs():
 
 
 def _figure_of(monkeypatch, draw, *args):
-    """The matplotlib Figure a plotting function saves (its ``_save`` intercepted)."""
+    """The matplotlib Figure a plotting function saves (its ``save`` intercepted)."""
     from quatform.report import plots
 
     got = []
@@ -252,7 +252,7 @@ def _figure_of(monkeypatch, draw, *args):
         got.append(fig)
         return path
 
-    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(plots, "save", keep)
     draw(*args, "unused.png")
     return got[0]
 

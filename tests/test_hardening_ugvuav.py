@@ -273,7 +273,7 @@ def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, t
     run = simulate_ugv_uav(sc, "restricted")
     assert run.t.size == 401 and not run.reachable[0] and run.reachable[-1]
     figs = []
-    monkeypatch.setattr(uplots, "_save", lambda fig, path: figs.append(fig) or path)
+    monkeypatch.setattr(uplots, "save", lambda fig, path: figs.append(fig) or path)
     uplots.write_ugv_uav_run_plots(run, tmp_path)
     uplots.write_ugv_uav_compare_plots([run], tmp_path)
     for fig in figs:

@@ -25,7 +25,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from ..algebra import matrix_from_q
 from ..errors import InvalidInputError
 from ..planning import AIRPLANE_CASES, RigidFormationPlan, airplanes_plan
-from .plots import _new_figure, _save, _set_equalish_3d
+from .figures import new_figure, save, set_equal_3d
 
 __all__ = ["draw_rigid_formation", "plot_airplanes_figure4", "plot_rigid_formation_paths"]
 
@@ -79,7 +79,7 @@ def draw_rigid_formation(ax, plan: RigidFormationPlan, n_markers: int = 6, title
             fin = pos[k, i] + size * _FIN @ R[i].T
             ax.plot(*fin.T, color="k", lw=0.6)
     handles.append(Line2D([], [], color="0.7", lw=0.5, label="formation (time-lapse)"))
-    _set_equalish_3d(ax, np.concatenate([pos.reshape(-1, 3), cen]))
+    set_equal_3d(ax, np.concatenate([pos.reshape(-1, 3), cen]))
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
         axis.set_major_locator(MaxNLocator(5))
         axis.set_tick_params(labelsize=7)
@@ -107,11 +107,11 @@ def plot_rigid_formation_paths(plan: RigidFormationPlan, path, title: str | None
     Path
         The file written.
     """
-    fig = _new_figure((7.5, 6.5))
+    fig = new_figure((7.5, 6.5))
     ax = fig.add_subplot(projection="3d")
     handles = draw_rigid_formation(ax, plan, n_markers, title)
     ax.legend(handles=handles, fontsize=7, loc="upper left")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_airplanes_figure4(path, plans: dict | None = None, n_markers: int = 6) -> Path:
@@ -134,7 +134,7 @@ def plot_airplanes_figure4(path, plans: dict | None = None, n_markers: int = 6) 
     missing = [c for c in AIRPLANE_CASES if c not in plans]
     if missing:
         raise InvalidInputError(f"plans lacks the cases {missing}; give all of {AIRPLANE_CASES}")
-    fig = _new_figure((16.0, 5.8))
+    fig = new_figure((16.0, 5.8))
     handles = None
     for k, case in enumerate(AIRPLANE_CASES):
         ax = fig.add_subplot(1, 3, k + 1, projection="3d")
@@ -142,4 +142,4 @@ def plot_airplanes_figure4(path, plans: dict | None = None, n_markers: int = 6) 
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("Belta & Kumar 2001, Fig. 4: five airplanes in rigid formation, m = 1, a = 5, h = 10, X = Y = 20",
                  fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)

@@ -22,19 +22,19 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import FuncFormatter, MaxNLocator, MultipleLocator
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
 from ..algebra import wrap_angle
-from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES
 from ..papers import with_names
 from ..sim import Run, errors_from_robots
 from ..sim.metrics import SINGULAR_THRESHOLD
+from .figures import (DES_STYLE, DPI, MAX_POINTS, MEAS_STYLE, SINGULAR_COLOR,
+                      break_wraps, check_runs, decimate, finite, floor_ylim, intervals, new_figure, save,
+                      set_equal_3d, shade, time_xlim, unwrap)
 
 __all__ = [
     "DPI",
@@ -48,77 +48,16 @@ __all__ = [
     "write_run_plots",
 ]
 
-#: Most samples drawn per line.
-MAX_POINTS = 2000
-#: Resolution of the written PNG files.
-DPI = 110
 
-_MEAS_STYLE = {"color": "C0", "lw": 1.2, "ls": "-"}
-_DES_STYLE = {"color": "C3", "lw": 1.0, "ls": "--"}
-_SINGULAR_COLOR = "#f4b6b6"
-#: Ticks of a wrapped-angle axes (the UGV-UAV plots use them).
-_ANGLE_TICKS = (-np.pi, -np.pi / 2, 0.0, np.pi / 2, np.pi)
-_ANGLE_LABELS = ("-π", "-π/2", "0", "π/2", "π")
-#: Smallest half-height of a non-angle axes, so round-off (1e-16) is not blown up to fill it.
-_MIN_HALF_SPAN = 1e-3
 
 
 # --------------------------------------------------------------------------- helpers
 
 
-def _new_figure(figsize) -> Figure:
-    fig = Figure(figsize=figsize, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig: Figure, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
-    return path
 
 
 
 
-def _finite(a):
-    """A float copy of ``a`` with infinities replaced by NaN (matplotlib skips NaN)."""
-    a = np.array(a, dtype=float)
-    a[~np.isfinite(a)] = np.nan
-    return a
-
-
-def _decimate(n: int, max_points: int = MAX_POINTS) -> np.ndarray:
-    """Indices of at most about ``max_points`` evenly strided samples, last one kept."""
-    if n <= max_points:
-        return np.arange(n)
-    step = int(np.ceil(n / max_points))
-    idx = np.arange(0, n, step)
-    if idx[-1] != n - 1:
-        idx = np.append(idx, n - 1)
-    return idx
-
-
-def _break_wraps(y, limit=np.pi):
-    """Insert NaN where an angle trace jumps by more than ``limit`` (rad) between samples, so
-    no vertical line is drawn."""
-    y = np.asarray(y, dtype=float)
-    if y.size < 2:
-        return y
-    with np.errstate(invalid="ignore"):
-        jump = np.abs(np.diff(y)) > limit
-    out = y.copy()
-    out[1:][jump] = np.nan
-    return out
-
-
-def _unwrap(y):
-    """``np.unwrap`` of the finite samples of ``y`` (NaN stays NaN and does not spread)."""
-    y = np.array(y, dtype=float)
-    ok = np.isfinite(y)
-    if ok.any():
-        y[ok] = np.unwrap(y[ok])
-    return y
 
 
 #: A desired angle that moves more than this between samples has stepped (a [[path.steps]]).
@@ -136,7 +75,7 @@ def _angle_traces(meas, des, idx):
     there. Where a drawn trace turns by more than pi between drawn samples (the error
     passing +-pi) it is broken instead of joined by a vertical line.
     """
-    d, m = _unwrap(des), _unwrap(meas)
+    d, m = unwrap(des), unwrap(meas)
     fin = np.flatnonzero(np.isfinite(d))
     if fin.size:
         cuts = fin[1:][np.abs(np.diff(d[fin])) > _STEP_RAD]
@@ -147,7 +86,7 @@ def _angle_traces(meas, des, idx):
     meas = np.asarray(meas, dtype=float)
     aligned = np.where(np.isfinite(d), d + wrap_angle(np.nan_to_num(meas - d)), m)
     aligned[~np.isfinite(meas)] = np.nan
-    return _break_wraps(aligned[idx]), _break_wraps(d[idx])
+    return break_wraps(aligned[idx]), break_wraps(d[idx])
 
 
 def _angle_axis(ax, *series):
@@ -178,23 +117,6 @@ def _pi_label(value, _pos=None) -> str:
     return f"{'-' if n < 0 else ''}{'' if abs(n) == 1 else abs(n)}π/2"
 
 
-def _intervals(t, mask):
-    """``(start, stop)`` times of the runs of True in ``mask``."""
-    mask = np.asarray(mask, dtype=bool)
-    if not mask.any():
-        return []
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts = np.flatnonzero(edges == 1)
-    stops = np.flatnonzero(edges == -1) - 1
-    dt = float(t[1] - t[0]) if t.size > 1 else 0.0
-    return [(float(t[a]), float(t[b]) + dt) for a, b in zip(starts, stops)]
-
-
-def _shade(ax, spans):
-    for a, b in spans:
-        ax.axvspan(a, b, color=_SINGULAR_COLOR, alpha=0.6, lw=0, zorder=0)
-
-
 
 
 def _backend(runs) -> str:
@@ -214,22 +136,6 @@ def _runs_title(runs) -> str:
     return names + _backend(runs) + (f" ({sources})" if sources else "")
 
 
-def _time_xlim(ax, t0: float, t1: float):
-    if t1 > t0:
-        ax.set_xlim(t0, t1)
-
-
-def _floor_ylim(ax, *series):
-    """Give flat signals an axes at least ``2 * _MIN_HALF_SPAN`` high, with no offset text."""
-    ax.ticklabel_format(axis="y", useOffset=False)
-    vals = np.concatenate([np.ravel(s) for s in series])
-    vals = vals[np.isfinite(vals)]
-    if vals.size == 0:
-        return
-    lo, hi = float(vals.min()), float(vals.max())
-    if hi - lo < 2 * _MIN_HALF_SPAN:
-        mid = 0.5 * (lo + hi)
-        ax.set_ylim(mid - 1.1 * _MIN_HALF_SPAN, mid + 1.1 * _MIN_HALF_SPAN)
 
 
 def _unit_label(var) -> str:
@@ -242,34 +148,34 @@ def _signal_grid(fig, run: Run, meas, des, variables, ncols=4):
     n = len(variables)
     nrows = int(np.ceil(n / ncols))
     axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False)
-    idx = _decimate(run.t.size)
+    idx = decimate(run.t.size)
     t = run.t[idx]
-    spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    spans = intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
     for k, var in enumerate(variables):
         ax = axes.flat[k]
         if var.kind == "angle":  # on every sample, then decimated
-            y, yd = _angle_traces(_finite(meas[:, k]), _finite(des[:, k]), idx)
+            y, yd = _angle_traces(finite(meas[:, k]), finite(des[:, k]), idx)
             _angle_axis(ax, y, yd)
         else:
-            y, yd = _finite(meas[idx, k]), _finite(des[idx, k])
-            _floor_ylim(ax, y, yd)
-        _shade(ax, spans)
-        ax.plot(t, y, **_MEAS_STYLE)
-        ax.plot(t, yd, **_DES_STYLE)
+            y, yd = finite(meas[idx, k]), finite(des[idx, k])
+            floor_ylim(ax, y, yd)
+        shade(ax, spans)
+        ax.plot(t, y, **MEAS_STYLE)
+        ax.plot(t, yd, **DES_STYLE)
         ax.set_ylabel(_unit_label(var), fontsize=9)
         ax.tick_params(labelsize=8)
         ax.grid(True, lw=0.4, alpha=0.5)
-        _time_xlim(ax, float(run.t[0]), float(run.t[-1]))
+        time_xlim(ax, float(run.t[0]), float(run.t[-1]))
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     for k in range(n):
         if k + ncols >= n:  # lowest visible axes of its column
             axes.flat[k].set_xlabel("time [s]", fontsize=9)
             axes.flat[k].xaxis.set_tick_params(labelbottom=True)
-    handles = [Line2D([], [], **_MEAS_STYLE, label="measured"),
-               Line2D([], [], **_DES_STYLE, label="desired")]
+    handles = [Line2D([], [], **MEAS_STYLE, label="measured"),
+               Line2D([], [], **DES_STYLE, label="desired")]
     if spans:
-        handles.append(Patch(color=_SINGULAR_COLOR, alpha=0.6,
+        handles.append(Patch(color=SINGULAR_COLOR, alpha=0.6,
                              label=f"singular (measure < {SINGULAR_THRESHOLD:g})"))
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9,
                frameon=False)
@@ -280,12 +186,6 @@ def _grid_figsize(n, ncols=4):
     nrows = int(np.ceil(n / ncols))
     return (3.2 * ncols, 1.9 * nrows + 1.1)
 
-
-def _check_runs(runs) -> list:
-    runs = list(runs)
-    if not runs:
-        raise InvalidInputError("runs: need at least one Run to compare")
-    return runs
 
 
 # --------------------------------------------------------------------------- one run
@@ -325,10 +225,10 @@ def plot_cluster_variables(run: Run, path) -> Path:
     else:
         variables, meas, des = F.variables, run.c, run.c_des
         subtitle = f"{F.name} cluster variables"
-    fig = _new_figure(_grid_figsize(len(variables)))
+    fig = new_figure(_grid_figsize(len(variables)))
     _signal_grid(fig, run, np.asarray(meas), np.asarray(des), variables)
     fig.suptitle(f"{_title(run)}\n{subtitle}", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_euclidean(run: Run, path) -> Path:
@@ -350,26 +250,11 @@ def plot_euclidean(run: Run, path) -> Path:
     Path
         The file written.
     """
-    fig = _new_figure(_grid_figsize(len(EUCLIDEAN_VARIABLES)))
+    fig = new_figure(_grid_figsize(len(EUCLIDEAN_VARIABLES)))
     _signal_grid(fig, run, np.asarray(run.e), np.asarray(run.e_des), EUCLIDEAN_VARIABLES)
     fig.suptitle(f"{_title(run)}\nEuclidean variables (monitoring view)", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
-
-def _set_equalish_3d(ax, pts, min_fraction=0.25):
-    """Limits with one scale on every axis; an axis spans at least ``min_fraction`` of the largest."""
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if pts.size == 0:
-        return
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    center = 0.5 * (lo + hi)
-    span = hi - lo
-    big = max(float(span.max()), 1e-3)
-    span = np.maximum(span, min_fraction * big) * 1.1
-    ax.set_xlim(center[0] - span[0] / 2, center[0] + span[0] / 2)
-    ax.set_ylim(center[1] - span[1] / 2, center[1] + span[1] / 2)
-    ax.set_zlim(center[2] - span[2] / 2, center[2] + span[2] / 2)
-    ax.set_box_aspect(tuple(span / big))
 
 
 def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
@@ -394,10 +279,10 @@ def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
     Path
         The file written.
     """
-    r, rd = _finite(run.r), _finite(run.r_des)
-    fig = _new_figure((8.0, 6.8))
+    r, rd = finite(run.r), finite(run.r_des)
+    fig = new_figure((8.0, 6.8))
     ax = fig.add_subplot(projection="3d")
-    idx = _decimate(r.shape[0])
+    idx = decimate(r.shape[0])
     ks = np.unique(np.linspace(0, r.shape[0] - 1, max(1, int(n_segments)) + 1).round().astype(int))
     for k in ks:  # first, so the paths are drawn over them
         seg = np.stack([r[k, 0:3], r[k, 4:7]])
@@ -413,14 +298,14 @@ def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
                 Line2D([], [], color="k", marker="o", ls="none", label="start (measured)"),
                 Line2D([], [], color="k", marker="s", mfc="none", ls="none", label="start (desired)")]
     ax.legend(handles=handles, fontsize=8, loc="upper left")
-    _set_equalish_3d(ax, np.concatenate([r[:, 0:3], r[:, 4:7], rd[:, 0:3], rd[:, 4:7]]))
+    set_equal_3d(ax, np.concatenate([r[:, 0:3], r[:, 4:7], rd[:, 0:3], rd[:, 4:7]]))
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
         axis.set_major_locator(MaxNLocator(5))
         axis.set_tick_params(labelsize=8)
         axis.set_label_text(f"{name} [m]")
         axis.labelpad = 8
     ax.set_title(_title(run), fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # --------------------------------------------------------------------------- several runs
@@ -479,16 +364,16 @@ def plot_compare(runs, path, linthresh: float = 1e-3) -> Path:
     InvalidInputError
         If ``runs`` is empty.
     """
-    runs = _check_runs(runs)
+    runs = check_runs(runs)
     sig = [_compare_signals(run) for run in runs]
-    fig = _new_figure((9.0, 10.0))
+    fig = new_figure((9.0, 10.0))
     axes = fig.subplots(len(_COMPARE_ROWS), 1, sharex=True)
     for row, (key, label) in enumerate(_COMPARE_ROWS):
         ax = axes[row]
         peak = 0.0
         for j, (run, s) in enumerate(zip(runs, sig)):
-            idx = _decimate(run.t.size)
-            y = _finite(s[key])
+            idx = decimate(run.t.size)
+            y = finite(s[key])
             if np.isfinite(y).any():
                 peak = max(peak, float(np.nanmax(np.abs(y))))
             ax.plot(run.t[idx], y[idx], color=f"C{j}", lw=1.1, label=run.controller.name)
@@ -500,14 +385,14 @@ def plot_compare(runs, path, linthresh: float = 1e-3) -> Path:
         ax.tick_params(labelsize=8)
         ax.grid(True, lw=0.4, alpha=0.5)
     t_end = max(float(run.t[-1]) for run in runs)
-    _time_xlim(axes[-1], min(float(run.t[0]) for run in runs), t_end)
+    time_xlim(axes[-1], min(float(run.t[0]) for run in runs), t_end)
     axes[-1].set_xlabel("time [s]")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(runs), 4), fontsize=9,
                frameon=False)
     fig.suptitle(f"{_runs_title(runs)}\nerrors by controller (symlog, linear within ±{linthresh:g})",
                  fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_separation(runs, path) -> Path:
@@ -534,26 +419,26 @@ def plot_separation(runs, path) -> Path:
     InvalidInputError
         If ``runs`` is empty.
     """
-    runs = _check_runs(runs)
-    fig = _new_figure((9.0, 4.2))
+    runs = check_runs(runs)
+    fig = new_figure((9.0, 4.2))
     ax = fig.add_subplot()
     for j, run in enumerate(runs):
-        idx = _decimate(run.t.size)
-        r = _finite(run.r)
+        idx = decimate(run.t.size)
+        r = finite(run.r)
         D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)  # NaN where a robot is not finite
         ax.plot(run.t[idx], D[idx], color=f"C{j}", lw=1.2, label=run.controller.name)
     first = runs[0]
-    idx = _decimate(first.t.size)
-    ax.plot(first.t[idx], 2.0 * _finite(first.e_des[idx, 5]), color="k", lw=1.0, ls="--",
+    idx = decimate(first.t.size)
+    ax.plot(first.t[idx], 2.0 * finite(first.e_des[idx, 5]), color="k", lw=1.0, ls="--",
             label="desired (2 d_c)")
     ax.set_ylim(bottom=0.0)
-    _time_xlim(ax, min(float(run.t[0]) for run in runs), max(float(run.t[-1]) for run in runs))
+    time_xlim(ax, min(float(run.t[0]) for run in runs), max(float(run.t[-1]) for run in runs))
     ax.set_xlabel("time [s]")
     ax.set_ylabel("separation |p1 - p2| [m]")
     ax.grid(True, lw=0.4, alpha=0.5)
     ax.legend(fontsize=9, loc="lower right")
     ax.set_title(f"{_runs_title(runs)}\nrobot separation", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # --------------------------------------------------------------------------- files
@@ -610,7 +495,7 @@ def write_compare_plots(runs, out_dir) -> list[Path]:
     list of Path
         The files written, in that order.
     """
-    runs = _check_runs(runs)
+    runs = check_runs(runs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return [plot_compare(runs, out / "compare_errors.png"),

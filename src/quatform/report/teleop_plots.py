@@ -26,7 +26,7 @@ import numpy as np
 from ..sim.teleop import TeleopRun
 from ..algebra import wrap_angle
 from ..teleop import rpy_from_q
-from .plots import _break_wraps, _decimate, _new_figure, _save
+from .figures import break_wraps, decimate, new_figure, save
 
 __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
            "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
@@ -51,7 +51,7 @@ def _rpy_traces(r_m, r_s):
     a_m, a_s = rpy_from_q(r_m), rpy_from_q(r_s)
     m = np.unwrap(a_m, axis=0)
     s = m + wrap_angle(a_s - a_m)
-    return tuple(np.stack([_break_wraps(x[:, k], np.pi / 2) for k in range(3)], axis=1) for x in (m, s))
+    return tuple(np.stack([break_wraps(x[:, k], np.pi / 2) for k in range(3)], axis=1) for x in (m, s))
 
 
 #: Half-width of the band around pitch ±90 deg shaded as gimbal lock, deg: within it roll and
@@ -103,9 +103,9 @@ def _spans(t, mask):
 
 def plot_teleop_tracking(run: TeleopRun, path) -> Path:
     """Tool positions of master and slave, and the errors between them."""
-    i = _decimate(len(run.t))
+    i = decimate(len(run.t))
     t = run.t[i]
-    fig = _new_figure((10, 7))
+    fig = new_figure((10, 7))
     axes = fig.subplots(2, 2, sharex=True)
     for k, lab in enumerate("xyz"):
         ax = axes.flat[k]
@@ -123,14 +123,14 @@ def plot_teleop_tracking(run: TeleopRun, path) -> Path:
     for ax in axes[1]:
         ax.set_xlabel("t (s)")
     fig.suptitle(_title(run))
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_teleop_torques(run: TeleopRun, path) -> Path:
     """Joint torques sent to each arm, with the limits dashed."""
-    i = _decimate(len(run.t))
+    i = decimate(len(run.t))
     t = run.t[i]
-    fig = _new_figure((10, 6))
+    fig = new_figure((10, 6))
     axes = fig.subplots(2, 1, sharex=True)
     for ax, tau, lim, name in ((axes[0], run.tau_m, run.controller.master_limits, "master"),
                                (axes[1], run.tau_s, run.controller.slave_limits, "slave")):
@@ -147,7 +147,7 @@ def plot_teleop_torques(run: TeleopRun, path) -> Path:
                 ax.axhline(-j, color="k", ls=":", lw=0.8)
     axes[1].set_xlabel("t (s)")
     fig.suptitle(_title(run) + " - torques (limits dotted)", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_teleop_orientation(run: TeleopRun, path) -> Path:
@@ -157,13 +157,13 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
     wrapped RPY difference are not drawn there (:func:`_orientation_traces`), the angle
     between the tools is.
     """
-    i = _decimate(len(run.t))
+    i = decimate(len(run.t))
     t = run.t[i]
     tr = _orientation_traces(run.r_m[i], run.r_s[i], run.angle[i])
     a_m, a_s = np.degrees(tr.master), np.degrees(tr.slave)
     spans = _spans(t, tr.lock)
     lock_label = f"gimbal lock (|pitch| > {90 - GIMBAL_LOCK_DEG:g}°): roll, yaw undefined"
-    fig = _new_figure((10, 6.5))
+    fig = new_figure((10, 6.5))
     axes = fig.subplots(4, 1, sharex=True)
     for ax in axes:
         for k, (t0, t1) in enumerate(spans):
@@ -193,20 +193,20 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
     axes[3].grid(alpha=0.3, which="both")
     fig.suptitle(_title(run) + "\nroll-pitch-yaw (gimbal lock at pitch ±90°); the slave drawn as the master + the "
                  "wrapped difference", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_teleop_contact(run: TeleopRun, path) -> Path:
     """Contact force against eq. (13), and the force reflected to the operator."""
     sc = run.scenario
-    i = _decimate(len(run.t))
+    i = decimate(len(run.t))
     t = run.t[i]
     n = np.asarray(sc.wall.normal, float)
     n = n / np.linalg.norm(n)
     F = -run.F_s @ n  # the wall's push on the slave, along its normal
     F13 = -(sc.gains_slave.kp[0:3] * (run.p_m - run.p_s)) @ n
     refl = np.linalg.norm(run.F_reflected, axis=1)
-    fig = _new_figure((10, 4.5))
+    fig = new_figure((10, 4.5))
     ax = fig.subplots()
     ax.plot(t, F[i], color="C0", lw=1.4, label="contact force (N)")
     ax.plot(t, F13[i], color="C3", ls="--", lw=1.0, label="eq. (13): K_ps (x_m - x_s)")
@@ -218,7 +218,7 @@ def plot_teleop_contact(run: TeleopRun, path) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.suptitle(_title(run) + " - contact (holds dotted)", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
@@ -227,10 +227,10 @@ def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
     steps = [np.asarray(k[1], float) for k in sc.push.keys]
     nz = [s for s in steps if np.linalg.norm(s) > 1e-9]
     u = nz[0] / np.linalg.norm(nz[0]) if nz else np.array([1.0, 0.0, 0.0])
-    i = _decimate(len(run.t))
+    i = decimate(len(run.t))
     x = (run.p_s[i] - run.p_s[0]) @ u
     e = (run.p_m[i] - run.p_s[i]) @ u
-    fig = _new_figure((10, 4.5))
+    fig = new_figure((10, 4.5))
     ax1, ax2 = fig.subplots(1, 2)
     ax1.plot(1e3 * x, 1e3 * e, color="C0", lw=1.0)
     ax1.set_xlabel("slave displacement along the push (mm)")
@@ -243,14 +243,14 @@ def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
     ax2.set_ylabel("master - slave along the push (mm)")
     ax2.grid(alpha=0.3)
     fig.suptitle(_title(run) + " - hysteresis of the master", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
     """Depth of the master's tool into its virtual walls, and the hand's force."""
-    i = _decimate(len(run.t))
+    i = decimate(len(run.t))
     t = run.t[i]
-    fig = _new_figure((10, 4.5))
+    fig = new_figure((10, 4.5))
     ax1, ax2 = fig.subplots(1, 2)
     for k, w in enumerate(run.scenario.virtual_walls):
         ax1.plot(t, 1e3 * w.thickness_m * run.wall_depth[i, k], color=f"C{k}", label=f"wall {k + 1}")
@@ -268,7 +268,7 @@ def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
     ax2.set_ylabel("hand force on the master (N)")
     ax2.grid(alpha=0.3)
     fig.suptitle(_title(run) + " - virtual wall", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def write_teleop_plots(run: TeleopRun, out_dir) -> list[Path]:

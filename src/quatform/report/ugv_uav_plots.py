@@ -37,23 +37,23 @@ from ..formations import UgvUavSpherical
 from ..papers import PAPERS, with_names
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.ugv_uav import UGV_UAV_FORMATIONS, UgvUavRun
-from .plots import (
-    _ANGLE_LABELS,
-    _ANGLE_TICKS,
-    _DES_STYLE,
-    _MEAS_STYLE,
-    _SINGULAR_COLOR,
-    _break_wraps,
-    _check_runs,
-    _decimate,
-    _finite,
-    _floor_ylim,
-    _intervals,
-    _new_figure,
-    _save,
-    _set_equalish_3d,
-    _shade,
-    _time_xlim,
+from .figures import (
+    ANGLE_LABELS,
+    ANGLE_TICKS,
+    DES_STYLE,
+    MEAS_STYLE,
+    SINGULAR_COLOR,
+    break_wraps,
+    check_runs,
+    decimate,
+    finite,
+    floor_ylim,
+    intervals,
+    new_figure,
+    save,
+    set_equal_3d,
+    shade,
+    time_xlim,
 )
 
 __all__ = [
@@ -111,7 +111,7 @@ def _unreachable_spans(run: UgvUavRun):
     """Intervals where the description could not express the reference (the robots waited)."""
     if run.reachable is None or run.t.size == 0:
         return []
-    return _intervals(run.t, ~np.asarray(run.reachable, dtype=bool))
+    return intervals(run.t, ~np.asarray(run.reachable, dtype=bool))
 
 
 def _shade_unreachable(ax, spans):
@@ -136,14 +136,14 @@ def _unreachable_note(run: UgvUavRun) -> str:
 
 def _empty_figure(run: UgvUavRun, path, figsize) -> Path:
     """A figure with only the reason why ``run`` has no samples."""
-    fig = _new_figure(figsize)
+    fig = new_figure(figsize)
     ax = fig.add_subplot()
     ax.set_axis_off()
     width = max(30, int(9.5 * figsize[0]))
     ax.text(0.5, 0.5, textwrap.fill(_unreachable_text(run), width), ha="center", va="center",
             fontsize=11, color="C3", transform=ax.transAxes)
     fig.suptitle(_title(run), fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _desired_robots(run: UgvUavRun) -> np.ndarray:
@@ -162,12 +162,12 @@ def _actual_robots(run: UgvUavRun) -> np.ndarray:
 
 def _angle_axis(ax):
     ax.set_ylim(-np.pi - 0.35, np.pi + 0.35)
-    ax.set_yticks(_ANGLE_TICKS, _ANGLE_LABELS)
+    ax.set_yticks(ANGLE_TICKS, ANGLE_LABELS)
 
 
 def _wrapped(y):
     """``y`` folded into ``[-pi, pi)`` with NaN at the folds, so no vertical line is drawn."""
-    return _break_wraps(wrap_angle(_finite(y)))
+    return break_wraps(wrap_angle(finite(y)))
 
 
 def _switch_time(run: UgvUavRun):
@@ -179,21 +179,21 @@ def _switch_time(run: UgvUavRun):
 
 
 def _decorate_time_axes(ax, run: UgvUavRun, spans):
-    _shade(ax, spans)
+    shade(ax, spans)
     _shade_unreachable(ax, _unreachable_spans(run))
     ts = _switch_time(run)
     if ts is not None:
         ax.axvline(ts, **_SWITCH_STYLE, zorder=1)
     ax.tick_params(labelsize=8)
     ax.grid(True, lw=0.4, alpha=0.5)
-    _time_xlim(ax, float(run.t[0]), float(run.t[-1]))
+    time_xlim(ax, float(run.t[0]), float(run.t[-1]))
 
 
 def _extra_handles(run: UgvUavRun, spans) -> list:
     """Legend entries of the singular shading and the switch line, where drawn."""
     handles = []
     if spans:
-        handles.append(Patch(color=_SINGULAR_COLOR, alpha=0.6,
+        handles.append(Patch(color=SINGULAR_COLOR, alpha=0.6,
                              label=f"singular (measure < {SINGULAR_THRESHOLD:g})"))
     if _unreachable_spans(run):
         handles.append(Patch(color=_UNREACHABLE_COLOR, alpha=0.6,
@@ -260,10 +260,10 @@ def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
     """
     if run.t.size == 0:
         return _empty_figure(run, path, (8.0, 6.8))
-    r, rd = _finite(_actual_robots(run)), _finite(_desired_robots(run))
-    fig = _new_figure((8.0, 6.8))
+    r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
+    fig = new_figure((8.0, 6.8))
     ax = fig.add_subplot(projection="3d")
-    idx = _decimate(r.shape[0])
+    idx = decimate(r.shape[0])
     ks = np.unique(np.linspace(0, r.shape[0] - 1, max(1, int(n_segments)) + 1).round().astype(int))
     for k in ks:  # first, so the paths are drawn over them
         seg = np.stack([r[k, 0:3], r[k, 3:6]])
@@ -279,14 +279,14 @@ def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
                 Line2D([], [], color="k", marker="o", ls="none", label="start (measured)"),
                 Line2D([], [], color="k", marker="s", mfc="none", ls="none", label="start (desired)")]
     ax.legend(handles=handles, fontsize=8, loc="upper left")
-    _set_equalish_3d(ax, np.concatenate([r[:, 0:3], r[:, 3:6], rd[:, 0:3], rd[:, 3:6]]))
+    set_equal_3d(ax, np.concatenate([r[:, 0:3], r[:, 3:6], rd[:, 0:3], rd[:, 3:6]]))
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
         axis.set_major_locator(MaxNLocator(5))
         axis.set_tick_params(labelsize=8)
         axis.set_label_text(f"{name} [m]")
         axis.labelpad = 8
     ax.set_title(f"{_title(run)}{_subtitle_note(run)}", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _cluster_rows(run: UgvUavRun):
@@ -295,7 +295,7 @@ def _cluster_rows(run: UgvUavRun):
     ``kind`` is ``'angle'``, ``'quaternion'`` (4 columns; the error is the rotation angle)
     or ``'linear'``.
     """
-    c, cd = _finite(run.c), _finite(run.c_des)
+    c, cd = finite(run.c), finite(run.c_des)
     variables = UGV_UAV_FORMATIONS[run.formation].variables
     if run.formation == "quaternion":
         q_err = _quaternion_angle(c[:, 3:7], cd[:, 3:7])
@@ -342,11 +342,11 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
         return _empty_figure(run, path, (11.0, 6.0))
     rows = _cluster_rows(run)
     n = len(rows)
-    fig = _new_figure((11.0, 1.65 * n + 1.4))
+    fig = new_figure((11.0, 1.65 * n + 1.4))
     axes = fig.subplots(n, 2, sharex=True, squeeze=False)
-    idx = _decimate(run.t.size)
+    idx = decimate(run.t.size)
     t = run.t[idx]
-    spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    spans = intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
     for row, (label, y, yd, err, kind) in enumerate(rows):
         ax, ax_e = axes[row]
         _decorate_time_axes(ax, run, spans)
@@ -359,17 +359,17 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
             ax.legend(fontsize=7, ncols=4, loc="lower right", framealpha=0.7, handlelength=1.2)
             ax_e.set_ylabel("q_c error:\nangle [rad]", fontsize=9)
         elif kind == "angle":
-            ax.plot(t, _wrapped(y[idx]), **_MEAS_STYLE)
-            ax.plot(t, _wrapped(yd[idx]), **_DES_STYLE)
+            ax.plot(t, _wrapped(y[idx]), **MEAS_STYLE)
+            ax.plot(t, _wrapped(yd[idx]), **DES_STYLE)
             _angle_axis(ax)
             ax_e.set_ylabel(f"e({label.split(' ')[0]})\n[rad]", fontsize=9)
         else:
-            ax.plot(t, y[idx], **_MEAS_STYLE)
-            ax.plot(t, yd[idx], **_DES_STYLE)
-            _floor_ylim(ax, y[idx], yd[idx])
+            ax.plot(t, y[idx], **MEAS_STYLE)
+            ax.plot(t, yd[idx], **DES_STYLE)
+            floor_ylim(ax, y[idx], yd[idx])
             ax_e.set_ylabel(f"e({label.split(' ')[0]})\n[m]", fontsize=9)
         ax.set_ylabel(label, fontsize=9)
-        e = _finite(err)
+        e = finite(err)
         mean, lo, hi = _filtered(run.t, e, stride=max(1, idx[1] - idx[0]) if len(idx) > 1 else 1)
         ax_e.fill_between(t, lo[idx], hi[idx], color="C2", alpha=0.25, lw=0)
         ax_e.plot(t, mean[idx], color="C2", lw=1.1)
@@ -379,15 +379,15 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
                          fontsize=10)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]", fontsize=9)
-    handles = [Line2D([], [], **_MEAS_STYLE, label="measured"),
-               Line2D([], [], **_DES_STYLE, label="desired"),
+    handles = [Line2D([], [], **MEAS_STYLE, label="measured"),
+               Line2D([], [], **DES_STYLE, label="desired"),
                Line2D([], [], color="C2", lw=1.1, label=f"error (measured - desired), {FILTER_WINDOW_S:g} s mean"),
                Patch(color="C2", alpha=0.25, label=f"error min-max over {FILTER_WINDOW_S:g} s")]
     handles += _extra_handles(run, spans)
     fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 3), fontsize=9,
                frameon=False)
     fig.suptitle(f"{_title(run)}{_subtitle_note(run)}", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
@@ -413,13 +413,13 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
     """
     if run.t.size == 0:
         return _empty_figure(run, path, (11.0, 6.4))
-    r, rd = _finite(_actual_robots(run)), _finite(_desired_robots(run))
-    ugv_psi, uav_psi = _finite(run.ugv[:, 2]), _finite(run.uav[:, 3])
-    fig = _new_figure((11.0, 6.4))
+    r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
+    ugv_psi, uav_psi = finite(run.ugv[:, 2]), finite(run.uav[:, 3])
+    fig = new_figure((11.0, 6.4))
     axes = fig.subplots(2, 2, sharex=True)
-    idx = _decimate(run.t.size)
+    idx = decimate(run.t.size)
     t = run.t[idx]
-    spans = _intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    spans = intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
     for row, (name, cols) in enumerate((("UGV", (0, 1)), ("UAV", (3, 4, 5)))):
         ax = axes[row, 0]
         _decorate_time_axes(ax, run, spans)
@@ -428,7 +428,7 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
             ax.plot(t, r[idx, col], color=_XYZ_COLORS[j], lw=1.2, ls="-", label="xyz"[j])
             ax.plot(t, rd[idx, col], color=_XYZ_COLORS[j], lw=1.0, ls="--")
             series += [r[idx, col], rd[idx, col]]
-        _floor_ylim(ax, *series)
+        floor_ylim(ax, *series)
         ax.set_ylabel(f"{name} position [m]", fontsize=9)
         ax.legend(fontsize=8, ncols=len(cols), loc="upper right", framealpha=0.7, handlelength=1.5)
     ax = axes[0, 1]
@@ -452,7 +452,7 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
     fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 3), fontsize=9,
                frameon=False)
     fig.suptitle(f"{_title(run)}{_subtitle_note(run)}\nrobots", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # --------------------------------------------------------------------------- several runs
@@ -466,7 +466,7 @@ def _compare_label(run: UgvUavRun) -> str:
 @np.errstate(invalid="ignore")
 def _robot_errors(run: UgvUavRun):
     """Position errors ``|p_ugv - p_ugv_des|`` (x, y) and ``|p_uav - p_uav_des|`` (x, y, z)."""
-    r, rd = _finite(_actual_robots(run)), _finite(_desired_robots(run))
+    r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
     return (np.linalg.norm(r[:, 0:2] - rd[:, 0:2], axis=1),
             np.linalg.norm(r[:, 3:6] - rd[:, 3:6], axis=1))
 
@@ -500,8 +500,8 @@ def plot_ugv_uav_compare(runs, path) -> Path:
     InvalidInputError
         If ``runs`` is empty.
     """
-    runs = _check_runs(runs)
-    fig = _new_figure((9.0, 9.0))
+    runs = check_runs(runs)
+    fig = new_figure((9.0, 9.0))
     axes = fig.subplots(4, 1, sharex=True)
     peaks = [0.0, 0.0]
     for j, run in enumerate(runs):
@@ -510,7 +510,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
             for ax in axes:
                 ax.plot([], [], color=color, lw=1.1, label=label)
             continue
-        idx = _decimate(run.t.size)
+        idx = decimate(run.t.size)
         t = run.t[idx]
         stride = max(1, idx[1] - idx[0]) if len(idx) > 1 else 1
         for row, err in enumerate(_robot_errors(run)):
@@ -520,7 +520,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
             axes[row].fill_between(t, lo[idx], hi[idx], color=color, alpha=0.2, lw=0)
             axes[row].plot(t, mean[idx], color=color, lw=1.1, label=label)
         axes[2].plot(t, _wrapped(np.asarray(run.e)[idx, 4]), color=color, lw=1.1, label=label)
-        axes[3].plot(t, _finite(run.singularity)[idx], color=color, lw=1.1, label=label)
+        axes[3].plot(t, finite(run.singularity)[idx], color=color, lw=1.1, label=label)
     axes[0].set_title(f"position errors: {FILTER_WINDOW_S:g} s moving mean, band: min-max", fontsize=9)
     for row, label in enumerate(("UGV position\nerror [m]", "UAV position\nerror [m]")):
         ax = axes[row]
@@ -530,7 +530,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
     longest = max(runs, key=lambda run: run.t.size)
     extra = []
     if longest.t.size:
-        idx = _decimate(longest.t.size)
+        idx = decimate(longest.t.size)
         axes[2].plot(longest.t[idx], _wrapped(np.asarray(longest.e_des)[idx, 4]), color="k", lw=1.0,
                      ls="--", zorder=3)
         extra.append(Line2D([], [], color="k", lw=1.0, ls="--", label="desired α_c"))
@@ -550,7 +550,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
         ax.grid(True, lw=0.4, alpha=0.5)
     ran = [run for run in runs if run.t.size]
     if ran:
-        _time_xlim(axes[-1], min(float(run.t[0]) for run in ran),
+        time_xlim(axes[-1], min(float(run.t[0]) for run in ran),
                    max(float(run.t[-1]) for run in ran))
     axes[-1].set_xlabel("time [s]")
     handles, _ = axes[0].get_legend_handles_labels()
@@ -559,7 +559,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
                frameon=False)
     names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
     fig.suptitle(f"{names} - UGV-UAV descriptions compared ({_PAPER})", fontsize=11)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # --------------------------------------------------------------------------- files
@@ -607,7 +607,7 @@ def write_ugv_uav_compare_plots(runs, out_dir) -> list[Path]:
     InvalidInputError
         If ``runs`` is empty.
     """
-    runs = _check_runs(runs)
+    runs = check_runs(runs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return [plot_ugv_uav_compare(runs, out / "compare_formations.png")]
