@@ -1,0 +1,52 @@
+"""The robot-model contract: what a robot offers a formation and how it is commanded.
+
+Robots layer (above formations). DQ Robotics' ``DQ_Kinematics`` is the model: any law works
+with any robot, because the robot, the task (the formation) and the law are independent
+axes. A robot model says
+
+* ``point_kind``: the point it offers a formation (a
+  :data:`~quatform.formations.layout.POINT_KINDS` key: a holonomic 4-DOF robot offers
+  ``xyz_yaw``; the Pioneer 3-DX its control point; the Bebop 2 its position ``xyz``, its yaw
+  being controlled outside the formation, seed 001 §4.3.3);
+* ``state_columns`` / ``command_columns``: its own state and commands;
+* ``point(x)``: the point of its state ``x``;
+* ``actuate(x, rate, t, memory) -> (u, memory)``: how a rate of its point (and, for a robot
+  whose yaw is outside the formation, the yaw rate appended) becomes its commands (identity;
+  Pioneer seed 001 eq. (3.5); Bebop eq. (3.10) with the dynamic compensation (4.47), whose
+  differentiated reference is the ``memory`` carried in the controller's state);
+* ``saturate(u)``: commands within its limits, finite;
+* ``step(x, u, dt) -> x``: its own motion for a held command (the kinematic plant).
+
+A :class:`Team` is a tuple of models and the :class:`~quatform.formations.layout.RobotLayout`
+of the points they offer. Every method takes leading batch axes.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["RobotModel"]
+
+
+@runtime_checkable
+class RobotModel(Protocol):
+    """Structural type of a robot model (see the module docstring)."""
+
+    name: str
+    point_kind: str
+    state_columns: tuple
+    command_columns: tuple
+
+    def point(self, x) -> np.ndarray:
+        """The point this robot offers a formation, shape ``(..., size of point_kind)``."""
+
+    def actuate(self, x, rate, t: float, memory: Any) -> tuple[np.ndarray, Any]:
+        """Commands (shape ``(..., len(command_columns))``) that move the point at ``rate``."""
+
+    def saturate(self, u) -> np.ndarray:
+        """``u`` within the robot's limits; a non-finite command becomes a stop."""
+
+    def step(self, x, u, dt: float) -> np.ndarray:
+        """State after ``dt`` s of the (saturated) command ``u``."""
