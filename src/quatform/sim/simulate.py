@@ -74,7 +74,8 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     Log
         Channels ``state`` (the plant state at each tick, before its command acts),
         ``measured`` (what the controller read), ``command`` and every signal the
-        controller returns, each ``(T, *batch, k)``.
+        controller returns, each ``(T, *batch, k)``; ``meta["controller_state"]`` is the
+        controller's state after the last tick (why it stopped, what it held ...).
     """
     times = np.asarray(times, dtype=float)
     if times.ndim != 1:
@@ -126,4 +127,4 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
              Channel("command", controller.command_names, stack(us, len(controller.command_names)))]
     for key, cols in columns.items():
         chans.append(Channel(key, cols, stack(sig[key], len(cols))))
-    return Log(times, chans, {"controller": controller.name, **(meta or {})})
+    return Log(times, chans, {"controller": controller.name, "controller_state": state, **(meta or {})})
