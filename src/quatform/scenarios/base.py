@@ -13,16 +13,17 @@ names its :class:`ScenarioKind` (``pair`` when absent: seed 000's two robots). A
 * builds an :class:`Experiment` for a scenario and a choice: the plant, the controller, the
   reference, the measurement model, the initial state and the times that
   :func:`quatform.sim.simulate` runs, and what to compute from the resulting log (derived
-  channels, metrics, figures).
+  channels and metrics).
 
-The generic run and compare of :mod:`quatform.runs` know nothing else about a kind.
+Figures and writers are the report layer's (above this one): :data:`quatform.report.FIGURES`
+maps a kind's name to its figure functions. The generic run and compare of
+:mod:`quatform.runs` know nothing else about a kind.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Callable
 
 from ..sim.log import Log
@@ -77,8 +78,6 @@ class Experiment:
         Adds the derived channels (desired values, chart variables, singularity measure ...).
     metrics : callable ``Log -> dict``
         The run's ``metrics.json`` (without ``wall_time_s``, which the runner adds).
-    figures : callable ``(Log, Path) -> list of Path``
-        Writes the run's figures into a folder.
     csv_channels : tuple of str, optional
         Channels written to ``timeseries.csv`` in order (default: all).
     meta : dict
@@ -97,7 +96,6 @@ class Experiment:
     measurement: Any = None
     finish: Callable[[Log], Log] = lambda log: log
     metrics: Callable[[Log], dict] = lambda log: {}
-    figures: Callable[[Log, Path], list] = lambda log, out: []
     csv_channels: tuple | None = None
     meta: dict = field(default_factory=dict)
 
@@ -130,7 +128,3 @@ class ScenarioKind(ABC):
     @abstractmethod
     def experiment(self, scenario, **options) -> Experiment:
         """The run of ``scenario`` with the given :attr:`options` (missing ones: their default)."""
-
-    def compare_figures(self, logs: list, out: Path) -> list:
-        """Figures comparing the runs of a compare (default: none)."""
-        return []
