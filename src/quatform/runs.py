@@ -17,10 +17,10 @@ import time
 from pathlib import Path
 
 from .control import CONTROLLERS
+from .scenarios.pair import run_pair
 from .sim import (
     compute_metrics,
     load_scenario,
-    simulate,
     write_columns,
     write_metrics,
     write_timeseries,
@@ -196,16 +196,16 @@ def _pair_into(sc, controller, out, label, plots, quiet, backend, ff):
     t0 = time.perf_counter()
     progress = None if quiet else _progress(f"{sc.name} / {controller} / {backend}")
     if backend == "mujoco":
-        from .sim.mujoco_backend import simulate_physics
+        from .scenarios.pair import simulate_physics
 
         run, record = simulate_physics(sc, controller, feedforward=ff, progress=progress)
     else:
-        run = simulate(sc, controller, feedforward=ff, progress=progress)
+        run = run_pair(sc, controller, feedforward=ff, progress=progress)
     metrics = compute_metrics(run)
     metrics["feedforward"] = ff
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     if backend == "mujoco":
-        _add_physics(metrics, record, run, compute_metrics(simulate(sc, controller, feedforward=ff)), out, plots)
+        _add_physics(metrics, record, run, compute_metrics(run_pair(sc, controller, feedforward=ff)), out, plots)
     write_timeseries(run, out / "timeseries.csv")
     if plots:
         from .report import write_run_plots

@@ -8,10 +8,10 @@ raises :class:`~quatform.errors.MissingDependencyError` naming
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* :func:`simulate_physics` - a seed 000 scenario (two quadrotors) in closed loop with
-  any of the four formation controllers, through the same ``closed_loop`` as the
-  kinematic :func:`~quatform.sim.simulate`; returns the same :class:`~quatform.sim.Run`
-  and a :class:`PhysicsRecord` (collisions, MJCF, body poses for the pictures).
+* :func:`pair_plant` - the plant of a seed 000 scenario (two quadrotors) for any of the
+  four formation controllers, run by the one :func:`~quatform.sim.simulate` like the
+  kinematic team (:func:`quatform.scenarios.pair.run_physics`), and what makes its
+  :class:`PhysicsRecord` (collisions, MJCF, body poses for the pictures).
 * :func:`simulate_ugv_uav_physics` - a seed 001 scenario with a Pioneer-like UGV and a
   quadrotor flown in Bebop-like attitude mode, the controller's dynamic compensation
   (4.47) using ``K1..K8`` identified from the simulated quadrotor (:func:`identify_k`).
@@ -29,10 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
+from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError, MissingDependencyError, NonFiniteError
-from ..formations import EuclideanPair, RobotSpace
-from ..references import sample_reference
 from ..robots import Bebop
 from ..robots.physics import (
     GRAVITY,
@@ -46,11 +44,10 @@ from ..robots.physics import (
     wheel_speeds,
     world_mjcf,
 )
-from .loop import PerfectMeasurement, closed_loop
-from .runner import Run
 
 __all__ = ["BACKEND_LABEL", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "ContactMonitor", "PhysicsRecord",
-           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "simulate_physics",
+           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "pair_plant",
+           "PairPhysics", "QuadPairPlant",
            "simulate_ugv_uav_physics"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
@@ -63,7 +60,7 @@ BACKEND_LABEL = "MuJoCo physics"
 #: mass) is a physical result.
 IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 
-#: Seed 000 gains for two IRIS quadrotors, used by :func:`simulate_physics` where a
+#: Seed 000 gains for two IRIS quadrotors, used by :func:`pair_plant` where a
 #: scenario asks for Table 1 (seed 000 §4.1: kinematic MATLAB robots). Table 1's loops are
 #: up to 20 1/s fast; the quadrotor follows a velocity command through its PX4-like PI
 #: velocity loop (1.8, 0.4: a lag of ~0.55 s), so a proportional outer loop on it has a
@@ -488,20 +485,63 @@ class PhysicsRecord:
                 "gains_source_note": GAINS_SOURCES.get(self.gains_source, ""), "physics_timestep_s": self.timestep}
 
 
-def simulate_physics(scenario, controller, feedforward: bool | None = None, progress=None,
-                     cascade_options: dict | None = None, gains: dict | None = None):
-    """Run a seed 000 scenario on two simulated IRIS quadrotors; returns ``(Run, PhysicsRecord)``.
+@dataclass
+class PairPhysics:
+    """What :func:`pair_plant` built beside the plant: the controller it runs with, its gains'
+    source, and :meth:`record` for the :class:`PhysicsRecord` once the run is over."""
+
+    controller: object
+    gains_source: str
+    world: object
+    timestep: float
+    qpos: list
+    title: str
+
+    def record(self, log) -> PhysicsRecord:
+        """The physics record of the finished run ``log`` (its ``state`` channel: the robots)."""
+        t, r = log.t, log["state"]
+        q = np.array(self.qpos[:len(t)]) if self.qpos else np.zeros((0, self.world.model.nq))
+        return PhysicsRecord(self.world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
+                             self.world.contacts.summary(), self.timestep,
+                             _controller_gains(self.controller), self.gains_source, self.title)
+
+
+class QuadPairPlant:
+    """Two simulated IRIS quadrotors in PX4-like velocity mode as a plant of
+    :func:`quatform.sim.simulate`: state and output the 8 robot variables ``x1 ... theta2``,
+    command each robot's ``(v_x, v_y, v_z, yaw rate)``. One world (MuJoCo's data is the state
+    that advances); ``step`` runs ``substeps`` physics steps of the held command."""
+
+    batchable = False
+    state_columns = ("x1", "y1", "z1", "theta1", "x2", "y2", "z2", "theta2")
+    output_columns = state_columns
+
+    def __init__(self, world, substeps: int, qpos: list):
+        self.world, self.substeps, self.qpos = world, substeps, qpos
+
+    def output(self, x):
+        return x
+
+    def step(self, x, u, dt, t=0.0):
+        self.qpos.append(self.world.qpos())
+        self.world.command_quad("robot1", u[0:4])
+        self.world.command_quad("robot2", u[4:8])
+        self.world.step(self.substeps)
+        return np.r_[self.world.quad_state("robot1"), self.world.quad_state("robot2")]
+
+
+def pair_plant(scenario, controller, x0, feedforward: bool | None = None, cascade_options: dict | None = None,
+               gains: dict | None = None) -> tuple[QuadPairPlant, PairPhysics]:
+    """The physics plant of a seed 000 scenario (two IRIS quadrotors starting at ``x0``) and
+    what a run on it needs: ``(plant, extra)`` with ``extra.controller`` the controller to run.
 
     The formation controller runs every ``scenario.dt_s`` on the true robot states (as the
     kinematic run does), sends its ``(v_x, v_y, v_z, yaw rate)`` per robot to each
     quadrotor's PX4-like velocity mode, and the physics advances between ticks.
 
-    ``feedforward``: ``None`` keeps the scenario's (``scenario.feedforward``), as
-    :func:`quatform.sim.simulate` does.
-
     ``controller``: a name (its gains from :func:`physics_gains`, or ``gains``: keyword
-    arguments of its class) or a controller object (run as it is). The record says which
-    gains ran (``gains``, ``gains_source``).
+    arguments of its class; ``feedforward`` ``None`` keeps the scenario's) or a controller
+    object (run as it is). The record says which gains ran (``gains``, ``gains_source``).
     """
     if isinstance(controller, str):
         if gains is None:
@@ -519,37 +559,15 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
             raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
                                     f"object ({type(controller).__name__} already has its gains)")
         ctrl, source = controller, "controller"
-    F = ctrl.formation
-    t = scenario.times
-    e_des, _, c_des, cd_des = sample_reference(scenario.path, t, F)
-    r_des = RobotSpace().from_euclidean(e_des)
-    r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
+    r0 = np.asarray(x0, dtype=float)
     h = physics_timestep(scenario.dt_s)
     world = PhysicsWorld(quads=[("robot1", r0[0:3], r0[3]), ("robot2", r0[4:7], r0[7])], timestep=h,
                          cascade_options=cascade_options)
-    substeps = round(scenario.dt_s / h)
     world.continue_yaw("robot1", r0[3])  # yaws continued from the scenario's, not wrapped
     world.continue_yaw("robot2", r0[7])
-    qpos = []
-
-    def plant(x, u, dt):
-        qpos.append(world.qpos())
-        world.command_quad("robot1", u[0:4])
-        world.command_quad("robot2", u[4:8])
-        world.step(substeps)
-        return np.r_[world.quad_state("robot1"), world.quad_state("robot2")]
-
-    log = closed_loop(t, 1, scenario.dt_s, r0, plant, PerfectMeasurement(), ctrl.compute,
-                      lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
-    r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
-    e = F.to_chart(c, near_e=e_des, r=r)
-    sing = F.singularity_measure(r, near_c=c_des)
-    run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing, backend=BACKEND_LABEL)
-    q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
-    rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
-                        world.contacts.summary(), h, _controller_gains(ctrl), source,
-                        f"{scenario.name}: {ctrl.name} controller")
-    return run, rec
+    qpos: list = []
+    plant = QuadPairPlant(world, round(scenario.dt_s / h), qpos)
+    return plant, PairPhysics(ctrl, source, world, h, qpos, f"{scenario.name}: {ctrl.name} controller")
 
 
 # -- seed 001: UGV + quadrotor --------------------------------------------------------------

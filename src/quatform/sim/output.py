@@ -29,31 +29,42 @@ from pathlib import Path
 
 import numpy as np
 
-from ..formations import EUCLIDEAN_VARIABLES, ROBOT_PAIR_VARIABLES
-from .runner import Run
 
-__all__ = ["timeseries_columns", "write_columns", "write_timeseries", "write_metrics", "write_json",
+__all__ = ["timeseries_columns", "PAIR_INTERLEAVED", "PAIR_APPENDED", "write_columns", "write_timeseries", "write_metrics", "write_json",
            "strict_json", "atomic_write_text", "atomic_write_bytes", "staged_dir", "OUTPUT_MARKER"]
 
 
-def timeseries_columns(run: Run):
-    """Column names and the ``(T, n)`` array of the time series."""
-    names, cols = ["t"], [run.t[:, None]]
+#: Channels of a two-robot log whose columns ``timeseries.csv`` interleaves, measured then
+#: desired: the robots, the controller's own cluster variables (not for the robot-space
+#: description, whose cluster variables are the robots) and the recovered Euclidean ones.
+PAIR_INTERLEAVED = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"))
+#: Channels appended after them, as they are.
+PAIR_APPENDED = ("command", "singularity")
 
-    def add(vars_, meas, des, prefix=""):
-        for i, v in enumerate(vars_):
-            names.extend([prefix + v.name, prefix + v.name + "_des"])
-            cols.extend([meas[:, i:i + 1], des[:, i:i + 1]])
 
-    add(ROBOT_PAIR_VARIABLES, run.r, run.r_des)
-    F = run.controller.formation
-    if F.name not in ("robot",):
-        add(F.variables, run.c, run.c_des)
-    add(EUCLIDEAN_VARIABLES, run.e, run.e_des, prefix="euclid_")
-    names.extend("u_" + v.name for v in ROBOT_PAIR_VARIABLES)
-    cols.append(run.u)
-    names.append("singularity_measure")
-    cols.append(run.singularity[:, None])
+def timeseries_columns(log):
+    """Column names and the ``(T, n)`` array of a two-robot log's ``timeseries.csv``.
+
+    ``t``; then every robot, cluster and recovered Euclidean variable ``v`` and its desired
+    ``v_des`` side by side (:data:`PAIR_INTERLEAVED`; the cluster variables only where the
+    formation is not ``robot``); then the commands ``u_x1 ...`` and ``singularity_measure``.
+
+    Parameters
+    ----------
+    log : Log
+        One world of a pair run (:func:`quatform.scenarios.pair.run_pair`).
+    """
+    names, cols = ["t"], [log.t[:, None]]
+    for meas, des in PAIR_INTERLEAVED:
+        if meas == "cluster" and log.meta.get("formation") == "robot":
+            continue
+        m, d = log[meas], log[des]
+        for i, (a, b) in enumerate(zip(log.columns(meas), log.columns(des))):
+            names.extend([a, b])
+            cols.extend([m[:, i:i + 1], d[:, i:i + 1]])
+    for name in PAIR_APPENDED:
+        names.extend(log.columns(name))
+        cols.append(log[name])
     return names, np.hstack(cols)
 
 
@@ -67,8 +78,9 @@ def write_columns(names, data, path) -> Path:
     return atomic_write_text(path, buf.getvalue())
 
 
-def write_timeseries(run: Run, path) -> Path:
-    return write_columns(*timeseries_columns(run), path)
+def write_timeseries(log, path) -> Path:
+    """``timeseries.csv`` of one world of a two-robot log (:func:`timeseries_columns`)."""
+    return write_columns(*timeseries_columns(log), path)
 
 
 # --------------------------------------------------------------------------- strict JSON
