@@ -55,7 +55,7 @@ def test_compute_metrics_refuses_a_run_with_no_sample_in_the_window(tmp_path):
     sc = dataclasses.replace(sc, duration_s=30.0)
     run = run_pair(sc, "cluster-space")
     assert compute_metrics(run)["reference_lost"]
-    bad = dataclasses.replace(run, t=run.t - 100.0)  # a Run built through the API
+    bad = dataclasses.replace(run, t=run.t - 100.0)  # a log built through the API
     with pytest.raises(InvalidInputError, match="metrics_from_s"):
         compute_metrics(bad)
 

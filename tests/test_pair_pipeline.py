@@ -35,7 +35,8 @@ def _starts(sc, offsets):
 def test_the_pair_kind_is_registered_with_its_choices():
     assert KINDS["pair"] is PAIR and isinstance(PAIR, PairKind) and PAIR.scenario_type is Scenario
     opts = {o.name: o for o in PAIR.options}
-    assert opts["controller"].choices == tuple(CONTROLLERS) and opts["backend"].choices == ("kinematic", "mujoco")
+    assert opts["controller"].choices == tuple(CONTROLLERS) and opts["controller"].default is None
+    assert opts["backend"].choices == ("kinematic", "mujoco") and opts["backend"].default == "kinematic"
     assert PAIR.compare_over == "controller" and PAIR.table_columns[0][0] == "controller"
 
 
@@ -141,9 +142,11 @@ def test_the_kinematic_plant_is_the_team_step():
 
 def test_the_experiment_refuses_a_bad_backend_and_options():
     sc = _short_spiral(0.05)
+    with pytest.raises(InvalidInputError, match="give a controller"):
+        PAIR.experiment(sc)
     with pytest.raises(InvalidInputError, match="unknown backend 'gazebo'"):
-        PAIR.experiment(sc, backend="gazebo")
+        PAIR.experiment(sc, controller="quaternion", backend="gazebo")
     with pytest.raises(InvalidInputError, match="backend = 'mujoco' only"):
-        PAIR.experiment(sc, physics={"gains": {}})
+        PAIR.experiment(sc, controller="quaternion", physics={"gains": {}})
     with pytest.raises(InvalidInputError, match="two-robot Scenario"):
-        PAIR.experiment("mas-kitts-spiral")
+        PAIR.experiment("mas-kitts-spiral", controller="quaternion")

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from .control import CONTROLLERS
-from .scenarios.pair import run_pair
+from .scenarios.pair import BACKENDS, TABLE_COLUMNS, run_pair
 from .sim import (
     compute_metrics,
     load_scenario,
@@ -29,24 +29,6 @@ from .sim.output import atomic_write_text, staged_dir, write_json
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
            "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS", "BACKENDS", "physics_rows"]
-
-#: Simulation backends: the robots' models (``kinematic``) or MuJoCo physics (``mujoco``).
-BACKENDS = ("kinematic", "mujoco")
-
-#: Columns of the comparison table: (metrics key, header, format).
-TABLE_COLUMNS = (
-    ("controller", "controller", "{}"),
-    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
-    ("reference_lost", "lost", "{}"),
-    ("max_cluster_position_error_m", "cluster pos (m)", "{:.4f}"),
-    ("max_shape_error_m", "shape (m)", "{:.4f}"),
-    ("max_orientation_error_rad", "orient (rad)", "{:.4f}"),
-    ("max_robot_position_error_m", "robot pos (m)", "{:.4f}"),
-    ("max_recovered_euclidean_error_rad", "recovered (rad)", "{:.3f}"),
-    ("min_robot_separation_m", "min sep (m)", "{:.3f}"),
-    ("nonfinite_commands", "NaN cmds", "{}"),
-)
-
 
 def _progress(label):
     """Progress on a terminal (one updating line); nothing when stderr is a file or pipe."""

@@ -495,7 +495,7 @@ class PairKind(ScenarioKind):
     name = "pair"
     scenario_type = Scenario
     options = (
-        Option("controller", "formation controller (seed 000)", tuple(CONTROLLERS), "cluster-space"),
+        Option("controller", "formation controller (seed 000; required)", tuple(CONTROLLERS), None),
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
         Option("backend", "what moves the robots", BACKENDS, "kinematic"),
         Option("reference", "a two-robot plan.npz to follow instead of the scenario's path", None, None, str),
@@ -506,9 +506,10 @@ class PairKind(ScenarioKind):
     def from_dict(self, data: dict, where: str) -> Scenario:
         return scenario_from_dict(data, where)
 
-    def experiment(self, scenario: Scenario, controller="cluster-space", feedforward: bool | None = None,
+    def experiment(self, scenario: Scenario, controller=None, feedforward: bool | None = None,
                    backend: str = "kinematic", reference=None, r0=None, physics: dict | None = None) -> Experiment:
-        """The run of ``scenario`` with ``controller`` (a name or a controller object).
+        """The run of ``scenario`` with ``controller`` (a name of :data:`~quatform.control.CONTROLLERS`
+        or a controller object; required).
 
         Parameters
         ----------
@@ -533,6 +534,9 @@ class PairKind(ScenarioKind):
         if not isinstance(scenario, Scenario):
             raise InvalidInputError(f"pair experiment: scenario must be a two-robot Scenario, got "
                                     f"{type(scenario).__name__}")
+        if controller is None:
+            raise InvalidInputError(f"{scenario.name} is a two-robot scenario: give a controller "
+                                    f"(--controller {{{','.join(CONTROLLERS)}}})")
         if backend not in BACKENDS:
             raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
         if physics and backend != "mujoco":
@@ -596,7 +600,7 @@ PAIR = PairKind()
 KINDS[PAIR.name] = PAIR
 
 
-def run_pair(scenario: Scenario, controller="cluster-space", feedforward: bool | None = None, r0=None,
+def run_pair(scenario: Scenario, controller, feedforward: bool | None = None, r0=None,
              progress=None) -> Log:
     """The complete log of ``scenario`` run with ``controller`` on the kinematic robots
     (:meth:`PairKind.experiment` then :meth:`~quatform.scenarios.base.Experiment.run`)."""
