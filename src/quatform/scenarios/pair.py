@@ -25,9 +25,8 @@ import numpy as np
 
 from ..checks import check_keys, check_within_run, check_work, flag, number, short, table, text, vector
 from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
-from ..control.contract import Controller as ControllerContract, Step
 from ..errors import InvalidInputError
-from ..formations import EUCLIDEAN_VARIABLES, ROBOT_PAIR_VARIABLES, EuclideanPair, RobotSpace
+from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
 from ..references import EuclideanPath, Ramp, Step as StepChange
 from ..robots import HolonomicRobot, Team
 from ..sim.log import Channel, Log
@@ -430,38 +429,6 @@ TABLE_COLUMNS = (
 PAIR_CSV_CHANNELS = ("state", "r_des", "cluster", "c_des", "e", "e_des", "command", "singularity")
 
 
-class _Contracted(ControllerContract):
-    """A seed 000 controller (``compute(t, r, reference) -> StepResult``) under the controller
-    contract: stateless, signals ``cluster`` and ``error`` (n_c) and ``raw_finite`` (1)."""
-
-    def __init__(self, ctrl):
-        self.ctrl = ctrl
-        self.name = ctrl.name
-        self.formation = ctrl.formation
-        self.team = ctrl.team
-        self.feedforward = ctrl.feedforward
-        self._commands = tuple("u_" + v.name for v in ROBOT_PAIR_VARIABLES)
-        names = tuple(v.name for v in ctrl.formation.variables)
-        self._signals = {"cluster": names, "error": names, "raw_finite": ("raw_finite",)}
-
-    @property
-    def command_names(self) -> tuple[str, ...]:
-        return self._commands
-
-    def signal_columns(self) -> dict[str, tuple[str, ...]]:
-        return self._signals
-
-    def update(self, t: float, measured, reference, state) -> Step:
-        res = self.ctrl.compute(t, measured, reference)
-        ok = np.asarray(res.raw_finite, dtype=float)[..., None]
-        return Step(res.commands, None, {"cluster": res.cluster, "error": res.error, "raw_finite": ok})
-
-
-def _contracted(ctrl):
-    """``ctrl`` under the controller contract (a seed 000 controller is wrapped)."""
-    return ctrl if isinstance(ctrl, ControllerContract) else _Contracted(ctrl)
-
-
 #: Generous cost of one step of a run that follows a plan (time series kept, controller and
 #: simulator), checked before the plan's path is built: seed 000's helix runs 8000 steps in
 #: 0.8 s (docs/performance.md).
@@ -586,7 +553,7 @@ class PairKind(ScenarioKind):
                            ("e", euclid, e), ("e_des", [n + "_des" for n in euclid], ed),
                            ("singularity", ["singularity_measure"], np.asarray(sing)[..., None])))
 
-        return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=_contracted(ctrl),
+        return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
                           reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
                           metrics=compute_metrics, csv_channels=PAIR_CSV_CHANNELS, meta=meta)
 
