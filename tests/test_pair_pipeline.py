@@ -14,7 +14,7 @@ from quatform.errors import InvalidInputError, ShapeError
 from quatform.formations import EuclideanPair
 from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import KINDS
-from quatform.scenarios.pair import PAIR, PairKind, Scenario, run_pair
+from quatform.scenarios.pair import PAIR, PairKind, Scenario, pair_csv_channels, run_pair
 from quatform.sim import compute_metrics, load_scenario
 from quatform.sim.output import timeseries_columns
 from quatform.sim.plants import KinematicTeam
@@ -118,13 +118,15 @@ _DQ = ",".join(f"qhat_{s}_{p}{c},qhat_{s}_{p}{c}_des" for s in "cs" for p in "rd
     ("dual-quaternion", f"{_ROBOTS},{_DQ},{_EUCLID},{_TAIL}"),
 ])
 def test_the_csv_header_is_todays(controller, header):
-    names, data = timeseries_columns(run_pair(_short_spiral(0.05), controller))
+    exp = PAIR.experiment(_short_spiral(0.05), controller=controller)
+    assert exp.csv_channels == pair_csv_channels(exp.controller.formation.name)
+    names, data = timeseries_columns(exp.run(), exp.csv_channels)
     assert ",".join(names) == header and data.shape == (6, len(names))
 
 
 def test_the_csv_columns_hold_the_log_channels():
     log = run_pair(_short_spiral(0.05), "quaternion")
-    names, data = timeseries_columns(log)
+    names, data = timeseries_columns(log, pair_csv_channels("quaternion"))
     np.testing.assert_array_equal(data[:, names.index("x2_des")], log["r_des"][:, 4])
     np.testing.assert_array_equal(data[:, names.index("q_c_z")], log["cluster"][:, 6])
     np.testing.assert_array_equal(data[:, names.index("singularity_measure")], log["singularity"][:, 0])
@@ -140,6 +142,12 @@ def test_the_kinematic_plant_is_the_team_step():
     assert np.all(np.linalg.norm(plant.step(x, u, 1.0)[:, 0:3] - x[:, 0:3], axis=1) <= 1.0 + 1e-12)
 
 
+def test_interleaved_csv_channels_must_have_one_width():
+    log = run_pair(_short_spiral(0.05), "quaternion")
+    with pytest.raises(InvalidInputError, match="different widths"):
+        timeseries_columns(log, [("state", "cluster")])
+
+
 def test_the_experiment_refuses_a_bad_backend_and_options():
     sc = _short_spiral(0.05)
     with pytest.raises(InvalidInputError, match="give a controller"):
@@ -148,5 +156,7 @@ def test_the_experiment_refuses_a_bad_backend_and_options():
         PAIR.experiment(sc, controller="quaternion", backend="gazebo")
     with pytest.raises(InvalidInputError, match="backend = 'mujoco' only"):
         PAIR.experiment(sc, controller="quaternion", physics={"gains": {}})
+    with pytest.raises(InvalidInputError, match="timestep"):
+        PAIR.experiment(sc, controller="quaternion", backend="mujoco", physics={"timestep": 1e-3})
     with pytest.raises(InvalidInputError, match="two-robot Scenario"):
         PAIR.experiment("mas-kitts-spiral", controller="quaternion")

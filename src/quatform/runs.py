@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from .control import CONTROLLERS
-from .scenarios.pair import BACKENDS, TABLE_COLUMNS, run_pair
+from .scenarios.pair import BACKENDS, TABLE_COLUMNS, pair_csv_channels, run_pair
 from .sim import (
     compute_metrics,
     load_scenario,
@@ -188,7 +188,7 @@ def _pair_into(sc, controller, out, label, plots, quiet, backend, ff):
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     if backend == "mujoco":
         _add_physics(metrics, record, run, compute_metrics(run_pair(sc, controller, feedforward=ff)), out, plots)
-    write_timeseries(run, out / "timeseries.csv")
+    write_timeseries(run, out / "timeseries.csv", pair_csv_channels(run.meta["formation"]))
     if plots:
         from .report import write_run_plots
 

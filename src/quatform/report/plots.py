@@ -111,7 +111,7 @@ def _pi_label(value, _pos=None) -> str:
 
 def _backend(runs) -> str:
     """``" on MuJoCo physics"`` where a run's robots were not the kinematic models, else ``""``."""
-    labels = dict.fromkeys(log.meta["backend"] for log in runs if log.meta["backend"] != "kinematic")
+    labels = dict.fromkeys(log.meta["backend_label"] for log in runs if log.meta["backend"] != "kinematic")
     return f" on {', '.join(labels)}" if labels else ""
 
 

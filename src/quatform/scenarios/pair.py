@@ -37,7 +37,7 @@ from .base import Experiment, Option, ScenarioKind
 
 __all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "BYTES_PER_STEP",
            "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics", "with_plan",
-           "PAIR_CSV_CHANNELS"]
+           "PAIR_CSV_CHANNELS", "pair_csv_channels"]
 
 _TABLES = {"table1": TABLE1, "table2": TABLE2}
 _NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
@@ -424,9 +424,17 @@ TABLE_COLUMNS = (
     ("nonfinite_commands", "NaN cmds", "{}"),
 )
 
-#: Channels of ``timeseries.csv`` in the order of their first column (see
-#: :func:`quatform.sim.output.timeseries_columns` for today's interleaved header).
-PAIR_CSV_CHANNELS = ("state", "r_des", "cluster", "c_des", "e", "e_des", "command", "singularity")
+#: Channels of ``timeseries.csv`` in file order; a tuple's channels are interleaved, each value
+#: beside its desired one (``x1, x1_des, y1, ...``: today's header): the robots, the
+#: controller's own cluster variables, the Euclidean ones recovered by its description, then
+#: the commands and the singularity measure.
+PAIR_CSV_CHANNELS = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"), "command", "singularity")
+
+
+def pair_csv_channels(formation: str) -> tuple:
+    """:data:`PAIR_CSV_CHANNELS` of a run of ``formation`` (a formation's name): the robot-space
+    description's cluster variables are the robots, so its file leaves them out."""
+    return tuple(c for c in PAIR_CSV_CHANNELS if not (formation == "robot" and c == ("cluster", "c_des")))
 
 
 #: Generous cost of one step of a run that follows a plan (time series kept, controller and
@@ -506,6 +514,8 @@ class PairKind(ScenarioKind):
                                     f"(--controller {{{','.join(CONTROLLERS)}}})")
         if backend not in BACKENDS:
             raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+        physics = dict(physics or {})
+        check_keys(physics, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options", "see quatform.sim.mujoco_backend.pair_plant")
         if physics and backend != "mujoco":
             raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
         if reference is not None:
@@ -519,16 +529,30 @@ class PairKind(ScenarioKind):
             r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
         x0 = np.array(r0, dtype=float)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
-                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": "kinematic"}
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
+                "backend_label": "kinematic"}
         if backend == "mujoco":
-            from ..sim.mujoco_backend import BACKEND_LABEL, pair_plant  # MuJoCo only when asked for
+            from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
 
-            plant, extra = pair_plant(scenario, controller, x0, feedforward, **(physics or {}))
-            ctrl = extra.controller
-            meta.update(backend=BACKEND_LABEL, physics=extra)
+            ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics.get("gains"))
+            plant = mj.pair_plant(scenario, x0, cascade_options=physics.get("cascade_options"))
+            meta["backend_label"] = mj.BACKEND_LABEL
+
+            def record(log: Log) -> dict:
+                rec = mj.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
+                return {"physics_record": rec}
+
+            def physics_metrics(log: Log) -> dict:
+                return {**mj.physics_metrics(plant), **log.meta["physics_record"].metrics()}
         else:
             ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
             plant = KinematicTeam(ctrl.team)
+
+            def record(log: Log) -> dict:
+                return {}
+
+            def physics_metrics(log: Log) -> dict:
+                return {}
         F = ctrl.formation
         c_des, cd_des = F.from_chart(e_des, ed_des)
         r_des = RobotSpace().from_chart(e_des)
@@ -547,15 +571,19 @@ class PairKind(ScenarioKind):
             sing = F.singularity_measure(r, near_c=cd)
             names = [v.name for v in F.variables]
             euclid = ["euclid_" + v.name for v in EUCLIDEAN_VARIABLES]
-            return log.with_channels(
+            log = log.with_channels(
                 *_channels(("r_des", [n + "_des" for n in log.columns("state")], rd),
                            ("c_des", [n + "_des" for n in names], cd),
                            ("e", euclid, e), ("e_des", [n + "_des" for n in euclid], ed),
                            ("singularity", ["singularity_measure"], np.asarray(sing)[..., None])))
+            return log.with_channels(**record(log))
+
+        def metrics(log: Log) -> dict:
+            return {**compute_metrics(log), **physics_metrics(log)}
 
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
                           reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
-                          metrics=compute_metrics, csv_channels=PAIR_CSV_CHANNELS, meta=meta)
+                          metrics=metrics, csv_channels=pair_csv_channels(F.name), meta=meta)
 
 
 def _channels(*specs):
@@ -585,4 +613,4 @@ def simulate_physics(scenario: Scenario, controller, feedforward: bool | None = 
     physics = {k: v for k, v in (("cascade_options", cascade_options), ("gains", gains)) if v is not None}
     log = PAIR.experiment(scenario, controller=controller, feedforward=feedforward, backend="mujoco",
                           physics=physics).run(progress)
-    return log, log.meta["physics"].record(log)
+    return log, log.meta["physics_record"]

@@ -30,41 +30,36 @@ from pathlib import Path
 import numpy as np
 
 
-__all__ = ["timeseries_columns", "PAIR_INTERLEAVED", "PAIR_APPENDED", "write_columns", "write_timeseries", "write_metrics", "write_json",
+__all__ = ["timeseries_columns", "write_columns", "write_timeseries", "write_metrics", "write_json",
            "strict_json", "atomic_write_text", "atomic_write_bytes", "staged_dir", "OUTPUT_MARKER"]
 
 
-#: Channels of a two-robot log whose columns ``timeseries.csv`` interleaves, measured then
-#: desired: the robots, the controller's own cluster variables (not for the robot-space
-#: description, whose cluster variables are the robots) and the recovered Euclidean ones.
-PAIR_INTERLEAVED = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"))
-#: Channels appended after them, as they are.
-PAIR_APPENDED = ("command", "singularity")
-
-
-def timeseries_columns(log):
-    """Column names and the ``(T, n)`` array of a two-robot log's ``timeseries.csv``.
-
-    ``t``; then every robot, cluster and recovered Euclidean variable ``v`` and its desired
-    ``v_des`` side by side (:data:`PAIR_INTERLEAVED`; the cluster variables only where the
-    formation is not ``robot``); then the commands ``u_x1 ...`` and ``singularity_measure``.
+def timeseries_columns(log, channels) -> tuple[list[str], np.ndarray]:
+    """Column names (``t`` first) and the ``(T, n)`` array of one world's log, for a CSV file.
 
     Parameters
     ----------
     log : Log
-        One world of a pair run (:func:`quatform.scenarios.pair.run_pair`).
+        One world (``log.world(i)`` of a batched log).
+    channels : sequence
+        File order (a kind's ``Experiment.csv_channels``, e.g.
+        :data:`quatform.scenarios.pair.PAIR_CSV_CHANNELS`): each item a channel name (its
+        columns as they are) or a tuple of channels of one width whose columns are
+        interleaved (``("state", "r_des")`` -> ``x1, x1_des, y1, y1_des, ...``).
     """
     names, cols = ["t"], [log.t[:, None]]
-    for meas, des in PAIR_INTERLEAVED:
-        if meas == "cluster" and log.meta.get("formation") == "robot":
-            continue
-        m, d = log[meas], log[des]
-        for i, (a, b) in enumerate(zip(log.columns(meas), log.columns(des))):
-            names.extend([a, b])
-            cols.extend([m[:, i:i + 1], d[:, i:i + 1]])
-    for name in PAIR_APPENDED:
-        names.extend(log.columns(name))
-        cols.append(log[name])
+    for item in channels:
+        group = (item,) if isinstance(item, str) else tuple(item)
+        widths = {len(log.columns(name)) for name in group}
+        if len(widths) != 1:
+            from ..errors import InvalidInputError
+
+            raise InvalidInputError(f"timeseries: interleaved channels {group} have different widths "
+                                    f"{[len(log.columns(n)) for n in group]}; interleave channels of one width")
+        for i in range(widths.pop()):
+            for name in group:
+                names.append(log.columns(name)[i])
+                cols.append(np.asarray(log[name], dtype=float)[:, i:i + 1])
     return names, np.hstack(cols)
 
 
@@ -78,9 +73,9 @@ def write_columns(names, data, path) -> Path:
     return atomic_write_text(path, buf.getvalue())
 
 
-def write_timeseries(log, path) -> Path:
-    """``timeseries.csv`` of one world of a two-robot log (:func:`timeseries_columns`)."""
-    return write_columns(*timeseries_columns(log), path)
+def write_timeseries(log, path, channels) -> Path:
+    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_columns`."""
+    return write_columns(*timeseries_columns(log, channels), path)
 
 
 # --------------------------------------------------------------------------- strict JSON
