@@ -36,8 +36,9 @@ from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 
 __all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "BYTES_PER_STEP",
-           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics", "with_plan",
-           "PAIR_CSV_CHANNELS", "pair_csv_channels"]
+           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics",
+           "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
+           "PLAN_RUN_SECONDS_PER_STEP"]
 
 _TABLES = {"table1": TABLE1, "table2": TABLE2}
 _NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
@@ -494,7 +495,7 @@ class PairKind(ScenarioKind):
         backend : str
             ``"kinematic"`` (the robots' models, :class:`~quatform.sim.plants.KinematicTeam`)
             or ``"mujoco"`` (two IRIS quadrotors, :func:`quatform.sim.mujoco_backend.pair_plant`;
-            a controller given by name gets the physics gains; ``log.meta["physics"].record(log)``
+            a controller given by name gets the physics gains; ``log.meta["physics_record"]``
             is the run's :class:`~quatform.sim.mujoco_backend.PhysicsRecord`).
         reference : str or path, optional
             A saved two-robot plan to follow (:func:`with_plan`).
@@ -503,8 +504,9 @@ class PairKind(ScenarioKind):
             kinematic backend only); default the reference at ``t = 0`` displaced by
             ``initial_offset`` (Euclidean variables).
         physics : dict, optional
-            Keywords of :func:`~quatform.sim.mujoco_backend.pair_plant` (``gains``,
-            ``cascade_options``) for ``backend="mujoco"``.
+            For ``backend="mujoco"``: ``gains`` (of
+            :func:`~quatform.sim.mujoco_backend.physics_controller`) and ``cascade_options``
+            (of :func:`~quatform.sim.mujoco_backend.pair_plant`).
         """
         if not isinstance(scenario, Scenario):
             raise InvalidInputError(f"pair experiment: scenario must be a two-robot Scenario, got "
@@ -515,7 +517,8 @@ class PairKind(ScenarioKind):
         if backend not in BACKENDS:
             raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
         physics = dict(physics or {})
-        check_keys(physics, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options", "see quatform.sim.mujoco_backend.pair_plant")
+        check_keys(physics, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options",
+                   "see quatform.sim.mujoco_backend.pair_plant")
         if physics and backend != "mujoco":
             raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
         if reference is not None:
@@ -557,7 +560,7 @@ class PairKind(ScenarioKind):
         c_des, cd_des = F.from_chart(e_des, ed_des)
         r_des = RobotSpace().from_chart(e_des)
         meta.update(formation=F.name, cluster_variables=F.variables,
-                    feedforward=bool(getattr(ctrl, "feedforward", True)))
+                    feedforward=bool(ctrl.feedforward))
 
         def reference_at(k):
             return Reference(c_des[k], cd_des[k], r_des[k])
