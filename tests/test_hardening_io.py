@@ -94,8 +94,8 @@ def test_an_atomic_write_keeps_the_old_file_when_cut_off(tmp_path, monkeypatch):
 
 
 def _interrupt_at(monkeypatch, n_ok: int):
-    """``quatform.runs.simulate`` that runs ``n_ok`` times, then raises KeyboardInterrupt."""
-    real, calls = runs.simulate, []
+    """``quatform.runs.run_pair`` that runs ``n_ok`` times, then raises KeyboardInterrupt."""
+    real, calls = runs.run_pair, []
 
     def sim(*a, **k):
         calls.append(k.get("feedforward"))
@@ -103,7 +103,7 @@ def _interrupt_at(monkeypatch, n_ok: int):
             raise KeyboardInterrupt
         return real(*a, **k)
 
-    monkeypatch.setattr(runs, "simulate", sim)
+    monkeypatch.setattr(runs, "run_pair", sim)
     return calls
 
 
@@ -131,7 +131,7 @@ def test_a_failed_run_leaves_no_folder(tmp_path, monkeypatch, capsys):
     def fails(*a, **k):
         raise InvalidInputError("bad reference")
 
-    monkeypatch.setattr(runs, "simulate", fails)
+    monkeypatch.setattr(runs, "run_pair", fails)
     out = tmp_path / "a" / "b"
     assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(out)]) == 2
     assert list(tmp_path.iterdir()) == []
@@ -234,7 +234,7 @@ def test_every_exception_is_one_line_with_its_status(tmp_path, monkeypatch, caps
     def raises(*a, **k):
         raise exc
 
-    monkeypatch.setattr(runs, "simulate", raises)
+    monkeypatch.setattr(runs, "run_pair", raises)
     assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "o")]) == code
     err = _lines(capsys.readouterr().err)
     assert len(err) == 1 and needle in err[0]
@@ -276,11 +276,12 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
     def reached(*a, **k):
         raise Reached("stub")
 
+    import quatform.scenarios.pair as pair
     import quatform.sim.mujoco_backend as physics
 
     folder = tmp_path_factory.mktemp("fuzz")
-    stubbed = [(runs, "simulate"), (ugv_uav, "simulate_ugv_uav"), (teleop, "simulate_teleop"),
-               (plan_runs, "make_plan"), (physics, "simulate_physics"), (physics, "simulate_ugv_uav_physics")]
+    stubbed = [(runs, "run_pair"), (ugv_uav, "simulate_ugv_uav"), (teleop, "simulate_teleop"),
+               (plan_runs, "make_plan"), (pair, "simulate_physics"), (physics, "simulate_ugv_uav_physics")]
     saved = [getattr(m, n) for m, n in stubbed]
     for m, n in stubbed:
         setattr(m, n, reached)

@@ -17,10 +17,10 @@ import time
 from pathlib import Path
 
 from .control import CONTROLLERS
+from .scenarios.pair import BACKENDS, TABLE_COLUMNS, pair_csv_channels, run_pair
 from .sim import (
     compute_metrics,
     load_scenario,
-    simulate,
     write_columns,
     write_metrics,
     write_timeseries,
@@ -29,24 +29,6 @@ from .sim.output import atomic_write_text, staged_dir, write_json
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
            "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS", "BACKENDS", "physics_rows"]
-
-#: Simulation backends: the robots' models (``kinematic``) or MuJoCo physics (``mujoco``).
-BACKENDS = ("kinematic", "mujoco")
-
-#: Columns of the comparison table: (metrics key, header, format).
-TABLE_COLUMNS = (
-    ("controller", "controller", "{}"),
-    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
-    ("reference_lost", "lost", "{}"),
-    ("max_cluster_position_error_m", "cluster pos (m)", "{:.4f}"),
-    ("max_shape_error_m", "shape (m)", "{:.4f}"),
-    ("max_orientation_error_rad", "orient (rad)", "{:.4f}"),
-    ("max_robot_position_error_m", "robot pos (m)", "{:.4f}"),
-    ("max_recovered_euclidean_error_rad", "recovered (rad)", "{:.3f}"),
-    ("min_robot_separation_m", "min sep (m)", "{:.3f}"),
-    ("nonfinite_commands", "NaN cmds", "{}"),
-)
-
 
 def _progress(label):
     """Progress on a terminal (one updating line); nothing when stderr is a file or pipe."""
@@ -196,17 +178,17 @@ def _pair_into(sc, controller, out, label, plots, quiet, backend, ff):
     t0 = time.perf_counter()
     progress = None if quiet else _progress(f"{sc.name} / {controller} / {backend}")
     if backend == "mujoco":
-        from .sim.mujoco_backend import simulate_physics
+        from .scenarios.pair import simulate_physics
 
         run, record = simulate_physics(sc, controller, feedforward=ff, progress=progress)
     else:
-        run = simulate(sc, controller, feedforward=ff, progress=progress)
+        run = run_pair(sc, controller, feedforward=ff, progress=progress)
     metrics = compute_metrics(run)
     metrics["feedforward"] = ff
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     if backend == "mujoco":
-        _add_physics(metrics, record, run, compute_metrics(simulate(sc, controller, feedforward=ff)), out, plots)
-    write_timeseries(run, out / "timeseries.csv")
+        _add_physics(metrics, record, run, compute_metrics(run_pair(sc, controller, feedforward=ff)), out, plots)
+    write_timeseries(run, out / "timeseries.csv", pair_csv_channels(run.meta["formation"]))
     if plots:
         from .report import write_run_plots
 

@@ -1,10 +1,10 @@
-"""The closed loop shared by every simulation: plant, measurement, controller, reference.
+"""The UGV-UAV runs' own closed loop (seed 001), until they move to :func:`quatform.sim.simulate`.
 
 Sim layer. ``closed_loop`` integrates a plant with a fixed step, lets a measurement model
 see every plant state, and calls the controller every ``substeps`` plant steps with the
 measurement available then and the reference of that tick (zero-order hold of the
-commands). The two-robot runs of seed 000 (perfect measurement, holonomic robots) and the
-UGV-UAV runs of seed 001 (motion capture, Pioneer and Bebop) both use it.
+commands). The UGV-UAV runs of seed 001 (motion capture, Pioneer and Bebop) use it; the
+two-robot runs of seed 000 run on :func:`quatform.sim.simulate`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["closed_loop", "PerfectMeasurement", "LoopLog"]
+__all__ = ["closed_loop", "History", "LoopLog"]
 
 
 @dataclass(frozen=True)
@@ -28,16 +28,6 @@ class LoopLog:
     cluster: np.ndarray
     commands: np.ndarray
     raw_finite: np.ndarray
-
-
-class PerfectMeasurement:
-    """The true state, at once."""
-
-    def observe(self, t: float, x: np.ndarray) -> None:
-        self._x = x
-
-    def read(self, t: float) -> np.ndarray:
-        return self._x
 
 
 class History:

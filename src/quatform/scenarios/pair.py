@@ -1,0 +1,619 @@
+"""The two-robot (pair) scenario kind of seed 000: its files, its runs, its metrics.
+
+Scenarios layer (above sim, below report and runs). A pair scenario file states a motion,
+the robots, the gains and the run (``docs/scenarios.md``); ``kind = "pair"`` is the default
+when a file names no kind. Every key is read with the shared typed readers of
+:mod:`quatform.checks`: an unknown key names the nearest valid one, a wrong type, NaN,
+infinity or an out-of-range number is refused naming the key, and a run too long for this
+machine is refused before it starts (:func:`check_scenario_work`).
+
+:class:`PairKind` builds the :class:`~quatform.scenarios.base.Experiment` of a scenario and a
+controller: the kinematic team plant (:class:`~quatform.sim.plants.KinematicTeam`), the
+controller with the scenario's gains, the sampled reference and the initial state (one
+world, or a batch of worlds with leading axes on ``r0``); :func:`run_pair` runs it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..checks import check_keys, check_within_run, check_work, flag, number, short, table, text, vector
+from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
+from ..errors import InvalidInputError
+from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
+from ..references import EuclideanPath, Ramp, Step as StepChange
+from ..robots import HolonomicRobot, Team
+from ..sim.log import Channel, Log
+from ..sim.metrics import compute_metrics
+from ..sim.plants import KinematicTeam
+from . import KINDS
+from .base import Experiment, Option, ScenarioKind
+
+__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "BYTES_PER_STEP",
+           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics",
+           "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
+           "PLAN_RUN_SECONDS_PER_STEP"]
+
+_TABLES = {"table1": TABLE1, "table2": TABLE2}
+_NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
+_HINT = "see docs/scenarios.md"
+
+#: Memory one logged step of a two-robot run may take, bytes: the log's arrays, the loop's
+#: per-step Python lists, the references and the time-series CSV. Measured peak (tracemalloc,
+#: spiral, 2001 steps): 1.4-4.6 kB per step, the quaternion controller the most; 12 kB is
+#: about 2.6 times that (docs/derivations.md, "Hardening (issue 12): two-robot scenarios").
+BYTES_PER_STEP = 12e3
+#: Wall time one step may take, s: measured 0.19-0.46 ms per step of the loop (the
+#: cluster-space controller the slowest) on this project's 2-core machine; 2 ms covers the
+#: metrics, the CSV and a loaded machine (about 4 times the slowest).
+SECONDS_PER_STEP = 2e-3
+
+#: Keys of each table of a two-robot scenario file.
+_TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "gains", "feedforward",
+             "robots", "path", "initial_offset")
+_ROBOT_KEYS = ("max_speed_m_s", "max_yaw_rate_rad_s")
+_PATH_KEYS = ("centroid", "center", "velocity", "radius", "period_s", "climb_m_s", *_NAMES[3:], "ramps", "steps")
+_RAMP_KEYS = ("variable", "start_s", "duration_s", "change")
+_STEP_KEYS = ("variable", "time_s", "change")
+#: Gains each controller takes and their lengths (1: a scalar), seed 000 Tables 1-2.
+_GAIN_KEYS = {
+    "cluster-space": {"k": 8},
+    "robot-space": {"k": 8},
+    "quaternion": {"k_x": 3, "k_d": 1, "k_w": 3},
+    "dual-quaternion": {"k_dw": 3},
+}
+
+
+def check_scenario_work(where: str, duration_s: float, dt_s: float) -> None:
+    """Refuse a run of ``duration_s / dt_s`` steps that cannot fit in memory or the time budget.
+
+    Raises :class:`~quatform.errors.ResourceLimitError` naming ``duration_s / dt_s`` and the
+    limit (:func:`quatform.checks.check_work` with :data:`BYTES_PER_STEP` and
+    :data:`SECONDS_PER_STEP`).
+    """
+    with np.errstate(over="ignore"):
+        steps = float(duration_s) / float(dt_s) + 1.0 if dt_s > 0 else math.inf
+    check_work(where, f"duration_s / dt_s = {duration_s:g} / {dt_s:g}", steps, bytes_per_step=BYTES_PER_STEP,
+               seconds_per_step=SECONDS_PER_STEP, fix="shorten duration_s or raise dt_s")
+
+
+def _check_window(where: str, metrics_from_s: float, duration_s: float, dt_s: float) -> None:
+    """Refuse a metrics window that holds no sample (every max error would read 0, a failed
+    run would look perfect): need ``0 <= metrics_from_s < duration_s`` and a sample after it."""
+    number({"metrics_from_s": metrics_from_s}, "metrics_from_s", where, low=0.0)
+    check_within_run(where, "metrics_from_s", metrics_from_s, duration_s,
+                     _last_step(duration_s, dt_s) * dt_s,  # the last of Scenario.times
+                     "no sample is measured and every error would read 0")
+
+
+#: Slack, in steps, for a dt_s that divides duration_s up to rounding (0.3 / 0.1 = 2.9999...).
+_STEP_SLACK = 1e-9
+
+
+def _last_step(duration_s: float, dt_s: float) -> int:
+    """Index of the last sample: the most whole steps of ``dt_s`` that fit in ``duration_s``
+    (never past it; a ``dt_s`` that does not divide ``duration_s`` ends the run short)."""
+    return int(math.floor(duration_s / dt_s + _STEP_SLACK))
+
+
+def _largest_gain(where: str, gains: dict) -> float:
+    """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
+    try:
+        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
+    return max(vals, default=0.0)
+
+
+def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
+    """Refuse a ``dt_s`` at which the explicit Euler loop of a proportional law diverges.
+
+    Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
+    (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
+    by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
+    largest gain of any controller the scenario can run (``docs/derivations.md``, Hardening
+    (issue 12): two-robot scenario loader)."""
+    k = _largest_gain(where, gains)
+    if k * dt_s >= 2.0:
+        raise InvalidInputError(
+            f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
+            f">= 2: the discrete control loop would be unstable; use dt_s < {2.0 / k:.3g} s (smaller gains "
+            "allow a larger step)")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A two-robot run's definition (seed 000; see ``docs/scenarios.md``).
+
+    Attributes
+    ----------
+    name : str
+    path : EuclideanPath
+        The desired motion in Euclidean cluster variables (any callable ``t -> (e, e_dot)``,
+        e.g. a plan's :class:`~quatform.planning.PlanPairPath`).
+    duration_s : float
+        Length of the run, s (> 0).
+    dt_s : float
+        Control and integration step, s (``0 < dt_s <= duration_s`` and largest gain
+        ``* dt_s < 2``, :func:`check_step_stable`).
+    title, source : str
+    team : Team
+        The two robots.
+    initial_offset : ndarray, shape (8,)
+        The robots start at the reference at ``t = 0`` plus this (Euclidean variables).
+    gains : dict
+        Gains by controller name.
+    metrics_from_s : float
+        Max errors are taken from this time on (``0 <= metrics_from_s <=`` the last sample).
+    feedforward : bool
+        Whether the controllers feed the reference's rate forward (default of
+        :meth:`controller` and :meth:`PairKind.experiment`).
+
+    Raises
+    ------
+    InvalidInputError
+        For a non-finite or out-of-range number; :class:`~quatform.errors.ResourceLimitError`
+        when ``duration_s / dt_s`` steps cannot fit in memory or the time budget.
+    """
+
+    name: str
+    path: EuclideanPath
+    duration_s: float
+    dt_s: float = 0.01
+    title: str = ""
+    source: str = ""
+    team: Team = Team()
+    initial_offset: np.ndarray = field(default_factory=lambda: np.zeros(8))
+    gains: dict = field(default_factory=lambda: TABLE1)
+    metrics_from_s: float = 5.0
+    feedforward: bool = True
+
+    def __post_init__(self):
+        where = f"scenario {self.name!r}"
+        for key in ("duration_s", "dt_s", "metrics_from_s"):  # finite real numbers (numpy scalars too)
+            v = getattr(self, key)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+                raise InvalidInputError(f"{where}: {key} = {short(v)} must be a finite number")
+            object.__setattr__(self, key, float(v))
+        number({"duration_s": self.duration_s}, "duration_s", where, low=0.0, low_open=True)
+        number({"dt_s": self.dt_s}, "dt_s", where, low=0.0, low_open=True, high=self.duration_s)
+        check_scenario_work(where, self.duration_s, self.dt_s)
+        _check_window(where, self.metrics_from_s, self.duration_s, self.dt_s)
+        if not isinstance(self.gains, dict) or not all(isinstance(g, dict) for g in self.gains.values()):
+            raise InvalidInputError(f"{where}: gains must map controller names to their gains, got {short(self.gains)}")
+        check_step_stable(where, self.dt_s, self.gains)
+        if not isinstance(self.feedforward, (bool, np.bool_)):
+            raise InvalidInputError(f"{where}: feedforward = {short(self.feedforward)} must be True or False")
+        if not callable(self.path):  # an EuclideanPath, or a plan's PlanPairPath: t -> (e, e_dot)
+            raise InvalidInputError(f"{where}: path must map times to (e, e_dot), like an EuclideanPath; got "
+                                    f"{type(self.path).__name__}")
+        off = np.asarray(self.initial_offset, dtype=float)
+        if off.shape != (8,) or not np.all(np.isfinite(off)):
+            raise InvalidInputError(f"{where}: initial_offset must be 8 finite numbers, got {short(self.initial_offset)}")
+        object.__setattr__(self, "initial_offset", off)
+
+    @property
+    def times(self) -> np.ndarray:
+        """Sample times ``0, dt_s, ..., n dt_s``, s, ``n = floor(duration_s / dt_s)``: the run
+        never goes past ``duration_s``."""
+        n = _last_step(self.duration_s, self.dt_s)
+        return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
+
+    def controller(self, name: str, feedforward: bool | None = None):
+        """The controller ``name`` with this scenario's gains and robots; ``feedforward``
+        defaults to the scenario's."""
+        if name not in CONTROLLERS:
+            raise InvalidInputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLERS)}")
+        ff = self.feedforward if feedforward is None else feedforward
+        return CONTROLLERS[name](**self.gains.get(name, {}), team=self.team, feedforward=bool(ff))
+
+
+def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
+    """Build a :class:`Scenario` from parsed TOML; every mistake is one InvalidInputError line
+    naming the key (see ``docs/scenarios.md``)."""
+    check_keys(data, _TOP_KEYS, where, hint=_HINT)
+    text(data, "kind", where, "pair", choices=("pair",))
+    duration = number(data, "duration_s", where, low=0.0, low_open=True)
+    dt = number(data, "dt_s", where, 0.01, low=0.0, low_open=True, high=duration)
+    check_scenario_work(where, duration, dt)  # before anything is sampled
+    # default 5 s (seed 000's transient); a run of 5 s or less is measured from its start
+    metrics_from = number(data, "metrics_from_s", where, 5.0 if duration > 5.0 else 0.0, low=0.0)
+    _check_window(where, metrics_from, duration, dt)
+    try:
+        path = _path(table(data, "path", where), where, duration)
+        robots = table(data, "robots", where, default={})
+        check_keys(robots, _ROBOT_KEYS, where, "[robots]", _HINT)
+        robot = HolonomicRobot(
+            max_speed=number(robots, "max_speed_m_s", where, 2.5, place="[robots]", low=0.0, low_open=True),
+            max_yaw_rate=number(robots, "max_yaw_rate_rad_s", where, 3.0, place="[robots]", low=0.0,
+                                low_open=True))
+        off = table(data, "initial_offset", where, default={})
+        check_keys(off, _NAMES, where, "[initial_offset]", _HINT)
+        offset = np.array([number(off, n, where, 0.0, place="[initial_offset]") for n in _NAMES])
+        gains = _gains(data, where)
+        check_step_stable(where, dt, gains)
+        sc = Scenario(
+            name=text(data, "name", where, Path(where).stem),
+            title=text(data, "title", where, ""),
+            source=text(data, "source", where, ""),
+            path=path,
+            duration_s=duration,
+            dt_s=dt,
+            team=Team((robot, robot)),
+            initial_offset=offset,
+            gains=gains,
+            metrics_from_s=metrics_from,
+            feedforward=flag(data, "feedforward", where, True),
+        )
+        d0 = float(path(0.0)[0][5] + offset[5])
+        if not d0 > 0:
+            raise InvalidInputError(f"{where}: [path] d_c + [initial_offset] d_c = {d0:g} m at t = 0; the robots "
+                                    "would start on top of each other: make it > 0")
+        for name in CONTROLLERS:  # the gains must make a controller
+            sc.controller(name)
+    except InvalidInputError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
+    return sc
+
+
+#: Keys of ``[path]`` that only one centroid kind uses (seed 000 §4: the circle of §4.1, the
+#: line of §4.2); the other kinds would silently ignore them.
+_CENTROID_ONLY = {"radius": "circle", "period_s": "circle", "climb_m_s": "circle", "velocity": "line"}
+
+
+def _path(p: dict, where: str, duration: float) -> EuclideanPath:
+    """The ``[path]`` table of the file ``where``, for a run of ``duration`` s."""
+    check_keys(p, _PATH_KEYS, where, "[path]", _HINT)
+    at = {"place": "[path]"}
+    centroid = text(p, "centroid", where, "fixed", **at, choices=("circle", "line", "fixed"))
+    for key, kind in _CENTROID_ONLY.items():
+        if key in p and centroid != kind:
+            raise InvalidInputError(f"{where}: [path] {key} applies to centroid = {kind!r} only, not {centroid!r}: "
+                                    f"remove it or set centroid = {kind!r}")
+    initial = np.zeros(8)
+    for i, n in enumerate(_NAMES[3:], start=3):
+        kw = {"low": 0.0, "low_open": True} if n == "d_c" else {}
+        initial[i] = number(p, n, where, 1.0 if n == "d_c" else 0.0, **at, **kw)
+    circle = {}
+    if centroid == "circle":  # seed 000 §4.1: the centroid on a circle of radius r, one lap per period
+        for key in ("radius", "period_s"):  # both checked before a missing one is named
+            circle[key] = number(p, key, where, None, **at, low=0.0, low_open=True)
+        for key, what in (("radius", "the circle's radius, m"), ("period_s", "the time of one lap, s")):
+            if circle[key] is None:
+                raise InvalidInputError(f"{where}: [path] centroid = 'circle' needs {key} ({what}, > 0); add it "
+                                        "to [path] or use centroid = 'fixed'")
+    ramps = tuple(Ramp(text(r, "variable", w, choices=_NAMES), _time(r, "start_s", w, duration),
+                       number(r, "duration_s", w, low=0.0, low_open=True), number(r, "change", w))
+                  for r, w in _records(p, "ramps", _RAMP_KEYS, where))
+    steps = tuple(StepChange(text(s, "variable", w, choices=_NAMES), _time(s, "time_s", w, duration),
+                       number(s, "change", w))
+                  for s, w in _records(p, "steps", _STEP_KEYS, where))
+    path = EuclideanPath(
+        initial=initial,
+        centroid=centroid,
+        center=vector(p, "center", 3, where, (0.0, 0.0, 0.0), **at),
+        velocity=vector(p, "velocity", 3, where, (0.0, 0.0, 0.0), **at),
+        radius=circle.get("radius", 0.0),
+        period_s=circle.get("period_s", 1.0),
+        climb_m_s=number(p, "climb_m_s", where, 0.0, **at),
+        ramps=ramps,
+        steps=steps,
+    )
+    _check_separation(path, where, duration)
+    return path
+
+
+def _time(r: dict, key: str, where: str, duration: float) -> float:
+    """A ramp's start or a step's time ``r[key]``, within the run ``[0, duration]`` s (a ramp
+    may run past the end: the run shows the part of it that falls inside)."""
+    t = number(r, key, where)
+    if not 0.0 <= t <= duration:
+        raise InvalidInputError(f"{where}: {key} = {short(r[key])} s is outside the run [0, duration_s = "
+                                f"{duration:g} s]; the change would not happen in it: move it into the run or "
+                                "lengthen duration_s")
+    return t
+
+
+def _check_separation(path: EuclideanPath, where: str, duration: float) -> None:
+    """Refuse a path whose ``d_c`` reaches 0 in ``[0, duration]``, naming the ramp or step that
+    brings it there. ``d_c`` (entry 5) is ``[path] d_c`` plus the d_c ramps and steps, piecewise
+    linear in t, so its least value lies at 0, ``duration`` or a ramp's or step's time."""
+    changes = [(f"[[path.ramps]] #{i + 1}", r) for i, r in enumerate(path.ramps)] + \
+              [(f"[[path.steps]] #{i + 1}", s) for i, s in enumerate(path.steps)]
+    changes = [(name, c) for name, c in changes if c.variable == "d_c"]
+    if not changes:
+        return
+    times = {0.0, duration}
+    for _, c in changes:
+        times.update((c.start_s, min(c.start_s + c.duration_s, duration)) if isinstance(c, Ramp) else (c.time_s,))
+    times = np.array(sorted(times))
+    ramps = path.initial[5] + sum(c.value_rate(times)[0] for _, c in changes if isinstance(c, Ramp))
+    steps = [c for _, c in changes if isinstance(c, StepChange)]
+    right = ramps + sum(np.where(times >= c.time_s, c.change, 0.0) for c in steps)  # d_c(t)
+    left = ramps + sum(np.where(times > c.time_s, c.change, 0.0) for c in steps)  # d_c(t-), before a step
+    bad = np.flatnonzero(np.minimum(left, right) <= 0.0)
+    if bad.size == 0:
+        return
+    k = bad[0]
+    t, by_step = float(times[k]), bool(left[k] > 0.0)  # reached 0 by a jump at t, else by a ramp up to t
+    for name, c in changes:  # the step at t, else the ramp running up to t, that lowers d_c
+        if by_step and isinstance(c, StepChange) and c.time_s == t and c.change < 0:
+            label = f"{name} (d_c at {t:g} s, change = {c.change:g})"
+            break
+        if not by_step and isinstance(c, Ramp) and c.start_s < t <= c.start_s + c.duration_s and c.change < 0:
+            label = f"{name} (d_c from {c.start_s:g} s for {c.duration_s:g} s, change = {c.change:g})"
+            break
+    else:  # pragma: no cover - d_c > 0 at t = 0, so some change lowered it
+        label = "the d_c ramps and steps"
+    d = float(min(left[k], right[k]))
+    raise InvalidInputError(
+        f"{where}: {label} makes d_c <= 0 ({d:.3g} m at t = {t:g} s): the robots would meet; "
+        f"make the change smaller in size or raise [path] d_c = {path.initial[5]:g} m")
+
+
+def _records(p: dict, key: str, keys, where: str):
+    """``(table, where)`` of each entry of the array of tables ``[[path.<key>]]``."""
+    items = p.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(r, dict) for r in items):
+        raise InvalidInputError(f"{where}: [path] {key} = {short(items)} must be an array of tables "
+                                f"([[path.{key}]] entries; {_HINT})")
+    for i, r in enumerate(items):
+        w = f"{where} [[path.{key}]] #{i + 1}"
+        check_keys(r, keys, w, f"[[path.{key}]]", _HINT)
+        yield r, w
+
+
+def _gains(data: dict, where: str) -> dict:
+    """``gains = "table1" | "table2"`` or a ``[gains]`` table (``base`` and per-controller tables)."""
+    g = data.get("gains", "table1")
+    if isinstance(g, str):
+        return _TABLES[text(data, "gains", where, "table1", choices=tuple(_TABLES))]
+    if not isinstance(g, dict):
+        raise InvalidInputError(f"{where}: gains = {short(g)} must be 'table1', 'table2' or a [gains] table")
+    check_keys(g, ("base", *CONTROLLERS), where, "[gains]", _HINT)
+    base = _TABLES[text(g, "base", where, "table1", place="[gains]", choices=tuple(_TABLES))]
+    gains = {}
+    for name, shapes in _GAIN_KEYS.items():
+        place = f"[gains.{name}]"
+        own = table(g, name, where, "[gains]", default={})
+        check_keys(own, shapes, where, place, _HINT)
+        gains[name] = dict(base.get(name, {}))
+        for key, n in shapes.items():
+            if key in own:
+                gains[name][key] = _gain(own, key, n, where, place)
+    return gains
+
+
+def _gain(d: dict, key: str, n: int, where: str, place: str):
+    """A positive gain: a number, or for ``n > 1`` also a list of ``n`` numbers."""
+    v = d[key]
+    if n > 1 and isinstance(v, list):
+        vals = list(vector(d, key, n, where, place=place))
+    else:
+        if isinstance(v, list):
+            raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be one number")
+        vals = [number(d, key, where, place=place)]
+    for x in vals:
+        if not x > 0:
+            raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be positive (seed 000 Tables 1-2)")
+    return vals if n > 1 and isinstance(v, list) else vals[0]
+
+
+# --------------------------------------------------------------------------- the kind
+
+#: What moves the robots: their kinematic models, or MuJoCo physics (two quadrotors).
+BACKENDS = ("kinematic", "mujoco")
+
+#: Columns of the comparison table: (metrics key, header, format).
+TABLE_COLUMNS = (
+    ("controller", "controller", "{}"),
+    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
+    ("reference_lost", "lost", "{}"),
+    ("max_cluster_position_error_m", "cluster pos (m)", "{:.4f}"),
+    ("max_shape_error_m", "shape (m)", "{:.4f}"),
+    ("max_orientation_error_rad", "orient (rad)", "{:.4f}"),
+    ("max_robot_position_error_m", "robot pos (m)", "{:.4f}"),
+    ("max_recovered_euclidean_error_rad", "recovered (rad)", "{:.3f}"),
+    ("min_robot_separation_m", "min sep (m)", "{:.3f}"),
+    ("nonfinite_commands", "NaN cmds", "{}"),
+)
+
+#: Channels of ``timeseries.csv`` in file order; a tuple's channels are interleaved, each value
+#: beside its desired one (``x1, x1_des, y1, ...``: today's header): the robots, the
+#: controller's own cluster variables, the Euclidean ones recovered by its description, then
+#: the commands and the singularity measure.
+PAIR_CSV_CHANNELS = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"), "command", "singularity")
+
+
+def pair_csv_channels(formation: str) -> tuple:
+    """:data:`PAIR_CSV_CHANNELS` of a run of ``formation`` (a formation's name): the robot-space
+    description's cluster variables are the robots, so its file leaves them out."""
+    return tuple(c for c in PAIR_CSV_CHANNELS if not (formation == "robot" and c == ("cluster", "c_des")))
+
+
+#: Generous cost of one step of a run that follows a plan (time series kept, controller and
+#: simulator), checked before the plan's path is built: seed 000's helix runs 8000 steps in
+#: 0.8 s (docs/performance.md).
+PLAN_RUN_BYTES_PER_STEP, PLAN_RUN_SECONDS_PER_STEP = 1024.0, 2e-4
+
+
+def with_plan(sc: Scenario, plan_file, yaws=(0.0, 0.0)) -> Scenario:
+    """Scenario ``sc`` with its path replaced by the saved two-robot spatial plan ``plan_file``.
+
+    The plan's robot positions become the Euclidean cluster reference
+    (:class:`~quatform.planning.PlanPairPath`, constant yaws ``yaws``, seed 002 §4); the run
+    lasts the plan's duration; ``metrics_from_s`` is kept if it lies inside it, else 0.
+    """
+    from ..planning import PlanPairPath, load_plan
+
+    plan = load_plan(plan_file)
+    T = plan.duration_s
+    # the run steps the plan's whole duration at the scenario's dt_s: estimate it before the
+    # reference path is built (a plan lasting 1e9 s would otherwise run for days)
+    check_work(str(plan_file), f"the plan's duration ({T:.6g} s) / the scenario's dt_s ({sc.dt_s:g} s)",
+               T / sc.dt_s, bytes_per_step=PLAN_RUN_BYTES_PER_STEP, seconds_per_step=PLAN_RUN_SECONDS_PER_STEP,
+               fix="plan a shorter motion (duration_s of the plan spec)")
+    return dataclasses.replace(sc, path=PlanPairPath(plan, yaws), duration_s=T,
+                               name=f"{sc.name}+{plan.info.get('name', 'plan')}",
+                               metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)
+
+
+class PairKind(ScenarioKind):
+    """Seed 000's two holonomic robots under one of the four formation controllers."""
+
+    name = "pair"
+    scenario_type = Scenario
+    options = (
+        Option("controller", "formation controller (seed 000; required)", tuple(CONTROLLERS), None),
+        Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
+        Option("backend", "what moves the robots", BACKENDS, "kinematic"),
+        Option("reference", "a two-robot plan.npz to follow instead of the scenario's path", None, None, str),
+    )
+    compare_over = "controller"
+    table_columns = TABLE_COLUMNS
+
+    def from_dict(self, data: dict, where: str) -> Scenario:
+        return scenario_from_dict(data, where)
+
+    def experiment(self, scenario: Scenario, controller=None, feedforward: bool | None = None,
+                   backend: str = "kinematic", reference=None, r0=None, physics: dict | None = None) -> Experiment:
+        """The run of ``scenario`` with ``controller`` (a name of :data:`~quatform.control.CONTROLLERS`
+        or a controller object; required).
+
+        Parameters
+        ----------
+        feedforward : bool, optional
+            For a controller given by name: feed the reference's rate forward; default: the
+            scenario's (an object keeps its own).
+        backend : str
+            ``"kinematic"`` (the robots' models, :class:`~quatform.sim.plants.KinematicTeam`)
+            or ``"mujoco"`` (two IRIS quadrotors, :func:`quatform.sim.mujoco_backend.pair_plant`;
+            a controller given by name gets the physics gains; ``log.meta["physics_record"]``
+            is the run's :class:`~quatform.sim.mujoco_backend.PhysicsRecord`).
+        reference : str or path, optional
+            A saved two-robot plan to follow (:func:`with_plan`).
+        r0 : array_like, shape (*batch, 8), optional
+            Initial robot state of each world (leading axes: a batch of worlds run at once,
+            kinematic backend only); default the reference at ``t = 0`` displaced by
+            ``initial_offset`` (Euclidean variables).
+        physics : dict, optional
+            For ``backend="mujoco"``: ``gains`` (of
+            :func:`~quatform.sim.mujoco_backend.physics_controller`) and ``cascade_options``
+            (of :func:`~quatform.sim.mujoco_backend.pair_plant`).
+        """
+        if not isinstance(scenario, Scenario):
+            raise InvalidInputError(f"pair experiment: scenario must be a two-robot Scenario, got "
+                                    f"{type(scenario).__name__}")
+        if controller is None:
+            raise InvalidInputError(f"{scenario.name} is a two-robot scenario: give a controller "
+                                    f"(--controller {{{','.join(CONTROLLERS)}}})")
+        if backend not in BACKENDS:
+            raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+        physics = dict(physics or {})
+        check_keys(physics, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options",
+                   "see quatform.sim.mujoco_backend.pair_plant")
+        if physics and backend != "mujoco":
+            raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
+        if reference is not None:
+            scenario = with_plan(scenario, reference)
+        # up front, before the reference is sampled (a Scenario checks this when built; its
+        # fields may have been swapped since by object.__setattr__)
+        check_scenario_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s)
+        t = scenario.times
+        e_des, ed_des = scenario.path(t)  # references.sample_reference, the chart part first
+        if r0 is None:
+            r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
+        x0 = np.array(r0, dtype=float)
+        meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
+                "backend_label": "kinematic"}
+        if backend == "mujoco":
+            from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
+
+            ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics.get("gains"))
+            plant = mj.pair_plant(scenario, x0, cascade_options=physics.get("cascade_options"))
+            meta["backend_label"] = mj.BACKEND_LABEL
+
+            def record(log: Log) -> dict:
+                rec = mj.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
+                return {"physics_record": rec}
+
+            def physics_metrics(log: Log) -> dict:
+                return {**mj.physics_metrics(plant), **log.meta["physics_record"].metrics()}
+        else:
+            ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
+            plant = KinematicTeam(ctrl.team)
+
+            def record(log: Log) -> dict:
+                return {}
+
+            def physics_metrics(log: Log) -> dict:
+                return {}
+        F = ctrl.formation
+        c_des, cd_des = F.from_chart(e_des, ed_des)
+        r_des = RobotSpace().from_chart(e_des)
+        meta.update(formation=F.name, cluster_variables=F.variables,
+                    feedforward=bool(ctrl.feedforward))
+
+        def reference_at(k):
+            return Reference(c_des[k], cd_des[k], r_des[k])
+
+        def finish(log: Log) -> Log:
+            r, c = log["state"], log["cluster"]
+            shape = r.shape[:-1]
+            ed, cd, rd = (np.broadcast_to(a.reshape((a.shape[0],) + (1,) * (r.ndim - 2) + a.shape[1:]),
+                                          shape + a.shape[1:]) for a in (e_des, c_des, r_des))
+            e = F.to_chart(c, near_e=ed, r=r)
+            sing = F.singularity_measure(r, near_c=cd)
+            names = [v.name for v in F.variables]
+            euclid = ["euclid_" + v.name for v in EUCLIDEAN_VARIABLES]
+            log = log.with_channels(
+                *_channels(("r_des", [n + "_des" for n in log.columns("state")], rd),
+                           ("c_des", [n + "_des" for n in names], cd),
+                           ("e", euclid, e), ("e_des", [n + "_des" for n in euclid], ed),
+                           ("singularity", ["singularity_measure"], np.asarray(sing)[..., None])))
+            return log.with_channels(**record(log))
+
+        def metrics(log: Log) -> dict:
+            return {**compute_metrics(log), **physics_metrics(log)}
+
+        return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
+                          reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
+                          metrics=metrics, csv_channels=pair_csv_channels(F.name), meta=meta)
+
+
+def _channels(*specs):
+    return [Channel(name, tuple(cols), data) for name, cols, data in specs]
+
+
+#: The pair kind (registered in :data:`quatform.scenarios.KINDS`).
+PAIR = PairKind()
+KINDS[PAIR.name] = PAIR
+
+
+def run_pair(scenario: Scenario, controller, feedforward: bool | None = None, r0=None,
+             progress=None) -> Log:
+    """The complete log of ``scenario`` run with ``controller`` on the kinematic robots
+    (:meth:`PairKind.experiment` then :meth:`~quatform.scenarios.base.Experiment.run`)."""
+    return PAIR.experiment(scenario, controller=controller, feedforward=feedforward, r0=r0).run(progress)
+
+
+def simulate_physics(scenario: Scenario, controller, feedforward: bool | None = None, progress=None,
+                     cascade_options: dict | None = None, gains: dict | None = None):
+    """A seed 000 scenario on two simulated IRIS quadrotors (MuJoCo): ``(log, PhysicsRecord)``.
+
+    :meth:`PairKind.experiment` with ``backend="mujoco"``; ``controller`` a name (its gains
+    from :func:`~quatform.sim.mujoco_backend.physics_gains`, or ``gains``) or a controller
+    object; ``feedforward`` ``None`` keeps the scenario's.
+    """
+    physics = {k: v for k, v in (("cascade_options", cascade_options), ("gains", gains)) if v is not None}
+    log = PAIR.experiment(scenario, controller=controller, feedforward=feedforward, backend="mujoco",
+                          physics=physics).run(progress)
+    return log, log.meta["physics_record"]
