@@ -1,20 +1,50 @@
-"""MuJoCo physics backend: the same controllers drive physical robots (issue 7).
+"""MuJoCo physics backend: the same controllers drive physical robots (issues 7, 13).
 
-Sim layer. MuJoCo is optional: it is imported only when a physics run starts
+Sim layer. MuJoCo is optional: it is imported only when a physics world is made
 (:func:`import_mujoco`), never when quatform is imported; without it a physics run
 raises :class:`~quatform.errors.MissingDependencyError` naming
 ``pip install -e ".[mujoco]"`` (run in the quatform checkout: :data:`INSTALL_HINT`).
 
+## Plants
+
+The worlds are plants of :func:`quatform.sim.simulate.simulate` (``batchable = False``;
+``step(x, u, dt, t)`` advances the world from the state it returned last and returns the
+state read from it), in :mod:`quatform.sim.plants.mujoco`:
+
+* ``pair_plant(scenario, x0, timestep=None, cascade_options=None) -> PairPlant``: two IRIS
+  quadrotors in PX4-like velocity mode; ``x0`` (8,) = ``(x, y, z, yaw)`` per robot; state
+  and output columns ``x1 y1 z1 theta1 x2 y2 z2 theta2``; commands ``(v_x, v_y, v_z, yaw
+  rate)`` per robot. Run: ``simulate(plant, ctrl, ref, scenario.times, x0, dt=scenario.dt_s)``.
+* ``ugv_uav_plant(scenario, x0, floor, k=IRIS_IDENTIFIED_K) -> UgvUavPlant``: a Pioneer-like
+  UGV and an IRIS in Bebop-like attitude mode; ``x0`` (11,) the kinematic start, ``floor``
+  the floor height; the world's own start is ``plant.x0`` (pass that to simulate); the
+  controller compensates ``plant.uav_model`` (a ``Bebop`` with ``k`` and the scenario's
+  ``max_fraction``); columns ``UGV_UAV_MEASURED_NAMES``; commands ``UGV_UAV_COMMAND_NAMES``.
+  Run with ``dt=scenario.dt_s, substeps=round(control_period_s / dt_s)`` and the motion capture.
+* ``physics_metrics(plant) -> {"backend": "mujoco", "collisions": {...}, "physics_timestep_s"}``.
+* ``physics_record(plant, log, title="", gains=None, gains_source="") -> PhysicsRecord``:
+  ``record.metrics()`` gives ``gains``, ``gains_source``, ``gains_source_note``,
+  ``physics_timestep_s``; the picture is
+  ``quatform.report.physics_render.render_or_fallback(record, log, path) -> (path, how)``.
+* ``physics_controller_gains(scenario, controller_name) -> (gains, source)`` (here): a seed
+  000 controller's gains on physics (:data:`PHYSICS_GAINS` in place of Table 1), keyword
+  arguments of its class; the recorded gains add ``feedforward``.
+  ``ugv_uav_controller_gains(controller, source="scenario") -> (gains, source)``: a seed 001
+  controller's settings as recorded.
+
+A physics run is one run of its plant: it does not re-run the kinematic simulation
+(comparing backends is a compare over the backend axis).
+
+This module holds what the plants are made of:
+
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* :func:`simulate_physics` - a seed 000 scenario (two quadrotors) in closed loop with
-  any of the four formation controllers, through the same ``closed_loop`` as the
-  kinematic :func:`~quatform.sim.simulate`; returns the same :class:`~quatform.sim.Run`
-  and a :class:`PhysicsRecord` (collisions, MJCF, body poses for the pictures).
-* :func:`simulate_ugv_uav_physics` - a seed 001 scenario with a Pioneer-like UGV and a
-  quadrotor flown in Bebop-like attitude mode, the controller's dynamic compensation
-  (4.47) using ``K1..K8`` identified from the simulated quadrotor (:func:`identify_k`).
+* :func:`simulate_physics`, :func:`simulate_ugv_uav_physics` - a seed 000 or seed 001
+  scenario on its plant through :func:`~quatform.sim.simulate.simulate` (thin wrappers that
+  return the family's run record and a :class:`PhysicsRecord`).
+* :func:`identify_k` - ``K1..K8`` of the quadrotor in Bebop-like attitude mode (seed 001
+  eq. (3.11)) for the controller's dynamic compensation (4.47).
 """
 
 from __future__ import annotations
