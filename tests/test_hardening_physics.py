@@ -55,7 +55,7 @@ from quatform.sim import compute_metrics, load_scenario  # noqa: E402
 from quatform.sim.metrics import errors_from_robots  # noqa: E402
 from quatform.sim.mujoco_backend import (  # noqa: E402
     PHYSICS_GAINS,
-    physics_gains,
+    physics_controller_gains,
     simulate_physics,
     simulate_ugv_uav_physics,
 )
@@ -93,14 +93,14 @@ def test_every_scenario_gain_reaches_the_physics_run_and_is_recorded(circle):
 
 
 # -- item 2: physics gains for the Table 1 scenarios ---------------------------------------
-def test_physics_gains_replace_table1_only():
+def test_physics_controller_gains_replace_table1_only():
     yaw = load_scenario("mas-kitts-yaw-step")
     helix = load_scenario("mas-kitts-helix")
     for name in TABLE1:
-        assert physics_gains(yaw, name) == (PHYSICS_GAINS[name], "physics")
-        assert physics_gains(helix, name) == (TABLE2[name], "table2")  # what the paper flew in Gazebo
+        assert physics_controller_gains(yaw, name) == (PHYSICS_GAINS[name], "physics")
+        assert physics_controller_gains(helix, name) == (TABLE2[name], "table2")  # what the paper flew in Gazebo
     own = dataclasses.replace(yaw, gains={**yaw.gains, "quaternion": {"k_x": [1, 1, 1], "k_d": 2, "k_w": [1, 1, 1]}})
-    assert physics_gains(own, "quaternion") == ({"k_x": [1, 1, 1], "k_d": 2, "k_w": [1, 1, 1]}, "scenario")
+    assert physics_controller_gains(own, "quaternion") == ({"k_x": [1, 1, 1], "k_d": 2, "k_w": [1, 1, 1]}, "scenario")
     assert yaw.controller("quaternion").k_d == pytest.approx(20.0)  # the kinematic runs keep Table 1
 
 

@@ -76,12 +76,13 @@ from ..robots.physics import (
     wheel_speeds,
     world_mjcf,
 )
-from .loop import PerfectMeasurement, closed_loop
+from .log import Channel, Log
 from .runner import Run
 
-__all__ = ["BACKEND_LABEL", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "ContactMonitor", "PhysicsRecord",
-           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "simulate_physics",
-           "simulate_ugv_uav_physics"]
+__all__ = ["BACKEND_LABEL", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "UGV_UAV_GAIN_NAMES",
+           "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco",
+           "physics_controller_gains", "physics_timestep", "simulate_physics", "simulate_ugv_uav_physics",
+           "ugv_uav_controller_gains"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
 BACKEND_LABEL = "MuJoCo physics"
@@ -142,20 +143,20 @@ def _same_gains(a: dict, b: dict) -> bool:
                                     np.array_equal(np.asarray(a[k], float), np.asarray(b[k], float)) for k in a)
 
 
-def physics_gains(scenario, controller: str) -> tuple[dict, str]:
-    """The gains a physics run of ``scenario`` gives ``controller``, and their source.
+def physics_controller_gains(scenario, controller_name: str) -> tuple[dict, str]:
+    """The gains a physics run of the seed 000 ``scenario`` gives ``controller_name``, and their source.
 
     A scenario on seed 000 Table 1 (made for kinematic robots) gets :data:`PHYSICS_GAINS`
     (``"physics"``); Table 2 (``"table2"``) and any other gains (``"scenario"``) are used
     as the scenario gives them. Returns ``(gains, source)``: keyword arguments of the
     controller class and a key of :data:`GAINS_SOURCES`.
     """
-    if controller not in CONTROLLERS:
-        raise InvalidInputError(f"unknown controller {controller!r}; choose one of {', '.join(CONTROLLERS)}")
-    given = dict(scenario.gains.get(controller, {}))
-    if _same_gains(given, TABLE1[controller]):
-        return {k: list(v) if isinstance(v, list) else v for k, v in PHYSICS_GAINS[controller].items()}, "physics"
-    return given, "table2" if _same_gains(given, TABLE2[controller]) else "scenario"
+    if controller_name not in CONTROLLERS:
+        raise InvalidInputError(f"unknown controller {controller_name!r}; choose one of {', '.join(CONTROLLERS)}")
+    given = dict(scenario.gains.get(controller_name, {}))
+    if _same_gains(given, TABLE1[controller_name]):
+        return {k: list(v) if isinstance(v, list) else v for k, v in PHYSICS_GAINS[controller_name].items()}, "physics"
+    return given, "table2" if _same_gains(given, TABLE2[controller_name]) else "scenario"
 
 
 def _controller_gains(ctrl) -> dict:
@@ -164,8 +165,17 @@ def _controller_gains(ctrl) -> dict:
 
 
 #: The settings of a seed 001 controller that shape its commands (seed 001 §5, eq. (4.47)).
-_UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "feedforward", "wall_margin",
-                       "wall_gain", "derivative_filter_s")
+UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "feedforward", "wall_margin",
+                      "wall_gain", "derivative_filter_s")
+
+
+def ugv_uav_controller_gains(controller, source: str = "scenario") -> tuple[dict, str]:
+    """The settings a seed 001 ``controller`` runs with (:data:`UGV_UAV_GAIN_NAMES`, JSON-ready)
+    and ``source`` (a key of :data:`GAINS_SOURCES`: ``"scenario"`` for the scenario's
+    ``[gains]``, ``"argument"`` where the run overrides them)."""
+    if source not in GAINS_SOURCES:
+        raise InvalidInputError(f"gains source {source!r}; choose one of {', '.join(GAINS_SOURCES)}")
+    return {n: _plain(getattr(controller, n)) for n in UGV_UAV_GAIN_NAMES}, source
 
 
 #: How to install the optional extra, run in the quatform checkout (the extra named by the
@@ -535,7 +545,7 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
     """
     if isinstance(controller, str):
         if gains is None:
-            gains, source = physics_gains(scenario, controller)
+            gains, source = physics_controller_gains(scenario, controller)
         else:
             source = "argument"
         try:
@@ -549,36 +559,23 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
             raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
                                     f"object ({type(controller).__name__} already has its gains)")
         ctrl, source = controller, "controller"
+    from .plants.mujoco import pair_plant, physics_record
+    from .simulate import simulate
+
     F = ctrl.formation
     t = scenario.times
     e_des, _, c_des, cd_des = sample_reference(scenario.path, t, F)
     r_des = RobotSpace().from_euclidean(e_des)
     r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
-    h = physics_timestep(scenario.dt_s)
-    world = PhysicsWorld(quads=[("robot1", r0[0:3], r0[3]), ("robot2", r0[4:7], r0[7])], timestep=h,
-                         cascade_options=cascade_options)
-    substeps = round(scenario.dt_s / h)
-    world.continue_yaw("robot1", r0[3])  # yaws continued from the scenario's, not wrapped
-    world.continue_yaw("robot2", r0[7])
-    qpos = []
-
-    def plant(x, u, dt):
-        qpos.append(world.qpos())
-        world.command_quad("robot1", u[0:4])
-        world.command_quad("robot2", u[4:8])
-        world.step(substeps)
-        return np.r_[world.quad_state("robot1"), world.quad_state("robot2")]
-
-    log = closed_loop(t, 1, scenario.dt_s, r0, plant, PerfectMeasurement(), ctrl.compute,
-                      lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
-    r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
+    plant = pair_plant(scenario, r0, cascade_options=cascade_options)
+    log = simulate(plant, ctrl, lambda k: Reference(c_des[k], cd_des[k], r_des[k]), t, plant.x0, dt=scenario.dt_s,
+                   progress=progress)
+    r, c, u = log["state"], log["cluster"], log["command"]
+    ok = log["raw_finite"][:, 0] > 0.5
     e = F.euclidean(c, e_des, r)
     sing = F.singularity_measure(r, c_des)
     run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing, backend=BACKEND_LABEL)
-    q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
-    rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
-                        world.contacts.summary(), h, _controller_gains(ctrl), source,
-                        f"{scenario.name}: {ctrl.name} controller")
+    rec = physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", _controller_gains(ctrl), source)
     return run, rec
 
 
@@ -594,51 +591,27 @@ def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIE
     None) and ``controller_options`` override the scenario's gains. Returns
     ``(UgvUavRun, PhysicsRecord)``; the record's ``gains`` are the controller's.
     """
+    from .plants.mujoco import physics_record, ugv_uav_plant
     from .ugv_uav import simulate_ugv_uav
 
     holder = {}
 
     def plant_factory(x0, floor):
-        h = physics_timestep(sc.dt_s)
-        z0 = max(x0[5], floor + IRIS.leg_height)
-        world = PhysicsWorld(quads=[("uav", (x0[3], x0[4], z0), x0[6])], ugvs=[("ugv", x0[0:2], x0[2])],
-                             floor_z=floor, timestep=h, quad_mode="attitude")
-        holder["world"], holder["qpos"], holder["h"] = world, [], h
-        n = round(sc.dt_s / h)
+        plant = holder["plant"] = ugv_uav_plant(sc, x0, floor, k)
+        return plant.x0, lambda x, u, dt: plant.step(x, u, dt, plant.world.data.time)
 
-        def state():
-            _, v, R, w, _ = world.quad_pose("uav")
-            s = world.quad_state("uav")
-            c, si = math.cos(s[3]), math.sin(s[3])
-            psi_dot = float(R[2, :] @ w)  # world z component of the body rate
-            return np.r_[world.ugv_state("ugv"), s, c * v[0] + si * v[1], -si * v[0] + c * v[1], v[2], psi_dot]
-
-        def plant(x, u, dt):
-            holder["qpos"].append(world.qpos())
-            world.command_ugv("ugv", u[0:2])
-            world.command_quad("uav", u[2:6])
-            world.step(n)
-            return state()
-
-        return state(), plant
-
-    bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)
     if compensation is not None and not isinstance(compensation, bool | np.bool_):
         raise InvalidInputError(f"simulate_ugv_uav_physics: compensation must be true, false or None (the "
                                 f"scenario's), got {compensation!r}")
     options = dict(controller_options, **({} if compensation is None else {"compensation": bool(compensation)}))
-    ctrl = sc.controller(formation, bebop=bebop, **options)  # the one simulate_ugv_uav builds: its gains
-    used = {n: _plain(getattr(ctrl, n)) for n in _UGV_UAV_GAIN_NAMES if hasattr(ctrl, n)}
+    bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)  # the model ugv_uav_plant's uav_model is
+    gains, source = ugv_uav_controller_gains(sc.controller(formation, bebop=bebop, **options),
+                                             "argument" if options else "scenario")
     run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop, **options)
     run = dataclasses.replace(run, backend=BACKEND_LABEL)
-    world = holder["world"]
-    spc = max(1, round(sc.control_period_s / sc.dt_s))  # plant calls per control tick
-    q = np.array(holder["qpos"][::spc][:len(run.t)])
-    rec = PhysicsRecord(world.xml, run.t[:len(q)], q,
-                        {"ugv": np.c_[run.ugv[:, 0:2], np.full(len(run.t), sc.center[2])], "uav": run.uav[:, 0:3]},
-                        world.contacts.summary(), holder["h"], used, "argument" if options else "scenario",
-                        f"{sc.name}: {formation} formation")
-    return run, rec
+    plant = holder["plant"]
+    log = Log(run.t, [Channel("state", plant.state_columns, np.c_[run.ugv, run.uav])])
+    return run, physics_record(plant, log, f"{sc.name}: {formation} formation", gains, source)
 
 
 #: Excitation of :func:`identify_k` per channel: (duration s, step period s, chirp end Hz).
