@@ -228,7 +228,7 @@ def test_fallback_file_under_disabled_gl(short_pair, tmp_path, monkeypatch):
         raise RuntimeError("no GL here")
 
     monkeypatch.setattr(pr, "render_time_lapse", no_gl)
-    path, how = render_or_fallback(rec, run, tmp_path / "t.png", n_snapshots=3, width=400, height=300)
+    path, how = render_or_fallback(rec, None, tmp_path / "t.png", n_snapshots=3, width=400, height=300)
     assert how.startswith("matplotlib (") and "no GL here" in how
     from matplotlib.image import imread
 
