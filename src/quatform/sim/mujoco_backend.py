@@ -26,9 +26,11 @@ state read from it), in :mod:`quatform.sim.plants.mujoco`:
   ``record.metrics()`` gives ``gains``, ``gains_source``, ``gains_source_note``,
   ``physics_timestep_s``; the picture is
   ``quatform.report.physics_render.render_or_fallback(record, log, path) -> (path, how)``.
-* ``physics_controller_gains(scenario, controller_name) -> (gains, source)`` (here): a seed
-  000 controller's gains on physics (:data:`PHYSICS_GAINS` in place of Table 1), keyword
-  arguments of its class; the recorded gains add ``feedforward``.
+* ``physics_controller(scenario, controller, feedforward=None, gains=None) -> (ctrl, gains,
+  source)`` (here): the seed 000 controller of a physics run (a name gets
+  ``physics_controller_gains(scenario, controller_name) -> (gains, source)``:
+  :data:`PHYSICS_GAINS` in place of Table 1; an object runs as it is), the gains to record
+  (``pair_controller_gains(ctrl)``, ``feedforward`` included) and their source.
   ``ugv_uav_controller_gains(controller, source="scenario") -> (gains, source)``: a seed 001
   controller's settings as recorded.
 
@@ -40,9 +42,12 @@ This module holds what the plants are made of:
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* :func:`simulate_physics`, :func:`simulate_ugv_uav_physics` - a seed 000 or seed 001
-  scenario on its plant through :func:`~quatform.sim.simulate.simulate` (thin wrappers that
-  return the family's run record and a :class:`PhysicsRecord`).
+* :func:`simulate_physics` - a seed 000 scenario on ``pair_plant`` through
+  :func:`~quatform.sim.simulate.simulate`; :func:`simulate_ugv_uav_physics` - a seed 001
+  scenario on ``ugv_uav_plant`` through the seed 001 loop
+  (:func:`~quatform.sim.ugv_uav.simulate_ugv_uav`'s ``plant_factory``). Thin wrappers that
+  return the family's run record and a :class:`PhysicsRecord`, until the scenario kinds
+  run the plants themselves.
 * :func:`identify_k` - ``K1..K8`` of the quadrotor in Bebop-like attitude mode (seed 001
   eq. (3.11)) for the controller's dynamic compensation (4.47).
 """
@@ -80,9 +85,9 @@ from .log import Channel, Log
 from .runner import Run
 
 __all__ = ["BACKEND_LABEL", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "UGV_UAV_GAIN_NAMES",
-           "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco",
-           "physics_controller_gains", "physics_timestep", "simulate_physics", "simulate_ugv_uav_physics",
-           "ugv_uav_controller_gains"]
+           "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco", "pair_controller_gains",
+           "physics_controller", "physics_controller_gains", "physics_timestep", "simulate_physics",
+           "simulate_ugv_uav_physics", "ugv_uav_controller_gains"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
 BACKEND_LABEL = "MuJoCo physics"
@@ -159,9 +164,49 @@ def physics_controller_gains(scenario, controller_name: str) -> tuple[dict, str]
     return given, "table2" if _same_gains(given, TABLE2[controller_name]) else "scenario"
 
 
-def _controller_gains(ctrl) -> dict:
-    """The gains a seed 000 controller (a dataclass) runs with: its init fields but the team."""
+def pair_controller_gains(ctrl) -> dict:
+    """The gains a seed 000 controller (a dataclass) runs with, JSON-ready: its init fields
+    but the team (``feedforward`` included)."""
     return {f.name: _plain(getattr(ctrl, f.name)) for f in dataclasses.fields(ctrl) if f.init and f.name != "team"}
+
+
+def physics_controller(scenario, controller, feedforward: bool | None = None,
+                       gains: dict | None = None) -> tuple[object, dict, str]:
+    """The seed 000 controller a physics run of ``scenario`` drives its quadrotors with.
+
+    Parameters
+    ----------
+    controller : str or Controller
+        A name: its gains from :func:`physics_controller_gains`, or ``gains`` (keyword
+        arguments of its class, source ``"argument"``); or a controller object, run as it is
+        (source ``"controller"``).
+    feedforward : bool, optional
+        For a name: feed the reference's rate forward; None keeps the scenario's.
+
+    Returns
+    -------
+    (controller, gains, source)
+        The controller object, the gains it runs with (:func:`pair_controller_gains`: what
+        ``metrics.json`` records) and their source (a key of :data:`GAINS_SOURCES`).
+    """
+    if isinstance(controller, str):
+        if gains is None:
+            gains, source = physics_controller_gains(scenario, controller)
+        else:
+            source = "argument"
+        try:
+            ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
+                controller, feedforward)
+        except TypeError as exc:  # an unknown gain name
+            raise InvalidInputError(f"physics run: gains {gains!r} for {controller}: {exc}; use the "
+                                    f"controller's gain names ({', '.join(TABLE1[controller])})") from None
+    else:
+        if gains is not None:
+            raise InvalidInputError("physics run: pass gains with a controller name, not with a controller "
+                                    f"object ({type(controller).__name__} already has its gains)")
+        ctrl, source = controller, "controller"
+    return ctrl, pair_controller_gains(ctrl), source
+
 
 
 #: The settings of a seed 001 controller that shape its commands (seed 001 §5, eq. (4.47)).
@@ -543,22 +588,7 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
     arguments of its class) or a controller object (run as it is). The record says which
     gains ran (``gains``, ``gains_source``).
     """
-    if isinstance(controller, str):
-        if gains is None:
-            gains, source = physics_controller_gains(scenario, controller)
-        else:
-            source = "argument"
-        try:
-            ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
-                controller, feedforward)
-        except TypeError as exc:  # an unknown gain name
-            raise InvalidInputError(f"simulate_physics: gains {gains!r} for {controller}: {exc}; use the "
-                                    f"controller's gain names ({', '.join(TABLE1[controller])})") from None
-    else:
-        if gains is not None:
-            raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
-                                    f"object ({type(controller).__name__} already has its gains)")
-        ctrl, source = controller, "controller"
+    ctrl, recorded, source = physics_controller(scenario, controller, feedforward, gains)
     from .plants.mujoco import pair_plant, physics_record
     from .simulate import simulate
 
@@ -575,7 +605,7 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
     e = F.euclidean(c, e_des, r)
     sing = F.singularity_measure(r, c_des)
     run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing, backend=BACKEND_LABEL)
-    rec = physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", _controller_gains(ctrl), source)
+    rec = physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", recorded, source)
     return run, rec
 
 
