@@ -119,3 +119,27 @@ def test_ugv_uav_plant_starts_on_its_skids_and_carries_the_identified_model():
     rec = physics_record(plant, log)
     assert rec.qpos.shape == (51, plant.world.model.nq) and np.allclose(rec.robots["ugv"][:, 2], sc.center[2])
     assert physics_metrics(plant)["collisions"]["count"] == 0
+
+
+def test_ugv_uav_plant_under_the_seed_001_controller_through_simulate():
+    """The seed 001 controller (on the contract since issue 13) flies the physics plant in the
+    one loop: the UAV takes off from the floor towards its place over the UGV, nothing collides."""
+    import dataclasses
+
+    from quatform.control import Reference
+    from quatform.sim.ugv_uav import simulate_ugv_uav
+
+    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=6.0)
+    kin = simulate_ugv_uav(sc, "quaternion")  # the kinematic start and reference of this scenario
+    floor = sc.center[2] - sc.floor_below_platform_m
+    plant = ugv_uav_plant(sc, np.r_[kin.ugv[0], kin.uav[0]], floor)
+    ctrl = sc.controller("quaternion", bebop=plant.uav_model)
+    n = round(sc.control_period_s / sc.dt_s)
+    log = simulate(plant, ctrl, lambda k: Reference(kin.c_des[k], np.zeros(ctrl.formation.n_c)), kin.t, plant.x0,
+                   dt=sc.dt_s, substeps=n)
+    x = log["state"]
+    assert x.shape == (len(kin.t), 11) and np.all(log["raw_finite"] == 1.0) and np.all(log["frame"] == 0)
+    assert x[0, 5] == pytest.approx(floor + IRIS.leg_height, abs=1e-3)
+    assert x[-1, 5] > x[0, 5] + 0.5  # it took off (the reference is 1.5 m above the platform)
+    assert physics_metrics(plant)["collisions"]["count"] == 0
+    assert log.meta["controller_state"].stopped is False

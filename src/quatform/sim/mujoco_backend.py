@@ -86,7 +86,7 @@ from .runner import Run
 
 __all__ = ["BACKEND_LABEL", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "UGV_UAV_GAIN_NAMES",
            "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco", "pair_controller_gains",
-           "physics_controller", "physics_controller_gains", "physics_timestep", "simulate_physics",
+           "physics_controller", "physics_controller_gains", "physics_gains", "physics_timestep", "simulate_physics",
            "simulate_ugv_uav_physics", "ugv_uav_controller_gains"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
@@ -162,6 +162,10 @@ def physics_controller_gains(scenario, controller_name: str) -> tuple[dict, str]
     if _same_gains(given, TABLE1[controller_name]):
         return {k: list(v) if isinstance(v, list) else v for k, v in PHYSICS_GAINS[controller_name].items()}, "physics"
     return given, "table2" if _same_gains(given, TABLE2[controller_name]) else "scenario"
+
+
+#: The name issue 7 gave :func:`physics_controller_gains` (callers of the pair kind use it).
+physics_gains = physics_controller_gains
 
 
 def pair_controller_gains(ctrl) -> dict:
