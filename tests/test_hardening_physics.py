@@ -93,7 +93,7 @@ def test_every_scenario_gain_reaches_the_physics_run_and_is_recorded(circle):
 
 
 # -- item 2: physics gains for the Table 1 scenarios ---------------------------------------
-def test_physics_controller_gains_replace_table1_only():
+def test_physics_gains_replace_table1_only():
     yaw = load_scenario("mas-kitts-yaw-step")
     helix = load_scenario("mas-kitts-helix")
     for name in TABLE1:
