@@ -52,6 +52,7 @@ def test_pair_plant_keeps_the_plant_contract():
     plant = pair_plant(sc, R0)
     assert plant.state_columns == ("x1", "y1", "z1", "theta1", "x2", "y2", "z2", "theta2")
     assert plant.output_columns == plant.state_columns and plant.batchable is False
+    assert plant.command_columns == ("v_x1", "v_y1", "v_z1", "yaw_rate1", "v_x2", "v_y2", "v_z2", "yaw_rate2")
     assert plant.timestep == pytest.approx(sc.dt_s / 4) and np.array_equal(plant.x0, R0)
     assert plant.output(plant.x0) is plant.x0
     with pytest.raises(InvalidInputError, match="not the state the world is in"):

@@ -212,7 +212,6 @@ def physics_controller(scenario, controller, feedforward: bool | None = None,
     return ctrl, pair_controller_gains(ctrl), source
 
 
-
 #: The settings of a seed 001 controller that shape its commands (seed 001 §5, eq. (4.47)).
 UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "feedforward", "wall_margin",
                       "wall_gain", "derivative_filter_s")

@@ -111,6 +111,7 @@ class PairPlant(_WorldPlant):
     """
 
     state_columns = PAIR_LAYOUT.names
+    command_columns = tuple(f"{c}{i}" for i in (1, 2) for c in ("v_x", "v_y", "v_z", "yaw_rate"))
     names = ("robot1", "robot2")
 
     def __init__(self, x0, timestep: float, cascade_options: dict | None = None):
