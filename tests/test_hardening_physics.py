@@ -56,7 +56,7 @@ from quatform.sim.metrics import errors_from_robots  # noqa: E402
 from quatform.scenarios.pair import scenario_from_dict, simulate_physics  # noqa: E402
 from quatform.sim.mujoco_backend import (  # noqa: E402
     PHYSICS_GAINS,
-    physics_gains,
+    physics_controller_gains,
     simulate_ugv_uav_physics,
 )
 
@@ -96,10 +96,10 @@ def test_physics_gains_replace_table1_only():
     yaw = load_scenario("mas-kitts-yaw-step")
     helix = load_scenario("mas-kitts-helix")
     for name in TABLE1:
-        assert physics_gains(yaw, name) == (PHYSICS_GAINS[name], "physics")
-        assert physics_gains(helix, name) == (TABLE2[name], "table2")  # what the paper flew in Gazebo
+        assert physics_controller_gains(yaw, name) == (PHYSICS_GAINS[name], "physics")
+        assert physics_controller_gains(helix, name) == (TABLE2[name], "table2")  # what the paper flew in Gazebo
     own = dataclasses.replace(yaw, gains={**yaw.gains, "quaternion": {"k_x": [1, 1, 1], "k_d": 2, "k_w": [1, 1, 1]}})
-    assert physics_gains(own, "quaternion") == ({"k_x": [1, 1, 1], "k_d": 2, "k_w": [1, 1, 1]}, "scenario")
+    assert physics_controller_gains(own, "quaternion") == ({"k_x": [1, 1, 1], "k_d": 2, "k_w": [1, 1, 1]}, "scenario")
     assert yaw.controller("quaternion").k_d == pytest.approx(20.0)  # the kinematic runs keep Table 1
 
 
@@ -227,7 +227,7 @@ def test_fallback_file_under_disabled_gl(short_pair, tmp_path, monkeypatch):
         raise RuntimeError("no GL here")
 
     monkeypatch.setattr(pr, "render_time_lapse", no_gl)
-    path, how = render_or_fallback(rec, run, tmp_path / "t.png", n_snapshots=3, width=400, height=300)
+    path, how = render_or_fallback(rec, None, tmp_path / "t.png", n_snapshots=3, width=400, height=300)
     assert how.startswith("matplotlib (") and "no GL here" in how
     from matplotlib.image import imread
 

@@ -166,7 +166,7 @@ def test_time_lapse_renders_offscreen(tmp_path):
                     f"{type(exc).__name__}: {exc})")
     sc = _pair({"velocity": [0.0, 0.3, 0.0]}, 1.0, z=2.0)
     run, rec = simulate_physics(sc, "dual-quaternion")
-    path, how = render_or_fallback(rec, run, tmp_path / "t.png", n_snapshots=3, width=320, height=240)
+    path, how = render_or_fallback(rec, None, tmp_path / "t.png", n_snapshots=3, width=320, height=240)
     assert how == "mujoco"
     img = imread(path)
     assert img.shape[:2] == (240, 320)

@@ -317,16 +317,17 @@ def time_lapse_figure(record, n_snapshots: int = 9, note: str = "", width: int =
     return fig
 
 
-def render_or_fallback(record, run, path, **kw) -> tuple[Path, str]:
+def render_or_fallback(record, log, path, **kw) -> tuple[Path, str]:
     """:func:`render_time_lapse`, or where offscreen OpenGL fails, :func:`plot_time_lapse`
     of the same states. Returns ``(file, "mujoco" | "matplotlib (reason)")``.
 
-    ``run`` (the run the record belongs to) names the picture where the record does not.
+    ``log`` (the :class:`~quatform.sim.log.Log` of the run the record belongs to, or None)
+    names the picture where the record does not: its meta's ``scenario`` and ``controller``.
     """
-    if not record.title and run is not None:
-        label = getattr(getattr(run, "controller", None), "name", None)
-        what = f"{label} controller" if label else f"{getattr(run, 'formation', '?')} formation"
-        record = dataclasses.replace(record, title=f"{run.scenario.name}: {what}")
+    if not record.title and log is not None:
+        meta = log.meta
+        record = dataclasses.replace(record, title=f"{meta.get('scenario', 'physics run')}: "
+                                                   f"{meta.get('controller', 'controller')}")
     try:
         return render_time_lapse(record, path, **kw), "mujoco"
     except Exception as exc:  # noqa: BLE001 - any GL failure: fall back, and say why

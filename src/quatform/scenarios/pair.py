@@ -536,17 +536,18 @@ class PairKind(ScenarioKind):
                 "backend_label": "kinematic"}
         if backend == "mujoco":
             from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
+            from ..sim.plants import mujoco as mjp
 
             ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics.get("gains"))
-            plant = mj.pair_plant(scenario, x0, cascade_options=physics.get("cascade_options"))
+            plant = mjp.pair_plant(scenario, x0, cascade_options=physics.get("cascade_options"))
             meta["backend_label"] = mj.BACKEND_LABEL
 
             def record(log: Log) -> dict:
-                rec = mj.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
+                rec = mjp.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
                 return {"physics_record": rec}
 
             def physics_metrics(log: Log) -> dict:
-                return {**mj.physics_metrics(plant), **log.meta["physics_record"].metrics()}
+                return {**mjp.physics_metrics(plant), **log.meta["physics_record"].metrics()}
         else:
             ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
             plant = KinematicTeam(ctrl.team)

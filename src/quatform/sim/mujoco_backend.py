@@ -1,21 +1,52 @@
-"""MuJoCo physics backend: the same controllers drive physical robots (issue 7).
+"""MuJoCo physics backend: the same controllers drive physical robots (issues 7, 13).
 
-Sim layer. MuJoCo is optional: it is imported only when a physics run starts
+Sim layer. MuJoCo is optional: it is imported only when a physics world is made
 (:func:`import_mujoco`), never when quatform is imported; without it a physics run
 raises :class:`~quatform.errors.MissingDependencyError` naming
 ``pip install -e ".[mujoco]"`` (run in the quatform checkout: :data:`INSTALL_HINT`).
 
+## Plants
+
+The worlds are plants of :func:`quatform.sim.simulate.simulate` (``batchable = False``;
+``step(x, u, dt, t)`` advances the world from the state it returned last and returns the
+state read from it), in :mod:`quatform.sim.plants.mujoco`:
+
+* ``pair_plant(scenario, x0, timestep=None, cascade_options=None) -> PairPlant``: two IRIS
+  quadrotors in PX4-like velocity mode; ``x0`` (8,) = ``(x, y, z, yaw)`` per robot; state
+  and output columns ``x1 y1 z1 theta1 x2 y2 z2 theta2``; commands ``(v_x, v_y, v_z, yaw
+  rate)`` per robot. Run: ``simulate(plant, ctrl, ref, scenario.times, x0, dt=scenario.dt_s)``.
+* ``ugv_uav_plant(scenario, x0, floor, k=IRIS_IDENTIFIED_K) -> UgvUavPlant``: a Pioneer-like
+  UGV and an IRIS in Bebop-like attitude mode; ``x0`` (11,) the kinematic start, ``floor``
+  the floor height; the world's own start is ``plant.x0`` (pass that to simulate); the
+  controller compensates ``plant.uav_model`` (a ``Bebop`` with ``k`` and the scenario's
+  ``max_fraction``); columns ``UGV_UAV_MEASURED_NAMES``; commands ``UGV_UAV_COMMAND_NAMES``.
+  Run with ``dt=scenario.dt_s, substeps=round(control_period_s / dt_s)`` and the motion capture.
+* ``physics_metrics(plant) -> {"backend": "mujoco", "collisions": {...}, "physics_timestep_s"}``.
+* ``physics_record(plant, log, title="", gains=None, gains_source="") -> PhysicsRecord``:
+  ``record.metrics()`` gives ``gains``, ``gains_source``, ``gains_source_note``,
+  ``physics_timestep_s``; the picture is
+  ``quatform.report.physics_render.render_or_fallback(record, log, path) -> (path, how)``.
+* ``physics_controller(scenario, controller, feedforward=None, gains=None) -> (ctrl, gains,
+  source)`` (here): the seed 000 controller of a physics run (a name gets
+  ``physics_controller_gains(scenario, controller_name) -> (gains, source)``:
+  :data:`PHYSICS_GAINS` in place of Table 1; an object runs as it is), the gains to record
+  (``pair_controller_gains(ctrl)``, ``feedforward`` included) and their source.
+  ``ugv_uav_controller_gains(controller, source="scenario") -> (gains, source)``: a seed 001
+  controller's settings as recorded.
+
+A physics run is one run of its plant: it does not re-run the kinematic simulation
+(comparing backends is a compare over the backend axis).
+
+This module holds what the plants are made of:
+
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* :func:`pair_plant` - the plant of a seed 000 scenario (two quadrotors) for any of the
-  four formation controllers (:func:`physics_controller`), run by the one
-  :func:`~quatform.sim.simulate` like the kinematic team
-  (:func:`quatform.scenarios.pair.simulate_physics`); :func:`physics_metrics` and
-  :func:`physics_record` (collisions, MJCF, body poses for the pictures) read the run.
-* :func:`simulate_ugv_uav_physics` - a seed 001 scenario with a Pioneer-like UGV and a
-  quadrotor flown in Bebop-like attitude mode, the controller's dynamic compensation
-  (4.47) using ``K1..K8`` identified from the simulated quadrotor (:func:`identify_k`).
+* :func:`simulate_ugv_uav_physics` - a seed 001 scenario on ``ugv_uav_plant`` (a thin
+  wrapper returning the run and a :class:`PhysicsRecord`); the pair kind runs its plant
+  itself (``quatform.scenarios.pair``).
+* :func:`identify_k` - ``K1..K8`` of the quadrotor in Bebop-like attitude mode (seed 001
+  eq. (3.11)) for the controller's dynamic compensation (4.47).
 """
 
 from __future__ import annotations
@@ -45,11 +76,12 @@ from ..robots.physics import (
     wheel_speeds,
     world_mjcf,
 )
+from .log import Channel, Log
 
-__all__ = ["BACKEND_LABEL", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "ContactMonitor", "PhysicsRecord",
-           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "pair_plant",
-           "PairPlant", "physics_controller", "physics_metrics", "physics_record",
-           "simulate_ugv_uav_physics"]
+__all__ = ["BACKEND_LABEL", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "UGV_UAV_GAIN_NAMES",
+           "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco", "pair_controller_gains",
+           "physics_controller", "physics_controller_gains", "physics_gains", "physics_timestep",
+           "simulate_ugv_uav_physics", "ugv_uav_controller_gains"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
 BACKEND_LABEL = "MuJoCo physics"
@@ -61,7 +93,7 @@ BACKEND_LABEL = "MuJoCo physics"
 #: mass) is a physical result.
 IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 
-#: Seed 000 gains for two IRIS quadrotors, used by :func:`pair_plant` where a
+#: Seed 000 gains for two IRIS quadrotors, used by :func:`simulate_physics` where a
 #: scenario asks for Table 1 (seed 000 §4.1: kinematic MATLAB robots). Table 1's loops are
 #: up to 20 1/s fast; the quadrotor follows a velocity command through its PX4-like PI
 #: velocity loop (1.8, 0.4: a lag of ~0.55 s), so a proportional outer loop on it has a
@@ -110,30 +142,82 @@ def _same_gains(a: dict, b: dict) -> bool:
                                     np.array_equal(np.asarray(a[k], float), np.asarray(b[k], float)) for k in a)
 
 
-def physics_gains(scenario, controller: str) -> tuple[dict, str]:
-    """The gains a physics run of ``scenario`` gives ``controller``, and their source.
+def physics_controller_gains(scenario, controller_name: str) -> tuple[dict, str]:
+    """The gains a physics run of the seed 000 ``scenario`` gives ``controller_name``, and their source.
 
     A scenario on seed 000 Table 1 (made for kinematic robots) gets :data:`PHYSICS_GAINS`
     (``"physics"``); Table 2 (``"table2"``) and any other gains (``"scenario"``) are used
     as the scenario gives them. Returns ``(gains, source)``: keyword arguments of the
     controller class and a key of :data:`GAINS_SOURCES`.
     """
-    if controller not in CONTROLLERS:
-        raise InvalidInputError(f"unknown controller {controller!r}; choose one of {', '.join(CONTROLLERS)}")
-    given = dict(scenario.gains.get(controller, {}))
-    if _same_gains(given, TABLE1[controller]):
-        return {k: list(v) if isinstance(v, list) else v for k, v in PHYSICS_GAINS[controller].items()}, "physics"
-    return given, "table2" if _same_gains(given, TABLE2[controller]) else "scenario"
+    if controller_name not in CONTROLLERS:
+        raise InvalidInputError(f"unknown controller {controller_name!r}; choose one of {', '.join(CONTROLLERS)}")
+    given = dict(scenario.gains.get(controller_name, {}))
+    if _same_gains(given, TABLE1[controller_name]):
+        return {k: list(v) if isinstance(v, list) else v for k, v in PHYSICS_GAINS[controller_name].items()}, "physics"
+    return given, "table2" if _same_gains(given, TABLE2[controller_name]) else "scenario"
 
 
-def _controller_gains(ctrl) -> dict:
-    """The gains a seed 000 controller (a dataclass) runs with: its init fields but the team."""
+#: The name issue 7 gave :func:`physics_controller_gains` (callers of the pair kind use it).
+physics_gains = physics_controller_gains
+
+
+def pair_controller_gains(ctrl) -> dict:
+    """The gains a seed 000 controller (a dataclass) runs with, JSON-ready: its init fields
+    but the team (``feedforward`` included)."""
     return {f.name: _plain(getattr(ctrl, f.name)) for f in dataclasses.fields(ctrl) if f.init and f.name != "team"}
 
 
+def physics_controller(scenario, controller, feedforward: bool | None = None,
+                       gains: dict | None = None) -> tuple[object, dict, str]:
+    """The seed 000 controller a physics run of ``scenario`` drives its quadrotors with.
+
+    Parameters
+    ----------
+    controller : str or Controller
+        A name: its gains from :func:`physics_controller_gains`, or ``gains`` (keyword
+        arguments of its class, source ``"argument"``); or a controller object, run as it is
+        (source ``"controller"``).
+    feedforward : bool, optional
+        For a name: feed the reference's rate forward; None keeps the scenario's.
+
+    Returns
+    -------
+    (controller, gains, source)
+        The controller object, the gains it runs with (:func:`pair_controller_gains`: what
+        ``metrics.json`` records) and their source (a key of :data:`GAINS_SOURCES`).
+    """
+    if isinstance(controller, str):
+        if gains is None:
+            gains, source = physics_controller_gains(scenario, controller)
+        else:
+            source = "argument"
+        try:
+            ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
+                controller, feedforward)
+        except TypeError as exc:  # an unknown gain name
+            raise InvalidInputError(f"physics run: gains {gains!r} for {controller}: {exc}; use the "
+                                    f"controller's gain names ({', '.join(TABLE1[controller])})") from None
+    else:
+        if gains is not None:
+            raise InvalidInputError("physics run: pass gains with a controller name, not with a controller "
+                                    f"object ({type(controller).__name__} already has its gains)")
+        ctrl, source = controller, "controller"
+    return ctrl, pair_controller_gains(ctrl), source
+
+
 #: The settings of a seed 001 controller that shape its commands (seed 001 §5, eq. (4.47)).
-_UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "feedforward", "wall_margin",
-                       "wall_gain", "derivative_filter_s")
+UGV_UAV_GAIN_NAMES = ("k_x", "k_d", "k_w", "k_psi", "l_d", "compensation", "feedforward", "wall_margin",
+                      "wall_gain", "derivative_filter_s")
+
+
+def ugv_uav_controller_gains(controller, source: str = "scenario") -> tuple[dict, str]:
+    """The settings a seed 001 ``controller`` runs with (:data:`UGV_UAV_GAIN_NAMES`, JSON-ready)
+    and ``source`` (a key of :data:`GAINS_SOURCES`: ``"scenario"`` for the scenario's
+    ``[gains]``, ``"argument"`` where the run overrides them)."""
+    if source not in GAINS_SOURCES:
+        raise InvalidInputError(f"gains source {source!r}; choose one of {', '.join(GAINS_SOURCES)}")
+    return {n: _plain(getattr(controller, n)) for n in UGV_UAV_GAIN_NAMES}, source
 
 
 #: How to install the optional extra, run in the quatform checkout (the extra named by the
@@ -486,96 +570,6 @@ class PhysicsRecord:
                 "gains_source_note": GAINS_SOURCES.get(self.gains_source, ""), "physics_timestep_s": self.timestep}
 
 
-def physics_controller(scenario, controller, feedforward: bool | None = None,
-                       gains: dict | None = None) -> tuple[object, dict, str]:
-    """The seed 000 controller a physics run of ``scenario`` drives its quadrotors with.
-
-    ``controller``: a name (its gains from :func:`physics_gains`, or ``gains``: keyword
-    arguments of its class, source ``"argument"``; ``feedforward`` None keeps the
-    scenario's) or a controller object, run as it is (source ``"controller"``). Returns
-    ``(controller, gains, source)``: the object, the gains it runs with (what
-    ``metrics.json`` records) and their source (a key of :data:`GAINS_SOURCES`).
-    """
-    if isinstance(controller, str):
-        if gains is None:
-            gains, source = physics_gains(scenario, controller)
-        else:
-            source = "argument"
-        try:
-            ctrl = dataclasses.replace(scenario, gains={**scenario.gains, controller: dict(gains)}).controller(
-                controller, feedforward)
-        except TypeError as exc:  # an unknown gain name
-            raise InvalidInputError(f"simulate_physics: gains {gains!r} for {controller}: {exc}; use the "
-                                    f"controller's gain names ({', '.join(TABLE1[controller])})") from None
-    else:
-        if gains is not None:
-            raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
-                                    f"object ({type(controller).__name__} already has its gains)")
-        ctrl, source = controller, "controller"
-    return ctrl, _controller_gains(ctrl), source
-
-
-class PairPlant:
-    """Two simulated IRIS quadrotors in PX4-like velocity mode as a plant of
-    :func:`quatform.sim.simulate` (seed 000 §4.2's robots).
-
-    State and output: the 8 robot variables ``x1 ... theta2`` (m, rad; the yaws continued,
-    not wrapped); command each robot's ``(v_x, v_y, v_z, yaw rate)`` in the world frame. One
-    world (MuJoCo's data is the state that advances, ``batchable = False``): ``step`` sends
-    the command and runs ``round(dt / timestep)`` physics steps; ``times`` and ``qpos`` record
-    each call's time and the MuJoCo positions at its start.
-    """
-
-    batchable = False
-    state_columns = ("x1", "y1", "z1", "theta1", "x2", "y2", "z2", "theta2")
-    output_columns = state_columns
-
-    def __init__(self, x0, timestep: float, cascade_options: dict | None = None):
-        x = np.asarray(x0, dtype=float)
-        if x.shape != (8,):
-            raise InvalidInputError(f"pair_plant: x0 must have shape (8,) (one world: a MuJoCo plant is not "
-                                    f"batched), got {x.shape}")
-        self.world = PhysicsWorld(quads=[("robot1", x[0:3], x[3]), ("robot2", x[4:7], x[7])], timestep=timestep,
-                                  cascade_options=cascade_options)
-        self.world.continue_yaw("robot1", x[3])  # yaws continued from the scenario's, not wrapped
-        self.world.continue_yaw("robot2", x[7])
-        self.x0, self.timestep = x, timestep
-        self.times: list[float] = []
-        self.qpos: list[np.ndarray] = []
-
-    def output(self, x):
-        return x
-
-    def step(self, x, u, dt, t=0.0):
-        self.times.append(float(t))
-        self.qpos.append(self.world.qpos())
-        self.world.command_quad("robot1", u[0:4])
-        self.world.command_quad("robot2", u[4:8])
-        self.world.step(round(dt / self.timestep))
-        return np.r_[self.world.quad_state("robot1"), self.world.quad_state("robot2")]
-
-
-def pair_plant(scenario, x0, timestep: float | None = None, cascade_options: dict | None = None) -> PairPlant:
-    """The two-quadrotor plant of a seed 000 scenario starting at ``x0`` (shape (8,)); the
-    physics step is ``timestep`` or the largest up to 2.5 ms dividing ``scenario.dt_s``."""
-    return PairPlant(x0, physics_timestep(scenario.dt_s) if timestep is None else float(timestep), cascade_options)
-
-
-def physics_metrics(plant: PairPlant) -> dict:
-    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``."""
-    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep}
-
-
-def physics_record(plant: PairPlant, log, title: str = "", gains: dict | None = None,
-                   gains_source: str = "") -> PhysicsRecord:
-    """The :class:`PhysicsRecord` of a run of ``plant`` (its log ``log``): the MuJoCo
-    positions at the log's ticks, the robots' centres, the collisions."""
-    t, r = log.t, log["state"]
-    q = np.array(plant.qpos[:len(t)]) if plant.qpos else np.zeros((0, plant.world.model.nq))
-    return PhysicsRecord(plant.world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
-                         plant.world.contacts.summary(), plant.timestep, dict(gains or {}), gains_source, title)
-
-
 # -- seed 001: UGV + quadrotor --------------------------------------------------------------
 def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIED_K, progress=None,
                              compensation: bool | None = None, **controller_options):
@@ -588,51 +582,27 @@ def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIE
     None) and ``controller_options`` override the scenario's gains. Returns
     ``(UgvUavRun, PhysicsRecord)``; the record's ``gains`` are the controller's.
     """
+    from .plants.mujoco import physics_record, ugv_uav_plant
     from .ugv_uav import simulate_ugv_uav
 
     holder = {}
 
     def plant_factory(x0, floor):
-        h = physics_timestep(sc.dt_s)
-        z0 = max(x0[5], floor + IRIS.leg_height)
-        world = PhysicsWorld(quads=[("uav", (x0[3], x0[4], z0), x0[6])], ugvs=[("ugv", x0[0:2], x0[2])],
-                             floor_z=floor, timestep=h, quad_mode="attitude")
-        holder["world"], holder["qpos"], holder["h"] = world, [], h
-        n = round(sc.dt_s / h)
+        plant = holder["plant"] = ugv_uav_plant(sc, x0, floor, k)
+        return plant.x0, lambda x, u, dt: plant.step(x, u, dt, plant.world.data.time)
 
-        def state():
-            _, v, R, w, _ = world.quad_pose("uav")
-            s = world.quad_state("uav")
-            c, si = math.cos(s[3]), math.sin(s[3])
-            psi_dot = float(R[2, :] @ w)  # world z component of the body rate
-            return np.r_[world.ugv_state("ugv"), s, c * v[0] + si * v[1], -si * v[0] + c * v[1], v[2], psi_dot]
-
-        def plant(x, u, dt):
-            holder["qpos"].append(world.qpos())
-            world.command_ugv("ugv", u[0:2])
-            world.command_quad("uav", u[2:6])
-            world.step(n)
-            return state()
-
-        return state(), plant
-
-    bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)
     if compensation is not None and not isinstance(compensation, bool | np.bool_):
         raise InvalidInputError(f"simulate_ugv_uav_physics: compensation must be true, false or None (the "
                                 f"scenario's), got {compensation!r}")
     options = dict(controller_options, **({} if compensation is None else {"compensation": bool(compensation)}))
-    ctrl = sc.controller(formation, bebop=bebop, **options)  # the one simulate_ugv_uav builds: its gains
-    used = {n: _plain(getattr(ctrl, n)) for n in _UGV_UAV_GAIN_NAMES if hasattr(ctrl, n)}
+    bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)  # the model ugv_uav_plant's uav_model is
+    gains, source = ugv_uav_controller_gains(sc.controller(formation, bebop=bebop, **options),
+                                             "argument" if options else "scenario")
     run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop, **options)
     run = dataclasses.replace(run, backend=BACKEND_LABEL)
-    world = holder["world"]
-    spc = max(1, round(sc.control_period_s / sc.dt_s))  # plant calls per control tick
-    q = np.array(holder["qpos"][::spc][:len(run.t)])
-    rec = PhysicsRecord(world.xml, run.t[:len(q)], q,
-                        {"ugv": np.c_[run.ugv[:, 0:2], np.full(len(run.t), sc.center[2])], "uav": run.uav[:, 0:3]},
-                        world.contacts.summary(), holder["h"], used, "argument" if options else "scenario",
-                        f"{sc.name}: {formation} formation")
-    return run, rec
+    plant = holder["plant"]
+    log = Log(run.t, [Channel("state", plant.state_columns, np.c_[run.ugv, run.uav])])
+    return run, physics_record(plant, log, f"{sc.name}: {formation} formation", gains, source)
 
 
 #: Excitation of :func:`identify_k` per channel: (duration s, step period s, chirp end Hz).
