@@ -19,7 +19,7 @@ from quatform.sim.teleop import (
     teleop_stiffness_limits,
 )
 from quatform.teleop import TeleopMeasurement, VirtualWall
-from quatform.teleop.control import explicit_stiffness_limit
+from quatform.control.stiffness import explicit_stiffness_limit
 
 BASE = {"kind": "teleop", "duration_s": 1.0}
 

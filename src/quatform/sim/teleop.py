@@ -44,7 +44,7 @@ from ..teleop import (
     TeleopMeasurement,
     VirtualWall,
 )
-from ..teleop.control import StiffnessGains, effective_mass, explicit_stiffness_limit
+from ..control.stiffness import StiffnessGains, effective_mass, explicit_stiffness_limit
 
 __all__ = ["HandKey", "Hand", "SlavePush", "ContactWall", "TeleopScenario", "TeleopRun", "simulate_teleop",
            "teleop_metrics", "teleop_timeseries", "teleop_scenario_from_dict", "check_teleop_work",
@@ -694,8 +694,8 @@ def teleop_stiffness_limits(sc: TeleopScenario) -> list[dict]:
     ``"slave translation"``, ``"slave rotation"``, and the joint dampers): the springs and
     dampers acting on that tool summed as if in one direction (``parts``), the tool's
     effective mass or inertia in its lightest direction at the home configuration
-    (:func:`~quatform.teleop.control.effective_mass`), and the limit
-    ``(4 m - 2 c dt) / dt^2`` (:func:`~quatform.teleop.control.explicit_stiffness_limit`).
+    (:func:`~quatform.control.stiffness.effective_mass`), and the limit
+    ``(4 m - 2 c dt) / dt^2`` (:func:`~quatform.control.stiffness.explicit_stiffness_limit`).
     The Euler-parameter controller's rotational springs count ``kp_rot / 4`` N m/rad (its
     small-angle stiffness).
     """

@@ -3,7 +3,7 @@
 Reuses :mod:`quatform.algebra` only. It holds the serial-arm kinematics in the modified
 Denavit-Hartenberg convention, the Kraft master of the seed, a 7-DOF slave with a mass
 matrix and the kinetic-energy-weighted inverse of eq. (13), the Euler-parameter task
-Jacobians (eqs. (15)-(19)) and the RPY baseline, the control laws (:mod:`.control`: eqs.
+Jacobians (eqs. (15)-(19)) and the RPY baseline, the control laws (:mod:`quatform.control.stiffness`: eqs.
 (14a), (14b), force reflection, redundancy torque, preload, virtual walls) and
 :class:`TeleopController`, which puts them together for real arms or the simulator
 (:mod:`quatform.sim.teleop`).

@@ -26,7 +26,7 @@ from ..checks import short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from .kernels import q_from_rotation
 from .arm import SerialArm
-from .control import StiffnessGains, force_stability_term, virtual_wall_force
+from ..control.stiffness import StiffnessGains, force_stability_term, virtual_wall_force
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
@@ -40,7 +40,7 @@ ORIENTATION_ERRORS = ("euler-parameters", "rpy")
 
 #: The stiffest virtual wall a :class:`VirtualWall` accepts, N/m. A sampled controller holds a
 #: wall of stiffness k on a tool of effective mass m stably only while k dt^2 + 2 c dt < 4 m
-#: (:func:`.control.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg tool and a 10 kHz
+#: (:func:`quatform.control.stiffness.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg tool and a 10 kHz
 #: loop with no damping; the simulator checks the limit of its own master and period.
 MAX_WALL_STIFFNESS = 1e9
 
@@ -100,7 +100,7 @@ class VirtualWall:
     follows the master as far into the matching zone); at rest a push of more than
     ``resist_force_n`` (plus what the master's own friction holds) gets through its
     ``thickness_m``. Its stiffness must be finite and at most :data:`MAX_WALL_STIFFNESS`; a
-    given master and control period hold less (:func:`.control.explicit_stiffness_limit`).
+    given master and control period hold less (:func:`quatform.control.stiffness.explicit_stiffness_limit`).
     """
 
     normal: tuple
@@ -132,7 +132,7 @@ class VirtualWall:
             raise InvalidInputError(
                 f"virtual wall resist_force_n / thickness_m = {self.resist_force_n:g} / {self.thickness_m:g} N/m "
                 f"= {k:g} N/m is beyond any sampled controller's reach (at most {MAX_WALL_STIFFNESS:g} N/m here; "
-                "the limit of a given master and control period is teleop.control.explicit_stiffness_limit); "
+                "the limit of a given master and control period is control.stiffness.explicit_stiffness_limit); "
                 "make the wall thicker or its resist force smaller")
 
     @property
