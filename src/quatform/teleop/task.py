@@ -2,7 +2,8 @@
 
 Teleop layer. The Euler-parameter error and task Jacobian are the stiffness law's and live
 with it in :mod:`quatform.control.stiffness` (re-exported here). The orientation part of
-``x_s - x_m`` is ``delta_eps``, the vector part of the Euler parameters of ``R_M^T R_S`` (eqs. (8)-(10), in {M}); its rate is
+``x_s - x_m`` is ``delta_eps``, the vector part of the Euler parameters of ``R_M^T R_S``
+(eqs. (8)-(10), in {M}); its rate is
 ``W (omega_S - omega_M)`` with ``W`` of eq. (19) (``docs/derivations.md``, seed 003 item 3),
 so ``J = diag(I, W) J_f`` (eqs. (16), (18)) maps joint rates to the task-error rate.
 
