@@ -13,7 +13,9 @@
 * :func:`plot_teleop_virtual_wall` - the master's depth into its virtual walls and the
   hand's force.
 
-Each figure is drawn on its own Agg canvas; nothing touches pyplot's global state.
+Each reads the finished :class:`~quatform.sim.log.Log` of a run of the ``teleop`` kind
+(:func:`quatform.scenarios.teleop.teleop_finish`; its ``meta`` holds the scenario and the
+controller). Each figure is drawn on its own Agg canvas; nothing touches pyplot's global state.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sim.teleop import TeleopRun
 from ..algebra import wrap_angle
+from ..sim.log import Log
 from ..teleop import rpy_from_q
 from .figures import break_wraps, decimate, new_figure, save
 
@@ -32,7 +34,36 @@ __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientati
            "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
 
 
-def _title(run: TeleopRun) -> str:
+@dataclass(frozen=True)
+class _Traces:
+    """What the figures draw, from a teleop log: ``T`` samples (see ``teleop_finish``)."""
+
+    scenario: object
+    controller: object
+    t: np.ndarray
+    p_m: np.ndarray
+    r_m: np.ndarray
+    p_s: np.ndarray
+    r_s: np.ndarray
+    angle: np.ndarray
+    tau_m: np.ndarray
+    tau_s: np.ndarray
+    F_s: np.ndarray
+    F_hand: np.ndarray
+    F_reflected: np.ndarray
+    wall_depth: np.ndarray
+
+    @classmethod
+    def of(cls, log: Log) -> _Traces:
+        ctrl = log.meta["teleop_controller"]
+        n_m = ctrl.master.n
+        u = log["command"]
+        return cls(log.meta["scenario"], ctrl, log.t, log["p_m"], log["r_m"], log["p_s"], log["r_s"],
+                   log["angle"][:, 0], u[:, :n_m], u[:, n_m:], log["F_s"], log["F_hand"], log["F_reflected"],
+                   log["wall_depth"])
+
+
+def _title(run: _Traces) -> str:
     c = run.controller
     return (f"Jansen et al. 1990, {run.scenario.name}: {c.orientation_error} error, "
             f"preload {'on' if c.preload_nm is not None else 'off'}")
@@ -101,8 +132,9 @@ def _spans(t, mask):
     return [(t[a] - half, t[b - 1] + half) for a, b in zip(edges[0::2], edges[1::2])]
 
 
-def plot_teleop_tracking(run: TeleopRun, path) -> Path:
+def plot_teleop_tracking(log: Log, path) -> Path:
     """Tool positions of master and slave, and the errors between them."""
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     fig = new_figure((10, 7))
@@ -126,8 +158,9 @@ def plot_teleop_tracking(run: TeleopRun, path) -> Path:
     return save(fig, path)
 
 
-def plot_teleop_torques(run: TeleopRun, path) -> Path:
+def plot_teleop_torques(log: Log, path) -> Path:
     """Joint torques sent to each arm, with the limits dashed."""
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     fig = new_figure((10, 6))
@@ -150,13 +183,14 @@ def plot_teleop_torques(run: TeleopRun, path) -> Path:
     return save(fig, path)
 
 
-def plot_teleop_orientation(run: TeleopRun, path) -> Path:
+def plot_teleop_orientation(log: Log, path) -> Path:
     """Roll, pitch, yaw of both tools (slave base axes, :func:`_rpy_traces`); pitch ±90 deg marked.
 
     The samples within :data:`GIMBAL_LOCK_DEG` of pitch ±90 deg are shaded; roll, yaw and the
     wrapped RPY difference are not drawn there (:func:`_orientation_traces`), the angle
     between the tools is.
     """
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     tr = _orientation_traces(run.r_m[i], run.r_s[i], run.angle[i])
@@ -196,8 +230,9 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
     return save(fig, path)
 
 
-def plot_teleop_contact(run: TeleopRun, path) -> Path:
+def plot_teleop_contact(log: Log, path) -> Path:
     """Contact force against eq. (13), and the force reflected to the operator."""
+    run = _Traces.of(log)
     sc = run.scenario
     i = decimate(len(run.t))
     t = run.t[i]
@@ -221,8 +256,9 @@ def plot_teleop_contact(run: TeleopRun, path) -> Path:
     return save(fig, path)
 
 
-def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
+def plot_teleop_hysteresis(log: Log, path) -> Path:
     """Master-slave error against the slave's displacement along the first push."""
+    run = _Traces.of(log)
     sc = run.scenario
     steps = [np.asarray(k[1], float) for k in sc.push.keys]
     nz = [s for s in steps if np.linalg.norm(s) > 1e-9]
@@ -246,8 +282,9 @@ def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
     return save(fig, path)
 
 
-def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
+def plot_teleop_virtual_wall(log: Log, path) -> Path:
     """Depth of the master's tool into its virtual walls, and the hand's force."""
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     fig = new_figure((10, 4.5))
@@ -271,16 +308,17 @@ def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
     return save(fig, path)
 
 
-def write_teleop_plots(run: TeleopRun, out_dir) -> list[Path]:
-    """The figures that apply to ``run``, written into ``out_dir``."""
+def write_teleop_plots(log: Log, out_dir) -> list[Path]:
+    """The figures that apply to the run of ``log``, written into ``out_dir`` (``FIGURES["teleop"].run``)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [plot_teleop_tracking(run, out / "tracking.png"), plot_teleop_torques(run, out / "torques.png"),
-             plot_teleop_orientation(run, out / "orientation_rpy.png")]
-    if run.scenario.wall is not None:
-        paths.append(plot_teleop_contact(run, out / "contact.png"))
-    if run.scenario.push is not None:
-        paths.append(plot_teleop_hysteresis(run, out / "hysteresis.png"))
-    if run.scenario.virtual_walls:
-        paths.append(plot_teleop_virtual_wall(run, out / "virtual_wall.png"))
+    sc = log.meta["scenario"]
+    paths = [plot_teleop_tracking(log, out / "tracking.png"), plot_teleop_torques(log, out / "torques.png"),
+             plot_teleop_orientation(log, out / "orientation_rpy.png")]
+    if sc.wall is not None:
+        paths.append(plot_teleop_contact(log, out / "contact.png"))
+    if sc.push is not None:
+        paths.append(plot_teleop_hysteresis(log, out / "hysteresis.png"))
+    if sc.virtual_walls:
+        paths.append(plot_teleop_virtual_wall(log, out / "virtual_wall.png"))
     return paths

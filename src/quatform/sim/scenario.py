@@ -211,7 +211,7 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
 
     Returns a :class:`Scenario` (two 4-DOF robots, seed 000), for ``kind = "ugv-uav"`` a
     :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001), for ``kind = "teleop"`` a
-    :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
+    :class:`~quatform.scenarios.teleop.TeleopScenario` (seed 003).
     """
     data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
     kind = text(data, "kind", str(p), "pair", choices=("pair", "ugv-uav", "teleop"))
@@ -220,7 +220,7 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
 
         return ugv_uav_scenario_from_dict(data, where=str(p))
     if kind == "teleop":
-        from .teleop import teleop_scenario_from_dict
+        from ..scenarios.teleop import teleop_scenario_from_dict
 
         return teleop_scenario_from_dict(data, where=str(p))
     return scenario_from_dict(data, where=str(p))
