@@ -63,9 +63,9 @@ class _Traces:
                    log["wall_depth"])
 
 
-def _title(run: _Traces) -> str:
-    c = run.controller
-    return (f"Jansen et al. 1990, {run.scenario.name}: {c.orientation_error} error, "
+def _title(log: Log) -> str:
+    c = log.meta["teleop_controller"]
+    return (f"Jansen et al. 1990, {log.meta['scenario'].name}: {c.orientation_error} error, "
             f"preload {'on' if c.preload_nm is not None else 'off'}")
 
 
@@ -154,7 +154,7 @@ def plot_teleop_tracking(log: Log, path) -> Path:
     ax.grid(alpha=0.3, which="both")
     for ax in axes[1]:
         ax.set_xlabel("t (s)")
-    fig.suptitle(_title(run))
+    fig.suptitle(_title(log))
     return save(fig, path)
 
 
@@ -179,7 +179,7 @@ def plot_teleop_torques(log: Log, path) -> Path:
                 ax.axhline(j, color="k", ls=":", lw=0.8)
                 ax.axhline(-j, color="k", ls=":", lw=0.8)
     axes[1].set_xlabel("t (s)")
-    fig.suptitle(_title(run) + " - torques (limits dotted)", fontsize=10)
+    fig.suptitle(_title(log) + " - torques (limits dotted)", fontsize=10)
     return save(fig, path)
 
 
@@ -225,7 +225,7 @@ def plot_teleop_orientation(log: Log, path) -> Path:
     axes[3].set_ylabel("error (rad)")
     axes[3].set_xlabel("t (s)")
     axes[3].grid(alpha=0.3, which="both")
-    fig.suptitle(_title(run) + "\nroll-pitch-yaw (gimbal lock at pitch ±90°); the slave drawn as the master + the "
+    fig.suptitle(_title(log) + "\nroll-pitch-yaw (gimbal lock at pitch ±90°); the slave drawn as the master + the "
                  "wrapped difference", fontsize=10)
     return save(fig, path)
 
@@ -252,7 +252,7 @@ def plot_teleop_contact(log: Log, path) -> Path:
     ax.set_ylabel("force (N)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.suptitle(_title(run) + " - contact (holds dotted)", fontsize=10)
+    fig.suptitle(_title(log) + " - contact (holds dotted)", fontsize=10)
     return save(fig, path)
 
 
@@ -278,7 +278,7 @@ def plot_teleop_hysteresis(log: Log, path) -> Path:
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("master - slave along the push (mm)")
     ax2.grid(alpha=0.3)
-    fig.suptitle(_title(run) + " - hysteresis of the master", fontsize=10)
+    fig.suptitle(_title(log) + " - hysteresis of the master", fontsize=10)
     return save(fig, path)
 
 
@@ -304,7 +304,7 @@ def plot_teleop_virtual_wall(log: Log, path) -> Path:
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("hand force on the master (N)")
     ax2.grid(alpha=0.3)
-    fig.suptitle(_title(run) + " - virtual wall", fontsize=10)
+    fig.suptitle(_title(log) + " - virtual wall", fontsize=10)
     return save(fig, path)
 
 
