@@ -197,3 +197,14 @@ def test_hand_targets_at_every_time_equal_the_one_time_target():
             p1, r1 = sc.hand.target(t, poses)
             np.testing.assert_allclose(p[k], p1, atol=1e-14)
             np.testing.assert_allclose(r[k], r1, atol=1e-14)
+
+
+def test_figures_read_the_log_and_the_compare_draws_every_run(tmp_path):
+    from quatform.report.teleop_plots import write_teleop_compare_plots, write_teleop_plots
+
+    sc = dataclasses.replace(load_scenario("teleop-wall-contact"), duration_s=0.05)
+    logs = [TELEOP.experiment(sc, orientation_error=oe).run() for oe in ("euler-parameters", "rpy")]
+    names = sorted(p.name for p in write_teleop_plots(logs[0], tmp_path / "run"))
+    assert names == ["contact.png", "orientation_rpy.png", "torques.png", "tracking.png"]
+    (path,) = write_teleop_compare_plots(logs, tmp_path / "cmp")
+    assert path.name == "compare_errors.png" and path.stat().st_size > 10_000

@@ -11,7 +11,9 @@
 * :func:`plot_teleop_hysteresis` - master-slave error against the slave's position along
   the push (scenarios with a push: the preload's hysteresis loop);
 * :func:`plot_teleop_virtual_wall` - the master's depth into its virtual walls and the
-  hand's force.
+  hand's force;
+* :func:`write_teleop_compare_plots` - the runs of a compare (one per orientation error) side
+  by side: the position and orientation errors and the slave's torques against time.
 
 Each reads the finished :class:`~quatform.sim.log.Log` of a run of the ``teleop`` kind
 (:func:`quatform.scenarios.teleop.teleop_finish`; its ``meta`` holds the scenario and the
@@ -31,7 +33,7 @@ from ..teleop import rpy_from_q
 from .figures import break_wraps, decimate, new_figure, save
 
 __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
-           "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
+           "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots", "write_teleop_compare_plots"]
 
 
 @dataclass(frozen=True)
@@ -322,3 +324,30 @@ def write_teleop_plots(log: Log, out_dir) -> list[Path]:
     if sc.virtual_walls:
         paths.append(plot_teleop_virtual_wall(log, out / "virtual_wall.png"))
     return paths
+
+
+def write_teleop_compare_plots(logs, out_dir) -> list[Path]:
+    """The runs of one scenario with different choices (``FIGURES["teleop"].compare``):
+    ``compare_errors.png``, each run's position error, orientation error (the angle between
+    the tools) and largest slave torque against time, labelled by ``log.meta["label"]``."""
+    logs = list(logs)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig = new_figure((10, 7))
+    axes = fig.subplots(3, 1, sharex=True)
+    for k, log in enumerate(logs):
+        run = _Traces.of(log)
+        i = decimate(len(run.t))
+        label = log.meta.get("label", f"run {k + 1}")
+        axes[0].semilogy(run.t[i], np.maximum(np.linalg.norm(run.p_s - run.p_m, axis=1)[i], 1e-9), color=f"C{k}",
+                         lw=1.0, label=label)
+        axes[1].semilogy(run.t[i], np.maximum(run.angle[i], 1e-9), color=f"C{k}", lw=1.0, label=label)
+        axes[2].plot(run.t[i], np.abs(run.tau_s).max(axis=1)[i], color=f"C{k}", lw=1.0, label=label)
+    for ax, name in zip(axes, ("position error (m)", "orientation error (rad)", "max |slave torque| (N m)")):
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    axes[2].set_xlabel("t (s)")
+    if logs:
+        fig.suptitle(f"Jansen et al. 1990, {logs[0].meta['scenario'].name}: the choices compared", fontsize=10)
+    return [save(fig, out / "compare_errors.png")]
