@@ -27,7 +27,14 @@ from _common import best_time, fmt, machine_description, optional_import
 
 from quatform.scenarios.teleop import TELEOP
 from quatform.sim import load_scenario
-from quatform.teleop import KRAFT_MASTER, PANDA, PANDA_SLAVE, Registration, TeleopController, TeleopMeasurement
+from quatform.teleop import (
+    KRAFT_MASTER,
+    PANDA,
+    PANDA_SLAVE,
+    Registration,
+    TeleopController,
+    TeleopMeasurement,
+)
 
 Q_M0 = np.array([0.0, 0.3, -0.4, 0.2, 0.3, 0.0])
 Q_S0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])

@@ -24,7 +24,13 @@ from quatform.scenarios import KINDS
 from quatform.scenarios.teleop import CSV_CHANNELS, TELEOP
 from quatform.sim import load_scenario
 from quatform.sim.plants.teleop import angle_between
-from quatform.teleop import KRAFT_MASTER, PANDA, Registration, TeleopController, TeleopMeasurement
+from quatform.teleop import (
+    KRAFT_MASTER,
+    PANDA,
+    Registration,
+    TeleopController,
+    TeleopMeasurement,
+)
 
 Q_M0 = np.array([0.0, 0.3, -0.4, 0.2, 0.3, 0.0])
 Q_S0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
@@ -200,7 +206,10 @@ def test_hand_targets_at_every_time_equal_the_one_time_target():
 
 
 def test_figures_read_the_log_and_the_compare_draws_every_run(tmp_path):
-    from quatform.report.teleop_plots import write_teleop_compare_plots, write_teleop_plots
+    from quatform.report.teleop_plots import (
+        write_teleop_compare_plots,
+        write_teleop_plots,
+    )
 
     sc = dataclasses.replace(load_scenario("teleop-wall-contact"), duration_s=0.05)
     logs = [TELEOP.experiment(sc, orientation_error=oe).run() for oe in ("euler-parameters", "rpy")]

@@ -28,7 +28,14 @@ from ..control.stiffness import StiffnessGains, effective_mass, explicit_stiffne
 from ..errors import InvalidInputError
 from ..robots.arms import KraftMaster, PandaSlave
 from ..sim.log import Channel, Log
-from ..sim.plants.teleop import ContactWall, Hand, HandKey, SlavePush, TeleopPlant, angle_between
+from ..sim.plants.teleop import (
+    ContactWall,
+    Hand,
+    HandKey,
+    SlavePush,
+    TeleopPlant,
+    angle_between,
+)
 from ..teleop import (
     KRAFT_DEADBAND,
     KRAFT_MASTER,

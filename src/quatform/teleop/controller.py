@@ -1,8 +1,9 @@
 """The bilateral teleoperation controller of seed 003, usable on real arms or in simulation.
 
 Teleop layer, at the control level (it implements :class:`quatform.control.contract.Controller`
-and uses the law of :mod:`quatform.control.stiffness`). :class:`TeleopController` turns one measurement of both arms (joint angles
-and rates, the slave's wrist force) into the master's and the slave's joint torques:
+and uses the law of :mod:`quatform.control.stiffness`). :class:`TeleopController` turns one
+measurement of both arms (joint angles and rates, the slave's wrist force) into the master's
+and the slave's joint torques:
 eqs. (14a)/(14b) with the Euler-parameter error (or, as the baseline the seed argues
 against, a roll-pitch-yaw error), force reflection ``v J_mf^T F_s``, the null-space
 redundancy torque, virtual walls in the master's Cartesian space, the preload function
@@ -33,10 +34,10 @@ from ..algebra import matrix_from_q, qconj, qmul
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..checks import short
 from ..control.contract import Controller, Step
-from ..errors import InvalidInputError, NonFiniteError, ShapeError
-from .kernels import q_from_rotation
-from .arm import SerialArm
 from ..control.stiffness import StiffnessGains, force_stability_term, virtual_wall_force
+from ..errors import InvalidInputError, NonFiniteError, ShapeError
+from .arm import SerialArm
+from .kernels import q_from_rotation
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
@@ -50,8 +51,8 @@ ORIENTATION_ERRORS = ("euler-parameters", "rpy")
 
 #: The stiffest virtual wall a :class:`VirtualWall` accepts, N/m. A sampled controller holds a
 #: wall of stiffness k on a tool of effective mass m stably only while k dt^2 + 2 c dt < 4 m
-#: (:func:`quatform.control.stiffness.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg tool and a 10 kHz
-#: loop with no damping; the simulator checks the limit of its own master and period.
+#: (:func:`quatform.control.stiffness.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg
+#: tool and a 10 kHz loop with no damping; the simulator checks the limit of its own master and period.
 MAX_WALL_STIFFNESS = 1e9
 
 
@@ -110,7 +111,8 @@ class VirtualWall:
     follows the master as far into the matching zone); at rest a push of more than
     ``resist_force_n`` (plus what the master's own friction holds) gets through its
     ``thickness_m``. Its stiffness must be finite and at most :data:`MAX_WALL_STIFFNESS`; a
-    given master and control period hold less (:func:`quatform.control.stiffness.explicit_stiffness_limit`).
+    given master and control period hold less
+    (:func:`quatform.control.stiffness.explicit_stiffness_limit`).
     """
 
     normal: tuple

@@ -275,7 +275,7 @@ class TeleopPlant:
         q_m, qd_m, _, _ = _split(np.asarray(x, float), n_m, self.slave.arm.arm.n)
         Fm = M.arm.frames(q_m)
         J_mf = M.arm.jacobian(q_m, Fm)
-        p_master, r_master = M.arm.forward(q_m, Fm)
+        p_master = M.arm.tool(Fm)
         v_m = np.einsum("...ij,...j->...i", J_mf, qd_m)
         p_h, _ = self.hand.targets(t, self.hand_poses)
         F_hand = self.hand.stiffness * (p_h - p_master) - self.hand.damping * v_m[:, 0:3]  # as in _hand_wrench
