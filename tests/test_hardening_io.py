@@ -195,9 +195,9 @@ def test_plan_and_teleop_write_through_the_staged_folder(tmp_path, monkeypatch, 
     monkeypatch.setattr(plan_runs, "make_plan", ctrl_c)
     assert cli.main(["plan", "belta-kumar-2002-two-bodies", "--out", str(tmp_path / "p"), "--alpha", "0.5",
                      "--alpha", "0.9"]) == 130
-    import quatform.sim.teleop as teleop
+    import quatform.scenarios.base as scenario_base
 
-    monkeypatch.setattr(teleop, "simulate_teleop", ctrl_c)
+    monkeypatch.setattr(scenario_base, "simulate", ctrl_c)
     assert cli.main(["teleop", "teleop-preload", "--out", str(tmp_path / "t")]) == 130
     assert list(tmp_path.iterdir()) == []
 
@@ -267,7 +267,7 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
     import io
 
     import quatform.plan_runs as plan_runs
-    import quatform.sim.teleop as teleop
+    import quatform.scenarios.base as scenario_base
     import quatform.sim.ugv_uav as ugv_uav
 
     class Reached(Exception):
@@ -280,7 +280,7 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
     import quatform.sim.mujoco_backend as physics
 
     folder = tmp_path_factory.mktemp("fuzz")
-    stubbed = [(runs, "run_pair"), (ugv_uav, "simulate_ugv_uav"), (teleop, "simulate_teleop"),
+    stubbed = [(runs, "run_pair"), (ugv_uav, "simulate_ugv_uav"), (scenario_base, "simulate"),
                (plan_runs, "make_plan"), (pair, "simulate_physics"), (physics, "simulate_ugv_uav_physics")]
     saved = [getattr(m, n) for m, n in stubbed]
     for m, n in stubbed:

@@ -25,6 +25,7 @@ from .sim import (
     write_metrics,
     write_timeseries,
 )
+from .scenarios.teleop import TELEOP_COLUMNS
 from .sim.output import atomic_write_text, staged_dir, write_json
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
@@ -235,39 +236,22 @@ def compare_scenario(scenario, out, quiet: bool = False, backend: str = "kinemat
     return rows
 
 
-#: Columns of the teleoperation table.
-TELEOP_COLUMNS = (
-    ("orientation_error", "orientation error", "{}"),
-    ("preload", "preload", "{}"),
-    ("final_position_error_m", "final pos (m)", "{:.2e}"),
-    ("peak_position_error_m", "peak pos (m)", "{:.2e}"),
-    ("final_orientation_error_rad", "final orient (rad)", "{:.2e}"),
-    ("peak_orientation_error_rad", "peak orient (rad)", "{:.3f}"),
-    ("peak_slave_torque_nm", "peak slave tau (N m)", "{:.2f}"),
-    ("slave_torque_chatter_nm", "slave tau chatter (N m)", "{:.3g}"),
-    ("contact_force_error_pct", "eq.13 err (%)", "{:.2f}"),
-    ("reversal_hysteresis_m", "hysteresis (m)", "{:.4f}"),
-    ("wall_penetration_m", "wall depth (m)", "{:.4f}"),
-    ("slave_zone_penetration_m", "slave zone depth (m)", "{:.4f}"),
-    ("nonfinite_torques", "NaN torques", "{}"),
-)
-
-
 def run_teleop(sc, out, orientation_error=None, preload=None, plots: bool = True, quiet: bool = False):
-    """A seed 003 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``."""
-    from .sim.teleop import simulate_teleop, teleop_metrics, teleop_timeseries
+    """A seed 003 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(log, metrics)``."""
+    from .scenarios.teleop import TELEOP
 
+    exp = TELEOP.experiment(sc, orientation_error=orientation_error, preload=preload)
     with staged_dir(out) as tmp:
         t0 = time.perf_counter()
-        run = simulate_teleop(sc, orientation_error, preload, progress=None if quiet else _progress(sc.name))
-        metrics = teleop_metrics(run)
+        log = exp.run(progress=None if quiet else _progress(sc.name))
+        metrics = exp.metrics(log)
         metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-        write_columns(*teleop_timeseries(run), tmp / "timeseries.csv")
+        write_columns(*log.table(exp.csv_channels), tmp / "timeseries.csv")
         if plots:
             from .report.teleop_plots import write_teleop_plots
 
-            write_teleop_plots(run, tmp)
+            write_teleop_plots(log, tmp)
         write_metrics(metrics, tmp / "metrics.json")
     if not quiet:
         print(f"\r  {sc.name}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
-    return run, metrics
+    return log, metrics

@@ -25,7 +25,7 @@ def load_scenario(name_or_file: str | Path):
 
     Returns a :class:`~quatform.scenarios.pair.Scenario` (two 4-DOF robots, seed 000), for
     ``kind = "ugv-uav"`` a :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001), for
-    ``kind = "teleop"`` a :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
+    ``kind = "teleop"`` a :class:`~quatform.scenarios.teleop.TeleopScenario` (seed 003).
     """
     data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
     kind = text(data, "kind", str(p), "pair", choices=("pair", "ugv-uav", "teleop"))
@@ -34,7 +34,7 @@ def load_scenario(name_or_file: str | Path):
 
         return ugv_uav_scenario_from_dict(data, where=str(p))
     if kind == "teleop":
-        from .teleop import teleop_scenario_from_dict
+        from ..scenarios.teleop import teleop_scenario_from_dict
 
         return teleop_scenario_from_dict(data, where=str(p))
     from ..scenarios.pair import scenario_from_dict  # the pair kind (until the scenarios loader lands)
