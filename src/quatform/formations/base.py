@@ -8,10 +8,13 @@ controllers, the references and the simulator only use this interface, so an N-r
 representation plugs in by subclassing :class:`Formation`.
 
 Choices that a representation leaves open (the sign of a quaternion, the branch of a
-square root, the 2 pi of an angle, the twist of a segment's frame) are resolved by a
-``hint``: a cluster state to stay closest to. Controllers pass the desired state, so the
-measured state is expressed on the same sheet as the reference; without a hint the seed's
-printed convention is used.
+square root, the 2 pi of an angle, the twist of a segment's frame) are resolved by typed
+keyword arguments, one meaning each: ``near_c`` (a cluster state to stay closest to),
+``near_r`` (a robot state whose yaws to unwrap near), ``near_e`` (chart variables to stay
+closest to) and ``r`` (the robots of a cluster state, where the state alone does not fix
+the branch). Controllers pass the desired state as ``near_c``, so the measured state is
+expressed on the same sheet as the reference; without one the seed's printed convention
+is used.
 """
 
 from __future__ import annotations
@@ -122,47 +125,56 @@ class Formation(ABC):
 
     # -- the contract -----------------------------------------------------------------
     @abstractmethod
-    def forward(self, r, hint=None) -> np.ndarray:
-        """Cluster state of robot state ``r``: ``c = KIN(r)``, shape ``(..., n_c)``."""
+    def forward(self, r, *, near_c=None) -> np.ndarray:
+        """Cluster state of robot state ``r``: ``c = KIN(r)``, shape ``(..., n_c)``.
 
-    @abstractmethod
-    def inverse(self, c, hint=None) -> np.ndarray:
-        """Robot state of cluster state ``c``: ``r = INVKIN(c)``, shape ``(..., n_r)``.
-
-        ``hint`` (a robot state) picks the branch where the inverse is not unique.
+        ``near_c`` (a cluster state, ``(..., n_c)``) picks the branch (sign, twist, 2 pi)
+        closest to it where the description leaves one open.
         """
 
     @abstractmethod
-    def jacobian(self, r, hint=None) -> np.ndarray:
-        """``J`` with ``c_dot = J(r) r_dot``, shape ``(..., n_c, n_r)``."""
+    def inverse(self, c, *, near_r=None) -> np.ndarray:
+        """Robot state of cluster state ``c``: ``r = INVKIN(c)``, shape ``(..., n_r)``.
 
-    def inverse_jacobian(self, r, hint=None) -> np.ndarray:
-        """Derivative of ``INVKIN`` at ``c = forward(r, hint)``, shape ``(..., n_r, n_c)``.
+        ``near_r`` (a robot state, ``(..., n_r)``) picks the branch where the inverse is not
+        unique (the robots' yaws are unwrapped to within pi of its).
+        """
+
+    @abstractmethod
+    def jacobian(self, r, *, near_c=None) -> np.ndarray:
+        """``J`` with ``c_dot = J(r) r_dot`` at ``c = forward(r, near_c=near_c)``, shape ``(..., n_c, n_r)``."""
+
+    def inverse_jacobian(self, r, *, near_c=None) -> np.ndarray:
+        """Derivative of ``INVKIN`` at ``c = forward(r, near_c=near_c)``, shape ``(..., n_r, n_c)``.
 
         The matrix the seed's controllers use to turn cluster rates into robot rates:
         ``r_dot = J^-1 c_dot``. It is finite for every reachable state; where the
         representation is singular it loses rank instead of blowing up.
         """
         r = self.check_robot_state(r)
-        return self.inverse_jacobian_at(self.forward(r, hint), r)
+        return self.inverse_jacobian_at(self.forward(r, near_c=near_c), r=r)
 
     @abstractmethod
-    def inverse_jacobian_at(self, c, r=None) -> np.ndarray:
+    def inverse_jacobian_at(self, c, *, r=None) -> np.ndarray:
         """Derivative of ``INVKIN`` at the cluster state ``c``; ``r``, the robots of ``c``,
         picks the branch where ``INVKIN`` has several (shape ``(..., n_r, n_c)``)."""
 
-    @abstractmethod
-    def euclidean(self, c, hint=None, r=None) -> np.ndarray:
-        """Operator-friendly Euclidean variables ``(x_c, y_c, z_c, beta_c, gamma_c, d_c,
-        phi_1, phi_2)`` of the cluster state ``c``, shape ``(..., 8)``.
+    #: The operator's chart: the variables :meth:`to_chart` gives and :meth:`from_chart`
+    #: takes (the seed-000 Euclidean variables for pairs, the spherical ones for UGV-UAV).
+    chart_variables: tuple[Variable, ...] = ()
 
-        ``hint``: Euclidean variables to stay closest to (the desired ones, for monitoring);
+    @abstractmethod
+    def to_chart(self, c, *, near_e=None, r=None) -> np.ndarray:
+        """The operator's chart variables (:attr:`chart_variables`) of the cluster state ``c``,
+        shape ``(..., len(chart_variables))``.
+
+        ``near_e``: chart variables to stay closest to (the desired ones, for monitoring);
         ``r``: the robots of ``c``, for a description whose state does not fix them.
         """
 
     @abstractmethod
-    def from_euclidean(self, e, e_dot=None):
-        """Cluster state (and rate) of Euclidean variables ``e`` (and rates ``e_dot``).
+    def from_chart(self, e, e_dot=None):
+        """Cluster state (and rate) of chart variables ``e`` (and rates ``e_dot``).
 
         The one place where a motion stated in the operator's variables becomes a motion
         of this representation. Angles in ``e`` may be unwrapped (``gamma_c`` from 0 to
@@ -175,6 +187,14 @@ class Formation(ABC):
         (c, c_dot) : tuple of ndarray
             Otherwise.
         """
+
+    def euclidean(self, c, *, near_e=None, r=None) -> np.ndarray:
+        """Alias of :meth:`to_chart` (the name of the README and of seed 000's variables)."""
+        return self.to_chart(c, near_e=near_e, r=r)
+
+    def from_euclidean(self, e, e_dot=None):
+        """Alias of :meth:`from_chart` (the name of the README and of seed 000's variables)."""
+        return self.from_chart(e, e_dot)
 
     def align(self, r, r_ref) -> np.ndarray:
         """``r`` with each robot yaw moved by whole turns to within pi of ``r_ref``'s.
@@ -208,7 +228,7 @@ class Formation(ABC):
         r = np.asarray(r)
         return 0.5 * np.linalg.norm(r[..., 0:3] - r[..., 4:7], axis=-1)
 
-    def singularity_measure(self, r, hint=None) -> np.ndarray:
+    def singularity_measure(self, r, *, near_c=None) -> np.ndarray:
         """Reciprocal condition number of the inverse Jacobian, in ``[0, 1]``; 0 at a singular pose.
 
         Taken on the normalised formation: robot positions moved so that their centroid is
@@ -227,5 +247,5 @@ class Formation(ABC):
             p = rn[..., pos].reshape(r.shape[:-1] + (-1, 3))
             p = (p - p.mean(axis=-2, keepdims=True)) / L[..., None]
             rn[..., pos] = p.reshape(r.shape[:-1] + (len(pos),))
-        s = np.linalg.svd(self.inverse_jacobian(rn, hint), compute_uv=False)
+        s = np.linalg.svd(self.inverse_jacobian(rn, near_c=near_c), compute_uv=False)
         return s[..., -1] / s[..., 0]

@@ -26,7 +26,7 @@ from ..errors import DegenerateInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
 from .base import MIN_SEPARATION_M, Formation, Variable
-from .euclidean_pair import EuclideanPair
+from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair
 from .quaternion_pair import TILT_TOL, QuaternionPair
 
 __all__ = ["DualQuaternionPair"]
@@ -61,6 +61,7 @@ class DualQuaternionPair(Formation):
 
     name = "dual-quaternion"
     variables = _dq_variables("qhat_c") + _dq_variables("qhat_s")
+    chart_variables = EUCLIDEAN_VARIABLES
     dual_quaternion_slices = (_QC, _QS)
 
     def check_cluster_state(self, c, name="c"):
@@ -81,7 +82,7 @@ class DualQuaternionPair(Formation):
         rh = g.q_yaw(np.arctan2(qs[..., 3], qs[..., 0]))
         return _pose_dq(rh, 0.5 * _translation(qs))
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         """Eqs. (26)-(27) in closed form: ``qhat_c`` = yaw ``(th1 + th2)/2`` at the midpoint,
         ``qhat_s`` = yaw ``th1 - th2`` at ``R_z(-th2)(p1 - p2)``.
 
@@ -90,11 +91,11 @@ class DualQuaternionPair(Formation):
         r : array_like, shape (..., 8)
             Robot states, m and rad; the yaws are read as real numbers (their branch sets
             the sign of ``qhat_s``; every branch is the same formation, see the module).
-        hint : array_like, shape (..., 16), optional
+        near_c : array_like, shape (..., 16), optional
             A cluster state to stay near: the yaws of ``r`` are first moved by whole turns
-            onto the hint's branch (:func:`~.pair_kernels.dq_align_yaws`, as the controller
-            does), and ``qhat_c`` takes the hint's sign. The result is the same formation as
-            ``r`` whatever the hint.
+            onto its branch (:func:`~.pair_kernels.dq_align_yaws`, as the controller
+            does), and ``qhat_c`` takes its sign. The result is the same formation as
+            ``r`` whatever ``near_c``.
 
         Returns
         -------
@@ -102,9 +103,9 @@ class DualQuaternionPair(Formation):
         """
         r = self.check_robot_state(r)
         self._check_separation(r[..., 0:3] - r[..., 4:7])
-        if hint is None:
+        if near_c is None:
             return kern.pack(kern.dq_forward(kern.unpack(r)))
-        h = kern.unpack(self.check_cluster_state(hint, "hint"))
+        h = kern.unpack(self.check_cluster_state(near_c, "near_c"))
         rr = kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h))
         return kern.pack(kern.dq_forward(rr, h[0:4]))
 
@@ -118,18 +119,18 @@ class DualQuaternionPair(Formation):
             r[..., k + 3] = g.yaw_of(dq[..., :4])
         return r
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         """Robots of ``c``: ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_c h* qhat_s``.
 
         The form printed under eq. (27) fails at a relative half turn; this one is exact
         (``docs/derivations.md``, seed 000 item 3). ``h`` is the root of the signed
-        ``qhat_s`` (:meth:`_root`), so the result needs no hint.
+        ``qhat_s`` (:meth:`_root`), so the result needs no branch choice.
 
         Parameters
         ----------
         c : array_like, shape (..., 16)
             Unit dual quaternions ``qhat_c``, ``qhat_s`` whose rotations are yaws.
-        hint : array_like, shape (..., 8), optional
+        near_r : array_like, shape (..., 8), optional
             Robot state whose yaws the result's are unwrapped near (within pi); it does not
             change the formation.
 
@@ -137,7 +138,7 @@ class DualQuaternionPair(Formation):
         -------
         ndarray, shape (..., 8)
             ``(x1, y1, z1, theta1, x2, y2, z2, theta2)``, m and rad (yaws in ``(-pi, pi]``
-            without a hint).
+            without ``near_r``).
 
         Raises
         ------
@@ -161,19 +162,19 @@ class DualQuaternionPair(Formation):
                 f"qhat_s translates by {float(np.min(sep)):.3g} m: the two robots would coincide; "
                 f"the shape must separate them by at least {MIN_SEPARATION_M:g} m"
             )
-        if hint is not None:
-            hint = self.check_robot_state(hint, "hint")
+        if near_r is not None:
+            near_r = self.check_robot_state(near_r, "near_r")
         r = self._robots(c, self._root(c[..., _QS]))
-        if hint is not None:
+        if near_r is not None:
             for k in (3, 7):
-                r[..., k] = g.unwrap_near(r[..., k], hint[..., k])
+                r[..., k] = g.unwrap_near(r[..., k], near_r[..., k])
         return r
 
-    def jacobian(self, r, hint=None):
+    def jacobian(self, r, *, near_c=None):
         """``c_dot = J r_dot`` (16 x 8), from ``qhat_c = (yaw (th1+th2)/2, midpoint)`` and
         ``qhat_s = (yaw th1-th2, R_z(-th2)(p1-p2))``."""
         r = self.check_robot_state(r)
-        c = self.forward(r, hint)
+        c = self.forward(r, near_c=near_c)
         J = np.zeros(r.shape[:-1] + (16, 8))
         for s, rows in ((_QC, slice(0, 8)), (_QS, slice(8, 16))):
             q = c[..., s]
@@ -200,7 +201,7 @@ class DualQuaternionPair(Formation):
                 J[..., rows, 4:7] = -A
         return J
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         """Derivative of the inverse kinematics at ``c``, shape ``(..., 8, 16)``.
 
         ``r``, the robots of ``c`` (computed by :meth:`inverse` if not given), supplies
@@ -214,23 +215,23 @@ class DualQuaternionPair(Formation):
             r = self.inverse(c)
         return kern.jacobian_from_jvp(kern.dq_inverse_jvp, c, 16, kern.unpack(np.asarray(r, dtype=float)))
 
-    def euclidean(self, c, hint=None, r=None):
+    def to_chart(self, c, *, near_e=None, r=None):
         """Euclidean variables of the robots of ``c``, read through the quaternion cluster frame.
 
         The dual quaternions carry no frame on the segment, so the branch of ``(beta_c,
-        gamma_c)`` near the vertical is taken from ``hint`` (the desired Euclidean state)
-        through :meth:`QuaternionPair.euclidean`; without a hint, eqs. (1)-(8). ``r`` (the
-        measured robots) or else the hint's robots only unwrap the yaws: ``c`` itself fixes
-        the formation.
+        gamma_c)`` near the vertical is taken from ``near_e`` (the desired Euclidean state)
+        through :meth:`QuaternionPair.to_chart`; without it, eqs. (1)-(8). ``r`` (the
+        measured robots) or else the robots of ``near_e`` only unwrap the yaws: ``c`` itself
+        fixes the formation.
         """
-        near = r if r is not None else (None if hint is None else EuclideanPair().inverse(hint))
-        r = self.inverse(c, near)
-        if hint is None:
+        near = r if r is not None else (None if near_e is None else EuclideanPair().inverse(near_e))
+        r = self.inverse(c, near_r=near)
+        if near_e is None:
             return EuclideanPair().forward(r)
         qp = QuaternionPair()
-        return qp.euclidean(qp.forward(r, qp.from_euclidean(hint)), hint)
+        return qp.to_chart(qp.forward(r, near_c=qp.from_chart(near_e)), near_e=near_e)
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         """Closed form, continuous in ``e``: ``qhat_c`` = yaw ``beta + (phi1 + phi2)/2`` at the
         centroid, ``qhat_s`` = yaw ``phi1 - phi2`` at ``R_z(-theta_2)(p1 - p2)``."""
         E = EuclideanPair()
@@ -244,7 +245,7 @@ class DualQuaternionPair(Formation):
         if e_dot is None:
             return c
         r_dot = np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))
-        return c, np.einsum("...ij,...j->...i", self.jacobian(r, c), r_dot)
+        return c, np.einsum("...ij,...j->...i", self.jacobian(r, near_c=c), r_dot)
 
 
 def _pure(v):

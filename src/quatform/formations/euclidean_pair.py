@@ -61,6 +61,7 @@ class EuclideanPair(Formation):
 
     name = "euclidean"
     variables = EUCLIDEAN_VARIABLES
+    chart_variables = EUCLIDEAN_VARIABLES
 
     def check_cluster_state(self, c, name="c"):
         c = super().check_cluster_state(c, name)
@@ -72,7 +73,7 @@ class EuclideanPair(Formation):
             )
         return c
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
         p1, p2 = r[..., 0:3], r[..., 4:7]
         delta = p1 - p2
@@ -83,18 +84,18 @@ class EuclideanPair(Formation):
         beta = np.arctan2(-delta[..., 0], delta[..., 1])  # eq. (4)
         c[..., 4] = np.arctan2(delta[..., 2], rho)  # eq. (5)
         c[..., 5] = 0.5 * D  # eq. (6), corrected
-        if hint is not None:
-            hint = self.check_cluster_state(hint, "hint")
-            beta = np.where(rho <= VERTICAL_TOL * D, hint[..., 3], g.unwrap_near(beta, hint[..., 3]))
-            c[..., 6] = g.unwrap_near(r[..., 3] - beta, hint[..., 6])  # eqs. (7)-(8)
-            c[..., 7] = g.unwrap_near(r[..., 7] - beta, hint[..., 7])
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+            beta = np.where(rho <= VERTICAL_TOL * D, near_c[..., 3], g.unwrap_near(beta, near_c[..., 3]))
+            c[..., 6] = g.unwrap_near(r[..., 3] - beta, near_c[..., 6])  # eqs. (7)-(8)
+            c[..., 7] = g.unwrap_near(r[..., 7] - beta, near_c[..., 7])
         else:
             c[..., 6] = g.wrap(r[..., 3] - beta)
             c[..., 7] = g.wrap(r[..., 7] - beta)
         c[..., 3] = beta
         return c
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         """Robots of the Euclidean cluster state ``c``: the inverse of eqs. (1)-(8).
 
         ``x1,2 = x_c +- d_c (-sin beta cos gamma, cos beta cos gamma, sin gamma)`` (seed 000
@@ -110,7 +111,7 @@ class EuclideanPair(Formation):
         c : array_like, shape (..., 8)
             ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2)``: m, rad, ``d_c`` in m
             (at least ``MIN_SEPARATION_M / 2``).
-        hint : array_like, shape (..., 8), optional
+        near_r : array_like, shape (..., 8), optional
             Robot state whose yaws the result's are unwrapped near (within pi); without it
             the yaws are ``phi_i + beta_c`` as given.
 
@@ -132,13 +133,13 @@ class EuclideanPair(Formation):
         r[..., 4:7] = c[..., 0:3] - half
         r[..., 3] = c[..., 6] + c[..., 3]
         r[..., 7] = c[..., 7] + c[..., 3]
-        if hint is not None:
-            hint = self.check_robot_state(hint, "hint")
-            r[..., 3] = g.unwrap_near(r[..., 3], hint[..., 3])
-            r[..., 7] = g.unwrap_near(r[..., 7], hint[..., 7])
+        if near_r is not None:
+            near_r = self.check_robot_state(near_r, "near_r")
+            r[..., 3] = g.unwrap_near(r[..., 3], near_r[..., 3])
+            r[..., 7] = g.unwrap_near(r[..., 7], near_r[..., 7])
         return r
 
-    def jacobian(self, r, hint=None):
+    def jacobian(self, r, *, near_c=None):
         """The 8 x 8 cluster Jacobian; undefined (raises) at a vertical segment."""
         r = self.check_robot_state(r)
         delta = r[..., 0:3] - r[..., 4:7]
@@ -168,7 +169,7 @@ class EuclideanPair(Formation):
             J[..., row, col] = 1.0
         return J
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         """Derivative of :meth:`inverse` at ``c``, shape ``(..., 8, 8)``; rank 7 at a vertical segment."""
         c = np.asarray(c, dtype=float)
         u = segment_direction(c[..., 3], c[..., 4])
@@ -185,17 +186,17 @@ class EuclideanPair(Formation):
         Ji[..., 7, 3] = Ji[..., 7, 7] = 1.0
         return Ji
 
-    def euclidean(self, c, hint=None, r=None):
+    def to_chart(self, c, *, near_e=None, r=None):
         c = self.check_cluster_state(c)
-        if hint is None:
+        if near_e is None:
             return c.copy()
-        hint = np.asarray(hint, dtype=float)
+        near_e = np.asarray(near_e, dtype=float)
         e = c.copy()
         for i in (3, 6, 7):
-            e[..., i] = g.unwrap_near(c[..., i], hint[..., i])
+            e[..., i] = g.unwrap_near(c[..., i], near_e[..., i])
         return e
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         e = self.check_cluster_state(e, "e")
         if e_dot is None:
             return e.copy()
@@ -212,33 +213,34 @@ class RobotSpace(Formation):
 
     name = "robot"
     variables = ROBOT_PAIR_VARIABLES
+    chart_variables = EUCLIDEAN_VARIABLES
     _euclidean = EuclideanPair()
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r).copy()
-        if hint is not None:
-            hint = self.check_cluster_state(hint, "hint")
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
             for i in (3, 7):
-                r[..., i] = g.unwrap_near(r[..., i], hint[..., i])
+                r[..., i] = g.unwrap_near(r[..., i], near_c[..., i])
         return r
 
-    def inverse(self, c, hint=None):
-        return self.forward(c, hint)
+    def inverse(self, c, *, near_r=None):
+        return self.forward(c, near_c=near_r)
 
-    def jacobian(self, r, hint=None):
+    def jacobian(self, r, *, near_c=None):
         r = self.check_robot_state(r)
         return np.broadcast_to(np.eye(8), r.shape[:-1] + (8, 8)).copy()
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         return self.jacobian(c)
 
     def length_scale(self, r):
         return np.ones(np.shape(r)[:-1])
 
-    def euclidean(self, c, hint=None, r=None):
-        return self._euclidean.euclidean(self._euclidean.forward(c, None), hint)
+    def to_chart(self, c, *, near_e=None, r=None):
+        return self._euclidean.to_chart(self._euclidean.forward(c), near_e=near_e)
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         E = self._euclidean
         e = E.check_cluster_state(e, "e")
         r = E.inverse(e)

@@ -8,8 +8,8 @@ The twist of ``q_c`` about the segment is not a function of the robots' position
 seed fixes it with the minimal rotation from ``i`` (eqs. (14)-(15)), which is undefined
 where ``x1 - x2`` points along ``-i`` (``eta = pi``, ``n_12 = 0/0``); no choice made from
 positions alone can avoid such a point (there is no continuous section of S^3 -> S^2).
-quatform therefore takes the twist from a ``hint`` (the desired cluster state): the
-measured ``q_c`` is the point of its fibre nearest the hint. The only remaining choice is
+quatform therefore takes the twist from ``near_c`` (the desired cluster state): the
+measured ``q_c`` is the point of its fibre nearest it. The only remaining choice is
 a measured segment exactly opposite the hinted one, a 180 deg formation error, where the
 half turn about the hint's z axis is taken.
 """
@@ -24,7 +24,7 @@ from ..errors import DegenerateInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
 from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
-from .euclidean_pair import EuclideanPair
+from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair
 
 __all__ = ["QuaternionPair"]
 
@@ -55,6 +55,7 @@ class QuaternionPair(Formation):
         *quaternion_variables("q_c1"),
         *quaternion_variables("q_c2"),
     )
+    chart_variables = EUCLIDEAN_VARIABLES
     #: Index groups of the unit quaternions in ``c`` (for errors and sign handling).
     quaternion_slices = (_QC, _Q1, _Q2)
 
@@ -65,18 +66,18 @@ class QuaternionPair(Formation):
         return c
 
     # -- kinematics -------------------------------------------------------------------
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
         self._check_separation(r[..., 0:3] - r[..., 4:7])
-        if hint is None:
-            # eqs. (10), (14), (15): the minimal rotation from i (the hint q_c = 1)
+        if near_c is None:
+            # eqs. (10), (14), (15): the minimal rotation from i (near q_c = 1)
             out = kern.quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0))
         else:
-            h = kern.unpack(self.check_cluster_state(hint, "hint"))
+            h = kern.unpack(self.check_cluster_state(near_c, "near_c"))
             out = kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16])
         return kern.pack(out)
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         qc = c[..., _QC] / np.linalg.norm(c[..., _QC], axis=-1, keepdims=True)
         d = c[..., _D]
@@ -98,14 +99,14 @@ class QuaternionPair(Formation):
                     "a 4-DOF robot only yaws - give robot quaternions that are rotations about z"
                 )
             r[..., k] = g.yaw_of(qi)
-            if hint is not None:
-                r[..., k] = g.unwrap_near(r[..., k], self.check_robot_state(hint, "hint")[..., k])
+            if near_r is not None:
+                r[..., k] = g.unwrap_near(r[..., k], self.check_robot_state(near_r, "near_r")[..., k])
         return r
 
     # -- Jacobians --------------------------------------------------------------------
-    def jacobian(self, r, hint=None):
-        """``c_dot = J r_dot`` (16 x 8) for the hinted forward map (no twist rate of ``q_c``)."""
-        c = self.forward(r, hint)
+    def jacobian(self, r, *, near_c=None):
+        """``c_dot = J r_dot`` (16 x 8) for the forward map near ``near_c`` (no twist rate of ``q_c``)."""
+        c = self.forward(r, near_c=near_c)
         u = g.x_axis(c[..., _QC])
         D = 2.0 * c[..., _D]
         qc = c[..., _QC]
@@ -129,12 +130,12 @@ class QuaternionPair(Formation):
             J[..., s, k] = np.einsum("...ij,...j->...i", qplus(g.conj(qc)), _yaw_rate_column(qi))
         return J
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         """Derivative of eqs. (16)-(19) at ``c``: the 8 x 16 matrix of seed 000 Fig. 6."""
         return kern.jacobian_from_jvp(kern.quat_inverse_jvp, c, 16)
 
     # -- monitoring and references ----------------------------------------------------
-    def euclidean(self, c, hint=None, r=None):
+    def to_chart(self, c, *, near_e=None, r=None):
         """Euclidean variables of ``c`` on the whole circle, regular at ``gamma_c = +-pi/2``.
 
         For a frame without twist (``q_c = q_z(beta + pi/2) q_y(-gamma)``) the y axis is
@@ -171,13 +172,13 @@ class QuaternionPair(Formation):
         e[..., 5] = c[..., _D]
         e[..., 6] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q1])) - beta)
         e[..., 7] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q2])) - beta)
-        if hint is not None:
-            hint = np.asarray(hint, dtype=float)
+        if near_e is not None:
+            near_e = np.asarray(near_e, dtype=float)
             for i in (3, 4, 6, 7):
-                e[..., i] = g.unwrap_near(e[..., i], hint[..., i])
+                e[..., i] = g.unwrap_near(e[..., i], near_e[..., i])
         return e
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         """``q_c = q_z(beta + pi/2) q_y(-gamma)``, ``q_ci = q_c* q_z(phi_i + beta)``: continuous in ``e``."""
         e = EuclideanPair().check_cluster_state(e, "e")
         beta, gamma = e[..., 3], e[..., 4]

@@ -12,9 +12,9 @@ control point and the Bebop's position (yaws are controlled outside the formatio
   platform); other states are refused with ``UnreachableError``.
 * ``UgvUavQuaternion`` (Marciano), eqs. (4.25)-(4.41): ``(x_c[3], q_c[4], d_c[3])`` with
   ``d_c = (d, 0, 0)``, 10 values; the 6 x 10 inverse Jacobian (4.39). The twist of
-  ``q_c`` is taken from a hint, as for :class:`QuaternionPair`.
+  ``q_c`` is taken from ``near_c``, as for :class:`QuaternionPair`.
 
-Their common operator variables (``euclidean``) are the spherical ones.
+Their common operator chart (``to_chart``, ``chart_variables``) is the spherical variables.
 """
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ def _jacobian_from_gradients(grads):
 
 class _UgvUav(Formation):
     robot_variables = UGV_UAV_VARIABLES
+    chart_variables = SPHERICAL_VARIABLES
 
     def outside(self, r):
         """Where the robot state ``r`` (..., 6) is outside the description: a bool array (...)."""
@@ -73,8 +74,8 @@ class _UgvUav(Formation):
         self._check_separation(delta, name)
         return r, delta
 
-    def euclidean(self, c, hint=None, r=None):
-        return UgvUavSpherical().forward(self.inverse(c) if r is None else r, hint)
+    def to_chart(self, c, *, near_e=None, r=None):
+        return UgvUavSpherical().forward(self.inverse(c) if r is None else r, near_c=near_e)
 
     def align(self, r, r_ref):
         return np.asarray(r, dtype=float)
@@ -87,21 +88,21 @@ class UgvUavSpherical(_UgvUav):
     name = "spherical"
     variables = SPHERICAL_VARIABLES
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r, d = self._delta(r)
         rho_h = np.hypot(d[..., 0], d[..., 1])
         c = np.empty(r.shape[:-1] + (6,))
         c[..., 0:3] = r[..., 0:3]  # (4.1)-(4.3)
         c[..., 3] = np.linalg.norm(d, axis=-1)  # (4.4)
         alpha = np.arctan2(d[..., 1], d[..., 0])  # (4.5)
-        if hint is not None:
-            hint = as_array(hint, "hint", 6)
-            alpha = np.where(rho_h <= OVERHEAD_TOL * c[..., 3], hint[..., 4], g.unwrap_near(alpha, hint[..., 4]))
+        if near_c is not None:
+            near_c = as_array(near_c, "near_c", 6)
+            alpha = np.where(rho_h <= OVERHEAD_TOL * c[..., 3], near_c[..., 4], g.unwrap_near(alpha, near_c[..., 4]))
         c[..., 4] = alpha
         c[..., 5] = np.arctan2(d[..., 2], rho_h)  # (4.6)
         return c
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         if np.any(c[..., 3] <= 0):
             raise DegenerateInputError(f"rho_c must be positive, got {float(np.min(c[..., 3]))!r}")
@@ -113,7 +114,7 @@ class UgvUavSpherical(_UgvUav):
         r[..., 5] = c[..., 2] + c[..., 3] * np.sin(b)  # (4.12)
         return r
 
-    def jacobian(self, r, hint=None):
+    def jacobian(self, r, *, near_c=None):
         """6 x 6; undefined (raises) with the UAV straight above or below the UGV."""
         r, d = self._delta(r)
         dx, dy, dz = np.moveaxis(d, -1, 0)
@@ -130,7 +131,7 @@ class UgvUavSpherical(_UgvUav):
                  np.stack([-dz * dx / h, -dz * dy / h, h], -1) / (D * D)[..., None]]
         return _jacobian_from_gradients(grads)
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         """Derivative of (4.7)-(4.12); rank 5 with the UAV overhead (``cos beta_c = 0``)."""
         c = np.asarray(c, dtype=float)
         rho, a, b = c[..., 3], c[..., 4], c[..., 5]
@@ -143,15 +144,15 @@ class UgvUavSpherical(_UgvUav):
         Ji[..., 3:6, 5] = rho[..., None] * np.stack([-ca * sb, -sa * sb, cb], -1)
         return Ji
 
-    def euclidean(self, c, hint=None, r=None):
+    def to_chart(self, c, *, near_e=None, r=None):
         c = self.check_cluster_state(c)
-        if hint is None:
+        if near_e is None:
             return c.copy()
         e = c.copy()
-        e[..., 4] = g.unwrap_near(c[..., 4], np.asarray(hint, dtype=float)[..., 4])
+        e[..., 4] = g.unwrap_near(c[..., 4], np.asarray(near_e, dtype=float)[..., 4])
         return e
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         e = self.check_cluster_state(e, "e")
         if e_dot is None:
             return e.copy()
@@ -271,10 +272,10 @@ class UgvUavRestricted(_UgvUav):
         self.check_reachable(c, name, self.tolerance)
         return c
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         return self._expressible(r)[2]
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self._expressible_cluster(c)
         sa, sb = np.sin(c[..., 4]), np.sin(c[..., 5])
         r = np.empty(c.shape[:-1] + (6,))
@@ -284,7 +285,7 @@ class UgvUavRestricted(_UgvUav):
         r[..., 5] = c[..., 2] + c[..., 3] * np.sqrt(np.maximum(0.0, 1 - sa * sa - sb * sb))  # (4.24)
         return r
 
-    def jacobian(self, r, hint=None):
+    def jacobian(self, r, *, near_c=None):
         """6 x 6; singular where ``sin^2 alpha_f + sin^2 beta_f = 1`` (UAV at platform level).
         Refuses what :meth:`forward` refuses (UnreachableError: the UAV below the platform,
         angles outside the range): there the description, so its rate, does not exist."""
@@ -301,13 +302,13 @@ class UgvUavRestricted(_UgvUav):
         return _jacobian_from_gradients([u, dd[..., 0, :] / (rho * np.sqrt(cos_a2))[..., None],
                                          dd[..., 1, :] / (rho * np.sqrt(cos_b2))[..., None]])
 
-    def singularity_measure(self, r, hint=None):
+    def singularity_measure(self, r, *, near_c=None):
         """As :meth:`Formation.singularity_measure`; refuses what :meth:`forward` refuses, naming
         the state as given (not the normalised one the measure is taken on)."""
         self._expressible(r)
-        return super().singularity_measure(r, hint)
+        return super().singularity_measure(r, near_c=near_c)
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         """Derivative of eqs. (4.19)-(4.24) at ``c`` (..., 6), shape (..., 6, 6); refuses what
         :meth:`inverse` refuses, and ``r`` (if given) where :meth:`forward` refuses it."""
         c = self._expressible_cluster(c)
@@ -325,7 +326,7 @@ class UgvUavRestricted(_UgvUav):
         Ji[..., 3:6, 5] = rho[..., None] * np.stack([0 * cb, cb, -sb * cb / w], -1)
         return Ji
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         S = UgvUavSpherical()
         r = S.inverse(e)
         c, dz = self._formulas(r)
@@ -352,14 +353,14 @@ class UgvUavQuaternion(_UgvUav):
         as_unit_quaternion(c[..., 3:7], f"{name}[q_c]")
         return c
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r, d = self._delta(r)
         D = np.linalg.norm(d, axis=-1)
         u = d / D[..., None]
-        if hint is None:  # eqs. (4.26), (4.28), (4.29): minimal rotation from i
+        if near_c is None:  # eqs. (4.26), (4.28), (4.29): minimal rotation from i
             qh = np.array([1.0, 0.0, 0.0, 0.0])
         else:
-            qh = self.check_cluster_state(hint, "hint")[..., 3:7]
+            qh = self.check_cluster_state(near_c, "near_c")[..., 3:7]
         qc = g.mul(g.swing(g.x_axis(qh), u, g.z_axis(qh)), qh)
         c = np.zeros(r.shape[:-1] + (10,))
         c[..., 0:3] = r[..., 0:3]  # (4.25)
@@ -367,7 +368,7 @@ class UgvUavQuaternion(_UgvUav):
         c[..., 7] = D  # (4.27)
         return c
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         qc = c[..., 3:7] / np.linalg.norm(c[..., 3:7], axis=-1, keepdims=True)
         if np.any(np.linalg.norm(c[..., 7:10], axis=-1) <= 0):
@@ -377,9 +378,9 @@ class UgvUavQuaternion(_UgvUav):
         r[..., 3:6] = c[..., 0:3] + g.rotate(qc, c[..., 7:10])  # (4.31)
         return r
 
-    def jacobian(self, r, hint=None):
-        """``c_dot = J r_dot`` (10 x 6) for the hinted forward map (no twist rate)."""
-        c = self.forward(r, hint)
+    def jacobian(self, r, *, near_c=None):
+        """``c_dot = J r_dot`` (10 x 6) for the forward map near ``near_c`` (no twist rate)."""
+        c = self.forward(r, near_c=near_c)
         u = g.x_axis(c[..., 3:7])
         D = c[..., 7]
         dq = 0.5 * qminus(c[..., 3:7])[..., :, 1:] @ (skew(u) / D[..., None, None])
@@ -391,7 +392,7 @@ class UgvUavQuaternion(_UgvUav):
         J[..., 7, 3:6] = u
         return J
 
-    def inverse_jacobian_at(self, c, r=None):
+    def inverse_jacobian_at(self, c, *, r=None):
         """Eq. (4.39): ``[[I, 0, 0], [I, d(q d q*)/dq (4.40), d(q d q*)/dd (4.41)]]``, 6 x 10."""
         c = np.asarray(c, dtype=float)
         Ji = np.zeros(c.shape[:-1] + (6, 10))
@@ -401,7 +402,7 @@ class UgvUavQuaternion(_UgvUav):
         Ji[..., 3:6, 7:10] = jac_qrotate_vector(c[..., 3:7])
         return Ji
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         """``q_c = q_z(alpha) q_y(-beta)`` (x axis along the segment, no twist): continuous in ``e``."""
         e = UgvUavSpherical().check_cluster_state(e, "e")
         qz, qy = g.q_yaw(e[..., 4]), g.q_pitch_y(-e[..., 5])
