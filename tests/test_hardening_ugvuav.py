@@ -178,41 +178,55 @@ def _overhead_reference():
     return Reference(*F.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6)))
 
 
+def _stepper(ctrl):
+    """``step(t, m, ref) -> Step``: updates threading the controller's state."""
+    state = [ctrl.init()]
+
+    def step(t, m, ref):
+        s = ctrl.update(t, m, ref, state[0])
+        state[0] = s.state
+        return s
+    return step
+
+
 def test_controller_holds_the_last_good_frame_through_a_dropout_and_a_glitch():
     ctrl, ref = UgvUavController(), _overhead_reference()
+    step = _stepper(ctrl)
     good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.1, 0, 0, 0])
-    first = ctrl.compute(0.0, good, ref)
-    assert first.frame == "good" and not first.held
-    dropped = ctrl.compute(0.03, np.full(11, np.nan), ref)
-    assert dropped.frame == "dropped" and dropped.held and dropped.raw_finite
-    np.testing.assert_array_equal(dropped.measured[:7], good[:7])
-    np.testing.assert_allclose(dropped.cluster, first.cluster)
+    first = step(0.0, good, ref).signals
+    assert first["frame"][0] == 0 and first["held"][0] == 0  # good, not held
+    dropped = step(0.03, np.full(11, np.nan), ref).signals
+    assert dropped["frame"][0] == 1 and dropped["held"][0] == 1 and dropped["raw_finite"][0] == 1
+    np.testing.assert_array_equal(dropped["used"][:7], good[:7])
+    np.testing.assert_allclose(dropped["cluster"], first["cluster"])
     glitch = good.copy()
     glitch[3:6] = [0.0, 0.0, 0.0]  # the UAV's marker read at the UGV
-    res = ctrl.compute(0.06, glitch, ref)
-    assert res.frame == "rejected" and res.held and np.all(np.isfinite(res.commands))
+    res = step(0.06, glitch, ref)
+    assert res.signals["frame"][0] == 2 and res.signals["held"][0] == 1 and np.all(np.isfinite(res.u))
     jump = good.copy()
     jump[3] += 1.5  # 1.5 m in 0.09 s: faster than a Bebop flies (K1/K2 = 4.6 m/s, Table 2)
-    assert ctrl.compute(0.09, jump, ref).frame == "rejected"
+    assert step(0.09, jump, ref).signals["frame"][0] == 2  # rejected
     moved = good.copy()
     moved[3] += 0.1  # 0.1 m in 0.12 s: possible
-    assert ctrl.compute(0.12, moved, ref).frame == "good"
+    assert step(0.12, moved, ref).signals["frame"][0] == 0  # good
     no_odometry = moved.copy()
     no_odometry[7:11] = np.nan  # the Bebop's own odometry, not the motion capture
-    res = ctrl.compute(0.15, no_odometry, ref)
-    assert res.frame == "good" and not res.held
-    np.testing.assert_array_equal(res.measured, moved)  # the pose read now, the last odometry
+    res = step(0.15, no_odometry, ref).signals
+    assert res["frame"][0] == 0 and res["held"][0] == 0
+    np.testing.assert_array_equal(res["used"], moved)  # the pose read now, the last odometry
 
 
 def test_controller_stops_safely_after_too_many_bad_frames():
     ctrl, ref = UgvUavController(max_hold_s=0.2), _overhead_reference()
+    step = _stepper(ctrl)
     good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.5, 0, 0, 0])
-    ctrl.compute(0.0, good, ref)
-    res = [ctrl.compute(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
-    assert [r.stopped for r in res].index(True) == 7  # 0.24 s after the last good frame
-    assert "no good frame" in res[-1].stop_reason and "max_hold_s = 0.2 s" in res[-1].stop_reason
-    assert res[-1].commands[0] == 0 and res[-1].commands[1] == 0 and res[-1].commands[2] < 0  # braking
-    assert ctrl.compute(0.5, good, ref).stopped  # a good frame does not restart it
+    step(0.0, good, ref)
+    res = [step(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
+    assert [r.signals["stopped"][0] == 1 for r in res].index(True) == 7  # 0.24 s after the last good frame
+    reason = res[-1].state.stop_reason
+    assert "no good frame" in reason and "max_hold_s = 0.2 s" in reason
+    assert res[-1].u[0] == 0 and res[-1].u[1] == 0 and res[-1].u[2] < 0  # braking
+    assert step(0.5, good, ref).signals["stopped"][0] == 1  # a good frame does not restart it
 
 
 def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():

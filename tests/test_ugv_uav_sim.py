@@ -84,12 +84,14 @@ def test_restricted_cannot_fly_ahead_at_platform_level():
     assert not m["reference_lost"] and m["max_uav_position_error_m"] < 0.05
 
 
-def _fly(ctrl, ref, ugv, uav, seconds, dt=0.01):
+def _fly(ctrl, ref, ugv, uav, seconds, dt=0.01, state=None):
     from quatform.robots import Bebop, Pioneer
 
     p, b = Pioneer(), Bebop()
+    state = ctrl.init() if state is None else state
     for k in range(int(seconds / dt)):
-        u = ctrl.step(k * dt, np.r_[ugv, uav[0:4], uav[4:8]], ref)
+        s = ctrl.update(k * dt, np.r_[ugv, uav[0:4], uav[4:8]], ref, state)
+        u, state = s.u, s.state
         ugv, uav = p.step(ugv, u[0:2], dt), b.step(uav, u[2:6], dt)
     return ugv, uav
 
@@ -99,10 +101,10 @@ def test_emergency_stop_brakes_both_robots():
     e = np.array([0, 0, 0, 1.5, 0, np.pi / 2])
     c, cd = ctrl.formation.from_euclidean(e, np.zeros(6))
     ugv, uav = np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.5, 0.0, 1.0, 0.0, 0.0, 0.0])  # 1 m/s
-    ctrl.emergency_stop()
-    u = ctrl.step(0.0, np.r_[ugv, uav], Reference(c, cd))
+    stopped = ctrl.emergency_stop(ctrl.init())
+    u = ctrl.update(0.0, np.r_[ugv, uav], Reference(c, cd), stopped).u
     assert u[0] == 0 and u[1] == 0 and u[2] < 0  # the UGV stops, the UAV brakes
-    ugv2, uav2 = _fly(ctrl, Reference(c, cd), ugv, uav, 2.0)
+    ugv2, uav2 = _fly(ctrl, Reference(c, cd), ugv, uav, 2.0, state=stopped)
     # coasting (zero commands) would carry it 1.7 m in 2 s; braking at full command: 0.6 m
     assert np.linalg.norm(uav2[4:7]) < 0.05 and np.linalg.norm(uav2[0:2] - uav[0:2]) < 0.7
     np.testing.assert_array_equal(ugv2, ugv)
@@ -120,8 +122,8 @@ def test_lost_motion_capture_frame_brakes_instead_of_raising():
     ctrl = UgvUavController()
     c, cd = ctrl.formation.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6))
     m = np.array([0.0, 0, 0, np.nan, 0, 1.5, 0, 0.5, 0, 0, 0])
-    res = ctrl.compute(0.0, m, Reference(c, cd))
-    assert not res.raw_finite and np.all(np.isfinite(res.commands)) and res.commands[2] < 0
+    res = ctrl.update(0.0, m, Reference(c, cd), ctrl.init())
+    assert res.signals["raw_finite"][0] == 0 and np.all(np.isfinite(res.u)) and res.u[2] < 0
 
 
 def test_uav_speed_fraction_and_bad_measurements():

@@ -11,6 +11,7 @@ measurement: motion-capture rate, noise and latency, and the Bebop's odometry pe
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -267,13 +268,17 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
 
     mocap = MotionCapture(sc.mocap_rate_hz, sc.mocap_noise_m, sc.mocap_noise_rad, sc.mocap_latency_s,
                           sc.odometry_period_s, sc.seed, sc.mocap_dropout_rate, sc.mocap_glitch_rate, sc.center[2])
-    steps = []  # what the controller made of each frame (the loop logs the raw frame)
+    steps = []  # the signals of each step: what the controller made of each frame (the loop logs the raw frame)
+    held_state = [ctrl.init()]
+    nan_c = np.full(F.n_c, np.nan)
 
     def compute(t, m, k):
-        # where the description cannot express the reference, the robots wait (brake)
-        res = ctrl.compute(t, m, Reference(c_des[k], cd_des[k])) if reachable[k] else ctrl.hold(t, m)
-        steps.append(res)
-        return res
+        # where the description cannot express the reference (c = NaN), the robots wait (brake)
+        s = ctrl.update(t, m, Reference(c_des[k], cd_des[k]) if reachable[k] else Reference(nan_c, nan_c),
+                        held_state[0])
+        held_state[0] = s.state
+        steps.append(s.signals)
+        return SimpleNamespace(commands=s.u, cluster=s.signals["cluster"], raw_finite=s.signals["raw_finite"][0] > 0.5)
 
     log = closed_loop(t_ctrl[:n], steps_per_control, sc.dt_s, x0, plant, mocap, compute, lambda k: k, progress)
     ugv_log, uav_log = log.states[:, 0:3], log.states[:, 3:11]
@@ -287,10 +292,10 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     for rows, hint in ((inside & reachable, c_des), (inside & ~reachable, None)):
         if rows.any():
             sing[rows] = F.singularity_measure(r_true[rows], near_c=None if hint is None else hint[rows])
-    frame = np.array([{"good": 0, "dropped": 1, "rejected": 2}[s_.frame] for s_ in steps], dtype=np.int8)
-    used = np.array([s_.measured if s_.measured is not None else np.full(11, np.nan) for s_ in steps]).reshape(n, 11)
-    outside = np.array([s_.outside for s_ in steps], dtype=bool)
-    stopped = [k for k, s_ in enumerate(steps) if s_.stop_reason]
+    frame = np.array([s_["frame"][0] for s_ in steps], dtype=np.int8)
+    used = np.array([s_["used"] for s_ in steps]).reshape(n, 11)
+    outside = np.array([s_["outside"][0] > 0.5 for s_ in steps], dtype=bool)
+    stopped = [k for k, s_ in enumerate(steps) if s_["stopped"][0] > 0.5]
     # the formation as recovered from the measurements used, each sample continued from the
     # last (NaN where the controller had none or the description cannot express them)
     r_meas = np.c_[used[:, [0, 1]], np.full(n, sc.center[2]), used[:, [3, 4, 5]]]
@@ -302,9 +307,9 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
             c_cont[k] = F.forward(r_meas[k], near_c=hint)
     return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
                      log.commands.reshape(n, 6), log.raw_finite, sing, unreachable_at,
-                     message, c_cont, tuple(bebop.k), frame, np.array([s_.held for s_ in steps], dtype=bool),
+                     message, c_cont, tuple(bebop.k), frame, np.array([s_["held"][0] > 0.5 for s_ in steps], dtype=bool),
                      outside, float(t_ctrl[stopped[0]]) if stopped else None,
-                     steps[stopped[0]].stop_reason if stopped else "", reachable)
+                     held_state[0].stop_reason if stopped else "", reachable)
 
 
 def ugv_uav_metrics(run: UgvUavRun) -> dict:
