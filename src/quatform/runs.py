@@ -25,7 +25,6 @@ from .sim import (
     write_metrics,
     write_timeseries,
 )
-from .scenarios.ugv_uav import UGV_UAV_COLUMNS
 from .sim.output import atomic_write_text, staged_dir, write_json
 
 __all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
@@ -100,6 +99,20 @@ def _ugv_uav_into(sc, formation, out, label, plots, quiet, backend):
                   f"{log.meta['unreachable_message']}", file=sys.stderr)
         print(f"\r  {sc.name} / {formation}: done in {metrics['wall_time_s']:.1f} s -> {label}", file=sys.stderr)
     return log, metrics
+
+
+UGV_UAV_COLUMNS = (
+    ("formation", "formation", "{}"),
+    ("unreachable_reference", "unreachable", "{}"),
+    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
+    ("max_ugv_position_error_m", "UGV (m)", "{:.3f}"),
+    ("max_uav_position_error_m", "UAV (m)", "{:.3f}"),
+    ("max_uav_yaw_error_rad", "UAV yaw (rad)", "{:.3f}"),
+    ("max_unexplained_cluster_jump", "state jump", "{:.1e}"),
+    ("mocap_dropped_frames", "mocap dropped", "{}"),
+    ("mocap_rejected_frames", "mocap rejected", "{}"),
+    ("nonfinite_commands", "NaN cmds", "{}"),
+)
 
 
 def compare_ugv_uav(sc, out, quiet: bool = False):

@@ -496,7 +496,7 @@ class UgvUavKind(ScenarioKind):
         return ugv_uav_experiment(scenario, formation)
 
 
-def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion") -> Experiment:
+def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion", **controller_options) -> Experiment:
     """The run of Fig. 18 on a Pioneer-like UGV and an IRIS in Bebop-like attitude mode in
     MuJoCo (:func:`quatform.sim.plants.mujoco.ugv_uav_plant`), with the same motion capture;
     the controller's compensation (4.47) uses the ``K1..K8`` identified from that quadrotor.
@@ -505,7 +505,9 @@ def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion") -> Expe
     :func:`quatform.report.physics_render.render_or_fallback`) and ``physics_metrics``; the
     metrics add ``backend``, ``collisions``, ``physics_timestep_s``, ``gains``,
     ``gains_source`` and ``gains_source_note``. It does not re-run the kinematic models
-    (comparing backends is a compare over the ``backend`` option).
+    (comparing backends is a compare over the ``backend`` option). ``controller_options``
+    override the scenario's ``[gains]`` (``compensation=False``: no (4.47)); the recorded
+    ``gains_source`` is then ``"argument"``.
     """
     from ..sim.mujoco_backend import BACKEND_LABEL, IRIS_IDENTIFIED_K, ugv_uav_controller_gains
     from ..sim.plants.mujoco import physics_metrics, physics_record, ugv_uav_plant
@@ -518,8 +520,8 @@ def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion") -> Expe
 
     # the model ugv_uav_plant's uav_model is: K1..K8 identified from the simulated IRIS
     bebop = Bebop(k=tuple(IRIS_IDENTIFIED_K), max_fraction=sc.max_fraction)
-    exp = ugv_uav_experiment(sc, formation, plant=plant, bebop=bebop, backend=BACKEND_LABEL)
-    gains, source = ugv_uav_controller_gains(exp.controller, "scenario")
+    exp = ugv_uav_experiment(sc, formation, plant=plant, bebop=bebop, backend=BACKEND_LABEL, **controller_options)
+    gains, source = ugv_uav_controller_gains(exp.controller, "argument" if controller_options else "scenario")
 
     def finish(log: Log) -> Log:
         log = exp.finish(log)
