@@ -268,7 +268,7 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
 
     import quatform.plan_runs as plan_runs
     import quatform.sim.teleop as teleop
-    import quatform.sim.ugv_uav as ugv_uav
+    import quatform.scenarios.ugv_uav as ugv_uav
 
     class Reached(Exception):
         pass
@@ -279,7 +279,7 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
     import quatform.sim.mujoco_backend as physics
 
     folder = tmp_path_factory.mktemp("fuzz")
-    stubbed = [(runs, "simulate"), (ugv_uav, "simulate_ugv_uav"), (teleop, "simulate_teleop"),
+    stubbed = [(runs, "simulate"), (ugv_uav, "ugv_uav_experiment"), (teleop, "simulate_teleop"),
                (plan_runs, "make_plan"), (physics, "simulate_physics"), (physics, "simulate_ugv_uav_physics")]
     saved = [getattr(m, n) for m, n in stubbed]
     for m, n in stubbed:
