@@ -206,8 +206,11 @@ class RobotLayout:
         return np.ascontiguousarray(padded[..., self._position_index])
 
     def yaws(self, r) -> np.ndarray:
-        """The yaw entries, rad, shape ``(..., len(yaw_indices))``."""
-        return self.check(r)[..., list(self.yaw_indices)]
+        """The yaw entries, rad, shape ``(..., len(yaw_indices))`` (a view where the layout allows)."""
+        r = self.check(r)
+        if self._uniform_xyz == 4 and self.kinds[0] == "xyz_yaw":
+            return r.reshape(r.shape[:-1] + (self.n, 4))[..., 3]
+        return r[..., list(self.yaw_indices)]
 
     def separations(self, r) -> np.ndarray:
         """Distances between every two robots, m, shape ``(..., N (N - 1) / 2)`` in the order
@@ -275,8 +278,14 @@ class RobotLayout:
             if y.shape[-1:] != (n_yaw,):
                 raise InvalidInputError(f"yaws must have shape (..., {n_yaw}), got {y.shape}")
             shape = np.broadcast_shapes(p.shape[:-2], y.shape[:-1])
+            if self._uniform_xyz == 4 and self.kinds[0] == "xyz_yaw":  # robot after robot: x, y, z, yaw
+                p = np.broadcast_to(p, shape + (self.n, 3))
+                return np.concatenate([p, np.broadcast_to(y, shape + (self.n,))[..., None]], axis=-1).reshape(
+                    shape + (self.size,))
         else:
             shape = p.shape[:-2]
+            if self._uniform_xyz == 3:  # robot after robot: x, y, z
+                return p.reshape(shape + (self.size,)).copy()
         r = np.empty(shape + (self.size,))
         flat = self._position_index.ravel()
         keep = flat < self.size
