@@ -25,8 +25,14 @@ from .. import checks
 from ..algebra import q_angle_between, wrap_angle
 from ..control import Reference, UgvUavController
 from ..errors import InvalidInputError, UnreachableError
-from ..formations import SPHERICAL_VARIABLES, UGV_UAV_VARIABLES, UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
-from ..formations.layout import RobotLayout
+from ..formations import (
+    SPHERICAL_VARIABLES,
+    UGV_UAV_LAYOUT,
+    UGV_UAV_VARIABLES,
+    UgvUavQuaternion,
+    UgvUavRestricted,
+    UgvUavSpherical,
+)
 from ..robots import Bebop
 from ..sim.log import Channel, Log
 from ..sim.measurement import MotionCapture
@@ -36,7 +42,7 @@ from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 
 __all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS", "UGV_UAV_BACKENDS",
-           "UGV_UAV_COLUMNS", "UGV_UAV_CSV_CHANNELS", "ROBOTS", "DERIVED_CHANNELS", "check_ugv_uav_scenario",
+           "UGV_UAV_COLUMNS", "UGV_UAV_CSV_CHANNELS", "DERIVED_CHANNELS", "check_ugv_uav_scenario",
            "ugv_uav_scenario_from_dict", "ugv_uav_metrics", "simulate_ugv_uav", "ugv_uav_experiment",
            "mujoco_experiment"]
 
@@ -48,8 +54,6 @@ LOST_UAV_M = 0.4
 UGV_UAV_FORMATIONS = {"spherical": UgvUavSpherical, "restricted": UgvUavRestricted, "quaternion": UgvUavQuaternion}
 #: Where a run's robots live (the ``backend`` option): the robots' models or MuJoCo physics.
 UGV_UAV_BACKENDS = ("kinematic", "mujoco")
-#: The robots as positions: the UGV's control point at the platform height, the UAV.
-ROBOTS = RobotLayout(("xyz", "xyz"), labels=("p", "b"))
 
 #: Channels ``finish`` adds to the simulated log (each ``(T, k)``; column names in brackets):
 #: ``r_true`` (x_p ... z_b: true robot positions, the UGV at the platform height), ``r_des``
@@ -274,7 +278,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     x = log["state"]
     ugv, uav = x[:, 0:3], x[:, 3:11]
     z = np.full(n, float(sc.center[2]))
-    r_true = np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
+    r_true = UGV_UAV_LAYOUT.stack([np.c_[ugv[:, 0:2], z], uav[:, 0:3]])  # the UGV at the platform height
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))
     cluster = log["cluster"]
@@ -288,7 +292,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     # the formation as recovered from the measurements used, each sample continued from the
     # last (NaN where the controller had none or the description cannot express them)
     used = log["used"]
-    r_meas = np.c_[used[:, [0, 1]], z, used[:, [3, 4, 5]]]
+    r_meas = UGV_UAV_LAYOUT.stack([np.c_[used[:, 0:2], z], used[:, 3:6]])
     c_cont = np.full((n, F.n_c), np.nan)
     ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
     for k in range(n):
@@ -337,7 +341,7 @@ def ugv_uav_metrics(log: Log) -> dict:
     ugv, uav = x[:, 0:3], x[:, 3:11]
     r_true, r_des = log["r_true"], log["r_des"]
     reachable = log["reachable"][:, 0] > 0.5
-    p_true, p_des = ROBOTS.positions(r_true), ROBOTS.positions(r_des)  # (T, 2, 3): UGV, UAV
+    p_true, p_des = UGV_UAV_LAYOUT.positions(r_true), UGV_UAV_LAYOUT.positions(r_des)  # (T, 2, 3): UGV, UAV
     ugv_err = np.linalg.norm(p_true[:, 0, 0:2] - p_des[:, 0, 0:2], axis=1)
     uav_err = np.linalg.norm(p_true[:, 1] - p_des[:, 1], axis=1)
     d_true, d_des = p_true[:, 1] - p_true[:, 0], p_des[:, 1] - p_des[:, 0]
@@ -443,7 +447,7 @@ def _cluster_jumps(c, r_measured, formation: str):
     """
     if len(c) < 2:
         return np.zeros(0), np.zeros(0)
-    p = ROBOTS.positions(r_measured)
+    p = UGV_UAV_LAYOUT.positions(r_measured)
     d = p[:, 1] - p[:, 0]
     u = d / np.linalg.norm(d, axis=1)[:, None]
     turned = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))
