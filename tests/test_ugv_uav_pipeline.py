@@ -71,6 +71,15 @@ def test_marciano_circle_through_simulate_equals_todays_numbers(monkeypatch):
     assert len(log.t) == 3001 and log["state"].shape == (3001, 11) and log["command"].shape == (3001, 6)
 
 
+def test_an_experiment_runs_again_to_the_same_log():
+    """The motion capture starts its random streams afresh with each run (noise and dropouts)."""
+    exp = UGV_UAV_KIND.experiment(_short(duration_s=1.5, mocap_noise_m=0.002, mocap_dropout_rate=0.2))
+    a, b = exp.run(), exp.run()
+    assert (a["frame"][:, 0] == 1).any()
+    for name in ("state", "measured", "command", "used"):
+        np.testing.assert_array_equal(a[name], b[name])
+
+
 def test_the_mocap_overrides_run_and_are_checked_with_the_scenarios_bounds():
     sc = _short()
     exp = UGV_UAV_KIND.experiment(sc, mocap_noise_m=0.002, mocap_latency_s=0.005)

@@ -37,9 +37,9 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 from ..algebra import wrap_angle
 from ..formations import UGV_UAV_LAYOUT
 from ..papers import PAPERS, with_names
-from ..sim.metrics import SINGULAR_THRESHOLD
 from ..scenarios.ugv_uav import UGV_UAV_FORMATIONS
 from ..sim.log import Log
+from ..sim.metrics import SINGULAR_THRESHOLD
 from .figures import (
     ANGLE_LABELS,
     ANGLE_TICKS,
@@ -498,7 +498,8 @@ def _compare_label(run: _Run) -> str:
 @np.errstate(invalid="ignore")
 def _robot_errors(run: _Run):
     """Position errors ``|p_ugv - p_ugv_des|`` (x, y) and ``|p_uav - p_uav_des|`` (x, y, z)."""
-    p, pd = UGV_UAV_LAYOUT.positions(finite(_actual_robots(run))), UGV_UAV_LAYOUT.positions(finite(_desired_robots(run)))
+    p = UGV_UAV_LAYOUT.positions(finite(_actual_robots(run)))
+    pd = UGV_UAV_LAYOUT.positions(finite(_desired_robots(run)))
     return (np.linalg.norm(p[:, 0, 0:2] - pd[:, 0, 0:2], axis=1),
             np.linalg.norm(p[:, 1] - pd[:, 1], axis=1))
 

@@ -25,14 +25,7 @@ from .. import checks
 from ..algebra import q_angle_between, wrap_angle
 from ..control import Reference, UgvUavController
 from ..errors import InvalidInputError, UnreachableError
-from ..formations import (
-    SPHERICAL_VARIABLES,
-    UGV_UAV_LAYOUT,
-    UGV_UAV_VARIABLES,
-    UgvUavQuaternion,
-    UgvUavRestricted,
-    UgvUavSpherical,
-)
+from ..formations import FORMATIONS, SPHERICAL_VARIABLES, UGV_UAV_LAYOUT, UGV_UAV_VARIABLES, UgvUavSpherical
 from ..robots import Bebop
 from ..sim.log import Channel, Log
 from ..sim.measurement import MotionCapture
@@ -50,8 +43,11 @@ __all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS",
 LOST_UGV_M = 0.1
 LOST_UAV_M = 0.4
 
-#: The three descriptions of seed 001 by name (the ``formation`` option).
-UGV_UAV_FORMATIONS = {"spherical": UgvUavSpherical, "restricted": UgvUavRestricted, "quaternion": UgvUavQuaternion}
+#: The three descriptions of seed 001 by name (the ``formation`` option): the ``ugv-uav-*``
+#: entries of the formation registry (configured instances), in its order (spherical,
+#: restricted, quaternion).
+UGV_UAV_FORMATIONS = {name.removeprefix("ugv-uav-"): F for name, F in FORMATIONS.items()
+                      if name.startswith("ugv-uav-")}
 #: Where a run's robots live (the ``backend`` option): the robots' models or MuJoCo physics.
 UGV_UAV_BACKENDS = ("kinematic", "mujoco")
 
@@ -154,7 +150,7 @@ class UgvUavScenario:
         arena = ((-3.0, 3.0), (-2.0, 2.0), (cz - self.floor_below_platform_m, cz - self.floor_below_platform_m + 3.0))
         try:
             bebop = bebop if bebop is not None else Bebop(max_fraction=self.max_fraction)
-            return UgvUavController(UGV_UAV_FORMATIONS[formation](), bebop=bebop, z_ugv=cz, arena=arena,
+            return UgvUavController(UGV_UAV_FORMATIONS[formation], bebop=bebop, z_ugv=cz, arena=arena,
                                     **{**self.gains, **options})
         except TypeError as exc:
             raise InvalidInputError(f"scenario {self.name}: [gains]: {exc}") from None
@@ -278,7 +274,12 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     x = log["state"]
     ugv, uav = x[:, 0:3], x[:, 3:11]
     z = np.full(n, float(sc.center[2]))
-    r_true = UGV_UAV_LAYOUT.stack([np.c_[ugv[:, 0:2], z], uav[:, 0:3]])  # the UGV at the platform height
+    # the robots' points (the UGV at the platform height), built exactly as main built them:
+    # the memory order of these arrays sets the summation order of the metrics' dot products,
+    # and their arccos near 1 (orientation error, the turned angle of _cluster_jumps) turns a
+    # 1-ulp change of a dot product into ~1e-8 rad, beyond the 1e-9 regression tolerance
+    # (docs/derivations.md, Pipeline (issue 13): UGV-UAV runs)
+    r_true = np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))
     cluster = log["cluster"]
@@ -292,7 +293,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     # the formation as recovered from the measurements used, each sample continued from the
     # last (NaN where the controller had none or the description cannot express them)
     used = log["used"]
-    r_meas = UGV_UAV_LAYOUT.stack([np.c_[used[:, 0:2], z], used[:, 3:6]])
+    r_meas = np.c_[used[:, [0, 1]], z, used[:, [3, 4, 5]]]
     c_cont = np.full((n, F.n_c), np.nan)
     ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
     for k in range(n):

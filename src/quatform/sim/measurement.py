@@ -74,7 +74,8 @@ class MotionCapture:
 
     One world at a time (``batch`` must be ``()``); the random streams are seeded by
     ``seed`` (the noise) and ``[seed, 1]`` (the faults), so the noise is the same with and
-    without faults. The model keeps the frames it has read: build a new one per run.
+    without faults. :meth:`start` begins a run afresh (the same streams again), so one model
+    serves any number of runs, one after the other.
     """
 
     columns = MOTION_CAPTURE_COLUMNS
@@ -87,10 +88,15 @@ class MotionCapture:
                                     "dropout_rate, glitch_rate in [0, 1)")
         self.rate, self.noise_m, self.noise_rad = rate_hz, noise_m, noise_rad
         self.latency, self.odo = latency_s, odometry_period_s
-        self.rng = np.random.default_rng(seed)
+        self.seed = seed
         self.dropout_rate, self.glitch_rate, self.ugv_z = dropout_rate, glitch_rate, ugv_z
-        self.fault_rng = np.random.default_rng([seed, 1])
-        self.history = LatencyHistory(latency_s + odometry_period_s + 1.0)
+        self._reset()
+
+    def _reset(self) -> None:
+        """Fresh random streams (the noise's and, apart, the faults') and no frames yet."""
+        self.rng = np.random.default_rng(self.seed)
+        self.fault_rng = np.random.default_rng([self.seed, 1])
+        self.history = LatencyHistory(self.latency + self.odo + 1.0)
         self._frame_t, self._pose = None, None
 
     # -- the measurement contract -------------------------------------------------------
@@ -98,6 +104,7 @@ class MotionCapture:
         """The plant's output ``y0`` (11 values) at the first tick ``t0``, s."""
         if batch:
             raise ShapeError(f"MotionCapture measures one world at a time; got batch shape {batch}")
+        self._reset()
         self.observe(t0, y0)
 
     def observe(self, t: float, y) -> None:
