@@ -301,7 +301,6 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
             hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
             c_cont[k] = F.forward(r_meas[k], near_c=hint)
     stopped = np.flatnonzero(log["stopped"][:, 0] > 0.5)
-    state = log.meta.get("controller_state")
     rvars, cvars = UGV_UAV_VARIABLES, F.variables
     chans = [
         Channel("r_true", [v.name for v in rvars], r_true),
@@ -321,13 +320,9 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
         _paired("ts_chart", SPHERICAL_VARIABLES, e_rec, e_des, prefix="euclid_"),
         Channel("ts_command", ["u_" + c for c in log.columns("command")], log["command"]),
     ]
+    # why it stopped: the controller's final state (UgvUavState) says
     return log.with_channels(*chans, stopped_at=float(log.t[stopped[0]]) if stopped.size else None,
-                             stop_reason=_stop_reason(state) if stopped.size else "")
-
-
-def _stop_reason(state) -> str:
-    """Why the controller stopped, from its final state (:meth:`UgvUavController.init`'s type)."""
-    return state.stop_reason
+                             stop_reason=log.meta["controller_state"].stop_reason if stopped.size else "")
 
 
 # --------------------------------------------------------------------------- metrics
