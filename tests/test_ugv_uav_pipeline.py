@@ -21,6 +21,7 @@ from quatform.scenarios.ugv_uav import (
     UGV_UAV_KIND,
     UgvUavScenario,
     check_ugv_uav_scenario,
+    ugv_uav_experiment,
 )
 from quatform.sim import load_scenario
 from quatform.sim.log import Log
@@ -169,6 +170,11 @@ def test_latency_history_keeps_its_horizon():
     for k in range(100):
         h.add(k * 0.01, k)
     assert h.at(0.985) == 98 and h.at(0.5) == h.x[0] and h.t[1] >= 0.98 - 0.1 - 1e-12
+
+
+def test_controller_switches_must_be_booleans():
+    with pytest.raises(InvalidInputError, match="compensation must be true or false .* got 'no'"):
+        ugv_uav_experiment(_short(), compensation="no")
 
 
 def test_check_refuses_a_changed_scenario():

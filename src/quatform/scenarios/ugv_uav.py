@@ -219,6 +219,10 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
         Override the scenario's ``[gains]``.
     """
     check_ugv_uav_scenario(sc)
+    for key in ("compensation", "feedforward"):  # switches: a string such as "no" would read as on
+        if key in controller_options and not isinstance(controller_options[key], bool | np.bool_):
+            raise InvalidInputError(f"{key} must be true or false (or left out: the scenario's), got "
+                                    f"{controller_options[key]!r}")
     ctrl = sc.controller(formation, bebop=bebop, **controller_options)
     F = ctrl.formation
     substeps, times = _ticks(sc)
