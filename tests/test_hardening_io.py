@@ -268,7 +268,7 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
 
     import quatform.plan_runs as plan_runs
     import quatform.scenarios.base as scenario_base
-    import quatform.sim.ugv_uav as ugv_uav
+    import quatform.scenarios.ugv_uav as ugv_uav
 
     class Reached(Exception):
         pass
@@ -277,11 +277,10 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
         raise Reached("stub")
 
     import quatform.scenarios.pair as pair
-    import quatform.sim.mujoco_backend as physics
 
     folder = tmp_path_factory.mktemp("fuzz")
-    stubbed = [(runs, "run_pair"), (ugv_uav, "simulate_ugv_uav"), (scenario_base, "simulate"),
-               (plan_runs, "make_plan"), (pair, "simulate_physics"), (physics, "simulate_ugv_uav_physics")]
+    stubbed = [(runs, "run_pair"), (ugv_uav, "ugv_uav_experiment"), (ugv_uav, "mujoco_experiment"),
+               (scenario_base, "simulate"), (plan_runs, "make_plan"), (pair, "simulate_physics")]
     saved = [getattr(m, n) for m, n in stubbed]
     for m, n in stubbed:
         setattr(m, n, reached)

@@ -54,11 +54,14 @@ from quatform.report.physics_render import (  # noqa: E402
 from quatform.sim import compute_metrics, load_scenario  # noqa: E402
 from quatform.sim.metrics import errors_from_robots  # noqa: E402
 from quatform.scenarios.pair import scenario_from_dict, simulate_physics  # noqa: E402
-from quatform.sim.mujoco_backend import (  # noqa: E402
-    PHYSICS_GAINS,
-    physics_controller_gains,
-    simulate_ugv_uav_physics,
-)
+from quatform.scenarios.ugv_uav import mujoco_experiment  # noqa: E402
+from quatform.sim.mujoco_backend import PHYSICS_GAINS, physics_controller_gains  # noqa: E402
+
+
+def simulate_ugv_uav_physics(sc, formation="quaternion", **options):
+    """A UGV-UAV physics run: its log and its physics record."""
+    log = mujoco_experiment(sc, formation, **options).run()
+    return log, log.meta["physics_record"]
 
 
 # -- item 1: the scenario's gains reach the UGV-UAV physics run ------------------------------
@@ -73,8 +76,8 @@ def test_scenario_compensation_false_reaches_the_physics_run(circle):
     run_off, rec_off = simulate_ugv_uav_physics(off)
     run_arg, _ = simulate_ugv_uav_physics(circle, compensation=False)
     run_on, rec_on = simulate_ugv_uav_physics(circle)
-    assert np.array_equal(run_off.u, run_arg.u)  # the scenario's key = the argument
-    assert not np.allclose(run_off.u[:, 2:6], run_on.u[:, 2:6], atol=1e-3)
+    assert np.array_equal(run_off["command"], run_arg["command"])  # the scenario's key = the argument
+    assert not np.allclose(run_off["command"][:, 2:6], run_on["command"][:, 2:6], atol=1e-3)
     assert rec_off.gains["compensation"] is False and rec_on.gains["compensation"] is True
     assert rec_off.gains_source == "scenario"
 
@@ -83,7 +86,7 @@ def test_every_scenario_gain_reaches_the_physics_run_and_is_recorded(circle):
     g = {"k_psi": 2.0, "l_d": [1.5, 1.5, 1.5, 4.0], "k_x": [0.8, 0.8, 0.8]}
     run, rec = simulate_ugv_uav_physics(dataclasses.replace(circle, gains=g))
     run_arg, rec_arg = simulate_ugv_uav_physics(circle, **g)
-    assert np.array_equal(run.u, run_arg.u)
+    assert np.array_equal(run["command"], run_arg["command"])
     assert rec.gains["k_psi"] == 2.0 and rec.gains["l_d"] == [1.5, 1.5, 1.5, 4.0]
     assert rec.gains["k_x"] == [0.8, 0.8, 0.8] and rec.gains["k_d"] == 1.0  # seed 001 §5's K_d
     assert rec_arg.gains_source == "argument"

@@ -15,7 +15,7 @@ from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError, ResourceLimitError, UnreachableError
 from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from quatform.sim import load_scenario
-from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
+from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
 
 
 # -- item 7: the UGV-UAV layouts carry their name ------------------------------------------------
@@ -150,11 +150,13 @@ def test_restricted_run_reports_the_take_off_from_below_the_platform():
     The controller drives it in robot space until it is inside, and the run says for how long."""
     run = simulate_ugv_uav(_short(mocap_noise_m=0.002), "restricted")
     m = ugv_uav_metrics(run)
-    assert run.outside[0] and not run.outside[-1]
+    outside, c = run["outside"][:, 0] == 1, run["cluster"]
+    assert outside[0] and not outside[-1]
     assert 2.0 <= m["measured_outside_description_s"] <= 8.0
-    assert np.all(np.isnan(run.c[run.outside])) and np.all(np.isfinite(run.c[~run.outside]))
-    assert np.all(np.isnan(run.singularity[UgvUavRestricted().outside(
-        np.c_[run.ugv[:, 0:2], np.zeros(len(run.t)), run.uav[:, 0:3]])]))
+    assert np.all(np.isnan(c[outside])) and np.all(np.isfinite(c[~outside]))
+    x = run["state"]
+    assert np.all(np.isnan(run["singularity"][:, 0][UgvUavRestricted().outside(
+        np.c_[x[:, 0:2], np.zeros(len(run.t)), x[:, 3:6]])]))
     assert m["nonfinite_commands"] == 0 and not m["reference_lost"]
     assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
 
@@ -237,7 +239,7 @@ def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():
     assert m["mocap_held_frames"] == m["mocap_dropped_frames"] + m["mocap_rejected_frames"]
     assert not m["run_stopped"] and m["nonfinite_commands"] == 0 and not m["reference_lost"]
     assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
-    assert np.all(np.isfinite(run.c)) and np.all(np.isfinite(run.c_continuous))
+    assert np.all(np.isfinite(run["cluster"])) and np.all(np.isfinite(run["c_continuous"]))
 
 
 def test_run_that_loses_the_motion_capture_stops_and_says_so():
@@ -246,7 +248,7 @@ def test_run_that_loses_the_motion_capture_stops_and_says_so():
     assert m["run_stopped"] and m["run_stopped_at_s"] <= 6.0
     assert m["run_stopped_reason"].startswith("motion capture: no good frame")
     after = run.t > m["run_stopped_at_s"]
-    assert np.all(run.u[after, 0] == 0) and np.all(run.u[after, 1] == 0)  # the UGV stays stopped
+    assert np.all(run["command"][after, 0] == 0) and np.all(run["command"][after, 1] == 0)  # the UGV stays stopped
 
 
 # -- huge finite positions -------------------------------------------------------------------------
@@ -285,7 +287,7 @@ def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():
 def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, tmp_path):
     sc = _short("marciano-front-to-over", uav_front_until_s=5.0, duration_s=12.0, transient_s=2.0)
     run = simulate_ugv_uav(sc, "restricted")
-    assert run.t.size == 401 and not run.reachable[0] and run.reachable[-1]
+    assert run.t.size == 401 and run["reachable"][0, 0] == 0 and run["reachable"][-1, 0] == 1
     figs = []
     monkeypatch.setattr(uplots, "save", lambda fig, path: figs.append(fig) or path)
     uplots.write_ugv_uav_run_plots(run, tmp_path)

@@ -128,15 +128,15 @@ def test_ugv_uav_plant_under_the_seed_001_controller_through_simulate():
     import dataclasses
 
     from quatform.control import Reference
-    from quatform.sim.ugv_uav import simulate_ugv_uav
+    from quatform.scenarios.ugv_uav import simulate_ugv_uav
 
     sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=6.0)
     kin = simulate_ugv_uav(sc, "quaternion")  # the kinematic start and reference of this scenario
     floor = sc.center[2] - sc.floor_below_platform_m
-    plant = ugv_uav_plant(sc, np.r_[kin.ugv[0], kin.uav[0]], floor)
+    plant = ugv_uav_plant(sc, kin["state"][0], floor)
     ctrl = sc.controller("quaternion", bebop=plant.uav_model)
     n = round(sc.control_period_s / sc.dt_s)
-    log = simulate(plant, ctrl, lambda k: Reference(kin.c_des[k], np.zeros(ctrl.formation.n_c)), kin.t, plant.x0,
+    log = simulate(plant, ctrl, lambda k: Reference(kin["c_des"][k], np.zeros(ctrl.formation.n_c)), kin.t, plant.x0,
                    dt=sc.dt_s, substeps=n)
     x = log["state"]
     assert x.shape == (len(kin.t), 11) and np.all(log["raw_finite"] == 1.0) and np.all(log["frame"] == 0)

@@ -23,11 +23,10 @@ from quatform.cli import main
 from quatform.robots.bebop import TABLE2_K
 from quatform.scenarios.pair import run_pair, scenario_from_dict, simulate_physics
 from quatform.sim import compute_metrics, load_scenario
+from quatform.scenarios.ugv_uav import mujoco_experiment, simulate_ugv_uav, ugv_uav_metrics
 from quatform.sim.mujoco_backend import (
     IRIS_IDENTIFIED_K,
-    simulate_ugv_uav_physics,
 )
-from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 
 
 @pytest.fixture(scope="module")
@@ -90,17 +89,18 @@ def test_ugv_and_quadrotor_hold_the_formation_with_identified_compensation():
     """Seed 001 §5.1 (circle), shortened: the take-off transient (20 s) and a few seconds
     of the formation; the bounds are issue 4's (UGV 0.1 m, UAV 0.2 m)."""
     sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=24.0)
-    run, rec = simulate_ugv_uav_physics(sc, "quaternion")
-    m = ugv_uav_metrics(run)
+    exp = mujoco_experiment(sc, "quaternion")
+    run = exp.run()
+    m, rec = exp.metrics(run), run.meta["physics_record"]
     assert m["max_ugv_position_error_m"] < 0.1 and m["max_uav_position_error_m"] < 0.2
     assert not m["reference_lost"] and m["nonfinite_commands"] == 0
     assert rec.collisions["count"] == 0  # taking off from the floor is not a collision
-    assert run.uav[-1, 2] > 1.3  # in the air, 1.5 m over the platform
+    assert run["state"][-1, 5] > 1.3  # in the air, 1.5 m over the platform
     assert m["uav_model_k"] == list(IRIS_IDENTIFIED_K)  # the physics run compensated with the identified K
     assert ugv_uav_metrics(simulate_ugv_uav(sc))["uav_model_k"] == list(TABLE2_K)  # the kinematic one: Table 2
     # without the compensation (4.47) the quadrotor's 6 s velocity lag (1/K2) loses the formation
-    run_nc, _ = simulate_ugv_uav_physics(sc, "quaternion", compensation=False)
-    m_nc = ugv_uav_metrics(run_nc)
+    exp_nc = mujoco_experiment(sc, "quaternion", compensation=False)
+    m_nc = exp_nc.metrics(exp_nc.run())
     assert m_nc["reference_lost"] and m_nc["max_uav_position_error_m"] > 10 * m["max_uav_position_error_m"]
 
 
@@ -108,13 +108,15 @@ def test_uav_starts_where_uav_start_says_in_the_ugv_frame():
     """The lemniscate starts with the UGV heading 72 deg: uav_start (0, -0.6) is to its right
     in its own frame (it was added in world axes, inside the UGV), kinematic and physics."""
     sc = dataclasses.replace(load_scenario("marciano-lemniscate"), duration_s=1.0)
-    for run in (simulate_ugv_uav(sc), simulate_ugv_uav_physics(sc)[0]):
-        psi = run.ugv[0, 2]
+    physics = mujoco_experiment(sc).run()
+    for run in (simulate_ugv_uav(sc), physics):
+        x = run["state"]
+        psi = x[0, 2]
         assert abs(psi) > 1.0  # the case that matters: not heading along x
-        d = run.uav[0, 0:2] - run.ugv[0, 0:2]
+        d = x[0, 3:5] - x[0, 0:2]
         body = [np.cos(psi) * d[0] + np.sin(psi) * d[1], -np.sin(psi) * d[0] + np.cos(psi) * d[1]]
         assert np.allclose(body, sc.uav_start[0:2], atol=0.02)
-    assert simulate_ugv_uav_physics(sc)[1].collisions["count"] == 0
+    assert physics.meta["physics_record"].collisions["count"] == 0
 
 
 def test_cli_runs_the_physics_backend_and_writes_collisions_and_picture(tmp_path, capsys):

@@ -11,8 +11,8 @@ import pytest
 from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError
 from quatform.formations import UgvUavQuaternion
+from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 from quatform.sim import load_scenario
-from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 
 LIMITS = {  # issue 4: (cluster / UGV, UAV) after the transient
     "marciano-circle": (0.1, 0.2),
@@ -41,14 +41,15 @@ def test_quaternion_formation_within_the_seeds_bounds(quaternion_runs, name):
     assert m["max_uav_position_error_m"] < uav_lim
     assert m["nonfinite_commands"] == 0 and not m["unreachable_reference"]
     assert not m["singularity_detected"]
-    assert np.all(np.isfinite(run.c)) and np.all(np.isfinite(run.u))
+    assert np.all(np.isfinite(run["cluster"])) and np.all(np.isfinite(run["command"]))
     # the recovered formation moves no more between samples than the robots explain
     assert m["max_unexplained_cluster_jump"] < 1e-6
     # the UAV takes off from the floor into the formation and stays above the floor
     sc = load_scenario(name)
-    assert run.uav[0, 2] == pytest.approx(-sc.floor_below_platform_m)
+    z_b = run["state"][:, 5]
+    assert z_b[0] == pytest.approx(-sc.floor_below_platform_m)
     late = run.t > sc.transient_s
-    assert np.all(run.uav[late, 2] > -sc.floor_below_platform_m + 0.1)
+    assert np.all(z_b[late] > -sc.floor_below_platform_m + 0.1)
 
 
 def test_spherical_flags_the_overhead_singularity():
@@ -59,7 +60,7 @@ def test_spherical_flags_the_overhead_singularity():
     assert not quat["singularity_detected"]
     # over the UGV alpha_c is undefined: its measured value jumps by ~pi between samples ...
     late = run_s.t > 20
-    d = run_s.measured[late, 3:6] - run_s.measured[late, 0:3]
+    d = run_s["r_measured"][late, 3:6] - run_s["r_measured"][late, 0:3]
     a = np.arctan2(d[:, 1], d[:, 0])
     assert np.abs((np.diff(a) + np.pi) % (2 * np.pi) - np.pi).max() > 2.0
     # ... the recovered spherical state jumps with no motion to explain it ...
@@ -78,9 +79,10 @@ def test_restricted_cannot_fly_ahead_at_platform_level():
     # description and join the formation once it is inside (the §5.3 switch at 60 s)
     assert len(run.t) == int(sc.duration_s / 0.03) + 1
     assert m["unreachable_reference_s"] == pytest.approx(60.0, abs=1.0)
-    assert np.all(np.isnan(run.c_des[~run.reachable])) and np.all(np.isfinite(run.c_des[run.reachable]))
+    reachable = run["reachable"][:, 0] == 1
+    assert np.all(np.isnan(run["c_des"][~reachable])) and np.all(np.isfinite(run["c_des"][reachable]))
     wait = run.t < 55
-    assert np.all(run.uav[wait, 2] < -0.25)  # the UAV stays on the floor
+    assert np.all(run["state"][wait, 5] < -0.25)  # the UAV stays on the floor
     assert not m["reference_lost"] and m["max_uav_position_error_m"] < 0.05
 
 

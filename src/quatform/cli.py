@@ -71,7 +71,7 @@ def _with_measurement(sc, args):
         return sc
     if not hasattr(sc, "mocap_noise_m"):
         raise InvalidInputError("--mocap-noise-m and --mocap-latency-s apply to UGV-UAV scenarios only")
-    from .sim.ugv_uav import check_ugv_uav_scenario
+    from .scenarios.ugv_uav import check_ugv_uav_scenario
 
     sc = dataclasses.replace(sc, **changes)
     check_ugv_uav_scenario(sc, f"scenario {sc.name} with --mocap-noise-m/--mocap-latency-s")

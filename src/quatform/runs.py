@@ -54,33 +54,34 @@ def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False
 
 def _ugv_uav_into(sc, formation, out, label, plots, quiet, backend):
     """:func:`run_ugv_uav` writing into the folder ``out`` (made here; ``label``: the name printed)."""
-    from .sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_timeseries
+    from .scenarios.ugv_uav import UGV_UAV_KIND
 
     out.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     progress = None if quiet else _progress(f"{sc.name} / {formation} / {backend}")
-    if backend == "mujoco":
-        from .sim.mujoco_backend import simulate_ugv_uav_physics
-
-        run, record = simulate_ugv_uav_physics(sc, formation, progress=progress)
-    else:
-        run = simulate_ugv_uav(sc, formation, progress=progress)
-    metrics = ugv_uav_metrics(run)
+    exp = UGV_UAV_KIND.experiment(sc, formation=formation, backend=backend)
+    log = exp.run(progress)
+    metrics = exp.metrics(log)
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-    if backend == "mujoco":
-        _add_physics(metrics, record, run, ugv_uav_metrics(simulate_ugv_uav(sc, formation)), out, plots)
-    write_columns(*ugv_uav_timeseries(run), out / "timeseries.csv")
+    write_columns(*log.table(exp.csv_channels), out / "timeseries.csv")
     if plots:
         from .report.ugv_uav_plots import write_ugv_uav_run_plots
 
-        write_ugv_uav_run_plots(run, out)
+        write_ugv_uav_run_plots(log, out)
+    if backend == "mujoco":
+        metrics["render"] = None
+        if plots:
+            from .report.physics_render import RENDER_FILE, render_or_fallback
+
+            file, how = render_or_fallback(log.meta["physics_record"], log, out / RENDER_FILE)
+            metrics["render"], metrics["render_backend"] = file.name, how
     write_metrics(metrics, out / "metrics.json")
     if not quiet:
-        if run.unreachable_at is not None:
-            print(f"  {sc.name} / {formation}: reference unreachable from t = {run.unreachable_at:.2f} s: "
-                  f"{run.unreachable_message}", file=sys.stderr)
+        if log.meta["unreachable_at"] is not None:
+            print(f"  {sc.name} / {formation}: reference unreachable from t = {log.meta['unreachable_at']:.2f} s: "
+                  f"{log.meta['unreachable_message']}", file=sys.stderr)
         print(f"\r  {sc.name} / {formation}: done in {metrics['wall_time_s']:.1f} s -> {label}", file=sys.stderr)
-    return run, metrics
+    return log, metrics
 
 
 UGV_UAV_COLUMNS = (
@@ -99,7 +100,7 @@ UGV_UAV_COLUMNS = (
 
 def compare_ugv_uav(sc, out, quiet: bool = False):
     """Run the three descriptions of seed 001 on one scenario; plots, table; return the rows."""
-    from .sim.ugv_uav import UGV_UAV_FORMATIONS
+    from .scenarios.ugv_uav import UGV_UAV_FORMATIONS
 
     with staged_dir(out) as tmp:
         runs, rows = [], []
@@ -148,6 +149,8 @@ def _add_physics(metrics, record, run, kinematic_metrics, out, plots):
 def physics_rows(metrics) -> list:
     """Two table rows of a physics run: the kinematic run's errors, then the physics run's."""
     label = metrics["controller"]
+    if "kinematic" not in metrics:  # a run on one backend (the UGV-UAV kind: compare over the backend)
+        return [dict(metrics, controller=f"{label} (mujoco)", formation=f"{metrics['formation']} (mujoco)")]
     return [dict(metrics["kinematic"], controller=f"{label} (kinematic)", formation=f"{metrics['formation']} (kinematic)"),
             dict(metrics, controller=f"{label} (mujoco)", formation=f"{metrics['formation']} (mujoco)")]
 

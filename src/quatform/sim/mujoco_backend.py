@@ -42,9 +42,8 @@ This module holds what the plants are made of:
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* :func:`simulate_ugv_uav_physics` - a seed 001 scenario on ``ugv_uav_plant`` (a thin
-  wrapper returning the run and a :class:`PhysicsRecord`); the pair kind runs its plant
-  itself (``quatform.scenarios.pair``).
+* the kinds run their plants themselves (``quatform.scenarios.pair``,
+  ``quatform.scenarios.ugv_uav.mujoco_experiment``).
 * :func:`identify_k` - ``K1..K8`` of the quadrotor in Bebop-like attitude mode (seed 001
   eq. (3.11)) for the controller's dynamic compensation (4.47).
 """
@@ -63,7 +62,6 @@ import numpy as np
 from ..algebra import wrap_angle
 from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError, MissingDependencyError, NonFiniteError
-from ..robots import Bebop
 from ..robots.physics import (
     GRAVITY,
     IRIS,
@@ -76,12 +74,11 @@ from ..robots.physics import (
     wheel_speeds,
     world_mjcf,
 )
-from .log import Channel, Log
 
 __all__ = ["BACKEND_LABEL", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "UGV_UAV_GAIN_NAMES",
            "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco", "pair_controller_gains",
            "physics_controller", "physics_controller_gains", "physics_gains", "physics_timestep",
-           "simulate_ugv_uav_physics", "ugv_uav_controller_gains"]
+           "ugv_uav_controller_gains"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
 BACKEND_LABEL = "MuJoCo physics"
@@ -568,41 +565,6 @@ class PhysicsRecord:
         ``gains_source`` (and its meaning, ``gains_source_note``) and ``physics_timestep_s``."""
         return {"gains": self.gains, "gains_source": self.gains_source,
                 "gains_source_note": GAINS_SOURCES.get(self.gains_source, ""), "physics_timestep_s": self.timestep}
-
-
-# -- seed 001: UGV + quadrotor --------------------------------------------------------------
-def simulate_ugv_uav_physics(sc, formation: str = "quaternion", k=IRIS_IDENTIFIED_K, progress=None,
-                             compensation: bool | None = None, **controller_options):
-    """A seed 001 scenario with a Pioneer-like UGV and an IRIS in Bebop-like attitude mode.
-
-    The controller is seed 001's (Fig. 18) with the scenario's ``[gains]`` (all of them:
-    ``compensation = false`` turns the dynamic compensation (4.47) off), its compensation
-    using ``k`` (default: identified from this quadrotor); the motion capture and odometry
-    are those of :class:`~quatform.sim.ugv_uav.MotionCapture`. ``compensation`` (where not
-    None) and ``controller_options`` override the scenario's gains. Returns
-    ``(UgvUavRun, PhysicsRecord)``; the record's ``gains`` are the controller's.
-    """
-    from .plants.mujoco import physics_record, ugv_uav_plant
-    from .ugv_uav import simulate_ugv_uav
-
-    holder = {}
-
-    def plant_factory(x0, floor):
-        plant = holder["plant"] = ugv_uav_plant(sc, x0, floor, k)
-        return plant.x0, lambda x, u, dt: plant.step(x, u, dt, plant.world.data.time)
-
-    if compensation is not None and not isinstance(compensation, bool | np.bool_):
-        raise InvalidInputError(f"simulate_ugv_uav_physics: compensation must be true, false or None (the "
-                                f"scenario's), got {compensation!r}")
-    options = dict(controller_options, **({} if compensation is None else {"compensation": bool(compensation)}))
-    bebop = Bebop(k=tuple(k), max_fraction=sc.max_fraction)  # the model ugv_uav_plant's uav_model is
-    gains, source = ugv_uav_controller_gains(sc.controller(formation, bebop=bebop, **options),
-                                             "argument" if options else "scenario")
-    run = simulate_ugv_uav(sc, formation, progress=progress, plant_factory=plant_factory, bebop=bebop, **options)
-    run = dataclasses.replace(run, backend=BACKEND_LABEL)
-    plant = holder["plant"]
-    log = Log(run.t, [Channel("state", plant.state_columns, np.c_[run.ugv, run.uav])])
-    return run, physics_record(plant, log, f"{sc.name}: {formation} formation", gains, source)
 
 
 #: Excitation of :func:`identify_k` per channel: (duration s, step period s, chirp end Hz).
