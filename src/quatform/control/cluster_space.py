@@ -18,6 +18,7 @@ from ..formations import EuclideanPair, RobotSpace
 from ..formations.base import MIN_SEPARATION_M, Formation
 from ..robots import Team
 from .base import Controller, gains
+from .laws import proportional
 
 __all__ = ["ClusterSpaceController", "RobotSpaceController", "TABLE1", "TABLE2"]
 
@@ -40,11 +41,10 @@ TABLE2 = {
 class _ProportionalController(Controller):
     def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
+        r, c_des, c_dot_des = (np.asarray(a, dtype=float) for a in (r, c_des, c_dot_des))
         c = F.forward(r, c_des)
         err = F.errors(c, c_des)
-        c_cmd = -self.k * err
-        if self.feedforward:
-            c_cmd = c_cmd + c_dot_des
+        c_cmd = proportional(err, c_dot_des, self.k, 1.0 if self.feedforward else 0.0)  # Fig. 2, Fig. 3
         return c, err, np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r), c_cmd)
 
 
@@ -90,6 +90,7 @@ class RobotSpaceController(_ProportionalController):
     def _control(self, r, c_des, c_dot_des, aligned):
         # a reference with the robots on each other is no formation (the cluster-space
         # controller refuses d_c below MIN_SEPARATION_M / 2 the same way)
+        c_des = np.asarray(c_des, dtype=float)
         d = np.linalg.norm(c_des[..., 0:3] - c_des[..., 4:7], axis=-1)
         if np.any(d < MIN_SEPARATION_M):
             raise DegenerateInputError(
