@@ -173,3 +173,12 @@ def test_cluster_controller_of_a_formation_law_and_team_is_the_cluster_space_con
     np.testing.assert_array_equal(generic.step(0.0, r, ref), ref_ctrl.step(0.0, r, ref))
     with pytest.raises(InvalidInputError, match="variables"):
         ClusterController(EuclideanPair(), BlockLaw((Block("proportional", 0, 3, k[:3]),)))
+
+
+def test_ugv_uav_step_takes_a_batch_of_worlds():
+    ctrl = UGV_UAV[0]
+    m, ref = _uav_inputs(ctrl, 3)
+    u = ctrl.step(0.0, m, ref)
+    assert u.shape == (3, 6)
+    for i in range(3):
+        np.testing.assert_allclose(u[i], ctrl.step(0.0, m[i], ref), rtol=1e-12, atol=1e-12)

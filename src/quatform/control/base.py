@@ -130,10 +130,8 @@ def _floats(x, n):
 
 def _checked(x, name, n):
     """``as_array`` and the magnitude limit, with a fast path for one float64 vector of length ``n``."""
-    if type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64:
-        v = x.tolist()
-        if math.isfinite(sum(v)) and max(v) <= MAX_MAGNITUDE and min(v) >= -MAX_MAGNITUDE:
-            return x
+    if _floats(x, n) is not None:
+        return x
     return check_magnitude(as_array(x, name, n), name)
 
 

@@ -58,6 +58,17 @@ def _mul_pure(q, w1, w2, w3):
             q0 * w3 + q1 * w2 - q2 * w1)
 
 
+def _conj_mul(p, q):
+    """``p* q`` on components: :func:`~quatform.algebra.kernels.qmul_components` of the
+    conjugate with its signs folded in (negation is exact: the same floats)."""
+    p0, p1, p2, p3 = p
+    q0, q1, q2, q3 = q
+    return (p0 * q0 + p1 * q1 + p2 * q2 + p3 * q3,
+            p0 * q1 - p1 * q0 - p2 * q3 + p3 * q2,
+            p0 * q2 + p1 * q3 - p2 * q0 - p3 * q1,
+            p0 * q3 - p1 * q2 + p2 * q1 - p3 * q0)
+
+
 def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
 
@@ -76,7 +87,7 @@ def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     -------
     qe, q_dot : tuples of 4 components
     """
-    qe = kern.qmul(*kern.qconj(q_des), *q)
+    qe = _conj_mul(q_des, q)  # q_des* q
     h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
     q_dot = _mul_pure(q, h * k[0] * qe[1], h * k[1] * qe[2], h * k[2] * qe[3])  # 1/2 q (0, -sgn K qe_vec)
     if feedforward:
@@ -161,7 +172,8 @@ class BlockLaw:
             raise InvalidInputError("the blocks of a BlockLaw must cover the variables 0 .. n-1 once each")
         # per block: (slice, law or None, gains); quaternion blocks flagged by law
         plan = tuple((slice(b.start, b.start + b.size), LAWS.get(b.law), tuple(b.gains),
-                      tuple(range(b.start, b.start + b.size))) for b in self.blocks)
+                      tuple(zip(range(b.start, b.start + b.size), b.gains or (None,) * b.size)))
+                     for b in self.blocks)
         object.__setattr__(self, "_plan", plan)
         object.__setattr__(self, "_n", len(covered))
 
@@ -178,11 +190,11 @@ class BlockLaw:
         """
         ff = 1.0 if self.feedforward else 0.0
         err, rate = [None] * self._n, [None] * self._n
-        for s, law, k, idx in self._plan:
+        for s, law, k, pairs in self._plan:
             if law is quaternion_feedback:
                 err[s], rate[s] = quaternion_feedback(c[s], c_des[s], c_dot_des[s], k, ff)
                 continue
-            for j, kj in zip(idx, k) if law is not None else ((j, None) for j in idx):
+            for j, kj in pairs:
                 ej = c[j] - c_des[j] if e is None else e[j]
                 err[j] = ej
                 rate[j] = 0.0 * ej if law is None else law(ej, c_dot_des[j], kj, ff)

@@ -212,6 +212,10 @@ class UgvUavController(contract.Controller):
                                               memory=self.team.initial_memory()))
 
     # -- the chain of Fig. 18 ---------------------------------------------------------
+    def step(self, t: float, measured, reference=None) -> np.ndarray:
+        """Commands ``(..., 6)`` for ``measured`` (``(..., 11)``) from the initial state."""
+        return self.update(t, measured, reference, self.init(np.shape(measured)[:-1])).u
+
     def update(self, t: float, measured, reference, state) -> contract.Step:
         """One step of Fig. 18 (:meth:`_update_one` per world).
 
