@@ -352,10 +352,10 @@ def test_restricted_rate_maps_refuse_what_forward_refuses():
             f(r)
     c_up = F.forward(r * [1, 1, 1, 1, 1, -1])
     with pytest.raises(UnreachableError, match="below the platform"):
-        F.inverse_jacobian_at(c_up, r)
+        F.inverse_jacobian_at(c_up, r=r)
     with pytest.raises(UnreachableError, match="alpha_f = 70.5 deg is outside"):
         F.inverse_jacobian_at(c_up + [0, 0, 0, 0, 0.8, 0])  # what inverse refuses
-    assert F.inverse_jacobian_at(c_up, r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
+    assert F.inverse_jacobian_at(c_up, r=r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
 
 
 robot_pair = st.tuples(*(st.floats(-2.0, 2.0) for _ in range(6))).map(np.array)

@@ -60,9 +60,9 @@ class ClusterController(Controller):
     def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
         r, c_des, c_dot_des = (np.asarray(a, dtype=float) for a in (r, c_des, c_dot_des))
-        c = F.forward(r, c_des)
+        c = F.forward(r, near_c=c_des)
         err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des),
                              kern.unpack(F.errors(c, c_des)))
-        x_rate = np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r), kern.pack(rate))
+        x_rate = np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), kern.pack(rate))
         u, _ = self.team.actuate(r, x_rate, 0.0, self.team.initial_memory(r.shape[:-1]))
         return c, kern.pack(err), u

@@ -345,16 +345,16 @@ class UgvUavController(contract.Controller):
             return self._braking(state, m, nan_c if outside else F.forward(r), frame, held, outside, m)
         ff = 1.0 if self.feedforward else 0.0
         try:
-            c = F.forward(r, c_des)
+            c = F.forward(r, near_c=c_des)
             outside = False
             err, c_rate = self.cluster_rates(c, c_des, c_dot)
-            x_rate = F.inverse_jacobian_at(c, r) @ c_rate  # (4.42)
+            x_rate = F.inverse_jacobian_at(c, r=r) @ c_rate  # (4.42)
         except UnreachableError:
             # robot-space control (seed 000 §3.1): track INVKIN(c_des) with the position law
             # of (4.43) on each robot, r_dot = r_dot_des - K_x tanh(r - r_des)
             c, err, outside = nan_c, nan_c, True
             r_des = F.inverse(c_des)
-            x_rate = ff * (F.inverse_jacobian_at(c_des, r_des) @ c_dot) - np.r_[self.k_x, self.k_x] * np.tanh(r - r_des)
+            x_rate = ff * (F.inverse_jacobian_at(c_des, r=r_des) @ c_dot) - np.r_[self.k_x, self.k_x] * np.tanh(r - r_des)
         finite = bool(np.all(np.isfinite(x_rate)))
         if not finite:
             x_rate = np.zeros(6)

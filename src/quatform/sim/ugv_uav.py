@@ -285,13 +285,13 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
 
     r_true = np.c_[ugv_log[:, 0:2], np.full(n, sc.center[2]), uav_log[:, 0:3]]
     c_log = log.cluster.reshape(n, F.n_c)
-    e_rec = F.euclidean(c_log, e_des[:n], r_true) if n else np.zeros((0, 6))
+    e_rec = F.to_chart(c_log, near_e=e_des[:n], r=r_true) if n else np.zeros((0, 6))
     # the singularity measure where the description exists (NaN where it cannot express the robots)
     sing = np.full(n, np.nan)
     inside = ~F.outside(r_true)
     for rows, hint in ((inside & reachable, c_des), (inside & ~reachable, None)):
         if rows.any():
-            sing[rows] = F.singularity_measure(r_true[rows], None if hint is None else hint[rows])
+            sing[rows] = F.singularity_measure(r_true[rows], near_c=None if hint is None else hint[rows])
     frame = np.array([s_["frame"][0] for s_ in steps], dtype=np.int8)
     used = np.array([s_["used"] for s_ in steps]).reshape(n, 11)
     outside = np.array([s_["outside"][0] > 0.5 for s_ in steps], dtype=bool)
@@ -304,7 +304,7 @@ def simulate_ugv_uav(sc: UgvUavScenario, formation: str = "quaternion", progress
     for k in range(n):
         if ok[k]:
             hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
-            c_cont[k] = F.forward(r_meas[k], hint)
+            c_cont[k] = F.forward(r_meas[k], near_c=hint)
     return UgvUavRun(sc, formation, t_ctrl[:n], ugv_log, uav_log, r_meas, c_log, c_des, e_rec, e_des[:n],
                      log.commands.reshape(n, 6), log.raw_finite, sing, unreachable_at,
                      message, c_cont, tuple(bebop.k), frame, np.array([s_["held"][0] > 0.5 for s_ in steps], dtype=bool),
