@@ -35,12 +35,25 @@ Run it from the repository root::
     python benchmarks/bench_control.py                 # N = 10 000, 7 repeats (~30 s)
     python benchmarks/bench_control.py --repeat 3
     python benchmarks/bench_control.py --batch 100000
+    python benchmarks/bench_control.py --before /path/to/old/src   # issue 13's speed check
+
+``--before SRC`` times the issue-13 speed check (one ``QuaternionController().step`` of one
+formation, and of a batch of 1000, as the simulator calls it) for this quatform and for
+the quatform package under ``SRC`` (another checkout's ``src``, run in a subprocess),
+alternating the two three times and keeping each side's best, in CPU time of the timing
+process (``time.process_time``: less disturbed by other processes on a shared machine),
+and prints both.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
+import subprocess
+import sys
+import time
 from functools import partial
 
 import numpy as np
@@ -417,15 +430,59 @@ def time_controller(name: str, ctrl, args) -> tuple[list[str], float, float]:
     return entries, 1e6 * t1, batch_consistency(ctrl, batch)
 
 
+def quaternion_speed(n: int = 1000, repeat: int = 15, calls: int = 3000) -> dict:
+    """CPU time of ``QuaternionController().step``: ``single_us`` (one formation) and
+    ``batch_ns`` (per formation, one call on ``n``), best of ``repeat`` loops."""
+    ctrl = QuaternionController()
+    (r, c, cd), (r_b, c_b, cd_b), (r_des, r_des_b) = make_inputs(ctrl, n)
+    out = {}
+    for key, fn, k, per in (("single_us", lambda: ctrl.step(0.0, r, Reference(c, cd, r_des)), calls, 1e6),
+                            ("batch_ns", lambda: ctrl.step(0.0, r_b, Reference(c_b, cd_b, r_des_b)),
+                             max(1, calls // 100), 1e9 / n)):
+        best = math.inf
+        for _ in range(repeat):
+            t0 = time.process_time()
+            for _ in range(k):
+                fn()
+            best = min(best, (time.process_time() - t0) / k)
+        out[key] = best * per
+    return out
+
+
+def compare_before(src: str) -> None:
+    """Print :func:`quaternion_speed` of the quatform under ``src`` and of this one."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.abspath(src), here]))
+    before, after = [], []
+    for _ in range(3):
+        done = subprocess.run([sys.executable, os.path.abspath(__file__), "--speed-json"], env=env,
+                              capture_output=True, text=True, check=True)
+        before.append(json.loads(done.stdout.strip().splitlines()[-1]))
+        after.append(quaternion_speed())
+    b = {k: min(x[k] for x in before) for k in before[0]}
+    a = {k: min(x[k] for x in after) for k in after[0]}
+    print(f"QuaternionController().step, CPU time, best of 3 alternating runs (before = {src}):")
+    print(f"  single (us)              before {b['single_us']:7.1f}   after {a['single_us']:7.1f}   "
+          f"target <= {TARGET_US:.0f}: {'met' if a['single_us'] <= TARGET_US else 'NOT met'}")
+    print(f"  batch of 1000 (ns/form.) before {b['batch_ns']:7.0f}   after {a['batch_ns']:7.0f}")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Parse the options, time every controller and peer and print the table and notes."""
+    if argv is None and sys.argv[1:] == ["--speed-json"]:  # the --before subprocess
+        print(json.dumps(quaternion_speed()))
+        return
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--batch", type=int, default=10_000, help="formations in the batch (default 10000)")
     parser.add_argument("--repeat", type=int, default=7, help="repeats, the best is kept (default 7)")
     parser.add_argument(
         "--min-run", type=float, default=0.2, help="least seconds per repeat (default 0.2)"
     )
+    parser.add_argument("--before", metavar="SRC", help="time the quaternion step here and under SRC, print both")
     args = parser.parse_args(argv)
+    if args.before:
+        compare_before(args.before)
+        return
     if args.batch < 1 or args.repeat < 1 or args.min_run <= 0:
         parser.error("--batch and --repeat must be >= 1 and --min-run > 0")
 

@@ -157,3 +157,28 @@ def test_quaternion_pair_batch_of_random_formations_equals_single(scale, seed):
     u = ctrl.step(0.0, r, ref)
     for i in range(4):
         np.testing.assert_allclose(u[i], ctrl.step(0.0, r[i], Reference(ref.c[i], ref.c_dot[i])), atol=1e-12)
+
+
+def test_cluster_controller_of_a_formation_law_and_team_is_the_cluster_space_controller():
+    from quatform.control import ClusterController, ClusterSpaceController
+    from quatform.control.laws import Block, BlockLaw
+    from quatform.formations import EuclideanPair
+    from quatform.errors import InvalidInputError
+
+    k = (1.0, 1.0, 1.0, 10.0, 10.0, 5.0, 5.0, 10.0)
+    generic = ClusterController(EuclideanPair(), BlockLaw((Block("proportional", 0, 8, k),)), feedforward=False)
+    assert generic.law.feedforward is False  # the controller's setting
+    ref_ctrl = ClusterSpaceController(k=k, feedforward=False)
+    r, ref = _pair_inputs(ref_ctrl, 4)
+    np.testing.assert_array_equal(generic.step(0.0, r, ref), ref_ctrl.step(0.0, r, ref))
+    with pytest.raises(InvalidInputError, match="variables"):
+        ClusterController(EuclideanPair(), BlockLaw((Block("proportional", 0, 3, k[:3]),)))
+
+
+def test_ugv_uav_step_takes_a_batch_of_worlds():
+    ctrl = UGV_UAV[0]
+    m, ref = _uav_inputs(ctrl, 3)
+    u = ctrl.step(0.0, m, ref)
+    assert u.shape == (3, 6)
+    for i in range(3):
+        np.testing.assert_allclose(u[i], ctrl.step(0.0, m[i], ref), rtol=1e-12, atol=1e-12)

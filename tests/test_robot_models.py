@@ -21,7 +21,7 @@ def test_every_model_implements_the_protocol(robot):
     x = np.linspace(0.1, 0.9, len(robot.state_columns))
     p = robot.point(x)
     assert p.shape == (3 if robot.point_kind == "xyz" else 4,)
-    u, mem = robot.actuate(x, np.full(robot.n_rate, 0.3), 0.0, robot.initial_memory())
+    u, _ = robot.actuate(x, np.full(robot.n_rate, 0.3), 0.0, robot.initial_memory())
     assert u.shape == (len(robot.command_columns),)
     assert robot.saturate(np.full(len(robot.command_columns), np.nan)).tolist() == [0.0] * len(robot.command_columns)
     assert robot.step(x, u, 0.01).shape == x.shape
@@ -68,7 +68,7 @@ def test_bebop_compensation_is_eq_447_and_remembers_its_reference():
     np.testing.assert_allclose(ub, (-ld * x[4:] + kv * x[4:]) / ku, rtol=1e-14)
     assert np.all(np.isnan(mb.v_r)) and np.isnan(mb.t) and np.array_equal(mb.v_dot, m2.v_dot)
     # the next reference after a brake is not differentiated against the old one
-    u3, m3 = b.actuate(x, rate, 0.1, mb)
+    _, m3 = b.actuate(x, rate, 0.1, mb)
     np.testing.assert_array_equal(m3.v_dot, m2.v_dot)
     off = Bebop(compensation=False)
     np.testing.assert_allclose(off.actuate(x, rate, 0.0, off.initial_memory())[0], kv / ku * v_r, rtol=1e-14)

@@ -1,10 +1,13 @@
-"""Control layer: the cluster-space controllers of seed 000 (above formations).
+"""Control layer: the cluster-space controllers of seeds 000 and 001 (above robots).
 
-Every controller has ``step(t, measured_robot_state, reference) -> robot commands`` and
-works without the simulator.
+Every controller implements :class:`quatform.control.contract.Controller` (``init``,
+``update``, ``step(t, measured, reference) -> commands``) and works without the simulator.
+The laws are in :mod:`.laws`, the filters in :mod:`.filters`, the generic controller in
+:mod:`.cluster`.
 """
 
 from .base import Controller, Reference, StepResult
+from .cluster import ClusterController
 from .cluster_space import TABLE1, TABLE2, ClusterSpaceController, RobotSpaceController
 from .quaternion import (
     DualQuaternionController,
@@ -27,6 +30,7 @@ __all__ = [
     "Controller",
     "Reference",
     "StepResult",
+    "ClusterController",
     "ClusterSpaceController",
     "RobotSpaceController",
     "QuaternionController",

@@ -115,12 +115,23 @@ def gains(values, n, name):
     return g
 
 
-def _checked(x, name, n):
-    """``as_array`` and the magnitude limit, with a fast path for one float64 vector of length ``n``."""
+_TWO_PI = 2.0 * math.pi
+
+
+def _floats(x, n):
+    """``x`` as a list of ``n`` finite floats within the magnitude limit, or None when ``x`` is
+    not one such float64 vector (then the checks of :func:`_checked` apply)."""
     if type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64:
         v = x.tolist()
         if math.isfinite(sum(v)) and max(v) <= MAX_MAGNITUDE and min(v) >= -MAX_MAGNITUDE:
-            return x
+            return v
+    return None
+
+
+def _checked(x, name, n):
+    """``as_array`` and the magnitude limit, with a fast path for one float64 vector of length ``n``."""
+    if _floats(x, n) is not None:
+        return x
     return check_magnitude(as_array(x, name, n), name)
 
 
@@ -184,7 +195,21 @@ class Controller(contract.Controller):
         return StepResult(s.u, s.signals["cluster"], s.signals["error"], bool(ok) if ok.ndim == 0 else ok)
 
     def _inputs(self, measured, reference):
+        """Checked ``(r, c_des, c_dot_des, aligned)``: tuples of Python floats for one formation
+        given as float64 vectors (the fast path), arrays otherwise."""
         F = self.formation
+        if not isinstance(reference, Reference):
+            raise InvalidInputError(f"{self.name} controller: reference must be a Reference(c, c_dot), got "
+                                    f"{type(reference).__name__}")
+        r, c, c_dot = _floats(measured, F.n_r), _floats(reference.c, F.n_c), _floats(reference.c_dot, F.n_c)
+        if r is not None and c is not None and c_dot is not None:
+            if reference.robots is None:
+                return tuple(r), tuple(c), tuple(c_dot), False
+            ref = _floats(reference.robots, F.n_r)
+            if ref is not None:
+                for i in self.team.layout.yaw_indices:  # Formation.align on floats
+                    r[i] += _TWO_PI * math.floor((ref[i] - r[i]) / _TWO_PI + 0.5)
+                return tuple(r), tuple(c), tuple(c_dot), True
         r = _checked(measured, "measured robot state", F.n_r)
         c = _checked(reference.c, "reference.c", F.n_c)
         c_dot = _checked(reference.c_dot, "reference.c_dot", F.n_c)
@@ -204,6 +229,8 @@ class Controller(contract.Controller):
     @abstractmethod
     def _control(self, r, c_des, c_dot_des, aligned):
         """Measured cluster state, error and unsaturated robot rates (arrays or component tuples).
+
+        ``r``, ``c_des``, ``c_dot_des``: tuples of floats (one formation) or arrays (:meth:`_inputs`).
 
         ``aligned``: whether ``r``'s yaws were unwrapped near the reference's robots.
         """

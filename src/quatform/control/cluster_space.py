@@ -1,6 +1,7 @@
 """Cluster-space and robot-space proportional controllers, seed 000 §2 and §3.1.
 
-Control layer. Cluster space (Fig. 2): errors in the Euclidean cluster variables,
+Control layer; both are :class:`~quatform.control.cluster.ClusterController` instances
+with a proportional law. Cluster space (Fig. 2): errors in the Euclidean cluster variables,
 ``c_dot_cmd = -K e + c_dot_des``, turned into robot rates by the inverse Jacobian; at a
 vertical segment that matrix loses rank and ``beta_c`` cannot be controlled. Robot space
 (Fig. 3): the reference is converted to robot space and ``r_dot_cmd = -K (r - r_des) +
@@ -17,7 +18,15 @@ from ..errors import DegenerateInputError
 from ..formations import EuclideanPair, RobotSpace
 from ..formations.base import MIN_SEPARATION_M, Formation
 from ..robots import Team
-from .base import Controller, gains
+from .base import gains
+from .cluster import ClusterController
+from .laws import Block, BlockLaw
+
+
+def _proportional(k, feedforward):
+    """``-K e + c_dot_des`` on every variable (seed 000 Fig. 2 / Fig. 3)."""
+    return BlockLaw((Block("proportional", 0, len(k), tuple(k.tolist())),), feedforward)
+
 
 __all__ = ["ClusterSpaceController", "RobotSpaceController", "TABLE1", "TABLE2"]
 
@@ -37,19 +46,8 @@ TABLE2 = {
 }
 
 
-class _ProportionalController(Controller):
-    def _control(self, r, c_des, c_dot_des, aligned):
-        F = self.formation
-        c = F.forward(r, near_c=c_des)
-        err = F.errors(c, c_des)
-        c_cmd = -self.k * err
-        if self.feedforward:
-            c_cmd = c_cmd + c_dot_des
-        return c, err, np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), c_cmd)
-
-
 @dataclass(frozen=True)
-class ClusterSpaceController(_ProportionalController):
+class ClusterSpaceController(ClusterController):
     """Seed 000 Fig. 2: ``r_dot = J^-1(c) (-K (c - c_des) + c_dot_des)`` on eqs. (1)-(8).
 
     Parameters
@@ -62,14 +60,16 @@ class ClusterSpaceController(_ProportionalController):
     team: Team = Team()
     feedforward: bool = True
     formation: Formation = field(default_factory=EuclideanPair, init=False)
+    law: BlockLaw = field(default=None, init=False)
     name = "cluster-space"
 
     def __post_init__(self):
         object.__setattr__(self, "k", gains(self.k, 8, "k"))
+        object.__setattr__(self, "law", _proportional(self.k, self.feedforward))  # Fig. 2
 
 
 @dataclass(frozen=True)
-class RobotSpaceController(_ProportionalController):
+class RobotSpaceController(ClusterController):
     """Seed 000 §3.1, Fig. 3: ``r_dot = -K (r - r_des) + r_dot_des``.
 
     Parameters
@@ -82,14 +82,17 @@ class RobotSpaceController(_ProportionalController):
     team: Team = Team()
     feedforward: bool = True
     formation: Formation = field(default_factory=RobotSpace, init=False)
+    law: BlockLaw = field(default=None, init=False)
     name = "robot-space"
 
     def __post_init__(self):
         object.__setattr__(self, "k", gains(self.k, 8, "k"))
+        object.__setattr__(self, "law", _proportional(self.k, self.feedforward))  # Fig. 3
 
     def _control(self, r, c_des, c_dot_des, aligned):
         # a reference with the robots on each other is no formation (the cluster-space
         # controller refuses d_c below MIN_SEPARATION_M / 2 the same way)
+        c_des = np.asarray(c_des, dtype=float)
         d = np.linalg.norm(c_des[..., 0:3] - c_des[..., 4:7], axis=-1)
         if np.any(d < MIN_SEPARATION_M):
             raise DegenerateInputError(

@@ -30,9 +30,9 @@ from ..formations.quaternion_pair import TILT_TOL
 from ..robots import Team
 from .base import Controller, check_separation, check_units, gains
 from .cluster_space import TABLE1
+from .laws import Block, BlockLaw, dual_quaternion_feedback
 
 __all__ = [
-    "quaternion_feedback",
     "QuaternionController",
     "DualQuaternionController",
     "quaternion_lyapunov",
@@ -41,33 +41,6 @@ __all__ = [
 ]
 
 _QSL = (slice(3, 7), slice(8, 12), slice(12, 16))
-
-
-def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
-    """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
-
-    ``qe = q_des* q`` (body frame), ``q_dot = 1/2 q (0, -sgn(qe_0) K qe_vec) + q_dot_des qe``
-    with ``sgn(0) = +1``; ``q_dot_des qe = q_dot_des q_des* q`` keeps ``qe`` still when there
-    is no feedback. Used by the two-robot and the UGV-UAV (seed 001 eq. (4.45)) controllers.
-
-    Parameters
-    ----------
-    q, q_des, q_des_dot : sequences of 4 components (floats or arrays)
-    k : sequence of 3 gains (diagonal of ``K``)
-    feedforward : float
-        1 to add the feed-forward, 0 not to.
-
-    Returns
-    -------
-    qe, q_dot : tuples of 4 components
-    """
-    qe = kern.qmul(*kern.qconj(q_des), *q)
-    h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
-    w = (0.0 * h, h * k[0] * qe[1], h * k[1] * qe[2], h * k[2] * qe[3])
-    q_dot = kern.qmul(*q, *w)  # 1/2 q (0, -sgn K qe_vec)
-    if feedforward:
-        q_dot = kern.qadd(q_dot, kern.qmul(*q_des_dot, *qe))
-    return qe, q_dot
 
 
 def quaternion_lyapunov(c, c_des, formation: QuaternionPair | None = None):
@@ -141,6 +114,11 @@ def dual_quaternion_law_lyapunov(c, c_des):
         p0 = np.abs(qe[..., 0]) if s.start == 0 else qe[..., 0]
         v = v + 2.0 * (1.0 - p0) + np.einsum("...i,...i->...", qe[..., 4:8], qe[..., 4:8])
     return v
+
+
+def _comps(a):
+    """Components of ``a``: a tuple of floats as it is, an array by ``pair_kernels.unpack``."""
+    return a if isinstance(a, tuple) else kern.unpack(a)
 
 
 def _largest(x):
@@ -220,23 +198,21 @@ class QuaternionController(Controller):
         object.__setattr__(self, "k_x", gains(self.k_x, 3, "k_x"))
         object.__setattr__(self, "k_d", float(gains(self.k_d, 1, "k_d")[0]))
         object.__setattr__(self, "k_w", gains(self.k_w, 3, "k_w"))
-        object.__setattr__(self, "_gains", (self.k_x.tolist(), self.k_d, self.k_w.tolist()))
+        kx, kw = tuple(self.k_x.tolist()), tuple(self.k_w.tolist())
+        # seed 000 §3.2: position and shape loops proportional, eq. (20) on the three quaternions
+        object.__setattr__(self, "_law", BlockLaw((Block("proportional", 0, 3, kx), Block("quaternion", 3, 4, kw),
+                                                   Block("proportional", 7, 1, (self.k_d,)),
+                                                   Block("quaternion", 8, 4, kw), Block("quaternion", 12, 4, kw)),
+                                                  self.feedforward))
 
     def _control(self, r, c_des, c_dot_des, aligned):
-        rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
+        rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
         check_units(cd, ((3, "q_c"), (8, "q_c1"), (12, "q_c2")))
         check_quaternion_reference(cd)
         check_separation(rc)
         c = kern.quat_forward(rc, cd[3:7], cd[8:12], cd[12:16])
-        kx, kd, kw = self._gains
-        ff = 1.0 if self.feedforward else 0.0
-        err = [c[i] - cd[i] for i in range(16)]
-        cmd = [-kx[i] * err[i] + ff * cdd[i] for i in range(3)] + [None] * 13
-        cmd[7] = -kd * err[7] + ff * cdd[7]
-        for i in (3, 8, 12):
-            err[i:i + 4], cmd[i:i + 4] = quaternion_feedback(c[i:i + 4], cd[i:i + 4], cdd[i:i + 4], kw, ff)
-        r_dot = kern.quat_inverse_jvp(c, tuple(cmd))
-        return c, tuple(err), r_dot
+        err, cmd = self._law(c, cd, cdd)
+        return c, err, kern.quat_inverse_jvp(c, cmd)
 
 
 @dataclass(frozen=True)
@@ -260,7 +236,7 @@ class DualQuaternionController(Controller):
         object.__setattr__(self, "_gains", self.k_dw.tolist())
 
     def _control(self, r, c_des, c_dot_des, aligned):
-        rc, cd, cdd = kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des)
+        rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
         check_units(cd, ((0, "qhat_c"), (8, "qhat_s")), dual=True)
         check_dual_quaternion_reference(cd)
         # The measured yaws on the desired state's branch (read from c_des itself): each
@@ -268,19 +244,8 @@ class DualQuaternionController(Controller):
         rc = kern.dq_align_yaws(rc, *kern.dq_yaws(cd))
         check_separation(rc)
         c = kern.dq_forward(rc, cd[0:4])
-        kw = self._gains
-        err, cmd = [], []
-        for i in (0, 8):
-            q, qd, qdd = c[i:i + 8], cd[i:i + 8], cdd[i:i + 8]
-            qe = kern.dqmul(kern.dqconj(qd), q)  # body-frame error (eq. (28), order corrected)
-            err += qe
-            h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_p0)/2, sgn(0) = +1
-            hp = h if i == 0 else -0.5  # qhat_s's rotation -> +qhat_s_des (its sign is the branch)
-            w = (0.0, hp * kw[0] * qe[1], hp * kw[1] * qe[2], hp * kw[2] * qe[3],
-                 0.0, h * kw[0] * qe[5], h * kw[1] * qe[6], h * kw[2] * qe[7])
-            qdot = kern.dqmul(q, w)  # eq. (28): 1/2 qhat (0, -sgn K qe_p; 0, -sgn K qe_d)
-            if self.feedforward:
-                qdot = kern.dqadd(qdot, kern.dqmul(qdd, qe))  # q_dot_des q_des* q = q_dot_des qe
-            cmd += qdot
-        r_dot = kern.dq_inverse_jvp(c, tuple(cmd), rc)
-        return c, tuple(err), r_dot
+        kw, ff = self._gains, (1.0 if self.feedforward else 0.0)
+        # eq. (28) on the cluster pose (sign free) and the shape (its rotation's sign is the branch)
+        ec, qc_dot = dual_quaternion_feedback(c[0:8], cd[0:8], cdd[0:8], kw, ff, signed_rotation=True)
+        es, qs_dot = dual_quaternion_feedback(c[8:16], cd[8:16], cdd[8:16], kw, ff, signed_rotation=False)
+        return c, ec + es, kern.dq_inverse_jvp(c, qc_dot + qs_dot, rc)

@@ -6,7 +6,8 @@ reference as hint) -> cluster rate references with tanh saturation, eqs. (4.43)-
 Jacobian (4.42) -> the UAV's yaw rate by eqs. (4.50)-(4.51) -> the team's actuation
 (:mod:`quatform.robots`: the Pioneer's commands by eq. (3.5), the Bebop's body-frame
 velocity reference by eq. (3.10) and the dynamic compensation (4.47)-(4.49), whose memory
-is part of the controller's state :class:`UgvUavState`). Around it: an arena box whose walls no command may push through, the
+is part of the controller's state :class:`UgvUavState`). Around it (:mod:`quatform.control.filters`):
+the motion-capture screen, an arena box whose walls no command may push through, the
 robots' limits, and an emergency stop (the thesis's joystick override) that halts both.
 
 Measured state (11 values): ``(x_p, y_p, psi_p, x_b, y_b, z_b, psi_b, v_x, v_y, z_dot,
@@ -16,19 +17,19 @@ velocity (from its own odometry). Commands (6 values): ``(v, omega, u_x, u_y, u_
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion
-from ..formations import geometry as g
 from ..formations.base import Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
 from . import contract
 from .base import Reference
-from .quaternion import quaternion_feedback
+from .filters import FRAME_DROPPED, FRAME_GOOD, FRAME_REJECTED, ArenaWalls, HeadingLaw, MocapScreen
+from .laws import Block, BlockLaw
 
 __all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES",
            "FRAME_CODES"]
@@ -39,8 +40,6 @@ UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "
 UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
 
 
-#: What the controller made of a motion-capture frame (the ``frame`` signal's values).
-FRAME_GOOD, FRAME_DROPPED, FRAME_REJECTED = "good", "dropped", "rejected"
 #: The ``frame`` signal's code of each frame class.
 FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
 
@@ -158,12 +157,24 @@ class UgvUavController(contract.Controller):
         self.speed_margin = float(_positive(speed_margin, 1, "speed_margin")[0])
         self.jump_margin_m = float(_positive(jump_margin_m, 1, "jump_margin_m")[0])
         self.min_separation_m = float(_positive(min_separation_m, 1, "min_separation_m")[0])
+        # the law (4.43)-(4.45): tanh on the positions and the length; (4.45) prints q_c q_cd,
+        # the body-frame error is q_cd* q_c (seed 000 eq. (20)); for the Euclidean
+        # descriptions k_w (first two) act on the two angles
+        kx, kw = tuple(self.k_x.tolist()), tuple(self.k_w.tolist())
+        if isinstance(self.formation, UgvUavQuaternion):
+            blocks = (Block("tanh", 0, 3, kx), Block("quaternion", 3, 4, kw), Block("tanh", 7, 1, (self.k_d,)),
+                      Block("none", 8, self.formation.n_c - 8))  # d_c = (d, 0, 0)
+        else:
+            blocks = (Block("tanh", 0, self.formation.n_c, kx + (self.k_d,) + kw[:2]),)
+        self.law = BlockLaw(blocks, self.feedforward)
         p = self.pioneer
-        self._top_speed = (self.speed_margin * float(np.hypot(p.max_v, p.a * p.max_omega)),
-                           self.speed_margin * float(np.linalg.norm(self.bebop.max_velocity[0:3])))
-        self.arena = np.asarray(arena, dtype=float)
-        if self.arena.shape != (3, 2) or np.any(self.arena[:, 0] >= self.arena[:, 1]):
-            raise InvalidInputError(f"arena must be ((x_min, x_max), (y_min, y_max), (z_min, z_max)), got {arena!r}")
+        # the filters (control.filters): frame screening, arena walls, the UAV's yaw law
+        top_speed = (self.speed_margin * float(np.hypot(p.max_v, p.a * p.max_omega)),
+                     self.speed_margin * float(np.linalg.norm(self.bebop.max_velocity[0:3])))
+        self.mocap = MocapScreen(top_speed, self.jump_margin_m, self.min_separation_m, self.max_hold_s)
+        self.walls = ArenaWalls(arena, self.wall_margin, self.wall_gain, free=((0, 2),))  # the UGV's fixed height
+        self.arena = self.walls.box
+        self.heading = HeadingLaw(self.k_psi)
 
     @property
     def name(self) -> str:
@@ -201,6 +212,10 @@ class UgvUavController(contract.Controller):
                                               memory=self.team.initial_memory()))
 
     # -- the chain of Fig. 18 ---------------------------------------------------------
+    def step(self, t: float, measured, reference=None) -> np.ndarray:
+        """Commands ``(..., 6)`` for ``measured`` (``(..., 11)``) from the initial state."""
+        return self.update(t, measured, reference, self.init(np.shape(measured)[:-1])).u
+
     def update(self, t: float, measured, reference, state) -> contract.Step:
         """One step of Fig. 18 (:meth:`_update_one` per world).
 
@@ -242,22 +257,11 @@ class UgvUavController(contract.Controller):
                              {k: np.reshape(v, batch + (len(cols[k]),)) for k, v in sig.items()})
 
     def cluster_rates(self, c, c_des, c_dot_des):
-        """Cluster error and rate reference, eqs. (4.43)-(4.45)."""
+        """Cluster error and rate reference, eqs. (4.43)-(4.45) (:attr:`law`)."""
         F = self.formation
-        ff = 1.0 if self.feedforward else 0.0
-        if isinstance(F, UgvUavQuaternion):
-            err = c - c_des
-            rate = np.zeros(10)
-            rate[0:3] = ff * c_dot_des[0:3] - self.k_x * np.tanh(err[0:3])  # (4.43)
-            rate[7] = ff * c_dot_des[7] - self.k_d * np.tanh(err[7])  # (4.44), d_c = (d, 0, 0)
-            # (4.45) prints q_c q_cd; the body-frame error is q_cd* q_c (seed 000 eq. (20))
-            qe, q_dot = quaternion_feedback(c[3:7].tolist(), c_des[3:7].tolist(), c_dot_des[3:7].tolist(),
-                                            self.k_w.tolist(), ff)
-            err[3:7], rate[3:7] = qe, q_dot
-            return err, rate
-        err = F.errors(c, c_des)
-        k = np.r_[self.k_x, self.k_d, self.k_w[:2]]
-        return err, ff * c_dot_des - k * np.tanh(err)
+        e = None if isinstance(F, UgvUavQuaternion) else F.errors(c, c_des).tolist()  # angles wrapped
+        err, rate = self.law(c.tolist(), c_des.tolist(), c_dot_des.tolist(), e)
+        return np.array(err), np.array(rate)
 
     def _brake(self, state, m):
         """Commands that stop the UGV and brake the UAV to a hover (v_r = 0 in (4.47)), and the
@@ -275,19 +279,9 @@ class UgvUavController(contract.Controller):
         ``measured`` is ``m`` if good, else the last good frame, or None if there is none
         yet; ``state`` remembers the good frame or the start of the run of bad ones.
         """
-        if not np.all(np.isfinite(m[0:7])):
-            frame = FRAME_DROPPED
-        else:
-            p_ugv, p_uav = np.array([m[0], m[1], self.z_ugv]), m[3:6]
-            frame = FRAME_GOOD
-            if np.linalg.norm(p_uav - p_ugv) < self.min_separation_m:
-                frame = FRAME_REJECTED
-            elif state.good is not None:
-                dt = max(t - state.good_t, 0.0)
-                g_ = state.good
-                if (np.hypot(m[0] - g_[0], m[1] - g_[1]) > self._top_speed[0] * dt + self.jump_margin_m
-                        or np.linalg.norm(m[3:6] - g_[3:6]) > self._top_speed[1] * dt + self.jump_margin_m):
-                    frame = FRAME_REJECTED
+        finite = bool(np.all(np.isfinite(m[0:7])))
+        frame = self.mocap.classify(t, self._points(m) if finite else None, finite,
+                                    None if state.good is None else self._points(state.good), state.good_t)
         if frame == FRAME_GOOD:
             if not np.all(np.isfinite(m[7:11])):  # the Bebop's odometry: the last finite one, or rest
                 m = np.r_[m[0:7], np.where(np.isfinite(m[7:11]), m[7:11],
@@ -304,7 +298,7 @@ class UgvUavController(contract.Controller):
         if m.shape != (11,):
             m = as_array(measured, "measured state", 11)
         frame, used, state = self.screen(state, t, m)
-        if frame != FRAME_GOOD and not state.stopped and t - state.bad_since > self.max_hold_s + 1e-9:
+        if frame != FRAME_GOOD and not state.stopped and self.mocap.expired(t, state.bad_since):
             state = replace(state, stopped=True, stop_reason=(
                 f"motion capture: no good frame for {t - state.bad_since:.3g} s (more than max_hold_s = "
                 f"{self.max_hold_s:g} s) from t = {state.bad_since:.6g} s; both robots stopped"))
@@ -374,21 +368,14 @@ class UgvUavController(contract.Controller):
     def _commands(self, state, t, m, x_rate):
         """Robot commands for the world rates ``x_rate``: the UAV's yaw rate (4.50)-(4.51) and
         the team's actuation, (3.5) for the Pioneer, (3.10) and (4.47)-(4.49) for the Bebop."""
-        psi_rate = self.k_psi * np.tanh(g.wrap(m[2] - m[6]))  # (4.50)-(4.51), psi_bd = psi_p
+        psi_rate = self.heading.rate(m[2], m[6])  # (4.50)-(4.51), psi_bd = psi_p
         u, memory = self.team.actuate(m, np.r_[x_rate, psi_rate], t, state.memory)
         return self.team.saturate(u), replace(state, memory=memory)
 
+    def _points(self, m):
+        """The robots' positions in the 11 measured values (the Pioneer's at ``z_ugv``)."""
+        return (np.array([m[0], m[1], self.z_ugv]), m[3:6])
+
     def _keep_inside(self, m, x_rate):
-        """Slow velocity components toward an arena wall to ``wall_gain`` times the distance
-        left before the wall's margin, so robots stop short of it (and never push out)."""
-        out = x_rate.copy()
-        for k, pos in ((0, np.array([m[0], m[1], self.z_ugv])), (3, m[3:6])):
-            for axis in range(3):
-                lo, hi = self.arena[axis]
-                room_hi = max(0.0, hi - self.wall_margin - pos[axis])
-                room_lo = max(0.0, pos[axis] - (lo + self.wall_margin))
-                if k == 0 and axis == 2:
-                    continue  # the UGV's platform height is fixed
-                out[k + axis] = min(out[k + axis], self.wall_gain * room_hi)
-                out[k + axis] = max(out[k + axis], -self.wall_gain * room_lo)
-        return out
+        """:attr:`walls` on the robots' world rates."""
+        return self.walls.limit(self._points(m), x_rate)

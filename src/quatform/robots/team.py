@@ -165,7 +165,11 @@ class Team:
 
     def saturate_floats(self, u) -> np.ndarray:
         """:meth:`saturate` of a holonomic team for one command given as Python floats."""
-        s = min(rb.limit_factor_floats(*u[sl]) for rb, sl in zip(self.robots, self.command_slices))
+        s = 1.0
+        for rb, sl in zip(self.robots, self.command_slices):
+            f = rb.limit_factor_floats(*u[sl])
+            if f < s:
+                s = f
         return np.array([x * s for x in u]) if s > 0 else np.zeros(self.n)
 
     def step(self, x, u, dt: float) -> np.ndarray:

@@ -1,0 +1,162 @@
+"""Filters around a cluster-space law, as data (control layer).
+
+A filter is a frozen value: its settings are fields, and anything it remembers between
+steps lives in the controller's state, not in the filter.
+
+* :class:`MocapScreen`: seed 001's lab — classify a motion-capture frame as good,
+  dropped (a NaN or infinity) or rejected (implausible), so the last good frame can stand
+  in for up to ``max_hold_s``.
+* :class:`ArenaWalls`: slow the robots' world rates toward the walls of the flight arena
+  (seed 001 §3.4) so they stop short of them.
+* :class:`HeadingLaw`: the UAV's yaw law, seed 001 eqs. (4.50)-(4.51).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..formations import geometry as g
+
+__all__ = ["MocapScreen", "ArenaWalls", "HeadingLaw", "FRAME_GOOD", "FRAME_DROPPED", "FRAME_REJECTED"]
+
+#: What a screen made of a motion-capture frame.
+FRAME_GOOD, FRAME_DROPPED, FRAME_REJECTED = "good", "dropped", "rejected"
+
+
+@dataclass(frozen=True)
+class MocapScreen:
+    """Plausibility of motion-capture frames of robot positions (seed 001's lab).
+
+    Parameters
+    ----------
+    top_speeds : tuple of float
+        Per robot, the farthest it can move per second, m/s (with a margin).
+    jump_margin_m : float
+        Added to the distance a robot may move between frames (the measurement noise), m.
+    min_separation_m : float
+        Robots closer than this are a misread frame (two markers read as one), m.
+    max_hold_s : float
+        Longest time, s, the last good frame may stand in for bad ones.
+    """
+
+    top_speeds: tuple
+    jump_margin_m: float = 0.05
+    min_separation_m: float = 0.05
+    max_hold_s: float = 0.5
+
+    def __post_init__(self):
+        for name in ("jump_margin_m", "min_separation_m", "max_hold_s"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise InvalidInputError(f"{name} must be a positive number, got {v!r}")
+
+    def classify(self, t: float, points, finite: bool, good_points, good_t):
+        """``FRAME_GOOD``, ``FRAME_DROPPED`` (``finite`` false) or ``FRAME_REJECTED``.
+
+        Parameters
+        ----------
+        t : float
+            Time of the frame, s.
+        points : sequence of ndarray, shape (3,) each
+            The robots' measured positions.
+        finite : bool
+            Whether the frame's poses are all finite.
+        good_points : sequence of ndarray or None
+            The positions of the last good frame (None: none yet).
+        good_t : float or None
+            Its time, s.
+        """
+        if not finite:
+            return FRAME_DROPPED
+        for i in range(len(points)):
+            for j in range(i + 1, len(points)):
+                if np.linalg.norm(points[j] - points[i]) < self.min_separation_m:
+                    return FRAME_REJECTED
+        if good_points is not None:
+            dt = max(t - good_t, 0.0)
+            for p, q, v in zip(points, good_points, self.top_speeds):
+                if np.linalg.norm(p - q) > v * dt + self.jump_margin_m:
+                    return FRAME_REJECTED
+        return FRAME_GOOD
+
+    def expired(self, t: float, bad_since: float) -> bool:
+        """Whether bad frames since ``bad_since`` have lasted longer than ``max_hold_s``."""
+        return t - bad_since > self.max_hold_s + 1e-9
+
+
+@dataclass(frozen=True)
+class ArenaWalls:
+    """The walls of a box arena: world rates toward a wall are limited to ``gain`` times the
+    distance left before ``margin``, so the robots stop short of it (and never push out).
+
+    Parameters
+    ----------
+    box : ndarray, shape (3, 2)
+        ``((x_min, x_max), (y_min, y_max), (z_min, z_max))``, m.
+    margin : float
+        Distance, m, short of a wall where the robots stop.
+    gain : float
+        Largest rate per metre of room left, 1/s.
+    free : tuple of (robot, axis)
+        Axes of robots' points the walls do not limit (a ground robot's fixed height).
+    """
+
+    box: np.ndarray
+    margin: float = 0.3
+    gain: float = 1.0
+    free: tuple = ()
+
+    def __post_init__(self):
+        box = np.asarray(self.box, dtype=float)
+        if box.shape != (3, 2) or np.any(box[:, 0] >= box[:, 1]):
+            raise InvalidInputError(f"arena must be ((x_min, x_max), (y_min, y_max), (z_min, z_max)), got {self.box!r}")
+        if not (self.margin >= 0 and self.gain > 0):
+            raise InvalidInputError(f"arena margin must be >= 0 and gain > 0, got {self.margin!r}, {self.gain!r}")
+        object.__setattr__(self, "box", box)
+
+    def limit(self, points, rates) -> np.ndarray:
+        """``rates`` (the points' world rates, 3 per robot) limited by the walls.
+
+        Parameters
+        ----------
+        points : sequence of ndarray, shape (3,) each
+        rates : ndarray, shape (3 N,)
+        """
+        out = np.array(rates, dtype=float)
+        for k, pos in enumerate(points):
+            for axis in range(3):
+                lo, hi = self.box[axis]
+                room_hi = max(0.0, hi - self.margin - pos[axis])
+                room_lo = max(0.0, pos[axis] - (lo + self.margin))
+                if (k, axis) in self.free:
+                    continue
+                i = 3 * k + axis
+                out[i] = min(out[i], self.gain * room_hi)
+                out[i] = max(out[i], -self.gain * room_lo)
+        return out
+
+
+@dataclass(frozen=True)
+class HeadingLaw:
+    """Yaw rate of a robot whose yaw is outside the formation: seed 001 eqs. (4.50)-(4.51),
+    ``psi_dot_r = k tanh(wrap(psi_des - psi))`` (the UAV faces the way the UGV does,
+    ``psi_des = psi_p``).
+
+    Parameters
+    ----------
+    k : float
+        Gain, rad/s (3 in seed 001 §5).
+    """
+
+    k: float = 3.0
+
+    def __post_init__(self):
+        if not (np.isfinite(self.k) and self.k > 0):
+            raise InvalidInputError(f"k_psi must be a positive number, got {self.k!r}")
+
+    def rate(self, psi_des, psi):
+        """Yaw rate, rad/s, for the yaw ``psi`` toward ``psi_des`` (floats or arrays)."""
+        return self.k * np.tanh(g.wrap(psi_des - psi))  # (4.50)-(4.51)

@@ -1,0 +1,201 @@
+"""Feedback laws of the cluster-space controllers, each written once (control layer).
+
+A law maps a cluster error (and the desired rate, for the feed-forward) to a commanded
+cluster rate. Every law here is written on *components*: each argument is a Python float
+or an array (a batch of formations, or a block of variables), and the same arithmetic
+runs on both, so one formation stepped on floats and a batch stepped on arrays give the
+same numbers.
+
+* :func:`proportional`: ``-K e + c_dot_des``, seed 000 Fig. 2 (and the robot-space law
+  of §3.1, the position and shape loops of §3.2).
+* :func:`tanh_law`: ``c_dot_des - K tanh(e)``, seed 001 eqs. (4.43)-(4.44).
+* :func:`quaternion_feedback`: seed 000 eq. (20) with the error order corrected (also
+  seed 001 eq. (4.45)).
+* :func:`dual_quaternion_feedback`: seed 000 eq. (28) with the error order corrected and
+  the sign rule of issue 12 for the shape's rotation.
+* :class:`BlockLaw`: a per-variable-block feedback (positions, lengths, angles,
+  quaternion blocks), each block one of the laws above.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..formations import pair_kernels as kern
+
+__all__ = ["proportional", "tanh_law", "quaternion_feedback", "dual_quaternion_feedback", "Block",
+           "BlockLaw", "LAWS"]
+
+
+def proportional(e, c_dot_des, k, feedforward=1.0):
+    """``-k e + ff c_dot_des`` (seed 000 Fig. 2, ``c_dot_cmd = -K e + c_dot_des``).
+
+    Parameters
+    ----------
+    e, c_dot_des, k : float or ndarray
+        Error, desired rate and gain of one variable (or matching arrays of a block).
+    feedforward : float
+        1 to add the desired rate, 0 not to.
+    """
+    return -k * e + feedforward * c_dot_des
+
+
+def tanh_law(e, c_dot_des, k, feedforward=1.0):
+    """``ff c_dot_des - k tanh(e)``: seed 001 eqs. (4.43)-(4.44) (the rate saturated at ``k``)."""
+    return feedforward * c_dot_des - k * np.tanh(e)
+
+
+def _mul_pure(q, w1, w2, w3):
+    """``q (0, w1, w2, w3)``: :func:`~quatform.algebra.kernels.qmul_components` with a zero
+    scalar part dropped (the same floats for a finite ``q``)."""
+    q0, q1, q2, q3 = q
+    return (-q1 * w1 - q2 * w2 - q3 * w3,
+            q0 * w1 + q2 * w3 - q3 * w2,
+            q0 * w2 - q1 * w3 + q3 * w1,
+            q0 * w3 + q1 * w2 - q2 * w1)
+
+
+def _conj_mul(p, q):
+    """``p* q`` on components: :func:`~quatform.algebra.kernels.qmul_components` of the
+    conjugate with its signs folded in (negation is exact: the same floats)."""
+    p0, p1, p2, p3 = p
+    q0, q1, q2, q3 = q
+    return (p0 * q0 + p1 * q1 + p2 * q2 + p3 * q3,
+            p0 * q1 - p1 * q0 - p2 * q3 + p3 * q2,
+            p0 * q2 + p1 * q3 - p2 * q0 - p3 * q1,
+            p0 * q3 - p1 * q2 + p2 * q1 - p3 * q0)
+
+
+def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
+    """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
+
+    ``qe = q_des* q`` (body frame), ``q_dot = 1/2 q (0, -sgn(qe_0) K qe_vec) + q_dot_des qe``
+    with ``sgn(0) = +1``; ``q_dot_des qe = q_dot_des q_des* q`` keeps ``qe`` still when there
+    is no feedback. Used by the two-robot and the UGV-UAV (seed 001 eq. (4.45)) controllers.
+
+    Parameters
+    ----------
+    q, q_des, q_des_dot : sequences of 4 components (floats or arrays)
+    k : sequence of 3 gains (diagonal of ``K``)
+    feedforward : float
+        1 to add the feed-forward, 0 not to.
+
+    Returns
+    -------
+    qe, q_dot : tuples of 4 components
+    """
+    qe = _conj_mul(q_des, q)  # q_des* q
+    h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
+    q_dot = _mul_pure(q, h * k[0] * qe[1], h * k[1] * qe[2], h * k[2] * qe[3])  # 1/2 q (0, -sgn K qe_vec)
+    if feedforward:
+        q_dot = kern.qadd(q_dot, kern.qmul(*q_des_dot, *qe))
+    return qe, q_dot
+
+
+def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rotation=True):
+    """Seed 000 eq. (28) with the error order corrected, on 8 components (floats or arrays).
+
+    ``qe = qhat_des* qhat`` (body frame), ``qhat_dot = 1/2 qhat (0, -s K qe_p; 0, -sgn(qe_p0)
+    K qe_d) + qhat_dot_des qe`` with ``sgn(0) = +1``. ``s = sgn(qe_p0)`` (the seed's) where
+    the sign of ``qhat`` means nothing (``signed_rotation=True``, the cluster pose); ``s =
+    1`` where it is the branch of the half-way yaw (the shape ``qhat_s``: driven to
+    ``+qhat_s_des``; ``docs/derivations.md``, Hardening (issue 12)).
+
+    Returns
+    -------
+    qe, q_dot : tuples of 8 components
+    """
+    qe = kern.dqmul(kern.dqconj(q_des), q)
+    h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_p0)/2, sgn(0) = +1
+    hp = h if signed_rotation else -0.5
+    w = (0.0, hp * k[0] * qe[1], hp * k[1] * qe[2], hp * k[2] * qe[3],
+         0.0, h * k[0] * qe[5], h * k[1] * qe[6], h * k[2] * qe[7])
+    q_dot = kern.dqmul(q, w)  # eq. (28): 1/2 qhat (0, -sgn K qe_p; 0, -sgn K qe_d)
+    if feedforward:
+        q_dot = kern.dqadd(q_dot, kern.dqmul(q_des_dot, qe))  # q_dot_des q_des* q = q_dot_des qe
+    return qe, q_dot
+
+
+#: The laws a :class:`Block` may name: component laws (per variable) and quaternion blocks.
+LAWS = {"proportional": proportional, "tanh": tanh_law, "quaternion": quaternion_feedback}
+
+
+@dataclass(frozen=True)
+class Block:
+    """One block of a :class:`BlockLaw`: variables ``start .. start + size - 1``.
+
+    ``law``: a :data:`LAWS` name, or ``"none"`` (the error is reported, the rate is 0: a
+    variable the description holds constant); ``gains``: one per variable of a component
+    law, three (``K``'s diagonal) for a quaternion block (``size`` 4).
+    """
+
+    law: str
+    start: int
+    size: int
+    gains: tuple = ()
+
+    def __post_init__(self):
+        if self.law not in LAWS and self.law != "none":
+            raise InvalidInputError(f"block law {self.law!r} unknown; choose {', '.join(LAWS)} or none")
+        want = 3 if self.law == "quaternion" else (0 if self.law == "none" else self.size)
+        if self.law == "quaternion" and self.size != 4:
+            raise InvalidInputError(f"a quaternion block has 4 variables, got size {self.size}")
+        if len(self.gains) != want:
+            raise InvalidInputError(f"a {self.law} block of {self.size} variables takes {want} gains, "
+                                    f"got {len(self.gains)}")
+
+
+@dataclass(frozen=True)
+class BlockLaw:
+    """A per-variable-block feedback: each block of the cluster state its own law.
+
+    Seed 001's UGV-UAV law (4.43)-(4.45) is ``tanh`` on the centroid and the length, a
+    ``quaternion`` block on the orientation; seed 000's quaternion law (§3.2) is
+    ``proportional`` on the centroid and ``d_c``, ``quaternion`` on ``q_c``, ``q_c1``, ``q_c2``.
+
+    Parameters
+    ----------
+    blocks : tuple of Block
+        Every variable in exactly one block.
+    feedforward : bool
+    """
+
+    blocks: tuple
+    feedforward: bool = True
+
+    def __post_init__(self):
+        covered = sorted(i for b in self.blocks for i in range(b.start, b.start + b.size))
+        if covered != list(range(len(covered))):
+            raise InvalidInputError("the blocks of a BlockLaw must cover the variables 0 .. n-1 once each")
+        # per block: (slice, law or None, gains); quaternion blocks flagged by law
+        plan = tuple((slice(b.start, b.start + b.size), LAWS.get(b.law), tuple(b.gains),
+                      tuple(zip(range(b.start, b.start + b.size), b.gains or (None,) * b.size)))
+                     for b in self.blocks)
+        object.__setattr__(self, "_plan", plan)
+        object.__setattr__(self, "_n", len(covered))
+
+    @property
+    def n(self) -> int:
+        return self._n
+
+    def __call__(self, c, c_des, c_dot_des, e=None):
+        """Errors and commanded rates, tuples of ``n`` components (floats or arrays).
+
+        ``e``: the errors of the component blocks when the description wraps angles
+        (``Formation.errors``); default ``c - c_des``. Quaternion blocks take their own
+        body-frame error ``q_des* q``.
+        """
+        ff = 1.0 if self.feedforward else 0.0
+        err, rate = [None] * self._n, [None] * self._n
+        for s, law, k, pairs in self._plan:
+            if law is quaternion_feedback:
+                err[s], rate[s] = quaternion_feedback(c[s], c_des[s], c_dot_des[s], k, ff)
+                continue
+            for j, kj in pairs:
+                ej = c[j] - c_des[j] if e is None else e[j]
+                err[j] = ej
+                rate[j] = 0.0 * ej if law is None else law(ej, c_dot_des[j], kj, ff)
+        return tuple(err), tuple(rate)
