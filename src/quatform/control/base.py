@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra.validate import UNIT_TOLERANCE, as_array
-from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
+from ..errors import InvalidInputError, NonUnitError, ShapeError
+from ..formations import pair_kernels as kern
 from ..formations.pair_kernels import pack
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, Formation, check_magnitude
 from ..robots import Team
@@ -90,18 +91,9 @@ def check_units(comps, starts, dual=False, tol=UNIT_TOLERANCE):
 
 
 def check_separation(r, min_m=MIN_SEPARATION_M):
-    """Raise DegenerateInputError if the two robots of state components ``r`` coincide.
-
-    The components are within :data:`~quatform.formations.base.MAX_MAGNITUDE` (checked on
-    entry), so the squares are finite.
-    """
-    d2 = (r[0] - r[4]) ** 2 + (r[1] - r[5]) ** 2 + (r[2] - r[6]) ** 2
-    close = d2 <= min_m * min_m
-    if close if isinstance(close, bool) else np.any(close):
-        raise DegenerateInputError(
-            f"measured robots coincide (separation {float(np.min(np.sqrt(d2))):.3g} m); a two-robot "
-            "formation is undefined there - stop the robots and separate them"
-        )
+    """Raise DegenerateInputError if the two robots of state components ``r`` coincide
+    (:func:`quatform.formations.pair_kernels.check_apart`)."""
+    kern.check_apart(r, min_m)
 
 
 def gains(values, n, name):

@@ -3,11 +3,15 @@
 One control update (seed 000 Fig. 2): the measured robot state -> forward kinematics with
 the reference as hint -> the cluster error (``Formation.errors``: angles wrapped) -> the
 law (:mod:`quatform.control.laws`, here a :class:`~quatform.control.laws.BlockLaw`) ->
-robot rates through the inverse Jacobian at the measured state -> the team's actuation
-and saturation (:class:`~quatform.robots.Team`). The cluster-space and robot-space
-controllers of seed 000 are instances (``ClusterSpaceController``,
-``RobotSpaceController``); the quaternion and dual-quaternion controllers keep their own
-kernels, which apply the inverse Jacobian as a directional derivative on floats.
+robot rates through the description's rate map at the measured state -> the team's
+actuation and saturation (:class:`~quatform.robots.Team`). It runs on components (Python
+floats for one formation, arrays for a batch; ``Formation.forward_components``,
+``robot_rate_components``): the quaternion and dual-quaternion pairs apply their inverse
+kinematics as a directional derivative (no matrix), the Euclidean descriptions the dense
+inverse Jacobian of seed 000 Fig. 2. The four controllers of seed 000 are instances
+(``ClusterSpaceController``, ``RobotSpaceController``, ``QuaternionController``,
+``DualQuaternionController``): a formation, a :class:`~quatform.control.laws.BlockLaw` and
+the reference checks that refuse a reference that is no formation.
 """
 
 from __future__ import annotations
@@ -40,12 +44,16 @@ class ClusterController(Controller):
         The robots: actuation (identity for holonomic robots) and saturation.
     feedforward : bool
         Whether the law adds the desired rate (the law's own setting is replaced by it).
+    checks : tuple of callables
+        Each called with the desired cluster state's components before anything is
+        computed; raises (one line) where the reference is no formation of the team.
     """
 
     formation: Formation = field(default=None)
     law: BlockLaw = field(default=None)
     team: Team = Team()
     feedforward: bool = True
+    checks: tuple = ()
     name = "cluster"
 
     def __post_init__(self):
@@ -59,10 +67,19 @@ class ClusterController(Controller):
 
     def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
-        r, c_des, c_dot_des = (np.asarray(a, dtype=float) for a in (r, c_des, c_dot_des))
-        c = F.forward(r, near_c=c_des)
-        err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des),
-                             kern.unpack(F.errors(c, c_des)))
-        x_rate = np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), kern.pack(rate))
-        u, _ = self.team.actuate(r, x_rate, 0.0, self.team.initial_memory(r.shape[:-1]))
-        return c, kern.pack(err), u
+        rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
+        for check in self.checks:
+            check(cd)
+        c, rc = F.forward_components(rc, cd)  # the reference's branch (near_c)
+        err, rate = self.law(c, cd, cdd, F.error_components(c, cd) if F.wraps_angles else None)
+        r_dot = F.robot_rate_components(c, rate, rc)
+        if self.team.passthrough:
+            return c, err, r_dot
+        r_arr = kern.pack(rc)
+        u, _ = self.team.actuate(r_arr, kern.pack(r_dot), 0.0, self.team.initial_memory(np.shape(r_arr)[:-1]))
+        return c, err, u
+
+
+def _comps(a):
+    """Components of ``a``: a tuple of floats as it is, an array by ``pair_kernels.unpack``."""
+    return a if isinstance(a, tuple) else kern.unpack(a)

@@ -28,6 +28,18 @@ def _proportional(k, feedforward):
     return BlockLaw((Block("proportional", 0, len(k), tuple(k.tolist())),), feedforward)
 
 
+def _robots_apart(cd):
+    """A reference with the robots on each other is no formation (the cluster-space
+    controller refuses ``d_c`` below ``MIN_SEPARATION_M / 2`` the same way)."""
+    d = ((cd[0] - cd[4]) ** 2 + (cd[1] - cd[5]) ** 2 + (cd[2] - cd[6]) ** 2) ** 0.5  # robot space (x1 .. theta2)
+    bad = d < MIN_SEPARATION_M
+    if bad if isinstance(bad, bool) else np.any(bad):
+        raise DegenerateInputError(
+            f"reference robots are {float(np.min(d)):.3g} m apart: no formation (at least "
+            f"{MIN_SEPARATION_M:g} m); give desired robots apart"
+        )
+
+
 __all__ = ["ClusterSpaceController", "RobotSpaceController", "TABLE1", "TABLE2"]
 
 #: Seed 000 Table 1 (MATLAB simulations, §4.1), in the printed order.
@@ -83,20 +95,9 @@ class RobotSpaceController(ClusterController):
     feedforward: bool = True
     formation: Formation = field(default_factory=RobotSpace, init=False)
     law: BlockLaw = field(default=None, init=False)
+    checks: tuple = field(default=(_robots_apart,), init=False)
     name = "robot-space"
 
     def __post_init__(self):
         object.__setattr__(self, "k", gains(self.k, 8, "k"))
         object.__setattr__(self, "law", _proportional(self.k, self.feedforward))  # Fig. 3
-
-    def _control(self, r, c_des, c_dot_des, aligned):
-        # a reference with the robots on each other is no formation (the cluster-space
-        # controller refuses d_c below MIN_SEPARATION_M / 2 the same way)
-        c_des = np.asarray(c_des, dtype=float)
-        d = np.linalg.norm(c_des[..., 0:3] - c_des[..., 4:7], axis=-1)
-        if np.any(d < MIN_SEPARATION_M):
-            raise DegenerateInputError(
-                f"reference robots are {float(np.min(d)):.3g} m apart: no formation (at least "
-                f"{MIN_SEPARATION_M:g} m); give desired robots apart"
-            )
-        return super()._control(r, c_des, c_dot_des, aligned)

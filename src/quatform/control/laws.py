@@ -119,8 +119,20 @@ def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rot
     return qe, q_dot
 
 
-#: The laws a :class:`Block` may name: component laws (per variable) and quaternion blocks.
-LAWS = {"proportional": proportional, "tanh": tanh_law, "quaternion": quaternion_feedback}
+def _dual_quaternion_branch(q, q_des, q_des_dot, k, feedforward=1.0):
+    """:func:`dual_quaternion_feedback` of a block whose sign is the branch (seed 000's
+    shape ``qhat_s``: driven to ``+qhat_s_des``)."""
+    return dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward, signed_rotation=False)
+
+
+#: The laws a :class:`Block` may name: component laws (per variable), quaternion blocks (4
+#: variables) and dual-quaternion blocks (8): ``dual-quaternion`` where the sign means
+#: nothing (seed 000's ``qhat_c``), ``dual-quaternion-branch`` where it is the branch
+#: (``qhat_s``).
+LAWS = {"proportional": proportional, "tanh": tanh_law, "quaternion": quaternion_feedback,
+        "dual-quaternion": dual_quaternion_feedback, "dual-quaternion-branch": _dual_quaternion_branch}
+#: Laws on a whole block (their own error), and the block's size.
+_BLOCK_SIZES = {"quaternion": 4, "dual-quaternion": 8, "dual-quaternion-branch": 8}
 
 
 @dataclass(frozen=True)
@@ -140,9 +152,10 @@ class Block:
     def __post_init__(self):
         if self.law not in LAWS and self.law != "none":
             raise InvalidInputError(f"block law {self.law!r} unknown; choose {', '.join(LAWS)} or none")
-        want = 3 if self.law == "quaternion" else (0 if self.law == "none" else self.size)
-        if self.law == "quaternion" and self.size != 4:
-            raise InvalidInputError(f"a quaternion block has 4 variables, got size {self.size}")
+        size = _BLOCK_SIZES.get(self.law)
+        want = 3 if size else (0 if self.law == "none" else self.size)
+        if size and self.size != size:
+            raise InvalidInputError(f"a {self.law} block has {size} variables, got size {self.size}")
         if len(self.gains) != want:
             raise InvalidInputError(f"a {self.law} block of {self.size} variables takes {want} gains, "
                                     f"got {len(self.gains)}")
@@ -172,7 +185,8 @@ class BlockLaw:
             raise InvalidInputError("the blocks of a BlockLaw must cover the variables 0 .. n-1 once each")
         # per block: (slice, law or None, gains); quaternion blocks flagged by law
         plan = tuple((slice(b.start, b.start + b.size), LAWS.get(b.law), tuple(b.gains),
-                      tuple(zip(range(b.start, b.start + b.size), b.gains or (None,) * b.size)))
+                      tuple(zip(range(b.start, b.start + b.size), b.gains or (None,) * b.size)),
+                      b.law in _BLOCK_SIZES)
                      for b in self.blocks)
         object.__setattr__(self, "_plan", plan)
         object.__setattr__(self, "_n", len(covered))
@@ -190,9 +204,9 @@ class BlockLaw:
         """
         ff = 1.0 if self.feedforward else 0.0
         err, rate = [None] * self._n, [None] * self._n
-        for s, law, k, pairs in self._plan:
-            if law is quaternion_feedback:
-                err[s], rate[s] = quaternion_feedback(c[s], c_des[s], c_dot_des[s], k, ff)
+        for s, law, k, pairs, whole in self._plan:
+            if whole:  # a (dual) quaternion block: its own body-frame error
+                err[s], rate[s] = law(c[s], c_des[s], c_dot_des[s], k, ff)
                 continue
             for j, kj in pairs:
                 ej = c[j] - c_des[j] if e is None else e[j]

@@ -28,9 +28,10 @@ from ..formations import pair_kernels as kern
 from ..formations.base import MIN_SEPARATION_M, Formation
 from ..formations.quaternion_pair import TILT_TOL
 from ..robots import Team
-from .base import Controller, check_separation, check_units, gains
+from .base import check_units, gains
+from .cluster import ClusterController
 from .cluster_space import TABLE1
-from .laws import Block, BlockLaw, dual_quaternion_feedback
+from .laws import Block, BlockLaw
 
 __all__ = [
     "QuaternionController",
@@ -171,9 +172,22 @@ def check_dual_quaternion_reference(cd):
         )
 
 
+def _quaternion_reference(cd):
+    """Refuse a reference that is no formation of two 4-DOF robots (eqs. (9)-(19))."""
+    check_units(cd, ((3, "q_c"), (8, "q_c1"), (12, "q_c2")))
+    check_quaternion_reference(cd)
+
+
+def _dual_quaternion_reference(cd):
+    """Refuse a reference that is no formation of two 4-DOF robots (eqs. (26)-(27))."""
+    check_units(cd, ((0, "qhat_c"), (8, "qhat_s")), dual=True)
+    check_dual_quaternion_reference(cd)
+
+
 @dataclass(frozen=True)
-class QuaternionController(Controller):
-    """Seed 000 eq. (20) with position and shape loops (§3.2), on eqs. (9)-(19).
+class QuaternionController(ClusterController):
+    """Seed 000 eq. (20) with position and shape loops (§3.2), on eqs. (9)-(19): a
+    :class:`~quatform.control.cluster.ClusterController` of :class:`QuaternionPair`.
 
     Parameters
     ----------
@@ -192,6 +206,8 @@ class QuaternionController(Controller):
     team: Team = Team()
     feedforward: bool = True
     formation: Formation = field(default_factory=QuaternionPair, init=False)
+    law: BlockLaw = field(default=None, init=False)
+    checks: tuple = field(default=(_quaternion_reference,), init=False)
     name = "quaternion"
 
     def __post_init__(self):
@@ -200,24 +216,17 @@ class QuaternionController(Controller):
         object.__setattr__(self, "k_w", gains(self.k_w, 3, "k_w"))
         kx, kw = tuple(self.k_x.tolist()), tuple(self.k_w.tolist())
         # seed 000 §3.2: position and shape loops proportional, eq. (20) on the three quaternions
-        object.__setattr__(self, "_law", BlockLaw((Block("proportional", 0, 3, kx), Block("quaternion", 3, 4, kw),
-                                                   Block("proportional", 7, 1, (self.k_d,)),
-                                                   Block("quaternion", 8, 4, kw), Block("quaternion", 12, 4, kw)),
-                                                  self.feedforward))
-
-    def _control(self, r, c_des, c_dot_des, aligned):
-        rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
-        check_units(cd, ((3, "q_c"), (8, "q_c1"), (12, "q_c2")))
-        check_quaternion_reference(cd)
-        check_separation(rc)
-        c = kern.quat_forward(rc, cd[3:7], cd[8:12], cd[12:16])
-        err, cmd = self._law(c, cd, cdd)
-        return c, err, kern.quat_inverse_jvp(c, cmd)
+        object.__setattr__(self, "law", BlockLaw((Block("proportional", 0, 3, kx), Block("quaternion", 3, 4, kw),
+                                                  Block("proportional", 7, 1, (self.k_d,)),
+                                                  Block("quaternion", 8, 4, kw), Block("quaternion", 12, 4, kw)),
+                                                 self.feedforward))
 
 
 @dataclass(frozen=True)
-class DualQuaternionController(Controller):
-    """Seed 000 eq. (28) on eqs. (26)-(27).
+class DualQuaternionController(ClusterController):
+    """Seed 000 eq. (28) on eqs. (26)-(27): a :class:`~quatform.control.cluster.ClusterController`
+    of :class:`DualQuaternionPair`; the cluster pose ``qhat_c`` (sign free) and the shape
+    ``qhat_s`` (its rotation's sign is the branch of the half-way yaw) each a block.
 
     Parameters
     ----------
@@ -229,23 +238,12 @@ class DualQuaternionController(Controller):
     team: Team = Team()
     feedforward: bool = True
     formation: Formation = field(default_factory=DualQuaternionPair, init=False)
+    law: BlockLaw = field(default=None, init=False)
+    checks: tuple = field(default=(_dual_quaternion_reference,), init=False)
     name = "dual-quaternion"
 
     def __post_init__(self):
         object.__setattr__(self, "k_dw", gains(self.k_dw, 3, "k_dw"))
-        object.__setattr__(self, "_gains", self.k_dw.tolist())
-
-    def _control(self, r, c_des, c_dot_des, aligned):
-        rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
-        check_units(cd, ((0, "qhat_c"), (8, "qhat_s")), dual=True)
-        check_dual_quaternion_reference(cd)
-        # The measured yaws on the desired state's branch (read from c_des itself): each
-        # within pi of the desired robot's, the shape's relative-yaw error within 3 pi / 2.
-        rc = kern.dq_align_yaws(rc, *kern.dq_yaws(cd))
-        check_separation(rc)
-        c = kern.dq_forward(rc, cd[0:4])
-        kw, ff = self._gains, (1.0 if self.feedforward else 0.0)
-        # eq. (28) on the cluster pose (sign free) and the shape (its rotation's sign is the branch)
-        ec, qc_dot = dual_quaternion_feedback(c[0:8], cd[0:8], cdd[0:8], kw, ff, signed_rotation=True)
-        es, qs_dot = dual_quaternion_feedback(c[8:16], cd[8:16], cdd[8:16], kw, ff, signed_rotation=False)
-        return c, ec + es, kern.dq_inverse_jvp(c, qc_dot + qs_dot, rc)
+        kw = tuple(self.k_dw.tolist())
+        object.__setattr__(self, "law", BlockLaw((Block("dual-quaternion", 0, 8, kw),
+                                                  Block("dual-quaternion-branch", 8, 8, kw)), self.feedforward))

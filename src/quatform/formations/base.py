@@ -24,6 +24,7 @@ is used.
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -275,6 +276,49 @@ class Formation(ABC):
         return ()
 
     # -- helpers ----------------------------------------------------------------------
+    # -- the controllers' component path ---------------------------------------------------
+    def forward_components(self, rc, near_c):
+        """Measured cluster state for a controller: ``(c, rc)`` as tuples of components
+        (Python floats for one formation, arrays for a batch), with ``rc`` the robot state
+        the cluster state is of (a description may wind its yaws onto ``near_c``'s branch).
+
+        The default goes through :meth:`forward`; the pair descriptions of seed 000
+        override it with their component kernels (no array round trip for one formation).
+        """
+        from .pair_kernels import pack, unpack
+
+        r = np.asarray(pack(rc), dtype=float)
+        return unpack(self.forward(r, near_c=np.asarray(pack(near_c), dtype=float))), rc
+
+    def error_components(self, c, c_des):
+        """The error components a law reads where the description wraps angles
+        (:meth:`errors`), or None where ``c - c_des`` is the error of every non-quaternion
+        variable (no angle among them)."""
+        from .pair_kernels import pack, unpack
+
+        if not self.wraps_angles:
+            return None
+        return unpack(self.errors(np.asarray(pack(c), dtype=float), np.asarray(pack(c_des), dtype=float)))
+
+    @functools.cached_property
+    def wraps_angles(self) -> bool:
+        """Whether a cluster variable is an angle (its error is wrapped, :meth:`errors`)."""
+        return any(v.kind == "angle" for v in self.variables)
+
+    def robot_rate_components(self, c, c_dot, rc):
+        """:meth:`robot_rate` for a controller, on components: the robot rates that move the
+        cluster state ``c`` (of the robots ``rc``) at ``c_dot``.
+
+        The default applies the dense inverse Jacobian at ``c`` (the matrix of today's
+        cluster-space controller, seed 000 Fig. 2); the pair descriptions override it with
+        their directional derivatives (O(N), no matrix).
+        """
+        from .pair_kernels import pack, unpack
+
+        c_arr, r_arr = np.asarray(pack(c), dtype=float), np.asarray(pack(rc), dtype=float)
+        rate = np.einsum("...ij,...j->...i", self.inverse_jacobian_at(c_arr, r=r_arr), pack(c_dot))
+        return unpack(rate)
+
     def align(self, r, r_ref) -> np.ndarray:
         """``r`` with each robot yaw moved by whole turns to within pi of ``r_ref``'s
         (:meth:`RobotLayout.wind`).

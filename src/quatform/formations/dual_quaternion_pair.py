@@ -115,6 +115,19 @@ class DualQuaternionPair(Formation):
         rr = kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h))
         return kern.pack(kern.dq_forward(rr, h[0:4]))
 
+    def forward_components(self, rc, near_c):
+        """Eqs. (26)-(27) on components for a controller: the measured yaws moved by whole
+        turns onto ``near_c``'s branch (each within pi of the desired robot's, the shape's
+        relative-yaw error within 3 pi / 2; the sign of ``qhat_s`` is the branch), ``qhat_c``
+        with ``near_c``'s sign: ``(c, rc)`` with ``rc`` the wound robots."""
+        rc = kern.dq_align_yaws(rc, *kern.dq_yaws(near_c))
+        kern.check_apart(rc, MIN_SEPARATION_M)
+        return kern.dq_forward(rc, near_c[0:4]), rc
+
+    def robot_rate_components(self, c, c_dot, rc):
+        """:meth:`robot_rate` on components (:func:`~.pair_kernels.dq_inverse_jvp`)."""
+        return kern.dq_inverse_jvp(c, c_dot, rc)
+
     def _robots(self, c, h):
         dq2 = _dqmul(c[..., _QC], _dqconj(h))  # qhat_2 = qhat_c h*
         dq1 = _dqmul(dq2, c[..., _QS])  # qhat_1 = qhat_2 qhat_s

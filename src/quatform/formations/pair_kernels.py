@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..algebra.kernels import qmul_components as qmul
+from ..errors import DegenerateInputError
 
 _EPS_ANTI = 1e-12
 
@@ -301,3 +302,15 @@ def jacobian_from_jvp(jvp, c, n_c, *extra):
     eye = np.eye(n_c)
     cols = jvp(cc, tuple(eye[k] for k in range(n_c)), *ex)
     return pack(cols, axis=-2)
+
+
+def check_apart(r, min_m):
+    """Raise DegenerateInputError if the two robots of the state components ``r`` (floats or
+    arrays within the magnitude limit, so the squares are finite) are within ``min_m``."""
+    d2 = (r[0] - r[4]) ** 2 + (r[1] - r[5]) ** 2 + (r[2] - r[6]) ** 2
+    close = d2 <= min_m * min_m
+    if close if isinstance(close, bool) else np.any(close):
+        raise DegenerateInputError(
+            f"measured robots coincide (separation {float(np.min(np.sqrt(d2))):.3g} m); a two-robot "
+            "formation is undefined there - stop the robots and separate them"
+        )

@@ -80,6 +80,16 @@ class QuaternionPair(Formation):
             out = kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16])
         return kern.pack(out)
 
+    def forward_components(self, rc, near_c):
+        """Eqs. (10)-(15) on components, the twists of ``q_c``, ``q_c1``, ``q_c2`` from
+        ``near_c`` (the controller's reference): ``(c, rc)``."""
+        kern.check_apart(rc, MIN_SEPARATION_M)
+        return kern.quat_forward(rc, near_c[3:7], near_c[8:12], near_c[12:16]), rc
+
+    def robot_rate_components(self, c, c_dot, rc):
+        """:meth:`robot_rate` on components (:func:`~.pair_kernels.quat_inverse_jvp`)."""
+        return kern.quat_inverse_jvp(c, c_dot)
+
     def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         qc = c[..., _QC] / np.linalg.norm(c[..., _QC], axis=-1, keepdims=True)

@@ -67,6 +67,12 @@ class Team:
         return RobotLayout(tuple(r.point_kind for r in self.robots))
 
     @cached_property
+    def passthrough(self) -> bool:
+        """Whether the commands are the formation's robot rates themselves (a team of
+        holonomic robots, seed 000 §4.1): a controller then skips :meth:`actuate`."""
+        return all(isinstance(r, HolonomicRobot) for r in self.robots)
+
+    @cached_property
     def state_slices(self) -> tuple:
         return _offsets(len(r.state_columns) for r in self.robots)[0]
 
