@@ -47,6 +47,12 @@ class ClusterController(Controller):
     checks : tuple of callables
         Each called with the desired cluster state's components before anything is
         computed; raises (one line) where the reference is no formation of the team.
+    filters : tuple
+        What a lab puts around the chain (:mod:`quatform.control.filters`: the
+        motion-capture screen, arena walls, a heading law), as data; a controller that
+        uses them keeps their memory in its state (seed 001's
+        :class:`~quatform.control.ugv_uav.UgvUavController`). The seed-000 controllers
+        have none.
     """
 
     formation: Formation = field(default=None)
@@ -54,6 +60,7 @@ class ClusterController(Controller):
     team: Team = Team()
     feedforward: bool = True
     checks: tuple = ()
+    filters: tuple = ()
     name = "cluster"
 
     def __post_init__(self):

@@ -28,6 +28,7 @@ from ..formations.base import Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
 from . import contract
 from .base import Reference
+from .cluster import ClusterController
 from .filters import FRAME_DROPPED, FRAME_GOOD, FRAME_REJECTED, ArenaWalls, HeadingLaw, MocapScreen
 from .laws import Block, BlockLaw
 
@@ -90,8 +91,12 @@ def _positive(values, n, name):
     return v
 
 
-class UgvUavController(contract.Controller):
-    """Seed 001's formation controller for a Pioneer 3-DX and a Bebop 2.
+class UgvUavController(ClusterController):
+    """Seed 001's formation controller for a Pioneer 3-DX and a Bebop 2: a
+    :class:`~quatform.control.cluster.ClusterController` of a UGV-UAV description, the tanh
+    law (4.43)-(4.45), the Pioneer-Bebop team and three filters (``filters``: the
+    motion-capture screen, the arena walls, the UAV's heading law), with a state
+    (:class:`UgvUavState`) threaded through :meth:`update`. Frozen, as every controller.
 
     Parameters
     ----------
@@ -132,31 +137,33 @@ class UgvUavController(contract.Controller):
                  z_ugv=0.0, arena=((-3.0, 3.0), (-2.0, 2.0), (-0.5, 3.0)), wall_margin=0.3, wall_gain=1.0,
                  derivative_filter_s=0.1, max_hold_s=0.5, speed_margin=1.5, jump_margin_m=0.05,
                  min_separation_m=0.05):
-        self.formation = formation if formation is not None else UgvUavQuaternion()
-        self.k_x = _positive(k_x, 3, "k_x")
-        self.k_d = float(_positive(k_d, 1, "k_d")[0])
-        self.k_w = _positive(k_w, 3, "k_w")
-        self.k_psi = float(_positive(k_psi, 1, "k_psi")[0])
-        self.l_d = _positive(l_d, 4, "l_d")
-        self.compensation = bool(compensation)
-        self.feedforward = bool(feedforward)
+        _set = object.__setattr__  # frozen: the configuration is set once, here
+        _set(self, "formation", formation if formation is not None else UgvUavQuaternion())
+        _set(self, "k_x", _positive(k_x, 3, "k_x"))
+        _set(self, "k_d", float(_positive(k_d, 1, "k_d")[0]))
+        _set(self, "k_w", _positive(k_w, 3, "k_w"))
+        _set(self, "k_psi", float(_positive(k_psi, 1, "k_psi")[0]))
+        _set(self, "l_d", _positive(l_d, 4, "l_d"))
+        _set(self, "compensation", bool(compensation))
+        _set(self, "feedforward", bool(feedforward))
         pioneer = pioneer if pioneer is not None else Pioneer()
         bebop = bebop if bebop is not None else Bebop()
-        self.z_ugv = float(z_ugv)
-        self.wall_margin = float(wall_margin)
-        self.wall_gain = float(_positive(wall_gain, 1, "wall_gain")[0])
-        self.derivative_filter_s = float(derivative_filter_s)
+        _set(self, "z_ugv", float(z_ugv))
+        _set(self, "wall_margin", float(wall_margin))
+        _set(self, "wall_gain", float(_positive(wall_gain, 1, "wall_gain")[0]))
+        _set(self, "derivative_filter_s", float(derivative_filter_s))
         if not (self.derivative_filter_s >= 0 and self.wall_margin >= 0):
             raise InvalidInputError("derivative_filter_s and wall_margin must be >= 0")
         # the robots' actuation (seed 001 eqs. (3.5), (3.10), (4.47)) is the team's
-        self.team = Team((replace(pioneer, z=self.z_ugv),
-                          replace(bebop, l_d=tuple(self.l_d.tolist()), compensation=self.compensation,
-                                  derivative_filter_s=self.derivative_filter_s)))
-        self.pioneer, self.bebop = self.team.robots
-        self.max_hold_s = float(_positive(max_hold_s, 1, "max_hold_s")[0])
-        self.speed_margin = float(_positive(speed_margin, 1, "speed_margin")[0])
-        self.jump_margin_m = float(_positive(jump_margin_m, 1, "jump_margin_m")[0])
-        self.min_separation_m = float(_positive(min_separation_m, 1, "min_separation_m")[0])
+        _set(self, "team", Team((replace(pioneer, z=self.z_ugv),
+                                 replace(bebop, l_d=tuple(self.l_d.tolist()), compensation=self.compensation,
+                                         derivative_filter_s=self.derivative_filter_s))))
+        _set(self, "pioneer", self.team.robots[0])
+        _set(self, "bebop", self.team.robots[1])
+        _set(self, "max_hold_s", float(_positive(max_hold_s, 1, "max_hold_s")[0]))
+        _set(self, "speed_margin", float(_positive(speed_margin, 1, "speed_margin")[0]))
+        _set(self, "jump_margin_m", float(_positive(jump_margin_m, 1, "jump_margin_m")[0]))
+        _set(self, "min_separation_m", float(_positive(min_separation_m, 1, "min_separation_m")[0]))
         # the law (4.43)-(4.45): tanh on the positions and the length; (4.45) prints q_c q_cd,
         # the body-frame error is q_cd* q_c (seed 000 eq. (20)); for the Euclidean
         # descriptions k_w (first two) act on the two angles
@@ -166,15 +173,17 @@ class UgvUavController(contract.Controller):
                       Block("none", 8, self.formation.n_c - 8))  # d_c = (d, 0, 0)
         else:
             blocks = (Block("tanh", 0, self.formation.n_c, kx + (self.k_d,) + kw[:2]),)
-        self.law = BlockLaw(blocks, self.feedforward)
+        _set(self, "law", BlockLaw(blocks, self.feedforward))
         p = self.pioneer
         # the filters (control.filters): frame screening, arena walls, the UAV's yaw law
         top_speed = (self.speed_margin * float(np.hypot(p.max_v, p.a * p.max_omega)),
                      self.speed_margin * float(np.linalg.norm(self.bebop.max_velocity[0:3])))
-        self.mocap = MocapScreen(top_speed, self.jump_margin_m, self.min_separation_m, self.max_hold_s)
-        self.walls = ArenaWalls(arena, self.wall_margin, self.wall_gain, free=((0, 2),))  # the UGV's fixed height
-        self.arena = self.walls.box
-        self.heading = HeadingLaw(self.k_psi)
+        _set(self, "mocap", MocapScreen(top_speed, self.jump_margin_m, self.min_separation_m, self.max_hold_s))
+        _set(self, "walls", ArenaWalls(arena, self.wall_margin, self.wall_gain, free=((0, 2),)))  # UGV's height fixed
+        _set(self, "arena", self.walls.box)
+        _set(self, "heading", HeadingLaw(self.k_psi))
+        _set(self, "filters", (self.mocap, self.walls, self.heading))
+        _set(self, "checks", ())
 
     @property
     def name(self) -> str:
