@@ -21,9 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from ..sim.output import atomic_write_text
 
-__all__ = ["write_timeseries", "write_columns", "write_metrics", "write_json", "strict_json"]
+__all__ = ["write_timeseries", "timeseries_table", "write_columns", "write_metrics", "write_json", "strict_json"]
 
 
 def write_columns(names, data, path) -> Path:
@@ -44,19 +45,39 @@ def write_columns(names, data, path) -> Path:
     return atomic_write_text(path, buf.getvalue())
 
 
-def write_timeseries(log, path, channels=None) -> Path:
-    """``timeseries.csv`` of one world's log: ``t``, then the columns of ``channels`` side by side.
+def timeseries_table(log, channels=None) -> tuple[list[str], np.ndarray]:
+    """Column names (``t`` first) and the ``(T, n)`` array of one world's log, for a CSV file.
 
     Parameters
     ----------
     log : quatform.sim.log.Log
         One world (``log.world(i)`` of a batched log).
-    path : path-like
-    channels : sequence of str, optional
-        Channel names in file order (a kind's ``Experiment.csv_channels``); default all, in the
-        log's order.
+    channels : sequence, optional
+        File order (a kind's ``Experiment.csv_channels``): each item a channel name (its
+        columns as they are) or a tuple of channel names of equal width, whose columns are
+        interleaved (``("state", "r_des")`` -> ``x1, x1_des, y1, y1_des, ...``: each value
+        beside its desired one). Default: every channel, in the log's order.
     """
-    return write_columns(*log.table(channels), path)
+    if channels is None:
+        return log.table()
+    names, cols = ["t"], [log.t[:, None]]
+    for item in channels:
+        group = (item,) if isinstance(item, str) else tuple(item)
+        widths = {len(log.columns(name)) for name in group}
+        if len(widths) != 1:
+            raise InvalidInputError(f"timeseries: interleaved channels {group} have different widths "
+                                    f"{[len(log.columns(n)) for n in group]}; interleave channels of one width")
+        for i in range(widths.pop()):
+            for name in group:
+                names.append(log.columns(name)[i])
+                cols.append(np.asarray(log[name], dtype=float)[:, i:i + 1])
+    return names, np.hstack(cols)
+
+
+def write_timeseries(log, path, channels=None) -> Path:
+    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_table` (``t``,
+    then ``channels`` in order, 9 digits), written atomically."""
+    return write_columns(*timeseries_table(log, channels), path)
 
 
 # --------------------------------------------------------------------------- strict JSON
