@@ -23,6 +23,23 @@ LAYERS = {
     "report": 7,
     "runs": 8, "plan_runs": 8, "cli": 8,
 }
+#: Modules of a package that sit in another layer than the package (the longest dotted prefix
+#: of a module in LAYERS or here decides): the teleoperation package holds the arms'
+#: kinematics (beside formations) and the teleoperation controller and its task-space
+#: errors, which use the control layer's contract and stiffness law.
+MODULE_LAYERS = {"teleop.controller": 4, "teleop.task": 4, "teleop.control": 4, "teleop.__init__": 4}
+
+
+MODULE_LAYERS_PACKAGES = {key.split(".")[0] for key in MODULE_LAYERS}
+
+
+def layer(parts) -> int:
+    """The layer of the module ``parts`` (``("teleop", "arm")``)."""
+    for n in range(len(parts), 0, -1):
+        key = ".".join(parts[:n])
+        if key in MODULE_LAYERS:
+            return MODULE_LAYERS[key]
+    return LAYERS[parts[0]]
 
 
 def _imports(root=SRC):
@@ -61,9 +78,11 @@ def _upward(root=SRC) -> list:
     for f, parts, target, names in _imports(root):
         if parts[0] == "__init__" or not target:
             continue
-        here, there = parts[0], target[0]
-        if here != there and LAYERS[there] > LAYERS[here]:
-            upward.append(f"{'/'.join(parts)} imports {'.'.join(target)} (layer {LAYERS[there]} > {LAYERS[here]})")
+        # ``from ..teleop import x`` is the package's __init__
+        there = tuple(target) if len(target) > 1 or not (root / target[0]).is_dir() else (target[0], "__init__")
+        across = parts[0] != there[0] or parts[0] in MODULE_LAYERS_PACKAGES  # a mixed package: within it too
+        if across and layer(there) > layer(parts):
+            upward.append(f"{'/'.join(parts)} imports {'.'.join(target)} (layer {layer(there)} > {layer(parts)})")
     return upward
 
 
@@ -92,7 +111,10 @@ def test_the_checks_find_an_upward_and_a_private_import(tmp_path):
                                                   "from quatform.algebra._kernels import qmul\n")
     (tmp_path / "report").mkdir()
     (tmp_path / "report" / "plots.py").write_text("from ..sim import Log\n\n\ndef f():\n    from .figures import _x\n")
-    assert _upward(tmp_path) == ["sim/plot_it imports report.plots (layer 7 > 5)"]
+    (tmp_path / "teleop").mkdir()
+    (tmp_path / "teleop" / "arm.py").write_text("from .controller import TeleopController\n")
+    assert sorted(_upward(tmp_path)) == ["sim/plot_it imports report.plots (layer 7 > 5)",
+                                         "teleop/arm imports teleop.controller (layer 4 > 2)"]
     assert sorted(_reach_ins(tmp_path)) == ["report/plots imports report.figures._x",
                                             "sim/plot_it imports module algebra._kernels",
                                             "sim/plot_it imports report.plots._save"]
