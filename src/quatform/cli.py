@@ -66,9 +66,9 @@ def _add_kind_options(p, kinds) -> None:
     for name, (o, names, choices) in _kind_options(kinds).items():
         which = f" [{', '.join(names)}]"
         if o.type is bool:
-            const = o.default is False
+            const = o.default is False  # a switch off by default is turned on, else off
             p.add_argument(_flag(o), dest=name, action="store_const", const=const, default=None,
-                           help=o.help + which)
+                           help=("" if const else "switch off: ") + o.help + which)
         elif o.choices is not None:
             p.add_argument(_flag(o), dest=name, choices=choices, default=None, help=o.help + which)
         else:
@@ -158,9 +158,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
-    cmp_.add_argument("--over", metavar="OPTION", choices=sorted({o.name for k in kinds for o in k.options
-                                                                   if o.choices is not None}),
-                      help="the option to vary (default: the scenario kind's compare option)")
+    axes = sorted({o.name for k in kinds for o in k.options if o.choices is not None})
+    cmp_.add_argument("--over", metavar="OPTION", choices=axes,
+                      help=f"the option to vary: one of {', '.join(axes)} that the scenario's kind takes "
+                      "(default: the kind's compare option)")
     _add_kind_options(cmp_, kinds)
 
     tele = sub.add_parser(
