@@ -282,4 +282,4 @@ def test_robot_yaw_wound_by_2pi():
     a, b = D.forward(r), D.forward(wound)
     qe = g.mul(g.conj(a[0:4]), b[0:4])
     np.testing.assert_allclose(np.abs(qe), [0, 0, 0, 1], atol=1e-12)  # half turn about z
-    np.testing.assert_allclose(D.inverse(b, hint=wound)[[0, 1, 2, 4, 5, 6]], r[[0, 1, 2, 4, 5, 6]], atol=1e-12)
+    np.testing.assert_allclose(D.inverse(b, near_r=wound)[[0, 1, 2, 4, 5, 6]], r[[0, 1, 2, 4, 5, 6]], atol=1e-12)

@@ -1,4 +1,8 @@
-"""Formations (seed 000 eqs. (1)-(19), (26)-(27)): kinematics, Jacobians, hints, singular points."""
+"""Formations (seed 000 eqs. (1)-(19), (26)-(27)): the seeds' numbers, branch choices, singular points.
+
+The properties every description shares (round trips, rate maps against differences, batch =
+single, sign and wrap invariance) are checked once for all in test_formation_contract.py.
+"""
 
 from __future__ import annotations
 
@@ -18,11 +22,7 @@ from quatform.formations import (
 )
 from quatform.formations import geometry as g
 
-from conftest import numeric_jacobian
-
 ALL = [EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair()]
-QUAT_SLICES = {"quaternion": [slice(3, 7), slice(8, 12), slice(12, 16)],
-               "dual-quaternion": [slice(0, 8), slice(8, 16)]}
 
 coord = st.floats(-3, 3, allow_nan=False)
 angle = st.floats(-12, 12, allow_nan=False)
@@ -50,50 +50,24 @@ def euclidean_states(draw, full_pitch=True):
                      draw(st.floats(-lim, lim)), draw(st.floats(0.1, 3.0)), draw(angle), draw(angle)])
 
 
-def flip_signs(F, c, flips):
-    """``c`` with the cluster (dual) quaternions selected by ``flips`` negated."""
-    c = c.copy()
-    for s, f in zip(QUAT_SLICES.get(F.name, []), flips):
-        if f:
-            c[s] = -c[s]
-    return c
-
-
-@pytest.mark.parametrize("F", ALL, ids=lambda f: f.name)
-@given(r=robot_states(min_cos_pitch=0.05), flips=st.lists(st.booleans(), min_size=3, max_size=3))
-def test_round_trip_and_jacobians(F, r, flips):
-    c = F.forward(r)
-    hint = flip_signs(F, c, flips)  # q -> -q of any cluster quaternion in the hint
-    ch = F.forward(r, hint)
-    np.testing.assert_allclose(F.inverse(ch, hint=r), r, atol=1e-9)
-    J = F.jacobian(r, hint)
-    Jn = numeric_jacobian(lambda x: F.forward(x, ch), r)
-    np.testing.assert_allclose(J, Jn, atol=2e-6 * max(1.0, np.abs(J).max()))
-    Ji = F.inverse_jacobian(r, hint)
-    np.testing.assert_allclose(Ji @ J, np.eye(8), atol=1e-8)
-    assert F.singularity_measure(r, hint) > 0
-
-
 @pytest.mark.parametrize("F", ALL, ids=lambda f: f.name)
 @given(e=euclidean_states(), e_dot=hnp.arrays(np.float64, 8, elements=st.floats(-2, 2)))
 def test_from_euclidean_is_consistent(F, e, e_dot):
-    """One motion, every description: c(e) maps to the same robots, rates match differences."""
+    """One motion, every description: c(e) maps to the same robots, and c_dot to the same robot
+    rates (each description's own rates against differences: test_formation_contract)."""
     c, cd = F.from_euclidean(e, e_dot)
     r = EuclideanPair().inverse(e)
-    np.testing.assert_allclose(F.inverse(c, hint=r), r, atol=1e-9)
-    h = 1e-6
-    cn = (F.from_euclidean(e + h * e_dot) - F.from_euclidean(e - h * e_dot)) / (2 * h)
-    np.testing.assert_allclose(cd, cn, atol=1e-6)
+    np.testing.assert_allclose(F.inverse(c, near_r=r), r, atol=1e-9)
     # c_dot is the cluster image of the robots' rate: J^-1 c_dot = r_dot
     r_dot = EuclideanPair().inverse_jacobian_at(e) @ e_dot
-    np.testing.assert_allclose(F.inverse_jacobian_at(c, r) @ cd, r_dot, atol=1e-8)
+    np.testing.assert_allclose(F.inverse_jacobian_at(c, r=r) @ cd, r_dot, atol=1e-8)
 
 
 @pytest.mark.parametrize("F", [QuaternionPair(), DualQuaternionPair()], ids=lambda f: f.name)
 @given(e=euclidean_states())
 def test_monitoring_recovers_full_pitch(F, e):
     """Quaternion descriptions give back beta_c, gamma_c on the whole circle (no fold)."""
-    back = F.euclidean(F.from_euclidean(e), e)
+    back = F.euclidean(F.from_euclidean(e), near_e=e)
     np.testing.assert_allclose(back, e, atol=1e-8)
 
 
@@ -104,19 +78,19 @@ def test_monitoring_is_the_measured_formation_for_any_hint(F, r, e_hint):
     (exactly, away from the vertical; near it the yaw comes from the cluster frame)."""
     delta = r[0:3] - r[4:7]
     assume(np.hypot(delta[0], delta[1]) > 0.02 * np.linalg.norm(delta))
-    c = F.forward(r, F.from_euclidean(e_hint))
-    back = EuclideanPair().inverse(F.euclidean(c, e_hint, r))
+    c = F.forward(r, near_c=F.from_euclidean(e_hint))
+    back = EuclideanPair().inverse(F.euclidean(c, near_e=e_hint, r=r))
     np.testing.assert_allclose(g.wrap(back - r), 0, atol=1e-8)
 
 
 @pytest.mark.parametrize("F", [EuclideanPair(), QuaternionPair(), DualQuaternionPair()], ids=lambda f: f.name)
 def test_singularity_measure_ignores_place_and_size(F):
     e = np.array([0, 0, 1, 0.3, 0.4, 1.0, 0.1, 0.2])
-    ref = F.singularity_measure(EuclideanPair().inverse(e), F.from_euclidean(e))
+    ref = F.singularity_measure(EuclideanPair().inverse(e), near_c=F.from_euclidean(e))
     for x, d in ((1e3, 1.0), (0.0, 1e-2), (-50.0, 1e2)):
         e2 = e.copy()
         e2[0], e2[5] = x, d
-        assert F.singularity_measure(EuclideanPair().inverse(e2), F.from_euclidean(e2)) == pytest.approx(ref, rel=1e-6)
+        assert F.singularity_measure(EuclideanPair().inverse(e2), near_c=F.from_euclidean(e2)) == pytest.approx(ref, rel=1e-6)
 
 
 @given(e=euclidean_states())
@@ -158,7 +132,7 @@ def test_euclidean_at_vertical_is_singular_but_never_nan():
     Ji = E.inverse_jacobian(r)
     assert np.all(np.isfinite(Ji)) and np.linalg.matrix_rank(Ji) == 7
     # with a hint, beta_c is held at the hint's value where it is undefined
-    assert E.forward(r, e)[3] == pytest.approx(e[3])
+    assert E.forward(r, near_c=e)[3] == pytest.approx(e[3])
 
 
 @pytest.mark.parametrize("eps", [1e-2, 1e-4, 1e-6, 1e-8])
@@ -177,12 +151,12 @@ def test_euclidean_near_vertical_condition_grows(eps):
 def test_quaternion_descriptions_regular_at_vertical(F, eps):
     r, e = vertical_pair(eps)
     hint = F.from_euclidean(e)
-    c = F.forward(r, hint)
-    J, Ji = F.jacobian(r, hint), F.inverse_jacobian(r, hint)
+    c = F.forward(r, near_c=hint)
+    J, Ji = F.jacobian(r, near_c=hint), F.inverse_jacobian(r, near_c=hint)
     assert np.all(np.isfinite(J)) and np.all(np.isfinite(Ji))
     np.testing.assert_allclose(Ji @ J, np.eye(8), atol=1e-9)
-    assert F.singularity_measure(r, hint) > 0.05
-    np.testing.assert_allclose(F.euclidean(c, e), e, atol=1e-7)
+    assert F.singularity_measure(r, near_c=hint) > 0.05
+    np.testing.assert_allclose(F.euclidean(c, near_e=e), e, atol=1e-7)
 
 
 def test_seed_quaternion_forward_at_minus_i():
@@ -192,14 +166,14 @@ def test_seed_quaternion_forward_at_minus_i():
     c = Q.forward(r)  # the seed's convention: half turn about z chosen there
     assert np.all(np.isfinite(c))
     np.testing.assert_allclose(np.linalg.norm(c[3:7]), 1.0)
-    np.testing.assert_allclose(Q.inverse(c, r), r, atol=1e-12)
+    np.testing.assert_allclose(Q.inverse(c, near_r=r), r, atol=1e-12)
     # just off -i the seed's q_c swings by up to pi in twist between nearby states ...
     a = Q.forward(r + np.array([0, 1e-7, 0, 0, 0, 0, 0, 0]))
     b = Q.forward(r + np.array([0, 0, 1e-7, 0, 0, 0, 0, 0]))
     assert q_angle_between(a[3:7], b[3:7]) > 1.0
     # ... while the hinted one moves by the motion's size only
-    ha = Q.forward(r + np.array([0, 1e-7, 0, 0, 0, 0, 0, 0]), c)
-    hb = Q.forward(r + np.array([0, 0, 1e-7, 0, 0, 0, 0, 0]), c)
+    ha = Q.forward(r + np.array([0, 1e-7, 0, 0, 0, 0, 0, 0]), near_c=c)
+    hb = Q.forward(r + np.array([0, 0, 1e-7, 0, 0, 0, 0, 0]), near_c=c)
     assert q_angle_between(ha[3:7], hb[3:7]) < 1e-6
 
 
@@ -210,7 +184,7 @@ def test_quaternion_hint_opposite_segment_is_half_turn_about_hint_z():
     e_flip = e.copy()
     e_flip[3] = np.pi  # segment reversed: a 180 deg formation error
     r = EuclideanPair().inverse(e_flip)
-    c = Q.forward(r, hint)
+    c = Q.forward(r, near_c=hint)
     qe = g.mul(g.conj(hint[3:7]), c[3:7])
     np.testing.assert_allclose(np.abs(qe), [0, 0, 0, 1], atol=1e-12)  # half turn about body z
 
@@ -250,9 +224,9 @@ def test_dual_quaternion_pair_tells_the_branch_by_the_sign_of_qhat_s():
     np.testing.assert_allclose(g.wrap(D.inverse(c) - r), 0, atol=1e-12)
     np.testing.assert_allclose(g.wrap(D.inverse(c2) - turned), 0, atol=1e-12)
     # a hint only unwraps the yaws: the turned formation's robots as hint give r back
-    np.testing.assert_allclose(D.inverse(c, hint=turned)[[0, 1, 2, 4, 5, 6]], r[[0, 1, 2, 4, 5, 6]], atol=1e-12)
+    np.testing.assert_allclose(D.inverse(c, near_r=turned)[[0, 1, 2, 4, 5, 6]], r[[0, 1, 2, 4, 5, 6]], atol=1e-12)
     # monitoring with the turned formation's Euclidean state as the hint: the measured robots
-    got = EuclideanPair().inverse(D.euclidean(c, EuclideanPair().forward(turned), r))
+    got = EuclideanPair().inverse(D.euclidean(c, near_e=EuclideanPair().forward(turned), r=r))
     np.testing.assert_allclose(g.wrap(got - r), 0, atol=1e-9)
 
 
@@ -263,7 +237,7 @@ def test_dual_quaternion_half_turn_relative_yaw_is_continuous():
     r = np.zeros((rel.size, 8))
     r[:, 0], r[:, 4] = 1.0, -1.0
     r[:, 3], r[:, 7] = 0.5 * rel, -0.5 * rel
-    c = D.forward(r, np.tile(D.forward(r[0]), (rel.size, 1)))
+    c = D.forward(r, near_c=np.tile(D.forward(r[0]), (rel.size, 1)))
     assert np.abs(np.diff(c, axis=0)).max() < 1e-4
 
 
@@ -299,17 +273,6 @@ def test_unreachable_and_non_unit_cluster_states():
     bad[0:8] = dq_from_pose([np.cos(0.1), 0, np.sin(0.1), 0], [0, 0, 1])
     with pytest.raises(UnreachableError):
         D.inverse(bad)
-
-
-def test_batched_forward_matches_single():
-    rng = np.random.default_rng(5)
-    r = rng.normal(size=(6, 8))
-    for F in ALL:
-        batch = F.forward(r)
-        for i in range(6):
-            np.testing.assert_allclose(batch[i], F.forward(r[i]), atol=1e-14)
-        Jb = F.inverse_jacobian(r)
-        np.testing.assert_allclose(Jb[2], F.inverse_jacobian(r[2]), atol=1e-13)
 
 
 def test_segment_direction_matches_eqs_4_5():

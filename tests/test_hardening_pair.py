@@ -188,7 +188,7 @@ def test_item3_hint_does_not_change_the_formation():
     r = random_states(rng, 500)
     hint = D.forward(random_states(rng, 500))
     hint[::2, 8:] *= -1  # the other branch
-    assert same_robots(D.inverse(D.forward(r, hint)), r) < 1e-9
+    assert same_robots(D.inverse(D.forward(r, near_c=hint)), r) < 1e-9
 
 
 # -- item 5: references that are no formation -------------------------------------------

@@ -15,7 +15,7 @@ from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError, ResourceLimitError, UnreachableError
 from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from quatform.sim import load_scenario
-from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
+from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
 
 
 # -- item 7: the UGV-UAV layouts carry their name ------------------------------------------------
@@ -150,11 +150,13 @@ def test_restricted_run_reports_the_take_off_from_below_the_platform():
     The controller drives it in robot space until it is inside, and the run says for how long."""
     run = simulate_ugv_uav(_short(mocap_noise_m=0.002), "restricted")
     m = ugv_uav_metrics(run)
-    assert run.outside[0] and not run.outside[-1]
+    outside, c = run["outside"][:, 0] == 1, run["cluster"]
+    assert outside[0] and not outside[-1]
     assert 2.0 <= m["measured_outside_description_s"] <= 8.0
-    assert np.all(np.isnan(run.c[run.outside])) and np.all(np.isfinite(run.c[~run.outside]))
-    assert np.all(np.isnan(run.singularity[UgvUavRestricted().outside(
-        np.c_[run.ugv[:, 0:2], np.zeros(len(run.t)), run.uav[:, 0:3]])]))
+    assert np.all(np.isnan(c[outside])) and np.all(np.isfinite(c[~outside]))
+    x = run["state"]
+    assert np.all(np.isnan(run["singularity"][:, 0][UgvUavRestricted().outside(
+        np.c_[x[:, 0:2], np.zeros(len(run.t)), x[:, 3:6]])]))
     assert m["nonfinite_commands"] == 0 and not m["reference_lost"]
     assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
 
@@ -178,41 +180,55 @@ def _overhead_reference():
     return Reference(*F.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6)))
 
 
+def _stepper(ctrl):
+    """``step(t, m, ref) -> Step``: updates threading the controller's state."""
+    state = [ctrl.init()]
+
+    def step(t, m, ref):
+        s = ctrl.update(t, m, ref, state[0])
+        state[0] = s.state
+        return s
+    return step
+
+
 def test_controller_holds_the_last_good_frame_through_a_dropout_and_a_glitch():
     ctrl, ref = UgvUavController(), _overhead_reference()
+    step = _stepper(ctrl)
     good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.1, 0, 0, 0])
-    first = ctrl.compute(0.0, good, ref)
-    assert first.frame == "good" and not first.held
-    dropped = ctrl.compute(0.03, np.full(11, np.nan), ref)
-    assert dropped.frame == "dropped" and dropped.held and dropped.raw_finite
-    np.testing.assert_array_equal(dropped.measured[:7], good[:7])
-    np.testing.assert_allclose(dropped.cluster, first.cluster)
+    first = step(0.0, good, ref).signals
+    assert first["frame"][0] == 0 and first["held"][0] == 0  # good, not held
+    dropped = step(0.03, np.full(11, np.nan), ref).signals
+    assert dropped["frame"][0] == 1 and dropped["held"][0] == 1 and dropped["raw_finite"][0] == 1
+    np.testing.assert_array_equal(dropped["used"][:7], good[:7])
+    np.testing.assert_allclose(dropped["cluster"], first["cluster"])
     glitch = good.copy()
     glitch[3:6] = [0.0, 0.0, 0.0]  # the UAV's marker read at the UGV
-    res = ctrl.compute(0.06, glitch, ref)
-    assert res.frame == "rejected" and res.held and np.all(np.isfinite(res.commands))
+    res = step(0.06, glitch, ref)
+    assert res.signals["frame"][0] == 2 and res.signals["held"][0] == 1 and np.all(np.isfinite(res.u))
     jump = good.copy()
     jump[3] += 1.5  # 1.5 m in 0.09 s: faster than a Bebop flies (K1/K2 = 4.6 m/s, Table 2)
-    assert ctrl.compute(0.09, jump, ref).frame == "rejected"
+    assert step(0.09, jump, ref).signals["frame"][0] == 2  # rejected
     moved = good.copy()
     moved[3] += 0.1  # 0.1 m in 0.12 s: possible
-    assert ctrl.compute(0.12, moved, ref).frame == "good"
+    assert step(0.12, moved, ref).signals["frame"][0] == 0  # good
     no_odometry = moved.copy()
     no_odometry[7:11] = np.nan  # the Bebop's own odometry, not the motion capture
-    res = ctrl.compute(0.15, no_odometry, ref)
-    assert res.frame == "good" and not res.held
-    np.testing.assert_array_equal(res.measured, moved)  # the pose read now, the last odometry
+    res = step(0.15, no_odometry, ref).signals
+    assert res["frame"][0] == 0 and res["held"][0] == 0
+    np.testing.assert_array_equal(res["used"], moved)  # the pose read now, the last odometry
 
 
 def test_controller_stops_safely_after_too_many_bad_frames():
     ctrl, ref = UgvUavController(max_hold_s=0.2), _overhead_reference()
+    step = _stepper(ctrl)
     good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.5, 0, 0, 0])
-    ctrl.compute(0.0, good, ref)
-    res = [ctrl.compute(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
-    assert [r.stopped for r in res].index(True) == 7  # 0.24 s after the last good frame
-    assert "no good frame" in res[-1].stop_reason and "max_hold_s = 0.2 s" in res[-1].stop_reason
-    assert res[-1].commands[0] == 0 and res[-1].commands[1] == 0 and res[-1].commands[2] < 0  # braking
-    assert ctrl.compute(0.5, good, ref).stopped  # a good frame does not restart it
+    step(0.0, good, ref)
+    res = [step(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
+    assert [r.signals["stopped"][0] == 1 for r in res].index(True) == 7  # 0.24 s after the last good frame
+    reason = res[-1].state.stop_reason
+    assert "no good frame" in reason and "max_hold_s = 0.2 s" in reason
+    assert res[-1].u[0] == 0 and res[-1].u[1] == 0 and res[-1].u[2] < 0  # braking
+    assert step(0.5, good, ref).signals["stopped"][0] == 1  # a good frame does not restart it
 
 
 def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():
@@ -223,7 +239,7 @@ def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():
     assert m["mocap_held_frames"] == m["mocap_dropped_frames"] + m["mocap_rejected_frames"]
     assert not m["run_stopped"] and m["nonfinite_commands"] == 0 and not m["reference_lost"]
     assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
-    assert np.all(np.isfinite(run.c)) and np.all(np.isfinite(run.c_continuous))
+    assert np.all(np.isfinite(run["cluster"])) and np.all(np.isfinite(run["c_continuous"]))
 
 
 def test_run_that_loses_the_motion_capture_stops_and_says_so():
@@ -232,7 +248,7 @@ def test_run_that_loses_the_motion_capture_stops_and_says_so():
     assert m["run_stopped"] and m["run_stopped_at_s"] <= 6.0
     assert m["run_stopped_reason"].startswith("motion capture: no good frame")
     after = run.t > m["run_stopped_at_s"]
-    assert np.all(run.u[after, 0] == 0) and np.all(run.u[after, 1] == 0)  # the UGV stays stopped
+    assert np.all(run["command"][after, 0] == 0) and np.all(run["command"][after, 1] == 0)  # the UGV stays stopped
 
 
 # -- huge finite positions -------------------------------------------------------------------------
@@ -271,7 +287,7 @@ def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():
 def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, tmp_path):
     sc = _short("marciano-front-to-over", uav_front_until_s=5.0, duration_s=12.0, transient_s=2.0)
     run = simulate_ugv_uav(sc, "restricted")
-    assert run.t.size == 401 and not run.reachable[0] and run.reachable[-1]
+    assert run.t.size == 401 and run["reachable"][0, 0] == 0 and run["reachable"][-1, 0] == 1
     figs = []
     monkeypatch.setattr(uplots, "save", lambda fig, path: figs.append(fig) or path)
     uplots.write_ugv_uav_run_plots(run, tmp_path)
@@ -338,10 +354,10 @@ def test_restricted_rate_maps_refuse_what_forward_refuses():
             f(r)
     c_up = F.forward(r * [1, 1, 1, 1, 1, -1])
     with pytest.raises(UnreachableError, match="below the platform"):
-        F.inverse_jacobian_at(c_up, r)
+        F.inverse_jacobian_at(c_up, r=r)
     with pytest.raises(UnreachableError, match="alpha_f = 70.5 deg is outside"):
         F.inverse_jacobian_at(c_up + [0, 0, 0, 0, 0.8, 0])  # what inverse refuses
-    assert F.inverse_jacobian_at(c_up, r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
+    assert F.inverse_jacobian_at(c_up, r=r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
 
 
 robot_pair = st.tuples(*(st.floats(-2.0, 2.0) for _ in range(6))).map(np.array)

@@ -11,8 +11,8 @@ import pytest
 from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError
 from quatform.formations import UgvUavQuaternion
+from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 from quatform.sim import load_scenario
-from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 
 LIMITS = {  # issue 4: (cluster / UGV, UAV) after the transient
     "marciano-circle": (0.1, 0.2),
@@ -41,14 +41,15 @@ def test_quaternion_formation_within_the_seeds_bounds(quaternion_runs, name):
     assert m["max_uav_position_error_m"] < uav_lim
     assert m["nonfinite_commands"] == 0 and not m["unreachable_reference"]
     assert not m["singularity_detected"]
-    assert np.all(np.isfinite(run.c)) and np.all(np.isfinite(run.u))
+    assert np.all(np.isfinite(run["cluster"])) and np.all(np.isfinite(run["command"]))
     # the recovered formation moves no more between samples than the robots explain
     assert m["max_unexplained_cluster_jump"] < 1e-6
     # the UAV takes off from the floor into the formation and stays above the floor
     sc = load_scenario(name)
-    assert run.uav[0, 2] == pytest.approx(-sc.floor_below_platform_m)
+    z_b = run["state"][:, 5]
+    assert z_b[0] == pytest.approx(-sc.floor_below_platform_m)
     late = run.t > sc.transient_s
-    assert np.all(run.uav[late, 2] > -sc.floor_below_platform_m + 0.1)
+    assert np.all(z_b[late] > -sc.floor_below_platform_m + 0.1)
 
 
 def test_spherical_flags_the_overhead_singularity():
@@ -59,7 +60,7 @@ def test_spherical_flags_the_overhead_singularity():
     assert not quat["singularity_detected"]
     # over the UGV alpha_c is undefined: its measured value jumps by ~pi between samples ...
     late = run_s.t > 20
-    d = run_s.measured[late, 3:6] - run_s.measured[late, 0:3]
+    d = run_s["r_measured"][late, 3:6] - run_s["r_measured"][late, 0:3]
     a = np.arctan2(d[:, 1], d[:, 0])
     assert np.abs((np.diff(a) + np.pi) % (2 * np.pi) - np.pi).max() > 2.0
     # ... the recovered spherical state jumps with no motion to explain it ...
@@ -78,18 +79,21 @@ def test_restricted_cannot_fly_ahead_at_platform_level():
     # description and join the formation once it is inside (the §5.3 switch at 60 s)
     assert len(run.t) == int(sc.duration_s / 0.03) + 1
     assert m["unreachable_reference_s"] == pytest.approx(60.0, abs=1.0)
-    assert np.all(np.isnan(run.c_des[~run.reachable])) and np.all(np.isfinite(run.c_des[run.reachable]))
+    reachable = run["reachable"][:, 0] == 1
+    assert np.all(np.isnan(run["c_des"][~reachable])) and np.all(np.isfinite(run["c_des"][reachable]))
     wait = run.t < 55
-    assert np.all(run.uav[wait, 2] < -0.25)  # the UAV stays on the floor
+    assert np.all(run["state"][wait, 5] < -0.25)  # the UAV stays on the floor
     assert not m["reference_lost"] and m["max_uav_position_error_m"] < 0.05
 
 
-def _fly(ctrl, ref, ugv, uav, seconds, dt=0.01):
+def _fly(ctrl, ref, ugv, uav, seconds, dt=0.01, state=None):
     from quatform.robots import Bebop, Pioneer
 
     p, b = Pioneer(), Bebop()
+    state = ctrl.init() if state is None else state
     for k in range(int(seconds / dt)):
-        u = ctrl.step(k * dt, np.r_[ugv, uav[0:4], uav[4:8]], ref)
+        s = ctrl.update(k * dt, np.r_[ugv, uav[0:4], uav[4:8]], ref, state)
+        u, state = s.u, s.state
         ugv, uav = p.step(ugv, u[0:2], dt), b.step(uav, u[2:6], dt)
     return ugv, uav
 
@@ -99,10 +103,10 @@ def test_emergency_stop_brakes_both_robots():
     e = np.array([0, 0, 0, 1.5, 0, np.pi / 2])
     c, cd = ctrl.formation.from_euclidean(e, np.zeros(6))
     ugv, uav = np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.5, 0.0, 1.0, 0.0, 0.0, 0.0])  # 1 m/s
-    ctrl.emergency_stop()
-    u = ctrl.step(0.0, np.r_[ugv, uav], Reference(c, cd))
+    stopped = ctrl.emergency_stop(ctrl.init())
+    u = ctrl.update(0.0, np.r_[ugv, uav], Reference(c, cd), stopped).u
     assert u[0] == 0 and u[1] == 0 and u[2] < 0  # the UGV stops, the UAV brakes
-    ugv2, uav2 = _fly(ctrl, Reference(c, cd), ugv, uav, 2.0)
+    ugv2, uav2 = _fly(ctrl, Reference(c, cd), ugv, uav, 2.0, state=stopped)
     # coasting (zero commands) would carry it 1.7 m in 2 s; braking at full command: 0.6 m
     assert np.linalg.norm(uav2[4:7]) < 0.05 and np.linalg.norm(uav2[0:2] - uav[0:2]) < 0.7
     np.testing.assert_array_equal(ugv2, ugv)
@@ -120,8 +124,8 @@ def test_lost_motion_capture_frame_brakes_instead_of_raising():
     ctrl = UgvUavController()
     c, cd = ctrl.formation.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6))
     m = np.array([0.0, 0, 0, np.nan, 0, 1.5, 0, 0.5, 0, 0, 0])
-    res = ctrl.compute(0.0, m, Reference(c, cd))
-    assert not res.raw_finite and np.all(np.isfinite(res.commands)) and res.commands[2] < 0
+    res = ctrl.update(0.0, m, Reference(c, cd), ctrl.init())
+    assert res.signals["raw_finite"][0] == 0 and np.all(np.isfinite(res.u)) and res.u[2] < 0
 
 
 def test_uav_speed_fraction_and_bad_measurements():

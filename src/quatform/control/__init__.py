@@ -13,7 +13,7 @@ from .quaternion import (
     dual_quaternion_lyapunov,
     quaternion_lyapunov,
 )
-from .ugv_uav import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UgvUavController, UgvUavStep
+from .ugv_uav import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UgvUavController, UgvUavState
 
 #: Controller classes by command-line name.
 CONTROLLERS = {
@@ -38,7 +38,7 @@ __all__ = [
     "TABLE2",
     "CONTROLLERS",
     "UgvUavController",
-    "UgvUavStep",
+    "UgvUavState",
     "UGV_UAV_MEASURED_NAMES",
     "UGV_UAV_COMMAND_NAMES",
 ]

@@ -1,15 +1,16 @@
-"""The controller contract: ``step(t, measured_robot_state, reference) -> robot commands``.
+"""The seed-000 pair controllers on the controller contract (:mod:`quatform.control.contract`).
 
-Control layer (beside robots, above formations). A controller holds its formation
-description, gains and the team's limits, and no hidden state, so the same object can
-drive a simulator or real robots: feed it the measured robot state and the desired
-cluster state and rate, send the commands it returns.
+Control layer (beside robots, above formations). A pair controller holds its formation
+description, gains and the team's limits, and no state (``init() -> None``), so the same
+object can drive a simulator or real robots: feed it the measured robot state and the
+desired cluster state and rate, send the commands it returns. ``update`` also returns the
+signals ``cluster`` (the measured cluster state), ``error`` and ``raw_finite``.
 """
 
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
+from abc import abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +20,7 @@ from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, Shap
 from ..formations.pair_kernels import pack
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, Formation, check_magnitude
 from ..robots import Team
+from . import contract
 
 __all__ = ["Reference", "StepResult", "Controller"]
 
@@ -122,8 +124,8 @@ def _checked(x, name, n):
     return check_magnitude(as_array(x, name, n), name)
 
 
-class Controller(ABC):
-    """Base of the cluster-space controllers of seed 000."""
+class Controller(contract.Controller):
+    """Base of the cluster-space controllers of seed 000: stateless (``init() -> None``)."""
 
     #: Name on the command line.
     name: str = ""
@@ -131,8 +133,20 @@ class Controller(ABC):
     team: Team
     feedforward: bool
 
-    def step(self, t: float, measured, reference: Reference) -> np.ndarray:
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        """``u_x1 ... u_theta2``: the rates of the robot variables."""
+        return tuple("u_" + v.name for v in self.formation.robot_variables)
+
+    def signal_columns(self) -> dict[str, tuple[str, ...]]:
+        """``cluster`` and ``error`` (the formation's variables) and ``raw_finite``."""
+        names = self.formation.names
+        return {"cluster": names, "error": names, "raw_finite": ("raw_finite",)}
+
+    def step(self, t: float, measured, reference: Reference = None) -> np.ndarray:
         """Robot commands (shape ``(..., n_r)``) for the measured robot state ``measured``.
+
+        Equal to ``update(t, measured, reference, init()).u``, without building the signals.
 
         Parameters
         ----------
@@ -148,15 +162,26 @@ class Controller(ABC):
             return self.team.saturate_floats(r_dot)  # one formation: no array round trip
         return self.team.saturate(pack(r_dot))
 
-    def compute(self, t: float, measured, reference: Reference) -> StepResult:
-        """One control step, with the intermediate quantities the simulator logs."""
+    def update(self, t: float, measured, reference: Reference, state=None) -> contract.Step:
+        """One control update: ``Step(u, None, {"cluster", "error", "raw_finite"})``.
+
+        ``raw_finite`` (shape ``(..., 1)``) is 1 where the unsaturated command was finite,
+        0 where it had a NaN or infinity (the team then stops).
+        """
         c, err, r_dot = self._control(*self._inputs(measured, reference))
         r_dot = pack(r_dot)
         if r_dot.ndim == 1:
-            finite = all(map(math.isfinite, r_dot.tolist()))
+            finite = np.array([1.0 if all(map(math.isfinite, r_dot.tolist())) else 0.0])
         else:
-            finite = np.all(np.isfinite(r_dot), axis=-1)
-        return StepResult(self.team.saturate(r_dot), pack(c), pack(err), finite)
+            finite = np.all(np.isfinite(r_dot), axis=-1, keepdims=True).astype(float)
+        return contract.Step(self.team.saturate(r_dot), None,
+                             {"cluster": pack(c), "error": pack(err), "raw_finite": finite})
+
+    def compute(self, t: float, measured, reference: Reference) -> StepResult:
+        """:meth:`update` as a :class:`StepResult` (for ``sim.loop.closed_loop``'s callers)."""
+        s = self.update(t, measured, reference, None)
+        ok = s.signals["raw_finite"][..., 0] > 0.5
+        return StepResult(s.u, s.signals["cluster"], s.signals["error"], bool(ok) if ok.ndim == 0 else ok)
 
     def _inputs(self, measured, reference):
         F = self.formation

@@ -40,12 +40,12 @@ TABLE2 = {
 class _ProportionalController(Controller):
     def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
-        c = F.forward(r, c_des)
+        c = F.forward(r, near_c=c_des)
         err = F.errors(c, c_des)
         c_cmd = -self.k * err
         if self.feedforward:
             c_cmd = c_cmd + c_dot_des
-        return c, err, np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r), c_cmd)
+        return c, err, np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), c_cmd)
 
 
 @dataclass(frozen=True)

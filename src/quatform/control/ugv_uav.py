@@ -15,7 +15,7 @@ velocity (from its own odometry). Commands (6 values): ``(v, omega, u_x, u_y, u_
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -25,10 +25,12 @@ from ..formations import UgvUavQuaternion
 from ..formations import geometry as g
 from ..formations.base import Formation
 from ..robots import Bebop, Pioneer, yaw_matrix
+from . import contract
 from .base import Reference
 from .quaternion import quaternion_feedback
 
-__all__ = ["UgvUavController", "UgvUavStep", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES"]
+__all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES",
+           "FRAME_CODES"]
 
 #: Layout of the 11 measured values the UGV-UAV controller reads.
 UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
@@ -36,31 +38,55 @@ UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "
 UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
 
 
-#: What the controller made of a motion-capture frame (``UgvUavStep.frame``).
+#: What the controller made of a motion-capture frame (the ``frame`` signal's values).
 FRAME_GOOD, FRAME_DROPPED, FRAME_REJECTED = "good", "dropped", "rejected"
+#: The ``frame`` signal's code of each frame class.
+FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
 
 
 @dataclass(frozen=True)
-class UgvUavStep:
-    """What one step computed: ``commands`` (6), ``cluster`` and ``error`` (formation's
-    size; NaN where the description cannot express the measured robots), ``robot_rates``
-    (the 6 world rates of eq. (4.42)), ``raw_finite``, ``stopped``; ``frame``: the
-    measurement was ``"good"``, ``"dropped"`` (NaN) or ``"rejected"`` (implausible);
-    ``held``: the last good measurement was used instead; ``outside``: the measured robots
-    were outside the formation's description (robot-space control was used);
-    ``measured``: the 11 values the step used (NaN where none was usable)."""
+class UgvUavState:
+    """The UGV-UAV controller's state between updates (one world).
 
-    commands: np.ndarray
-    cluster: np.ndarray
-    error: np.ndarray
-    robot_rates: np.ndarray
-    raw_finite: bool
-    stopped: bool
-    frame: str = FRAME_GOOD
-    held: bool = False
-    outside: bool = False
-    measured: np.ndarray | None = None
+    Attributes
+    ----------
+    v_prev : ndarray, shape (4,), or None
+        The Bebop's previous body-frame velocity reference ``v_r`` of (4.47) (None after a
+        brake or at the start: the next derivative is then not taken).
+    v_prev_t : float or None
+        Its time, s.
+    v_dot : ndarray, shape (4,)
+        The filtered derivative of ``v_r`` of (4.47).
+    stopped : bool
+        The emergency stop holds (:meth:`UgvUavController.emergency_stop`).
+    stop_reason : str
+        Why ("" when not stopped).
+    good : ndarray, shape (11,), or None
+        The last good motion-capture frame (with the odometry it used).
+    good_t : float or None
+        Its time, s.
+    bad_since : float or None
+        Time of the first bad frame of the current run of them (None while frames are good).
+    """
+
+    v_prev: np.ndarray | None = None
+    v_prev_t: float | None = None
+    v_dot: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    stopped: bool = False
     stop_reason: str = ""
+    good: np.ndarray | None = None
+    good_t: float | None = None
+    bad_since: float | None = None
+
+
+def _each(state, f):
+    """``f`` applied to one state, or to every world's state of a batched one (object array)."""
+    if isinstance(state, UgvUavState):
+        return f(state)
+    out = np.empty(np.shape(state), dtype=object)
+    for i in np.ndindex(out.shape):
+        out[i] = f(state[i])
+    return out
 
 
 def _positive(values, n, name):
@@ -70,7 +96,7 @@ def _positive(values, n, name):
     return v
 
 
-class UgvUavController:
+class UgvUavController(contract.Controller):
     """Seed 001's formation controller for a Pioneer 3-DX and a Bebop 2.
 
     Parameters
@@ -98,7 +124,7 @@ class UgvUavController:
     max_hold_s : float
         Longest time, s, the last good measurement stands in for dropped (NaN) or rejected
         frames; beyond it the controller stops both robots (:meth:`emergency_stop`) and
-        says so in ``UgvUavStep.stop_reason``.
+        says so in the state's ``stop_reason``.
     speed_margin, jump_margin_m : float
         A frame is implausible when a robot moved farther since the last good frame than
         ``speed_margin`` times its top speed (the Pioneer's control point:
@@ -138,39 +164,81 @@ class UgvUavController:
         self.arena = np.asarray(arena, dtype=float)
         if self.arena.shape != (3, 2) or np.any(self.arena[:, 0] >= self.arena[:, 1]):
             raise InvalidInputError(f"arena must be ((x_min, x_max), (y_min, y_max), (z_min, z_max)), got {arena!r}")
-        self.reset()
 
     @property
     def name(self) -> str:
         return self.formation.name
 
-    # -- state: the compensation's derivative and the emergency stop ------------------
-    def reset(self):
-        """Forget the previous velocity reference and measurement; release the emergency stop."""
-        self._prev = None
-        self._vdot = np.zeros(4)
-        self.stopped = False
-        self.stop_reason = ""
-        self._good = None  # (t, measured) of the last good frame
-        self._bad_since = None  # time of the first bad frame of the current run of them
+    command_names = UGV_UAV_COMMAND_NAMES
 
-    def emergency_stop(self, reason: str = "emergency stop"):
-        """Halt both robots until :meth:`release`: the UGV stops, the UAV brakes to a hover
-        (the compensation law with a zero velocity reference, rate ``L_d``)."""
-        self.stopped = True
-        self.stop_reason = reason
+    def signal_columns(self) -> dict[str, tuple[str, ...]]:
+        """``cluster``, ``error`` (the formation's variables), ``robot_rates`` (the 6 world rates
+        of eq. (4.42)), ``raw_finite``, ``stopped``, ``frame`` (0 good, 1 dropped, 2 rejected),
+        ``held``, ``outside`` and ``used`` (the 11 measured values the step used)."""
+        names = self.formation.names
+        return {"cluster": names, "error": names,
+                "robot_rates": ("x_dot_p", "y_dot_p", "z_dot_p", "x_dot_b", "y_dot_b", "z_dot_b"),
+                "raw_finite": ("raw_finite",), "stopped": ("stopped",), "frame": ("frame",),
+                "held": ("held",), "outside": ("outside",), "used": UGV_UAV_MEASURED_NAMES}
 
-    def release(self):
-        self.stopped = False
-        self.stop_reason = ""
-        self._bad_since = None
-        self._prev = None
-        self._vdot = np.zeros(4)
+    # -- state: the compensation's derivative, the screening and the emergency stop -----
+    def init(self, batch: tuple = ()):
+        """The state before the first update: no previous reference or frame, not stopped.
+
+        With ``batch`` axes: an object array of that shape holding one :class:`UgvUavState`
+        per world."""
+        return _each(np.empty(tuple(batch), dtype=object) if batch else UgvUavState(), lambda s: UgvUavState())
+
+    def emergency_stop(self, state, reason: str = "emergency stop"):
+        """``state`` with both robots halted until :meth:`release`: the UGV stops, the UAV
+        brakes to a hover (the compensation law with a zero velocity reference, rate ``L_d``)."""
+        return _each(state, lambda s: replace(s, stopped=True, stop_reason=reason))
+
+    def release(self, state):
+        """``state`` with the emergency stop released and the derivative of (4.47) restarted."""
+        return _each(state, lambda s: replace(s, stopped=False, stop_reason="", bad_since=None, v_prev=None,
+                                              v_prev_t=None, v_dot=np.zeros(4)))
 
     # -- the chain of Fig. 18 ---------------------------------------------------------
-    def step(self, t: float, measured, reference: Reference) -> np.ndarray:
-        """Commands ``(v, omega, u_x, u_y, u_z, u_psi)`` for the measured state (11 values)."""
-        return self.compute(t, measured, reference).commands
+    def update(self, t: float, measured, reference, state) -> contract.Step:
+        """One step of Fig. 18 (:meth:`_update_one` per world).
+
+        Parameters
+        ----------
+        t : float
+            Time, s.
+        measured : array_like, shape (..., 11)
+            :data:`UGV_UAV_MEASURED_NAMES`; leading axes are worlds.
+        reference : Reference
+            ``c``, ``c_dot`` of shape ``(..., n_c)`` (or one for every world). A ``c`` with a
+            NaN (or ``reference=None``) means no reference the description can express: both
+            robots brake (the UGV stops, the UAV brakes to a hover or stays on the floor).
+        state : UgvUavState or object array of them (from :meth:`init`)
+
+        Returns
+        -------
+        Step
+            ``u`` of shape ``(..., 6)``, the next state and the signals of :meth:`signal_columns`.
+        """
+        if isinstance(state, UgvUavState):
+            return self._update_one(t, measured, reference, state)
+        m = np.asarray(measured, dtype=float)
+        batch = np.shape(state)
+        m = np.broadcast_to(m, batch + m.shape[-1:])
+        c = None if reference is None else np.broadcast_to(np.asarray(reference.c, float), batch + (self.formation.n_c,))
+        cd = None if reference is None else np.broadcast_to(np.asarray(reference.c_dot, float),
+                                                            batch + (self.formation.n_c,))
+        us, nxt, sig = [], np.empty(batch, dtype=object), {k: [] for k in self.signal_columns()}
+        for i in np.ndindex(batch):
+            ref = None if reference is None else Reference(c[i], cd[i])
+            s = self._update_one(t, m[i], ref, state[i])
+            us.append(s.u)
+            nxt[i] = s.state
+            for k, v in s.signals.items():
+                sig[k].append(v)
+        cols = self.signal_columns()
+        return contract.Step(np.reshape(us, batch + (6,)), nxt,
+                             {k: np.reshape(v, batch + (len(cols[k]),)) for k, v in sig.items()})
 
     def cluster_rates(self, c, c_des, c_dot_des):
         """Cluster error and rate reference, eqs. (4.43)-(4.45)."""
@@ -196,14 +264,15 @@ class UgvUavController:
         b = self.bebop
         return np.r_[0.0, 0.0, b.saturate((-self.l_d * v + b.k_v * v) / b.k_u)]
 
-    def screen(self, t: float, m: np.ndarray):
+    def screen(self, state: UgvUavState, t: float, m: np.ndarray):
         """Classify the motion-capture frame ``m`` (11 values) at time ``t``.
 
-        Returns ``(frame, measured)``: ``frame`` is ``"good"``, ``"dropped"`` (a NaN or
-        infinity in the poses, the first 7 values) or ``"rejected"`` (the robots within ``min_separation_m`` of each
-        other, or one of them farther from its last good position than its top speed
-        allows in the time since, plus ``jump_margin_m``); ``measured`` is ``m`` if good,
-        else the last good frame, or None if there is none yet.
+        Returns ``(frame, measured, state)``: ``frame`` is ``"good"``, ``"dropped"`` (a NaN or
+        infinity in the poses, the first 7 values) or ``"rejected"`` (the robots within
+        ``min_separation_m`` of each other, or one of them farther from its last good
+        position than its top speed allows in the time since, plus ``jump_margin_m``);
+        ``measured`` is ``m`` if good, else the last good frame, or None if there is none
+        yet; ``state`` remembers the good frame or the start of the run of bad ones.
         """
         if not np.all(np.isfinite(m[0:7])):
             frame = FRAME_DROPPED
@@ -212,112 +281,113 @@ class UgvUavController:
             frame = FRAME_GOOD
             if np.linalg.norm(p_uav - p_ugv) < self.min_separation_m:
                 frame = FRAME_REJECTED
-            elif self._good is not None:
-                dt = max(t - self._good[0], 0.0)
-                g_ = self._good[1]
+            elif state.good is not None:
+                dt = max(t - state.good_t, 0.0)
+                g_ = state.good
                 if (np.hypot(m[0] - g_[0], m[1] - g_[1]) > self._top_speed[0] * dt + self.jump_margin_m
                         or np.linalg.norm(m[3:6] - g_[3:6]) > self._top_speed[1] * dt + self.jump_margin_m):
                     frame = FRAME_REJECTED
         if frame == FRAME_GOOD:
             if not np.all(np.isfinite(m[7:11])):  # the Bebop's odometry: the last finite one, or rest
                 m = np.r_[m[0:7], np.where(np.isfinite(m[7:11]), m[7:11],
-                                           0.0 if self._good is None else self._good[1][7:11])]
-            self._good, self._bad_since = (t, m.copy()), None
-            return frame, m
-        if self._bad_since is None:
-            self._bad_since = t
-        return frame, (None if self._good is None else self._good[1])
+                                           0.0 if state.good is None else state.good[7:11])]
+            return frame, m, replace(state, good=m.copy(), good_t=t, bad_since=None)
+        if state.bad_since is None:
+            state = replace(state, bad_since=t)
+        return frame, state.good, state
 
-    def _screened(self, t, measured):
-        """``(frame, measured to use or None, held)`` (:meth:`screen`); stops both robots
-        after ``max_hold_s`` without a good frame."""
+    def _screened(self, state, t, measured):
+        """``(frame, measured to use or None, held, raw measured, state)`` (:meth:`screen`);
+        stops both robots after ``max_hold_s`` without a good frame."""
         m = np.asarray(measured, dtype=float)
         if m.shape != (11,):
             m = as_array(measured, "measured state", 11)
-        frame, used = self.screen(t, m)
-        if frame != FRAME_GOOD and not self.stopped and t - self._bad_since > self.max_hold_s + 1e-9:
-            self.emergency_stop(f"motion capture: no good frame for {t - self._bad_since:.3g} s (more than "
-                                f"max_hold_s = {self.max_hold_s:g} s) from t = {self._bad_since:.6g} s; both robots "
-                                "stopped")
+        frame, used, state = self.screen(state, t, m)
+        if frame != FRAME_GOOD and not state.stopped and t - state.bad_since > self.max_hold_s + 1e-9:
+            state = replace(state, stopped=True, stop_reason=(
+                f"motion capture: no good frame for {t - state.bad_since:.3g} s (more than max_hold_s = "
+                f"{self.max_hold_s:g} s) from t = {state.bad_since:.6g} s; both robots stopped"))
         if used is None or frame == FRAME_GOOD:
-            return frame, used, False
+            return frame, used, False, m, state
         # the pose is held; the Bebop's own odometry is not from the motion capture
-        return frame, np.r_[used[0:7], np.where(np.isfinite(m[7:11]), m[7:11], used[7:11])], True
+        return frame, np.r_[used[0:7], np.where(np.isfinite(m[7:11]), m[7:11], used[7:11])], True, m, state
 
-    def _braking(self, m, c, frame, held=False, outside=False, used=None) -> UgvUavStep:
-        self._prev = None
-        m = np.asarray(m, dtype=float)
-        return UgvUavStep(self._brake(m), c, np.full_like(c, np.nan), np.zeros(6), used is not None,
-                          self.stopped, frame, held, outside, used, self.stop_reason)
+    def _step(self, state, u, c, err, x_rate, finite, frame, held, outside, used) -> contract.Step:
+        nan11 = np.full(11, np.nan)
+        return contract.Step(u, state, {
+            "cluster": c, "error": err, "robot_rates": x_rate, "raw_finite": np.array([float(finite)]),
+            "stopped": np.array([float(state.stopped)]), "frame": np.array([float(FRAME_CODES[frame])]),
+            "held": np.array([float(held)]), "outside": np.array([float(outside)]),
+            "used": nan11 if used is None else np.asarray(used, dtype=float)})
 
-    def hold(self, t: float, measured) -> UgvUavStep:
-        """A step without a reference (none the description can express at ``t``): the
-        frame is screened as by :meth:`compute` and both robots brake (the UGV stops, the
-        UAV brakes to a hover, or stays on the floor)."""
+    def _braking(self, state, m, c, frame, held=False, outside=False, used=None) -> contract.Step:
+        state = replace(state, v_prev=None, v_prev_t=None)
+        return self._step(state, self._brake(np.asarray(m, dtype=float)), c, np.full_like(c, np.nan), np.zeros(6),
+                          used is not None, frame, held, outside, used)
+
+    def _update_one(self, t: float, measured, reference, state: UgvUavState) -> contract.Step:
+        """One step for one world. A dropped (NaN) or implausible motion-capture frame
+        (:meth:`screen`) is replaced by the last good one for up to ``max_hold_s``; without
+        one, or for longer, both robots brake (then stay stopped, :meth:`emergency_stop`).
+        Robots the description cannot express (the restricted one, the UAV below the
+        platform) are driven in robot space toward the reference's robot positions (seed
+        000 §3.1). A reference ``c`` with a NaN: the frame is screened and both robots brake."""
         F = self.formation
-        frame, m, held = self._screened(t, measured)
-        if m is None:
-            return self._braking(measured, np.full(F.n_c, np.nan), frame)
-        r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
-        outside = bool(F.outside(r))
-        c = np.full(F.n_c, np.nan) if outside else F.forward(r)
-        return self._braking(m, c, frame, held, outside, m)
-
-    def compute(self, t: float, measured, reference: Reference) -> UgvUavStep:
-        """One step. A dropped (NaN) or implausible motion-capture frame (:meth:`screen`) is
-        replaced by the last good one for up to ``max_hold_s``; without one, or for longer,
-        both robots brake (then stay stopped, :meth:`emergency_stop`). Robots the
-        description cannot express (the restricted one, the UAV below the platform) are
-        driven in robot space toward the reference's robot positions (seed 000 §3.1)."""
-        F = self.formation
-        c_des = as_array(reference.c, "reference.c", F.n_c)
-        c_dot = as_array(reference.c_dot, "reference.c_dot", F.n_c)
-        frame, m, held = self._screened(t, measured)
         nan_c = np.full(F.n_c, np.nan)
+        hold = reference is None
+        if not hold:
+            c_des = np.asarray(reference.c, dtype=float)
+            hold = c_des.shape == (F.n_c,) and bool(np.any(np.isnan(c_des)))
+        if not hold:
+            c_des = as_array(reference.c, "reference.c", F.n_c)
+            c_dot = as_array(reference.c_dot, "reference.c_dot", F.n_c)
+        frame, m, held, raw, state = self._screened(state, t, measured)
         if m is None:  # nothing to go on: brake (the odometry's velocities where finite)
-            return self._braking(measured, nan_c, frame)
+            return self._braking(state, raw, nan_c, frame)
         r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
+        if hold:
+            outside = bool(F.outside(r))
+            return self._braking(state, m, nan_c if outside else F.forward(r), frame, held, outside, m)
         ff = 1.0 if self.feedforward else 0.0
         try:
-            c = F.forward(r, c_des)
+            c = F.forward(r, near_c=c_des)
             outside = False
             err, c_rate = self.cluster_rates(c, c_des, c_dot)
-            x_rate = F.inverse_jacobian_at(c, r) @ c_rate  # (4.42)
+            x_rate = F.inverse_jacobian_at(c, r=r) @ c_rate  # (4.42)
         except UnreachableError:
             # robot-space control (seed 000 §3.1): track INVKIN(c_des) with the position law
             # of (4.43) on each robot, r_dot = r_dot_des - K_x tanh(r - r_des)
             c, err, outside = nan_c, nan_c, True
             r_des = F.inverse(c_des)
-            x_rate = ff * (F.inverse_jacobian_at(c_des, r_des) @ c_dot) - np.r_[self.k_x, self.k_x] * np.tanh(r - r_des)
+            x_rate = ff * (F.inverse_jacobian_at(c_des, r=r_des) @ c_dot) - np.r_[self.k_x, self.k_x] * np.tanh(r - r_des)
         finite = bool(np.all(np.isfinite(x_rate)))
         if not finite:
             x_rate = np.zeros(6)
         x_rate = self._keep_inside(m, x_rate)
-        if self.stopped:
-            self._prev = None
-            return UgvUavStep(self._brake(m), c, err, x_rate, finite, True, frame, held, outside, m,
-                              self.stop_reason)
-        return self._commands(t, m, c, err, x_rate, finite, frame, held, outside)
+        if state.stopped:
+            state = replace(state, v_prev=None, v_prev_t=None)
+            return self._step(state, self._brake(m), c, err, x_rate, finite, frame, held, outside, m)
+        u, state = self._commands(state, t, m, x_rate)
+        return self._step(state, u, c, err, x_rate, finite, frame, held, outside, m)
 
-    def _commands(self, t, m, c, err, x_rate, finite, frame, held, outside) -> UgvUavStep:
+    def _commands(self, state, t, m, x_rate):
         """Robot commands for the world rates ``x_rate``: (3.5), (3.10), (4.47)-(4.51)."""
         ugv = self.pioneer.saturate(self.pioneer.commands_from_velocity(m[2], x_rate[0:2]))  # (3.5)
         psi_rate = self.k_psi * np.tanh(g.wrap(m[2] - m[6]))  # (4.50)-(4.51), psi_bd = psi_p
         v_r = yaw_matrix(-m[6]) @ np.r_[x_rate[3:6], psi_rate]  # (3.10): A_b^-1 = A_b(-psi)
         b = self.bebop
+        v_dot = state.v_dot
         if self.compensation:
-            if self._prev is not None and t > self._prev[0]:
-                raw = (v_r - self._prev[1]) / (t - self._prev[0])
+            if state.v_prev is not None and t > state.v_prev_t:
+                raw = (v_r - state.v_prev) / (t - state.v_prev_t)
                 # first-order filter on the differentiated reference (it carries the noise)
-                alpha = (t - self._prev[0]) / (self.derivative_filter_s + t - self._prev[0])
-                self._vdot = self._vdot + alpha * (raw - self._vdot)
+                alpha = (t - state.v_prev_t) / (self.derivative_filter_s + t - state.v_prev_t)
+                v_dot = v_dot + alpha * (raw - v_dot)
             v = m[7:11]
-            u = (self._vdot + self.l_d * (v_r - v) + b.k_v * v) / b.k_u  # (4.47)-(4.49)
+            u = (v_dot + self.l_d * (v_r - v) + b.k_v * v) / b.k_u  # (4.47)-(4.49)
         else:
             u = b.k_v / b.k_u * v_r
-        self._prev = (t, v_r)
-        cmd = np.r_[ugv, b.saturate(u)]
-        return UgvUavStep(cmd, c, err, x_rate, finite, False, frame, held, outside, m)
+        return np.r_[ugv, b.saturate(u)], replace(state, v_prev=v_r, v_prev_t=t, v_dot=v_dot)
 
     def _keep_inside(self, m, x_rate):
         """Slow velocity components toward an arena wall to ``wall_gain`` times the distance

@@ -1,11 +1,19 @@
-"""Formations layer: cluster-space descriptions of robot teams (seed 000).
+"""Formations layer: cluster-space descriptions of robot teams (seeds 000 and 001).
 
 Sits above :mod:`quatform.algebra` and below robots, control and references. Every
-description implements :class:`Formation`: ``forward``, ``inverse``, ``jacobian``,
-``inverse_jacobian``, ``singularity_measure``, ``euclidean`` and ``from_euclidean``.
+description implements :class:`Formation` over a :class:`RobotLayout`: ``forward`` and
+``inverse`` (branch choices as keywords: ``near_c``, ``near_r``), the rate maps
+``cluster_rate`` and ``robot_rate`` (the dense ``jacobian``, ``inverse_jacobian_at`` and
+``inverse_jacobian`` derive from them), ``singularity_measure``, the operator's chart
+(``to_chart``, ``from_chart``; ``euclidean`` and ``from_euclidean`` are aliases),
+``reachable``, ``sample_robot_state`` and ``special_sets``. A new description is one
+module here and one entry in :data:`FORMATIONS`; ``tests/test_formation_contract.py``
+then runs :func:`quatform.formations.testing.check_formation` over it.
 """
 
-from .base import ROBOT_PAIR_VARIABLES, Formation, Variable
+from .base import PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, Formation, Variable
+from .layout import POINT_KINDS, RobotLayout
+from .special_sets import SpecialSet
 from .dual_quaternion_pair import DualQuaternionPair
 from .euclidean_pair import (
     EUCLIDEAN_VARIABLES,
@@ -16,20 +24,29 @@ from .euclidean_pair import (
 from .quaternion_pair import QuaternionPair
 from .ugv_uav import (
     SPHERICAL_VARIABLES,
+    UGV_UAV_LAYOUT,
     UGV_UAV_VARIABLES,
     UgvUavQuaternion,
     UgvUavRestricted,
     UgvUavSpherical,
 )
 
-#: Descriptions by name.
+#: Every description by a unique key: the two-robot ones of seed 000 by their name
+#: (``euclidean``, ``robot``, ``quaternion``, ``dual-quaternion``), the UGV-UAV ones of seed
+#: 001 as ``ugv-uav-<name>`` (``ugv-uav-spherical``, ``ugv-uav-restricted``, ``ugv-uav-quaternion``).
 FORMATIONS = {
-    f.name: f for f in (EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair())
+    **{f.name: f for f in (EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair())},
+    **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
 }
 
 __all__ = [
     "Formation",
     "Variable",
+    "RobotLayout",
+    "POINT_KINDS",
+    "PAIR_LAYOUT",
+    "UGV_UAV_LAYOUT",
+    "SpecialSet",
     "ROBOT_PAIR_VARIABLES",
     "EUCLIDEAN_VARIABLES",
     "EuclideanPair",

@@ -2,34 +2,40 @@
 
 Second layer of quatform (above :mod:`quatform.algebra`). A formation maps the stacked
 robot state ``r`` (shape ``(..., n_r)``) to the cluster state ``c`` (shape ``(..., n_c)``)
-and back, gives the Jacobians the controllers need, says how close a state is to a
-singular pose, and converts its state to operator-friendly Euclidean variables. The
-controllers, the references and the simulator only use this interface, so an N-robot
-representation plugs in by subclassing :class:`Formation`.
+and back, gives the rate maps the controllers need (``cluster_rate``: ``c_dot = J(r)
+r_dot``; ``robot_rate``: ``r_dot = dINVKIN(c) c_dot``, the primitive; the dense Jacobians
+are derived from them), says how close a state is to a singular pose, and converts its
+state to the operator's chart (Euclidean variables for pairs, spherical ones for UGV-UAV).
+The robot state is laid out by a :class:`~.layout.RobotLayout` (N robots, each of a point
+kind), which computes slices, separations and yaw winding. The controllers, the
+references and the simulator only use this interface, so an N-robot representation
+plugs in by subclassing :class:`Formation`; ``formations.testing.check_formation`` is its
+contract test.
 
 Choices that a representation leaves open (the sign of a quaternion, the branch of a
-square root, the 2 pi of an angle, the twist of a segment's frame) are resolved by a
-``hint``: a cluster state to stay closest to. Controllers pass the desired state, so the
-measured state is expressed on the same sheet as the reference; without a hint the seed's
-printed convention is used.
+square root, the 2 pi of an angle, the twist of a segment's frame) are resolved by typed
+keyword arguments, one meaning each: ``near_c`` (a cluster state to stay closest to),
+``near_r`` (a robot state whose yaws to unwrap near), ``near_e`` (chart variables to stay
+closest to) and ``r`` (the robots of a cluster state, where the state alone does not fix
+the branch). Controllers pass the desired state as ``near_c``, so the measured state is
+expressed on the same sheet as the reference; without one the seed's printed convention
+is used.
 """
 
 from __future__ import annotations
 
-import functools
-import math
 from abc import ABC, abstractmethod
 
 import numpy as np
 
 from ..algebra import wrap_angle
 from ..algebra.validate import as_array
-from ..errors import DegenerateInputError, InvalidInputError
+from ..errors import InvalidInputError
 from .layout import RobotLayout, Variable
+from .special_sets import SpecialSet
 
-__all__ = ["Variable", "Formation", "ROBOT_PAIR_VARIABLES", "MIN_SEPARATION_M", "MAX_MAGNITUDE"]
-
-_TWO_PI = 2.0 * math.pi
+__all__ = ["Variable", "Formation", "SpecialSet", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
+           "MAX_MAGNITUDE"]
 
 #: Closest two robots may be (m); below it a two-robot formation is undefined.
 MIN_SEPARATION_M = 1e-9
@@ -53,21 +59,10 @@ def check_magnitude(a, name):
     return a
 
 
-def _robot_pair_variables():
-    out = []
-    for i in (1, 2):
-        out += [Variable(f"x{i}", "m", "position"), Variable(f"y{i}", "m", "position"),
-                Variable(f"z{i}", "m", "position"), Variable(f"theta{i}", "rad", "angle")]
-    return tuple(out)
-
-
-#: Robot space of two 4-DOF robots: ``r = (x1, y1, z1, theta1, x2, y2, z2, theta2)``.
-ROBOT_PAIR_VARIABLES = _robot_pair_variables()
-
-
-@functools.lru_cache(maxsize=None)
-def _angle_indices(variables):
-    return tuple(i for i, v in enumerate(variables) if v.kind == "angle")
+#: Two 4-DOF robots (seed 000): ``r = (x1, y1, z1, theta1, x2, y2, z2, theta2)``.
+PAIR_LAYOUT = RobotLayout.uniform("xyz_yaw", 2)
+#: The pair layout's variables.
+ROBOT_PAIR_VARIABLES = PAIR_LAYOUT.variables
 
 
 def quaternion_variables(prefix: str):
@@ -77,16 +72,27 @@ def quaternion_variables(prefix: str):
 class Formation(ABC):
     """Cluster-space representation of a team of robots.
 
-    Subclasses set :attr:`name`, :attr:`variables` and implement the abstract methods.
-    Every method accepts leading batch axes.
+    Subclasses set :attr:`name`, :attr:`variables`, :attr:`layout`,
+    :attr:`chart_variables` and implement the abstract methods. Every method accepts
+    leading batch axes.
     """
 
     #: Short name used on the command line and in files.
     name: str = ""
     #: Layout of the cluster state vector.
     variables: tuple[Variable, ...] = ()
-    #: Layout of the robot state vector.
-    robot_variables: tuple[Variable, ...] = ROBOT_PAIR_VARIABLES
+    #: The robots and their points; :attr:`robot_variables` is its variables.
+    layout: RobotLayout = PAIR_LAYOUT
+    #: The operator's chart: the variables :meth:`to_chart` gives and :meth:`from_chart`
+    #: takes (the seed-000 Euclidean variables for pairs, the spherical ones for UGV-UAV).
+    chart_variables: tuple[Variable, ...] = ()
+    #: Blocks of the cluster state whose sign means nothing (``q`` and ``-q`` are one state).
+    sign_free: tuple[slice, ...] = ()
+
+    @property
+    def robot_variables(self) -> tuple[Variable, ...]:
+        """Layout of the robot state vector (:attr:`layout`'s variables)."""
+        return self.layout.variables
 
     @property
     def n_c(self) -> int:
@@ -94,7 +100,7 @@ class Formation(ABC):
 
     @property
     def n_r(self) -> int:
-        return len(self.robot_variables)
+        return self.layout.size
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -109,60 +115,115 @@ class Formation(ABC):
         """Finite ``(..., n_c)`` array, entries within :data:`MAX_MAGNITUDE`."""
         return check_magnitude(as_array(c, name, self.n_c), name)
 
-    @staticmethod
-    def _check_separation(delta, name="r"):
-        d = np.sqrt(np.einsum("...i,...i->...", delta, delta))
-        if np.any(d < MIN_SEPARATION_M):
-            idx = np.argwhere(np.atleast_1d(d < MIN_SEPARATION_M))[0]
-            raise DegenerateInputError(
-                f"{name}: the two robots coincide (separation {float(np.atleast_1d(d)[tuple(idx)]):.3g} m"
-                f" at index {tuple(int(i) for i in idx)}); a formation of two robots needs them apart"
-            )
-        return d
+    def check_apart(self, r, name: str = "r", separations=None) -> None:
+        """Raise DegenerateInputError (naming the robots) if two robots of ``r`` are closer than
+        :data:`MIN_SEPARATION_M`; ``separations`` (m, any shape), if the caller has them, make
+        the check one comparison where every robot is apart."""
+        if separations is not None and not np.any(np.asarray(separations) < MIN_SEPARATION_M):
+            return
+        self.layout.check_apart(r, MIN_SEPARATION_M, name)
 
     # -- the contract -----------------------------------------------------------------
     @abstractmethod
-    def forward(self, r, hint=None) -> np.ndarray:
-        """Cluster state of robot state ``r``: ``c = KIN(r)``, shape ``(..., n_c)``."""
+    def forward(self, r, *, near_c=None) -> np.ndarray:
+        """Cluster state of robot state ``r``: ``c = KIN(r)``, shape ``(..., n_c)``.
 
-    @abstractmethod
-    def inverse(self, c, hint=None) -> np.ndarray:
-        """Robot state of cluster state ``c``: ``r = INVKIN(c)``, shape ``(..., n_r)``.
-
-        ``hint`` (a robot state) picks the branch where the inverse is not unique.
+        ``near_c`` (a cluster state, ``(..., n_c)``) picks the branch (sign, twist, 2 pi)
+        closest to it where the description leaves one open.
         """
 
     @abstractmethod
-    def jacobian(self, r, hint=None) -> np.ndarray:
-        """``J`` with ``c_dot = J(r) r_dot``, shape ``(..., n_c, n_r)``."""
+    def inverse(self, c, *, near_r=None) -> np.ndarray:
+        """Robot state of cluster state ``c``: ``r = INVKIN(c)``, shape ``(..., n_r)``.
 
-    def inverse_jacobian(self, r, hint=None) -> np.ndarray:
-        """Derivative of ``INVKIN`` at ``c = forward(r, hint)``, shape ``(..., n_r, n_c)``.
+        ``near_r`` (a robot state, ``(..., n_r)``) picks the branch where the inverse is not
+        unique (the robots' yaws are unwrapped to within pi of its).
+        """
+
+    @abstractmethod
+    def cluster_rate(self, r, r_dot, *, near_c=None) -> np.ndarray:
+        """``c_dot = J(r) r_dot`` at ``c = forward(r, near_c=near_c)``: the rate of the cluster
+        state as the robots move at ``r_dot``.
+
+        Parameters
+        ----------
+        r : array_like, shape (..., n_r)
+        r_dot : array_like, shape (..., n_r)
+            Robot rates (m/s, rad/s); broadcast against ``r``.
+        near_c : array_like, shape (..., n_c), optional
+            As in :meth:`forward`.
+
+        Returns
+        -------
+        ndarray, shape (broadcast of the batch axes) + (n_c,)
+        """
+
+    @abstractmethod
+    def robot_rate(self, c, c_dot, *, r=None) -> np.ndarray:
+        """``r_dot = dINVKIN(c) c_dot``: the robots' rates of the cluster rate ``c_dot``.
+
+        Finite for every reachable state; where the representation is singular the map
+        loses rank instead of blowing up.
+
+        Parameters
+        ----------
+        c : array_like, shape (..., n_c)
+        c_dot : array_like, shape (..., n_c)
+            Broadcast against ``c``.
+        r : array_like, shape (..., n_r), optional
+            The robots of ``c``, for a description whose inverse has several branches.
+
+        Returns
+        -------
+        ndarray, shape (broadcast of the batch axes) + (n_r,)
+        """
+
+    @staticmethod
+    def _basis(n, batch_ndim):
+        """The ``n`` unit vectors on a leading axis, ``(n, 1, ..., 1, n)``, to broadcast against a batch."""
+        return np.eye(n).reshape((n,) + (1,) * batch_ndim + (n,))
+
+    def jacobian(self, r, *, near_c=None) -> np.ndarray:
+        """``J`` with ``c_dot = J(r) r_dot`` at ``c = forward(r, near_c=near_c)``, shape ``(..., n_c, n_r)``.
+
+        :meth:`cluster_rate` applied to the unit vectors (one batched call).
+        """
+        r = self.check_robot_state(r)
+        cols = self.cluster_rate(r, self._basis(self.n_r, r.ndim - 1), near_c=near_c)
+        return np.ascontiguousarray(np.moveaxis(cols, 0, -1))
+
+    def inverse_jacobian_at(self, c, *, r=None) -> np.ndarray:
+        """Derivative of ``INVKIN`` at the cluster state ``c``; ``r``, the robots of ``c``,
+        picks the branch where ``INVKIN`` has several (shape ``(..., n_r, n_c)``).
+
+        :meth:`robot_rate` applied to the unit vectors (one batched call).
+        """
+        c = np.asarray(c, dtype=float)
+        cols = self.robot_rate(c, self._basis(self.n_c, c.ndim - 1), r=r)
+        return np.ascontiguousarray(np.moveaxis(cols, 0, -1))
+
+    def inverse_jacobian(self, r, *, near_c=None) -> np.ndarray:
+        """Derivative of ``INVKIN`` at ``c = forward(r, near_c=near_c)``, shape ``(..., n_r, n_c)``.
 
         The matrix the seed's controllers use to turn cluster rates into robot rates:
         ``r_dot = J^-1 c_dot``. It is finite for every reachable state; where the
         representation is singular it loses rank instead of blowing up.
         """
         r = self.check_robot_state(r)
-        return self.inverse_jacobian_at(self.forward(r, hint), r)
+        return self.inverse_jacobian_at(self.forward(r, near_c=near_c), r=r)
 
     @abstractmethod
-    def inverse_jacobian_at(self, c, r=None) -> np.ndarray:
-        """Derivative of ``INVKIN`` at the cluster state ``c``; ``r``, the robots of ``c``,
-        picks the branch where ``INVKIN`` has several (shape ``(..., n_r, n_c)``)."""
+    def to_chart(self, c, *, near_e=None, r=None) -> np.ndarray:
+        """The operator's chart variables (:attr:`chart_variables`) of the cluster state ``c``,
+        shape ``(..., len(chart_variables))``.
 
-    @abstractmethod
-    def euclidean(self, c, hint=None, r=None) -> np.ndarray:
-        """Operator-friendly Euclidean variables ``(x_c, y_c, z_c, beta_c, gamma_c, d_c,
-        phi_1, phi_2)`` of the cluster state ``c``, shape ``(..., 8)``.
-
-        ``hint``: Euclidean variables to stay closest to (the desired ones, for monitoring);
+        ``near_e``: chart variables to stay closest to (the desired ones, for monitoring);
         ``r``: the robots of ``c``, for a description whose state does not fix them.
         """
 
     @abstractmethod
-    def from_euclidean(self, e, e_dot=None):
-        """Cluster state (and rate) of Euclidean variables ``e`` (and rates ``e_dot``).
+    def from_chart(self, e, e_dot=None):
+        """Cluster state (and rate) of chart variables ``e`` (and rates ``e_dot``).
 
         The one place where a motion stated in the operator's variables becomes a motion
         of this representation. Angles in ``e`` may be unwrapped (``gamma_c`` from 0 to
@@ -176,24 +237,53 @@ class Formation(ABC):
             Otherwise.
         """
 
+    def euclidean(self, c, *, near_e=None, r=None) -> np.ndarray:
+        """Alias of :meth:`to_chart` (the name of the README and of seed 000's variables)."""
+        return self.to_chart(c, near_e=near_e, r=r)
+
+    def from_euclidean(self, e, e_dot=None):
+        """Alias of :meth:`from_chart` (the name of the README and of seed 000's variables)."""
+        return self.from_chart(e, e_dot)
+
+    # -- reachable set, samples, special sets -----------------------------------------
+    def reachable(self, r) -> np.ndarray:
+        """Where the robot state ``r`` (..., n_r) is inside the description (its forward map
+        exists): a bool array (...). Raises nothing. Every state, unless a subclass says
+        otherwise."""
+        return np.ones(np.shape(r)[:-1], dtype=bool)
+
+    def sample_robot_state(self, rng, batch=()) -> np.ndarray:
+        """Random valid robot states, shape ``batch + (n_r,)``: positions within a few metres,
+        robots at least 0.3 m apart, yaws wound over several turns (+-20 rad); inside
+        :meth:`reachable` where a description has a reachable set."""
+        batch = (int(batch),) if isinstance(batch, (int, np.integer)) else tuple(batch)
+        L = self.layout
+        p = rng.uniform(-2.0, 2.0, batch + (L.n, 3))
+        i, j = L.pairs
+        for _ in range(100):  # push apart robots closer than 0.3 m (rare)
+            d = np.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1)
+            close = d < 0.3
+            if not np.any(close):
+                break
+            p = np.where(np.any(close, axis=-1)[..., None, None], rng.uniform(-2.0, 2.0, p.shape), p)
+        yaws = rng.uniform(-20.0, 20.0, batch + (len(L.yaw_indices),))
+        return L.compose(p, yaws)
+
+    def special_sets(self) -> tuple[SpecialSet, ...]:
+        """The description's special sets (:class:`SpecialSet`): where its formulas divide by
+        zero, take an undefined angle or meet ``q`` versus ``-q``, and what it does there."""
+        return ()
+
+    # -- helpers ----------------------------------------------------------------------
     def align(self, r, r_ref) -> np.ndarray:
-        """``r`` with each robot yaw moved by whole turns to within pi of ``r_ref``'s.
+        """``r`` with each robot yaw moved by whole turns to within pi of ``r_ref``'s
+        (:meth:`RobotLayout.wind`).
 
         The robots' physical state is unchanged; the descriptions that read yaws as real
         numbers (the dual-quaternion half-way yaw) then see the same sheet as the
         reference. Fast path for one state (Python floats).
         """
-        idx = _angle_indices(self.robot_variables)
-        if r.ndim == 1 and r_ref.ndim == 1:
-            out = r.tolist()
-            ref = r_ref.tolist()
-            for i in idx:
-                out[i] += _TWO_PI * math.floor((ref[i] - out[i]) / _TWO_PI + 0.5)
-            return np.array(out)
-        out = np.array(np.broadcast_to(r, np.broadcast_shapes(r.shape, r_ref.shape)), dtype=float)
-        for i in idx:
-            out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
-        return out
+        return self.layout.wind(r, r_ref)
 
     def errors(self, c, c_des) -> np.ndarray:
         """Per-variable error ``c - c_des`` with angles wrapped to ``[-pi, pi)``."""
@@ -204,11 +294,13 @@ class Formation(ABC):
         return e
 
     def length_scale(self, r) -> np.ndarray:
-        """Size of the formation (m), used to make Jacobians dimensionless. Shape ``(...)``."""
-        r = np.asarray(r)
-        return 0.5 * np.linalg.norm(r[..., 0:3] - r[..., 4:7], axis=-1)
+        """Size of the formation (m), used to make Jacobians dimensionless: half the largest
+        separation of two robots (``d_c`` of a pair). Shape ``(...)``."""
+        p = self.layout.positions(r)
+        i, j = self.layout.pairs
+        return 0.5 * np.max(np.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1), axis=-1)
 
-    def singularity_measure(self, r, hint=None) -> np.ndarray:
+    def singularity_measure(self, r, *, near_c=None) -> np.ndarray:
         """Reciprocal condition number of the inverse Jacobian, in ``[0, 1]``; 0 at a singular pose.
 
         Taken on the normalised formation: robot positions moved so that their centroid is
@@ -220,12 +312,9 @@ class Formation(ABC):
         ndarray, shape (...)
         """
         r = self.check_robot_state(r)
-        pos = [i for i, v in enumerate(self.robot_variables) if v.kind == "position"]
-        rn = np.array(r, dtype=float)
-        if pos:
-            L = self.length_scale(r)[..., None]
-            p = rn[..., pos].reshape(r.shape[:-1] + (-1, 3))
-            p = (p - p.mean(axis=-2, keepdims=True)) / L[..., None]
-            rn[..., pos] = p.reshape(r.shape[:-1] + (len(pos),))
-        s = np.linalg.svd(self.inverse_jacobian(rn, hint), compute_uv=False)
+        L = self.length_scale(r)[..., None, None]
+        p = self.layout.positions(r)
+        p = (p - p.mean(axis=-2, keepdims=True)) / L
+        rn = self.layout.compose(p, self.layout.yaws(r))
+        s = np.linalg.svd(self.inverse_jacobian(rn, near_c=near_c), compute_uv=False)
         return s[..., -1] / s[..., 0]

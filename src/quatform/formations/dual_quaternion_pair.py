@@ -25,8 +25,9 @@ from ..algebra.validate import as_array, as_unit_dual_quaternion
 from ..errors import DegenerateInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
+from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable
-from .euclidean_pair import EuclideanPair
+from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair
 from .quaternion_pair import TILT_TOL, QuaternionPair
 
 __all__ = ["DualQuaternionPair"]
@@ -61,7 +62,13 @@ class DualQuaternionPair(Formation):
 
     name = "dual-quaternion"
     variables = _dq_variables("qhat_c") + _dq_variables("qhat_s")
+    chart_variables = EUCLIDEAN_VARIABLES
     dual_quaternion_slices = (_QC, _QS)
+    #: ``qhat_c``'s sign means nothing; ``qhat_s``'s is the branch of the half-way yaw (module docstring).
+    sign_free = (_QC,)
+
+    def special_sets(self):
+        return sp.pair_sets("beta_c is undefined here; the dual quaternions are regular")
 
     def check_cluster_state(self, c, name="c"):
         c = super().check_cluster_state(c, name)
@@ -81,7 +88,7 @@ class DualQuaternionPair(Formation):
         rh = g.q_yaw(np.arctan2(qs[..., 3], qs[..., 0]))
         return _pose_dq(rh, 0.5 * _translation(qs))
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         """Eqs. (26)-(27) in closed form: ``qhat_c`` = yaw ``(th1 + th2)/2`` at the midpoint,
         ``qhat_s`` = yaw ``th1 - th2`` at ``R_z(-th2)(p1 - p2)``.
 
@@ -90,46 +97,42 @@ class DualQuaternionPair(Formation):
         r : array_like, shape (..., 8)
             Robot states, m and rad; the yaws are read as real numbers (their branch sets
             the sign of ``qhat_s``; every branch is the same formation, see the module).
-        hint : array_like, shape (..., 16), optional
+        near_c : array_like, shape (..., 16), optional
             A cluster state to stay near: the yaws of ``r`` are first moved by whole turns
-            onto the hint's branch (:func:`~.pair_kernels.dq_align_yaws`, as the controller
-            does), and ``qhat_c`` takes the hint's sign. The result is the same formation as
-            ``r`` whatever the hint.
+            onto its branch (:func:`~.pair_kernels.dq_align_yaws`, as the controller
+            does), and ``qhat_c`` takes its sign. The result is the same formation as
+            ``r`` whatever ``near_c``.
 
         Returns
         -------
         ndarray, shape (..., 16)
         """
         r = self.check_robot_state(r)
-        self._check_separation(r[..., 0:3] - r[..., 4:7])
-        if hint is None:
+        self.check_apart(r)
+        if near_c is None:
             return kern.pack(kern.dq_forward(kern.unpack(r)))
-        h = kern.unpack(self.check_cluster_state(hint, "hint"))
+        h = kern.unpack(self.check_cluster_state(near_c, "near_c"))
         rr = kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h))
         return kern.pack(kern.dq_forward(rr, h[0:4]))
 
-    @staticmethod
-    def _robots(c, h):
+    def _robots(self, c, h):
         dq2 = _dqmul(c[..., _QC], _dqconj(h))  # qhat_2 = qhat_c h*
         dq1 = _dqmul(dq2, c[..., _QS])  # qhat_1 = qhat_2 qhat_s
-        r = np.empty(c.shape[:-1] + (8,))
-        for k, dq in ((0, dq1), (4, dq2)):
-            r[..., k:k + 3] = _translation(dq)
-            r[..., k + 3] = g.yaw_of(dq[..., :4])
-        return r
+        return self.layout.compose(np.stack([_translation(dq1), _translation(dq2)], axis=-2),
+                                   np.stack([g.yaw_of(dq1[..., :4]), g.yaw_of(dq2[..., :4])], axis=-1))
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         """Robots of ``c``: ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_c h* qhat_s``.
 
         The form printed under eq. (27) fails at a relative half turn; this one is exact
         (``docs/derivations.md``, seed 000 item 3). ``h`` is the root of the signed
-        ``qhat_s`` (:meth:`_root`), so the result needs no hint.
+        ``qhat_s`` (:meth:`_root`), so the result needs no branch choice.
 
         Parameters
         ----------
         c : array_like, shape (..., 16)
             Unit dual quaternions ``qhat_c``, ``qhat_s`` whose rotations are yaws.
-        hint : array_like, shape (..., 8), optional
+        near_r : array_like, shape (..., 8), optional
             Robot state whose yaws the result's are unwrapped near (within pi); it does not
             change the formation.
 
@@ -137,7 +140,7 @@ class DualQuaternionPair(Formation):
         -------
         ndarray, shape (..., 8)
             ``(x1, y1, z1, theta1, x2, y2, z2, theta2)``, m and rad (yaws in ``(-pi, pi]``
-            without a hint).
+            without ``near_r``).
 
         Raises
         ------
@@ -161,76 +164,77 @@ class DualQuaternionPair(Formation):
                 f"qhat_s translates by {float(np.min(sep)):.3g} m: the two robots would coincide; "
                 f"the shape must separate them by at least {MIN_SEPARATION_M:g} m"
             )
-        if hint is not None:
-            hint = self.check_robot_state(hint, "hint")
+        if near_r is not None:
+            near_r = self.check_robot_state(near_r, "near_r")
         r = self._robots(c, self._root(c[..., _QS]))
-        if hint is not None:
-            for k in (3, 7):
-                r[..., k] = g.unwrap_near(r[..., k], hint[..., k])
+        if near_r is not None:
+            for k in self.layout.yaw_indices:
+                r[..., k] = g.unwrap_near(r[..., k], near_r[..., k])
         return r
 
-    def jacobian(self, r, hint=None):
-        """``c_dot = J r_dot`` (16 x 8), from ``qhat_c = (yaw (th1+th2)/2, midpoint)`` and
-        ``qhat_s = (yaw th1-th2, R_z(-th2)(p1-p2))``."""
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """``c_dot = J r_dot``: the derivative of the closed form of eqs. (26)-(27),
+        ``qhat_c = (yaw (th1+th2)/2, midpoint)``, ``qhat_s = (yaw th1-th2, R_z(-th2)(p1-p2))``.
+
+        A pose ``(q_yaw(theta), t)`` moves at ``theta' d_angle + (0, 1/2 (0, t') q)`` with
+        ``d_angle = (1/2 k q, 1/4 (0, t) k q)``; ``t_s' = R_z(-th2)(p1' - p2') - th2' (z x t_s)``.
+        """
         r = self.check_robot_state(r)
-        c = self.forward(r, hint)
-        J = np.zeros(r.shape[:-1] + (16, 8))
-        for s, rows in ((_QC, slice(0, 8)), (_QS, slice(8, 16))):
+        c = self.forward(r, near_c=near_c)
+        r_dot = as_array(r_dot, "r_dot", 8)
+        L = self.layout
+        v, w = L.positions(r_dot), L.yaws(r_dot)
+        parts = []
+        for s in (_QC, _QS):
             q = c[..., s]
-            rot = q[..., :4]
-            t = _translation(q)
+            rot, t = q[..., :4], _translation(q)
             d_rot = _rate_column(rot)  # d rot / d angle
             d_angle = np.concatenate([d_rot, 0.5 * g.mul(_pure(t), d_rot)], axis=-1)
-            d_t = np.zeros(r.shape[:-1] + (8, 3))
-            for k in range(3):
-                e = np.zeros(3)
-                e[k] = 1.0
-                d_t[..., 4:, k] = 0.5 * g.mul(_pure(e), rot)
+            # d (dual part) / d t = 1/2 (0, e_k) rot, k = x, y, z: (..., 4, 3)
+            d_t = np.stack([0.5 * g.mul(_pure(e), rot) for e in np.eye(3)], axis=-1)
             if s == _QC:
-                J[..., rows, 3] = J[..., rows, 7] = 0.5 * d_angle
-                J[..., rows, 0:3] = J[..., rows, 4:7] = 0.5 * d_t
+                angle_dot = 0.5 * (w[..., 0] + w[..., 1])
+                dual = np.einsum("...ij,...j->...i", 0.5 * d_t, v[..., 0, :] + v[..., 1, :])
             else:
-                R2t = _rot_z_T(r[..., 7])  # R_z(-th2)
-                J[..., rows, 3] = d_angle
-                # t_s_dot = R_z(-th2)(p1_dot - p2_dot) - th2_dot (z x t_s)
+                # t_s' = R_z(-th2)(p1' - p2') - th2' (z x t_s)
                 zx_t = np.stack([-t[..., 1], t[..., 0], np.zeros_like(t[..., 0])], axis=-1)
-                J[..., rows, 7] = -d_angle - np.einsum("...ij,...j->...i", d_t, zx_t)
-                A = d_t @ R2t
-                J[..., rows, 0:3] = A
-                J[..., rows, 4:7] = -A
-        return J
+                angle_dot = w[..., 0] - w[..., 1]
+                dual = (np.einsum("...ij,...j->...i", d_t @ _rot_z_T(L.yaws(r)[..., 1]), v[..., 0, :] - v[..., 1, :])
+                        - w[..., 1, None] * np.einsum("...ij,...j->...i", d_t, zx_t))
+            parts.append(angle_dot[..., None] * d_angle + g.concat([np.zeros(dual.shape[:-1] + (4,)), dual]))
+        return g.concat(parts)
 
-    def inverse_jacobian_at(self, c, r=None):
-        """Derivative of the inverse kinematics at ``c``, shape ``(..., 8, 16)``.
+    def robot_rate(self, c, c_dot, *, r=None):
+        """Derivative of the inverse kinematics at ``c`` along ``c_dot``.
 
         ``r``, the robots of ``c`` (computed by :meth:`inverse` if not given), supplies
-        ``theta_2``. Along
-        the description's 8-dimensional manifold this is the derivative of
+        ``theta_2``. Along the description's 8-dimensional manifold this is the derivative of
         ``qhat_2 = qhat_c h*``, ``qhat_1 = qhat_2 qhat_s``; see
         :func:`~quatform.formations.pair_kernels.dq_inverse_jvp`.
         """
         c = np.asarray(c, dtype=float)
         if r is None:
             r = self.inverse(c)
-        return kern.jacobian_from_jvp(kern.dq_inverse_jvp, c, 16, kern.unpack(np.asarray(r, dtype=float)))
+        cd = as_array(c_dot, "c_dot", 16)
+        return kern.pack(kern.dq_inverse_jvp(kern.unpack(c), kern.unpack(cd), kern.unpack(np.asarray(r, dtype=float))))
 
-    def euclidean(self, c, hint=None, r=None):
+    def to_chart(self, c, *, near_e=None, r=None):
         """Euclidean variables of the robots of ``c``, read through the quaternion cluster frame.
 
         The dual quaternions carry no frame on the segment, so the branch of ``(beta_c,
-        gamma_c)`` near the vertical is taken from ``hint`` (the desired Euclidean state)
-        through :meth:`QuaternionPair.euclidean`; without a hint, eqs. (1)-(8). ``r`` (the
-        measured robots) or else the hint's robots only unwrap the yaws: ``c`` itself fixes
-        the formation.
+        gamma_c)`` near the vertical is taken from ``near_e`` (the desired Euclidean state)
+        through :meth:`QuaternionPair.to_chart`; without it, eqs. (1)-(8). ``r`` (the
+        measured robots) or else the robots of ``near_e`` only unwrap the yaws: ``c`` itself
+        fixes the formation.
         """
-        near = r if r is not None else (None if hint is None else EuclideanPair().inverse(hint))
-        r = self.inverse(c, near)
-        if hint is None:
+        near = r if r is not None else (None if near_e is None else EuclideanPair().inverse(near_e))
+        r = self.inverse(c, near_r=near)
+        if near_e is None:
             return EuclideanPair().forward(r)
         qp = QuaternionPair()
-        return qp.euclidean(qp.forward(r, qp.from_euclidean(hint)), hint)
+        return qp.to_chart(qp.forward(r, near_c=qp.from_chart(near_e)), near_e=near_e)
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         """Closed form, continuous in ``e``: ``qhat_c`` = yaw ``beta + (phi1 + phi2)/2`` at the
         centroid, ``qhat_s`` = yaw ``phi1 - phi2`` at ``R_z(-theta_2)(p1 - p2)``."""
         E = EuclideanPair()
@@ -238,13 +242,15 @@ class DualQuaternionPair(Formation):
         r = E.inverse(e)
         beta = e[..., 3]
         qc = _pose_dq(g.q_yaw(beta + 0.5 * (e[..., 6] + e[..., 7])), e[..., 0:3])
-        ts = np.einsum("...ij,...j->...i", _rot_z_T(r[..., 7]), r[..., 0:3] - r[..., 4:7])
+        p = self.layout.positions(r)
+        ts = np.einsum("...ij,...j->...i", _rot_z_T(self.layout.yaws(r)[..., 1]), p[..., 0, :] - p[..., 1, :])
         qs = _pose_dq(g.q_yaw(e[..., 6] - e[..., 7]), ts)
         c = np.concatenate([qc, qs], axis=-1)
         if e_dot is None:
             return c
+        # the dense matrices (not the rate maps) keep the references' rounding of before issue 13
         r_dot = np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))
-        return c, np.einsum("...ij,...j->...i", self.jacobian(r, c), r_dot)
+        return c, np.einsum("...ij,...j->...i", self.jacobian(r, near_c=c), r_dot)
 
 
 def _pure(v):

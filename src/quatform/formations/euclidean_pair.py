@@ -14,6 +14,7 @@ import numpy as np
 from ..algebra.validate import as_array
 from ..errors import DegenerateInputError
 from . import geometry as g
+from . import special_sets as sp
 from .base import MIN_SEPARATION_M, ROBOT_PAIR_VARIABLES, Formation, Variable
 
 __all__ = ["EuclideanPair", "RobotSpace", "EUCLIDEAN_VARIABLES"]
@@ -61,6 +62,7 @@ class EuclideanPair(Formation):
 
     name = "euclidean"
     variables = EUCLIDEAN_VARIABLES
+    chart_variables = EUCLIDEAN_VARIABLES
 
     def check_cluster_state(self, c, name="c"):
         c = super().check_cluster_state(c, name)
@@ -72,29 +74,32 @@ class EuclideanPair(Formation):
             )
         return c
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
-        p1, p2 = r[..., 0:3], r[..., 4:7]
+        p = self.layout.positions(r)
+        th = self.layout.yaws(r)
+        p1, p2 = p[..., 0, :], p[..., 1, :]
         delta = p1 - p2
-        D = self._check_separation(delta)
+        D = g.norm(delta)
+        self.check_apart(r, separations=D)
         rho = np.hypot(delta[..., 0], delta[..., 1])
         c = np.empty(r.shape[:-1] + (8,))
         c[..., 0:3] = 0.5 * (p1 + p2)  # seed 000 eqs. (1)-(3)
         beta = np.arctan2(-delta[..., 0], delta[..., 1])  # eq. (4)
         c[..., 4] = np.arctan2(delta[..., 2], rho)  # eq. (5)
         c[..., 5] = 0.5 * D  # eq. (6), corrected
-        if hint is not None:
-            hint = self.check_cluster_state(hint, "hint")
-            beta = np.where(rho <= VERTICAL_TOL * D, hint[..., 3], g.unwrap_near(beta, hint[..., 3]))
-            c[..., 6] = g.unwrap_near(r[..., 3] - beta, hint[..., 6])  # eqs. (7)-(8)
-            c[..., 7] = g.unwrap_near(r[..., 7] - beta, hint[..., 7])
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+            beta = np.where(rho <= VERTICAL_TOL * D, near_c[..., 3], g.unwrap_near(beta, near_c[..., 3]))
+            c[..., 6] = g.unwrap_near(th[..., 0] - beta, near_c[..., 6])  # eqs. (7)-(8)
+            c[..., 7] = g.unwrap_near(th[..., 1] - beta, near_c[..., 7])
         else:
-            c[..., 6] = g.wrap(r[..., 3] - beta)
-            c[..., 7] = g.wrap(r[..., 7] - beta)
+            c[..., 6] = g.wrap(th[..., 0] - beta)
+            c[..., 7] = g.wrap(th[..., 1] - beta)
         c[..., 3] = beta
         return c
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         """Robots of the Euclidean cluster state ``c``: the inverse of eqs. (1)-(8).
 
         ``x1,2 = x_c +- d_c (-sin beta cos gamma, cos beta cos gamma, sin gamma)`` (seed 000
@@ -110,7 +115,7 @@ class EuclideanPair(Formation):
         c : array_like, shape (..., 8)
             ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2)``: m, rad, ``d_c`` in m
             (at least ``MIN_SEPARATION_M / 2``).
-        hint : array_like, shape (..., 8), optional
+        near_r : array_like, shape (..., 8), optional
             Robot state whose yaws the result's are unwrapped near (within pi); without it
             the yaws are ``phi_i + beta_c`` as given.
 
@@ -127,22 +132,24 @@ class EuclideanPair(Formation):
         c = self.check_cluster_state(c)
         u = segment_direction(c[..., 3], c[..., 4])
         half = c[..., 5:6] * u
-        r = np.empty(c.shape[:-1] + (8,))
-        r[..., 0:3] = c[..., 0:3] + half
-        r[..., 4:7] = c[..., 0:3] - half
-        r[..., 3] = c[..., 6] + c[..., 3]
-        r[..., 7] = c[..., 7] + c[..., 3]
-        if hint is not None:
-            hint = self.check_robot_state(hint, "hint")
-            r[..., 3] = g.unwrap_near(r[..., 3], hint[..., 3])
-            r[..., 7] = g.unwrap_near(r[..., 7], hint[..., 7])
-        return r
+        th = np.stack([c[..., 6] + c[..., 3], c[..., 7] + c[..., 3]], axis=-1)
+        if near_r is not None:
+            th = g.unwrap_near(th, self.layout.yaws(self.check_robot_state(near_r, "near_r")))
+        return self.layout.compose(np.stack([c[..., 0:3] + half, c[..., 0:3] - half], axis=-2), th)
 
-    def jacobian(self, r, hint=None):
-        """The 8 x 8 cluster Jacobian; undefined (raises) at a vertical segment."""
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """Derivative of eqs. (1)-(8) along ``r_dot``; undefined (raises) at a vertical segment.
+
+        ``x_c' = (p1' + p2')/2``; ``beta_c' = grad beta . delta'``, ``gamma_c' = grad gamma .
+        delta'``, ``d_c' = delta . delta' / (2 D)`` with ``delta = p1 - p2`` (eqs. (4)-(6));
+        ``phi_i' = theta_i' - beta_c'`` (eqs. (7)-(8)). ``near_c`` changes no rate.
+        """
         r = self.check_robot_state(r)
-        delta = r[..., 0:3] - r[..., 4:7]
-        D = self._check_separation(delta)
+        L = self.layout
+        p = L.positions(r)
+        delta = p[..., 0, :] - p[..., 1, :]
+        D = g.norm(delta)
+        self.check_apart(r, separations=D)
         dx, dy, dz = np.moveaxis(delta, -1, 0)
         rho2 = dx * dx + dy * dy
         if np.any(rho2 <= (VERTICAL_TOL * D) ** 2):
@@ -155,47 +162,46 @@ class EuclideanPair(Formation):
         d_beta = np.stack([-dy, dx, zero], axis=-1) / rho2[..., None]
         d_gamma = np.stack([-dz * dx / rho, -dz * dy / rho, rho], axis=-1) / (D * D)[..., None]
         d_d = delta / (2.0 * D)[..., None]
-        J = np.zeros(r.shape[:-1] + (8, 8))
-        eye = np.eye(3)
-        J[..., 0:3, 0:3] = 0.5 * eye
-        J[..., 0:3, 4:7] = 0.5 * eye
-        for row, grad in ((3, d_beta), (4, d_gamma), (5, d_d)):
-            J[..., row, 0:3] = grad
-            J[..., row, 4:7] = -grad
-        for row, col in ((6, 3), (7, 7)):
-            J[..., row, 0:3] = -d_beta
-            J[..., row, 4:7] = d_beta
-            J[..., row, col] = 1.0
-        return J
+        r_dot = as_array(r_dot, "r_dot", 8)
+        v, w = L.positions(r_dot), L.yaws(r_dot)
+        dd = v[..., 0, :] - v[..., 1, :]
+        beta_dot = np.sum(d_beta * dd, axis=-1)
+        return g.concat([0.5 * (v[..., 0, :] + v[..., 1, :]),
+                         np.stack([beta_dot, np.sum(d_gamma * dd, axis=-1), np.sum(d_d * dd, axis=-1),
+                                   w[..., 0] - beta_dot, w[..., 1] - beta_dot], axis=-1)])
 
-    def inverse_jacobian_at(self, c, r=None):
-        """Derivative of :meth:`inverse` at ``c``, shape ``(..., 8, 8)``; rank 7 at a vertical segment."""
+    def robot_rate(self, c, c_dot, *, r=None):
+        """Derivative of :meth:`inverse` at ``c`` along ``c_dot``; loses rank at a vertical segment.
+
+        ``p1,2' = x_c' +- (d_c (beta_c' u_beta + gamma_c' u_gamma) + d_c' u)`` with ``u`` the
+        unit segment of eqs. (4)-(5) and ``u_beta``, ``u_gamma`` its partials;
+        ``theta_i' = beta_c' + phi_i'`` (eqs. (7)-(8)).
+        """
         c = np.asarray(c, dtype=float)
+        cd = as_array(c_dot, "c_dot", 8)
         u = segment_direction(c[..., 3], c[..., 4])
         u_b, u_g = _direction_partials(c[..., 3], c[..., 4])
         d = c[..., 5:6]
-        Ji = np.zeros(c.shape[:-1] + (8, 8))
-        eye = np.eye(3)
-        for rows, s in ((slice(0, 3), 1.0), (slice(4, 7), -1.0)):
-            Ji[..., rows, 0:3] = eye
-            Ji[..., rows, 3] = s * d * u_b
-            Ji[..., rows, 4] = s * d * u_g
-            Ji[..., rows, 5] = s * u
-        Ji[..., 3, 3] = Ji[..., 3, 6] = 1.0
-        Ji[..., 7, 3] = Ji[..., 7, 7] = 1.0
-        return Ji
+        half = d * u_b * cd[..., 3:4] + d * u_g * cd[..., 4:5] + u * cd[..., 5:6]
+        v = np.stack([cd[..., 0:3] + half, cd[..., 0:3] - half], axis=-2)
+        return self.layout.compose(v, np.stack([cd[..., 3] + cd[..., 6], cd[..., 3] + cd[..., 7]], axis=-1))
 
-    def euclidean(self, c, hint=None, r=None):
+    def special_sets(self):
+        return sp.pair_sets("beta_c = atan2(-dx, dy) of eq. (4) is atan2(0, 0) with one robot straight above the "
+                            "other: held at near_c's; its rate is undefined", jacobian="raises",
+                            inverse_jacobian="rank-deficient")
+
+    def to_chart(self, c, *, near_e=None, r=None):
         c = self.check_cluster_state(c)
-        if hint is None:
+        if near_e is None:
             return c.copy()
-        hint = np.asarray(hint, dtype=float)
+        near_e = np.asarray(near_e, dtype=float)
         e = c.copy()
         for i in (3, 6, 7):
-            e[..., i] = g.unwrap_near(c[..., i], hint[..., i])
+            e[..., i] = g.unwrap_near(c[..., i], near_e[..., i])
         return e
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         e = self.check_cluster_state(e, "e")
         if e_dot is None:
             return e.copy()
@@ -212,36 +218,46 @@ class RobotSpace(Formation):
 
     name = "robot"
     variables = ROBOT_PAIR_VARIABLES
+    chart_variables = EUCLIDEAN_VARIABLES
     _euclidean = EuclideanPair()
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r).copy()
-        if hint is not None:
-            hint = self.check_cluster_state(hint, "hint")
-            for i in (3, 7):
-                r[..., i] = g.unwrap_near(r[..., i], hint[..., i])
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+            for i in self.layout.yaw_indices:
+                r[..., i] = g.unwrap_near(r[..., i], near_c[..., i])
         return r
 
-    def inverse(self, c, hint=None):
-        return self.forward(c, hint)
+    def inverse(self, c, *, near_r=None):
+        return self.forward(c, near_c=near_r)
 
-    def jacobian(self, r, hint=None):
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """``c_dot = r_dot``: the identity (seed 000 §3.1)."""
         r = self.check_robot_state(r)
-        return np.broadcast_to(np.eye(8), r.shape[:-1] + (8, 8)).copy()
+        r_dot = as_array(r_dot, "r_dot", 8)
+        return np.broadcast_to(r_dot, np.broadcast_shapes(r.shape, r_dot.shape)).copy()
 
-    def inverse_jacobian_at(self, c, r=None):
-        return self.jacobian(c)
+    def robot_rate(self, c, c_dot, *, r=None):
+        """``r_dot = c_dot``: the identity."""
+        c = self.check_robot_state(c, "c")
+        c_dot = as_array(c_dot, "c_dot", 8)
+        return np.broadcast_to(c_dot, np.broadcast_shapes(c.shape, c_dot.shape)).copy()
 
     def length_scale(self, r):
         return np.ones(np.shape(r)[:-1])
 
-    def euclidean(self, c, hint=None, r=None):
-        return self._euclidean.euclidean(self._euclidean.forward(c, None), hint)
+    def special_sets(self):
+        return sp.pair_sets("the Euclidean chart of eqs. (1)-(8) is singular here; the robot space is not")
 
-    def from_euclidean(self, e, e_dot=None):
+    def to_chart(self, c, *, near_e=None, r=None):
+        return self._euclidean.to_chart(self._euclidean.forward(c), near_e=near_e)
+
+    def from_chart(self, e, e_dot=None):
         E = self._euclidean
         e = E.check_cluster_state(e, "e")
         r = E.inverse(e)
         if e_dot is None:
             return r
+        # the dense matrix (not the rate map) keeps the references' rounding of before issue 13
         return r, np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))

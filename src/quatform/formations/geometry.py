@@ -75,6 +75,12 @@ def z_axis(q):
     return _pack(kern.z_axis(tuple(np.moveaxis(q, -1, 0))), q.shape[:-1])
 
 
+def concat(parts):
+    """Concatenate ``(..., k_i)`` arrays along the last axis, broadcasting their batch axes."""
+    shape = np.broadcast_shapes(*(np.shape(p)[:-1] for p in parts))
+    return np.concatenate([np.broadcast_to(p, shape + np.shape(p)[-1:]) for p in parts], axis=-1)
+
+
 def _pack(comps, shape):
     return np.stack([np.broadcast_to(x, shape) for x in comps], axis=-1)
 

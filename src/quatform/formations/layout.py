@@ -185,15 +185,32 @@ class RobotLayout:
                                     f"({', '.join(self.kinds)}), got {r.shape}")
         return r
 
+    @functools.cached_property
+    def _uniform_xyz(self):
+        """Point size if every robot has one kind whose first three entries are ``x, y, z``."""
+        k = POINT_KINDS[self.kinds[0]]
+        return k.size if len(set(self.kinds)) == 1 and k.position == (0, 1, 2) else None
+
     def positions(self, r) -> np.ndarray:
-        """Robot positions, m, shape ``(..., N, 3)`` (a planar robot at z = 0)."""
+        """Robot positions, m, shape ``(..., N, 3)`` (a planar robot at z = 0).
+
+        A view of ``r`` where the layout allows (one point kind with ``x, y, z`` first):
+        read it, do not write into it.
+        """
         r = self.check(r)
+        k = self._uniform_xyz
+        if k is not None:
+            return r.reshape(r.shape[:-1] + (self.n, k))[..., :3]
         padded = np.concatenate([r, np.zeros(r.shape[:-1] + (1,))], axis=-1)
-        return padded[..., self._position_index]
+        # C order, so that reductions over the last axis sum in the order of a plain slice
+        return np.ascontiguousarray(padded[..., self._position_index])
 
     def yaws(self, r) -> np.ndarray:
-        """The yaw entries, rad, shape ``(..., len(yaw_indices))``."""
-        return self.check(r)[..., list(self.yaw_indices)]
+        """The yaw entries, rad, shape ``(..., len(yaw_indices))`` (a view where the layout allows)."""
+        r = self.check(r)
+        if self._uniform_xyz == 4 and self.kinds[0] == "xyz_yaw":
+            return r.reshape(r.shape[:-1] + (self.n, 4))[..., 3]
+        return r[..., list(self.yaw_indices)]
 
     def separations(self, r) -> np.ndarray:
         """Distances between every two robots, m, shape ``(..., N (N - 1) / 2)`` in the order
@@ -240,6 +257,42 @@ class RobotLayout:
         for i in idx:
             out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
         return out
+
+    def compose(self, positions, yaws=()) -> np.ndarray:
+        """Robot state of ``positions`` (m, ``(..., N, 3)``) and ``yaws`` (rad,
+        ``(..., len(yaw_indices))``): the inverse of :meth:`positions` and :meth:`yaws`.
+
+        A planar robot's ``z`` is dropped. Linear, so it also composes robot rates from
+        point velocities and yaw rates. Layouts with ``pose`` points (whose orientation is
+        not a yaw) are refused.
+        """
+        if "pose" in self.kinds:
+            raise InvalidInputError("RobotLayout.compose: a pose point's orientation is not a yaw; "
+                                    "build such robot states with stack()")
+        p = np.asarray(positions, dtype=float)
+        if p.shape[-2:] != (self.n, 3):
+            raise InvalidInputError(f"positions must have shape (..., {self.n}, 3), got {p.shape}")
+        y = np.asarray(yaws, dtype=float)
+        n_yaw = len(self.yaw_indices)
+        if n_yaw:
+            if y.shape[-1:] != (n_yaw,):
+                raise InvalidInputError(f"yaws must have shape (..., {n_yaw}), got {y.shape}")
+            shape = np.broadcast_shapes(p.shape[:-2], y.shape[:-1])
+            if self._uniform_xyz == 4 and self.kinds[0] == "xyz_yaw":  # robot after robot: x, y, z, yaw
+                p = np.broadcast_to(p, shape + (self.n, 3))
+                return np.concatenate([p, np.broadcast_to(y, shape + (self.n,))[..., None]], axis=-1).reshape(
+                    shape + (self.size,))
+        else:
+            shape = p.shape[:-2]
+            if self._uniform_xyz == 3:  # robot after robot: x, y, z
+                return p.reshape(shape + (self.size,)).copy()
+        r = np.empty(shape + (self.size,))
+        flat = self._position_index.ravel()
+        keep = flat < self.size
+        r[..., flat[keep]] = p.reshape(p.shape[:-2] + (3 * self.n,))[..., keep]
+        if n_yaw:
+            r[..., list(self.yaw_indices)] = y
+        return r
 
     def stack(self, points) -> np.ndarray:
         """One robot state from a sequence of per-robot points (each ``(..., size of its kind)``)."""

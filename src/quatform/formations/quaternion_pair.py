@@ -8,8 +8,8 @@ The twist of ``q_c`` about the segment is not a function of the robots' position
 seed fixes it with the minimal rotation from ``i`` (eqs. (14)-(15)), which is undefined
 where ``x1 - x2`` points along ``-i`` (``eta = pi``, ``n_12 = 0/0``); no choice made from
 positions alone can avoid such a point (there is no continuous section of S^3 -> S^2).
-quatform therefore takes the twist from a ``hint`` (the desired cluster state): the
-measured ``q_c`` is the point of its fibre nearest the hint. The only remaining choice is
+quatform therefore takes the twist from ``near_c`` (the desired cluster state): the
+measured ``q_c`` is the point of its fibre nearest it. The only remaining choice is
 a measured segment exactly opposite the hinted one, a 180 deg formation error, where the
 half turn about the hint's z axis is taken.
 """
@@ -19,17 +19,16 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra.validate import as_array, as_unit_quaternion
-from ..algebra.operators import qminus, qplus, skew
 from ..errors import DegenerateInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
+from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
-from .euclidean_pair import EuclideanPair
+from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair
 
 __all__ = ["QuaternionPair"]
 
 _XC, _QC, _D, _Q1, _Q2 = slice(0, 3), slice(3, 7), 7, slice(8, 12), slice(12, 16)
-_C = np.diag([1.0, -1.0, -1.0, -1.0])
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
 #: Below this horizontal fraction of the segment, monitoring reads the yaw from q_c's y axis.
 NEAR_VERTICAL = 1e-2
@@ -55,8 +54,13 @@ class QuaternionPair(Formation):
         *quaternion_variables("q_c1"),
         *quaternion_variables("q_c2"),
     )
+    chart_variables = EUCLIDEAN_VARIABLES
     #: Index groups of the unit quaternions in ``c`` (for errors and sign handling).
     quaternion_slices = (_QC, _Q1, _Q2)
+    sign_free = (_QC, _Q1, _Q2)
+
+    def special_sets(self):
+        return sp.pair_sets("beta_c is undefined here; q_c is regular (its twist taken from near_c)")
 
     def check_cluster_state(self, c, name="c"):
         c = super().check_cluster_state(c, name)
@@ -65,18 +69,18 @@ class QuaternionPair(Formation):
         return c
 
     # -- kinematics -------------------------------------------------------------------
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
-        self._check_separation(r[..., 0:3] - r[..., 4:7])
-        if hint is None:
-            # eqs. (10), (14), (15): the minimal rotation from i (the hint q_c = 1)
+        self.check_apart(r)
+        if near_c is None:
+            # eqs. (10), (14), (15): the minimal rotation from i (near q_c = 1)
             out = kern.quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0))
         else:
-            h = kern.unpack(self.check_cluster_state(hint, "hint"))
+            h = kern.unpack(self.check_cluster_state(near_c, "near_c"))
             out = kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16])
         return kern.pack(out)
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         qc = c[..., _QC] / np.linalg.norm(c[..., _QC], axis=-1, keepdims=True)
         d = c[..., _D]
@@ -86,55 +90,56 @@ class QuaternionPair(Formation):
                 f"got {float(np.min(d))!r}; a smaller d_c puts the robots on each other"
             )
         half = d[..., None] * g.x_axis(qc)  # seed 000 eqs. (16), (18)
-        r = np.empty(c.shape[:-1] + (8,))
-        r[..., 0:3] = c[..., _XC] + half
-        r[..., 4:7] = c[..., _XC] - half
-        for k, s in ((3, _Q1), (7, _Q2)):
+        yaws = []
+        for k, s in ((1, _Q1), (2, _Q2)):
             qi = g.mul(qc, c[..., s])  # eqs. (17), (19)
             tilt = np.linalg.norm(g.z_axis(qi / np.linalg.norm(qi, axis=-1, keepdims=True)) - g.EZ, axis=-1)
             if np.any(tilt > TILT_TOL):
                 raise UnreachableError(
-                    f"q_c q_c{1 if k == 3 else 2} tilts the robot by {float(np.max(tilt)):.3g} rad; "
+                    f"q_c q_c{k} tilts the robot by {float(np.max(tilt)):.3g} rad; "
                     "a 4-DOF robot only yaws - give robot quaternions that are rotations about z"
                 )
-            r[..., k] = g.yaw_of(qi)
-            if hint is not None:
-                r[..., k] = g.unwrap_near(r[..., k], self.check_robot_state(hint, "hint")[..., k])
-        return r
+            yaws.append(g.yaw_of(qi))
+        th = np.stack(yaws, axis=-1)
+        if near_r is not None:
+            th = g.unwrap_near(th, self.layout.yaws(self.check_robot_state(near_r, "near_r")))
+        return self.layout.compose(np.stack([c[..., _XC] + half, c[..., _XC] - half], axis=-2), th)
 
-    # -- Jacobians --------------------------------------------------------------------
-    def jacobian(self, r, hint=None):
-        """``c_dot = J r_dot`` (16 x 8) for the hinted forward map (no twist rate of ``q_c``)."""
-        c = self.forward(r, hint)
-        u = g.x_axis(c[..., _QC])
-        D = 2.0 * c[..., _D]
+    # -- rate maps --------------------------------------------------------------------
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """``c_dot = J r_dot`` for the forward map near ``near_c`` (no twist rate of ``q_c``).
+
+        Derivative of eqs. (9)-(15): ``x_c' = (p1' + p2')/2``; ``q_c' = 1/2 (0, w) q_c`` with
+        ``w = u x delta' / D`` (the minimal rotation of the segment ``u = delta / D``);
+        ``d_c' = u . delta' / 2``; ``q_ci' = (q_c')* q_i + q_c* q_i'`` with ``q_i' = 1/2
+        theta_i' (0, 0, 0, 1) q_i`` (eqs. (12)-(13)).
+        """
+        c = self.forward(r, near_c=near_c)
+        r_dot = as_array(r_dot, "r_dot", 8)
+        L = self.layout
+        v, th_dot = L.positions(r_dot), L.yaws(r_dot)
         qc = c[..., _QC]
-        # q_c_dot = 1/2 (0, w) q_c with w = u x delta_dot / D (minimal rotation of the segment)
-        G = 0.5 * qminus(qc)[..., :, 1:]
-        dqc = G @ (skew(u) / D[..., None, None])  # d q_c / d delta, (..., 4, 3)
-        J = np.zeros(c.shape[:-1] + (16, 8))
-        J[..., _XC, 0:3] = 0.5 * np.eye(3)
-        J[..., _XC, 4:7] = 0.5 * np.eye(3)
-        J[..., _QC, 0:3] = dqc
-        J[..., _QC, 4:7] = -dqc
-        J[..., _D, 0:3] = 0.5 * u
-        J[..., _D, 4:7] = -0.5 * u
-        conj_dqc = _C @ dqc
-        for s, k in ((_Q1, 3), (_Q2, 7)):
+        u = g.x_axis(qc)
+        D = 2.0 * c[..., _D]
+        dd = v[..., 0, :] - v[..., 1, :]
+        omega = np.cross(u, dd) / D[..., None]
+        qc_dot = 0.5 * g.mul(np.concatenate([np.zeros(omega.shape[:-1] + (1,)), omega], axis=-1), qc)
+        parts = [0.5 * (v[..., 0, :] + v[..., 1, :]), qc_dot, 0.5 * np.sum(u * dd, axis=-1)[..., None]]
+        conj_qc_dot = g.conj(qc_dot)
+        for k, s in ((0, _Q1), (1, _Q2)):
             qi = g.mul(qc, c[..., s])
-            # q_ci = q_c* q_i: d = qminus(q_i) d(q_c*) + qplus(q_c*) d q_i
-            A = qminus(qi) @ conj_dqc
-            J[..., s, 0:3] = A
-            J[..., s, 4:7] = -A
-            J[..., s, k] = np.einsum("...ij,...j->...i", qplus(g.conj(qc)), _yaw_rate_column(qi))
-        return J
+            parts.append(g.mul(conj_qc_dot, qi) + th_dot[..., k, None] * g.mul(g.conj(qc), _yaw_rate_column(qi)))
+        return g.concat(parts)
 
-    def inverse_jacobian_at(self, c, r=None):
-        """Derivative of eqs. (16)-(19) at ``c``: the 8 x 16 matrix of seed 000 Fig. 6."""
-        return kern.jacobian_from_jvp(kern.quat_inverse_jvp, c, 16)
+    def robot_rate(self, c, c_dot, *, r=None):
+        """Derivative of eqs. (16)-(19) at ``c`` along ``c_dot``: the 8 x 16 matrix of seed 000
+        Fig. 6 applied to ``c_dot`` (:func:`~.pair_kernels.quat_inverse_jvp`)."""
+        c = np.asarray(c, dtype=float)
+        cd = as_array(c_dot, "c_dot", 16)
+        return kern.pack(kern.quat_inverse_jvp(kern.unpack(c), kern.unpack(cd)))
 
     # -- monitoring and references ----------------------------------------------------
-    def euclidean(self, c, hint=None, r=None):
+    def to_chart(self, c, *, near_e=None, r=None):
         """Euclidean variables of ``c`` on the whole circle, regular at ``gamma_c = +-pi/2``.
 
         For a frame without twist (``q_c = q_z(beta + pi/2) q_y(-gamma)``) the y axis is
@@ -171,13 +176,13 @@ class QuaternionPair(Formation):
         e[..., 5] = c[..., _D]
         e[..., 6] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q1])) - beta)
         e[..., 7] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q2])) - beta)
-        if hint is not None:
-            hint = np.asarray(hint, dtype=float)
+        if near_e is not None:
+            near_e = np.asarray(near_e, dtype=float)
             for i in (3, 4, 6, 7):
-                e[..., i] = g.unwrap_near(e[..., i], hint[..., i])
+                e[..., i] = g.unwrap_near(e[..., i], near_e[..., i])
         return e
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         """``q_c = q_z(beta + pi/2) q_y(-gamma)``, ``q_ci = q_c* q_z(phi_i + beta)``: continuous in ``e``."""
         e = EuclideanPair().check_cluster_state(e, "e")
         beta, gamma = e[..., 3], e[..., 4]

@@ -12,9 +12,9 @@ control point and the Bebop's position (yaws are controlled outside the formatio
   platform); other states are refused with ``UnreachableError``.
 * ``UgvUavQuaternion`` (Marciano), eqs. (4.25)-(4.41): ``(x_c[3], q_c[4], d_c[3])`` with
   ``d_c = (d, 0, 0)``, 10 values; the 6 x 10 inverse Jacobian (4.39). The twist of
-  ``q_c`` is taken from a hint, as for :class:`QuaternionPair`.
+  ``q_c`` is taken from ``near_c``, as for :class:`QuaternionPair`.
 
-Their common operator variables (``euclidean``) are the spherical ones.
+Their common operator chart (``to_chart``, ``chart_variables``) is the spherical variables.
 """
 
 from __future__ import annotations
@@ -24,18 +24,18 @@ import math
 import numpy as np
 
 from ..algebra.validate import as_array, as_unit_quaternion
-from ..algebra.operators import jac_qrotate_quaternion, jac_qrotate_vector, qminus, skew
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
+from . import special_sets as sp
 from .base import Formation, Variable, quaternion_variables
+from .layout import RobotLayout
 
-__all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_VARIABLES",
+__all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_VARIABLES", "UGV_UAV_LAYOUT",
            "SPHERICAL_VARIABLES"]
 
-UGV_UAV_VARIABLES = (
-    Variable("x_p", "m", "position"), Variable("y_p", "m", "position"), Variable("z_p", "m", "position"),
-    Variable("x_b", "m", "position"), Variable("y_b", "m", "position"), Variable("z_b", "m", "position"),
-)
+#: The UGV's control point and the UAV's position (yaws are controlled outside the formation).
+UGV_UAV_LAYOUT = RobotLayout(("xyz", "xyz"), labels=("_p", "_b"))
+UGV_UAV_VARIABLES = UGV_UAV_LAYOUT.variables
 SPHERICAL_VARIABLES = (
     Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),
     Variable("rho_c", "m", "length"), Variable("alpha_c", "rad", "angle"), Variable("beta_c", "rad", "angle"),
@@ -46,38 +46,39 @@ W_MIN = 1e-3
 OVERHEAD_TOL = 1e-12
 
 
-def _jacobian_from_gradients(grads):
-    """``[[I, 0], [-g_k, g_k]]``: the cluster point is the UGV; rows 3-5 depend on ``x_b - x_p``."""
-    J = np.zeros(grads[0].shape[:-1] + (6, 6))
-    J[..., 0:3, 0:3] = np.eye(3)
-    for row, gr in zip((3, 4, 5), grads, strict=True):
-        J[..., row, 0:3] = -gr
-        J[..., row, 3:6] = gr
-    return J
+def _rate_from_gradients(grads, v):
+    """``c_dot`` of ``c = (x_p, f_1..3(x_b - x_p))``: ``(v_p, g_k . (v_b - v_p))``, the rows
+    ``[[I, 0], [-g_k, g_k]]`` of the Jacobian applied to the point velocities ``v (..., 2, 3)``."""
+    dv = v[..., 1, :] - v[..., 0, :]
+    return g.concat([v[..., 0, :], np.stack([np.sum(gr * dv, axis=-1) for gr in grads], axis=-1)])
 
 
 class _UgvUav(Formation):
-    robot_variables = UGV_UAV_VARIABLES
+    layout = UGV_UAV_LAYOUT
+    chart_variables = SPHERICAL_VARIABLES
 
     def outside(self, r):
-        """Where the robot state ``r`` (..., 6) is outside the description: a bool array (...)."""
-        return np.zeros(np.shape(r)[:-1], dtype=bool)
+        """``~reachable(r)`` (the name the UGV-UAV controller and simulator use)."""
+        return ~self.reachable(r)
 
     def length_scale(self, r):
-        r = np.asarray(r)
-        return np.linalg.norm(r[..., 3:6] - r[..., 0:3], axis=-1)
+        """The UGV-UAV separation ``rho``, m, shape ``(...)``."""
+        return 2.0 * super().length_scale(r)
 
     def _delta(self, r, name="r"):
+        """Checked ``r``, the UGV point ``x_p`` and ``delta = x_b - x_p``, each ``(..., 3)``."""
         r = self.check_robot_state(r, name)
-        delta = r[..., 3:6] - r[..., 0:3]
-        self._check_separation(delta, name)
-        return r, delta
+        p = self.layout.positions(r)
+        d = p[..., 1, :] - p[..., 0, :]
+        self.check_apart(r, name, separations=g.norm(d))
+        return r, p[..., 0, :], d
 
-    def euclidean(self, c, hint=None, r=None):
-        return UgvUavSpherical().forward(self.inverse(c) if r is None else r, hint)
+    def _robots(self, x_p, x_b):
+        """Robot state (or rate) of the UGV point and the UAV position."""
+        return self.layout.compose(np.stack(np.broadcast_arrays(x_p, x_b), axis=-2))
 
-    def align(self, r, r_ref):
-        return np.asarray(r, dtype=float)
+    def to_chart(self, c, *, near_e=None, r=None):
+        return UgvUavSpherical().forward(self.inverse(c) if r is None else r, near_c=near_e)
 
 
 class UgvUavSpherical(_UgvUav):
@@ -87,35 +88,33 @@ class UgvUavSpherical(_UgvUav):
     name = "spherical"
     variables = SPHERICAL_VARIABLES
 
-    def forward(self, r, hint=None):
-        r, d = self._delta(r)
+    def forward(self, r, *, near_c=None):
+        r, x_p, d = self._delta(r)
         rho_h = np.hypot(d[..., 0], d[..., 1])
         c = np.empty(r.shape[:-1] + (6,))
-        c[..., 0:3] = r[..., 0:3]  # (4.1)-(4.3)
+        c[..., 0:3] = x_p  # (4.1)-(4.3)
         c[..., 3] = np.linalg.norm(d, axis=-1)  # (4.4)
         alpha = np.arctan2(d[..., 1], d[..., 0])  # (4.5)
-        if hint is not None:
-            hint = as_array(hint, "hint", 6)
-            alpha = np.where(rho_h <= OVERHEAD_TOL * c[..., 3], hint[..., 4], g.unwrap_near(alpha, hint[..., 4]))
+        if near_c is not None:
+            near_c = as_array(near_c, "near_c", 6)
+            alpha = np.where(rho_h <= OVERHEAD_TOL * c[..., 3], near_c[..., 4], g.unwrap_near(alpha, near_c[..., 4]))
         c[..., 4] = alpha
         c[..., 5] = np.arctan2(d[..., 2], rho_h)  # (4.6)
         return c
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         if np.any(c[..., 3] <= 0):
             raise DegenerateInputError(f"rho_c must be positive, got {float(np.min(c[..., 3]))!r}")
         a, b = c[..., 4], c[..., 5]
-        r = np.empty(c.shape[:-1] + (6,))
-        r[..., 0:3] = c[..., 0:3]  # (4.7)-(4.9)
-        r[..., 3] = c[..., 0] + c[..., 3] * np.cos(a) * np.cos(b)  # (4.10)
-        r[..., 4] = c[..., 1] + c[..., 3] * np.sin(a) * np.cos(b)  # (4.11)
-        r[..., 5] = c[..., 2] + c[..., 3] * np.sin(b)  # (4.12)
-        return r
+        x_b = np.stack([c[..., 0] + c[..., 3] * np.cos(a) * np.cos(b),  # (4.10)
+                        c[..., 1] + c[..., 3] * np.sin(a) * np.cos(b),  # (4.11)
+                        c[..., 2] + c[..., 3] * np.sin(b)], axis=-1)  # (4.12)
+        return self._robots(c[..., 0:3], x_b)  # (4.7)-(4.9)
 
-    def jacobian(self, r, hint=None):
-        """6 x 6; undefined (raises) with the UAV straight above or below the UGV."""
-        r, d = self._delta(r)
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """Derivative of (4.1)-(4.6); undefined (raises) with the UAV straight above or below the UGV."""
+        r, _, d = self._delta(r)
         dx, dy, dz = np.moveaxis(d, -1, 0)
         h2 = dx * dx + dy * dy
         D = np.sqrt(h2 + dz * dz)
@@ -128,30 +127,37 @@ class UgvUavSpherical(_UgvUav):
         z = np.zeros_like(dx)
         grads = [d / D[..., None], np.stack([-dy, dx, z], -1) / h2[..., None],
                  np.stack([-dz * dx / h, -dz * dy / h, h], -1) / (D * D)[..., None]]
-        return _jacobian_from_gradients(grads)
+        return _rate_from_gradients(grads, self.layout.positions(as_array(r_dot, "r_dot", 6)))
 
-    def inverse_jacobian_at(self, c, r=None):
-        """Derivative of (4.7)-(4.12); rank 5 with the UAV overhead (``cos beta_c = 0``)."""
+    def robot_rate(self, c, c_dot, *, r=None):
+        """Derivative of (4.7)-(4.12) along ``c_dot``; rank 5 with the UAV overhead (``cos beta_c = 0``)."""
         c = np.asarray(c, dtype=float)
-        rho, a, b = c[..., 3], c[..., 4], c[..., 5]
+        cd = as_array(c_dot, "c_dot", 6)
+        rho, a, b = c[..., 3:4], c[..., 4:5], c[..., 5:6]
         ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
-        Ji = np.zeros(c.shape[:-1] + (6, 6))
-        Ji[..., 0:3, 0:3] = np.eye(3)
-        Ji[..., 3:6, 0:3] = np.eye(3)
-        Ji[..., 3:6, 3] = np.stack([ca * cb, sa * cb, sb], -1)
-        Ji[..., 3:6, 4] = rho[..., None] * np.stack([-sa * cb, ca * cb, 0 * cb], -1)
-        Ji[..., 3:6, 5] = rho[..., None] * np.stack([-ca * sb, -sa * sb, cb], -1)
-        return Ji
+        v_b = (cd[..., 0:3] + cd[..., 3:4] * np.concatenate([ca * cb, sa * cb, sb], -1)
+               + cd[..., 4:5] * rho * np.concatenate([-sa * cb, ca * cb, 0 * cb], -1)
+               + cd[..., 5:6] * rho * np.concatenate([-ca * sb, -sa * sb, cb], -1))
+        return self._robots(cd[..., 0:3], v_b)
 
-    def euclidean(self, c, hint=None, r=None):
+    def special_sets(self):
+        return (
+            sp.SpecialSet("overhead", "alpha_c = atan2(dy, dx) of eq. (4.5) is atan2(0, 0) with the UAV straight "
+                          "above or below the UGV", sp.ugv_uav_overhead, jacobian="raises",
+                          inverse_jacobian="rank-deficient"),
+            sp.SpecialSet("behind", "alpha_c passes its branch cut +-pi with the UAV behind the UGV",
+                          sp.ugv_uav_behind),
+        )
+
+    def to_chart(self, c, *, near_e=None, r=None):
         c = self.check_cluster_state(c)
-        if hint is None:
+        if near_e is None:
             return c.copy()
         e = c.copy()
-        e[..., 4] = g.unwrap_near(c[..., 4], np.asarray(hint, dtype=float)[..., 4])
+        e[..., 4] = g.unwrap_near(c[..., 4], np.asarray(near_e, dtype=float)[..., 4])
         return e
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         e = self.check_cluster_state(e, "e")
         if e_dot is None:
             return e.copy()
@@ -166,8 +172,8 @@ class UgvUavRestricted(_UgvUav):
     ``dx / rho`` and ``dy / rho``, eqs. (4.17)-(4.18)). ``forward`` and ``inverse`` refuse
     such states, and angles more than ``tolerance_deg`` outside the operating range (the
     measurement noise about the range's edge at the overhead pose ``alpha_f = beta_f = 0``),
-    with :class:`~quatform.errors.UnreachableError`; ``from_euclidean`` (references) holds
-    them to the range itself.
+    with :class:`~quatform.errors.UnreachableError`; ``from_chart`` (references) holds
+    them to the range itself. :meth:`reachable` says where ``forward`` accepts a state.
 
     Parameters
     ----------
@@ -197,27 +203,49 @@ class UgvUavRestricted(_UgvUav):
         lo, hi = self.range
         return [(name, (c[..., i] < lo - tol) | (c[..., i] > hi + tol)) for i, name in ((4, "alpha_f"), (5, "beta_f"))]
 
-    @staticmethod
-    def _formulas(r):
+    def _formulas(self, r):
         """Eqs. (4.13)-(4.18) without checks, and ``z_b - z_p``: ``(c (..., 6), dz (...))``."""
-        d = r[..., 3:6] - r[..., 0:3]
+        p = self.layout.positions(r)
+        d = p[..., 1, :] - p[..., 0, :]
         rho = np.linalg.norm(d, axis=-1)
         c = np.empty(r.shape[:-1] + (6,))
-        c[..., 0:3] = r[..., 0:3]  # (4.13)-(4.15)
+        c[..., 0:3] = p[..., 0, :]  # (4.13)-(4.15)
         c[..., 3] = rho  # (4.16)
         with np.errstate(invalid="ignore", divide="ignore"):
             c[..., 4] = np.arcsin(np.clip(d[..., 0] / rho, -1, 1))  # (4.17)
             c[..., 5] = np.arcsin(np.clip(d[..., 1] / rho, -1, 1))  # (4.18)
         return c, d[..., 2]
 
-    def outside(self, r):
-        """Where ``r`` is outside the description: the UAV below the platform, or an angle more
-        than ``tolerance_deg`` outside the range; a bool array (...). Raises nothing."""
+    def reachable(self, r):
+        """Where ``r`` is inside the description: the UAV at or above the platform and both
+        angles within ``tolerance_deg`` of the range; a bool array (...). Raises nothing."""
         c, dz = self._formulas(np.asarray(r, dtype=float))
         out = dz < 0
         for _, bad in self._angles_out(c, self.tolerance):
             out |= bad
-        return out
+        return ~out
+
+    def sample_robot_state(self, rng, batch=()):
+        """Random reachable states: ``alpha_f``, ``beta_f`` in [1, 40] deg of the range's low
+        edge (scaled to the range), ``rho_f`` in [0.5, 2.5] m, the UGV within 2 m."""
+        batch = (int(batch),) if isinstance(batch, (int, np.integer)) else tuple(batch)
+        lo, hi = self.range
+        a, b = (lo + (hi - lo) * rng.uniform(1 / 45, 40 / 45, batch) for _ in range(2))
+        x_p = rng.uniform(-2.0, 2.0, batch + (3,))
+        rho = rng.uniform(0.5, 2.5, batch)
+        sa, sb = np.sin(a), np.sin(b)
+        w = np.sqrt(np.maximum(0.0, 1.0 - sa * sa - sb * sb))
+        return self._robots(x_p, x_p + rho[..., None] * np.stack([sa, sb, w], axis=-1))
+
+    def special_sets(self):
+        return (
+            sp.SpecialSet("overhead", "alpha_f = beta_f = 0, the lower edge of the operating range (asin regular)",
+                          sp.ugv_uav_restricted_overhead),
+            sp.SpecialSet("corner", "alpha_f = beta_f = 45 deg: the UAV at platform level, (4.24)'s root 0 and its "
+                          "derivative infinite (the inverse Jacobian clips it at W_MIN); the root of a rounding "
+                          "error there costs half the digits of z_b", sp.ugv_uav_restricted_corner,
+                          round_trip_tol=1e-7),
+        )
 
     @staticmethod
     def _refuse_below(dz, what, fix):
@@ -252,18 +280,18 @@ class UgvUavRestricted(_UgvUav):
             )
 
     def _expressible(self, r, name="r"):
-        """The one check of a robot state that :meth:`forward`, :meth:`jacobian` and so
-        :meth:`inverse_jacobian` and :meth:`singularity_measure` share: refuse the UAV below
-        the platform and angles more than ``tolerance_deg`` outside the range
-        (UnreachableError, as :meth:`outside` marks them). Returns ``(r, delta, c)``."""
-        r, d = self._delta(r, name)
+        """The one check of a robot state that :meth:`forward`, :meth:`cluster_rate` and so
+        :meth:`jacobian`, :meth:`inverse_jacobian` and :meth:`singularity_measure` share:
+        refuse the UAV below the platform and angles more than ``tolerance_deg`` outside the
+        range (UnreachableError, where :meth:`reachable` is False). Returns ``(r, delta, c)``."""
+        r, _, d = self._delta(r, name)
         c, dz = self._formulas(r)  # (4.13)-(4.18)
         self._refuse_below(dz, name, "use the spherical or quaternion description")
         self.check_reachable(c, name, self.tolerance)
         return r, d, c
 
     def _expressible_cluster(self, c, name="cluster state"):
-        """The check of a cluster state that :meth:`inverse` and :meth:`inverse_jacobian_at`
+        """The check of a cluster state that :meth:`inverse` and :meth:`robot_rate`
         share: ``rho_f > 0`` and the angles within the range and its tolerance."""
         c = self.check_cluster_state(c, "c")
         if np.any(c[..., 3] <= 0):
@@ -271,23 +299,23 @@ class UgvUavRestricted(_UgvUav):
         self.check_reachable(c, name, self.tolerance)
         return c
 
-    def forward(self, r, hint=None):
+    def forward(self, r, *, near_c=None):
         return self._expressible(r)[2]
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self._expressible_cluster(c)
         sa, sb = np.sin(c[..., 4]), np.sin(c[..., 5])
-        r = np.empty(c.shape[:-1] + (6,))
-        r[..., 0:3] = c[..., 0:3]  # (4.19)-(4.21)
-        r[..., 3] = c[..., 0] + c[..., 3] * sa  # (4.22)
-        r[..., 4] = c[..., 1] + c[..., 3] * sb  # (4.23)
-        r[..., 5] = c[..., 2] + c[..., 3] * np.sqrt(np.maximum(0.0, 1 - sa * sa - sb * sb))  # (4.24)
-        return r
+        x_b = np.stack([c[..., 0] + c[..., 3] * sa,  # (4.22)
+                        c[..., 1] + c[..., 3] * sb,  # (4.23)
+                        c[..., 2] + c[..., 3] * np.sqrt(np.maximum(0.0, 1 - sa * sa - sb * sb))], axis=-1)  # (4.24)
+        return self._robots(c[..., 0:3], x_b)  # (4.19)-(4.21)
 
-    def jacobian(self, r, hint=None):
-        """6 x 6; singular where ``sin^2 alpha_f + sin^2 beta_f = 1`` (UAV at platform level).
-        Refuses what :meth:`forward` refuses (UnreachableError: the UAV below the platform,
-        angles outside the range): there the description, so its rate, does not exist."""
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """Derivative of (4.13)-(4.18): ``rho' = u . delta'``, ``alpha_f' = (e_x - u_x u) . delta' /
+        (rho cos alpha_f)``, ``beta_f'`` alike; singular where ``sin^2 alpha_f + sin^2 beta_f = 1``
+        (UAV at platform level). Refuses what :meth:`forward` refuses (UnreachableError: the UAV
+        below the platform, angles outside the range): there the description, so its rate,
+        does not exist."""
         r, d, _ = self._expressible(r)
         rho = np.linalg.norm(d, axis=-1)
         u = d / rho[..., None]
@@ -298,34 +326,32 @@ class UgvUavRestricted(_UgvUav):
                 "through the UGV (alpha_f or beta_f = +-90 deg, asin at its end)"
             )
         dd = np.eye(3) - u[..., :, None] * u[..., None, :]  # d u / d delta * rho
-        return _jacobian_from_gradients([u, dd[..., 0, :] / (rho * np.sqrt(cos_a2))[..., None],
-                                         dd[..., 1, :] / (rho * np.sqrt(cos_b2))[..., None]])
+        grads = [u, dd[..., 0, :] / (rho * np.sqrt(cos_a2))[..., None], dd[..., 1, :] / (rho * np.sqrt(cos_b2))[..., None]]
+        return _rate_from_gradients(grads, self.layout.positions(as_array(r_dot, "r_dot", 6)))
 
-    def singularity_measure(self, r, hint=None):
+    def singularity_measure(self, r, *, near_c=None):
         """As :meth:`Formation.singularity_measure`; refuses what :meth:`forward` refuses, naming
         the state as given (not the normalised one the measure is taken on)."""
         self._expressible(r)
-        return super().singularity_measure(r, hint)
+        return super().singularity_measure(r, near_c=near_c)
 
-    def inverse_jacobian_at(self, c, r=None):
-        """Derivative of eqs. (4.19)-(4.24) at ``c`` (..., 6), shape (..., 6, 6); refuses what
-        :meth:`inverse` refuses, and ``r`` (if given) where :meth:`forward` refuses it."""
+    def robot_rate(self, c, c_dot, *, r=None):
+        """Derivative of eqs. (4.19)-(4.24) at ``c`` along ``c_dot``; refuses what :meth:`inverse`
+        refuses, and ``r`` (if given) where :meth:`forward` refuses it."""
         c = self._expressible_cluster(c)
         if r is not None:
             self._expressible(r)
-        rho, a, b = c[..., 3], c[..., 4], c[..., 5]
+        cd = as_array(c_dot, "c_dot", 6)
+        rho, a, b = c[..., 3:4], c[..., 4:5], c[..., 5:6]
         sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
         # (4.24)'s root: its derivative is infinite at platform level; clipped at W_MIN
         w = np.sqrt(np.maximum(W_MIN ** 2, 1 - sa * sa - sb * sb))
-        Ji = np.zeros(c.shape[:-1] + (6, 6))
-        Ji[..., 0:3, 0:3] = np.eye(3)
-        Ji[..., 3:6, 0:3] = np.eye(3)
-        Ji[..., 3:6, 3] = np.stack([sa, sb, w], -1)
-        Ji[..., 3:6, 4] = rho[..., None] * np.stack([ca, 0 * ca, -sa * ca / w], -1)
-        Ji[..., 3:6, 5] = rho[..., None] * np.stack([0 * cb, cb, -sb * cb / w], -1)
-        return Ji
+        v_b = (cd[..., 0:3] + cd[..., 3:4] * np.concatenate([sa, sb, w], -1)
+               + cd[..., 4:5] * rho * np.concatenate([ca, 0 * ca, -sa * ca / w], -1)
+               + cd[..., 5:6] * rho * np.concatenate([0 * cb, cb, -sb * cb / w], -1))
+        return self._robots(cd[..., 0:3], v_b)
 
-    def from_euclidean(self, e, e_dot=None):
+    def from_chart(self, e, e_dot=None):
         S = UgvUavSpherical()
         r = S.inverse(e)
         c, dz = self._formulas(r)
@@ -333,6 +359,7 @@ class UgvUavRestricted(_UgvUav):
         self.check_reachable(c, "reference")
         if e_dot is None:
             return c
+        # the dense matrices (not the rate maps) keep the references' rounding of before issue 13
         r_dot = np.einsum("...ij,...j->...i", S.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 6))
         return c, np.einsum("...ij,...j->...i", self.jacobian(r), r_dot)
 
@@ -346,62 +373,78 @@ class UgvUavQuaternion(_UgvUav):
         *quaternion_variables("q_c"),
         Variable("d_c_x", "m", "length"), Variable("d_c_y", "m", "length"), Variable("d_c_z", "m", "length"),
     )
+    sign_free = (slice(3, 7),)
 
     def check_cluster_state(self, c, name="c"):
         c = super().check_cluster_state(c, name)
         as_unit_quaternion(c[..., 3:7], f"{name}[q_c]")
         return c
 
-    def forward(self, r, hint=None):
-        r, d = self._delta(r)
+    def forward(self, r, *, near_c=None):
+        r, x_p, d = self._delta(r)
         D = np.linalg.norm(d, axis=-1)
         u = d / D[..., None]
-        if hint is None:  # eqs. (4.26), (4.28), (4.29): minimal rotation from i
+        if near_c is None:  # eqs. (4.26), (4.28), (4.29): minimal rotation from i
             qh = np.array([1.0, 0.0, 0.0, 0.0])
         else:
-            qh = self.check_cluster_state(hint, "hint")[..., 3:7]
+            qh = self.check_cluster_state(near_c, "near_c")[..., 3:7]
         qc = g.mul(g.swing(g.x_axis(qh), u, g.z_axis(qh)), qh)
         c = np.zeros(r.shape[:-1] + (10,))
-        c[..., 0:3] = r[..., 0:3]  # (4.25)
+        c[..., 0:3] = x_p  # (4.25)
         c[..., 3:7] = g.closest_sign(qc, qh)
         c[..., 7] = D  # (4.27)
         return c
 
-    def inverse(self, c, hint=None):
+    def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
         qc = c[..., 3:7] / np.linalg.norm(c[..., 3:7], axis=-1, keepdims=True)
         if np.any(np.linalg.norm(c[..., 7:10], axis=-1) <= 0):
             raise DegenerateInputError("d_c must be nonzero (the robots would coincide)")
-        r = np.empty(c.shape[:-1] + (6,))
-        r[..., 0:3] = c[..., 0:3]  # (4.30)
-        r[..., 3:6] = c[..., 0:3] + g.rotate(qc, c[..., 7:10])  # (4.31)
-        return r
+        return self._robots(c[..., 0:3], c[..., 0:3] + g.rotate(qc, c[..., 7:10]))  # (4.30)-(4.31)
 
-    def jacobian(self, r, hint=None):
-        """``c_dot = J r_dot`` (10 x 6) for the hinted forward map (no twist rate)."""
-        c = self.forward(r, hint)
-        u = g.x_axis(c[..., 3:7])
-        D = c[..., 7]
-        dq = 0.5 * qminus(c[..., 3:7])[..., :, 1:] @ (skew(u) / D[..., None, None])
-        J = np.zeros(c.shape[:-1] + (10, 6))
-        J[..., 0:3, 0:3] = np.eye(3)
-        J[..., 3:7, 0:3] = -dq
-        J[..., 3:7, 3:6] = dq
-        J[..., 7, 0:3] = -u
-        J[..., 7, 3:6] = u
-        return J
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """``c_dot = J r_dot`` for the forward map near ``near_c`` (no twist rate): ``x_c' = v_p``,
+        ``q_c' = 1/2 (0, u x delta' / D) q_c`` (the minimal rotation of eqs. (4.26)-(4.29)),
+        ``d_c' = (u . delta', 0, 0)`` (eq. (4.27))."""
+        c = self.forward(r, near_c=near_c)
+        v = self.layout.positions(as_array(r_dot, "r_dot", 6))
+        q = c[..., 3:7]
+        u = g.x_axis(q)
+        dv = v[..., 1, :] - v[..., 0, :]
+        omega = np.cross(u, dv) / c[..., 7:8]
+        q_dot = 0.5 * g.mul(g.concat([np.zeros(omega.shape[:-1] + (1,)), omega]), q)
+        d_dot = np.sum(u * dv, axis=-1)[..., None]
+        return g.concat([v[..., 0, :], q_dot, d_dot, np.zeros(d_dot.shape[:-1] + (2,))])
 
-    def inverse_jacobian_at(self, c, r=None):
-        """Eq. (4.39): ``[[I, 0, 0], [I, d(q d q*)/dq (4.40), d(q d q*)/dd (4.41)]]``, 6 x 10."""
+    def robot_rate(self, c, c_dot, *, r=None):
+        """Eq. (4.39) along ``c_dot``: ``v_p = x_c'``, ``v_b = x_c' + d(q d q*)/dq q' + R(q) d'``,
+        with (4.40) ``d(q d q*)/dq q' = 2 [w' (w d + u x d) + (u . d) u' + u (d . u') - d (u . u')
+        - w (d x u')]`` (seed 001 eq. (2.47), derived form) and (4.41) ``R(q) d' = (w^2 - |u|^2) d'
+        + 2 u (u . d') + 2 w (u x d')`` (eq. (2.45)), for ``q = (w, u)`` as given (not normalised)."""
         c = np.asarray(c, dtype=float)
-        Ji = np.zeros(c.shape[:-1] + (6, 10))
-        Ji[..., 0:3, 0:3] = np.eye(3)
-        Ji[..., 3:6, 0:3] = np.eye(3)
-        Ji[..., 3:6, 3:7] = jac_qrotate_quaternion(c[..., 3:7], c[..., 7:10])
-        Ji[..., 3:6, 7:10] = jac_qrotate_vector(c[..., 3:7])
-        return Ji
+        cd = as_array(c_dot, "c_dot", 10)
+        w, u, d = c[..., 3:4], c[..., 4:7], c[..., 7:10]
+        wd, ud, dd = cd[..., 3:4], cd[..., 4:7], cd[..., 7:10]
 
-    def from_euclidean(self, e, e_dot=None):
+        def dot(a, b):
+            return np.einsum("...i,...i->...", a, b)[..., None]
+
+        rot_q = 2.0 * (wd * (w * d + np.cross(u, d)) + dot(u, d) * ud + u * dot(d, ud) - d * dot(u, ud)
+                       - w * np.cross(d, ud))
+        rot_d = (w * w - dot(u, u)) * dd + 2.0 * u * dot(u, dd) + 2.0 * w * np.cross(u, dd)
+        return self._robots(cd[..., 0:3], cd[..., 0:3] + rot_q + rot_d)
+
+    def special_sets(self):
+        return (
+            sp.SpecialSet("behind", "the minimal rotation from i (eqs. (4.26)-(4.29)) is 0/0 with the UAV behind "
+                          "the UGV; the half turn about z is taken. Its (1 + a.u, a x u) cancels nearby: within "
+                          "1e-8 rad of the set the UAV comes back to about 1e-8 relative", sp.ugv_uav_behind,
+                          round_trip_tol=1e-7),
+            sp.SpecialSet("overhead", "the spherical alpha_c is undefined here; q_c is regular",
+                          sp.ugv_uav_overhead),
+        )
+
+    def from_chart(self, e, e_dot=None):
         """``q_c = q_z(alpha) q_y(-beta)`` (x axis along the segment, no twist): continuous in ``e``."""
         e = UgvUavSpherical().check_cluster_state(e, "e")
         qz, qy = g.q_yaw(e[..., 4]), g.q_pitch_y(-e[..., 5])

@@ -1,13 +1,14 @@
 """Report layer: PNG figures of UGV-UAV runs, like seed 001 Figs. 19-39 (above sim).
 
-The figures of :class:`quatform.sim.ugv_uav.UgvUavRun`: a Pioneer (UGV) and a Bebop (UAV)
+The figures of a finished UGV-UAV :class:`~quatform.sim.log.Log` (the ``ugv-uav`` scenario
+kind, :mod:`quatform.scenarios.ugv_uav`): a Pioneer (UGV) and a Bebop (UAV)
 in one of the descriptions ``'quaternion'``, ``'spherical'`` or ``'restricted'``. As in
 :mod:`quatform.report.plots` (whose helpers are reused), every function draws on its own
 :class:`matplotlib.figure.Figure` attached to an Agg canvas, lines are decimated to at
 most ``MAX_POINTS`` samples, and the singular-pose shading is computed on every sample.
 
-The robots are drawn at their logged (true) poses, ``run.ugv`` and ``run.uav``, against
-the desired ones ``UgvUavSpherical().inverse(run.e_des)``. A run whose reference the
+The robots are drawn at their logged (true) poses, the log's ``state`` and ``r_true``,
+against the desired ones ``r_des`` (``UgvUavSpherical().inverse(e_des)``). A run whose reference the
 description cannot express from the start has no samples; its figures then carry the
 reason instead of axes.
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import textwrap
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -33,10 +35,11 @@ from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
 from ..algebra import wrap_angle
-from ..formations import UgvUavSpherical
+from ..formations import UGV_UAV_LAYOUT
 from ..papers import PAPERS, with_names
+from ..scenarios.ugv_uav import UGV_UAV_FORMATIONS
+from ..sim.log import Log
 from ..sim.metrics import SINGULAR_THRESHOLD
-from ..sim.ugv_uav import UGV_UAV_FORMATIONS, UgvUavRun
 from .figures import (
     ANGLE_LABELS,
     ANGLE_TICKS,
@@ -76,10 +79,40 @@ _UNREACHABLE_COLOR = "0.82"
 _PAPER = PAPERS["001"].short
 
 
+@dataclass(frozen=True)
+class _Run:
+    """What the figures read of one finished log (:func:`_run_of`)."""
+
+    scenario: object
+    formation: str
+    backend: str
+    t: np.ndarray
+    ugv: np.ndarray  # (T, 3): x_p, y_p, psi_p
+    uav: np.ndarray  # (T, 8): x_b, y_b, z_b, psi_b, body velocities
+    r_true: np.ndarray  # (T, 6)
+    r_des: np.ndarray  # (T, 6)
+    c: np.ndarray
+    c_des: np.ndarray
+    e: np.ndarray
+    e_des: np.ndarray
+    singularity: np.ndarray  # (T,)
+    reachable: np.ndarray  # (T,) bool
+    unreachable_at: float | None
+    unreachable_message: str
+
+
+def _run_of(log: Log) -> _Run:
+    """The figures' view of a finished UGV-UAV log."""
+    m, x = log.meta, log["state"]
+    return _Run(m["scenario"], m["formation"], m["backend"], log.t, x[:, 0:3], x[:, 3:11], log["r_true"],
+                log["r_des"], log["cluster"], log["c_des"], log["e"], log["e_des"], log["singularity"][:, 0],
+                log["reachable"][:, 0] > 0.5, m["unreachable_at"], m["unreachable_message"])
+
+
 # --------------------------------------------------------------------------- helpers
 
 
-def _title(run: UgvUavRun) -> str:
+def _title(run: _Run) -> str:
     """``name - ugv-uav-<formation> (Marciano 2021 §..., Figs. ...)`` and the scenario title."""
     sc = run.scenario
     source = with_names(sc.source)
@@ -107,7 +140,7 @@ def _filtered(t, y, window_s: float = FILTER_WINDOW_S, stride: int = 1):
         return mean, np.nanmin(env, axis=-1), np.nanmax(env, axis=-1)
 
 
-def _unreachable_spans(run: UgvUavRun):
+def _unreachable_spans(run: _Run):
     """Intervals where the description could not express the reference (the robots waited)."""
     if run.reachable is None or run.t.size == 0:
         return []
@@ -119,12 +152,12 @@ def _shade_unreachable(ax, spans):
         ax.axvspan(a, b, color=_UNREACHABLE_COLOR, alpha=0.6, lw=0, zorder=0)
 
 
-def _unreachable_text(run: UgvUavRun) -> str:
+def _unreachable_text(run: _Run) -> str:
     msg = run.unreachable_message or "no samples"
     return f"reference unreachable for the {run.formation} description: {msg}"
 
 
-def _unreachable_note(run: UgvUavRun) -> str:
+def _unreachable_note(run: _Run) -> str:
     """Short tag for legends and titles: ``''`` for a run that kept its reference."""
     if run.unreachable_at is None:
         return ""
@@ -134,7 +167,7 @@ def _unreachable_note(run: UgvUavRun) -> str:
     return f"unreachable from t = {run.unreachable_at:g} s"
 
 
-def _empty_figure(run: UgvUavRun, path, figsize) -> Path:
+def _empty_figure(run: _Run, path, figsize) -> Path:
     """A figure with only the reason why ``run`` has no samples."""
     fig = new_figure(figsize)
     ax = fig.add_subplot()
@@ -146,18 +179,14 @@ def _empty_figure(run: UgvUavRun, path, figsize) -> Path:
     return save(fig, path)
 
 
-def _desired_robots(run: UgvUavRun) -> np.ndarray:
+def _desired_robots(run: _Run) -> np.ndarray:
     """Desired ``(x_p, y_p, z_p, x_b, y_b, z_b)`` of every sample, (T, 6)."""
-    if run.t.size == 0:
-        return np.zeros((0, 6))
-    return UgvUavSpherical().inverse(np.asarray(run.e_des, dtype=float))
+    return np.asarray(run.r_des, dtype=float)
 
 
-def _actual_robots(run: UgvUavRun) -> np.ndarray:
+def _actual_robots(run: _Run) -> np.ndarray:
     """Logged (true) ``(x_p, y_p, z_p, x_b, y_b, z_b)``, the UGV at the platform height."""
-    ugv, uav = np.asarray(run.ugv, dtype=float), np.asarray(run.uav, dtype=float)
-    z = np.full(run.t.size, float(run.scenario.center[2]))
-    return np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
+    return np.asarray(run.r_true, dtype=float)
 
 
 def _angle_axis(ax):
@@ -170,7 +199,7 @@ def _wrapped(y):
     return break_wraps(wrap_angle(finite(y)))
 
 
-def _switch_time(run: UgvUavRun):
+def _switch_time(run: _Run):
     """Time of the front -> over switch of seed 001 §5.3 inside the run, or None."""
     ts = float(run.scenario.uav_front_until_s)
     if ts <= 0 or run.t.size == 0 or not (run.t[0] <= ts <= run.t[-1]):
@@ -178,7 +207,7 @@ def _switch_time(run: UgvUavRun):
     return ts
 
 
-def _decorate_time_axes(ax, run: UgvUavRun, spans):
+def _decorate_time_axes(ax, run: _Run, spans):
     shade(ax, spans)
     _shade_unreachable(ax, _unreachable_spans(run))
     ts = _switch_time(run)
@@ -189,7 +218,7 @@ def _decorate_time_axes(ax, run: UgvUavRun, spans):
     time_xlim(ax, float(run.t[0]), float(run.t[-1]))
 
 
-def _extra_handles(run: UgvUavRun, spans) -> list:
+def _extra_handles(run: _Run, spans) -> list:
     """Legend entries of the singular shading and the switch line, where drawn."""
     handles = []
     if spans:
@@ -204,7 +233,7 @@ def _extra_handles(run: UgvUavRun, spans) -> list:
     return handles
 
 
-def _subtitle_note(run: UgvUavRun) -> str:
+def _subtitle_note(run: _Run) -> str:
     note = _unreachable_note(run)
     return f" ({note})" if note else ""
 
@@ -234,7 +263,7 @@ def _symlog_error_axis(ax, y, nonnegative=False):
 # --------------------------------------------------------------------------- one run
 
 
-def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
+def plot_ugv_uav_paths_3d(log: Log, path, n_segments: int = 10) -> Path:
     """Both robots' paths in 3-D, logged (solid) and desired (dashed).
 
     Like seed 001 Figs. 19, 26 and 33: the UGV's control point at the platform height
@@ -246,8 +275,8 @@ def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
 
     Parameters
     ----------
-    run : UgvUavRun
-        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    log : Log
+        A finished log of the ``ugv-uav`` kind (:mod:`quatform.scenarios.ugv_uav`).
     path : str or Path
         PNG file to write; its folder is created if missing.
     n_segments : int, optional
@@ -258,6 +287,7 @@ def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
     Path
         The file written.
     """
+    run = _run_of(log)
     if run.t.size == 0:
         return _empty_figure(run, path, (8.0, 6.8))
     r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
@@ -289,7 +319,7 @@ def plot_ugv_uav_paths_3d(run: UgvUavRun, path, n_segments: int = 10) -> Path:
     return save(fig, path)
 
 
-def _cluster_rows(run: UgvUavRun):
+def _cluster_rows(run: _Run):
     """``(label, measured, desired, error, kind)`` per row of :func:`plot_ugv_uav_cluster`.
 
     ``kind`` is ``'angle'``, ``'quaternion'`` (4 columns; the error is the rotation angle)
@@ -313,7 +343,7 @@ def _cluster_rows(run: UgvUavRun):
     return rows
 
 
-def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
+def plot_ugv_uav_cluster(log: Log, path) -> Path:
     """The cluster variables of the run's description against desired, and their errors.
 
     Like seed 001 Figs. 20-22, 27-29 and 34-36. Left column: each variable of the
@@ -328,8 +358,8 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
 
     Parameters
     ----------
-    run : UgvUavRun
-        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    log : Log
+        A finished log of the ``ugv-uav`` kind (:mod:`quatform.scenarios.ugv_uav`).
     path : str or Path
         PNG file to write; its folder is created if missing.
 
@@ -338,6 +368,7 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
     Path
         The file written.
     """
+    run = _run_of(log)
     if run.t.size == 0:
         return _empty_figure(run, path, (11.0, 6.0))
     rows = _cluster_rows(run)
@@ -390,7 +421,7 @@ def plot_ugv_uav_cluster(run: UgvUavRun, path) -> Path:
     return save(fig, path)
 
 
-def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
+def plot_ugv_uav_robots(log: Log, path) -> Path:
     """Each robot's position and heading against its reference, 2 x 2 axes.
 
     Like seed 001 Figs. 23-24, 30-31 and 37-38. Top: the UGV's control point ``x, y``
@@ -401,8 +432,8 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
 
     Parameters
     ----------
-    run : UgvUavRun
-        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    log : Log
+        A finished log of the ``ugv-uav`` kind (:mod:`quatform.scenarios.ugv_uav`).
     path : str or Path
         PNG file to write; its folder is created if missing.
 
@@ -411,6 +442,7 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
     Path
         The file written.
     """
+    run = _run_of(log)
     if run.t.size == 0:
         return _empty_figure(run, path, (11.0, 6.4))
     r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
@@ -458,20 +490,21 @@ def plot_ugv_uav_robots(run: UgvUavRun, path) -> Path:
 # --------------------------------------------------------------------------- several runs
 
 
-def _compare_label(run: UgvUavRun) -> str:
+def _compare_label(run: _Run) -> str:
     note = _unreachable_note(run)
     return f"{run.formation} ({note})" if note else run.formation
 
 
 @np.errstate(invalid="ignore")
-def _robot_errors(run: UgvUavRun):
+def _robot_errors(run: _Run):
     """Position errors ``|p_ugv - p_ugv_des|`` (x, y) and ``|p_uav - p_uav_des|`` (x, y, z)."""
-    r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
-    return (np.linalg.norm(r[:, 0:2] - rd[:, 0:2], axis=1),
-            np.linalg.norm(r[:, 3:6] - rd[:, 3:6], axis=1))
+    p = UGV_UAV_LAYOUT.positions(finite(_actual_robots(run)))
+    pd = UGV_UAV_LAYOUT.positions(finite(_desired_robots(run)))
+    return (np.linalg.norm(p[:, 0, 0:2] - pd[:, 0, 0:2], axis=1),
+            np.linalg.norm(p[:, 1] - pd[:, 1], axis=1))
 
 
-def plot_ugv_uav_compare(runs, path) -> Path:
+def plot_ugv_uav_compare(logs, path) -> Path:
     """Several descriptions on one UGV-UAV scenario, one line per run.
 
     Like seed 001 Figs. 25, 32 and 39. Four rows sharing the time axis: the UGV's
@@ -485,7 +518,7 @@ def plot_ugv_uav_compare(runs, path) -> Path:
 
     Parameters
     ----------
-    runs : sequence of UgvUavRun
+    logs : sequence of Log
         Runs of the same scenario with different formations.
     path : str or Path
         PNG file to write; its folder is created if missing.
@@ -498,9 +531,9 @@ def plot_ugv_uav_compare(runs, path) -> Path:
     Raises
     ------
     InvalidInputError
-        If ``runs`` is empty.
+        If ``logs`` is empty.
     """
-    runs = check_runs(runs)
+    runs = [_run_of(log) for log in check_runs(logs)]
     fig = new_figure((9.0, 9.0))
     axes = fig.subplots(4, 1, sharex=True)
     peaks = [0.0, 0.0]
@@ -565,13 +598,13 @@ def plot_ugv_uav_compare(runs, path) -> Path:
 # --------------------------------------------------------------------------- files
 
 
-def write_ugv_uav_run_plots(run: UgvUavRun, out_dir) -> list[Path]:
+def write_ugv_uav_run_plots(log: Log, out_dir) -> list[Path]:
     """Write ``paths_3d.png``, ``cluster_variables.png`` and ``robots.png`` of one run.
 
     Parameters
     ----------
-    run : UgvUavRun
-        A run from :func:`quatform.sim.ugv_uav.simulate_ugv_uav`.
+    log : Log
+        A finished log of the ``ugv-uav`` kind (:mod:`quatform.scenarios.ugv_uav`).
     out_dir : str or Path
         Folder to write into; created if missing.
 
@@ -582,17 +615,17 @@ def write_ugv_uav_run_plots(run: UgvUavRun, out_dir) -> list[Path]:
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [plot_ugv_uav_paths_3d(run, out / "paths_3d.png"),
-            plot_ugv_uav_cluster(run, out / "cluster_variables.png"),
-            plot_ugv_uav_robots(run, out / "robots.png")]
+    return [plot_ugv_uav_paths_3d(log, out / "paths_3d.png"),
+            plot_ugv_uav_cluster(log, out / "cluster_variables.png"),
+            plot_ugv_uav_robots(log, out / "robots.png")]
 
 
-def write_ugv_uav_compare_plots(runs, out_dir) -> list[Path]:
+def write_ugv_uav_compare_plots(logs, out_dir) -> list[Path]:
     """Write ``compare_formations.png`` of several runs of one scenario.
 
     Parameters
     ----------
-    runs : sequence of UgvUavRun
+    logs : sequence of Log
         Runs of one scenario, different formations.
     out_dir : str or Path
         Folder to write into; created if missing.
@@ -605,9 +638,9 @@ def write_ugv_uav_compare_plots(runs, out_dir) -> list[Path]:
     Raises
     ------
     InvalidInputError
-        If ``runs`` is empty.
+        If ``logs`` is empty.
     """
-    runs = check_runs(runs)
+    logs = check_runs(logs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [plot_ugv_uav_compare(runs, out / "compare_formations.png")]
+    return [plot_ugv_uav_compare(logs, out / "compare_formations.png")]

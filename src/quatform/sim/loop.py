@@ -3,13 +3,12 @@
 Sim layer. ``closed_loop`` integrates a plant with a fixed step, lets a measurement model
 see every plant state, and calls the controller every ``substeps`` plant steps with the
 measurement available then and the reference of that tick (zero-order hold of the
-commands). The two-robot runs of seed 000 (perfect measurement, holonomic robots) and the
-UGV-UAV runs of seed 001 (motion capture, Pioneer and Bebop) both use it.
+commands). The two-robot runs of seed 000 (perfect measurement, holonomic robots) use it;
+the UGV-UAV runs of seed 001 go through :func:`quatform.sim.simulate.simulate`.
 """
 
 from __future__ import annotations
 
-import bisect
 from dataclasses import dataclass
 from typing import Callable
 
@@ -38,27 +37,6 @@ class PerfectMeasurement:
 
     def read(self, t: float) -> np.ndarray:
         return self._x
-
-
-class History:
-    """True states by time, for measurements with latency (kept as long as needed)."""
-
-    def __init__(self, horizon_s: float):
-        self.horizon = horizon_s
-        self.t: list[float] = []
-        self.x: list[np.ndarray] = []
-
-    def add(self, t, x):
-        self.t.append(t)
-        self.x.append(x)
-        while len(self.t) > 2 and self.t[1] < t - self.horizon:
-            self.t.pop(0)
-            self.x.pop(0)
-
-    def at(self, t):
-        """The latest state at or before ``t`` (the oldest kept before that)."""
-        i = bisect.bisect_right(self.t, t + 1e-12) - 1
-        return self.x[max(i, 0)]
 
 
 def closed_loop(times, substeps: int, dt: float, x0, plant_step: Callable, measurement, compute: Callable,

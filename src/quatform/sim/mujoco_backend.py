@@ -542,8 +542,8 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
     log = closed_loop(t, 1, scenario.dt_s, r0, plant, PerfectMeasurement(), ctrl.compute,
                       lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
     r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
-    e = F.euclidean(c, e_des, r)
-    sing = F.singularity_measure(r, c_des)
+    e = F.to_chart(c, near_e=e_des, r=r)
+    sing = F.singularity_measure(r, near_c=c_des)
     run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing, backend=BACKEND_LABEL)
     q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
     rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},

@@ -93,6 +93,6 @@ def simulate(scenario: Scenario, controller: str | Controller, feedforward: bool
     log = closed_loop(t, 1, scenario.dt_s, r0, ctrl.team.step, PerfectMeasurement(), ctrl.compute,
                       lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
     r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
-    e = F.euclidean(c, e_des, r)
-    sing = F.singularity_measure(r, c_des)
+    e = F.to_chart(c, near_e=e_des, r=r)
+    sing = F.singularity_measure(r, near_c=c_des)
     return Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing)

@@ -210,13 +210,13 @@ def load_scenario(name_or_file: str | Path) -> Scenario:
     """Load a built-in scenario by name or a TOML file by path.
 
     Returns a :class:`Scenario` (two 4-DOF robots, seed 000), for ``kind = "ugv-uav"`` a
-    :class:`~quatform.sim.ugv_uav.UgvUavScenario` (seed 001), for ``kind = "teleop"`` a
+    :class:`~quatform.scenarios.ugv_uav.UgvUavScenario` (seed 001), for ``kind = "teleop"`` a
     :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
     """
     data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
     kind = text(data, "kind", str(p), "pair", choices=("pair", "ugv-uav", "teleop"))
     if kind == "ugv-uav":
-        from .ugv_uav import ugv_uav_scenario_from_dict
+        from ..scenarios.ugv_uav import ugv_uav_scenario_from_dict  # until the one loader of scenarios/
 
         return ugv_uav_scenario_from_dict(data, where=str(p))
     if kind == "teleop":

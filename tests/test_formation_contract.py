@@ -1,0 +1,88 @@
+"""One contract test for every registered formation (issue 13 item 7).
+
+``quatform.formations.testing.check_formation`` checks round trips, the rate maps against
+central differences and against each other, dense Jacobians = rate maps, batch = single,
+sign and yaw-wrap invariance and the declared behaviour at and near each special set;
+here it runs over :data:`quatform.formations.FORMATIONS`, so a new description is checked
+by adding it there. The seeds' own numbers and the external oracles stay in
+``test_formations.py``, ``test_ugv_uav.py`` and ``test_oracles.py``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from quatform.errors import InvalidInputError
+from quatform.formations import FORMATIONS, Formation, RobotLayout
+from quatform.formations.testing import check_formation, cluster_distance
+
+KEYS = sorted(FORMATIONS)
+
+
+def test_registry_covers_every_description():
+    """Every concrete Formation subclass of the package is registered once, under a unique key."""
+    import quatform.formations as pkg
+
+    classes = {obj for obj in vars(pkg).values()
+               if isinstance(obj, type) and issubclass(obj, Formation) and obj is not Formation}
+    assert classes == {type(F) for F in FORMATIONS.values()}
+    assert len(KEYS) == 7 == len({type(F) for F in FORMATIONS.values()})
+
+
+@pytest.mark.parametrize("key", KEYS)
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_contract(key, seed):
+    check_formation(FORMATIONS[key], np.random.default_rng(seed), n=24)
+
+
+@pytest.mark.parametrize("key", KEYS)
+def test_layout_names_the_robot_variables(key):
+    F = FORMATIONS[key]
+    assert isinstance(F.layout, RobotLayout)
+    assert F.robot_variables == F.layout.variables and F.n_r == F.layout.size
+    assert len(F.chart_variables) == (8 if F.layout.n == 2 and F.n_r == 8 else 6)
+
+
+def test_pair_and_ugv_uav_names_stay():
+    from quatform.formations import ROBOT_PAIR_VARIABLES, UGV_UAV_VARIABLES
+
+    assert [v.name for v in ROBOT_PAIR_VARIABLES] == ["x1", "y1", "z1", "theta1", "x2", "y2", "z2", "theta2"]
+    assert [v.name for v in UGV_UAV_VARIABLES] == ["x_p", "y_p", "z_p", "x_b", "y_b", "z_b"]
+
+
+GOLDEN = Path(__file__).parent / "data" / "formation_jacobians.json"
+
+
+@pytest.mark.parametrize("key", KEYS)
+def test_dense_jacobians_equal_the_matrices_before_the_rate_maps(key):
+    """The matrices applied to the unit vectors equal those main built directly before the rate
+    maps became the primitive (recorded at 12 states per description), within 1e-12."""
+    rec = json.loads(GOLDEN.read_text())[key]
+    F = FORMATIONS[key]
+    r = np.array(rec["r"])
+    c = F.forward(r)
+    np.testing.assert_allclose(c, rec["c"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(F.inverse_jacobian_at(c, r=r), rec["inverse_jacobian_at"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(F.jacobian(r), rec["jacobian"], rtol=0, atol=1e-12 * np.abs(rec["jacobian"]).max())
+
+
+def test_check_formation_refuses_a_batch_it_cannot_split():
+    with pytest.raises(InvalidInputError, match="multiple of 6"):
+        check_formation(FORMATIONS["euclidean"], np.random.default_rng(0), n=10)
+
+
+def test_cluster_distance_sees_a_flip_of_a_signed_block_but_not_of_a_sign_free_one():
+    F = FORMATIONS["dual-quaternion"]
+    r = F.sample_robot_state(np.random.default_rng(1), (4,))
+    c = F.forward(r)
+    flipped_c, flipped_s = c.copy(), c.copy()
+    flipped_c[..., 0:8] *= -1  # qhat_c: sign means nothing
+    flipped_s[..., 8:16] *= -1  # qhat_s: the other branch, another formation
+    assert np.max(cluster_distance(F, flipped_c, c)) < 1e-15
+    assert np.min(cluster_distance(F, flipped_s, c)) > 0.1

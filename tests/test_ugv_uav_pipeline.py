@@ -1,0 +1,182 @@
+"""The seed 001 runs through the one pipeline: the ``ugv-uav`` scenario kind builds an
+Experiment that :func:`quatform.sim.simulate` runs (plant, motion capture, controller,
+reference), and the metrics, the time series and the figures read its Log (issue 13)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import quatform.scenarios.base as scenario_base
+from quatform.errors import InvalidInputError, ShapeError
+from quatform.robots import Bebop, Pioneer
+from quatform.scenarios import KINDS
+from quatform.scenarios.ugv_uav import (
+    UGV_UAV_COLUMNS,
+    UGV_UAV_FORMATIONS,
+    UGV_UAV_KIND,
+    UgvUavScenario,
+    check_ugv_uav_scenario,
+    ugv_uav_experiment,
+)
+from quatform.sim import load_scenario
+from quatform.sim.log import Log
+from quatform.sim.measurement import LatencyHistory, MotionCapture
+from quatform.sim.plants.ugv_uav import PioneerBebopPlant
+
+#: Today's timeseries.csv header of a quaternion run (main before issue 13).
+QUATERNION_HEADER = (
+    "t,x_p,x_p_des,y_p,y_p_des,z_p,z_p_des,x_b,x_b_des,y_b,y_b_des,z_b,z_b_des,psi_p,psi_b,psi_b_des,x_c,x_c_des,"
+    "y_c,y_c_des,z_c,z_c_des,q_c_w,q_c_w_des,q_c_x,q_c_x_des,q_c_y,q_c_y_des,q_c_z,q_c_z_des,d_c_x,d_c_x_des,"
+    "d_c_y,d_c_y_des,d_c_z,d_c_z_des,euclid_x_c,euclid_x_c_des,euclid_y_c,euclid_y_c_des,euclid_z_c,euclid_z_c_des,"
+    "euclid_rho_c,euclid_rho_c_des,euclid_alpha_c,euclid_alpha_c_des,euclid_beta_c,euclid_beta_c_des,u_v_p,"
+    "u_omega_p,u_u_x_b,u_u_y_b,u_u_z_b,u_u_psi_b,singularity_measure").split(",")
+#: ... and of a spherical one (its cluster variables are the chart's: written once).
+SPHERICAL_HEADER = QUATERNION_HEADER[:16] + QUATERNION_HEADER[36:]
+
+
+def _short(**changes) -> UgvUavScenario:
+    sc = load_scenario("marciano-circle")
+    return dataclasses.replace(sc, **{"duration_s": 3.0, "transient_s": 1.0, **changes})
+
+
+def test_the_kind_is_registered_with_its_choices_from_the_registries():
+    assert KINDS["ugv-uav"] is UGV_UAV_KIND and UGV_UAV_KIND.scenario_type is UgvUavScenario
+    opts = {o.name: o for o in UGV_UAV_KIND.options}
+    assert opts["formation"].choices == tuple(UGV_UAV_FORMATIONS) and opts["formation"].default == "quaternion"
+    assert opts["backend"].choices == ("kinematic", "mujoco")
+    assert opts["mocap_noise_m"].type is float and opts["mocap_latency_s"].type is float
+    assert UGV_UAV_KIND.compare_over == "formation" and UGV_UAV_KIND.table_columns == UGV_UAV_COLUMNS
+
+
+def test_marciano_circle_through_simulate_equals_todays_numbers(monkeypatch):
+    """The run goes through quatform.sim.simulate (once) and gives main's metrics.json
+    (values from /work/baseline_kin.json, marciano-circle/quaternion)."""
+    calls = []
+    real = scenario_base.simulate
+    monkeypatch.setattr(scenario_base, "simulate", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
+    exp = UGV_UAV_KIND.experiment(load_scenario("marciano-circle"), formation="quaternion")
+    assert isinstance(exp.plant, PioneerBebopPlant) and isinstance(exp.measurement, MotionCapture)
+    log = exp.run()
+    assert calls == [exp.plant] and isinstance(log, Log)
+    m = exp.metrics(log)
+    assert m["max_uav_position_error_m"] == pytest.approx(0.00027595341244905815, rel=1e-9)
+    assert m["max_cluster_state_jump"] == pytest.approx(0.018117374489846964, rel=1e-9)
+    assert m["min_robot_separation_m"] == pytest.approx(0.6708203932499369, rel=1e-9)
+    assert m["max_ugv_position_error_m"] == pytest.approx(2.8736735169408336e-12, rel=1e-6)
+    assert m["controller"] == "ugv-uav-quaternion" and m["uav_model_k"] == list(exp.controller.bebop.k)
+    assert len(log.t) == 3001 and log["state"].shape == (3001, 11) and log["command"].shape == (3001, 6)
+
+
+def test_an_experiment_runs_again_to_the_same_log():
+    """The motion capture starts its random streams afresh with each run (noise and dropouts)."""
+    exp = UGV_UAV_KIND.experiment(_short(duration_s=1.5, mocap_noise_m=0.002, mocap_dropout_rate=0.2))
+    a, b = exp.run(), exp.run()
+    assert (a["frame"][:, 0] == 1).any()
+    for name in ("state", "measured", "command", "used"):
+        np.testing.assert_array_equal(a[name], b[name])
+
+
+def test_the_mocap_overrides_run_and_are_checked_with_the_scenarios_bounds():
+    sc = _short()
+    exp = UGV_UAV_KIND.experiment(sc, mocap_noise_m=0.002, mocap_latency_s=0.005)
+    assert exp.scenario.mocap_noise_m == 0.002 and exp.scenario.mocap_latency_s == 0.005
+    assert exp.measurement.noise_m == 0.002 and exp.measurement.latency == 0.005
+    with pytest.raises(InvalidInputError, match=r"with --mocap-noise-m/--mocap-latency-s: mocap_noise_m = 2\.0"):
+        UGV_UAV_KIND.experiment(sc, mocap_noise_m=2.0)
+    with pytest.raises(InvalidInputError, match="unknown formation 'quaternoin'.*quaternion"):
+        UGV_UAV_KIND.experiment(sc, formation="quaternoin")
+    with pytest.raises(InvalidInputError, match="unknown backend 'bullet'"):
+        UGV_UAV_KIND.experiment(sc, backend="bullet")
+
+
+@pytest.mark.parametrize("formation, header", [("quaternion", QUATERNION_HEADER), ("spherical", SPHERICAL_HEADER)])
+def test_the_csv_header_is_todays(formation, header):
+    exp = UGV_UAV_KIND.experiment(_short(duration_s=0.3, transient_s=0.1), formation=formation)
+    log = exp.run()
+    cols, data = log.table(exp.csv_channels)
+    assert cols == header and data.shape == (len(log.t), len(header))
+    # the views hold the logged values: true and desired robots, commands
+    np.testing.assert_array_equal(data[:, cols.index("x_b")], log["state"][:, 3])
+    np.testing.assert_array_equal(data[:, cols.index("z_b_des")], log["r_des"][:, 5])
+    np.testing.assert_array_equal(data[:, cols.index("u_u_psi_b"):cols.index("u_u_psi_b") + 1], log["command"][:, 5:6])
+
+
+def test_a_run_that_loses_the_motion_capture_stops_with_the_reason_in_the_log():
+    exp = UGV_UAV_KIND.experiment(_short(mocap_dropout_rate=0.9, duration_s=6.0))
+    log = exp.run()
+    state = log.meta["controller_state"]
+    assert state.stopped and state.stop_reason.startswith("motion capture: no good frame")
+    assert log.meta["stop_reason"] == state.stop_reason
+    t_stop = log.meta["stopped_at"]
+    assert t_stop is not None and 0.5 < t_stop <= 6.0
+    stopped = log["stopped"][:, 0] == 1
+    assert not stopped[log.t < t_stop].any() and stopped[log.t >= t_stop].all()
+    m = exp.metrics(log)
+    assert m["run_stopped"] and m["run_stopped_at_s"] == t_stop and m["run_stopped_reason"] == state.stop_reason
+    assert m["mocap_dropped_frames"] == int((log["frame"][:, 0] == 1).sum()) > 0
+
+
+def test_unreachable_reference_is_nan_and_the_robots_hold():
+    exp = UGV_UAV_KIND.experiment(dataclasses.replace(load_scenario("marciano-front-to-over"), duration_s=3.0,
+                                                      transient_s=1.0, uav_front_until_s=2.0), formation="restricted")
+    assert np.all(np.isnan(exp.reference(0).c)) and np.all(np.isfinite(exp.reference(len(exp.times) - 1).c))
+    log = exp.run()
+    reachable = log["reachable"][:, 0] == 1
+    assert not reachable[0] and reachable[-1] and log.meta["unreachable_at"] == 0.0
+    assert "outside the restricted" in log.meta["unreachable_message"]
+    np.testing.assert_array_equal(log["command"][~reachable, 0:2], 0.0)  # the UGV waits
+
+
+# -- plant and measurement ------------------------------------------------------------------------
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0, allow_subnormal=False), min_size=6, max_size=6), st.floats(-0.2, 0.5))
+def test_plant_batch_equals_single_and_keeps_the_floor(u, z):
+    plant = PioneerBebopPlant(Pioneer(), Bebop(), floor=-0.3)
+    x = np.array([0.0, 0.0, 0.3, 1.0, 0.5, z, 0.1, 0.0, 0.0, -1.0, 0.0])
+    u = np.array(u)
+    one = plant.step(x, u, 0.05)
+    batch = plant.step(np.stack([x, x]), np.stack([u, u]), 0.05)
+    np.testing.assert_allclose(batch, np.stack([one, one]), rtol=0, atol=1e-15)
+    assert one[5] >= -0.3 - 1e-15
+    np.testing.assert_array_equal(one[0:3], Pioneer().step(x[0:3], u[0:2], 0.05))
+
+
+def test_motion_capture_latency_and_odometry_period():
+    mc = MotionCapture(rate_hz=100.0, latency_s=0.02, odometry_period_s=0.2)
+    mc.start(0.0, np.zeros(11))
+    for k in range(1, 60):  # the plant moves x_p = t, v_x = t every 5 ms
+        y = np.zeros(11)
+        y[0], y[7] = k * 0.005, k * 0.005
+        mc.observe(k * 0.005, y)
+    m = mc.read(0.25)
+    assert m.shape == (11,)
+    assert m[0] == pytest.approx(0.23, abs=1e-12)  # the frame of 0.25 s shows the pose of 0.23 s
+    assert m[7] == pytest.approx(0.2, abs=1e-12)  # the odometry of 0.2 s
+    with pytest.raises(ShapeError, match="one world at a time"):
+        MotionCapture().start(0.0, np.zeros((2, 11)), batch=(2,))
+    with pytest.raises(InvalidInputError, match="motion capture"):
+        MotionCapture(rate_hz=0.0)
+
+
+def test_latency_history_keeps_its_horizon():
+    h = LatencyHistory(0.1)
+    for k in range(100):
+        h.add(k * 0.01, k)
+    assert h.at(0.985) == 98 and h.at(0.5) == h.x[0] and h.t[1] >= 0.98 - 0.1 - 1e-12
+
+
+def test_controller_switches_must_be_booleans():
+    with pytest.raises(InvalidInputError, match="compensation must be true or false .* got 'no'"):
+        ugv_uav_experiment(_short(), compensation="no")
+
+
+def test_check_refuses_a_changed_scenario():
+    with pytest.raises(InvalidInputError, match="mocap_dropout_rate"):
+        check_ugv_uav_scenario(dataclasses.replace(_short(), mocap_dropout_rate=1.0))
