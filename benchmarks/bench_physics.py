@@ -20,7 +20,8 @@ import time
 import numpy as np
 from _common import fmt, machine_description, optional_import
 
-from quatform.sim import load_scenario, simulate
+from quatform.scenarios.pair import run_pair, simulate_physics
+from quatform.sim import load_scenario
 from quatform.sim.mujoco_backend import INSTALL_HINT
 
 
@@ -43,9 +44,9 @@ def main(argv=None):
     for line in machine_description({"mujoco": mj is not None}):
         print(line)
     sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=args.duration)
-    rows = [("kinematic", best_of(lambda: simulate(sc, args.controller), args.repeat))]
+    rows = [("kinematic", best_of(lambda: run_pair(sc, args.controller), args.repeat))]
     if mj is not None:
-        from quatform.sim.mujoco_backend import PhysicsWorld, simulate_physics
+        from quatform.sim.mujoco_backend import PhysicsWorld
 
         rows.append(("mujoco (cascade + rotor drag in the loop)",
                      best_of(lambda: simulate_physics(sc, args.controller), args.repeat)))

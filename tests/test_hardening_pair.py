@@ -23,7 +23,8 @@ from quatform.formations import DualQuaternionPair, EuclideanPair, QuaternionPai
 from quatform.formations import geometry as g
 from quatform.formations.base import MAX_MAGNITUDE
 from quatform.robots import HolonomicRobot, Team
-from quatform.sim import compute_metrics, load_scenario, simulate
+from quatform.scenarios.pair import run_pair
+from quatform.sim import compute_metrics, load_scenario
 
 FREE = Team((HolonomicRobot(1e9, 1e9),) * 2)
 ALL_FORMATIONS = [EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair()]
@@ -75,10 +76,10 @@ def test_item1_reference_step_of_the_relative_yaw(tmp_path):
     sc = fixed_scenario(tmp_path, '[[path.steps]]\nvariable = "phi_1"\ntime_s = 1.0\nchange = 1.6\n'
                                   '[[path.steps]]\nvariable = "phi_2"\ntime_s = 1.0\nchange = -1.6\n')
     for name in ("cluster-space", "robot-space", "quaternion", "dual-quaternion"):
-        run = simulate(sc, name, feedforward=False)
+        run = run_pair(sc, name, feedforward=False)
         m = compute_metrics(run)
         assert m["min_robot_separation_m"] >= 1.9, name
-        assert same_robots(run.r[-1], run.r_des[-1]) < 1e-3, name
+        assert same_robots(run["state"][-1], run["r_des"][-1]) < 1e-3, name
 
 
 # -- item 2: zero error only at the reference formation ---------------------------------
@@ -133,8 +134,8 @@ def test_item2_initial_offset_does_not_end_swapped(tmp_path):
     """[initial_offset] phi_1 = 2.0, phi_2 = -1.2 on a fixed formation ended with the robots
     swapped (3.8 m off) and the error reported zero."""
     sc = fixed_scenario(tmp_path, '[initial_offset]\nphi_1 = 2.0\nphi_2 = -1.2\n')
-    run = simulate(sc, "dual-quaternion")
-    assert same_robots(run.r[-1], run.r_des[-1]) < 1e-6
+    run = run_pair(sc, "dual-quaternion")
+    assert same_robots(run["state"][-1], run["r_des"][-1]) < 1e-6
     assert compute_metrics(run)["min_robot_separation_m"] >= 1.9
 
 

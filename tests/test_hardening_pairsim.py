@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from quatform.errors import InvalidInputError, ResourceLimitError
 from quatform.references import EuclideanPath, Ramp, Step
-from quatform.sim import Scenario, compute_metrics, load_scenario, simulate
-from quatform.sim.scenario import scenario_from_dict
+from quatform.scenarios.pair import Scenario, run_pair, scenario_from_dict
+from quatform.sim import compute_metrics, load_scenario
 
 GOOD = 'duration_s = 2.0\ndt_s = 0.01\nmetrics_from_s = 0.5\n[path]\ncenter = [0, 0, 1]\nd_c = 1.0\n'
 
@@ -45,7 +45,7 @@ def test_metrics_from_at_or_after_the_end_is_refused_at_load(tmp_path, start):
 
 def test_metrics_from_just_before_the_end_is_kept(tmp_path):
     sc = load_scenario(_file(tmp_path, GOOD.replace("metrics_from_s = 0.5", "metrics_from_s = 1.99")))
-    m = compute_metrics(simulate(sc, "quaternion"))
+    m = compute_metrics(run_pair(sc, "quaternion"))
     assert m["metrics_from_s"] == pytest.approx(1.99)
 
 
@@ -53,9 +53,9 @@ def test_compute_metrics_refuses_a_run_with_no_sample_in_the_window(tmp_path):
     """A failed run (the cluster-space controller through gamma_c = pi/2) must not read 0."""
     sc = load_scenario("mas-kitts-spiral")
     sc = dataclasses.replace(sc, duration_s=30.0)
-    run = simulate(sc, "cluster-space")
+    run = run_pair(sc, "cluster-space")
     assert compute_metrics(run)["reference_lost"]
-    bad = dataclasses.replace(run, t=run.t - 100.0)  # a Run built through the API
+    bad = dataclasses.replace(run, t=run.t - 100.0)  # a log built through the API
     with pytest.raises(InvalidInputError, match="metrics_from_s"):
         compute_metrics(bad)
 
@@ -165,7 +165,7 @@ def test_scenario_built_through_the_api_is_checked_and_simulate_rechecks():
     sc = Scenario(name="api", path=EuclideanPath(), duration_s=1.0, metrics_from_s=0.0)
     object.__setattr__(sc, "dt_s", 1e-300)  # bypasses __post_init__
     with pytest.raises(ResourceLimitError, match="duration_s / dt_s"):
-        simulate(sc, "quaternion")
+        run_pair(sc, "quaternion")
 
 
 def test_time_budget_is_read_from_the_environment(tmp_path, monkeypatch):
@@ -211,16 +211,16 @@ def test_feedforward_key_shows_fig13_steady_state_errors(tmp_path):
     from quatform.sim import errors_from_robots
 
     for name, k in (("quaternion", 2.0), ("dual-quaternion", 7.5), ("cluster-space", 1.0)):
-        run = simulate(sc, name)
+        run = run_pair(sc, name)
         m = compute_metrics(run)
-        assert m["feedforward"] is False and run.controller.feedforward is False
+        assert m["feedforward"] is False and run.meta["feedforward"] is False
         err = errors_from_robots(run)["cluster_position"][run.t >= 5.0]
         assert np.mean(err) == pytest.approx(v / k, rel=0.03), name
         assert m["max_cluster_position_error_m"] == pytest.approx(v / k, rel=0.03), name
     # the caller's word wins over the scenario's, and with feed-forward the lag is gone
-    on = compute_metrics(simulate(sc, "quaternion", feedforward=True))
+    on = compute_metrics(run_pair(sc, "quaternion", feedforward=True))
     assert on["feedforward"] is True and on["max_cluster_position_error_m"] < 1e-3
-    on = compute_metrics(simulate(dataclasses.replace(sc, feedforward=True), "quaternion"))
+    on = compute_metrics(run_pair(dataclasses.replace(sc, feedforward=True), "quaternion"))
     assert on["feedforward"] is True and on["max_cluster_position_error_m"] < 1e-3
 
 
@@ -228,7 +228,7 @@ def test_feedforward_defaults_to_true_and_is_recorded(tmp_path):
     sc = load_scenario(_file(tmp_path, GOOD))
     assert sc.feedforward is True and sc.controller("dual-quaternion").feedforward is True
     assert sc.controller("dual-quaternion", feedforward=False).feedforward is False
-    m = compute_metrics(simulate(sc, "robot-space"))
+    m = compute_metrics(run_pair(sc, "robot-space"))
     assert m["feedforward"] is True
     json.dumps(m)
 
@@ -239,7 +239,7 @@ def test_feedforward_defaults_to_true_and_is_recorded(tmp_path):
 @pytest.fixture(scope="module")
 def yaw_step_runs():
     sc = load_scenario("mas-kitts-yaw-step")
-    return {name: simulate(sc, name) for name in ("cluster-space", "robot-space", "quaternion")}
+    return {name: run_pair(sc, name) for name in ("cluster-space", "robot-space", "quaternion")}
 
 
 def _figure_of(monkeypatch, draw, *args):
@@ -282,7 +282,7 @@ def test_yaw_step_plot_draws_no_2pi_error(monkeypatch, yaw_step_runs, name):
     jumps = np.abs(np.diff(ym))[ok[1:] & ok[:-1]]
     assert jumps.max() <= np.pi + 1e-9  # no vertical line of a wrap
     plotted_err = np.abs(ym - yd)[ok]
-    true_err = np.abs((run.e[:, 3] - run.e_des[:, 3] + np.pi) % (2 * np.pi) - np.pi)
+    true_err = np.abs((run["e"][:, 3] - run["e_des"][:, 3] + np.pi) % (2 * np.pi) - np.pi)
     assert plotted_err.max() <= true_err.max() + 1e-9
 
 
@@ -291,7 +291,7 @@ def test_spiral_angle_traces_unwrapped(monkeypatch):
     from quatform.report import plot_euclidean
 
     sc = dataclasses.replace(load_scenario("mas-kitts-spiral"), duration_s=36.0)
-    fig = _figure_of(monkeypatch, plot_euclidean, simulate(sc, "dual-quaternion"))
+    fig = _figure_of(monkeypatch, plot_euclidean, run_pair(sc, "dual-quaternion"))
     meas, des = _axes_named(fig, "gamma_c").lines[:2]
     t = np.asarray(meas.get_xdata())
     ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
@@ -510,7 +510,7 @@ def test_stability_bound_follows_the_scenario_gains(tmp_path):
     gains = ('gains = "table2"\n')  # largest gain 1 1/s: dt_s < 2 s
     sc = load_scenario(_file(tmp_path, gains + GOOD.replace("dt_s = 0.01", "dt_s = 0.7")))
     assert sc.times[-1] == pytest.approx(1.4) and sc.times[-1] <= sc.duration_s
-    run = simulate(sc, "quaternion")
+    run = run_pair(sc, "quaternion")
     assert run.t[-1] <= sc.duration_s
     own = GOOD.replace("dt_s = 0.01", "dt_s = 0.7") + "[gains]\nbase = \"table2\"\n[gains.quaternion]\nk_d = 3.0\n"
     msg = _one_line_error(tmp_path, own)

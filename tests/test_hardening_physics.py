@@ -53,13 +53,12 @@ from quatform.report.physics_render import (  # noqa: E402
 )
 from quatform.sim import compute_metrics, load_scenario  # noqa: E402
 from quatform.sim.metrics import errors_from_robots  # noqa: E402
+from quatform.scenarios.pair import scenario_from_dict, simulate_physics  # noqa: E402
 from quatform.sim.mujoco_backend import (  # noqa: E402
     PHYSICS_GAINS,
     physics_gains,
-    simulate_physics,
     simulate_ugv_uav_physics,
 )
-from quatform.sim.scenario import scenario_from_dict  # noqa: E402
 
 
 # -- item 1: the scenario's gains reach the UGV-UAV physics run ------------------------------

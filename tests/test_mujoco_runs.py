@@ -21,13 +21,12 @@ mujoco = pytest.importorskip("mujoco")  # the optional extra
 
 from quatform.cli import main
 from quatform.robots.bebop import TABLE2_K
-from quatform.sim import compute_metrics, load_scenario, simulate
+from quatform.scenarios.pair import run_pair, scenario_from_dict, simulate_physics
+from quatform.sim import compute_metrics, load_scenario
 from quatform.sim.mujoco_backend import (
     IRIS_IDENTIFIED_K,
-    simulate_physics,
     simulate_ugv_uav_physics,
 )
-from quatform.sim.scenario import scenario_from_dict
 from quatform.sim.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 
 
@@ -49,7 +48,8 @@ def test_cluster_space_fails_at_the_vertical_pose_on_physics(helix_runs):
 def test_quaternion_follows_the_helix_on_physics(helix_runs):
     run, rec = helix_runs["quaternion"]
     m = compute_metrics(run)
-    kin = compute_metrics(simulate(run.scenario, "quaternion"))
+    sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=34.0)  # the fixture's
+    kin = compute_metrics(run_pair(sc, "quaternion"))
     assert not m["reference_lost"] and not m["singularity_detected"]
     assert m["max_cluster_position_error_m"] < 0.01 and m["max_shape_error_m"] < 0.03
     assert m["max_orientation_error_rad"] < 0.05 and m["max_recovered_euclidean_error_rad"] < 0.05
@@ -57,7 +57,7 @@ def test_quaternion_follows_the_helix_on_physics(helix_runs):
     assert m["max_robot_position_error_m"] > kin["max_robot_position_error_m"]
     assert rec.collisions["count"] == 0
     # the record's poses are the logged robot states
-    assert rec.qpos.shape == (len(run.t), 14) and np.allclose(rec.qpos[:, 0:3], run.r[:, 0:3])
+    assert rec.qpos.shape == (len(run.t), 14) and np.allclose(rec.qpos[:, 0:3], run["state"][:, 0:3])
 
 
 def _pair(extra_path: dict, duration: float, z: float = 1.0) -> object:
@@ -73,7 +73,7 @@ def test_a_formation_driven_into_the_ground_reports_the_collision():
     c = rec.collisions
     assert c["count"] >= 2 and 1.0 < c["first_time_s"] < 2.2
     assert {"ground/robot1", "ground/robot2"} <= set(c["bodies"])
-    assert run.r[-1, 2] > -0.01 and run.r[-1, 6] > -0.01  # the ground holds them up
+    assert run["state"][-1, 2] > -0.01 and run["state"][-1, 6] > -0.01  # the ground holds them up
 
 
 def test_robots_driven_into_each_other_report_the_collision():
@@ -83,7 +83,7 @@ def test_robots_driven_into_each_other_report_the_collision():
     assert c["count"] >= 1 and c["bodies"][0] == "robot1/robot2"
     # the rotor discs (radius 0.127 m, hubs 0.25 m out) meet before the centres are 0.76 m apart
     k = np.searchsorted(run.t, c["first_time_s"])
-    assert np.linalg.norm(run.r[k, 0:3] - run.r[k, 4:7]) < 0.77
+    assert np.linalg.norm(run["state"][k, 0:3] - run["state"][k, 4:7]) < 0.77
 
 
 def test_ugv_and_quadrotor_hold_the_formation_with_identified_compensation():

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from quatform.errors import InvalidInputError
-from quatform.sim import builtin_scenarios, compute_metrics, load_scenario, simulate
+from quatform.scenarios.pair import run_pair
+from quatform.sim import builtin_scenarios, compute_metrics, load_scenario
 
 CONTROLLERS = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
 
@@ -14,7 +15,7 @@ CONTROLLERS = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
 @pytest.fixture(scope="module")
 def spiral():
     sc = load_scenario("mas-kitts-spiral")
-    return {name: simulate(sc, name) for name in CONTROLLERS}
+    return {name: run_pair(sc, name) for name in CONTROLLERS}
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +47,7 @@ def test_spiral_quaternion_controllers_track_everything(spiral, spiral_metrics, 
     run = spiral[name]
     # every variable of the description itself, after t = 5 s
     late = run.t >= 5.0
-    err = np.abs(run.c[late] - run.c_des[late]).max()
+    err = np.abs(run["cluster"][late] - run["c_des"][late]).max()
     assert err <= 0.02
     assert m["nonfinite_commands"] == 0
 
@@ -58,20 +59,20 @@ def test_spiral_robot_space_tracks_robots_but_misreports(spiral):
     # §4.1: past gamma_c = pi/2 the recovered angles read beta_c + pi and pi - gamma_c
     k = np.searchsorted(run.t, 30.0)  # gamma_des = 2 pi (30-25)/10 = pi
     wrap = lambda a: (a + np.pi) % (2 * np.pi) - np.pi  # noqa: E731
-    assert abs(wrap(run.e[k, 3] - run.e_des[k, 3] - np.pi)) < 0.02
-    assert abs(wrap(run.e[k, 4] - (np.pi - run.e_des[k, 4]))) < 0.02
+    assert abs(wrap(run["e"][k, 3] - run["e_des"][k, 3] - np.pi)) < 0.02
+    assert abs(wrap(run["e"][k, 4] - (np.pi - run["e_des"][k, 4]))) < 0.02
     assert m["max_recovered_euclidean_error_rad"] > 3.0
 
 
 def test_yaw_step_shapes_fig4():
     sc = load_scenario("mas-kitts-yaw-step")
     d_c = sc.path.initial[5]
-    cs = compute_metrics(simulate(sc, "cluster-space"))
-    rs = compute_metrics(simulate(sc, "robot-space"))
+    cs = compute_metrics(run_pair(sc, "cluster-space"))
+    rs = compute_metrics(run_pair(sc, "robot-space"))
     assert cs["min_robot_separation_m"] > 0.95 * 2 * d_c  # Fig. 4a: turns about the centre
     assert rs["min_robot_separation_m"] < 0.1 * 2 * d_c  # Fig. 4b: the robots swap places
     for name in ("quaternion", "dual-quaternion"):
-        m = compute_metrics(simulate(sc, name))
+        m = compute_metrics(run_pair(sc, name))
         assert m["min_robot_separation_m"] > 0.95 * 2 * d_c, name
         assert m["max_robot_position_error_m"] < 0.01, name
         assert m["max_recovered_euclidean_error_rad"] < 0.01, name
@@ -79,11 +80,11 @@ def test_yaw_step_shapes_fig4():
 
 def test_helix_cluster_space_fails_at_vertical_others_follow():
     sc = load_scenario("mas-kitts-helix")
-    m = compute_metrics(simulate(sc, "cluster-space"))
+    m = compute_metrics(run_pair(sc, "cluster-space"))
     assert m["singularity_detected"] and 29.0 < m["first_singular_time_s"] < 30.5
     assert m["reference_lost"] and m["max_robot_position_error_m"] > 0.5
     for name in ("robot-space", "quaternion", "dual-quaternion"):
-        run = simulate(sc, name)
+        run = run_pair(sc, name)
         m = compute_metrics(run)
         assert not m["reference_lost"] and m["max_robot_position_error_m"] < 0.02, name
         assert m["nonfinite_commands"] == 0
@@ -100,12 +101,12 @@ def test_monitoring_agrees_with_eqs_1_8_below_the_vertical(spiral):
 
     for name in ("quaternion", "dual-quaternion"):
         run = spiral[name]
-        direct = EuclideanPair().forward(run.r)
-        below = np.cos(run.e_des[:, 4]) > 0.2
-        wrap = (run.e - direct + np.pi) % (2 * np.pi) - np.pi
+        direct = EuclideanPair().forward(run["state"])
+        below = np.cos(run["e_des"][:, 4]) > 0.2
+        wrap = (run["e"] - direct + np.pi) % (2 * np.pi) - np.pi
         assert np.abs(wrap[below][:, [0, 1, 2, 5]]).max() < 1e-12
         assert np.abs(wrap[below][:, [3, 4, 6, 7]]).max() < 1e-9
-        beyond = np.cos(run.e[:, 4]) < -0.1
+        beyond = np.cos(run["e"][:, 4]) < -0.1
         assert beyond.any() and np.all(np.abs(np.abs(wrap[beyond][:, 3]) - np.pi) < 1e-3)
 
 
@@ -118,7 +119,7 @@ def test_reference_wound_by_2pi_is_not_a_manoeuvre(tmp_path):
                  'change = 6.283185307179586\n')
     sc = load_scenario(f)
     for name in CONTROLLERS:
-        m = compute_metrics(simulate(sc, name))
+        m = compute_metrics(run_pair(sc, name))
         assert m["max_robot_position_error_m"] < 1e-9 and m["max_command_speed_m_s"] < 1e-9, name
 
 
@@ -135,7 +136,7 @@ def test_scenario_file_errors(tmp_path):
     bad.write_text('duration_s = 10\n[path]\nd_c = 1.0\n[[path.ramps]]\nvariable = "d_c"\n'
                    'start_s = 0\nduration_s = 5\nchange = -2.0\n')
     with pytest.raises(InvalidInputError, match="d_c <= 0"):
-        simulate(load_scenario(bad), "quaternion")
+        run_pair(load_scenario(bad), "quaternion")
     for text, msg in (
         ('duration_s = 10\n[path]\n[[path.ramps]]\nvariable = "d_c"\nduration_s = 5\nchange = 1\n', "start_s"),
         ('duration_s = 10\n[path]\n[gains]\nbase = "table3"\n', "table3"),
@@ -145,7 +146,7 @@ def test_scenario_file_errors(tmp_path):
     ):
         bad.write_text(text)
         with pytest.raises(InvalidInputError, match=msg):
-            simulate(load_scenario(bad), "quaternion")
+            run_pair(load_scenario(bad), "quaternion")
 
 
 def test_user_scenario_runs(tmp_path):
@@ -155,5 +156,5 @@ def test_user_scenario_runs(tmp_path):
                  '[gains.quaternion]\nk_x = [3, 3, 3]\n')
     sc = load_scenario(f)
     assert sc.gains["quaternion"]["k_x"] == [3, 3, 3] and sc.gains["quaternion"]["k_d"] == 20
-    m = compute_metrics(simulate(sc, "quaternion"))
+    m = compute_metrics(run_pair(sc, "quaternion"))
     assert m["max_robot_position_error_m"] < 1e-6  # starts on the reference, vertical throughout

@@ -10,18 +10,14 @@ import dataclasses
 import json
 from pathlib import Path
 
-from .checks import check_work
 from .errors import ConvergenceError, InvalidInputError
-from .planning import PlanPairPath, load_plan, load_plan_spec, make_plan
+from .planning import load_plan_spec, make_plan
 from .sim.output import staged_dir, write_json
 
 __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
 
 #: Name of the plan file ``quatform plan`` writes.
 PLAN_FILE = "plan.npz"
-#: Generous cost of one step of a two-robot run (time series kept, controller and simulator):
-#: seed 000's helix runs 8000 steps in 0.8 s (docs/performance.md).
-RUN_BYTES_PER_STEP, RUN_SECONDS_PER_STEP = 1024.0, 2e-4
 
 
 def _spec_with_alpha(spec, alpha):
@@ -114,19 +110,8 @@ def meet_warning(metrics) -> str | None:
 
 
 def scenario_with_plan(sc, plan_file, yaws=(0.0, 0.0)):
-    """Scenario ``sc`` (two robots, seed 000) with its path replaced by the saved plan.
+    """Scenario ``sc`` (two robots, seed 000) with its path replaced by the saved plan
+    (:func:`quatform.scenarios.pair.with_plan`: the pair kind's ``reference`` option)."""
+    from .scenarios.pair import with_plan
 
-    The plan's robot positions become the Euclidean cluster reference
-    (:class:`~quatform.planning.PlanPairPath`, constant yaws ``yaws``); the run lasts the
-    plan's duration; ``metrics_from_s`` is kept if it lies inside it, else 0.
-    """
-    plan = load_plan(plan_file)
-    T = plan.duration_s
-    # the run steps the plan's whole duration at the scenario's dt_s: estimate it before the
-    # reference path is built (a plan lasting 1e9 s would otherwise run for days)
-    check_work(str(plan_file), f"the plan's duration ({T:.6g} s) / the scenario's dt_s ({sc.dt_s:g} s)",
-               T / sc.dt_s, bytes_per_step=RUN_BYTES_PER_STEP, seconds_per_step=RUN_SECONDS_PER_STEP,
-               fix="plan a shorter motion (duration_s of the plan spec)")
-    path = PlanPairPath(plan, yaws)
-    return dataclasses.replace(sc, path=path, duration_s=T, name=f"{sc.name}+{plan.info.get('name', 'plan')}",
-                               metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)
+    return with_plan(sc, plan_file, yaws)

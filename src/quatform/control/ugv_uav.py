@@ -3,9 +3,10 @@
 Control layer. One step: measured positions -> cluster state (forward kinematics, the
 reference as hint) -> cluster rate references with tanh saturation, eqs. (4.43)-(4.45)
 (the error quaternion order corrected as in seed 000) -> robot rates through the inverse
-Jacobian (4.42) -> the Pioneer's commands by eq. (3.5) -> the Bebop's body-frame velocity
-reference by eq. (3.10), its yaw rate by eqs. (4.50)-(4.51), and the dynamic compensation
-(4.47)-(4.49). Around it: an arena box whose walls no command may push through, the
+Jacobian (4.42) -> the UAV's yaw rate by eqs. (4.50)-(4.51) -> the team's actuation
+(:mod:`quatform.robots`: the Pioneer's commands by eq. (3.5), the Bebop's body-frame
+velocity reference by eq. (3.10) and the dynamic compensation (4.47)-(4.49), whose memory
+is part of the controller's state :class:`UgvUavState`). Around it: an arena box whose walls no command may push through, the
 robots' limits, and an emergency stop (the thesis's joystick override) that halts both.
 
 Measured state (11 values): ``(x_p, y_p, psi_p, x_b, y_b, z_b, psi_b, v_x, v_y, z_dot,
@@ -24,7 +25,7 @@ from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion
 from ..formations import geometry as g
 from ..formations.base import Formation
-from ..robots import Bebop, Pioneer, yaw_matrix
+from ..robots import Bebop, BebopMemory, Pioneer, Team
 from . import contract
 from .base import Reference
 from .quaternion import quaternion_feedback
@@ -50,13 +51,9 @@ class UgvUavState:
 
     Attributes
     ----------
-    v_prev : ndarray, shape (4,), or None
-        The Bebop's previous body-frame velocity reference ``v_r`` of (4.47) (None after a
-        brake or at the start: the next derivative is then not taken).
-    v_prev_t : float or None
-        Its time, s.
-    v_dot : ndarray, shape (4,)
-        The filtered derivative of ``v_r`` of (4.47).
+    memory : tuple
+        The team's actuation memory (:meth:`Team.initial_memory`): ``(None, BebopMemory)``,
+        the previous velocity reference of (4.47), its time and the filtered derivative.
     stopped : bool
         The emergency stop holds (:meth:`UgvUavController.emergency_stop`).
     stop_reason : str
@@ -69,9 +66,7 @@ class UgvUavState:
         Time of the first bad frame of the current run of them (None while frames are good).
     """
 
-    v_prev: np.ndarray | None = None
-    v_prev_t: float | None = None
-    v_dot: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    memory: tuple = (None, BebopMemory.start())
     stopped: bool = False
     stop_reason: str = ""
     good: np.ndarray | None = None
@@ -146,14 +141,19 @@ class UgvUavController(contract.Controller):
         self.l_d = _positive(l_d, 4, "l_d")
         self.compensation = bool(compensation)
         self.feedforward = bool(feedforward)
-        self.pioneer = pioneer if pioneer is not None else Pioneer()
-        self.bebop = bebop if bebop is not None else Bebop()
+        pioneer = pioneer if pioneer is not None else Pioneer()
+        bebop = bebop if bebop is not None else Bebop()
         self.z_ugv = float(z_ugv)
         self.wall_margin = float(wall_margin)
         self.wall_gain = float(_positive(wall_gain, 1, "wall_gain")[0])
         self.derivative_filter_s = float(derivative_filter_s)
         if not (self.derivative_filter_s >= 0 and self.wall_margin >= 0):
             raise InvalidInputError("derivative_filter_s and wall_margin must be >= 0")
+        # the robots' actuation (seed 001 eqs. (3.5), (3.10), (4.47)) is the team's
+        self.team = Team((replace(pioneer, z=self.z_ugv),
+                          replace(bebop, l_d=tuple(self.l_d.tolist()), compensation=self.compensation,
+                                  derivative_filter_s=self.derivative_filter_s)))
+        self.pioneer, self.bebop = self.team.robots
         self.max_hold_s = float(_positive(max_hold_s, 1, "max_hold_s")[0])
         self.speed_margin = float(_positive(speed_margin, 1, "speed_margin")[0])
         self.jump_margin_m = float(_positive(jump_margin_m, 1, "jump_margin_m")[0])
@@ -187,7 +187,8 @@ class UgvUavController(contract.Controller):
 
         With ``batch`` axes: an object array of that shape holding one :class:`UgvUavState`
         per world."""
-        return _each(np.empty(tuple(batch), dtype=object) if batch else UgvUavState(), lambda s: UgvUavState())
+        return _each(np.empty(tuple(batch), dtype=object) if batch else UgvUavState(),
+                     lambda s: UgvUavState(memory=self.team.initial_memory()))
 
     def emergency_stop(self, state, reason: str = "emergency stop"):
         """``state`` with both robots halted until :meth:`release`: the UGV stops, the UAV
@@ -196,8 +197,8 @@ class UgvUavController(contract.Controller):
 
     def release(self, state):
         """``state`` with the emergency stop released and the derivative of (4.47) restarted."""
-        return _each(state, lambda s: replace(s, stopped=False, stop_reason="", bad_since=None, v_prev=None,
-                                              v_prev_t=None, v_dot=np.zeros(4)))
+        return _each(state, lambda s: replace(s, stopped=False, stop_reason="", bad_since=None,
+                                              memory=self.team.initial_memory()))
 
     # -- the chain of Fig. 18 ---------------------------------------------------------
     def update(self, t: float, measured, reference, state) -> contract.Step:
@@ -258,11 +259,11 @@ class UgvUavController(contract.Controller):
         k = np.r_[self.k_x, self.k_d, self.k_w[:2]]
         return err, ff * c_dot_des - k * np.tanh(err)
 
-    def _brake(self, m):
-        """Commands that stop the UGV and brake the UAV to a hover (v_r = 0 in (4.47))."""
-        v = np.where(np.isfinite(m[7:11]), m[7:11], 0.0)
-        b = self.bebop
-        return np.r_[0.0, 0.0, b.saturate((-self.l_d * v + b.k_v * v) / b.k_u)]
+    def _brake(self, state, m):
+        """Commands that stop the UGV and brake the UAV to a hover (v_r = 0 in (4.47)), and the
+        state whose compensation memory forgets its reference."""
+        u, memory = self.team.brake(np.asarray(m, dtype=float), state.memory)
+        return self.team.saturate(u), replace(state, memory=memory)
 
     def screen(self, state: UgvUavState, t: float, m: np.ndarray):
         """Classify the motion-capture frame ``m`` (11 values) at time ``t``.
@@ -321,8 +322,8 @@ class UgvUavController(contract.Controller):
             "used": nan11 if used is None else np.asarray(used, dtype=float)})
 
     def _braking(self, state, m, c, frame, held=False, outside=False, used=None) -> contract.Step:
-        state = replace(state, v_prev=None, v_prev_t=None)
-        return self._step(state, self._brake(np.asarray(m, dtype=float)), c, np.full_like(c, np.nan), np.zeros(6),
+        u, state = self._brake(state, m)
+        return self._step(state, u, c, np.full_like(c, np.nan), np.zeros(6),
                           used is not None, frame, held, outside, used)
 
     def _update_one(self, t: float, measured, reference, state: UgvUavState) -> contract.Step:
@@ -344,7 +345,7 @@ class UgvUavController(contract.Controller):
         frame, m, held, raw, state = self._screened(state, t, measured)
         if m is None:  # nothing to go on: brake (the odometry's velocities where finite)
             return self._braking(state, raw, nan_c, frame)
-        r = np.array([m[0], m[1], self.z_ugv, m[3], m[4], m[5]])
+        r = self.team.point(m)  # the Pioneer's control point at z_ugv, the Bebop's position
         if hold:
             outside = bool(F.outside(r))
             return self._braking(state, m, nan_c if outside else F.forward(r), frame, held, outside, m)
@@ -365,29 +366,17 @@ class UgvUavController(contract.Controller):
             x_rate = np.zeros(6)
         x_rate = self._keep_inside(m, x_rate)
         if state.stopped:
-            state = replace(state, v_prev=None, v_prev_t=None)
-            return self._step(state, self._brake(m), c, err, x_rate, finite, frame, held, outside, m)
+            u, state = self._brake(state, m)
+            return self._step(state, u, c, err, x_rate, finite, frame, held, outside, m)
         u, state = self._commands(state, t, m, x_rate)
         return self._step(state, u, c, err, x_rate, finite, frame, held, outside, m)
 
     def _commands(self, state, t, m, x_rate):
-        """Robot commands for the world rates ``x_rate``: (3.5), (3.10), (4.47)-(4.51)."""
-        ugv = self.pioneer.saturate(self.pioneer.commands_from_velocity(m[2], x_rate[0:2]))  # (3.5)
+        """Robot commands for the world rates ``x_rate``: the UAV's yaw rate (4.50)-(4.51) and
+        the team's actuation, (3.5) for the Pioneer, (3.10) and (4.47)-(4.49) for the Bebop."""
         psi_rate = self.k_psi * np.tanh(g.wrap(m[2] - m[6]))  # (4.50)-(4.51), psi_bd = psi_p
-        v_r = yaw_matrix(-m[6]) @ np.r_[x_rate[3:6], psi_rate]  # (3.10): A_b^-1 = A_b(-psi)
-        b = self.bebop
-        v_dot = state.v_dot
-        if self.compensation:
-            if state.v_prev is not None and t > state.v_prev_t:
-                raw = (v_r - state.v_prev) / (t - state.v_prev_t)
-                # first-order filter on the differentiated reference (it carries the noise)
-                alpha = (t - state.v_prev_t) / (self.derivative_filter_s + t - state.v_prev_t)
-                v_dot = v_dot + alpha * (raw - v_dot)
-            v = m[7:11]
-            u = (v_dot + self.l_d * (v_r - v) + b.k_v * v) / b.k_u  # (4.47)-(4.49)
-        else:
-            u = b.k_v / b.k_u * v_r
-        return np.r_[ugv, b.saturate(u)], replace(state, v_prev=v_r, v_prev_t=t, v_dot=v_dot)
+        u, memory = self.team.actuate(m, np.r_[x_rate, psi_rate], t, state.memory)
+        return self.team.saturate(u), replace(state, memory=memory)
 
     def _keep_inside(self, m, x_rate):
         """Slow velocity components toward an arena wall to ``wall_gain`` times the distance

@@ -30,7 +30,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 from ..algebra import wrap_angle
 from ..formations import EUCLIDEAN_VARIABLES
 from ..papers import with_names
-from ..sim import Run, errors_from_robots
+from ..sim import Log, errors_from_robots
 from ..sim.metrics import SINGULAR_THRESHOLD
 from .figures import (DES_STYLE, DPI, MAX_POINTS, MEAS_STYLE, SINGULAR_COLOR,
                       break_wraps, check_runs, decimate, finite, floor_ylim, intervals, new_figure, save,
@@ -49,15 +49,7 @@ __all__ = [
 ]
 
 
-
-
 # --------------------------------------------------------------------------- helpers
-
-
-
-
-
-
 
 
 #: A desired angle that moves more than this between samples has stepped (a [[path.steps]]).
@@ -117,25 +109,21 @@ def _pi_label(value, _pos=None) -> str:
     return f"{'-' if n < 0 else ''}{'' if abs(n) == 1 else abs(n)}π/2"
 
 
-
-
 def _backend(runs) -> str:
     """``" on MuJoCo physics"`` where a run's robots were not the kinematic models, else ``""``."""
-    labels = dict.fromkeys(run.backend for run in runs if run.backend != "kinematic")
+    labels = dict.fromkeys(log.meta["backend_label"] for log in runs if log.meta["backend"] != "kinematic")
     return f" on {', '.join(labels)}" if labels else ""
 
 
-def _title(run: Run) -> str:
-    source = with_names(getattr(run.scenario, "source", ""))
-    return f"{run.scenario.name} - {run.controller.name}{_backend([run])}" + (f" ({source})" if source else "")
+def _title(log: Log) -> str:
+    source = with_names(log.meta.get("source", ""))
+    return f"{log.meta['scenario']} - {log.meta['controller']}{_backend([log])}" + (f" ({source})" if source else "")
 
 
 def _runs_title(runs) -> str:
-    names = ", ".join(dict.fromkeys(run.scenario.name for run in runs))
-    sources = ", ".join(dict.fromkeys(with_names(run.scenario.source) for run in runs if run.scenario.source))
+    names = ", ".join(dict.fromkeys(log.meta["scenario"] for log in runs))
+    sources = ", ".join(dict.fromkeys(with_names(log.meta["source"]) for log in runs if log.meta.get("source")))
     return names + _backend(runs) + (f" ({sources})" if sources else "")
-
-
 
 
 def _unit_label(var) -> str:
@@ -143,14 +131,19 @@ def _unit_label(var) -> str:
     return f"{var.name} [{unit}]"
 
 
-def _signal_grid(fig, run: Run, meas, des, variables, ncols=4):
+def _singularity(log: Log) -> np.ndarray:
+    """The singularity measure of each sample, shape ``(T,)``."""
+    return log["singularity"][:, 0]
+
+
+def _signal_grid(fig, run: Log, meas, des, variables, ncols=4):
     """Fill ``fig`` with one small axes per variable: measured (solid) vs desired (dashed)."""
     n = len(variables)
     nrows = int(np.ceil(n / ncols))
     axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False)
     idx = decimate(run.t.size)
     t = run.t[idx]
-    spans = intervals(run.t, np.asarray(run.singularity) < SINGULAR_THRESHOLD)
+    spans = intervals(run.t, _singularity(run) < SINGULAR_THRESHOLD)
     for k, var in enumerate(variables):
         ax = axes.flat[k]
         if var.kind == "angle":  # on every sample, then decimated
@@ -187,18 +180,18 @@ def _grid_figsize(n, ncols=4):
     return (3.2 * ncols, 1.9 * nrows + 1.1)
 
 
-
 # --------------------------------------------------------------------------- one run
 
 
-def plot_cluster_variables(run: Run, path) -> Path:
+def plot_cluster_variables(run: Log, path) -> Path:
     """Each cluster variable of the controller's description, measured against desired.
 
     Like seed 000 Figs. 9, 11 and 12: one small axes per variable of
-    ``run.controller.formation.variables`` (8 for the Euclidean description, 16 for the
-    quaternion and dual-quaternion ones), measured solid, desired dashed, against time.
-    For the robot-space controller (formation ``'robot'``) the Euclidean variables it
-    recovers, ``run.e`` against ``run.e_des``, are drawn instead, as in Fig. 10. Angles are
+    the controller's formation (``run.meta["cluster_variables"]``: 8 for the Euclidean
+    description, 16 for the quaternion and dual-quaternion ones), channel ``cluster``
+    solid against ``c_des`` dashed, over time. For the robot-space controller (formation
+    ``'robot'``) the Euclidean variables it recovers, ``e`` against ``e_des``, are drawn
+    instead, as in Fig. 10. Angles are
     drawn without wrap artefacts: the desired trace unwrapped (after a step, on the branch
     nearest the measured one), the measured one on the branch nearest it, so the gap
     between them is the wrapped error (a fold of the description shows as a gap of pi, a
@@ -208,8 +201,8 @@ def plot_cluster_variables(run: Run, path) -> Path:
 
     Parameters
     ----------
-    run : Run
-        A closed-loop run from :func:`quatform.sim.simulate`.
+    run : Log
+        One world of a pair run (:func:`quatform.scenarios.pair.run_pair`).
     path : str or Path
         PNG file to write; its folder is created if missing.
 
@@ -218,29 +211,29 @@ def plot_cluster_variables(run: Run, path) -> Path:
     Path
         The file written.
     """
-    F = run.controller.formation
-    if F.name == "robot":
-        variables, meas, des = EUCLIDEAN_VARIABLES, run.e, run.e_des
+    formation = run.meta["formation"]
+    if formation == "robot":
+        variables, meas, des = EUCLIDEAN_VARIABLES, run["e"], run["e_des"]
         subtitle = "recovered Euclidean variables"
     else:
-        variables, meas, des = F.variables, run.c, run.c_des
-        subtitle = f"{F.name} cluster variables"
+        variables, meas, des = run.meta["cluster_variables"], run["cluster"], run["c_des"]
+        subtitle = f"{formation} cluster variables"
     fig = new_figure(_grid_figsize(len(variables)))
     _signal_grid(fig, run, np.asarray(meas), np.asarray(des), variables)
     fig.suptitle(f"{_title(run)}\n{subtitle}", fontsize=11)
     return save(fig, path)
 
 
-def plot_euclidean(run: Run, path) -> Path:
+def plot_euclidean(run: Log, path) -> Path:
     """The eight Euclidean variables recovered by the controller's description.
 
-    The operator's monitoring view: ``run.e`` (solid) against ``run.e_des`` (dashed) for
+    The operator's monitoring view: channel ``e`` (solid) against ``e_des`` (dashed) for
     ``x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2``; angles and singular times
     drawn as in :func:`plot_cluster_variables`.
 
     Parameters
     ----------
-    run : Run
+    run : Log
         A closed-loop run.
     path : str or Path
         PNG file to write.
@@ -251,13 +244,12 @@ def plot_euclidean(run: Run, path) -> Path:
         The file written.
     """
     fig = new_figure(_grid_figsize(len(EUCLIDEAN_VARIABLES)))
-    _signal_grid(fig, run, np.asarray(run.e), np.asarray(run.e_des), EUCLIDEAN_VARIABLES)
+    _signal_grid(fig, run, np.asarray(run["e"]), np.asarray(run["e_des"]), EUCLIDEAN_VARIABLES)
     fig.suptitle(f"{_title(run)}\nEuclidean variables (monitoring view)", fontsize=11)
     return save(fig, path)
 
 
-
-def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
+def plot_paths_3d(run: Log, path, n_segments: int = 10) -> Path:
     """Both robots' paths in 3-D, measured (solid) and desired (dashed).
 
     Start points are marked (circle: measured, hollow square: desired) and the segment
@@ -267,7 +259,7 @@ def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
 
     Parameters
     ----------
-    run : Run
+    run : Log
         A closed-loop run.
     path : str or Path
         PNG file to write.
@@ -279,7 +271,7 @@ def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
     Path
         The file written.
     """
-    r, rd = finite(run.r), finite(run.r_des)
+    r, rd = finite(run["state"]), finite(run["r_des"])
     fig = new_figure((8.0, 6.8))
     ax = fig.add_subplot(projection="3d")
     idx = decimate(r.shape[0])
@@ -312,15 +304,15 @@ def plot_paths_3d(run: Run, path, n_segments: int = 10) -> Path:
 
 
 @np.errstate(invalid="ignore", divide="ignore")
-def _compare_signals(run: Run) -> dict:
-    r, rd = np.asarray(run.r), np.asarray(run.r_des)
+def _compare_signals(run: Log) -> dict:
+    r, rd = np.asarray(run["state"]), np.asarray(run["r_des"])
     d_mid = 0.5 * (r[:, 0:3] + r[:, 4:7]) - 0.5 * (rd[:, 0:3] + rd[:, 4:7])
     D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)
     return {
         "x_c": d_mid[:, 0],
         "y_c": d_mid[:, 1],
         "z_c": d_mid[:, 2],
-        "d_c": 0.5 * D - np.asarray(run.e_des)[:, 5],
+        "d_c": 0.5 * D - np.asarray(run["e_des"])[:, 5],
         "orientation": errors_from_robots(run)["orientation"],
     }
 
@@ -347,7 +339,7 @@ def plot_compare(runs, path, linthresh: float = 1e-3) -> Path:
 
     Parameters
     ----------
-    runs : sequence of Run
+    runs : sequence of Log
         Runs of the same scenario with different controllers.
     path : str or Path
         PNG file to write.
@@ -376,7 +368,7 @@ def plot_compare(runs, path, linthresh: float = 1e-3) -> Path:
             y = finite(s[key])
             if np.isfinite(y).any():
                 peak = max(peak, float(np.nanmax(np.abs(y))))
-            ax.plot(run.t[idx], y[idx], color=f"C{j}", lw=1.1, label=run.controller.name)
+            ax.plot(run.t[idx], y[idx], color=f"C{j}", lw=1.1, label=run.meta["controller"])
         ax.set_yscale("symlog", linthresh=linthresh)
         lim = max(peak, linthresh) * 1.5
         ax.set_ylim(0.0 if key == "orientation" else -lim, lim)
@@ -404,7 +396,7 @@ def plot_separation(runs, path) -> Path:
 
     Parameters
     ----------
-    runs : sequence of Run
+    runs : sequence of Log
         Runs to draw (usually one scenario, several controllers).
     path : str or Path
         PNG file to write.
@@ -424,12 +416,12 @@ def plot_separation(runs, path) -> Path:
     ax = fig.add_subplot()
     for j, run in enumerate(runs):
         idx = decimate(run.t.size)
-        r = finite(run.r)
+        r = finite(run["state"])
         D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)  # NaN where a robot is not finite
-        ax.plot(run.t[idx], D[idx], color=f"C{j}", lw=1.2, label=run.controller.name)
+        ax.plot(run.t[idx], D[idx], color=f"C{j}", lw=1.2, label=run.meta["controller"])
     first = runs[0]
     idx = decimate(first.t.size)
-    ax.plot(first.t[idx], 2.0 * finite(first.e_des[idx, 5]), color="k", lw=1.0, ls="--",
+    ax.plot(first.t[idx], 2.0 * finite(first["e_des"][idx, 5]), color="k", lw=1.0, ls="--",
             label="desired (2 d_c)")
     ax.set_ylim(bottom=0.0)
     time_xlim(ax, min(float(run.t[0]) for run in runs), max(float(run.t[-1]) for run in runs))
@@ -449,7 +441,7 @@ def plot_separation(runs, path) -> Path:
 _EUCLIDEAN_SHOWN = ("euclidean", "robot")
 
 
-def write_run_plots(run: Run, out_dir) -> list[Path]:
+def write_run_plots(run: Log, out_dir) -> list[Path]:
     """Write ``cluster_variables.png``, ``euclidean.png`` and ``paths_3d.png`` of one run.
 
     ``euclidean.png`` is written only for the quaternion and dual-quaternion descriptions:
@@ -459,7 +451,7 @@ def write_run_plots(run: Run, out_dir) -> list[Path]:
 
     Parameters
     ----------
-    run : Run
+    run : Log
         A closed-loop run.
     out_dir : str or Path
         Folder to write into; created if missing.
@@ -472,7 +464,7 @@ def write_run_plots(run: Run, out_dir) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [plot_cluster_variables(run, out / "cluster_variables.png")]
-    if run.controller.formation.name in _EUCLIDEAN_SHOWN:
+    if run.meta["formation"] in _EUCLIDEAN_SHOWN:
         (out / "euclidean.png").unlink(missing_ok=True)  # a previous run's, of another controller
     else:
         files.append(plot_euclidean(run, out / "euclidean.png"))
@@ -485,7 +477,7 @@ def write_compare_plots(runs, out_dir) -> list[Path]:
 
     Parameters
     ----------
-    runs : sequence of Run
+    runs : sequence of Log
         Runs of one scenario, different controllers.
     out_dir : str or Path
         Folder to write into; created if missing.

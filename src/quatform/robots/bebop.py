@@ -9,6 +9,12 @@ of the vehicle's full command range ``[-1, 1]`` (eq. (3.6)). Kinematics, eqs. (3
 ``X_ddot = A_b K_u u - A_b K_v X_dot``, which applies the body-frame drag to world-frame
 velocities; the dynamic compensation (4.47) it uses is the body-frame law, so quatform
 integrates that one (``docs/derivations.md``).
+
+As a robot model (:mod:`quatform.robots.model`) it offers a formation its position ``xyz``;
+its yaw is controlled outside the formation (seed 001 §4.3.3), so :meth:`Bebop.actuate`
+takes the world rate of its position with the yaw rate appended and turns it into commands
+by eq. (3.10) and the dynamic compensation (4.47)-(4.49), whose differentiated velocity
+reference is the ``memory`` (:class:`BebopMemory`) the caller carries between steps.
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import numpy as np
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 
-__all__ = ["Bebop", "TABLE2_K"]
+__all__ = ["Bebop", "BebopMemory", "TABLE2_K", "yaw_matrix"]
 
 #: Seed 001 Table 2: K1 ... K8 of the identified model.
 TABLE2_K = (0.8417, 0.1823, 0.8354, 0.1710, 3.966, 4.001, 9.8524, 4.7295)
@@ -37,6 +43,32 @@ def yaw_matrix(psi) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class BebopMemory:
+    """What the dynamic compensation (4.47) remembers between steps.
+
+    Attributes
+    ----------
+    v_r : ndarray, shape (..., 4)
+        The previous body-frame velocity reference (NaN where there is none: at the start
+        and after a brake the next derivative is not taken).
+    t : ndarray, shape (...)
+        Its time, s (NaN where none).
+    v_dot : ndarray, shape (..., 4)
+        The filtered derivative of ``v_r``.
+    """
+
+    v_r: np.ndarray
+    t: np.ndarray
+    v_dot: np.ndarray
+
+    @classmethod
+    def start(cls, batch: tuple = ()) -> BebopMemory:
+        """No previous reference, a zero derivative."""
+        batch = tuple(batch)
+        return cls(np.full(batch + (4,), np.nan), np.full(batch, np.nan), np.zeros(batch + (4,)))
+
+
+@dataclass(frozen=True)
 class Bebop:
     """The identified high-level model of a Bebop 2.
 
@@ -49,11 +81,29 @@ class Bebop:
     dynamic : bool
         ``True``: the dynamic model; ``False``: the kinematic model (velocities follow the
         command at once, ``v = (K_u/K_v) u``).
+    l_d : tuple of 4 floats
+        ``L_d`` of the dynamic compensation (4.47), ``diag(2, 2, 1.8, 5)`` (seed 001 §5).
+    compensation : bool
+        :meth:`actuate` uses (4.47); otherwise the kinematic command ``u = K_u^-1 K_v v_r``.
+    derivative_filter_s : float
+        Time constant, s, of the first-order filter on the differentiated velocity reference
+        ``v_r_dot`` of (4.47) (the thesis differentiates without one; 0 disables it).
     """
 
     k: tuple = field(default=TABLE2_K)
     max_fraction: float = 1.0
     dynamic: bool = True
+    l_d: tuple = (2.0, 2.0, 1.8, 5.0)
+    compensation: bool = True
+    derivative_filter_s: float = 0.1
+
+    name = "bebop"
+    #: It offers a formation its position; its yaw is controlled outside the formation.
+    point_kind = "xyz"
+    state_columns = ("x", "y", "z", "psi", "v_x", "v_y", "z_dot", "psi_dot")
+    command_columns = ("u_x", "u_y", "u_z", "u_psi")
+    #: Entries of the rate :meth:`actuate` takes: the position's world rate and the yaw rate.
+    n_rate = 4
 
     def __post_init__(self):
         k = np.asarray(self.k, dtype=float)
@@ -62,6 +112,73 @@ class Bebop:
         if not (0 < self.max_fraction <= 1):
             raise InvalidInputError(f"max_fraction must be in (0, 1], got {self.max_fraction!r}")
         object.__setattr__(self, "k", tuple(float(x) for x in k))
+        l_d = np.broadcast_to(np.asarray(self.l_d, dtype=float), (4,)) if np.size(self.l_d) in (1, 4) else None
+        if l_d is None or not np.all(np.isfinite(l_d)) or np.any(l_d <= 0):
+            raise InvalidInputError(f"l_d must be 4 positive numbers, got {self.l_d!r}")
+        object.__setattr__(self, "l_d", tuple(float(x) for x in l_d))
+        if not (np.isfinite(self.derivative_filter_s) and self.derivative_filter_s >= 0):
+            raise InvalidInputError(f"derivative_filter_s must be >= 0, got {self.derivative_filter_s!r}")
+        object.__setattr__(self, "compensation", bool(self.compensation))
+
+    def point(self, x) -> np.ndarray:
+        """The position ``(x, y, z)`` of the state, shape ``(..., 3)``."""
+        return np.asarray(x, dtype=float)[..., 0:3]
+
+    def initial_memory(self, batch: tuple = ()) -> BebopMemory:
+        """The compensation's memory before the first step (:meth:`BebopMemory.start`)."""
+        return BebopMemory.start(batch)
+
+    def actuate(self, x, rate, t: float, memory: BebopMemory):
+        """Commands for the world rate ``rate = (x_dot, y_dot, z_dot, psi_dot)`` of the state ``x``.
+
+        The body-frame velocity reference ``v_r = A_b^-1 rate`` (eq. (3.10), ``A_b^-1 =
+        A_b(-psi)``) and the dynamic compensation (4.47)-(4.49), ``u = K_u^-1 (v_r_dot +
+        L_d (v_r - v) + K_v v)``, with ``v_r_dot`` differentiated from the previous ``v_r``
+        in ``memory`` and filtered (``derivative_filter_s``); without compensation
+        ``u = K_u^-1 K_v v_r``. Unsaturated (:meth:`saturate`).
+
+        Parameters
+        ----------
+        x : array_like, shape (..., 8)
+        rate : array_like, shape (..., 4)
+            World rates, m/s and rad/s.
+        t : float
+            Time, s.
+        memory : BebopMemory
+
+        Returns
+        -------
+        u : ndarray, shape (..., 4)
+        memory : BebopMemory
+            With this step's ``v_r`` and ``t``.
+        """
+        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        A = yaw_matrix(-x[..., 3])
+        v_r = A @ rate if rate.ndim == 1 else np.einsum("...ij,...j->...i", A, rate)  # (3.10)
+        v_dot = memory.v_dot
+        if self.compensation:
+            t_prev = memory.t
+            new = np.isfinite(t_prev) & (t > t_prev)
+            if np.any(new):
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    raw = (v_r - memory.v_r) / (t - t_prev)[..., None]
+                    # first-order filter on the differentiated reference (it carries the noise)
+                    alpha = ((t - t_prev) / (self.derivative_filter_s + t - t_prev))[..., None]
+                    v_dot = np.where(new[..., None], v_dot + alpha * (raw - v_dot), v_dot)
+            v = x[..., 4:8]
+            u = (v_dot + np.asarray(self.l_d) * (v_r - v) + self.k_v * v) / self.k_u  # (4.47)-(4.49)
+        else:
+            u = self.k_v / self.k_u * v_r
+        return u, BebopMemory(v_r, np.broadcast_to(np.float64(t), np.shape(memory.t)).copy(), v_dot)
+
+    def brake(self, x, memory: BebopMemory):
+        """Commands that brake to a hover: (4.47) with ``v_r = 0`` and no derivative,
+        ``u = K_u^-1 (-L_d v + K_v v)`` (non-finite velocities read as 0); the memory
+        forgets its reference (the next derivative is not taken)."""
+        v = np.asarray(x, dtype=float)[..., 4:8]
+        v = np.where(np.isfinite(v), v, 0.0)
+        u = (-np.asarray(self.l_d) * v + self.k_v * v) / self.k_u
+        return u, BebopMemory(np.full_like(memory.v_r, np.nan), np.full_like(memory.t, np.nan), memory.v_dot)
 
     @property
     def k_u(self) -> np.ndarray:

@@ -3,7 +3,7 @@
 Robots layer. State ``(x, y, z, theta)``; command ``(v_x, v_y, v_z, omega_z)`` in the world
 frame, held constant over a step, so the step is exact. A command beyond the limits
 (linear speed in norm, yaw rate in magnitude) is scaled down as a whole, its direction
-kept; a team scales all its robots' commands by one factor.
+kept; a team of them scales all its robots' commands by one factor (:mod:`quatform.robots.team`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 
-__all__ = ["HolonomicRobot", "Team"]
+__all__ = ["HolonomicRobot"]
 
 
 @dataclass(frozen=True)
@@ -34,11 +34,35 @@ class HolonomicRobot:
     max_speed: float = 2.5
     max_yaw_rate: float = 3.0
 
+    name = "holonomic"
+    #: It offers a formation its whole state, a 4-DOF point.
+    point_kind = "xyz_yaw"
+    state_columns = ("x", "y", "z", "theta")
+    command_columns = ("v_x", "v_y", "v_z", "omega_z")
+    #: Entries of the rate :meth:`actuate` takes: the point's.
+    n_rate = 4
+
     def __post_init__(self):
         for name in ("max_speed", "max_yaw_rate"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise InvalidInputError(f"{name} must be a positive finite number, got {v!r}")
+
+    def point(self, x) -> np.ndarray:
+        """The 4-DOF point: the state itself, shape ``(..., 4)``."""
+        return np.asarray(x, dtype=float)
+
+    def initial_memory(self, batch: tuple = ()):
+        """None: its actuation remembers nothing."""
+        return None
+
+    def actuate(self, x, rate, t: float, memory=None):
+        """The commands are the point's world rates (seed 000 §4.1): ``(rate, memory)``."""
+        return np.asarray(rate, dtype=float), memory
+
+    def brake(self, x, memory=None):
+        """Commands that stop the robot: zero, shape ``(..., 4)``."""
+        return np.zeros(np.shape(x)[:-1] + (4,)), memory
 
     def saturate(self, u) -> np.ndarray:
         """Commands limited to the robot's speeds, direction kept; non-finite ones become zero.
@@ -54,7 +78,8 @@ class HolonomicRobot:
         u = np.array(u, dtype=float)
         if u.shape[-1:] != (4,):
             raise InvalidInputError(f"a 4-DOF robot command has shape (..., 4), got {u.shape}")
-        return u * self.limit_factor(u)[..., None]
+        s = self.limit_factor(u)[..., None]
+        return np.where(s > 0, u * s, 0.0)  # a non-finite command (factor 0) stops the robot
 
     def limit_factor(self, u) -> np.ndarray:
         """Largest ``s`` in ``[0, 1]`` with ``s u`` within the limits (0 for a non-finite ``u``).
@@ -76,7 +101,7 @@ class HolonomicRobot:
             s = np.minimum(self.max_speed / speed, self.max_yaw_rate / np.abs(v[..., 3]))
         return np.where(finite, np.minimum(1.0, s), 0.0)
 
-    def _factor_one(self, vx, vy, vz, wz):
+    def limit_factor_floats(self, vx, vy, vz, wz):
         """:meth:`limit_factor` for one command of Python floats."""
         if not (math.isfinite(vx) and math.isfinite(vy) and math.isfinite(vz) and math.isfinite(wz)):
             return 0.0
@@ -93,45 +118,3 @@ class HolonomicRobot:
         return as_array(x, "x", 4) + dt * self.saturate(u)
 
 
-@dataclass(frozen=True)
-class Team:
-    """Robots whose states and commands are stacked: robot ``i`` owns entries ``4i:4i+4``."""
-
-    robots: tuple[HolonomicRobot, ...] = (HolonomicRobot(), HolonomicRobot())
-
-    @property
-    def n(self) -> int:
-        return 4 * len(self.robots)
-
-    def saturate(self, u) -> np.ndarray:
-        """Team command scaled as a whole into every robot's limits.
-
-        One factor for all robots (the smallest any robot needs), so the formation's motion
-        keeps its direction: limiting each robot on its own would bend the commanded
-        cluster rate and distort the shape. A non-finite entry stops the whole team.
-
-        Parameters
-        ----------
-        u : array_like, shape (..., 4 n)
-
-        Returns
-        -------
-        ndarray, shape (..., 4 n)
-        """
-        u = np.asarray(u, dtype=float)
-        if u.shape[-1:] != (self.n,):
-            raise InvalidInputError(f"team command must have shape (..., {self.n}), got {u.shape}")
-        if u.ndim == 1:
-            return self.saturate_floats(u.tolist())
-        s = np.min(np.stack([rb.limit_factor(u[..., 4 * i:4 * i + 4]) for i, rb in enumerate(self.robots)]),
-                   axis=0)
-        return np.where(s[..., None] > 0, u * s[..., None], 0.0)
-
-    def saturate_floats(self, u) -> np.ndarray:
-        """:meth:`saturate` for one command given as a sequence of Python floats."""
-        s = min(rb._factor_one(*u[4 * i:4 * i + 4]) for i, rb in enumerate(self.robots))
-        return np.array([x * s for x in u]) if s > 0 else np.zeros(self.n)
-
-    def step(self, r, u, dt: float) -> np.ndarray:
-        r = as_array(r, "r", self.n)
-        return r + dt * self.saturate(u)

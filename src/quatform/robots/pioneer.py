@@ -4,7 +4,8 @@ Robots layer. State ``(x, y, psi)``: the control point, a distance ``a`` ahead o
 middle of the wheel axis, and the heading. Commands ``(v, omega)``, eq. (3.1). The
 control point moves by eq. (3.4), ``[x_dot, y_dot] = A_p [v, omega]`` with ``A_p`` of
 eq. (3.2); the controller inverts it, eqs. (3.3), (3.5). A step integrates the unicycle
-exactly for a command held over the step.
+exactly for a command held over the step. As a robot model (:mod:`quatform.robots.model`)
+it offers a formation its control point at the height ``z`` of its landing platform.
 """
 
 from __future__ import annotations
@@ -34,17 +35,49 @@ class Pioneer:
         lab limit chosen here for a 6 x 4 m arena (the thesis does not give its own).
     max_omega : float
         Largest ``|omega|``, rad/s (100 deg/s, chosen likewise).
+    z : float
+        Height of the point it offers a formation (the landing platform), m.
     """
 
     a: float = 0.15
     max_v: float = 0.75
     max_omega: float = 100.0 * math.pi / 180.0
+    z: float = 0.0
+
+    name = "pioneer"
+    #: It offers a formation its control point, lifted to the platform height ``z``.
+    point_kind = "xyz"
+    state_columns = ("x", "y", "psi")
+    command_columns = ("v", "omega")
+    #: Entries of the rate :meth:`actuate` takes: the point's (its z rate is ignored).
+    n_rate = 3
 
     def __post_init__(self):
+        if not np.isfinite(self.z):
+            raise InvalidInputError(f"Pioneer z must be finite, got {self.z!r}")
         for name in ("a", "max_v", "max_omega"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise InvalidInputError(f"Pioneer {name} must be positive and finite, got {v!r}")
+
+    def point(self, x) -> np.ndarray:
+        """``(x, y, z)``: the control point at the platform height, shape ``(..., 3)``."""
+        x = np.asarray(x, dtype=float)
+        return np.stack([x[..., 0], x[..., 1], np.full(x.shape[:-1], self.z)], axis=-1)
+
+    def initial_memory(self, batch: tuple = ()):
+        """None: its actuation remembers nothing."""
+        return None
+
+    def actuate(self, x, rate, t: float, memory=None):
+        """``(v, omega)`` that move the control point at the world rate ``rate[..., 0:2]``,
+        eq. (3.5) (:meth:`commands_from_velocity`), and ``memory`` unchanged."""
+        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        return self.commands_from_velocity(x[..., 2], rate[..., 0:2]), memory
+
+    def brake(self, x, memory=None):
+        """Commands that stop the robot: zero, shape ``(..., 2)``."""
+        return np.zeros(np.shape(x)[:-1] + (2,)), memory
 
     def forward_matrix(self, psi) -> np.ndarray:
         """``A_p`` of eq. (3.2): ``[x_dot, y_dot] = A_p [v, omega]``, shape ``(..., 2, 2)``."""

@@ -1,8 +1,13 @@
-"""Run metrics: the numbers ``metrics.json`` holds.
+"""Run metrics of a two-robot (seed 000) log: the numbers ``metrics.json`` holds.
 
-Sim layer. Errors that compare controllers are computed from the robots' measured poses,
-the same way for every description; the recovered Euclidean error uses each controller's
-own description (``formation.euclidean``), as its operator would see the formation.
+Sim layer. The metrics read a :class:`~quatform.sim.log.Log` of the pair kind
+(:mod:`quatform.scenarios.pair`): the channels ``state`` (measured robots), ``r_des``,
+``e`` / ``e_des`` (Euclidean variables recovered by the controller's own description,
+``formation.to_chart``, and the desired ones), ``command``, ``raw_finite`` and
+``singularity``, and the meta keys ``scenario``, ``controller``, ``formation``, ``dt_s``,
+``metrics_from_s`` and ``feedforward``. Errors that compare controllers are computed from
+the robots' measured poses, the same way for every description. A batched log (leading
+batch axes) is measured one world at a time: ``compute_metrics(log.world(i))``.
 """
 
 from __future__ import annotations
@@ -10,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, ShapeError
 from ..formations import segment_direction
-from .runner import Run
+from .log import Log
 
-__all__ = ["compute_metrics", "SINGULAR_THRESHOLD", "LOST_POSITION_M", "LOST_ANGLE_RAD"]
+__all__ = ["compute_metrics", "errors_from_robots", "SINGULAR_THRESHOLD", "LOST_POSITION_M", "LOST_ANGLE_RAD"]
 
 #: A measured state whose singularity measure falls below this is reported singular.
 SINGULAR_THRESHOLD = 0.02
@@ -28,37 +33,58 @@ def _first(t, mask):
     return float(t[idx[0]]) if idx.size else None
 
 
-def errors_from_robots(run: Run) -> dict:
-    """Representation-independent error signals, each shape ``(T,)``."""
-    r, rd = run.r, run.r_des
+def errors_from_robots(log: Log) -> dict:
+    """Representation-independent error signals of one world, each of shape ``(T,)``.
+
+    ``cluster_position`` (midpoints, m), ``shape`` (``|p1 - p2| / 2 - d_c``, m),
+    ``orientation`` (angle between the measured and desired robot-to-robot directions, rad,
+    seed 000 eq. (3)'s ``beta_c, gamma_c``), ``robot_position`` and ``robot_yaw`` (the worse
+    robot), ``separation`` (m) and ``recovered_euclidean`` (largest wrapped angle error of
+    the recovered Euclidean variables, rad).
+    """
+    r, rd, e, e_des = log["state"], log["r_des"], log["e"], log["e_des"]
     mid = 0.5 * (r[:, 0:3] + r[:, 4:7])
     mid_d = 0.5 * (rd[:, 0:3] + rd[:, 4:7])
     delta = r[:, 0:3] - r[:, 4:7]
     D = np.linalg.norm(delta, axis=1)
     u = delta / D[:, None]
-    u_d = segment_direction(run.e_des[:, 3], run.e_des[:, 4])
+    u_d = segment_direction(e_des[:, 3], e_des[:, 4])
     return {
         "cluster_position": np.linalg.norm(mid - mid_d, axis=1),
-        "shape": np.abs(0.5 * D - run.e_des[:, 5]),
+        "shape": np.abs(0.5 * D - e_des[:, 5]),
         "orientation": np.arccos(np.clip(np.einsum("ij,ij->i", u, u_d), -1.0, 1.0)),
         "robot_position": np.maximum(np.linalg.norm(r[:, 0:3] - rd[:, 0:3], axis=1),
                                      np.linalg.norm(r[:, 4:7] - rd[:, 4:7], axis=1)),
         "robot_yaw": np.maximum(np.abs(wrap_angle(r[:, 3] - rd[:, 3])), np.abs(wrap_angle(r[:, 7] - rd[:, 7]))),
         "separation": D,
-        "recovered_euclidean": np.max(np.abs(wrap_angle(run.e[:, [3, 4, 6, 7]] - run.e_des[:, [3, 4, 6, 7]])), axis=1),
+        "recovered_euclidean": np.max(np.abs(wrap_angle(e[:, [3, 4, 6, 7]] - e_des[:, [3, 4, 6, 7]])), axis=1),
     }
 
 
-def compute_metrics(run: Run) -> dict:
-    """The metrics of one run as a JSON-ready dict (units in the key names)."""
-    late = run.t >= run.scenario.metrics_from_s
+def compute_metrics(log: Log) -> dict:
+    """The metrics of one world's run as a JSON-ready dict (units in the key names).
+
+    Raises
+    ------
+    ShapeError
+        For a batched log (measure each world: ``log.world(i)``).
+    InvalidInputError
+        When no sample lies at or after ``metrics_from_s``.
+    """
+    if log.batch_shape:
+        raise ShapeError(f"compute_metrics: the log holds a batch of worlds {log.batch_shape}; measure one "
+                         "world at a time with compute_metrics(log.world(i))")
+    meta, t = log.meta, log.t
+    late = t >= meta["metrics_from_s"]
     if not late.any():  # every max error would read 0: a failed run would look perfect
-        last = float(run.t[-1]) if len(run.t) else float("nan")
+        last = float(t[-1]) if len(t) else float("nan")
         raise InvalidInputError(
-            f"scenario {run.scenario.name!r}: metrics_from_s = {run.scenario.metrics_from_s:g} s is after the "
+            f"scenario {meta['scenario']!r}: metrics_from_s = {meta['metrics_from_s']:g} s is after the "
             f"run's last sample ({last:g} s), so no error would be measured; choose metrics_from_s < duration_s")
-    err = errors_from_robots(run)
-    singular = run.singularity < SINGULAR_THRESHOLD
+    err = errors_from_robots(log)
+    sing = log["singularity"][:, 0]
+    u = log["command"]
+    singular = sing < SINGULAR_THRESHOLD
     lost = late & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
                    | (err["robot_position"] > LOST_POSITION_M))
 
@@ -66,18 +92,18 @@ def compute_metrics(run: Run) -> dict:
         return float(err[key][late].max())
 
     return {
-        "controller": run.controller.name,
-        "formation": run.controller.formation.name,
-        "scenario": run.scenario.name,
-        "duration_s": float(run.t[-1]),
-        "dt_s": run.scenario.dt_s,
-        "metrics_from_s": run.scenario.metrics_from_s,
-        "feedforward": bool(getattr(run.controller, "feedforward", True)),
+        "controller": meta["controller"],
+        "formation": meta["formation"],
+        "scenario": meta["scenario"],
+        "duration_s": float(t[-1]),
+        "dt_s": meta["dt_s"],
+        "metrics_from_s": meta["metrics_from_s"],
+        "feedforward": bool(meta["feedforward"]),
         "singularity_detected": bool(singular.any()),
-        "first_singular_time_s": _first(run.t, singular),
-        "min_singularity_measure": float(run.singularity.min()),
+        "first_singular_time_s": _first(t, singular),
+        "min_singularity_measure": float(sing.min()),
         "reference_lost": bool(lost.any()),
-        "first_lost_time_s": _first(run.t, lost),
+        "first_lost_time_s": _first(t, lost),
         "max_cluster_position_error_m": mx("cluster_position"),
         "max_shape_error_m": mx("shape"),
         "max_orientation_error_rad": mx("orientation"),
@@ -85,7 +111,7 @@ def compute_metrics(run: Run) -> dict:
         "max_robot_yaw_error_rad": mx("robot_yaw"),
         "min_robot_separation_m": float(err["separation"].min()),
         "max_recovered_euclidean_error_rad": mx("recovered_euclidean"),
-        "nonfinite_commands": int((~run.raw_finite).sum()),
-        "max_command_speed_m_s": float(max(np.linalg.norm(run.u[:, 0:3], axis=1).max(),
-                                            np.linalg.norm(run.u[:, 4:7], axis=1).max())),
+        "nonfinite_commands": int((log["raw_finite"][:, 0] < 0.5).sum()),
+        "max_command_speed_m_s": float(max(np.linalg.norm(u[:, 0:3], axis=1).max(),
+                                            np.linalg.norm(u[:, 4:7], axis=1).max())),
     }

@@ -8,10 +8,11 @@ raises :class:`~quatform.errors.MissingDependencyError` naming
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* :func:`simulate_physics` - a seed 000 scenario (two quadrotors) in closed loop with
-  any of the four formation controllers, through the same ``closed_loop`` as the
-  kinematic :func:`~quatform.sim.simulate`; returns the same :class:`~quatform.sim.Run`
-  and a :class:`PhysicsRecord` (collisions, MJCF, body poses for the pictures).
+* :func:`pair_plant` - the plant of a seed 000 scenario (two quadrotors) for any of the
+  four formation controllers (:func:`physics_controller`), run by the one
+  :func:`~quatform.sim.simulate` like the kinematic team
+  (:func:`quatform.scenarios.pair.simulate_physics`); :func:`physics_metrics` and
+  :func:`physics_record` (collisions, MJCF, body poses for the pictures) read the run.
 * :func:`simulate_ugv_uav_physics` - a seed 001 scenario with a Pioneer-like UGV and a
   quadrotor flown in Bebop-like attitude mode, the controller's dynamic compensation
   (4.47) using ``K1..K8`` identified from the simulated quadrotor (:func:`identify_k`).
@@ -29,10 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
+from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError, MissingDependencyError, NonFiniteError
-from ..formations import EuclideanPair, RobotSpace
-from ..references import sample_reference
 from ..robots import Bebop
 from ..robots.physics import (
     GRAVITY,
@@ -46,11 +45,10 @@ from ..robots.physics import (
     wheel_speeds,
     world_mjcf,
 )
-from .loop import PerfectMeasurement, closed_loop
-from .runner import Run
 
 __all__ = ["BACKEND_LABEL", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "ContactMonitor", "PhysicsRecord",
-           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "simulate_physics",
+           "PhysicsWorld", "identify_k", "import_mujoco", "physics_gains", "physics_timestep", "pair_plant",
+           "PairPlant", "physics_controller", "physics_metrics", "physics_record",
            "simulate_ugv_uav_physics"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
@@ -63,7 +61,7 @@ BACKEND_LABEL = "MuJoCo physics"
 #: mass) is a physical result.
 IRIS_IDENTIFIED_K = (0.8058, 0.1709, 0.8058, 0.1709, 3.856, 3.784, 9.565, 4.663)
 
-#: Seed 000 gains for two IRIS quadrotors, used by :func:`simulate_physics` where a
+#: Seed 000 gains for two IRIS quadrotors, used by :func:`pair_plant` where a
 #: scenario asks for Table 1 (seed 000 §4.1: kinematic MATLAB robots). Table 1's loops are
 #: up to 20 1/s fast; the quadrotor follows a velocity command through its PX4-like PI
 #: velocity loop (1.8, 0.4: a lag of ~0.55 s), so a proportional outer loop on it has a
@@ -488,20 +486,15 @@ class PhysicsRecord:
                 "gains_source_note": GAINS_SOURCES.get(self.gains_source, ""), "physics_timestep_s": self.timestep}
 
 
-def simulate_physics(scenario, controller, feedforward: bool | None = None, progress=None,
-                     cascade_options: dict | None = None, gains: dict | None = None):
-    """Run a seed 000 scenario on two simulated IRIS quadrotors; returns ``(Run, PhysicsRecord)``.
-
-    The formation controller runs every ``scenario.dt_s`` on the true robot states (as the
-    kinematic run does), sends its ``(v_x, v_y, v_z, yaw rate)`` per robot to each
-    quadrotor's PX4-like velocity mode, and the physics advances between ticks.
-
-    ``feedforward``: ``None`` keeps the scenario's (``scenario.feedforward``), as
-    :func:`quatform.sim.simulate` does.
+def physics_controller(scenario, controller, feedforward: bool | None = None,
+                       gains: dict | None = None) -> tuple[object, dict, str]:
+    """The seed 000 controller a physics run of ``scenario`` drives its quadrotors with.
 
     ``controller``: a name (its gains from :func:`physics_gains`, or ``gains``: keyword
-    arguments of its class) or a controller object (run as it is). The record says which
-    gains ran (``gains``, ``gains_source``).
+    arguments of its class, source ``"argument"``; ``feedforward`` None keeps the
+    scenario's) or a controller object, run as it is (source ``"controller"``). Returns
+    ``(controller, gains, source)``: the object, the gains it runs with (what
+    ``metrics.json`` records) and their source (a key of :data:`GAINS_SOURCES`).
     """
     if isinstance(controller, str):
         if gains is None:
@@ -519,37 +512,68 @@ def simulate_physics(scenario, controller, feedforward: bool | None = None, prog
             raise InvalidInputError("simulate_physics: pass gains with a controller name, not with a controller "
                                     f"object ({type(controller).__name__} already has its gains)")
         ctrl, source = controller, "controller"
-    F = ctrl.formation
-    t = scenario.times
-    e_des, _, c_des, cd_des = sample_reference(scenario.path, t, F)
-    r_des = RobotSpace().from_euclidean(e_des)
-    r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
-    h = physics_timestep(scenario.dt_s)
-    world = PhysicsWorld(quads=[("robot1", r0[0:3], r0[3]), ("robot2", r0[4:7], r0[7])], timestep=h,
-                         cascade_options=cascade_options)
-    substeps = round(scenario.dt_s / h)
-    world.continue_yaw("robot1", r0[3])  # yaws continued from the scenario's, not wrapped
-    world.continue_yaw("robot2", r0[7])
-    qpos = []
+    return ctrl, _controller_gains(ctrl), source
 
-    def plant(x, u, dt):
-        qpos.append(world.qpos())
-        world.command_quad("robot1", u[0:4])
-        world.command_quad("robot2", u[4:8])
-        world.step(substeps)
-        return np.r_[world.quad_state("robot1"), world.quad_state("robot2")]
 
-    log = closed_loop(t, 1, scenario.dt_s, r0, plant, PerfectMeasurement(), ctrl.compute,
-                      lambda k: Reference(c_des[k], cd_des[k], r_des[k]), progress)
-    r, c, u, ok = log.states, log.cluster, log.commands, log.raw_finite
-    e = F.to_chart(c, near_e=e_des, r=r)
-    sing = F.singularity_measure(r, near_c=c_des)
-    run = Run(scenario, ctrl, t, r, r_des, c, c_des, e, e_des, u, ok, sing, backend=BACKEND_LABEL)
-    q = np.array(qpos[:len(t)]) if qpos else np.zeros((0, world.model.nq))
-    rec = PhysicsRecord(world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
-                        world.contacts.summary(), h, _controller_gains(ctrl), source,
-                        f"{scenario.name}: {ctrl.name} controller")
-    return run, rec
+class PairPlant:
+    """Two simulated IRIS quadrotors in PX4-like velocity mode as a plant of
+    :func:`quatform.sim.simulate` (seed 000 §4.2's robots).
+
+    State and output: the 8 robot variables ``x1 ... theta2`` (m, rad; the yaws continued,
+    not wrapped); command each robot's ``(v_x, v_y, v_z, yaw rate)`` in the world frame. One
+    world (MuJoCo's data is the state that advances, ``batchable = False``): ``step`` sends
+    the command and runs ``round(dt / timestep)`` physics steps; ``times`` and ``qpos`` record
+    each call's time and the MuJoCo positions at its start.
+    """
+
+    batchable = False
+    state_columns = ("x1", "y1", "z1", "theta1", "x2", "y2", "z2", "theta2")
+    output_columns = state_columns
+
+    def __init__(self, x0, timestep: float, cascade_options: dict | None = None):
+        x = np.asarray(x0, dtype=float)
+        if x.shape != (8,):
+            raise InvalidInputError(f"pair_plant: x0 must have shape (8,) (one world: a MuJoCo plant is not "
+                                    f"batched), got {x.shape}")
+        self.world = PhysicsWorld(quads=[("robot1", x[0:3], x[3]), ("robot2", x[4:7], x[7])], timestep=timestep,
+                                  cascade_options=cascade_options)
+        self.world.continue_yaw("robot1", x[3])  # yaws continued from the scenario's, not wrapped
+        self.world.continue_yaw("robot2", x[7])
+        self.x0, self.timestep = x, timestep
+        self.times: list[float] = []
+        self.qpos: list[np.ndarray] = []
+
+    def output(self, x):
+        return x
+
+    def step(self, x, u, dt, t=0.0):
+        self.times.append(float(t))
+        self.qpos.append(self.world.qpos())
+        self.world.command_quad("robot1", u[0:4])
+        self.world.command_quad("robot2", u[4:8])
+        self.world.step(round(dt / self.timestep))
+        return np.r_[self.world.quad_state("robot1"), self.world.quad_state("robot2")]
+
+
+def pair_plant(scenario, x0, timestep: float | None = None, cascade_options: dict | None = None) -> PairPlant:
+    """The two-quadrotor plant of a seed 000 scenario starting at ``x0`` (shape (8,)); the
+    physics step is ``timestep`` or the largest up to 2.5 ms dividing ``scenario.dt_s``."""
+    return PairPlant(x0, physics_timestep(scenario.dt_s) if timestep is None else float(timestep), cascade_options)
+
+
+def physics_metrics(plant: PairPlant) -> dict:
+    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``."""
+    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep}
+
+
+def physics_record(plant: PairPlant, log, title: str = "", gains: dict | None = None,
+                   gains_source: str = "") -> PhysicsRecord:
+    """The :class:`PhysicsRecord` of a run of ``plant`` (its log ``log``): the MuJoCo
+    positions at the log's ticks, the robots' centres, the collisions."""
+    t, r = log.t, log["state"]
+    q = np.array(plant.qpos[:len(t)]) if plant.qpos else np.zeros((0, plant.world.model.nq))
+    return PhysicsRecord(plant.world.xml, t[:len(q)], q, {"robot1": r[:, 0:3], "robot2": r[:, 4:7]},
+                         plant.world.contacts.summary(), plant.timestep, dict(gains or {}), gains_source, title)
 
 
 # -- seed 001: UGV + quadrotor --------------------------------------------------------------

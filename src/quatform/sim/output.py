@@ -29,31 +29,37 @@ from pathlib import Path
 
 import numpy as np
 
-from ..formations import EUCLIDEAN_VARIABLES, ROBOT_PAIR_VARIABLES
-from .runner import Run
 
 __all__ = ["timeseries_columns", "write_columns", "write_timeseries", "write_metrics", "write_json",
            "strict_json", "atomic_write_text", "atomic_write_bytes", "staged_dir", "OUTPUT_MARKER"]
 
 
-def timeseries_columns(run: Run):
-    """Column names and the ``(T, n)`` array of the time series."""
-    names, cols = ["t"], [run.t[:, None]]
+def timeseries_columns(log, channels) -> tuple[list[str], np.ndarray]:
+    """Column names (``t`` first) and the ``(T, n)`` array of one world's log, for a CSV file.
 
-    def add(vars_, meas, des, prefix=""):
-        for i, v in enumerate(vars_):
-            names.extend([prefix + v.name, prefix + v.name + "_des"])
-            cols.extend([meas[:, i:i + 1], des[:, i:i + 1]])
+    Parameters
+    ----------
+    log : Log
+        One world (``log.world(i)`` of a batched log).
+    channels : sequence
+        File order (a kind's ``Experiment.csv_channels``, e.g.
+        :data:`quatform.scenarios.pair.PAIR_CSV_CHANNELS`): each item a channel name (its
+        columns as they are) or a tuple of channels of one width whose columns are
+        interleaved (``("state", "r_des")`` -> ``x1, x1_des, y1, y1_des, ...``).
+    """
+    names, cols = ["t"], [log.t[:, None]]
+    for item in channels:
+        group = (item,) if isinstance(item, str) else tuple(item)
+        widths = {len(log.columns(name)) for name in group}
+        if len(widths) != 1:
+            from ..errors import InvalidInputError
 
-    add(ROBOT_PAIR_VARIABLES, run.r, run.r_des)
-    F = run.controller.formation
-    if F.name not in ("robot",):
-        add(F.variables, run.c, run.c_des)
-    add(EUCLIDEAN_VARIABLES, run.e, run.e_des, prefix="euclid_")
-    names.extend("u_" + v.name for v in ROBOT_PAIR_VARIABLES)
-    cols.append(run.u)
-    names.append("singularity_measure")
-    cols.append(run.singularity[:, None])
+            raise InvalidInputError(f"timeseries: interleaved channels {group} have different widths "
+                                    f"{[len(log.columns(n)) for n in group]}; interleave channels of one width")
+        for i in range(widths.pop()):
+            for name in group:
+                names.append(log.columns(name)[i])
+                cols.append(np.asarray(log[name], dtype=float)[:, i:i + 1])
     return names, np.hstack(cols)
 
 
@@ -67,8 +73,9 @@ def write_columns(names, data, path) -> Path:
     return atomic_write_text(path, buf.getvalue())
 
 
-def write_timeseries(run: Run, path) -> Path:
-    return write_columns(*timeseries_columns(run), path)
+def write_timeseries(log, path, channels) -> Path:
+    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_columns`."""
+    return write_columns(*timeseries_columns(log, channels), path)
 
 
 # --------------------------------------------------------------------------- strict JSON

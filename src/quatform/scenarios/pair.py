@@ -1,14 +1,21 @@
-"""Scenarios: plain TOML files that state a motion, the robots, the gains and the run.
+"""The two-robot (pair) scenario kind of seed 000: its files, its runs, its metrics.
 
-Sim layer. Built-in scenarios live in ``quatform/scenarios/*.toml``; a user's own file is
-passed by path. See ``docs/scenarios.md`` for the keys. Every key is read with the shared
-typed readers of :mod:`quatform.checks`: an unknown key names the nearest valid one, a
-wrong type, NaN, infinity or an out-of-range number is refused naming the key, and a run
-too long for this machine is refused before it starts (:func:`check_scenario_work`).
+Scenarios layer (above sim, below report and runs). A pair scenario file states a motion,
+the robots, the gains and the run (``docs/scenarios.md``); ``kind = "pair"`` is the default
+when a file names no kind. Every key is read with the shared typed readers of
+:mod:`quatform.checks`: an unknown key names the nearest valid one, a wrong type, NaN,
+infinity or an out-of-range number is refused naming the key, and a run too long for this
+machine is refused before it starts (:func:`check_scenario_work`).
+
+:class:`PairKind` builds the :class:`~quatform.scenarios.base.Experiment` of a scenario and a
+controller: the kinematic team plant (:class:`~quatform.sim.plants.KinematicTeam`), the
+controller with the scenario's gains, the sampled reference and the initial state (one
+world, or a batch of worlds with leading axes on ``r0``); :func:`run_pair` runs it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -16,22 +23,28 @@ from pathlib import Path
 
 import numpy as np
 
-from ..tomlio import builtin_files, read_toml
 from ..checks import check_keys, check_within_run, check_work, flag, number, short, table, text, vector
-from ..control import CONTROLLERS, TABLE1, TABLE2
+from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
 from ..errors import InvalidInputError
-from ..formations import EUCLIDEAN_VARIABLES
-from ..references import EuclideanPath, Ramp, Step
+from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
+from ..references import EuclideanPath, Ramp, Step as StepChange
 from ..robots import HolonomicRobot, Team
+from ..sim.log import Channel, Log
+from ..sim.metrics import compute_metrics
+from ..sim.plants import KinematicTeam
+from . import KINDS
+from .base import Experiment, Option, ScenarioKind
 
-__all__ = ["Scenario", "load_scenario", "builtin_scenarios", "scenario_from_dict", "check_scenario_work",
-           "check_step_stable", "BYTES_PER_STEP", "SECONDS_PER_STEP"]
+__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "BYTES_PER_STEP",
+           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics",
+           "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
+           "PLAN_RUN_SECONDS_PER_STEP"]
 
 _TABLES = {"table1": TABLE1, "table2": TABLE2}
 _NAMES = [v.name for v in EUCLIDEAN_VARIABLES]
 _HINT = "see docs/scenarios.md"
 
-#: Memory one logged step of a two-robot run may take, bytes: the Run's arrays, the loop's
+#: Memory one logged step of a two-robot run may take, bytes: the log's arrays, the loop's
 #: per-step Python lists, the references and the time-series CSV. Measured peak (tracemalloc,
 #: spiral, 2001 steps): 1.4-4.6 kB per step, the quaternion controller the most; 12 kB is
 #: about 2.6 times that (docs/derivations.md, "Hardening (issue 12): two-robot scenarios").
@@ -140,7 +153,7 @@ class Scenario:
         Max errors are taken from this time on (``0 <= metrics_from_s <=`` the last sample).
     feedforward : bool
         Whether the controllers feed the reference's rate forward (default of
-        :meth:`controller` and :func:`~quatform.sim.simulate`).
+        :meth:`controller` and :meth:`PairKind.experiment`).
 
     Raises
     ------
@@ -199,31 +212,6 @@ class Scenario:
             raise InvalidInputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLERS)}")
         ff = self.feedforward if feedforward is None else feedforward
         return CONTROLLERS[name](**self.gains.get(name, {}), team=self.team, feedforward=bool(ff))
-
-
-def builtin_scenarios() -> dict[str, Path]:
-    """Built-in scenario files by name."""
-    return builtin_files("scenarios")
-
-
-def load_scenario(name_or_file: str | Path) -> Scenario:
-    """Load a built-in scenario by name or a TOML file by path.
-
-    Returns a :class:`Scenario` (two 4-DOF robots, seed 000), for ``kind = "ugv-uav"`` a
-    :class:`~quatform.scenarios.ugv_uav.UgvUavScenario` (seed 001), for ``kind = "teleop"`` a
-    :class:`~quatform.sim.teleop.TeleopScenario` (seed 003).
-    """
-    data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
-    kind = text(data, "kind", str(p), "pair", choices=("pair", "ugv-uav", "teleop"))
-    if kind == "ugv-uav":
-        from ..scenarios.ugv_uav import ugv_uav_scenario_from_dict  # until the one loader of scenarios/
-
-        return ugv_uav_scenario_from_dict(data, where=str(p))
-    if kind == "teleop":
-        from .teleop import teleop_scenario_from_dict
-
-        return teleop_scenario_from_dict(data, where=str(p))
-    return scenario_from_dict(data, where=str(p))
 
 
 def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
@@ -304,7 +292,7 @@ def _path(p: dict, where: str, duration: float) -> EuclideanPath:
     ramps = tuple(Ramp(text(r, "variable", w, choices=_NAMES), _time(r, "start_s", w, duration),
                        number(r, "duration_s", w, low=0.0, low_open=True), number(r, "change", w))
                   for r, w in _records(p, "ramps", _RAMP_KEYS, where))
-    steps = tuple(Step(text(s, "variable", w, choices=_NAMES), _time(s, "time_s", w, duration),
+    steps = tuple(StepChange(text(s, "variable", w, choices=_NAMES), _time(s, "time_s", w, duration),
                        number(s, "change", w))
                   for s, w in _records(p, "steps", _STEP_KEYS, where))
     path = EuclideanPath(
@@ -347,7 +335,7 @@ def _check_separation(path: EuclideanPath, where: str, duration: float) -> None:
         times.update((c.start_s, min(c.start_s + c.duration_s, duration)) if isinstance(c, Ramp) else (c.time_s,))
     times = np.array(sorted(times))
     ramps = path.initial[5] + sum(c.value_rate(times)[0] for _, c in changes if isinstance(c, Ramp))
-    steps = [c for _, c in changes if isinstance(c, Step)]
+    steps = [c for _, c in changes if isinstance(c, StepChange)]
     right = ramps + sum(np.where(times >= c.time_s, c.change, 0.0) for c in steps)  # d_c(t)
     left = ramps + sum(np.where(times > c.time_s, c.change, 0.0) for c in steps)  # d_c(t-), before a step
     bad = np.flatnonzero(np.minimum(left, right) <= 0.0)
@@ -356,7 +344,7 @@ def _check_separation(path: EuclideanPath, where: str, duration: float) -> None:
     k = bad[0]
     t, by_step = float(times[k]), bool(left[k] > 0.0)  # reached 0 by a jump at t, else by a ramp up to t
     for name, c in changes:  # the step at t, else the ramp running up to t, that lowers d_c
-        if by_step and isinstance(c, Step) and c.time_s == t and c.change < 0:
+        if by_step and isinstance(c, StepChange) and c.time_s == t and c.change < 0:
             label = f"{name} (d_c at {t:g} s, change = {c.change:g})"
             break
         if not by_step and isinstance(c, Ramp) and c.start_s < t <= c.start_s + c.duration_s and c.change < 0:
@@ -416,3 +404,216 @@ def _gain(d: dict, key: str, n: int, where: str, place: str):
         if not x > 0:
             raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be positive (seed 000 Tables 1-2)")
     return vals if n > 1 and isinstance(v, list) else vals[0]
+
+
+# --------------------------------------------------------------------------- the kind
+
+#: What moves the robots: their kinematic models, or MuJoCo physics (two quadrotors).
+BACKENDS = ("kinematic", "mujoco")
+
+#: Columns of the comparison table: (metrics key, header, format).
+TABLE_COLUMNS = (
+    ("controller", "controller", "{}"),
+    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
+    ("reference_lost", "lost", "{}"),
+    ("max_cluster_position_error_m", "cluster pos (m)", "{:.4f}"),
+    ("max_shape_error_m", "shape (m)", "{:.4f}"),
+    ("max_orientation_error_rad", "orient (rad)", "{:.4f}"),
+    ("max_robot_position_error_m", "robot pos (m)", "{:.4f}"),
+    ("max_recovered_euclidean_error_rad", "recovered (rad)", "{:.3f}"),
+    ("min_robot_separation_m", "min sep (m)", "{:.3f}"),
+    ("nonfinite_commands", "NaN cmds", "{}"),
+)
+
+#: Channels of ``timeseries.csv`` in file order; a tuple's channels are interleaved, each value
+#: beside its desired one (``x1, x1_des, y1, ...``: today's header): the robots, the
+#: controller's own cluster variables, the Euclidean ones recovered by its description, then
+#: the commands and the singularity measure.
+PAIR_CSV_CHANNELS = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"), "command", "singularity")
+
+
+def pair_csv_channels(formation: str) -> tuple:
+    """:data:`PAIR_CSV_CHANNELS` of a run of ``formation`` (a formation's name): the robot-space
+    description's cluster variables are the robots, so its file leaves them out."""
+    return tuple(c for c in PAIR_CSV_CHANNELS if not (formation == "robot" and c == ("cluster", "c_des")))
+
+
+#: Generous cost of one step of a run that follows a plan (time series kept, controller and
+#: simulator), checked before the plan's path is built: seed 000's helix runs 8000 steps in
+#: 0.8 s (docs/performance.md).
+PLAN_RUN_BYTES_PER_STEP, PLAN_RUN_SECONDS_PER_STEP = 1024.0, 2e-4
+
+
+def with_plan(sc: Scenario, plan_file, yaws=(0.0, 0.0)) -> Scenario:
+    """Scenario ``sc`` with its path replaced by the saved two-robot spatial plan ``plan_file``.
+
+    The plan's robot positions become the Euclidean cluster reference
+    (:class:`~quatform.planning.PlanPairPath`, constant yaws ``yaws``, seed 002 §4); the run
+    lasts the plan's duration; ``metrics_from_s`` is kept if it lies inside it, else 0.
+    """
+    from ..planning import PlanPairPath, load_plan
+
+    plan = load_plan(plan_file)
+    T = plan.duration_s
+    # the run steps the plan's whole duration at the scenario's dt_s: estimate it before the
+    # reference path is built (a plan lasting 1e9 s would otherwise run for days)
+    check_work(str(plan_file), f"the plan's duration ({T:.6g} s) / the scenario's dt_s ({sc.dt_s:g} s)",
+               T / sc.dt_s, bytes_per_step=PLAN_RUN_BYTES_PER_STEP, seconds_per_step=PLAN_RUN_SECONDS_PER_STEP,
+               fix="plan a shorter motion (duration_s of the plan spec)")
+    return dataclasses.replace(sc, path=PlanPairPath(plan, yaws), duration_s=T,
+                               name=f"{sc.name}+{plan.info.get('name', 'plan')}",
+                               metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)
+
+
+class PairKind(ScenarioKind):
+    """Seed 000's two holonomic robots under one of the four formation controllers."""
+
+    name = "pair"
+    scenario_type = Scenario
+    options = (
+        Option("controller", "formation controller (seed 000; required)", tuple(CONTROLLERS), None),
+        Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
+        Option("backend", "what moves the robots", BACKENDS, "kinematic"),
+        Option("reference", "a two-robot plan.npz to follow instead of the scenario's path", None, None, str),
+    )
+    compare_over = "controller"
+    table_columns = TABLE_COLUMNS
+
+    def from_dict(self, data: dict, where: str) -> Scenario:
+        return scenario_from_dict(data, where)
+
+    def experiment(self, scenario: Scenario, controller=None, feedforward: bool | None = None,
+                   backend: str = "kinematic", reference=None, r0=None, physics: dict | None = None) -> Experiment:
+        """The run of ``scenario`` with ``controller`` (a name of :data:`~quatform.control.CONTROLLERS`
+        or a controller object; required).
+
+        Parameters
+        ----------
+        feedforward : bool, optional
+            For a controller given by name: feed the reference's rate forward; default: the
+            scenario's (an object keeps its own).
+        backend : str
+            ``"kinematic"`` (the robots' models, :class:`~quatform.sim.plants.KinematicTeam`)
+            or ``"mujoco"`` (two IRIS quadrotors, :func:`quatform.sim.mujoco_backend.pair_plant`;
+            a controller given by name gets the physics gains; ``log.meta["physics_record"]``
+            is the run's :class:`~quatform.sim.mujoco_backend.PhysicsRecord`).
+        reference : str or path, optional
+            A saved two-robot plan to follow (:func:`with_plan`).
+        r0 : array_like, shape (*batch, 8), optional
+            Initial robot state of each world (leading axes: a batch of worlds run at once,
+            kinematic backend only); default the reference at ``t = 0`` displaced by
+            ``initial_offset`` (Euclidean variables).
+        physics : dict, optional
+            For ``backend="mujoco"``: ``gains`` (of
+            :func:`~quatform.sim.mujoco_backend.physics_controller`) and ``cascade_options``
+            (of :func:`~quatform.sim.mujoco_backend.pair_plant`).
+        """
+        if not isinstance(scenario, Scenario):
+            raise InvalidInputError(f"pair experiment: scenario must be a two-robot Scenario, got "
+                                    f"{type(scenario).__name__}")
+        if controller is None:
+            raise InvalidInputError(f"{scenario.name} is a two-robot scenario: give a controller "
+                                    f"(--controller {{{','.join(CONTROLLERS)}}})")
+        if backend not in BACKENDS:
+            raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+        physics = dict(physics or {})
+        check_keys(physics, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options",
+                   "see quatform.sim.mujoco_backend.pair_plant")
+        if physics and backend != "mujoco":
+            raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
+        if reference is not None:
+            scenario = with_plan(scenario, reference)
+        # up front, before the reference is sampled (a Scenario checks this when built; its
+        # fields may have been swapped since by object.__setattr__)
+        check_scenario_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s)
+        t = scenario.times
+        e_des, ed_des = scenario.path(t)  # references.sample_reference, the chart part first
+        if r0 is None:
+            r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
+        x0 = np.array(r0, dtype=float)
+        meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
+                "backend_label": "kinematic"}
+        if backend == "mujoco":
+            from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
+
+            ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics.get("gains"))
+            plant = mj.pair_plant(scenario, x0, cascade_options=physics.get("cascade_options"))
+            meta["backend_label"] = mj.BACKEND_LABEL
+
+            def record(log: Log) -> dict:
+                rec = mj.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
+                return {"physics_record": rec}
+
+            def physics_metrics(log: Log) -> dict:
+                return {**mj.physics_metrics(plant), **log.meta["physics_record"].metrics()}
+        else:
+            ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
+            plant = KinematicTeam(ctrl.team)
+
+            def record(log: Log) -> dict:
+                return {}
+
+            def physics_metrics(log: Log) -> dict:
+                return {}
+        F = ctrl.formation
+        c_des, cd_des = F.from_chart(e_des, ed_des)
+        r_des = RobotSpace().from_chart(e_des)
+        meta.update(formation=F.name, cluster_variables=F.variables,
+                    feedforward=bool(ctrl.feedforward))
+
+        def reference_at(k):
+            return Reference(c_des[k], cd_des[k], r_des[k])
+
+        def finish(log: Log) -> Log:
+            r, c = log["state"], log["cluster"]
+            shape = r.shape[:-1]
+            ed, cd, rd = (np.broadcast_to(a.reshape((a.shape[0],) + (1,) * (r.ndim - 2) + a.shape[1:]),
+                                          shape + a.shape[1:]) for a in (e_des, c_des, r_des))
+            e = F.to_chart(c, near_e=ed, r=r)
+            sing = F.singularity_measure(r, near_c=cd)
+            names = [v.name for v in F.variables]
+            euclid = ["euclid_" + v.name for v in EUCLIDEAN_VARIABLES]
+            log = log.with_channels(
+                *_channels(("r_des", [n + "_des" for n in log.columns("state")], rd),
+                           ("c_des", [n + "_des" for n in names], cd),
+                           ("e", euclid, e), ("e_des", [n + "_des" for n in euclid], ed),
+                           ("singularity", ["singularity_measure"], np.asarray(sing)[..., None])))
+            return log.with_channels(**record(log))
+
+        def metrics(log: Log) -> dict:
+            return {**compute_metrics(log), **physics_metrics(log)}
+
+        return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
+                          reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
+                          metrics=metrics, csv_channels=pair_csv_channels(F.name), meta=meta)
+
+
+def _channels(*specs):
+    return [Channel(name, tuple(cols), data) for name, cols, data in specs]
+
+
+#: The pair kind (registered in :data:`quatform.scenarios.KINDS`).
+PAIR = PairKind()
+KINDS[PAIR.name] = PAIR
+
+
+def run_pair(scenario: Scenario, controller, feedforward: bool | None = None, r0=None,
+             progress=None) -> Log:
+    """The complete log of ``scenario`` run with ``controller`` on the kinematic robots
+    (:meth:`PairKind.experiment` then :meth:`~quatform.scenarios.base.Experiment.run`)."""
+    return PAIR.experiment(scenario, controller=controller, feedforward=feedforward, r0=r0).run(progress)
+
+
+def simulate_physics(scenario: Scenario, controller, feedforward: bool | None = None, progress=None,
+                     cascade_options: dict | None = None, gains: dict | None = None):
+    """A seed 000 scenario on two simulated IRIS quadrotors (MuJoCo): ``(log, PhysicsRecord)``.
+
+    :meth:`PairKind.experiment` with ``backend="mujoco"``; ``controller`` a name (its gains
+    from :func:`~quatform.sim.mujoco_backend.physics_gains`, or ``gains``) or a controller
+    object; ``feedforward`` ``None`` keeps the scenario's.
+    """
+    physics = {k: v for k, v in (("cascade_options", cascade_options), ("gains", gains)) if v is not None}
+    log = PAIR.experiment(scenario, controller=controller, feedforward=feedforward, backend="mujoco",
+                          physics=physics).run(progress)
+    return log, log.meta["physics_record"]

@@ -1,0 +1,162 @@
+"""The seed 000 pair runs on the one pipeline: kind, experiment, simulate, Log, metrics, CSV."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quatform.control import CONTROLLERS
+from quatform.errors import InvalidInputError, ShapeError
+from quatform.formations import EuclideanPair
+from quatform.robots import HolonomicRobot, Team
+from quatform.scenarios import KINDS
+from quatform.scenarios.pair import PAIR, PairKind, Scenario, pair_csv_channels, run_pair
+from quatform.sim import compute_metrics, load_scenario
+from quatform.sim.output import timeseries_columns
+from quatform.sim.plants import KinematicTeam
+
+#: Offsets (Euclidean variables) of the batched worlds: m for x_c, y_c, z_c, d_c; rad else.
+_SCALE = np.array([0.2, 0.2, 0.2, 0.3, 0.3, 0.1, 0.3, 0.3])
+
+
+def _short_spiral(duration=1.5):
+    return dataclasses.replace(load_scenario("mas-kitts-spiral"), duration_s=duration, metrics_from_s=0.0)
+
+
+def _starts(sc, offsets):
+    e0, _ = sc.path(np.zeros(1))
+    return EuclideanPair().inverse(e0[0] + offsets)
+
+
+def test_the_pair_kind_is_registered_with_its_choices():
+    assert KINDS["pair"] is PAIR and isinstance(PAIR, PairKind) and PAIR.scenario_type is Scenario
+    opts = {o.name: o for o in PAIR.options}
+    assert opts["controller"].choices == tuple(CONTROLLERS) and opts["controller"].default is None
+    assert opts["backend"].choices == ("kinematic", "mujoco") and opts["backend"].default == "kinematic"
+    assert PAIR.compare_over == "controller" and PAIR.table_columns[0][0] == "controller"
+
+
+@pytest.mark.parametrize("controller", list(CONTROLLERS))
+def test_a_batch_of_worlds_equals_the_worlds_run_one_by_one(controller):
+    sc = _short_spiral()
+    r0 = _starts(sc, np.random.default_rng(7).normal(scale=_SCALE, size=(3, 8)))
+    batch = run_pair(sc, controller, r0=r0)
+    assert batch.batch_shape == (3,) and batch["state"].shape == (sc.times.size, 3, 8)
+    for i in range(3):
+        one, world = run_pair(sc, controller, r0=r0[i]), batch.world(i)
+        assert set(world.channels) == set(one.channels)
+        for name in one.channels:
+            np.testing.assert_allclose(world[name], one[name], rtol=0, atol=1e-12, err_msg=name)
+        mb, ms = compute_metrics(world), compute_metrics(one)
+        for key, v in ms.items():
+            if isinstance(v, float):
+                assert mb[key] == pytest.approx(v, rel=1e-12, abs=1e-12), key
+            else:
+                assert mb[key] == v, key
+
+
+@settings(max_examples=5, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=8, max_size=8))
+def test_a_batch_of_two_grid_worlds_equals_single_runs(unit):
+    """Two worlds on a (2, 1) batch grid: any leading axes, each world its own start."""
+    sc = _short_spiral(0.3)
+    off = np.array(unit) * _SCALE
+    r0 = _starts(sc, np.stack([off, -off]))[:, None, :]
+    batch = run_pair(sc, "quaternion", r0=r0)
+    assert batch.batch_shape == (2, 1)
+    for i, sign in enumerate((1.0, -1.0)):
+        one = run_pair(sc, "quaternion", r0=_starts(sc, sign * off))
+        np.testing.assert_allclose(batch.world((i, 0))["state"], one["state"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(batch.world((i, 0))["singularity"], one["singularity"], rtol=0, atol=1e-12)
+
+
+def test_metrics_of_a_batch_are_taken_one_world_at_a_time():
+    sc = _short_spiral(0.2)
+    log = run_pair(sc, "cluster-space", r0=_starts(sc, np.zeros((2, 8))))
+    with pytest.raises(ShapeError, match=r"log.world\(i\)"):
+        compute_metrics(log)
+    assert compute_metrics(log.world(1))["scenario"] == "mas-kitts-spiral"
+
+
+#: Values of today's main (tools/metrics_regression.py baseline, `quatform run`).
+_BASELINE = {
+    ("mas-kitts-spiral", "cluster-space", 28.0): {  # the run is causal: its first 28 s are the full run's
+        "first_singular_time_s": 27.44, "first_lost_time_s": 27.61},
+    ("mas-kitts-spiral", "quaternion", None): {
+        "first_singular_time_s": None, "first_lost_time_s": None,
+        "min_singularity_measure": 0.31002897925504336, "max_cluster_position_error_m": 6.39694880374462e-05,
+        "min_robot_separation_m": 2.005097172964871, "max_recovered_euclidean_error_rad": 4.396032626363677e-06},
+    ("mas-kitts-yaw-step", "robot-space", None): {
+        "first_singular_time_s": None, "min_singularity_measure": 1.0,
+        "min_robot_separation_m": 0.011758843168274875, "max_recovered_euclidean_error_rad": 0.012923706860479278},
+}
+
+
+@pytest.mark.parametrize("case", list(_BASELINE))
+def test_metrics_read_from_the_log_equal_todays_values(case):
+    name, controller, duration = case
+    sc = load_scenario(name)
+    sc = sc if duration is None else dataclasses.replace(sc, duration_s=duration)
+    m = compute_metrics(run_pair(sc, controller))
+    for key, v in _BASELINE[case].items():
+        assert m[key] == (None if v is None else pytest.approx(v, rel=1e-9, abs=1e-15)), key
+
+
+_ROBOTS = "t,x1,x1_des,y1,y1_des,z1,z1_des,theta1,theta1_des,x2,x2_des,y2,y2_des,z2,z2_des,theta2,theta2_des"
+_EUCLID = ",".join(f"euclid_{v},euclid_{v}_des" for v in ("x_c", "y_c", "z_c", "beta_c", "gamma_c", "d_c",
+                                                             "phi_1", "phi_2"))
+_TAIL = "u_x1,u_y1,u_z1,u_theta1,u_x2,u_y2,u_z2,u_theta2,singularity_measure"
+_DQ = ",".join(f"qhat_{s}_{p}{c},qhat_{s}_{p}{c}_des" for s in "cs" for p in "rd" for c in "wxyz")
+
+
+@pytest.mark.parametrize(("controller", "header"), [
+    ("robot-space", f"{_ROBOTS},{_EUCLID},{_TAIL}"),  # today's yaw-step robot-space timeseries.csv
+    ("dual-quaternion", f"{_ROBOTS},{_DQ},{_EUCLID},{_TAIL}"),
+])
+def test_the_csv_header_is_todays(controller, header):
+    exp = PAIR.experiment(_short_spiral(0.05), controller=controller)
+    assert exp.csv_channels == pair_csv_channels(exp.controller.formation.name)
+    names, data = timeseries_columns(exp.run(), exp.csv_channels)
+    assert ",".join(names) == header and data.shape == (6, len(names))
+
+
+def test_the_csv_columns_hold_the_log_channels():
+    log = run_pair(_short_spiral(0.05), "quaternion")
+    names, data = timeseries_columns(log, pair_csv_channels("quaternion"))
+    np.testing.assert_array_equal(data[:, names.index("x2_des")], log["r_des"][:, 4])
+    np.testing.assert_array_equal(data[:, names.index("q_c_z")], log["cluster"][:, 6])
+    np.testing.assert_array_equal(data[:, names.index("singularity_measure")], log["singularity"][:, 0])
+
+
+def test_the_kinematic_plant_is_the_team_step():
+    team = Team((HolonomicRobot(1.0, 1.0), HolonomicRobot(2.0, 0.5)))
+    plant = KinematicTeam(team)
+    assert plant.state_columns == ("x1", "y1", "z1", "theta1", "x2", "y2", "z2", "theta2") and plant.batchable
+    rng = np.random.default_rng(3)
+    x, u = rng.normal(size=(4, 8)), 3.0 * rng.normal(size=(4, 8))
+    np.testing.assert_array_equal(plant.step(x, u, 0.01, 0.0), team.step(x, u, 0.01))
+    assert np.all(np.linalg.norm(plant.step(x, u, 1.0)[:, 0:3] - x[:, 0:3], axis=1) <= 1.0 + 1e-12)
+
+
+def test_interleaved_csv_channels_must_have_one_width():
+    log = run_pair(_short_spiral(0.05), "quaternion")
+    with pytest.raises(InvalidInputError, match="different widths"):
+        timeseries_columns(log, [("state", "cluster")])
+
+
+def test_the_experiment_refuses_a_bad_backend_and_options():
+    sc = _short_spiral(0.05)
+    with pytest.raises(InvalidInputError, match="give a controller"):
+        PAIR.experiment(sc)
+    with pytest.raises(InvalidInputError, match="unknown backend 'gazebo'"):
+        PAIR.experiment(sc, controller="quaternion", backend="gazebo")
+    with pytest.raises(InvalidInputError, match="backend = 'mujoco' only"):
+        PAIR.experiment(sc, controller="quaternion", physics={"gains": {}})
+    with pytest.raises(InvalidInputError, match="timestep"):
+        PAIR.experiment(sc, controller="quaternion", backend="mujoco", physics={"timestep": 1e-3})
+    with pytest.raises(InvalidInputError, match="two-robot Scenario"):
+        PAIR.experiment("mas-kitts-spiral", controller="quaternion")
