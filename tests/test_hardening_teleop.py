@@ -11,15 +11,20 @@ import pytest
 
 from quatform.errors import InvalidInputError, ResourceLimitError
 from quatform.sim import load_scenario
-from quatform.sim.teleop import (
+from quatform.control.stiffness import explicit_stiffness_limit
+from quatform.scenarios.teleop import (
+    TELEOP,
     check_teleop_stiffness,
-    simulate_teleop,
     teleop_metrics,
     teleop_scenario_from_dict,
     teleop_stiffness_limits,
 )
 from quatform.teleop import TeleopMeasurement, VirtualWall
-from quatform.teleop.control import explicit_stiffness_limit
+
+
+def simulate_teleop(sc, **kw):
+    """The finished log of a run of ``sc`` through the one pipeline (its checks included)."""
+    return TELEOP.experiment(sc, **kw).run()
 
 BASE = {"kind": "teleop", "duration_s": 1.0}
 
@@ -196,12 +201,12 @@ def test_holding_at_the_lock_shows_in_torque_chatter_and_the_error_after_the_hol
 
 
 def test_chatter_and_hold_windows_are_what_the_docs_say():
-    from quatform.sim.teleop import _chatter, _settled_since
+    from quatform.scenarios.teleop import chatter, settled_since
 
     tau = np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 4.0]])
-    assert _chatter(tau) == pytest.approx(math.sqrt((25.0 + 0.0) / 2))
+    assert chatter(tau) == pytest.approx(math.sqrt((25.0 + 0.0) / 2))
     sc = load_scenario("teleop-wall-contact")  # hand keys 0, 0.3, 1.5 (moved), 3.0 (same), 4.5 (moved)
-    assert [_settled_since(sc, t) for t in (1.0, 3.0, 6.0)] == [1.0, 1.5, 4.5]
+    assert [settled_since(sc, t) for t in (1.0, 3.0, 6.0)] == [1.0, 1.5, 4.5]
 
 
 # -- item 8: the RPY plot draws wrapped differences; titles name the paper --------------------
@@ -292,7 +297,7 @@ def test_virtual_wall_metrics_report_the_zone_entered_and_the_force_held():
     # the master and the slave that follows it enter the zone (not absolute), by about as much
     assert 0.005 < m["wall_penetration_m"] < wall.thickness_m and not m["virtual_wall_crossed"]
     assert m["slave_zone_penetration_m"] == pytest.approx(m["wall_penetration_m"], abs=1e-3)
-    z_s = run.p_s[:, 2] - run.p_s[0, 2] + run.p_master[0, 2]  # slave height in master axes (identity registration)
+    z_s = run["p_s"][:, 2] - run["p_s"][0, 2] + run["p_master"][0, 2]  # slave height in master axes (identity registration)
     assert m["slave_zone_penetration_m"] == pytest.approx(float((-z_s - wall.offset).max()), abs=1e-12)
     # the force it holds there: its spring at the deepest point, below what it is set to resist
     assert m["virtual_wall_force_n"] == pytest.approx(wall.stiffness * m["wall_penetration_m"], rel=1e-12)
@@ -319,8 +324,6 @@ def test_peak_orientation_error_is_not_the_shared_lag():
     """Issue 12 §4: in teleop-pitch-through-90 the whole-run peak is the 0.025 rad lag of the
     moving hand for both laws; ``peak_orientation_error_rad`` is taken where the motion rests
     (the holds), so it shows the RPY law's error and not the lag."""
-    from quatform.sim.teleop import simulate_teleop, teleop_metrics
-
     sc = load_scenario("teleop-pitch-through-90")
     ep = teleop_metrics(simulate_teleop(sc))
     assert ep["peak_orientation_error_whole_run_rad"] == pytest.approx(0.025, abs=0.004)  # the lag

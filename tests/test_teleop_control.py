@@ -9,7 +9,7 @@ from hypothesis.extra import numpy as hnp
 
 from quatform.errors import InvalidInputError
 from quatform.teleop import KRAFT_MASTER, PANDA, PANDA_SLAVE
-from quatform.teleop.control import (
+from quatform.control.stiffness import (
     StiffnessGains,
     deadband,
     force_stability_term,

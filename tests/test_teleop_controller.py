@@ -24,7 +24,7 @@ from quatform.teleop import (
     task_jacobian,
 )
 from quatform.teleop.kernels import cross, q_from_rotation
-from quatform.teleop.control import master_torque, redundancy_torque, slave_torque, task_error
+from quatform.control.stiffness import master_torque, redundancy_torque, slave_torque, task_error
 from quatform.teleop.task import rpy_error, rpy_rate_from_angular_velocity, wrap_angle
 
 Q_M0 = np.array([0.0, 0.3, -0.4, 0.2, 0.3, 0.0])
@@ -172,7 +172,7 @@ def test_limits_preload_and_walls():
     on = TeleopController(REG, Q_S0, preload_nm=TeleopController.default_preload()).compute(0.0, small_meas).tau_m
     big = np.abs(off) > TeleopController.default_preload()
     np.testing.assert_allclose(on[big], off[big] + np.sign(off[big]) * TeleopController.default_preload()[big])
-    from quatform.teleop.control import preload
+    from quatform.control.stiffness import preload
 
     pre = TeleopController.default_preload()
     for scale in (0.001, 0.01, 0.1):  # inside the ramp, across it, beyond it: the general function

@@ -11,9 +11,13 @@
 * :func:`plot_teleop_hysteresis` - master-slave error against the slave's position along
   the push (scenarios with a push: the preload's hysteresis loop);
 * :func:`plot_teleop_virtual_wall` - the master's depth into its virtual walls and the
-  hand's force.
+  hand's force;
+* :func:`write_teleop_compare_plots` - the runs of a compare (one per orientation error) side
+  by side: the position and orientation errors and the slave's torques against time.
 
-Each figure is drawn on its own Agg canvas; nothing touches pyplot's global state.
+Each reads the finished :class:`~quatform.sim.log.Log` of a run of the ``teleop`` kind
+(:func:`quatform.scenarios.teleop.teleop_finish`; its ``meta`` holds the scenario and the
+controller). Each figure is drawn on its own Agg canvas; nothing touches pyplot's global state.
 """
 
 from __future__ import annotations
@@ -23,18 +27,47 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sim.teleop import TeleopRun
 from ..algebra import wrap_angle
+from ..sim.log import Log
 from ..teleop import rpy_from_q
 from .figures import break_wraps, decimate, new_figure, save
 
 __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
-           "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots"]
+           "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots", "write_teleop_compare_plots"]
 
 
-def _title(run: TeleopRun) -> str:
-    c = run.controller
-    return (f"Jansen et al. 1990, {run.scenario.name}: {c.orientation_error} error, "
+@dataclass(frozen=True)
+class _Traces:
+    """What the figures draw, from a teleop log: ``T`` samples (see ``teleop_finish``)."""
+
+    scenario: object
+    controller: object
+    t: np.ndarray
+    p_m: np.ndarray
+    r_m: np.ndarray
+    p_s: np.ndarray
+    r_s: np.ndarray
+    angle: np.ndarray
+    tau_m: np.ndarray
+    tau_s: np.ndarray
+    F_s: np.ndarray
+    F_hand: np.ndarray
+    F_reflected: np.ndarray
+    wall_depth: np.ndarray
+
+    @classmethod
+    def of(cls, log: Log) -> _Traces:
+        ctrl = log.meta["teleop_controller"]
+        n_m = ctrl.master.n
+        u = log["command"]
+        return cls(log.meta["scenario"], ctrl, log.t, log["p_m"], log["r_m"], log["p_s"], log["r_s"],
+                   log["angle"][:, 0], u[:, :n_m], u[:, n_m:], log["F_s"], log["F_hand"], log["F_reflected"],
+                   log["wall_depth"])
+
+
+def _title(log: Log) -> str:
+    c = log.meta["teleop_controller"]
+    return (f"Jansen et al. 1990, {log.meta['scenario'].name}: {c.orientation_error} error, "
             f"preload {'on' if c.preload_nm is not None else 'off'}")
 
 
@@ -101,8 +134,9 @@ def _spans(t, mask):
     return [(t[a] - half, t[b - 1] + half) for a, b in zip(edges[0::2], edges[1::2])]
 
 
-def plot_teleop_tracking(run: TeleopRun, path) -> Path:
+def plot_teleop_tracking(log: Log, path) -> Path:
     """Tool positions of master and slave, and the errors between them."""
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     fig = new_figure((10, 7))
@@ -122,12 +156,13 @@ def plot_teleop_tracking(run: TeleopRun, path) -> Path:
     ax.grid(alpha=0.3, which="both")
     for ax in axes[1]:
         ax.set_xlabel("t (s)")
-    fig.suptitle(_title(run))
+    fig.suptitle(_title(log))
     return save(fig, path)
 
 
-def plot_teleop_torques(run: TeleopRun, path) -> Path:
+def plot_teleop_torques(log: Log, path) -> Path:
     """Joint torques sent to each arm, with the limits dashed."""
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     fig = new_figure((10, 6))
@@ -146,17 +181,18 @@ def plot_teleop_torques(run: TeleopRun, path) -> Path:
                 ax.axhline(j, color="k", ls=":", lw=0.8)
                 ax.axhline(-j, color="k", ls=":", lw=0.8)
     axes[1].set_xlabel("t (s)")
-    fig.suptitle(_title(run) + " - torques (limits dotted)", fontsize=10)
+    fig.suptitle(_title(log) + " - torques (limits dotted)", fontsize=10)
     return save(fig, path)
 
 
-def plot_teleop_orientation(run: TeleopRun, path) -> Path:
+def plot_teleop_orientation(log: Log, path) -> Path:
     """Roll, pitch, yaw of both tools (slave base axes, :func:`_rpy_traces`); pitch ±90 deg marked.
 
     The samples within :data:`GIMBAL_LOCK_DEG` of pitch ±90 deg are shaded; roll, yaw and the
     wrapped RPY difference are not drawn there (:func:`_orientation_traces`), the angle
     between the tools is.
     """
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     tr = _orientation_traces(run.r_m[i], run.r_s[i], run.angle[i])
@@ -191,13 +227,14 @@ def plot_teleop_orientation(run: TeleopRun, path) -> Path:
     axes[3].set_ylabel("error (rad)")
     axes[3].set_xlabel("t (s)")
     axes[3].grid(alpha=0.3, which="both")
-    fig.suptitle(_title(run) + "\nroll-pitch-yaw (gimbal lock at pitch ±90°); the slave drawn as the master + the "
+    fig.suptitle(_title(log) + "\nroll-pitch-yaw (gimbal lock at pitch ±90°); the slave drawn as the master + the "
                  "wrapped difference", fontsize=10)
     return save(fig, path)
 
 
-def plot_teleop_contact(run: TeleopRun, path) -> Path:
+def plot_teleop_contact(log: Log, path) -> Path:
     """Contact force against eq. (13), and the force reflected to the operator."""
+    run = _Traces.of(log)
     sc = run.scenario
     i = decimate(len(run.t))
     t = run.t[i]
@@ -217,12 +254,13 @@ def plot_teleop_contact(run: TeleopRun, path) -> Path:
     ax.set_ylabel("force (N)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.suptitle(_title(run) + " - contact (holds dotted)", fontsize=10)
+    fig.suptitle(_title(log) + " - contact (holds dotted)", fontsize=10)
     return save(fig, path)
 
 
-def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
+def plot_teleop_hysteresis(log: Log, path) -> Path:
     """Master-slave error against the slave's displacement along the first push."""
+    run = _Traces.of(log)
     sc = run.scenario
     steps = [np.asarray(k[1], float) for k in sc.push.keys]
     nz = [s for s in steps if np.linalg.norm(s) > 1e-9]
@@ -242,12 +280,13 @@ def plot_teleop_hysteresis(run: TeleopRun, path) -> Path:
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("master - slave along the push (mm)")
     ax2.grid(alpha=0.3)
-    fig.suptitle(_title(run) + " - hysteresis of the master", fontsize=10)
+    fig.suptitle(_title(log) + " - hysteresis of the master", fontsize=10)
     return save(fig, path)
 
 
-def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
+def plot_teleop_virtual_wall(log: Log, path) -> Path:
     """Depth of the master's tool into its virtual walls, and the hand's force."""
+    run = _Traces.of(log)
     i = decimate(len(run.t))
     t = run.t[i]
     fig = new_figure((10, 4.5))
@@ -267,20 +306,48 @@ def plot_teleop_virtual_wall(run: TeleopRun, path) -> Path:
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("hand force on the master (N)")
     ax2.grid(alpha=0.3)
-    fig.suptitle(_title(run) + " - virtual wall", fontsize=10)
+    fig.suptitle(_title(log) + " - virtual wall", fontsize=10)
     return save(fig, path)
 
 
-def write_teleop_plots(run: TeleopRun, out_dir) -> list[Path]:
-    """The figures that apply to ``run``, written into ``out_dir``."""
+def write_teleop_plots(log: Log, out_dir) -> list[Path]:
+    """The figures that apply to the run of ``log``, written into ``out_dir`` (``FIGURES["teleop"].run``)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [plot_teleop_tracking(run, out / "tracking.png"), plot_teleop_torques(run, out / "torques.png"),
-             plot_teleop_orientation(run, out / "orientation_rpy.png")]
-    if run.scenario.wall is not None:
-        paths.append(plot_teleop_contact(run, out / "contact.png"))
-    if run.scenario.push is not None:
-        paths.append(plot_teleop_hysteresis(run, out / "hysteresis.png"))
-    if run.scenario.virtual_walls:
-        paths.append(plot_teleop_virtual_wall(run, out / "virtual_wall.png"))
+    sc = log.meta["scenario"]
+    paths = [plot_teleop_tracking(log, out / "tracking.png"), plot_teleop_torques(log, out / "torques.png"),
+             plot_teleop_orientation(log, out / "orientation_rpy.png")]
+    if sc.wall is not None:
+        paths.append(plot_teleop_contact(log, out / "contact.png"))
+    if sc.push is not None:
+        paths.append(plot_teleop_hysteresis(log, out / "hysteresis.png"))
+    if sc.virtual_walls:
+        paths.append(plot_teleop_virtual_wall(log, out / "virtual_wall.png"))
     return paths
+
+
+def write_teleop_compare_plots(logs, out_dir) -> list[Path]:
+    """The runs of one scenario with different choices (``FIGURES["teleop"].compare``):
+    ``compare_errors.png``, each run's position error, orientation error (the angle between
+    the tools) and largest slave torque against time, labelled by ``log.meta["label"]``."""
+    logs = list(logs)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig = new_figure((10, 7))
+    axes = fig.subplots(3, 1, sharex=True)
+    for k, log in enumerate(logs):
+        run = _Traces.of(log)
+        i = decimate(len(run.t))
+        label = log.meta.get("label", f"run {k + 1}")
+        axes[0].semilogy(run.t[i], np.maximum(np.linalg.norm(run.p_s - run.p_m, axis=1)[i], 1e-9), color=f"C{k}",
+                         lw=1.0, label=label)
+        axes[1].semilogy(run.t[i], np.maximum(run.angle[i], 1e-9), color=f"C{k}", lw=1.0, label=label)
+        axes[2].plot(run.t[i], np.abs(run.tau_s).max(axis=1)[i], color=f"C{k}", lw=1.0, label=label)
+    for ax, name in zip(axes, ("position error (m)", "orientation error (rad)", "max |slave torque| (N m)")):
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    axes[2].set_xlabel("t (s)")
+    if logs:
+        fig.suptitle(f"Jansen et al. 1990, {logs[0].meta['scenario'].name}: the choices compared", fontsize=10)
+    return [save(fig, out / "compare_errors.png")]

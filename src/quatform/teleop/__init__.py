@@ -1,12 +1,15 @@
-"""Teleoperation layer (seed 003): arms, Euler-parameter stiffness control (beside formations).
+"""Teleoperation (seed 003): the arms' kinematics, the task space and the teleoperation controller.
 
-Reuses :mod:`quatform.algebra` only. It holds the serial-arm kinematics in the modified
-Denavit-Hartenberg convention, the Kraft master of the seed, a 7-DOF slave with a mass
-matrix and the kinetic-energy-weighted inverse of eq. (13), the Euler-parameter task
-Jacobians (eqs. (15)-(19)) and the RPY baseline, the control laws (:mod:`.control`: eqs.
-(14a), (14b), force reflection, redundancy torque, preload, virtual walls) and
-:class:`TeleopController`, which puts them together for real arms or the simulator
-(:mod:`quatform.sim.teleop`).
+The kinematics (:mod:`.arm`, :mod:`.kraft`, :mod:`.slave`, :mod:`.kernels`: serial arms in
+the modified Denavit-Hartenberg convention, the Kraft master of the seed, a 7-DOF slave with
+a mass matrix and the kinetic-energy-weighted inverse of eq. (13)) reuse
+:mod:`quatform.algebra` only, so :mod:`quatform.robots.arms` builds the arms' robot models
+on them. :mod:`.task` holds the Euler-parameter task Jacobians (eqs. (15)-(19)) and the RPY
+baseline; :class:`TeleopController` (control level: it implements
+:class:`quatform.control.contract.Controller` with the law of
+:mod:`quatform.control.stiffness`: eqs. (14a), (14b), force reflection, redundancy torque,
+preload, virtual walls) drives real arms or the plant of :mod:`quatform.sim.plants.teleop`
+(the ``teleop`` scenario kind, :mod:`quatform.scenarios.teleop`).
 """
 
 from .arm import DHLink, SerialArm

@@ -1,7 +1,9 @@
 """The bilateral teleoperation controller of seed 003, usable on real arms or in simulation.
 
-Teleop layer. :class:`TeleopController` turns one measurement of both arms (joint angles
-and rates, the slave's wrist force) into the master's and the slave's joint torques:
+Teleop layer, at the control level (it implements :class:`quatform.control.contract.Controller`
+and uses the law of :mod:`quatform.control.stiffness`). :class:`TeleopController` turns one
+measurement of both arms (joint angles and rates, the slave's wrist force) into the master's
+and the slave's joint torques:
 eqs. (14a)/(14b) with the Euler-parameter error (or, as the baseline the seed argues
 against, a roll-pitch-yaw error), force reflection ``v J_mf^T F_s``, the null-space
 redundancy torque, virtual walls in the master's Cartesian space, the preload function
@@ -10,6 +12,14 @@ measurements are validated, so commands are finite; should a torque still come o
 non-finite, both arms get zero torque and the cycle is reported. (The RPY baseline at
 gimbal lock is finite but huge, ``1 / cos(pitch)`` ~ 1e16, and is saturated.) Gravity is
 taken as compensated on both arms (``tau_grav`` of (11)-(12)).
+
+As a :class:`~quatform.control.contract.Controller` it is stateless (``init()`` is None):
+``update(t, measured, None, None)`` takes the stacked measurement (columns
+:attr:`TeleopController.measured_columns`: ``q_m``, ``qd_m``, ``q_s``, ``qd_s``, ``F_s``) or a
+:class:`TeleopMeasurement` and returns the 13 torques (:attr:`TeleopController.command_names`,
+master first) with the signals :meth:`TeleopController.signal_columns` names (the poses,
+the task error, the walls' force and the flags of :class:`TeleopCommand`); ``step`` returns
+``(tau_m, tau_s)`` as on a real arm.
 """
 
 from __future__ import annotations
@@ -23,10 +33,11 @@ import numpy as np
 from ..algebra import matrix_from_q, qconj, qmul
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..checks import short
+from ..control.contract import Controller, Step
+from ..control.stiffness import StiffnessGains, force_stability_term, virtual_wall_force
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
-from .kernels import q_from_rotation
 from .arm import SerialArm
-from .control import StiffnessGains, force_stability_term, virtual_wall_force
+from .kernels import q_from_rotation
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
@@ -40,8 +51,8 @@ ORIENTATION_ERRORS = ("euler-parameters", "rpy")
 
 #: The stiffest virtual wall a :class:`VirtualWall` accepts, N/m. A sampled controller holds a
 #: wall of stiffness k on a tool of effective mass m stably only while k dt^2 + 2 c dt < 4 m
-#: (:func:`.control.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg tool and a 10 kHz
-#: loop with no damping; the simulator checks the limit of its own master and period.
+#: (:func:`quatform.control.stiffness.explicit_stiffness_limit`): 1e9 N/m would need a 1 kg
+#: tool and a 10 kHz loop with no damping; the simulator checks the limit of its own master and period.
 MAX_WALL_STIFFNESS = 1e9
 
 
@@ -100,7 +111,8 @@ class VirtualWall:
     follows the master as far into the matching zone); at rest a push of more than
     ``resist_force_n`` (plus what the master's own friction holds) gets through its
     ``thickness_m``. Its stiffness must be finite and at most :data:`MAX_WALL_STIFFNESS`; a
-    given master and control period hold less (:func:`.control.explicit_stiffness_limit`).
+    given master and control period hold less
+    (:func:`quatform.control.stiffness.explicit_stiffness_limit`).
     """
 
     normal: tuple
@@ -132,7 +144,7 @@ class VirtualWall:
             raise InvalidInputError(
                 f"virtual wall resist_force_n / thickness_m = {self.resist_force_n:g} / {self.thickness_m:g} N/m "
                 f"= {k:g} N/m is beyond any sampled controller's reach (at most {MAX_WALL_STIFFNESS:g} N/m here; "
-                "the limit of a given master and control period is teleop.control.explicit_stiffness_limit); "
+                "the limit of a given master and control period is control.stiffness.explicit_stiffness_limit); "
                 "make the wall thicker or its resist force smaller")
 
     @property
@@ -196,6 +208,15 @@ class TeleopCommand:
     M_s: np.ndarray
 
 
+#: Columns of the signals :meth:`TeleopController.update` returns.
+_SIGNAL_COLUMNS = {
+    "p_m": ("p_m_x", "p_m_y", "p_m_z"), "r_m": ("r_m_w", "r_m_x", "r_m_y", "r_m_z"),
+    "p_s": ("p_s_x", "p_s_y", "p_s_z"), "r_s": ("r_s_w", "r_s_x", "r_s_y", "r_s_z"),
+    "e": tuple(f"e_{i + 1}" for i in range(6)), "wall_force": ("wall_force_x", "wall_force_y", "wall_force_z"),
+    "raw_finite": ("raw_finite",), "saturated": ("saturated",), "null_space_ok": ("null_space_ok",),
+}
+
+
 def _limits(values, n, name):
     a = np.broadcast_to(np.asarray(values, float), (n,)).copy()
     if not np.all(np.isfinite(a)) or np.any(a < 0):
@@ -204,7 +225,7 @@ def _limits(values, n, name):
 
 
 @dataclass(frozen=True)
-class TeleopController:
+class TeleopController(Controller):
     """Seed 003's master and slave stiffness controllers as one object.
 
     Parameters
@@ -243,6 +264,9 @@ class TeleopController:
     k_null: float = 5.0
     d_null: float = 1.0
 
+    #: Name in files and logs.
+    name = "teleop"
+
     def __post_init__(self):
         if self.orientation_error not in ORIENTATION_ERRORS:
             raise InvalidInputError(f"orientation_error must be one of {', '.join(ORIENTATION_ERRORS)}, "
@@ -269,13 +293,70 @@ class TeleopController:
         """Seed 003's preload: ~10 % of full scale, 5 % on wrist pitch and yaw (N m)."""
         return np.asarray(KRAFT_PRELOAD) * np.asarray(KRAFT_FULL_SCALE)
 
-    def step(self, t: float, measured: TeleopMeasurement, reference=None) -> tuple[np.ndarray, np.ndarray]:
+    # -- the controller contract (quatform.control.contract) --------------------------
+    @cached_property
+    def command_names(self) -> tuple[str, ...]:
+        """``tau_m1 ... tau_m{n_m}`` then ``tau_s1 ... tau_s{n_s}`` (N m)."""
+        return (tuple(f"tau_m{i + 1}" for i in range(self.master.n))
+                + tuple(f"tau_s{i + 1}" for i in range(self.slave.arm.n)))
+
+    @cached_property
+    def measured_columns(self) -> tuple[str, ...]:
+        """Columns of the stacked measurement :meth:`update` takes: ``q_m``, ``qd_m`` (rad,
+        rad/s), ``q_s``, ``qd_s``, then ``F_s`` (``F_s_x, F_s_y, F_s_z`` N, ``M_s_x, M_s_y,
+        M_s_z`` N m)."""
+        n_m, n_s = self.master.n, self.slave.arm.n
+        return (tuple(f"q_m{i + 1}" for i in range(n_m)) + tuple(f"qd_m{i + 1}" for i in range(n_m))
+                + tuple(f"q_s{i + 1}" for i in range(n_s)) + tuple(f"qd_s{i + 1}" for i in range(n_s))
+                + ("F_s_x", "F_s_y", "F_s_z", "M_s_x", "M_s_y", "M_s_z"))
+
+    def signal_columns(self) -> dict[str, tuple[str, ...]]:
+        """The :class:`TeleopCommand` fields a log keeps: the registered master pose ``p_m``
+        (m), ``r_m`` (unit quaternion), the slave's ``p_s``, ``r_s``, the task error ``e``, the
+        virtual walls' force ``wall_force`` (N, master axes) and the flags ``raw_finite``,
+        ``saturated``, ``null_space_ok`` (1 true, 0 false)."""
+        return dict(_SIGNAL_COLUMNS)
+
+    def measurement_of(self, measured) -> TeleopMeasurement:
+        """``measured`` as a :class:`TeleopMeasurement`: one already, or the stacked vector
+        of :attr:`measured_columns` (shape ``(32,)`` for the Kraft master and the Panda)."""
+        if isinstance(measured, TeleopMeasurement):
+            return measured
+        cols = self.measured_columns
+        try:
+            a = np.asarray(measured, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"measurement {short(measured)} must be a TeleopMeasurement or {len(cols)} "
+                                    f"numbers ({cols[0]} ... {cols[-1]}, SI units)") from None
+        if a.shape != (len(cols),):
+            raise ShapeError(f"a stacked teleop measurement must have shape ({len(cols)},) "
+                             f"({cols[0]} ... {cols[-1]}; one cycle, no batch axes), got {a.shape}")
+        n_m, n_s = self.master.n, self.slave.arm.n
+        i = np.cumsum([n_m, n_m, n_s, n_s])
+        return TeleopMeasurement(a[:i[0]], a[i[0]:i[1]], a[i[1]:i[2]], a[i[2]:i[3]], a[i[3]:])
+
+    def update(self, t: float, measured, reference=None, state=None) -> Step:
+        """One cycle: ``Step(u, None, signals)``, ``u`` the torques of :attr:`command_names`.
+
+        ``measured``: the stacked vector of :attr:`measured_columns` or a
+        :class:`TeleopMeasurement`; ``reference`` and ``state`` are unused (each arm's
+        reference is the other arm; the controller keeps no state).
+        """
+        cmd = self._cycle(self.measurement_of(measured), details=True)
+        return Step(np.concatenate([cmd.tau_m, cmd.tau_s]), None, {
+            "p_m": cmd.p_m, "r_m": cmd.r_m, "p_s": cmd.p_s, "r_s": cmd.r_s, "e": cmd.e,
+            "wall_force": cmd.wall_force, "raw_finite": np.array([1.0 if cmd.raw_finite else 0.0]),
+            "saturated": np.array([1.0 if cmd.saturated else 0.0]),
+            "null_space_ok": np.array([1.0 if cmd.null_space_ok else 0.0])})
+
+    def step(self, t: float, measured, reference=None) -> tuple[np.ndarray, np.ndarray]:
         """Master and slave torques ``(tau_m, tau_s)`` (N m) for one measurement.
 
-        In bilateral teleoperation each arm's reference is the other arm, so ``reference``
-        is unused (accepted for the common controller signature).
+        ``measured``: a :class:`TeleopMeasurement` (or the stacked vector :meth:`update`
+        takes). In bilateral teleoperation each arm's reference is the other arm, so
+        ``reference`` is unused (accepted for the common controller signature).
         """
-        return self._cycle(measured, details=False)
+        return self._cycle(self.measurement_of(measured), details=False)
 
     @cached_property
     def _fixed(self):
@@ -297,7 +378,7 @@ class TeleopController:
 
     def compute(self, t: float, measured: TeleopMeasurement) -> TeleopCommand:
         """:meth:`step` with everything it computed (:class:`TeleopCommand`)."""
-        return self._cycle(measured, details=True)
+        return self._cycle(self.measurement_of(measured), details=True)
 
     def _cycle(self, measured: TeleopMeasurement, details: bool):
         """One control cycle; ``details``: return a :class:`TeleopCommand`, else the torques.

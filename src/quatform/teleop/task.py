@@ -1,7 +1,9 @@
-"""Euler-parameter task space of seed 003: orientation error and task Jacobians, eqs. (8)-(19).
+"""Task space of seed 003: the Euler-parameter error and task Jacobians, eqs. (8)-(19), and the RPY baseline.
 
-Teleop layer. The orientation part of ``x_s - x_m`` is ``delta_eps``, the vector part of
-the Euler parameters of ``R_M^T R_S`` (eqs. (8)-(10), in {M}); its rate is
+Teleop layer. The Euler-parameter error and task Jacobian are the stiffness law's and live
+with it in :mod:`quatform.control.stiffness` (re-exported here). The orientation part of
+``x_s - x_m`` is ``delta_eps``, the vector part of the Euler parameters of ``R_M^T R_S``
+(eqs. (8)-(10), in {M}); its rate is
 ``W (omega_S - omega_M)`` with ``W`` of eq. (19) (``docs/derivations.md``, seed 003 item 3),
 so ``J = diag(I, W) J_f`` (eqs. (16), (18)) maps joint rates to the task-error rate.
 
@@ -15,39 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra import matrix_from_q, relative_euler_parameters, w_matrix, wrap_angle
+from ..algebra import matrix_from_q, wrap_angle
 from ..algebra.validate import as_array
+from ..control.stiffness import orientation_error, task_jacobian
 
 __all__ = ["orientation_error", "task_jacobian", "rpy_from_q", "rpy_from_matrix", "rpy_error", "wrap_angle",
            "rpy_rate_from_angular_velocity", "rpy_task_jacobian"]
-
-
-def orientation_error(q_m, q_s) -> np.ndarray:
-    """``delta_eps`` (shape ``(..., 3)``): ``sin(angle/2)`` times the axis of ``R_M^T R_S``, in {M}.
-
-    The sign follows the short way (``delta_eps4 >= 0``), so the error is 0 for ``q_s = -q_m``.
-    """
-    e = relative_euler_parameters(q_m, q_s)
-    # relative_euler_parameters returns (eps4, eps_vec); keep the short way
-    s = np.where(e[..., :1] < 0, -1.0, 1.0)
-    return (s * e)[..., 1:]
-
-
-def task_jacobian(J_f, q_m, q_s) -> np.ndarray:
-    """``diag(I_3, W(q_m, q_s)) J_f`` (eqs. (16), (18)), shape ``(..., 6, n)``.
-
-    ``J_f``: a force-reflecting Jacobian (``[p_dot; omega]``, base frame) of either arm.
-    ``W`` takes the same short-way sign as :func:`orientation_error`, so ``J_s q_s_dot -
-    J_m q_m_dot`` is the rate of the error that function returns, whichever signs the two
-    quaternions have.
-    """
-    J_f = as_array(J_f, "J_f", None)
-    q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
-    sign = np.where(np.sum(q_m * q_s, axis=-1) < 0, -1.0, 1.0)[..., None, None]
-    W = sign * w_matrix(q_m, q_s)
-    out = J_f.copy()
-    out[..., 3:6, :] = W @ J_f[..., 3:6, :]
-    return out
 
 
 def rpy_from_q(q) -> np.ndarray:

@@ -1,10 +1,12 @@
-"""Stiffness control of a master and a slave with an Euler-parameter orientation error, seed 003.
+"""The Euler-parameter stiffness law of seed 003, eqs. (14a)/(14b), with its task error (control layer).
 
-Teleop layer. The task error is ``e = x_s - x_m``: the position difference in the base
-frame and ``delta_eps``, the vector part of the Euler parameters of ``R_M^T R_S``
-(eqs. (8)-(10)). Its rate is ``J_s q_s_dot - J_m q_m_dot`` with ``J = diag(I, W) J_f``
-(eqs. (16), (18)). The torques are the generalized forces of the spring ``1/2 e^T K_p e``
-plus damping, eqs. (14a), (14b):
+Control layer; imports :mod:`quatform.algebra` only, so every controller (the teleoperator
+of :mod:`quatform.teleop.controller` today, a cluster-space controller tomorrow) can use it.
+The task error is ``e = x_s - x_m``: the position difference in the base frame and
+``delta_eps``, the vector part of the Euler parameters of ``R_M^T R_S`` (eqs. (8)-(10)).
+Its rate is ``J_s q_s_dot - J_m q_m_dot`` with ``J = diag(I, W) J_f`` (eqs. (16), (18)).
+The torques are the generalized forces of the spring ``1/2 e^T K_p e`` plus damping,
+eqs. (14a), (14b):
 
 * master: ``tau_m = J_m^T (K_pm e + K_vm e_dot) + v J_mf^T F_s`` (eq. (14a) prints
   ``J_m^T F_s``; a wrench is mapped by the force-reflecting Jacobian, as in eq. (11));
@@ -13,7 +15,9 @@ plus damping, eqs. (14a), (14b):
 ``F_s`` is the wrench the slave exerts on its environment (the wrist sensor's reading),
 so a negative ``v`` pushes the operator back. ``tau_red`` is a null-space objective
 projected with the dynamically consistent projector ``I - J^T J_bar^T``, so that
-``J_bar^T tau_red = 0`` and eq. (13) holds exactly.
+``J_bar^T tau_red = 0`` and eq. (13) holds exactly. Beside the law: the preload function
+and deadband of seed 003 §6, the virtual-wall force of §7, and the explicit integration's
+stability limit the scenario checks use.
 """
 
 from __future__ import annotations
@@ -22,13 +26,42 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra import relative_euler_parameters, w_matrix
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import InvalidInputError
-from .task import orientation_error, task_jacobian
 
-__all__ = ["StiffnessGains", "task_error", "master_torque", "slave_torque", "redundancy_torque",
-           "force_stability_term", "preload", "deadband", "virtual_wall_force", "explicit_stiffness_limit",
-           "effective_mass"]
+__all__ = ["StiffnessGains", "orientation_error", "task_jacobian", "task_error", "master_torque", "slave_torque",
+           "redundancy_torque", "force_stability_term", "preload", "deadband", "virtual_wall_force",
+           "explicit_stiffness_limit", "effective_mass"]
+
+
+def orientation_error(q_m, q_s) -> np.ndarray:
+    """``delta_eps`` (shape ``(..., 3)``): ``sin(angle/2)`` times the axis of ``R_M^T R_S``, in {M}.
+
+    Seed 003 eqs. (8)-(10). The sign follows the short way (``delta_eps4 >= 0``), so the
+    error is 0 for ``q_s = -q_m``.
+    """
+    e = relative_euler_parameters(q_m, q_s)
+    # relative_euler_parameters returns (eps4, eps_vec); keep the short way
+    s = np.where(e[..., :1] < 0, -1.0, 1.0)
+    return (s * e)[..., 1:]
+
+
+def task_jacobian(J_f, q_m, q_s) -> np.ndarray:
+    """``diag(I_3, W(q_m, q_s)) J_f`` (seed 003 eqs. (16), (18), W of (19)), shape ``(..., 6, n)``.
+
+    ``J_f``: a force-reflecting Jacobian (``[p_dot; omega]``, base frame) of either arm.
+    ``W`` takes the same short-way sign as :func:`orientation_error`, so ``J_s q_s_dot -
+    J_m q_m_dot`` is the rate of the error that function returns, whichever signs the two
+    quaternions have.
+    """
+    J_f = as_array(J_f, "J_f", None)
+    q_m, q_s = np.asarray(q_m, float), np.asarray(q_s, float)
+    sign = np.where(np.sum(q_m * q_s, axis=-1) < 0, -1.0, 1.0)[..., None, None]
+    W = sign * w_matrix(q_m, q_s)
+    out = J_f.copy()
+    out[..., 3:6, :] = W @ J_f[..., 3:6, :]
+    return out
 
 
 @dataclass(frozen=True)

@@ -1,23 +1,16 @@
-"""Closed-loop teleoperation of seed 003: master, slave, a human hand and an environment.
+"""The ``teleop`` scenario kind (seed 003): the scenario, its strict TOML reader, its run and metrics.
 
-Sim layer (above :mod:`quatform.teleop`). One control cycle every ``dt_s`` (zero-order hold):
-
-* the **master** (the Kraft arm; joint inertias, viscous friction, and the static and
-  Coulomb friction that makes each actuated joint need ~15 % of full scale to move, the
-  "dead region" of seed 003 §6; joint 6 unactuated) is driven by the controller's torques
-  and by a **hand**, a spring-damper pulling the handle toward a commanded pose path;
-* the **slave** (the 7-DOF arm with its mass matrix, Coriolis and centrifugal torques and
-  joint damping) is driven by the
-  controller's torques and by its environment: a **wall** of given stiffness and damping,
-  and optionally a **push**, an external spring moving its tool (what moves the slave
-  when the master follows it);
-* the master's joints are modelled as decoupled constant inertias (a light, counterbalanced
-  desk arm), so it has no Coriolis terms;
-* both arms are gravity compensated (``tau_grav`` of seed 003 (11)-(12)), so gravity is
-  left out of both plants.
-
-Integration: semi-implicit Euler per cycle, friction stick/slip resolved per joint (the
-master's inertia is diagonal). Scenarios are TOML files with ``kind = "teleop"``.
+Scenarios layer. A teleoperation scenario (``kind = "teleop"``, ``docs/scenarios.md``) is the
+Kraft master and the 7-DOF slave from their homes, the operator's hand path, the slave's
+environment (a contact wall, a push) and the controller's settings (orientation error,
+preload, gains, force reflection, virtual walls). :data:`TELEOP` (registered in
+:data:`quatform.scenarios.KINDS`) builds its :class:`~quatform.scenarios.base.Experiment`:
+the :class:`~quatform.sim.plants.teleop.TeleopPlant`, the
+:class:`~quatform.teleop.TeleopController` (stateless; no reference: each arm's reference is
+the other arm), one control cycle per plant step, and what to make of the log:
+:func:`teleop_finish` adds the channels the metrics, the CSV and the figures read
+(``angle``, ``F_s``, ``F_hand``, ``F_reflected``, ``p_master``, ``wall_depth`` and the joint
+tables), :func:`teleop_metrics` computes ``metrics.json``.
 """
 
 from __future__ import annotations
@@ -29,131 +22,35 @@ from pathlib import Path
 
 import numpy as np
 
-from ..algebra import matrix_from_q, q_from_axis_angle, qmul, qslerp
-from ..algebra.kernels import qmul_components
+from ..algebra import matrix_from_q
 from ..checks import check_keys, check_work, flag, number, short, table, text, vector
+from ..control.stiffness import StiffnessGains, effective_mass, explicit_stiffness_limit
 from ..errors import InvalidInputError
+from ..robots.arms import KraftMaster, PandaSlave
+from ..sim.log import Channel, Log
+from ..sim.plants.teleop import (
+    ContactWall,
+    Hand,
+    HandKey,
+    SlavePush,
+    TeleopPlant,
+    angle_between,
+)
 from ..teleop import (
     KRAFT_DEADBAND,
-    KRAFT_FULL_SCALE,
     KRAFT_MASTER,
     ORIENTATION_ERRORS,
     PANDA_SLAVE,
     Registration,
     TeleopController,
-    TeleopMeasurement,
     VirtualWall,
 )
-from ..teleop.control import StiffnessGains, effective_mass, explicit_stiffness_limit
+from . import KINDS
+from .base import Experiment, Option, ScenarioKind
 
-__all__ = ["HandKey", "Hand", "SlavePush", "ContactWall", "TeleopScenario", "TeleopRun", "simulate_teleop",
-           "teleop_metrics", "teleop_timeseries", "teleop_scenario_from_dict", "check_teleop_work",
-           "check_teleop_stiffness", "teleop_stiffness_limits"]
-
-
-def _smooth(s):
-    s = min(max(s, 0.0), 1.0)
-    return s * s * (3.0 - 2.0 * s)
-
-
-@dataclass(frozen=True)
-class HandKey:
-    """Where the hand holds the master's handle at ``t_s``: master joints ``q`` (whose tool
-    pose it is), or ``move`` (m) and ``turn`` (rotation vector, rad) from the home pose,
-    both in the master's base axes. Between two joint keys the path is interpolated in
-    joint space; otherwise pose by pose (position linearly, orientation by slerp), with a
-    smooth start and stop."""
-
-    t_s: float
-    q: tuple | None = None
-    move: tuple = (0.0, 0.0, 0.0)
-    turn: tuple = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class Hand:
-    """The operator's hand: a spring-damper on the handle (N/m, N s/m, N m/rad, N m s/rad)."""
-
-    keys: tuple = (HandKey(0.0),)
-    stiffness: float = 400.0
-    damping: float = 20.0
-    rot_stiffness: float = 4.0
-    rot_damping: float = 0.2
-
-    def key_poses(self, home) -> list:
-        """Each key's handle pose ``(p, r)``; ``home`` is the master's home tool pose."""
-        return [self._pose(k, home) for k in self.keys]
-
-    def target(self, t, poses):
-        """The commanded handle pose ``(p, r)`` at ``t`` (master base frame); ``poses`` from
-        :meth:`key_poses`."""
-        keys = self.keys
-        k = 0
-        while k + 1 < len(keys) and t >= keys[k + 1].t_s:
-            k += 1
-        if k + 1 >= len(keys) or t <= keys[k].t_s:
-            return poses[k]
-        a, b = keys[k], keys[k + 1]
-        s = _smooth((t - a.t_s) / (b.t_s - a.t_s))
-        if a.q is not None and b.q is not None:
-            qa, qb = np.asarray(a.q, float), np.asarray(b.q, float)
-            return KRAFT_MASTER.forward(qa + s * (qb - qa))
-        (pa, ra), (pb, rb) = poses[k], poses[k + 1]
-        return pa + s * (pb - pa), qslerp(ra, rb, s)
-
-    @staticmethod
-    def _pose(key, home):
-        if key.q is not None:
-            return KRAFT_MASTER.forward(np.asarray(key.q, float))
-        p0, r0 = home
-        turn = np.asarray(key.turn, float)
-        angle = float(np.linalg.norm(turn))
-        r = r0 if angle == 0.0 else qmul(q_from_axis_angle(turn / angle, angle), r0)
-        return p0 + np.asarray(key.move, float), r
-
-
-@dataclass(frozen=True)
-class SlavePush:
-    """An external spring-damper pulling the slave's tool toward ``home + move(t)`` (slave
-    base axes): ``keys`` are ``(t_s, (dx, dy, dz))`` pairs, interpolated smoothly."""
-
-    keys: tuple
-    stiffness: float = 2000.0
-    damping: float = 60.0
-
-    def target(self, t, home):
-        keys = self.keys
-        k = 0
-        while k + 1 < len(keys) and t >= keys[k + 1][0]:
-            k += 1
-        if k + 1 >= len(keys) or t <= keys[k][0]:
-            return home + np.asarray(keys[min(k, len(keys) - 1)][1], float)
-        (ta, ma), (tb, mb) = keys[k], keys[k + 1]
-        s = _smooth((t - ta) / (tb - ta))
-        return home + np.asarray(ma, float) + s * (np.asarray(mb, float) - np.asarray(ma, float))
-
-
-@dataclass(frozen=True)
-class ContactWall:
-    """A frictionless wall in the slave's workspace: free side ``normal . (p - point) >= 0``.
-
-    Inside, the wall pushes the tool point out with ``stiffness depth + damping (inward
-    speed)`` along ``normal`` (N/m, N s/m).
-    """
-
-    point: tuple
-    normal: tuple
-    stiffness: float = 5000.0
-    damping: float = 50.0
-
-    def force_on_slave(self, p, v):
-        n = np.asarray(self.normal, float)
-        n = n / np.linalg.norm(n)
-        depth = -float(n @ (p - np.asarray(self.point, float)))
-        if depth <= 0.0:
-            return np.zeros(3), 0.0
-        inward = max(-float(n @ v), 0.0)
-        return (self.stiffness * depth + self.damping * inward) * n, depth
+__all__ = ["TeleopScenario", "TeleopKind", "TELEOP", "TELEOP_COLUMNS", "CSV_CHANNELS", "teleop_finish",
+           "teleop_metrics", "teleop_scenario_from_dict", "check_teleop_work", "check_teleop_stiffness",
+           "teleop_stiffness_limits", "chatter", "settled_since"]
 
 
 @dataclass(frozen=True)
@@ -198,161 +95,30 @@ class TeleopScenario:
             preload_nm=TeleopController.default_preload() if pl else None, walls=self.virtual_walls)
 
 
-@dataclass(frozen=True)
-class TeleopRun:
-    """Logged signals of a teleoperation run (``T`` control cycles).
+    def plant(self) -> TeleopPlant:
+        """The two arms, the hand and the environment of this scenario."""
+        return TeleopPlant(
+            KraftMaster(self.master_inertia, self.master_viscous, self.master_deadband), PandaSlave(self.slave_damping),
+            self.hand, self.hand.key_poses(KRAFT_MASTER.forward(np.array(self.q_m0, float))),
+            PANDA_SLAVE.arm.forward(np.array(self.q_s0, float))[0], self.push, self.wall, self.virtual_walls)
 
-    ``p_m``/``r_m``: the master's tool pose registered in the slave's workspace; ``p_s``/
-    ``r_s``: the slave's; ``p_master``: the master's tool in its own base frame; ``e``: the
-    controller's task error; ``angle``: the true angle between the two orientations;
-    ``tau_m``/``tau_s``: the torques sent; ``F_s``: the slave's wrist force (what it
-    exerts on its environment) as the controller read it in that cycle (sensed at the end
-    of the previous one); ``F_hand``: the hand's force on the master (master axes);
-    ``F_reflected``: the master actuators' commanded force at the handle (master axes);
-    ``wall_depth``: the master's depth into each virtual wall over that wall's thickness
-    (``(T, n_walls)``; <= 0 outside, > 1 through it);
-    ``raw_finite``: False where the controller produced a non-finite torque.
-    """
-
-    scenario: TeleopScenario
-    controller: TeleopController
-    t: np.ndarray
-    q_m: np.ndarray
-    q_s: np.ndarray
-    p_m: np.ndarray
-    r_m: np.ndarray
-    p_s: np.ndarray
-    r_s: np.ndarray
-    p_master: np.ndarray
-    e: np.ndarray
-    angle: np.ndarray
-    tau_m: np.ndarray
-    tau_s: np.ndarray
-    F_s: np.ndarray
-    F_hand: np.ndarray
-    F_reflected: np.ndarray
-    wall_depth: np.ndarray
-    raw_finite: np.ndarray
-    saturated: np.ndarray
+    def x0(self) -> np.ndarray:
+        """The plant's initial state: both arms at rest at their homes, the wrist sensor at zero."""
+        return np.concatenate([np.array(self.q_m0, float), np.zeros(6), np.array(self.q_s0, float), np.zeros(7),
+                               np.zeros(6)])
 
 
-def _qconj_f(q):
-    return (q[0], -q[1], -q[2], -q[3])
+def _at(log, sc, t_s):
+    return int(min(max(round(t_s / sc.dt_s), 0), len(log.t) - 1))
 
 
-def _angle_between(q1, q2) -> float:
-    """Rotation angle of ``q1* q2`` (rad, in ``[0, pi]``), precise for small angles."""
-    d = qmul_components(*_qconj_f(q1), *q2)
-    return 2.0 * math.atan2(math.sqrt(d[1] * d[1] + d[2] * d[2] + d[3] * d[3]), abs(d[0]))
-
-
-def _friction_step(qd, inertia, tau, static, dt):
-    """Per-joint velocity update with static and Coulomb friction of size ``static``.
-
-    A joint at rest stays at rest while ``|tau| <= static``; a moving joint feels
-    ``-static sign(qd)``, and friction alone never reverses its velocity within a step.
-    """
-    qd_new = qd + dt * tau / inertia
-    if not np.any(static > 0):
-        return qd_new
-    out = qd_new.copy()
-    for j in range(len(qd)):
-        f = static[j]
-        if f <= 0:
-            continue
-        if qd[j] == 0.0 and abs(tau[j]) <= f:
-            out[j] = 0.0
-            continue
-        direction = math.copysign(1.0, qd[j]) if qd[j] != 0.0 else math.copysign(1.0, tau[j])
-        v = qd[j] + dt * (tau[j] - f * direction) / inertia[j]
-        if v * direction < 0:  # friction stops the joint within this step
-            v = 0.0
-        out[j] = v
-    return out
-
-
-def simulate_teleop(scenario: TeleopScenario, orientation_error: str | None = None, preload: bool | None = None,
-                    progress=None) -> TeleopRun:
-    """Run ``scenario`` (optionally with another orientation error or preload setting)."""
-    sc = scenario
-    check_teleop_work(sc.name, sc.duration_s, sc.dt_s)  # up front, as the loader does
-    check_teleop_stiffness(sc)
-    ctrl = sc.controller(orientation_error, preload)
-    M, S = KRAFT_MASTER, PANDA_SLAVE
-    q_m, qd_m = np.array(sc.q_m0, float), np.zeros(6)
-    q_s, qd_s = np.array(sc.q_s0, float), np.zeros(7)
-    hand_poses = sc.hand.key_poses(M.forward(q_m))
-    p_s0 = S.arm.forward(q_s)[0]
-    I_m = np.array(sc.master_inertia, float)
-    static = np.asarray(sc.master_deadband, float) * np.asarray(KRAFT_FULL_SCALE)
-    n = sc.steps
-    names = ("q_m", "q_s", "p_m", "r_m", "p_s", "r_s", "p_master", "e", "angle", "tau_m", "tau_s", "F_s",
-             "F_hand", "F_reflected", "wall_depth", "raw_finite", "saturated")
-    log = {k: [] for k in names}
-    F_s = np.zeros(6)
-    every = max(n // 10, 1)
-    for k in range(n):
-        t = k * sc.dt_s
-        cmd = ctrl.compute(t, TeleopMeasurement(q_m, qd_m, q_s, qd_s, F_s))
-        # the plant (perfect measurement: the controller's kinematics are the plant's)
-        J_mf, J_sf = cmd.J_mf, cmd.J_sf
-        p_master, r_master = M.forward(q_m)
-        v_m = J_mf @ qd_m
-        p_h, r_h = sc.hand.target(t, hand_poses)
-        d = qmul_components(*r_h, *_qconj_f(r_master))  # the hand's orientation error
-        d = d if d[0] >= 0 else tuple(-x for x in d)
-        h = sc.hand
-        wrench = np.r_[h.stiffness * (p_h - p_master) - h.damping * v_m[0:3],
-                       h.rot_stiffness * 2.0 * np.array(d[1:]) - h.rot_damping * v_m[3:6]]
-        tau_m_net = cmd.tau_m + J_mf.T @ wrench - sc.master_viscous * qd_m
-        # the force at the handle the actuators' torques make (the Kraft's 6x6 J_mf^T [F; m] = tau)
-        F_refl = np.linalg.lstsq(J_mf.T, cmd.tau_m, rcond=None)[0][0:3]
-        # the slave, touching its environment
-        p_s = cmd.p_s
-        v_s = J_sf[0:3] @ qd_s
-        F_env = np.zeros(3)
-        if sc.wall is not None:
-            F_env = F_env + sc.wall.force_on_slave(p_s, v_s)[0]
-        if sc.push is not None:
-            F_env = F_env + sc.push.stiffness * (sc.push.target(t, p_s0) - p_s) - sc.push.damping * v_s
-        tau_s_net = cmd.tau_s + J_sf[0:3].T @ F_env - sc.slave_damping * qd_s
-        wall_depth = [w.depth(p_master) / w.thickness_m for w in sc.virtual_walls]
-        for key, val in (("q_m", q_m), ("q_s", q_s), ("p_m", cmd.p_m), ("r_m", cmd.r_m), ("p_s", cmd.p_s),
-                         ("r_s", cmd.r_s), ("p_master", p_master), ("e", cmd.e),
-                         ("angle", _angle_between(cmd.r_m, cmd.r_s)),
-                         ("tau_m", cmd.tau_m), ("tau_s", cmd.tau_s),
-                         ("F_s", F_s[0:3]), ("F_hand", wrench[0:3]), ("F_reflected", F_refl),
-                         ("wall_depth", wall_depth), ("raw_finite", cmd.raw_finite), ("saturated", cmd.saturated)):
-            log[key].append(val)
-        # semi-implicit Euler, torques held over the cycle
-        qd_m = _friction_step(qd_m, I_m, tau_m_net, static, sc.dt_s)
-        coriolis = S.coriolis(q_s, qd_s, cmd.M_s)
-        qd_s = qd_s + sc.dt_s * np.linalg.solve(cmd.M_s, tau_s_net - coriolis)
-        q_m = q_m + sc.dt_s * qd_m
-        q_s = q_s + sc.dt_s * qd_s
-        F_s = np.r_[-F_env, 0.0, 0.0, 0.0]  # the wrist sensor: what the slave exerts on its environment
-        if progress is not None and k % every == 0:
-            progress(k / n)
-    a = {k: np.array(v) for k, v in log.items()}
-    t = np.arange(n) * sc.dt_s
-    return TeleopRun(sc, ctrl, t, *(a[k] for k in names))
-
-
-# ---------------------------------------------------------------------------------------
-# metrics
-
-
-def _at(run, t_s):
-    return int(min(max(round(t_s / run.scenario.dt_s), 0), len(run.t) - 1))
-
-
-def _chatter(tau) -> float:
+def chatter(tau) -> float:
     """``sqrt(mean_k |tau[k+1] - tau[k]|^2)``, N m per cycle (0 for a single sample)."""
     d = np.diff(np.asarray(tau, float), axis=0)
     return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) if len(d) else 0.0
 
 
-def _settled_since(sc, t_end) -> float:
+def settled_since(sc, t_end) -> float:
     """When the commanded motion (hand and push keys) last stopped before ``t_end`` (0: never
     moved; ``t_end``: still moving then)."""
     since = 0.0
@@ -367,8 +133,10 @@ def _settled_since(sc, t_end) -> float:
     return since
 
 
-def teleop_metrics(run: TeleopRun) -> dict:
-    """The numbers of a run (``metrics.json``); entries that do not apply are None.
+#METRICS
+def teleop_metrics(log: Log) -> dict:
+    """The numbers of a run (``metrics.json``) from its finished log (:func:`teleop_finish`);
+    entries that do not apply are None.
 
     * ``final_position_error_m``, ``final_orientation_error_rad``: slave vs registered
       master at the end; ``peak_position_error_m``: over the run;
@@ -407,23 +175,27 @@ def teleop_metrics(run: TeleopRun) -> dict:
       stopped to the hold's end, so the tracking lag of the motion before it does not count;
     * ``nonfinite_torques``: cycles whose raw torque was not finite (replaced by zero).
     """
-    sc = run.scenario
-    pos_err = np.linalg.norm(run.p_s - run.p_m, axis=1)
+    sc, ctrl = log.meta["scenario"], log.meta["teleop_controller"]
+    n_m = ctrl.master.n
+    p_m, p_s, angle = log["p_m"], log["p_s"], log["angle"][:, 0]
+    tau_m, tau_s = log["command"][:, :n_m], log["command"][:, n_m:]
+    F_s, F_hand, F_reflected = log["F_s"], log["F_hand"], log["F_reflected"]
+    pos_err = np.linalg.norm(p_s - p_m, axis=1)
     m = {
         "scenario": sc.name,
-        "orientation_error": run.controller.orientation_error,
-        "preload": run.controller.preload_nm is not None,
+        "orientation_error": ctrl.orientation_error,
+        "preload": ctrl.preload_nm is not None,
         "duration_s": float(sc.duration_s),
         "dt_s": float(sc.dt_s),
         "final_position_error_m": float(pos_err[-1]),
         "peak_position_error_m": float(pos_err.max()),
-        "final_orientation_error_rad": float(run.angle[-1]),
-        "peak_orientation_error_rad": float(run.angle.max()),
-        "peak_orientation_error_whole_run_rad": float(run.angle.max()),
-        "peak_slave_torque_nm": float(np.abs(run.tau_s).max()),
-        "saturated_fraction": float(run.saturated.mean()),
-        "nonfinite_torques": int((~run.raw_finite).sum()),
-        "final_hand_force_n": float(np.linalg.norm(run.F_hand[-1])),
+        "final_orientation_error_rad": float(angle[-1]),
+        "peak_orientation_error_rad": float(angle.max()),
+        "peak_orientation_error_whole_run_rad": float(angle.max()),
+        "peak_slave_torque_nm": float(np.abs(tau_s).max()),
+        "saturated_fraction": float((log["saturated"][:, 0] > 0.5).mean()),
+        "nonfinite_torques": int((log["raw_finite"][:, 0] < 0.5).sum()),
+        "final_hand_force_n": float(np.linalg.norm(F_hand[-1])),
         "contact_force_error_pct": None,
         "reflected_force_ratio": None,
         "hand_force_ratio": None,
@@ -434,64 +206,64 @@ def teleop_metrics(run: TeleopRun) -> dict:
         "virtual_wall_crossed": None,
         "virtual_wall_force_n": None,
         "slave_zone_penetration_m": None,
-        "slave_torque_chatter_nm": _chatter(run.tau_s),
-        "master_torque_chatter_nm": _chatter(run.tau_m),
+        "slave_torque_chatter_nm": chatter(tau_s),
+        "master_torque_chatter_nm": chatter(tau_m),
         "hold_position_error_m": None,
         "hold_orientation_error_rad": None,
         "hold_peak_position_error_m": None,
         "hold_peak_orientation_error_rad": None,
     }
     if sc.holds:
-        ends = [_at(run, t) for t in sc.holds]
-        starts = [_at(run, _settled_since(sc, t)) for t in sc.holds]
+        ends = [_at(log, sc, t) for t in sc.holds]
+        starts = [_at(log, sc, settled_since(sc, t)) for t in sc.holds]
         m.update(hold_position_error_m=[float(pos_err[k]) for k in ends],
-                 hold_orientation_error_rad=[float(run.angle[k]) for k in ends],
+                 hold_orientation_error_rad=[float(angle[k]) for k in ends],
                  hold_peak_position_error_m=[float(pos_err[a:b + 1].max()) for a, b in zip(starts, ends)],
-                 hold_peak_orientation_error_rad=[float(run.angle[a:b + 1].max()) for a, b in zip(starts, ends)])
+                 hold_peak_orientation_error_rad=[float(angle[a:b + 1].max()) for a, b in zip(starts, ends)])
         m["peak_orientation_error_rad"] = max(m["hold_peak_orientation_error_rad"])
     kp = sc.gains_slave.kp[0:3]
     if sc.wall is not None and sc.holds:
         errs, refl, felt, force = [], [], [], []
         for t_end in sc.holds:
-            k = _at(run, t_end)
-            F = run.F_s[k]
+            k = _at(log, sc, t_end)
+            F = F_s[k]
             if np.linalg.norm(F) < 1e-6:
                 continue
-            F13 = kp * (run.p_m[k] - run.p_s[k])  # seed 003 eq. (13), tau_red contributes nothing
+            F13 = kp * (p_m[k] - p_s[k])  # seed 003 eq. (13), tau_red contributes nothing
             errs.append(100.0 * np.linalg.norm(F - F13) / max(np.linalg.norm(F13), 1e-12))
-            refl.append(np.linalg.norm(run.F_reflected[k]) / np.linalg.norm(F))
-            felt.append(np.linalg.norm(run.F_hand[k]) / np.linalg.norm(F))
+            refl.append(np.linalg.norm(F_reflected[k]) / np.linalg.norm(F))
+            felt.append(np.linalg.norm(F_hand[k]) / np.linalg.norm(F))
             force.append(float(np.linalg.norm(F)))
         if errs:
             m.update(contact_force_error_pct=float(max(errs)), reflected_force_ratio=[float(x) for x in refl],
                      hand_force_ratio=[float(x) for x in felt], contact_force_n=force)
     if sc.push is not None and sc.holds:
-        p_s0 = run.p_s[0]
+        p_s0 = p_s[0]
         targets = [sc.push.target(t_end, p_s0) for t_end in sc.holds]
         steps = np.diff(np.vstack([sc.push.target(0.0, p_s0)] + targets), axis=0)
         moved = np.linalg.norm(steps, axis=1) > 1e-9
         if moved.any():
             u = steps[moved][0] / np.linalg.norm(steps[moved][0])  # the first push's direction
-            err = [float(u @ (run.p_m[_at(run, t)] - run.p_s[_at(run, t)])) for t in sc.holds]
+            err = [float(u @ (p_m[_at(log, sc, t)] - p_s[_at(log, sc, t)])) for t in sc.holds]
             after_pos = [e for e, st, mv in zip(err, steps, moved) if mv and st @ u > 0]
             after_neg = [e for e, st, mv in zip(err, steps, moved) if mv and st @ u < 0]
             if after_pos and after_neg:
                 m["reversal_hysteresis_m"] = float(np.mean(after_neg) - np.mean(after_pos))
         # over the last second, if it lies in the final hold (after every commanded motion)
         still_from = max(max(k[0] for k in sc.push.keys), max(k.t_s for k in sc.hand.keys))
-        last = run.t >= max(run.t[-1] - 1.0, still_from)
-        if still_from < run.t[-1] - 0.5:
-            m["limit_cycle_amplitude_m"] = float(np.ptp(run.p_m[last], axis=0).max())
+        last = log.t >= max(log.t[-1] - 1.0, still_from)
+        if still_from < log.t[-1] - 0.5:
+            m["limit_cycle_amplitude_m"] = float(np.ptp(p_m[last], axis=0).max())
     if sc.virtual_walls:
         thick = np.array([w.thickness_m for w in sc.virtual_walls])
-        depth = run.wall_depth.max(axis=0) * thick  # each wall's deepest point, m
+        depth = log["wall_depth"].max(axis=0) * thick  # each wall's deepest point, m
         deepest = int(np.argmax(depth))
-        reg = run.controller.registration
+        reg = ctrl.registration
         R = matrix_from_q(reg.base)
         zone = []
         for w in sc.virtual_walls:  # the wall's plane carried into the slave's workspace
             n = np.asarray(w.normal, float) / np.linalg.norm(w.normal)
-            p_master = (R.T @ (run.p_s - reg.p_slave0).T).T / reg.scale + reg.p_master0
+            p_master = (R.T @ (p_s - reg.p_slave0).T).T / reg.scale + reg.p_master0
             zone.append(reg.scale * float((p_master @ n - w.offset).max()))
         m.update(wall_penetration_m=float(max(depth.max(), 0.0)), virtual_wall_crossed=bool(np.any(depth > thick)),
                  virtual_wall_force_n=float(sc.virtual_walls[deepest].stiffness * max(depth[deepest], 0.0)),
@@ -499,25 +271,121 @@ def teleop_metrics(run: TeleopRun) -> dict:
     return m
 
 
-def teleop_timeseries(run: TeleopRun):
-    """Column names and a ``(T, k)`` array for ``timeseries.csv``."""
-    cols = {"t": run.t[:, None]}
-    for name, arr, labels in (("p_m", run.p_m, "xyz"), ("p_s", run.p_s, "xyz"), ("e", run.e, "123456"),
-                              ("F_s", run.F_s, "xyz"), ("F_hand", run.F_hand, "xyz")):
-        for i, lab in enumerate(labels):
-            cols[f"{name}_{lab}"] = arr[:, i:i + 1]
-    cols["angle"] = run.angle[:, None]
-    for i in range(run.q_m.shape[1]):
-        cols[f"q_m{i + 1}"] = run.q_m[:, i:i + 1]
-        cols[f"tau_m{i + 1}"] = run.tau_m[:, i:i + 1]
-    for i in range(run.q_s.shape[1]):
-        cols[f"q_s{i + 1}"] = run.q_s[:, i:i + 1]
-        cols[f"tau_s{i + 1}"] = run.tau_s[:, i:i + 1]
-    cols["raw_finite"] = run.raw_finite[:, None].astype(float)
-    return list(cols), np.hstack(list(cols.values()))
+#: Channels of ``timeseries.csv``, in order (today's columns: ``t``, the registered master's and
+#: the slave's tool positions, the task error, the wrist force, the hand's force, the angle
+#: between the tools, each arm's joint angle and torque side by side, ``raw_finite``).
+CSV_CHANNELS = ("p_m", "p_s", "e", "F_s", "F_hand", "angle", "master_joints", "slave_joints", "raw_finite")
 
 
-# ---------------------------------------------------------------------------------------
+def teleop_finish(log: Log) -> Log:
+    """``log`` with the channels the metrics, the CSV and the figures read.
+
+    ``angle`` (rad): the true angle between the two tools' orientations (``r_m``, ``r_s``);
+    ``F_s`` (N): the wrist force the controller read in that cycle (the measured ``F_s``
+    columns, sensed at the end of the previous cycle); ``p_master``, ``F_hand``,
+    ``F_reflected``, ``wall_depth``: the environment's side of each tick
+    (:meth:`~quatform.sim.plants.teleop.TeleopPlant.forces`, recomputed from the logged states
+    and commands); ``master_joints``, ``slave_joints``: each joint's angle and torque side by
+    side (``q_m1, tau_m1, q_m2, ...``) for the CSV.
+    """
+    sc, ctrl = log.meta["scenario"], log.meta["teleop_controller"]
+    plant = log.meta["plant"]
+    x, u, measured = log["state"], log["command"], log["measured"]
+    n_m, n_s = ctrl.master.n, ctrl.slave.arm.n
+    f = plant.forces(log.t, x, u)
+    i_F = log.columns("measured").index("F_s_x")
+    q_m, q_s = x[:, :n_m], x[:, 2 * n_m:2 * n_m + n_s]
+    tau_m, tau_s = u[:, :n_m], u[:, n_m:]
+    joints = [(f"{a}{i + 1}", f"{b}{i + 1}") for a, b, n in (("q_m", "tau_m", n_m), ("q_s", "tau_s", n_s))
+              for i in range(n)]
+    return log.with_channels(
+        Channel("angle", ("angle",), angle_between(log["r_m"], log["r_s"])[:, None]),
+        Channel("F_s", ("F_s_x", "F_s_y", "F_s_z"), measured[:, i_F:i_F + 3]),
+        Channel("p_master", ("p_master_x", "p_master_y", "p_master_z"), f["p_master"]),
+        Channel("F_hand", ("F_hand_x", "F_hand_y", "F_hand_z"), f["F_hand"]),
+        Channel("F_reflected", ("F_reflected_x", "F_reflected_y", "F_reflected_z"), f["F_reflected"]),
+        Channel("wall_depth", tuple(f"wall{k + 1}_depth" for k in range(len(sc.virtual_walls))), f["wall_depth"]),
+        Channel("master_joints", sum(joints[:n_m], ()), np.stack([q_m, tau_m], axis=-1).reshape(len(log.t), -1)),
+        Channel("slave_joints", sum(joints[n_m:], ()), np.stack([q_s, tau_s], axis=-1).reshape(len(log.t), -1)))
+
+
+#: Columns of the comparison table: (metrics key, header, format).
+TELEOP_COLUMNS = (
+    ("orientation_error", "orientation error", "{}"),
+    ("preload", "preload", "{}"),
+    ("final_position_error_m", "final pos (m)", "{:.2e}"),
+    ("peak_position_error_m", "peak pos (m)", "{:.2e}"),
+    ("final_orientation_error_rad", "final orient (rad)", "{:.2e}"),
+    ("peak_orientation_error_rad", "peak orient (rad)", "{:.3f}"),
+    ("peak_slave_torque_nm", "peak slave tau (N m)", "{:.2f}"),
+    ("slave_torque_chatter_nm", "slave tau chatter (N m)", "{:.3g}"),
+    ("contact_force_error_pct", "eq.13 err (%)", "{:.2f}"),
+    ("reversal_hysteresis_m", "hysteresis (m)", "{:.4f}"),
+    ("wall_penetration_m", "wall depth (m)", "{:.4f}"),
+    ("slave_zone_penetration_m", "slave zone depth (m)", "{:.4f}"),
+    ("nonfinite_torques", "NaN torques", "{}"),
+)
+
+#: ``--preload`` values.
+PRELOAD_CHOICES = {"on": True, "off": False}
+
+
+def _preload(value, where="preload"):
+    if value is None or isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value in PRELOAD_CHOICES:
+        return PRELOAD_CHOICES[value]
+    raise InvalidInputError(f"{where} = {short(value)} must be on or off (or True / False)")
+
+
+class TeleopKind(ScenarioKind):
+    """Seed 003's teleoperation scenarios (``kind = "teleop"``)."""
+
+    name = "teleop"
+    scenario_type = TeleopScenario
+    options = (
+        Option("orientation_error", "the controllers' orientation error (default: the scenario's)",
+               choices=tuple(ORIENTATION_ERRORS)),
+        Option("preload", "the preload function on the master's actuators (default: the scenario's)",
+               choices=tuple(PRELOAD_CHOICES)),
+    )
+    compare_over = "orientation_error"
+    table_columns = TELEOP_COLUMNS
+
+    def from_dict(self, data: dict, where: str) -> TeleopScenario:
+        return teleop_scenario_from_dict(data, where)
+
+    def experiment(self, scenario: TeleopScenario, orientation_error: str | None = None,
+                   preload: bool | str | None = None) -> Experiment:
+        """The run of ``scenario`` with another orientation error or preload (None: the scenario's).
+
+        The scenario's size and springs are checked first (:func:`check_teleop_work`,
+        :func:`check_teleop_stiffness`), as the reader does, for scenarios built in code.
+        """
+        sc = scenario
+        if not isinstance(sc, TeleopScenario):
+            raise InvalidInputError(f"the teleop kind runs a TeleopScenario, got {type(sc).__name__}; "
+                                    "load it with quatform.sim.load_scenario")
+        if orientation_error is not None and orientation_error not in ORIENTATION_ERRORS:
+            raise InvalidInputError(f"orientation_error = {short(orientation_error)} must be one of "
+                                    f"{', '.join(ORIENTATION_ERRORS)}")
+        preload = _preload(preload)
+        check_teleop_work(sc.name, sc.duration_s, sc.dt_s)
+        check_teleop_stiffness(sc)
+        ctrl = sc.controller(orientation_error, preload)
+        plant = sc.plant()
+        label = f"{ctrl.orientation_error}, preload {'on' if ctrl.preload_nm is not None else 'off'}"
+        return Experiment(
+            scenario=sc, label=label, plant=plant, controller=ctrl, reference=lambda k: None,
+            times=np.arange(sc.steps) * sc.dt_s, x0=sc.x0(), dt=sc.dt_s, substeps=1, finish=teleop_finish,
+            metrics=teleop_metrics, csv_channels=CSV_CHANNELS,
+            meta={"scenario": sc, "teleop_controller": ctrl, "plant": plant})
+
+
+#: The kind's one instance, registered in :data:`quatform.scenarios.KINDS`.
+TELEOP = TeleopKind()
+KINDS[TELEOP.name] = TELEOP
+
 # TOML
 
 
@@ -535,7 +403,7 @@ _GAINS = tuple(f.name for f in dataclasses.fields(StiffnessGains))
 _WALL_KEYS = ("normal", "offset", "resist_force_n", "thickness_m", "damping")
 _HINT = "see docs/scenarios.md"
 
-#: Generous per-cycle cost of :func:`simulate_teleop` (measured about 1.4 ms and 3 kB of logs
+#: Generous per-cycle cost of a teleop run (measured about 1.4 ms and 3 kB of logs
 #: per cycle on one core; ``docs/performance.md``), for :func:`check_teleop_work`.
 SECONDS_PER_STEP = 3e-3
 BYTES_PER_STEP = 4000.0
@@ -694,8 +562,8 @@ def teleop_stiffness_limits(sc: TeleopScenario) -> list[dict]:
     ``"slave translation"``, ``"slave rotation"``, and the joint dampers): the springs and
     dampers acting on that tool summed as if in one direction (``parts``), the tool's
     effective mass or inertia in its lightest direction at the home configuration
-    (:func:`~quatform.teleop.control.effective_mass`), and the limit
-    ``(4 m - 2 c dt) / dt^2`` (:func:`~quatform.teleop.control.explicit_stiffness_limit`).
+    (:func:`~quatform.control.stiffness.effective_mass`), and the limit
+    ``(4 m - 2 c dt) / dt^2`` (:func:`~quatform.control.stiffness.explicit_stiffness_limit`).
     The Euler-parameter controller's rotational springs count ``kp_rot / 4`` N m/rad (its
     small-angle stiffness).
     """
