@@ -66,3 +66,7 @@ def kind_of(scenario) -> ScenarioKind:
             return kind
     raise InvalidInputError(f"{type(scenario).__name__} is not the scenario of a registered kind "
                             f"({', '.join(KINDS) or 'none registered'}); load it with quatform.scenarios.load_scenario")
+
+
+# The kind modules register themselves in KINDS (they import it from here, so after it exists).
+from . import pair, teleop, ugv_uav  # noqa: E402,F401

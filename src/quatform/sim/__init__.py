@@ -1,12 +1,14 @@
-"""Sim layer: scenarios, the closed loop and its metrics (above references and control)."""
+"""Sim layer: plants, measurement models, the one closed loop and its log, metrics
+(above references and control, below scenarios).
 
+* :func:`simulate` - the one loop (any plant, any measurement model, B worlds per tick);
+* :class:`Log`, :class:`Channel` - what it returns, read by metrics, writers and figures;
+* :mod:`.plants` - the plants; :mod:`.measurement` - the measurement models;
+* :mod:`.output` - atomic files and staged run folders (the writers are the report layer's).
+"""
+
+from .log import Channel, Log
 from .metrics import compute_metrics, errors_from_robots
-from .output import write_columns, write_metrics, write_timeseries
-# the loop's module first: importing quatform.sim.simulate later then leaves the name
-# `simulate` below (the two-robot run) as it is instead of binding it to the module
-from .simulate import PerfectMeasurement
-from .runner import Run, simulate
-from .scenario import Scenario, builtin_scenarios, load_scenario
+from .simulate import PerfectMeasurement, simulate
 
-__all__ = ["Run", "simulate", "PerfectMeasurement", "compute_metrics", "errors_from_robots", "Scenario", "load_scenario",
-           "builtin_scenarios", "write_columns", "write_metrics", "write_timeseries"]
+__all__ = ["simulate", "PerfectMeasurement", "Log", "Channel", "compute_metrics", "errors_from_robots"]
