@@ -11,6 +11,12 @@ last. A compare runs every value of one option (the kind's ``compare_over``, or 
 the kind's compare figures and writes ``comparison.md`` / ``comparison.json`` with the kind's
 table columns.
 
+Besides the experiment, a run reads two conventions of the log's ``meta``: a physics run's
+plant record under ``"physics_record"`` (its time-lapse picture is drawn when plots are, and
+``metrics.json`` gets ``render`` / ``render_backend``), and ``"unreachable_at"`` /
+``"unreachable_message"`` (when the reference left what the description can express;
+printed on stderr).
+
 Every output folder is built with :func:`~quatform.sim.output.staged_dir`: the files appear
 under ``out`` only when the whole run has finished; a failed or interrupted run leaves ``out``
 as it was.
