@@ -21,7 +21,7 @@ import numpy as np
 from _common import fmt, machine_description, optional_import
 
 from quatform.scenarios.pair import run_pair, simulate_physics
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.sim.mujoco_backend import INSTALL_HINT
 
 

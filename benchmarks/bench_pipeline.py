@@ -39,8 +39,9 @@ from _common import fmt, machine_description
 
 from quatform.control import CONTROLLERS
 from quatform.formations import EuclideanPair
+from quatform.scenarios import load_scenario
 from quatform.scenarios.pair import PAIR, run_pair
-from quatform.sim import load_scenario, simulate
+from quatform.sim import simulate
 
 #: Spread of the random initial offsets of the batched worlds (Euclidean variables: m for
 #: x_c, y_c, z_c, d_c; rad for the angles), about the scenario's own offset.
@@ -48,7 +49,8 @@ OFFSET_SCALE = np.array([0.2, 0.2, 0.2, 0.3, 0.3, 0.1, 0.3, 0.3])
 
 _OLD = """
 import json, sys, time
-from quatform.sim import load_scenario, simulate
+from quatform.scenarios import load_scenario
+from quatform.sim import simulate
 sc, best = load_scenario("mas-kitts-spiral"), {}
 for c in sys.argv[2:]:
     best[c] = float("inf")

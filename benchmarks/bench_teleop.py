@@ -26,7 +26,7 @@ import numpy as np
 from _common import best_time, fmt, machine_description, optional_import
 
 from quatform.scenarios.teleop import TELEOP
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.teleop import (
     KRAFT_MASTER,
     PANDA,

@@ -16,13 +16,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-import quatform.runs as runs
 from quatform import cli
 from quatform.tomlio import read_toml
 from quatform.algebra import validate
 from quatform.errors import InvalidInputError, NonFiniteError
+from quatform.report import writers
+from quatform.report.writers import strict_json, write_columns
+from quatform.scenarios import Experiment
 from quatform.sim import output
-from quatform.sim.output import OUTPUT_MARKER, atomic_write_text, staged_dir, strict_json, write_columns
+from quatform.sim.output import OUTPUT_MARKER, atomic_write_text, staged_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,7 +58,7 @@ def test_the_test_extra_has_pytest_xdist():
 def test_metrics_json_is_strict_json_with_nonfinite_values_named(tmp_path):
     m = {"max_shape_error_m": float("inf"), "first_singular_time_s": None, "x": np.float64("nan"),
          "n": np.int64(3), "flag": np.bool_(True), "sub": {"v": [1.0, -np.inf]}, "arr": np.array([1.0, 2.0])}
-    f = output.write_metrics(m, tmp_path / "metrics.json")
+    f = writers.write_metrics(m, tmp_path / "metrics.json")
     back = _strict_loads(f.read_text())
     assert back["max_shape_error_m"] is None and back["x"] is None and back["first_singular_time_s"] is None
     assert back["sub"]["v"] == [1.0, None] and back["n"] == 3 and back["flag"] is True and back["arr"] == [1.0, 2.0]
@@ -74,7 +76,7 @@ def test_a_csv_cut_off_while_written_leaves_no_file(tmp_path, monkeypatch):
         real(target, np.zeros((2, 2)), delimiter=",")  # part of the output, then Ctrl-C
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(output.np, "savetxt", half_then_ctrl_c)
+    monkeypatch.setattr(writers.np, "savetxt", half_then_ctrl_c)
     with pytest.raises(KeyboardInterrupt):
         write_columns(["t", "x"], np.ones((5, 2)), tmp_path / "timeseries.csv")
     assert list(tmp_path.iterdir()) == []
@@ -94,16 +96,17 @@ def test_an_atomic_write_keeps_the_old_file_when_cut_off(tmp_path, monkeypatch):
 
 
 def _interrupt_at(monkeypatch, n_ok: int):
-    """``quatform.runs.run_pair`` that runs ``n_ok`` times, then raises KeyboardInterrupt."""
-    real, calls = runs.run_pair, []
+    """``Experiment.run`` (every kind's simulation) that runs ``n_ok`` times, then raises
+    KeyboardInterrupt; returns the list of the runs' ``feedforward`` (from their meta)."""
+    real, calls = Experiment.run, []
 
-    def sim(*a, **k):
-        calls.append(k.get("feedforward"))
+    def sim(self, progress=None):
+        calls.append(self.meta.get("feedforward"))
         if len(calls) > n_ok:
             raise KeyboardInterrupt
-        return real(*a, **k)
+        return real(self, progress)
 
-    monkeypatch.setattr(runs, "run_pair", sim)
+    monkeypatch.setattr(Experiment, "run", sim)
     return calls
 
 
@@ -131,7 +134,7 @@ def test_a_failed_run_leaves_no_folder(tmp_path, monkeypatch, capsys):
     def fails(*a, **k):
         raise InvalidInputError("bad reference")
 
-    monkeypatch.setattr(runs, "run_pair", fails)
+    monkeypatch.setattr(Experiment, "run", fails)
     out = tmp_path / "a" / "b"
     assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(out)]) == 2
     assert list(tmp_path.iterdir()) == []
@@ -195,9 +198,7 @@ def test_plan_and_teleop_write_through_the_staged_folder(tmp_path, monkeypatch, 
     monkeypatch.setattr(plan_runs, "make_plan", ctrl_c)
     assert cli.main(["plan", "belta-kumar-2002-two-bodies", "--out", str(tmp_path / "p"), "--alpha", "0.5",
                      "--alpha", "0.9"]) == 130
-    import quatform.scenarios.base as scenario_base
-
-    monkeypatch.setattr(scenario_base, "simulate", ctrl_c)
+    monkeypatch.setattr(Experiment, "run", ctrl_c)
     assert cli.main(["teleop", "teleop-preload", "--out", str(tmp_path / "t")]) == 130
     assert list(tmp_path.iterdir()) == []
 
@@ -234,7 +235,7 @@ def test_every_exception_is_one_line_with_its_status(tmp_path, monkeypatch, caps
     def raises(*a, **k):
         raise exc
 
-    monkeypatch.setattr(runs, "run_pair", raises)
+    monkeypatch.setattr(Experiment, "run", raises)
     assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "o")]) == code
     err = _lines(capsys.readouterr().err)
     assert len(err) == 1 and needle in err[0]
@@ -267,8 +268,6 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
     import io
 
     import quatform.plan_runs as plan_runs
-    import quatform.scenarios.base as scenario_base
-    import quatform.scenarios.ugv_uav as ugv_uav
 
     class Reached(Exception):
         pass
@@ -276,11 +275,11 @@ def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, 
     def reached(*a, **k):
         raise Reached("stub")
 
-    import quatform.scenarios.pair as pair
+    from quatform.scenarios import KINDS
 
     folder = tmp_path_factory.mktemp("fuzz")
-    stubbed = [(runs, "run_pair"), (ugv_uav, "ugv_uav_experiment"), (ugv_uav, "mujoco_experiment"),
-               (scenario_base, "simulate"), (plan_runs, "make_plan"), (pair, "simulate_physics")]
+    # every kind's experiment (its plant built, MuJoCo's included) and every simulation
+    stubbed = [(Experiment, "run"), (plan_runs, "make_plan")] + [(type(k), "experiment") for k in KINDS.values()]
     saved = [getattr(m, n) for m, n in stubbed]
     for m, n in stubbed:
         setattr(m, n, reached)
@@ -401,7 +400,8 @@ def test_compare_passes_no_feedforward_and_ugv_uav_refuses_it(tmp_path, monkeypa
     assert calls == [False]
     for argv in (["compare", "marciano-circle"], ["run", "marciano-circle"]):
         assert cli.main([*argv, "--no-feedforward", "--out", str(tmp_path / "u")]) == 2
-        assert "--no-feedforward applies to two-robot" in capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert "marciano-circle is a ugv-uav scenario: --no-feedforward does not apply to it" in err
 
 
 # --------------------------------------------------------------------------- H, I: listings and help

@@ -24,7 +24,8 @@ from quatform.formations import geometry as g
 from quatform.formations.base import MAX_MAGNITUDE
 from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios.pair import run_pair
-from quatform.sim import compute_metrics, load_scenario
+from quatform.scenarios import load_scenario
+from quatform.sim import compute_metrics
 
 FREE = Team((HolonomicRobot(1e9, 1e9),) * 2)
 ALL_FORMATIONS = [EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair()]

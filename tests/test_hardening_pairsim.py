@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 from quatform.errors import InvalidInputError, ResourceLimitError
 from quatform.references import EuclideanPath, Ramp, Step
 from quatform.scenarios.pair import Scenario, run_pair, scenario_from_dict
-from quatform.sim import compute_metrics, load_scenario
+from quatform.scenarios import load_scenario
+from quatform.sim import compute_metrics
 
 GOOD = 'duration_s = 2.0\ndt_s = 0.01\nmetrics_from_s = 0.5\n[path]\ncenter = [0, 0, 1]\nd_c = 1.0\n'
 
@@ -189,7 +190,7 @@ def test_api_numbers_must_be_finite():
 
 
 def _spiral_without_feedforward(tmp_path, duration_s=10.0):
-    from quatform.sim import builtin_scenarios
+    from quatform.scenarios import builtin_scenarios
 
     text = builtin_scenarios()["mas-kitts-spiral"].read_text()
     text = text.replace("duration_s = 60.0\n", f"duration_s = {duration_s}\nfeedforward = false\n", 1)

@@ -51,7 +51,8 @@ from quatform.report.physics_render import (  # noqa: E402
     render_or_fallback,
     time_lapse_figure,
 )
-from quatform.sim import compute_metrics, load_scenario  # noqa: E402
+from quatform.scenarios import load_scenario  # noqa: E402
+from quatform.sim import compute_metrics  # noqa: E402
 from quatform.sim.metrics import errors_from_robots  # noqa: E402
 from quatform.scenarios.pair import scenario_from_dict, simulate_physics  # noqa: E402
 from quatform.scenarios.ugv_uav import mujoco_experiment  # noqa: E402

@@ -28,7 +28,7 @@ from quatform.planning import (
 )
 from quatform.planning.se3 import metric_gl
 from quatform.planning.spec import plan_spec_from_dict
-from quatform.sim.scenario import load_scenario
+from quatform.scenarios import load_scenario
 
 R2 = np.sqrt(2.0)
 FIG3 = dict(masses=[1.0, 2.0], start=[[1.0, 0.0], [-0.5, 0.0]],

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from quatform.errors import InvalidInputError, ResourceLimitError
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.control.stiffness import explicit_stiffness_limit
 from quatform.scenarios.teleop import (
     TELEOP,

@@ -14,7 +14,7 @@ import quatform.report.ugv_uav_plots as uplots
 from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError, ResourceLimitError, UnreachableError
 from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
 
 

@@ -20,7 +20,7 @@ from quatform.control import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES
 from quatform.control.contract import Controller, Step
 from quatform.errors import InvalidInputError, ShapeError
 from quatform.robots.physics import IRIS
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.sim.mujoco_backend import IRIS_IDENTIFIED_K
 from quatform.sim.plants.mujoco import pair_plant, physics_metrics, physics_record, ugv_uav_plant
 from quatform.sim.simulate import simulate

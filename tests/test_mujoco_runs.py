@@ -22,8 +22,9 @@ mujoco = pytest.importorskip("mujoco")  # the optional extra
 from quatform.cli import main
 from quatform.robots.bebop import TABLE2_K
 from quatform.scenarios.pair import run_pair, scenario_from_dict, simulate_physics
-from quatform.sim import compute_metrics, load_scenario
+from quatform.scenarios import load_scenario
 from quatform.scenarios.ugv_uav import mujoco_experiment, simulate_ugv_uav, ugv_uav_metrics
+from quatform.sim import compute_metrics
 from quatform.sim.mujoco_backend import (
     IRIS_IDENTIFIED_K,
 )

@@ -15,8 +15,9 @@ from quatform.formations import EuclideanPair
 from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import KINDS
 from quatform.scenarios.pair import PAIR, PairKind, Scenario, pair_csv_channels, run_pair
-from quatform.sim import compute_metrics, load_scenario
-from quatform.sim.output import timeseries_columns
+from quatform.scenarios import load_scenario
+from quatform.sim import compute_metrics
+from quatform.report.writers import timeseries_table
 from quatform.sim.plants import KinematicTeam
 
 #: Offsets (Euclidean variables) of the batched worlds: m for x_c, y_c, z_c, d_c; rad else.
@@ -120,13 +121,13 @@ _DQ = ",".join(f"qhat_{s}_{p}{c},qhat_{s}_{p}{c}_des" for s in "cs" for p in "rd
 def test_the_csv_header_is_todays(controller, header):
     exp = PAIR.experiment(_short_spiral(0.05), controller=controller)
     assert exp.csv_channels == pair_csv_channels(exp.controller.formation.name)
-    names, data = timeseries_columns(exp.run(), exp.csv_channels)
+    names, data = timeseries_table(exp.run(), exp.csv_channels)
     assert ",".join(names) == header and data.shape == (6, len(names))
 
 
 def test_the_csv_columns_hold_the_log_channels():
     log = run_pair(_short_spiral(0.05), "quaternion")
-    names, data = timeseries_columns(log, pair_csv_channels("quaternion"))
+    names, data = timeseries_table(log, pair_csv_channels("quaternion"))
     np.testing.assert_array_equal(data[:, names.index("x2_des")], log["r_des"][:, 4])
     np.testing.assert_array_equal(data[:, names.index("q_c_z")], log["cluster"][:, 6])
     np.testing.assert_array_equal(data[:, names.index("singularity_measure")], log["singularity"][:, 0])
@@ -145,7 +146,7 @@ def test_the_kinematic_plant_is_the_team_step():
 def test_interleaved_csv_channels_must_have_one_width():
     log = run_pair(_short_spiral(0.05), "quaternion")
     with pytest.raises(InvalidInputError, match="different widths"):
-        timeseries_columns(log, [("state", "cluster")])
+        timeseries_table(log, [("state", "cluster")])
 
 
 def test_the_experiment_refuses_a_bad_backend_and_options():

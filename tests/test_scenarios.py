@@ -7,7 +7,8 @@ import pytest
 
 from quatform.errors import InvalidInputError
 from quatform.scenarios.pair import run_pair
-from quatform.sim import builtin_scenarios, compute_metrics, load_scenario
+from quatform.scenarios import builtin_scenarios, load_scenario
+from quatform.sim import compute_metrics
 
 CONTROLLERS = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
 

@@ -66,9 +66,28 @@ def test_teleop_help_and_errors(tmp_path, capsys):
     assert main(["teleop", "mas-kitts-spiral", "--out", str(tmp_path)]) == 2
     assert "not a teleoperation scenario" in capsys.readouterr().err
     assert main(["run", "teleop-preload", "--out", str(tmp_path), "--controller", "quaternion"]) == 2
-    assert "quatform teleop teleop-preload" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "teleop-preload is a teleop scenario: --controller does not apply to it" in err and "--preload" in err
     bad = tmp_path / "bad.toml"
     bad.write_text('kind = "teleop"\nduration_s = 1.0\n[master]\nq0 = [0, 1]\n')
     assert main(["teleop", str(bad), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "[master] q0 = [0, 1] must be a list of 6 numbers" in err[0]
+
+
+def test_run_runs_a_teleop_scenario_as_the_teleop_alias_does(tmp_path, capsys):
+    """Issue 13: 'quatform run' runs every kind; 'quatform teleop' is the same run."""
+    f = tmp_path / "short.toml"
+    f.write_text(SHORT)
+    runs = {}
+    for command in ("run", "teleop"):
+        out = tmp_path / command
+        assert main([command, str(f), "--out", str(out), "--orientation-error", "rpy", "--preload", "off",
+                     "--no-plots"]) == 0
+        runs[command] = json.loads((out / "metrics.json").read_text())
+        assert (out / "timeseries.csv").read_text() == (tmp_path / "run" / "timeseries.csv").read_text()
+    a, b = ({k: v for k, v in m.items() if k != "wall_time_s"} for m in runs.values())
+    assert a == b and a["orientation_error"] == "rpy" and a["preload"] is False
+    with pytest.raises(SystemExit) as exc:  # the alias takes the teleop kind's options only
+        main(["teleop", str(f), "--controller", "quaternion", "--out", str(tmp_path / "x")])
+    assert exc.value.code == 2 and "unrecognized arguments: --controller" in capsys.readouterr().err

@@ -22,7 +22,7 @@ from quatform.robots.arms import KraftMaster, PandaSlave, friction_step
 from quatform.robots.model import RobotModel
 from quatform.scenarios import KINDS
 from quatform.scenarios.teleop import CSV_CHANNELS, TELEOP
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.sim.plants.teleop import angle_between
 from quatform.teleop import (
     KRAFT_MASTER,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from quatform.errors import InvalidInputError
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.scenarios.teleop import TELEOP, teleop_metrics, teleop_scenario_from_dict
 from quatform.sim.plants.teleop import HandKey
 

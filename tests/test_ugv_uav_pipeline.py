@@ -23,7 +23,7 @@ from quatform.scenarios.ugv_uav import (
     check_ugv_uav_scenario,
     ugv_uav_experiment,
 )
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 from quatform.sim.log import Log
 from quatform.sim.measurement import LatencyHistory, MotionCapture
 from quatform.sim.plants.ugv_uav import PioneerBebopPlant

@@ -12,7 +12,7 @@ from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError
 from quatform.formations import UgvUavQuaternion
 from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
-from quatform.sim import load_scenario
+from quatform.scenarios import load_scenario
 
 LIMITS = {  # issue 4: (cluster / UGV, UAV) after the transient
     "marciano-circle": (0.1, 0.2),

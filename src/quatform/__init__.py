@@ -1,9 +1,17 @@
 """quatform: singularity-free formation and teleoperation control with quaternions.
 
-Layers (data flows one way, lower layers never import higher ones)::
+Layers (data flows one way, lower layers never import higher ones; ``tests/test_layers.py``
+checks it)::
 
-    algebra -> formations -> robots, control -> references, planning -> sim -> report, cli
-                teleop (beside formations, reuses algebra)
+    algebra -> formations, planning, teleop -> robots -> control, references -> sim
+            -> scenarios -> report -> runs, plan_runs, cli
+
+(``errors``, ``checks``, ``tomlio`` and ``papers`` sit below all of them.) Where a new piece
+goes: a formation in ``formations/``, a robot model in ``robots/``, a feedback law in
+``control/``, a plant in ``sim/plants/``, a measurement model in ``sim/measurement.py``, a
+scenario kind in ``scenarios/<kind>.py`` (registered in ``quatform.scenarios.KINDS``), its
+figures in ``report/<kind>_...py`` (registered in ``quatform.report.FIGURES``), a file
+writer in ``report/writers.py``.
 
 Conventions used everywhere (see ``docs/conventions.md``):
 

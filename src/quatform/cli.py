@@ -19,31 +19,11 @@ from .papers import cited
 #: Exit statuses.
 EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 2, 3, 130
 
-CONTROLLER_NAMES = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
-FORMATION_NAMES = ("spherical", "restricted", "quaternion")
+#: The scenario kind ``quatform teleop`` runs (an alias of ``run`` for it).
+TELEOP_KIND = "teleop"
 
-
-def _measurement_options(p):
-    p.add_argument("--mocap-noise-m", type=float, metavar="SIGMA",
-                   help="UGV-UAV: motion-capture position noise, standard deviation in m")
-    p.add_argument("--mocap-latency-s", type=float, metavar="S", help="UGV-UAV: motion-capture latency in s")
-
-
-def _feedforward_option(p):
-    p.add_argument("--no-feedforward", action="store_true",
-                   help="two-robot scenarios: drop the reference-velocity feedforward of the controllers "
-                   "(seed 000 Fig. 13's runs; overrides the scenario's feedforward key)")
-
-
-def _feedforward(sc, args):
-    """The run's feedforward switch: off with --no-feedforward, else the scenario's (default on)."""
-    if not getattr(args, "no_feedforward", False):
-        return getattr(sc, "feedforward", True)
-    if hasattr(sc, "mocap_noise_m") or hasattr(sc, "hand"):
-        from .errors import InvalidInputError
-
-        raise InvalidInputError(f"--no-feedforward applies to two-robot (seed 000) scenarios; {sc.name} is not one")
-    return False
+_MUJOCO_NOTE = ('--backend mujoco simulates MuJoCo physics (needs: pip install -e ".[mujoco]") and adds '
+                "collisions and a time-lapse picture.")
 
 
 def _cited(source: str) -> list[str]:
@@ -59,23 +39,47 @@ def _list(items):
             print(f"{'':32s}   {line}")
 
 
-def _with_measurement(sc, args):
-    import dataclasses
+def _flag(option) -> str:
+    """The command-line flag of a kind's option: ``--name`` (``_`` as ``-``); a switch that is on
+    unless given (default True or None = the scenario's): ``--no-name``."""
+    if option.type is bool and option.default is not False:
+        return "--no-" + option.name.replace("_", "-")
+    return option.flag
 
-    from .errors import InvalidInputError
 
-    # the values are checked with the scenario's own bounds (check_ugv_uav_scenario) below
-    changes = {key: getattr(args, key) for key in ("mocap_noise_m", "mocap_latency_s")
-               if getattr(args, key, None) is not None}
-    if not changes:
-        return sc
-    if not hasattr(sc, "mocap_noise_m"):
-        raise InvalidInputError("--mocap-noise-m and --mocap-latency-s apply to UGV-UAV scenarios only")
-    from .scenarios.ugv_uav import check_ugv_uav_scenario
+def _kind_options(kinds) -> dict:
+    """The options of ``kinds`` by name, merged: ``{name: (option, kind names, choices)}``
+    (choices: the union over the kinds, in order)."""
+    merged: dict = {}
+    for kind in kinds:
+        for o in kind.options:
+            first, names, choices = merged.get(o.name, (o, [], []))
+            names.append(kind.name)
+            choices.extend(c for c in (o.choices or ()) if c not in choices)
+            merged[o.name] = (first, names, choices)
+    return merged
 
-    sc = dataclasses.replace(sc, **changes)
-    check_ugv_uav_scenario(sc, f"scenario {sc.name} with --mocap-noise-m/--mocap-latency-s")
-    return sc
+
+def _add_kind_options(p, kinds) -> None:
+    """The options of the scenario ``kinds`` as flags of the parser ``p`` (registry-built; each
+    flag's help names the kinds that take it). Every value defaults to None: the kind's default."""
+    for name, (o, names, choices) in _kind_options(kinds).items():
+        which = f" [{', '.join(names)}]"
+        if o.type is bool:
+            const = o.default is False  # a switch off by default is turned on, else off
+            p.add_argument(_flag(o), dest=name, action="store_const", const=const, default=None,
+                           help=("" if const else "switch off: ") + o.help + which)
+        elif o.choices is not None:
+            p.add_argument(_flag(o), dest=name, choices=choices, default=None, help=o.help + which)
+        else:
+            p.add_argument(_flag(o), dest=name, type=o.type, default=None,
+                           metavar=name.split("_")[-1].upper() if o.type is float else name.upper(),
+                           help=o.help + which)
+
+
+def _options(args, kinds) -> dict:
+    """The kind options of the parsed ``args`` (None where not given)."""
+    return {name: getattr(args, name) for name in _kind_options(kinds)}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -108,28 +112,21 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", metavar="DIR", default="quatform-demo",
                       help="output folder (default: ./quatform-demo)")
 
+    from .scenarios import KINDS
+
+    kinds = tuple(KINDS.values())
     run = sub.add_parser(
         "run",
-        help="simulate one scenario with one controller",
-        description="Simulate SCENARIO (a built-in name or a .toml file) and write DIR/metrics.json, "
-        "DIR/timeseries.csv and PNG plots. Two-robot scenarios (seed 000) take --controller; "
-        "UGV-UAV scenarios (seed 001) take --formation and the motion-capture options.",
+        help="simulate one scenario of any kind with one choice",
+        description="Simulate SCENARIO (a built-in name or a .toml file of any kind: "
+        f"{', '.join(KINDS)}) and write DIR/metrics.json, DIR/timeseries.csv and PNG plots. Each "
+        "option below names the scenario kinds that take it (a kind refuses the others); a "
+        "two-robot scenario (seed 000) needs --controller. " + _MUJOCO_NOTE,
     )
     run.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
-    run.add_argument("--controller", choices=CONTROLLER_NAMES,
-                     help="controller of a two-robot (seed 000) scenario")
-    run.add_argument("--formation", choices=FORMATION_NAMES,
-                     help="formation description of a UGV-UAV (seed 001) scenario (default: quaternion)")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
-    run.add_argument("--reference", metavar="PLAN",
-                     help="two-robot scenarios: follow this plan file (from 'quatform plan', 2 robots in "
-                     "space) instead of the scenario's path; yaws held at 0")
-    run.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
-                     help='robot models (default) or MuJoCo physics (needs: pip install -e ".[mujoco]"); '
-                     "mujoco adds collisions and a time-lapse picture")
-    _feedforward_option(run)
-    _measurement_options(run)
+    _add_kind_options(run, kinds)
 
     plan = sub.add_parser(
         "plan",
@@ -152,66 +149,58 @@ def _build_parser() -> argparse.ArgumentParser:
 
     cmp_ = sub.add_parser(
         "compare",
-        help="run all four controllers on one scenario",
-        description="Run SCENARIO with every controller (seed 000) or every formation description "
-        "(seed 001 UGV-UAV) into DIR/<name>/, draw the errors side by side (seed 000 Fig. 13) and "
-        "print a table.",
+        help="run every choice of one option (every controller, every formation description ...) on one scenario",
+        description="Run SCENARIO with every value of its kind's compare option (the controllers of a "
+        "two-robot scenario, the formation descriptions of a UGV-UAV one, the orientation errors of a "
+        "teleoperation one), or of --over (e.g. --over backend: kinematic models against MuJoCo physics), "
+        "into DIR/<value>/; draw them side by side (seed 000 Fig. 13) and print a table. The other "
+        "options are fixed for every run. " + _MUJOCO_NOTE,
     )
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
-    cmp_.add_argument("--backend", choices=("kinematic", "mujoco"), default="kinematic",
-                      help='robot models (default) or MuJoCo physics (two-robot scenarios; needs: '
-                      'pip install -e ".[mujoco]")')
-    _feedforward_option(cmp_)
-    _measurement_options(cmp_)
+    axes = sorted({o.name for k in kinds for o in k.options if o.choices is not None})
+    cmp_.add_argument("--over", metavar="OPTION", choices=axes,
+                      help=f"the option to vary: one of {', '.join(axes)} that the scenario's kind takes "
+                      "(default: the kind's compare option)")
+    _add_kind_options(cmp_, kinds)
 
     tele = sub.add_parser(
         "teleop",
-        help="simulate a master-slave teleoperation scenario (seed 003)",
+        help="simulate a master-slave teleoperation scenario (seed 003; 'run' for teleop scenarios)",
         description="Simulate SCENARIO (a built-in teleop-* name or a .toml file with kind = 'teleop'): "
         "the Kraft master, a 7-DOF slave, the operator's hand and the environment under seed 003's "
-        "Euler-parameter stiffness controllers. Writes DIR/metrics.json, DIR/timeseries.csv and PNG plots.",
+        "Euler-parameter stiffness controllers. Writes DIR/metrics.json, DIR/timeseries.csv and PNG plots. "
+        "The same as 'quatform run' for a teleoperation scenario.",
     )
     tele.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
     tele.add_argument("--out", metavar="DIR", required=True, help="output folder")
-    tele.add_argument("--orientation-error", choices=("euler-parameters", "rpy"),
-                      help="the controllers' orientation error (default: the scenario's)")
-    tele.add_argument("--preload", choices=("on", "off"),
-                      help="the preload function on the master's actuators (default: the scenario's)")
     tele.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+    _add_kind_options(tele, (KINDS[TELEOP_KIND],))
 
-    sub.add_parser("scenarios", help="list the built-in scenarios",
-                   description="List the built-in scenarios with their titles and sources.")
+    sub.add_parser("scenarios", help="list the built-in scenarios of every kind",
+                   description="List the built-in scenarios of every kind with their titles and sources.")
     return parser
 
 
-def _compare(scenario, out, args=None):
-    from .runs import UGV_UAV_COLUMNS, compare_scenario, compare_ugv_uav, format_table
-    from .sim import load_scenario
+def _compare(scenario, out, options=None, over=None) -> None:
+    from .runs import compare, compare_columns, format_table, given_options
+    from .scenarios import kind_of, load_scenario
 
     sc = load_scenario(scenario)
-    if hasattr(sc, "hand"):
-        from .errors import InvalidInputError
+    kind = kind_of(sc)
+    options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
+    rows = compare(sc, out, over=over, **options)
+    _say_options(kind, options)
+    axis = over or kind.compare_over
+    print(format_table(rows, compare_columns(kind, axis)))
+    print(f"\nfiles in {out}/ (one folder per {axis.replace('_', ' ')}, the compare plots, comparison.md)")
 
-        raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with 'quatform teleop {scenario} "
-                                "--out DIR' (with --orientation-error or --preload to compare)")
-    if args is not None:
-        sc = _with_measurement(sc, args)
-    if hasattr(sc, "mocap_noise_m"):
-        _feedforward(sc, args)  # refuses --no-feedforward
-        if getattr(args, "backend", "kinematic") != "kinematic":
-            from .errors import InvalidInputError
 
-            raise InvalidInputError("compare --backend mujoco takes two-robot scenarios; run a UGV-UAV one "
-                                    "with: quatform run SCENARIO --backend mujoco")
-        print(format_table(compare_ugv_uav(sc, out), UGV_UAV_COLUMNS))
-        print(f"\nfiles in {out}/ (one folder per formation, compare_formations.png, comparison.md)")
-        return
-    rows = compare_scenario(sc, out, backend=getattr(args, "backend", "kinematic"), feedforward=_feedforward(sc, args))
-    if not rows[0].get("feedforward", True):
-        print("feedforward: off (--no-feedforward)")
-    print(format_table(rows))
-    print(f"\nfiles in {out}/ (one folder per controller, compare_errors.png, comparison.md)")
+def _say_options(kind, options) -> None:
+    """One stdout line per switch turned off (``feedforward: off (--no-feedforward)``)."""
+    for o in kind.options:
+        if o.type is bool and options.get(o.name) is False:
+            print(f"{o.name.replace('_', ' ')}: off ({_flag(o)})")
 
 
 def _plan(args):
@@ -249,89 +238,72 @@ def _plan(args):
         raise ConvergenceError(failed[0])
 
 
-def _print_run(metrics, columns=None):
-    """The run's table row; a physics run: the kinematic row above it, and its collisions."""
-    from .runs import TABLE_COLUMNS, format_table, physics_rows
+def _print_run(metrics, columns) -> None:
+    """The run's table row; a physics run: its collisions and picture below it."""
+    from .runs import format_table
 
-    columns = columns or TABLE_COLUMNS
-    if metrics.get("backend") != "mujoco":
-        print(format_table([metrics], columns))
-        return
-    print(format_table(physics_rows(metrics), columns))
-    c = metrics["collisions"]
-    print(f"\ncollisions: {c['count']}" + (f" (first at t = {c['first_time_s']:.2f} s: {', '.join(c['bodies'])})"
-                                           if c["count"] else ""))
+    print(format_table([metrics], columns))
+    c = metrics.get("collisions")
+    if c is not None:
+        print(f"\ncollisions: {c['count']}" + (f" (first at t = {c['first_time_s']:.2f} s: {', '.join(c['bodies'])})"
+                                               if c["count"] else ""))
     if metrics.get("render"):
         print(f"picture: {metrics['render']} ({metrics['render_backend']})")
 
 
+def _run(args, kinds) -> None:
+    """``quatform run`` (and ``teleop``): one run of any kind with the given options."""
+    from .runs import given_options, run
+    from .scenarios import kind_of, load_scenario
+
+    sc = load_scenario(args.scenario)
+    kind = kind_of(sc)
+    if args.command == "teleop" and kind.name != TELEOP_KIND:
+        from .errors import InvalidInputError
+
+        raise InvalidInputError(f"{sc.name} is not a teleoperation scenario (its kind is {kind.name}): run it "
+                                f"with 'quatform run {args.scenario} ...'")
+    options = given_options(kind, _options(args, kinds), where=str(sc.name), spell=_flag)
+    _, metrics = run(sc, args.out, plots=not args.no_plots, **options)
+    _say_options(kind, options)
+    _print_run(metrics, kind.table_columns)
+
+
+def _plans(args) -> None:
+    from .planning import builtin_plan_specs, load_plan_spec
+
+    _list((name, spec.title, spec.source) for name, spec in
+          ((name, load_plan_spec(name)) for name in sorted(builtin_plan_specs())))
+
+
+def _scenarios(args) -> None:
+    from .scenarios import builtin_scenarios, kind_of, load_scenario
+
+    loaded = ((name, load_scenario(name)) for name in sorted(builtin_scenarios()))
+    _list((name, f"{sc.title} [{kind_of(sc).name}]", sc.source) for name, sc in loaded)
+
+
+def _kinds():
+    from .scenarios import KINDS
+
+    return KINDS
+
+
+#: What each command does with its parsed arguments.
+COMMANDS = {
+    "demo": lambda args: _compare("mas-kitts-spiral", args.out),
+    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over),
+    "run": lambda args: _run(args, _kinds().values()),
+    "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),
+    "plan": _plan,
+    "plans": _plans,
+    "scenarios": _scenarios,
+}
+
+
 def _command(args) -> None:
     """Run the parsed command (every error propagates to :func:`main`)."""
-    if args.command == "demo":
-        _compare("mas-kitts-spiral", args.out)
-    elif args.command == "compare":
-        _compare(args.scenario, args.out, args)
-    elif args.command == "run":
-        from .errors import InvalidInputError
-        from .runs import UGV_UAV_COLUMNS, run_scenario, run_ugv_uav
-        from .sim import load_scenario
-
-        sc = load_scenario(args.scenario)
-        if hasattr(sc, "hand"):
-            raise InvalidInputError(f"{sc.name} is a teleoperation scenario: run it with "
-                                    f"'quatform teleop {args.scenario} --out DIR'")
-        sc = _with_measurement(sc, args)
-        if args.reference is not None:
-            if hasattr(sc, "mocap_noise_m"):
-                raise InvalidInputError(f"--reference applies to two-robot scenarios; {sc.name} is UGV-UAV")
-            from .plan_runs import scenario_with_plan
-
-            sc = scenario_with_plan(sc, args.reference)
-        ff = _feedforward(sc, args)
-        if hasattr(sc, "mocap_noise_m"):
-            if args.controller is not None:
-                raise InvalidInputError(
-                    f"{sc.name} is a UGV-UAV scenario: choose its description with --formation "
-                    f"{{{','.join(FORMATION_NAMES)}}}, not --controller")
-            _, metrics = run_ugv_uav(sc, args.formation or "quaternion", args.out, plots=not args.no_plots,
-                                     backend=args.backend)
-            _print_run(metrics, UGV_UAV_COLUMNS)
-        else:
-            if args.formation is not None:
-                raise InvalidInputError(f"{sc.name} is a two-robot scenario: --formation does not apply")
-            if args.controller is None:
-                raise InvalidInputError(
-                    f"{sc.name} is a two-robot scenario: give --controller "
-                    f"{{{','.join(CONTROLLER_NAMES)}}}")
-            _, metrics = run_scenario(sc, args.controller, args.out, plots=not args.no_plots,
-                                      backend=args.backend, feedforward=ff)
-            if not ff:
-                print("feedforward: off (--no-feedforward)")
-            _print_run(metrics)
-    elif args.command == "teleop":
-        from .errors import InvalidInputError
-        from .runs import TELEOP_COLUMNS, format_table, run_teleop
-        from .sim import load_scenario
-
-        sc = load_scenario(args.scenario)
-        if not hasattr(sc, "hand"):
-            raise InvalidInputError(f"{sc.name} is not a teleoperation scenario: run it with "
-                                    f"'quatform run {args.scenario} ...'")
-        preload = None if args.preload is None else args.preload == "on"
-        _, metrics = run_teleop(sc, args.out, args.orientation_error, preload, plots=not args.no_plots)
-        print(format_table([metrics], TELEOP_COLUMNS))
-    elif args.command == "plan":
-        _plan(args)
-    elif args.command == "plans":
-        from .planning import builtin_plan_specs, load_plan_spec
-
-        _list((name, spec.title, spec.source) for name, spec in
-              ((name, load_plan_spec(name)) for name in sorted(builtin_plan_specs())))
-    elif args.command == "scenarios":
-        from .sim import builtin_scenarios, load_scenario
-
-        _list((name, sc.title, sc.source) for name, sc in
-              ((name, load_scenario(name)) for name in sorted(builtin_scenarios())))
+    COMMANDS[args.command](args)
 
 
 def _say(line: str) -> None:

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from .errors import ConvergenceError, InvalidInputError
 from .planning import load_plan_spec, make_plan
-from .sim.output import staged_dir, write_json
+from .report.writers import write_json
+from .sim.output import staged_dir
 
 __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
 

@@ -1,37 +1,45 @@
-"""Run and compare scenarios and write their files (top layer, used by the CLI).
+"""Run and compare any scenario and write its files (top layer, used by the CLI).
 
-``run_scenario`` writes ``metrics.json``, ``timeseries.csv`` and the PNG plots of one
-controller; ``compare_scenario`` runs all four controllers of seed 000 into
-sub-folders and adds Fig. 13 and a table.
+One :func:`run` and one :func:`compare` for every scenario kind of
+:data:`quatform.scenarios.KINDS`. A run builds the kind's
+:class:`~quatform.scenarios.base.Experiment` for the chosen options, simulates it
+(``log = experiment.run(progress)``), computes its metrics from the log and writes, in this
+order, ``timeseries.csv`` (:func:`quatform.report.writers.write_timeseries`, the kind's
+``csv_channels``), the kind's figures (:data:`quatform.report.FIGURES`) and ``metrics.json``
+last. A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
+``backend`` compares the kinematic models with MuJoCo physics) into ``out/<value>/``, then draws
+the kind's compare figures and writes ``comparison.md`` / ``comparison.json`` with the kind's
+table columns.
 
-Every public ``run_*`` / ``compare_*`` function builds its output folder with
-:func:`~quatform.sim.output.staged_dir`: the files appear under ``out`` only when the whole
-run has finished (``metrics.json`` is written last); a failed or interrupted run leaves
-``out`` as it was.
+Besides the experiment, a run reads two conventions of the log's ``meta``: a physics run's
+plant record under ``"physics_record"`` (its time-lapse picture is drawn when plots are, and
+``metrics.json`` gets ``render`` / ``render_backend``), and ``"unreachable_at"`` /
+``"unreachable_message"`` (when the reference left what the description can express;
+printed on stderr).
+
+Every output folder is built with :func:`~quatform.sim.output.staged_dir`: the files appear
+under ``out`` only when the whole run has finished; a failed or interrupted run leaves ``out``
+as it was.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
 
-from .control import CONTROLLERS
-from .scenarios.pair import BACKENDS, TABLE_COLUMNS, pair_csv_channels, run_pair
-from .sim import (
-    compute_metrics,
-    load_scenario,
-    write_columns,
-    write_metrics,
-    write_timeseries,
-)
-from .scenarios.teleop import TELEOP_COLUMNS
-from .sim.output import atomic_write_text, staged_dir, write_json
+from .checks import nearest
+from .errors import InvalidInputError
+from .report import FIGURES
+from .report.writers import write_json, write_metrics, write_timeseries
+from .scenarios import Option, kind_of, load_scenario
+from .sim.output import atomic_write_text, staged_dir
 
-__all__ = ["run_scenario", "compare_scenario", "format_table", "TABLE_COLUMNS", "run_ugv_uav",
-           "compare_ugv_uav", "UGV_UAV_COLUMNS", "run_teleop", "TELEOP_COLUMNS", "BACKENDS", "physics_rows"]
+__all__ = ["run", "compare", "format_table", "compare_columns", "progress_line", "given_options"]
 
-def _progress(label):
+
+def progress_line(label: str):
     """Progress on a terminal (one updating line); nothing when stderr is a file or pipe."""
     if not sys.stderr.isatty():
         return None
@@ -41,170 +49,175 @@ def _progress(label):
     return report
 
 
-def run_ugv_uav(sc, formation: str, out, plots: bool = True, quiet: bool = False, backend: str = "kinematic"):
-    """A seed 001 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(run, metrics)``.
+def _scenario(scenario):
+    """A loaded scenario: ``scenario`` itself, or the file or built-in name it is."""
+    return load_scenario(scenario) if isinstance(scenario, (str, os.PathLike)) else scenario
 
-    ``backend="mujoco"``: a Pioneer-like UGV and an IRIS-like quadrotor in MuJoCo; the
-    metrics add ``collisions``, ``render`` and the kinematic run's errors (``kinematic``).
+
+def given_options(kind, options: dict, *, where: str, spell=None) -> dict:
+    """``options`` without the ones left unset (None), each checked to be one of ``kind``'s.
+
+    An option the kind does not take is one line naming the kind, the option and the options
+    it takes; a value outside an option's choices names them. ``spell(option)`` is how an
+    option is named in those lines (the CLI: its flag; default: the keyword).
     """
-    _check_backend(backend)
-    with staged_dir(out) as tmp:
-        return _ugv_uav_into(sc, formation, tmp, Path(out), plots, quiet, backend)
+    spell = spell or (lambda option: option.name)
+    own = {o.name: o for o in kind.options}
+    given = {k: v for k, v in options.items() if v is not None}
+    for name, value in given.items():
+        if name not in own:
+            takes = ", ".join(spell(o) for o in kind.options) or "no options"
+            label = spell(Option(name, "", type=type(value)))
+            raise InvalidInputError(f"{where} is a {kind.name} scenario: {label} does not apply to it; "
+                                    f"it takes {takes}")
+        choices = own[name].choices
+        if choices is not None and value not in choices:
+            raise InvalidInputError(f"{where}: {spell(own[name])} = {value!r} is not one of {', '.join(choices)}"
+                                    f"{nearest(str(value), choices)}")
+    return given
 
 
-def _ugv_uav_into(sc, formation, out, label, plots, quiet, backend):
-    """:func:`run_ugv_uav` writing into the folder ``out`` (made here; ``label``: the name printed)."""
-    from .scenarios.ugv_uav import UGV_UAV_KIND
+def _record_options(kind, experiment, metrics: dict) -> dict:
+    """``metrics`` plus the resolved value of each of the kind's options that the experiment's
+    ``meta`` records and the metrics do not already hold (e.g. ``feedforward``)."""
+    for option in kind.options:
+        if option.name in experiment.meta and option.name not in metrics:
+            metrics[option.name] = experiment.meta[option.name]
+    return metrics
 
-    out.mkdir(exist_ok=True)
+
+def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict):
+    """One run of ``sc`` with ``options`` written into ``folder`` (made here; ``shown``: the path
+    printed). Returns ``(log, metrics)``."""
+    folder.mkdir(exist_ok=True)
     t0 = time.perf_counter()
-    progress = None if quiet else _progress(f"{sc.name} / {formation} / {backend}")
-    exp = UGV_UAV_KIND.experiment(sc, formation=formation, backend=backend)
-    log = exp.run(progress)
-    metrics = exp.metrics(log)
+    experiment = kind.experiment(sc, **options)
+    label = f"{sc.name} / {experiment.label}" if experiment.label else str(sc.name)
+    log = experiment.run(None if quiet else progress_line(label))
+    metrics = _record_options(kind, experiment, dict(experiment.metrics(log)))
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-    write_columns(*log.table(exp.csv_channels), out / "timeseries.csv")
+    write_timeseries(log, folder / "timeseries.csv", experiment.csv_channels)
     if plots:
-        from .report.ugv_uav_plots import write_ugv_uav_run_plots
-
-        write_ugv_uav_run_plots(log, out)
-    if backend == "mujoco":
-        metrics["render"] = None
-        if plots:
-            from .report.physics_render import RENDER_FILE, render_or_fallback
-
-            file, how = render_or_fallback(log.meta["physics_record"], log, out / RENDER_FILE)
-            metrics["render"], metrics["render_backend"] = file.name, how
-    write_metrics(metrics, out / "metrics.json")
+        FIGURES[kind.name].run(log, folder)
+    _picture(log, folder, plots, metrics)
+    write_metrics(metrics, folder / "metrics.json")
     if not quiet:
-        if log.meta["unreachable_at"] is not None:
-            print(f"  {sc.name} / {formation}: reference unreachable from t = {log.meta['unreachable_at']:.2f} s: "
-                  f"{log.meta['unreachable_message']}", file=sys.stderr)
-        print(f"\r  {sc.name} / {formation}: done in {metrics['wall_time_s']:.1f} s -> {label}", file=sys.stderr)
+        if log.meta.get("unreachable_at") is not None:
+            print(f"\r  {label}: reference unreachable from t = {log.meta['unreachable_at']:.2f} s: "
+                  f"{log.meta.get('unreachable_message')}", file=sys.stderr)
+        print(f"\r  {label}: done in {metrics['wall_time_s']:.1f} s -> {shown}", file=sys.stderr)
     return log, metrics
 
 
-UGV_UAV_COLUMNS = (
-    ("formation", "formation", "{}"),
-    ("unreachable_reference", "unreachable", "{}"),
-    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
-    ("max_ugv_position_error_m", "UGV (m)", "{:.3f}"),
-    ("max_uav_position_error_m", "UAV (m)", "{:.3f}"),
-    ("max_uav_yaw_error_rad", "UAV yaw (rad)", "{:.3f}"),
-    ("max_unexplained_cluster_jump", "state jump", "{:.1e}"),
-    ("mocap_dropped_frames", "mocap dropped", "{}"),
-    ("mocap_rejected_frames", "mocap rejected", "{}"),
-    ("nonfinite_commands", "NaN cmds", "{}"),
-)
-
-
-def compare_ugv_uav(sc, out, quiet: bool = False):
-    """Run the three descriptions of seed 001 on one scenario; plots, table; return the rows."""
-    from .scenarios.ugv_uav import UGV_UAV_FORMATIONS
-
-    with staged_dir(out) as tmp:
-        runs, rows = [], []
-        for name in UGV_UAV_FORMATIONS:
-            run, m = _ugv_uav_into(sc, name, tmp / name, Path(out) / name, True, quiet, "kinematic")
-            runs.append(run)
-            rows.append(m)
-        from .report.ugv_uav_plots import write_ugv_uav_compare_plots
-
-        write_ugv_uav_compare_plots(runs, tmp)
-        table = format_table(rows, UGV_UAV_COLUMNS)
-        atomic_write_text(tmp / "comparison.md", f"# {sc.name}: {sc.title}\n\nSource: {sc.source}\n\n{table}\n")
-        write_json(rows, tmp / "comparison.json")
-    return rows
-
-
-def _check_backend(backend):
-    if backend not in BACKENDS:
-        from .errors import InvalidInputError
-
-        raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
-
-
-#: Metrics of the kinematic run that a physics run's ``metrics.json`` repeats beside its own.
-_COMPARED_KEYS = ("reference_lost", "nonfinite_commands", "unreachable_reference", "max_unexplained_cluster_jump",
-                  "first_lost_time_s", "first_singular_time_s", "max_cluster_position_error_m",
-                  "max_shape_error_m", "max_orientation_error_rad", "max_robot_position_error_m",
-                  "max_robot_yaw_error_rad", "max_recovered_euclidean_error_rad", "min_robot_separation_m",
-                  "max_ugv_position_error_m", "max_uav_position_error_m", "max_uav_yaw_error_rad")
-
-
-def _add_physics(metrics, record, run, kinematic_metrics, out, plots):
-    """The physics run's own keys: backend, step, collisions, picture, the kinematic errors."""
-    metrics["backend"] = "mujoco"
-    metrics.update(record.metrics())  # gains, gains_source (+ note), physics_timestep_s
-    metrics["collisions"] = record.collisions
+def _picture(log, folder: Path, plots: bool, metrics: dict) -> None:
+    """A physics run's time-lapse picture (its plant's record in ``log.meta["physics_record"]``):
+    drawn when ``plots``; ``metrics`` gets ``render`` (its file name, or None) and ``render_backend``."""
+    record = log.meta.get("physics_record")
+    if record is None:
+        return
     metrics["render"] = None
     if plots:
         from .report.physics_render import RENDER_FILE, render_or_fallback
 
-        file, how = render_or_fallback(record, run, out / RENDER_FILE)
+        file, how = render_or_fallback(record, log, folder / RENDER_FILE)
         metrics["render"], metrics["render_backend"] = file.name, how
-    metrics["kinematic"] = {k: kinematic_metrics[k] for k in _COMPARED_KEYS if k in kinematic_metrics}
 
 
-def physics_rows(metrics) -> list:
-    """Two table rows of a physics run: the kinematic run's errors, then the physics run's."""
-    label = metrics["controller"]
-    if "kinematic" not in metrics:  # a run on one backend (the UGV-UAV kind: compare over the backend)
-        return [dict(metrics, controller=f"{label} (mujoco)", formation=f"{metrics['formation']} (mujoco)")]
-    return [dict(metrics["kinematic"], controller=f"{label} (kinematic)", formation=f"{metrics['formation']} (kinematic)"),
-            dict(metrics, controller=f"{label} (mujoco)", formation=f"{metrics['formation']} (mujoco)")]
+def run(scenario, out, *, plots: bool = True, quiet: bool = False, **options):
+    """Simulate one scenario with one choice; write ``out/timeseries.csv``, the figures and
+    ``out/metrics.json`` (last).
 
+    Parameters
+    ----------
+    scenario : object, str or path-like
+        A loaded scenario of any registered kind, or a built-in name or ``.toml`` file.
+    out : path-like
+        Output folder (built beside, swapped in when complete).
+    plots : bool
+        Draw the kind's figures.
+    quiet : bool
+        No progress or summary on stderr.
+    **options
+        The kind's options (:attr:`ScenarioKind.options`: ``controller``, ``formation``,
+        ``backend``, ``feedforward``, ``orientation_error`` ...); None means the default.
 
-def _feedforward(sc, feedforward):
-    """The feedforward switch of a run: ``feedforward`` when given, else the scenario's (default on)."""
-    return bool(getattr(sc, "feedforward", True)) if feedforward is None else bool(feedforward)
-
-
-def run_scenario(scenario, controller: str, out, plots: bool = True, quiet: bool = False,
-                 backend: str = "kinematic", feedforward: bool | None = None):
-    """Simulate, write ``out/metrics.json``, ``out/timeseries.csv`` and plots; return the metrics.
-
-    ``backend="mujoco"``: two IRIS-like quadrotors in MuJoCo; the metrics add
-    ``collisions``, ``render`` (the time-lapse picture) and the kinematic run's errors
-    (``kinematic``). ``feedforward=False`` drops the reference-velocity feedforward of the
-    controller (seed 000 Fig. 13 runs without it); ``None`` takes the scenario's setting.
-    ``metrics.json`` records it as ``feedforward``.
+    Returns
+    -------
+    log : quatform.sim.log.Log
+    metrics : dict
+        What ``metrics.json`` holds (with ``wall_time_s``).
     """
-    _check_backend(backend)
-    sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
+    sc = _scenario(scenario)
+    kind = kind_of(sc)
+    given = given_options(kind, options, where=str(sc.name))
     with staged_dir(out) as tmp:
-        return _pair_into(sc, controller, tmp, Path(out), plots, quiet, backend, _feedforward(sc, feedforward))
+        return _run_into(kind, sc, tmp, Path(out), plots, quiet, given)
 
 
-def _pair_into(sc, controller, out, label, plots, quiet, backend, ff):
-    """:func:`run_scenario` writing into the folder ``out`` (made here; ``label``: the name printed)."""
-    out.mkdir(exist_ok=True)
-    t0 = time.perf_counter()
-    progress = None if quiet else _progress(f"{sc.name} / {controller} / {backend}")
-    if backend == "mujoco":
-        from .scenarios.pair import simulate_physics
-
-        run, record = simulate_physics(sc, controller, feedforward=ff, progress=progress)
-    else:
-        run = run_pair(sc, controller, feedforward=ff, progress=progress)
-    metrics = compute_metrics(run)
-    metrics["feedforward"] = ff
-    metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-    if backend == "mujoco":
-        _add_physics(metrics, record, run, compute_metrics(run_pair(sc, controller, feedforward=ff)), out, plots)
-    write_timeseries(run, out / "timeseries.csv", pair_csv_channels(run.meta["formation"]))
-    if plots:
-        from .report import write_run_plots
-
-        write_run_plots(run, out)
-    write_metrics(metrics, out / "metrics.json")
-    if not quiet:
-        print(f"\r  {sc.name} / {controller}: done in {metrics['wall_time_s']:.1f} s -> {label}", file=sys.stderr)
-    return run, metrics
+def _suffix(options: dict) -> str:
+    """The non-default choices of a compare in words, for its title (`` (no feedforward)``)."""
+    words = [("" if v else "no ") + k.replace("_", " ") if isinstance(v, bool) else f"{k.replace('_', ' ')} {v}"
+             for k, v in options.items()]
+    return f" ({', '.join(words)})" if words else ""
 
 
-def format_table(rows, columns=TABLE_COLUMNS) -> str:
-    """A Markdown table of metrics rows."""
+def compare(scenario, out, *, over: str | None = None, quiet: bool = False, **options) -> list:
+    """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
+    kind's compare figures; write ``comparison.md`` and ``comparison.json``.
+
+    Parameters
+    ----------
+    scenario : object, str or path-like
+        As in :func:`run`.
+    out : path-like
+    over : str, optional
+        The option to vary (default: the kind's ``compare_over``), e.g. ``backend``.
+    quiet : bool
+    **options
+        The other options, fixed for every run.
+
+    Returns
+    -------
+    list of dict
+        The runs' metrics, in the order of the option's choices.
+    """
+    sc = _scenario(scenario)
+    kind = kind_of(sc)
+    given = given_options(kind, options, where=str(sc.name))
+    axis = kind.compare_over if over is None else over
+    own = {o.name: o for o in kind.options}
+    if axis is None or axis not in own or own[axis].choices is None:
+        axes = [o.name for o in kind.options if o.choices is not None]
+        raise InvalidInputError(f"{sc.name} is a {kind.name} scenario: it has no compare over {axis!r}; "
+                                f"compare over one of {', '.join(axes) or 'nothing'}")
+    if axis in given:
+        raise InvalidInputError(f"{sc.name}: compare runs every {axis} ({', '.join(own[axis].choices)}); "
+                                f"do not give {axis}")
+    columns = compare_columns(kind, axis)
+    with staged_dir(out) as tmp:
+        logs, rows = [], []
+        for value in own[axis].choices:
+            log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, True, quiet, {**given, axis: value})
+            logs.append(log)
+            rows.append({axis: value, **metrics})
+        FIGURES[kind.name].compare(logs, tmp)
+        table = format_table(rows, columns)
+        atomic_write_text(tmp / "comparison.md",
+                          f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n")
+        write_json(rows, tmp / "comparison.json")
+    return rows
+
+
+def compare_columns(kind, axis: str) -> tuple:
+    """The table columns of a compare over ``axis``: the kind's, led by the axis when they lack it."""
+    columns = tuple(kind.table_columns)
+    if axis in [key for key, _, _ in columns]:
+        return columns
+    return ((axis, axis.replace("_", " "), "{}"), *columns)
+
+
+def format_table(rows, columns) -> str:
+    """A Markdown table of metrics rows; ``columns``: (metrics key, header, format) each."""
     head = "| " + " | ".join(h for _, h, _ in columns) + " |"
     sep = "|" + "|".join("---" for _ in columns) + "|"
     lines = [head, sep]
@@ -212,49 +225,3 @@ def format_table(rows, columns=TABLE_COLUMNS) -> str:
         cells = ["-" if m.get(k) is None else fmt.format(m[k]) for k, _, fmt in columns]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
-
-def compare_scenario(scenario, out, quiet: bool = False, backend: str = "kinematic",
-                     feedforward: bool | None = None):
-    """Run every controller; write their folders, ``compare_errors.png``, ``separation.png``,
-    ``comparison.json`` and ``comparison.md``; return the metrics rows (a physics backend:
-    each run's kinematic row above its own). ``feedforward`` as in :func:`run_scenario`."""
-    _check_backend(backend)
-    sc = load_scenario(scenario) if not hasattr(scenario, "path") else scenario
-    ff = _feedforward(sc, feedforward)
-    with staged_dir(out) as tmp:
-        runs, rows = [], []
-        for name in CONTROLLERS:
-            run, m = _pair_into(sc, name, tmp / name, Path(out) / name, True, quiet, backend, ff)
-            runs.append(run)
-            rows.extend(physics_rows(m) if backend == "mujoco" else [m])
-        from .report import write_compare_plots
-
-        write_compare_plots(runs, tmp)
-        table = format_table(rows)
-        feed = "" if ff else " (no feedforward)"
-        atomic_write_text(tmp / "comparison.md",
-                          f"# {sc.name}: {sc.title}{feed}\n\nSource: {sc.source}\n\n{table}\n")
-        write_json(rows, tmp / "comparison.json")
-    return rows
-
-
-def run_teleop(sc, out, orientation_error=None, preload=None, plots: bool = True, quiet: bool = False):
-    """A seed 003 run: ``metrics.json``, ``timeseries.csv``, plots; returns ``(log, metrics)``."""
-    from .scenarios.teleop import TELEOP
-
-    exp = TELEOP.experiment(sc, orientation_error=orientation_error, preload=preload)
-    with staged_dir(out) as tmp:
-        t0 = time.perf_counter()
-        log = exp.run(progress=None if quiet else _progress(sc.name))
-        metrics = exp.metrics(log)
-        metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-        write_columns(*log.table(exp.csv_channels), tmp / "timeseries.csv")
-        if plots:
-            from .report.teleop_plots import write_teleop_plots
-
-            write_teleop_plots(log, tmp)
-        write_metrics(metrics, tmp / "metrics.json")
-    if not quiet:
-        print(f"\r  {sc.name}: done in {metrics['wall_time_s']:.1f} s -> {out}", file=sys.stderr)
-    return log, metrics

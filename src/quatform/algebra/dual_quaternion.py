@@ -35,7 +35,7 @@ from .validate import (
     as_unit_quaternion,
     divide_by_dual_norm,
 )
-from .quaternion import _dot, _nonzero_norm, _norm3, _sinc, qcanonical, qconj, qexp, qlog, qmul, qrotate
+from .quaternion import dot_last, nonzero_norm, norm3, sinc, qcanonical, qconj, qexp, qlog, qmul, qrotate
 
 __all__ = [
     "DQ_IDENTITY",
@@ -113,7 +113,7 @@ def dqconj_combined(dq) -> np.ndarray:
 
 
 def _primary_norm(r, name):
-    return _nonzero_norm(r, name, "a zero primary part", "such a dual quaternion has no norm, inverse or pose")
+    return nonzero_norm(r, name, "a zero primary part", "such a dual quaternion has no norm, inverse or pose")
 
 
 def dqnorm(dq) -> np.ndarray:
@@ -131,7 +131,7 @@ def dqnorm(dq) -> np.ndarray:
     """
     dq = as_dual_quaternion(dq)
     n = _primary_norm(dq[..., :4], "dq")
-    return np.stack([n, _dot(dq[..., :4], dq[..., 4:]) / n], axis=-1)
+    return np.stack([n, dot_last(dq[..., :4], dq[..., 4:]) / n], axis=-1)
 
 
 def dqnormalize(dq) -> np.ndarray:
@@ -158,7 +158,7 @@ def dqinv(dq) -> np.ndarray:
     r, d = dq[..., :4], dq[..., 4:]
     n2 = (_primary_norm(r, "dq") ** 2)[..., None]
     rc, dc = r * _QCONJ, d * _QCONJ
-    return _join(rc / n2, dc / n2 - 2.0 * _dot(r, d)[..., None] * rc / (n2 * n2))
+    return _join(rc / n2, dc / n2 - 2.0 * dot_last(r, d)[..., None] * rc / (n2 * n2))
 
 
 def _c(a):
@@ -191,9 +191,9 @@ def dqexp(h) -> np.ndarray:
     """
     h = as_dual_quaternion(h, "h")
     phi, psi = h[..., 1:4], h[..., 5:8]
-    a = _norm3(phi)
-    sa = _sinc(a)
-    pp = _dot(phi, psi)
+    a = norm3(phi)
+    sa = sinc(a)
+    pp = dot_last(phi, psi)
     out = np.empty(h.shape)
     out[..., 0] = np.cos(a)
     out[..., 1:4] = sa[..., None] * phi
@@ -246,7 +246,7 @@ def dqlog(dq, shortest: bool = False) -> np.ndarray:
         dq = _flip_to_shortest(dq)
     r, d = dq[..., :4], dq[..., 4:]
     # For unit r: sin a = |r_v| and cos a = r_w exactly, with a = atan2(|r_v|, r_w) in [0, pi].
-    sin_a = _norm3(r[..., 1:])
+    sin_a = norm3(r[..., 1:])
     cos_a = r[..., 0]
     a = np.arctan2(sin_a, cos_a)
     dv = d[..., 1:]
@@ -258,10 +258,10 @@ def dqlog(dq, shortest: bool = False) -> np.ndarray:
     at_minus_one = (sin_a < _SIN_FLOOR) & (cos_a < 0.0)
     has_axis = has_axis & ~at_minus_one
     if np.any(at_minus_one):
-        dvn = _norm3(dv)
+        dvn = norm3(dv)
         along = np.where((dvn > 0.0)[..., None], dv / np.where(dvn > 0.0, dvn, 1.0)[..., None], [1.0, 0.0, 0.0])
         n = np.where(at_minus_one[..., None], along, n)
-    dvn_par = _dot(dv, n)
+    dvn_par = dot_last(dv, n)
     s = -d[..., 0] * sin_a + dvn_par * cos_a
     ratio = a / np.where(has_axis, sin_a, 1.0)
     # The part of d_v across the axis, as n x (d_v x n): exactly orthogonal to n even where
@@ -438,4 +438,4 @@ def dq_closest(dq, ref) -> np.ndarray:
     """``dq`` or ``-dq``, whichever primary part is closer to ``ref``'s (``r . r_ref >= 0``)."""
     dq = as_dual_quaternion(dq)
     ref = as_dual_quaternion(ref, "ref")
-    return np.where((_dot(dq[..., :4], ref[..., :4]) < 0.0)[..., None], -dq, dq)
+    return np.where((dot_last(dq[..., :4], ref[..., :4]) < 0.0)[..., None], -dq, dq)

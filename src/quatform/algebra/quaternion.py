@@ -46,11 +46,12 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 _CONJ = np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def _dot(a, b):
+def dot_last(a, b):
+    """Dot products over the last axis of two arrays ``(..., k)``: shape ``(...)``."""
     return np.einsum("...i,...i->...", a, b)
 
 
-def _norm3(v):
+def norm3(v):
     """Euclidean norm over the last axis of ``(..., 3)`` without under- or overflow.
 
     ``sqrt(x^2 + y^2 + z^2)`` turns subnormal below ``|v| ~ 1e-154`` and loses relative
@@ -86,12 +87,12 @@ def qconj(q) -> np.ndarray:
 def qnorm(q) -> np.ndarray:
     """Euclidean norm ``||q|| = sqrt(q q*)`` (seed 001 eq. (2.19)). Shape (...)."""
     q = as_quaternion(q)
-    return np.sqrt(_dot(q, q))
+    return np.sqrt(dot_last(q, q))
 
 
-def _nonzero_norm(q, name, what="a zero quaternion", why="its direction is undefined - supply a nonzero quaternion"):
-    """Norms of ``q`` over the last axis; DegenerateInputError naming the first zero."""
-    n = np.sqrt(_dot(q, q))
+def nonzero_norm(q, name, what="a zero quaternion", why="its direction is undefined - supply a nonzero quaternion"):
+    """Norms of ``q`` ``(..., k)`` over the last axis, shape ``(...)``; DegenerateInputError naming the first zero."""
+    n = np.sqrt(dot_last(q, q))
     if np.any(n == 0.0):
         raise DegenerateInputError(f"{name} has {what} at index {tuple(np.argwhere(n == 0.0)[0])}; {why}")
     return n
@@ -106,7 +107,7 @@ def qnormalize(q) -> np.ndarray:
         If some ``q`` is zero.
     """
     q = as_quaternion(q)
-    return q / _nonzero_norm(q, "q")[..., None]
+    return q / nonzero_norm(q, "q")[..., None]
 
 
 def qinv(q) -> np.ndarray:
@@ -118,12 +119,12 @@ def qinv(q) -> np.ndarray:
         If some ``q`` is zero.
     """
     q = as_quaternion(q)
-    n = _nonzero_norm(q, "q")
+    n = nonzero_norm(q, "q")
     return q * _CONJ / (n * n)[..., None]
 
 
-def _sinc(a):
-    """``sin(a) / a`` with the limit 1 at 0."""
+def sinc(a):
+    """``sin(a) / a`` with the limit 1 at 0 (elementwise, ``a`` in rad)."""
     return np.sinc(a / np.pi)
 
 
@@ -142,11 +143,11 @@ def qexp(q) -> np.ndarray:
     """
     q = as_quaternion(q)
     v = q[..., 1:]
-    a = _norm3(v)
+    a = norm3(v)
     s = np.exp(q[..., 0])
     out = np.empty(np.broadcast_shapes(q.shape))
     out[..., 0] = s * np.cos(a)
-    out[..., 1:] = (s * _sinc(a))[..., None] * v
+    out[..., 1:] = (s * sinc(a))[..., None] * v
     return out
 
 
@@ -158,7 +159,7 @@ def _log_vector(q):
     ``exp(log q) = q`` still holds.
     """
     v = q[..., 1:]
-    s = _norm3(v)
+    s = norm3(v)
     w = q[..., 0]
     half = np.arctan2(s, w)
     # v / s is the unit axis (finite even for subnormal s); where v = 0 the log's vector is 0.
@@ -195,7 +196,7 @@ def qlog(q, shortest: bool = False) -> np.ndarray:
     to ``-1``). With ``shortest=True`` this point maps to ``0`` instead.
     """
     q = as_quaternion(q)
-    _nonzero_norm(q, "q")
+    nonzero_norm(q, "q")
     if shortest:
         q = qcanonical(q)
     vec, n = _log_vector(q)
@@ -279,7 +280,7 @@ def q_from_axis_angle(axis, angle) -> np.ndarray:
     """
     axis = as_array(axis, "axis", 3)
     angle = as_array(angle, "angle", None)
-    n = np.sqrt(_dot(axis, axis))
+    n = np.sqrt(dot_last(axis, axis))
     bad = (n == 0.0) & (angle != 0.0)
     if np.any(bad):
         raise DegenerateInputError(
@@ -316,7 +317,7 @@ def axis_angle_from_q(q, shortest: bool = False):
     if shortest:
         q = qcanonical(q)
     v = q[..., 1:]
-    s = _norm3(v)
+    s = norm3(v)
     angle = 2.0 * np.arctan2(s, q[..., 0])
     axis = np.where((s > 0.0)[..., None], v / np.where(s > 0.0, s, 1.0)[..., None], [1.0, 0.0, 0.0])
     return axis, angle
@@ -402,7 +403,7 @@ def q_from_matrix(R, tol: float = 1e-6) -> np.ndarray:
         axis=-2,
     )
     q = np.take_along_axis(rows, k[..., None, None], axis=-2)[..., 0, :]
-    return qcanonical(q / np.sqrt(_dot(q, q))[..., None])
+    return qcanonical(q / np.sqrt(dot_last(q, q))[..., None])
 
 
 def qcanonical(q) -> np.ndarray:
@@ -435,7 +436,7 @@ def q_closest(q, ref) -> np.ndarray:
     """
     q = as_quaternion(q)
     ref = as_quaternion(ref, "ref")
-    return np.where((_dot(q, ref) < 0.0)[..., None], -q, q)
+    return np.where((dot_last(q, ref) < 0.0)[..., None], -q, q)
 
 
 def q_continuous(q, axis: int = 0) -> np.ndarray:
@@ -455,7 +456,7 @@ def q_continuous(q, axis: int = 0) -> np.ndarray:
     if ax == q.ndim - 1:
         raise ValueError("axis must index the sequence, not the quaternion components")
     qm = np.moveaxis(q, ax, 0)
-    flips = np.sign(_dot(qm[1:], qm[:-1]))
+    flips = np.sign(dot_last(qm[1:], qm[:-1]))
     flips[flips == 0] = 1.0
     signs = np.concatenate([np.ones((1,) + flips.shape[1:]), np.cumprod(flips, axis=0)])
     return np.moveaxis(qm * signs[..., None], 0, ax)
@@ -464,7 +465,7 @@ def q_continuous(q, axis: int = 0) -> np.ndarray:
 def q_angle(q) -> np.ndarray:
     """Rotation angle of unit quaternions in ``[0, pi]`` (sign of ``q`` irrelevant)."""
     q = as_unit_quaternion(q)
-    return 2.0 * np.arctan2(_norm3(q[..., 1:]), np.abs(q[..., 0]))
+    return 2.0 * np.arctan2(norm3(q[..., 1:]), np.abs(q[..., 0]))
 
 
 def q_angle_between(q1, q2) -> np.ndarray:

@@ -528,12 +528,12 @@ def _continuous_q(R0, R):
 
 def _hermite_gram():
     """``Gamma_kl = int_0^1 h_k'(tau) h_l'(tau) dtau`` for the Hermite basis (p0, v0, p1, v1)."""
-    from .se3 import _HERMITE
+    from .se3 import HERMITE_BASIS
 
     x, wts = np.polynomial.legendre.leggauss(3)
     tau = 0.5 * (x + 1.0)
     dp = np.stack([np.zeros_like(tau), np.ones_like(tau), 2 * tau, 3 * tau**2], axis=-1)
-    h = dp @ _HERMITE  # (nodes, 4)
+    h = dp @ HERMITE_BASIS  # (nodes, 4)
     return 0.5 * np.einsum("q,qk,ql->kl", wts, h, h)
 
 

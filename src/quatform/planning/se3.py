@@ -370,7 +370,7 @@ def projected_rotation_rates(M, M_dot, M_ddot, W, rtol: float = PROJECTION_RTOL)
 
 #: Monomial coefficients (rows: 1, t, t^2, t^3) of the cubic Hermite basis
 #: ``(p0, v0, p1, v1)``: seed 004 eqs. (13)-(14).
-_HERMITE = np.array(
+HERMITE_BASIS = np.array(
     [
         [1.0, 0.0, 0.0, 0.0],
         [0.0, 1.0, 0.0, 0.0],
@@ -453,7 +453,7 @@ class ProjectedCurve:
         ends_d = np.stack([as_array(d0, "d0", 3), T * as_array(d0_dot, "d0_dot", 3), as_array(d1, "d1", 3),
                            T * as_array(d1_dot, "d1_dot", 3)])
         return cls(
-            np.einsum("kj,j...->k...", _HERMITE, ends_m), np.einsum("kj,j...->k...", _HERMITE, ends_d),
+            np.einsum("kj,j...->k...", HERMITE_BASIS, ends_m), np.einsum("kj,j...->k...", HERMITE_BASIS, ends_d),
             _sym(W, "W"), float(w), T,
         )
 

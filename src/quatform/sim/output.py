@@ -1,25 +1,16 @@
-"""Run files: ``timeseries.csv`` and ``metrics.json``, written atomically into staged folders.
-
-Sim layer. The time series holds, for every logged variable, the measured value ``v``
-and the desired ``v_des`` side by side: the robots (``x1 ... theta2``), the controller's
-own cluster variables (quaternion components ``q_c_w, q_c_x, ...``), the Euclidean
-variables recovered from the measurements (prefix ``euclid_``), the commands
-(``u_x1 ...``) and the singularity measure.
+"""Atomic files and staged run folders (sim layer; the writers of :mod:`quatform.report.writers` use them).
 
 Every file is written to a temporary name and renamed into place (:func:`atomic_write_text`),
 so a run cut off by Ctrl-C never leaves a truncated file under its final name. A whole run
 folder is built by :func:`staged_dir` in a hidden sibling folder and swapped into place only
 when the run has finished: an interrupted or failed run leaves the previous folder (or none)
-as it was. ``metrics.json`` is strict JSON (:func:`strict_json`): a NaN or infinite value is
-written as ``null`` and named under ``nonfinite_values``.
+as it was.
 """
 
 from __future__ import annotations
 
 import contextlib
-import io
 import json
-import math
 import os
 import re
 import shutil
@@ -27,106 +18,8 @@ import signal
 import threading
 from pathlib import Path
 
-import numpy as np
 
-
-__all__ = ["timeseries_columns", "write_columns", "write_timeseries", "write_metrics", "write_json",
-           "strict_json", "atomic_write_text", "atomic_write_bytes", "staged_dir", "OUTPUT_MARKER"]
-
-
-def timeseries_columns(log, channels) -> tuple[list[str], np.ndarray]:
-    """Column names (``t`` first) and the ``(T, n)`` array of one world's log, for a CSV file.
-
-    Parameters
-    ----------
-    log : Log
-        One world (``log.world(i)`` of a batched log).
-    channels : sequence
-        File order (a kind's ``Experiment.csv_channels``, e.g.
-        :data:`quatform.scenarios.pair.PAIR_CSV_CHANNELS`): each item a channel name (its
-        columns as they are) or a tuple of channels of one width whose columns are
-        interleaved (``("state", "r_des")`` -> ``x1, x1_des, y1, y1_des, ...``).
-    """
-    names, cols = ["t"], [log.t[:, None]]
-    for item in channels:
-        group = (item,) if isinstance(item, str) else tuple(item)
-        widths = {len(log.columns(name)) for name in group}
-        if len(widths) != 1:
-            from ..errors import InvalidInputError
-
-            raise InvalidInputError(f"timeseries: interleaved channels {group} have different widths "
-                                    f"{[len(log.columns(n)) for n in group]}; interleave channels of one width")
-        for i in range(widths.pop()):
-            for name in group:
-                names.append(log.columns(name)[i])
-                cols.append(np.asarray(log[name], dtype=float)[:, i:i + 1])
-    return names, np.hstack(cols)
-
-
-def write_columns(names, data, path) -> Path:
-    """A CSV file with a header row ``names`` and the ``(T, n)`` array ``data`` (9 digits).
-
-    Written atomically (a temporary file renamed into place).
-    """
-    buf = io.StringIO()
-    np.savetxt(buf, data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
-    return atomic_write_text(path, buf.getvalue())
-
-
-def write_timeseries(log, path, channels) -> Path:
-    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_columns`."""
-    return write_columns(*timeseries_columns(log, channels), path)
-
-
-# --------------------------------------------------------------------------- strict JSON
-
-def _finite(obj, where: str, bad: dict):
-    """``obj`` with numpy values made plain and every NaN/inf replaced by ``None`` (noted in ``bad``)."""
-    if isinstance(obj, np.ndarray):
-        obj = obj.tolist()
-    elif isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float):
-        if math.isfinite(obj):
-            return obj
-        bad[where or "value"] = "nan" if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
-        return None
-    if isinstance(obj, dict):
-        return {str(k): _finite(v, f"{where}.{k}" if where else str(k), bad) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v, f"{where}[{i}]", bad) for i, v in enumerate(obj)]
-    return obj
-
-
-def strict_json(obj) -> str:
-    """``obj`` as strict JSON text (RFC 8259: no ``NaN``, ``Infinity``), indented, one trailing newline.
-
-    A NaN or infinite number becomes ``null``. In a dict (a ``metrics.json``) the replaced
-    values are named under the added key ``nonfinite_values``, ``{"key.sub[0]": "inf" | "-inf" |
-    "nan"}``, so a ``null`` that means "did not happen" (e.g. ``first_singular_time_s``) is
-    told apart from one that was not finite. In a list of dicts (``comparison.json``) each
-    dict gets its own ``nonfinite_values``. NumPy scalars and arrays are written as numbers and
-    lists.
-    """
-    def one(d):
-        bad: dict = {}
-        clean = _finite(d, "", bad)
-        if bad and isinstance(clean, dict):
-            clean["nonfinite_values"] = {**clean.get("nonfinite_values", {}), **bad}
-        return clean
-
-    clean = [one(d) for d in obj] if isinstance(obj, (list, tuple)) else one(obj)
-    return json.dumps(clean, indent=2, allow_nan=False) + "\n"
-
-
-def write_json(obj, path) -> Path:
-    """:func:`strict_json` of ``obj`` written atomically to ``path``."""
-    return atomic_write_text(path, strict_json(obj))
-
-
-def write_metrics(metrics: dict, path) -> Path:
-    """``metrics.json``: strict JSON (non-finite values as ``null``, see :func:`strict_json`), atomic."""
-    return write_json(metrics, path)
+__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "OUTPUT_MARKER"]
 
 
 # --------------------------------------------------------------------------- atomic files

@@ -1,0 +1,131 @@
+"""The writers of a run's files: ``timeseries.csv`` from a Log, strict ``metrics.json``.
+
+Report layer (above scenarios, below runs and the CLI). One writer serves every scenario
+kind: :func:`write_timeseries` writes any :class:`~quatform.sim.log.Log` (the channels a
+kind names, in its order, with the log's own column names), :func:`write_metrics` and
+:func:`write_json` any metrics dict or list of rows. A new output format (MCAP, Parquet ...)
+is a new function here reading the same Log.
+
+Every file is written to a temporary name and renamed into place
+(:func:`quatform.sim.output.atomic_write_text`), so a run cut off by Ctrl-C never leaves a
+truncated file under its final name. JSON is strict (:func:`strict_json`): a NaN or infinite
+value is written as ``null`` and named under ``nonfinite_values``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..sim.output import atomic_write_text
+
+__all__ = ["write_timeseries", "timeseries_table", "write_columns", "write_metrics", "write_json", "strict_json"]
+
+
+def write_columns(names, data, path) -> Path:
+    """A CSV file with a header row ``names`` and the ``(T, n)`` array ``data`` (9 digits).
+
+    Parameters
+    ----------
+    names : sequence of str, length n
+        Header.
+    data : array_like, shape (T, n)
+    path : path-like
+
+    Written atomically (a temporary file renamed into place).
+    """
+    buf = io.StringIO()
+    np.savetxt(buf, np.asarray(data, dtype=float), delimiter=",", header=",".join(names), comments="",
+               fmt="%.9g")
+    return atomic_write_text(path, buf.getvalue())
+
+
+def timeseries_table(log, channels=None) -> tuple[list[str], np.ndarray]:
+    """Column names (``t`` first) and the ``(T, n)`` array of one world's log, for a CSV file.
+
+    Parameters
+    ----------
+    log : quatform.sim.log.Log
+        One world (``log.world(i)`` of a batched log).
+    channels : sequence, optional
+        File order (a kind's ``Experiment.csv_channels``): each item a channel name (its
+        columns as they are) or a tuple of channel names of equal width, whose columns are
+        interleaved (``("state", "r_des")`` -> ``x1, x1_des, y1, y1_des, ...``: each value
+        beside its desired one). Default: every channel, in the log's order.
+    """
+    if channels is None:
+        return log.table()
+    names, cols = ["t"], [log.t[:, None]]
+    for item in channels:
+        group = (item,) if isinstance(item, str) else tuple(item)
+        widths = {len(log.columns(name)) for name in group}
+        if len(widths) != 1:
+            raise InvalidInputError(f"timeseries: interleaved channels {group} have different widths "
+                                    f"{[len(log.columns(n)) for n in group]}; interleave channels of one width")
+        for i in range(widths.pop()):
+            for name in group:
+                names.append(log.columns(name)[i])
+                cols.append(np.asarray(log[name], dtype=float)[:, i:i + 1])
+    return names, np.hstack(cols)
+
+
+def write_timeseries(log, path, channels=None) -> Path:
+    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_table` (``t``,
+    then ``channels`` in order, 9 digits), written atomically."""
+    return write_columns(*timeseries_table(log, channels), path)
+
+
+# --------------------------------------------------------------------------- strict JSON
+
+def _finite(obj, where: str, bad: dict):
+    """``obj`` with numpy values made plain and every NaN/inf replaced by ``None`` (noted in ``bad``)."""
+    if isinstance(obj, np.ndarray):
+        obj = obj.tolist()
+    elif isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float):
+        if math.isfinite(obj):
+            return obj
+        bad[where or "value"] = "nan" if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
+        return None
+    if isinstance(obj, dict):
+        return {str(k): _finite(v, f"{where}.{k}" if where else str(k), bad) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v, f"{where}[{i}]", bad) for i, v in enumerate(obj)]
+    return obj
+
+
+def strict_json(obj) -> str:
+    """``obj`` as strict JSON text (RFC 8259: no ``NaN``, ``Infinity``), indented, one trailing newline.
+
+    A NaN or infinite number becomes ``null``. In a dict (a ``metrics.json``) the replaced
+    values are named under the added key ``nonfinite_values``, ``{"key.sub[0]": "inf" | "-inf" |
+    "nan"}``, so a ``null`` that means "did not happen" (e.g. ``first_singular_time_s``) is
+    told apart from one that was not finite. In a list of dicts (``comparison.json``) each
+    dict gets its own ``nonfinite_values``. NumPy scalars and arrays are written as numbers and
+    lists.
+    """
+    def one(d):
+        bad: dict = {}
+        clean = _finite(d, "", bad)
+        if bad and isinstance(clean, dict):
+            clean["nonfinite_values"] = {**clean.get("nonfinite_values", {}), **bad}
+        return clean
+
+    clean = [one(d) for d in obj] if isinstance(obj, (list, tuple)) else one(obj)
+    return json.dumps(clean, indent=2, allow_nan=False) + "\n"
+
+
+def write_json(obj, path) -> Path:
+    """:func:`strict_json` of ``obj`` written atomically to ``path``."""
+    return atomic_write_text(path, strict_json(obj))
+
+
+def write_metrics(metrics: dict, path) -> Path:
+    """``metrics.json``: strict JSON (non-finite values as ``null``, see :func:`strict_json`), atomic."""
+    return write_json(metrics, path)
