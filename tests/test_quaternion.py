@@ -198,3 +198,15 @@ def test_incompatible_batches_raise_shape_error():
 
     with pytest.raises(ShapeError, match="do not broadcast"):
         qmul(np.ones((2, 4)), np.ones((3, 4)))
+
+
+def test_log_of_a_subnormal_vector_part_has_a_unit_axis():
+    """q = (-1, 0, 5e-324, 5e-324): the vector's norm rounds to 5e-324, and v / |v| was
+    (0, 1, 1), not unit, so qpow(q, 2) came out as (-0.86, 0, 0.36, 0.36) (hypothesis found it)."""
+    from quatform.algebra import qexp, qlog
+
+    q = np.array([-1.0, 0.0, 5e-324, 5e-324])
+    v = qlog(q)[1:]
+    assert abs(np.linalg.norm(v) - np.pi) < 1e-12
+    np.testing.assert_allclose(qexp(qlog(q)), q, atol=1e-12)
+    np.testing.assert_allclose(qpow(q, 2), qmul(q, q), atol=1e-12)

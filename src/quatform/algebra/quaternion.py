@@ -162,8 +162,12 @@ def _log_vector(q):
     s = norm3(v)
     w = q[..., 0]
     half = np.arctan2(s, w)
-    # v / s is the unit axis (finite even for subnormal s); where v = 0 the log's vector is 0.
-    axis = v / np.where(s > 0.0, s, 1.0)[..., None]
+    # The unit axis: v scaled by its largest component first (exact, into [-1, 1]), then
+    # normalised, so a subnormal v (whose norm rounds to a multiple of 5e-324) still gives a
+    # unit axis; where v = 0 the log's vector is 0.
+    big = np.max(np.abs(v), axis=-1)
+    u = v / np.where(big > 0.0, big, 1.0)[..., None]
+    axis = u / np.where(big > 0.0, norm3(u), 1.0)[..., None]
     out = half[..., None] * axis
     neg_real = (s == 0.0) & (w < 0.0)
     if np.any(neg_real):

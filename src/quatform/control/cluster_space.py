@@ -73,6 +73,8 @@ class ClusterSpaceController(ClusterController):
     feedforward: bool = True
     formation: Formation = field(default_factory=EuclideanPair, init=False)
     law: BlockLaw = field(default=None, init=False)
+    checks: tuple = field(default=(), init=False)
+    filters: tuple = field(default=(), init=False)
     name = "cluster-space"
 
     def __post_init__(self):
@@ -96,6 +98,7 @@ class RobotSpaceController(ClusterController):
     formation: Formation = field(default_factory=RobotSpace, init=False)
     law: BlockLaw = field(default=None, init=False)
     checks: tuple = field(default=(_robots_apart,), init=False)
+    filters: tuple = field(default=(), init=False)
     name = "robot-space"
 
     def __post_init__(self):

@@ -208,6 +208,7 @@ class QuaternionController(ClusterController):
     formation: Formation = field(default_factory=QuaternionPair, init=False)
     law: BlockLaw = field(default=None, init=False)
     checks: tuple = field(default=(_quaternion_reference,), init=False)
+    filters: tuple = field(default=(), init=False)
     name = "quaternion"
 
     def __post_init__(self):
@@ -240,6 +241,7 @@ class DualQuaternionController(ClusterController):
     formation: Formation = field(default_factory=DualQuaternionPair, init=False)
     law: BlockLaw = field(default=None, init=False)
     checks: tuple = field(default=(_dual_quaternion_reference,), init=False)
+    filters: tuple = field(default=(), init=False)
     name = "dual-quaternion"
 
     def __post_init__(self):
