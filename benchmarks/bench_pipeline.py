@@ -49,7 +49,7 @@ OFFSET_SCALE = np.array([0.2, 0.2, 0.2, 0.3, 0.3, 0.1, 0.3, 0.3])
 
 _OLD = """
 import json, sys, time
-from quatform.scenarios import load_scenario
+from quatform.sim import load_scenario  # the old revision's API
 from quatform.sim import simulate
 sc, best = load_scenario("mas-kitts-spiral"), {}
 for c in sys.argv[2:]:

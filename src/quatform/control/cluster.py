@@ -74,17 +74,37 @@ class ClusterController(Controller):
 
     def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
+        if not F.component_kernels:
+            return self._control_arrays(r, c_des, c_dot_des)
         rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
         for check in self.checks:
             check(cd)
         c, rc = F.forward_components(rc, cd)  # the reference's branch (near_c)
         err, rate = self.law(c, cd, cdd, F.error_components(c, cd) if F.wraps_angles else None)
         r_dot = F.robot_rate_components(c, rate, rc)
+        return c, err, self._actuate(rc, r_dot)
+
+    def _control_arrays(self, r, c_des, c_dot_des):
+        """The chain on arrays, for a description without component kernels (the Euclidean
+        ones: forward kinematics and the dense inverse Jacobian of seed 000 Fig. 2)."""
+        F = self.formation
+        r, c_des, c_dot_des = (np.asarray(a, dtype=float) for a in (r, c_des, c_dot_des))
+        cd = kern.unpack(c_des)
+        for check in self.checks:
+            check(cd)
+        c = F.forward(r, near_c=c_des)
+        e = kern.unpack(F.errors(c, c_des)) if F.wraps_angles else None
+        err, rate = self.law(kern.unpack(c), cd, kern.unpack(c_dot_des), e)
+        r_dot = np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), kern.pack(rate))
+        return c, err, self._actuate(r, r_dot)
+
+    def _actuate(self, r, r_dot):
+        """The team's commands for the robot rates (the rates themselves for holonomic robots)."""
         if self.team.passthrough:
-            return c, err, r_dot
-        r_arr = kern.pack(rc)
+            return r_dot
+        r_arr = kern.pack(r)
         u, _ = self.team.actuate(r_arr, kern.pack(r_dot), 0.0, self.team.initial_memory(np.shape(r_arr)[:-1]))
-        return c, err, u
+        return u
 
 
 def _comps(a):

@@ -277,6 +277,11 @@ class Formation(ABC):
 
     # -- helpers ----------------------------------------------------------------------
     # -- the controllers' component path ---------------------------------------------------
+    #: Whether the description overrides :meth:`forward_components` and
+    #: :meth:`robot_rate_components` with component kernels (then a controller runs on
+    #: floats for one formation); otherwise a controller runs on arrays.
+    component_kernels = False
+
     def forward_components(self, rc, near_c):
         """Measured cluster state for a controller: ``(c, rc)`` as tuples of components
         (Python floats for one formation, arrays for a batch), with ``rc`` the robot state

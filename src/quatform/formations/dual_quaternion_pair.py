@@ -115,6 +115,8 @@ class DualQuaternionPair(Formation):
         rr = kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h))
         return kern.pack(kern.dq_forward(rr, h[0:4]))
 
+    component_kernels = True
+
     def forward_components(self, rc, near_c):
         """Eqs. (26)-(27) on components for a controller: the measured yaws moved by whole
         turns onto ``near_c``'s branch (each within pi of the desired robot's, the shape's

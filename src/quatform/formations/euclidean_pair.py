@@ -186,6 +186,27 @@ class EuclideanPair(Formation):
         v = np.stack([cd[..., 0:3] + half, cd[..., 0:3] - half], axis=-2)
         return self.layout.compose(v, np.stack([cd[..., 3] + cd[..., 6], cd[..., 3] + cd[..., 7]], axis=-1))
 
+    def inverse_jacobian_at(self, c, *, r=None):
+        """The dense derivative of :meth:`inverse` at ``c``, ``(..., 8, 8)``, in closed form
+        (the columns of :meth:`robot_rate`, eqs. (4)-(8), written out: the cluster-space
+        controller of seed 000 Fig. 2 applies this matrix every step, and building it from
+        the rate map on the identity basis costs twice as much for one state). Rank 7 at a
+        vertical segment."""
+        c = np.asarray(c, dtype=float)
+        u = segment_direction(c[..., 3], c[..., 4])
+        u_b, u_g = _direction_partials(c[..., 3], c[..., 4])
+        d = c[..., 5:6]
+        Ji = np.zeros(c.shape[:-1] + (8, 8))
+        eye = np.eye(3)
+        for rows, s in ((slice(0, 3), 1.0), (slice(4, 7), -1.0)):  # p1, p2 = x_c +- d_c u
+            Ji[..., rows, 0:3] = eye
+            Ji[..., rows, 3] = s * d * u_b
+            Ji[..., rows, 4] = s * d * u_g
+            Ji[..., rows, 5] = s * u
+        Ji[..., 3, 3] = Ji[..., 3, 6] = 1.0  # theta_1 = beta_c + phi_1
+        Ji[..., 7, 3] = Ji[..., 7, 7] = 1.0  # theta_2 = beta_c + phi_2
+        return Ji
+
     def special_sets(self):
         return sp.pair_sets("beta_c = atan2(-dx, dy) of eq. (4) is atan2(0, 0) with one robot straight above the "
                             "other: held at near_c's; its rate is undefined", jacobian="raises",
@@ -243,6 +264,11 @@ class RobotSpace(Formation):
         c = self.check_robot_state(c, "c")
         c_dot = as_array(c_dot, "c_dot", 8)
         return np.broadcast_to(c_dot, np.broadcast_shapes(c.shape, c_dot.shape)).copy()
+
+    def inverse_jacobian_at(self, c, *, r=None):
+        """The identity (robot space is its own cluster space), ``(..., 8, 8)``."""
+        c = self.check_robot_state(c, "c")
+        return np.broadcast_to(np.eye(8), c.shape[:-1] + (8, 8)).copy()
 
     def length_scale(self, r):
         return np.ones(np.shape(r)[:-1])

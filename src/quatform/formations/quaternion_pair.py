@@ -80,6 +80,8 @@ class QuaternionPair(Formation):
             out = kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16])
         return kern.pack(out)
 
+    component_kernels = True
+
     def forward_components(self, rc, near_c):
         """Eqs. (10)-(15) on components, the twists of ``q_c``, ``q_c1``, ``q_c2`` from
         ``near_c`` (the controller's reference): ``(c, rc)``."""

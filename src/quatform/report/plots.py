@@ -29,6 +29,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 
 from ..algebra import wrap_angle
 from ..formations import EUCLIDEAN_VARIABLES
+from ..formations.base import PAIR_LAYOUT
 from ..papers import with_names
 from ..sim import Log, errors_from_robots
 from ..sim.metrics import SINGULAR_THRESHOLD
@@ -276,11 +277,11 @@ def plot_paths_3d(run: Log, path, n_segments: int = 10) -> Path:
     ax = fig.add_subplot(projection="3d")
     idx = decimate(r.shape[0])
     ks = np.unique(np.linspace(0, r.shape[0] - 1, max(1, int(n_segments)) + 1).round().astype(int))
+    P, P_d = PAIR_LAYOUT.positions(r), PAIR_LAYOUT.positions(rd)  # (T, 2, 3)
     for k in ks:  # first, so the paths are drawn over them
-        seg = np.stack([r[k, 0:3], r[k, 4:7]])
-        ax.plot(*seg.T, color="0.6", lw=0.8, alpha=0.8)
-    for i, (sl, color) in enumerate(((slice(0, 3), "C0"), (slice(4, 7), "C1")), start=1):
-        p, pd = r[:, sl], rd[:, sl]
+        ax.plot(*P[k].T, color="0.6", lw=0.8, alpha=0.8)
+    for i, color in enumerate(("C0", "C1"), start=1):
+        p, pd = P[:, i - 1], P_d[:, i - 1]
         ax.plot(*p[idx].T, color=color, lw=1.4, ls="-", label=f"robot {i} measured")
         ax.plot(*pd[idx].T, color=color, lw=1.0, ls="--", alpha=0.8, label=f"robot {i} desired")
         ax.scatter(*p[0], color=color, marker="o", s=40, depthshade=False)
@@ -290,7 +291,7 @@ def plot_paths_3d(run: Log, path, n_segments: int = 10) -> Path:
                 Line2D([], [], color="k", marker="o", ls="none", label="start (measured)"),
                 Line2D([], [], color="k", marker="s", mfc="none", ls="none", label="start (desired)")]
     ax.legend(handles=handles, fontsize=8, loc="upper left")
-    set_equal_3d(ax, np.concatenate([r[:, 0:3], r[:, 4:7], rd[:, 0:3], rd[:, 4:7]]))
+    set_equal_3d(ax, np.concatenate([P.reshape(-1, 3), P_d.reshape(-1, 3)]))
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
         axis.set_major_locator(MaxNLocator(5))
         axis.set_tick_params(labelsize=8)
@@ -306,8 +307,9 @@ def plot_paths_3d(run: Log, path, n_segments: int = 10) -> Path:
 @np.errstate(invalid="ignore", divide="ignore")
 def _compare_signals(run: Log) -> dict:
     r, rd = np.asarray(run["state"]), np.asarray(run["r_des"])
-    d_mid = 0.5 * (r[:, 0:3] + r[:, 4:7]) - 0.5 * (rd[:, 0:3] + rd[:, 4:7])
-    D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)
+    P, P_d = PAIR_LAYOUT.positions(r), PAIR_LAYOUT.positions(rd)
+    d_mid = 0.5 * (P[:, 0] + P[:, 1]) - 0.5 * (P_d[:, 0] + P_d[:, 1])
+    D = PAIR_LAYOUT.separations(r)[:, 0]
     return {
         "x_c": d_mid[:, 0],
         "y_c": d_mid[:, 1],
@@ -417,7 +419,7 @@ def plot_separation(runs, path) -> Path:
     for j, run in enumerate(runs):
         idx = decimate(run.t.size)
         r = finite(run["state"])
-        D = np.linalg.norm(r[:, 0:3] - r[:, 4:7], axis=1)  # NaN where a robot is not finite
+        D = PAIR_LAYOUT.separations(r)[:, 0]  # NaN where a robot is not finite
         ax.plot(run.t[idx], D[idx], color=f"C{j}", lw=1.2, label=run.meta["controller"])
     first = runs[0]
     idx = decimate(first.t.size)

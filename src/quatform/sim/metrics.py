@@ -17,6 +17,7 @@ import numpy as np
 from ..algebra import wrap_angle
 from ..errors import InvalidInputError, ShapeError
 from ..formations import segment_direction
+from ..formations.base import PAIR_LAYOUT
 from .log import Log
 
 __all__ = ["compute_metrics", "errors_from_robots", "SINGULAR_THRESHOLD", "LOST_POSITION_M", "LOST_ANGLE_RAD"]
@@ -43,9 +44,10 @@ def errors_from_robots(log: Log) -> dict:
     the recovered Euclidean variables, rad).
     """
     r, rd, e, e_des = log["state"], log["r_des"], log["e"], log["e_des"]
-    mid = 0.5 * (r[:, 0:3] + r[:, 4:7])
-    mid_d = 0.5 * (rd[:, 0:3] + rd[:, 4:7])
-    delta = r[:, 0:3] - r[:, 4:7]
+    p, p_d = PAIR_LAYOUT.positions(r), PAIR_LAYOUT.positions(rd)  # (T, 2, 3)
+    mid = 0.5 * (p[:, 0] + p[:, 1])
+    mid_d = 0.5 * (p_d[:, 0] + p_d[:, 1])
+    delta = p[:, 0] - p[:, 1]
     D = np.linalg.norm(delta, axis=1)
     u = delta / D[:, None]
     u_d = segment_direction(e_des[:, 3], e_des[:, 4])
@@ -53,9 +55,8 @@ def errors_from_robots(log: Log) -> dict:
         "cluster_position": np.linalg.norm(mid - mid_d, axis=1),
         "shape": np.abs(0.5 * D - e_des[:, 5]),
         "orientation": np.arccos(np.clip(np.einsum("ij,ij->i", u, u_d), -1.0, 1.0)),
-        "robot_position": np.maximum(np.linalg.norm(r[:, 0:3] - rd[:, 0:3], axis=1),
-                                     np.linalg.norm(r[:, 4:7] - rd[:, 4:7], axis=1)),
-        "robot_yaw": np.maximum(np.abs(wrap_angle(r[:, 3] - rd[:, 3])), np.abs(wrap_angle(r[:, 7] - rd[:, 7]))),
+        "robot_position": np.max(np.linalg.norm(p - p_d, axis=-1), axis=-1),
+        "robot_yaw": np.max(np.abs(wrap_angle(PAIR_LAYOUT.yaws(r) - PAIR_LAYOUT.yaws(rd))), axis=-1),
         "separation": D,
         "recovered_euclidean": np.max(np.abs(wrap_angle(e[:, [3, 4, 6, 7]] - e_des[:, [3, 4, 6, 7]])), axis=1),
     }
@@ -112,6 +113,5 @@ def compute_metrics(log: Log) -> dict:
         "min_robot_separation_m": float(err["separation"].min()),
         "max_recovered_euclidean_error_rad": mx("recovered_euclidean"),
         "nonfinite_commands": int((log["raw_finite"][:, 0] < 0.5).sum()),
-        "max_command_speed_m_s": float(max(np.linalg.norm(u[:, 0:3], axis=1).max(),
-                                            np.linalg.norm(u[:, 4:7], axis=1).max())),
+        "max_command_speed_m_s": float(np.linalg.norm(PAIR_LAYOUT.positions(u), axis=-1).max()),
     }

@@ -34,7 +34,7 @@ def q_from_rotation(R) -> tuple:
     No validation: for matrices that are rotations by construction (products of DH
     transforms). The branch takes the largest of ``4w^2, 4x^2, 4y^2, 4z^2``.
     """
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist() if hasattr(R, "tolist") else R
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist() if isinstance(R, np.ndarray) else R
     c = (1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22)
     k = max(range(4), key=c.__getitem__)
     big = 0.5 * math.sqrt(c[k])
