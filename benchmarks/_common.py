@@ -35,6 +35,16 @@ def best_time(fn: Callable[[], object], repeat: int, min_run: float) -> float:
     return min(timer.repeat(repeat=repeat, number=number)) / number
 
 
+def best_of(fn: Callable[[], object], repeat: int) -> float:
+    """Least wall time, s, of ``repeat`` single calls of ``fn`` (for calls too long to loop)."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 def fmt(value: float) -> str:
     """Three significant digits, no exponent."""
     if value >= 100:

@@ -15,23 +15,14 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import time
 
 import numpy as np
-from _common import fmt, machine_description, optional_import
+from _common import best_of, fmt, machine_description, optional_import
 
 from quatform.scenarios.pair import run_pair, simulate_physics
 from quatform.scenarios import load_scenario
 from quatform.sim.mujoco_backend import INSTALL_HINT
 
-
-def best_of(fn, repeat):
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main(argv=None):

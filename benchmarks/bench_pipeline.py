@@ -35,7 +35,7 @@ import tempfile
 import time
 
 import numpy as np
-from _common import fmt, machine_description
+from _common import best_of, fmt, machine_description
 
 from quatform.control import CONTROLLERS
 from quatform.formations import EuclideanPair
@@ -59,14 +59,6 @@ for c in sys.argv[2:]:
 print(json.dumps(best))
 """
 
-
-def best_of(fn, repeat):
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def old_times(rev: str, repeat: int) -> dict:
