@@ -182,3 +182,31 @@ def test_ugv_uav_step_takes_a_batch_of_worlds():
     assert u.shape == (3, 6)
     for i in range(3):
         np.testing.assert_allclose(u[i], ctrl.step(0.0, m[i], ref), rtol=1e-12, atol=1e-12)
+
+
+def test_step_gives_init_the_measurement_batch_whatever_the_command_width():
+    """``Controller.step`` took the batch from the measured array only when its width was the
+    command width; a controller measuring 3 values and commanding 1 got ``init(())`` for a
+    batch of 2 (its state then had the wrong shape)."""
+    from quatform.control.contract import Controller, Step
+
+    seen = []
+
+    class Narrow(Controller):
+        name = "narrow"
+        command_names = ("u",)
+
+        def signal_columns(self):
+            return {}
+
+        def init(self, batch=()):
+            seen.append(tuple(batch))
+            return np.zeros(tuple(batch) + (1,))
+
+        def update(self, t, measured, reference, state):
+            return Step(state - np.asarray(measured)[..., :1], state, {})
+
+    u = Narrow().step(0.0, np.ones((2, 3)))
+    assert seen == [(2,)] and u.shape == (2, 1)
+    Narrow().step(0.0, np.ones(3))
+    assert seen[-1] == ()

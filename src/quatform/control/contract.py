@@ -51,10 +51,11 @@ class Step:
     signals: Mapping[str, np.ndarray] = field(default_factory=dict)
 
 
-def batch_shape_of(measured, width: int) -> tuple:
-    """Leading batch axes of a measured array whose last axis has ``width`` entries."""
-    shape = np.shape(measured)
-    return tuple(shape[:-1]) if len(shape) >= 1 and shape[-1] == width else ()
+def batch_shape_of(measured) -> tuple:
+    """Leading batch axes of a measured array (all but its last axis); ``()`` for a single
+    measurement or a measurement that is not an array (a value object)."""
+    shape = np.shape(measured) if isinstance(measured, (np.ndarray, list, tuple)) else ()
+    return tuple(shape[:-1])
 
 
 class Controller(ABC):
@@ -86,4 +87,4 @@ class Controller(ABC):
 
     def step(self, t: float, measured, reference=None):
         """Commands for ``measured`` from the initial state (a stateless controller's whole job)."""
-        return self.update(t, measured, reference, self.init(batch_shape_of(measured, len(self.command_names)))).u
+        return self.update(t, measured, reference, self.init(batch_shape_of(measured))).u
