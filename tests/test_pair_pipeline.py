@@ -161,3 +161,26 @@ def test_the_experiment_refuses_a_bad_backend_and_options():
         PAIR.experiment(sc, controller="quaternion", backend="mujoco", physics={"timestep": 1e-3})
     with pytest.raises(InvalidInputError, match="two-robot Scenario"):
         PAIR.experiment("mas-kitts-spiral", controller="quaternion")
+
+
+def test_simulate_refuses_ticks_that_are_not_substeps_times_dt_apart():
+    """The plant advanced ``substeps`` steps of ``dt`` between ticks whatever the ticks said:
+    ticks 10 ms apart with dt = 0.1 ms logged t = 0.1 s for 1 ms of motion, silently."""
+    from quatform.errors import InvalidInputError
+    from quatform.scenarios import load_scenario
+    from quatform.scenarios.pair import PAIR
+    from quatform.sim import simulate
+
+    ex = PAIR.experiment(load_scenario("mas-kitts-yaw-step"), controller="quaternion")
+    args = (ex.plant, ex.controller, ex.reference)
+    with pytest.raises(InvalidInputError, match="evenly spaced"):
+        simulate(*args, ex.times[:11], ex.x0, dt=0.0001)
+    with pytest.raises(InvalidInputError, match="evenly spaced"):
+        simulate(*args, np.array([0.0, 0.01, 0.02, 5.0]), ex.x0, dt=0.01)
+    for bad in (float("nan"), 0.0, -0.01):
+        with pytest.raises(InvalidInputError, match="dt"):
+            simulate(*args, ex.times[:3], ex.x0, dt=bad)
+    log = simulate(*args, ex.times[:11], ex.x0, dt=ex.dt)  # the experiment's own ticks run
+    assert log.t.size == 11
+    with pytest.raises(InvalidInputError, match="no channel"):
+        log.table(["nosuch"])

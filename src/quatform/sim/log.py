@@ -131,11 +131,16 @@ class Log:
 
     def table(self, names=None) -> tuple[list[str], np.ndarray]:
         """Column names (``t`` first) and the ``(T, n)`` array of the channels ``names``
-        (default: all) side by side, for one world; column names are the channels' own."""
+        (default: all) side by side, for one world; column names are the channels' own, so
+        two channels with the same columns (``state`` and ``measured`` of a perfect
+        measurement) repeat them: name the channels to write (the kinds' ``csv_channels``
+        do)."""
         if self.batch_shape:
             raise ShapeError(f"log.table needs one world; this log has batch shape {self.batch_shape} "
                              "(select one with log.world(i))")
         names = list(self.channels) if names is None else list(names)
+        for n in names:
+            self[n]  # an unknown channel: one line naming the channels there are
         cols = ["t"] + [c for n in names for c in self.channels[n].columns]
         data = [self.t[:, None]] + [np.asarray(self[n], dtype=float) for n in names]
         return cols, np.hstack(data) if self.t.size else np.zeros((0, len(cols)))

@@ -23,6 +23,7 @@ Contracts (duck-typed; every object of quatform that plays a role implements the
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -85,6 +86,20 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     n = times.size
     if dt is None:
         dt = float(times[1] - times[0]) / substeps if n > 1 else 0.0
+    elif not (isinstance(dt, (int, float, np.floating)) and not isinstance(dt, bool) and math.isfinite(dt)
+              and dt > 0):
+        raise InvalidInputError(f"simulate: dt = {dt!r} must be a positive finite number of seconds (the plant step)")
+    if not np.all(np.isfinite(times)):
+        raise InvalidInputError("simulate: times must be finite (control ticks in s)")
+    if n > 1:
+        gaps = np.diff(times)
+        tick = substeps * dt
+        if not np.all(np.abs(gaps - tick) <= 1e-9 * max(tick, 1e-300) + 1e-12):
+            worst = float(gaps[np.argmax(np.abs(gaps - tick))])
+            raise InvalidInputError(
+                f"simulate: the control ticks must be evenly spaced by substeps * dt = {substeps} * {dt!r} = "
+                f"{tick!r} s, but one gap is {worst!r} s; give times = t0 + k * substeps * dt (the plant "
+                "advances substeps steps of dt between ticks)")
     x = np.array(x0, dtype=float)
     if x.shape[-1:] != (len(plant.state_columns),):
         raise ShapeError(f"simulate: x0 must have shape (*batch, {len(plant.state_columns)}), got {x.shape}")
