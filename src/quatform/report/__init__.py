@@ -19,15 +19,15 @@ from .plots import (
     write_run_plots,
 )
 
-from .teleop_plots import write_teleop_plots
+from .teleop_plots import write_teleop_compare_plots, write_teleop_plots
 from .ugv_uav_plots import write_ugv_uav_compare_plots, write_ugv_uav_run_plots
 
 #: Figures of each scenario kind, by the kind's name (every registered kind has an entry;
-#: a kind without figures maps to :data:`NO_FIGURES`). Teleoperation compares draw none.
+#: a kind without figures maps to :data:`NO_FIGURES`).
 FIGURES: dict[str, FigureSet] = {
     "pair": FigureSet(write_run_plots, write_compare_plots),
     "ugv-uav": FigureSet(write_ugv_uav_run_plots, write_ugv_uav_compare_plots),
-    "teleop": FigureSet(write_teleop_plots),
+    "teleop": FigureSet(write_teleop_plots, write_teleop_compare_plots),
 }
 
 __all__ = [
