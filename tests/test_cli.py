@@ -124,3 +124,15 @@ def test_ugv_uav_run_and_compare(tmp_path, capsys):
     assert "| restricted | True |" in text and (cmp_dir / "compare_formations.png").exists()
     # a two-robot scenario needs --controller
     assert cli.main(["run", "mas-kitts-yaw-step", "--out", str(tmp_path / "x")]) == 2
+
+
+def test_compare_no_plots_writes_the_table_and_no_figure(tmp_path, capsys):
+    """``compare`` had no --no-plots (``run`` and ``teleop`` had); it draws nothing with it."""
+    toml = tmp_path / "short.toml"
+    toml.write_text('name = "short"\nduration_s = 0.5\nmetrics_from_s = 0.0\n[path]\ncentroid = "fixed"\n'
+                    'center = [0.0, 0.0, 1.0]\nd_c = 1.0\n')
+    out = tmp_path / "cmp"
+    assert cli.main(["compare", str(toml), "--no-plots", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert (out / "comparison.json").exists() and not list(out.rglob("*.png"))
+    assert (out / "quaternion" / "metrics.json").exists() and "compare plots" not in text

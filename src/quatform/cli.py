@@ -162,6 +162,7 @@ def _build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--over", metavar="OPTION", choices=axes,
                       help=f"the option to vary: one of {', '.join(axes)} that the scenario's kind takes "
                       "(default: the kind's compare option)")
+    cmp_.add_argument("--no-plots", action="store_true", help="write metrics, time series and the table only")
     _add_kind_options(cmp_, kinds)
 
     tele = sub.add_parser(
@@ -182,18 +183,19 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _compare(scenario, out, options=None, over=None) -> None:
+def _compare(scenario, out, options=None, over=None, plots=True) -> None:
     from .runs import compare, compare_columns, format_table, given_options
     from .scenarios import kind_of, load_scenario
 
     sc = load_scenario(scenario)
     kind = kind_of(sc)
     options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
-    rows = compare(sc, out, over=over, **options)
+    rows = compare(sc, out, over=over, plots=plots, **options)
     _say_options(kind, options)
     axis = over or kind.compare_over
     print(format_table(rows, compare_columns(kind, axis)))
-    print(f"\nfiles in {out}/ (one folder per {axis.replace('_', ' ')}, the compare plots, comparison.md)")
+    drawn = ", the compare plots" if plots else ""
+    print(f"\nfiles in {out}/ (one folder per {axis.replace('_', ' ')}{drawn}, comparison.md)")
 
 
 def _say_options(kind, options) -> None:
@@ -292,7 +294,8 @@ def _kinds():
 #: What each command does with its parsed arguments.
 COMMANDS = {
     "demo": lambda args: _compare("mas-kitts-spiral", args.out),
-    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over),
+    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over,
+                                     not args.no_plots),
     "run": lambda args: _run(args, _kinds().values()),
     "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),
     "plan": _plan,

@@ -161,7 +161,7 @@ def _suffix(options: dict) -> str:
     return f" ({', '.join(words)})" if words else ""
 
 
-def compare(scenario, out, *, over: str | None = None, quiet: bool = False, **options) -> list:
+def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, **options) -> list:
     """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
     kind's compare figures; write ``comparison.md`` and ``comparison.json``.
 
@@ -172,6 +172,9 @@ def compare(scenario, out, *, over: str | None = None, quiet: bool = False, **op
     out : path-like
     over : str, optional
         The option to vary (default: the kind's ``compare_over``), e.g. ``backend``.
+    plots : bool
+        Draw each run's figures and the compare figures (False: metrics, time series and
+        the table only).
     quiet : bool
     **options
         The other options, fixed for every run.
@@ -197,10 +200,11 @@ def compare(scenario, out, *, over: str | None = None, quiet: bool = False, **op
     with staged_dir(out) as tmp:
         logs, rows = [], []
         for value in own[axis].choices:
-            log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, True, quiet, {**given, axis: value})
+            log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value})
             logs.append(log)
             rows.append({axis: value, **metrics})
-        FIGURES[kind.name].compare(logs, tmp)
+        if plots:
+            FIGURES[kind.name].compare(logs, tmp)
         table = format_table(rows, columns)
         atomic_write_text(tmp / "comparison.md",
                           f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n")
