@@ -17,9 +17,8 @@ import numpy as np
 
 from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import InvalidInputError, NonUnitError, ShapeError
-from ..formations import pair_kernels as kern
 from ..formations.pair_kernels import pack
-from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, Formation, check_magnitude
+from ..formations.base import MAX_MAGNITUDE, Formation, check_magnitude
 from ..robots import Team
 from . import contract
 
@@ -88,12 +87,6 @@ def check_units(comps, starts, dual=False, tol=UNIT_TOLERANCE):
                 f"(norm {float(np.max(np.sqrt(n2))):.9g}); build references with formation.from_euclidean "
                 "or normalise them"
             )
-
-
-def check_separation(r, min_m=MIN_SEPARATION_M):
-    """Raise DegenerateInputError if the two robots of state components ``r`` coincide
-    (:func:`quatform.formations.pair_kernels.check_apart`)."""
-    kern.check_apart(r, min_m)
 
 
 def gains(values, n, name):
@@ -181,7 +174,7 @@ class Controller(contract.Controller):
                              {"cluster": pack(c), "error": pack(err), "raw_finite": finite})
 
     def compute(self, t: float, measured, reference: Reference) -> StepResult:
-        """:meth:`update` as a :class:`StepResult` (for ``sim.loop.closed_loop``'s callers)."""
+        """:meth:`update` as a :class:`StepResult`: the commands and the signals by attribute."""
         s = self.update(t, measured, reference, None)
         ok = s.signals["raw_finite"][..., 0] > 0.5
         return StepResult(s.u, s.signals["cluster"], s.signals["error"], bool(ok) if ok.ndim == 0 else ok)

@@ -117,11 +117,6 @@ def dual_quaternion_law_lyapunov(c, c_des):
     return v
 
 
-def _comps(a):
-    """Components of ``a``: a tuple of floats as it is, an array by ``pair_kernels.unpack``."""
-    return a if isinstance(a, tuple) else kern.unpack(a)
-
-
 def _largest(x):
     """Largest of a float or an array of floats."""
     return x if isinstance(x, float) else float(np.max(x))

@@ -275,7 +275,6 @@ class Formation(ABC):
         zero, take an undefined angle or meet ``q`` versus ``-q``, and what it does there."""
         return ()
 
-    # -- helpers ----------------------------------------------------------------------
     # -- the controllers' component path ---------------------------------------------------
     #: Whether the description overrides :meth:`forward_components` and
     #: :meth:`robot_rate_components` with component kernels (then a controller runs on
@@ -286,14 +285,9 @@ class Formation(ABC):
         """Measured cluster state for a controller: ``(c, rc)`` as tuples of components
         (Python floats for one formation, arrays for a batch), with ``rc`` the robot state
         the cluster state is of (a description may wind its yaws onto ``near_c``'s branch).
-
-        The default goes through :meth:`forward`; the pair descriptions of seed 000
-        override it with their component kernels (no array round trip for one formation).
-        """
-        from .pair_kernels import pack, unpack
-
-        r = np.asarray(pack(rc), dtype=float)
-        return unpack(self.forward(r, near_c=np.asarray(pack(near_c), dtype=float))), rc
+        Only a description with :attr:`component_kernels` offers it."""
+        raise NotImplementedError(f"{type(self).__name__} has no component kernels (component_kernels = False): "
+                                  "a controller runs it on arrays")
 
     def error_components(self, c, c_des):
         """The error components a law reads where the description wraps angles
@@ -311,18 +305,11 @@ class Formation(ABC):
         return any(v.kind == "angle" for v in self.variables)
 
     def robot_rate_components(self, c, c_dot, rc):
-        """:meth:`robot_rate` for a controller, on components: the robot rates that move the
-        cluster state ``c`` (of the robots ``rc``) at ``c_dot``.
-
-        The default applies the dense inverse Jacobian at ``c`` (the matrix of today's
-        cluster-space controller, seed 000 Fig. 2); the pair descriptions override it with
-        their directional derivatives (O(N), no matrix).
-        """
-        from .pair_kernels import pack, unpack
-
-        c_arr, r_arr = np.asarray(pack(c), dtype=float), np.asarray(pack(rc), dtype=float)
-        rate = np.einsum("...ij,...j->...i", self.inverse_jacobian_at(c_arr, r=r_arr), pack(c_dot))
-        return unpack(rate)
+        """:meth:`robot_rate` on components, for a controller (the robot rates that move the
+        cluster state ``c`` of the robots ``rc`` at ``c_dot``). Only a description with
+        :attr:`component_kernels` offers it."""
+        raise NotImplementedError(f"{type(self).__name__} has no component kernels (component_kernels = False): "
+                                  "a controller runs it on arrays")
 
     def align(self, r, r_ref) -> np.ndarray:
         """``r`` with each robot yaw moved by whole turns to within pi of ``r_ref``'s
