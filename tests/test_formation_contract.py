@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from quatform.errors import InvalidInputError
-from quatform.formations import FORMATIONS, Formation, RobotLayout
+from quatform.formations import FORMATIONS, TEAM_FORMATIONS, Formation, RobotLayout, TeamChart
 from quatform.formations.testing import check_formation, cluster_distance
 
 KEYS = sorted(FORMATIONS)
@@ -31,7 +31,8 @@ def test_registry_covers_every_description():
     classes = {obj for obj in vars(pkg).values()
                if isinstance(obj, type) and issubclass(obj, Formation) and obj is not Formation}
     assert classes == {type(F) for F in FORMATIONS.values()}
-    assert len(KEYS) == 7 == len({type(F) for F in FORMATIONS.values()})
+    assert len(KEYS) == len({type(F) for F in FORMATIONS.values()}) >= 8
+    assert {k: type(FORMATIONS[k]) for k in TEAM_FORMATIONS} == TEAM_FORMATIONS  # the team classes, once each
 
 
 @pytest.mark.parametrize("key", KEYS)
@@ -46,7 +47,10 @@ def test_layout_names_the_robot_variables(key):
     F = FORMATIONS[key]
     assert isinstance(F.layout, RobotLayout)
     assert F.robot_variables == F.layout.variables and F.n_r == F.layout.size
-    assert len(F.chart_variables) == (8 if F.layout.n == 2 and F.n_r == 8 else 6)
+    if key in TEAM_FORMATIONS:  # the team chart (formations.team_chart)
+        assert F.chart_variables == TeamChart(F.layout).variables
+    else:
+        assert len(F.chart_variables) == (8 if F.layout.n == 2 and F.n_r == 8 else 6)
 
 
 def test_pair_and_ugv_uav_names_stay():
@@ -59,7 +63,7 @@ def test_pair_and_ugv_uav_names_stay():
 GOLDEN = Path(__file__).parent / "data" / "formation_jacobians.json"
 
 
-@pytest.mark.parametrize("key", KEYS)
+@pytest.mark.parametrize("key", [k for k in KEYS if k not in TEAM_FORMATIONS])
 def test_dense_jacobians_equal_the_matrices_before_the_rate_maps(key):
     """The matrices applied to the unit vectors equal those main built directly before the rate
     maps became the primitive (recorded at 12 states per description), within 1e-12."""

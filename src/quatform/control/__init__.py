@@ -16,6 +16,7 @@ from .quaternion import (
     dual_quaternion_lyapunov,
     quaternion_lyapunov,
 )
+from .team import TEAM_FORMATIONS, TEAM_GAIN_KEYS, TeamController, team_controller, team_lyapunov
 from .ugv_uav import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UgvUavController, UgvUavState
 
 #: Controller classes by command-line name.
@@ -45,4 +46,9 @@ __all__ = [
     "UgvUavState",
     "UGV_UAV_MEASURED_NAMES",
     "UGV_UAV_COMMAND_NAMES",
+    "TeamController",
+    "team_controller",
+    "team_lyapunov",
+    "TEAM_FORMATIONS",
+    "TEAM_GAIN_KEYS",
 ]

@@ -22,6 +22,8 @@ from .euclidean_pair import (
     segment_direction,
 )
 from .quaternion_pair import QuaternionPair
+from .robot_space_team import RobotSpaceTeam
+from .team_chart import LawGroup, TeamChart, default_template, fit_attitude
 from .ugv_uav import (
     SPHERICAL_VARIABLES,
     UGV_UAV_LAYOUT,
@@ -37,7 +39,12 @@ from .ugv_uav import (
 FORMATIONS = {
     **{f.name: f for f in (EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair())},
     **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
+    "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
 }
+
+#: The team descriptions (N robots of any point kinds) by key, as classes:
+#: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
+TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam}
 
 __all__ = [
     "Formation",
@@ -54,6 +61,12 @@ __all__ = [
     "QuaternionPair",
     "DualQuaternionPair",
     "FORMATIONS",
+    "TEAM_FORMATIONS",
+    "RobotSpaceTeam",
+    "TeamChart",
+    "LawGroup",
+    "fit_attitude",
+    "default_template",
     "segment_direction",
     "UgvUavSpherical",
     "UgvUavRestricted",

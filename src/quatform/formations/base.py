@@ -268,7 +268,8 @@ class Formation(ABC):
                 break
             p = np.where(np.any(close, axis=-1)[..., None, None], rng.uniform(-2.0, 2.0, p.shape), p)
         yaws = rng.uniform(-20.0, 20.0, batch + (len(L.yaw_indices),))
-        return L.compose(p, yaws)
+        q = rng.normal(size=batch + (len(L.orientation_index), 4))
+        return L.compose(p, yaws, q / np.linalg.norm(q, axis=-1, keepdims=True))
 
     def special_sets(self) -> tuple[SpecialSet, ...]:
         """The description's special sets (:class:`SpecialSet`): where its formulas divide by
@@ -351,6 +352,6 @@ class Formation(ABC):
         L = self.length_scale(r)[..., None, None]
         p = self.layout.positions(r)
         p = (p - p.mean(axis=-2, keepdims=True)) / L
-        rn = self.layout.compose(p, self.layout.yaws(r))
+        rn = self.layout.compose(p, self.layout.yaws(r), self.layout.orientations(r))
         s = np.linalg.svd(self.inverse_jacobian(rn, near_c=near_c), compute_uv=False)
         return s[..., -1] / s[..., 0]

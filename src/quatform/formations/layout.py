@@ -25,6 +25,11 @@ from ..errors import DegenerateInputError, InvalidInputError
 __all__ = ["PointKind", "POINT_KINDS", "RobotLayout", "Variable"]
 
 _TWO_PI = 2.0 * math.pi
+#: Teams larger than this screen coincident robots by sorted projections (:meth:`RobotLayout.check_apart`).
+_SCREEN_FROM = 16
+#: A unit direction with no simple relation to the axes (grids and rings of robots project apart).
+_SCREEN_DIRECTION = np.array([0.5773502691896258, 0.6172133998483676, 0.5345224838248488])
+_SCREEN_DIRECTION = _SCREEN_DIRECTION / np.linalg.norm(_SCREEN_DIRECTION)
 
 
 @dataclass(frozen=True)
@@ -168,7 +173,7 @@ class RobotLayout:
         return tuple(o + POINT_KINDS[k].yaw for o, k in zip(self.offsets, self.kinds) if POINT_KINDS[k].yaw is not None)
 
     @functools.cached_property
-    def _position_index(self):
+    def position_index(self):
         """``(N, 3)`` gather indices into ``r`` padded by one zero entry (planar z)."""
         idx = np.full((self.n, 3), self.size, dtype=np.intp)
         for i, (o, k) in enumerate(zip(self.offsets, self.kinds)):
@@ -203,7 +208,7 @@ class RobotLayout:
             return r.reshape(r.shape[:-1] + (self.n, k))[..., :3]
         padded = np.concatenate([r, np.zeros(r.shape[:-1] + (1,))], axis=-1)
         # C order, so that reductions over the last axis sum in the order of a plain slice
-        return np.ascontiguousarray(padded[..., self._position_index])
+        return np.ascontiguousarray(padded[..., self.position_index])
 
     def yaws(self, r) -> np.ndarray:
         """The yaw entries, rad, shape ``(..., len(yaw_indices))`` (a view where the layout allows)."""
@@ -232,7 +237,17 @@ class RobotLayout:
         return np.min(s, axis=-1) if s.shape[-1] else np.full(s.shape[:-1], np.inf)
 
     def check_apart(self, r, min_m: float, name: str = "r") -> None:
-        """Raise DegenerateInputError (naming the robots) if two robots are closer than ``min_m``."""
+        """Raise DegenerateInputError (naming the robots) if two robots are closer than ``min_m``.
+
+        For a team of more than :data:`_SCREEN_FROM` robots, first an O(N log N) screen: the
+        positions projected on one fixed direction and sorted; two robots are at least as far
+        apart as their projections, so neighbouring projections ``min_m`` apart clear every
+        pair. Only where the screen fails are all pairs measured.
+        """
+        if self.n > _SCREEN_FROM:
+            proj = np.sort(self.positions(r) @ _SCREEN_DIRECTION, axis=-1)
+            if np.all(np.diff(proj, axis=-1) >= min_m):
+                return
         s = self.separations(r)
         close = s < min_m
         if np.any(close):
@@ -258,41 +273,59 @@ class RobotLayout:
             out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
         return out
 
-    def compose(self, positions, yaws=()) -> np.ndarray:
-        """Robot state of ``positions`` (m, ``(..., N, 3)``) and ``yaws`` (rad,
-        ``(..., len(yaw_indices))``): the inverse of :meth:`positions` and :meth:`yaws`.
+    def compose(self, positions, yaws=(), orientations=None) -> np.ndarray:
+        """Robot state of ``positions`` (m, ``(..., N, 3)``), ``yaws`` (rad,
+        ``(..., len(yaw_indices))``) and, for ``pose`` points, ``orientations`` (unit
+        quaternions ``(..., len(orientation_index), 4)``): the inverse of :meth:`positions`,
+        :meth:`yaws` and :meth:`orientations`.
 
         A planar robot's ``z`` is dropped. Linear, so it also composes robot rates from
-        point velocities and yaw rates. Layouts with ``pose`` points (whose orientation is
-        not a yaw) are refused.
+        point velocities and yaw (or quaternion) rates.
         """
-        if "pose" in self.kinds:
-            raise InvalidInputError("RobotLayout.compose: a pose point's orientation is not a yaw; "
-                                    "build such robot states with stack()")
         p = np.asarray(positions, dtype=float)
         if p.shape[-2:] != (self.n, 3):
             raise InvalidInputError(f"positions must have shape (..., {self.n}, 3), got {p.shape}")
         y = np.asarray(yaws, dtype=float)
         n_yaw = len(self.yaw_indices)
+        n_q = len(self.orientation_index)
+        if n_q and orientations is None:
+            raise InvalidInputError(f"RobotLayout.compose: the layout has {n_q} pose point(s); give their "
+                                    "orientations (unit quaternions, shape (..., M, 4))")
+        shape = p.shape[:-2]
         if n_yaw:
             if y.shape[-1:] != (n_yaw,):
                 raise InvalidInputError(f"yaws must have shape (..., {n_yaw}), got {y.shape}")
-            shape = np.broadcast_shapes(p.shape[:-2], y.shape[:-1])
+            shape = np.broadcast_shapes(shape, y.shape[:-1])
             if self._uniform_xyz == 4 and self.kinds[0] == "xyz_yaw":  # robot after robot: x, y, z, yaw
                 p = np.broadcast_to(p, shape + (self.n, 3))
                 return np.concatenate([p, np.broadcast_to(y, shape + (self.n,))[..., None]], axis=-1).reshape(
                     shape + (self.size,))
-        else:
-            shape = p.shape[:-2]
-            if self._uniform_xyz == 3:  # robot after robot: x, y, z
-                return p.reshape(shape + (self.size,)).copy()
+        elif self._uniform_xyz == 3:  # robot after robot: x, y, z
+            return p.reshape(shape + (self.size,)).copy()
+        if n_q:
+            o = np.asarray(orientations, dtype=float)
+            if o.shape[-2:] != (n_q, 4):
+                raise InvalidInputError(f"orientations must have shape (..., {n_q}, 4), got {o.shape}")
+            shape = np.broadcast_shapes(shape, o.shape[:-2])
         r = np.empty(shape + (self.size,))
-        flat = self._position_index.ravel()
+        flat = self.position_index.ravel()
         keep = flat < self.size
         r[..., flat[keep]] = p.reshape(p.shape[:-2] + (3 * self.n,))[..., keep]
         if n_yaw:
             r[..., list(self.yaw_indices)] = y
+        if n_q:
+            r[..., self.orientation_index] = o
         return r
+
+    @functools.cached_property
+    def orientation_index(self) -> np.ndarray:
+        """Indices of the ``pose`` points' quaternions ``(q_w, q_x, q_y, q_z)``, shape ``(M, 4)``."""
+        rows = [range(o + 3, o + 7) for o, k in zip(self.offsets, self.kinds) if k == "pose"]
+        return np.array(rows, dtype=np.intp).reshape(-1, 4)
+
+    def orientations(self, r) -> np.ndarray:
+        """The ``pose`` points' quaternions, shape ``(..., M, 4)``."""
+        return self.check(r)[..., self.orientation_index]
 
     def stack(self, points) -> np.ndarray:
         """One robot state from a sequence of per-robot points (each ``(..., size of its kind)``)."""

@@ -45,11 +45,17 @@ def _wrap(a):
 
 
 def robot_distance(F: Formation, r1, r2) -> np.ndarray:
-    """Largest difference of two robot states, yaws mod 2 pi, relative to ``max(1, |r|)``; shape ``(...)``."""
-    d = np.asarray(r1, dtype=float) - np.asarray(r2, dtype=float)
+    """Largest difference of two robot states, yaws mod 2 pi, a ``pose`` robot's quaternion up to
+    sign, relative to ``max(1, |r|)``; shape ``(...)``."""
+    r1, r2 = np.asarray(r1, dtype=float), np.asarray(r2, dtype=float)
+    d = r1 - r2
     yaw = list(F.layout.yaw_indices)
     if yaw:
         d[..., yaw] = _wrap(d[..., yaw])
+    rows = F.layout.orientation_index
+    if len(rows):
+        a, b = r1[..., rows], r2[..., rows]
+        d[..., rows] = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, a + b, a - b)
     return np.max(np.abs(d), axis=-1) / np.maximum(1.0, np.max(np.abs(r2), axis=-1))
 
 
@@ -160,9 +166,13 @@ def _check_signs_and_wraps(F, rng, r, c, regular):
         if np.any(regular):
             rr, cc, vv = r[regular], c[regular], v[regular]
             cd = F.cluster_rate(rr, vv, near_c=cc)
+            rate = F.robot_rate(_flip(cc, s), _flip(cd, s), r=rr)
+            rows = F.layout.orientation_index
+            if len(rows):  # a pose robot's quaternion rate belongs to the sign its quaternion has
+                sign = np.sign(np.sum(F.inverse(_flip(cc, s))[..., rows] * rr[..., rows], axis=-1, keepdims=True))
+                rate[..., rows] = sign * rate[..., rows]
             _assert_small(f"robot_rate with {s} negated in c and c_dot", F,
-                          np.max(np.abs(F.robot_rate(_flip(cc, s), _flip(cd, s), r=rr) - vv), -1)
-                          / np.maximum(1, np.max(np.abs(vv), -1)), EXACT * 10)
+                          np.max(np.abs(rate - vv), -1) / np.maximum(1, np.max(np.abs(vv), -1)), EXACT * 10)
     yaw = list(F.layout.yaw_indices)
     if not yaw:
         return

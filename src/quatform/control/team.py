@@ -1,0 +1,277 @@
+"""The team controller: any team description, its law groups and a team of N robots (control layer).
+
+One control update (seed 000 Figs. 2, 6, 8 for N robots): the measured robot state ->
+``formation.forward`` with the reference as hint -> the error and the commanded rate of
+each of the description's law groups (:class:`~quatform.formations.team_chart.LawGroup`;
+the laws of :mod:`.laws`, written once on components, here run on ``(..., M)`` arrays, one
+call per group whatever the number of robots) -> ``formation.robot_rate`` (a directional
+derivative, O(N), no matrix) -> the team's actuation and saturation. The object is
+frozen and stateless, so it drives a simulation or real robots; wrap it in
+:class:`~quatform.control.safety.SafeController` for the separation barrier.
+
+:data:`TEAM_GAIN_KEYS` lists the gains each role reads; :func:`team_controller` builds the
+four seed-000 controllers for a team by name (:data:`TEAM_FORMATIONS`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..algebra.validate import UNIT_TOLERANCE, as_array
+from ..errors import InvalidInputError, NonUnitError, ShapeError
+from ..formations.base import Formation, check_magnitude
+from ..robots import Team
+from . import contract
+from .base import Reference
+from .laws import dual_quaternion_feedback, proportional, quaternion_feedback
+
+__all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_FORMATIONS", "team_controller", "team_lyapunov"]
+
+#: Law and gain key of each law-group role (``formations.team_chart.ROLE_WIDTHS``), and how
+#: many gains the key takes (``None``: one per row of the group, or one for all).
+TEAM_GAIN_KEYS = {
+    "centroid": ("proportional", "k_x", 3),
+    "shape": ("proportional", "k_d", 1),
+    "attitude": ("quaternion", "k_w", 3),
+    "orientation": ("quaternion", "k_w", 3),
+    "pose": ("dual-quaternion", "k_dw", 3),
+    "relative-pose": ("dual-quaternion-branch", "k_dw", 3),
+    "position": ("proportional", "k_p", 3),
+    "planar": ("proportional", "k_p", 3),
+    "heading": ("proportional", "k_theta", 1),
+    "variables": ("proportional", "k", None),
+}
+
+#: The team description each seed-000 controller name runs (``formations.TEAM_FORMATIONS`` keys).
+TEAM_FORMATIONS = {
+    "quaternion": "quaternion-team",
+    "dual-quaternion": "dual-quaternion-team",
+    "cluster-space": "euclidean-team",
+    "robot-space": "robot-space-team",
+}
+
+
+def _gain(gains: Mapping, key: str, n, rows: int, role: str) -> np.ndarray:
+    if key not in gains:
+        raise InvalidInputError(f"team controller: the {role} law needs gains[{key!r}]; given {sorted(gains)}")
+    try:
+        k = np.asarray(gains[key], dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"team controller: gains[{key!r}] must be numbers, got {gains[key]!r}") from None
+    sizes = (1, n) if n is not None else (1, rows)
+    if k.ndim > 1 or k.size not in sizes or not np.all(np.isfinite(k)) or np.any(k <= 0):
+        raise InvalidInputError(f"team controller: gains[{key!r}] must be {' or '.join(map(str, sorted(set(sizes))))} "
+                                f"positive finite numbers, got {gains[key]!r}")
+    return k.reshape(-1)
+
+
+@dataclass(frozen=True, eq=False)
+class TeamController(contract.Controller):
+    """A stateless controller of a team description and a team of robots.
+
+    Parameters
+    ----------
+    formation : Formation
+        A description with :attr:`law_groups` (the team descriptions of
+        :data:`quatform.formations.TEAM_FORMATIONS`).
+    gains : Mapping
+        The gains its roles read (:data:`TEAM_GAIN_KEYS`): ``k_x`` (3, 1/s) on the centroid,
+        ``k_d`` (1/s) on the shape, ``k_w`` (3, 1/s) on quaternion errors (seed 000 eq. (20)),
+        ``k_dw`` (3, 1/s) on dual-quaternion errors (eq. (28)), ``k_p`` / ``k_theta`` on robot
+        positions and yaws, ``k`` (one per variable or one for all) on plain variables.
+    team : Team
+        The robots, whose layout must be the formation's.
+    feedforward : bool
+        Add the reference's rate (seed 000's ``+ c_dot_des``).
+    name : str
+        Name in files and logs.
+    """
+
+    formation: Formation = None
+    gains: Mapping = field(default_factory=dict)
+    team: Team = None
+    feedforward: bool = True
+    name: str = "team"
+
+    def __post_init__(self):
+        F = self.formation
+        if not isinstance(F, Formation):
+            raise InvalidInputError(f"TeamController needs a team description, got {type(F).__name__}")
+        team = Team(tuple(_default_model(k) for k in F.layout.kinds)) if self.team is None else self.team
+        if not isinstance(team, Team):
+            raise InvalidInputError(f"TeamController: team must be a robots.Team, got {type(team).__name__}")
+        if team.layout.kinds != F.layout.kinds:
+            raise InvalidInputError(f"TeamController: the team's robots offer points {team.layout.kinds}, the "
+                                    f"formation describes {F.layout.kinds}; build both from one layout")
+        object.__setattr__(self, "team", team)
+        object.__setattr__(self, "gains", dict(self.gains))
+        covered = np.sort(np.concatenate([gr.index.ravel() for gr in F.law_groups]))
+        if not np.array_equal(covered, np.arange(F.n_c)):
+            raise InvalidInputError(f"{type(F).__name__}.law_groups must cover its {F.n_c} variables once each")
+        plan = []
+        for gr in F.law_groups:
+            law, key, n = TEAM_GAIN_KEYS[gr.role]
+            k = _gain(self.gains, key, n, len(gr.index), gr.role)
+            if gr.role == "planar":
+                k = k[:2] if k.size == 3 else k
+            elif law == "proportional" and n is None and k.size > 1:
+                k = k[:, None]  # one gain per row
+            plan.append((gr.role, law, gr.index, k))
+        object.__setattr__(self, "_plan", tuple(plan))
+
+    # -- contract ---------------------------------------------------------------------------
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        return tuple(self.team.command_columns)
+
+    def signal_columns(self) -> dict[str, tuple[str, ...]]:
+        names = self.formation.names
+        return {"cluster": names, "error": names, "raw_finite": ("raw_finite",)}
+
+    def update(self, t: float, measured, reference: Reference, state=None) -> contract.Step:
+        """One control update: ``Step(u, None, {"cluster", "error", "raw_finite"})``.
+
+        Parameters
+        ----------
+        t : float
+            Time, s (unused by the seed's laws).
+        measured : array_like, shape (..., n_r)
+            The robots' points (``team.point`` of their states).
+        reference : Reference
+            Desired cluster state and rate ``(..., n_c)``; ``robots`` (optional) the desired
+            robot state whose yaws the measured ones are wound to.
+        """
+        c, err, rate, r = self._chain(measured, reference)
+        r_dot = self.formation.robot_rate(c, rate, r=r)
+        u = r_dot if self.team.passthrough else self.team.actuate(
+            r, r_dot, t, self.team.initial_memory(r.shape[:-1]))[0]
+        finite = np.all(np.isfinite(u), axis=-1, keepdims=True)
+        u = self.team.saturate(np.where(finite, u, 0.0))
+        return contract.Step(u, None, {"cluster": c, "error": err, "raw_finite": finite.astype(float)})
+
+    def _chain(self, measured, reference):
+        """Measured cluster state, error, commanded cluster rate and the (wound) robots."""
+        F = self.formation
+        if not isinstance(reference, Reference):
+            raise InvalidInputError(f"{self.name} controller: reference must be a Reference(c, c_dot), got "
+                                    f"{type(reference).__name__}")
+        r = check_magnitude(as_array(measured, "measured robot state", F.n_r), "measured robot state")
+        c_des = check_magnitude(as_array(reference.c, "reference.c", F.n_c), "reference.c")
+        c_dot = check_magnitude(as_array(reference.c_dot, "reference.c_dot", F.n_c), "reference.c_dot")
+        try:
+            shape = np.broadcast_shapes(r.shape[:-1], c_des.shape[:-1], c_dot.shape[:-1])
+        except ValueError:
+            raise ShapeError(f"batch shapes differ: measured {r.shape}, reference.c {c_des.shape}, reference.c_dot "
+                             f"{c_dot.shape}; give one reference per formation or one for all") from None
+        if reference.robots is not None:
+            r = F.align(r, as_array(reference.robots, "reference.robots", F.n_r))
+        r = np.broadcast_to(r, shape + r.shape[-1:])
+        self._check_units(c_des)
+        c = F.forward(r, near_c=c_des)
+        err = c - c_des
+        if len(self._angles):
+            err[..., self._angles] = (err[..., self._angles] + math.pi) % (2.0 * math.pi) - math.pi
+        rate = np.zeros(np.broadcast_shapes(c.shape, c_dot.shape))
+        ff = 1.0 if self.feedforward else 0.0
+        for role, law, idx, k in self._plan:
+            if law == "proportional":
+                rate[..., idx] = proportional(err[..., idx], c_dot[..., idx], k, ff)
+                continue
+            comps = [tuple(np.moveaxis(a[..., idx], -1, 0)) for a in (c, c_des, c_dot)]
+            kk = tuple(k.tolist())
+            if law == "quaternion":
+                qe, qd = quaternion_feedback(*comps, kk, ff)
+            else:
+                qe, qd = dual_quaternion_feedback(*comps, kk, ff, signed_rotation=law == "dual-quaternion")
+            err[..., idx] = np.stack(np.broadcast_arrays(*qe), axis=-1)
+            rate[..., idx] = np.stack(np.broadcast_arrays(*qd), axis=-1)
+        return c, err, rate, r
+
+    @functools.cached_property
+    def _angles(self) -> np.ndarray:
+        """Indices of the description's angle variables (their errors wrapped to [-pi, pi))."""
+        return np.array([i for i, v in enumerate(self.formation.variables) if v.kind == "angle"], dtype=np.intp)
+
+    @functools.cached_property
+    def _unit_rows(self) -> tuple:
+        """The (dual) quaternion blocks of the state: ``(index (M, 4), dual)``."""
+        out = []
+        for role, law, idx, _ in self._plan:
+            if law in ("quaternion", "dual-quaternion", "dual-quaternion-branch"):
+                out.append((idx, law != "quaternion"))
+        return tuple(out)
+
+    def _check_units(self, c_des):
+        for idx, dual in self._unit_rows:
+            q = c_des[..., idx]
+            p = q[..., :4]
+            n = np.sqrt(np.sum(p * p, axis=-1))
+            bad = np.abs(n - 1.0) > UNIT_TOLERANCE
+            if dual:
+                bad |= np.abs(np.sum(p * q[..., 4:], axis=-1)) > UNIT_TOLERANCE
+            if np.any(bad):
+                names = self.formation.names
+                row = int(np.argwhere(bad.reshape(-1, bad.shape[-1]))[0][-1])
+                raise NonUnitError(f"reference {names[idx[row, 0]][:-2]} is not a unit {'dual ' if dual else ''}"
+                                   f"quaternion (norm {float(n.reshape(-1, n.shape[-1])[:, row].max()):.9g}); build "
+                                   "references with formation.from_chart or normalise them")
+
+
+def _default_model(kind):
+    """The kinematic model of a point kind (4-DOF holonomic robots by default)."""
+    from ..robots import HolonomicRobot
+
+    if kind == "xyz_yaw":
+        return HolonomicRobot()
+    raise InvalidInputError(f"TeamController: give a robots.Team for robots of point kind {kind!r} "
+                            "(only 4-DOF robots have a default model)")
+
+
+def team_lyapunov(controller: TeamController, c, c_des) -> np.ndarray:
+    """Seed 000 eqs. (21) and (29) for a team: the sum over the law groups of
+    ``1/2 |e|^2`` (proportional groups, angles wrapped), ``1 - qe_0^2 + |qe_vec|^2 = 2
+    |qe_vec|^2`` (quaternion groups, eq. (21)) and ``1 - qe_p0^2 + |qe_p|^2 + |qe_d|^2``
+    (dual-quaternion groups, eq. (29)). Shape ``(...)``."""
+    from ..formations import pair_kernels as kern
+
+    c, c_des = np.asarray(c, float), np.asarray(c_des, float)
+    err = c - c_des
+    idx_ang = controller._angles
+    if len(idx_ang):
+        err[..., idx_ang] = (err[..., idx_ang] + math.pi) % (2.0 * math.pi) - math.pi
+    V = np.zeros(np.broadcast_shapes(c.shape, c_des.shape)[:-1])
+    for role, law, idx, _ in controller._plan:
+        if law == "proportional":
+            V = V + 0.5 * np.sum(err[..., idx] ** 2, axis=(-2, -1))
+            continue
+        a, b = (tuple(np.moveaxis(x[..., idx], -1, 0)) for x in (c, c_des))
+        if law == "quaternion":
+            qe = kern.qmul(*kern.qconj(b), *a)
+            V = V + 0.5 * np.sum(1.0 - qe[0] ** 2 + qe[1] ** 2 + qe[2] ** 2 + qe[3] ** 2, axis=-1)
+        else:
+            qe = kern.dqmul(kern.dqconj(b), a)
+            V = V + np.sum(1.0 - qe[0] ** 2 + sum(x ** 2 for x in qe[1:4]) + sum(x ** 2 for x in qe[5:8]), axis=-1)
+    return V
+
+
+def team_controller(name: str, team: Team, gains: Mapping, *, template=None, feedforward: bool = True,
+                    **options) -> TeamController:
+    """The seed-000 controller ``name`` (a :data:`TEAM_FORMATIONS` key) for ``team``.
+
+    Builds the team description ``formations.TEAM_FORMATIONS[TEAM_FORMATIONS[name]]`` on
+    the team's layout (with ``template`` and ``options``) and a :class:`TeamController`.
+    """
+    from ..checks import nearest
+    from ..formations import TEAM_FORMATIONS as CLASSES
+
+    if name not in TEAM_FORMATIONS:
+        raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, TEAM_FORMATIONS)}; choose one of "
+                                f"{', '.join(TEAM_FORMATIONS)}")
+    cls = CLASSES[TEAM_FORMATIONS[name]]
+    F = cls(layout=team.layout, template=template, **options)
+    return TeamController(F, gains, team, feedforward, name)
