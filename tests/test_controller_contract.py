@@ -210,3 +210,85 @@ def test_step_gives_init_the_measurement_batch_whatever_the_command_width():
     assert seen == [(2,)] and u.shape == (2, 1)
     Narrow().step(0.0, np.ones(3))
     assert seen[-1] == ()
+
+
+# -- team controllers (issue 14): every registered team description -------------------------
+
+TEAM_GAINS = {"k_x": (1.0, 1.2, 0.8), "k_d": 2.0, "k_w": (3.0, 3.0, 3.0), "k_dw": (1.5, 1.5, 1.5), "k_p": 1.5,
+              "k_theta": 2.0, "k": 1.0}
+
+
+def _team_controllers():
+    from quatform.control import TEAM_FORMATIONS, team_controller
+    from quatform.formations import TEAM_FORMATIONS as CLASSES
+    from quatform.robots import HolonomicRobot, Team
+
+    return [team_controller(name, Team((HolonomicRobot(),) * n), TEAM_GAINS)
+            for name, key in TEAM_FORMATIONS.items() if key in CLASSES for n in (3, 7)]
+
+
+TEAMS = _team_controllers()
+TEAM_IDS = [f"{c.name}-{c.formation.layout.n}" for c in TEAMS]
+
+
+def _team_inputs(ctrl, batch=(), seed=0):
+    """A reference formation, its rate, and robots near it (``batch`` leading axes)."""
+    rng = np.random.default_rng(seed)
+    F = ctrl.formation
+    r_des = F.sample_robot_state(rng)
+    e = F.to_chart(F.forward(r_des), r=r_des)
+    c, cd = F.from_chart(e, 0.2 * rng.normal(size=e.shape))
+    r = F.inverse(c, near_r=r_des) + 0.05 * rng.normal(size=batch + (F.n_r,))
+    return r, Reference(np.broadcast_to(c, batch + c.shape).copy(), np.broadcast_to(cd, batch + cd.shape).copy())
+
+
+@pytest.mark.parametrize("ctrl", TEAMS, ids=TEAM_IDS)
+def test_team_step_is_update_batch_equals_single_and_no_hidden_state(ctrl):
+    assert isinstance(ctrl, Controller) and ctrl.init() is None
+    r, ref = _team_inputs(ctrl)
+    s = ctrl.update(0.0, r, ref, ctrl.init())
+    _check_signals(ctrl, s, ())
+    np.testing.assert_array_equal(ctrl.step(0.0, r, ref), s.u)
+    assert np.all(np.isfinite(s.u)) and s.signals["raw_finite"][0] == 1
+    rb, refb = _team_inputs(ctrl, (5,), seed=1)
+    sb = ctrl.update(0.0, rb, refb, ctrl.init((5,)))
+    _check_signals(ctrl, sb, (5,))
+    for i in range(5):
+        one = ctrl.update(0.0, rb[i], Reference(refb.c[i], refb.c_dot[i]), None)
+        np.testing.assert_allclose(sb.u[i], one.u, rtol=1e-12, atol=1e-12)
+        for k in sb.signals:
+            np.testing.assert_allclose(sb.signals[k][i], one.signals[k], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(ctrl.update(0.0, rb, refb, None).u, sb.u)
+
+
+@pytest.mark.parametrize("ctrl", TEAMS, ids=TEAM_IDS)
+def test_team_zero_error_gives_the_feed_forward_and_errors_vanish(ctrl):
+    """Robots exactly at the reference: every error is zero (quaternion errors the identity)
+    and the command is the reference's own robot rate."""
+    r, ref = _team_inputs(ctrl)
+    F = ctrl.formation
+    r0 = F.inverse(ref.c)
+    s = ctrl.update(0.0, r0, ref, None)
+    c_err = s.signals["error"]
+    expected = np.zeros_like(c_err)
+    for gr in F.law_groups:
+        if gr.role in ("attitude", "orientation"):
+            expected[gr.index[:, 0]] = np.sign(c_err[gr.index[:, 0]])
+        elif gr.role in ("pose", "relative-pose"):
+            expected[gr.index[:, 0]] = np.sign(c_err[gr.index[:, 0]])
+    np.testing.assert_allclose(c_err, expected, atol=1e-9)
+    np.testing.assert_allclose(s.u, ctrl.team.saturate(F.robot_rate(ref.c, ref.c_dot, r=r0)), atol=1e-9)
+
+
+@pytest.mark.parametrize("ctrl", TEAMS, ids=TEAM_IDS)
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_team_non_finite_measurement_never_reaches_the_commands(ctrl, bad):
+    r, ref = _team_inputs(ctrl)
+    for j in (0, 3, r.shape[-1] - 1):
+        rj = r.copy()
+        rj[j] = bad
+        try:
+            s = ctrl.update(0.0, rj, ref, None)
+        except QuatformError:
+            continue  # refused in one line: nothing sent
+        assert np.all(np.isfinite(s.u)), j
