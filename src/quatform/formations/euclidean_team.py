@@ -181,6 +181,11 @@ class EuclideanTeam(Formation):
         self._i_phi = np.arange(len(v), len(v) + len(self._yaw_robots), dtype=np.intp)
         v += [Variable(f"phi_{L.labels[i]}", "rad", "angle") for i in self._yaw_robots]
         self.variables = tuple(v)
+        owner = np.full(len(v), -1, dtype=np.intp)  # the robot whose spoke a variable is (-1: none)
+        for idx in (self._i_rho, self._i_psi):
+            owner[idx] = np.arange(2, L.n)
+        owner[self._i_chi] = np.arange(3, 3 + len(self._i_chi))
+        self._spoke_owner = owner
         # the spokes whose azimuth wraps (all but robot 3's in space, every one in the plane)
         self._wrap_psi = np.arange(len(rho)) if planar else np.arange(1, len(rho))
 
@@ -577,6 +582,7 @@ class EuclideanTeam(Formation):
         off the 1-2 line, spokes at least 0.45 rad from the poles, lengths 0.4-2 m), then
         ``overrides`` (pairs ``(variable index or index array, values)``)."""
         c = np.zeros(batch + (self.n_c,))
+        L = self.layout
         nxc = 2 if self.planar else 3
         c[..., :nxc] = rng.uniform(-2.0, 2.0, batch + (nxc,))
         c[..., self._i_beta] = rng.uniform(-np.pi, np.pi, batch)
@@ -587,7 +593,8 @@ class EuclideanTeam(Formation):
         c[..., self._i_d] = rng.uniform(0.3, 1.0, batch)
         m = len(self._i_rho)
         if m:
-            c[..., self._i_rho] = rng.uniform(0.6, 2.0, batch + (m,))
+            reach = 2.0 * max(1.0, (L.n / 8.0) ** (1.0 / 3.0))  # room for N robots 0.3 m apart
+            c[..., self._i_rho] = rng.uniform(0.6, reach, batch + (m,))
             c[..., self._i_psi] = rng.uniform(-np.pi, np.pi, batch + (m,))
             if self._roll:
                 c[..., self._i_psi[0]] = rng.uniform(0.35, np.pi - 0.35, batch)
@@ -600,14 +607,22 @@ class EuclideanTeam(Formation):
         return c
 
     def _apart_states(self, rng, batch, overrides=None, min_m=0.3):
-        """Robot states of :meth:`_random_cluster` with every two robots ``min_m`` apart (resampled)."""
+        """Robot states of :meth:`_random_cluster` with every two robots ``min_m`` apart: the spoke
+        of the later robot of a close pair is drawn again (robots 1 and 2 are ``2 d_c >= 0.6`` m
+        apart)."""
         c = self._random_cluster(rng, batch, overrides)
-        for _ in range(200):
+        L = self.layout
+        i, j = L.pairs
+        for _ in range(500):
             r = self.inverse(c)
-            close = self.layout.min_separation(r) < min_m
+            close = L.separations(r) < min_m  # (..., pairs)
             if not np.any(close):
                 return r
-            c = np.where(close[..., None], self._random_cluster(rng, batch, overrides), c)
+            redo = np.any(close[..., None] & (j[:, None] == np.arange(L.n)), axis=-2)  # (..., N)
+            fresh = self._random_cluster(rng, batch, overrides)
+            owner = self._spoke_owner
+            mask = np.where(owner >= 0, redo[..., np.maximum(owner, 0)], False)
+            c = np.where(mask, fresh, c)
         raise AssertionError(f"{self.name}: could not sample robots {min_m} m apart")  # pragma: no cover
 
     def sample_robot_state(self, rng, batch=()):
