@@ -47,12 +47,11 @@ from . import geometry as g
 from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable
 from .euclidean_pair import EUCLIDEAN_VARIABLES, VERTICAL_TOL, EuclideanPair
-from .layout import RobotLayout
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from .team_chart import LawGroup, TeamChart, check_template
 
-__all__ = ["EuclideanTeam", "COLLINEAR_TOL", "POLE_TOL"]
+__all__ = ["COLLINEAR_TOL", "POLE_TOL", "EuclideanTeam"]
 
 #: Below this ratio of robot 3's distance from the 1-2 line to its distance from robot 1 the
 #: roll ``alpha_c`` is taken as undefined (robots 1, 2, 3 collinear).
@@ -121,8 +120,9 @@ class EuclideanTeam(Formation):
         kinds = set(L.kinds)
         if "pose" in kinds:
             raise InvalidInputError(
-                f"EuclideanTeam: robot {L.labels[L.kinds.index('pose')]} is a 'pose' robot (6 DOF): a minimal Euclidean "
-                "chart would need Euler angles per robot; use QuaternionTeam or DualQuaternionTeam for pose robots")
+                f"EuclideanTeam: robot {L.labels[L.kinds.index('pose')]} is a 'pose' robot (6 DOF): a minimal "
+                "Euclidean chart would need Euler angles per robot; use QuaternionTeam or DualQuaternionTeam for "
+                "pose robots")
         if "xy_yaw" in kinds and kinds != {"xy_yaw"}:
             raise InvalidInputError(
                 f"EuclideanTeam: the layout mixes planar (xy_yaw) and spatial robots {L.kinds}: no minimal Euclidean "
@@ -405,7 +405,7 @@ class EuclideanTeam(Formation):
     def _rate_map(self, c, cd):
         """:meth:`robot_rate` for any team (the O(N) directional derivative)."""
         c, cd = np.broadcast_arrays(c, cd)
-        xc, (x0, u, z0, xf, zf), off, (S, dirs, psi, chi) = self._place(c)
+        _, (x0, u, _, xf, zf), off, (S, dirs, psi, chi) = self._place(c)
         bd, gd, ad = self._angles_of(cd)
         w = bd[..., None] * _EZ + gd[..., None] * x0 + ad[..., None] * u
         Sd = np.zeros(S.shape)
@@ -612,7 +612,7 @@ class EuclideanTeam(Formation):
         apart)."""
         c = self._random_cluster(rng, batch, overrides)
         L = self.layout
-        i, j = L.pairs
+        j = L.pairs[1]
         for _ in range(500):
             r = self.inverse(c)
             close = L.separations(r) < min_m  # (..., pairs)
