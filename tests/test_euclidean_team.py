@@ -286,3 +286,14 @@ def test_bad_states_are_refused_in_one_line():
         with pytest.raises(cls, match=match) as info:
             call()
         assert "\n" not in str(info.value)
+
+
+def test_batch_axes_broadcast():
+    F = EuclideanTeam(4)
+    rng = np.random.default_rng(6)
+    r = F.sample_robot_state(rng)
+    c = F.forward(F.sample_robot_state(rng, (3,)))
+    v = rng.normal(size=F.n_r)
+    assert F.forward(r, near_c=c).shape == (3, F.n_c) and F.cluster_rate(r, v, near_c=c).shape == (3, F.n_c)
+    assert F.robot_rate(c, rng.normal(size=(2, 1, F.n_c))).shape == (2, 3, F.n_r)
+    np.testing.assert_allclose(F.forward(r, near_c=c)[1], F.forward(r, near_c=c[1]), rtol=0, atol=0)

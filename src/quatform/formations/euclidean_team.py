@@ -298,9 +298,9 @@ class EuclideanTeam(Formation):
         r = self.check_robot_state(r)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
+            r = np.broadcast_to(r, np.broadcast_shapes(r.shape[:-1], near_c.shape[:-1]) + r.shape[-1:])
         G = self._geometry(r, near_c)
-        shape = np.broadcast_shapes(r.shape[:-1], () if near_c is None else near_c.shape[:-1])
-        c = np.empty(shape + (self.n_c,))
+        c = np.empty(r.shape[:-1] + (self.n_c,))
         nxc = 2 if self.planar else 3
         c[..., 0:nxc] = G["p"].mean(axis=-2)[..., :nxc]  # seed 000 eqs. (1)-(3), N robots
         c[..., self._i_beta] = G["beta"]
@@ -442,8 +442,11 @@ class EuclideanTeam(Formation):
         undefined, else report it as 0 (the held angle's rate)."""
         r = self.check_robot_state(r)
         rd = as_array(r_dot, "r_dot", self.n_r)
-        r, rd = np.broadcast_arrays(r, rd)
-        G = self._geometry(r, None if near_c is None else self.check_cluster_state(near_c, "near_c"))
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+        shape = np.broadcast_shapes(r.shape[:-1], rd.shape[:-1], () if near_c is None else near_c.shape[:-1])
+        r, rd = (np.broadcast_to(a, shape + a.shape[-1:]) for a in (r, rd))
+        G = self._geometry(r, near_c)
         L = self.layout
         v = L.positions(rd)
         dd = v[..., 0, :] - v[..., 1, :]
