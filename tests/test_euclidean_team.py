@@ -232,8 +232,8 @@ def test_the_baseline_tracks_away_from_its_singular_sets_and_is_lost_past_the_ve
     c, cd = F.from_chart(*_yawing_chart(F, t))
     err, log, x = _run(F, c, cd, t)
     assert np.all(log["raw_finite"] == 1.0)
-    regular_err = err.max()
-    assert regular_err < 1e-3 and np.all(F.singularity_measure(x) > 0.05)
+    regular_err, regular_measure = err.max(), F.singularity_measure(x).min()
+    assert regular_err < 1e-3 and regular_measure > 0.05
     # the seed's experiment (Fig. 9) for four robots: gamma_c ramped through pi/2 in the baseline's variables
     c_des = np.repeat(c[:1], len(t), axis=0)
     cd_des = np.zeros_like(c_des)
@@ -245,8 +245,8 @@ def test_the_baseline_tracks_away_from_its_singular_sets_and_is_lost_past_the_ve
     assert err[crossing].max() < 100 * max(regular_err, 1e-5)  # tracked up to the vertical
     size = 2.0 * c[0, F._i_d]
     assert err[~crossing].max() > 0.3 * size  # then lost: the formation does not follow past pi/2
-    assert F.singularity_measure(x).min() < 1e-6  # stuck at the singular pose on the way
     m = F.singularity_measure(x)
+    assert m.min() < 1e-3 * regular_measure  # stuck at the singular pose on the way (2e-7 at t = 15 s)
     assert np.all(m[t < 12.0] > 1e-3)
 
 
