@@ -642,7 +642,7 @@ class EuclideanTeam(Formation):
 
     def special_sets(self) -> tuple[SpecialSet, ...]:
         """Every special set of the chart: ``vertical`` (``gamma_c = +-pi/2``), ``collinear``
-        (robots 1-3 on a line, N >= 3 in space), ``spoke-pole`` (robot 4's spoke along the
+        (robots 1-3 on a line, N >= 3 in space), ``spoke-pole`` (a spoke k >= 4 along the
         formation's z axis, N >= 4 in space): Jacobian undefined, inverse Jacobian rank
         deficient; ``angle-wraps`` (every wrapped angle at +-pi: atan2's branch cut) and
         ``wound-yaws`` (yaws wound by up to 50 turns): regular. (Coincident robots, the fourth
@@ -666,11 +666,14 @@ class EuclideanTeam(Formation):
                 "from the line is atan2(0, 0); held at near_c's, its rate undefined (psi_3 = 0 or pi)",
                 self._set(collinear), "raises", "rank-deficient"))
         if len(self._i_chi):
-            def pole(rng, n, eps):
-                return [(self._i_chi[0], rng.choice([-1.0, 1.0], n) * (0.5 * np.pi - eps))]
+            def pole(rng, n, eps):  # one spoke k >= 4 per state, drawn at random
+                m = len(self._i_chi)
+                chi = rng.uniform(-1.1, 1.1, (n, m))
+                chi[np.arange(n), rng.integers(0, m, n)] = rng.choice([-1.0, 1.0], n) * (0.5 * np.pi - eps)
+                return [(self._i_chi, chi)]
             out.append(SpecialSet(
-                "spoke-pole", f"robot {self.layout.labels[3]}'s spoke along the formation's z axis: its azimuth "
-                f"psi = atan2(s_x, -s_y) is atan2(0, 0); held at near_c's, its rate undefined",
+                "spoke-pole", "a spoke k >= 4 along the formation's z axis (chi_k = +-pi/2): its azimuth psi_k = "
+                "atan2(s_x, -s_y) is atan2(0, 0); held at near_c's, its rate undefined",
                 self._set(pole), "raises", "rank-deficient"))
 
         def wraps(rng, n, eps):
