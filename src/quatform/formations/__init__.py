@@ -15,6 +15,7 @@ from .base import PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, Formation, Variable
 from .layout import POINT_KINDS, RobotLayout
 from .special_sets import SpecialSet
 from .dual_quaternion_pair import DualQuaternionPair
+from .euclidean_team import EuclideanTeam
 from .euclidean_pair import (
     EUCLIDEAN_VARIABLES,
     EuclideanPair,
@@ -40,11 +41,12 @@ FORMATIONS = {
     **{f.name: f for f in (EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair())},
     **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
     "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
+    "euclidean-team": EuclideanTeam(layout=RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))),
 }
 
 #: The team descriptions (N robots of any point kinds) by key, as classes:
 #: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
-TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam}
+TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam, "euclidean-team": EuclideanTeam}
 
 __all__ = [
     "Formation",
@@ -63,6 +65,7 @@ __all__ = [
     "FORMATIONS",
     "TEAM_FORMATIONS",
     "RobotSpaceTeam",
+    "EuclideanTeam",
     "TeamChart",
     "LawGroup",
     "fit_attitude",
