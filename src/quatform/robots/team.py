@@ -70,7 +70,8 @@ class GroupIndex:
         k = slices[0].stop - slices[0].start
         index = np.array([np.arange(s.start, s.stop) for s in slices], dtype=np.intp).reshape(len(slices), k)
         flat = index.ravel()
-        block = slice(int(flat[0]), int(flat[-1]) + 1) if np.array_equal(flat, np.arange(flat[0], flat[0] + flat.size)) else None
+        consecutive = np.array_equal(flat, np.arange(flat[0], flat[0] + flat.size))
+        block = slice(int(flat[0]), int(flat[-1]) + 1) if consecutive else None
         return cls(len(slices), k, block, index)
 
     def gather(self, a) -> np.ndarray:
@@ -291,13 +292,16 @@ class Team:
         if len(parts) != len(self.groups):
             raise InvalidInputError(f"Team.scatter: {len(parts)} parts for {len(self.groups)} groups")
         idx = [getattr(g, part) for g in self.groups]
+        tails = [2 if ix.m > 1 else 1 for ix in idx]  # the robot axis and the entries, or the entries
         if batch is None:
-            batch = np.broadcast_shapes(*(np.shape(p)[:np.ndim(p) - (2 if ix.m > 1 else 1)] for p, ix in zip(parts, idx)))
-        if len(idx) == 1 and idx[0].block is not None and idx[0].block == slice(0, idx[0].m * idx[0].k):
-            p = np.broadcast_to(parts[0], tuple(batch) + np.shape(parts[0])[np.ndim(parts[0]) - (2 if idx[0].m > 1 else 1):])
-            return np.array(p, dtype=float).reshape(tuple(batch) + (idx[0].m * idx[0].k,))
+            batch = np.broadcast_shapes(*(np.shape(p)[:np.ndim(p) - t] for p, t in zip(parts, tails)))
+        batch = tuple(batch)
+        one = idx[0]
+        if len(idx) == 1 and one.block is not None and one.block == slice(0, one.m * one.k):
+            p = np.broadcast_to(parts[0], batch + np.shape(parts[0])[np.ndim(parts[0]) - tails[0]:])
+            return np.array(p, dtype=float).reshape(batch + (one.m * one.k,))
         n = sum(ix.m * ix.k for ix in idx)
-        out = np.empty(tuple(batch) + (n,))
+        out = np.empty(batch + (n,))
         for p, ix in zip(parts, idx):
             ix.scatter(out, p)
         return out
