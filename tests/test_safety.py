@@ -156,6 +156,13 @@ def test_inactive_filter_returns_the_commands_bitwise():
     us, info = SeparationBarrier(0.5, gamma=2.0).filter(team, np.tile(x, (3, 1)), u)
     assert us is u and not info.active.any() and np.all(info.constraints == 0)
     np.testing.assert_allclose(info.min_separation, 3.0, rtol=1e-15)
+    lost = np.tile(x, (2, 1))
+    lost[0, 5] = np.nan
+    close = team.saturate(np.tile(-np.sign(x) * 0.5, (2, 1)))
+    lost[:, 4:6] = [[np.nan, 0.1], [0.0, 0.2]]  # world 0 lost, world 1: robot 2 beside robot 1
+    us2, info2 = SeparationBarrier(0.5, gamma=2.0).filter(team, lost, close)
+    np.testing.assert_array_equal(us2[0], close[0])
+    assert np.isnan(info2.min_separation[0]) and info2.active.tolist() == [False, True]
     # far apart with a run through Team.step: the run is the unfiltered run, bitwise
     x1 = x.copy()
     x2 = x.copy()

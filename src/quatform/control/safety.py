@@ -194,7 +194,8 @@ class BarrierInfo:
     Attributes
     ----------
     min_separation : ndarray
-        Smallest distance between two robots' points, m (inf for one robot).
+        Smallest distance between two robots' points, m (inf for one robot, NaN for a
+        measurement that is not finite).
     active : ndarray of bool
         Whether the filter changed the commands.
     constraints : ndarray of int
@@ -309,7 +310,9 @@ class SeparationBarrier:
         Returns
         -------
         u_safe : ndarray, same shape as ``u`` broadcast with ``x``'s batch
-            Bitwise ``u`` in every world where no pair constraint binds.
+            Bitwise ``u`` in every world where no pair constraint binds, and in a world whose
+            measurement is not finite (a lost measurement: nothing to filter on; its
+            ``min_separation`` is NaN).
         info : BarrierInfo
         """
         layout, maps = self._plan(team)
@@ -320,8 +323,8 @@ class SeparationBarrier:
         if x.shape[-1:] != (width_x,) or u.shape[-1:] != (width_u,):
             raise ShapeError(f"SeparationBarrier.filter: x must have shape (..., {width_x}) and u (..., {width_u}), "
                              f"got {x.shape} and {u.shape}")
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
-            raise InvalidInputError("SeparationBarrier.filter: x and u must be finite (saturate the commands first)")
+        if not np.all(np.isfinite(u)):
+            raise InvalidInputError("SeparationBarrier.filter: u must be finite (saturate the commands first)")
         batch = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
         x = np.broadcast_to(x, batch + (width_x,))
         u = np.broadcast_to(u, batch + (width_u,))
@@ -348,7 +351,11 @@ class SeparationBarrier:
         factor = np.ones(B)
         out = None
         common = maps is not None and team.common_limit
+        seen = np.all(np.isfinite(flat_P), axis=(1, 2)) & np.all(np.isfinite(flat_V), axis=(1, 2))
         for b in range(B):
+            if not seen[b]:  # a measurement lost (NaN): nothing to filter on, the commands pass
+                min_sep[b] = np.nan
+                continue
             res = self._world(flat_P[b], flat_V[b], planar)
             min_sep[b] = res[0]
             if res[1] is None:
