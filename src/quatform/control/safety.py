@@ -47,6 +47,7 @@ negative, ``2 dp.(s dv) >= 2 dp.dv >= -gamma h``.
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,7 +57,7 @@ from scipy.spatial import cKDTree
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS, RobotLayout
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
-from . import base, contract
+from . import contract
 
 __all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components"]
 
@@ -538,8 +539,8 @@ class SafeController(contract.Controller):
         team's stacked state).
     barrier : SeparationBarrier
     team : Team, optional
-        The robots (default: the ``team`` of a cluster-space controller,
-        :class:`~quatform.control.base.Controller`).
+        The robots (default: the inner controller's ``team`` field, as every quatform
+        controller of a team has).
 
     Signals: the inner controller's, plus ``min_separation`` (m, the smallest distance
     between two robots' points as measured) and ``safety_active`` (1 where the filter
@@ -556,8 +557,9 @@ class SafeController(contract.Controller):
         if not isinstance(self.barrier, SeparationBarrier):
             raise InvalidInputError(f"SafeController: barrier must be a SeparationBarrier, got "
                                     f"{type(self.barrier).__name__}")
-        if self.team is None:
-            if not isinstance(self.inner, base.Controller):
+        if self.team is None:  # the inner controller's configured team (a dataclass field)
+            names = {f.name for f in dataclasses.fields(self.inner)} if dataclasses.is_dataclass(self.inner) else ()
+            if "team" not in names:
                 raise InvalidInputError(f"SafeController: give team= (the robots of the {type(self.inner).__name__})")
             object.__setattr__(self, "team", self.inner.team)
         if not isinstance(self.team, Team):
