@@ -161,7 +161,7 @@ class _Unicycle:
         den = np.abs(vl) - tan_max * vf
         with np.errstate(divide="ignore", invalid="ignore"):
             s_turn = np.where(den > 0, tan_max * 2.0 * model.a / dt / np.where(den > 0, den, 1.0), np.inf)
-        hi = np.minimum(1.0, s_turn) * (1.0 - 1e-12)
+        hi = np.where(s_turn < 1.0, s_turn * (1.0 - 1e-12), 1.0)  # a hair inside a binding turn limit
 
         def speed_ok(s):
             u = model.commands_from_mean_velocity(psi, s[..., None] * v[..., 0:2], dt)
