@@ -353,6 +353,7 @@ class SeparationBarrier:
         out = None
         common = maps is not None and team.common_limit
         seen = np.all(np.isfinite(flat_P), axis=(1, 2)) & np.all(np.isfinite(flat_V), axis=(1, 2))
+        flat_x, flat_u = x.reshape(B, width_x), u.reshape(B, width_u)
         for b in range(B):
             if not seen[b]:  # a measurement lost (NaN): nothing to filter on, the commands pass
                 min_sep[b] = np.nan
@@ -363,8 +364,8 @@ class SeparationBarrier:
                 continue
             V_new, changed, (pi, pj), k = res[1:]
             if out is None:
-                out = np.array(u, dtype=float).reshape(B, width_u)
-            xb, ub = x.reshape(B, width_x)[b], u.reshape(B, width_u)[b]
+                out = np.array(flat_u, dtype=float)
+            xb, ub = flat_x[b], flat_u[b]
             active[b] = True
             n_con[b] = k
             if maps is None:
