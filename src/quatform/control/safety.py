@@ -1,20 +1,21 @@
 """Pairwise separation barrier certificates: a safety filter any controller's commands pass through.
 
-Control layer (above robots). After Wang, Ames and Egerstedt 2017 ("Safety barrier
-certificates for collisions-free multirobot systems", IEEE T-RO 33(3)), the method of the
-Robotarium's single-integrator and unicycle barrier certificates: every pair of robots
-``i, j`` has the barrier
+Control layer (above robots). The method of Wang, Ames and Egerstedt 2017 ("Safety barrier
+certificates for collisions-free multirobot systems", IEEE T-RO 33(3)): change the nominal
+inputs as little as possible, a quadratic programme, subject to one control-barrier-function
+constraint ``h_dot >= -kappa(h)`` per pair of robots. The paper's barrier is that of
+acceleration-bounded double integrators; for velocity-commanded points quatform uses the
+single-integrator barrier of the Robotarium's ``create_single_integrator_barrier_certificate``
+(and its unicycle version through a point ahead of the wheel axis),
 
-    h_ij = |p_i - p_j|^2 - d_min^2                         (Wang et al. 2017 eq. (6), squared form)
+    h_ij = |p_i - p_j|^2 - d_min^2                   (Robotarium single-integrator certificate)
 
-of its points' positions ``p`` (m), and the filter changes the robots' point velocities ``v``
-as little as possible so that every pair obeys
+of the points' positions ``p`` (m), with the linear class-K function ``kappa(h) = gamma h``
+(the Robotarium's code uses ``gamma h^3``):
 
-    2 (p_i - p_j) . (v_i - v_j) >= -gamma h_ij             (Wang et al. 2017 eq. (8), class-K = gamma h)
+    2 (p_i - p_j) . (v_i - v_j) >= -gamma h_ij
 
-that is the quadratic programme
-
-    minimise sum_i |v_i - v_nom_i|^2  subject to the pair constraints          (Wang et al. 2017 eq. (13))
+    minimise sum_i |v_i - v_nom_i|^2  subject to every pair's constraint    (Wang et al. 2017's QP)
 
 solved exactly: as the least-distance problem ``min |w|, G w >= c`` (``w = v - v_nom``) of
 Lawson and Hanson ("Solving least squares problems", 1974, ch. 23), which is one
@@ -444,8 +445,8 @@ class SeparationBarrier:
         if i.size == 0:
             return dmin, None
         pij = P[i] - P[j]
-        h = np.einsum("ij,ij->i", pij, pij) - d2  # Wang et al. 2017 eq. (6)
-        g = 2.0 * np.einsum("ij,ij->i", pij, V[i] - V[j]) + gam * h  # eq. (8): g >= 0
+        h = np.einsum("ij,ij->i", pij, pij) - d2  # the single-integrator barrier (Robotarium certificate)
+        g = 2.0 * np.einsum("ij,ij->i", pij, V[i] - V[j]) + gam * h  # h_dot + gamma h >= 0 (Wang et al. 2017)
         bind = g < 0.0
         if not np.any(bind):
             return dmin, None
