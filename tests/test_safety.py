@@ -335,3 +335,19 @@ def test_large_team_uses_the_tree_and_agrees_with_dense_pairs():
     pij = P[i] - P[j]
     g = 2 * np.sum(pij * (Vf[i] - Vf[j]), axis=1) + 4.0 * (np.sum(pij ** 2, axis=1) - 0.09)
     assert np.all(g >= -1e-9)  # every one of the 7140 pairs, not just the neighbours
+
+
+def test_layout_points_of_every_kind_change_only_their_position_rates():
+    layout = RobotLayout(("pose", "xy_yaw", "xyz", "xyz_yaw"))
+    r = np.r_[0, 0, 0, 1, 0, 0, 0, 0.35, 0, 0.2, 0, 0.35, 0, -0.35, 0, 0, 0.0]
+    r_dot = np.r_[0.5, 0, 0, 0.1, 0.2, 0.3, 0.4, -0.5, 0, 0.7, 0, -0.5, 0, 0.5, 0, 0, -0.2]
+    out, info = SeparationBarrier(0.3, gamma=4.0).filter(layout, r, r_dot)
+    assert info.active
+    moved = np.flatnonzero(out != r_dot)
+    position_entries = {0, 1, 2, 7, 8, 10, 11, 12, 13, 14, 15}
+    assert set(moved.tolist()) <= position_entries and moved.size > 0
+    P, V = layout.positions(r), layout.positions(out)
+    i, j = layout.pairs
+    pij = P[i] - P[j]
+    g = 2 * np.sum(pij * (V[i] - V[j]), axis=1) + 4.0 * (np.sum(pij ** 2, axis=1) - 0.09)
+    assert np.all(g >= -1e-9)
