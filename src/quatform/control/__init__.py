@@ -16,6 +16,7 @@ from .quaternion import (
     dual_quaternion_lyapunov,
     quaternion_lyapunov,
 )
+from .safety import BarrierInfo, SafeController, SafeState, SeparationBarrier
 from .team import TEAM_FORMATIONS, TEAM_GAIN_KEYS, TeamController, team_controller, team_lyapunov
 from .ugv_uav import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UgvUavController, UgvUavState
 
@@ -47,6 +48,10 @@ __all__ = [
     "UGV_UAV_MEASURED_NAMES",
     "UGV_UAV_COMMAND_NAMES",
     "TeamController",
+    "SafeController",
+    "SafeState",
+    "SeparationBarrier",
+    "BarrierInfo",
     "team_controller",
     "team_lyapunov",
     "TEAM_FORMATIONS",

@@ -85,7 +85,9 @@ class TeamController(contract.Controller):
         ``k_dw`` (3, 1/s) on dual-quaternion errors (eq. (28)), ``k_p`` / ``k_theta`` on robot
         positions and yaws, ``k`` (one per variable or one for all) on plain variables.
     team : Team
-        The robots, whose layout must be the formation's.
+        The robots, whose layout must be the formation's (default: the kinematic model of each
+        point kind). The measured values are the robots' points, which must be their states
+        for a team that actuates (a Pioneer offering ``xy_yaw``: its control point and heading).
     feedforward : bool
         Add the reference's rate (seed 000's ``+ c_dot_des``).
     name : str
@@ -223,13 +225,15 @@ class TeamController(contract.Controller):
 
 
 def _default_model(kind):
-    """The kinematic model of a point kind (4-DOF holonomic robots by default)."""
-    from ..robots import HolonomicRobot
+    """The kinematic model of a point kind: a 4-DOF holonomic robot, a planar holonomic robot,
+    a free body; a position-only point has no default (its heading is someone else's)."""
+    from ..robots import FreeBodyRobot, HolonomicRobot, PlanarHolonomicRobot
 
-    if kind == "xyz_yaw":
-        return HolonomicRobot()
-    raise InvalidInputError(f"TeamController: give a robots.Team for robots of point kind {kind!r} "
-                            "(only 4-DOF robots have a default model)")
+    models = {"xyz_yaw": HolonomicRobot, "xy_yaw": PlanarHolonomicRobot, "pose": FreeBodyRobot}
+    if kind not in models:
+        raise InvalidInputError(f"TeamController: give a robots.Team for robots of point kind {kind!r} "
+                                f"(defaults exist for {', '.join(models)})")
+    return models[kind]()
 
 
 def team_lyapunov(controller: TeamController, c, c_des) -> np.ndarray:
