@@ -269,7 +269,8 @@ class RobotLayout:
                 out[i] += _TWO_PI * math.floor((ref[i] - out[i]) / _TWO_PI + 0.5)
             return np.array(out)
         out = np.array(np.broadcast_to(r, np.broadcast_shapes(r.shape, r_ref.shape)), dtype=float)
-        for i in idx:
+        if idx:
+            i = np.asarray(idx, dtype=np.intp)
             out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
         return out
 
