@@ -63,52 +63,85 @@ _THREE_HALF_PI = 1.5 * math.pi
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
 _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 _DQ_CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
+_QCONJ = _DQ_CONJ[:4]
 _EZ = np.array([0.0, 0.0, 1.0])
 
 
-# -- dual quaternions on (..., k, 8) arrays: pair_kernels' component formulas, one each ----------
-def _comps(a):
-    return tuple(np.moveaxis(a, -1, 0))
+# -- (dual) quaternion products on (..., k) arrays as two matmuls -----------------------------------
+# The bilinear tensors of geometry.mul (Hamilton) and pair_kernels.dqmul, read off the unit
+# vectors once: the products stay those functions' formulas; ``a @ T`` then ``b @ (..)`` is two
+# NumPy calls whatever the batch (the component kernels cost about 30).
+_E4, _E8 = np.eye(4), np.eye(8)
+_QT = g.mul(_E4[:, None, :], _E4[None, :, :])  # (4, 4, 4): e_i e_j
+_QT16 = _QT.reshape(4, 16)
+_PT16 = _QT[1:].reshape(3, 16)  # (0, p) q: the pure quaternion's rows
+_DT64 = kern.pack(kern.dqmul(tuple(_E8[:, None, :].transpose(2, 0, 1)), tuple(_E8[None, :, :].transpose(2, 0, 1)))
+                  ).reshape(8, 64)
+
+
+def _qm(a, b):
+    """Hamilton product ``a b`` of ``(..., 4)`` arrays (geometry.mul's tensor)."""
+    return (b[..., None, :] @ (a @ _QT16).reshape(a.shape[:-1] + (4, 4)))[..., 0, :]
+
+
+def _pm(p, q):
+    """``(0, p) q`` for ``p (..., 3)``, ``q (..., 4)``."""
+    return (q[..., None, :] @ (p @ _PT16).reshape(p.shape[:-1] + (4, 4)))[..., 0, :]
 
 
 def _dqmul(a, b):
-    return kern.pack(kern.dqmul(_comps(a), _comps(b)))
+    """Dual-quaternion product ``a b`` of ``(..., 8)`` arrays (pair_kernels.dqmul's tensor)."""
+    return (b[..., None, :] @ (a @ _DT64).reshape(a.shape[:-1] + (8, 8)))[..., 0, :]
 
 
-def _pure(v):
-    return np.concatenate([np.zeros(v.shape[:-1] + (1,)), v], axis=-1)
+def _q_yaw(theta):
+    """``(cos theta/2, 0, 0, sin theta/2)`` (geometry.q_yaw) in four NumPy calls, ``(..., 4)``."""
+    h = 0.5 * np.asarray(theta, dtype=float)
+    q = np.zeros(h.shape + (4,))
+    q[..., 0] = np.cos(h)
+    q[..., 3] = np.sin(h)
+    return q
+
+
+def _conj(q):
+    return q * _QCONJ
 
 
 def _pose(q, p):
     """``q + eps 1/2 p q`` (seed 000 §3.3), ``(..., 8)``; linear in ``q`` (not normalised)."""
-    return np.concatenate(np.broadcast_arrays(q, 0.5 * g.mul(_pure(p), q)), axis=-1)
+    return np.concatenate(np.broadcast_arrays(q, 0.5 * _pm(p, q)), axis=-1)
 
 
 def _pose_rate(q, p, qd, pd):
     """Rate of :func:`_pose` along ``(qd, pd)``: ``(qd, 1/2 (pd q + p qd))``."""
-    return np.concatenate(np.broadcast_arrays(qd, 0.5 * (g.mul(_pure(pd), q) + g.mul(_pure(p), qd))), axis=-1)
+    return np.concatenate(np.broadcast_arrays(qd, 0.5 * (_pm(pd, q) + _pm(p, qd))), axis=-1)
 
 
 def _translation(dq):
     """``t = 2 vec(d r*) / |r|^2`` (seed 000 §3.3's ``2 D P*``, scale-free in ``r``), ``(..., 3)``."""
     r = dq[..., :4]
-    return 2.0 * g.mul(dq[..., 4:], g.conj(r))[..., 1:] / np.sum(r * r, axis=-1, keepdims=True)
+    return 2.0 * _qm(dq[..., 4:], _conj(r))[..., 1:] / np.sum(r * r, axis=-1, keepdims=True)
 
 
-def _yaw_and_translation_rates(dq, dqd):
+def _yaw_and_translation_rates(dq, dqd, unit=False):
     """Yaw rate and translation rate of the pose ``dq`` moving at ``dqd``.
 
     ``theta' = 2 (r' r*)_z / |r|^2`` (the z component of the world angular velocity; exact
     for a yaw, the projection of any other rate; pair_kernels' rule) and ``t' = (2 vec(d' r*
-    + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of :func:`_translation`.
+    + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of :func:`_translation` along any rate.
+    ``unit=True``: pair_kernels' form for a unit ``dq`` and a tangent rate (``|r| = 1``,
+    ``r . r' = 0`` taken as given, so off-tangent rates are projected as the pair projects them).
     """
     r, d, rd, dd = dq[..., :4], dq[..., 4:], dqd[..., :4], dqd[..., 4:]
+    rc = _conj(r)
+    w = _qm(rd, rc)
+    m = _qm(dd, rc) + _qm(d, _conj(rd))
+    if unit:
+        return 2.0 * w[..., 3], 2.0 * m[..., 1:]
     n2 = np.sum(r * r, axis=-1, keepdims=True)
-    w = g.mul(rd, g.conj(r))
-    t = 2.0 * g.mul(d, g.conj(r))[..., 1:] / n2
-    m = g.mul(dd, g.conj(r)) + g.mul(d, g.conj(rd))
+    t = 2.0 * _qm(d, rc)[..., 1:] / n2
     td = (2.0 * m[..., 1:] - 2.0 * np.sum(r * rd, axis=-1, keepdims=True) * t) / n2
-    return 2.0 * w[..., 3] / n2[..., 0], td, w / n2
+    return 2.0 * w[..., 3] / n2[..., 0], td
 
 
 def _rot_z(theta, v, inverse=False):
@@ -250,10 +283,10 @@ class DualQuaternionTeam(Formation):
         L = self.layout
         shape = r.shape[:-1]
         if self.mean_rule == "yaw" and len(self._yaw_robots) == L.n:
-            return g.q_yaw(yaws)
+            return _q_yaw(yaws)
         Q = np.broadcast_to(_ONE, shape + (L.n, 4)).copy()
         if len(self._yaw_robots):
-            Q[..., self._yaw_robots, :] = g.q_yaw(yaws)
+            Q[..., self._yaw_robots, :] = _q_yaw(yaws)
         if len(self._pose_robots):
             Q[..., self._pose_robots, :] = L.orientations(r)
         return Q
@@ -262,10 +295,10 @@ class DualQuaternionTeam(Formation):
         L = self.layout
         yd = L.yaws(r_dot)
         if len(self._yaw_robots) == L.n:
-            return 0.5 * yd[..., None] * g.mul(_KZ, Q)
+            return 0.5 * yd[..., None] * _qm(_KZ, Q)
         Qd = np.zeros(np.broadcast_shapes(Q.shape, r_dot.shape[:-1] + (L.n, 4)))
         if len(self._yaw_robots):
-            Qd[..., self._yaw_robots, :] = 0.5 * yd[..., None] * g.mul(_KZ, Q[..., self._yaw_robots, :])
+            Qd[..., self._yaw_robots, :] = 0.5 * yd[..., None] * _qm(_KZ, Q[..., self._yaw_robots, :])
         if len(self._pose_robots):
             Qd[..., self._pose_robots, :] = L.orientations(r_dot)
         return Qd
@@ -279,15 +312,31 @@ class DualQuaternionTeam(Formation):
             th_s = 2.0 * np.arctan2(B[..., 1:, 3], B[..., 1:, 0])  # mod 4 pi: the sign of qhat_sk is the branch
             t_n = th_c - np.sum(th_s, axis=-1) / self.layout.n
             return np.concatenate([t_n[..., None] + th_s, t_n[..., None]], axis=-1), None
-        rot = g.mul(B[..., :1, :4], B[..., 1:, :4])[..., self._yaw_robots, :]  # q_c q_ci: the desired robots
+        rot = _qm(B[..., :1, :4], B[..., 1:, :4])[..., self._yaw_robots, :]  # q_c q_ci: the desired robots
         return g.yaw_of(rot), g.yaw_of(B[..., 0, :4])
+
+    def _candidate(self, t_n, th_n):
+        """The formation of a relative-shape state whose robot N's yaw is nearest ``th_n``: the
+        offset ``o`` (rad) to add to every yaw (``4 pi j / N`` mod 2 pi, for N odd every multiple
+        of ``2 pi / N``, for N even every even one) and ``j``."""
+        N = self.layout.n
+        unit = _TWO_PI / N if N % 2 else 2.0 * _TWO_PI / N
+        q = np.round(g.wrap(th_n - t_n) / unit) * (unit / (_TWO_PI / N))  # o = q 2 pi / N
+        j = (q * ((N + 1) // 2)) % N if N % 2 else 0.5 * q
+        return q * (_TWO_PI / N), j
 
     def _align(self, yaws, near_c):
         """The measured yaws moved by whole turns onto ``near_c``'s branch, and the whole turns
         (of ``2 pi / N_yaw``) to add to their mean (frame)."""
         t, th_c = self._desired_yaws(near_c)
-        a = _wind(yaws, t)
         if self.shape == "relative":
+            N = self.layout.n
+            if N >= 3:  # near_c is N formations: the one whose robot N is nearest the measured one's yaw,
+                # on the lift (every yaw + 4 pi j / N, robot 1's - 4 pi j) whose mean and signs are near_c's
+                _, j = self._candidate(t[..., -1], yaws[..., -1])
+                t = t + (2.0 * _TWO_PI / N) * j[..., None]
+                t = t - np.concatenate([2.0 * _TWO_PI * j[..., None], np.zeros(j.shape + (N - 1,))], axis=-1)
+            a = _wind(yaws, t)
             # the pair's rule (DualQuaternionPair, pair_kernels.dq_align_yaws) for each k against robot N:
             # a relative-yaw error beyond 3 pi / 2 is taken a turn back (the shape law's unstable
             # equilibrium at 2 pi stays at least pi / 2 away; docs/derivations.md, Hardening (issue 12))
@@ -295,6 +344,7 @@ class DualQuaternionTeam(Formation):
             a = a.copy()
             a[..., :-1] -= _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)
             return a, 0.0
+        a = _wind(yaws, t)
         n = t.shape[-1]
         # the desired yaws' mean differs from the desired formation yaw by whole 2 pi / n (on the
         # description's set): take the lift of the measured yaws with the same offset
@@ -305,7 +355,7 @@ class DualQuaternionTeam(Formation):
         """``q_c (..., 4)``: module docstring; sign nearest ``hint`` where given."""
         L = self.layout
         if self.mean_rule == "yaw":
-            q = g.q_yaw(np.mean(yaws, axis=-1) + shift)
+            q = _q_yaw(np.mean(yaws, axis=-1) + shift)
         elif self.mean_rule == "pose":
             q = L.orientations(r)[..., 0, :]
             q = q / np.linalg.norm(q, axis=-1, keepdims=True)
@@ -363,7 +413,7 @@ class DualQuaternionTeam(Formation):
         """Eq. (27) for N robots in closed form: ``qhat_sk = pose(q_yaw(th_k - th_N), R_z(-th_N)(p_k - p_N))``."""
         th_n = yaws[..., -1]
         ts = _rot_z(th_n[..., None], P[..., :-1, :] - P[..., -1:, :], inverse=True)
-        S = _pose(g.q_yaw(yaws[..., :-1] - th_n[..., None]), ts)
+        S = _pose(_q_yaw(yaws[..., :-1] - th_n[..., None]), ts)
         C = _pose(qc, xc)
         return _join(C, S)
 
@@ -448,8 +498,7 @@ class DualQuaternionTeam(Formation):
         th_s = 2.0 * np.arctan2(B[..., 1:, 3], B[..., 1:, 0])
         t_n = th_c - np.sum(th_s, axis=-1) / N
         if N >= 3:
-            step = 4.0 * math.pi / N
-            t_n = t_n + step * np.round((L.yaws(near_r)[..., -1] - t_n) / step)
+            t_n = t_n + self._candidate(t_n, L.yaws(near_r)[..., -1])[0]
         xc = _translation(B[..., 0, :])
         ts = _translation(B[..., 1:, :])
         p_n = xc - _rot_z(t_n, np.sum(ts, axis=-2) / N)
@@ -477,7 +526,7 @@ class DualQuaternionTeam(Formation):
         xcd = np.mean(v, axis=-2)
         yd = L.yaws(r_dot)
         if self.mean_rule == "yaw":
-            qcd = 0.5 * np.mean(yd, axis=-1)[..., None] * g.mul(_KZ, qc)
+            qcd = 0.5 * np.mean(yd, axis=-1)[..., None] * _qm(_KZ, qc)
         elif self.mean_rule == "pose":
             q1 = L.orientations(r)[..., 0, :]
             n1 = np.linalg.norm(q1, axis=-1, keepdims=True)
@@ -495,7 +544,7 @@ class DualQuaternionTeam(Formation):
             thd_n = yd[..., -1]
             tsd = _rot_z(th_n[..., None], v[..., :-1, :] - v[..., -1:, :], inverse=True) - thd_n[..., None, None] * _z_cross(ts)
             qs = B[..., 1:, :4]
-            qsd = 0.5 * (yd[..., :-1] - thd_n[..., None])[..., None] * g.mul(_KZ, qs)
+            qsd = 0.5 * (yd[..., :-1] - thd_n[..., None])[..., None] * _qm(_KZ, qs)
             Sd = _pose_rate(qs, ts, qsd, tsd)
         else:
             Q = self._robot_rotations(r, yaws)
@@ -526,8 +575,8 @@ class DualQuaternionTeam(Formation):
             if r is None:
                 r = self.inverse(c)
             r = np.asarray(r, dtype=float)
-            thcd, xcd, _ = _yaw_and_translation_rates(B[..., 0, :], Bd[..., 0, :])
-            thsd, tsd, _ = _yaw_and_translation_rates(B[..., 1:, :], Bd[..., 1:, :])
+            thcd, xcd = _yaw_and_translation_rates(B[..., 0, :], Bd[..., 0, :], unit=True)
+            thsd, tsd = _yaw_and_translation_rates(B[..., 1:, :], Bd[..., 1:, :], unit=True)
             ts = _translation(B[..., 1:, :])
             N = L.n
             th_n = L.yaws(r)[..., -1]
@@ -543,7 +592,7 @@ class DualQuaternionTeam(Formation):
         S, Sd = B[..., 1:, :], Bd[..., 1:, :]
         Qi = _dqmul(C, S)
         Qid = _dqmul(Cd, S) + _dqmul(C, Sd)
-        yd, V, _ = _yaw_and_translation_rates(Qi, Qid)
+        yd, V = _yaw_and_translation_rates(Qi, Qid)
         q = None
         if len(self._pose_robots):
             q = Qid[..., self._pose_robots, :4]
