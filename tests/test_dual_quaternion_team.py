@@ -408,3 +408,32 @@ def test_bad_input_one_line_each():
              NonUnitError: lambda: F.inverse(2 * c)}[err]()
         except err as e:
             assert "\n" not in str(e)
+
+
+def test_lyapunov_29_rises_where_eq_33_drops_its_term_as_for_the_pair():
+    """Seed 000 eq. (33) drops the scalar ``d0`` of the error's dual part: for a rotation error
+    beyond 90 deg with a translation error along its axis above 2 sqrt 2 m, eq. (29) rises at
+    first (the pair's counterexample, Hardening (issue 12) item 4, on the team's qhat_c: a rigid
+    turn of 166 deg about the vertical and 4 m up, Table 1 gains: 2.030 -> 2.264), and the loop
+    still converges; 2 m up it falls in every step."""
+    F = DualQuaternionTeam(3)
+    team = Team(tuple(HolonomicRobot(max_speed=1e6, max_yaw_rate=1e6) for _ in range(3)))
+    ctrl = TeamController(F, {"k_dw": TABLE1["dual-quaternion"]["k_dw"]}, team, feedforward=False)
+    r_des = np.array([1.0, 0, 0, 0, -0.5, 0.866, 0, 0, -0.5, -0.866, 0, 0])
+    c_des = F.forward(r_des)
+    L = F.layout
+    p = L.positions(r_des)
+    a = math.radians(166.0)
+    R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    out = {}
+    for dz in (4.0, 2.0):
+        r = L.compose((p - p.mean(0)) @ R.T + p.mean(0) + [0, 0, dz], L.yaws(r_des) + a)
+        V = []
+        for _ in range(300):
+            s = ctrl.update(0.0, r, Reference(c_des, np.zeros_like(c_des)))
+            V.append(float(team_lyapunov(ctrl, s.signals["cluster"], c_des)))
+            r = r + 1e-3 * s.u
+        out[dz] = np.array(V)
+    assert abs(out[4.0][0] - 2.0297) < 1e-3 and abs(out[4.0].max() - 2.2636) < 1e-3
+    assert out[4.0][-1] < 0.15 * out[4.0][0]
+    assert not np.any(np.diff(out[2.0]) > 1e-13) and out[2.0][-1] < 0.1 * out[2.0][0]
