@@ -11,10 +11,20 @@ import pytest
 from quatform.control import TABLE1, DualQuaternionController
 from quatform.control.base import Reference
 from quatform.control.team import TeamController, team_lyapunov
-from quatform.errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError, UnreachableError
+from quatform.errors import (
+    DegenerateInputError,
+    InvalidInputError,
+    NonUnitError,
+    ShapeError,
+    UnreachableError,
+)
 from quatform.formations import DualQuaternionPair, RobotLayout, RobotSpace
 from quatform.formations.dual_quaternion_team import DualQuaternionTeam
-from quatform.formations.testing import check_formation, cluster_distance, robot_distance
+from quatform.formations.testing import (
+    check_formation,
+    cluster_distance,
+    robot_distance,
+)
 from quatform.robots import HolonomicRobot, Team
 
 MIXED = RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))
@@ -326,7 +336,7 @@ def test_lyapunov_29_decreases_along_the_closed_loop_except_at_branch_switches(N
     feed-forward, Euler steps of 2 ms (k dt = 0.01): it never rises in a step, except in the step where a
     robot's yaw error passes pi (the measured state moves to the other lift: the formation yaw
     jumps by 2 pi / N); every run approaches the reference."""
-    F, ctrl, V, switch, r, r_des = _closed_loop(N, np.random.default_rng(10 + N), 700, k=5.0)
+    _, _, V, switch, _, _ = _closed_loop(N, np.random.default_rng(10 + N), 700, k=5.0)
     rise = np.diff(V, axis=0) > 1e-13
     assert not np.any(rise & ~switch[1:])
     assert np.all(V[-1] < 0.01 * V[0])

@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from ..algebra.validate import as_array, as_unit_dual_quaternion
-from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
+from ..errors import InvalidInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
 from .base import Formation, Variable
@@ -50,7 +50,7 @@ from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from .team_chart import LawGroup, TeamChart, check_template, default_template
 
-__all__ = ["DualQuaternionTeam", "SHAPES", "CHARTS"]
+__all__ = ["CHARTS", "SHAPES", "DualQuaternionTeam"]
 
 #: The two shape definitions (module docstring).
 SHAPES = ("frame", "relative")
