@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from quatform.control import TABLE1, DualQuaternionController
 from quatform.control.base import Reference
@@ -447,3 +449,32 @@ def test_lyapunov_29_rises_where_eq_33_drops_its_term_as_for_the_pair():
     assert abs(out[4.0][0] - 2.0297) < 1e-3 and abs(out[4.0].max() - 2.2636) < 1e-3
     assert out[4.0][-1] < 0.15 * out[4.0][0]
     assert not np.any(np.diff(out[2.0]) > 1e-13) and out[2.0][-1] < 0.1 * out[2.0][0]
+
+
+@settings(max_examples=25, deadline=None)
+@given(kinds=st.lists(st.sampled_from(["xy_yaw", "xyz_yaw", "pose", "xyz"]), min_size=2, max_size=6),
+       seed=st.integers(0, 2**31 - 1))
+def test_any_mix_round_trips_and_rates_invert(kinds, seed):
+    """Any mix of point kinds: ``inverse(forward(r)) = r`` without a hint (yaws mod 2 pi, wound by up
+    to 40 rad), ``forward(r wound, near_c=c) = c`` up to block signs, and ``robot_rate`` inverts
+    ``cluster_rate`` (the inverse Jacobian has full rank everywhere)."""
+    rng = np.random.default_rng(seed)
+    F = DualQuaternionTeam(layout=RobotLayout(tuple(kinds)))
+    r = F.sample_robot_state(rng, (4,))
+    c = F.forward(r)
+    assert np.max(robot_distance(F, F.inverse(c), r)) < 1e-10
+    wound = r.copy()
+    yi = list(F.layout.yaw_indices)
+    wound[:, yi] += 2 * math.pi * rng.integers(-6, 7, (4, len(yi)))
+    assert np.max(cluster_distance(F, F.forward(wound, near_c=c), c)) < 1e-10
+    v = rng.normal(size=r.shape)
+    cd = F.cluster_rate(wound, v, near_c=c)
+    assert np.max(np.abs(F.robot_rate(F.forward(wound, near_c=c), cd, r=wound) - v)) < 1e-9
+
+
+def test_a_chart_whose_robots_coincide_is_refused():
+    F = DualQuaternionTeam(3)
+    e = F.chart.from_robots(np.array([0.0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0]))
+    e[F.chart.shape_index[1]] = e[F.chart.shape_index[0]]
+    with pytest.raises(DegenerateInputError, match="robots 1 and 2 coincide"):
+        F.from_chart(e)
