@@ -478,3 +478,24 @@ def test_a_chart_whose_robots_coincide_is_refused():
     e[F.chart.shape_index[1]] = e[F.chart.shape_index[0]]
     with pytest.raises(DegenerateInputError, match="robots 1 and 2 coincide"):
         F.from_chart(e)
+
+
+def test_another_lift_at_the_reference_is_an_equilibrium_so_forward_winds_onto_the_reference():
+    """Robots at the reference with one yaw wound a turn: ``forward`` of those real yaws is another
+    state (``q_c`` turned by 2 pi / N), and eq. (28) on it with ``K = k I`` commands robot rates
+    that cancel exactly (docs/derivations.md, Teams (issue 14) item 5); ``forward(r, near_c=c_des)``
+    takes the reference's lift, whose error is zero."""
+    from quatform.control.laws import dual_quaternion_feedback
+
+    F = DualQuaternionTeam(3)
+    r = F.sample_robot_state(np.random.default_rng(15), ())
+    c_des = F.forward(r)
+    wound = r.copy()
+    wound[3] += 2 * math.pi
+    c = F.forward(wound)
+    assert np.min(cluster_distance(F, c, c_des)) > 0.1
+    B, Bd = c.reshape(4, 8), c_des.reshape(4, 8)
+    rate = np.concatenate([dual_quaternion_feedback(tuple(B[k]), tuple(Bd[k]), (0.0,) * 8, (2.0,) * 3, 0.0)[1]
+                           for k in range(4)])
+    assert np.max(np.abs(F.robot_rate(c, rate, r=wound))) < 1e-12
+    assert np.max(cluster_distance(F, F.forward(wound, near_c=c_des), c_des)) < 1e-12
