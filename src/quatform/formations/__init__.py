@@ -15,6 +15,7 @@ from .base import PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, Formation, Variable
 from .layout import POINT_KINDS, RobotLayout
 from .special_sets import SpecialSet
 from .dual_quaternion_pair import DualQuaternionPair
+from .dual_quaternion_team import DualQuaternionTeam
 from .euclidean_team import EuclideanTeam
 from .euclidean_pair import (
     EUCLIDEAN_VARIABLES,
@@ -42,11 +43,13 @@ FORMATIONS = {
     **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
     "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
     "euclidean-team": EuclideanTeam(layout=RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))),
+    "dual-quaternion-team": DualQuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw", "xyz"))),
 }
 
 #: The team descriptions (N robots of any point kinds) by key, as classes:
 #: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
-TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam, "euclidean-team": EuclideanTeam}
+TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam, "euclidean-team": EuclideanTeam,
+                   "dual-quaternion-team": DualQuaternionTeam}
 
 __all__ = [
     "Formation",
@@ -66,6 +69,7 @@ __all__ = [
     "TEAM_FORMATIONS",
     "RobotSpaceTeam",
     "EuclideanTeam",
+    "DualQuaternionTeam",
     "TeamChart",
     "LawGroup",
     "fit_attitude",
