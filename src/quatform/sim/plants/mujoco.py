@@ -16,6 +16,9 @@ monitor's collisions.
 * :class:`UgvUavPlant` (:func:`ugv_uav_plant`) - a Pioneer-like UGV and an IRIS in
   Bebop-like attitude mode (seed 001 §3): state and output the 11 values the seed 001
   controller reads, commands its 6.
+* :class:`~quatform.sim.plants.mujoco_team.TeamPlant` (:func:`~quatform.sim.plants.mujoco_team.team_plant`,
+  issue 14) - N quadrotors and Pioneers for a ``robots.Team``; the pair plant is its
+  two-quadrotor case (the same world calls, the same numbers).
 * :func:`physics_metrics` - the keys a physics run adds to ``metrics.json``;
   :func:`physics_record` - the :class:`~quatform.sim.mujoco_backend.PhysicsRecord` of a run
   (for :func:`quatform.report.physics_render.render_or_fallback`).
@@ -69,6 +72,11 @@ class _WorldPlant:
     @property
     def output_columns(self) -> tuple[str, ...]:
         return self.state_columns
+
+    def robot_metrics(self) -> dict:
+        """Per-robot keys :func:`physics_metrics` adds (none for the seed 000 and 001 plants;
+        the team plant's ``robots``)."""
+        return {}
 
     def output(self, x):
         """What a sensor sees: the robot state itself."""
@@ -124,11 +132,10 @@ class PairPlant(_WorldPlant):
         super().__init__(world, x, timestep)
 
     def _command(self, u):
-        for i, n in enumerate(self.names):
-            self.world.command_quad(n, u[4 * i:4 * i + 4])
+        self.world.command_quads(u.reshape(2, 4))
 
     def _read(self):
-        return np.concatenate([self.world.quad_state(n) for n in self.names])
+        return self.world.quad_states().ravel()  # both at once, as the team plant reads them
 
     def robot_points(self, states) -> dict:
         """Robot name -> ``(T, 3)`` positions of ``states`` ``(T, 8)`` (the quadrotors' centres)."""
@@ -226,8 +233,11 @@ def ugv_uav_plant(scenario, x0, floor: float, k=IRIS_IDENTIFIED_K) -> UgvUavPlan
 
 
 def physics_metrics(plant: _WorldPlant) -> dict:
-    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``."""
-    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep}
+    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``, and ``robots``
+    (each robot's kind, tilt, thrust and collisions) for a
+    :class:`~quatform.sim.plants.mujoco_team.TeamPlant`."""
+    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep,
+            **plant.robot_metrics()}
 
 
 def physics_record(plant: _WorldPlant, log, title: str = "", gains: dict | None = None,
