@@ -31,7 +31,7 @@ from ...errors import InvalidInputError
 from ...robots import HolonomicRobot, Pioneer, Team
 from ...robots.physics import PIONEER_3DX
 from ..mujoco_backend import PhysicsWorld, physics_timestep
-from .mujoco import _start, _WorldPlant
+from .mujoco import WorldPlant, start_state
 
 __all__ = ["PHYSICS_KINDS", "TeamPlant", "team_plant"]
 
@@ -47,7 +47,7 @@ def _indices(slices, picks, width: int) -> np.ndarray:
     return np.array([list(range(slices[i].start, slices[i].stop)) for i in picks], dtype=int).reshape(-1, width)
 
 
-class TeamPlant(_WorldPlant):
+class TeamPlant(WorldPlant):
     """N quadrotors and ground robots in one MuJoCo world (see the module docstring).
 
     Parameters
@@ -87,7 +87,7 @@ class TeamPlant(_WorldPlant):
                     f"MuJoCo backend cannot simulate; use {' or '.join(c.__name__ for c in PHYSICS_KINDS)} models "
                     "(a quadrotor, a Pioneer 3-DX) or the kinematic backend")
             kinds.append(kind)
-        x = _start(x0, team.n_state, what)
+        x = start_state(x0, team.n_state, what)
         self.team, self.kinds = team, tuple(kinds)
         self.names = tuple(f"robot{i + 1}" for i in range(len(kinds)))
         quads = [i for i, k in enumerate(kinds) if k == "quadrotor"]
