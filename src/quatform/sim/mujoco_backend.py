@@ -395,6 +395,7 @@ class PhysicsWorld:
         v = [self._vadr[n] for n in self.quad_names]
         self._quad_qidx = np.array(q, dtype=int)[None] + np.arange(7)[:, None]  # (7, N): qpos rows
         self._quad_vidx = np.array(v, dtype=int)[None] + np.arange(6)[:, None]  # (6, N): qvel rows
+        self._quad_ridx = 9 * np.array([body[n] for n in self.quad_names], dtype=int)[None] + np.arange(9)[:, None]
         self._quad_bodies = np.array([body[n] for n in self.quad_names], dtype=int)
         self._motor_ids = np.array([self._motors[n] for n in self.quad_names], dtype=int).reshape(-1, 4)
         self._ugv_qidx = np.array([self._qadr[n] for n in self.ugv_names], dtype=int)[None] + np.arange(7)[:, None]
@@ -444,8 +445,9 @@ class PhysicsWorld:
                                         "raise it to stand on its wheels or skids")
 
     def _warning_counts(self) -> tuple:
-        w, W = self.data.warning, self.mj.mjtWarning
-        return tuple(int(w[k].number) for k in (W.mjWARN_BADQACC, W.mjWARN_BADQVEL, W.mjWARN_BADQPOS))
+        W = self.mj.mjtWarning
+        return tuple(self.data.warning.number[[int(W.mjWARN_BADQACC), int(W.mjWARN_BADQVEL),
+                                               int(W.mjWARN_BADQPOS)]].tolist())
 
     def _check_step(self):
         """After ``mj_step``: MuJoCo resets the state and only logs a warning when the
@@ -553,28 +555,36 @@ class PhysicsWorld:
             u = self._ugv_cmd
             d.ctrl[self._wheel_ids] = wheel_speeds(u[:, 0], u[:, 1], params=self.ugv_params)
         qpos, qvel, ctrl, force, xfrc = d.qpos, d.qvel, d.ctrl, d.actuator_force, d.xfrc_applied
-        cas, qidx, vidx, motors, bodies = self.cascade, self._quad_qidx, self._quad_vidx, self._motor_ids, \
+        xmat = d.xmat.reshape(-1)  # a view: MuJoCo's body rotations, rows first
+        cas, ridx, vidx, motors, bodies = self.cascade, self._quad_ridx, self._quad_vidx, self._motor_ids, \
             self._quad_bodies
         quads, velocity = len(self.quad_names) > 0, self.quad_mode == "velocity"
-        u = self._quad_cmd
-        v_cmd, yaw_cmd = u[:, 0:3], u[:, 3]
+        if quads:  # the set points held for this call's n steps
+            u = self._quad_cmd
+            if velocity:
+                cas.hold_velocity(u[:, 0:3], u[:, 3])
+            else:
+                cas.hold_attitude(u)
         for _ in range(n):
+            t_before = d.time
+            # mj_step in its two halves (MuJoCo's documented split): the first computes the
+            # kinematics of the current qpos, so the controllers read each body's rotation
+            # (xmat: mju_quat2Mat of its normalised quaternion) instead of recomputing it
+            mj.mj_step1(m, d)
             if quads:
-                R = rotation_rows(qpos[qidx[3:7]].T)
+                R = xmat[ridx].T  # (N, 9), the transpose of a contiguous (9, N)
                 vel = qvel[vidx]  # (6, N)
                 v, w = vel[0:3].T, vel[3:6].T
-                f = cas.velocity_mode(v_cmd, yaw_cmd, v, R, w, dt) if velocity else cas.attitude_mode(u, v, R, w)
+                f = cas.velocity_forces(v, R, w, dt) if velocity else cas.attitude_forces(v, R, w)
                 ctrl[motors] = f
-                af = force[motors]
-                xfrc[bodies, 0:3] = cas.rotor_drag(af, v, R)
-            t_before = d.time
-            mj.mj_step(m, d)
+                xfrc[bodies, 0:3] = cas.rotor_drag(force[motors], v, R)
+            mj.mj_step2(m, d)
             if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
                 self._check_step()
             self.contacts.check(m, d)
         self._check_step()  # the warning counters and the positions, once per call
         if quads:  # sampled once per call (each control tick)
-            self.min_cos_tilt = np.minimum(self.min_cos_tilt, rotation_rows(qpos[qidx[3:7]].T)[:, 8])
+            self.min_cos_tilt = np.minimum(self.min_cos_tilt, rotation_rows(qpos[self._quad_qidx[3:7]].T)[:, 8])
             self.max_thrust = np.maximum(self.max_thrust, force[motors].sum(axis=1))
 
 

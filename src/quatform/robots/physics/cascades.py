@@ -125,6 +125,7 @@ class QuadrotorCascades:
         self._tan_tilt = math.tan(c.tilt_max)
         self._bebop_fz_max = self._thrust_max * math.cos(c.bebop_tilt_max)
         self.reset()
+        self.hold_velocity(np.zeros((n, 3)), np.zeros(n))  # hover
 
     def reset(self):
         """Clear every velocity integrator."""
@@ -150,9 +151,33 @@ class QuadrotorCascades:
             raise NonFiniteError(f"{what}: a vehicle's state is not finite (v = {v.T.tolist()!r}); "
                                  "check the physics step")
 
+    # -- set points (held between control ticks) ---------------------------------------
+    def hold_velocity(self, v_cmd, yaw_rate_cmd):
+        """Hold world-frame velocity (n, 3) and yaw-rate (n,) set points for
+        :meth:`velocity_forces` (a non-finite entry holds zero; the yaw rate is limited to
+        ``yaw_rate_max``)."""
+        vc = _rows(v_cmd)
+        self._vc = np.where(np.isfinite(vc), vc, 0.0)
+        self._yaw = self._yaw_set_point(np.asarray(yaw_rate_cmd, dtype=float))
+
+    def _yaw_set_point(self, yaw_rate):
+        lim = self.cascade.yaw_rate_max
+        return np.where(np.isfinite(yaw_rate), np.minimum(np.maximum(yaw_rate, -lim), lim), 0.0)
+
+    def hold_attitude(self, u):
+        """Hold Bebop-like commands ``(u_x, u_y, u_z, u_psi)`` (n, 4) for :meth:`attitude_forces`
+        (each limited to [-1, 1], a non-finite one 0; seed 001 eq. (3.6))."""
+        c = self.cascade
+        u = _rows(u)
+        u = np.where(np.isfinite(u), np.minimum(np.maximum(u, -1.0), 1.0), 0.0)
+        self._climb = u[2] * c.bebop_climb_max
+        self._tilt = np.tan(u[0:2] * c.bebop_tilt_max)  # (tan pitch, tan roll) in the heading frame
+        self._yaw = self._yaw_set_point(u[3] * c.bebop_yaw_rate_max)
+
     # -- outer loops ------------------------------------------------------------------
     def velocity_mode(self, v_cmd, yaw_rate_cmd, v, R, omega, dt: float) -> np.ndarray:
-        """Rotor forces (n, 4) for world-frame velocity and yaw-rate set points.
+        """Rotor forces (n, 4) for world-frame velocity and yaw-rate set points
+        (:meth:`hold_velocity` then :meth:`velocity_forces`).
 
         Parameters
         ----------
@@ -169,13 +194,17 @@ class QuadrotorCascades:
         dt : float
             The integrators' step, s.
         """
+        self.hold_velocity(v_cmd, yaw_rate_cmd)
+        return self.velocity_forces(v, R, omega, dt)
+
+    def velocity_forces(self, v, R, omega, dt: float) -> np.ndarray:
+        """Rotor forces (n, 4) for the held velocity set points (:meth:`velocity_mode`'s
+        arguments but the set points; one call per physics step)."""
         c = self.cascade
-        vc, v, R, w = _rows(v_cmd), _rows(v), _rows(R), _rows(omega)
-        if np.count_nonzero(np.isfinite(vc)) < vc.size:
-            vc = np.where(np.isfinite(vc), vc, 0.0)
+        v, R, w = _rows(v), _rows(R), _rows(omega)
         before = self._integral
         lim_i = c.vel_i_limit
-        err = vc - v
+        err = self._vc - v
         self._integral = np.minimum(np.maximum(self._integral + self._vi * err * dt, -lim_i), lim_i)
         a = self._vp * err + self._integral
         m, g, t_max = self.params.mass, GRAVITY, self._thrust_max
@@ -191,7 +220,7 @@ class QuadrotorCascades:
         over = nxy > lim
         if np.count_nonzero(over):
             F[0:2] = np.where(over, F[0:2] * lim / np.where(over, nxy, 1.0), F[0:2])
-        f = self._attitude_chain(F, np.asarray(yaw_rate_cmd, dtype=float), R, w)
+        f = self._attitude_chain(F, self._yaw, R, w)
         if not math.isfinite(float(np.add.reduce(f, None))):  # a non-finite state reaches the forces
             self._integral = before  # not poisoned for good
             self._check(v, R, w, "velocity_mode")
@@ -199,27 +228,31 @@ class QuadrotorCascades:
 
     def attitude_mode(self, u, v, R, omega) -> np.ndarray:
         """Rotor forces (n, 4) for Bebop-like commands ``(u_x, u_y, u_z, u_psi)`` (n, 4) in [-1, 1]
-        (seed 001 eq. (3.6); :meth:`QuadrotorCascade.attitude_mode`)."""
+        (seed 001 eq. (3.6); :meth:`QuadrotorCascade.attitude_mode`): :meth:`hold_attitude`
+        then :meth:`attitude_forces`."""
+        self.hold_attitude(u)
+        return self.attitude_forces(v, R, omega)
+
+    def attitude_forces(self, v, R, omega) -> np.ndarray:
+        """Rotor forces (n, 4) for the held Bebop-like commands (one call per physics step)."""
         c = self.cascade
-        u, v, R, w = _rows(u), _rows(v), _rows(R), _rows(omega)
-        u = np.where(np.isfinite(u), np.minimum(np.maximum(u, -1.0), 1.0), 0.0)
+        v, R, w = _rows(v), _rows(R), _rows(omega)
         m, g = self.params.mass, GRAVITY
-        az = c.bebop_climb_p * (u[2] * c.bebop_climb_max - v[2])
+        az = c.bebop_climb_p * (self._climb - v[2])
         fz = np.minimum(m * (g + np.minimum(np.maximum(az, -0.7 * g), g)), self._bebop_fz_max)
-        tx, ty = np.tan(u[0] * c.bebop_tilt_max), np.tan(u[1] * c.bebop_tilt_max)
+        tx, ty = self._tilt
         ch, sh = R[0], R[3]
         h = np.hypot(ch, sh)
         h = np.where(h == 0.0, 1.0, h)
         ch, sh = ch / h, sh / h
-        f = self._attitude_chain(np.stack([fz * (ch * tx - sh * ty), fz * (sh * tx + ch * ty), fz]),
-                                 u[3] * c.bebop_yaw_rate_max, R, w)
+        f = self._attitude_chain(np.stack([fz * (ch * tx - sh * ty), fz * (sh * tx + ch * ty), fz]), self._yaw, R, w)
         if not math.isfinite(float(np.add.reduce(f, None))):  # a non-finite state reaches the forces
             self._check(v, R, w, "attitude_mode")
         return f.T
 
     # -- inner loops (entry by entry: (k, n) rows) ------------------------------------
     def _attitude_chain(self, F, yaw_rate, R, w) -> np.ndarray:
-        """Thrust vectors ``F`` (3, n) -> attitude set points (heading kept) -> rates -> torques
+        """Thrust vectors ``F`` (3, n) and yaw-rate set points (n,) -> attitude set points (heading kept) -> rates -> torques
         -> forces (:meth:`QuadrotorCascade._attitude_chain`, every vehicle): forces (4, n).
 
         The attitude error is Lee et al.'s ``e_R = 1/2 vee(R_d^T R - R^T R_d)`` with
@@ -244,10 +277,7 @@ class QuadrotorCascades:
         gam /= np.sqrt(np.add.reduce(gam * gam, axis=0))  # R^T b2
         beta = Fb / n  # R^T b3
         b0, b1 = beta[0], beta[1]
-        kp, lim = c.att_p, c.yaw_rate_max
-        if np.count_nonzero(np.isfinite(yaw_rate)) < len(yaw_rate):
-            yaw_rate = np.where(np.isfinite(yaw_rate), yaw_rate, 0.0)
-        yaw_rate = np.minimum(np.maximum(yaw_rate, -lim), lim)
+        kp = c.att_p  # yaw_rate: the held set point, finite and within yaw_rate_max
         # rate set point: attitude P on roll and pitch (e_x, e_y); the yaw rate (world z) in body axes
         w_sp = yaw_rate * Rm[2]
         w_sp[0] -= (0.5 * kp) * (b1 - gam[2])
