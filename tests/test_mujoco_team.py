@@ -109,6 +109,7 @@ def test_a_mixed_team_of_three_quadrotors_and_a_pioneer_steps():
 
 
 def test_the_pair_plant_is_the_two_quadrotor_team_plant():
+    """Step for step: the pair plant and a team plant of two HolonomicRobot models."""
     sc = load_scenario("mas-kitts-yaw-step")
     r0 = np.array([0.0, 0.0, 2.0, 0.3, 1.0, 0.0, 2.0, -0.2])
     u = (0.4, 0.0, 0.1, 0.5, 0.0, -0.3, 0.0, -0.5)
@@ -116,6 +117,26 @@ def test_the_pair_plant_is_the_two_quadrotor_team_plant():
     logs = [simulate(p, Constant(u), lambda k: None, times, p.x0, dt=sc.dt_s)
             for p in (pair_plant(sc, r0), team_plant(Team(), r0, dt=sc.dt_s))]
     assert np.array_equal(logs[0]["state"], logs[1]["state"])
+
+
+@pytest.mark.parametrize("with_pioneer", [False, True])
+def test_the_cascades_on_arrays_fly_as_the_cascades_one_by_one(with_pioneer):
+    """The same team, its quadrotors' cascades vectorised or per vehicle: the same flight to
+    rounding (2 s of a velocity command, four quadrotors, with and without a Pioneer)."""
+    robots = (HolonomicRobot(),) * 4 + ((Pioneer(z=0.3),) if with_pioneer else ())
+    x0 = np.r_[tetrahedron(), [3.0, 0.0, 0.5]] if with_pioneer else tetrahedron()
+    team = Team(robots)
+    u = np.r_[np.tile([0.4, -0.2, 0.1, 0.3], 4), [0.3, 0.2] if with_pioneer else []]
+    times = np.arange(201) * DT
+    plants = [team_plant(team, x0, dt=DT, cascades=mode) for mode in ("vectorised", "per-vehicle")]
+    assert [p.world.vectorised for p in plants] == [True, False]
+    logs = [simulate(p, Constant(tuple(u)), lambda k: None, times, p.x0, dt=DT) for p in plants]
+    assert np.abs(logs[0]["state"] - logs[1]["state"]).max() < 1e-9
+    assert np.abs(logs[0]["state"][-1] - x0).max() > 0.3  # they moved
+    assert team_plant(Team((HolonomicRobot(),) * 6), np.r_[tetrahedron(), tetrahedron()[:8] + [0, 0, 3, 0] * 2],
+                      dt=DT).world.vectorised  # "auto": arrays from VECTORISED_FROM quadrotors on
+    with pytest.raises(InvalidInputError, match="cascades must be one of"):
+        team_plant(team, x0, dt=DT, cascades="numba")
 
 
 def test_batch_axes_and_bad_input_are_refused_in_one_line():

@@ -67,6 +67,7 @@ from ..robots.physics import (
     IRIS,
     PIONEER_3DX,
     DiffDriveParams,
+    QuadrotorCascade,
     QuadrotorCascades,
     QuadrotorParams,
     diff_drive_mjcf,
@@ -76,9 +77,9 @@ from ..robots.physics import (
     world_mjcf,
 )
 
-__all__ = ["BACKEND_LABEL", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "UGV_UAV_GAIN_NAMES",
-           "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k", "import_mujoco", "pair_controller_gains",
-           "physics_controller", "physics_controller_gains", "physics_gains", "physics_timestep",
+__all__ = ["BACKEND_LABEL", "CASCADE_MODES", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS",
+           "UGV_UAV_GAIN_NAMES", "VECTORISED_FROM", "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k",
+           "import_mujoco", "pair_controller_gains", "physics_controller", "physics_controller_gains", "physics_gains", "physics_timestep",
            "ugv_uav_controller_gains"]
 
 #: How figures and tables name this backend (``PhysicsRecord.backend_label``).
@@ -264,6 +265,21 @@ def import_mujoco():
     return mujoco
 
 
+#: How :class:`PhysicsWorld` runs the quadrotors' cascades: ``"vectorised"`` (all at once on
+#: ``(N, ...)`` arrays, :class:`~quatform.robots.physics.QuadrotorCascades`), ``"per-vehicle"``
+#: (one :class:`~quatform.robots.physics.QuadrotorCascade` per vehicle on Python floats) or
+#: ``"auto"`` (vectorised from :data:`VECTORISED_FROM` quadrotors on). Both give the same
+#: forces to rounding (``tests/test_mujoco_team.py``).
+CASCADE_MODES = ("auto", "vectorised", "per-vehicle")
+
+#: Fewest quadrotors for which ``"auto"`` runs the cascades on arrays: one vectorised step
+#: costs ~150 us of NumPy calls whatever N, one vehicle on Python floats ~30 us (CPU time
+#: per physics step on this 2-core machine, ``docs/physics.md`` "Teams"): the arrays win
+#: from 6 vehicles on (N = 4: 144 against 175 us; N = 6: 205 against 187 us; N = 10: 320
+#: against 215 us).
+VECTORISED_FROM = 6
+
+
 def physics_timestep(dt: float, largest: float = 0.0025) -> float:
     """The largest physics step not above ``largest`` that divides ``dt`` evenly, s."""
     if not (math.isfinite(dt) and dt > 0):
@@ -354,12 +370,19 @@ class PhysicsWorld:
     quad_mode : "velocity" or "attitude"
         How quadrotor commands are read: world ``(v_x, v_y, v_z, yaw rate)`` (seed 000) or
         Bebop-like ``(u_x, u_y, u_z, u_psi)`` fractions (seed 001).
+    cascade_options : dict, optional
+        Keyword arguments of :class:`~quatform.robots.physics.QuadrotorCascade`.
+    cascades : str
+        A :data:`CASCADE_MODES` entry: the cascades all at once on arrays or one per vehicle
+        (``"auto"``: on arrays from :data:`VECTORISED_FROM` quadrotors on).
     """
 
     def __init__(self, quads=(), ugvs=(), floor_z: float = 0.0, timestep: float = 0.0025,
                  quad_params: QuadrotorParams = IRIS, ugv_params: DiffDriveParams = PIONEER_3DX,
-                 quad_mode: str = "velocity", cascade_options: dict | None = None):
+                 quad_mode: str = "velocity", cascade_options: dict | None = None, cascades: str = "auto"):
         mj = import_mujoco()
+        if cascades not in CASCADE_MODES:
+            raise InvalidInputError(f"cascades must be one of {', '.join(CASCADE_MODES)}, got {cascades!r}")
         if quad_mode not in ("velocity", "attitude"):
             raise InvalidInputError(f"quad_mode must be 'velocity' or 'attitude', got {quad_mode!r}")
         self.mj, self.quad_mode = mj, quad_mode
@@ -388,9 +411,12 @@ class PhysicsWorld:
         act = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, n)
         self._motors = {n: [act(f"{n}_motor{i}") for i in range(4)] for n in self.quad_names}
         self._wheels = {n: [act(f"{n}_left"), act(f"{n}_right")] for n in self.ugv_names}
-        # one cascade for all quadrotors (robots.physics.cascades): (N, ...) arrays, each
-        # quantity read with one gather and every actuator written with one assignment
+        # the quadrotors' low-level controllers: all together on (N, ...) arrays
+        # (robots.physics.cascades; each quantity read with one gather, every actuator written
+        # with one assignment), or one per vehicle on Python floats, whichever is faster here
+        self.vectorised = cascades == "vectorised" or (cascades == "auto" and len(self.quad_names) >= VECTORISED_FROM)
         self.cascade = QuadrotorCascades(max(len(self.quad_names), 1), quad_params, **(cascade_options or {}))
+        self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
         q = [self._qadr[n] for n in self.quad_names]
         v = [self._vadr[n] for n in self.quad_names]
         self._quad_qidx = np.array(q, dtype=int)[None] + np.arange(7)[:, None]  # (7, N): qpos rows
@@ -510,7 +536,10 @@ class PhysicsWorld:
 
     def quad_states(self) -> np.ndarray:
         """``(x, y, z, yaw)`` of every quadrotor, shape (N, 4), yaws continued (:meth:`quad_state`
-        for all at once: one gather, one rotation per vehicle on arrays)."""
+        for all at once: one gather, one rotation per vehicle on arrays; vehicle by vehicle
+        where the cascades run so, to keep the per-vehicle world's numbers)."""
+        if not self.vectorised:
+            return np.array([self.quad_state(n) for n in self.quad_names]).reshape(-1, 4)
         q = self.data.qpos[self._quad_qidx]  # (7, N)
         R = rotation_rows(q[3:7].T)
         self._quad_yaw = self._continued(self._quad_yaw, np.arctan2(R[:, 3], R[:, 0]))
@@ -518,6 +547,8 @@ class PhysicsWorld:
 
     def ugv_states(self) -> np.ndarray:
         """``(x, y, heading)`` of every UGV's control point, shape (M, 3), headings continued."""
+        if not self.vectorised:
+            return np.array([self.ugv_state(n) for n in self.ugv_names]).reshape(-1, 3)
         q = self.data.qpos[self._ugv_qidx]  # (7, M)
         R = rotation_rows(q[3:7].T)
         c, s = R[:, 0], R[:, 3]
@@ -548,13 +579,47 @@ class PhysicsWorld:
 
     def step(self, n: int = 1):
         """``n`` physics steps, the low-level controllers and the rotor drag in the loop (every
-        quadrotor's cascade at once, :class:`~quatform.robots.physics.QuadrotorCascades`)."""
-        mj, m, d = self.mj, self.model, self.data
-        dt = m.opt.timestep
+        quadrotor's cascade at once, :class:`~quatform.robots.physics.QuadrotorCascades`, or
+        one per vehicle: :attr:`vectorised`)."""
+        d = self.data
         if self.ugv_names:
             u = self._ugv_cmd
             d.ctrl[self._wheel_ids] = wheel_speeds(u[:, 0], u[:, 1], params=self.ugv_params)
-        qpos, qvel, ctrl, force, xfrc = d.qpos, d.qvel, d.ctrl, d.actuator_force, d.xfrc_applied
+        if self.vectorised:
+            self._step_vectorised(n)
+        else:
+            self._step_per_vehicle(n)
+
+    def _step_per_vehicle(self, n: int):
+        """The quadrotors one after another, on Python floats (issue 7's loop)."""
+        mj, m, d = self.mj, self.model, self.data
+        dt = m.opt.timestep
+        R = np.empty(9)
+        quads = [(self._qadr[nm], self._vadr[nm], self._motors[nm], self._body[nm], self.cascades[nm],
+                  self._quad_cmd[i].tolist()) for i, nm in enumerate(self.quad_names)]
+        velocity = self.quad_mode == "velocity"
+        for _ in range(n):
+            for a, va, motors, body, cas, u in quads:
+                mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+                Rl, vw = R.tolist(), d.qvel[va:va + 6].tolist()
+                if velocity:
+                    f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
+                else:
+                    f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
+                d.ctrl[motors] = f
+                d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
+            t_before = d.time
+            mj.mj_step(m, d)
+            if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
+                self._check_step()
+            self.contacts.check(m, d)
+        self._after_steps()
+
+    def _step_vectorised(self, n: int):
+        """Every quadrotor at once: one gather per quantity, one assignment per actuator kind."""
+        mj, m, d = self.mj, self.model, self.data
+        dt = m.opt.timestep
+        qvel, ctrl, force, xfrc = d.qvel, d.ctrl, d.actuator_force, d.xfrc_applied
         xmat = d.xmat.reshape(-1)  # a view: MuJoCo's body rotations, rows first
         cas, ridx, vidx, motors, bodies = self.cascade, self._quad_ridx, self._quad_vidx, self._motor_ids, \
             self._quad_bodies
@@ -582,10 +647,15 @@ class PhysicsWorld:
             if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
                 self._check_step()
             self.contacts.check(m, d)
+        self._after_steps()
+
+    def _after_steps(self):
+        """Once per call: the failure checks, and each quadrotor's tilt and thrust sampled."""
+        d = self.data
         self._check_step()  # the warning counters and the positions, once per call
-        if quads:  # sampled once per call (each control tick)
-            self.min_cos_tilt = np.minimum(self.min_cos_tilt, rotation_rows(qpos[self._quad_qidx[3:7]].T)[:, 8])
-            self.max_thrust = np.maximum(self.max_thrust, force[motors].sum(axis=1))
+        if self.quad_names:  # sampled once per call (each control tick)
+            self.min_cos_tilt = np.minimum(self.min_cos_tilt, rotation_rows(d.qpos[self._quad_qidx[3:7]].T)[:, 8])
+            self.max_thrust = np.maximum(self.max_thrust, d.actuator_force[self._motor_ids].sum(axis=1))
 
 
 @dataclass(frozen=True)

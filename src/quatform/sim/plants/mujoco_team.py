@@ -12,9 +12,11 @@ a Pioneer's control point and heading ``(x, y, psi)``), commands the team's comm
 ``(v, omega)``). Like every MuJoCo plant it advances its own world (``batchable = False``;
 :class:`~quatform.sim.plants.mujoco.PairPlant` is its two-quadrotor case, step for step).
 
-All quadrotors' cascades run together on ``(N, ...)`` arrays
-(:class:`~quatform.robots.physics.QuadrotorCascades`): one physics step costs a constant
-number of NumPy calls whatever N. :func:`~quatform.sim.plants.mujoco.physics_metrics` of a
+The quadrotors' cascades run together on ``(N, ...)`` arrays
+(:class:`~quatform.robots.physics.QuadrotorCascades`: one physics step costs a constant
+number of NumPy calls whatever N) from :data:`~quatform.sim.mujoco_backend.VECTORISED_FROM`
+quadrotors on, one per vehicle on Python floats below (faster there; the same forces to
+rounding). :func:`~quatform.sim.plants.mujoco.physics_metrics` of a
 team plant adds ``robots``: per robot its kind, largest tilt and collective rotor force
 (quadrotors) and its collisions; :func:`~quatform.sim.plants.mujoco.physics_record` works
 as for the pair.
@@ -64,6 +66,9 @@ class TeamPlant(WorldPlant):
     floor_z : float, optional
         Ground height, m; default: the Pioneers' platform height ``Pioneer.z`` less the
         platform's 0.3 m over the floor (seed 001), or 0 without Pioneers.
+    cascades : str
+        :data:`~quatform.sim.mujoco_backend.CASCADE_MODES`: the quadrotors' cascades all at
+        once on arrays, one per vehicle, or ``"auto"`` (whichever is faster for N).
 
     Attributes
     ----------
@@ -75,7 +80,7 @@ class TeamPlant(WorldPlant):
     """
 
     def __init__(self, team: Team, x0, timestep: float, cascade_options: dict | None = None,
-                 floor_z: float | None = None, what: str = "team_plant"):
+                 floor_z: float | None = None, cascades: str = "auto", what: str = "team_plant"):
         if not isinstance(team, Team):
             raise InvalidInputError(f"{what}: team must be a quatform.robots.Team, got {type(team).__name__}")
         kinds = []
@@ -111,7 +116,8 @@ class TeamPlant(WorldPlant):
         r = [x[s] for s in team.state_slices]
         world = PhysicsWorld(quads=[(self.names[i], r[i][0:3], r[i][3]) for i in quads],
                              ugvs=[(self.names[i], r[i][0:2], r[i][2]) for i in ugvs], floor_z=float(floor_z),
-                             timestep=timestep, ugv_params=ugv_params, cascade_options=cascade_options)
+                             timestep=timestep, ugv_params=ugv_params, cascade_options=cascade_options,
+                             cascades=cascades)
         for i in quads:
             world.continue_yaw(self.names[i], r[i][3])  # yaws continued from the start's, not wrapped
         for i in ugvs:
@@ -178,7 +184,7 @@ class TeamPlant(WorldPlant):
 
 
 def team_plant(team: Team, x0, *, dt: float, timestep: float | None = None, cascade_options: dict | None = None,
-               floor_z: float | None = None) -> TeamPlant:
+               floor_z: float | None = None, cascades: str = "auto") -> TeamPlant:
     """The MuJoCo plant of ``team`` (see the module docstring).
 
     Parameters
@@ -197,6 +203,8 @@ def team_plant(team: Team, x0, *, dt: float, timestep: float | None = None, casc
         Keyword arguments of :class:`~quatform.robots.physics.QuadrotorCascade`.
     floor_z : float, optional
         Ground height, m (default: see :class:`TeamPlant`).
+    cascades : str
+        ``"auto"`` (default), ``"vectorised"`` or ``"per-vehicle"`` (see :class:`TeamPlant`).
     """
     h = physics_timestep(dt)
     if timestep is not None:
@@ -207,4 +215,4 @@ def team_plant(team: Team, x0, *, dt: float, timestep: float | None = None, casc
             raise InvalidInputError(f"team_plant: timestep {timestep!r} s does not divide dt = {dt!r} s; give a "
                                     "divisor of dt, or timestep=None")
         h = float(timestep)
-    return TeamPlant(team, x0, h, cascade_options, floor_z)
+    return TeamPlant(team, x0, h, cascade_options, floor_z, cascades)
