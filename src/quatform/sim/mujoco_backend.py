@@ -437,7 +437,9 @@ class PhysicsWorld:
         self._quad_cmd = np.zeros((len(self.quad_names), 4))
         self._ugv_cmd = np.zeros((len(self.ugv_names), 2))
         # the largest tilt (as its cosine) and collective rotor force of each quadrotor so far,
-        # sampled at the end of every step() call
+        # sampled at the end of every step() call where track_quads is set (the team plant's
+        # per-robot metrics)
+        self.track_quads = False
         self.min_cos_tilt = np.ones(len(self.quad_names))
         self.max_thrust = np.zeros(len(self.quad_names))
         # start at rest: the motors already spin at hover thrust in the air
@@ -653,9 +655,11 @@ class PhysicsWorld:
         """Once per call: the failure checks, and each quadrotor's tilt and thrust sampled."""
         d = self.data
         self._check_step()  # the warning counters and the positions, once per call
-        if self.quad_names:  # sampled once per call (each control tick)
-            self.min_cos_tilt = np.minimum(self.min_cos_tilt, rotation_rows(d.qpos[self._quad_qidx[3:7]].T)[:, 8])
-            self.max_thrust = np.maximum(self.max_thrust, d.actuator_force[self._motor_ids].sum(axis=1))
+        if self.track_quads and self.quad_names:  # sampled once per call (each control tick)
+            q0, q1, q2, q3 = d.qpos[self._quad_qidx[3:7]]
+            cos_tilt = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3  # R_22 (mju_quat2Mat)
+            np.minimum(self.min_cos_tilt, cos_tilt, out=self.min_cos_tilt)
+            np.maximum(self.max_thrust, np.add.reduce(d.actuator_force[self._motor_ids], axis=1), out=self.max_thrust)
 
 
 @dataclass(frozen=True)

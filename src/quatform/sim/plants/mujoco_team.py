@@ -118,6 +118,7 @@ class TeamPlant(WorldPlant):
                              ugvs=[(self.names[i], r[i][0:2], r[i][2]) for i in ugvs], floor_z=float(floor_z),
                              timestep=timestep, ugv_params=ugv_params, cascade_options=cascade_options,
                              cascades=cascades)
+        world.track_quads = True  # each quadrotor's tilt and thrust for robot_metrics
         for i in quads:
             world.continue_yaw(self.names[i], r[i][3])  # yaws continued from the start's, not wrapped
         for i in ugvs:
