@@ -170,7 +170,7 @@ def main(argv=None):
     if mj is None:
         print(f"\n(mujoco not installed: {INSTALL_HINT} in the quatform checkout)")
     elif args.team:
-        print(f"\nMuJoCo team plant: N IRIS quadrotors, cascades on (N, ...) arrays, a robot-space velocity "
+        print(f"\nMuJoCo team plant: N IRIS quadrotors, cascades on (N, ...) arrays or per vehicle, a robot-space velocity "
               f"loop on a translating, climbing, turning formation; {args.team_duration:g} s simulated, "
               f"control every 10 ms, physics every 2.5 ms, best of {args.repeat}\n")
         print("| N | cascades | wall s | simulated s per wall s | simulated s per CPU s | mj_step share (CPU) | "
