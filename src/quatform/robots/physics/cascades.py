@@ -4,13 +4,15 @@ Robots layer (physical models; no MuJoCo import). :class:`QuadrotorCascades` is
 :class:`~quatform.robots.physics.quadrotor.QuadrotorCascade` (PX4-like velocity mode and
 Bebop-like attitude mode, the mixer's desaturation, the rotor drag) for a team: every
 quantity is an array with one row per vehicle, so one physics step costs a constant number
-of NumPy calls whatever N (the per-vehicle cascade in Python floats costs ~70 us per
-vehicle and step, 13x MuJoCo's own step for two vehicles). The arithmetic is the
-per-vehicle cascade's, operation for operation (sums in the same order), so the two agree
-to rounding (``tests/test_mujoco_team.py`` checks 1e-12 on random states); the formulas and
-their sources are the per-vehicle class's (PX4 ``PositionControl`` and
+of NumPy calls whatever N (about 75: ~150 us on this machine, against ~30 us per vehicle
+for the per-vehicle cascade on Python floats, so the arrays pay from about six vehicles
+on; :data:`quatform.sim.mujoco_backend.VECTORISED_FROM`). The formulas and their sources
+are the per-vehicle class's (PX4 ``PositionControl`` and
 ``ControlAllocationSequentialDesaturation``; Lee, Leok & McClamroch 2010 for the attitude
-error).
+error): the velocity loop and the mixer operation for operation, the attitude error and the
+rotor drag rewritten in body axes with fewer calls (``docs/derivations.md``, "Teams (issue
+14): MuJoCo teams"); the two agree to rounding (``tests/test_mujoco_team.py``: 1e-12 N on
+random states).
 
 :func:`rotation_rows` turns the vehicles' unit quaternions ``(w, x, y, z)`` (MuJoCo's
 ``qpos`` order) into their rotation matrices, row by row, ``(N, 9)``.
