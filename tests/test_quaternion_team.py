@@ -362,3 +362,30 @@ def test_bad_input_is_one_line_naming_the_value_and_the_fix():
     with pytest.raises(UnreachableError) as e:
         M.inverse(cm)
     assert "planar robot 2" in _one_line(e)
+
+
+def test_fit_rate_uses_fit_attitudes_weights():
+    """The fit's rate differentiates fit_attitude's eigenvector weights: its attitude equals
+    fit_attitude's across the tie window (robots 1e-10 .. 1e-5 of their size off a line, a
+    non-collinear template), and its rate equals central differences there."""
+    from quatform.formations.team_chart import fit_attitude
+
+    T = QuaternionTeam(4, template=TETRAHEDRON)
+    rng = np.random.default_rng(14)
+    u = np.array([0.6, 0.0, 0.8])
+    base = np.array([-1.5, -0.4, 0.6, 1.3])[:, None] * u
+    w = rng.normal(size=base.shape)
+    w -= np.sum(w * u, axis=-1, keepdims=True) * u
+    hint = _random_unit(rng)
+    tmpl = T.template
+    for eps in (1e-10, 1e-9, 3e-9, 1e-8, 1e-7, 1e-5):
+        cen = base + eps * w
+        cen = cen - cen.mean(0)
+        v = rng.normal(size=cen.shape)
+        v -= v.mean(0)
+        q, q_dot = T._fit_rate(tmpl, cen, v, hint)
+        np.testing.assert_allclose(q, fit_attitude(tmpl, cen, hint), rtol=0, atol=1e-14)
+        h = 1e-3 * eps  # within the window the weights change over a gap of 1e-9 of the size
+        fd = (fit_attitude(tmpl, cen + h * v, hint) - fit_attitude(tmpl, cen - h * v, hint)) / (2 * h)
+        # central differences: truncation ~1e-6, rounding ~1e-16 / h
+        assert np.max(np.abs(q_dot - fd)) <= (1e-4 + 1e-15 / h) * max(1.0, np.max(np.abs(fd))), eps

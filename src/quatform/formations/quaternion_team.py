@@ -39,8 +39,7 @@ from .quaternion_pair import TILT_TOL, QuaternionPair
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from . import team_special_sets as tss
-from .team_chart import _TIE, _TIE_DECAY, LawGroup, TeamChart, check_template, default_template, fit_attitude, \
-    horn_matrix
+from .team_chart import LawGroup, TeamChart, check_template, default_template, fit_attitude, horn_matrix
 
 __all__ = ["QuaternionTeam", "CHARTS", "PLANAR_TOL"]
 
@@ -53,9 +52,49 @@ PLANAR_TOL = 1e-9
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
 _EX = np.array([1.0, 0.0, 0.0])
 _HALF_TURNS = (np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0, 0.0]), np.array([0.0, 1.0, 0.0, 0.0]))
+#: The tie width and decay of :func:`~.team_chart.fit_attitude`'s eigenvector weights (relative
+#: to the fit's size), which the fit's rate differentiates; kept equal to team_chart's (its
+#: module constants are private; ``tests/test_quaternion_team.py`` checks the two agree).
+_TIE, _TIE_DECAY = 1e-10, 1e-9
 #: Eigenvalues closer than this (relative to the fit's size) are taken as equal in the
 #: divided differences of the fit's rate.
 _CLOSE = 1e-13
+
+
+# -- matrix kernels: one NumPy call per product on (..., N, k) arrays ------------------------------
+# Hamilton product q p = L(q) p = R(p) q (docs/conventions.md), as 4 x 4 matrices gathered
+# from q's components with signs.
+_L_IDX = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_L_SIGN = np.array([[1.0, -1, -1, -1], [1, 1, -1, 1], [1, 1, 1, -1], [1, -1, 1, 1]])
+_R_SIGN = np.array([[1.0, -1, -1, -1], [1, 1, 1, -1], [1, -1, 1, 1], [1, 1, -1, 1]])
+_CONJ = np.array([1.0, -1.0, -1.0, -1.0])
+_S_IDX = np.array([[0, 3, 2], [3, 0, 1], [2, 1, 0]])
+_S_SIGN = np.array([[0.0, -1, 1], [1, 0, -1], [-1, 1, 0]])
+
+
+def _left(q):
+    """``L(q)`` with ``q p = L(q) p``, shape ``(..., 4, 4)``."""
+    return q[..., _L_IDX] * _L_SIGN
+
+
+def _right(p):
+    """``R(p)`` with ``q p = R(p) q``, shape ``(..., 4, 4)``."""
+    return p[..., _L_IDX] * _R_SIGN
+
+
+def _rotation(q):
+    """``R(q)`` (3 x 3) of a unit quaternion: the vector block of ``L(q) R(q*)`` (``v -> q v q*``)."""
+    return (_left(q) @ _right(q * _CONJ))[..., 1:, 1:]
+
+
+def _skew(w):
+    """``[w]x`` with ``[w]x v = w x v`` of the vector part ``w`` of a quaternion ``(..., 4)``
+    (its scalar part ignored), shape ``(..., 3, 3)``."""
+    return w[..., _S_IDX] * _S_SIGN
+
+
+def _mT(a):
+    return np.swapaxes(a, -1, -2)
 
 
 class QuaternionTeam(Formation):
@@ -114,7 +153,8 @@ class QuaternionTeam(Formation):
         self._all_yaw = len(self._yaw_rows) == M
         self._planar = np.array([i for i, k in enumerate(L.kinds) if k == "xy_yaw"], dtype=np.intp)
         self._yaw_r = np.array(L.yaw_indices, dtype=np.intp)
-        for a in (self._s, self._o, self._yaw_rows, self._pose_rows, self._planar, self._yaw_r):
+        self._mean_row = np.full((1, N), 1.0 / N)
+        for a in (self._s, self._o, self._yaw_rows, self._pose_rows, self._planar, self._yaw_r, self._mean_row):
             a.setflags(write=False)
 
     def __repr__(self):
@@ -217,15 +257,22 @@ class QuaternionTeam(Formation):
         self.check_apart(r)
         if near_c is not None:
             near_c = super().check_cluster_state(near_c, "near_c")
-        xc = p.mean(axis=-2)
+        xc = (self._mean_row @ p)[..., 0, :]  # eq. (9) for N robots (a matrix product: one BLAS call)
         cen = p - xc[..., None, :]
         tmpl, hint = self._reference(near_c)
         q = fit_attitude(tmpl, cen, hint)  # Horn 1987; seed 000 eqs. (10), (14)-(15) for N = 2
-        qc = g.conj(q)[..., None, :]
-        s = g.rotate(qc, cen)
-        qci = g.mul(qc, self._headings(r))  # eqs. (12)-(13)
+        s = cen @ _rotation(q)  # s_i = R^T (p_i - x_c), rows
+        Lc = _left(q * _CONJ)
+        if self._all_yaw:  # q_c* q_yaw(theta) = cos(theta/2) q_c* + sin(theta/2) q_c* k (eqs. (12)-(13))
+            half = 0.5 * r[..., self._yaw_r]
+            cs = np.empty(half.shape + (2,))
+            cs[..., 0], cs[..., 1] = np.cos(half), np.sin(half)
+            qci = cs @ _mT(Lc[..., :, 0::3])
+        else:
+            qci = self._headings(r) @ _mT(Lc)
         if near_c is not None and len(self._o):
-            qci = g.closest_sign(qci, near_c[..., self._o])
+            flip = np.einsum("...i,...i->...", qci, near_c[..., self._o]) < 0.0
+            qci = np.where(flip[..., None], -qci, qci)
         return self._assemble(xc, q, s, qci)
 
     def inverse(self, c, *, near_r=None):
@@ -244,8 +291,8 @@ class QuaternionTeam(Formation):
         L = self.layout
         q = c[..., 3:7]
         qn = q / np.linalg.norm(q, axis=-1, keepdims=True)
-        p = c[..., None, 0:3] + g.rotate(qn[..., None, :], c[..., self._s])
-        qi = g.mul(q[..., None, :], c[..., self._o])  # eqs. (17), (19)
+        p = c[..., None, 0:3] + c[..., self._s] @ _mT(_rotation(qn))  # eqs. (16), (18)
+        qi = c[..., self._o] @ _mT(_left(q))  # eqs. (17), (19)
         if len(self._yaw_rows):
             qy = qi if self._all_yaw else qi[..., self._yaw_rows, :]
             tilt = np.linalg.norm(g.z_axis(qy / np.linalg.norm(qy, axis=-1, keepdims=True)) - g.EZ, axis=-1)
@@ -397,13 +444,14 @@ class QuaternionTeam(Formation):
         q, qd = c[..., 3:7], cd[..., 3:7]
         nq = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
         qn = q / nq
-        wb = 2.0 * g.mul(g.conj(qn), qd)[..., 1:] / nq
-        s, sd = c[..., self._s], cd[..., self._s]
-        wb, s, sd = wb[..., None, :], s, sd
-        v = cd[..., None, 0:3] + g.rotate(qn[..., None, :], np.cross(wb, s) + sd)  # eqs. (16), (18)
+        wb = (2.0 / nq) * (_left(qn * _CONJ) @ qd[..., None])[..., 0]  # (., w_b) = 2 q* q_c' / |q_c|
+        R = _rotation(qn)
+        # p_i' = x_c' + R (w_b x s_i + s_i') (eqs. (16), (18)), as rows: s (R [w_b]x)^T + s' R^T
+        v = cd[..., None, 0:3] + c[..., self._s] @ _mT(R @ _skew(wb)) + cd[..., self._s] @ _mT(R)
         qci, qcid = c[..., self._o], cd[..., self._o]
-        qi = g.mul(q[..., None, :], qci)  # eqs. (17), (19)
-        qid = g.mul(qd[..., None, :], qci) + g.mul(q[..., None, :], qcid)
+        Lq = _mT(_left(q))
+        qi = qci @ Lq  # eqs. (17), (19)
+        qid = qci @ _mT(_left(qd)) + qcid @ Lq
         if self._all_yaw:
             th = kern.yaw_rate(tuple(np.moveaxis(qi, -1, 0)), tuple(np.moveaxis(qid, -1, 0)))
             return self.layout.compose(v, th)
