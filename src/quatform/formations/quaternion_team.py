@@ -594,9 +594,10 @@ class QuaternionTeam(Formation):
         return (
             SpecialSet("collinear", "robots on a line: Horn's matrix (1987 eq. (35)) has a double top eigenvalue, the "
                        "twist about the line is no function of the positions; the hint's projection decides (1 without "
-                       "one), continuous; within a gap of 7.5e-7 of the fit's size Horn's eigenvectors keep "
-                       "about 1e-16 / gap of their digits (Davis-Kahan), so round trips hold to 1e-8 there",
-                       on(tss.team_collinear), round_trip_tol=1e-8),
+                       "one), continuous; past the tie width (a gap of 1e-10 of the fit's size) and within the "
+                       "window of 7.5e-7 the fit turns with a slope of 1 / (1e-9 size), and Horn's eigenvectors keep "
+                       "about 1e-16 / gap of their digits, so round trips hold to 1e-6 there",
+                       on(tss.team_collinear), round_trip_tol=1e-6),
             SpecialSet("vertical", "the formation's x axis vertical: the z-y-x reading (and seed 000 eq. (4) for two "
                        "robots) is atan2(0, 0); q_c is regular", on(tss.team_vertical)),
             SpecialSet("anti-x", "p_1 - p_2 along -x: seed 000 eqs. (14)-(15) are 0/0; the fit has no such point (for "
