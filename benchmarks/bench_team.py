@@ -20,8 +20,9 @@ The reference: N robots on a ring of radius ``0.5 N / pi`` m (about 1 m apart) a
 altitude, the formation pitched 0.4 rad and yawed 0.3 rad, every robot yawed 0.2 rad,
 with rates 0.1 in every chart variable (``QuaternionTeam.from_chart``); the measured robots
 are the reference's displaced by ``0.01 N(0, 1)`` (``numpy.random.default_rng(0)``). Times
-are the best of several repeats of a ``time.perf_counter``-timed loop (:mod:`timeit`
-style). The machine is shared: run it when the others are idle.
+are the best of several repeats of a timed loop (:mod:`timeit` style) in CPU time of this
+process (``time.process_time``, as ``bench_control.py --before``: less disturbed by the other
+processes of a shared machine; ``--wall`` for ``time.perf_counter``).
 
 Run it from the repository root::
 
@@ -32,6 +33,8 @@ Run it from the repository root::
 from __future__ import annotations
 
 import argparse
+import time
+import timeit
 
 import numpy as np
 from quatform.control import TABLE1, Reference
@@ -39,7 +42,7 @@ from quatform.control.team import TeamController
 from quatform.formations.quaternion_team import QuaternionTeam
 from quatform.robots import HolonomicRobot, Team
 
-from _common import best_time, fmt, machine_description
+from _common import fmt, machine_description
 
 #: Targets of issue 14 item 5.
 TARGET_STEP_US_AT_1000 = 1000.0
@@ -66,16 +69,26 @@ def make_inputs(N: int, seed: int = 0):
     return ctrl, r, Reference(c, c_dot), F.forward(r, near_c=c), c_dot
 
 
-def time_team(N: int, repeat: int, min_run: float) -> dict:
+def best_time(fn, repeat: int, min_run: float, timer=time.process_time) -> float:
+    """Best-of-``repeat`` seconds per call of ``fn`` (``_common.best_time`` with a choice of timer)."""
+    t = timeit.Timer(fn, timer=timer)
+    number = 1
+    while t.timeit(number) < min_run:
+        number *= 2
+    return min(t.repeat(repeat=repeat, number=number)) / number
+
+
+def time_team(N: int, repeat: int, min_run: float, timer=time.process_time) -> dict:
     """Seconds per call of the step, the maps and the saturation for ``N`` robots."""
     ctrl, r, ref, c_meas, c_dot = make_inputs(N)
     F = ctrl.formation
     u = ctrl.step(0.0, r, ref)
     assert np.all(np.isfinite(u))
     return {
-        "step": best_time(lambda: ctrl.step(0.0, r, ref), repeat, min_run),
-        "maps": best_time(lambda: (F.forward(r, near_c=ref.c), F.robot_rate(c_meas, c_dot, r=r)), repeat, min_run),
-        "saturate": best_time(lambda: ctrl.team.saturate(u), repeat, min_run),
+        "step": best_time(lambda: ctrl.step(0.0, r, ref), repeat, min_run, timer),
+        "maps": best_time(lambda: (F.forward(r, near_c=ref.c), F.robot_rate(c_meas, c_dot, r=r)), repeat, min_run,
+                          timer),
+        "saturate": best_time(lambda: ctrl.team.saturate(u), repeat, min_run, timer),
     }
 
 
@@ -85,21 +98,24 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--n", type=int, nargs="+", default=[10, 100, 1000], help="team sizes (default 10 100 1000)")
     parser.add_argument("--repeat", type=int, default=5, help="repeats, the best is kept (default 5)")
     parser.add_argument("--min-run", type=float, default=0.2, help="least seconds per repeat (default 0.2)")
+    parser.add_argument("--wall", action="store_true", help="wall time (time.perf_counter) instead of CPU time")
     args = parser.parse_args(argv)
+    timer = time.perf_counter if args.wall else time.process_time
     if args.repeat < 1 or args.min_run <= 0 or min(args.n) < 2:
         parser.error("--repeat must be >= 1, --min-run > 0 and every --n >= 2")
     sizes = sorted(set(args.n))
 
     for line in machine_description({"quatform": True}, width=10):
         print(line)
-    print(f"timing    : best of {args.repeat} repeats of >= {args.min_run} s each (time.perf_counter)\n")
+    print(f"timing    : best of {args.repeat} repeats of >= {args.min_run} s each "
+          f"({'time.perf_counter' if args.wall else 'time.process_time'})\n")
     cols = (("N", 6), ("step (us)", 12), ("ns/robot", 11), ("maps (us)", 12), ("ns/robot", 11),
             ("saturate (us)", 15), ("step - sat (us)", 17), ("ns/robot", 11))
     print("".join(f"{h:>{w}}" for h, w in cols))
     print("-" * sum(w for _, w in cols))
     res = {}
     for N in sizes:
-        t = res[N] = time_team(N, args.repeat, args.min_run)
+        t = res[N] = time_team(N, args.repeat, args.min_run, timer)
         own = t["step"] - t["saturate"]
         row = (N, fmt(1e6 * t["step"]), fmt(1e9 * t["step"] / N), fmt(1e6 * t["maps"]), fmt(1e9 * t["maps"] / N),
                fmt(1e6 * t["saturate"]), fmt(1e6 * own), fmt(1e9 * own / N))

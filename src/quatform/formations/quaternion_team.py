@@ -301,7 +301,7 @@ class QuaternionTeam(Formation):
                 lab = self._heads[int(self._yaw_rows[j])][1]
                 raise UnreachableError(
                     f"q_c q_c{lab} tilts robot {lab} by {float(np.max(tilt)):.3g} rad (limit {TILT_TOL:g}); it only "
-                    "yaws - give it a q_c{lab} whose product with q_c is a rotation about z (from_chart builds one)")
+                    f"yaws - give it a q_c{lab} whose product with q_c is a rotation about z (from_chart builds one)")
             yaws = g.yaw_of(qy)
         else:
             yaws = np.zeros(c.shape[:-1] + (0,))
