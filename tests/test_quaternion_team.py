@@ -45,6 +45,36 @@ def test_contract(key, seed):
     check_formation(TEAMS[key], np.random.default_rng(seed), n=24)
 
 
+class _GroundSampled(QuaternionTeam):
+    """QuaternionTeam whose random states put planar robots on the ground before pushing robots
+    apart (Formation.sample_robot_state pushes them apart in 3-D and then drops the planar z, so
+    two ground robots can land within the contract test's 0.1 m; reported to the lead)."""
+
+    def sample_robot_state(self, rng, batch=()):
+        batch = (int(batch),) if isinstance(batch, (int, np.integer)) else tuple(batch)
+        L = self.layout
+        ground = [i for i, k in enumerate(L.kinds) if k == "xy_yaw"]
+        p = rng.uniform(-2.0, 2.0, batch + (L.n, 3))
+        p[..., ground, 2] = 0.0
+        i, j = L.pairs
+        for _ in range(200):
+            close = np.any(np.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1) < 0.3, axis=-1)
+            if not np.any(close):
+                break
+            fresh = rng.uniform(-2.0, 2.0, p.shape)
+            fresh[..., ground, 2] = 0.0
+            p = np.where(close[..., None, None], fresh, p)
+        q = rng.normal(size=batch + (len(L.orientation_index), 4))
+        return L.compose(p, rng.uniform(-20.0, 20.0, batch + (len(L.yaw_indices),)),
+                         q / np.linalg.norm(q, axis=-1, keepdims=True))
+
+
+@pytest.mark.parametrize("kinds", [("xy_yaw",) * 2, ("xy_yaw",) * 5, ("pose", "xy_yaw", "xy_yaw", "xyz", "xyz_yaw")])
+def test_contract_ground_teams(kinds):
+    for seed in (0, 1, 2):
+        check_formation(_GroundSampled(layout=RobotLayout(kinds)), np.random.default_rng(seed), n=24)
+
+
 def test_variables_and_groups():
     F = QuaternionTeam(layout=MIXED)
     names = F.names
