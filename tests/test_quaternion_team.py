@@ -421,3 +421,18 @@ def test_fit_rate_uses_fit_attitudes_weights():
         fd = (fit_attitude(tmpl, cen + h * v, hint) - fit_attitude(tmpl, cen - h * v, hint)) / (2 * h)
         # central differences: truncation ~1e-6, rounding ~1e-16 / h
         assert np.max(np.abs(q_dot - fd)) <= (1e-4 + 1e-15 / h) * max(1.0, np.max(np.abs(fd))), eps
+
+
+@pytest.mark.parametrize("key", ["2", "3", "10", "tetrahedron", "mixed", "mixed-6", "pair-chart"])
+def test_singularity_measure_is_the_dense_one(key):
+    """The O(N) singularity measure (J J^T = D + U U^T on an invariant subspace of at most 14
+    dimensions) equals Formation's, sigma_min / sigma_max of the dense inverse Jacobian."""
+    from quatform.formations.base import Formation
+
+    T = TEAMS[key]
+    rng = np.random.default_rng(15)
+    r = T.sample_robot_state(rng, (2, 10))
+    near = T.forward(T.sample_robot_state(rng, (2, 10)))
+    for nc in (None, near):
+        np.testing.assert_allclose(T.singularity_measure(r, near_c=nc), Formation.singularity_measure(T, r, near_c=nc),
+                                   rtol=0, atol=1e-12)

@@ -154,7 +154,11 @@ class QuaternionTeam(Formation):
         self._planar = np.array([i for i, k in enumerate(L.kinds) if k == "xy_yaw"], dtype=np.intp)
         self._yaw_r = np.array(L.yaw_indices, dtype=np.intp)
         self._mean_row = np.full((1, N), 1.0 / N)
-        for a in (self._s, self._o, self._yaw_rows, self._pose_rows, self._planar, self._yaw_r, self._mean_row):
+        pos = L.position_index
+        self._pos_rows = np.sort(pos[pos < L.size])  # robot rows of positions (a planar robot's x, y)
+        self._a_rows = np.sort(np.concatenate([self._pos_rows, L.orientation_index.ravel()])).astype(np.intp)
+        for a in (self._s, self._o, self._yaw_rows, self._pose_rows, self._planar, self._yaw_r, self._mean_row,
+                  self._pos_rows, self._a_rows):
             a.setflags(write=False)
 
     def __repr__(self):
@@ -458,6 +462,63 @@ class QuaternionTeam(Formation):
         y = self._yaw_rows
         th = kern.yaw_rate(tuple(np.moveaxis(qi[..., y, :], -1, 0)), tuple(np.moveaxis(qid[..., y, :], -1, 0)))
         return self.layout.compose(v, th, qid[..., self._pose_rows, :])
+
+    # -- singularity measure ---------------------------------------------------------------------
+    def singularity_measure(self, r, *, near_c=None):
+        """:meth:`Formation.singularity_measure` (``sigma_min / sigma_max`` of the inverse
+        Jacobian at the normalised formation) in O(N), without the dense ``n_r x n_c`` matrix.
+
+        ``G = J J^T = D + U U^T``: the columns of ``s_i`` give ``R R^T = I`` on robot i's
+        position rows, those of ``q_ci`` ``|q_c|^2 I`` on a pose robot's quaternion rows and
+        ``|q_c|^2 |grad yaw(q_i)|^2`` (4 for a unit yaw) on a yaw row; ``U`` is the 7 columns of
+        ``x_c`` and ``q_c`` (:meth:`robot_rate` of the unit vectors). With ``A`` the rows whose
+        ``D`` is 1 and ``B`` the yaw rows, ``span(Q_A) + span(Q_B)`` (orthonormal bases of ``U``'s
+        rows in A and in B) is invariant under ``G``, so its spectrum is that of the (at most)
+        14 x 14 ``Q^T G Q`` plus ``D``'s values on the rest (``docs/derivations.md``).
+        """
+        r = self.check_robot_state(r)
+        L = self.layout
+        scale = self.length_scale(r)[..., None, None]
+        p = L.positions(r)
+        p = (p - p.mean(axis=-2, keepdims=True)) / scale
+        rn = L.compose(p, L.yaws(r), L.orientations(r))
+        c = self.forward(rn, near_c=near_c)
+        U = np.moveaxis(self.robot_rate(c, self._basis(self.n_c, c.ndim - 1)[:7]), 0, -1)  # (..., n_r, 7)
+        q2 = np.sum(c[..., 3:7] ** 2, axis=-1, keepdims=True)
+        d = np.broadcast_to(q2, c.shape[:-1] + (self.n_r,)).copy()  # positions: 1 (R R^T), pose rows |q_c|^2
+        d[..., self._pos_rows] = 1.0
+        if len(self._yaw_r):  # |d theta / d q_ci|^2 = |q_c|^2 |grad yaw_of(q_i)|^2 (pair_kernels.yaw_of)
+            qi = c[..., self._o] @ _mT(_left(c[..., 3:7]))
+            if not self._all_yaw:
+                qi = qi[..., self._yaw_rows, :]
+            w, x, y, z = np.moveaxis(qi, -1, 0)
+            n, dd = 2.0 * (w * z + x * y), w * w + x * x - y * y - z * z
+            gn = 2.0 * np.stack([z, y, x, w], -1)
+            gd = 2.0 * np.stack([w, x, -y, -z], -1)
+            grad = (dd[..., None] * gn - n[..., None] * gd) / (n * n + dd * dd)[..., None]
+            d[..., self._yaw_r] = q2 * np.sum(grad * grad, axis=-1)
+        A, B = self._a_rows, self._yaw_r
+        parts, rest = [], []
+        for rows in (A, B):
+            if not len(rows):
+                continue
+            Q = np.linalg.qr(U[..., rows, :])[0]  # (..., |rows|, k), k = min(7, |rows|)
+            parts.append((rows, Q))
+            if len(rows) > Q.shape[-1]:
+                rest.append(d[..., rows])
+        # Q^T G Q = Q^T D Q + (Q^T U)(Q^T U)^T on the block-diagonal basis
+        QtU = np.concatenate([np.swapaxes(Q, -1, -2) @ U[..., rows, :] for rows, Q in parts], axis=-2)
+        M = QtU @ np.swapaxes(QtU, -1, -2)
+        k0 = 0
+        for rows, Q in parts:
+            k = Q.shape[-1]
+            M[..., k0:k0 + k, k0:k0 + k] += np.swapaxes(Q, -1, -2) @ (d[..., rows, None] * Q)
+            k0 += k
+        lam = np.linalg.eigvalsh(M)
+        lo, hi = lam[..., 0], lam[..., -1]
+        for x in rest:
+            lo, hi = np.minimum(lo, np.min(x, axis=-1)), np.maximum(hi, np.max(x, axis=-1))
+        return np.sqrt(np.maximum(lo, 0.0) / hi)
 
     # -- charts ------------------------------------------------------------------------------
     def direct_state(self, e) -> np.ndarray:
