@@ -117,7 +117,7 @@ def test_two_robots_are_the_quaternion_pair():
     v = rng.normal(size=r.shape)
     cp0 = P.forward(r)
     a = T.cluster_rate(r, v, near_c=T.from_pair(cp0))
-    np.testing.assert_allclose(a, T.from_pair(cp0, P.cluster_rate(r, v, near_c=cp0))[1], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(a, T.from_pair(cp0, P.cluster_rate(r, v, near_c=cp0))[1], rtol=0, atol=1e-12)
     w = _tangent(cp, rng.normal(size=cp.shape))
     np.testing.assert_allclose(T.robot_rate(T.from_pair(cp), T.from_pair(cp, w)[1]), P.robot_rate(cp, w),
                                rtol=0, atol=1e-12)
