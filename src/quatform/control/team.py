@@ -121,6 +121,8 @@ class TeamController(contract.Controller):
             k = _gain(self.gains, key, n, len(gr.index), gr.role)
             if gr.role == "planar":
                 k = k[:2] if k.size == 3 else k
+            elif law != "proportional":
+                k = np.broadcast_to(k, (3,)).copy()  # the three gains of K's diagonal (eqs. (20), (28))
             elif law == "proportional" and n is None and k.size > 1:
                 k = k[:, None]  # one gain per row
             plan.append((gr.role, law, gr.index, k))

@@ -24,6 +24,7 @@ from .euclidean_pair import (
     segment_direction,
 )
 from .quaternion_pair import QuaternionPair
+from .quaternion_team import QuaternionTeam
 from .robot_space_team import RobotSpaceTeam
 from .team_chart import LawGroup, TeamChart, default_template, fit_attitude
 from .ugv_uav import (
@@ -44,12 +45,13 @@ FORMATIONS = {
     "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
     "euclidean-team": EuclideanTeam(layout=RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))),
     "dual-quaternion-team": DualQuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw", "xyz"))),
+    "quaternion-team": QuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz"))),
 }
 
 #: The team descriptions (N robots of any point kinds) by key, as classes:
 #: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
 TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam, "euclidean-team": EuclideanTeam,
-                   "dual-quaternion-team": DualQuaternionTeam}
+                   "dual-quaternion-team": DualQuaternionTeam, "quaternion-team": QuaternionTeam}
 
 __all__ = [
     "Formation",
@@ -70,6 +72,7 @@ __all__ = [
     "RobotSpaceTeam",
     "EuclideanTeam",
     "DualQuaternionTeam",
+    "QuaternionTeam",
     "TeamChart",
     "LawGroup",
     "fit_attitude",

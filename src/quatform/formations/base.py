@@ -32,7 +32,7 @@ import numpy as np
 from ..algebra import wrap_angle
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
-from .layout import RobotLayout, Variable
+from .layout import POINT_KINDS, RobotLayout, Variable
 from .special_sets import SpecialSet
 
 __all__ = ["Variable", "Formation", "SpecialSet", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
@@ -40,6 +40,9 @@ __all__ = ["Variable", "Formation", "SpecialSet", "ROBOT_PAIR_VARIABLES", "PAIR_
 
 #: Closest two robots may be (m); below it a two-robot formation is undefined.
 MIN_SEPARATION_M = 1e-9
+#: Teams up to this size measure their length scale over all pairs (O(N^2)); larger ones from
+#: the centroid (:meth:`Formation.length_scale`).
+_ALL_PAIRS_UP_TO = 16
 #: Largest magnitude of a state entry (m, rad, m/s ...). The formations square lengths
 #: (norms, Lyapunov functions) and multiply them by gains and rates; below 1e150 every such
 #: product of two or three of them is finite in float64, above about 1.3e154 a squared
@@ -259,14 +262,21 @@ class Formation(ABC):
         :meth:`reachable` where a description has a reachable set."""
         batch = (int(batch),) if isinstance(batch, (int, np.integer)) else tuple(batch)
         L = self.layout
-        p = rng.uniform(-2.0, 2.0, batch + (L.n, 3))
+        flat = np.array([POINT_KINDS[k].position == (0, 1) for k in L.kinds])  # planar robots: z = 0
+
+        def draw(shape):
+            q = rng.uniform(-2.0, 2.0, shape)
+            q[..., flat, 2] = 0.0
+            return q
+
+        p = draw(batch + (L.n, 3))
         i, j = L.pairs
         for _ in range(100):  # push apart robots closer than 0.3 m (rare)
             d = np.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1)
             close = d < 0.3
             if not np.any(close):
                 break
-            p = np.where(np.any(close, axis=-1)[..., None, None], rng.uniform(-2.0, 2.0, p.shape), p)
+            p = np.where(np.any(close, axis=-1)[..., None, None], draw(p.shape), p)
         yaws = rng.uniform(-20.0, 20.0, batch + (len(L.yaw_indices),))
         q = rng.normal(size=batch + (len(L.orientation_index), 4))
         return L.compose(p, yaws, q / np.linalg.norm(q, axis=-1, keepdims=True))
@@ -332,8 +342,12 @@ class Formation(ABC):
 
     def length_scale(self, r) -> np.ndarray:
         """Size of the formation (m), used to make Jacobians dimensionless: half the largest
-        separation of two robots (``d_c`` of a pair). Shape ``(...)``."""
+        separation of two robots (``d_c`` of a pair); for more than :data:`_ALL_PAIRS_UP_TO`
+        robots the largest distance from the centroid (O(N), within a factor 2 of it).
+        Shape ``(...)``."""
         p = self.layout.positions(r)
+        if self.layout.n > _ALL_PAIRS_UP_TO:  # O(N): the largest distance from the centroid
+            return np.max(np.linalg.norm(p - p.mean(axis=-2, keepdims=True), axis=-1), axis=-1)
         i, j = self.layout.pairs
         return 0.5 * np.max(np.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1), axis=-1)
 

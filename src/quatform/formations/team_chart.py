@@ -36,7 +36,7 @@ from . import geometry as g
 from .layout import POINT_KINDS, RobotLayout, Variable
 
 __all__ = ["TeamChart", "LawGroup", "ROLE_WIDTHS", "fit_attitude", "default_template", "check_template",
-           "horn_matrix"]
+           "horn_matrix", "TIE", "TIE_DECAY"]
 
 #: Width of each block role (the last axis of :attr:`LawGroup.index`); ``control.team`` maps
 #: a role to its law and gain key.
@@ -44,11 +44,11 @@ ROLE_WIDTHS = {"centroid": 3, "shape": 3, "attitude": 4, "orientation": 4, "pose
                "position": 3, "planar": 2, "heading": 1, "variables": 1}
 
 #: Eigenvalue gaps (relative to the fit's size) at which two attitudes fit equally: the weight
-#: of an eigenvector is exactly 1 for a gap ``lambda_top - lambda_k`` up to ``_TIE * size``
-#: (rounding: an exact tie computes as a gap of about 1e-16), then ``exp(-(gap - _TIE size)
-#: / (_TIE_DECAY size))``, continuous, and exactly 0 past about ``7.5e-7 size``.
-_TIE = 1e-10
-_TIE_DECAY = 1e-9
+#: of an eigenvector is exactly 1 for a gap ``lambda_top - lambda_k`` up to ``TIE * size``
+#: (rounding: an exact tie computes as a gap of about 1e-16), then ``exp(-(gap - TIE size)
+#: / (TIE_DECAY size))``, continuous, and exactly 0 past about ``7.5e-7 size``.
+TIE = 1e-10
+TIE_DECAY = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,23 +125,30 @@ def check_template(template, n: int, name: str = "template", min_separation: flo
     return t - t.mean(axis=-2, keepdims=True)
 
 
+#: Horn's matrix as a linear map of the 9 entries of ``S`` (row-major ``S_xx, S_xy, ... S_zz``)
+#: to the 16 of ``N`` (:func:`horn_matrix`).
+_HORN = np.zeros((9, 16))
+for _row, _entries in enumerate((
+        ((0, 1), (4, 1), (8, 1)), ((5, 1), (7, -1)), ((6, 1), (2, -1)), ((1, 1), (3, -1)),
+        ((5, 1), (7, -1)), ((0, 1), (4, -1), (8, -1)), ((1, 1), (3, 1)), ((6, 1), (2, 1)),
+        ((6, 1), (2, -1)), ((1, 1), (3, 1)), ((0, -1), (4, 1), (8, -1)), ((5, 1), (7, 1)),
+        ((1, 1), (3, -1)), ((6, 1), (2, 1)), ((5, 1), (7, 1)), ((0, -1), (4, -1), (8, 1)))):
+    for _k, _sign in _entries:
+        _HORN[_k, _row] = _sign
+del _row, _entries, _k, _sign
+
+
 def horn_matrix(template, centred) -> np.ndarray:
     """Horn's 4 x 4 matrix of the fit of ``template`` onto ``centred`` (both ``(..., N, 3)``).
 
     Horn 1987 ("Closed-form solution of absolute orientation using unit quaternions",
     J. Opt. Soc. Am. A 4(4)) eq. (35) with ``S_ab = sum_i t_i,a c_i,b``: ``q^T N q =
     sum_i c_i . R(q) t_i`` for every unit ``q``, so the top eigenvector is the best
-    rotation. Shape ``(..., 4, 4)``; O(N).
+    rotation. ``N`` is linear in ``S``: one product with a constant 9 x 16 matrix. Shape
+    ``(..., 4, 4)``; O(N).
     """
-    S = np.einsum("...ia,...ib->...ab", template, centred)
-    xx, xy, xz = S[..., 0, 0], S[..., 0, 1], S[..., 0, 2]
-    yx, yy, yz = S[..., 1, 0], S[..., 1, 1], S[..., 1, 2]
-    zx, zy, zz = S[..., 2, 0], S[..., 2, 1], S[..., 2, 2]
-    rows = [[xx + yy + zz, yz - zy, zx - xz, xy - yx],
-            [yz - zy, xx - yy - zz, xy + yx, zx + xz],
-            [zx - xz, xy + yx, -xx + yy - zz, yz + zy],
-            [xy - yx, zx + xz, yz + zy, -xx - yy + zz]]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    S = np.matmul(np.swapaxes(template, -1, -2), centred)
+    return (S.reshape(S.shape[:-2] + (9,)) @ _HORN).reshape(S.shape[:-2] + (4, 4))
 
 
 _HALF_TURNS = (np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0, 0.0]), np.array([0.0, 1.0, 0.0, 0.0]))
@@ -178,7 +185,7 @@ def fit_attitude(template, centred, hint=None) -> np.ndarray:
     lam, V = np.linalg.eigh(Nm)
     scale = np.sqrt(np.sum(np.asarray(template) ** 2, axis=(-2, -1)) * np.sum(np.asarray(centred) ** 2,
                                                                               axis=(-2, -1)))
-    tie, tau = (_TIE * scale)[..., None], (_TIE_DECAY * scale + 1e-300)[..., None]
+    tie, tau = (TIE * scale)[..., None], (TIE_DECAY * scale + 1e-300)[..., None]
     with np.errstate(under="ignore"):
         w = np.exp(-np.maximum(lam[..., -1:] - lam - tie, 0.0) / tau)  # (..., 4): 1 for the top, 0 past a gap
     h = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]) if hint is None else np.asarray(hint, dtype=float),
