@@ -127,6 +127,13 @@ class TeamController(contract.Controller):
                 k = k[:, None]  # one gain per row
             plan.append((gr.role, law, gr.index, k))
         object.__setattr__(self, "_plan", tuple(plan))
+        # one law call per (law, gains) of the (dual) quaternion groups: their rows stacked
+        merged = {}
+        for role, law, idx, k in plan:
+            if law != "proportional":
+                merged.setdefault((law, tuple(k.tolist())), []).append(idx)
+        object.__setattr__(self, "_blocks", tuple((law, kk, np.concatenate(rows)) for (law, kk), rows in merged.items()))
+        object.__setattr__(self, "_linear", tuple((idx, k) for _, law, idx, k in plan if law == "proportional"))
 
     # -- contract ---------------------------------------------------------------------------
     @property
@@ -182,12 +189,13 @@ class TeamController(contract.Controller):
             err[..., self._angles] = (err[..., self._angles] + math.pi) % (2.0 * math.pi) - math.pi
         rate = np.zeros(np.broadcast_shapes(c.shape, c_dot.shape))
         ff = 1.0 if self.feedforward else 0.0
-        for role, law, idx, k in self._plan:
-            if law == "proportional":
-                rate[..., idx] = proportional(err[..., idx], c_dot[..., idx], k, ff)
-                continue
-            comps = [tuple(np.moveaxis(a[..., idx], -1, 0)) for a in (c, c_des, c_dot)]
-            kk = tuple(k.tolist())
+        for idx, k in self._linear:
+            rate[..., idx] = proportional(err[..., idx], c_dot[..., idx], k, ff)
+        for law, kk, idx in self._blocks:  # eqs. (20), (28) on every row at once
+            comps = []
+            for a in (c, c_des, c_dot):
+                g = a[..., idx]
+                comps.append(tuple(g[..., j] for j in range(idx.shape[1])))
             if law == "quaternion":
                 qe, qd = quaternion_feedback(*comps, kk, ff)
             else:
@@ -204,11 +212,10 @@ class TeamController(contract.Controller):
     @functools.cached_property
     def _unit_rows(self) -> tuple:
         """The (dual) quaternion blocks of the state: ``(index (M, 4), dual)``."""
-        out = []
-        for role, law, idx, _ in self._plan:
-            if law in ("quaternion", "dual-quaternion", "dual-quaternion-branch"):
-                out.append((idx, law != "quaternion"))
-        return tuple(out)
+        rows = {False: [], True: []}
+        for law, _, idx in self._blocks:
+            rows[law != "quaternion"].append(idx)
+        return tuple((np.concatenate(v), dual) for dual, v in rows.items() if v)
 
     def _check_units(self, c_des):
         for idx, dual in self._unit_rows:
