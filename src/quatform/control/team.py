@@ -127,13 +127,10 @@ class TeamController(contract.Controller):
                 k = k[:, None]  # one gain per row
             plan.append((gr.role, law, gr.index, k))
         object.__setattr__(self, "_plan", tuple(plan))
-        # one law call per (law, gains) of the (dual) quaternion groups: their rows stacked
-        merged = {}
-        for role, law, idx, k in plan:
-            if law != "proportional":
-                merged.setdefault((law, tuple(k.tolist())), []).append(idx)
-        object.__setattr__(self, "_blocks", tuple((law, kk, np.concatenate(rows)) for (law, kk), rows in merged.items()))
-        object.__setattr__(self, "_linear", tuple((idx, k) for _, law, idx, k in plan if law == "proportional"))
+        # each group read as a view where its variables are contiguous (no gather, no scatter)
+        object.__setattr__(self, "_blocks", tuple((law, tuple(k.tolist()), _block(idx)) for _, law, idx, k in plan
+                                                  if law != "proportional"))
+        object.__setattr__(self, "_linear", tuple((_block(idx), k) for _, law, idx, k in plan if law == "proportional"))
 
     # -- contract ---------------------------------------------------------------------------
     @property
@@ -189,19 +186,19 @@ class TeamController(contract.Controller):
             err[..., self._angles] = (err[..., self._angles] + math.pi) % (2.0 * math.pi) - math.pi
         rate = np.zeros(np.broadcast_shapes(c.shape, c_dot.shape))
         ff = 1.0 if self.feedforward else 0.0
-        for idx, k in self._linear:
-            rate[..., idx] = proportional(err[..., idx], c_dot[..., idx], k, ff)
-        for law, kk, idx in self._blocks:  # eqs. (20), (28) on every row at once
+        for blk, k in self._linear:
+            _put(rate, blk, proportional(_get(err, blk), _get(c_dot, blk), k, ff))
+        for law, kk, blk in self._blocks:  # eqs. (20), (28) on every row of the group at once
             comps = []
             for a in (c, c_des, c_dot):
-                g = a[..., idx]
-                comps.append(tuple(g[..., j] for j in range(idx.shape[1])))
+                g = _get(a, blk)
+                comps.append(tuple(g[..., j] for j in range(g.shape[-1])))
             if law == "quaternion":
                 qe, qd = quaternion_feedback(*comps, kk, ff)
             else:
                 qe, qd = dual_quaternion_feedback(*comps, kk, ff, signed_rotation=law == "dual-quaternion")
-            err[..., idx] = np.stack(np.broadcast_arrays(*qe), axis=-1)
-            rate[..., idx] = np.stack(np.broadcast_arrays(*qd), axis=-1)
+            _put(err, blk, np.stack(np.broadcast_arrays(*qe), axis=-1))
+            _put(rate, blk, np.stack(np.broadcast_arrays(*qd), axis=-1))
         return c, err, rate, r
 
     @functools.cached_property
@@ -212,14 +209,12 @@ class TeamController(contract.Controller):
     @functools.cached_property
     def _unit_rows(self) -> tuple:
         """The (dual) quaternion blocks of the state: ``(index (M, 4), dual)``."""
-        rows = {False: [], True: []}
-        for law, _, idx in self._blocks:
-            rows[law != "quaternion"].append(idx)
-        return tuple((np.concatenate(v), dual) for dual, v in rows.items() if v)
+        return tuple((blk, law != "quaternion") for law, _, blk in self._blocks)
 
     def _check_units(self, c_des):
-        for idx, dual in self._unit_rows:
-            q = c_des[..., idx]
+        for blk, dual in self._unit_rows:
+            q = _get(c_des, blk)
+            idx = blk if isinstance(blk, np.ndarray) else np.arange(blk[0], blk[0] + blk[1] * blk[2]).reshape(blk[1:])
             p = q[..., :4]
             n = np.sqrt(np.sum(p * p, axis=-1))
             bad = np.abs(n - 1.0) > UNIT_TOLERANCE
@@ -231,6 +226,31 @@ class TeamController(contract.Controller):
                 raise NonUnitError(f"reference {names[idx[row, 0]][:-2]} is not a unit {'dual ' if dual else ''}"
                                    f"quaternion (norm {float(n.reshape(-1, n.shape[-1])[:, row].max()):.9g}); build "
                                    "references with formation.from_chart or normalise them")
+
+
+def _block(idx):
+    """A group's index as ``(start, M, k)`` where its variables are contiguous, else the index."""
+    M, k = idx.shape
+    if np.array_equal(idx, idx[0, 0] + np.arange(M * k).reshape(M, k)):
+        return (int(idx[0, 0]), M, k)
+    return idx
+
+
+def _get(a, blk):
+    """``a``'s variables of a group as ``(..., M, k)`` (a view where they are contiguous)."""
+    if isinstance(blk, np.ndarray):
+        return a[..., blk]
+    start, M, k = blk
+    return a[..., start:start + M * k].reshape(a.shape[:-1] + (M, k))
+
+
+def _put(a, blk, value):
+    """Write ``value`` (..., M, k) into ``a``'s variables of a group."""
+    if isinstance(blk, np.ndarray):
+        a[..., blk] = value
+        return
+    start, M, k = blk
+    a[..., start:start + M * k] = np.reshape(value, np.shape(value)[:-2] + (M * k,))
 
 
 def _default_model(kind):
