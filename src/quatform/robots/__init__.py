@@ -3,13 +3,19 @@
 A robot model (:class:`~quatform.robots.model.RobotModel`) offers a formation a point,
 turns a rate of that point into its commands (``actuate``), validates and saturates the
 commands (they are always finite and within the robot's limits) and advances its state.
-A :class:`Team` is a tuple of models.
+A :class:`Team` is a tuple of models, vectorised over groups of equal models. Models: the
+4-DOF :class:`HolonomicRobot` (seed 000), the planar :class:`PlanarHolonomicRobot`, the 6-DOF
+:class:`FreeBodyRobot`, the unicycle :class:`Pioneer` and the :class:`Bebop` (seed 001), the
+teleoperation arms (:mod:`.arms`).
 """
 
 from .bebop import TABLE2_K, Bebop, BebopMemory, yaw_matrix
+from .free_body import FreeBodyRobot
 from .holonomic import HolonomicRobot
 from .model import RobotModel
 from .pioneer import Pioneer
-from .team import Team
+from .planar import PlanarHolonomicRobot
+from .team import GroupIndex, RobotGroup, Team
 
-__all__ = ["RobotModel", "HolonomicRobot", "Team", "Pioneer", "Bebop", "BebopMemory", "TABLE2_K", "yaw_matrix"]
+__all__ = ["RobotModel", "HolonomicRobot", "PlanarHolonomicRobot", "FreeBodyRobot", "Team", "RobotGroup",
+           "GroupIndex", "Pioneer", "Bebop", "BebopMemory", "TABLE2_K", "yaw_matrix"]

@@ -98,6 +98,9 @@ class KraftMaster:
 
     name = "kraft-master"
     point_kind = "pose"
+    #: Torque-commanded: its commands are not its point's rates and do not scale together.
+    passthrough = False
+    holonomic = False
 
     @property
     def state_columns(self) -> tuple:
@@ -151,6 +154,9 @@ class PandaSlave:
 
     name = "panda-slave"
     point_kind = "pose"
+    #: Torque-commanded: its commands are not its point's rates and do not scale together.
+    passthrough = False
+    holonomic = False
 
     @property
     def state_columns(self) -> tuple:

@@ -104,6 +104,10 @@ class Bebop:
     command_columns = ("u_x", "u_y", "u_z", "u_psi")
     #: Entries of the rate :meth:`actuate` takes: the position's world rate and the yaw rate.
     n_rate = 4
+    #: Its commands are body-frame fractions through the dynamic compensation, not its rates.
+    passthrough = False
+    #: Not holonomic in the team sense: its commands are clipped per axis.
+    holonomic = False
 
     def __post_init__(self):
         k = np.asarray(self.k, dtype=float)

@@ -41,6 +41,10 @@ class HolonomicRobot:
     command_columns = ("v_x", "v_y", "v_z", "omega_z")
     #: Entries of the rate :meth:`actuate` takes: the point's.
     n_rate = 4
+    #: Its commands are its point's rates (a controller may skip :meth:`actuate`).
+    passthrough = True
+    #: Its commands scale as a whole (:meth:`limit_factor`), so a team may share one factor.
+    holonomic = True
 
     def __post_init__(self):
         for name in ("max_speed", "max_yaw_rate"):

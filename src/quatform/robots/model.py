@@ -15,7 +15,14 @@ axes. A robot model says
   Pioneer seed 001 eq. (3.5); Bebop eq. (3.10) with the dynamic compensation (4.47), whose
   differentiated reference is the ``memory`` carried in the controller's state);
 * ``saturate(u)``: commands within its limits, finite;
-* ``step(x, u, dt) -> x``: its own motion for a held command (the kinematic plant).
+* ``step(x, u, dt) -> x``: its own motion for a held command (the kinematic plant);
+* in a :class:`Team` also ``n_rate`` (entries of the rate ``actuate`` takes),
+  ``initial_memory(batch)`` and ``brake(x, memory) -> (u, memory)`` (the actuation memory
+  before the first step; commands that stop the robot);
+* ``passthrough``: whether its commands are its point's rates (a controller may skip
+  ``actuate``); ``holonomic``: whether its commands scale as a whole, with a
+  ``limit_factor(u)`` (the largest ``s`` in ``[0, 1]`` with ``s u`` within the limits), so a
+  team may saturate all its robots by one factor.
 
 A :class:`Team` is a tuple of models and the :class:`~quatform.formations.layout.RobotLayout`
 of the points they offer. Every method takes leading batch axes.
@@ -38,6 +45,8 @@ class RobotModel(Protocol):
     point_kind: str
     state_columns: tuple
     command_columns: tuple
+    passthrough: bool
+    holonomic: bool
 
     def point(self, x) -> np.ndarray:
         """The point this robot offers a formation, shape ``(..., size of point_kind)``."""

@@ -5,7 +5,16 @@ middle of the wheel axis, and the heading. Commands ``(v, omega)``, eq. (3.1). T
 control point moves by eq. (3.4), ``[x_dot, y_dot] = A_p [v, omega]`` with ``A_p`` of
 eq. (3.2); the controller inverts it, eqs. (3.3), (3.5). A step integrates the unicycle
 exactly for a command held over the step. As a robot model (:mod:`quatform.robots.model`)
-it offers a formation its control point at the height ``z`` of its landing platform.
+it offers a formation its control point at the height ``z`` of its landing platform (point
+kind ``xyz``, the default) or, with ``point_kind = "xy_yaw"``, its control point and heading
+``(x, y, psi)`` as a planar point (issue 14). The heading is then carried in the formation
+but not commanded: the unicycle moves its control point with both of its inputs (eq. (3.5))
+and its heading follows.
+
+For a command held over a step of ``dt`` the control point's mean velocity is
+``sinc(theta/2) R(psi + theta/2) (v, a omega)``, ``theta = omega dt``, and its inverse is
+closed form (:meth:`Pioneer.mean_point_velocity`, :meth:`Pioneer.commands_from_mean_velocity`;
+``docs/derivations.md``, Teams (issue 14)): what a sampled-time safety filter needs.
 """
 
 from __future__ import annotations
@@ -37,22 +46,31 @@ class Pioneer:
         Largest ``|omega|``, rad/s (100 deg/s, chosen likewise).
     z : float
         Height of the point it offers a formation (the landing platform), m.
+    point_kind : str
+        The point it offers a formation: ``"xyz"`` (control point at height ``z``, the
+        default) or ``"xy_yaw"`` (control point and heading; the heading rate a formation
+        asks for is not commanded, see the module docstring).
     """
 
     a: float = 0.15
     max_v: float = 0.75
     max_omega: float = 100.0 * math.pi / 180.0
     z: float = 0.0
+    point_kind: str = "xyz"
 
     name = "pioneer"
-    #: It offers a formation its control point, lifted to the platform height ``z``.
-    point_kind = "xyz"
     state_columns = ("x", "y", "psi")
     command_columns = ("v", "omega")
     #: Entries of the rate :meth:`actuate` takes: the point's (its z rate is ignored).
     n_rate = 3
+    #: Its commands are not its point's rates (eq. (3.5) maps them).
+    passthrough = False
+    #: Not holonomic: it saturates on its own in a team (its point velocity turns with it).
+    holonomic = False
 
     def __post_init__(self):
+        if self.point_kind not in ("xyz", "xy_yaw"):
+            raise InvalidInputError(f"Pioneer point_kind must be 'xyz' or 'xy_yaw', got {self.point_kind!r}")
         if not np.isfinite(self.z):
             raise InvalidInputError(f"Pioneer z must be finite, got {self.z!r}")
         for name in ("a", "max_v", "max_omega"):
@@ -61,8 +79,11 @@ class Pioneer:
                 raise InvalidInputError(f"Pioneer {name} must be positive and finite, got {v!r}")
 
     def point(self, x) -> np.ndarray:
-        """``(x, y, z)``: the control point at the platform height, shape ``(..., 3)``."""
+        """``(x, y, z)``: the control point at the platform height, shape ``(..., 3)``; with
+        ``point_kind = "xy_yaw"`` the state ``(x, y, psi)`` itself."""
         x = np.asarray(x, dtype=float)
+        if self.point_kind == "xy_yaw":
+            return x
         return np.stack([x[..., 0], x[..., 1], np.full(x.shape[:-1], self.z)], axis=-1)
 
     def initial_memory(self, batch: tuple = ()):
@@ -71,7 +92,8 @@ class Pioneer:
 
     def actuate(self, x, rate, t: float, memory=None):
         """``(v, omega)`` that move the control point at the world rate ``rate[..., 0:2]``,
-        eq. (3.5) (:meth:`commands_from_velocity`), and ``memory`` unchanged."""
+        eq. (3.5) (:meth:`commands_from_velocity`), and ``memory`` unchanged. The third entry
+        (the point's z rate, or the heading rate of an ``xy_yaw`` point) is not commanded."""
         x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
         return self.commands_from_velocity(x[..., 2], rate[..., 0:2]), memory
 
@@ -94,6 +116,79 @@ class Pioneer:
         v = c * xy_dot[..., 0] + s * xy_dot[..., 1]
         w = (-s * xy_dot[..., 0] + c * xy_dot[..., 1]) / self.a
         return np.stack([v, w], axis=-1)
+
+    def point_velocity(self, psi, u) -> np.ndarray:
+        """World velocity of the control point for the commands ``u = (v, omega)``, eq. (3.4):
+        ``A_p u``, shape ``(..., 2)``."""
+        u = np.asarray(u, dtype=float)
+        c, s = np.cos(psi), np.sin(psi)
+        fw, lat = u[..., 0], self.a * u[..., 1]
+        return np.stack([c * fw - s * lat, s * fw + c * lat], axis=-1)
+
+    def mean_point_velocity(self, psi, u, dt: float) -> np.ndarray:
+        """Mean world velocity of the control point over ``dt`` s of the held command ``u``.
+
+        Integrating eq. (3.4) with ``psi(t) = psi + omega t``: the displacement over the step
+        is ``dt sinc(theta/2) R(psi + theta/2) (v, a omega)``, ``theta = omega dt``
+        (``docs/derivations.md``, Teams (issue 14)); it tends to :meth:`point_velocity` as
+        ``dt -> 0``.
+
+        Parameters
+        ----------
+        psi : array_like, shape (...)
+        u : array_like, shape (..., 2)
+        dt : float
+            s, positive.
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+        """
+        u = np.asarray(u, dtype=float)
+        half = 0.5 * dt * u[..., 1]
+        k = np.sinc(half / np.pi)
+        c, s = np.cos(psi + half), np.sin(psi + half)
+        fw, lat = k * u[..., 0], k * self.a * u[..., 1]
+        return np.stack([c * fw - s * lat, s * fw + c * lat], axis=-1)
+
+    def commands_from_mean_velocity(self, psi, mean, dt: float) -> np.ndarray:
+        """``(v, omega)`` whose held step of ``dt`` s moves the control point by ``dt mean``.
+
+        The inverse of :meth:`mean_point_velocity`, closed form: with ``(V_f, V_l) =
+        R(-psi) mean``, ``tan(theta/2) = V_l / (2 a / dt + V_f)``, ``omega = theta / dt`` and
+        ``v = (cos(theta/2) V_f + sin(theta/2) V_l) / sinc(theta/2)``
+        (``docs/derivations.md``, Teams (issue 14)); eq. (3.5) as ``dt -> 0``. Valid while
+        ``V_f > -2 a / dt`` (a mean speed far beyond any Pioneer's).
+
+        Parameters
+        ----------
+        psi : array_like, shape (...)
+        mean : array_like, shape (..., 2)
+            m/s.
+        dt : float
+            s, positive.
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+        """
+        mean = np.asarray(mean, dtype=float)
+        c, s = np.cos(psi), np.sin(psi)
+        vf = c * mean[..., 0] + s * mean[..., 1]
+        vl = -s * mean[..., 0] + c * mean[..., 1]
+        half = np.arctan2(vl, 2.0 * self.a / dt + vf)
+        v = (np.cos(half) * vf + np.sin(half) * vl) / np.sinc(half / np.pi)
+        return np.stack([v, 2.0 * half / dt], axis=-1)
+
+    def limit_factor(self, u) -> np.ndarray:
+        """Largest ``s`` in ``[0, 1]`` with ``s u`` within the limits (0 for a non-finite ``u``),
+        shape ``(...)``: the factor :meth:`saturate` applies."""
+        u = np.asarray(u, dtype=float)
+        finite = np.all(np.isfinite(u), axis=-1)
+        u = np.where(finite[..., None], u, 0.0)
+        with np.errstate(divide="ignore"):
+            s = np.minimum(self.max_v / np.abs(u[..., 0]), self.max_omega / np.abs(u[..., 1]))
+        return np.where(finite, np.minimum(1.0, s), 0.0)
 
     def saturate(self, u) -> np.ndarray:
         """``(v, omega)`` scaled as a whole into the limits (path curvature kept); NaN -> 0."""

@@ -1,0 +1,596 @@
+"""Pairwise separation barrier certificates: a safety filter any controller's commands pass through.
+
+Control layer (above robots). After Wang, Ames and Egerstedt 2017 ("Safety barrier
+certificates for collisions-free multirobot systems", IEEE T-RO 33(3)), the method of the
+Robotarium's single-integrator and unicycle barrier certificates: every pair of robots
+``i, j`` has the barrier
+
+    h_ij = |p_i - p_j|^2 - d_min^2                         (Wang et al. 2017 eq. (6), squared form)
+
+of its points' positions ``p`` (m), and the filter changes the robots' point velocities ``v``
+as little as possible so that every pair obeys
+
+    2 (p_i - p_j) . (v_i - v_j) >= -gamma h_ij             (Wang et al. 2017 eq. (8), class-K = gamma h)
+
+that is the quadratic programme
+
+    minimise sum_i |v_i - v_nom_i|^2  subject to the pair constraints          (Wang et al. 2017 eq. (13))
+
+solved exactly: as the least-distance problem ``min |w|, G w >= c`` (``w = v - v_nom``) of
+Lawson and Hanson ("Solving least squares problems", 1974, ch. 23), which is one
+non-negative least-squares problem (``scipy.optimize.nnls``), per connected component of the
+graph of the pairs whose constraint binds (found by adding the pairs the last solution
+violates until none is), with the neighbours of each robot from a k-d tree. With no pair
+binding the commands come back bitwise unchanged.
+
+Point velocities of each robot model (:data:`POINT_MAPS`): the 4-DOF and planar holonomic
+robots' commands are their velocities (yaw rates untouched), a free body's linear velocity
+(its angular velocity untouched), the Pioneer's control point moves by seed 001 eq. (3.4)
+(``v = A_p (v, omega)``, inverted by eq. (3.5)), as the Robotarium's unicycle certificate
+moves a point ahead of the wheel axis. With ``dt_s`` given the Pioneer's point velocity is its
+exact mean velocity over the held step (:meth:`~quatform.robots.Pioneer.mean_point_velocity`),
+so the sampled-time argument below holds for it too. A planar robot's point moves at ``z =
+0`` (or its platform height): its z velocity is not a variable. A model whose commands are
+not such a map (the Bebop with its dynamic compensation) is refused.
+
+Sampled time (``docs/derivations.md``, Teams (issue 14)): for points that move by ``dt v``
+over a step, ``h_{k+1} = h_k + 2 dt dp.dv + dt^2 |dv|^2 >= (1 - gamma dt) h_k``, so with
+``gamma dt <= 1`` every pair that starts at ``h >= 0`` keeps ``h >= 0`` at every sample.
+
+Limits: the filtered commands are scaled by one factor ``s`` in ``(0, 1]`` (per connected
+group of neighbouring robots; the whole team for a holonomic team, whose commands share one
+factor anyway) so every robot is within its limits. That keeps every pair constraint: its
+right side ``-gamma h`` is ``<= 0``; where ``2 dp.dv >= 0``, ``2 dp.(s dv) >= 0``; where it is
+negative, ``2 dp.(s dv) >= 2 dp.dv >= -gamma h``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import nnls
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from ..errors import DegenerateInputError, InvalidInputError, ShapeError
+from ..formations.layout import POINT_KINDS, RobotLayout
+from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
+from . import base, contract
+
+__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS"]
+
+#: Teams of at most this many robots find their pairs by one dense comparison (cheaper than a tree).
+_DENSE_PAIRS_MAX_ROBOTS = 48
+#: Bisection steps of the Pioneer's sampled-time limit factor (relative accuracy 2^-48).
+_BISECTION_STEPS = 48
+
+
+# -- point velocities of the robot models -------------------------------------------------
+
+class _Holonomic4:
+    """4-DOF holonomic robot: the command's first three entries are the point's velocity."""
+
+    planar = False
+
+    def velocity(self, model, x, u, dt):
+        return u[..., 0:3]
+
+    def commands(self, model, x, u, v, dt):
+        return np.concatenate([v, u[..., 3:4]], axis=-1)
+
+    def scaled(self, model, x, u_new, v, s, dt):
+        return s[..., None] * u_new
+
+    def factor(self, model, x, u_new, v, dt):
+        return model.limit_factor(u_new)
+
+
+class _Planar(_Holonomic4):
+    """Planar holonomic robot: ``(v_x, v_y)`` at ``z`` rate 0."""
+
+    planar = True
+
+    def velocity(self, model, x, u, dt):
+        return np.concatenate([u[..., 0:2], np.zeros(u.shape[:-1] + (1,))], axis=-1)
+
+    def commands(self, model, x, u, v, dt):
+        return np.concatenate([v[..., 0:2], u[..., 2:3]], axis=-1)
+
+
+class _FreeBody(_Holonomic4):
+    """Free body: the world linear velocity (its angular velocity untouched)."""
+
+    def commands(self, model, x, u, v, dt):
+        return np.concatenate([v, u[..., 3:6]], axis=-1)
+
+
+class _Unicycle:
+    """Pioneer: its control point's velocity, seed 001 eqs. (3.4)-(3.5) (mean over the step with ``dt``)."""
+
+    planar = True
+
+    def velocity(self, model, x, u, dt):
+        psi = x[..., 2]
+        v = model.point_velocity(psi, u) if dt is None else model.mean_point_velocity(psi, u, dt)
+        return np.concatenate([v, np.zeros(v.shape[:-1] + (1,))], axis=-1)
+
+    def commands(self, model, x, u, v, dt):
+        psi = x[..., 2]
+        if dt is None:
+            return model.commands_from_velocity(psi, v[..., 0:2])  # eq. (3.5)
+        return model.commands_from_mean_velocity(psi, v[..., 0:2], dt)
+
+    def scaled(self, model, x, u_new, v, s, dt):
+        if dt is None:  # eq. (3.5) is linear: scaling the commands scales the point velocity
+            return s[..., None] * u_new
+        return model.commands_from_mean_velocity(x[..., 2], s[..., None] * v[..., 0:2], dt)
+
+    def factor(self, model, x, u_new, v, dt):
+        if dt is None:
+            return model.limit_factor(u_new)
+        # sampled time: the largest s with commands_from_mean_velocity(s v) within the limits.
+        # The turn: |tan(theta/2)| = |s V_l| / (2 a / dt + s V_f) <= tan(max_omega dt / 2), closed form;
+        # the speed by bisection below that (|v| grows with s).
+        psi = x[..., 2]
+        c, sn = np.cos(psi), np.sin(psi)
+        vf = c * v[..., 0] + sn * v[..., 1]
+        vl = -sn * v[..., 0] + c * v[..., 1]
+        tan_max = math.tan(min(0.5 * model.max_omega * dt, 0.5 * math.pi - 1e-9))
+        den = np.abs(vl) - tan_max * vf
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_turn = np.where(den > 0, tan_max * 2.0 * model.a / dt / np.where(den > 0, den, 1.0), np.inf)
+        hi = np.minimum(1.0, s_turn) * (1.0 - 1e-12)
+
+        def speed_ok(s):
+            u = model.commands_from_mean_velocity(psi, s[..., None] * v[..., 0:2], dt)
+            return np.abs(u[..., 0]) <= model.max_v
+
+        lo = np.where(speed_ok(hi), hi, 0.0)
+        top = hi.copy()
+        if np.any(lo < top):
+            for _ in range(_BISECTION_STEPS):
+                mid = 0.5 * (lo + top)
+                ok = speed_ok(mid)
+                lo, top = np.where(ok, mid, lo), np.where(ok, top, mid)
+        return lo
+
+
+#: How the safety filter reads and writes each robot model's point velocity, by model class.
+POINT_MAPS = {
+    HolonomicRobot: _Holonomic4(),
+    PlanarHolonomicRobot: _Planar(),
+    FreeBodyRobot: _FreeBody(),
+    Pioneer: _Unicycle(),
+}
+
+
+# -- the barrier ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class BarrierInfo:
+    """What one filter call did, every array of the batch shape.
+
+    Attributes
+    ----------
+    min_separation : ndarray
+        Smallest distance between two robots' points, m (inf for one robot).
+    active : ndarray of bool
+        Whether the filter changed the commands.
+    constraints : ndarray of int
+        Pair constraints in the last programme solved (0 where inactive).
+    factor : ndarray
+        The smallest limit factor applied after the programme (1 where none was needed).
+    """
+
+    min_separation: np.ndarray
+    active: np.ndarray
+    constraints: np.ndarray
+    factor: np.ndarray
+
+
+def _positive(value, name):
+    if not (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+            and math.isfinite(value) and value > 0):
+        raise InvalidInputError(f"SeparationBarrier {name} must be a positive finite number, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class SeparationBarrier:
+    """Pairwise separation barrier certificates (Wang, Ames, Egerstedt 2017), solved exactly.
+
+    Parameters
+    ----------
+    min_separation_m : float
+        Smallest distance ``d_min`` two robots' points may come to, m.
+    gamma : float
+        Barrier rate, 1/s: a pair may close in no faster than ``gamma h_ij / (2 |p_ij|)``.
+        With ``dt_s`` given, ``gamma dt_s <= 1`` is required (the sampled-time guarantee).
+    range_m : float or None
+        Neighbour range, m. None (default): the range beyond which no pair's constraint can
+        bind at the commanded speeds, ``(2 v + sqrt(4 v^2 + gamma^2 d_min^2)) / gamma`` with
+        ``v`` the largest point speed (so the filter solves the programme over all pairs
+        exactly). A number: a sensing range (pairs farther apart are not seen; the guarantee
+        then needs ``range_m`` at least that automatic range).
+    dt_s : float or None
+        How long each filtered command is held, s (the control period). Given, the
+        Pioneer's point velocity is its exact mean over the step and ``gamma dt_s <= 1`` is
+        checked; None: instantaneous velocities (exact in sampled time for the holonomic
+        robots, to ``O(dt^2)`` for the Pioneer).
+    """
+
+    min_separation_m: float
+    gamma: float = 5.0
+    range_m: float | None = None
+    dt_s: float | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "min_separation_m", _positive(self.min_separation_m, "min_separation_m"))
+        object.__setattr__(self, "gamma", _positive(self.gamma, "gamma"))
+        if self.range_m is not None:
+            object.__setattr__(self, "range_m", _positive(self.range_m, "range_m"))
+            if self.range_m < self.min_separation_m:
+                raise InvalidInputError(f"SeparationBarrier range_m = {self.range_m!r} m is below min_separation_m = "
+                                        f"{self.min_separation_m!r} m; give a larger range or None (automatic)")
+        if self.dt_s is not None:
+            object.__setattr__(self, "dt_s", _positive(self.dt_s, "dt_s"))
+            if self.gamma * self.dt_s > 1.0 + 1e-12:
+                raise InvalidInputError(f"SeparationBarrier gamma * dt_s = {self.gamma * self.dt_s:.6g} > 1: the "
+                                        f"sampled system may cross the barrier; give gamma <= {1.0 / self.dt_s:.6g} 1/s")
+
+    # -- geometry of a team or layout -------------------------------------------------------
+    def _plan(self, team):
+        """``(layout, maps)`` for a team (one point map per group) or ``(layout, None)``."""
+        if isinstance(team, Team):
+            maps = []
+            for g in team.groups:
+                m = POINT_MAPS.get(type(g.model))
+                if m is None:
+                    raise InvalidInputError(
+                        f"SeparationBarrier: a {type(g.model).__name__} robot's commands are not a map of its point "
+                        f"velocity (known: {', '.join(c.__name__ for c in POINT_MAPS)}); filter its point rates "
+                        "through the layout instead")
+                maps.append(m)
+            return team.layout, maps
+        if isinstance(team, RobotLayout):
+            return team, None
+        raise InvalidInputError(f"SeparationBarrier.filter needs a Team or a RobotLayout, got {type(team).__name__}")
+
+    @staticmethod
+    def _layout_index(layout):
+        """``(N, 3)`` indices of each robot's position entries in a layout vector (-1: planar z)."""
+        idx = np.full((layout.n, 3), -1, dtype=np.intp)
+        for i, (o, k) in enumerate(zip(layout.offsets, layout.kinds)):
+            for j, p in enumerate(POINT_KINDS[k].position):
+                idx[i, j] = o + p
+        return idx
+
+    def positions(self, team, x) -> np.ndarray:
+        """The robots' point positions, m, shape ``(..., N, 3)`` (a team's state, or a layout's ``r``)."""
+        layout, maps = self._plan(team)
+        x = np.asarray(x, dtype=float)
+        return layout.positions(team.point(x) if maps is not None else x)
+
+    # -- the filter ---------------------------------------------------------------------------
+    def filter(self, team, x, u):
+        """Commands closest to ``u`` whose motion keeps every pair ``d_min`` apart, and what it did.
+
+        Parameters
+        ----------
+        team : Team or RobotLayout
+            A team (``x`` its stacked state, ``u`` its commands) or a layout (``x`` the robot
+            state ``r``, ``u`` its rate ``r_dot``: single-integrator points, no limits).
+        x : array_like, shape (..., n_state) or (..., layout.size)
+            The measured state; leading axes are worlds (one programme per world).
+        u : array_like, shape (..., n) or (..., layout.size)
+            The nominal commands (within the robots' limits).
+
+        Returns
+        -------
+        u_safe : ndarray, same shape as ``u`` broadcast with ``x``'s batch
+            Bitwise ``u`` in every world where no pair constraint binds.
+        info : BarrierInfo
+        """
+        layout, maps = self._plan(team)
+        width_x = team.n_state if maps is not None else layout.size
+        width_u = team.n if maps is not None else layout.size
+        x = np.asarray(x, dtype=float)
+        u = u_in = np.asarray(u, dtype=float)
+        if x.shape[-1:] != (width_x,) or u.shape[-1:] != (width_u,):
+            raise ShapeError(f"SeparationBarrier.filter: x must have shape (..., {width_x}) and u (..., {width_u}), "
+                             f"got {x.shape} and {u.shape}")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
+            raise InvalidInputError("SeparationBarrier.filter: x and u must be finite (saturate the commands first)")
+        batch = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
+        x = np.broadcast_to(x, batch + (width_x,))
+        u = np.broadcast_to(u, batch + (width_u,))
+        dt = self.dt_s
+        n = layout.n
+        if maps is not None:
+            P = layout.positions(team.point(x))
+            V = np.empty(batch + (n, 3))
+            planar = np.zeros(n, dtype=bool)
+            xg, ug = team.gather(x), team.gather(u, "command")
+            for g, m, xs, us in zip(team.groups, maps, xg, ug):
+                V[..., list(g.robots), :] = np.reshape(m.velocity(g.model, xs, us, dt), batch + (len(g.robots), 3))
+                planar[list(g.robots)] = m.planar
+        else:
+            idx = self._layout_index(layout)
+            P = layout.positions(x)
+            V = layout.positions(u)
+            planar = idx[:, 2] < 0
+        flat_P, flat_V = P.reshape(-1, n, 3), V.reshape(-1, n, 3)
+        B = flat_P.shape[0]
+        min_sep = np.full(B, np.inf)
+        active = np.zeros(B, dtype=bool)
+        n_con = np.zeros(B, dtype=np.intp)
+        factor = np.ones(B)
+        out = None
+        common = maps is not None and team.common_limit
+        for b in range(B):
+            res = self._world(flat_P[b], flat_V[b], planar)
+            min_sep[b] = res[0]
+            if res[1] is None:
+                continue
+            V_new, changed, comp, k = res[1:]
+            if out is None:
+                out = np.array(u, dtype=float).reshape(B, width_u)
+            xb, ub = x.reshape(B, width_x)[b], u.reshape(B, width_u)[b]
+            active[b] = True
+            n_con[b] = k
+            if maps is None:
+                r = out[b]
+                keep = idx >= 0
+                r[idx[keep]] = V_new[keep]
+                continue
+            # new commands and each robot's limit factor, group by group
+            news, facs = [], np.ones(n)
+            for g, m, xs, us in zip(team.groups, maps, team.gather(xb), team.gather(ub, "command")):
+                rob = list(g.robots)
+                vg = V_new[rob] if g.axis else V_new[rob[0]]
+                un = m.commands(g.model, xs, us, vg, dt)
+                news.append((un, vg))
+                facs[rob] = np.reshape(m.factor(g.model, xs, un, vg, dt), -1)
+            if common:
+                s_rob = np.full(n, min(1.0, float(np.min(facs))))
+            else:
+                s_comp = np.ones(int(comp.max()) + 1)
+                np.minimum.at(s_comp, comp, facs)
+                s_rob = np.minimum(1.0, s_comp[comp])
+            if np.any(s_rob <= 0):
+                raise DegenerateInputError("SeparationBarrier: a robot's limits leave it no motion (limit factor 0); "
+                                           "check the commands are finite and the limits positive")
+            factor[b] = float(np.min(s_rob))
+            write = changed | (s_rob < 1.0)
+            parts = []
+            for g, m, xs, us, (un, vg) in zip(team.groups, maps, team.gather(xb), team.gather(ub, "command"), news):
+                rob = list(g.robots)
+                s = s_rob[rob] if g.axis else np.float64(s_rob[rob[0]])
+                uf = m.scaled(g.model, xs, un, vg, np.asarray(s), dt)
+                w = write[rob][:, None] if g.axis else bool(write[rob[0]])
+                parts.append(np.where(w, uf, us))
+            out[b] = team.scatter(parts, "command", ())
+        info = BarrierInfo(min_sep.reshape(batch), active.reshape(batch), n_con.reshape(batch), factor.reshape(batch))
+        if out is None:
+            return u_in if u_in.shape == u.shape else np.array(u), info
+        return out.reshape(batch + (width_u,)), info
+
+    # -- one world ------------------------------------------------------------------------------
+    def _range(self, speed):
+        if self.range_m is not None:
+            return self.range_m
+        d, g = self.min_separation_m, self.gamma
+        return (2.0 * speed + math.sqrt(4.0 * speed * speed + g * g * d * d)) / g
+
+    def _pairs(self, P, R):
+        """Pairs ``(i, j)``, ``i < j``, no farther apart than ``R``, and the smallest separation."""
+        n = P.shape[0]
+        if n < 2:
+            return np.zeros(0, np.intp), np.zeros(0, np.intp), math.inf
+        if n <= _DENSE_PAIRS_MAX_ROBOTS:
+            i, j = np.triu_indices(n, 1)
+            dist = np.linalg.norm(P[i] - P[j], axis=-1)
+            near = dist <= R
+            return i[near], j[near], float(dist.min())
+        tree = cKDTree(P)
+        pairs = tree.query_pairs(R, output_type="ndarray")
+        dmin = float(tree.query(P, k=2)[0][:, 1].min())
+        return pairs[:, 0].astype(np.intp), pairs[:, 1].astype(np.intp), dmin
+
+    def _world(self, P, V, planar):
+        """``(min_separation, V_new, changed, component, constraints)`` of one world; ``V_new``
+        None where no constraint binds."""
+        n = P.shape[0]
+        d2, gam = self.min_separation_m ** 2, self.gamma
+        speed = float(np.sqrt(np.max(np.einsum("ij,ij->i", V, V)))) if n else 0.0
+        R = self._range(speed)
+        i, j, dmin = self._pairs(P, R)
+        if i.size == 0:
+            return dmin, None
+        pij = P[i] - P[j]
+        h = np.einsum("ij,ij->i", pij, pij) - d2  # Wang et al. 2017 eq. (6)
+        g = 2.0 * np.einsum("ij,ij->i", pij, V[i] - V[j]) + gam * h  # eq. (8): g >= 0
+        bind = g < 0.0
+        if not np.any(bind):
+            return dmin, None
+        tol = 1e-12 * gam * d2
+        while True:
+            W = self._solve(P, V, planar, i[bind], j[bind], pij[bind], g[bind], n)
+            Vn = V + W
+            gn = 2.0 * np.einsum("ij,ij->i", pij, Vn[i] - Vn[j]) + gam * h
+            new = ~bind & (gn < -tol)
+            if np.any(new):
+                bind |= new
+                continue
+            if self.range_m is None:  # the solution may be faster than the nominal: widen the range
+                Rn = self._range(float(np.sqrt(np.max(np.einsum("ij,ij->i", Vn, Vn)))))
+                if Rn > R * (1.0 + 1e-12):
+                    keys = i[bind] * n + j[bind]
+                    R = Rn
+                    i, j, _ = self._pairs(P, R)
+                    pij = P[i] - P[j]
+                    h = np.einsum("ij,ij->i", pij, pij) - d2
+                    g = 2.0 * np.einsum("ij,ij->i", pij, V[i] - V[j]) + gam * h
+                    gn = 2.0 * np.einsum("ij,ij->i", pij, Vn[i] - Vn[j]) + gam * h
+                    old = np.isin(i * n + j, keys)
+                    bind = old | (gn < -tol)
+                    if np.any(bind & ~old):
+                        continue
+            break
+        changed = np.any(W != 0.0, axis=-1)
+        # the groups a common limit factor must span: components of the neighbour graph
+        adj = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n))
+        _, comp = connected_components(adj, directed=False)
+        return dmin, Vn, changed, comp, int(np.count_nonzero(bind))
+
+    def _solve(self, P, V, planar, i, j, pij, g, n):
+        """Velocity changes ``W`` (``(N, 3)``) of the programme over the pairs ``(i, j)``: one
+        least-distance problem per connected component (Lawson and Hanson 1974, ch. 23)."""
+        W = np.zeros((n, 3))
+        adj = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n))
+        _, comp = connected_components(adj, directed=False)
+        pair_comp = comp[i]
+        order = np.argsort(pair_comp, kind="stable")
+        bounds = np.flatnonzero(np.diff(pair_comp[order])) + 1
+        for rows in np.split(order, bounds):
+            robots = np.unique(np.concatenate([i[rows], j[rows]]))
+            local = np.searchsorted(robots, np.stack([i[rows], j[rows]]))
+            m, k = robots.size, rows.size
+            G = np.zeros((k, m, 3))
+            ar = np.arange(k)
+            G[ar, local[0]] = 2.0 * pij[rows]
+            G[ar, local[1]] = -2.0 * pij[rows]
+            G[:, planar[robots], 2] = 0.0  # a planar point's z velocity is no variable
+            G = G.reshape(k, 3 * m)
+            c = -g[rows]  # G w >= c  <=>  the pair constraints at v_nom + w
+            # LDP min |w| s.t. G w >= c: NNLS min |E y - f|, E = [G^T; c^T], f = e_{n+1};
+            # w = -r[:n] / r[n], r = E y - f (Lawson and Hanson 1974, ch. 23, Algorithm LDP)
+            E = np.vstack([G.T, c[None, :]])
+            f = np.zeros(3 * m + 1)
+            f[-1] = 1.0
+            y, _ = nnls(E, f, maxiter=50 * (3 * m + k + 1))
+            r = E @ y - f
+            if abs(r[-1]) < 1e-14:
+                a, b = int(i[rows][0]), int(j[rows][0])
+                raise DegenerateInputError(
+                    f"SeparationBarrier: no velocities keep robots {a + 1} and {b + 1} (and their neighbours) apart "
+                    f"(separation {float(np.linalg.norm(P[a] - P[b])):.3g} m, at least {self.min_separation_m:g} m "
+                    "needed); separate the robots")
+            W[robots] = (-r[:-1] / r[-1]).reshape(m, 3)
+        return W
+
+
+# -- the controller -----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SafeState:
+    """State of a :class:`SafeController`: the inner controller's and whether it has started.
+
+    Attributes
+    ----------
+    inner : object
+        The inner controller's state.
+    started : bool
+        False before the first update (which refuses robots already too close).
+    """
+
+    inner: object = None
+    started: bool = False
+
+
+@dataclass(frozen=True)
+class SafeController(contract.Controller):
+    """Any controller whose commands pass through a :class:`SeparationBarrier`.
+
+    Parameters
+    ----------
+    inner : Controller
+        The controller whose commands are filtered (its ``measured`` input must be the
+        team's stacked state).
+    barrier : SeparationBarrier
+    team : Team, optional
+        The robots (default: the ``team`` of a cluster-space controller,
+        :class:`~quatform.control.base.Controller`).
+
+    Signals: the inner controller's, plus ``min_separation`` (m, the smallest distance
+    between two robots' points as measured) and ``safety_active`` (1 where the filter
+    changed the command, else 0).
+    """
+
+    inner: contract.Controller
+    barrier: SeparationBarrier
+    team: Team | None = field(default=None)
+
+    def __post_init__(self):
+        if not isinstance(self.inner, contract.Controller):
+            raise InvalidInputError(f"SafeController: inner must be a Controller, got {type(self.inner).__name__}")
+        if not isinstance(self.barrier, SeparationBarrier):
+            raise InvalidInputError(f"SafeController: barrier must be a SeparationBarrier, got "
+                                    f"{type(self.barrier).__name__}")
+        if self.team is None:
+            if not isinstance(self.inner, base.Controller):
+                raise InvalidInputError(f"SafeController: give team= (the robots of the {type(self.inner).__name__})")
+            object.__setattr__(self, "team", self.inner.team)
+        if not isinstance(self.team, Team):
+            raise InvalidInputError(f"SafeController: team must be a Team, got {type(self.team).__name__}")
+        self.barrier._plan(self.team)  # refuses a model without a point-velocity map
+        if len(self.inner.command_names) != self.team.n:
+            raise InvalidInputError(f"SafeController: the inner controller commands {len(self.inner.command_names)} "
+                                    f"values, the team takes {self.team.n}")
+
+    @property
+    def name(self) -> str:
+        return self.inner.name
+
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        return self.inner.command_names
+
+    def signal_columns(self) -> dict[str, tuple[str, ...]]:
+        """The inner controller's signals, ``min_separation`` and ``safety_active``."""
+        return {**self.inner.signal_columns(), "min_separation": ("min_separation",),
+                "safety_active": ("safety_active",)}
+
+    def init(self, batch: tuple = ()):
+        """:class:`SafeState` of the inner controller's initial state, not started."""
+        return SafeState(self.inner.init(batch), False)
+
+    def update(self, t: float, measured, reference, state) -> contract.Step:
+        """The inner controller's update with its commands filtered on ``measured``.
+
+        The first update refuses robots already closer than ``min_separation_m`` (no
+        command can make that safe), naming the pair and the separation.
+        """
+        if not isinstance(state, SafeState):
+            raise InvalidInputError(f"SafeController.update: state must be a SafeState (from init), got "
+                                    f"{type(state).__name__}")
+        m = np.asarray(measured, dtype=float)
+        if m.shape[-1:] != (self.team.n_state,):
+            raise ShapeError(f"SafeController: measured must be the team's state, shape (..., {self.team.n_state}), "
+                             f"got {m.shape}")
+        if not state.started:
+            self._check_start(m)
+        step = self.inner.update(t, measured, reference, state.inner)
+        u, info = self.barrier.filter(self.team, m, step.u)
+        signals = dict(step.signals)
+        signals["min_separation"] = info.min_separation[..., None]
+        signals["safety_active"] = info.active.astype(float)[..., None]
+        return contract.Step(u, SafeState(step.state, True), signals)
+
+    def _check_start(self, m):
+        layout = self.team.layout
+        sep = layout.separations(self.team.point(m))
+        if sep.shape[-1] == 0:
+            return
+        d = self.barrier.min_separation_m
+        close = sep < d
+        if np.any(close):
+            at = np.argwhere(close)[0]
+            a, b = (int(p[at[-1]]) for p in layout.pairs)
+            where = f" in world {tuple(int(k) for k in at[:-1])}" if len(at) > 1 else ""
+            raise DegenerateInputError(
+                f"SafeController: robots {layout.labels[a]} and {layout.labels[b]} start {float(sep[tuple(at)]):.4g} m "
+                f"apart{where}, closer than min_separation_m = {d:g} m; start them farther apart or lower the minimum")

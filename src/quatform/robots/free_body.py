@@ -1,0 +1,160 @@
+"""6-DOF free body commanded by its world linear and angular velocity (the ``pose`` kind of issue 14).
+
+Robots layer. State ``(x, y, z, q_w, q_x, q_y, q_z)``: position, m, and the unit quaternion of
+its orientation in the world. Command ``(v_x, v_y, v_z, w_x, w_y, w_z)``: the world-frame
+linear velocity, m/s, and angular velocity, rad/s, held over a step. The orientation obeys
+``q_dot = 1/2 w q`` (``w`` a pure quaternion in the world frame; seed 001 eq. (2.32), the
+world-frame form of the quaternion derivative), whose solution for a held ``w`` is
+``q(t) = exp(t w / 2) q(0)`` (seed 001 eq. (2.28), the exponential of a pure
+quaternion), so a step is exact; the result is renormalised (eq. (2.37)) against roundoff.
+
+It offers a formation its whole state (a ``pose`` point); :meth:`FreeBodyRobot.actuate`
+turns a rate of that point ``(p_dot, q_dot)`` into ``(p_dot, w)``, ``w = 2 q_dot q*``
+(vector part). Limits: the linear speed and the angular speed in norm; a command beyond them
+is scaled down as a whole, so a team of holonomic robots may share one factor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..algebra.validate import as_array
+from ..errors import InvalidInputError
+from ..formations import geometry as g
+
+__all__ = ["FreeBodyRobot"]
+
+
+@dataclass(frozen=True)
+class FreeBodyRobot:
+    """A rigid body that takes world linear and angular velocity commands.
+
+    Parameters
+    ----------
+    max_speed : float
+        Largest linear speed ``||(v_x, v_y, v_z)||``, m/s.
+    max_angular_rate : float
+        Largest angular speed ``||(w_x, w_y, w_z)||``, rad/s.
+    """
+
+    max_speed: float = 2.5
+    max_angular_rate: float = 3.0
+
+    name = "free-body"
+    #: It offers a formation its whole state, a pose point.
+    point_kind = "pose"
+    state_columns = ("x", "y", "z", "q_w", "q_x", "q_y", "q_z")
+    command_columns = ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z")
+    #: Entries of the rate :meth:`actuate` takes: the pose point's (position and quaternion rates).
+    n_rate = 7
+    #: Its commands are not its point's rates (an angular velocity, not a quaternion rate).
+    passthrough = False
+    #: Its commands scale as a whole (:meth:`limit_factor`), so a team may share one factor.
+    holonomic = True
+
+    def __post_init__(self):
+        for name in ("max_speed", "max_angular_rate"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
+                raise InvalidInputError(f"FreeBodyRobot {name} must be a positive finite number, got {v!r}")
+
+    def point(self, x) -> np.ndarray:
+        """The pose point: the state itself, shape ``(..., 7)``."""
+        return np.asarray(x, dtype=float)
+
+    def initial_memory(self, batch: tuple = ()):
+        """None: its actuation remembers nothing."""
+        return None
+
+    def actuate(self, x, rate, t: float, memory=None):
+        """Commands ``(p_dot, w)`` for the pose rate ``rate = (p_dot, q_dot)``, ``w = 2 vec(q_dot q*)``.
+
+        From ``q_dot = 1/2 w q`` (seed 001 eq. (2.32)): ``w = 2 q_dot q*`` (eq. (2.33)) for a unit ``q``. The
+        part of ``q_dot`` along ``q`` (which would change its norm) gives the real part of
+        ``2 q_dot q*`` and is dropped.
+
+        Parameters
+        ----------
+        x : array_like, shape (..., 7)
+        rate : array_like, shape (..., 7)
+            m/s and 1/s.
+
+        Returns
+        -------
+        u : ndarray, shape (..., 6)
+        memory : None
+        """
+        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        w = 2.0 * g.mul(rate[..., 3:7], g.conj(x[..., 3:7]))[..., 1:]
+        shape = np.broadcast_shapes(rate.shape[:-1], w.shape[:-1])
+        return np.concatenate([np.broadcast_to(rate[..., 0:3], shape + (3,)), w], axis=-1), memory
+
+    def brake(self, x, memory=None):
+        """Commands that stop the body: zero, shape ``(..., 6)``."""
+        return np.zeros(np.shape(x)[:-1] + (6,)), memory
+
+    def limit_factor(self, u) -> np.ndarray:
+        """Largest ``s`` in ``[0, 1]`` with ``s u`` within the limits (0 for a non-finite ``u``).
+
+        Parameters
+        ----------
+        u : ndarray, shape (..., 6)
+
+        Returns
+        -------
+        ndarray, shape (...)
+        """
+        u = np.asarray(u, dtype=float)
+        finite = np.all(np.isfinite(u), axis=-1)
+        v = np.where(finite[..., None], u, 0.0)
+        speed = np.linalg.norm(v[..., 0:3], axis=-1)
+        spin = np.linalg.norm(v[..., 3:6], axis=-1)
+        with np.errstate(divide="ignore"):
+            s = np.minimum(self.max_speed / speed, self.max_angular_rate / spin)
+        return np.where(finite, np.minimum(1.0, s), 0.0)
+
+    def saturate(self, u) -> np.ndarray:
+        """Commands limited to the body's speeds, direction kept; non-finite ones become zero.
+
+        Parameters
+        ----------
+        u : array_like, shape (..., 6)
+
+        Returns
+        -------
+        ndarray, shape (..., 6)
+        """
+        u = np.asarray(u, dtype=float)
+        if u.shape[-1:] != (6,):
+            raise InvalidInputError(f"a free-body command has shape (..., 6) (v_x, v_y, v_z, w_x, w_y, w_z), "
+                                    f"got {u.shape}")
+        s = self.limit_factor(u)[..., None]
+        return np.where(s > 0, u * s, 0.0)
+
+    def step(self, x, u, dt: float) -> np.ndarray:
+        """State after ``dt`` s of the saturated command ``u``: exact for a held command.
+
+        ``p + dt v`` and ``q(dt) = exp(dt w / 2) q`` (seed 001 eq. (2.28)), renormalised (eq. (2.37)).
+
+        Parameters
+        ----------
+        x : array_like, shape (..., 7)
+        u : array_like, shape (..., 6)
+        dt : float
+            s.
+
+        Returns
+        -------
+        ndarray, shape (..., 7)
+        """
+        x = as_array(x, "free-body state", 7)
+        u = self.saturate(u)
+        half = 0.5 * dt * u[..., 3:6]
+        a = np.linalg.norm(half, axis=-1)
+        # exp of the pure quaternion (0, half): (cos|half|, sinc|half| half), seed 001 eq. (2.28)
+        e = np.concatenate([np.cos(a)[..., None], np.sinc(a / np.pi)[..., None] * half], axis=-1)
+        q = g.mul(e, x[..., 3:7])
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        return np.concatenate([x[..., 0:3] + dt * u[..., 0:3], q], axis=-1)
