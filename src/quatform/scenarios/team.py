@@ -37,10 +37,11 @@ from ..formations.team_chart import check_template
 from ..references.team_motion import (HEADING_MODES, PATH_KINDS, PROFILES, SCALE_KINDS, TEMPLATES, Attitude,
                                       Headings, Move, OriginPath, PlanMotion, Scale, TeamMotion, Turn,
                                       template_positions)
-from ..robots import Bebop, HolonomicRobot, Pioneer, Team
+from ..control.safety import SafeController, SeparationBarrier
+from ..robots import Bebop, FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
-from ..sim.team_metrics import team_metrics
+from ..sim.team_metrics import min_separations, team_metrics
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 
@@ -120,34 +121,38 @@ def _holonomic(d, where, place):
 
 
 def _pioneer(d, where, place):
-    """The Pioneer 3-DX of seed 001 §3.1.1 through its control point at the platform height."""
+    """The Pioneer 3-DX of seed 001 §3.1.1 offering its control point and heading (``xy_yaw``):
+    a unicycle whose heading follows its control point (``robots.Pioneer``)."""
     return Pioneer(a=number(d, "a_m", where, 0.15, place=place, low=0.0, low_open=True),
                    max_v=number(d, "max_v_m_s", where, 0.75, place=place, low=0.0, low_open=True),
                    max_omega=number(d, "max_omega_rad_s", where, 100.0 * math.pi / 180.0, place=place, low=0.0,
                                     low_open=True),
-                   z=number(d, "z_m", where, 0.0, place=place))
+                   point_kind="xy_yaw")
+
+
+def _planar(d, where, place):
+    """A planar holonomic ground robot ``(x, y, yaw)`` under velocity commands."""
+    return PlanarHolonomicRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0,
+                                                 low_open=True),
+                                max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                                    low_open=True))
+
+
+def _free_body(d, where, place):
+    """A 6-DOF free body under world linear and angular velocity commands (``pose``)."""
+    return FreeBodyRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
+                         max_angular_rate=number(d, "max_angular_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                                 low_open=True))
 
 
 #: Robot models of a ``[[robots]]`` entry: ``(builder(table, where, place), its limit keys)``.
 ROBOT_MODELS = {
     "quadrotor": (_quadrotor, ("max_speed_m_s", "max_yaw_rate_rad_s")),
     "holonomic": (_holonomic, ("max_speed_m_s", "max_yaw_rate_rad_s")),
-    "pioneer": (_pioneer, ("a_m", "max_v_m_s", "max_omega_rad_s", "z_m")),
+    "planar": (_planar, ("max_speed_m_s", "max_yaw_rate_rad_s")),
+    "pioneer": (_pioneer, ("a_m", "max_v_m_s", "max_omega_rad_s")),
+    "free-body": (_free_body, ("max_speed_m_s", "max_angular_rate_rad_s")),
 }
-
-
-def _initial_state(team: Team, r0, r0_dot) -> np.ndarray:
-    """The team's state at the desired points ``r0`` (layout order): a robot whose state is its
-    point takes it; a Pioneer offering its control point ``(x, y, z)`` heads along the point's
-    desired velocity ``r0_dot`` (the unicycle's only heading that can follow it)."""
-    parts = []
-    for robot, pt, vel in zip(team.robots, team.layout.split(r0), team.layout.split(r0_dot)):
-        if isinstance(robot, Pioneer) and robot.point_kind == "xyz":
-            heading = math.atan2(vel[1], vel[0]) if np.hypot(vel[0], vel[1]) > 1e-12 else 0.0
-            parts.append(np.array([pt[0], pt[1], heading]))
-        else:
-            parts.append(np.asarray(pt, dtype=float))
-    return team.stack(parts)
 
 
 # --------------------------------------------------------------------------- the scenario
@@ -491,10 +496,29 @@ def team_scenario_from_dict(data: dict, where: str = "scenario") -> TeamScenario
 
 
 def _check_start(sc: TeamScenario, where: str) -> None:
-    """Refuse robots that start on each other (the reference at t = 0 with the offset)."""
+    """Refuse robots that start on each other (the reference at t = 0 with the offset) and,
+    with the barrier on, a reference that brings two robots closer than its minimum (the
+    barrier would hold them apart and the formation could not be tracked): sampled at most
+    every 1/2000 of the run."""
+    L = sc.team.layout
     r0 = _start_points(sc, sc.motion)
-    check_template(sc.team.layout.positions(r0)[None], sc.team.layout.n, "the robots at t = 0 (the reference "
-                   "with [initial_offset])", min_separation=1e-6)
+    check_template(L.positions(r0)[None], L.n, "the robots at t = 0 (the reference with [initial_offset])",
+                   min_separation=1e-6)
+    if not sc.safety["enabled"]:
+        return
+    t = sc.times
+    t = t[::max(1, len(t) // 2000)]
+    r = TeamChart(L).robots(sc.motion(t)[0])
+    sep = min_separations(L, r)
+    k = int(np.argmin(sep))
+    d = sc.safety["min_separation_m"]
+    if sep[k] < d:
+        i, j = L.pairs
+        a = int(np.argmin(L.separations(r[k])))
+        raise InvalidInputError(
+            f"{where}: the reference brings robots {L.labels[i[a]]} and {L.labels[j[a]]} to {sep[k]:.3g} m at t = "
+            f"{t[k]:g} s, below [safety] min_separation_m = {d:g} m (the barrier would hold them apart); enlarge "
+            "the shape or lower min_separation_m")
 
 
 def _start_points(sc: TeamScenario, motion) -> np.ndarray:
@@ -540,17 +564,19 @@ TEAM_TABLE_COLUMNS = (
     ("nonfinite_commands", "NaN cmds", "{}"),
 )
 
-#: Most samples of the singularity measure a run computes, as ``budget / n_c^2`` (at least
+#: Most samples of the singularity measure a run computes, as ``budget / n_c^3`` (at least
 #: :data:`_MIN_SINGULAR_SAMPLES`): the measure is the SVD of the dense ``(n_r, n_c)`` inverse
-#: Jacobian, O(n_c^3) a sample, so a 100-robot team measures it on a subsample of times.
-_SINGULAR_BUDGET = 4e6
-_MIN_SINGULAR_SAMPLES = 50
+#: Jacobian, O(n_c^3) a sample (0.3 s at n_c = 400 on this project's 2-core machine), so a
+#: 100-robot team measures it on a subsample of times (12 of them); a team of 10 at every sample.
+_SINGULAR_BUDGET = 6e8
+_MIN_SINGULAR_SAMPLES = 12
 
 
 def singularity_samples(n_times: int, n_c: int) -> np.ndarray:
     """Indices of the samples whose singularity measure a run computes: every sample for a
-    small team, else about ``4e6 / n_c^2`` evenly spaced ones (at least 50, the last kept)."""
-    k = int(max(_MIN_SINGULAR_SAMPLES, _SINGULAR_BUDGET / max(n_c, 1) ** 2))
+    small team, else about ``6e8 / n_c^3`` evenly spaced ones (at least 12, the first and last
+    kept)."""
+    k = int(max(_MIN_SINGULAR_SAMPLES, _SINGULAR_BUDGET / max(n_c, 1) ** 3))
     if n_times <= k:
         return np.arange(n_times)
     return np.unique(np.linspace(0, n_times - 1, k).round().astype(int))
@@ -592,7 +618,11 @@ class TeamKind(ScenarioKind):
             scenario = with_plan(scenario, reference)
         check_team_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s, scenario.team.layout.n)
         ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
-        team, F = ctrl.team, ctrl.formation
+        team, F, ff = ctrl.team, ctrl.formation, bool(ctrl.feedforward)
+        if team.n_state != team.layout.size:
+            raise InvalidInputError(f"{scenario.name}: a team robot's state must be its point (the models of "
+                                    f"{', '.join(ROBOT_MODELS)}); this team's state has {team.n_state} entries for "
+                                    f"points of {team.layout.size}")
         if team.layout != scenario.team.layout:
             raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the scenario's "
                                     f"{scenario.team.layout.kinds}")
@@ -601,14 +631,15 @@ class TeamKind(ScenarioKind):
         e_des, ed_des = scenario.motion(t)
         c_des, cd_des = F.from_chart(e_des, ed_des)
         r_des = chart.robots(e_des)
-        r_dot0 = chart.robot_rates(e_des[0], ed_des[0])
-        x0 = _initial_state(team, _start_points(scenario, scenario.motion), r_dot0)
+        x0 = _start_points(scenario, scenario.motion)  # every team model's state is its point
         plant = KinematicTeam(team)
         safety = dict(scenario.safety)
-        safety["applied"] = False  # control.safety (the separation barrier) is not on this branch yet
+        safety["applied"] = bool(safety["enabled"])
+        if safety["applied"]:  # issue 14 item 6: on by default for teams
+            ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], dt_s=scenario.dt_s), team)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
-                "backend_label": "kinematic", "formation": F.name, "feedforward": bool(ctrl.feedforward),
+                "backend_label": "kinematic", "formation": F.name, "feedforward": ff,
                 "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
                 "chart_variables": chart.variables}
 
@@ -616,7 +647,7 @@ class TeamKind(ScenarioKind):
             return Reference(c_des[k], cd_des[k], r_des[k])
 
         def finish(log: Log) -> Log:
-            r = team.point(log["state"]) if not team.passthrough else np.asarray(log["state"])
+            r = team.point(log["state"])
             c = log["cluster"]
             e = F.to_chart(c, near_e=e_des, r=r)
             idx = singularity_samples(len(t), F.n_c)
