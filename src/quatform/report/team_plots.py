@@ -93,10 +93,9 @@ def plot_team_paths_3d(run: Log, path, n_frames: int = 8) -> Path:
     idx = decimate(P.shape[0])
     i, j = formation_edges(Pd[0] - Pd[0].mean(axis=0))
     ks = np.unique(np.linspace(0, P.shape[0] - 1, max(1, int(n_frames)) + 1).round().astype(int))
-    for k in ks:
-        seg = np.stack([P[k, i], P[k, j]], axis=1)  # (E, 2, 3)
-        for s in seg:
-            ax.plot(*s.T, color="0.55", lw=0.7, alpha=0.8)
+    for k in ks:  # each frame's edges as one line broken by NaN
+        seg = np.stack([P[k, i], P[k, j], np.full((len(i), 3), np.nan)], axis=1).reshape(-1, 3)
+        ax.plot(*seg.T, color="0.55", lw=0.7, alpha=0.8)
         ax.scatter(*P[k].T, color="0.3", s=6, depthshade=False)
     few = n <= _EACH_ROBOT_UP_TO
     for r in range(n):

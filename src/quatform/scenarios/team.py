@@ -47,7 +47,8 @@ from .base import Experiment, Option, ScenarioKind
 
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict", "ROBOT_MODELS",
            "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_BACKENDS", "TEAM_BYTES_PER_ROBOT_STEP",
-           "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples"]
+           "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples", "available_controllers",
+           "with_plan"]
 
 _HINT = "see docs/scenarios.md, team scenarios"
 
@@ -89,6 +90,14 @@ assert set(_GAIN_SIZES) == {key for _, key, _ in TEAM_GAIN_KEYS.values()}
 
 #: What moves the robots.
 TEAM_BACKENDS = ("kinematic",)
+
+
+def available_controllers() -> tuple[str, ...]:
+    """The team controllers whose description is registered (``formations.TEAM_FORMATIONS``),
+    in :data:`quatform.control.TEAM_FORMATIONS` order: what ``--controller`` and ``compare`` offer."""
+    from ..formations import TEAM_FORMATIONS as CLASSES
+
+    return tuple(name for name, key in TEAM_FORMATIONS.items() if key in CLASSES)
 
 
 # --------------------------------------------------------------------------- robot models
@@ -234,9 +243,11 @@ class TeamScenario:
         scenario's gains and robots; ``feedforward`` defaults to the scenario's."""
         from ..checks import nearest
 
-        if name not in TEAM_FORMATIONS:
-            raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, TEAM_FORMATIONS)}; choose one "
-                                    f"of {', '.join(TEAM_FORMATIONS)}")
+        names = available_controllers()
+        if name not in names:
+            raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, names)}; choose one of "
+                                    f"{', '.join(names)} (the team descriptions registered in "
+                                    "quatform.formations.TEAM_FORMATIONS)")
         ff = self.feedforward if feedforward is None else feedforward
         return team_controller(name, self.team, self.gains.get(name, {}), template=self.template,
                                feedforward=bool(ff))
@@ -588,7 +599,7 @@ class TeamKind(ScenarioKind):
     name = "team"
     scenario_type = TeamScenario
     options = (
-        Option("controller", "team controller (seed 000 for N robots; required)", tuple(TEAM_FORMATIONS), None),
+        Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
         Option("backend", "what moves the robots", TEAM_BACKENDS, "kinematic"),
         Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
@@ -610,7 +621,7 @@ class TeamKind(ScenarioKind):
             raise InvalidInputError(f"team experiment: scenario must be a TeamScenario, got {type(scenario).__name__}")
         if controller is None:
             raise InvalidInputError(f"{scenario.name} is a team scenario: give a controller "
-                                    f"(--controller {{{','.join(TEAM_FORMATIONS)}}})")
+                                    f"(--controller {{{','.join(available_controllers())}}})")
         if backend not in TEAM_BACKENDS:
             raise InvalidInputError(f"unknown backend {backend!r} for a team scenario; choose one of "
                                     f"{', '.join(TEAM_BACKENDS)}")
