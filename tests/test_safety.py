@@ -114,11 +114,12 @@ def test_two_robots_swapping_head_on_stop_apart(name):
 
 def test_mixed_team_of_drones_free_bodies_and_ground_robots():
     rng = np.random.default_rng(3)
-    team = Team((HolonomicRobot(1.0, 1.0), PlanarHolonomicRobot(1.0, 1.0), FreeBodyRobot(1.0, 1.0), Pioneer()) * 3)
+    team = Team((HolonomicRobot(1.0, 1.0), PlanarHolonomicRobot(1.0, 1.0), FreeBodyRobot(1.0, 1.0), Pioneer(),
+                 Pioneer(point_kind="xy_yaw")) * 3)
     barrier = SeparationBarrier(D_MIN, gamma=GAMMA, dt_s=DT)
     parts = []
-    for k, r in enumerate(team.robots):  # on a 4 x 3 grid 0.4 m apart, at heights within 5 cm
-        xy = 0.4 * np.array([k % 4, k // 4], dtype=float) + rng.uniform(-0.02, 0.02, 2)
+    for k, r in enumerate(team.robots):  # on a 5 x 3 grid 0.4 m apart, at heights within 5 cm
+        xy = 0.4 * np.array([k % 5, k // 5], dtype=float) + rng.uniform(-0.02, 0.02, 2)
         parts.append({"xyz_yaw": np.r_[xy, 0.05, 0.0], "xy_yaw": np.r_[xy, 0.3], "xyz": np.r_[xy, 0.3],
                       "pose": np.r_[xy, 0.02, 1.0, 0, 0, 0]}[r.point_kind])
     x = np.concatenate(parts)
@@ -155,6 +156,13 @@ def test_inactive_filter_returns_the_commands_bitwise():
     us, info = SeparationBarrier(0.5, gamma=2.0).filter(team, np.tile(x, (3, 1)), u)
     assert us is u and not info.active.any() and np.all(info.constraints == 0)
     np.testing.assert_allclose(info.min_separation, 3.0, rtol=1e-15)
+    lost = np.tile(x, (2, 1))
+    lost[0, 5] = np.nan
+    close = team.saturate(np.tile(-np.sign(x) * 0.5, (2, 1)))
+    lost[:, 4:6] = [[np.nan, 0.1], [0.0, 0.2]]  # world 0 lost, world 1: robot 2 beside robot 1
+    us2, info2 = SeparationBarrier(0.5, gamma=2.0).filter(team, lost, close)
+    np.testing.assert_array_equal(us2[0], close[0])
+    assert np.isnan(info2.min_separation[0]) and info2.active.tolist() == [False, True]
     # far apart with a run through Team.step: the run is the unfiltered run, bitwise
     x1 = x.copy()
     x2 = x.copy()

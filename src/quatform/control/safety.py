@@ -51,8 +51,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import nnls
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
@@ -60,12 +58,32 @@ from ..formations.layout import POINT_KINDS, RobotLayout
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
 from . import base, contract
 
-__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS"]
+__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components"]
 
 #: Teams of at most this many robots find their pairs by one dense comparison (cheaper than a tree).
 _DENSE_PAIRS_MAX_ROBOTS = 48
 #: Bisection steps of the Pioneer's sampled-time limit factor (relative accuracy 2^-48).
 _BISECTION_STEPS = 48
+
+
+def components(n: int, i, j) -> np.ndarray:
+    """Connected components of the graph on ``n`` robots with edges ``(i, j)``: each robot's
+    label (the smallest robot number in its component), shape ``(n,)``.
+
+    Label propagation with pointer jumping: every edge takes the smaller label of its ends,
+    then every label its label's label, until nothing changes (a few NumPy calls per round,
+    rounds about the logarithm of the components' diameter).
+    """
+    lab = np.arange(n)
+    while True:
+        m = np.minimum(lab[i], lab[j])
+        new = lab.copy()
+        np.minimum.at(new, i, m)
+        np.minimum.at(new, j, m)
+        new = new[new]
+        if np.array_equal(new, lab):
+            return lab
+        lab = new
 
 
 # -- point velocities of the robot models -------------------------------------------------
@@ -176,7 +194,8 @@ class BarrierInfo:
     Attributes
     ----------
     min_separation : ndarray
-        Smallest distance between two robots' points, m (inf for one robot).
+        Smallest distance between two robots' points, m (inf for one robot, NaN for a
+        measurement that is not finite).
     active : ndarray of bool
         Whether the filter changed the commands.
     constraints : ndarray of int
@@ -291,7 +310,9 @@ class SeparationBarrier:
         Returns
         -------
         u_safe : ndarray, same shape as ``u`` broadcast with ``x``'s batch
-            Bitwise ``u`` in every world where no pair constraint binds.
+            Bitwise ``u`` in every world where no pair constraint binds, and in a world whose
+            measurement is not finite (a lost measurement: nothing to filter on; its
+            ``min_separation`` is NaN).
         info : BarrierInfo
         """
         layout, maps = self._plan(team)
@@ -302,8 +323,8 @@ class SeparationBarrier:
         if x.shape[-1:] != (width_x,) or u.shape[-1:] != (width_u,):
             raise ShapeError(f"SeparationBarrier.filter: x must have shape (..., {width_x}) and u (..., {width_u}), "
                              f"got {x.shape} and {u.shape}")
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
-            raise InvalidInputError("SeparationBarrier.filter: x and u must be finite (saturate the commands first)")
+        if not np.all(np.isfinite(u)):
+            raise InvalidInputError("SeparationBarrier.filter: u must be finite (saturate the commands first)")
         batch = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
         x = np.broadcast_to(x, batch + (width_x,))
         u = np.broadcast_to(u, batch + (width_u,))
@@ -330,12 +351,16 @@ class SeparationBarrier:
         factor = np.ones(B)
         out = None
         common = maps is not None and team.common_limit
+        seen = np.all(np.isfinite(flat_P), axis=(1, 2)) & np.all(np.isfinite(flat_V), axis=(1, 2))
         for b in range(B):
+            if not seen[b]:  # a measurement lost (NaN): nothing to filter on, the commands pass
+                min_sep[b] = np.nan
+                continue
             res = self._world(flat_P[b], flat_V[b], planar)
             min_sep[b] = res[0]
             if res[1] is None:
                 continue
-            V_new, changed, comp, k = res[1:]
+            V_new, changed, (pi, pj), k = res[1:]
             if out is None:
                 out = np.array(u, dtype=float).reshape(B, width_u)
             xb, ub = x.reshape(B, width_x)[b], u.reshape(B, width_u)[b]
@@ -354,10 +379,11 @@ class SeparationBarrier:
                 un = m.commands(g.model, xs, us, vg, dt)
                 news.append((un, vg))
                 facs[rob] = np.reshape(m.factor(g.model, xs, un, vg, dt), -1)
-            if common:
+            if common or np.all(facs >= 1.0):
                 s_rob = np.full(n, min(1.0, float(np.min(facs))))
-            else:
-                s_comp = np.ones(int(comp.max()) + 1)
+            else:  # one factor per group of neighbours (the components of the pairs within range)
+                comp = components(n, pi, pj)
+                s_comp = np.ones(n)
                 np.minimum.at(s_comp, comp, facs)
                 s_rob = np.minimum(1.0, s_comp[comp])
             if np.any(s_rob <= 0):
@@ -397,12 +423,17 @@ class SeparationBarrier:
             return i[near], j[near], float(dist.min())
         tree = cKDTree(P)
         pairs = tree.query_pairs(R, output_type="ndarray")
-        dmin = float(tree.query(P, k=2)[0][:, 1].min())
-        return pairs[:, 0].astype(np.intp), pairs[:, 1].astype(np.intp), dmin
+        i, j = pairs[:, 0].astype(np.intp), pairs[:, 1].astype(np.intp)
+        if i.size:  # the closest pair is among them
+            dmin = float(np.sqrt(np.min(np.einsum("ij,ij->i", P[i] - P[j], P[i] - P[j]))))
+        else:
+            dmin = float(tree.query(P, k=2)[0][:, 1].min())
+        return i, j, dmin
 
     def _world(self, P, V, planar):
-        """``(min_separation, V_new, changed, component, constraints)`` of one world; ``V_new``
-        None where no constraint binds."""
+        """``(min_separation, V_new, changed, (i, j), constraints)`` of one world (``(i, j)``: the
+        pairs within range, whose components a limit factor must span); ``V_new`` None where
+        no constraint binds."""
         n = P.shape[0]
         d2, gam = self.min_separation_m ** 2, self.gamma
         speed = float(np.sqrt(np.max(np.einsum("ij,ij->i", V, V)))) if n else 0.0
@@ -441,18 +472,13 @@ class SeparationBarrier:
                         continue
             break
         changed = np.any(W != 0.0, axis=-1)
-        # the groups a common limit factor must span: components of the neighbour graph
-        adj = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n))
-        _, comp = connected_components(adj, directed=False)
-        return dmin, Vn, changed, comp, int(np.count_nonzero(bind))
+        return dmin, Vn, changed, (i, j), int(np.count_nonzero(bind))
 
     def _solve(self, P, V, planar, i, j, pij, g, n):
         """Velocity changes ``W`` (``(N, 3)``) of the programme over the pairs ``(i, j)``: one
         least-distance problem per connected component (Lawson and Hanson 1974, ch. 23)."""
         W = np.zeros((n, 3))
-        adj = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n))
-        _, comp = connected_components(adj, directed=False)
-        pair_comp = comp[i]
+        pair_comp = components(n, i, j)[i]
         order = np.argsort(pair_comp, kind="stable")
         bounds = np.flatnonzero(np.diff(pair_comp[order])) + 1
         for rows in np.split(order, bounds):

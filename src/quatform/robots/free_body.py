@@ -111,7 +111,7 @@ class FreeBodyRobot:
         v = np.where(finite[..., None], u, 0.0)
         speed = np.linalg.norm(v[..., 0:3], axis=-1)
         spin = np.linalg.norm(v[..., 3:6], axis=-1)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", over="ignore"):
             s = np.minimum(self.max_speed / speed, self.max_angular_rate / spin)
         return np.where(finite, np.minimum(1.0, s), 0.0)
 

@@ -186,7 +186,7 @@ class Pioneer:
         u = np.asarray(u, dtype=float)
         finite = np.all(np.isfinite(u), axis=-1)
         u = np.where(finite[..., None], u, 0.0)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", over="ignore"):
             s = np.minimum(self.max_v / np.abs(u[..., 0]), self.max_omega / np.abs(u[..., 1]))
         return np.where(finite, np.minimum(1.0, s), 0.0)
 
@@ -195,7 +195,7 @@ class Pioneer:
         u = np.asarray(u, dtype=float)
         finite = np.all(np.isfinite(u), axis=-1)
         u = np.where(finite[..., None], u, 0.0)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", over="ignore"):
             s = np.minimum(self.max_v / np.abs(u[..., 0]), self.max_omega / np.abs(u[..., 1]))
         return u * np.minimum(1.0, s)[..., None]
 

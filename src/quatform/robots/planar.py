@@ -84,7 +84,7 @@ class PlanarHolonomicRobot:
         finite = np.all(np.isfinite(u), axis=-1)
         v = np.where(finite[..., None], u, 0.0)
         speed = np.hypot(v[..., 0], v[..., 1])
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", over="ignore"):
             s = np.minimum(self.max_speed / speed, self.max_yaw_rate / np.abs(v[..., 2]))
         return np.where(finite, np.minimum(1.0, s), 0.0)
 

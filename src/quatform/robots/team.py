@@ -226,16 +226,16 @@ class Team:
         """A common-limit team whose step is ``x + dt u`` (its states are its commands' integrals)."""
         return self.common_limit and all(type(r) in (HolonomicRobot, PlanarHolonomicRobot) for r in self.robots)
 
-    @property
+    @cached_property
     def n(self) -> int:
         """Number of commands (also of states for a holonomic team)."""
         return sum(len(r.command_columns) for r in self.robots)
 
-    @property
+    @cached_property
     def n_state(self) -> int:
         return sum(len(r.state_columns) for r in self.robots)
 
-    @property
+    @cached_property
     def n_rate(self) -> int:
         """Entries of the rate :meth:`actuate` takes (each robot's point rate, plus the yaw rate
         of a robot whose yaw is outside the formation)."""
