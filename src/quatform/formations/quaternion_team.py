@@ -1,0 +1,562 @@
+"""Quaternion team: seed 000 §3.2 for N robots of any point kinds (formations layer).
+
+``c = (x_c, q_c, s_1 .. s_N, q_c1 .. q_cM)``: the centroid (seed 000 eq. (9) for N robots,
+§5: "x_c can still be the centroid"), a unit quaternion for the formation's attitude, the
+shape (every robot's position in the formation frame, ``p_i = x_c + R(q_c) s_i``, seed 000
+eqs. (16), (18) for N robots, ``sum s_i = 0``) and one unit quaternion per robot with a
+heading (``xy_yaw``, ``xyz_yaw``, ``pose``; none for ``xyz``): its orientation relative to
+the formation, ``q_ci = q_c* q_i`` (eqs. (12)-(13)). ``7 + 3 N + 4 M`` numbers for the
+robots' degrees of freedom.
+
+The attitude is the rotation of the best-fitting rigid copy of a reference shape
+(:func:`~.team_chart.fit_attitude`, Horn 1987): the hint's shape and attitude (the
+controller's reference, ``near_c``) or this description's template. For two robots it is
+seed 000's frame, eqs. (10), (14)-(15) with the twist from the hint, exactly
+:class:`~.quaternion_pair.QuaternionPair`'s forward map. The fit makes the shape law
+blind to the attitude's rate (``docs/derivations.md``, "Teams (issue 14): the quaternion
+team"): at a fixed attitude the residual ``sum |s_i - s_des,i|^2`` has the rate ``2 sum (s -
+s_des) . R^T (p_dot - x_c_dot)`` because the fit's stationarity ``sum s_des,i x s_i = 0``
+kills the rotation term.
+
+Rate maps are directional derivatives on ``(..., N, 3)`` and ``(..., M, 4)`` arrays: a
+constant number of NumPy calls whatever N, no dense matrix (issue 14 item 5).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ..algebra.validate import as_array, as_unit_quaternion
+from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
+from . import geometry as g
+from . import pair_kernels as kern
+from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
+from .euclidean_pair import EUCLIDEAN_VARIABLES
+from .layout import POINT_KINDS
+from .quaternion_pair import TILT_TOL, QuaternionPair
+from .robot_space_team import team_layout
+from .special_sets import SpecialSet
+from . import team_special_sets as tss
+from .team_chart import _TIE, _TIE_DECAY, LawGroup, TeamChart, check_template, default_template, fit_attitude, \
+    horn_matrix
+
+__all__ = ["QuaternionTeam", "CHARTS", "PLANAR_TOL"]
+
+#: The charts a quaternion team reports in: the team chart (``formations.team_chart``) or,
+#: for two 4-DOF robots, seed 000's Euclidean variables (eqs. (1)-(8)) through
+#: :class:`QuaternionPair`'s chart.
+CHARTS = ("team", "pair")
+#: Largest height (m, relative to ``max(1, |p|)``) at which a planar robot is taken to be on the ground.
+PLANAR_TOL = 1e-9
+_KZ = np.array([0.0, 0.0, 0.0, 1.0])
+_EX = np.array([1.0, 0.0, 0.0])
+_HALF_TURNS = (np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0, 0.0]), np.array([0.0, 1.0, 0.0, 0.0]))
+#: Eigenvalues closer than this (relative to the fit's size) are taken as equal in the
+#: divided differences of the fit's rate.
+_CLOSE = 1e-13
+
+
+class QuaternionTeam(Formation):
+    """Seed 000 §3.2 for N robots: centroid, formation quaternion, shape, robot quaternions.
+
+    Parameters
+    ----------
+    n : int, optional
+        Number of 4-DOF robots (``xyz_yaw``), robot state ``(x1, y1, z1, theta1, ...)``.
+    layout : RobotLayout, optional
+        Any mix of point kinds instead of ``n`` (exactly one of ``n`` and ``layout``).
+    template : array_like, shape (N, 3), optional
+        The shape (m) the attitude is fitted to where no reference is given
+        (:func:`~.team_chart.default_template`: the pair along x, the regular N-gon).
+    chart : {"team", "pair"}
+        The operator's chart of :meth:`to_chart` / :meth:`from_chart`: the team chart
+        (:class:`~.team_chart.TeamChart`), or for two ``xyz_yaw`` robots seed 000's
+        Euclidean variables (so the pair scenarios run this description).
+
+    Raises
+    ------
+    InvalidInputError
+        Neither or both of ``n`` and ``layout``; an unknown chart; ``chart="pair"`` for
+        other robots than two ``xyz_yaw``.
+    ShapeError, DegenerateInputError
+        A template of the wrong size, non-finite, or with robots on each other.
+    """
+
+    name = "quaternion-team"
+
+    def __init__(self, n=None, *, layout=None, template=None, chart="team"):
+        L = self.layout = team_layout(n, layout, "QuaternionTeam")
+        if chart not in CHARTS:
+            raise InvalidInputError(f"QuaternionTeam: chart {chart!r} unknown; choose one of {', '.join(CHARTS)}")
+        if chart == "pair" and L.kinds != ("xyz_yaw", "xyz_yaw"):
+            raise InvalidInputError(f"QuaternionTeam: chart='pair' (seed 000's Euclidean variables) is for two "
+                                    f"xyz_yaw robots, the layout has {', '.join(L.kinds)}; use chart='team'")
+        self.chart_name = chart
+        self.template = default_template(L) if template is None else check_template(template, L.n)
+        self.chart = TeamChart(L)
+        heads = [(i, lab, k) for i, (lab, k) in enumerate(zip(L.labels, L.kinds)) if k != "xyz"]
+        self._heads = heads
+        self.variables = (
+            *(Variable(f"{a}_c", "m", "position") for a in "xyz"),
+            *quaternion_variables("q_c"),
+            *(Variable(f"s{lab}_{a}", "m", "position") for lab in L.labels for a in "xyz"),
+            *(v for _, lab, _ in heads for v in quaternion_variables(f"q_c{lab}")),
+        )
+        self.chart_variables = EUCLIDEAN_VARIABLES if chart == "pair" else self.chart.variables
+        N, M = L.n, len(heads)
+        self._s = 7 + np.arange(3 * N).reshape(N, 3)
+        self._o = 7 + 3 * N + np.arange(4 * M).reshape(M, 4)
+        kinds = [k for _, _, k in heads]
+        self._yaw_rows = np.array([j for j, k in enumerate(kinds) if POINT_KINDS[k].yaw is not None], dtype=np.intp)
+        self._pose_rows = np.array([j for j, k in enumerate(kinds) if k == "pose"], dtype=np.intp)
+        self._all_yaw = len(self._yaw_rows) == M
+        self._planar = np.array([i for i, k in enumerate(L.kinds) if k == "xy_yaw"], dtype=np.intp)
+        self._yaw_r = np.array(L.yaw_indices, dtype=np.intp)
+        for a in (self._s, self._o, self._yaw_rows, self._pose_rows, self._planar, self._yaw_r):
+            a.setflags(write=False)
+
+    def __repr__(self):
+        return f"QuaternionTeam(layout={self.layout!r}, chart={self.chart_name!r})"
+
+    # -- layout of the state --------------------------------------------------------------
+    @property
+    def shape_index(self) -> np.ndarray:
+        """Indices of ``s_1 .. s_N`` in ``c``, ``(N, 3)``."""
+        return self._s
+
+    @property
+    def orientation_index(self) -> np.ndarray:
+        """Indices of ``q_c1 .. q_cM`` in ``c``, ``(M, 4)`` (robots with a heading, in robot order)."""
+        return self._o
+
+    @functools.cached_property
+    def sign_free(self) -> tuple:
+        return (slice(3, 7),) + tuple(slice(int(r[0]), int(r[0]) + 4) for r in self._o)
+
+    @functools.cached_property
+    def law_groups(self) -> tuple[LawGroup, ...]:
+        """Centroid (1 x 3), attitude (1 x 4), shape (N x 3), orientation (M x 4)."""
+        groups = [LawGroup("centroid", np.arange(3)[None, :]), LawGroup("attitude", np.arange(3, 7)[None, :]),
+                  LawGroup("shape", self._s)]
+        if len(self._o):
+            groups.append(LawGroup("orientation", self._o))
+        return tuple(groups)
+
+    def check_cluster_state(self, c, name="c"):
+        """Finite ``(..., n_c)``, entries within the magnitude limit, ``q_c`` and every ``q_ci``
+        unit within the unit tolerance (NonUnitError naming the block)."""
+        c = super().check_cluster_state(c, name)
+        as_unit_quaternion(c[..., 3:7], f"{name}[q_c]")
+        if len(self._o):
+            as_unit_quaternion(c[..., self._o], f"{name}[q_c1..q_c{self._heads[-1][1]}]")
+        return c
+
+    # -- pieces shared by the maps -----------------------------------------------------------
+    def _headings(self, r):
+        """World orientations of the robots with a heading, ``(..., M, 4)``: ``q_yaw(theta_i)``
+        or the pose quaternion."""
+        L = self.layout
+        if self._all_yaw:
+            return g.q_yaw(r[..., self._yaw_r])
+        out = np.empty(r.shape[:-1] + (len(self._o), 4))
+        if len(self._yaw_rows):
+            out[..., self._yaw_rows, :] = g.q_yaw(r[..., self._yaw_r])
+        out[..., self._pose_rows, :] = r[..., L.orientation_index]
+        return out
+
+    def _heading_rates(self, qi, r_dot):
+        """Rates of :meth:`_headings` along ``r_dot``: ``1/2 theta_dot (0, 0, 0, 1) q_i`` (a yaw
+        about world z) or the pose quaternion's rate."""
+        L = self.layout
+        if self._all_yaw:
+            return 0.5 * r_dot[..., self._yaw_r, None] * g.mul(_KZ, qi)
+        out = np.empty(np.broadcast_shapes(qi.shape[:-2], r_dot.shape[:-1]) + qi.shape[-2:])
+        if len(self._yaw_rows):
+            out[..., self._yaw_rows, :] = 0.5 * r_dot[..., self._yaw_r, None] * g.mul(_KZ, qi[..., self._yaw_rows, :])
+        out[..., self._pose_rows, :] = r_dot[..., L.orientation_index]
+        return out
+
+    def _reference(self, near_c):
+        """``(template, hint)`` of the fit: ``near_c``'s shape and attitude, else the template and 1."""
+        if near_c is None:
+            return self.template, None
+        return near_c[..., self._s], near_c[..., 3:7]
+
+    def _assemble(self, xc, q, s, qci):
+        shape = np.broadcast_shapes(xc.shape[:-1], q.shape[:-1], s.shape[:-2], qci.shape[:-2])
+        c = np.empty(shape + (self.n_c,))
+        c[..., 0:3] = xc
+        c[..., 3:7] = q
+        c[..., 7:7 + s.shape[-2] * 3] = s.reshape(s.shape[:-2] + (-1,))
+        c[..., 7 + s.shape[-2] * 3:] = qci.reshape(qci.shape[:-2] + (-1,))
+        return c
+
+    # -- kinematics ------------------------------------------------------------------------
+    def forward(self, r, *, near_c=None):
+        """``c`` of the robots ``r``: centroid (eq. (9)), the fit's attitude (eqs. (10),
+        (14)-(15) for two robots), ``s_i = R(q_c)^T (p_i - x_c)``, ``q_ci = q_c* q_i`` (eqs.
+        (12)-(13)) signed nearest ``near_c``'s.
+
+        Parameters
+        ----------
+        r : array_like, shape (..., n_r)
+        near_c : array_like, shape (..., n_c), optional
+            The reference: its shape and attitude are the fit's template and hint, its
+            ``q_ci`` set the signs. Default: the description's template, hint 1.
+
+        Raises
+        ------
+        DegenerateInputError
+            Two robots closer than ``MIN_SEPARATION_M``.
+        """
+        r = self.check_robot_state(r)
+        L = self.layout
+        p = L.positions(r)
+        self.check_apart(r)
+        if near_c is not None:
+            near_c = super().check_cluster_state(near_c, "near_c")
+        xc = p.mean(axis=-2)
+        cen = p - xc[..., None, :]
+        tmpl, hint = self._reference(near_c)
+        q = fit_attitude(tmpl, cen, hint)  # Horn 1987; seed 000 eqs. (10), (14)-(15) for N = 2
+        qc = g.conj(q)[..., None, :]
+        s = g.rotate(qc, cen)
+        qci = g.mul(qc, self._headings(r))  # eqs. (12)-(13)
+        if near_c is not None and len(self._o):
+            qci = g.closest_sign(qci, near_c[..., self._o])
+        return self._assemble(xc, q, s, qci)
+
+    def inverse(self, c, *, near_r=None):
+        """``p_i = x_c + R(q_c) s_i`` (eqs. (16), (18)), ``q_i = q_c q_ci`` (eqs. (17), (19));
+        yaws unwrapped near ``near_r``'s.
+
+        Raises
+        ------
+        UnreachableError
+            A yaw robot whose ``q_c q_ci`` tilts (beyond ``TILT_TOL``), or a planar robot the
+            shape puts off the ground (beyond ``PLANAR_TOL``).
+        DegenerateInputError
+            A shape that puts two robots on each other.
+        """
+        c = self.check_cluster_state(c)
+        L = self.layout
+        q = c[..., 3:7]
+        qn = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        p = c[..., None, 0:3] + g.rotate(qn[..., None, :], c[..., self._s])
+        qi = g.mul(q[..., None, :], c[..., self._o])  # eqs. (17), (19)
+        if len(self._yaw_rows):
+            qy = qi if self._all_yaw else qi[..., self._yaw_rows, :]
+            tilt = np.linalg.norm(g.z_axis(qy / np.linalg.norm(qy, axis=-1, keepdims=True)) - g.EZ, axis=-1)
+            if np.any(tilt > TILT_TOL):
+                j = int(np.argmax(np.max(tilt.reshape(-1, tilt.shape[-1]), axis=0)))
+                lab = self._heads[int(self._yaw_rows[j])][1]
+                raise UnreachableError(
+                    f"q_c q_c{lab} tilts robot {lab} by {float(np.max(tilt)):.3g} rad (limit {TILT_TOL:g}); it only "
+                    "yaws - give it a q_c{lab} whose product with q_c is a rotation about z (from_chart builds one)")
+            yaws = g.yaw_of(qy)
+        else:
+            yaws = np.zeros(c.shape[:-1] + (0,))
+        if len(self._planar):
+            z = p[..., self._planar, 2]
+            lim = PLANAR_TOL * np.maximum(1.0, np.linalg.norm(p[..., self._planar, :], axis=-1))
+            if np.any(np.abs(z) > lim):
+                j = int(np.argmax(np.max((np.abs(z) - lim).reshape(-1, z.shape[-1]), axis=0)))
+                lab = L.labels[int(self._planar[j])]
+                raise UnreachableError(
+                    f"the shape puts planar robot {lab} at z = {float(z.reshape(-1, z.shape[-1])[:, j].flat[0]):.3g} m "
+                    "off the ground; give a shape and attitude with x_c + R(q_c) s_i on z = 0 (from_chart projects)")
+        if near_r is not None:
+            yaws = g.unwrap_near(yaws, L.yaws(self.check_robot_state(near_r, "near_r")))
+        out = L.compose(p, yaws, qi[..., self._pose_rows, :])
+        if L.n > 1:
+            try:
+                L.check_apart(out, MIN_SEPARATION_M, "the shape of c")
+            except DegenerateInputError as exc:
+                raise DegenerateInputError(f"{exc}; give each robot its own s_i") from None
+        return out
+
+    # -- rate maps ---------------------------------------------------------------------------
+    def _fit_rate(self, tmpl, cen, cen_dot, hint, tmpl_dot=None, hint_dot=None):
+        """``(q, q_dot)``: :func:`~.team_chart.fit_attitude` and its derivative as the centred
+        positions move at ``cen_dot`` (and the template at ``tmpl_dot``, the hint at
+        ``hint_dot``; default fixed).
+
+        ``q = P h / |P h|`` with ``P = sum_k w_k v_k v_k^T`` (Horn's eigenvectors, weights
+        ``w_k = phi(lambda_top - lambda_k)``); ``P' = V (D o (V^T N' V)) V^T + mu' V diag(dw/dmu)
+        V^T``, ``D`` the divided differences of the weights (Daleckii-Krein), ``mu`` the top
+        eigenvalue; ``q' = (I - q q^T) P' h / |P h|``. Where the top eigenvalue is simple this
+        is the eigenvector perturbation ``sum_k v_k (v_k^T N' v) / (lambda - lambda_k)``; where
+        it is tied (collinear robots or template), the rate of the hint's projection (plus
+        ``(I - q q^T) P h' / |P h|`` for a moving hint, zero where the fit is unique).
+        """
+        Nm, Nd = horn_matrix(tmpl, cen), horn_matrix(tmpl, cen_dot)  # Horn 1987 eq. (35): bilinear
+        if tmpl_dot is not None:
+            Nd = Nd + horn_matrix(tmpl_dot, cen)
+        lam, V = np.linalg.eigh(Nm)
+        scale = np.sqrt(np.sum(np.asarray(tmpl) ** 2, axis=(-2, -1)) * np.sum(cen ** 2, axis=(-2, -1)))
+        tie, tau = (_TIE * scale)[..., None], (_TIE_DECAY * scale + 1e-300)[..., None]
+        gap = lam[..., -1:] - lam
+        with np.errstate(under="ignore"):
+            w = np.exp(-np.maximum(gap - tie, 0.0) / tau)
+        dw_dgap = np.where(gap > tie, -w / tau, 0.0)
+        h = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]) if hint is None else np.asarray(hint, float), lam.shape)
+
+        def project(v):
+            return np.einsum("...ik,...k->...i", V, w * np.einsum("...ik,...i->...k", V, v))
+
+        ph = project(h)
+        n = np.linalg.norm(ph, axis=-1)
+        hh = h
+        for turn in _HALF_TURNS:  # fit_attitude's fallback: the hint turned half a turn
+            bad = n < 1e-9
+            if not np.any(bad):
+                break
+            alt_h = g.mul(h, turn)
+            alt = project(alt_h)
+            an = np.linalg.norm(alt, axis=-1)
+            hh = np.where(bad[..., None], alt_h, hh)
+            ph = np.where(bad[..., None], alt, ph)
+            n = np.where(bad, an, n)
+        bad = n < 1e-9
+        if np.any(bad):  # no hint breaks the tie: the top eigenvector (its own perturbation)
+            top = V[..., :, -1]
+            top = top * np.where(top[..., :1] < 0.0, -1.0, 1.0)
+            hh = np.where(bad[..., None], top, hh)
+            ph = np.where(bad[..., None], top, ph)
+            n = np.where(bad, 1.0, n)
+        q = ph / n[..., None]
+        A = np.einsum("...ji,...jk,...kl->...il", V, Nd, V)  # V^T N' V
+        dl = lam[..., :, None] - lam[..., None, :]
+        dwl = -dw_dgap  # d w / d lambda_k at fixed mu
+        close = np.abs(dl) <= _CLOSE * (scale[..., None, None] + 1e-300)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            D = np.where(close, 0.5 * (dwl[..., :, None] + dwl[..., None, :]),
+                         (w[..., :, None] - w[..., None, :]) / np.where(close, 1.0, dl))
+        mu_dot = A[..., -1, -1]
+        Vh = np.einsum("...ik,...i->...k", V, hh)
+        Pd_h = np.einsum("...ik,...k->...i", V, np.einsum("...kl,...l->...k", D * A, Vh)
+                         + mu_dot[..., None] * dw_dgap * Vh)
+        if hint_dot is not None:
+            Pd_h = Pd_h + project(np.broadcast_to(hint_dot, Pd_h.shape))
+        Pd_h = Pd_h / n[..., None]
+        q_dot = Pd_h - q * np.sum(q * Pd_h, axis=-1, keepdims=True)
+        return q, q_dot
+
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """``c_dot`` of the robots moving at ``r_dot``, at ``c = forward(r, near_c=near_c)``.
+
+        ``x_c' = mean v_i``; ``q_c'`` the fit's rate (:meth:`_fit_rate`, template and hint
+        fixed); ``s_i' = R^T (v_i - x_c') - omega_b x s_i`` with ``omega_b = 2 vec(q_c* q_c')``;
+        ``q_ci' = q_c'* q_i + q_c* q_i'`` (eqs. (12)-(13)) with ``q_i' = 1/2 theta_i' (0, 0, 0,
+        1) q_i`` for a yaw.
+        """
+        r = self.check_robot_state(r)
+        r_dot = as_array(r_dot, "r_dot", self.n_r)
+        c = self.forward(r, near_c=near_c)
+        if near_c is not None:
+            near_c = np.asarray(near_c, dtype=float)
+        return self._rate(c, r, r_dot, near_c)
+
+    def _rate(self, c, r, r_dot, near_c, near_dot=None):
+        """:meth:`cluster_rate` at ``c = forward(r, near_c=near_c)``, the reference moving at
+        ``near_dot`` (its shape and unit attitude's rates; default still)."""
+        L = self.layout
+        p, v = L.positions(r), L.positions(r_dot)
+        cen = p - p.mean(axis=-2, keepdims=True)
+        vbar = v.mean(axis=-2)
+        cen_dot = v - vbar[..., None, :]
+        tmpl, hint = self._reference(near_c)
+        if near_dot is None:
+            q, q_dot = self._fit_rate(tmpl, cen, cen_dot, hint)
+        else:
+            q, q_dot = self._fit_rate(tmpl, cen, cen_dot, hint, near_dot[..., self._s], near_dot[..., 3:7])
+        q, q_dot = np.broadcast_arrays(q, q_dot)
+        qc = g.conj(q)[..., None, :]
+        wb = 2.0 * g.mul(g.conj(q), q_dot)[..., 1:]
+        s = c[..., self._s]
+        s_dot = g.rotate(qc, cen_dot) - np.cross(wb[..., None, :], s)
+        qi = self._headings(r)
+        qi_dot = self._heading_rates(qi, r_dot)
+        qci_raw = g.mul(qc, qi)
+        sign = np.where(np.sum(qci_raw * c[..., self._o], axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+        qci_dot = sign * (g.mul(g.conj(q_dot)[..., None, :], qi) + g.mul(qc, qi_dot))
+        return self._assemble(vbar, q_dot, s_dot, qci_dot)
+
+    def robot_rate(self, c, c_dot, *, r=None):
+        """``r_dot`` of ``c`` moving at ``c_dot``: the derivative of eqs. (16)-(19).
+
+        ``p_i' = x_c' + R(omega_b x s_i + s_i')`` with ``omega_b = 2 vec(q^* q_c') / |q_c|``
+        (``q = q_c / |q_c|``), the yaw rate of ``q_c q_ci`` along ``q_c' q_ci + q_c q_ci'``
+        (:func:`~.pair_kernels.yaw_rate`), a pose robot's ``q_c' q_ci + q_c q_ci'``. A planar
+        robot's vertical rate is dropped (it has none). ``r`` is not needed (one branch).
+        """
+        c = np.asarray(c, dtype=float)
+        cd = as_array(c_dot, "c_dot", self.n_c)
+        q, qd = c[..., 3:7], cd[..., 3:7]
+        nq = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
+        qn = q / nq
+        wb = 2.0 * g.mul(g.conj(qn), qd)[..., 1:] / nq
+        s, sd = c[..., self._s], cd[..., self._s]
+        wb, s, sd = wb[..., None, :], s, sd
+        v = cd[..., None, 0:3] + g.rotate(qn[..., None, :], np.cross(wb, s) + sd)  # eqs. (16), (18)
+        qci, qcid = c[..., self._o], cd[..., self._o]
+        qi = g.mul(q[..., None, :], qci)  # eqs. (17), (19)
+        qid = g.mul(qd[..., None, :], qci) + g.mul(q[..., None, :], qcid)
+        if self._all_yaw:
+            th = kern.yaw_rate(tuple(np.moveaxis(qi, -1, 0)), tuple(np.moveaxis(qid, -1, 0)))
+            return self.layout.compose(v, th)
+        y = self._yaw_rows
+        th = kern.yaw_rate(tuple(np.moveaxis(qi[..., y, :], -1, 0)), tuple(np.moveaxis(qid[..., y, :], -1, 0)))
+        return self.layout.compose(v, th, qid[..., self._pose_rows, :])
+
+    # -- charts ------------------------------------------------------------------------------
+    def direct_state(self, e) -> np.ndarray:
+        """``c`` read off team-chart values ``e`` as they stand: ``x_c``, ``q_c`` (normalised),
+        ``s``, ``q_ci = q_c* q_i`` (``q_i = q_yaw(theta_i)`` or the chart's pose quaternion).
+        :meth:`from_chart` is the state of the robots this places."""
+        e = self.chart.check(e)
+        xc, q, s = self.chart.parts(e)
+        M = len(self._o)
+        qi = np.empty(e.shape[:-1] + (M, 4))
+        if len(self._yaw_rows):
+            qi[..., self._yaw_rows, :] = g.q_yaw(e[..., self.chart.yaw_index])
+        if len(self._pose_rows):
+            qp = e[..., self.chart.orientation_index]
+            qi[..., self._pose_rows, :] = qp / np.linalg.norm(qp, axis=-1, keepdims=True)
+        return self._assemble(xc, q, s, g.mul(g.conj(q)[..., None, :], qi))
+
+    def to_chart(self, c, *, near_e=None, r=None):
+        """The chart of ``c``: the team chart (``x_c``, ``q_c``, ``s`` as they are; ``theta_i``
+        the yaw of ``q_c q_ci`` unwrapped near ``near_e``'s, else near ``r``'s; a pose robot's
+        ``q_c q_ci`` signed nearest ``near_e``'s), or with ``chart="pair"`` seed 000's
+        Euclidean variables (:meth:`QuaternionPair.to_chart` of :meth:`to_pair`)."""
+        c = self.check_cluster_state(c)
+        if self.chart_name == "pair":
+            return QuaternionPair().to_chart(self.to_pair(c), near_e=near_e)
+        ch = self.chart
+        e = np.empty(c.shape[:-1] + (ch.size,))
+        e[..., 0:7] = c[..., 0:7]
+        e[..., ch.shape_index] = c[..., self._s]
+        qi = g.mul(c[..., None, 3:7], c[..., self._o])
+        if len(self._yaw_rows):
+            th = g.yaw_of(qi[..., self._yaw_rows, :])
+            if near_e is not None:
+                th = g.unwrap_near(th, ch.check(near_e, "near_e")[..., ch.yaw_index])
+            elif r is not None:
+                th = g.unwrap_near(th, self.layout.yaws(self.check_robot_state(r)))
+            e[..., ch.yaw_index] = th
+        if len(self._pose_rows):
+            qp = qi[..., self._pose_rows, :]
+            if near_e is not None:
+                qp = g.closest_sign(qp, ch.check(near_e, "near_e")[..., ch.orientation_index])
+            e[..., ch.orientation_index] = qp
+        if near_e is not None:
+            q = e[..., 3:7]
+            e[..., 3:7] = g.closest_sign(q, ch.check(near_e, "near_e")[..., 3:7])
+        return e
+
+    def from_chart(self, e, e_dot=None):
+        """The state (and rate) of the robots the chart places (:meth:`TeamChart.robots`:
+        ``p_i = x_c + R(q_c) s_i``, a planar robot's z dropped), read on the chart's own
+        branch: ``forward(chart.robots(e), near_c=direct_state(e))``; for a chart whose
+        robots are its shape (``sum s_i = 0``, planar robots on the ground) that is
+        :meth:`direct_state` itself. With ``chart="pair"``: :meth:`from_pair` of
+        :meth:`QuaternionPair.from_chart`."""
+        if self.chart_name == "pair":
+            out = QuaternionPair().from_chart(e, e_dot)
+            return self.from_pair(out) if e_dot is None else self.from_pair(*out)
+        e = self.chart.check(e)
+        ed = None if e_dot is None else as_array(e_dot, "e_dot", self.chart.size)
+        rows = self.chart.orientation_index
+        if len(rows):  # pose robots' quaternions normalised (and their rates projected)
+            qp = e[..., rows]
+            nqp = np.linalg.norm(qp, axis=-1, keepdims=True)
+            e = np.array(e)
+            e[..., rows] = qp / nqp
+            if ed is not None:
+                ed = np.array(np.broadcast_to(ed, np.broadcast_shapes(ed.shape, e.shape)))
+                qh = e[..., rows]
+                ed[..., rows] = (ed[..., rows] - qh * np.sum(qh * ed[..., rows], axis=-1, keepdims=True)) / nqp
+        near = self.direct_state(e)
+        r = self.chart.robots(e)
+        c = self.forward(r, near_c=near)
+        if ed is None:
+            return c
+        q = e[..., 3:7]
+        nq = np.linalg.norm(q, axis=-1, keepdims=True)
+        qn = q / nq
+        near_dot = np.zeros(np.broadcast_shapes(near.shape, ed.shape[:-1] + near.shape[-1:]))
+        near_dot[..., 3:7] = (ed[..., 3:7] - qn * np.sum(qn * ed[..., 3:7], axis=-1, keepdims=True)) / nq
+        near_dot[..., self._s] = ed[..., self.chart.shape_index]
+        return c, self._rate(c, r, self.chart.robot_rates(e, ed), near, near_dot)
+
+    # -- the pair (N = 2) ---------------------------------------------------------------------
+    def to_pair(self, c) -> np.ndarray:
+        """:class:`QuaternionPair` state ``(x_c, q_c, d_c, q_c1, q_c2)`` of a two-robot team state.
+
+        The pair's frame is ``q_c`` turned by the minimal rotation taking its x axis to ``s_1 -
+        s_2`` (the identity where the shape lies along x, as :meth:`from_pair` puts it); ``d_c =
+        |s_1 - s_2| / 2``, the midpoint ``x_c + R(q_c) (s_1 + s_2) / 2``."""
+        if self.layout.n != 2 or self.layout.kinds != ("xyz_yaw", "xyz_yaw"):
+            raise InvalidInputError(f"to_pair is for two xyz_yaw robots; this team has {', '.join(self.layout.kinds)}")
+        c = np.asarray(c, dtype=float)
+        q = c[..., 3:7]
+        s1, s2 = c[..., 7:10], c[..., 10:13]
+        half = 0.5 * (s1 - s2)
+        d = np.linalg.norm(half, axis=-1)
+        u = half / np.maximum(d, 1e-300)[..., None]
+        turn = g.swing(np.broadcast_to(_EX, u.shape), u, np.array([0.0, 0.0, 1.0]))
+        qp = g.mul(q, turn)
+        out = np.empty(c.shape[:-1] + (16,))
+        out[..., 0:3] = c[..., 0:3] + g.rotate(q / np.linalg.norm(q, axis=-1, keepdims=True), 0.5 * (s1 + s2))
+        out[..., 3:7] = qp
+        out[..., 7] = d
+        out[..., 8:12] = g.mul(g.conj(turn), c[..., 13:17])
+        out[..., 12:16] = g.mul(g.conj(turn), c[..., 17:21])
+        return out
+
+    def from_pair(self, cp, cp_dot=None):
+        """Team state of a :class:`QuaternionPair` state: ``s_1 = (d_c, 0, 0) = -s_2`` (seed 000
+        eqs. (16), (18): ``d_c`` along the frame's x axis), the quaternions as they are; with
+        ``cp_dot`` also the rate."""
+        if self.layout.kinds != ("xyz_yaw", "xyz_yaw"):
+            raise InvalidInputError(f"from_pair is for two xyz_yaw robots; this team has "
+                                    f"{', '.join(self.layout.kinds)}")
+
+        def one(a):
+            a = np.asarray(a, dtype=float)
+            out = np.zeros(a.shape[:-1] + (21,))
+            out[..., 0:7] = a[..., 0:7]
+            out[..., 7] = a[..., 7]
+            out[..., 10] = -a[..., 7]
+            out[..., 13:21] = a[..., 8:16]
+            return out
+
+        return one(cp) if cp_dot is None else (one(cp), one(cp_dot))
+
+    # -- special sets --------------------------------------------------------------------------
+    def special_sets(self):
+        L = self.layout
+
+        def on(gen):
+            return lambda rng, n, eps: gen(L, rng, n, eps)
+
+        return (
+            SpecialSet("collinear", "robots on a line: Horn's matrix (1987 eq. (35)) has a double top eigenvalue, the "
+                       "twist about the line is no function of the positions; the hint's projection decides (1 without "
+                       "one), continuous; within a gap of 7.5e-7 of the fit's size Horn's eigenvectors keep "
+                       "about 1e-16 / gap of their digits (Davis-Kahan), so round trips hold to 1e-8 there",
+                       on(tss.team_collinear), round_trip_tol=1e-8),
+            SpecialSet("vertical", "the formation's x axis vertical: the z-y-x reading (and seed 000 eq. (4) for two "
+                       "robots) is atan2(0, 0); q_c is regular", on(tss.team_vertical)),
+            SpecialSet("anti-x", "p_1 - p_2 along -x: seed 000 eqs. (14)-(15) are 0/0; the fit has no such point (for "
+                       "two robots without a hint: the half turn about the hint's z axis)", on(tss.team_anti_x)),
+            SpecialSet("half-turn-attitude", "q_c a half turn from the hint: w = 0, the sign nearest the hint flips "
+                       "(q and -q are one attitude; sign-free)", on(tss.team_half_turn_attitude)),
+            SpecialSet("half-turn-yaws", "headings half a turn from the formation's and from each other: q_ci near a "
+                       "rotation by pi (w = 0: eq. (20)'s sgn)", on(tss.team_half_turn_yaws)),
+            SpecialSet("wound-yaws", "yaws wound by up to 50 turns: q_yaw(theta + 2 pi) = -q_yaw(theta), signs "
+                       "nearest the reference's", on(tss.team_wound_yaws)),
+        )
