@@ -1,0 +1,717 @@
+"""Dual-quaternion team of N robots: seed 000 §3.3 (eqs. (26)-(27)) for any number and mix of robots.
+
+Formations layer. Robot ``i`` is the unit dual quaternion ``qhat_i = q_i + eps 1/2 p_i q_i``
+(seed 000 §3.3) of its orientation ``q_i`` (``q_yaw(theta_i)`` for ``xy_yaw`` / ``xyz_yaw``
+robots, its own quaternion for ``pose`` robots, 1 for ``xyz`` robots) and its position
+``p_i`` (a planar robot's ``z`` is 0). The formation's pose is ``qhat_c = pose(q_c, x_c)``:
+the centroid ``x_c`` and a *mean rotation* ``q_c``, the N-robot form of the decoupled root
+of eq. (26) (``docs/derivations.md``, Teams (issue 14): the dual-quaternion team):
+
+* robots with a yaw and no ``pose`` robot: ``q_c = q_yaw(mean of the robots' real yaws)``
+  (for two robots the half-way yaw ``(theta_1 + theta_2)/2`` of the pair);
+* a layout with ``pose`` robots: the orientation of its first ``pose`` robot (no symmetric
+  mean of orientations is continuous: see the derivations);
+* only ``xyz`` robots: the identity.
+
+Two shapes:
+
+* ``shape="frame"`` (default, issue 14's definition): ``qhat_ci = qhat_c* qhat_i``, each
+  robot's pose in the formation frame; ``c = (qhat_c, qhat_c1, ..., qhat_cN)``. The inverse
+  is ``qhat_i = qhat_c qhat_ci``: no root, no branch, so **every block's sign means
+  nothing** (all law groups ``pose``) and ``inverse(forward(r)) = r`` always.
+* ``shape="relative"`` (eq. (27) for N robots, yaw robots only): ``qhat_sk = qhat_N* qhat_k``,
+  ``k = 1 .. N-1``, robot ``k``'s pose in the last robot's frame, in closed form on the real
+  yaws (``qhat_sk = pose(q_yaw(theta_k - theta_N), R_z(-theta_N)(p_k - p_N))``), so the sign
+  of ``qhat_sk`` is the branch of ``theta_k - theta_N`` mod 4 pi (law group
+  ``relative-pose``), as :class:`~.dual_quaternion_pair.DualQuaternionPair`'s ``qhat_s``.
+  For N = 2 it *is* the pair (eqs. (26)-(27)). For N >= 3 one ``c`` is the state of N
+  formations turned by ``4 pi j / N`` about the centroid (the signs fix ``sum_k theta_sk``
+  only mod 4 pi), so :meth:`DualQuaternionTeam.inverse` needs ``near_r`` there and refuses
+  without it.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from ..algebra.validate import as_array, as_unit_dual_quaternion
+from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
+from . import geometry as g
+from . import pair_kernels as kern
+from .base import Formation, Variable
+from .dual_quaternion_pair import DualQuaternionPair
+from .euclidean_pair import EUCLIDEAN_VARIABLES
+from .layout import POINT_KINDS, RobotLayout
+from .quaternion_pair import TILT_TOL
+from .robot_space_team import team_layout
+from .special_sets import SpecialSet
+from .team_chart import LawGroup, TeamChart, check_template, default_template
+
+__all__ = ["DualQuaternionTeam", "SHAPES", "CHARTS"]
+
+#: The two shape definitions (module docstring).
+SHAPES = ("frame", "relative")
+#: The operator's charts: ``team`` (:class:`~.team_chart.TeamChart`), ``pair`` (seed 000's
+#: Euclidean variables, two ``xyz_yaw`` robots with ``shape="relative"`` only).
+CHARTS = ("team", "pair")
+
+_TWO_PI = 2.0 * math.pi
+_THREE_HALF_PI = 1.5 * math.pi
+_KZ = np.array([0.0, 0.0, 0.0, 1.0])
+_ONE = np.array([1.0, 0.0, 0.0, 0.0])
+_DQ_CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
+_EZ = np.array([0.0, 0.0, 1.0])
+
+
+# -- dual quaternions on (..., k, 8) arrays: pair_kernels' component formulas, one each ----------
+def _comps(a):
+    return tuple(np.moveaxis(a, -1, 0))
+
+
+def _dqmul(a, b):
+    return kern.pack(kern.dqmul(_comps(a), _comps(b)))
+
+
+def _pure(v):
+    return np.concatenate([np.zeros(v.shape[:-1] + (1,)), v], axis=-1)
+
+
+def _pose(q, p):
+    """``q + eps 1/2 p q`` (seed 000 §3.3), ``(..., 8)``; linear in ``q`` (not normalised)."""
+    return np.concatenate(np.broadcast_arrays(q, 0.5 * g.mul(_pure(p), q)), axis=-1)
+
+
+def _pose_rate(q, p, qd, pd):
+    """Rate of :func:`_pose` along ``(qd, pd)``: ``(qd, 1/2 (pd q + p qd))``."""
+    return np.concatenate(np.broadcast_arrays(qd, 0.5 * (g.mul(_pure(pd), q) + g.mul(_pure(p), qd))), axis=-1)
+
+
+def _translation(dq):
+    """``t = 2 vec(d r*) / |r|^2`` (seed 000 §3.3's ``2 D P*``, scale-free in ``r``), ``(..., 3)``."""
+    r = dq[..., :4]
+    return 2.0 * g.mul(dq[..., 4:], g.conj(r))[..., 1:] / np.sum(r * r, axis=-1, keepdims=True)
+
+
+def _yaw_and_translation_rates(dq, dqd):
+    """Yaw rate and translation rate of the pose ``dq`` moving at ``dqd``.
+
+    ``theta' = 2 (r' r*)_z / |r|^2`` (the z component of the world angular velocity; exact
+    for a yaw, the projection of any other rate; pair_kernels' rule) and ``t' = (2 vec(d' r*
+    + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of :func:`_translation`.
+    """
+    r, d, rd, dd = dq[..., :4], dq[..., 4:], dqd[..., :4], dqd[..., 4:]
+    n2 = np.sum(r * r, axis=-1, keepdims=True)
+    w = g.mul(rd, g.conj(r))
+    t = 2.0 * g.mul(d, g.conj(r))[..., 1:] / n2
+    m = g.mul(dd, g.conj(r)) + g.mul(d, g.conj(rd))
+    td = (2.0 * m[..., 1:] - 2.0 * np.sum(r * rd, axis=-1, keepdims=True) * t) / n2
+    return 2.0 * w[..., 3] / n2[..., 0], td, w / n2
+
+
+def _rot_z(theta, v, inverse=False):
+    """``R_z(theta) v`` (or ``R_z(-theta) v``) for ``theta (...)``, ``v (..., 3)``."""
+    c, s = np.cos(theta), np.sin(theta)
+    if inverse:
+        s = -s
+    return np.stack(np.broadcast_arrays(c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1], v[..., 2]),
+                    axis=-1)
+
+
+def _z_cross(v):
+    """``e_z x v``."""
+    return np.stack(np.broadcast_arrays(-v[..., 1], v[..., 0], 0.0 * v[..., 2]), axis=-1)
+
+
+def _wind(a, t):
+    """``a`` moved by whole turns to within pi of ``t`` (``a - t`` in ``[-pi, pi)``; Formation.align's rule)."""
+    return a + _TWO_PI * np.floor((t - a) / _TWO_PI + 0.5)
+
+
+def _join(C, S):
+    """``(..., 8)`` and ``(..., M, 8)`` blocks, broadcast, as one ``(..., 8 (M + 1))`` state."""
+    shape = np.broadcast_shapes(C.shape[:-1], S.shape[:-2])
+    return np.concatenate([np.broadcast_to(C, shape + (8,)),
+                           np.broadcast_to(S, shape + S.shape[-2:]).reshape(shape + (-1,))], axis=-1)
+
+
+def _dq_variables(prefix):
+    return tuple(Variable(f"{prefix}_{p}{c}", "1", "quaternion") for p in "rd" for c in "wxyz")
+
+
+class DualQuaternionTeam(Formation):
+    """Seed 000 §3.3 for N robots: the formation's pose ``qhat_c`` and one unit dual quaternion
+    per robot (module docstring).
+
+    Parameters
+    ----------
+    n : int, optional
+        Number of 4-DOF robots (``xyz_yaw``): ``DualQuaternionTeam(n)``, robot state
+        ``(x1, y1, z1, theta1, ..., xn, yn, zn, thetan)``.
+    layout : RobotLayout, optional
+        Any mix of point kinds instead of ``n`` (``shape="relative"``: yaw robots only).
+    template : array_like, shape (N, 3), optional
+        The shape the team chart fits its attitude to when no ``near_e`` is given
+        (:func:`~.team_chart.default_template` by default).
+    shape : {"frame", "relative"}
+        ``frame``: ``qhat_ci = qhat_c* qhat_i``; ``relative``: ``qhat_sk = qhat_N* qhat_k``.
+    chart : {"team", "pair"}
+        The operator's chart: the team chart (default) or, for two ``xyz_yaw`` robots with
+        ``shape="relative"``, seed 000's Euclidean variables through
+        :class:`~.dual_quaternion_pair.DualQuaternionPair` (so pair scenarios run on it).
+    """
+
+    name = "dual-quaternion-team"
+
+    def __init__(self, n=None, *, layout=None, template=None, shape="frame", chart="team"):
+        L = team_layout(n, layout, "DualQuaternionTeam")
+        if shape not in SHAPES:
+            raise InvalidInputError(f"DualQuaternionTeam: shape {shape!r} unknown; choose one of {', '.join(SHAPES)}")
+        if chart not in CHARTS:
+            raise InvalidInputError(f"DualQuaternionTeam: chart {chart!r} unknown; choose one of {', '.join(CHARTS)}")
+        if shape == "relative":
+            other = [f"robot {lab} ({k})" for lab, k in zip(L.labels, L.kinds) if POINT_KINDS[k].yaw is None]
+            if other:
+                raise InvalidInputError(
+                    f"DualQuaternionTeam(shape='relative') reads real yaws (eq. (27)'s branch) and represents "
+                    f"xy_yaw / xyz_yaw robots only, not {', '.join(other)}; use shape='frame' for this layout")
+        if chart == "pair" and (shape != "relative" or L.kinds != ("xyz_yaw", "xyz_yaw")):
+            raise InvalidInputError(
+                "DualQuaternionTeam: chart='pair' (seed 000's Euclidean variables) is for two xyz_yaw robots with "
+                f"shape='relative', got {L.n} robots ({', '.join(L.kinds)}) with shape={shape!r}; use chart='team'")
+        self.layout = L
+        self.shape = shape
+        self.chart_kind = chart
+        self.chart = TeamChart(L)
+        self.template = default_template(L) if template is None else check_template(template, L.n)
+        N = L.n
+        self._n_blocks = N + 1 if shape == "frame" else N
+        if shape == "frame":
+            rest = sum((_dq_variables(f"qhat_c{lab}") for lab in L.labels), ())
+        elif N == 2:
+            rest = _dq_variables("qhat_s")  # the pair's names (eqs. (26)-(27))
+        else:
+            rest = sum((_dq_variables(f"qhat_s{lab}") for lab in L.labels[:-1]), ())
+        self.variables = _dq_variables("qhat_c") + rest
+        self.chart_variables = EUCLIDEAN_VARIABLES if chart == "pair" else self.chart.variables
+        kinds = L.kinds
+        self._yaw_robots = np.array([i for i, k in enumerate(kinds) if POINT_KINDS[k].yaw is not None], dtype=np.intp)
+        self._pose_robots = np.array([i for i, k in enumerate(kinds) if k == "pose"], dtype=np.intp)
+        self._planar_robots = np.array([i for i, k in enumerate(kinds) if k == "xy_yaw"], dtype=np.intp)
+        #: how q_c is made: "pose" (first pose robot), "yaw" (mean real yaw), "none" (identity)
+        self.mean_rule = "pose" if len(self._pose_robots) else ("yaw" if len(self._yaw_robots) else "none")
+        self._pair = DualQuaternionPair() if chart == "pair" else None
+
+    def __repr__(self):
+        return f"DualQuaternionTeam(layout={self.layout!r}, shape={self.shape!r}, chart={self.chart_kind!r})"
+
+    # -- layout of the state ----------------------------------------------------------------
+    @functools.cached_property
+    def _block_index(self) -> np.ndarray:
+        return np.arange(8 * self._n_blocks).reshape(self._n_blocks, 8)
+
+    @functools.cached_property
+    def sign_free(self) -> tuple:
+        """``qhat_c`` always; the frame shape's ``qhat_ci`` too (the inverse is a product, signs
+        cancel); the relative shape's ``qhat_sk`` are signed (their sign is the branch)."""
+        if self.shape == "relative":
+            return (slice(0, 8),)
+        return tuple(slice(8 * k, 8 * k + 8) for k in range(self._n_blocks))
+
+    @functools.cached_property
+    def law_groups(self) -> tuple[LawGroup, ...]:
+        """``frame``: one ``pose`` group of all N + 1 blocks (every sign free); ``relative``:
+        ``qhat_c`` (``pose``) and the ``qhat_sk`` (``relative-pose``: driven to ``+qhat_sk_des``,
+        the pair's branch rule)."""
+        idx = self._block_index
+        if self.shape == "frame":
+            return (LawGroup("pose", idx),)
+        return (LawGroup("pose", idx[:1]), LawGroup("relative-pose", idx[1:]))
+
+    def _blocks(self, c):
+        return c.reshape(c.shape[:-1] + (self._n_blocks, 8))
+
+    def check_cluster_state(self, c, name="c"):
+        """Finite ``(..., n_c)`` array of unit dual quaternions (each block), within the magnitude limit."""
+        c = super().check_cluster_state(c, name)
+        as_unit_dual_quaternion(self._blocks(c), f"{name} (its dual quaternions, block order {self._block_names})")
+        return c
+
+    @functools.cached_property
+    def _block_names(self) -> str:
+        names = [self.variables[8 * k].name[:-3] for k in range(self._n_blocks)]
+        return ", ".join(names) if len(names) <= 4 else f"{names[0]}, {names[1]}, ..., {names[-1]}"
+
+    # -- robots <-> dual quaternions ------------------------------------------------------------
+    def _robot_rotations(self, r, yaws):
+        """``(..., N, 4)`` rotations of the robots (yaws given as real numbers)."""
+        L = self.layout
+        shape = r.shape[:-1]
+        if self.mean_rule == "yaw" and len(self._yaw_robots) == L.n:
+            return g.q_yaw(yaws)
+        Q = np.broadcast_to(_ONE, shape + (L.n, 4)).copy()
+        if len(self._yaw_robots):
+            Q[..., self._yaw_robots, :] = g.q_yaw(yaws)
+        if len(self._pose_robots):
+            Q[..., self._pose_robots, :] = L.orientations(r)
+        return Q
+
+    def _robot_rotation_rates(self, Q, r_dot):
+        L = self.layout
+        yd = L.yaws(r_dot)
+        if len(self._yaw_robots) == L.n:
+            return 0.5 * yd[..., None] * g.mul(_KZ, Q)
+        Qd = np.zeros(np.broadcast_shapes(Q.shape, r_dot.shape[:-1] + (L.n, 4)))
+        if len(self._yaw_robots):
+            Qd[..., self._yaw_robots, :] = 0.5 * yd[..., None] * g.mul(_KZ, Q[..., self._yaw_robots, :])
+        if len(self._pose_robots):
+            Qd[..., self._pose_robots, :] = L.orientations(r_dot)
+        return Qd
+
+    def _desired_yaws(self, near_c):
+        """Real yaws ``(..., N_yaw)`` of the yaw robots of the state ``near_c``, and (frame) its
+        formation yaw: the branch the measured yaws are wound onto."""
+        B = self._blocks(near_c)
+        if self.shape == "relative":
+            th_c = 2.0 * np.arctan2(B[..., 0, 3], B[..., 0, 0])  # seed 000 eq. (26): mod 4 pi (sign of qhat_c)
+            th_s = 2.0 * np.arctan2(B[..., 1:, 3], B[..., 1:, 0])  # mod 4 pi: the sign of qhat_sk is the branch
+            t_n = th_c - np.sum(th_s, axis=-1) / self.layout.n
+            return np.concatenate([t_n[..., None] + th_s, t_n[..., None]], axis=-1), None
+        rot = g.mul(B[..., :1, :4], B[..., 1:, :4])[..., self._yaw_robots, :]  # q_c q_ci: the desired robots
+        return g.yaw_of(rot), g.yaw_of(B[..., 0, :4])
+
+    def _align(self, yaws, near_c):
+        """The measured yaws moved by whole turns onto ``near_c``'s branch, and the whole turns
+        (of ``2 pi / N_yaw``) to add to their mean (frame)."""
+        t, th_c = self._desired_yaws(near_c)
+        a = _wind(yaws, t)
+        if self.shape == "relative":
+            # the pair's rule (DualQuaternionPair, pair_kernels.dq_align_yaws) for each k against robot N:
+            # a relative-yaw error beyond 3 pi / 2 is taken a turn back (the shape law's unstable
+            # equilibrium at 2 pi stays at least pi / 2 away; docs/derivations.md, Hardening (issue 12))
+            rel = (a[..., :-1] - t[..., :-1]) - (a[..., -1:] - t[..., -1:])
+            a = a.copy()
+            a[..., :-1] -= _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)
+            return a, 0.0
+        n = t.shape[-1]
+        # the desired yaws' mean differs from the desired formation yaw by whole 2 pi / n (on the
+        # description's set): take the lift of the measured yaws with the same offset
+        k = np.round((th_c - np.mean(t, axis=-1)) * (n / _TWO_PI))
+        return a, k * (_TWO_PI / n)
+
+    def _mean_rotation(self, r, yaws, shift, hint):
+        """``q_c (..., 4)``: module docstring; sign nearest ``hint`` where given."""
+        L = self.layout
+        if self.mean_rule == "yaw":
+            q = g.q_yaw(np.mean(yaws, axis=-1) + shift)
+        elif self.mean_rule == "pose":
+            q = L.orientations(r)[..., 0, :]
+            q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        else:
+            q = np.broadcast_to(_ONE, r.shape[:-1] + (4,))
+        return q if hint is None else g.closest_sign(q, hint)
+
+    def _parts(self, r, near_c):
+        """What :meth:`forward` and :meth:`cluster_rate` share: the (wound) yaws, positions,
+        centroid and ``q_c``."""
+        L = self.layout
+        yaws = L.yaws(r)
+        shift, hint = 0.0, None
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+            hint = near_c[..., :4]
+            if yaws.shape[-1] and (self.mean_rule == "yaw" or self.shape == "relative"):
+                yaws, shift = self._align(yaws, near_c)
+        P = L.positions(r)
+        xc = np.mean(P, axis=-2)
+        return yaws, P, xc, self._mean_rotation(r, yaws, shift, hint)
+
+    def forward(self, r, *, near_c=None):
+        """``c`` of the robots ``r`` (module docstring), shape ``(..., n_c)``.
+
+        Parameters
+        ----------
+        r : array_like, shape (..., n_r)
+            Robot states, m and rad (yaws read as real numbers: their branch picks the mean
+            yaw of the formation, and for ``relative`` the signs of ``qhat_sk``; every branch
+            is the same formation).
+        near_c : array_like, shape (..., n_c), optional
+            A state to stay near (the controller's reference): the yaws of ``r`` are first
+            moved by whole turns onto its branch (each within pi of the desired robot's;
+            ``relative``: the pair's rule of ``pair_kernels.dq_align_yaws``), and ``qhat_c``
+            takes its sign. The result is the same formation as ``r`` whatever ``near_c``.
+        """
+        r = self.check_robot_state(r)
+        self.check_apart(r)
+        yaws, P, xc, qc = self._parts(r, near_c)
+        if self.shape == "relative":
+            return self._relative_forward(P, xc, yaws, qc)
+        C = _pose(qc, xc)
+        S = _dqmul((C * _DQ_CONJ)[..., None, :], _pose(self._robot_rotations(r, yaws), P))  # qhat_c* qhat_i
+        return _join(C, S * self._block_signs(S, near_c))
+
+    def _block_signs(self, S, near_c):
+        """``+-1 (..., N, 1)``: each ``qhat_ci`` signed nearest ``near_c``'s (1 without it)."""
+        if near_c is None:
+            return 1.0
+        ref = np.asarray(near_c, dtype=float)[..., 8:].reshape(near_c.shape[:-1] + (-1, 8))
+        return np.where(np.sum(S[..., :4] * ref[..., :4], axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+
+    def _relative_forward(self, P, xc, yaws, qc):
+        """Eq. (27) for N robots in closed form: ``qhat_sk = pose(q_yaw(th_k - th_N), R_z(-th_N)(p_k - p_N))``."""
+        th_n = yaws[..., -1]
+        ts = _rot_z(th_n[..., None], P[..., :-1, :] - P[..., -1:, :], inverse=True)
+        S = _pose(g.q_yaw(yaws[..., :-1] - th_n[..., None]), ts)
+        C = _pose(qc, xc)
+        return _join(C, S)
+
+    def _check_yaws(self, rot, what, labels):
+        """Refuse rotations ``rot (..., M, 4)`` (of robots with a yaw, named by ``labels``) that
+        tilt: a 4-DOF or ground robot cannot roll or pitch (the pair's rule, ``TILT_TOL``)."""
+        if not rot.shape[-2]:
+            return
+        q = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+        tilt = np.linalg.norm(g.z_axis(q) - g.EZ, axis=-1)
+        if np.any(tilt > TILT_TOL):
+            k = int(np.argmax(np.max(tilt.reshape(-1, tilt.shape[-1]), axis=0)))
+            raise UnreachableError(
+                f"{what}: the rotation of {labels[k]} tilts by {float(np.max(tilt)):.3g} rad (limit {TILT_TOL:g}); "
+                "a robot with a yaw only turns about z - build states with forward or from_chart")
+
+    def inverse(self, c, *, near_r=None):
+        """The robots of ``c``, shape ``(..., n_r)`` (yaws in ``(-pi, pi]`` without ``near_r``).
+
+        ``frame``: ``qhat_i = qhat_c qhat_ci`` (no branch: ``inverse(forward(r)) = r`` with
+        yaws mod 2 pi and ``pose`` quaternions as given). ``relative``: ``theta_N = theta_c -
+        sum_k theta_sk / N``, ``p_N = x_c - R_z(theta_N) sum_k t_sk / N``, ``qhat_k = qhat_N
+        qhat_sk`` (for N = 2 the pair's ``qhat_2 = qhat_c h*``).
+
+        Parameters
+        ----------
+        c : array_like, shape (..., n_c)
+        near_r : array_like, shape (..., n_r), optional
+            Robots whose yaws the result's are unwrapped near (within pi) and whose ``pose``
+            quaternions' signs it takes; for ``relative`` with N >= 3 required: it picks
+            which of the N formations of ``c`` (turned by ``4 pi j / N``) is meant.
+
+        Raises
+        ------
+        UnreachableError
+            A yaw robot's rotation tilts.
+        DegenerateInputError
+            Two robots of ``c`` coincide.
+        InvalidInputError
+            ``relative`` with N >= 3 and no ``near_r``.
+        """
+        c = self.check_cluster_state(c)
+        L = self.layout
+        if near_r is not None:
+            near_r = self.check_robot_state(near_r, "near_r")
+        if self.shape == "relative":
+            r = self._relative_inverse(c, near_r)
+        else:
+            B = self._blocks(c)
+            Qi = _dqmul(B[..., :1, :], B[..., 1:, :])  # qhat_i = qhat_c qhat_ci
+            rot = Qi[..., :4]
+            self._check_yaws(rot[..., self._yaw_robots, :], "c",
+                             [f"robot {self.layout.labels[i]}" for i in self._yaw_robots])
+            P = _translation(Qi)
+            if len(self._planar_robots):
+                z = P[..., self._planar_robots, 2]
+                if np.any(np.abs(z) > 1e-9 * np.maximum(1.0, np.max(np.abs(P), axis=(-2, -1)))[..., None]):
+                    raise UnreachableError(f"c puts a ground robot (xy_yaw) at z = {float(np.max(np.abs(z))):.3g} m; "
+                                           "a planar robot stays at z = 0 - build states with forward or from_chart")
+            yaws = g.yaw_of(rot[..., self._yaw_robots, :]) if len(self._yaw_robots) else np.zeros(rot.shape[:-2] + (0,))
+            q = rot[..., self._pose_robots, :]
+            if len(self._pose_robots):
+                q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+                if near_r is not None:
+                    q = g.closest_sign(q, L.orientations(near_r))
+            r = L.compose(P, yaws, q if len(self._pose_robots) else None)
+            if near_r is not None and len(self._yaw_robots):
+                r[..., list(L.yaw_indices)] = g.unwrap_near(r[..., list(L.yaw_indices)], near_r[..., list(L.yaw_indices)])
+        self.check_apart(r, "the robots of c")
+        return r
+
+    def _relative_inverse(self, c, near_r):
+        L, N = self.layout, self.layout.n
+        B = self._blocks(c)
+        self._check_yaws(B[..., :4], "c", [v.name[:-3] for v in self.variables[::8]])
+        if N >= 3 and near_r is None:
+            raise InvalidInputError(
+                f"DualQuaternionTeam(shape='relative') with {N} robots: one state is {N if N % 2 else N // 2} formations "
+                f"turned by 4 pi j / {N} about the centroid (the signs of qhat_sk fix sum theta_sk mod 4 pi only); give "
+                "near_r (robots near the intended ones) or use shape='frame'")
+        th_c = 2.0 * np.arctan2(B[..., 0, 3], B[..., 0, 0])
+        th_s = 2.0 * np.arctan2(B[..., 1:, 3], B[..., 1:, 0])
+        t_n = th_c - np.sum(th_s, axis=-1) / N
+        if N >= 3:
+            step = 4.0 * math.pi / N
+            t_n = t_n + step * np.round((L.yaws(near_r)[..., -1] - t_n) / step)
+        xc = _translation(B[..., 0, :])
+        ts = _translation(B[..., 1:, :])
+        p_n = xc - _rot_z(t_n, np.sum(ts, axis=-2) / N)
+        P = np.concatenate([p_n[..., None, :] + _rot_z(t_n[..., None], ts), p_n[..., None, :]], axis=-2)
+        yaws = np.concatenate([t_n[..., None] + th_s, t_n[..., None]], axis=-1)
+        yaws = g.wrap(yaws) if near_r is None else g.unwrap_near(yaws, L.yaws(near_r))
+        return L.compose(P, yaws)
+
+    # -- rate maps: directional derivatives on (..., N, 8) arrays, O(N) ------------------------------
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        """``c_dot = J r_dot`` at ``c = forward(r, near_c=near_c)``: the derivative of :meth:`forward`.
+
+        ``x_c' = mean v_i``; ``q_c' = 1/2 theta_c' k q_c`` with ``theta_c' = mean theta_i'``
+        (yaw rule), the derivative of the first pose robot's normalised quaternion (pose rule)
+        or 0; a pose ``(q, p)`` moves at ``(q', 1/2 (p' q + p q'))``; ``qhat_ci' = qhat_c'* qhat_i +
+        qhat_c* qhat_i'`` (frame); ``t_sk' = R_z(-th_N)(v_k - v_N) - th_N' e_z x t_sk`` (relative).
+        """
+        r = self.check_robot_state(r)
+        self.check_apart(r)
+        yaws, P, xc, qc = self._parts(r, near_c)
+        L = self.layout
+        r_dot = as_array(r_dot, "r_dot", self.n_r)
+        c = self._relative_forward(P, xc, yaws, qc) if self.shape == "relative" else None
+        v = L.positions(r_dot)
+        xcd = np.mean(v, axis=-2)
+        yd = L.yaws(r_dot)
+        if self.mean_rule == "yaw":
+            qcd = 0.5 * np.mean(yd, axis=-1)[..., None] * g.mul(_KZ, qc)
+        elif self.mean_rule == "pose":
+            q1 = L.orientations(r)[..., 0, :]
+            n1 = np.linalg.norm(q1, axis=-1, keepdims=True)
+            qh = q1 / n1
+            q1d = L.orientations(r_dot)[..., 0, :]
+            s = np.sum(qc * qh, axis=-1, keepdims=True)  # +-1: the sign forward gave q_c
+            qcd = s * (q1d - qh * np.sum(qh * q1d, axis=-1, keepdims=True)) / n1
+        else:
+            qcd = np.zeros(np.broadcast_shapes(qc.shape, xcd.shape[:-1] + (4,)))
+        Cd = _pose_rate(qc, xc, qcd, xcd)
+        if self.shape == "relative":
+            B = self._blocks(c)
+            ts = _translation(B[..., 1:, :])
+            th_n = L.yaws(r)[..., -1]
+            thd_n = yd[..., -1]
+            tsd = _rot_z(th_n[..., None], v[..., :-1, :] - v[..., -1:, :], inverse=True) - thd_n[..., None, None] * _z_cross(ts)
+            qs = B[..., 1:, :4]
+            qsd = 0.5 * (yd[..., :-1] - thd_n[..., None])[..., None] * g.mul(_KZ, qs)
+            Sd = _pose_rate(qs, ts, qsd, tsd)
+        else:
+            Q = self._robot_rotations(r, yaws)
+            Qd = self._robot_rotation_rates(Q, r_dot)
+            Qi, Qid = _pose(Q, P), _pose_rate(Q, P, Qd, v)
+            Cc = (_pose(qc, xc) * _DQ_CONJ)[..., None, :]
+            Sd = _dqmul((Cd * _DQ_CONJ)[..., None, :], Qi) + _dqmul(Cc, Qid)  # (qhat_c* qhat_i)'
+            if near_c is not None:
+                Sd = Sd * self._block_signs(_dqmul(Cc, Qi), near_c)
+        return _join(Cd, Sd)
+
+    def robot_rate(self, c, c_dot, *, r=None):
+        """``r_dot`` of the cluster rate ``c_dot`` at ``c``: the derivative of :meth:`inverse`.
+
+        ``frame``: ``qhat_i' = qhat_c' qhat_ci + qhat_c qhat_ci'``, then each robot's
+        translation rate, yaw rate (z of the world angular velocity) or quaternion rate (of the
+        quaternion ``qhat_c qhat_ci`` as ``c`` gives it: the robots' own sign when ``c =
+        forward(r)``). ``relative``: the derivative of ``theta_N = theta_c - sum theta_sk / N``,
+        ``p_N = x_c - R_z(theta_N) S``, ``p_k = p_N + R_z(theta_N) t_sk`` with ``theta_N`` from
+        ``r`` (computed by :meth:`inverse` if not given; for N = 2 the pair's
+        ``pair_kernels.dq_inverse_jvp``). O(N): a constant number of NumPy calls.
+        """
+        c = np.asarray(c, dtype=float)
+        cd = as_array(c_dot, "c_dot", self.n_c)
+        B, Bd = self._blocks(c), self._blocks(cd)
+        L = self.layout
+        if self.shape == "relative":
+            if r is None:
+                r = self.inverse(c)
+            r = np.asarray(r, dtype=float)
+            thcd, xcd, _ = _yaw_and_translation_rates(B[..., 0, :], Bd[..., 0, :])
+            thsd, tsd, _ = _yaw_and_translation_rates(B[..., 1:, :], Bd[..., 1:, :])
+            ts = _translation(B[..., 1:, :])
+            N = L.n
+            th_n = L.yaws(r)[..., -1]
+            thnd = thcd - np.sum(thsd, axis=-1) / N
+            Rts = _rot_z(th_n[..., None], ts)
+            Rtsd = _rot_z(th_n[..., None], tsd)
+            pk = thnd[..., None, None] * _z_cross(Rts) + Rtsd  # d/dt R_z(theta_N) t_sk
+            pnd = xcd - np.sum(pk, axis=-2) / N
+            V = np.concatenate([pnd[..., None, :] + pk, pnd[..., None, :]], axis=-2)
+            yd = np.concatenate([thnd[..., None] + thsd, thnd[..., None]], axis=-1)
+            return L.compose(V, yd)
+        C, Cd = B[..., :1, :], Bd[..., :1, :]
+        S, Sd = B[..., 1:, :], Bd[..., 1:, :]
+        Qi = _dqmul(C, S)
+        Qid = _dqmul(Cd, S) + _dqmul(C, Sd)
+        yd, V, _ = _yaw_and_translation_rates(Qi, Qid)
+        q = None
+        if len(self._pose_robots):
+            q = Qid[..., self._pose_robots, :4]
+        return L.compose(V, yd[..., self._yaw_robots] if len(self._yaw_robots) else yd[..., :0], q)
+
+    # -- the operator's chart -------------------------------------------------------------------------
+    def to_chart(self, c, *, near_e=None, r=None):
+        """The chart of the robots of ``c``: :meth:`TeamChart.from_robots` with this
+        description's template where no ``near_e`` is given (``chart="pair"``: seed 000's
+        Euclidean variables through :meth:`DualQuaternionPair.to_chart`). ``r`` (else the
+        robots of ``near_e``) only unwraps the yaws and signs the quaternions (and for
+        ``relative`` with N >= 3 picks the formation)."""
+        if self._pair is not None:
+            return self._pair.to_chart(c, near_e=near_e, r=r)
+        near = r
+        if near is None and near_e is not None:
+            near = self.chart.robots(near_e)
+        robots = self.inverse(c, near_r=near)
+        return self.chart.from_robots(robots, near_e=near_e, template=self.template)
+
+    def from_chart(self, e, e_dot=None):
+        """``c`` (and ``c_dot``) of chart values ``e`` (and rates): the chart's robots
+        (:meth:`TeamChart.robots`, :meth:`TeamChart.robot_rates`), then :meth:`forward` on their
+        real yaws (so ``c`` is continuous in ``e``) and :meth:`cluster_rate`."""
+        if self._pair is not None:
+            return self._pair.from_chart(e, e_dot)
+        e = self.chart.check(e, "e")
+        r = self.chart.robots(e)
+        rows = self.layout.orientation_index
+        if len(rows):  # the chart's robot quaternions are directions: unit robots, tangent rates
+            q = r[..., rows]
+            n = np.linalg.norm(q, axis=-1, keepdims=True)
+            r[..., rows] = q / n
+        c = self.forward(r)
+        if e_dot is None:
+            return c
+        r_dot = self.chart.robot_rates(e, e_dot)
+        if len(rows):
+            qh, qd = r[..., rows], r_dot[..., rows] / n
+            r_dot[..., rows] = qd - qh * np.sum(qh * qd, axis=-1, keepdims=True)
+        return c, self.cluster_rate(r, r_dot, near_c=c)
+
+    # -- special sets -------------------------------------------------------------------------------
+    def special_sets(self):
+        """Where another description divides by zero, takes an undefined angle or meets ``q``
+        versus ``-q``, and what this one does there (nothing special: every set is regular).
+
+        Coincident robots are not a set of the description but bad input: :meth:`forward` and
+        :meth:`inverse` raise DegenerateInputError naming the robots.
+        """
+        L = self.layout
+        sets = []
+        gen = _TeamStates(L)
+        if len(self._yaw_robots) >= 2:
+            sets.append(SpecialSet(
+                "half-turn-yaws", "two robots' yaws pi apart: the short root of eq. (26) jumps there; the mean of the "
+                "real yaws (the decoupled root's branch) and every block are regular", gen.half_turn_yaws))
+        if len(self._pose_robots) >= 2:
+            sets.append(SpecialSet(
+                "pose-half-turn", "two pose robots half a turn apart: a chordal mean of their orientations is "
+                "undefined there (a tie); q_c is the first pose robot's orientation, regular", gen.pose_half_turn))
+        if len(self._yaw_robots) or len(self._pose_robots):
+            sets.append(SpecialSet(
+                "q-vs-minus-q", "robot rotations with w = 0 (yaws pi, quaternions a half turn), where a canonical "
+                "w >= 0 sign flips; the blocks' signs follow the robots' real yaws and quaternions, and the inverse "
+                "is sign-free", gen.q_vs_minus_q))
+        if len(self._yaw_robots):
+            sets.append(SpecialSet(
+                "wound-yaws", "yaws wound by up to 50 turns (read as real numbers by the mean yaw): another lift of "
+                "the same formation, inverse(forward(r)) = r mod 2 pi", gen.wound_yaws))
+        sets += [
+            SpecialSet("vertical-axis", "robot 1 straight above robot 2 and the formation's plane vertical "
+                       "(eq. (4)'s beta_c is 0/0, the chart's Euler reading is gimbal-locked); positions enter the "
+                       "dual quaternions as translations only: regular", gen.vertical),
+            SpecialSet("collinear", "every robot on one line (the chart's attitude fit is a tie, broken by its "
+                       "hint); regular here", gen.collinear),
+            SpecialSet("anti-x", "p1 - p2 along -x (the minimal rotation of eqs. (14)-(15) is 0/0); regular here",
+                       gen.anti_x),
+        ]
+        return tuple(sets)
+
+
+class _TeamStates:
+    """Generators of robot states of a layout ``eps`` from the special sets (``eps = 0``: on it)."""
+
+    def __init__(self, layout: RobotLayout):
+        self.L = layout
+        self.yaw_robots = [i for i, k in enumerate(layout.kinds) if POINT_KINDS[k].yaw is not None]
+        self.pose_robots = [i for i, k in enumerate(layout.kinds) if k == "pose"]
+        self.planar = np.array([k == "xy_yaw" for k in layout.kinds])
+
+    def _ring(self, rng, n):
+        """A ring of the robots (radius so that neighbours are >= 0.6 m apart), randomly placed and turned."""
+        N = self.L.n
+        R = max(1.0, 0.3 * N / math.pi * 1.2)
+        a = 2.0 * math.pi * np.arange(N) / N + rng.uniform(-0.2, 0.2, (n, N))
+        P = np.stack([R * np.cos(a), R * np.sin(a), rng.uniform(-0.3, 0.3, (n, N))], axis=-1)
+        q = rng.normal(size=(n, 4))
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        return rng.uniform(-2, 2, (n, 1, 3)) + g.rotate(q[:, None, :], P)
+
+    def _compose(self, rng, P, yaws=None, quats=None):
+        n = P.shape[0]
+        P = np.array(P)
+        if np.any(self.planar):  # a ground robot at z = 0, set apart in y from the others' projections
+            P[:, self.planar, 1] += 5.0 + 0.7 * np.arange(np.count_nonzero(self.planar))
+        if yaws is None:
+            yaws = rng.uniform(-math.pi, math.pi, (n, len(self.yaw_robots)))
+        if quats is None:
+            quats = rng.normal(size=(n, len(self.pose_robots), 4))
+            quats = quats / np.linalg.norm(quats, axis=-1, keepdims=True)
+        return self.L.compose(P, yaws, quats if len(self.pose_robots) else None)
+
+    def half_turn_yaws(self, rng, n, eps):
+        y = rng.uniform(-math.pi, math.pi, (n, len(self.yaw_robots)))
+        y[:, 1] = y[:, 0] - rng.choice([-1.0, 1.0], n) * (math.pi + eps)
+        return self._compose(rng, self._ring(rng, n), y)
+
+    def pose_half_turn(self, rng, n, eps):
+        q = rng.normal(size=(n, len(self.pose_robots), 4))
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        axis = rng.normal(size=(n, 3))
+        axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        h = 0.5 * (math.pi + eps)
+        turn = np.concatenate([np.full((n, 1), math.cos(h)), math.sin(h) * axis], axis=-1)
+        q[:, 1] = g.mul(q[:, 0], turn)
+        return self._compose(rng, self._ring(rng, n), quats=q)
+
+    def q_vs_minus_q(self, rng, n, eps):
+        y = np.full((n, len(self.yaw_robots)), math.pi + eps) * rng.choice([-1.0, 1.0], (n, len(self.yaw_robots)))
+        v = rng.normal(size=(n, len(self.pose_robots), 3))
+        v = v / np.linalg.norm(v, axis=-1, keepdims=True)
+        h = 0.5 * (math.pi + eps)
+        q = np.concatenate([np.full(v.shape[:-1] + (1,), math.cos(h)), math.sin(h) * v], axis=-1)
+        return self._compose(rng, self._ring(rng, n), y, q)
+
+    def wound_yaws(self, rng, n, eps):
+        y = rng.uniform(-math.pi, math.pi, (n, len(self.yaw_robots)))
+        y = y + _TWO_PI * rng.integers(-50, 51, y.shape) + eps
+        return self._compose(rng, self._ring(rng, n), y)
+
+    def vertical(self, rng, n, eps):
+        N = self.L.n
+        a = 2.0 * math.pi * np.arange(N) / N
+        u = np.stack([np.sin(a) * 1.2, np.zeros(N), np.cos(a) * 1.2], axis=-1)  # robot 1 on top; the x-z plane
+        u[1] = (0.0, 0.0, -1.2) if N > 2 else u[1]  # robot 2 straight below robot 1
+        if N > 2:
+            u[2:] = np.stack([np.sin(a[2:] * 0.5 + 0.3) * 1.2, np.zeros(N - 2), np.cos(a[2:] * 0.5 + 0.3) * 0.9], -1)
+        tilt = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(eps), -math.sin(eps)], [0.0, math.sin(eps), math.cos(eps)]])
+        spin = rng.uniform(-math.pi, math.pi, n)
+        P = _rot_z(spin[:, None], u @ tilt.T)
+        return self._compose(rng, rng.uniform(-2, 2, (n, 1, 3)) + P)
+
+    def collinear(self, rng, n, eps):
+        N = self.L.n
+        u = rng.normal(size=(n, 1, 3))
+        u = u / np.linalg.norm(u, axis=-1, keepdims=True)
+        off = rng.normal(size=(n, N, 3))
+        off = off - np.sum(off * u, axis=-1, keepdims=True) * u
+        s = (np.arange(N) - 0.5 * (N - 1)) * 0.7
+        return self._compose(rng, rng.uniform(-2, 2, (n, 1, 3)) + s[None, :, None] * u + eps * off)
+
+    def anti_x(self, rng, n, eps):
+        P = self._ring(rng, n)
+        d = P[:, 0] - P[:, 1]
+        d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        psi = rng.uniform(-math.pi, math.pi, n)
+        target = np.stack([-np.cos(eps) + 0.0 * psi, math.sin(eps) * np.cos(psi), math.sin(eps) * np.sin(psi)], -1)
+        q = g.swing(d, target, np.array([0.0, 0.0, 1.0]))
+        xc = P.mean(axis=1, keepdims=True)
+        return self._compose(rng, xc + g.rotate(q[:, None, :], P - xc))
