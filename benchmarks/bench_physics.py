@@ -8,20 +8,118 @@ low-level controller and rotor drag in Python between steps. A third row times t
 physics (two hovering quadrotors, no formation controller, no low-level controller: the
 rotor forces held) to show where the time goes.
 
-Usage: ``python benchmarks/bench_physics.py [--duration 80] [--repeat 3]``.
+``--team`` adds the MuJoCo team plant (issue 14): N = 2, 4, 10 IRIS quadrotors
+(``sim.plants.mujoco_team.team_plant``: every quadrotor's cascade evaluated together on
+``(N, ...)`` arrays) flying a formation that translates, climbs and turns about the
+vertical (a pair, a tetrahedron, ten robots on a sphere), each robot on a robot-space
+velocity loop ``u = r_dot_ref + k (r_ref - r)`` (no team controller: this times the
+plant). It prints simulated seconds per wall second and the share of the time spent in
+``mj_step`` (timed around each call) against Python (the cascades, the loop, the log).
+
+Usage: ``python benchmarks/bench_physics.py [--duration 80] [--repeat 3] [--team]
+[--team-duration 10]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import time
 
 import numpy as np
 from _common import best_of, fmt, machine_description, optional_import
 
-from quatform.scenarios.pair import run_pair, simulate_physics
+from quatform.control.contract import Controller, Step
+from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import load_scenario
+from quatform.scenarios.pair import run_pair, simulate_physics
 from quatform.sim.mujoco_backend import INSTALL_HINT
+from quatform.sim.simulate import simulate
+
+
+def team_shape(n: int) -> np.ndarray:
+    """Robot positions in the formation frame, (n, 3), m: a pair 2 m apart, a regular
+    tetrahedron of edge 2 m, else n points spread on a sphere of radius 2 m (Fibonacci)."""
+    if n == 2:
+        return np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    if n == 4:
+        return np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=float) / np.sqrt(2.0)
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = np.pi * (1.0 + 5 ** 0.5) * k
+    rho = np.sqrt(1.0 - z * z)
+    return 2.0 * np.c_[rho * np.cos(phi), rho * np.sin(phi), z]
+
+
+def team_motion(shape: np.ndarray, t):
+    """The formation's motion: the centroid at ``(0.3 t, 0.1 t, 3 + 0.3 sin(0.5 t))``, the shape
+    turning about the vertical at 0.2 rad/s, each robot's yaw the formation's.
+
+    Returns ``(r, r_dot)``, shapes ``(T, 4 n)``: every robot's ``(x, y, z, theta)`` and rates.
+    """
+    t = np.asarray(t, dtype=float)[:, None]
+    w = 0.2
+    c, s = np.cos(w * t), np.sin(w * t)
+    sx, sy, sz = shape[:, 0], shape[:, 1], shape[:, 2]
+    x, y, z = 0.3 * t + c * sx - s * sy, 0.1 * t + s * sx + c * sy, 3.0 + 0.3 * np.sin(0.5 * t) + sz
+    xd, yd = 0.3 - w * (s * sx + c * sy), 0.1 + w * (c * sx - s * sy)
+    zd = np.broadcast_to(0.15 * np.cos(0.5 * t), x.shape)
+    th, thd = np.broadcast_to(w * t, x.shape), np.full(x.shape, w)
+    r = np.stack([x, y, z, th], axis=-1).reshape(len(t), -1)
+    return r, np.stack([xd, yd, zd, thd], axis=-1).reshape(len(t), -1)
+
+
+class VelocityLoop(Controller):
+    """Robot-space velocity loop ``u = r_dot_ref + k (r_ref - r)`` for every robot at once."""
+
+    name = "robot-space velocity loop"
+
+    def __init__(self, n_u: int, k: float = 1.0):
+        self.n_u, self.k = n_u, k
+
+    @property
+    def command_names(self):
+        return tuple(f"u{i}" for i in range(self.n_u))
+
+    def signal_columns(self):
+        return {}
+
+    def update(self, t, measured, reference, state):
+        r, rd = reference
+        return Step(rd + self.k * (r - measured), state, {})
+
+
+class _TimedMuJoCo:
+    """The ``mujoco`` module with ``mj_step`` timed (seconds summed in ``seconds``)."""
+
+    def __init__(self, mj):
+        self._mj, self.seconds = mj, 0.0
+
+    def __getattr__(self, name):
+        return getattr(self._mj, name)
+
+    def mj_step(self, m, d):
+        t0 = time.perf_counter()
+        self._mj.mj_step(m, d)
+        self.seconds += time.perf_counter() - t0
+
+
+def team_row(n: int, duration: float, dt: float = 0.01):
+    """One team run: ``(wall s, CPU s of this process, mj_step s, max robot position error after
+    5 s, m)``. The CPU time is what the run costs where the machine is shared (the wall time
+    then includes other programs' turns)."""
+    from quatform.sim.plants.mujoco_team import team_plant
+
+    shape = team_shape(n)
+    times = np.arange(round(duration / dt) + 1) * dt
+    r_ref, rd_ref = team_motion(shape, times)
+    plant = team_plant(Team((HolonomicRobot(),) * n), r_ref[0], dt=dt)
+    timed = plant.world.mj = _TimedMuJoCo(plant.world.mj)
+    t0, c0 = time.perf_counter(), time.process_time()
+    log = simulate(plant, VelocityLoop(4 * n), lambda k: (r_ref[k], rd_ref[k]), times, plant.x0, dt=dt)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    err = (log["state"] - r_ref).reshape(len(times), n, 4)[times >= 5.0, :, 0:3]
+    return wall, cpu, timed.seconds, float(np.linalg.norm(err, axis=-1).max())
 
 
 
@@ -30,6 +128,8 @@ def main(argv=None):
     p.add_argument("--duration", type=float, default=80.0, help="simulated seconds (default: the full helix)")
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--controller", default="quaternion")
+    p.add_argument("--team", action="store_true", help="also time the MuJoCo team plant, N = 2, 4, 10")
+    p.add_argument("--team-duration", type=float, default=10.0, help="simulated seconds of each team run")
     args = p.parse_args(argv)
     mj = optional_import("mujoco")
     for line in machine_description({"mujoco": mj is not None}):
@@ -57,6 +157,18 @@ def main(argv=None):
         print(f"| {name} | {fmt(wall)} | {fmt(args.duration / wall)} |")
     if mj is None:
         print(f"\n(mujoco not installed: {INSTALL_HINT} in the quatform checkout)")
+    elif args.team:
+        print(f"\nMuJoCo team plant: N IRIS quadrotors, cascades on (N, ...) arrays, a robot-space velocity "
+              f"loop on a translating, climbing, turning formation; {args.team_duration:g} s simulated, "
+              f"control every 10 ms, physics every 2.5 ms, best of {args.repeat}\n")
+        print("| N | wall s | simulated s per wall s | simulated s per CPU s | mj_step share | Python share | "
+              "max position error after 5 s (m) |")
+        print("|---|---|---|---|---|---|---|")
+        for n in (2, 4, 10):
+            wall, cpu, step, err = min((team_row(n, args.team_duration) for _ in range(args.repeat)),
+                                       key=lambda r: r[0])
+            print(f"| {n} | {fmt(wall)} | {fmt(args.team_duration / wall)} | {fmt(args.team_duration / cpu)} | "
+                  f"{100 * step / wall:.0f} % | {100 * (1 - step / wall):.0f} % | {err:.3f} |")
     return np.array([w for _, w in rows])
 
 

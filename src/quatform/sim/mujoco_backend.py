@@ -67,10 +67,11 @@ from ..robots.physics import (
     IRIS,
     PIONEER_3DX,
     DiffDriveParams,
-    QuadrotorCascade,
+    QuadrotorCascades,
     QuadrotorParams,
     diff_drive_mjcf,
     quadrotor_mjcf,
+    rotation_rows,
     wheel_speeds,
     world_mjcf,
 )
@@ -387,19 +388,32 @@ class PhysicsWorld:
         act = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, n)
         self._motors = {n: [act(f"{n}_motor{i}") for i in range(4)] for n in self.quad_names}
         self._wheels = {n: [act(f"{n}_left"), act(f"{n}_right")] for n in self.ugv_names}
-        try:
-            self.cascades = {n: QuadrotorCascade(quad_params, **(cascade_options or {})) for n in self.quad_names}
-        except TypeError as exc:
-            raise InvalidInputError(f"cascade_options {cascade_options!r}: {exc}; see QuadrotorCascade's "
-                                    "parameters") from None
+        # one cascade for all quadrotors (robots.physics.cascades): (N, ...) arrays, each
+        # quantity read with one gather and every actuator written with one assignment
+        self.cascade = QuadrotorCascades(max(len(self.quad_names), 1), quad_params, **(cascade_options or {}))
+        q = [self._qadr[n] for n in self.quad_names]
+        v = [self._vadr[n] for n in self.quad_names]
+        self._quad_qidx = np.array(q, dtype=int)[None] + np.arange(7)[:, None]  # (7, N): qpos rows
+        self._quad_vidx = np.array(v, dtype=int)[None] + np.arange(6)[:, None]  # (6, N): qvel rows
+        self._quad_ridx = 9 * np.array([body[n] for n in self.quad_names], dtype=int)[None] + np.arange(9)[:, None]
+        self._quad_bodies = np.array([body[n] for n in self.quad_names], dtype=int)
+        self._motor_ids = np.array([self._motors[n] for n in self.quad_names], dtype=int).reshape(-1, 4)
+        self._ugv_qidx = np.array([self._qadr[n] for n in self.ugv_names], dtype=int)[None] + np.arange(7)[:, None]
+        self._wheel_ids = np.array([self._wheels[n] for n in self.ugv_names], dtype=int).reshape(-1, 2)
+        self._index = {**{n: i for i, n in enumerate(self.quad_names)}, **{n: i for i, n in enumerate(self.ugv_names)}}
         geom = lambda n: mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, n)
         support = frozenset(geom(f"{n}_{g}") for n in self.ugv_names for g in ("left_tyre", "right_tyre", "caster"))
         landing = frozenset(geom(f"{n}_skid{i}") for n in self.quad_names for i in (0, 1))
         names = {0: "ground", **{v: k for k, v in body.items()}}
         self.contacts = ContactMonitor(names, support, landing)
-        self._yaw = {}
-        self._quad_cmd = {n: np.zeros(4) for n in self.quad_names}
-        self._ugv_cmd = {n: np.zeros(2) for n in self.ugv_names}
+        self._quad_yaw = np.full(len(self.quad_names), np.nan)  # last yaw reported (nan: none yet)
+        self._ugv_yaw = np.full(len(self.ugv_names), np.nan)
+        self._quad_cmd = np.zeros((len(self.quad_names), 4))
+        self._ugv_cmd = np.zeros((len(self.ugv_names), 2))
+        # the largest tilt (as its cosine) and collective rotor force of each quadrotor so far,
+        # sampled at the end of every step() call
+        self.min_cos_tilt = np.ones(len(self.quad_names))
+        self.max_thrust = np.zeros(len(self.quad_names))
         # start at rest: the motors already spin at hover thrust in the air
         hover = quad_params.mass * GRAVITY / 4.0
         for n, pos, _ in quads:
@@ -431,8 +445,9 @@ class PhysicsWorld:
                                         "raise it to stand on its wheels or skids")
 
     def _warning_counts(self) -> tuple:
-        w, W = self.data.warning, self.mj.mjtWarning
-        return tuple(int(w[k].number) for k in (W.mjWARN_BADQACC, W.mjWARN_BADQVEL, W.mjWARN_BADQPOS))
+        W = self.mj.mjtWarning
+        return tuple(self.data.warning.number[[int(W.mjWARN_BADQACC), int(W.mjWARN_BADQVEL),
+                                               int(W.mjWARN_BADQPOS)]].tolist())
 
     def _check_step(self):
         """After ``mj_step``: MuJoCo resets the state and only logs a warning when the
@@ -448,15 +463,20 @@ class PhysicsWorld:
                                  "commands, the timestep and the start poses")
 
     # -- states ----------------------------------------------------------------------
+    def _yaws(self, name):
+        return (self._quad_yaw, self._index[name]) if name in self._motors else (self._ugv_yaw, self._index[name])
+
     def _unwrap(self, name, raw):
-        prev = self._yaw.get(name)
-        y = raw if prev is None else prev + float(wrap_angle(raw - prev))
-        self._yaw[name] = y
+        yaws, i = self._yaws(name)
+        prev = yaws[i]
+        y = raw if math.isnan(prev) else prev + float(wrap_angle(raw - prev))
+        yaws[i] = y
         return y
 
     def continue_yaw(self, name, yaw: float):
         """Report ``name``'s yaw continued from ``yaw`` (rad) from now on (not wrapped)."""
-        self._yaw[name] = float(yaw)
+        yaws, i = self._yaws(name)
+        yaws[i] = float(yaw)
 
     def quad_pose(self, name):
         """``(position (3,), world velocity (3,), R (3, 3), body angular velocity (3,), yaw)``
@@ -483,43 +503,89 @@ class PhysicsWorld:
         cp = d.qpos[a:a + 2] + self.ugv_params.a * np.array([R[0], R[3]])
         return np.array([cp[0], cp[1], self._unwrap(name, psi)])
 
+    @staticmethod
+    def _continued(prev, raw):
+        """``raw`` yaws continued from ``prev`` (``wrap_angle`` of the change; ``raw`` where unset)."""
+        return np.where(np.isnan(prev), raw, prev + wrap_angle(raw - np.where(np.isnan(prev), raw, prev)))
+
+    def quad_states(self) -> np.ndarray:
+        """``(x, y, z, yaw)`` of every quadrotor, shape (N, 4), yaws continued (:meth:`quad_state`
+        for all at once: one gather, one rotation per vehicle on arrays)."""
+        q = self.data.qpos[self._quad_qidx]  # (7, N)
+        R = rotation_rows(q[3:7].T)
+        self._quad_yaw = self._continued(self._quad_yaw, np.arctan2(R[:, 3], R[:, 0]))
+        return np.concatenate([q[0:3], self._quad_yaw[None]]).T
+
+    def ugv_states(self) -> np.ndarray:
+        """``(x, y, heading)`` of every UGV's control point, shape (M, 3), headings continued."""
+        q = self.data.qpos[self._ugv_qidx]  # (7, M)
+        R = rotation_rows(q[3:7].T)
+        c, s = R[:, 0], R[:, 3]
+        self._ugv_yaw = self._continued(self._ugv_yaw, np.arctan2(s, c))
+        a = self.ugv_params.a
+        return np.stack([q[0] + a * c, q[1] + a * s, self._ugv_yaw], axis=1)
+
     def qpos(self) -> np.ndarray:
         return self.data.qpos.copy()
 
     # -- commands and stepping --------------------------------------------------------
     def command_quad(self, name, u):
-        self._quad_cmd[name] = np.where(np.isfinite(u), np.asarray(u, dtype=float), 0.0).tolist()
+        """Hold ``u`` (4,) as ``name``'s set point (a non-finite entry: zero)."""
+        u = np.asarray(u, dtype=float)
+        self._quad_cmd[self._index[name]] = np.where(np.isfinite(u), u, 0.0)
+
+    def command_quads(self, u):
+        """Hold ``u`` (N, 4) as every quadrotor's set point, in ``quad_names`` order."""
+        u = np.asarray(u, dtype=float)
+        self._quad_cmd = np.where(np.isfinite(u), u, 0.0).reshape(len(self.quad_names), 4)
 
     def command_ugv(self, name, v_omega):
-        self._ugv_cmd[name] = np.asarray(v_omega, dtype=float)
+        self._ugv_cmd[self._index[name]] = np.asarray(v_omega, dtype=float)
+
+    def command_ugvs(self, v_omega):
+        """Hold ``(v, omega)`` (M, 2) for every UGV, in ``ugv_names`` order."""
+        self._ugv_cmd = np.asarray(v_omega, dtype=float).reshape(len(self.ugv_names), 2)
 
     def step(self, n: int = 1):
-        """``n`` physics steps, the low-level controllers and the rotor drag in the loop."""
+        """``n`` physics steps, the low-level controllers and the rotor drag in the loop (every
+        quadrotor's cascade at once, :class:`~quatform.robots.physics.QuadrotorCascades`)."""
         mj, m, d = self.mj, self.model, self.data
         dt = m.opt.timestep
-        for name in self.ugv_names:
-            w = wheel_speeds(*self._ugv_cmd[name], params=self.ugv_params)
-            d.ctrl[self._wheels[name]] = w
-        R = np.empty(9)
-        quads = [(self._qadr[nm], self._vadr[nm], self._motors[nm], self._body[nm], self.cascades[nm],
-                  self._quad_cmd[nm]) for nm in self.quad_names]
-        velocity = self.quad_mode == "velocity"
+        if self.ugv_names:
+            u = self._ugv_cmd
+            d.ctrl[self._wheel_ids] = wheel_speeds(u[:, 0], u[:, 1], params=self.ugv_params)
+        qpos, qvel, ctrl, force, xfrc = d.qpos, d.qvel, d.ctrl, d.actuator_force, d.xfrc_applied
+        xmat = d.xmat.reshape(-1)  # a view: MuJoCo's body rotations, rows first
+        cas, ridx, vidx, motors, bodies = self.cascade, self._quad_ridx, self._quad_vidx, self._motor_ids, \
+            self._quad_bodies
+        quads, velocity = len(self.quad_names) > 0, self.quad_mode == "velocity"
+        if quads:  # the set points held for this call's n steps
+            u = self._quad_cmd
+            if velocity:
+                cas.hold_velocity(u[:, 0:3], u[:, 3])
+            else:
+                cas.hold_attitude(u)
         for _ in range(n):
-            for a, va, motors, body, cas, u in quads:
-                mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
-                Rl, vw = R.tolist(), d.qvel[va:va + 6].tolist()
-                if velocity:
-                    f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
-                else:
-                    f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
-                d.ctrl[motors] = f
-                d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
             t_before = d.time
-            mj.mj_step(m, d)
+            # mj_step in its two halves (MuJoCo's documented split): the first computes the
+            # kinematics of the current qpos, so the controllers read each body's rotation
+            # (xmat: mju_quat2Mat of its normalised quaternion) instead of recomputing it
+            mj.mj_step1(m, d)
+            if quads:
+                R = xmat[ridx].T  # (N, 9), the transpose of a contiguous (9, N)
+                vel = qvel[vidx]  # (6, N)
+                v, w = vel[0:3].T, vel[3:6].T
+                f = cas.velocity_forces(v, R, w, dt) if velocity else cas.attitude_forces(v, R, w)
+                ctrl[motors] = f
+                xfrc[bodies, 0:3] = cas.rotor_drag(force[motors], v, R)
+            mj.mj_step2(m, d)
             if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
                 self._check_step()
             self.contacts.check(m, d)
         self._check_step()  # the warning counters and the positions, once per call
+        if quads:  # sampled once per call (each control tick)
+            self.min_cos_tilt = np.minimum(self.min_cos_tilt, rotation_rows(qpos[self._quad_qidx[3:7]].T)[:, 8])
+            self.max_thrust = np.maximum(self.max_thrust, force[motors].sum(axis=1))
 
 
 @dataclass(frozen=True)

@@ -7,10 +7,13 @@ physics stepping lives in :mod:`quatform.sim.mujoco_backend` (sim layer).
 * :mod:`.quadrotor` - an IRIS-like quadrotor (PX4 SITL ``iris`` numbers) and its
   cascaded low-level controller (velocity -> acceleration -> attitude and thrust ->
   body rates -> rotor forces), in PX4 velocity mode or Bebop-like attitude mode.
+* :mod:`.cascades` - the cascades of N quadrotors evaluated together on ``(N, ...)`` arrays
+  (issue 14), and the vehicles' rotation matrices from their quaternions.
 * :mod:`.ground` - a Pioneer 3-DX-like differential-drive robot driven by ``(v, omega)``.
 * :mod:`.mjcf` - the world: floor, light, robots, integrator options.
 """
 
+from .cascades import QuadrotorCascades, rotation_rows
 from .ground import PIONEER_3DX, DiffDriveParams, diff_drive_mjcf, wheel_speeds
 from .mjcf import world_mjcf
 from .quadrotor import GRAVITY, IRIS, QuadrotorCascade, QuadrotorParams, quadrotor_mjcf
@@ -21,9 +24,11 @@ __all__ = [
     "PIONEER_3DX",
     "DiffDriveParams",
     "QuadrotorCascade",
+    "QuadrotorCascades",
     "QuadrotorParams",
     "diff_drive_mjcf",
     "quadrotor_mjcf",
+    "rotation_rows",
     "wheel_speeds",
     "world_mjcf",
 ]

@@ -16,6 +16,9 @@ monitor's collisions.
 * :class:`UgvUavPlant` (:func:`ugv_uav_plant`) - a Pioneer-like UGV and an IRIS in
   Bebop-like attitude mode (seed 001 §3): state and output the 11 values the seed 001
   controller reads, commands its 6.
+* :class:`~quatform.sim.plants.mujoco_team.TeamPlant` (:func:`~quatform.sim.plants.mujoco_team.team_plant`,
+  issue 14) - N quadrotors and Pioneers for a ``robots.Team``; the pair plant is its
+  two-quadrotor case (the same world calls, the same numbers).
 * :func:`physics_metrics` - the keys a physics run adds to ``metrics.json``;
   :func:`physics_record` - the :class:`~quatform.sim.mujoco_backend.PhysicsRecord` of a run
   (for :func:`quatform.report.physics_render.render_or_fallback`).
@@ -35,15 +38,22 @@ from ...errors import InvalidInputError, ShapeError
 from ...formations.layout import RobotLayout
 from ...robots import Bebop
 from ...robots.physics import IRIS
-from ..mujoco_backend import BACKEND_LABEL, IRIS_IDENTIFIED_K, PhysicsRecord, PhysicsWorld, physics_timestep
+from ..mujoco_backend import (
+    BACKEND_LABEL,
+    IRIS_IDENTIFIED_K,
+    PhysicsRecord,
+    PhysicsWorld,
+    physics_timestep,
+)
 
-__all__ = ["PairPlant", "UgvUavPlant", "pair_plant", "ugv_uav_plant", "physics_metrics", "physics_record"]
+__all__ = ["PairPlant", "UgvUavPlant", "WorldPlant", "pair_plant", "physics_metrics", "physics_record", "start_state", "ugv_uav_plant"]
 
 #: Robot state of the seed 000 pair: ``(x, y, z, yaw)`` of each quadrotor.
 PAIR_LAYOUT = RobotLayout.uniform("xyz_yaw", 2)
 
 
-def _start(x0, n: int, what: str) -> np.ndarray:
+def start_state(x0, n: int, what: str) -> np.ndarray:
+    """``x0`` as the start of one world, shape ``(n,)``, finite (one line naming ``what`` otherwise)."""
     x = np.asarray(x0, dtype=float)
     if x.shape != (n,):
         raise ShapeError(f"{what}: x0 must have shape ({n},) (one world: a MuJoCo plant is not batched), "
@@ -53,8 +63,9 @@ def _start(x0, n: int, what: str) -> np.ndarray:
     return x
 
 
-class _WorldPlant:
-    """What both physics plants share: the world, its step, the record."""
+class WorldPlant:
+    """What every physics plant shares (the pair, the UGV-UAV, the team plant): the world,
+    its step, the record."""
 
     batchable = False
 
@@ -69,6 +80,11 @@ class _WorldPlant:
     @property
     def output_columns(self) -> tuple[str, ...]:
         return self.state_columns
+
+    def robot_metrics(self) -> dict:
+        """Per-robot keys :func:`physics_metrics` adds (none for the seed 000 and 001 plants;
+        the team plant's ``robots``)."""
+        return {}
 
     def output(self, x):
         """What a sensor sees: the robot state itself."""
@@ -101,7 +117,7 @@ class _WorldPlant:
         return self._x
 
 
-class PairPlant(_WorldPlant):
+class PairPlant(WorldPlant):
     """Two IRIS quadrotors (seed 000 §4.2's robots) in PX4-like velocity mode.
 
     State and output: ``(x_1, y_1, z_1, theta_1, x_2, y_2, z_2, theta_2)`` (m, rad; the
@@ -115,7 +131,7 @@ class PairPlant(_WorldPlant):
     names = ("robot1", "robot2")
 
     def __init__(self, x0, timestep: float, cascade_options: dict | None = None):
-        x = _start(x0, PAIR_LAYOUT.size, "pair_plant")
+        x = start_state(x0, PAIR_LAYOUT.size, "pair_plant")
         world = PhysicsWorld(quads=[(n, x[PAIR_LAYOUT.slice(i)][0:3], x[PAIR_LAYOUT.slice(i)][3])
                                     for i, n in enumerate(self.names)], timestep=timestep,
                              cascade_options=cascade_options)
@@ -124,11 +140,10 @@ class PairPlant(_WorldPlant):
         super().__init__(world, x, timestep)
 
     def _command(self, u):
-        for i, n in enumerate(self.names):
-            self.world.command_quad(n, u[4 * i:4 * i + 4])
+        self.world.command_quads(u.reshape(2, 4))
 
     def _read(self):
-        return np.concatenate([self.world.quad_state(n) for n in self.names])
+        return self.world.quad_states().ravel()  # both at once, as the team plant reads them
 
     def robot_points(self, states) -> dict:
         """Robot name -> ``(T, 3)`` positions of ``states`` ``(T, 8)`` (the quadrotors' centres)."""
@@ -136,7 +151,7 @@ class PairPlant(_WorldPlant):
         return {n: p[:, i] for i, n in enumerate(self.names)}
 
 
-class UgvUavPlant(_WorldPlant):
+class UgvUavPlant(WorldPlant):
     """A Pioneer-like UGV and an IRIS in Bebop-like attitude mode (seed 001 §3).
 
     State and output: the 11 values of :data:`~quatform.control.UGV_UAV_MEASURED_NAMES`
@@ -158,7 +173,7 @@ class UgvUavPlant(_WorldPlant):
     command_columns = UGV_UAV_COMMAND_NAMES
 
     def __init__(self, x0, floor: float, timestep: float, uav_model: Bebop, platform_z: float):
-        x = _start(x0, len(UGV_UAV_MEASURED_NAMES), "ugv_uav_plant")
+        x = start_state(x0, len(UGV_UAV_MEASURED_NAMES), "ugv_uav_plant")
         z0 = max(x[5], floor + IRIS.leg_height)  # standing on its skids, not in the floor
         world = PhysicsWorld(quads=[("uav", (x[3], x[4], z0), x[6])], ugvs=[("ugv", x[0:2], x[2])],
                              floor_z=floor, timestep=timestep, quad_mode="attitude")
@@ -225,12 +240,15 @@ def ugv_uav_plant(scenario, x0, floor: float, k=IRIS_IDENTIFIED_K) -> UgvUavPlan
                        Bebop(k=tuple(k), max_fraction=scenario.max_fraction), scenario.center[2])
 
 
-def physics_metrics(plant: _WorldPlant) -> dict:
-    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``."""
-    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep}
+def physics_metrics(plant: WorldPlant) -> dict:
+    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``, and ``robots``
+    (each robot's kind, tilt, thrust and collisions) for a
+    :class:`~quatform.sim.plants.mujoco_team.TeamPlant`."""
+    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep,
+            **plant.robot_metrics()}
 
 
-def physics_record(plant: _WorldPlant, log, title: str = "", gains: dict | None = None,
+def physics_record(plant: WorldPlant, log, title: str = "", gains: dict | None = None,
                    gains_source: str = "") -> PhysicsRecord:
     """The :class:`PhysicsRecord` of a run of ``plant`` (its :class:`~quatform.sim.log.Log`:
     ``log``): the MuJoCo positions and robot points at the log's ticks, the collisions."""
