@@ -22,6 +22,9 @@ from .euclidean_pair import (
     segment_direction,
 )
 from .quaternion_pair import QuaternionPair
+from .dual_quaternion_team import DualQuaternionTeam
+from .euclidean_team import EuclideanTeam
+from .quaternion_team import QuaternionTeam
 from .robot_space_team import RobotSpaceTeam
 from .team_chart import LawGroup, TeamChart, default_template, fit_attitude
 from .ugv_uav import (
@@ -44,7 +47,8 @@ FORMATIONS = {
 
 #: The team descriptions (N robots of any point kinds) by key, as classes:
 #: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
-TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam}
+TEAM_FORMATIONS = {"quaternion-team": QuaternionTeam, "dual-quaternion-team": DualQuaternionTeam,
+                   "euclidean-team": EuclideanTeam, "robot-space-team": RobotSpaceTeam}
 
 __all__ = [
     "Formation",
@@ -63,6 +67,9 @@ __all__ = [
     "FORMATIONS",
     "TEAM_FORMATIONS",
     "RobotSpaceTeam",
+    "QuaternionTeam",
+    "DualQuaternionTeam",
+    "EuclideanTeam",
     "TeamChart",
     "LawGroup",
     "fit_attitude",

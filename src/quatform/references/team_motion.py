@@ -247,7 +247,8 @@ def template_positions(name: str, n: int, size: float | None = None, rows: int |
     ``line``: along x, ``spacing`` apart; ``ring``: the regular n-gon of ``radius`` in the
     x-y plane, robot 1 on +x (:func:`~quatform.formations.default_template` scaled);
     ``triangle``: 3 robots, equilateral of ``side``, robot 1 on +x; ``tetrahedron``: 4
-    robots, regular of ``edge``, standing on a horizontal face with robot 4 on top; ``grid``:
+    robots, regular of ``edge``, standing on a horizontal face (robots 1 and 2 on an edge
+    along x, robot 1 on +x as seed 000's pair, robot 3 on +y) with robot 4 on top; ``grid``:
     ``rows`` x ``n / rows`` robots ``spacing`` apart in the x-y plane, row after row;
     ``positions``: the given ``(n, 3)`` positions.
     """
@@ -277,12 +278,11 @@ def template_positions(name: str, n: int, size: float | None = None, rows: int |
         radius = size if name == "ring" else size / math.sqrt(3.0)
         a = 2.0 * np.pi * np.arange(n) / n
         return np.stack([radius * np.cos(a), radius * np.sin(a), np.zeros(n)], axis=-1)
-    if name == "tetrahedron":  # base triangle (circumradius edge/sqrt 3) at -h/4, apex at 3h/4
+    if name == "tetrahedron":  # base triangle at -h/4 (edge 1-2 along x, robot 1 on +x), apex at 3h/4
         h = size * math.sqrt(2.0 / 3.0)
-        a = 2.0 * np.pi * np.arange(3) / 3
-        base = np.stack([size / math.sqrt(3.0) * np.cos(a), size / math.sqrt(3.0) * np.sin(a),
-                         np.full(3, -h / 4)], axis=-1)
-        return np.concatenate([base, [[0.0, 0.0, 0.75 * h]]])
+        r_in = size / (2.0 * math.sqrt(3.0))
+        return np.array([[0.5 * size, -r_in, -0.25 * h], [-0.5 * size, -r_in, -0.25 * h], [0.0, 2.0 * r_in, -0.25 * h],
+                         [0.0, 0.0, 0.75 * h]])
     rows = int(round(math.sqrt(n))) if rows is None else int(rows)
     if rows < 1 or n % rows:
         raise ShapeError(f"a grid of {n} robots in {rows} rows is not whole; give rows that divide {n}")
