@@ -88,8 +88,9 @@ TEAM_TABLES = {
 _GAIN_SIZES = {"k_x": 3, "k_d": 1, "k_w": 3, "k_dw": 3, "k_p": 3, "k_theta": 1, "k": 1}
 assert set(_GAIN_SIZES) == {key for _, key, _ in TEAM_GAIN_KEYS.values()}
 
-#: What moves the robots.
-TEAM_BACKENDS = ("kinematic",)
+#: What moves the robots: their kinematic models, or MuJoCo physics (quadrotors and Pioneers,
+#: :func:`quatform.sim.plants.mujoco_team.team_plant`).
+TEAM_BACKENDS = ("kinematic", "mujoco")
 
 
 def available_controllers() -> tuple[str, ...]:
@@ -643,14 +644,22 @@ class TeamKind(ScenarioKind):
         c_des, cd_des = F.from_chart(e_des, ed_des)
         r_des = chart.robots(e_des)
         x0 = _start_points(scenario, scenario.motion)  # every team model's state is its point
-        plant = KinematicTeam(team)
+        physics = None
+        if backend == "mujoco":  # MuJoCo only when asked for
+            from ..sim import mujoco_backend as mj
+            from ..sim.plants import mujoco as mjp
+            from ..sim.plants.mujoco_team import team_plant
+
+            plant = physics = team_plant(team, x0, dt=scenario.dt_s)
+        else:
+            plant = KinematicTeam(team)
         safety = dict(scenario.safety)
         safety["applied"] = bool(safety["enabled"])
         if safety["applied"]:  # issue 14 item 6: on by default for teams
             ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], dt_s=scenario.dt_s), team)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
-                "backend_label": "kinematic", "formation": F.name, "feedforward": ff,
+                "backend_label": "kinematic" if physics is None else mj.BACKEND_LABEL, "formation": F.name, "feedforward": ff,
                 "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
                 "chart_variables": chart.variables}
 
@@ -670,10 +679,16 @@ class TeamKind(ScenarioKind):
                      Channel("c_des", tuple(n + "_des" for n in F.names), c_des),
                      Channel("e", names, e), Channel("e_des", tuple(n + "_des" for n in names), e_des),
                      Channel("singularity", ("singularity_measure",), sing[:, None])]
-            return log.with_channels(*chans, singularity_samples=int(idx.size))
+            extra = {}
+            if physics is not None:
+                extra["physics_record"] = mjp.physics_record(physics, log, f"{scenario.name}: {ctrl.name} controller")
+            return log.with_channels(*chans, singularity_samples=int(idx.size), **extra)
 
         def metrics(log: Log) -> dict:
-            return team_metrics(log)
+            out = team_metrics(log)
+            if physics is not None:
+                out.update(mjp.physics_metrics(physics))
+            return out
 
         csv = (("points", "r_des"), ("e", "e_des"), "command", "singularity")
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl, reference=reference_at,
