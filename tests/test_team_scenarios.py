@@ -125,7 +125,7 @@ def _short(name, seconds=1.0):
 def test_a_short_run_of_each_writes_its_files(name, tmp_path):
     sc = _short(name, 1.0 if name != "team-grid-100" else 0.5)
     plots = name in ("team-tetrahedron-helix", "team-grid-100")
-    for k, controller in enumerate(available_controllers()):
+    for k, controller in enumerate(TEAM.compare_choices(sc, "controller")[0]):  # those that can take the team
         out = tmp_path / controller
         plots = plots and k == 0  # the figures once per scenario (the compare test draws every controller's)
         log, m = run(sc, out, controller=controller, quiet=True, plots=plots)
@@ -331,3 +331,21 @@ def test_the_motion_refuses_bad_values():
     with pytest.raises(InvalidInputError, match="nonzero vector"):
         Turn([0, 0, 0], 1.0, 0.0, 1.0)
     assert math.isfinite(Scale("ramp", 1.0, 2.0, 0.0, 1.0)(0.5)[0])
+
+
+def test_a_team_flies_on_mujoco_physics(tmp_path):
+    pytest.importorskip("mujoco")
+    log, m = run(_short("team-tetrahedron-helix", 0.4), tmp_path / "mj", controller="robot-space", backend="mujoco",
+                 quiet=True, plots=False)
+    assert m["backend"] == "mujoco" and m["collisions"]["count"] == 0
+    assert m["max_robot_position_error_m"] < 0.05 and m["nonfinite_commands"] == 0
+
+
+def test_compare_leaves_out_a_description_that_cannot_take_the_team(tmp_path):
+    sc = _short("team-triangle-over-ugv", 0.4)  # a Pioneer (planar) and three 4-DOF UAVs
+    values, skipped = TEAM.compare_choices(sc, "controller")
+    assert "cluster-space" in skipped and "cluster-space" not in values and "quaternion" in values
+    assert "mixes planar" in skipped["cluster-space"] and "\n" not in skipped["cluster-space"]
+    rows = compare(sc, tmp_path / "cmp", quiet=True, plots=False)
+    assert [r["controller"] for r in rows] == list(values)
+    assert "Not run: cluster-space" in (tmp_path / "cmp" / "comparison.md").read_text()

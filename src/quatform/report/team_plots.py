@@ -27,6 +27,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
+from ..algebra import q_continuous
 from ..formations import TeamChart
 from ..papers import with_names
 from ..sim.log import Log
@@ -147,12 +148,15 @@ def plot_team_centroid(run: Log, path) -> Path:
 
 def plot_team_attitude(run: Log, path) -> Path:
     """The formation's attitude: ``q_c`` (the chart the controller's description recovers,
-    sign nearest the reference) against the reference, and the z-y-x Euler angles of both
-    (:meth:`TeamChart.reading`: for reading only; yaw and roll are not separate at pitch
-    +-90 deg, seed 000 eq. (5))."""
+    continuous along the run, its first sign nearest the reference) against the reference,
+    and the z-y-x Euler angles of both (:meth:`TeamChart.reading`: for reading only; yaw and
+    roll are not separate at pitch +-90 deg, seed 000 eq. (5))."""
     e, ed = np.asarray(run["e"]), np.asarray(run["e_des"])
-    q, qd = e[:, 3:7], ed[:, 3:7]
-    q = q * np.where(np.sum(q * qd, axis=-1) < 0, -1.0, 1.0)[:, None]
+    q, qd = finite(e[:, 3:7]), ed[:, 3:7]
+    ok = np.all(np.isfinite(q), axis=-1)
+    if ok.any():  # continuous along the run (q and -q are one attitude), first sign nearest the reference
+        q[ok] = q_continuous(q[ok], axis=0)
+        q[ok] *= -1.0 if np.dot(q[ok][0], qd[ok][0]) < 0 else 1.0
     eu, eud = TeamChart.reading(e), TeamChart.reading(ed)
     rows = [(f"q_c_{a} [-]", q[:, k], qd[:, k], False) for k, a in enumerate("wxyz")]
     rows += [(f"{a} [rad]", eu[:, k], eud[:, k], True) for k, a in enumerate(("yaw", "pitch", "roll"))]

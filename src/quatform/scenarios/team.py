@@ -221,8 +221,9 @@ class TeamScenario:
         check_within_run(where, "metrics_from_s", self.metrics_from_s, self.duration_s,
                          _last_step(self.duration_s, self.dt_s) * self.dt_s,
                          "no sample is measured and every error would read 0")
-        if not callable(self.motion):
-            raise InvalidInputError(f"{where}: motion must map times to (e, e_dot), like a TeamMotion")
+        if not isinstance(self.motion, (TeamMotion, PlanMotion)):
+            raise InvalidInputError(f"{where}: motion must be a TeamMotion or a PlanMotion (quatform.references."
+                                    f"team_motion), got {type(self.motion).__name__}")
         if self.motion.layout != self.team.layout:
             raise InvalidInputError(f"{where}: the motion is of robots {self.motion.layout.kinds}, the team offers "
                                     f"{self.team.layout.kinds}; build both from one layout")
@@ -611,6 +612,22 @@ class TeamKind(ScenarioKind):
     def from_dict(self, data: dict, where: str) -> TeamScenario:
         return team_scenario_from_dict(data, where)
 
+    def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
+        """The controllers whose description can represent the scenario's robots (the
+        Euclidean team baseline refuses a mix of planar and spatial robots), and the others
+        with the description's one-line refusal."""
+        if axis != "controller" or not isinstance(scenario, TeamScenario):
+            return super().compare_choices(scenario, axis)
+        run, skipped = [], {}
+        for name in available_controllers():
+            try:
+                scenario.controller(name)
+            except InvalidInputError as exc:
+                skipped[name] = str(exc)
+            else:
+                run.append(name)
+        return tuple(run), skipped
+
     def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
                    backend: str = "kinematic", reference=None) -> Experiment:
         """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_FORMATIONS`
@@ -659,8 +676,8 @@ class TeamKind(ScenarioKind):
             ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], dt_s=scenario.dt_s), team)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
-                "backend_label": "kinematic" if physics is None else mj.BACKEND_LABEL, "formation": F.name, "feedforward": ff,
-                "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
+                "backend_label": "kinematic" if physics is None else mj.BACKEND_LABEL, "formation": F.name,
+                "feedforward": ff, "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
                 "chart_variables": chart.variables}
 
         def reference_at(k):
@@ -690,7 +707,8 @@ class TeamKind(ScenarioKind):
                 out.update(mjp.physics_metrics(physics))
             return out
 
-        csv = (("points", "r_des"), ("e", "e_des"), "command", "singularity")
+        csv = (("points", "r_des"), ("e", "e_des"), "command", "singularity",
+               *(("min_separation", "safety_active") if safety["applied"] else ()))
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl, reference=reference_at,
                           times=t, x0=x0, dt=scenario.dt_s, finish=finish, metrics=metrics, csv_channels=csv,
                           meta=meta)
