@@ -13,12 +13,26 @@ from quatform import cli
 from quatform.errors import DegenerateInputError, InvalidInputError, ShapeError
 from quatform.formations import RobotLayout, TeamChart
 from quatform.planning import Plan
-from quatform.references.team_motion import (Attitude, Headings, Move, OriginPath, PlanMotion, Scale, TeamMotion,
-                                             Turn, template_positions)
+from quatform.references.team_motion import (
+    Attitude,
+    Headings,
+    Move,
+    OriginPath,
+    PlanMotion,
+    Scale,
+    TeamMotion,
+    Turn,
+    template_positions,
+)
 from quatform.runs import compare, run
 from quatform.scenarios import KINDS, builtin_scenarios, kind_of, load_scenario
 from quatform.scenarios.pair import run_pair
-from quatform.scenarios.team import TEAM, TeamScenario, available_controllers, team_scenario_from_dict
+from quatform.scenarios.team import (
+    TEAM,
+    TeamScenario,
+    available_controllers,
+    team_scenario_from_dict,
+)
 from quatform.sim import compute_metrics
 from quatform.tomlio import read_toml
 
@@ -26,7 +40,7 @@ TEAM_NAMES = sorted(n for n in builtin_scenarios() if n.startswith("team-"))
 
 
 def _central(motion, t, h=1e-6):
-    e, ed = motion(t)
+    _, ed = motion(t)
     ep, _ = motion(t + h)
     em, _ = motion(t - h)
     return ed, (ep - em) / (2 * h)
@@ -128,7 +142,7 @@ def test_a_short_run_of_each_writes_its_files(name, tmp_path):
     for k, controller in enumerate(TEAM.compare_choices(sc, "controller")[0]):  # those that can take the team
         out = tmp_path / controller
         plots = plots and k == 0  # the figures once per scenario (the compare test draws every controller's)
-        log, m = run(sc, out, controller=controller, quiet=True, plots=plots)
+        _, m = run(sc, out, controller=controller, quiet=True, plots=plots)
         assert json.loads((out / "metrics.json").read_text())["n_robots"] == sc.team.layout.n
         assert m["nonfinite_commands"] == 0 and m["max_robot_position_error_m"] < 1.0  # a transient at most
         assert m["min_robot_separation_m"] >= sc.safety["min_separation_m"]
@@ -335,7 +349,7 @@ def test_the_motion_refuses_bad_values():
 
 def test_a_team_flies_on_mujoco_physics(tmp_path):
     pytest.importorskip("mujoco")
-    log, m = run(_short("team-tetrahedron-helix", 0.4), tmp_path / "mj", controller="robot-space", backend="mujoco",
+    _, m = run(_short("team-tetrahedron-helix", 0.4), tmp_path / "mj", controller="robot-space", backend="mujoco",
                  quiet=True, plots=False)
     assert m["backend"] == "mujoco" and m["collisions"]["count"] == 0
     assert m["max_robot_position_error_m"] < 0.05 and m["nonfinite_commands"] == 0

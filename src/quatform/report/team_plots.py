@@ -33,8 +33,21 @@ from ..papers import with_names
 from ..sim.log import Log
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.team_metrics import team_errors
-from .figures import (DES_STYLE, MEAS_STYLE, break_wraps, check_runs, decimate, finite, floor_ylim, intervals,
-                      new_figure, save, set_equal_3d, shade, time_xlim)
+from .figures import (
+    DES_STYLE,
+    MEAS_STYLE,
+    break_wraps,
+    check_runs,
+    decimate,
+    finite,
+    floor_ylim,
+    intervals,
+    new_figure,
+    save,
+    set_equal_3d,
+    shade,
+    time_xlim,
+)
 
 __all__ = ["plot_team_paths_3d", "plot_team_centroid", "plot_team_attitude", "plot_team_shape", "plot_team_errors",
            "plot_team_separation", "plot_team_singularity", "plot_team_compare", "formation_edges",
@@ -81,12 +94,13 @@ def formation_edges(template) -> tuple[np.ndarray, np.ndarray]:
     return i, j
 
 
-def plot_team_paths_3d(run: Log, path, n_frames: int = 8) -> Path:
+def plot_team_paths_3d(run: Log, path, n_frames: int | None = None) -> Path:
     """Every robot's path in 3-D (measured solid, desired dashed) and the formation's edges at
     ``n_frames + 1`` evenly spaced times (grey: measured; the edges of the desired shape at
-    ``t = 0``), a time-lapse like seed 000 Figs. 19-20. A team larger than 10 draws its paths
-    thin and without a legend entry per robot."""
+    ``t = 0``), a time-lapse like seed 000 Figs. 19-20. ``n_frames`` defaults to 8, 4 for a
+    team larger than 10, which also draws its paths thin and without a legend entry per robot."""
     L = run.meta["layout"]
+    n_frames = (8 if L.n <= _EACH_ROBOT_UP_TO else 4) if n_frames is None else n_frames
     P, Pd = L.positions(finite(run["points"])), L.positions(finite(run["r_des"]))
     n = L.n
     fig = new_figure((8.0, 6.8))

@@ -28,17 +28,48 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import (MISSING, check_keys, check_within_run, check_work, flag, integer, number, short, table,
-                      text, vector)
+from ..checks import (
+    MISSING,
+    check_keys,
+    check_within_run,
+    check_work,
+    flag,
+    integer,
+    number,
+    short,
+    table,
+    text,
+    vector,
+)
 from ..control import TEAM_FORMATIONS, TEAM_GAIN_KEYS, Reference, team_controller
+from ..control.safety import SafeController, SeparationBarrier
 from ..errors import InvalidInputError
 from ..formations import TeamChart
 from ..formations.team_chart import check_template
-from ..references.team_motion import (HEADING_MODES, PATH_KINDS, PROFILES, SCALE_KINDS, TEMPLATES, Attitude,
-                                      Headings, Move, OriginPath, PlanMotion, Scale, TeamMotion, Turn,
-                                      template_positions)
-from ..control.safety import SafeController, SeparationBarrier
-from ..robots import Bebop, FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
+from ..references.team_motion import (
+    HEADING_MODES,
+    PATH_KINDS,
+    PROFILES,
+    SCALE_KINDS,
+    TEMPLATES,
+    Attitude,
+    Headings,
+    Move,
+    OriginPath,
+    PlanMotion,
+    Scale,
+    TeamMotion,
+    Turn,
+    template_positions,
+)
+from ..robots import (
+    Bebop,
+    FreeBodyRobot,
+    HolonomicRobot,
+    Pioneer,
+    PlanarHolonomicRobot,
+    Team,
+)
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
 from ..sim.team_metrics import min_separations, team_metrics
@@ -653,8 +684,8 @@ class TeamKind(ScenarioKind):
                                     f"{', '.join(ROBOT_MODELS)}); this team's state has {team.n_state} entries for "
                                     f"points of {team.layout.size}")
         if team.layout != scenario.team.layout:
-            raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the scenario's "
-                                    f"{scenario.team.layout.kinds}")
+            raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the "
+                                    f"scenario's {scenario.team.layout.kinds}")
         chart = TeamChart(team.layout)
         t = scenario.times
         e_des, ed_des = scenario.motion(t)
