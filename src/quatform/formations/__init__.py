@@ -43,6 +43,9 @@ FORMATIONS = {
     **{f.name: f for f in (EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair())},
     **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
     "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
+    "quaternion-team": QuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
+    "dual-quaternion-team": DualQuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
+    "euclidean-team": EuclideanTeam(4),
 }
 
 #: The team descriptions (N robots of any point kinds) by key, as classes:

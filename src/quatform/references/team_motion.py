@@ -600,6 +600,8 @@ class PlanMotion:
         return p[0] - p[0].mean(axis=0)
 
     def __call__(self, t):
+        """``(e, e_dot)`` at the run times ``t`` (a sequence, shape ``(T,)``: the attitude's sign
+        is kept continuous along it), each ``(T, chart.size)``."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         chart = TeamChart(self.layout)
         L = self.layout
