@@ -163,7 +163,9 @@ def _suffix(options: dict) -> str:
 
 def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, **options) -> list:
     """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
-    kind's compare figures; write ``comparison.md`` and ``comparison.json``.
+    kind's compare figures; write ``comparison.md`` and ``comparison.json``. A value the
+    scenario cannot take (:meth:`~quatform.scenarios.base.ScenarioKind.compare_choices`) is
+    left out, named with the reason in ``comparison.md`` and on stderr.
 
     Parameters
     ----------
@@ -182,7 +184,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
     Returns
     -------
     list of dict
-        The runs' metrics, in the order of the option's choices.
+        The runs' metrics, in the order of the option's choices (those run).
     """
     sc = _scenario(scenario)
     kind = kind_of(sc)
@@ -197,17 +199,22 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         raise InvalidInputError(f"{sc.name}: compare runs every {axis} ({', '.join(own[axis].choices)}); "
                                 f"do not give {axis}")
     columns = compare_columns(kind, axis)
+    values, skipped = kind.compare_choices(sc, axis)
+    if not quiet:
+        for value, why in skipped.items():
+            print(f"  {sc.name} / {value}: not run: {why}", file=sys.stderr)
     with staged_dir(out) as tmp:
         logs, rows = [], []
-        for value in own[axis].choices:
+        for value in values:
             log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value})
             logs.append(log)
             rows.append({axis: value, **metrics})
         if plots:
             FIGURES[kind.name].compare(logs, tmp)
         table = format_table(rows, columns)
+        left = "".join(f"\nNot run: {value} ({why})\n" for value, why in skipped.items())
         atomic_write_text(tmp / "comparison.md",
-                          f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n")
+                          f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n{left}")
         write_json(rows, tmp / "comparison.json")
     return rows
 

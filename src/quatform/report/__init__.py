@@ -5,7 +5,7 @@
 * :mod:`.figures` - the shared figure helpers; :mod:`.writers` - ``timeseries.csv`` and strict
   JSON for every kind;
 * one figure module per kind (:mod:`.plots` for seed 000's pairs, :mod:`.ugv_uav_plots`,
-  :mod:`.teleop_plots`).
+  :mod:`.teleop_plots`, :mod:`.team_plots` for teams of N robots).
 """
 
 from .figure_set import NO_FIGURES, FigureSet
@@ -19,6 +19,7 @@ from .plots import (
     write_run_plots,
 )
 
+from .team_plots import write_team_compare_plots, write_team_run_plots
 from .teleop_plots import write_teleop_compare_plots, write_teleop_plots
 from .ugv_uav_plots import write_ugv_uav_compare_plots, write_ugv_uav_run_plots
 
@@ -28,6 +29,7 @@ FIGURES: dict[str, FigureSet] = {
     "pair": FigureSet(write_run_plots, write_compare_plots),
     "ugv-uav": FigureSet(write_ugv_uav_run_plots, write_ugv_uav_compare_plots),
     "teleop": FigureSet(write_teleop_plots, write_teleop_compare_plots),
+    "team": FigureSet(write_team_run_plots, write_team_compare_plots),
 }
 
 __all__ = [

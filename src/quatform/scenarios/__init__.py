@@ -69,4 +69,4 @@ def kind_of(scenario) -> ScenarioKind:
 
 
 # The kind modules register themselves in KINDS (they import it from here, so after it exists).
-from . import pair, teleop, ugv_uav  # noqa: E402,F401
+from . import pair, team, teleop, ugv_uav  # noqa: E402,F401

@@ -128,3 +128,11 @@ class ScenarioKind(ABC):
     @abstractmethod
     def experiment(self, scenario, **options) -> Experiment:
         """The run of ``scenario`` with the given :attr:`options` (missing ones: their default)."""
+
+    def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
+        """The values of the option ``axis`` a compare of ``scenario`` runs, and the ones it
+        leaves out with the reason (``{value: one line}``): by default every choice, none left
+        out (a kind whose scenarios cannot take some choice, e.g. a team description that
+        cannot represent the team's mix of robots, says so here)."""
+        own = {o.name: o for o in self.options}
+        return tuple(own[axis].choices), {}

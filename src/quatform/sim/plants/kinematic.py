@@ -17,8 +17,8 @@ __all__ = ["KinematicTeam"]
 
 
 def _team_columns(team: Team) -> tuple[str, ...]:
-    """``x1, y1, z1, theta1, x2, ...``: the 4-DOF state of each robot, numbered from 1."""
-    return tuple(f"{v}{i}" for i in range(1, len(team.robots) + 1) for v in ("x", "y", "z", "theta"))
+    """Each robot's state names numbered from 1 (``x1, y1, z1, theta1, x2, ...`` for 4-DOF robots)."""
+    return tuple(f"{v}{i}" for i, robot in enumerate(team.robots, start=1) for v in robot.state_columns)
 
 
 @dataclass(frozen=True)
@@ -28,7 +28,8 @@ class KinematicTeam:
     Attributes
     ----------
     team : Team
-        The robots; state and command of shape ``(*batch, 4 N)``.
+        The robots; state ``(*batch, team.n_state)``, command ``(*batch, team.n)`` (``4 N`` each
+        for seed 000's holonomic robots); the output is their points.
     """
 
     team: Team = Team()
@@ -40,11 +41,14 @@ class KinematicTeam:
 
     @property
     def output_columns(self) -> tuple[str, ...]:
-        return self.state_columns
+        """The points the robots offer a formation (``team.layout``'s names; the state's for a
+        holonomic team, whose state is its point)."""
+        return self.state_columns if self.team.passthrough else self.team.layout.names
 
     def output(self, x) -> np.ndarray:
-        """What a perfect sensor sees: the state itself, shape ``(*batch, 4 N)``."""
-        return x
+        """What a perfect sensor sees: every robot's point (``team.point``; the state itself for
+        a holonomic team), shape ``(*batch, team.layout.size)``."""
+        return x if self.team.passthrough else self.team.point(x)
 
     def step(self, x, u, dt: float, t: float = 0.0) -> np.ndarray:
         """State after ``dt`` s of the held command ``u`` (exact; seed 000 §4.1 kinematics).

@@ -1,0 +1,750 @@
+"""The team scenario kind (issue 14): N robots of any mix in a formation that moves, turns and deforms.
+
+Scenarios layer (above sim, below report and runs). A file with ``kind = "team"`` states the
+robots (``[[robots]]`` groups: a model, a count, limits), the formation's shape (a template
+times a scale, with keyframed slot changes), the path of its origin, its attitude and the
+robots' headings, the gains of each controller (seed 000 Tables 1-2 for teams), the initial
+offset, the safety barrier and the run (``docs/scenarios.md``). Every key is read with
+:mod:`quatform.checks` (unknown keys name the nearest valid one, one line per bad value; the
+run's memory and time are estimated up front).
+
+:class:`TeamKind` builds the :class:`~quatform.scenarios.base.Experiment` of a scenario and a
+controller (``quaternion``, ``dual-quaternion``, ``cluster-space``, ``robot-space``: the team
+descriptions of :data:`quatform.control.TEAM_FORMATIONS`): the kinematic plant of the team,
+the controller (:func:`quatform.control.team_controller`), the reference ``Reference(c_des,
+c_dot_des, r_des)`` with ``c_des, c_dot_des = formation.from_chart(e, e_dot)`` of the
+motion's chart values (:class:`~quatform.references.team_motion.TeamMotion`, or a saved plan:
+:class:`~quatform.references.team_motion.PlanMotion`), and ``finish`` adding the desired
+robots, the chart recovered by the controller's description, the desired chart and the
+singularity measure; the metrics are :func:`quatform.sim.team_metrics.team_metrics`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..checks import (
+    MISSING,
+    check_keys,
+    check_within_run,
+    check_work,
+    flag,
+    integer,
+    number,
+    short,
+    table,
+    text,
+    vector,
+)
+from ..control import TEAM_FORMATIONS, TEAM_GAIN_KEYS, Reference, team_controller
+from ..control.safety import SafeController, SeparationBarrier
+from ..errors import InvalidInputError
+from ..formations import TeamChart
+from ..formations.team_chart import check_template
+from ..references.team_motion import (
+    HEADING_MODES,
+    PATH_KINDS,
+    PROFILES,
+    SCALE_KINDS,
+    TEMPLATES,
+    Attitude,
+    Headings,
+    Move,
+    OriginPath,
+    PlanMotion,
+    Scale,
+    TeamMotion,
+    Turn,
+    template_positions,
+)
+from ..robots import (
+    Bebop,
+    FreeBodyRobot,
+    HolonomicRobot,
+    Pioneer,
+    PlanarHolonomicRobot,
+    Team,
+)
+from ..sim.log import Channel, Log
+from ..sim.plants import KinematicTeam
+from ..sim.team_metrics import min_separations, team_metrics
+from . import KINDS
+from .base import Experiment, Option, ScenarioKind
+
+__all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict", "ROBOT_MODELS",
+           "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_BACKENDS", "TEAM_BYTES_PER_ROBOT_STEP",
+           "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples", "available_controllers",
+           "with_plan"]
+
+_HINT = "see docs/scenarios.md, team scenarios"
+
+#: Memory one logged step of one robot may take, bytes: the log's channels (state, measured,
+#: command, cluster, error, the desired robots, the two charts: about 40 floats a robot), the
+#: loop's lists and the CSV; about 3 times the measured peak.
+TEAM_BYTES_PER_ROBOT_STEP = 2.5e3
+#: Wall time one step of one robot may take, s (plus :data:`_SECONDS_PER_STEP` a step):
+#: measured 3-10 us per robot-step at N = 100, 0.3-0.6 ms per step at N = 4.
+TEAM_SECONDS_PER_ROBOT_STEP = 5e-5
+_SECONDS_PER_STEP = 2e-3
+
+#: Seed 000 Tables 1 and 2 for teams, by controller, with the keys each role reads
+#: (``control.TEAM_GAIN_KEYS``). Quaternion (eq. (20)): ``K_x, k_d, K_w`` as printed, the
+#: robots' yaws at ``K_w``'s rate (the pair's ``q_ci`` are eq. (20) blocks with ``K_w``);
+#: dual quaternion (eq. (28)): ``K_dw``, yaws at its rate; robot space: the printed
+#: ``K_RS`` of robot 1 (``x, y, z, theta``) for every robot; cluster space: ``K_CS``'s
+#: position gains on the centroid, its angle gain (``beta_c``) on angles and yaws, its
+#: ``d_c`` gain on shape variables.
+TEAM_TABLES = {
+    "table1": {
+        "quaternion": {"k_x": [2.0, 2.0, 2.0], "k_d": 20.0, "k_w": [20.0, 20.0, 20.0], "k_theta": 20.0},
+        "dual-quaternion": {"k_dw": [15.0, 15.0, 15.0], "k_theta": 15.0},
+        "cluster-space": {"k_x": [1.0, 1.0, 1.0], "k": 10.0, "k_d": 5.0, "k_w": [10.0, 10.0, 10.0],
+                          "k_theta": 10.0, "k_p": [1.0, 1.0, 1.0]},
+        "robot-space": {"k_p": [1.5, 1.5, 1.5], "k_theta": 6.0},
+    },
+    "table2": {
+        "quaternion": {"k_x": [0.7, 0.7, 0.7], "k_d": 0.4, "k_w": [1.0, 1.0, 1.0], "k_theta": 1.0},
+        "dual-quaternion": {"k_dw": [0.5, 0.5, 0.5], "k_theta": 0.5},
+        "cluster-space": {"k_x": [0.06, 0.06, 0.03], "k": 0.02, "k_d": 0.03, "k_w": [0.02, 0.02, 0.02],
+                          "k_theta": 0.03, "k_p": [0.06, 0.06, 0.03]},
+        "robot-space": {"k_p": [0.06, 0.06, 0.03], "k_theta": 0.02},
+    },
+}
+#: Every gain key a team law reads, and how many numbers it takes (1: a scalar; 3: 3 or 1).
+_GAIN_SIZES = {"k_x": 3, "k_d": 1, "k_w": 3, "k_dw": 3, "k_p": 3, "k_theta": 1, "k": 1}
+assert set(_GAIN_SIZES) == {key for _, key, _ in TEAM_GAIN_KEYS.values()}
+
+#: What moves the robots: their kinematic models, or MuJoCo physics (quadrotors and Pioneers,
+#: :func:`quatform.sim.plants.mujoco_team.team_plant`).
+TEAM_BACKENDS = ("kinematic", "mujoco")
+
+
+def available_controllers() -> tuple[str, ...]:
+    """The team controllers whose description is registered (``formations.TEAM_FORMATIONS``),
+    in :data:`quatform.control.TEAM_FORMATIONS` order: what ``--controller`` and ``compare`` offer."""
+    from ..formations import TEAM_FORMATIONS as CLASSES
+
+    return tuple(name for name, key in TEAM_FORMATIONS.items() if key in CLASSES)
+
+
+# --------------------------------------------------------------------------- robot models
+
+@dataclass(frozen=True)
+class RobotGroupSpec:
+    """One ``[[robots]]`` entry: ``count`` robots of one model with its limits."""
+
+    model: str
+    count: int
+    robot: object
+
+
+def _quadrotor(d, where, place):
+    """A Bebop-like 4-DOF multirotor under velocity commands: a holonomic robot whose speed
+    limit is the Bebop 2's vertical top speed and yaw rate (Marciano 2021 Table 3.1,
+    ``robots.Bebop().max_velocity``: the binding limits of a norm-limited command)."""
+    top = Bebop().max_velocity
+    return HolonomicRobot(max_speed=number(d, "max_speed_m_s", where, round(float(top[2]), 3), place=place,
+                                           low=0.0, low_open=True),
+                          max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, round(float(top[3]), 3), place=place,
+                                              low=0.0, low_open=True))
+
+
+def _holonomic(d, where, place):
+    """Seed 000 §4.1's holonomic 4-DOF kinematic robot (the pair kind's defaults)."""
+    return HolonomicRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
+                          max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                              low_open=True))
+
+
+def _pioneer(d, where, place):
+    """The Pioneer 3-DX of seed 001 §3.1.1 offering its control point and heading (``xy_yaw``):
+    a unicycle whose heading follows its control point (``robots.Pioneer``)."""
+    return Pioneer(a=number(d, "a_m", where, 0.15, place=place, low=0.0, low_open=True),
+                   max_v=number(d, "max_v_m_s", where, 0.75, place=place, low=0.0, low_open=True),
+                   max_omega=number(d, "max_omega_rad_s", where, 100.0 * math.pi / 180.0, place=place, low=0.0,
+                                    low_open=True),
+                   point_kind="xy_yaw")
+
+
+def _planar(d, where, place):
+    """A planar holonomic ground robot ``(x, y, yaw)`` under velocity commands."""
+    return PlanarHolonomicRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0,
+                                                 low_open=True),
+                                max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                                    low_open=True))
+
+
+def _free_body(d, where, place):
+    """A 6-DOF free body under world linear and angular velocity commands (``pose``)."""
+    return FreeBodyRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
+                         max_angular_rate=number(d, "max_angular_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                                 low_open=True))
+
+
+#: Robot models of a ``[[robots]]`` entry: ``(builder(table, where, place), its limit keys)``.
+ROBOT_MODELS = {
+    "quadrotor": (_quadrotor, ("max_speed_m_s", "max_yaw_rate_rad_s")),
+    "holonomic": (_holonomic, ("max_speed_m_s", "max_yaw_rate_rad_s")),
+    "planar": (_planar, ("max_speed_m_s", "max_yaw_rate_rad_s")),
+    "pioneer": (_pioneer, ("a_m", "max_v_m_s", "max_omega_rad_s")),
+    "free-body": (_free_body, ("max_speed_m_s", "max_angular_rate_rad_s")),
+}
+
+
+# --------------------------------------------------------------------------- the scenario
+
+@dataclass(frozen=True, eq=False)
+class TeamScenario:
+    """A team run's definition (``docs/scenarios.md``, team scenarios).
+
+    Attributes
+    ----------
+    name, title, source : str
+    team : Team
+        The robots, robot after robot.
+    groups : tuple of RobotGroupSpec
+        The ``[[robots]]`` entries the team was built from.
+    motion : TeamMotion or PlanMotion
+        ``t -> (e, e_dot)`` in the team chart of ``team.layout``.
+    duration_s, dt_s, metrics_from_s : float
+    gains : dict
+        Gains by controller name (:data:`TEAM_TABLES` layout).
+    feedforward : bool
+    initial_offset : dict
+        ``position`` (3, m, every robot), ``yaw`` (rad, every heading), ``scale`` (the
+        shape about the centroid): the robots start at the reference at ``t = 0`` so moved.
+    safety : dict
+        ``enabled`` (bool), ``min_separation_m`` (m).
+    reference : dict
+        How a plan given by ``--reference`` is followed: ``time_scale``, ``altitude_m``,
+        ``headings``.
+    """
+
+    name: str
+    team: Team
+    motion: object
+    duration_s: float
+    dt_s: float = 0.01
+    metrics_from_s: float = 0.0
+    title: str = ""
+    source: str = ""
+    groups: tuple = ()
+    gains: dict = field(default_factory=lambda: TEAM_TABLES["table1"])
+    feedforward: bool = True
+    initial_offset: dict = field(default_factory=dict)
+    safety: dict = field(default_factory=lambda: {"enabled": True, "min_separation_m": 0.3})
+    reference: dict = field(default_factory=lambda: {"time_scale": 1.0, "altitude_m": 0.0, "headings": 0.0})
+
+    def __post_init__(self):
+        where = f"scenario {self.name!r}"
+        for key in ("duration_s", "dt_s", "metrics_from_s"):
+            number({key: getattr(self, key)}, key, where)
+        number({"duration_s": self.duration_s}, "duration_s", where, low=0.0, low_open=True)
+        number({"dt_s": self.dt_s}, "dt_s", where, low=0.0, low_open=True, high=self.duration_s)
+        if not isinstance(self.team, Team):
+            raise InvalidInputError(f"{where}: team must be a robots.Team, got {type(self.team).__name__}")
+        check_team_work(where, self.duration_s, self.dt_s, self.team.layout.n)
+        check_within_run(where, "metrics_from_s", self.metrics_from_s, self.duration_s,
+                         _last_step(self.duration_s, self.dt_s) * self.dt_s,
+                         "no sample is measured and every error would read 0")
+        if not isinstance(self.motion, (TeamMotion, PlanMotion)):
+            raise InvalidInputError(f"{where}: motion must be a TeamMotion or a PlanMotion (quatform.references."
+                                    f"team_motion), got {type(self.motion).__name__}")
+        if self.motion.layout != self.team.layout:
+            raise InvalidInputError(f"{where}: the motion is of robots {self.motion.layout.kinds}, the team offers "
+                                    f"{self.team.layout.kinds}; build both from one layout")
+
+    @property
+    def times(self) -> np.ndarray:
+        """Sample times ``0, dt_s, ...`` up to ``duration_s`` (never past it)."""
+        n = _last_step(self.duration_s, self.dt_s)
+        return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
+
+    @property
+    def template(self) -> np.ndarray:
+        """The shape at ``t = 0`` about its centroid (m), the descriptions' attitude template."""
+        e, _ = self.motion(np.zeros(1))
+        return e[0, TeamChart(self.team.layout).shape_index]
+
+    def controller(self, name: str, feedforward: bool | None = None):
+        """The team controller ``name`` (:data:`quatform.control.TEAM_FORMATIONS`) with this
+        scenario's gains and robots; ``feedforward`` defaults to the scenario's."""
+        from ..checks import nearest
+
+        names = available_controllers()
+        if name not in names:
+            raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, names)}; choose one of "
+                                    f"{', '.join(names)} (the team descriptions registered in "
+                                    "quatform.formations.TEAM_FORMATIONS)")
+        ff = self.feedforward if feedforward is None else feedforward
+        return team_controller(name, self.team, self.gains.get(name, {}), template=self.template,
+                               feedforward=bool(ff))
+
+
+_STEP_SLACK = 1e-9
+
+
+def _last_step(duration_s: float, dt_s: float) -> int:
+    return int(math.floor(duration_s / dt_s + _STEP_SLACK))
+
+
+def check_team_work(where: str, duration_s: float, dt_s: float, n_robots: int) -> None:
+    """Refuse a run of ``duration_s / dt_s`` steps of ``n_robots`` robots that cannot fit in
+    memory or the time budget (:func:`quatform.checks.check_work`)."""
+    with np.errstate(over="ignore"):
+        steps = float(duration_s) / float(dt_s) + 1.0 if dt_s > 0 else math.inf
+    check_work(where, f"duration_s / dt_s = {duration_s:g} / {dt_s:g} with {n_robots} robots", steps,
+               bytes_per_step=TEAM_BYTES_PER_ROBOT_STEP * n_robots,
+               seconds_per_step=_SECONDS_PER_STEP + TEAM_SECONDS_PER_ROBOT_STEP * n_robots,
+               fix="shorten duration_s, raise dt_s or use fewer robots")
+
+
+# --------------------------------------------------------------------------- the reader
+
+_TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "feedforward", "robots",
+             "shape", "path", "attitude", "headings", "gains", "initial_offset", "safety", "reference")
+_ROBOT_KEYS = ("model", "count")
+_SHAPE_KEYS = ("template", "spacing", "radius", "side", "edge", "rows", "positions", "scale", "moves")
+_SCALE_KEYS = ("kind", "value", "to", "start_s", "duration_s", "amplitude", "period_s", "profile")
+_MOVE_KEYS = ("robot", "to", "start_s", "duration_s", "profile")
+_PATH_KEYS = ("kind", "center", "velocity", "radius", "period_s", "climb_m_s", "r_x", "r_y", "omega")
+#: Keys of ``[path]`` that one path kind only uses (any other would ignore them).
+_PATH_ONLY = {"velocity": "line", "radius": "spiral", "period_s": "spiral", "climb_m_s": "spiral",
+              "r_x": "lemniscate", "r_y": "lemniscate", "omega": "lemniscate"}
+_ATTITUDE_KEYS = ("yaw", "pitch", "roll", "turns")
+_TURN_KEYS = ("axis", "angle", "start_s", "duration_s", "profile")
+_HEADING_KEYS = ("mode", "offsets")
+_OFFSET_KEYS = ("position", "yaw", "scale")
+_SAFETY_KEYS = ("enabled", "min_separation_m")
+_REFERENCE_KEYS = ("time_scale", "altitude_m", "headings")
+
+
+def _records(d: dict, key: str, keys, where: str, place: str):
+    """``(table, where)`` of each entry of the array of tables ``[[place]]``."""
+    items = d.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(r, dict) for r in items):
+        raise InvalidInputError(f"{where}: {place} = {short(items)} must be an array of tables ([[{place}]] "
+                                f"entries; {_HINT})")
+    for i, r in enumerate(items):
+        w = f"{where} [[{place}]] #{i + 1}"
+        check_keys(r, keys, w, f"[[{place}]]", _HINT)
+        yield r, w
+
+
+def _robots(data: dict, where: str):
+    items = data.get("robots", MISSING)
+    if items is MISSING:
+        raise InvalidInputError(f"{where}: missing [[robots]] (e.g. [[robots]] model = 'quadrotor', count = 4)")
+    groups = []
+    for r, w in _records(data, "robots", _all_robot_keys(), where, "robots"):
+        model = text(r, "model", w, choices=tuple(ROBOT_MODELS))
+        build, limits = ROBOT_MODELS[model]
+        check_keys(r, _ROBOT_KEYS + limits, w, "[[robots]]", f"a {model} takes {', '.join(limits)}; {_HINT}")
+        count = integer(r, "count", w, 1, low=1, high=100_000)
+        groups.append(RobotGroupSpec(model, count, build(r, w, "[[robots]]")))
+    n = sum(gr.count for gr in groups)
+    if n < 2:
+        raise InvalidInputError(f"{where}: [[robots]] give {n} robot; a formation needs at least 2 (raise count)")
+    return tuple(groups), Team(tuple(gr.robot for gr in groups for _ in range(gr.count)))
+
+
+def _all_robot_keys():
+    return _ROBOT_KEYS + tuple(k for _, limits in ROBOT_MODELS.values() for k in limits)
+
+
+def _shape(data: dict, where: str, n: int, duration: float):
+    s = table(data, "shape", where, default={"template": "ring"})
+    check_keys(s, _SHAPE_KEYS, where, "[shape]", _HINT)
+    at = {"place": "[shape]"}
+    name = text(s, "template", where, "ring", **at, choices=tuple(TEMPLATES))
+    size_key = TEMPLATES[name]
+    for key in ("spacing", "radius", "side", "edge", "rows", "positions"):
+        if key in s and key != size_key and not (name == "grid" and key == "rows") \
+                and not (name == "positions" and key == "positions"):
+            raise InvalidInputError(f"{where}: [shape] {key} does not apply to template = {name!r}"
+                                    + (f" (its size is {size_key})" if size_key else "") + "; remove it")
+    size = number(s, size_key, where, 1.0, **at, low=0.0, low_open=True) if size_key else None
+    rows = integer(s, "rows", where, None, **at, low=1) if name == "grid" else None
+    positions = None
+    if name == "positions":
+        if "positions" not in s:
+            raise InvalidInputError(f"{where}: [shape] template = 'positions' needs positions = [[x, y, z], ...] "
+                                    f"({n} of them, m)")
+        pos = s["positions"]
+        if not isinstance(pos, list) or len(pos) != n:
+            raise InvalidInputError(f"{where}: [shape] positions must list {n} positions (one per robot), got "
+                                    f"{short(pos)}")
+        positions = [vector({"positions": p}, "positions", 3, where, place=f"[shape] positions #{i + 1}")
+                     for i, p in enumerate(pos)]
+    template = template_positions(name, n, size, rows, positions)
+    sc = table(s, "scale", where, "[shape]", default={})
+    check_keys(sc, _SCALE_KEYS, where, "[shape.scale]", _HINT)
+    p = "[shape.scale]"
+    scale = Scale(kind=text(sc, "kind", where, "constant", place=p, choices=SCALE_KINDS),
+                  value=number(sc, "value", where, 1.0, place=p, low=0.0, low_open=True),
+                  to=number(sc, "to", where, 1.0, place=p, low=0.0, low_open=True),
+                  start_s=number(sc, "start_s", where, 0.0, place=p, low=0.0, high=duration),
+                  duration_s=number(sc, "duration_s", where, 1.0, place=p, low=0.0, low_open=True),
+                  amplitude=number(sc, "amplitude", where, 0.0, place=p, low=0.0, high=1.0, high_open=True),
+                  period_s=number(sc, "period_s", where, 1.0, place=p, low=0.0, low_open=True),
+                  profile=text(sc, "profile", where, "linear", place=p, choices=PROFILES))
+    moves = []
+    for m, w in _records(s, "moves", _MOVE_KEYS, where, "shape.moves"):
+        moves.append(Move(robot=integer(m, "robot", w, low=1, high=n) - 1, to=vector(m, "to", 3, w),
+                          start_s=number(m, "start_s", w, low=0.0, high=duration),
+                          duration_s=number(m, "duration_s", w, low=0.0, low_open=True),
+                          profile=text(m, "profile", w, "smooth", choices=PROFILES)))
+    return template, scale, tuple(moves)
+
+
+def _path(data: dict, where: str) -> OriginPath:
+    p = table(data, "path", where, default={})
+    check_keys(p, _PATH_KEYS, where, "[path]", _HINT)
+    at = {"place": "[path]"}
+    kind = text(p, "kind", where, "fixed", **at, choices=PATH_KINDS)
+    for key, owner in _PATH_ONLY.items():
+        if key in p and kind != owner:
+            raise InvalidInputError(f"{where}: [path] {key} applies to kind = {owner!r} only, not {kind!r}: remove "
+                                    f"it or set kind = {owner!r}")
+    kw = {}
+    if kind == "spiral":
+        for key in ("radius", "period_s"):
+            kw[key] = number(p, key, where, MISSING, **at, low=0.0, low_open=True)
+        kw["climb_m_s"] = number(p, "climb_m_s", where, 0.0, **at)
+    if kind == "lemniscate":
+        kw.update(r_x=number(p, "r_x", where, 1.0, **at, low=0.0, low_open=True),
+                  r_y=number(p, "r_y", where, 1.0, **at, low=0.0, low_open=True),
+                  omega=number(p, "omega", where, 0.1, **at))
+        if kw["omega"] == 0.0:
+            raise InvalidInputError(f"{where}: [path] omega = 0.0 must be nonzero (rad/s; the path would stand still)")
+    return OriginPath(kind=kind, center=vector(p, "center", 3, where, (0.0, 0.0, 0.0), **at),
+                      velocity=vector(p, "velocity", 3, where, (0.0, 0.0, 0.0), **at), **kw)
+
+
+def _attitude(data: dict, where: str, duration: float) -> Attitude:
+    a = table(data, "attitude", where, default={})
+    check_keys(a, _ATTITUDE_KEYS, where, "[attitude]", _HINT)
+    at = {"place": "[attitude]"}
+    turns = []
+    for r, w in _records(a, "turns", _TURN_KEYS, where, "attitude.turns"):
+        axis = vector(r, "axis", 3, w)
+        if not any(axis):
+            raise InvalidInputError(f"{w}: axis = {list(axis)} must be a nonzero vector (the world axis to turn about)")
+        turns.append(Turn(axis, number(r, "angle", w), number(r, "start_s", w, low=0.0, high=duration),
+                          number(r, "duration_s", w, low=0.0, low_open=True),
+                          text(r, "profile", w, "linear", choices=PROFILES)))
+    return Attitude(number(a, "yaw", where, 0.0, **at), number(a, "pitch", where, 0.0, **at),
+                    number(a, "roll", where, 0.0, **at), tuple(turns))
+
+
+def _headings(data: dict, where: str, n: int) -> Headings:
+    h = table(data, "headings", where, default={})
+    check_keys(h, _HEADING_KEYS, where, "[headings]", _HINT)
+    mode = text(h, "mode", where, "formation", place="[headings]", choices=HEADING_MODES)
+    off = h.get("offsets", 0.0)
+    if isinstance(off, list):
+        if len(off) not in (1, n):
+            raise InvalidInputError(f"{where}: [headings] offsets lists {len(off)} angles for {n} robots; give one "
+                                    f"number or {n}")
+        vals = vector(h, "offsets", len(off), where, place="[headings]")
+    else:
+        vals = (number(h, "offsets", where, 0.0, place="[headings]"),)
+    return Headings(mode, np.array(vals))
+
+
+def _gains(data: dict, where: str, dt: float) -> dict:
+    g = data.get("gains", "table1")
+    if isinstance(g, str):
+        base, own = text(data, "gains", where, "table1", choices=tuple(TEAM_TABLES)), {}
+    elif isinstance(g, dict):
+        check_keys(g, ("base", *TEAM_FORMATIONS), where, "[gains]", _HINT)
+        base = text(g, "base", where, "table1", place="[gains]", choices=tuple(TEAM_TABLES))
+        own = g
+    else:
+        raise InvalidInputError(f"{where}: gains = {short(g)} must be 'table1', 'table2' or a [gains] table")
+    gains = {}
+    for name in TEAM_FORMATIONS:
+        place = f"[gains.{name}]"
+        mine = table(own, name, where, "[gains]", default={})
+        check_keys(mine, _GAIN_SIZES, where, place, _HINT)
+        gains[name] = dict(TEAM_TABLES[base][name])
+        for key, size in _GAIN_SIZES.items():
+            if key in mine:
+                gains[name][key] = _gain(mine, key, size, where, place)
+    k = max(float(x) for gg in gains.values() for v in gg.values() for x in np.ravel(v))
+    if k * dt >= 2.0:  # one Euler step multiplies an error by 1 - k dt (pair kind: check_step_stable)
+        raise InvalidInputError(f"{where}: dt_s = {dt:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = "
+                                f"{k * dt:.3g} >= 2: the discrete control loop would be unstable; use dt_s < "
+                                f"{2.0 / k:.3g} s (smaller gains allow a larger step)")
+    return gains
+
+
+def _gain(d: dict, key: str, size: int, where: str, place: str):
+    v = d[key]
+    if size > 1 and isinstance(v, list):
+        vals = list(vector(d, key, size, where, place=place))
+    elif isinstance(v, list):
+        raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be one number")
+    else:
+        vals = [number(d, key, where, place=place)]
+    if not all(x > 0 for x in vals):
+        raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be positive (seed 000 Tables 1-2)")
+    return vals if size > 1 and isinstance(v, list) else vals[0]
+
+
+def team_scenario_from_dict(data: dict, where: str = "scenario") -> TeamScenario:
+    """Build a :class:`TeamScenario` from parsed TOML; every mistake is one line naming the key."""
+    check_keys(data, _TOP_KEYS, where, hint=_HINT)
+    text(data, "kind", where, choices=("team",))
+    try:
+        duration = number(data, "duration_s", where, low=0.0, low_open=True)
+        dt = number(data, "dt_s", where, 0.01, low=0.0, low_open=True, high=duration)
+        groups, team = _robots(data, where)
+        n = team.layout.n
+        check_team_work(where, duration, dt, n)  # before anything is sampled
+        metrics_from = number(data, "metrics_from_s", where, 5.0 if duration > 5.0 else 0.0, low=0.0)
+        template, scale, moves = _shape(data, where, n, duration)
+        motion = TeamMotion(team.layout, template, _path(data, where), _attitude(data, where, duration), scale,
+                            moves, _headings(data, where, n))
+        off = table(data, "initial_offset", where, default={})
+        check_keys(off, _OFFSET_KEYS, where, "[initial_offset]", _HINT)
+        offset = {"position": vector(off, "position", 3, where, (0.0, 0.0, 0.0), place="[initial_offset]"),
+                  "yaw": number(off, "yaw", where, 0.0, place="[initial_offset]"),
+                  "scale": number(off, "scale", where, 1.0, place="[initial_offset]", low=0.0, low_open=True)}
+        saf = table(data, "safety", where, default={})
+        check_keys(saf, _SAFETY_KEYS, where, "[safety]", _HINT)
+        safety = {"enabled": flag(saf, "enabled", where, True, place="[safety]"),
+                  "min_separation_m": number(saf, "min_separation_m", where, 0.3, place="[safety]", low=0.0,
+                                             low_open=True)}
+        ref = table(data, "reference", where, default={})
+        check_keys(ref, _REFERENCE_KEYS, where, "[reference]", _HINT)
+        reference = {"time_scale": number(ref, "time_scale", where, 1.0, place="[reference]", low=0.0,
+                                          low_open=True),
+                     "altitude_m": number(ref, "altitude_m", where, 0.0, place="[reference]"),
+                     "headings": number(ref, "headings", where, 0.0, place="[reference]")}
+        sc = TeamScenario(name=text(data, "name", where, Path(where).stem), title=text(data, "title", where, ""),
+                          source=text(data, "source", where, ""), team=team, groups=groups, motion=motion,
+                          duration_s=duration, dt_s=dt, metrics_from_s=metrics_from,
+                          gains=_gains(data, where, dt), feedforward=flag(data, "feedforward", where, True),
+                          initial_offset=offset, safety=safety, reference=reference)
+        _check_start(sc, where)
+    except InvalidInputError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
+    return sc
+
+
+def _check_start(sc: TeamScenario, where: str) -> None:
+    """Refuse robots that start on each other (the reference at t = 0 with the offset) and,
+    with the barrier on, a reference that brings two robots closer than its minimum (the
+    barrier would hold them apart and the formation could not be tracked): sampled at most
+    every 1/2000 of the run."""
+    L = sc.team.layout
+    r0 = _start_points(sc, sc.motion)
+    check_template(L.positions(r0)[None], L.n, "the robots at t = 0 (the reference with [initial_offset])",
+                   min_separation=1e-6)
+    if not sc.safety["enabled"]:
+        return
+    t = sc.times
+    t = t[::max(1, len(t) // 2000)]
+    r = TeamChart(L).robots(sc.motion(t)[0])
+    sep = min_separations(L, r)
+    k = int(np.argmin(sep))
+    d = sc.safety["min_separation_m"]
+    if sep[k] < d:
+        i, j = L.pairs
+        a = int(np.argmin(L.separations(r[k])))
+        raise InvalidInputError(
+            f"{where}: the reference brings robots {L.labels[i[a]]} and {L.labels[j[a]]} to {sep[k]:.3g} m at t = "
+            f"{t[k]:g} s, below [safety] min_separation_m = {d:g} m (the barrier would hold them apart); enlarge "
+            "the shape or lower min_separation_m")
+
+
+def _start_points(sc: TeamScenario, motion) -> np.ndarray:
+    """The robots' points at t = 0: the reference moved by the initial offset."""
+    e, _ = motion(np.zeros(1))
+    e = e[0].copy()
+    chart = TeamChart(sc.team.layout)
+    off = sc.initial_offset
+    e[0:3] += np.asarray(off.get("position", (0.0, 0.0, 0.0)))
+    e[chart.shape_index] *= off.get("scale", 1.0)
+    e[chart.yaw_index] += off.get("yaw", 0.0)
+    return chart.robots(e)
+
+
+def with_plan(sc: TeamScenario, plan_file) -> TeamScenario:
+    """``sc`` following the saved N-robot plan ``plan_file`` (:class:`PlanMotion` with the
+    scenario's ``[reference]`` settings); the run lasts the plan (times ``time_scale``)."""
+    from ..planning import load_plan
+
+    plan = load_plan(plan_file)
+    ref = sc.reference
+    motion = PlanMotion(sc.team.layout, plan, ref["altitude_m"], ref["time_scale"], ref["headings"])
+    T = motion.duration_s
+    check_team_work(str(plan_file), T, sc.dt_s, sc.team.layout.n)
+    return dataclasses.replace(sc, motion=motion, duration_s=T, name=f"{sc.name}+{plan.info.get('name', 'plan')}",
+                               metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)
+
+
+# --------------------------------------------------------------------------- the kind
+
+#: Columns of the comparison table.
+TEAM_TABLE_COLUMNS = (
+    ("controller", "controller", "{}"),
+    ("n_robots", "N", "{}"),
+    ("first_singular_time_s", "singular at (s)", "{:.2f}"),
+    ("reference_lost", "lost", "{}"),
+    ("max_cluster_position_error_m", "centroid (m)", "{:.4f}"),
+    ("max_shape_error_m", "shape (m)", "{:.4f}"),
+    ("max_orientation_error_rad", "attitude (rad)", "{:.4f}"),
+    ("max_robot_position_error_m", "robot pos (m)", "{:.4f}"),
+    ("max_recovered_attitude_error_rad", "recovered (rad)", "{:.3f}"),
+    ("min_robot_separation_m", "min sep (m)", "{:.3f}"),
+    ("nonfinite_commands", "NaN cmds", "{}"),
+)
+
+#: Most samples of the singularity measure a run computes, as ``budget / n_c^3`` (at least
+#: :data:`_MIN_SINGULAR_SAMPLES`): the measure is the SVD of the dense ``(n_r, n_c)`` inverse
+#: Jacobian, O(n_c^3) a sample (0.3 s at n_c = 400 on this project's 2-core machine), so a
+#: 100-robot team measures it on a subsample of times (12 of them); a team of 10 at every sample.
+_SINGULAR_BUDGET = 6e8
+_MIN_SINGULAR_SAMPLES = 12
+
+
+def singularity_samples(n_times: int, n_c: int) -> np.ndarray:
+    """Indices of the samples whose singularity measure a run computes: every sample for a
+    small team, else about ``6e8 / n_c^3`` evenly spaced ones (at least 12, the first and last
+    kept)."""
+    k = int(max(_MIN_SINGULAR_SAMPLES, _SINGULAR_BUDGET / max(n_c, 1) ** 3))
+    if n_times <= k:
+        return np.arange(n_times)
+    return np.unique(np.linspace(0, n_times - 1, k).round().astype(int))
+
+
+class TeamKind(ScenarioKind):
+    """N robots of any mix under one of the four team controllers (issue 14)."""
+
+    name = "team"
+    scenario_type = TeamScenario
+    options = (
+        Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
+        Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
+        Option("backend", "what moves the robots", TEAM_BACKENDS, "kinematic"),
+        Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
+    )
+    compare_over = "controller"
+    table_columns = TEAM_TABLE_COLUMNS
+
+    def from_dict(self, data: dict, where: str) -> TeamScenario:
+        return team_scenario_from_dict(data, where)
+
+    def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
+        """The controllers whose description can represent the scenario's robots (the
+        Euclidean team baseline refuses a mix of planar and spatial robots), and the others
+        with the description's one-line refusal."""
+        if axis != "controller" or not isinstance(scenario, TeamScenario):
+            return super().compare_choices(scenario, axis)
+        run, skipped = [], {}
+        for name in available_controllers():
+            try:
+                scenario.controller(name)
+            except InvalidInputError as exc:
+                skipped[name] = str(exc)
+            else:
+                run.append(name)
+        return tuple(run), skipped
+
+    def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
+                   backend: str = "kinematic", reference=None) -> Experiment:
+        """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_FORMATIONS`
+        name or a controller object of the scenario's team; required).
+
+        ``reference``: a saved N-robot plan to follow (:func:`with_plan`).
+        """
+        if not isinstance(scenario, TeamScenario):
+            raise InvalidInputError(f"team experiment: scenario must be a TeamScenario, got {type(scenario).__name__}")
+        if controller is None:
+            raise InvalidInputError(f"{scenario.name} is a team scenario: give a controller "
+                                    f"(--controller {{{','.join(available_controllers())}}})")
+        if backend not in TEAM_BACKENDS:
+            raise InvalidInputError(f"unknown backend {backend!r} for a team scenario; choose one of "
+                                    f"{', '.join(TEAM_BACKENDS)}")
+        if reference is not None:
+            scenario = with_plan(scenario, reference)
+        check_team_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s, scenario.team.layout.n)
+        ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
+        team, F, ff = ctrl.team, ctrl.formation, bool(ctrl.feedforward)
+        if team.n_state != team.layout.size:
+            raise InvalidInputError(f"{scenario.name}: a team robot's state must be its point (the models of "
+                                    f"{', '.join(ROBOT_MODELS)}); this team's state has {team.n_state} entries for "
+                                    f"points of {team.layout.size}")
+        if team.layout != scenario.team.layout:
+            raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the "
+                                    f"scenario's {scenario.team.layout.kinds}")
+        chart = TeamChart(team.layout)
+        t = scenario.times
+        e_des, ed_des = scenario.motion(t)
+        c_des, cd_des = F.from_chart(e_des, ed_des)
+        r_des = chart.robots(e_des)
+        x0 = _start_points(scenario, scenario.motion)  # every team model's state is its point
+        physics = None
+        if backend == "mujoco":  # MuJoCo only when asked for
+            from ..sim import mujoco_backend as mj
+            from ..sim.plants import mujoco as mjp
+            from ..sim.plants.mujoco_team import team_plant
+
+            plant = physics = team_plant(team, x0, dt=scenario.dt_s)
+        else:
+            plant = KinematicTeam(team)
+        safety = dict(scenario.safety)
+        safety["applied"] = bool(safety["enabled"])
+        if safety["applied"]:  # issue 14 item 6: on by default for teams
+            ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], dt_s=scenario.dt_s), team)
+        meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
+                "backend_label": "kinematic" if physics is None else mj.BACKEND_LABEL, "formation": F.name,
+                "feedforward": ff, "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
+                "chart_variables": chart.variables}
+
+        def reference_at(k):
+            return Reference(c_des[k], cd_des[k], r_des[k])
+
+        def finish(log: Log) -> Log:
+            r = team.point(log["state"])
+            c = log["cluster"]
+            e = F.to_chart(c, near_e=e_des, r=r)
+            idx = singularity_samples(len(t), F.n_c)
+            sing = np.full(len(t), np.nan)
+            sing[idx] = F.singularity_measure(r[idx], near_c=c_des[idx])
+            names = chart.names
+            chans = [Channel("points", team.layout.names, r),
+                     Channel("r_des", tuple(n + "_des" for n in team.layout.names), r_des),
+                     Channel("c_des", tuple(n + "_des" for n in F.names), c_des),
+                     Channel("e", names, e), Channel("e_des", tuple(n + "_des" for n in names), e_des),
+                     Channel("singularity", ("singularity_measure",), sing[:, None])]
+            extra = {}
+            if physics is not None:
+                extra["physics_record"] = mjp.physics_record(physics, log, f"{scenario.name}: {ctrl.name} controller")
+            return log.with_channels(*chans, singularity_samples=int(idx.size), **extra)
+
+        def metrics(log: Log) -> dict:
+            out = team_metrics(log)
+            if physics is not None:
+                out.update(mjp.physics_metrics(physics))
+            return out
+
+        csv = (("points", "r_des"), ("e", "e_des"), "command", "singularity",
+               *(("min_separation", "safety_active") if safety["applied"] else ()))
+        return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl, reference=reference_at,
+                          times=t, x0=x0, dt=scenario.dt_s, finish=finish, metrics=metrics, csv_channels=csv,
+                          meta=meta)
+
+
+#: The team kind (registered in :data:`quatform.scenarios.KINDS`).
+TEAM = TeamKind()
+KINDS[TEAM.name] = TEAM
