@@ -216,10 +216,10 @@ class TeamController(contract.Controller):
             q = _get(c_des, blk)
             idx = blk if isinstance(blk, np.ndarray) else np.arange(blk[0], blk[0] + blk[1] * blk[2]).reshape(blk[1:])
             p = q[..., :4]
-            n = np.sqrt(np.sum(p * p, axis=-1))
+            n = np.sqrt(np.einsum("...i,...i->...", p, p))
             bad = np.abs(n - 1.0) > UNIT_TOLERANCE
             if dual:
-                bad |= np.abs(np.sum(p * q[..., 4:], axis=-1)) > UNIT_TOLERANCE
+                bad |= np.abs(np.einsum("...i,...i->...", p, q[..., 4:])) > UNIT_TOLERANCE
             if np.any(bad):
                 names = self.formation.names
                 row = int(np.argwhere(bad.reshape(-1, bad.shape[-1]))[0][-1])

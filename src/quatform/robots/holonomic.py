@@ -18,6 +18,9 @@ from ..errors import InvalidInputError
 
 __all__ = ["HolonomicRobot"]
 
+#: Below this magnitude a velocity's squared norm is finite in float64 (the fast norm).
+_SQUARES_FINITE = 1e150
+
 
 @dataclass(frozen=True)
 class HolonomicRobot:
@@ -98,9 +101,13 @@ class HolonomicRobot:
         """
         u = np.asarray(u, dtype=float)
         finite = np.all(np.isfinite(u), axis=-1)
-        v = np.where(finite[..., None], u, 0.0)
-        big = np.max(np.abs(v[..., :3]), axis=-1)  # norm without overflow
-        speed = big * np.linalg.norm(v[..., :3] / np.where(big > 0, big, 1.0)[..., None], axis=-1)
+        v = u if finite.all() else np.where(finite[..., None], u, 0.0)
+        w = v[..., :3]
+        if w.size and np.max(np.abs(w)) < _SQUARES_FINITE:  # the squares cannot overflow: one product
+            speed = np.sqrt(np.einsum("...i,...i->...", w, w))
+        else:
+            big = np.max(np.abs(w), axis=-1)  # norm without overflow
+            speed = big * np.linalg.norm(w / np.where(big > 0, big, 1.0)[..., None], axis=-1)
         with np.errstate(divide="ignore"):
             s = np.minimum(self.max_speed / speed, self.max_yaw_rate / np.abs(v[..., 3]))
         return np.where(finite, np.minimum(1.0, s), 0.0)
