@@ -127,9 +127,13 @@ class TeamController(contract.Controller):
                 k = k[:, None]  # one gain per row
             plan.append((gr.role, law, gr.index, k))
         object.__setattr__(self, "_plan", tuple(plan))
-        # each group read as a view where its variables are contiguous (no gather, no scatter)
-        object.__setattr__(self, "_blocks", tuple((law, tuple(k.tolist()), _block(idx)) for _, law, idx, k in plan
-                                                  if law != "proportional"))
+        # each group read as a view where its variables are contiguous (no gather, no scatter);
+        # the (dual) quaternion groups of one law and gains in one law call, their rows stacked
+        merged = {}
+        for _, law, idx, k in plan:
+            if law != "proportional":
+                merged.setdefault((law, tuple(k.tolist())), []).append(_block(idx))
+        object.__setattr__(self, "_blocks", tuple((law, kk, tuple(blks)) for (law, kk), blks in merged.items()))
         object.__setattr__(self, "_linear", tuple((_block(idx), k) for _, law, idx, k in plan if law == "proportional"))
 
     # -- contract ---------------------------------------------------------------------------
@@ -188,17 +192,17 @@ class TeamController(contract.Controller):
         ff = 1.0 if self.feedforward else 0.0
         for blk, k in self._linear:
             _put(rate, blk, proportional(_get(err, blk), _get(c_dot, blk), k, ff))
-        for law, kk, blk in self._blocks:  # eqs. (20), (28) on every row of the group at once
+        for law, kk, blks in self._blocks:  # eqs. (20), (28) on every row of the groups at once
             comps = []
             for a in (c, c_des, c_dot):
-                g = _get(a, blk)
+                g = _rows(a, blks)
                 comps.append(tuple(g[..., j] for j in range(g.shape[-1])))
             if law == "quaternion":
                 qe, qd = quaternion_feedback(*comps, kk, ff)
             else:
                 qe, qd = dual_quaternion_feedback(*comps, kk, ff, signed_rotation=law == "dual-quaternion")
-            _put(err, blk, np.stack(np.broadcast_arrays(*qe), axis=-1))
-            _put(rate, blk, np.stack(np.broadcast_arrays(*qd), axis=-1))
+            _put_rows(err, blks, np.stack(np.broadcast_arrays(*qe), axis=-1))
+            _put_rows(rate, blks, np.stack(np.broadcast_arrays(*qd), axis=-1))
         return c, err, rate, r
 
     @functools.cached_property
@@ -209,12 +213,13 @@ class TeamController(contract.Controller):
     @functools.cached_property
     def _unit_rows(self) -> tuple:
         """The (dual) quaternion blocks of the state: ``(index (M, 4), dual)``."""
-        return tuple((blk, law != "quaternion") for law, _, blk in self._blocks)
+        return tuple((blks, law != "quaternion") for law, _, blks in self._blocks)
 
     def _check_units(self, c_des):
-        for blk, dual in self._unit_rows:
-            q = _get(c_des, blk)
-            idx = blk if isinstance(blk, np.ndarray) else np.arange(blk[0], blk[0] + blk[1] * blk[2]).reshape(blk[1:])
+        for blks, dual in self._unit_rows:
+            q = _rows(c_des, blks)
+            idx = np.concatenate([b if isinstance(b, np.ndarray) else np.arange(b[0], b[0] + b[1] * b[2]).reshape(b[1:])
+                                  for b in blks])
             p = q[..., :4]
             n = np.sqrt(np.einsum("...i,...i->...", p, p))
             bad = np.abs(n - 1.0) > UNIT_TOLERANCE
@@ -251,6 +256,20 @@ def _put(a, blk, value):
         return
     start, M, k = blk
     a[..., start:start + M * k] = np.reshape(value, np.shape(value)[:-2] + (M * k,))
+
+
+def _rows(a, blks):
+    """The rows of several groups stacked, ``(..., sum M, k)``."""
+    return _get(a, blks[0]) if len(blks) == 1 else np.concatenate([_get(a, b) for b in blks], axis=-2)
+
+
+def _put_rows(a, blks, value):
+    """Write the stacked rows ``value`` back into each group's variables."""
+    i = 0
+    for b in blks:
+        m = (b.shape[0] if isinstance(b, np.ndarray) else b[1])
+        _put(a, b, value[..., i:i + m, :])
+        i += m
 
 
 def _default_model(kind):
