@@ -163,7 +163,7 @@ class TeamController(contract.Controller):
         u = r_dot if self.team.passthrough else self.team.actuate(
             r, r_dot, t, self.team.initial_memory(r.shape[:-1]))[0]
         finite = np.all(np.isfinite(u), axis=-1, keepdims=True)
-        u = self.team.saturate(np.where(finite, u, 0.0))
+        u = self.team.saturate(u if finite.all() else np.where(finite, u, 0.0))
         return contract.Step(u, None, {"cluster": c, "error": err, "raw_finite": finite.astype(float)})
 
     def _chain(self, measured, reference):
@@ -188,7 +188,7 @@ class TeamController(contract.Controller):
         err = c - c_des
         if len(self._angles):
             err[..., self._angles] = (err[..., self._angles] + math.pi) % (2.0 * math.pi) - math.pi
-        rate = np.zeros(np.broadcast_shapes(c.shape, c_dot.shape))
+        rate = np.empty(np.broadcast_shapes(c.shape, c_dot.shape))  # every variable is in one group
         ff = 1.0 if self.feedforward else 0.0
         for blk, k in self._linear:
             _put(rate, blk, proportional(_get(err, blk), _get(c_dot, blk), k, ff))

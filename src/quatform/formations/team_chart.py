@@ -183,29 +183,30 @@ def fit_attitude(template, centred, hint=None) -> np.ndarray:
     """
     Nm = horn_matrix(template, centred)
     lam, V = np.linalg.eigh(Nm)
-    scale = np.sqrt(np.sum(np.asarray(template) ** 2, axis=(-2, -1)) * np.sum(np.asarray(centred) ** 2,
-                                                                              axis=(-2, -1)))
+    t, c = np.asarray(template, dtype=float), np.asarray(centred, dtype=float)
+    scale = np.sqrt(np.einsum("...ij,...ij->...", t, t) * np.einsum("...ij,...ij->...", c, c))
     tie, tau = (TIE * scale)[..., None], (TIE_DECAY * scale + 1e-300)[..., None]
-    with np.errstate(under="ignore"):
-        w = np.exp(-np.maximum(lam[..., -1:] - lam - tie, 0.0) / tau)  # (..., 4): 1 for the top, 0 past a gap
+    arg = -np.maximum(lam[..., -1:] - lam - tie, 0.0) / tau
+    w = np.where(arg < -700.0, 0.0, np.exp(np.maximum(arg, -700.0)))  # (..., 4): 1 for the top, 0 past a gap
     h = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]) if hint is None else np.asarray(hint, dtype=float),
                         lam.shape)
+    Vt = np.swapaxes(V, -1, -2)
 
     def project(v):
-        return np.einsum("...ik,...k->...i", V, w * np.einsum("...ik,...i->...k", V, v))
+        return (V @ (w * (Vt @ v[..., None])[..., 0])[..., None])[..., 0]
 
     q = project(h)
-    n = np.linalg.norm(q, axis=-1)
+    n = np.sqrt(np.einsum("...i,...i->...", q, q))
     for turn in _HALF_TURNS:  # the hint a half turn from every fit: seed 000's pair rule
-        bad = n < 1e-9
-        if not np.any(bad):
+        if not n.min() < 1e-9:
             break
+        bad = n < 1e-9
         alt = project(g.mul(h, turn))
         an = np.linalg.norm(alt, axis=-1)
         q = np.where(bad[..., None], alt, q)
         n = np.where(bad, an, n)
     bad = n < 1e-9
-    if np.any(bad):  # no hint breaks the tie: the top eigenvector, its first nonzero entry positive
+    if bad.any():  # no hint breaks the tie: the top eigenvector, its first nonzero entry positive
         top = V[..., :, -1]
         top = top * np.where(top[..., :1] < 0.0, -1.0, 1.0)
         q = np.where(bad[..., None], top, q)
