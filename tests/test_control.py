@@ -83,10 +83,16 @@ def test_dual_quaternion_lyapunov_29_rate_and_region(e0, e_des):
     dt = 2.5e-4  # Euler steps: the differences match the rate to O(dt)
     cs, c_des = closed_loop(ctrl, e0, e_des, steps=600, dt=dt)
     V = dual_quaternion_lyapunov(cs, c_des)
-    # the derived rate matches the closed loop (central differences)
-    for i in (40, 300, 560):
+    # the derived rate matches the closed loop (central differences) within 2 % of the rate's
+    # size along the run (a sample where the rate crosses zero has no relative accuracy: e.g. a
+    # shape error near pi, where V' turns from + to - while the robots realise only the
+    # projection of the commanded rate, hypothesis found 1.4e-3 off on a rate of 0.48)
+    samples = (40, 300, 560)
+    formula = [dq_vdot_formula(cs[i], c_des, 3.0) for i in samples]
+    size = max(abs(f) for f in formula)
+    for i, f in zip(samples, formula):
         numeric = (V[i + 1] - V[i - 1]) / (2 * dt)
-        assert numeric == pytest.approx(dq_vdot_formula(cs[i], c_des, 3.0), rel=2e-2, abs=1e-5)
+        assert abs(numeric - f) <= 2e-2 * size + 1e-5, (i, numeric, f)
     # where every rotation error is within 90 deg, (29) decreases (d_0^2 <= |p_vec|^2 |t|^2/4 ...)
     small = np.array([dq_max_error_angle(c, c_des) <= np.pi / 2 for c in cs])
     dV = np.diff(V)

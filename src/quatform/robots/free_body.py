@@ -22,6 +22,7 @@ import numpy as np
 
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
+from . import limits
 from ..formations import geometry as g
 
 __all__ = ["FreeBodyRobot"]
@@ -106,14 +107,7 @@ class FreeBodyRobot:
         -------
         ndarray, shape (...)
         """
-        u = np.asarray(u, dtype=float)
-        finite = np.all(np.isfinite(u), axis=-1)
-        v = np.where(finite[..., None], u, 0.0)
-        speed = np.linalg.norm(v[..., 0:3], axis=-1)
-        spin = np.linalg.norm(v[..., 3:6], axis=-1)
-        with np.errstate(divide="ignore", over="ignore"):
-            s = np.minimum(self.max_speed / speed, self.max_angular_rate / spin)
-        return np.where(finite, np.minimum(1.0, s), 0.0)
+        return limits.limit_factor(u, 3, self.max_speed, self.max_angular_rate)
 
     def saturate(self, u) -> np.ndarray:
         """Commands limited to the body's speeds, direction kept; non-finite ones become zero.
@@ -126,12 +120,7 @@ class FreeBodyRobot:
         -------
         ndarray, shape (..., 6)
         """
-        u = np.asarray(u, dtype=float)
-        if u.shape[-1:] != (6,):
-            raise InvalidInputError(f"a free-body command has shape (..., 6) (v_x, v_y, v_z, w_x, w_y, w_z), "
-                                    f"got {u.shape}")
-        s = self.limit_factor(u)[..., None]
-        return np.where(s > 0, u * s, 0.0)
+        return limits.saturate(u, self.limit_factor, 6, "free-body (v_x, v_y, v_z, w_x, w_y, w_z)")
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` s of the saturated command ``u``: exact for a held command.

@@ -15,11 +15,9 @@ import numpy as np
 
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
+from . import limits
 
 __all__ = ["HolonomicRobot"]
-
-#: Below this magnitude a velocity's squared norm is finite in float64 (the fast norm).
-_SQUARES_FINITE = 1e150
 
 
 @dataclass(frozen=True)
@@ -82,11 +80,7 @@ class HolonomicRobot:
         -------
         ndarray, shape (..., 4)
         """
-        u = np.array(u, dtype=float)
-        if u.shape[-1:] != (4,):
-            raise InvalidInputError(f"a 4-DOF robot command has shape (..., 4), got {u.shape}")
-        s = self.limit_factor(u)[..., None]
-        return np.where(s > 0, u * s, 0.0)  # a non-finite command (factor 0) stops the robot
+        return limits.saturate(u, self.limit_factor, 4, "4-DOF robot")  # a non-finite command stops the robot
 
     def limit_factor(self, u) -> np.ndarray:
         """Largest ``s`` in ``[0, 1]`` with ``s u`` within the limits (0 for a non-finite ``u``).
@@ -99,18 +93,7 @@ class HolonomicRobot:
         -------
         ndarray, shape (...)
         """
-        u = np.asarray(u, dtype=float)
-        finite = np.all(np.isfinite(u), axis=-1)
-        v = u if finite.all() else np.where(finite[..., None], u, 0.0)
-        w = v[..., :3]
-        if w.size and np.max(np.abs(w)) < _SQUARES_FINITE:  # the squares cannot overflow: one product
-            speed = np.sqrt(np.einsum("...i,...i->...", w, w))
-        else:
-            big = np.max(np.abs(w), axis=-1)  # norm without overflow
-            speed = big * np.linalg.norm(w / np.where(big > 0, big, 1.0)[..., None], axis=-1)
-        with np.errstate(divide="ignore"):
-            s = np.minimum(self.max_speed / speed, self.max_yaw_rate / np.abs(v[..., 3]))
-        return np.where(finite, np.minimum(1.0, s), 0.0)
+        return limits.limit_factor(u, 3, self.max_speed, self.max_yaw_rate)
 
     def limit_factor_floats(self, vx, vy, vz, wz):
         """:meth:`limit_factor` for one command of Python floats."""

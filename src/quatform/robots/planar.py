@@ -16,6 +16,7 @@ import numpy as np
 
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
+from . import limits
 
 __all__ = ["PlanarHolonomicRobot"]
 
@@ -80,13 +81,7 @@ class PlanarHolonomicRobot:
         -------
         ndarray, shape (...)
         """
-        u = np.asarray(u, dtype=float)
-        finite = np.all(np.isfinite(u), axis=-1)
-        v = np.where(finite[..., None], u, 0.0)
-        speed = np.hypot(v[..., 0], v[..., 1])
-        with np.errstate(divide="ignore", over="ignore"):
-            s = np.minimum(self.max_speed / speed, self.max_yaw_rate / np.abs(v[..., 2]))
-        return np.where(finite, np.minimum(1.0, s), 0.0)
+        return limits.limit_factor(u, 2, self.max_speed, self.max_yaw_rate)
 
     def saturate(self, u) -> np.ndarray:
         """Commands limited to the robot's speeds, direction kept; non-finite ones become zero.
@@ -99,11 +94,7 @@ class PlanarHolonomicRobot:
         -------
         ndarray, shape (..., 3)
         """
-        u = np.asarray(u, dtype=float)
-        if u.shape[-1:] != (3,):
-            raise InvalidInputError(f"a planar robot command has shape (..., 3) (v_x, v_y, omega_z), got {u.shape}")
-        s = self.limit_factor(u)[..., None]
-        return np.where(s > 0, u * s, 0.0)
+        return limits.saturate(u, self.limit_factor, 3, "planar robot (v_x, v_y, omega_z)")
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` s of the saturated command ``u`` (exact for a held command)."""

@@ -1,0 +1,51 @@
+"""Velocity limits of robots whose commands scale as a whole (robots layer).
+
+A holonomic robot's command ``u = (v, w)`` (a linear velocity and an angular one, in one
+frame) is limited by one factor ``s`` in ``[0, 1]``, so its direction is kept and a team
+may share the smallest factor (:class:`~quatform.robots.team.Team`'s common limit). The
+4-DOF, planar and free-body robots differ only in how many entries each part has.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidInputError
+
+__all__ = ["limit_factor", "saturate"]
+
+#: Below this magnitude a velocity's squared norm is finite in float64 (one product).
+_SQUARES_FINITE = 1e150
+
+
+def _norm(v) -> np.ndarray:
+    """Euclidean norm over the last axis, without overflow for entries up to float64's range."""
+    if v.shape[-1] == 1:
+        return np.abs(v[..., 0])
+    if v.size and np.max(np.abs(v)) < _SQUARES_FINITE:
+        return np.sqrt(np.einsum("...i,...i->...", v, v))
+    big = np.max(np.abs(v), axis=-1)
+    return big * np.linalg.norm(v / np.where(big > 0, big, 1.0)[..., None], axis=-1)
+
+
+def limit_factor(u, n_linear: int, max_speed: float, max_rate: float) -> np.ndarray:
+    """Largest ``s`` in ``[0, 1]`` with ``|s v| <= max_speed`` and ``|s w| <= max_rate``, where
+    ``v = u[..., :n_linear]`` and ``w`` the rest; 0 for a non-finite ``u``. Shape ``(...)``."""
+    u = np.asarray(u, dtype=float)
+    finite = np.all(np.isfinite(u), axis=-1)
+    v = u if finite.all() else np.where(finite[..., None], u, 0.0)
+    with np.errstate(divide="ignore"):
+        s = np.minimum(max_speed / _norm(v[..., :n_linear]), max_rate / _norm(v[..., n_linear:]))
+    return np.where(finite, np.minimum(1.0, s), 0.0)
+
+
+def saturate(u, factor, width: int, what: str) -> np.ndarray:
+    """``u`` (``(..., width)``) scaled by ``factor(u)``; a command with factor 0 becomes zero.
+
+    ``what`` names the command in the one-line error of a wrong shape.
+    """
+    u = np.asarray(u, dtype=float)
+    if u.shape[-1:] != (width,):
+        raise InvalidInputError(f"a {what} command has shape (..., {width}), got {u.shape}")
+    s = factor(u)[..., None]
+    return np.where(s > 0, u * s, 0.0)
