@@ -24,10 +24,10 @@ Two shapes:
   yaws (``qhat_sk = pose(q_yaw(theta_k - theta_N), R_z(-theta_N)(p_k - p_N))``), so the sign
   of ``qhat_sk`` is the branch of ``theta_k - theta_N`` mod 4 pi (law group
   ``relative-pose``), as :class:`~.dual_quaternion_pair.DualQuaternionPair`'s ``qhat_s``.
-  For N = 2 it *is* the pair (eqs. (26)-(27)). For N >= 3 one ``c`` is the state of N
+  For N = 2 it *is* the pair (eqs. (26)-(27)). For N >= 3 one ``c`` would be the state of N
   formations turned by ``4 pi j / N`` about the centroid (the signs fix ``sum_k theta_sk``
-  only mod 4 pi), so :meth:`DualQuaternionTeam.inverse` needs ``near_r`` there and refuses
-  without it.
+  only mod 4 pi), so a zero error would not mean the robots are at the reference: the
+  relative shape is refused beyond two robots (the code reads N generally; N = 2 is its use).
 """
 
 from __future__ import annotations
@@ -210,6 +210,12 @@ class DualQuaternionTeam(Formation):
                 raise InvalidInputError(
                     f"DualQuaternionTeam(shape='relative') reads real yaws (eq. (27)'s branch) and represents "
                     f"xy_yaw / xyz_yaw robots only, not {', '.join(other)}; use shape='frame' for this layout")
+        if shape == "relative" and L.n != 2:
+            raise InvalidInputError(
+                f"DualQuaternionTeam(shape='relative') is seed 000's pair (eq. (27)); for {L.n} robots one relative "
+                f"state stands for {L.n} formations turned by 4 pi j / {L.n} about the centroid, so a zero error "
+                "would not mean the robots are at the reference; use shape='frame' (each robot's pose in the "
+                "formation frame)")
         if chart == "pair" and (shape != "relative" or L.kinds != ("xyz_yaw", "xyz_yaw")):
             raise InvalidInputError(
                 "DualQuaternionTeam: chart='pair' (seed 000's Euclidean variables) is for two xyz_yaw robots with "
