@@ -161,8 +161,9 @@ def test_inactive_filter_returns_the_commands_bitwise():
     close = team.saturate(np.tile(-np.sign(x) * 0.5, (2, 1)))
     lost[:, 4:6] = [[np.nan, 0.1], [0.0, 0.2]]  # world 0 lost, world 1: robot 2 beside robot 1
     us2, info2 = SeparationBarrier(0.5, gamma=2.0).filter(team, lost, close)
-    np.testing.assert_array_equal(us2[0], close[0])
-    assert np.isnan(info2.min_separation[0]) and info2.active.tolist() == [False, True]
+    np.testing.assert_array_equal(us2[0], close[0])  # robot 2 lost, the others far apart: nothing to do
+    assert info2.min_separation[0] == pytest.approx(3.0) and info2.active.tolist() == [False, True]
+
     # far apart with a run through Team.step: the run is the unfiltered run, bitwise
     x1 = x.copy()
     x2 = x.copy()
@@ -351,3 +352,23 @@ def test_layout_points_of_every_kind_change_only_their_position_rates():
     pij = P[i] - P[j]
     g = 2 * np.sum(pij * (V[i] - V[j]), axis=1) + 4.0 * (np.sum(pij ** 2, axis=1) - 0.09)
     assert np.all(g >= -1e-9)
+
+
+def test_a_lost_robot_does_not_switch_the_barrier_off_for_the_others():
+    """Review finding: one NaN measurement let every other pair of its world collide."""
+    team = Team.uniform(HolonomicRobot(), 3)
+    x = np.array([0.0, 0, 1, 0, 0.6, 0, 1, 0, 7.0, 0, 1, 0])
+    u = np.array([1.0, 0, 0, 0, -1.0, 0, 0, 0, 0, 0, 0, 0])  # robots 1 and 2 head-on at 1 m/s
+    x[8] = np.nan  # robot 3's measurement lost
+    barrier = SeparationBarrier(0.5, gamma=5.0, dt_s=0.02)
+    us, info = barrier.filter(team, x, u)
+    assert info.active and info.min_separation == pytest.approx(0.6)
+    np.testing.assert_array_equal(us[8:], u[8:])  # the lost robot's command passes
+    for _ in range(100):  # the two measured robots never come closer than 0.5 m
+        us, info = barrier.filter(team, x, u)
+        x = x + 0.02 * us
+        assert abs(x[4] - x[0]) >= 0.5 - 1e-9
+    one = np.array(x)
+    one[0] = np.nan
+    _, info1 = barrier.filter(team, one, u)  # two robots lost: no pair left
+    assert np.isnan(info1.min_separation)

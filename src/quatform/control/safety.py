@@ -312,9 +312,10 @@ class SeparationBarrier:
         Returns
         -------
         u_safe : ndarray, same shape as ``u`` broadcast with ``x``'s batch
-            Bitwise ``u`` in every world where no pair constraint binds, and in a world whose
-            measurement is not finite (a lost measurement: nothing to filter on; its
-            ``min_separation`` is NaN).
+            Bitwise ``u`` in every world where no pair constraint binds. A robot whose
+            measurement is not finite (lost) is left out of its world's programme (its command
+            passes; nothing is known of where it is), the others are still kept apart; a world
+            with fewer than two robots measured passes its commands (``min_separation`` NaN).
         info : BarrierInfo
         """
         layout, maps = self._plan(team)
@@ -353,17 +354,26 @@ class SeparationBarrier:
         factor = np.ones(B)
         out = None
         common = maps is not None and team.common_limit
-        seen = np.all(np.isfinite(flat_P), axis=(1, 2)) & np.all(np.isfinite(flat_V), axis=(1, 2))
+        seen = np.all(np.isfinite(flat_P), axis=2) & np.all(np.isfinite(flat_V), axis=2)  # (B, n) robots
         flat_x, flat_u = x.reshape(B, width_x), u.reshape(B, width_u)
         for b in range(B):
-            if not seen[b]:  # a measurement lost (NaN): nothing to filter on, the commands pass
-                min_sep[b] = np.nan
+            ok = seen[b]
+            if ok.sum() < 2:  # fewer than two robots measured: no pair to filter on, the commands pass
+                min_sep[b] = np.nan if not ok.all() else np.inf
                 continue
-            res = self._world(flat_P[b], flat_V[b], planar)
+            if ok.all():
+                res = self._world(flat_P[b], flat_V[b], planar)
+            else:  # a robot's measurement lost (NaN): the others are kept apart, its command passes
+                res = self._world(flat_P[b][ok], flat_V[b][ok], planar[ok])
             min_sep[b] = res[0]
             if res[1] is None:
                 continue
             V_new, changed, (pi, pj), k = res[1:]
+            if not ok.all():
+                keep = np.flatnonzero(ok)
+                V_full, ch_full = np.array(flat_V[b]), np.zeros(n, dtype=bool)
+                V_full[keep], ch_full[keep] = V_new, changed
+                V_new, changed, pi, pj = V_full, ch_full, keep[pi], keep[pj]
             if out is None:
                 out = np.array(flat_u, dtype=float)
             xb, ub = flat_x[b], flat_u[b]
