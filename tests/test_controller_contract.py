@@ -292,3 +292,18 @@ def test_team_non_finite_measurement_never_reaches_the_commands(ctrl, bad):
         except QuatformError:
             continue  # refused in one line: nothing sent
         assert np.all(np.isfinite(s.u)), j
+
+
+def test_team_controller_bad_arguments_are_one_line():
+    from quatform.control import team_controller
+    from quatform.errors import InvalidInputError
+    from quatform.robots import HolonomicRobot, Team
+
+    team = Team.uniform(HolonomicRobot(), 3)
+    for args, match in ((("quaternion", team, [1, 2, 3]), "gains must be a mapping"),
+                        (("quaternion", "team", TEAM_GAINS), "must be a robots.Team"),
+                        (("quaternon", team, TEAM_GAINS), "did you mean 'quaternion'"),
+                        (("quaternion", team, {"k_x": 1.0}), "law needs gains"),
+                        (("quaternion", team, {**TEAM_GAINS, "k_w": -1.0}), "positive finite")):
+        with pytest.raises(InvalidInputError, match=match):
+            team_controller(*args)

@@ -394,3 +394,13 @@ def test_the_team_metrics_of_a_pair_run_are_the_pair_metrics():
         assert team[key] == pair[key], key
     assert pair["max_shape_error_m"] > 0.05 and pair["max_orientation_error_rad"] > 0.05
     assert pair["max_robot_yaw_error_rad"] > 0.1
+
+
+def test_the_singular_threshold_is_the_pairs_for_two_robots_and_scales_with_the_team():
+    """A flat ring of 10 read 0.0135 under the Euclidean team away from any singular pose, below
+    the pair's 0.02, so every run was 'singular from t = 0' (review finding)."""
+    from quatform.sim.metrics import SINGULAR_THRESHOLD
+    from quatform.sim.team_metrics import singular_threshold
+
+    assert singular_threshold(2) == SINGULAR_THRESHOLD
+    assert singular_threshold(10) < 0.0135 and singular_threshold(100) < singular_threshold(10)

@@ -111,6 +111,9 @@ class TeamController(contract.Controller):
             raise InvalidInputError(f"TeamController: the team's robots offer points {team.layout.kinds}, the "
                                     f"formation describes {F.layout.kinds}; build both from one layout")
         object.__setattr__(self, "team", team)
+        if not isinstance(self.gains, Mapping):
+            raise InvalidInputError(f"TeamController: gains must be a mapping of gain names to values (e.g. "
+                                    f"{{'k_x': 2.0, 'k_d': 20.0, 'k_w': 20.0}}), got {type(self.gains).__name__}")
         object.__setattr__(self, "gains", dict(self.gains))
         covered = np.sort(np.concatenate([gr.index.ravel() for gr in F.law_groups]))
         if not np.array_equal(covered, np.arange(F.n_c)):
@@ -324,6 +327,9 @@ def team_controller(name: str, team: Team, gains: Mapping, *, template=None, fee
     if name not in TEAM_FORMATIONS:
         raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, TEAM_FORMATIONS)}; choose one of "
                                 f"{', '.join(TEAM_FORMATIONS)}")
+    if not isinstance(team, Team):
+        raise InvalidInputError(f"team_controller: team must be a robots.Team (e.g. Team.uniform(HolonomicRobot(), 4)), "
+                                f"got {type(team).__name__}")
     cls = CLASSES[TEAM_FORMATIONS[name]]
     F = cls(layout=team.layout, template=template, **options)
     return TeamController(F, gains, team, feedforward, name)

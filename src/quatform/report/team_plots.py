@@ -31,7 +31,7 @@ from ..algebra import q_continuous
 from ..formations import TeamChart
 from ..papers import with_names
 from ..sim.log import Log
-from ..sim.metrics import SINGULAR_THRESHOLD
+from ..sim.team_metrics import singular_threshold
 from ..sim.team_metrics import team_errors
 from .figures import (
     DES_STYLE,
@@ -71,7 +71,8 @@ def _runs_title(runs) -> str:
 
 def _spans(log: Log):
     sing = np.asarray(log["singularity"])[:, 0]
-    return intervals(log.t, np.isfinite(sing) & (np.nan_to_num(sing, nan=1.0) < SINGULAR_THRESHOLD))
+    threshold = singular_threshold(log.meta["layout"].n)
+    return intervals(log.t, np.isfinite(sing) & (np.nan_to_num(sing, nan=1.0) < threshold))
 
 
 def _style(ax, ylabel):
@@ -292,7 +293,8 @@ def plot_team_singularity(runs, path) -> Path:
         ok = np.isfinite(s)
         ax.plot(run.t[ok], s[ok], color=f"C{k}", lw=1.1, marker="." if ok.sum() < 200 else None,
                 label=f"{run.meta['controller']} ({run.meta['formation']})")
-    ax.axhline(SINGULAR_THRESHOLD, color="C3", lw=0.8, ls=":", label=f"singular below {SINGULAR_THRESHOLD:g}")
+    threshold = singular_threshold(runs[0].meta["layout"].n)
+    ax.axhline(threshold, color="C3", lw=0.8, ls=":", label=f"singular below {threshold:.3g}")
     ax.set_yscale("log")
     time_xlim(ax, float(runs[0].t[0]), max(float(r.t[-1]) for r in runs))
     ax.set_xlabel("time [s]")

@@ -474,7 +474,8 @@ class PairKind(ScenarioKind):
         Option("controller", "formation controller (seed 000; required)", tuple(CONTROLLERS), None),
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
         Option("backend", "what moves the robots", BACKENDS, "kinematic"),
-        Option("reference", "a two-robot plan.npz to follow instead of the scenario's path", None, None, str),
+        Option("reference", "a plan.npz (quatform plan) to follow instead of the scenario's path: two robots for a "
+               "pair scenario, N for a team", None, None, str),
     )
     compare_over = "controller"
     table_columns = TABLE_COLUMNS

@@ -704,7 +704,10 @@ class TeamKind(ScenarioKind):
         safety = dict(scenario.safety)
         safety["applied"] = bool(safety["enabled"])
         if safety["applied"]:  # issue 14 item 6: on by default for teams
-            ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], dt_s=scenario.dt_s), team)
+            # the barrier's rate gamma at most 1 / dt_s: the sampled-time guarantee h_{k+1} >= (1 - gamma dt) h_k
+            gamma = min(SeparationBarrier.gamma, 1.0 / scenario.dt_s)
+            ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], gamma=gamma,
+                                                          dt_s=scenario.dt_s), team)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
                 "backend_label": "kinematic" if physics is None else mj.BACKEND_LABEL, "formation": F.name,

@@ -34,7 +34,7 @@ from ..formations.team_chart import fit_attitude
 from .log import Log
 from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, SINGULAR_THRESHOLD
 
-__all__ = ["team_errors", "team_metrics", "min_separations", "rotation_angle"]
+__all__ = ["singular_threshold", "team_errors", "team_metrics", "min_separations", "rotation_angle"]
 
 #: Most pair distances held at once by :func:`min_separations` (time chunks of the run).
 _PAIR_CHUNK = 2_000_000
@@ -122,6 +122,19 @@ def _command_speed(team, u) -> float:
     return best
 
 
+def singular_threshold(n_robots: int) -> float:
+    """The singularity measure below which an N-robot state is reported singular:
+    :data:`~quatform.sim.metrics.SINGULAR_THRESHOLD` (the pair's 0.02) times ``2 / N``.
+
+    The measure is the reciprocal condition number of an ``n_r x n_c`` inverse Jacobian, and
+    a regular formation's conditioning worsens with N (the Euclidean team of a flat ring of 10
+    robots reads 0.0135 away from any singular pose; its singular poses read 1e-6 and less), so
+    the pair's threshold would flag every large team from t = 0; for two robots it is the
+    pair's.
+    """
+    return SINGULAR_THRESHOLD * 2.0 / max(int(n_robots), 2)
+
+
 def team_metrics(log: Log) -> dict:
     """The metrics of one world's team run as a JSON-ready dict (units in the key names).
 
@@ -152,7 +165,7 @@ def team_metrics(log: Log) -> dict:
     err = team_errors(log)
     sing = np.asarray(log["singularity"])[:, 0]
     measured = np.isfinite(sing)
-    singular = measured & (np.where(measured, sing, 1.0) < SINGULAR_THRESHOLD)
+    singular = measured & (np.where(measured, sing, 1.0) < singular_threshold(int(meta["layout"].n)))
     lost = late & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
                    | (err["robot_position"] > LOST_POSITION_M))
 
