@@ -601,15 +601,16 @@ class PhysicsWorld:
                   self._quad_cmd[i].tolist()) for i, nm in enumerate(self.quad_names)]
         velocity = self.quad_mode == "velocity"
         for _ in range(n):
+            qvel, force = d.qvel.tolist(), d.actuator_force.tolist()  # read once a step (mj_step writes them)
             for a, va, motors, body, cas, u in quads:
                 mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
-                Rl, vw = R.tolist(), d.qvel[va:va + 6].tolist()
+                Rl, vw = R.tolist(), qvel[va:va + 6]
                 if velocity:
                     f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
                 else:
                     f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
                 d.ctrl[motors] = f
-                d.xfrc_applied[body, 0:3] = cas.rotor_drag(d.actuator_force[motors].tolist(), vw[0:3], Rl)
+                d.xfrc_applied[body, 0:3] = cas.rotor_drag([force[k] for k in motors], vw[0:3], Rl)
             t_before = d.time
             mj.mj_step(m, d)
             if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step

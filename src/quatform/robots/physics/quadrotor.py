@@ -292,13 +292,9 @@ class QuadrotorCascade:
         b2 = (b2[0] / nb, b2[1] / nb, b2[2] / nb)
         b1 = _cross(b2, b3)
         # e_R = 1/2 vee(Rd^T R - R^T Rd), (Rd^T R)_ij = (column i of Rd) . (column j of R)
-        cols = ((R[0], R[3], R[6]), (R[1], R[4], R[7]), (R[2], R[5], R[8]))
-
-        def E(di, j):
-            c = cols[j]
-            return di[0] * c[0] + di[1] * c[1] + di[2] * c[2]
-
-        e = (0.5 * (E(b3, 1) - E(b2, 2)), 0.5 * (E(b1, 2) - E(b3, 0)))
+        # (Rd^T R)_ij written out: column i of Rd is b1, b2, b3, column j of R is (R[j], R[3 + j], R[6 + j])
+        e = (0.5 * ((b3[0] * R[1] + b3[1] * R[4] + b3[2] * R[7]) - (b2[0] * R[2] + b2[1] * R[5] + b2[2] * R[8])),
+             0.5 * ((b1[0] * R[2] + b1[1] * R[5] + b1[2] * R[8]) - (b3[0] * R[0] + b3[1] * R[3] + b3[2] * R[6])))
         # rate set point: attitude P on roll and pitch; the yaw rate (world z) in body axes
         kp = self.att_p
         lim = self.yaw_rate_max  # PX4 MC_YAWRATE_MAX
@@ -359,7 +355,10 @@ class QuadrotorCascade:
         ``R``: the rotation (3, 3) or its 9 entries row by row.
         """
         p = self.params
-        speed = sum(math.sqrt(max(float(f), 0.0) / p.motor_constant) for f in forces)
+        c = p.motor_constant
+        speed = 0.0  # sum_i omega_i, in the rotors' order (the same floats as a sum() over them)
+        for f in forces:
+            speed += math.sqrt(max(float(f), 0.0) / c)
         Rl = _floats(R)
         vx, vy, vz = _floats(v)
         bx = Rl[0] * vx + Rl[3] * vy + Rl[6] * vz  # body x, y components (R^T v)
