@@ -186,7 +186,9 @@ class TeamController(contract.Controller):
         if reference.robots is not None:
             r = F.align(r, as_array(reference.robots, "reference.robots", F.n_r))
         r = np.broadcast_to(r, shape + r.shape[-1:])
-        self._check_units(c_des)
+        des_rows = [_rows(c_des, blks) for _, _, blks in self._blocks]  # each (dual) quaternion group's rows
+        for (law, _, blks), q in zip(self._blocks, des_rows):
+            self._check_units(q, blks, law != "quaternion")
         c = F.forward(r, near_c=c_des)
         err = c - c_des
         if len(self._angles):
@@ -195,10 +197,9 @@ class TeamController(contract.Controller):
         ff = 1.0 if self.feedforward else 0.0
         for blk, k in self._linear:
             _put(rate, blk, proportional(_get(err, blk), _get(c_dot, blk), k, ff))
-        for law, kk, blks in self._blocks:  # eqs. (20), (28) on every row of the groups at once
+        for (law, kk, blks), g_des in zip(self._blocks, des_rows):  # eqs. (20), (28) on every row at once
             comps = []
-            for a in (c, c_des, c_dot):
-                g = _rows(a, blks)
+            for g in (_rows(c, blks), g_des, _rows(c_dot, blks)):
                 comps.append(tuple(g[..., j] for j in range(g.shape[-1])))
             if law == "quaternion":
                 qe, qd = quaternion_feedback(*comps, kk, ff)
@@ -213,27 +214,22 @@ class TeamController(contract.Controller):
         """Indices of the description's angle variables (their errors wrapped to [-pi, pi))."""
         return np.array([i for i, v in enumerate(self.formation.variables) if v.kind == "angle"], dtype=np.intp)
 
-    @functools.cached_property
-    def _unit_rows(self) -> tuple:
-        """The (dual) quaternion blocks of the state: ``(index (M, 4), dual)``."""
-        return tuple((blks, law != "quaternion") for law, _, blks in self._blocks)
-
-    def _check_units(self, c_des):
-        for blks, dual in self._unit_rows:
-            q = _rows(c_des, blks)
+    def _check_units(self, q, blks, dual):
+        """Raise NonUnitError if a reference row ``q`` (``(..., M, 4 or 8)``, the rows of the
+        groups ``blks``) is not a unit (dual) quaternion."""
+        p = q[..., :4]
+        n = np.sqrt(np.einsum("...i,...i->...", p, p))
+        bad = np.abs(n - 1.0) > UNIT_TOLERANCE
+        if dual:
+            bad |= np.abs(np.einsum("...i,...i->...", p, q[..., 4:])) > UNIT_TOLERANCE
+        if bad.any():
             idx = np.concatenate([b if isinstance(b, np.ndarray) else np.arange(b[0], b[0] + b[1] * b[2]).reshape(b[1:])
                                   for b in blks])
-            p = q[..., :4]
-            n = np.sqrt(np.einsum("...i,...i->...", p, p))
-            bad = np.abs(n - 1.0) > UNIT_TOLERANCE
-            if dual:
-                bad |= np.abs(np.einsum("...i,...i->...", p, q[..., 4:])) > UNIT_TOLERANCE
-            if np.any(bad):
-                names = self.formation.names
-                row = int(np.argwhere(bad.reshape(-1, bad.shape[-1]))[0][-1])
-                raise NonUnitError(f"reference {names[idx[row, 0]][:-2]} is not a unit {'dual ' if dual else ''}"
-                                   f"quaternion (norm {float(n.reshape(-1, n.shape[-1])[:, row].max()):.9g}); build "
-                                   "references with formation.from_chart or normalise them")
+            names = self.formation.names
+            row = int(np.argwhere(bad.reshape(-1, bad.shape[-1]))[0][-1])
+            raise NonUnitError(f"reference {names[idx[row, 0]][:-2]} is not a unit {'dual ' if dual else ''}"
+                               f"quaternion (norm {float(n.reshape(-1, n.shape[-1])[:, row].max()):.9g}); build "
+                               "references with formation.from_chart or normalise them")
 
 
 def _block(idx):
