@@ -29,6 +29,7 @@ __all__ = [
     "short",
     "nearest",
     "check_keys",
+    "records",
     "table",
     "number",
     "integer",
@@ -97,6 +98,21 @@ def check_keys(data: Mapping, allowed: Iterable[str], where: str, place: str = "
                 f"{where}: unknown key {short(key)} at {place}{nearest(key, allowed)}; allowed: "
                 f"{', '.join(sorted(allowed))} ({hint})"
             )
+
+
+def records(data: Mapping, key: str, allowed: Iterable[str], where: str, place: str,
+            hint: str = "see docs/scenarios.md"):
+    """``(table, where)`` of each entry of the array of tables ``[[place]]`` (``data[key]``,
+    default none), each entry's keys checked against ``allowed``; ``where`` names the entry
+    (``FILE [[place]] #k``)."""
+    items = data.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(r, Mapping) for r in items):
+        raise InvalidInputError(f"{where}: {place} = {short(items)} must be an array of tables ([[{place}]] "
+                                f"entries; {hint})")
+    for i, r in enumerate(items):
+        w = f"{where} [[{place}]] #{i + 1}"
+        check_keys(r, allowed, w, f"[[{place}]]", hint)
+        yield r, w
 
 
 def _name(key: str, place: str) -> str:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_keys, check_within_run, check_work, flag, number, short, table, text, vector
+from ..checks import check_keys, check_within_run, check_work, flag, number, records, short, table, text, vector
 from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
@@ -291,10 +291,10 @@ def _path(p: dict, where: str, duration: float) -> EuclideanPath:
                                         "to [path] or use centroid = 'fixed'")
     ramps = tuple(Ramp(text(r, "variable", w, choices=_NAMES), _time(r, "start_s", w, duration),
                        number(r, "duration_s", w, low=0.0, low_open=True), number(r, "change", w))
-                  for r, w in _records(p, "ramps", _RAMP_KEYS, where))
+                  for r, w in records(p, "ramps", _RAMP_KEYS, where, "path.ramps", _HINT))
     steps = tuple(StepChange(text(s, "variable", w, choices=_NAMES), _time(s, "time_s", w, duration),
                        number(s, "change", w))
-                  for s, w in _records(p, "steps", _STEP_KEYS, where))
+                  for s, w in records(p, "steps", _STEP_KEYS, where, "path.steps", _HINT))
     path = EuclideanPath(
         initial=initial,
         centroid=centroid,
@@ -356,18 +356,6 @@ def _check_separation(path: EuclideanPath, where: str, duration: float) -> None:
     raise InvalidInputError(
         f"{where}: {label} makes d_c <= 0 ({d:.3g} m at t = {t:g} s): the robots would meet; "
         f"make the change smaller in size or raise [path] d_c = {path.initial[5]:g} m")
-
-
-def _records(p: dict, key: str, keys, where: str):
-    """``(table, where)`` of each entry of the array of tables ``[[path.<key>]]``."""
-    items = p.get(key, [])
-    if not isinstance(items, list) or not all(isinstance(r, dict) for r in items):
-        raise InvalidInputError(f"{where}: [path] {key} = {short(items)} must be an array of tables "
-                                f"([[path.{key}]] entries; {_HINT})")
-    for i, r in enumerate(items):
-        w = f"{where} [[path.{key}]] #{i + 1}"
-        check_keys(r, keys, w, f"[[path.{key}]]", _HINT)
-        yield r, w
 
 
 def _gains(data: dict, where: str) -> dict:

@@ -36,6 +36,7 @@ from ..checks import (
     flag,
     integer,
     number,
+    records,
     short,
     table,
     text,
@@ -324,24 +325,12 @@ _SAFETY_KEYS = ("enabled", "min_separation_m")
 _REFERENCE_KEYS = ("time_scale", "altitude_m", "headings")
 
 
-def _records(d: dict, key: str, keys, where: str, place: str):
-    """``(table, where)`` of each entry of the array of tables ``[[place]]``."""
-    items = d.get(key, [])
-    if not isinstance(items, list) or not all(isinstance(r, dict) for r in items):
-        raise InvalidInputError(f"{where}: {place} = {short(items)} must be an array of tables ([[{place}]] "
-                                f"entries; {_HINT})")
-    for i, r in enumerate(items):
-        w = f"{where} [[{place}]] #{i + 1}"
-        check_keys(r, keys, w, f"[[{place}]]", _HINT)
-        yield r, w
-
-
 def _robots(data: dict, where: str):
     items = data.get("robots", MISSING)
     if items is MISSING:
         raise InvalidInputError(f"{where}: missing [[robots]] (e.g. [[robots]] model = 'quadrotor', count = 4)")
     groups = []
-    for r, w in _records(data, "robots", _all_robot_keys(), where, "robots"):
+    for r, w in records(data, "robots", _all_robot_keys(), where, "robots", _HINT):
         model = text(r, "model", w, choices=tuple(ROBOT_MODELS))
         build, limits = ROBOT_MODELS[model]
         check_keys(r, _ROBOT_KEYS + limits, w, "[[robots]]", f"a {model} takes {', '.join(limits)}; {_HINT}")
@@ -394,7 +383,7 @@ def _shape(data: dict, where: str, n: int, duration: float):
                   period_s=number(sc, "period_s", where, 1.0, place=p, low=0.0, low_open=True),
                   profile=text(sc, "profile", where, "linear", place=p, choices=PROFILES))
     moves = []
-    for m, w in _records(s, "moves", _MOVE_KEYS, where, "shape.moves"):
+    for m, w in records(s, "moves", _MOVE_KEYS, where, "shape.moves", _HINT):
         moves.append(Move(robot=integer(m, "robot", w, low=1, high=n) - 1, to=vector(m, "to", 3, w),
                           start_s=number(m, "start_s", w, low=0.0, high=duration),
                           duration_s=number(m, "duration_s", w, low=0.0, low_open=True),
@@ -431,7 +420,7 @@ def _attitude(data: dict, where: str, duration: float) -> Attitude:
     check_keys(a, _ATTITUDE_KEYS, where, "[attitude]", _HINT)
     at = {"place": "[attitude]"}
     turns = []
-    for r, w in _records(a, "turns", _TURN_KEYS, where, "attitude.turns"):
+    for r, w in records(a, "turns", _TURN_KEYS, where, "attitude.turns", _HINT):
         axis = vector(r, "axis", 3, w)
         if not any(axis):
             raise InvalidInputError(f"{w}: axis = {list(axis)} must be a nonzero vector (the world axis to turn about)")
