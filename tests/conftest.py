@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from hypothesis import settings, strategies as st
 from hypothesis.extra import numpy as hnp
+
+from quatform.control.contract import Controller, Step
 
 settings.register_profile("default", max_examples=60, deadline=None)
 settings.load_profile("default")
@@ -64,3 +68,21 @@ def same_shape(draw, *makers):
     """Draw one batch shape and one value per strategy factory with that shape."""
     shape = draw(batch_shapes)
     return tuple(draw(m(shape=shape)) for m in makers)
+
+
+@dataclass(frozen=True)
+class Constant(Controller):
+    """The same command every tick (a test's controller: no feedback)."""
+
+    u: tuple
+    name = "constant"
+
+    @property
+    def command_names(self):
+        return tuple(f"u{i}" for i in range(len(self.u)))
+
+    def signal_columns(self):
+        return {}
+
+    def update(self, t, measured, reference, state):
+        return Step(np.array(self.u, dtype=float), state, {})

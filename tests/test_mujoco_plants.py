@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pytest
 
@@ -17,7 +15,7 @@ except MissingDependencyError:
 mujoco = pytest.importorskip("mujoco")  # the optional extra
 
 from quatform.control import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES
-from quatform.control.contract import Controller, Step
+from conftest import Constant
 from quatform.errors import InvalidInputError, ShapeError
 from quatform.robots.physics import IRIS
 from quatform.scenarios import load_scenario
@@ -26,22 +24,6 @@ from quatform.sim.plants.mujoco import pair_plant, physics_metrics, physics_reco
 from quatform.sim.simulate import simulate
 
 
-@dataclass(frozen=True)
-class Constant(Controller):
-    """The same command every tick (a test's controller: no feedback)."""
-
-    u: tuple
-    name = "constant"
-
-    @property
-    def command_names(self):
-        return tuple(f"u{i}" for i in range(len(self.u)))
-
-    def signal_columns(self):
-        return {}
-
-    def update(self, t, measured, reference, state):
-        return Step(np.array(self.u, dtype=float), state, {})
 
 
 R0 = np.array([0.0, 0.0, 2.0, 0.3, 1.0, 0.0, 2.0, -0.2])

@@ -3,8 +3,6 @@ cascades evaluated together (robots.physics.QuadrotorCascades, sim.plants.mujoco
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pytest
 
@@ -17,7 +15,7 @@ except MissingDependencyError:
     pass
 mujoco = pytest.importorskip("mujoco")  # the optional extra
 
-from quatform.control.contract import Controller, Step
+from conftest import Constant
 from quatform.errors import InvalidInputError, NonFiniteError, ShapeError
 from quatform.robots import Bebop, HolonomicRobot, Pioneer, Team
 from quatform.robots.physics import (
@@ -34,22 +32,6 @@ from quatform.sim.simulate import simulate
 DT = 0.01  # control period, s (seed 000's)
 
 
-@dataclass(frozen=True)
-class Constant(Controller):
-    """The same command every tick (no feedback)."""
-
-    u: tuple
-    name = "constant"
-
-    @property
-    def command_names(self):
-        return tuple(f"u{i}" for i in range(len(self.u)))
-
-    def signal_columns(self):
-        return {}
-
-    def update(self, t, measured, reference, state):
-        return Step(np.array(self.u, dtype=float), state, {})
 
 
 def tetrahedron(z: float = 2.0, edge: float = 2.0) -> np.ndarray:
