@@ -66,13 +66,9 @@ class RobotSpaceTeam(Formation):
     def __repr__(self):
         return f"RobotSpaceTeam(layout={self.layout!r})"
 
-    @property
-    def _quaternion_rows(self) -> np.ndarray:
-        return self.layout.orientation_index
-
     @functools.cached_property
     def sign_free(self) -> tuple:
-        return tuple(slice(int(r[0]), int(r[0]) + 4) for r in self._quaternion_rows)
+        return tuple(slice(int(r[0]), int(r[0]) + 4) for r in self.layout.orientation_index)
 
     @functools.cached_property
     def law_groups(self) -> tuple[LawGroup, ...]:
@@ -87,8 +83,8 @@ class RobotSpaceTeam(Formation):
             groups.append(LawGroup("planar", np.stack(planar)))
         if L.yaw_indices:
             groups.append(LawGroup("heading", np.array(L.yaw_indices, dtype=np.intp)[:, None]))
-        if len(self._quaternion_rows):
-            groups.append(LawGroup("orientation", self._quaternion_rows))
+        if len(self.layout.orientation_index):
+            groups.append(LawGroup("orientation", self.layout.orientation_index))
         return tuple(groups)
 
     def forward(self, r, *, near_c=None):
@@ -98,7 +94,7 @@ class RobotSpaceTeam(Formation):
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
             out = self.layout.wind(out, near_c)
-            rows = self._quaternion_rows
+            rows = self.layout.orientation_index
             if len(rows):
                 out[..., rows] = g.closest_sign(out[..., rows], near_c[..., rows])
         return out

@@ -257,19 +257,16 @@ class TeamChart:
         """(chart yaw indices, robot yaw indices, chart quaternion rows, robot quaternion rows)."""
         L = self.layout
         i = 7 + 3 * L.n
-        ey, ry, eq, rq = [], [], [], []
-        for off, k in zip(L.offsets, L.kinds):
-            pk = POINT_KINDS[k]
-            if pk.yaw is not None:
+        ey, eq = [], []
+        for k in L.kinds:
+            if POINT_KINDS[k].yaw is not None:
                 ey.append(i)
-                ry.append(off + pk.yaw)
                 i += 1
             elif k == "pose":
                 eq.append(range(i, i + 4))
-                rq.append(range(off + 3, off + 7))
                 i += 4
-        q = (np.array(eq, dtype=np.intp).reshape(-1, 4), np.array(rq, dtype=np.intp).reshape(-1, 4))
-        return np.array(ey, dtype=np.intp), np.array(ry, dtype=np.intp), q[0], q[1]
+        return (np.array(ey, dtype=np.intp), np.array(L.yaw_indices, dtype=np.intp),
+                np.array(eq, dtype=np.intp).reshape(-1, 4), L.orientation_index)
 
     @property
     def yaw_index(self) -> np.ndarray:
