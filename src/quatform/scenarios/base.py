@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from ..sim.log import Log
-from ..sim.simulate import simulate
+from ..sim.backends import simulator
 
 __all__ = ["Option", "Experiment", "ScenarioKind"]
 
@@ -99,11 +99,12 @@ class Experiment:
     csv_channels: tuple | None = None
     meta: dict = field(default_factory=dict)
 
-    def run(self, progress: Callable | None = None) -> Log:
-        """Simulate and finish: the run's complete log."""
-        log = simulate(self.plant, self.controller, self.reference, self.times, self.x0, dt=self.dt,
-                       substeps=self.substeps, measurement=self.measurement, progress=progress,
-                       meta={"label": self.label, **self.meta})
+    def run(self, progress: Callable | None = None, backend: str = "numpy") -> Log:
+        """Simulate (on the compute ``backend`` of :data:`quatform.sim.backends.SIM_BACKENDS`)
+        and finish: the run's complete log."""
+        log = simulator(backend)(self.plant, self.controller, self.reference, self.times, self.x0, dt=self.dt,
+                                 substeps=self.substeps, measurement=self.measurement, progress=progress,
+                                 meta={"label": self.label, **self.meta})
         return self.finish(log)
 
 
