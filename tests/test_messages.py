@@ -50,3 +50,24 @@ def test_numpy_is_the_default_backend_and_unknown_ones_name_the_valid():
     assert simulator() is simulate and "numpy" in SIM_BACKENDS
     with pytest.raises(InvalidInputError, match="numpy"):
         simulator("numpi")
+
+
+def test_tick_measurement_delays_adds_noise_and_holds_dropped_frames():
+    from quatform.sim.trial_measurement import TickMeasurement
+
+    T, k = 5, 2
+    noise = np.arange(T * 3 * k, dtype=float).reshape(T, 3, k) * 1e-3
+    dropped = np.zeros((T, 3), bool)
+    dropped[3, 1] = True
+    m = TickMeasurement(noise, delay_ticks=1, dropped=dropped)
+    y = [np.full((3, k), float(j)) for j in range(T)]
+    m.start(0.0, y[0], (3,))
+    out = []
+    for j in range(T):
+        out.append(m.read(j * 0.1))
+        m.observe((j + 1) * 0.1, y[j + 1] if j + 1 < T else y[-1])
+    # tick k reads y at tick k - 1 (y0 before), plus its noise
+    np.testing.assert_allclose(out[0], y[0] + noise[0])
+    np.testing.assert_allclose(out[2], y[1] + noise[2])
+    np.testing.assert_allclose(out[3][1], out[2][1])  # world 1's frame 3 lost: holds frame 2
+    np.testing.assert_allclose(out[3][0], y[2][0] + noise[3][0])
