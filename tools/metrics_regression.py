@@ -26,6 +26,7 @@ UGV_UAV = ("marciano-circle", "marciano-front-to-over", "marciano-lemniscate")
 FORMATIONS = ("spherical", "restricted", "quaternion")
 TELEOP = ("teleop-free-motion", "teleop-pitch-hold-at-90", "teleop-pitch-through-90", "teleop-preload",
           "teleop-virtual-wall", "teleop-wall-contact")
+TEAM = ("team-tetrahedron-helix", "team-ring-flip", "team-triangle-over-ugv", "team-grid-100", "team-three-bodies")
 IGNORED = {"wall_time_s", "solve_time_s", "render_backend"}
 
 
@@ -43,6 +44,12 @@ def cases(mujoco: bool):
                 yield f"{sc}/{f}/mujoco", ["run", sc, "--formation", f, "--backend", "mujoco"]
     yield "marciano-circle/quaternion/mocap", ["run", "marciano-circle", "--formation", "quaternion",
                                                "--mocap-noise-m", "0.002", "--mocap-latency-s", "0.005"]
+    for sc in TEAM:
+        for c in PAIR_CONTROLLERS:
+            yield f"{sc}/{c}", ["run", sc, "--controller", c]
+    if mujoco:
+        yield "team-tetrahedron-helix/quaternion/mujoco", ["run", "team-tetrahedron-helix", "--controller",
+                                                           "quaternion", "--backend", "mujoco"]
     for sc in TELEOP:
         for oe in ("euler-parameters", "rpy"):
             for pre in ("on", "off"):
