@@ -18,20 +18,25 @@ from quatform.errors import DegenerateInputError, InvalidInputError
 from quatform.formations import EuclideanPair, RobotLayout
 from quatform.formations.euclidean_team import EuclideanTeam
 from quatform.formations.testing import SINGULAR, check_formation, robot_distance
+from quatform.references.team_motion import template_positions
 from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import load_scenario
 from quatform.scenarios.pair import PAIR
 from quatform.sim import simulate
+from quatform.sim.team_metrics import singular_threshold
 from quatform.sim.plants.kinematic import KinematicTeam
 
 SPATIAL_MIX = RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))
 PLANAR = RobotLayout.uniform("xy_yaw", 5)
+#: seed 001's mix: a ground robot (robot 1) under three 4-DOF UAVs
+GROUND_MIX = RobotLayout(("xy_yaw", "xyz_yaw", "xyz_yaw", "xyz_yaw"))
 
 
 def _cases():
     return [EuclideanTeam(2), EuclideanTeam(3), EuclideanTeam(4), EuclideanTeam(10),
             EuclideanTeam(layout=SPATIAL_MIX), EuclideanTeam(layout=RobotLayout.uniform("xy_yaw", 2)),
-            EuclideanTeam(layout=PLANAR), EuclideanTeam(2, chart="pair")]
+            EuclideanTeam(layout=PLANAR), EuclideanTeam(2, chart="pair"),
+            EuclideanTeam(layout=GROUND_MIX), EuclideanTeam(9, template=template_positions("grid", 9, 0.6, 3))]
 
 
 @pytest.mark.parametrize("F", _cases(), ids=repr)
@@ -254,7 +259,7 @@ def test_the_baseline_tracks_away_from_its_singular_sets_and_is_lost_past_the_ve
 
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"layout": RobotLayout(("xyz_yaw", "pose", "xyz_yaw"))}, "robot 2 is a 'pose' robot"),
-    ({"layout": RobotLayout(("xyz_yaw", "xy_yaw", "xyz_yaw"))}, "mixes planar"),
+    ({"layout": RobotLayout(("xyz_yaw", "xy_yaw", "xy_yaw"))}, "mixes 2 planar"),
     ({"n": 3, "chart": "pair"}, "needs two xyz_yaw robots"),
     ({"n": 2, "chart": "euler"}, "chart must be 'team' or 'pair'"),
     ({"n": 1}, "n >= 2"),
@@ -297,3 +302,58 @@ def test_batch_axes_broadcast():
     assert F.forward(r, near_c=c).shape == (3, F.n_c) and F.cluster_rate(r, v, near_c=c).shape == (3, F.n_c)
     assert F.robot_rate(c, rng.normal(size=(2, 1, F.n_c))).shape == (2, 3, F.n_r)
     np.testing.assert_allclose(F.forward(r, near_c=c)[1], F.forward(r, near_c=c[1]), rtol=0, atol=0)
+
+
+# -- a ground robot under spatial ones; the chart's robot 3 off the 1-2 line -------------------
+
+def test_a_ground_robot_fixes_z_c_and_the_chart_stays_minimal():
+    F = EuclideanTeam(layout=GROUND_MIX)
+    names = [v.name for v in F.variables]
+    assert "z_c" not in names and F.n_c == F.n_r == 3 + 3 * 4
+    r = F.sample_robot_state(np.random.default_rng(3), 50)
+    np.testing.assert_allclose(F.inverse(F.forward(r), near_r=r), r, atol=1e-10)
+    c = F.forward(r)
+    rate = F.robot_rate(c, np.random.default_rng(4).normal(size=c.shape))
+    c2 = F.forward(F.inverse(c + 1e-7 * np.eye(F.n_c)[5]))  # d_c moved: robot 1 stays on the ground
+    assert np.all(np.isfinite(rate)) and np.all(np.isfinite(c2))
+    # robot 2 straight over the ground robot: gamma_c = -pi/2, the Euclidean chart's singular pose
+    over = r[0].copy()
+    over[3:6] = [over[0], over[1], 1.5]
+    with pytest.raises(DegenerateInputError, match="gamma_c"):
+        F.cluster_rate(over, np.zeros(F.n_r))
+    assert F.singularity_measure(over) < 1e-9
+
+
+def test_the_grid_plays_its_first_robot_off_row_one_as_robot_3():
+    t = template_positions("grid", 100, 0.6, 10)
+    F = EuclideanTeam(100, template=t)
+    assert list(F.order[:4]) == [0, 1, 10, 2] and sorted(F.order) == list(range(100))
+    assert [v.name for v in F.variables][7:9] == ["rho_11", "psi_11"]
+    r = F.layout.compose(t + [0.0, 0.0, 8.0], np.zeros(100))
+    # regular on the template (above the team metrics' "singular" line); robots 1, 2, 3 of a row: 0
+    assert F.singularity_measure(r) > 1.5 * singular_threshold(100)
+    assert EuclideanTeam(100).singularity_measure(r) < 1e-9
+    np.testing.assert_allclose(F.inverse(F.forward(r)), r, atol=1e-10)
+    line = template_positions("line", 5, 1.0)
+    np.testing.assert_array_equal(EuclideanTeam(5, template=line).order, np.arange(5))  # a line stays a line
+
+
+def test_the_euler_reading_folds_past_the_vertical_unless_followed():
+    """A tetrahedron pitching 2 pi about y: the forward map's own angles fold at gamma_c = -pi/2
+    to (beta_c + pi, pi - gamma_c, alpha_c + pi) (seed 000's robot-space reading); followed in
+    time the reading is continuous; both triples are one frame (the same robots)."""
+    from quatform.formations import geometry as g
+
+    E = EuclideanTeam(4)
+    t = template_positions("tetrahedron", 4, 1.0)
+    ang = np.linspace(0.0, 2.0 * np.pi, 401)
+    q = np.stack([np.cos(ang / 2), 0 * ang, np.sin(ang / 2), 0 * ang], -1)
+    r = E.layout.compose(g.rotate(q[:, None, :], t[None]) + [0.0, 0.0, 5.0], np.zeros((401, 4)))
+    follow, own = E.follow_reading(r), E.reading(r)
+    assert np.max(np.abs(np.diff(follow, axis=0))) < 0.02  # continuous: 2 pi / 400 per sample
+    np.testing.assert_allclose(follow[-1, 1] - follow[0, 1], -2.0 * np.pi, atol=1e-9)
+    assert np.all(np.abs(own[:, 1]) <= 0.5 * np.pi + 1e-12)
+    mid = (ang > 0.6 * np.pi) & (ang < 1.4 * np.pi)  # past the vertical: folded
+    np.testing.assert_allclose(np.abs(g.wrap(own[mid, 0] - follow[mid, 0])), np.pi, atol=1e-9)
+    # the reading near the followed one is the followed one (same robots, same frame)
+    np.testing.assert_allclose(E.reading(r, near=follow), follow, atol=1e-9)

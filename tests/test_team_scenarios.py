@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 import json
 import math
 
@@ -356,10 +357,16 @@ def test_a_team_flies_on_mujoco_physics(tmp_path):
 
 
 def test_compare_leaves_out_a_description_that_cannot_take_the_team(tmp_path):
-    sc = _short("team-triangle-over-ugv", 0.4)  # a Pioneer (planar) and three 4-DOF UAVs
+    text = (Path(__file__).parents[1] / "src/quatform/scenarios/team-triangle-over-ugv.toml").read_text()
+    text = text.replace('model = "pioneer"\ncount = 1', 'model = "pioneer"\ncount = 2')
+    text = text.replace("[[0.0, 0.0, 0.0],", "[[0.0, 0.0, 0.0], [-1.5, 0.0, 0.0],")
+    text = text.replace("start_s = 60.0", "start_s = 0.1").replace("duration_s = 15.0", "duration_s = 0.2")
+    text = text.replace("metrics_from_s = 5.0", "metrics_from_s = 0.0").replace("robot = 2", "robot = 3")
+    (tmp_path / "two-ugvs.toml").write_text(text.replace("duration_s = 120.0", "duration_s = 0.4"))
+    sc = load_scenario(tmp_path / "two-ugvs.toml")  # two Pioneers (planar) and three 4-DOF UAVs
     values, skipped = TEAM.compare_choices(sc, "controller")
     assert "cluster-space" in skipped and "cluster-space" not in values and "quaternion" in values
-    assert "mixes planar" in skipped["cluster-space"] and "\n" not in skipped["cluster-space"]
+    assert "mixes 2 planar" in skipped["cluster-space"] and "\n" not in skipped["cluster-space"]
     rows = compare(sc, tmp_path / "cmp", quiet=True, plots=False)
     assert [r["controller"] for r in rows] == list(values)
     assert "Not run: cluster-space" in (tmp_path / "cmp" / "comparison.md").read_text()
@@ -404,3 +411,23 @@ def test_the_singular_threshold_is_the_pairs_for_two_robots_and_scales_with_the_
 
     assert singular_threshold(2) == SINGULAR_THRESHOLD
     assert singular_threshold(10) < 0.0135 and singular_threshold(100) < singular_threshold(10)
+
+
+def test_the_seed_000_comparison_holds_for_the_tetrahedron():
+    """Seed 000 §4's story for four robots, 34 s of the tetrahedron helix (the pitch passes the
+    vertical at 30 s): the Euclidean baseline meets its singular pose and loses the formation,
+    robot space tracks the robots but reads the formation folded, the quaternion and
+    dual-quaternion teams track every variable and read it continuously."""
+    sc = dataclasses.replace(load_scenario("team-tetrahedron-helix"), duration_s=34.0)
+    m = {}
+    for c in ("cluster-space", "robot-space", "quaternion", "dual-quaternion"):
+        experiment = TEAM.experiment(sc, controller=c)
+        m[c] = experiment.metrics(experiment.run())
+    assert m["cluster-space"]["singularity_detected"] and m["cluster-space"]["reference_lost"]
+    assert 28.0 <= m["cluster-space"]["first_singular_time_s"] <= 30.5
+    rs = m["robot-space"]
+    assert not rs["reference_lost"] and rs["max_robot_position_error_m"] < 0.01
+    assert rs["max_reading_error_rad"] > 3.0 and rs["reading_folded_time_s"] > 3.0  # folded past 30 s
+    for c in ("quaternion", "dual-quaternion"):
+        assert not m[c]["singularity_detected"] and not m[c]["reference_lost"]
+        assert m[c]["max_reading_error_rad"] < 0.01 and m[c]["reading_folded_time_s"] == 0.0

@@ -44,6 +44,9 @@ FORMATIONS = {
     **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
     "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
     "euclidean-team": EuclideanTeam(layout=RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))),
+    # a ground robot under spatial ones, robots 1-3 of the template on a line (robot 4 plays robot 3)
+    "euclidean-team-ground": EuclideanTeam(layout=RobotLayout(("xy_yaw", "xyz_yaw", "xyz_yaw", "xyz", "xyz_yaw")),
+                                           template=[[0, 0, 0], [1, 0, 1], [2, 0, 2], [0, 1, 1], [1, 1, 1]]),
     "dual-quaternion-team": DualQuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw", "xyz"))),
     "quaternion-team": QuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz"))),
 }

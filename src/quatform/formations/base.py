@@ -356,16 +356,25 @@ class Formation(ABC):
 
         Taken on the normalised formation: robot positions moved so that their centroid is
         at the origin and divided by :meth:`length_scale`, so the value depends on the
-        formation's shape and attitude only, not on where it is, how big, or the unit.
+        formation's shape and attitude only, not on where it is, how big, or the unit
+        (:meth:`normalised`).
 
         Returns
         -------
         ndarray, shape (...)
         """
+        s = np.linalg.svd(self.inverse_jacobian(self.normalised(r), near_c=near_c), compute_uv=False)
+        return s[..., -1] / s[..., 0]
+
+    def normalised(self, r) -> np.ndarray:
+        """The robots ``r`` with their centroid at the origin and positions divided by
+        :meth:`length_scale` (yaws and orientations kept): the formation on which
+        :meth:`singularity_measure` is taken. A team with planar (``xy_yaw``) robots is moved
+        horizontally only: they stay on the ground (``z = 0``), which scaling keeps."""
         r = self.check_robot_state(r)
         L = self.length_scale(r)[..., None, None]
         p = self.layout.positions(r)
-        p = (p - p.mean(axis=-2, keepdims=True)) / L
-        rn = self.layout.compose(p, self.layout.yaws(r), self.layout.orientations(r))
-        s = np.linalg.svd(self.inverse_jacobian(rn, near_c=near_c), compute_uv=False)
-        return s[..., -1] / s[..., 0]
+        centre = p.mean(axis=-2, keepdims=True)
+        if "xy_yaw" in self.layout.kinds:
+            centre[..., 2] = 0.0
+        return self.layout.compose((p - centre) / L, self.layout.yaws(r), self.layout.orientations(r))

@@ -88,6 +88,28 @@ def _frame(beta, gamma, alpha):
     return x0, u, z0, ca * x0 - sa * z0, sa * x0 + ca * z0
 
 
+def _frame_order(template, n, planar):
+    """The robots in the chart's order: the layout's, except that in space the first robot of
+    ``template`` off the line of its robots 1 and 2 plays robot 3 (a grid's first row is a line:
+    the roll from robot 3 would be undefined from the start). A template whose robots are all
+    on one line keeps the layout's order (its chart is singular: the formation is a line)."""
+    order = np.arange(n)
+    if template is None or planar or n < 4:
+        return order
+    t = np.asarray(template, dtype=float)
+    u = t[1] - t[0]
+    w = t[2:] - t[0]
+    off = np.linalg.norm(np.cross(w, u), axis=-1) / max(float(np.linalg.norm(u)), 1e-300)
+    size = max(float(np.max(np.linalg.norm(t - t.mean(axis=0), axis=-1))), 1e-300)
+    if off[0] > 1e-6 * size:
+        return order
+    k = np.flatnonzero(off > 1e-6 * size)
+    if not len(k):
+        return order
+    k = int(k[0]) + 2
+    return np.concatenate([[0, 1, k], np.delete(np.arange(2, n), k - 2)])
+
+
 class EuclideanTeam(Formation):
     """Minimal Euclidean cluster space of N robots (module docstring; Kitts & Mas 2009, seed 000 §2).
 
@@ -96,11 +118,14 @@ class EuclideanTeam(Formation):
     n : int, optional
         Number of 4-DOF robots (``xyz_yaw``).
     layout : RobotLayout, optional
-        Instead of ``n``: robots of kinds ``xyz_yaw`` and ``xyz`` (a spatial team) or all
-        ``xy_yaw`` (a planar team).
+        Instead of ``n``: robots of kinds ``xyz_yaw`` and ``xyz`` (a spatial team), all
+        ``xy_yaw`` (a planar team) or a spatial team with one ``xy_yaw`` ground robot (its
+        ``z = 0`` fixes ``z_c``, which leaves the chart: seed 001's UGV under UAVs).
     template : array_like, shape (N, 3), optional
         A shape (m) that :meth:`to_chart` fits the team chart's attitude to when no
         ``near_e`` is given; without one the team chart is this description's own frame.
+        In space, when its robots 1, 2, 3 are on one line (a grid's first row), the first
+        robot off that line plays the chart's robot 3 (:attr:`order`).
     chart : {"team", "pair"}
         The operator's chart: the team chart (:class:`~.team_chart.TeamChart`) or, for two
         ``xyz_yaw`` robots, seed 000's Euclidean variables (``EUCLIDEAN_VARIABLES``,
@@ -109,8 +134,8 @@ class EuclideanTeam(Formation):
     Raises
     ------
     InvalidInputError
-        A ``pose`` robot, planar robots mixed with spatial ones, or ``chart="pair"`` for a
-        team that is not two ``xyz_yaw`` robots.
+        A ``pose`` robot, more than one planar robot mixed with spatial ones, or
+        ``chart="pair"`` for a team that is not two ``xyz_yaw`` robots.
     """
 
     name = "euclidean-team"
@@ -123,11 +148,13 @@ class EuclideanTeam(Formation):
                 f"EuclideanTeam: robot {L.labels[L.kinds.index('pose')]} is a 'pose' robot (6 DOF): a minimal "
                 "Euclidean chart would need Euler angles per robot; use QuaternionTeam or DualQuaternionTeam for "
                 "pose robots")
-        if "xy_yaw" in kinds and kinds != {"xy_yaw"}:
+        ground = [i for i, k in enumerate(L.kinds) if k == "xy_yaw"]
+        if ground and kinds != {"xy_yaw"} and len(ground) > 1:
             raise InvalidInputError(
-                f"EuclideanTeam: the layout mixes planar (xy_yaw) and spatial robots {L.kinds}: no minimal Euclidean "
-                "chart of the mix is defined; give all robots xy_yaw (a planar team) or xyz_yaw/xyz (a spatial "
-                "team), or use QuaternionTeam or RobotSpaceTeam for a mix")
+                f"EuclideanTeam: the layout mixes {len(ground)} planar (xy_yaw) robots with spatial ones {L.kinds}: "
+                "the minimal chart of a mix drops z_c for one ground robot only (each further one would need "
+                "another variable solved from its z = 0); give one ground robot, or use QuaternionTeam or "
+                "RobotSpaceTeam for this mix")
         if chart not in ("team", "pair"):
             raise InvalidInputError(f"EuclideanTeam: chart must be 'team' or 'pair', got {chart!r}")
         if chart == "pair" and L.kinds != ("xyz_yaw", "xyz_yaw"):
@@ -135,9 +162,15 @@ class EuclideanTeam(Formation):
                                     f"the layout has {L.kinds}; use chart='team'")
         self.layout = L
         self.planar = kinds == {"xy_yaw"}
+        self.template = None if template is None else check_template(template, L.n)
+        #: the robots in the chart's order: its robots 1, 2, 3 are ``order[0], order[1], order[2]``
+        self.order = _frame_order(self.template, L.n, self.planar)
+        self._unorder = None if np.array_equal(self.order, np.arange(L.n)) else np.argsort(self.order)
+        #: the ground robot of a mixed team (chart order), whose z = 0 fixes z_c; None otherwise
+        self._ground = None if self.planar or not ground else int(np.flatnonzero(self.order == ground[0])[0])
+        self._nxc = 2 if self.planar or self._ground is not None else 3
         self.chart_kind = chart
         self.chart = TeamChart(L)
-        self.template = None if template is None else check_template(template, L.n)
         #: seed 000's pair (two xyz_yaw robots): its closed-form inverse Jacobian is this one's
         self._seed = EuclideanPair() if L.kinds == ("xyz_yaw", "xyz_yaw") else None
         self._pair = self._seed if chart == "pair" else None
@@ -147,11 +180,19 @@ class EuclideanTeam(Formation):
     def __repr__(self):
         return f"EuclideanTeam(layout={self.layout!r}, chart={self.chart_kind!r})"
 
+    def _ordered(self, p):
+        """Robot rows ``(..., N, 3)`` in the chart's order (:attr:`order`)."""
+        return p if self._unorder is None else p[..., self.order, :]
+
+    def _unordered(self, p):
+        """Robot rows ``(..., N, 3)`` from the chart's order back to the layout's."""
+        return p if self._unorder is None else p[..., self._unorder, :]
+
     # -- layout of the cluster state --------------------------------------------------------
     def _build_index(self):
         L, planar = self.layout, self.planar
         v = [Variable("x_c", "m", "position"), Variable("y_c", "m", "position")]
-        if not planar:
+        if self._nxc == 3:
             v.append(Variable("z_c", "m", "position"))
         v.append(Variable("beta_c", "rad", "angle"))
         if not planar:
@@ -159,14 +200,14 @@ class EuclideanTeam(Formation):
         self._roll = not planar and L.n >= 3
         if self._roll:
             v.append(Variable("alpha_c", "rad", "angle"))
-        self._i_beta = 2 if planar else 3
-        self._i_gamma = None if planar else 4
-        self._i_alpha = 5 if self._roll else None
+        self._i_beta = self._nxc
+        self._i_gamma = None if planar else self._nxc + 1
+        self._i_alpha = self._nxc + 2 if self._roll else None
         self._i_d = len(v)
         v.append(Variable("d_c", "m", "length"))
         rho, psi, chi = [], [], []
         for k in range(2, L.n):
-            lab = L.labels[k]
+            lab = L.labels[self.order[k]]
             rho.append(len(v))
             v.append(Variable(f"rho_{lab}", "m", "length"))
             psi.append(len(v))
@@ -183,8 +224,8 @@ class EuclideanTeam(Formation):
         self.variables = tuple(v)
         owner = np.full(len(v), -1, dtype=np.intp)  # the robot whose spoke a variable is (-1: none)
         for idx in (self._i_rho, self._i_psi):
-            owner[idx] = np.arange(2, L.n)
-        owner[self._i_chi] = np.arange(3, 3 + len(self._i_chi))
+            owner[idx] = self.order[2:]
+        owner[self._i_chi] = self.order[3:3 + len(self._i_chi)]
         self._spoke_owner = owner
         # the spokes whose azimuth wraps (all but robot 3's in space, every one in the plane)
         self._wrap_psi = np.arange(len(rho)) if planar else np.arange(1, len(rho))
@@ -210,7 +251,7 @@ class EuclideanTeam(Formation):
                 k = int(np.argmin(np.min(rho.reshape(-1, rho.shape[-1]), axis=0)))
                 raise DegenerateInputError(
                     f"{name}: {self.variables[self._i_rho[k]].name} = {float(np.min(rho)):.3g} m puts robot "
-                    f"{self.layout.labels[k + 2]} on robot 1 (at least {MIN_SEPARATION_M:g} m); give it a positive "
+                    f"{self.layout.labels[self.order[k + 2]]} on robot {self.layout.labels[self.order[0]]} (at least {MIN_SEPARATION_M:g} m); give it a positive "
                     "distance from robot 1")
         return c
 
@@ -218,7 +259,7 @@ class EuclideanTeam(Formation):
     def _geometry(self, r, near_c=None):
         """Everything the forward map and its rate read: a dict of arrays (module docstring)."""
         L = self.layout
-        p = L.positions(r)
+        p = self._ordered(L.positions(r))
         delta = p[..., 0, :] - p[..., 1, :]
         D = g.norm(delta)
         self.check_apart(r, separations=D if L.n == 2 else None)
@@ -301,7 +342,7 @@ class EuclideanTeam(Formation):
             r = np.broadcast_to(r, np.broadcast_shapes(r.shape[:-1], near_c.shape[:-1]) + r.shape[-1:])
         G = self._geometry(r, near_c)
         c = np.empty(r.shape[:-1] + (self.n_c,))
-        nxc = 2 if self.planar else 3
+        nxc = self._nxc
         c[..., 0:nxc] = G["p"].mean(axis=-2)[..., :nxc]  # seed 000 eqs. (1)-(3), N robots
         c[..., self._i_beta] = G["beta"]
         if not self.planar:
@@ -353,8 +394,10 @@ class EuclideanTeam(Formation):
         Sc = S - S.mean(axis=-2, keepdims=True)
         off = (Sc[..., 0:1] * xf[..., None, :] + Sc[..., 1:2] * u[..., None, :] + Sc[..., 2:3] * zf[..., None, :])
         xc = np.zeros(c.shape[:-1] + (3,))
-        nxc = 2 if self.planar else 3
+        nxc = self._nxc
         xc[..., :nxc] = c[..., :nxc]
+        if self._ground is not None:  # the ground robot at z = 0 fixes the centroid's height
+            xc[..., 2] = -off[..., self._ground, 2]
         return xc, (x0, u, z0, xf, zf), off, (S, dirs, psi, chi)
 
     def inverse(self, c, *, near_r=None):
@@ -380,7 +423,7 @@ class EuclideanTeam(Formation):
         """
         c = self.check_cluster_state(c)
         xc, _, off, _ = self._place(c)
-        p = xc[..., None, :] + off
+        p = self._unordered(xc[..., None, :] + off)
         th = c[..., self._i_phi] + c[..., self._i_beta][..., None]
         if near_r is not None and len(self._i_phi):
             th = g.unwrap_near(th, self.layout.yaws(self.check_robot_state(near_r, "near_r")))
@@ -424,9 +467,12 @@ class EuclideanTeam(Formation):
         Sdc = Sd - Sd.mean(axis=-2, keepdims=True)
         v = (Sdc[..., 0:1] * xf[..., None, :] + Sdc[..., 1:2] * u[..., None, :] + Sdc[..., 2:3] * zf[..., None, :])
         xcd = np.zeros(cd.shape[:-1] + (3,))
-        nxc = 2 if self.planar else 3
+        nxc = self._nxc
         xcd[..., :nxc] = cd[..., :nxc]
-        v = xcd[..., None, :] + np.cross(w[..., None, :], off) + v
+        v = np.cross(w[..., None, :], off) + v
+        if self._ground is not None:  # the ground robot stays at z = 0
+            xcd[..., 2] = -v[..., self._ground, 2]
+        v = self._unordered(xcd[..., None, :] + v)
         return self.layout.compose(v, cd[..., self._i_phi] + bd[..., None])
 
     def inverse_jacobian_at(self, c, *, r=None):
@@ -448,7 +494,7 @@ class EuclideanTeam(Formation):
         r, rd = (np.broadcast_to(a, shape + a.shape[-1:]) for a in (r, rd))
         G = self._geometry(r, near_c)
         L = self.layout
-        v = L.positions(rd)
+        v = self._ordered(L.positions(rd))
         dd = v[..., 0, :] - v[..., 1, :]
         delta, D, rho_h = G["delta"], G["D"], G["rho_h"]
         dx, dy, dz = np.moveaxis(delta, -1, 0)
@@ -473,7 +519,7 @@ class EuclideanTeam(Formation):
             gd = np.where(vert, 0.0, (-dz * (dx * dd[..., 0] + dy * dd[..., 1]) / rh + rho_h * dd[..., 2]) / (D * D))
         d_d = 0.5 * _dot(delta, dd) / D  # eq. (6)
         out = np.zeros(r.shape[:-1] + (self.n_c,))
-        nxc = 2 if self.planar else 3
+        nxc = self._nxc
         out[..., :nxc] = v.mean(axis=-2)[..., :nxc]
         out[..., self._i_beta] = bd
         if not self.planar:
@@ -523,6 +569,65 @@ class EuclideanTeam(Formation):
         """
         return self._rates(r, r_dot, near_c, strict=True)
 
+    # -- the Euler reading of the formation's attitude -------------------------------------------
+    @property
+    def reading_names(self) -> tuple[str, ...]:
+        """Names of :meth:`reading`'s angles: ``beta_c``, and ``gamma_c`` and ``alpha_c`` in space."""
+        return tuple(self.variables[i].name for i in self._reading_index)
+
+    @property
+    def _reading_index(self):
+        return [i for i in (self._i_beta, self._i_gamma, self._i_alpha) if i is not None]
+
+    def reading(self, r, *, near=None) -> np.ndarray:
+        """The attitude angles ``(beta_c, gamma_c, alpha_c)`` (rad) of the robots ``r``.
+
+        Without ``near``: the forward map's own values (seed 000 eqs. (4)-(5): ``gamma_c`` in
+        ``[-pi/2, pi/2]``, ``beta_c`` and ``alpha_c`` in ``(-pi, pi]``), which is how robot space
+        reads its formation (it keeps no formation state). With ``near`` (``(..., k)``), the
+        one of the two Euler triples of the same frame, ``(beta, gamma, alpha)`` and
+        ``(beta + pi, pi - gamma, alpha + pi)`` (``Rz Rx Ry`` is unchanged; for a pair without
+        roll, ``(beta + pi, pi - gamma)`` gives the same segment), each wound to within pi of
+        ``near``'s, that lies closer to it: the reading of a description that follows the
+        attitude continuously through ``gamma_c = +-pi/2`` (``docs/derivations.md``).
+
+        Parameters
+        ----------
+        r : array_like, shape (..., n_r)
+        near : array_like, shape (..., k), optional
+
+        Returns
+        -------
+        ndarray, shape (..., k)
+            ``k = len(reading_names)``.
+        """
+        a = self.forward(r)[..., self._reading_index]
+        return a if near is None else self._branch_near(a, np.asarray(near, dtype=float))
+
+    def follow_reading(self, r) -> np.ndarray:
+        """:meth:`reading` of the samples ``r`` ``(T, n_r)`` followed continuously in time: each
+        sample's triple nearest the previous one's (the first: the forward map's), so that a
+        formation pitching through the vertical reads ``gamma_c`` past ``pi/2``, as seed 000
+        states its references. Shape ``(T, k)``."""
+        a = self.reading(r)
+        out = a.copy()
+        for k in range(1, len(a)):  # sequential: each sample's branch depends on the last
+            out[k] = self._branch_near(a[k], out[k - 1])
+        return out
+
+    def _branch_near(self, a, near):
+        """The Euler triple of ``a``'s frame (``a`` or its flip) nearest ``near``, wound to it."""
+        if self.planar:
+            return g.unwrap_near(a, near)
+        flip = a.copy()
+        flip[..., 0] += np.pi
+        flip[..., 1] = np.pi - a[..., 1]
+        if a.shape[-1] > 2:
+            flip[..., 2] += np.pi
+        a, flip = g.unwrap_near(a, near), g.unwrap_near(flip, near)
+        closer = np.sum((flip - near) ** 2, axis=-1) < np.sum((a - near) ** 2, axis=-1)
+        return np.where(closer[..., None], flip, a)
+
     # -- the operator's chart ---------------------------------------------------------------
     def to_chart(self, c, *, near_e=None, r=None):
         """The operator's chart of ``c``.
@@ -545,12 +650,12 @@ class EuclideanTeam(Formation):
         qx = np.stack([np.cos(half * gamma), np.sin(half * gamma), 0 * gamma, 0 * gamma], axis=-1)
         qy = np.stack([np.cos(half * alpha), 0 * alpha, np.sin(half * alpha), 0 * alpha], axis=-1)
         q = g.mul(g.mul(qz, qx), qy)
-        S, _, _, _ = self._spokes(c)
-        Sc = S - S.mean(axis=-2, keepdims=True)
+        xc, _, off, _ = self._place(c)
         e = np.zeros(c.shape[:-1] + (self.chart.size,))
-        e[..., 0:(2 if self.planar else 3)] = c[..., 0:(2 if self.planar else 3)]
+        e[..., 0:(2 if self.planar else 3)] = xc[..., 0:(2 if self.planar else 3)]
         e[..., 3:7] = q
-        e[..., self.chart.shape_index] = Sc
+        S, _, _, _ = self._spokes(c)
+        e[..., self.chart.shape_index] = self._unordered(S - S.mean(axis=-2, keepdims=True))
         e[..., self.chart.yaw_index] = c[..., self._i_phi] + beta[..., None]
         return e
 
@@ -586,7 +691,7 @@ class EuclideanTeam(Formation):
         ``overrides`` (pairs ``(variable index or index array, values)``)."""
         c = np.zeros(batch + (self.n_c,))
         L = self.layout
-        nxc = 2 if self.planar else 3
+        nxc = self._nxc
         c[..., :nxc] = rng.uniform(-2.0, 2.0, batch + (nxc,))
         c[..., self._i_beta] = rng.uniform(-np.pi, np.pi, batch)
         if not self.planar:

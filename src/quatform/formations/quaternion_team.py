@@ -472,13 +472,7 @@ class QuaternionTeam(Formation):
         rows in A and in B) is invariant under ``G``, so its spectrum is that of the (at most)
         14 x 14 ``Q^T G Q`` plus ``D``'s values on the rest (``docs/derivations.md``).
         """
-        r = self.check_robot_state(r)
-        L = self.layout
-        scale = self.length_scale(r)[..., None, None]
-        p = L.positions(r)
-        p = (p - p.mean(axis=-2, keepdims=True)) / scale
-        rn = L.compose(p, L.yaws(r), L.orientations(r))
-        c = self.forward(rn, near_c=near_c)
+        c = self.forward(self.normalised(r), near_c=near_c)
         U = np.moveaxis(self.robot_rate(c, self._basis(self.n_c, c.ndim - 1)[:7]), 0, -1)  # (..., n_r, 7)
         q2 = np.sum(c[..., 3:7] ** 2, axis=-1, keepdims=True)
         d = np.broadcast_to(q2, c.shape[:-1] + (self.n_r,)).copy()  # positions: 1 (R R^T), pose rows |q_c|^2

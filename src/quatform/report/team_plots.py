@@ -178,6 +178,20 @@ def plot_team_attitude(run: Log, path) -> Path:
     return _measured_desired_grid(run, path, rows, "attitude: quaternion, and z-y-x Euler angles for reading")
 
 
+def plot_team_reading(run: Log, path) -> Path:
+    """The formation's attitude in seed 000's Euclidean angles (``beta_c``, ``gamma_c``,
+    ``alpha_c``) as the controller's description reports it, against the reference's read
+    continuously through the vertical (seed 000 Figs. 5-8's angle panels: robot space reads
+    the formation folded past pitch 90 deg, ``beta_c + pi``, ``pi - gamma_c``)."""
+    ad = np.asarray(run["reading_des"])
+    a = finite(np.asarray(run["reading"]))
+    if np.isfinite(a).all() and len(a):  # continuous in time (whole turns only: a fold, pi, stays in view)
+        a = np.unwrap(a, axis=0)
+        a += 2.0 * np.pi * np.round((ad[0] - a[0]) / (2.0 * np.pi))
+    rows = [(f"{name} [rad]", a[:, k], ad[:, k], False) for k, name in enumerate(run.columns("reading"))]
+    return _measured_desired_grid(run, path, rows, "Euler reading of the formation (as the description reports it)")
+
+
 def plot_team_shape(run: Log, path) -> Path:
     """The shape: each robot's distance from the centroid ``|s_i|`` (m) against the
     reference's; a team of more than 10 robots draws the root mean square of the ``|s_i|``
@@ -343,13 +357,17 @@ def plot_team_compare(runs, path, linthresh: float = 1e-3) -> Path:
 
 def write_team_run_plots(run: Log, out_dir) -> list[Path]:
     """Write ``paths_3d.png``, ``centroid.png``, ``attitude.png``, ``shape.png``,
-    ``robot_errors.png``, ``separation.png`` and ``singularity.png`` of one team run."""
+    ``robot_errors.png``, ``separation.png``, ``singularity.png`` and, where the team has a
+    Euclidean reading, ``euler_reading.png`` of one team run."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [plot_team_paths_3d(run, out / "paths_3d.png"), plot_team_centroid(run, out / "centroid.png"),
-            plot_team_attitude(run, out / "attitude.png"), plot_team_shape(run, out / "shape.png"),
-            plot_team_errors(run, out / "robot_errors.png"), plot_team_separation([run], out / "separation.png"),
-            plot_team_singularity([run], out / "singularity.png")]
+    files = [plot_team_paths_3d(run, out / "paths_3d.png"), plot_team_centroid(run, out / "centroid.png"),
+             plot_team_attitude(run, out / "attitude.png"), plot_team_shape(run, out / "shape.png"),
+             plot_team_errors(run, out / "robot_errors.png"), plot_team_separation([run], out / "separation.png"),
+             plot_team_singularity([run], out / "singularity.png")]
+    if "reading" in run:
+        files.append(plot_team_reading(run, out / "euler_reading.png"))
+    return files
 
 
 def write_team_compare_plots(runs, out_dir) -> list[Path]:

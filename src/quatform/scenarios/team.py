@@ -45,7 +45,7 @@ from ..checks import (
 from ..control import TEAM_FORMATIONS, TEAM_GAIN_KEYS, Reference, team_controller
 from ..control.safety import SafeController, SeparationBarrier
 from ..errors import InvalidInputError
-from ..formations import TeamChart
+from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
 from ..formations.team_chart import check_template
 from ..references.team_motion import (
     HEADING_MODES,
@@ -593,6 +593,8 @@ TEAM_TABLE_COLUMNS = (
     ("max_orientation_error_rad", "attitude (rad)", "{:.4f}"),
     ("max_robot_position_error_m", "robot pos (m)", "{:.4f}"),
     ("max_recovered_attitude_error_rad", "recovered (rad)", "{:.3f}"),
+    ("max_reading_error_rad", "Euler reading (rad)", "{:.3f}"),
+    ("reading_folded_time_s", "folded (s)", "{:.1f}"),
     ("min_robot_separation_m", "min sep (m)", "{:.3f}"),
     ("nonfinite_commands", "NaN cmds", "{}"),
 )
@@ -706,6 +708,9 @@ class TeamKind(ScenarioKind):
         def reference_at(k):
             return Reference(c_des[k], cd_des[k], r_des[k])
 
+        reader = _euclidean_reader(F, team.layout, scenario.template)
+        reading_des = None if reader is None else reader.follow_reading(r_des)
+
         def finish(log: Log) -> Log:
             r = team.point(log["state"])
             c = log["cluster"]
@@ -719,6 +724,9 @@ class TeamKind(ScenarioKind):
                      Channel("c_des", tuple(n + "_des" for n in F.names), c_des),
                      Channel("e", names, e), Channel("e_des", tuple(n + "_des" for n in names), e_des),
                      Channel("singularity", ("singularity_measure",), sing[:, None])]
+            if reader is not None:
+                chans += [Channel("reading", reader.reading_names, _reading(F, reader, r, c, reading_des)),
+                          Channel("reading_des", tuple(n + "_des" for n in reader.reading_names), reading_des)]
             extra = {}
             if physics is not None:
                 extra["physics_record"] = mjp.physics_record(physics, log, f"{scenario.name}: {ctrl.name} controller")
@@ -730,11 +738,39 @@ class TeamKind(ScenarioKind):
                 out.update(mjp.physics_metrics(physics))
             return out
 
-        csv = (("points", "r_des"), ("e", "e_des"), "command", "singularity",
+        csv = (("points", "r_des"), ("e", "e_des"), *((("reading", "reading_des"),) if reader is not None else ()),
+               "command", "singularity",
                *(("min_separation", "safety_active") if safety["applied"] else ()))
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl, reference=reference_at,
                           times=t, x0=x0, dt=scenario.dt_s, finish=finish, metrics=metrics, csv_channels=csv,
                           meta=meta)
+
+
+def _euclidean_reader(F, layout, template):
+    """The Euclidean team description that reads the formation's attitude in Euler angles
+    (seed 000's beta_c, gamma_c and, for N >= 3, alpha_c): ``F`` itself when it is one, else
+    one of the team (None when no minimal Euclidean chart takes the team's mix)."""
+    if isinstance(F, EuclideanTeam):
+        return F
+    try:
+        return EuclideanTeam(layout=layout, template=template)
+    except InvalidInputError:
+        return None
+
+
+def _reading(F, reader, r, c, reading_des):
+    """The Euler reading ``(T, k)`` of the formation as the controller's description reports it
+    (seed 000 §4's comparison): the Euclidean description its own cluster state's angles (held
+    and unwrapped near its reference); robot space, which keeps no formation state, the forward
+    map's own angles (seed 000 eqs. (4)-(5), ``gamma_c`` within ``+-pi/2``: it reads a formation
+    past the vertical folded, ``(beta_c + pi, pi - gamma_c, alpha_c + pi)``); the quaternion
+    and dual-quaternion descriptions, which follow the attitude continuously, the triple of the
+    robots' frame nearest the reference's."""
+    if F is reader:
+        return np.asarray(c)[..., [F.names.index(n) for n in F.reading_names]]
+    if isinstance(F, RobotSpaceTeam):
+        return reader.reading(r)
+    return reader.reading(r, near=reading_des)
 
 
 #: The team kind (registered in :data:`quatform.scenarios.KINDS`).

@@ -105,6 +105,29 @@ def _chart_heading_kinds(L):
     return out
 
 
+#: Samples whose reference lies within this of the vertical (``|cos gamma_c| <`` it, about 3
+#: degrees) are left out of the Euler reading's error: there ``beta_c`` and ``alpha_c`` are not
+#: separate (seed 000 eq. (5)'s singular pose) and a millimetre reads as a large angle.
+READING_POLE_COS = 0.05
+
+
+def _reading_metrics(log: Log, late) -> dict:
+    """``max_reading_error_rad`` (the formation's Euler reading against the reference's, the
+    worst angle, away from the vertical) and ``reading_folded_time_s`` (how long ``beta_c`` read
+    more than pi/2 off the reference's: the reading folded, seed 000's robot-space finding);
+    None without a ``reading`` channel (a team no minimal Euclidean chart takes)."""
+    if "reading" not in log:
+        return {"max_reading_error_rad": None, "reading_folded_time_s": None}
+    a, ad = np.asarray(log["reading"]), np.asarray(log["reading_des"])
+    away = np.abs(np.cos(ad[:, 1])) >= READING_POLE_COS if ad.shape[1] > 1 else np.ones(len(ad), dtype=bool)
+    use = late & away
+    err = np.abs(wrap_angle(a - ad))
+    folded = use & (err[:, 0] > 0.5 * np.pi)
+    tick = float(log.t[1] - log.t[0]) if log.t.size > 1 else 0.0
+    return {"max_reading_error_rad": float(err[use].max()) if use.any() else None,
+            "reading_folded_time_s": float(folded.sum() * tick)}
+
+
 def _first(t, mask):
     idx = np.flatnonzero(mask)
     return float(t[idx[0]]) if idx.size else None
@@ -203,6 +226,7 @@ def team_metrics(log: Log) -> dict:
         "safety_applied": bool(safety.get("applied", False)),
         "safety_min_separation_m": safety.get("min_separation_m"),
     }
+    out.update(_reading_metrics(log, late))
     if "safety_active" in log:
         active = np.asarray(log["safety_active"])[:, 0] > 0.5
         tick = float(t[1] - t[0]) if t.size > 1 else 0.0
