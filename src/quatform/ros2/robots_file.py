@@ -11,7 +11,7 @@ table per robot of the scenario, in the scenario's robot order (``docs/ros2.md``
 
     [[robots]]
     name = "cf1"
-    namespace = "/cf1"
+    namespace = "/cf1"                  # default: "/" + name; "" for none
     pose_topic = "/vrpn_client_node/cf1/pose"
     pose_type = "pose"                  # pose | odometry | px4
     command_topic = "cmd_vel"           # relative: under the namespace
@@ -69,7 +69,7 @@ class RobotLink:
     name : str
         The robot's name (messages, files, the replay's columns).
     namespace : str
-        Prefix of its relative topic names (``""``: none).
+        Prefix of its relative topic names (default ``/<name>``; ``""``: none).
     pose_topic, command_topic : str
         Absolute topic names (:func:`resolve_topic`).
     pose_type : str
@@ -162,7 +162,7 @@ def robots_from_dict(data: dict, where: str) -> RobotsFile:
     robots = []
     for r, w in records(data, "robots", _ROBOT_KEYS, where, "robots", _HINT):
         name = _name_text(r, "name", w)
-        ns = text(r, "namespace", w, "", place="[[robots]]")
+        ns = text(r, "namespace", w, f"/{name}", place="[[robots]]")
         if ns and (not ns.startswith("/") or any(c.isspace() for c in ns)):
             raise InvalidInputError(f"{w}: [[robots]] namespace = {ns!r} must be absolute (start with /) without "
                                     "spaces, or be left out")
