@@ -38,7 +38,7 @@ def add_replay_parser(sub) -> None:
     p.add_argument("--robots", required=True, metavar="ROBOTS_TOML", help="robots file (docs/ros2.md)")
     p.add_argument("--controller", metavar="NAME", help="the kind's controller (ugv-uav: its formation)")
     p.add_argument("--reference", metavar="PLAN_NPZ", help="a plan.npz to follow instead of the scenario's path")
-    p.add_argument("--rate", type=float, metavar="HZ", help="tick rate (default: at each pose of the first robot)")
+    p.add_argument("--rate", type=float, metavar="HZ", help="tick rate (default: at each pose time of any robot)")
     p.add_argument("--stamps", choices=("header", "log"), default="header",
                    help="pose times: header stamps (default) or the bag's receive times")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")

@@ -2,7 +2,7 @@
 
 The path from a lab log to a figure: the bag's pose messages (:mod:`quatform.ros2.bag_poses`)
 go, in time order, into the same :class:`~quatform.ros2.bridge.FormationBridge` the live node
-runs, which ticks at each pose time of the first robot (default) or at ``rate_hz`` from the
+runs, which ticks at each pose time (default; of any robot) or at ``rate_hz`` from the
 moment every robot has a pose (as the node's timer, started then, does); a pose and a tick at
 one time: the pose first. The stale rule, the reference time and the commands are the node's,
 so a bag replayed through the node and through ``replay`` gives the same commands.
@@ -50,13 +50,13 @@ class ReplayResult:
 
 
 def _tick_times(poses, rate_hz):
-    """The ticks, ns: after every robot has a pose (``ready``), each pose time of robot 0 at or
-    after it, or ``ready + k / rate_hz`` (k >= 1) up to the last pose."""
+    """The ticks, ns: after every robot has a pose (``ready``), each distinct pose time (of any
+    robot) at or after it, or ``ready + k / rate_hz`` (k >= 1) up to the last pose."""
     ready = max(int(t[0]) for t in poses.times_ns)
     last = max(int(t[-1]) for t in poses.times_ns)
     if rate_hz is None:
-        t0 = poses.times_ns[0]
-        return [int(t) for t in t0[t0 >= ready]]
+        every = np.unique(np.concatenate(poses.times_ns))
+        return [int(t) for t in every[every >= ready]]
     period = int(round(1e9 / rate_hz))
     n = (last - ready) // period
     if n > 10_000_000:
@@ -166,7 +166,7 @@ def _figure(result: ReplayResult, bridge, path: Path) -> Path:
             line, = ax.plot(t, u[:, cs][:, j], lw=1, label=f"{c} commanded")
             if model.passthrough and len(t) > 1:  # its commands are its state's world rates: measured beside
                 rate = np.gradient(x[:, j], t)
-                ax.plot(t, rate, lw=0.8, ls="--", color=line.get_color(), label=f"{c} measured")
+                ax.plot(t, rate, lw=0.8, ls="--", color=line.get_color(), label=f"{c} measured rate")
         for a, b in intervals(t, held):
             ax.axvspan(a, b, color="0.85", lw=0, zorder=0)
         ax.set_title(f"{bridge.names[i]}: commanded" + (" vs measured rate" if model.passthrough else "")
@@ -194,7 +194,7 @@ def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_
     controller, reference : str, optional
         As ``quatform ros2`` (:func:`~quatform.ros2.bridge.experiment_for`).
     rate_hz : float, optional
-        Tick rate; default: at each pose time of the first robot.
+        Tick rate; default: at each pose time (of any robot).
     stamps : str
         ``header`` (the messages' stamps) or ``log`` (the bag's receive times).
     plots : bool
