@@ -219,3 +219,13 @@ def test_ugv_uav_tick_on_measured_poses():
         assert tick.status == "ok" and np.all(np.isfinite(tick.u))
         assert np.all(np.abs(tick.u[2:6]) <= 1.0)
     assert np.any(tick.u != 0)
+
+
+def test_importing_the_bridge_and_cli_does_not_import_rclpy():
+    import subprocess
+    import sys
+
+    code = ("import sys, quatform.cli, quatform.ros2, quatform.ros2.node, quatform.ros2.replay; "
+            "quatform.cli._build_parser(); print('rclpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -146,4 +146,4 @@ def test_replay_refuses_a_bag_without_a_tick(pair_bag, tmp_path):
         (rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns[:3], msgs[0][:3]))),
         (rf.robots[1].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns[5:6], msgs[1][5:6])))])
     with pytest.raises(InvalidInputError, match="no tick"):
-        replay(bag, pair_bag["sc"], rf, tmp_path / "x", controller="quaternion")
+        replay(bag, pair_bag["sc"], rf, tmp_path / "x", controller="quaternion", rate_hz=10.0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 __all__ = ["add_ros2_parser", "add_replay_parser", "run_ros2", "run_replay"]
 
@@ -51,6 +52,10 @@ def run_ros2(args) -> None:
     from .node import BridgeNode, import_rclpy
     from .robots_file import read_robots_file
 
+    if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):
+        from ..errors import InvalidInputError
+
+        raise InvalidInputError(f"--rate {args.rate!r} must be a positive number of Hz")
     robots = read_robots_file(args.robots)
     experiment = experiment_for(args.scenario, args.controller, args.reference)
     bridge = FormationBridge(experiment, robots)
