@@ -166,7 +166,7 @@ def test_estop_latches_until_released(fake_ros, tmp_path):
 def test_missing_robot_refuses_to_start(fake_ros, tmp_path):
     from quatform.ros2.node import BridgeNode
 
-    exp, log, rf = _pair_setup(tmp_path)
+    exp, _, rf = _pair_setup(tmp_path)
     bus = fake_ros.fake_bus.BUS
     bus.schedule(0, rf.robots[0].pose_topic, messages.pose_stamped(0.0, [0, 0, 1], [1, 0, 0, 0]))
     node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)

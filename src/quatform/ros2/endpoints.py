@@ -9,8 +9,8 @@ robot's twist into the messages it publishes, topic by topic. Messages are ``ros
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

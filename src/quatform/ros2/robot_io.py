@@ -24,8 +24,8 @@ Bebop of the UGV-UAV kind.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

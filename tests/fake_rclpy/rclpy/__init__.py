@@ -23,10 +23,10 @@ def ok(context=None):
     return fake_bus.BUS.initialized
 
 
-def spin_once(node, *, executor=None, timeout_sec=None):
-    fake_bus.BUS.spin_once(node, timeout_sec)
+def spin_once(a_node, *, executor=None, timeout_sec=None):
+    fake_bus.BUS.spin_once(a_node, timeout_sec)
 
 
-def spin(node, executor=None):
-    while fake_bus.BUS.initialized and fake_bus.BUS.spin_once(node, None):
+def spin(a_node, executor=None):
+    while fake_bus.BUS.initialized and fake_bus.BUS.spin_once(a_node, None):
         pass
