@@ -166,6 +166,23 @@ def test_team_with_a_pioneer_matches_the_simulation(tmp_path):
         lin, ang = tick.twists[0]
         np.testing.assert_array_equal(np.r_[lin, ang], [tick.u[0], 0, 0, 0, 0, tick.u[1]])  # (v, omega)
     np.testing.assert_allclose(np.array(u), log["command"], rtol=0, atol=1e-12)
+    # uav2 in its heading frame: its group converts apart; the others' twists do not change
+    rows = [{"name": n, "pose_topic": f"/vrpn_client_node/{n}/pose", "namespace": f"/{n}"}
+            for n in ("ugv", "uav1", "uav2", "uav3")]
+    rows[2]["command_frame"] = "body"
+    b2 = FormationBridge(exp, robots_from_dict({"robots": rows}, "robots.toml"))
+    for i in range(4):
+        b2.on_pose(i, msgs[i][-1], 0)
+    tick2 = b2.tick(0)
+    theta = b2.states[2][3]
+    v = tick2.u[b2.plant_robots.command_slices[2]]
+    lin, ang = tick2.twists[2]
+    np.testing.assert_allclose(lin, [np.cos(theta) * v[0] + np.sin(theta) * v[1],
+                                     -np.sin(theta) * v[0] + np.cos(theta) * v[1], v[2]], atol=1e-14)
+    assert ang[2] == v[3]
+    for i in (1, 3):
+        np.testing.assert_array_equal(np.r_[tick2.twists[i]], np.r_[tick2.u[b2.plant_robots.command_slices[i]][:3],
+                                                                    0, 0, tick2.u[b2.plant_robots.command_slices[i]][3]])
 
 
 def test_bridge_refuses_what_the_robots_cannot_take(tmp_path):

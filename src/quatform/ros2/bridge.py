@@ -138,6 +138,15 @@ class FormationBridge:
                                         "frame; set command_frame = 'body' or leave it out")
             frames.append(frame)
         self.frames = tuple(frames)
+        # the robots of one model and command frame, converted together (one call per group)
+        groups: dict = {}
+        for i, (model, frame) in enumerate(zip(models, frames)):
+            groups.setdefault((type(model), model, frame), []).append(i)
+        self._groups = tuple(
+            (self.ios[idx[0]], models[idx[0]], frame, np.array(idx),
+             np.array([np.arange(pr.command_slices[i].start, pr.command_slices[i].stop) for i in idx]),
+             np.array([np.arange(pr.state_slices[i].start, pr.state_slices[i].stop) for i in idx]))
+            for (_, _, frame), idx in groups.items())
         self.n_state = len(experiment.plant.state_columns)
         self.n_u = len(experiment.controller.command_names)
         times = np.asarray(experiment.times, dtype=float)
@@ -237,16 +246,15 @@ class FormationBridge:
         self.last_ok = status == "ok"
         self.last_tick_ns = now_ns
         t = now_ns * 1e-9
-        twists, msgs = [], []
-        zero = np.zeros(3)
-        for i, link in enumerate(self.robots.robots):
-            if status == "ok":
-                lin, ang = self.ios[i].twist(self.plant_robots.models[i], u[self.plant_robots.command_slices[i]],
-                                             self.states[i], self.poses[i].quaternion, self.frames[i])
-            else:
-                lin, ang = zero, zero
-            twists.append((np.asarray(lin, dtype=float), np.asarray(ang, dtype=float)))
-            msgs.extend(COMMAND_WRITERS[link.command_type].build(link, t, lin, ang, self.robots.settings.world_frame,
-                                                                 self.frames[i]))
-        return Tick(t, status, self.tau_ns * 1e-9, u, tuple(twists), tuple(self.names[i] for i in stale), signals,
-                    tuple(msgs))
+        twists = np.zeros((len(self.robots.robots), 6))
+        if status == "ok":
+            q = np.array([p.quaternion for p in self.poses])
+            for io, model, frame, idx, ui, xi in self._groups:
+                lin, ang = io.twist(model, u[ui], x[xi], q[idx], frame)
+                twists[idx, 0:3], twists[idx, 3:6] = lin, ang
+        msgs = []
+        for i, link in enumerate(self.robots.robots):  # one message (or two) per robot: ROS's I/O
+            msgs.extend(COMMAND_WRITERS[link.command_type].build(link, t, twists[i, 0:3], twists[i, 3:6],
+                                                                 self.robots.settings.world_frame, self.frames[i]))
+        return Tick(t, status, self.tau_ns * 1e-9, u, tuple((w[0:3], w[3:6]) for w in twists),
+                    tuple(self.names[i] for i in stale), signals, tuple(msgs))

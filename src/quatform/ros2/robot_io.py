@@ -89,9 +89,10 @@ class RobotIO:
         Its commands are a world velocity and a yaw rate (a PX4 / MAVROS velocity setpoint).
     state : callable ``(model, PoseSample, previous state or None) -> ndarray (k,)``
     world_twist : callable ``(model, u, state) -> (linear, angular)`` or None
-        The command as world-frame velocities (None: it has none).
+        The command as world-frame velocities (None: it has none); ``u (..., k_u)``,
+        ``state (..., k_x)``, results ``(..., 3)``: any number of robots of one model at once.
     body_twist : callable ``(model, u, state, quaternion) -> (linear, angular)``
-        The command in the body frame.
+        The command in the body frame (the same shapes, ``quaternion (..., 4)``).
     """
 
     kind: str
@@ -103,11 +104,26 @@ class RobotIO:
     setpoint: bool = False
 
     def twist(self, model, u, state, quaternion, frame: str):
-        """``(linear (3,), angular (3,))`` of the command ``u`` in ``frame`` (``world``/``body``)."""
+        """``(linear (..., 3), angular (..., 3))`` of the commands ``u`` in ``frame`` (``world``/``body``)."""
         if frame == "world":
             return self.world_twist(model, u, state)
         return self.body_twist(model, u, state, quaternion)
 
+
+def _z(w) -> np.ndarray:
+    """``(0, 0, w)`` of ``(...)`` values: ``(..., 3)``."""
+    w = np.asarray(w, dtype=float)
+    return np.stack([np.zeros_like(w), np.zeros_like(w), w], axis=-1)
+
+
+def _xy(x, y) -> np.ndarray:
+    """``(x, y, 0)``: ``(..., 3)``."""
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+    return np.stack([x, y, np.zeros_like(x)], axis=-1)
+
+
+# Command converters take the commands u (..., k_u), the states (..., k_x) and quaternions (..., 4)
+# of any number of robots of one model at once.
 
 # -- the 4-DOF robot (seed 000 §4.1): (x, y, z, theta); commands world (v_x, v_y, v_z, omega_z)
 def _holonomic_state(model, pose, prev):
@@ -115,11 +131,11 @@ def _holonomic_state(model, pose, prev):
 
 
 def _holonomic_world(model, u, state):
-    return np.asarray(u[0:3], dtype=float), np.array([0.0, 0.0, u[3]])
+    return np.asarray(u[..., 0:3], dtype=float), _z(u[..., 3])
 
 
 def _holonomic_body(model, u, state, q):
-    return heading_rotate(state[3], u[0:3], inverse=True), np.array([0.0, 0.0, u[3]])
+    return heading_rotate(state[..., 3], u[..., 0:3], inverse=True), _z(u[..., 3])
 
 
 # -- the planar holonomic robot (issue 14): (x, y, theta); commands world (v_x, v_y, omega_z)
@@ -128,11 +144,11 @@ def _planar_state(model, pose, prev):
 
 
 def _planar_world(model, u, state):
-    return np.array([u[0], u[1], 0.0]), np.array([0.0, 0.0, u[2]])
+    return _xy(u[..., 0], u[..., 1]), _z(u[..., 2])
 
 
 def _planar_body(model, u, state, q):
-    return heading_rotate(state[2], [u[0], u[1], 0.0], inverse=True), np.array([0.0, 0.0, u[2]])
+    return heading_rotate(state[..., 2], _xy(u[..., 0], u[..., 1]), inverse=True), _z(u[..., 2])
 
 
 # -- the Pioneer 3-DX (seed 001 §3.1.1): the control point (x, y, psi); commands (v, omega), eq. (3.1)
@@ -143,7 +159,7 @@ def _pioneer_state(model, pose, prev):
 
 
 def _pioneer_body(model, u, state, q):
-    return np.array([u[0], 0.0, 0.0]), np.array([0.0, 0.0, u[1]])
+    return _xy(u[..., 0], 0.0), _z(u[..., 1])
 
 
 # -- the free body (issue 14): (x, y, z, q_w, q_x, q_y, q_z); commands world (v, w)
@@ -156,12 +172,12 @@ def _free_body_state(model, pose, prev):
 
 
 def _free_body_world(model, u, state):
-    return np.asarray(u[0:3], dtype=float), np.asarray(u[3:6], dtype=float)
+    return np.asarray(u[..., 0:3], dtype=float), np.asarray(u[..., 3:6], dtype=float)
 
 
 def _free_body_body(model, u, state, q):
-    qc = g.conj(np.asarray(state[3:7], dtype=float))
-    return g.rotate(qc, np.asarray(u[0:3], dtype=float)), g.rotate(qc, np.asarray(u[3:6], dtype=float))
+    qc = g.conj(np.asarray(state[..., 3:7], dtype=float))
+    return g.rotate(qc, np.asarray(u[..., 0:3], dtype=float)), g.rotate(qc, np.asarray(u[..., 3:6], dtype=float))
 
 
 # -- the Bebop 2 (seed 001 §3.1.2): (x, y, z, psi, v_x, v_y, z_dot, psi_dot), body (v_x, v_y) by eq. (3.8)
@@ -186,7 +202,7 @@ def _bebop_state(model, pose, prev):
 
 def _bebop_body(model, u, state, q):
     # bebop_autonomy's cmd_vel: linear.x forward, linear.y left, linear.z up, angular.z yaw, fractions of [-1, 1]
-    return np.array([u[0], u[1], u[2]]), np.array([0.0, 0.0, u[3]])
+    return np.asarray(u[..., 0:3], dtype=float), _z(u[..., 3])
 
 
 #: The conversions of each robot model class.
