@@ -152,7 +152,7 @@ class FormationBridge:
         times = np.asarray(experiment.times, dtype=float)
         self.n_ref = times.size
         self.ref_dt = float(times[1] - times[0]) if times.size > 1 else 1.0
-        self.timeouts_ns = tuple(int(round(link.timeout_s * 1e9)) for link in robots.robots)
+        self.timeouts_ns = np.array([round(link.timeout_s * 1e9) for link in robots.robots], dtype=np.int64)
         self.reset()
 
     # -- state ------------------------------------------------------------------------------
@@ -161,7 +161,8 @@ class FormationBridge:
         n = len(self.robots.robots)
         self.poses: list[PoseSample | None] = [None] * n
         self.states: list[np.ndarray | None] = [None] * n
-        self.received_ns: list[int | None] = [None] * n
+        self.received_ns = np.zeros(n, dtype=np.int64)  # when each robot's latest pose arrived, ns
+        self.has_pose = np.zeros(n, dtype=bool)
         self.controller_state = self.experiment.controller.init(())
         self.tau_ns = 0
         self.last_tick_ns: int | None = None
@@ -193,16 +194,16 @@ class FormationBridge:
         self.states[i] = self.ios[i].state(self.plant_robots.models[i], pose, self.states[i])
         self.poses[i] = pose
         self.received_ns[i] = int(received_ns)
+        self.has_pose[i] = True
         return True
 
     def missing(self) -> tuple:
         """Indices of the robots without a pose yet."""
-        return tuple(i for i, p in enumerate(self.poses) if p is None)
+        return tuple(np.flatnonzero(~self.has_pose).tolist())
 
     def stale(self, now_ns: int) -> tuple:
         """Indices of the robots whose latest pose is older than their timeout (or absent)."""
-        return tuple(i for i, r in enumerate(self.received_ns)
-                     if r is None or now_ns - r > self.timeouts_ns[i])
+        return tuple(np.flatnonzero(~self.has_pose | (now_ns - self.received_ns > self.timeouts_ns)).tolist())
 
     def engage_estop(self) -> None:
         """Latch the e-stop: every tick sends zero commands until :meth:`release_estop`."""
