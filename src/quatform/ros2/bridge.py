@@ -184,11 +184,12 @@ class FormationBridge:
         return tuple(t for link in self.robots.robots for t in COMMAND_WRITERS[link.command_type].topics(link))
 
     def on_pose(self, i: int, msg, received_ns: int) -> bool:
-        """Robot ``i``'s pose message, arrived at ``received_ns``; False for a lost frame (a NaN
-        or non-unit quaternion: not used, so the robot goes stale after its timeout)."""
+        """Robot ``i``'s pose message, arrived at ``received_ns``; False for a lost frame (a NaN,
+        a non-unit quaternion, or no velocity where the model's state holds one: not used, so
+        the robot goes stale after its timeout)."""
         link = self.robots.robots[i]
         pose = pose_sample(link.pose_type, msg)
-        if pose is None:
+        if pose is None or (self.ios[i].needs_twist and pose.twist is None):  # a Bebop's frame without velocity
             self.lost_frames[i] += 1
             return False
         self.states[i] = self.ios[i].state(self.plant_robots.models[i], pose, self.states[i])
