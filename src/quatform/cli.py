@@ -180,6 +180,11 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("scenarios", help="list the built-in scenarios of every kind",
                    description="List the built-in scenarios of every kind with their titles and sources.")
+
+    from .ros2.cli import add_replay_parser, add_ros2_parser
+
+    add_ros2_parser(sub)
+    add_replay_parser(sub)
     return parser
 
 
@@ -291,6 +296,12 @@ def _kinds():
     return KINDS
 
 
+def _ros2_cli():
+    from .ros2 import cli
+
+    return cli
+
+
 #: What each command does with its parsed arguments.
 COMMANDS = {
     "demo": lambda args: _compare("mas-kitts-spiral", args.out),
@@ -301,6 +312,8 @@ COMMANDS = {
     "plan": _plan,
     "plans": _plans,
     "scenarios": _scenarios,
+    "ros2": lambda args: _ros2_cli().run_ros2(args),
+    "replay": lambda args: _ros2_cli().run_replay(args),
 }
 
 

@@ -1,0 +1,24 @@
+"""The ROS 2 bridge: a scenario's controller on real robots, and offline on recorded bags.
+
+Top layer (beside :mod:`quatform.runs`). rclpy is imported only when a node is built
+(:mod:`.node`); everything else runs without ROS:
+
+* :mod:`.robots_file` - ``robots.toml``: each robot's pose and command topics, types, frames
+  and stale-pose timeout;
+* :mod:`.robot_io` - a measured pose to a robot model's state, its commands to twists;
+* :mod:`.frames` - REP-103 (ENU/FLU) against PX4's NED/FRD;
+* :mod:`.px4` - the ``px4_msgs`` definitions on rosbags' type store and their builders;
+* :mod:`.endpoints` - the pose readers and command writers, by type name;
+* :mod:`.bridge` - :class:`FormationBridge`: poses in, one control tick, commands out (stale
+  poses, e-stop, the reference time);
+* :mod:`.node` - the rclpy node;
+* :mod:`.bag_poses`, :mod:`.replay` - ``quatform replay``;
+* :mod:`.cli` - the ``ros2`` and ``replay`` subcommands.
+
+See ``docs/ros2.md``.
+"""
+
+from .bridge import FormationBridge, Tick, experiment_for
+from .robots_file import RobotsFile, read_robots_file
+
+__all__ = ["FormationBridge", "Tick", "experiment_for", "RobotsFile", "read_robots_file"]

@@ -1,0 +1,119 @@
+"""Reading the robots' poses from a recorded ROS 2 bag (ROS 2 bridge layer).
+
+The bridge's own small reader, until :mod:`quatform.bags` has ``read_poses`` (the lead unifies
+them): :func:`read_bag_poses` opens a rosbag2 folder or a single ``.mcap`` / ``.db3`` file with
+``rosbags.highlevel.AnyReader`` (its embedded message definitions; Humble's store for a bag
+without them) and returns every robot's pose messages with their times. Bad input is one
+line naming the topic and the fix: a missing topic, a topic of another type, a topic without
+messages, time stamps that go back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from .endpoints import POSE_READERS
+from .robots_file import RobotsFile
+
+__all__ = ["BagPoses", "read_bag_poses", "STAMP_SOURCES"]
+
+#: Which time a pose is taken at: its ``header.stamp`` (PX4: ``timestamp``), or the time the
+#: recorder received it (the bag's log time; what a live node's stale rule sees).
+STAMP_SOURCES = ("header", "log")
+
+
+@dataclass(frozen=True)
+class BagPoses:
+    """Every robot's pose messages of a bag.
+
+    Attributes
+    ----------
+    times_ns : tuple of ndarray (int64), one per robot
+        Each message's time, ns, not decreasing.
+    messages : tuple of lists, one per robot
+        The deserialised messages, in time order.
+    topics : dict
+        Every topic of the bag and its type.
+    """
+
+    times_ns: tuple
+    messages: tuple
+    topics: dict
+
+
+def _open(path: Path):
+    from rosbags.highlevel import AnyReader, AnyReaderError
+
+    from .px4 import register_px4_types
+
+    if not path.exists():
+        raise InvalidInputError(f"{path}: no such bag; give a rosbag2 folder (with metadata.yaml) or an .mcap file")
+    try:
+        reader = AnyReader([path], default_typestore=register_px4_types())
+        reader.open()
+    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+        text = " ".join(str(exc).split())[:200]
+        raise InvalidInputError(f"{path}: not a readable ROS 2 bag ({text}); give a rosbag2 folder or an .mcap "
+                                "file recorded with ros2 bag record") from None
+    return reader
+
+
+def read_bag_poses(bag, robots: RobotsFile, stamps: str = "header") -> BagPoses:
+    """Each robot's pose messages of ``bag`` (``robots``: the topics and types; ``stamps``: one of
+    :data:`STAMP_SOURCES`)."""
+    if stamps not in STAMP_SOURCES:
+        raise InvalidInputError(f"--stamps {stamps!r} is not one of {', '.join(STAMP_SOURCES)}")
+    path = Path(bag)
+    reader = _open(path)
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        for link in robots.robots:
+            want = POSE_READERS[link.pose_type].msg_type
+            have = topics.get(link.pose_topic)
+            if have is None:
+                pose_like = [f"{t} ({ty})" for t, ty in topics.items()
+                             if ty in [r.msg_type for r in POSE_READERS.values()]]
+                raise InvalidInputError(
+                    f"{path}: no topic {link.pose_topic} (robot {link.name!r} pose_topic in {robots.where}); the bag's "
+                    f"pose topics: {', '.join(pose_like) or 'none'}; fix pose_topic or record the topic")
+            if have != want:
+                other = [k for k, r in POSE_READERS.items() if r.msg_type == have]
+                fix = (f"set pose_type = {other[0]!r}" if other else
+                       f"record a {', '.join(r.msg_type for r in POSE_READERS.values())}")
+                raise InvalidInputError(f"{path}: topic {link.pose_topic} holds {have}, but robot {link.name!r} has "
+                                        f"pose_type = {link.pose_type!r} ({want}); {fix}")
+        index = {link.pose_topic: i for i, link in enumerate(robots.robots)}
+        times = [[] for _ in robots.robots]
+        msgs = [[] for _ in robots.robots]
+        conns = [c for c in reader.connections if c.topic in index]
+        for conn, log_ns, raw in reader.messages(connections=conns):
+            i = index[conn.topic]
+            msg = reader.deserialize(raw, conn.msgtype)
+            if stamps == "log":
+                t_ns = int(log_ns)
+            else:
+                t = POSE_READERS[robots.robots[i].pose_type].read(msg)[0]
+                t_ns = int(round(t * 1e9))
+            times[i].append(t_ns)
+            msgs[i].append(msg)
+    finally:
+        reader.close()
+    out = []
+    for link, ts in zip(robots.robots, times):
+        if not ts:
+            raise InvalidInputError(f"{path}: topic {link.pose_topic} (robot {link.name!r}) has no messages; record "
+                                    "the robot's poses")
+        a = np.asarray(ts, dtype=np.int64)
+        back = np.flatnonzero(np.diff(a) < 0)
+        if back.size:
+            k = int(back[0]) + 1
+            raise InvalidInputError(
+                f"{path}: topic {link.pose_topic} (robot {link.name!r}): the {stamps} stamp of message {k + 1} "
+                f"({a[k] * 1e-9:.9f} s) is earlier than the one before ({a[k - 1] * 1e-9:.9f} s); stamps must not go "
+                "back: fix the publisher's clock" + (", or replay with --stamps log" if stamps == "header" else ""))
+        out.append(a)
+    return BagPoses(tuple(out), tuple(msgs), topics)

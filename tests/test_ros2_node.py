@@ -1,0 +1,256 @@
+"""The ROS 2 bridge's node driven by a fake rclpy (tests/fake_rclpy): CDR on the wire, a
+simulated clock; a bag replayed through the node gives the offline controller's commands."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from quatform import messages
+from quatform.errors import InvalidInputError, MissingDependencyError
+from quatform.ros2.bag_poses import read_bag_poses
+from quatform.ros2.bridge import FormationBridge, experiment_for
+from quatform.ros2.replay import replay_ticks
+from quatform.ros2.robots_file import read_robots_file
+
+FAKE = Path(__file__).parent / "fake_rclpy"
+_spec = importlib.util.spec_from_file_location("ros2_helpers", FAKE / "ros2_helpers.py")
+H = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(H)
+DT_NS = 10_000_000  # the helix's dt_s = 0.01 s
+
+
+@pytest.fixture
+def fake_ros(monkeypatch):
+    """The fake rclpy on sys.path and its message packages in sys.modules (both undone after)."""
+    monkeypatch.syspath_prepend(str(FAKE))
+    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.") or n == "fake_messages"]:
+        monkeypatch.delitem(sys.modules, name)
+    import fake_messages
+    import rclpy
+
+    fake_messages.install(monkeypatch)
+    rclpy.fake_bus.BUS.reset()
+    yield rclpy
+    rclpy.fake_bus.BUS.reset()
+    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.")]:
+        del sys.modules[name]
+
+
+def _pair_setup(tmp_path, duration_s=0.5, robots=H.PAIR_ROBOTS):
+    exp = experiment_for(H.short_pair(duration_s), "quaternion")
+    log = exp.run()
+    rf = read_robots_file(H.write(tmp_path / "robots.toml", robots))
+    return exp, log, rf
+
+
+def _pair_bag(tmp_path, log, rf, exp):
+    """A bag whose pose k is the simulated state k, published at (k + 1) dt (and state 0 again
+    at 0): the node's tick j, at j dt, then reads state j - 1 at reference time (j - 1) dt, the
+    simulation's tick j - 1."""
+    pr = FormationBridge(exp, rf).plant_robots
+    x = log["state"]
+    x = np.concatenate([x[:1], x])
+    poses = H.robot_poses(pr.models, pr.state_slices, x)
+    times = np.arange(len(x)) * DT_NS
+    msgs = H.pose_messages(poses, times * 1e-9)
+    streams = [(link.pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(times.tolist(), m)))
+               for link, m in zip(rf.robots, msgs)]
+    return H.write_bag(tmp_path / "poses", streams)
+
+
+def _schedule_bag(bus, bag, rf):
+    poses = read_bag_poses(bag, rf)
+    for link, ts, ms in zip(rf.robots, poses.times_ns, poses.messages):
+        for t, m in zip(ts, ms):
+            bus.schedule(int(t), link.pose_topic, m)
+    return poses
+
+
+def _spin_until(rclpy, node, t_ns):
+    bus = rclpy.fake_bus.BUS
+    while bus.now_ns <= t_ns:  # every event at t_ns included
+        rclpy.spin_once(node.node, timeout_sec=0.001)
+
+
+def _twists(bus, topic):
+    return np.array([np.r_[messages.twist_from_msg(m)] .ravel() for _, m in bus.published[topic]])
+
+
+def test_bag_through_the_node_gives_the_offline_commands(fake_ros, tmp_path):
+    from quatform.ros2.node import BridgeNode
+
+    exp, log, rf = _pair_setup(tmp_path)
+    bag = _pair_bag(tmp_path, log, rf, exp)
+    bus = fake_ros.fake_bus.BUS
+    poses = _schedule_bag(bus, bag, rf)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node.start()
+    assert bus.now_ns == 0  # every robot's first pose arrived at 0: the timer starts there
+    _spin_until(fake_ros, node, int(poses.times_ns[0][-1]))
+    ticks = node.ticks
+    T = len(log.t)
+    assert len(ticks) == T and all(t.status == "ok" for t in ticks)
+    u = log["command"]
+    for i, link in enumerate(rf.robots):
+        got = _twists(bus, link.command_topic)  # published TwistStamped, round-tripped through CDR
+        want = np.c_[u[:, 4 * i:4 * i + 3], np.zeros((T, 2)), u[:, 4 * i + 3]]
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+        assert bus.published[link.command_topic][0][1].header.frame_id == "world"
+    # quatform replay of the same bag at the node's rate: the same commands, exactly
+    offline = replay_ticks(FormationBridge(exp, rf), read_bag_poses(bag, rf), rate_hz=100.0)
+    np.testing.assert_array_equal(np.array([t.u for t in offline.ticks]), np.array([t.u for t in ticks]))
+    np.testing.assert_array_equal([t.tau for t in offline.ticks], [t.tau for t in ticks])
+
+
+def test_stale_pose_zeros_and_holds_then_resumes(fake_ros, tmp_path):
+    from quatform.ros2.node import BridgeNode
+
+    exp, log, rf = _pair_setup(tmp_path)
+    bag = _pair_bag(tmp_path, log, rf, exp)
+    bus = fake_ros.fake_bus.BUS
+    poses = read_bag_poses(bag, rf)
+    gap = (20 * DT_NS, 35 * DT_NS)  # robot r2's mocap drops out for 150 ms (its timeout: 50 ms)
+    for i, (link, ts, ms) in enumerate(zip(rf.robots, poses.times_ns, poses.messages)):
+        for t, m in zip(ts, ms):
+            if not (i == 1 and gap[0] < t < gap[1]):
+                bus.schedule(int(t), link.pose_topic, m)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node.start()
+    _spin_until(fake_ros, node, 45 * DT_NS)
+    status = [t.status for t in node.ticks]
+    stale = [k for k, s in enumerate(status) if s == "stale"]
+    # tick k is at (k + 1) 10 ms: stale from 260 ms (60 ms after r2's last pose at 200 ms; its timeout is
+    # 50 ms) until its poses resume at 350 ms
+    assert stale == list(range(25, 34))
+    for k in stale:
+        assert node.ticks[k].stale == ("r2",)
+        assert np.all(node.ticks[k].u == 0)
+        for link in rf.robots:
+            np.testing.assert_array_equal(_twists(bus, link.command_topic)[k], np.zeros(6))
+    # held: the reference time does not advance while stale; it resumes where it stopped
+    assert node.ticks[34].tau == node.ticks[24].tau and node.ticks[35].tau == pytest.approx(node.ticks[24].tau + 0.01)
+    assert any("stale pose from r2" in text for level, text in bus.logs if level == "warn")
+
+
+def test_estop_latches_until_released(fake_ros, tmp_path):
+    from quatform.ros2.node import BridgeNode
+
+    exp, log, rf = _pair_setup(tmp_path)
+    bag = _pair_bag(tmp_path, log, rf, exp)
+    bus = fake_ros.fake_bus.BUS
+    _schedule_bag(bus, bag, rf)
+    bool_ = messages.msg_type("std_msgs/msg/Bool")
+    bus.schedule(10 * DT_NS + 1, "/quatform/estop", bool_(data=True))
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node.start()
+    _spin_until(fake_ros, node, 30 * DT_NS)
+    status = [t.status for t in node.ticks]
+    assert status[:10] == ["ok"] * 10 and set(status[10:]) == {"estop"}  # latched: no release, poses fresh
+    assert all(np.all(t.u == 0) for t in node.ticks[10:])
+    n = len(node.ticks)
+    response = bus.call("/quatform/set_estop", data=False)  # the service releases it
+    assert response.success and "released" in response.message
+    _spin_until(fake_ros, node, 35 * DT_NS)
+    assert [t.status for t in node.ticks[n:]] == ["ok"] * (len(node.ticks) - n)
+    assert node.ticks[n].tau == node.ticks[9].tau  # resumed where it was held
+    bus.call("/quatform/set_estop", data=True)
+    r1 = rf.robots[0].command_topic
+    assert np.all(_twists(bus, r1)[-1] == 0)  # engaging publishes zero at once
+
+
+def test_missing_robot_refuses_to_start(fake_ros, tmp_path):
+    from quatform.ros2.node import BridgeNode
+
+    exp, _, rf = _pair_setup(tmp_path)
+    bus = fake_ros.fake_bus.BUS
+    bus.schedule(0, rf.robots[0].pose_topic, messages.pose_stamped(0.0, [0, 0, 1], [1, 0, 0, 0]))
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    with pytest.raises(InvalidInputError) as err:
+        node.start()
+    text = str(err.value)
+    assert "\n" not in text and "'r2'" in text and "/vrpn_client_node/r2/pose" in text and "1 s" in text
+    assert node.timer is None
+
+
+PX4_ROBOTS = """
+[[robots]]
+name = "x500_1"
+namespace = "/px4_1"
+pose_topic = "fmu/out/vehicle_odometry"
+pose_type = "px4"
+command_type = "px4"
+
+[[robots]]
+name = "x500_2"
+namespace = "/px4_2"
+pose_topic = "fmu/out/vehicle_odometry"
+pose_type = "px4"
+command_type = "px4"
+"""
+
+
+def test_px4_odometry_in_and_setpoints_out(fake_ros, tmp_path):
+    from quatform.ros2 import px4
+    from quatform.ros2.node import BridgeNode
+
+    exp, log, rf = _pair_setup(tmp_path, 0.2, PX4_ROBOTS)
+    assert rf.robots[0].pose_topic == "/px4_1/fmu/out/vehicle_odometry"
+    pr = FormationBridge(exp, rf).plant_robots
+    x = np.concatenate([log["state"][:1], log["state"]])
+    bus = fake_ros.fake_bus.BUS
+    for link, (p, q) in zip(rf.robots, H.robot_poses(pr.models, pr.state_slices, x)):
+        for k in range(len(x)):
+            bus.schedule(k * DT_NS, link.pose_topic, px4.vehicle_odometry(k * 0.01, p[k], q[k]))
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node.start()
+    _spin_until(fake_ros, node, (len(x) - 1) * DT_NS)
+    u = log["command"]
+    for i, link in enumerate(rf.robots):
+        sp = [m for _, m in bus.published[link.command_topic]]
+        mode = [m for _, m in bus.published[link.offboard_topic]]
+        assert len(sp) == len(mode) == len(u)
+        assert all(m.velocity and not m.position for m in mode)
+        v_ned = np.array([m.velocity for m in sp])
+        # float32 on PX4's wire (positions and quaternions in, velocities out)
+        np.testing.assert_allclose(v_ned, np.c_[u[:, 4 * i + 1], u[:, 4 * i], -u[:, 4 * i + 2]], atol=2e-4)
+        np.testing.assert_allclose([m.yawspeed for m in sp], -u[:, 4 * i + 3], atol=2e-4)
+        assert all(np.isnan(m.position).all() and np.isnan(m.yaw) for m in sp)
+        assert sp[0].timestamp == 10_000  # µs of the first tick (10 ms)
+
+
+def test_to_ros_copies_fields_into_another_class():
+    """On a ROS machine a rosbags message becomes the installation's class, field by field."""
+    from quatform.ros2 import node as node_mod
+
+    class Vec:
+        @classmethod
+        def get_fields_and_field_types(cls):
+            return {"x": "double", "y": "double", "z": "double"}
+
+    class Tw:
+        @classmethod
+        def get_fields_and_field_types(cls):
+            return {"linear": "geometry_msgs/Vector3", "angular": "geometry_msgs/Vector3"}
+
+    classes = {"geometry_msgs/msg/Twist": Tw, "geometry_msgs/msg/Vector3": Vec}
+    orig = node_mod.ros_class
+    node_mod.ros_class = classes.__getitem__
+    try:
+        out = node_mod.to_ros(messages.twist([1.0, 2.0, 3.0], [0.0, 0.0, 0.5]))
+    finally:
+        node_mod.ros_class = orig
+    assert isinstance(out, Tw) and isinstance(out.linear, Vec)
+    assert (out.linear.x, out.linear.y, out.linear.z, out.angular.z) == (1.0, 2.0, 3.0, 0.5)
+
+
+def test_without_rclpy_one_line_says_to_source_ros(monkeypatch):
+    from quatform.ros2.node import import_rclpy
+
+    monkeypatch.setitem(sys.modules, "rclpy", None)  # import rclpy raises ImportError
+    with pytest.raises(MissingDependencyError, match="source your ROS 2 installation"):
+        import_rclpy()

@@ -1,0 +1,149 @@
+"""``quatform replay``: a controller offline on a recorded bag's poses; bad bags are one line."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from quatform import messages
+from quatform.cli import main
+from quatform.errors import InvalidInputError
+from quatform.ros2.bag_poses import read_bag_poses
+from quatform.ros2.bridge import FormationBridge, experiment_for
+from quatform.ros2.replay import replay
+from quatform.ros2.robots_file import read_robots_file
+
+_spec = importlib.util.spec_from_file_location("ros2_helpers", Path(__file__).parent / "fake_rclpy" / "ros2_helpers.py")
+H = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(H)
+
+
+@pytest.fixture
+def pair_bag(tmp_path):
+    """The helix (0.5 s) simulated, its poses written to an MCAP bag at the tick times; with
+    the scenario file, the robots file and the simulated log."""
+    sc = H.short_pair(0.5)
+    scenario = "mas-kitts-helix"  # the CLI's: the same reference over the bag's 0.5 s
+    exp = experiment_for(sc, "quaternion")
+    log = exp.run()
+    robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
+    rf = read_robots_file(robots)
+    pr = FormationBridge(exp, rf).plant_robots
+    msgs = H.pose_messages(H.robot_poses(pr.models, pr.state_slices, log["state"]), log.t)
+    ns = [int(round(t * 1e9)) for t in log.t]
+    bag = H.write_bag(tmp_path / "lab", [(link.pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, m)))
+                                         for link, m in zip(rf.robots, msgs)])
+    return {"bag": bag, "robots": robots, "rf": rf, "sc": sc, "scenario": scenario, "log": log, "exp": exp,
+            "msgs": msgs, "ns": ns}
+
+
+def test_replay_at_pose_times_gives_the_simulations_commands(pair_bag, tmp_path):
+    out = tmp_path / "out"
+    res = replay(pair_bag["bag"], pair_bag["sc"], pair_bag["robots"], out, controller="quaternion")
+    log = pair_bag["log"]
+    np.testing.assert_allclose(np.array([t.u for t in res.ticks]), log["command"], rtol=0, atol=1e-12)
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
+        "commands.csv", "commands.mcap", "commands.png", "metrics.json"]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["ticks"] == m["ok_ticks"] == len(log.t) and m["stale_ticks"] == 0 and m["nonfinite_commands"] == 0
+    assert m["poses"] == {"r1": len(log.t), "r2": len(log.t)} and m["controller"] == "quaternion"
+    head = (out / "commands.csv").read_text().splitlines()[0].split(",")
+    assert head[:4] == ["t", "reference_time", "status", "u_x1"] and "r2_angular_z" in head and "measured_theta2" in head
+    # commands.mcap: the node's topics and messages, one per tick
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([out / "commands.mcap"]) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        assert topics == {"/r1/cmd_vel": "geometry_msgs/msg/TwistStamped", "/r2/cmd_vel": "geometry_msgs/msg/TwistStamped"}
+        got = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()
+               if c.topic == "/r2/cmd_vel"]
+    assert len(got) == len(log.t)
+    lin, ang = messages.twist_from_msg(got[-1])
+    np.testing.assert_allclose(np.r_[lin, ang[2]], log["command"][-1, 4:8], atol=1e-12)
+
+
+def test_replay_cli_and_stale_frames(pair_bag, tmp_path, capsys):
+    rf, msgs, ns = pair_bag["rf"], pair_bag["msgs"], pair_bag["ns"]
+    keep = [k for k in range(len(ns)) if not 10 < k < 30]  # r1's mocap lost for 190 ms
+    bag = H.write_bag(tmp_path / "gap", [
+        (rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped", [(ns[k], msgs[0][k]) for k in keep]),
+        (rf.robots[1].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, msgs[1])))])
+    out = tmp_path / "gap-out"
+    rc = main(["replay", str(bag), "--scenario", str(pair_bag["scenario"]), "--robots", str(pair_bag["robots"]),
+               "--controller", "quaternion", "--rate", "50", "--out", str(out), "--no-plots"])
+    assert rc == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["rate_hz"] == 50.0 and m["stale_robots"] == ["r1"]
+    # 50 Hz ticks at 20 ms ... 500 ms; r1's last pose before the gap at 100 ms, 50 ms timeout: 160 ... 280 ms stale
+    assert m["ticks"] == 25 and m["stale_ticks"] == 7
+    rows = np.loadtxt(out / "commands.csv", delimiter=",", skiprows=1)
+    stale = rows[:, 2] == 1
+    np.testing.assert_allclose(rows[stale, 0], np.arange(0.16, 0.285, 0.02), atol=1e-9)
+    assert np.all(rows[stale, 3:11] == 0)
+    assert "files in" in capsys.readouterr().out
+
+
+def _cli_error(args, capsys):
+    rc = main(args)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and "Traceback" not in err
+    return err
+
+
+def test_bad_bags_are_one_line(pair_bag, tmp_path, capsys):
+    rf, msgs, ns = pair_bag["rf"], pair_bag["msgs"], pair_bag["ns"]
+    base = ["--scenario", str(pair_bag["scenario"]), "--robots", str(pair_bag["robots"]), "--controller",
+            "quaternion", "--out", str(tmp_path / "o")]
+    err = _cli_error(["replay", str(tmp_path / "nope"), *base], capsys)
+    assert "no such bag" in err
+    one = H.write_bag(tmp_path / "one", [(rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped",
+                                          list(zip(ns, msgs[0])))])
+    err = _cli_error(["replay", str(one), *base], capsys)
+    assert "no topic /vrpn_client_node/r2/pose" in err and "robot 'r2'" in err and "/vrpn_client_node/r1/pose" in err
+    odo = messages.msg_type("geometry_msgs/msg/PointStamped")
+    wrong = H.write_bag(tmp_path / "wrong", [
+        (rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, msgs[0]))),
+        (rf.robots[1].pose_topic, "geometry_msgs/msg/PointStamped",
+         [(t, odo(header=m.header, point=m.pose.position)) for t, m in zip(ns, msgs[1])])])
+    err = _cli_error(["replay", str(wrong), *base], capsys)
+    assert "/vrpn_client_node/r2/pose holds geometry_msgs/msg/PointStamped" in err and "pose_type = 'pose'" in err
+    back = list(zip(ns, msgs[1]))
+    back[5], back[6] = (back[5][0], back[6][1]), (back[6][0], back[5][1])  # header stamps out of order
+    swapped = H.write_bag(tmp_path / "back", [
+        (rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, msgs[0]))),
+        (rf.robots[1].pose_topic, "geometry_msgs/msg/PoseStamped", back)])
+    err = _cli_error(["replay", str(swapped), *base], capsys)
+    assert "/vrpn_client_node/r2/pose" in err and "message 7" in err and "--stamps log" in err
+    assert len(read_bag_poses(swapped, rf, "log").times_ns[1]) == len(ns)  # by receive time it reads
+    err = _cli_error(["replay", str(one), *base[:4], "--robots", str(H.write(tmp_path / "dup.toml", """
+        [[robots]]
+        name = "a"
+        pose_topic = "/p"
+        [[robots]]
+        name = "b"
+        pose_topic = "/p"
+        """)), "--out", str(tmp_path / "o")], capsys)
+    assert "the topic /p is named twice" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_ros2_command_without_rclpy_is_one_line(pair_bag, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    err = _cli_error(["ros2", "--scenario", str(pair_bag["scenario"]), "--robots", str(pair_bag["robots"]),
+                      "--controller", "quaternion"], capsys)
+    assert "source your ROS 2 installation" in err
+
+
+def test_replay_refuses_a_bag_without_a_tick(pair_bag, tmp_path):
+    rf, msgs, ns = pair_bag["rf"], pair_bag["msgs"], pair_bag["ns"]
+    bag = H.write_bag(tmp_path / "late", [
+        (rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns[:3], msgs[0][:3]))),
+        (rf.robots[1].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns[5:6], msgs[1][5:6])))])
+    with pytest.raises(InvalidInputError, match="no tick"):
+        replay(bag, pair_bag["sc"], rf, tmp_path / "x", controller="quaternion", rate_hz=10.0)
