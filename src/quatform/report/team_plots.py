@@ -29,6 +29,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 
 from ..algebra import q_continuous
 from ..formations import TeamChart
+from ..formations.geometry import unwrap_near
 from ..papers import with_names
 from ..sim.log import Log
 from ..sim.team_metrics import singular_threshold
@@ -172,7 +173,8 @@ def plot_team_attitude(run: Log, path) -> Path:
     if ok.any():  # continuous along the run (q and -q are one attitude), first sign nearest the reference
         q[ok] = q_continuous(q[ok], axis=0)
         q[ok] *= -1.0 if np.dot(q[ok][0], qd[ok][0]) < 0 else 1.0
-    eu, eud = TeamChart.reading(e), TeamChart.reading(ed)
+    eud = TeamChart.reading(ed)
+    eu = unwrap_near(TeamChart.reading(e), eud)  # whole turns only: +-pi of one attitude read alike
     rows = [(f"q_c_{a} [-]", q[:, k], qd[:, k], False) for k, a in enumerate("wxyz")]
     rows += [(f"{a} [rad]", eu[:, k], eud[:, k], True) for k, a in enumerate(("yaw", "pitch", "roll"))]
     return _measured_desired_grid(run, path, rows, "attitude: quaternion, and z-y-x Euler angles for reading")
