@@ -180,6 +180,9 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("scenarios", help="list the built-in scenarios of every kind",
                    description="List the built-in scenarios of every kind with their titles and sources.")
+    from .sweeps.cli import add_parsers as _add_sweep_parsers
+
+    _add_sweep_parsers(sub)
     return parser
 
 
@@ -285,6 +288,12 @@ def _scenarios(args) -> None:
     _list((name, f"{sc.title} [{kind_of(sc).name}]", sc.source) for name, sc in loaded)
 
 
+def _sweeps_cli():
+    from .sweeps import cli
+
+    return cli
+
+
 def _kinds():
     from .scenarios import KINDS
 
@@ -301,6 +310,8 @@ COMMANDS = {
     "plan": _plan,
     "plans": _plans,
     "scenarios": _scenarios,
+    "sweep": lambda args: _sweeps_cli().sweep_command(args),
+    "sweeps": lambda args: _sweeps_cli().sweeps_command(args),
 }
 
 
