@@ -127,9 +127,18 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
     """Run ``spec`` into the folder ``out`` (resuming the chunks stored there); return the
     summary rows. Writes ``results.csv``/``.json``, ``summary.csv``/``.json`` and, with
     ``plots``, the figures of :mod:`quatform.sweeps.figures`."""
-    from ..sim.backends import simulator
+    from ..errors import InvalidInputError, MissingDependencyError
+    from ..sim.backends import SIM_BACKENDS, simulator
 
-    simulator(backend)  # an unknown backend: one line before anything runs
+    if backend == "jax" and backend not in SIM_BACKENDS:
+        raise InvalidInputError('--backend jax: the JAX backend is not registered in this install (it needs '
+                                'quatform.sim.jax_loop and pip install -e ".[jax]"); use --backend numpy')
+    try:
+        simulator(backend)  # an unknown or uninstallable backend: one line before anything runs
+    except MissingDependencyError:
+        raise
+    except ImportError as exc:
+        raise MissingDependencyError(f"--backend {backend}: {exc}; pip install -e \".[{backend}]\"") from None
     est = estimate(spec, workers)
     store = ChunkStore(out, spec, backend)
     chunks = plan_chunks(spec, backend)

@@ -145,14 +145,19 @@ def cell_scenario(spec, values: dict, choice: str):
     kind = KINDS[spec.data["kind"]]
     adapter = SWEEP_KINDS[kind.name]
     data = adapter.data(dict(data), values, spec.where)
-    if spec.duration_s is not None:
-        data["duration_s"] = spec.duration_s
-    if spec.settle_s is not None:
-        data["metrics_from_s"] = spec.settle_s
-    elif spec.duration_s is not None and "metrics_from_s" in data and data["metrics_from_s"] >= spec.duration_s:
-        raise InvalidInputError(f"{spec.where}: duration_s = {spec.duration_s:g} s ends before the scenario's "
-                                f"metrics_from_s = {data['metrics_from_s']:g} s; raise duration_s or set settle_s")
     sc = kind.from_dict(data, where)
+    # the first duration_s of the scenario (its changes past the end do not happen), measured from settle_s
+    short = {}
+    if spec.duration_s is not None:
+        short["duration_s"] = spec.duration_s
+    if spec.settle_s is not None:
+        short["metrics_from_s"] = spec.settle_s
+    if short:
+        try:
+            sc = dataclasses.replace(sc, **short)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}; set settle_s below duration_s"
+                                    ) from None
     scale = values.get("gain_scale")
     if scale is not None and scale != 1.0:
         axis = spec.axis("gain_scale")
