@@ -95,6 +95,9 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
         else:
             try:
                 client = distributed.Client(scheduler, timeout=f"{timeout_s}s")
+            except ValueError as exc:
+                raise InvalidInputError(f"--scheduler {scheduler}: not a scheduler address ({exc}); give "
+                                        "tcp://HOST:PORT") from None
             except (OSError, TimeoutError) as exc:
                 raise UnreachableError(f"--scheduler {scheduler}: no Dask scheduler answered within {timeout_s:g} s "
                                        f"({type(exc).__name__}); start one (dask scheduler) or check the address"

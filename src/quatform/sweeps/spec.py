@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import check_keys, integer, nearest, number, short, table, text
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, ResourceLimitError
 from ..tomlio import builtin_files, read_toml
 
 __all__ = ["Parameter", "PARAMETERS", "Axis", "Success", "SweepSpec", "load_sweep", "sweep_from_dict",
@@ -89,6 +89,8 @@ DEFAULT_SUCCESS_FALSE = ("reference_lost",)
 
 #: Most trials a cell may ask for (the time and memory checks refuse far less in practice).
 MAX_TRIALS = 1_000_000
+#: Most cells a sweep may have (choices x the product of the axes' lengths).
+MAX_CELLS = 100_000
 #: Most values one axis may hold.
 MAX_AXIS_VALUES = 10_000
 
@@ -343,7 +345,8 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     if not isinstance(data, dict):
         raise InvalidInputError(f"{where}: a sweep spec is a TOML table")
     scenario = _scenario_ref(data, where, base)
-    kind = kind_of(load_scenario(scenario))
+    sc = load_scenario(scenario)
+    kind = kind_of(sc)
     kind_name = kind.name
     if kind_name not in SWEEP_KINDS:
         sweepable = ", ".join(k for k in KINDS if k in SWEEP_KINDS)
@@ -353,7 +356,6 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     key = kind.compare_over
     plural = key + "s"
     check_keys(data, (*_TOP_KEYS, plural), where, hint=_HINT)
-    sc = load_scenario(scenario)
     runnable, skipped = kind.compare_choices(sc, key)
     allowed = tuple({o.name: o for o in kind.options}[key].choices)
     if plural in data:
@@ -376,6 +378,11 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     seed = integer(data, "seed", where, 0, low=0, high=2**63 - 1)
     vary = table(data, "vary", where, default={})
     axes = tuple(_axis(name, d, where, seed, i) for i, (name, d) in enumerate(vary.items()))
+    n_cells = len(choices) * math.prod(len(a.values) for a in axes)
+    if n_cells > MAX_CELLS:
+        raise ResourceLimitError(f"{where}: {len(choices)} {plural} x [vary] grid of "
+                                 f"{' x '.join(str(len(a.values)) for a in axes)} = {n_cells:,} cells, more than "
+                                 f"{MAX_CELLS:,}; coarsen [vary] (fewer values or draws)")
     can = SWEEP_KINDS[kind_name].parameters
     for a in axes:
         if a.name not in can:
@@ -390,4 +397,12 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
                      source=text(data, "source", where, ""), scenario=scenario, compare_key=key, choices=choices,
                      axes=axes, trials=trials, seed=seed, duration_s=duration, settle_s=settle, chunk_trials=chunk,
                      success=_success(data, where), slurm=slurm, where=where,
-                     data={**data, "scenario": scenario, "kind": kind_name})
+                     data={**data, "scenario": scenario, "kind": kind_name,
+                           "scenario_sha256": _file_hash(scenario)})
+
+
+def _file_hash(ref: str) -> str:
+    """The hash of a scenario file's bytes ("" for a built-in name): a resumed sweep must read
+    the same scenario."""
+    p = Path(ref)
+    return hashlib.sha256(p.read_bytes()).hexdigest()[:16] if p.is_file() else ""

@@ -263,7 +263,8 @@ def run_chunk(chunk: Chunk) -> list[dict]:
         sep = metrics.get("min_robot_separation_m")
         if reason is None and isinstance(sep, float) and sep < COINCIDENT_M:
             reason = f"robots coincide (separation {sep:.3g} m)"
-        metrics = {k: v for k, v in metrics.items() if isinstance(v, (bool, int, float, str)) or v is None}
+        metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()
+                   if isinstance(v, (bool, int, float, str, np.generic)) or v is None}
         row.update(metrics)
         row["failed"] = reason is not None
         row["failure"] = reason or ""
