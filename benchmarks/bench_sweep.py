@@ -1,7 +1,7 @@
 """Sweep throughput: one CPU-bound sweep on 1 and 2 workers of each executor (issue 15 item 6).
 
-The sweep: seed 000's helix (``mas-kitts-helix``), its first ``--duration`` s (default 3 s,
-300 control ticks at 100 Hz), the four controllers x ``noise_m`` in (0, 10 mm) x
+The sweep: seed 000's helix (``mas-kitts-helix``), its first ``--duration`` s (default 2 s,
+200 control ticks at 100 Hz), the four controllers x ``noise_m`` in (0, 10 mm) x
 ``latency_s`` in (0, 20 ms) = 16 cells of ``--trials`` trials (default 4), each cell one
 batch (``quatform.sweeps.run_chunk``): closed loop, measurement noise and latency, per-trial
 metrics. Every executor runs the same chunks:
@@ -19,7 +19,7 @@ idle cores (``os.getloadavg()`` is printed beside it).
 
 Run it from the repository root::
 
-    PYTHONPATH=src python benchmarks/bench_sweep.py                # about 30 s
+    PYTHONPATH=src python benchmarks/bench_sweep.py                # about 20 s on an idle machine
     PYTHONPATH=src python benchmarks/bench_sweep.py --trials 8 --duration 5
 """
 
@@ -60,7 +60,7 @@ def _run(chunks, ex) -> tuple[float, list]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trials", type=int, default=4)
-    ap.add_argument("--duration", type=float, default=3.0)
+    ap.add_argument("--duration", type=float, default=2.0)
     args = ap.parse_args(argv)
     spec = _spec(args.trials, args.duration)
     chunks = plan_chunks(spec)

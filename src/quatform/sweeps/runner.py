@@ -140,31 +140,30 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
     except ImportError as exc:
         raise MissingDependencyError(f"--backend {backend}: {exc}; pip install -e \".[{backend}]\"") from None
     est = estimate(spec, workers)
-    store = ChunkStore(out, spec, backend)
-    chunks = plan_chunks(spec, backend)
-    rows: list[dict] = []
-    todo = []
-    for ch in chunks:
-        got = store.load(ch)
-        if got is None:
-            todo.append(ch)
-        else:
+    with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any file is made
+        store = ChunkStore(out, spec, backend)
+        rows: list[dict] = []
+        todo = []
+        for ch in plan_chunks(spec, backend):
+            got = store.load(ch)
+            if got is None:
+                todo.append(ch)
+            else:
+                rows.extend(got)
+        progress = _Progress(spec.name, est.trials, len(rows), quiet=quiet)
+        checked = bool(rows)
+        if rows:
+            spec.success.check_metrics(rows[0], spec.where)
+
+        def finished(ch, got):
+            nonlocal checked
+            if not checked:
+                spec.success.check_metrics(got[0], spec.where)
+                checked = True
+            store.save(ch, got)
             rows.extend(got)
-    progress = _Progress(spec.name, est.trials, len(rows), quiet=quiet)
-    checked = bool(rows)
-    if rows:
-        spec.success.check_metrics(rows[0], spec.where)
+            progress.add(len(got))
 
-    def finished(ch, got):
-        nonlocal checked
-        if not checked:
-            spec.success.check_metrics(got[0], spec.where)
-            checked = True
-        store.save(ch, got)
-        rows.extend(got)
-        progress.add(len(got))
-
-    with executor(workers, scheduler, spec.slurm) as ex:
         if ex is None:
             for ch in todo:
                 finished(ch, run_chunk(ch))
