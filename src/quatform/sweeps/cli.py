@@ -10,6 +10,9 @@ import sys
 
 __all__ = ["add_parsers", "sweep_command", "sweeps_command"]
 
+#: Most cells the summary printed on stdout shows (all are in summary.csv).
+_MAX_PRINTED = 60
+
 
 def add_parsers(sub) -> None:
     """Add ``sweep`` and ``sweeps`` to the CLI's subparsers ``sub``."""
@@ -78,9 +81,11 @@ def sweep_command(args) -> None:
     key = spec.compare_key
     names = [a.name for a in spec.axes]
     print(f"{key:16s} " + " ".join(f"{n:>18s}" for n in names) + f" {'trials':>7s} {'failed':>7s} {'success':>8s}")
-    for s in summary:
+    for s in summary[:_MAX_PRINTED]:
         vals = " ".join(f"{s[n]:18.4g}" for n in names)
         print(f"{s[key]:16s} {vals} {s['trials']:7d} {s['failed']:7d} {s['success_rate']:8.2f}")
+    if len(summary) > _MAX_PRINTED:
+        print(f"... {len(summary) - _MAX_PRINTED} more cells in summary.csv")
     print(f"\nfiles in {args.out}/: results.csv/json, summary.csv/json" + ("" if args.no_plots else ", figures/"),
           file=sys.stdout)
 
