@@ -234,3 +234,62 @@ def test_parameters_are_documented():
 def test_sweep_from_dict_needs_a_table():
     with pytest.raises(InvalidInputError):
         sweep_from_dict({"scenario": "mas-kitts-helix"}, "x")  # no trials
+
+
+def _measured_minus_true(tmp_path, vary):
+    from quatform.sweeps.trials import chunk_batch
+
+    text = f"""
+name = "m"
+scenario = "mas-kitts-helix"
+controllers = ["robot-space"]
+trials = 4
+duration_s = 2.0
+settle_s = 0.5
+{vary}
+"""
+    spec = load_sweep(_spec(tmp_path, text))
+    exp, batch, delay = chunk_batch(Chunk(spec, 0, 0, 4))
+    log = batch.run()
+    return log["measured"], log["state"], delay
+
+
+def test_noise_has_its_scale_on_positions_only(tmp_path):
+    m, x, _ = _measured_minus_true(tmp_path, "[vary.noise_m]\nvalues = [0.01]")
+    d = m - x  # no latency: the noise itself
+    pos = [0, 1, 2, 4, 5, 6]
+    assert np.std(d[..., pos]) == pytest.approx(0.01, rel=0.05)
+    assert np.all(d[..., [3, 7]] == 0.0)  # the yaws: noise_rad not varied
+    assert not np.allclose(d[:, 0], d[:, 1])  # each trial its own noise
+
+
+def test_latency_delays_by_whole_ticks_and_dropouts_hold(tmp_path):
+    m, x, delay = _measured_minus_true(tmp_path, "[vary.latency_s]\nvalues = [0.03]\n[vary.initial_offset_m]\n"
+                                                 "values = [0.1]")
+    assert delay == 3
+    assert np.array_equal(m[3:], x[:-3]) and np.array_equal(m[:3], np.broadcast_to(x[0], m[:3].shape))
+    m, x, _ = _measured_minus_true(tmp_path, "[vary.dropout_rate]\nvalues = [0.5]\n[vary.initial_offset_m]\n"
+                                             "values = [0.1]")
+    held = np.all(m[1:] == m[:-1], axis=-1)
+    fresh = np.all(m == x, axis=-1)
+    assert 0.3 < held.mean() < 0.7  # about half the frames lost (200 ticks x 4 trials)
+    assert np.all(held | fresh[1:])  # a frame is the plant's output or the last one held
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=40, deadline=None)
+@given(start=st.floats(0.0, 1.0), span=st.floats(1e-3, 1.0), count=st.integers(1, 50),
+       low=st.floats(0.0, 1.0), width=st.floats(1e-6, 1.0), draws=st.integers(1, 30), seed=st.integers(0, 2**32))
+def test_axes_hold_what_they_say(start, span, count, low, width, draws, seed):
+    data = {"scenario": "mas-kitts-helix", "trials": 1, "seed": seed,
+            "vary": {"noise_m": {"start": start, "stop": start + span, "count": count},
+                     "latency_s": {"random": {"low": low, "high": low + width}, "draws": draws}}}
+    spec = sweep_from_dict(data, "p")
+    grid, rnd = spec.axis("noise_m"), spec.axis("latency_s")
+    assert len(grid.values) == count and grid.values[0] == pytest.approx(start)
+    assert all(start - 1e-12 <= v <= start + span + 1e-12 for v in grid.values)
+    assert len(rnd.values) == draws and all(low <= v <= low + width for v in rnd.values)
+    assert rnd == sweep_from_dict(data, "p").axis("latency_s")
+    assert len(spec.cells()) == len(spec.choices) * count * draws

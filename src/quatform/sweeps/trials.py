@@ -29,7 +29,7 @@ from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair
 from ..sim.trial_measurement import TickMeasurement
 from ..tomlio import read_toml
 
-__all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "run_chunk", "trial_stream", "cell_experiment",
+__all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "chunk_batch", "run_chunk", "trial_stream", "cell_experiment",
            "COINCIDENT_M"]
 
 #: Robots closer than this (m) at any sample coincide: the trial failed.
@@ -227,9 +227,10 @@ class Chunk:
         return f"cell{self.cell:05d}-trials{self.start:06d}-{self.stop:06d}"
 
 
-def run_chunk(chunk: Chunk) -> list[dict]:
-    """Run one chunk's trials as one batch; a row per trial (its parameters, seed, metrics,
-    ``failed``/``failure``, ``lost``, ``success``)."""
+def chunk_batch(chunk: Chunk):
+    """``(exp, batch, delay)``: the cell's single-world experiment, the batched one of the
+    chunk's trials (their initial states and their :class:`TickMeasurement`; its ``finish`` is
+    the identity: each world is finished on its own) and the latency in control ticks."""
     spec = chunk.spec
     point, choice, values = spec.cells()[chunk.cell]
     seed = int(values.get("seed", spec.seed))
@@ -247,6 +248,17 @@ def run_chunk(chunk: Chunk) -> list[dict]:
     x0 = adapter.initial(exp, off, values.get("initial_offset_m", 0.0), values.get("initial_offset_rad", 0.0))
     batch = dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, delay, dropped),
                                 finish=lambda log: log)
+    return exp, batch, delay
+
+
+def run_chunk(chunk: Chunk) -> list[dict]:
+    """Run one chunk's trials as one batch; a row per trial (its parameters, seed, metrics,
+    ``failed``/``failure``, ``lost``, ``success``)."""
+    spec = chunk.spec
+    point, choice, values = spec.cells()[chunk.cell]
+    seed = int(values.get("seed", spec.seed))
+    trials = list(range(chunk.start, chunk.stop))
+    exp, batch, delay = chunk_batch(chunk)
     log = batch.run(backend=chunk.backend)
     failed = np.asarray(log.meta.get("failed", np.zeros(len(trials), dtype=bool)))
     failure = dict(log.meta.get("failure", {}))
