@@ -20,7 +20,7 @@ controllers = ["robot-space", "quaternion"]
 trials = 3
 chunk_trials = 2
 seed = 7
-duration_s = 2.0
+duration_s = 1.0
 settle_s = 0.5
 
 [vary.noise_m]
@@ -98,7 +98,7 @@ def test_outputs(swept, small):
 def test_a_clean_trial_equals_the_single_run(swept, small):
     out, _ = swept
     rows = json.loads((out / "results.json").read_text())["rows"]
-    sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=2.0, metrics_from_s=0.5)
+    sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=1.0, metrics_from_s=0.5)
     for choice in small.choices:
         exp = KINDS["pair"].experiment(sc, controller=choice)
         ref = exp.metrics(exp.run())
@@ -180,7 +180,9 @@ def test_bad_specs_are_one_line(tmp_path, edit, match):
     assert "\n" not in str(exc.value)
 
 
-def test_too_much_work_is_refused_with_the_numbers(tmp_path):
+def test_too_much_work_is_refused_with_the_numbers(tmp_path, monkeypatch):
+    monkeypatch.setenv("QUATFORM_MAX_MEMORY_BYTES", "1e8")
+    monkeypatch.setenv("QUATFORM_MAX_WORK_S", "60")
     spec = load_sweep(_spec(tmp_path, SMALL.replace("trials = 3\nchunk_trials = 2", "trials = 100000")))
     with pytest.raises(ResourceLimitError, match=r"GB.*chunk_trials") as exc:
         estimate(spec)
@@ -188,6 +190,7 @@ def test_too_much_work_is_refused_with_the_numbers(tmp_path):
     spec = load_sweep(_spec(tmp_path, SMALL.replace("trials = 3\nchunk_trials = 2", "trials = 100000\nchunk_trials = 10")))
     with pytest.raises(ResourceLimitError, match=r"robot-steps.*h .*lower trials"):
         estimate(spec)
+    assert estimate(load_sweep(_spec(tmp_path))).seconds < 60  # the small one fits
 
 
 def test_random_draws_come_from_the_seed(tmp_path):
