@@ -33,12 +33,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import machine_description, optional_import  # noqa: E402
+from _common import machine_description, optional_import
 
-from quatform.sweeps import plan_chunks  # noqa: E402
-from quatform.sweeps.executors import executor  # noqa: E402
-from quatform.sweeps.spec import sweep_from_dict  # noqa: E402
-from quatform.sweeps.trials import run_chunk  # noqa: E402
+from quatform.sweeps import plan_chunks
+from quatform.sweeps.executors import executor
+from quatform.sweeps.spec import sweep_from_dict
+from quatform.sweeps.trials import run_chunk
 
 
 def _spec(trials: int, duration: float):

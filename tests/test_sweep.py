@@ -5,11 +5,20 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from quatform.cli import main
 from quatform.errors import InvalidInputError, ResourceLimitError
 from quatform.scenarios import KINDS, load_scenario
-from quatform.sweeps import PARAMETERS, builtin_sweeps, estimate, load_sweep, plan_chunks, run_sweep
+from quatform.sweeps import (
+    PARAMETERS,
+    builtin_sweeps,
+    estimate,
+    load_sweep,
+    plan_chunks,
+    run_sweep,
+)
 from quatform.sweeps.spec import sweep_from_dict
 from quatform.sweeps.trials import Chunk, run_chunk
 
@@ -252,7 +261,7 @@ settle_s = 0.5
 {vary}
 """
     spec = load_sweep(_spec(tmp_path, text))
-    exp, batch, delay = chunk_batch(Chunk(spec, 0, 0, 4))
+    _, batch, delay = chunk_batch(Chunk(spec, 0, 0, 4))
     log = batch.run()
     return log["measured"], log["state"], delay
 
@@ -278,8 +287,6 @@ def test_latency_delays_by_whole_ticks_and_dropouts_hold(tmp_path):
     assert 0.3 < held.mean() < 0.7  # about half the frames lost (200 ticks x 4 trials)
     assert np.all(held | fresh[1:])  # a frame is the plant's output or the last one held
 
-
-from hypothesis import given, settings, strategies as st  # noqa: E402
 
 
 @settings(max_examples=40, deadline=None)

@@ -339,7 +339,6 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     """Build a :class:`SweepSpec` from parsed TOML (``base``: the folder relative scenario
     paths are read from); every mistake is one line naming the key."""
     from ..scenarios import KINDS, kind_of, load_scenario
-
     from .trials import NOT_SWEEPABLE, SWEEP_KINDS
 
     if not isinstance(data, dict):
