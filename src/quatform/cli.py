@@ -182,7 +182,9 @@ def _build_parser() -> argparse.ArgumentParser:
                    description="List the built-in scenarios of every kind with their titles and sources.")
 
     from .ros2.cli import add_replay_parser, add_ros2_parser
+    from .sweeps.cli import add_parsers as add_sweep_parsers
 
+    add_sweep_parsers(sub)
     add_ros2_parser(sub)
     add_replay_parser(sub)
     return parser
@@ -290,6 +292,12 @@ def _scenarios(args) -> None:
     _list((name, f"{sc.title} [{kind_of(sc).name}]", sc.source) for name, sc in loaded)
 
 
+def _sweeps_cli():
+    from .sweeps import cli
+
+    return cli
+
+
 def _kinds():
     from .scenarios import KINDS
 
@@ -314,6 +322,8 @@ COMMANDS = {
     "scenarios": _scenarios,
     "ros2": lambda args: _ros2_cli().run_ros2(args),
     "replay": lambda args: _ros2_cli().run_replay(args),
+    "sweep": lambda args: _sweeps_cli().sweep_command(args),
+    "sweeps": lambda args: _sweeps_cli().sweeps_command(args),
 }
 
 

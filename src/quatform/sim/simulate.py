@@ -23,12 +23,14 @@ Contracts (duck-typed; every object of quatform that plays a role implements the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Callable
 
 import numpy as np
 
-from ..errors import InvalidInputError, ShapeError
+from ..control.contract import Step
+from ..errors import InvalidInputError, QuatformError, ShapeError
 from .log import Channel, Log
 
 __all__ = ["simulate", "PerfectMeasurement"]
@@ -47,6 +49,138 @@ class PerfectMeasurement:
 
     def read(self, t: float):
         return self._y
+
+
+#: What a controller may raise because of some worlds of a batch (their measurement left the
+#: description's domain, two robots coincide ...); anything else (a TypeError: a bug) propagates.
+_WORLD_ERRORS = (QuatformError, ArithmeticError, ValueError)
+
+
+def _map_worlds(value, batch: tuple, fn, min_extra: int = 0):
+    """``value`` with ``fn`` applied to every array in it whose leading axes are ``batch``
+    (and that has at least ``min_extra`` axes more): through dataclasses, tuples, lists and
+    dicts; anything else (None, numbers, flags) is kept."""
+    if isinstance(value, np.ndarray):
+        if value.ndim >= len(batch) + min_extra and value.shape[:len(batch)] == batch:
+            return fn(value)
+        return value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.replace(value, **{f.name: _map_worlds(getattr(value, f.name), batch, fn, min_extra)
+                                             for f in dataclasses.fields(value) if f.init})
+    if isinstance(value, (tuple, list)):
+        return type(value)(_map_worlds(v, batch, fn, min_extra) for v in value)
+    if isinstance(value, dict):
+        return {k: _map_worlds(v, batch, fn, min_extra) for k, v in value.items()}
+    return value
+
+
+class _Worlds:
+    """Which worlds of a batched run failed, and why (the contract of :mod:`quatform.sim.backends`).
+
+    A failed world is frozen: its plant state stays the last finite one, its commands are zero
+    and its signals NaN from then on. The controller keeps running on the healthy worlds: the
+    failed ones are handed a healthy world's measurement and controller state (their results
+    are discarded), so a controller that raises because of one world does not stop the others.
+    """
+
+    def __init__(self, batch: tuple, controller):
+        self.batch = batch
+        self.failed = np.zeros(batch, dtype=bool)
+        self.failure: dict = {}
+        self.n_u = len(controller.command_names)
+        self.widths = {k: len(c) for k, c in controller.signal_columns().items()}
+
+    def _mark(self, mask, reason: str) -> None:
+        new = np.asarray(mask, dtype=bool) & ~self.failed
+        for idx in zip(*np.nonzero(new)):
+            self.failure[tuple(int(i) for i in idx)] = reason
+        self.failed |= new
+
+    def _healthy(self):
+        ok = np.argwhere(~self.failed)
+        return tuple(int(i) for i in ok[0]) if ok.size else None
+
+    def _shadow(self, m, state):
+        """``m`` and ``state`` with every failed world's entries replaced by a healthy world's."""
+        src = self._healthy()
+        bad = self.failed
+
+        def put(a):
+            a = a.copy()
+            a[bad] = a[src]
+            return a
+
+        return _map_worlds(np.asarray(m), self.batch, put, 1), _map_worlds(state, self.batch, put)
+
+    def _find(self, controller, t, m, reference, state, exc) -> None:
+        """Mark the worlds whose update raises on its own (re-raise ``exc`` when none does)."""
+        found = False
+        for idx in np.ndindex(*self.batch):
+            if self.failed[idx]:
+                continue
+            take = (lambda a, idx=idx: a[idx])
+            try:
+                controller.update(t, np.asarray(m)[idx], _map_worlds(reference, self.batch, take, 1),
+                                  _map_worlds(state, self.batch, take))
+            except _WORLD_ERRORS as own:
+                mask = np.zeros(self.batch, dtype=bool)
+                mask[idx] = True
+                self._mark(mask, f"t = {t:g} s: {' '.join(str(own).split())}")
+                found = True
+        if not found:
+            raise exc
+
+    def update(self, controller, t: float, m, reference, state) -> Step:
+        """``controller.update`` on the batch, failed worlds masked and new failures marked."""
+        if self.failed.any() and self._healthy() is not None:
+            m, state = self._shadow(m, state)
+        if self._healthy() is None:
+            return self._masked(Step(np.zeros(self.batch + (self.n_u,)), state,
+                                     {k: np.zeros(self.batch + (w,)) for k, w in self.widths.items()}))
+        try:
+            step = controller.update(t, m, reference, state)
+        except _WORLD_ERRORS as exc:
+            self._find(controller, t, m, reference, state, exc)
+            return self.update(controller, t, m, reference, state)
+        u = np.asarray(step.u, dtype=float)
+        self._mark(~np.all(np.isfinite(u), axis=-1), f"t = {t:g} s: non-finite command")
+        return self._masked(step) if self.failed.any() else step
+
+    def _masked(self, step: Step) -> Step:
+        bad = self.failed[..., None]
+        return Step(np.where(bad, 0.0, step.u), step.state,
+                    {k: np.where(bad, np.nan, np.asarray(v, dtype=float)) for k, v in step.signals.items()})
+
+    def step(self, plant, x, u, dt: float, t: float):
+        """``plant.step`` on the batch: a failed world steps a healthy world's state (its result
+        discarded: it stays at ``x``), worlds the plant refuses or that become non-finite are
+        marked failed."""
+        healthy = self._healthy()
+        if healthy is None:
+            return x
+        x_in = x
+        if self.failed.any():
+            x_in = x.copy()
+            x_in[self.failed] = x[healthy]
+        try:
+            x_new = plant.step(x_in, u, dt, t)
+        except _WORLD_ERRORS as exc:
+            found = False
+            for idx in np.ndindex(*self.batch):
+                if self.failed[idx]:
+                    continue
+                try:
+                    plant.step(x_in[idx], np.asarray(u)[idx], dt, t)
+                except _WORLD_ERRORS as own:
+                    mask = np.zeros(self.batch, dtype=bool)
+                    mask[idx] = True
+                    self._mark(mask, f"t = {t:g} s: the plant refused the world's state: {' '.join(str(own).split())}")
+                    found = True
+            if not found:
+                raise exc
+            return self.step(plant, x, u, dt, t)
+        self._mark(~np.all(np.isfinite(x_new), axis=-1), f"t = {t + dt:g} s: non-finite plant state")
+        return np.where(self.failed[..., None], x, x_new) if self.failed.any() else x_new
 
 
 def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | None = None, substeps: int = 1,
@@ -76,7 +210,12 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         Channels ``state`` (the plant state at each tick, before its command acts),
         ``measured`` (what the controller read), ``command`` and every signal the
         controller returns, each ``(T, *batch, k)``; ``meta["controller_state"]`` is the
-        controller's state after the last tick (why it stopped, what it held ...).
+        controller's state after the last tick (why it stopped, what it held ...). A batched
+        run in which some worlds fail (non-finite state or command, a controller raising for
+        them) goes on with the others: ``meta["failed"]`` (bool, the batch shape) and
+        ``meta["failure"]`` (world index tuple -> one-line reason) say which and why; a failed
+        world is frozen (state held, zero commands, NaN signals). One world runs as before:
+        its errors propagate.
     """
     times = np.asarray(times, dtype=float)
     if times.ndim != 1:
@@ -115,10 +254,14 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     xs, ms, us = [], [], []
     sig = {k: [] for k in columns}
     tick = max(1, n // 10)
+    worlds = _Worlds(batch, controller) if batch else None
     for k in range(n):
         t = float(times[k])
         m = measurement.read(t)
-        step = controller.update(t, m, reference(k), state)
+        if worlds is None:
+            step = controller.update(t, m, reference(k), state)
+        else:
+            step = worlds.update(controller, t, m, reference(k), state)
         state = step.state
         xs.append(x)
         ms.append(m)
@@ -126,7 +269,10 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         for key, lst in sig.items():
             lst.append(step.signals[key])
         for j in range(substeps):
-            x = plant.step(x, step.u, dt, t + j * dt)
+            if worlds is None:
+                x = plant.step(x, step.u, dt, t + j * dt)
+            else:
+                x = worlds.step(plant, x, step.u, dt, t + j * dt)
             measurement.observe(t + (j + 1) * dt, plant.output(x))
         if progress is not None and (k + 1) % tick == 0:
             progress((k + 1) / n)
@@ -142,4 +288,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
              Channel("command", controller.command_names, stack(us, len(controller.command_names)))]
     for key, cols in columns.items():
         chans.append(Channel(key, cols, stack(sig[key], len(cols))))
-    return Log(times, chans, {"controller": controller.name, "controller_state": state, **(meta or {})})
+    info = {"controller": controller.name, "controller_state": state, **(meta or {})}
+    if worlds is not None and worlds.failed.any():
+        info.update(failed=worlds.failed.copy(), failure=dict(worlds.failure))
+    return Log(times, chans, info)

@@ -1,0 +1,19 @@
+"""Sweeps layer: Monte Carlo sweeps of a scenario over controllers, noise, latency, gains, starts, team sizes.
+
+Top layer, beside :mod:`quatform.runs` (it uses scenarios, sim and report). A sweep spec
+(plain TOML, ``docs/sweeps.md``) names a scenario, the choices to compare and the parameters
+to vary; its trials run in batches through the scenario kind's own experiment (B worlds per
+tick, each trial's random numbers from its own seed), on any executor, resumably.
+
+* :mod:`.spec` - the strict reader (:func:`load_sweep`) and the parameters (:data:`PARAMETERS`);
+* :mod:`.trials` - a cell's batch and its rows (:func:`run_chunk`), the kinds a sweep can batch;
+* :mod:`.executors` - in process, local processes, Dask (local, ``tcp://``, SLURM);
+* :mod:`.runner` - planning, the up-front estimate, progress, :func:`run_sweep`;
+* :mod:`.results`, :mod:`.figures` - the chunk store, the tables and the figures;
+* :mod:`.cli` - ``quatform sweep`` and ``quatform sweeps``.
+"""
+
+from .runner import estimate, plan_chunks, run_sweep
+from .spec import PARAMETERS, SweepSpec, builtin_sweeps, load_sweep
+
+__all__ = ["PARAMETERS", "SweepSpec", "builtin_sweeps", "load_sweep", "run_sweep", "estimate", "plan_chunks"]

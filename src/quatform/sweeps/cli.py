@@ -1,0 +1,100 @@
+"""``quatform sweep SPEC --out DIR`` and ``quatform sweeps`` (registered by :mod:`quatform.cli`).
+
+Sweeps layer. :func:`add_parsers` adds both subcommands to the CLI's subparsers; the
+functions :func:`sweep_command` and :func:`sweeps_command` run them.
+"""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["add_parsers", "sweep_command", "sweeps_command"]
+
+#: Most cells the summary printed on stdout shows (all are in summary.csv).
+_MAX_PRINTED = 60
+
+
+def add_parsers(sub) -> None:
+    """Add ``sweep`` and ``sweeps`` to the CLI's subparsers ``sub``."""
+    from ..sim.backends import SIM_BACKENDS
+
+    p = sub.add_parser(
+        "sweep", help="run a Monte Carlo sweep (controllers x noise, latency, gains, starts, team sizes)",
+        description="Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes "
+                    "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into "
+                    "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
+    p.add_argument("spec", metavar="SPEC", help="built-in sweep name (see 'quatform sweeps') or file.toml")
+    p.add_argument("--out", metavar="DIR", required=True, help="output folder (resumed when it holds this sweep)")
+    p.add_argument("--trials", type=int, metavar="K", help="trials per cell instead of the spec's (a quick look)")
+    p.add_argument("--backend", default="numpy", help=f"compute backend: {', '.join(SIM_BACKENDS)} or jax "
+                   "(pip install -e \".[jax]\")")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="local processes, or Dask workers with --scheduler local (default 1: in this process)")
+    p.add_argument("--scheduler", metavar="ADDR",
+                   help="Dask: local (a LocalCluster), tcp://HOST:PORT (join one) or slurm (dask-jobqueue, the "
+                        "spec's [slurm] table and --slurm); pip install -e \".[dask]\"")
+    p.add_argument("--slurm", action="append", default=[], metavar="KEY=VALUE",
+                   help="a dask-jobqueue SLURMCluster option (queue, account, cores, memory, walltime, jobs ...)")
+    p.add_argument("--print-job-script", action="store_true",
+                   help="with --scheduler slurm: print the job script dask-jobqueue would submit, run nothing")
+    p.add_argument("--no-plots", action="store_true", help="write the tables only")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    sub.add_parser("sweeps", help="list the built-in sweeps",
+                   description="List the built-in sweep specs with their titles and sources.")
+
+
+def _slurm_options(spec, pairs) -> dict:
+    from ..checks import check_keys
+    from ..errors import InvalidInputError
+    from .spec import SLURM_KEYS
+
+    opts = dict(spec.slurm)
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep:
+            raise InvalidInputError(f"--slurm {pair!r}: give KEY=VALUE (e.g. --slurm queue=normal)")
+        check_keys({key: value}, SLURM_KEYS, "--slurm", "the options", "see docs/sweeps.md")
+        opts[key] = int(value) if value.isdigit() else value
+    return opts
+
+
+def sweep_command(args) -> None:
+    from dataclasses import replace
+
+    from ..errors import InvalidInputError
+    from .executors import slurm_job_script
+    from .runner import run_sweep
+    from .spec import load_sweep
+
+    if args.trials is not None and args.trials < 1:
+        raise InvalidInputError(f"--trials {args.trials} must be >= 1")
+    spec = load_sweep(args.spec, trials=args.trials)
+    if args.slurm or args.scheduler == "slurm":
+        spec = replace(spec, slurm=_slurm_options(spec, args.slurm))
+    if args.print_job_script:
+        if args.scheduler != "slurm":
+            raise InvalidInputError("--print-job-script goes with --scheduler slurm")
+        print(slurm_job_script(spec.slurm))
+        return
+    summary = run_sweep(spec, args.out, backend=args.backend, workers=args.workers, scheduler=args.scheduler,
+                        plots=not args.no_plots, quiet=args.quiet)
+    key = spec.compare_key
+    names = [a.name for a in spec.axes]
+    print(f"{key:16s} " + " ".join(f"{n:>18s}" for n in names) + f" {'trials':>7s} {'failed':>7s} {'success':>8s}")
+    for s in summary[:_MAX_PRINTED]:
+        vals = " ".join(f"{s[n]:18.4g}" for n in names)
+        print(f"{s[key]:16s} {vals} {s['trials']:7d} {s['failed']:7d} {s['success_rate']:8.2f}")
+    if len(summary) > _MAX_PRINTED:
+        print(f"... {len(summary) - _MAX_PRINTED} more cells in summary.csv")
+    print(f"\nfiles in {args.out}/: results.csv/json, summary.csv/json" + ("" if args.no_plots else ", figures/"),
+          file=sys.stdout)
+
+
+def sweeps_command(args) -> None:
+    from ..tomlio import read_toml
+    from .spec import builtin_sweeps
+
+    files = builtin_sweeps()
+    for name in sorted(files):
+        data, _ = read_toml(name, files, "sweep")
+        print(f"{name:32s} {data.get('title', '')} ({data.get('source', '')})")

@@ -1,0 +1,106 @@
+"""Where a sweep's chunks run: in process, local processes, Dask (local, a cluster, SLURM).
+
+Sweeps layer. :func:`executor` yields a :class:`concurrent.futures.Executor` (or None: run
+in this process, one chunk after another). Dask and dask-jobqueue are optional
+(``pip install -e ".[dask]"``), imported only here and only when asked for. A trial's result
+does not depend on where it ran (its random numbers come from its own seed, the chunks are
+fixed by the spec), so every executor gives the same table.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from concurrent.futures import ProcessPoolExecutor
+
+from ..checks import nearest
+from ..errors import InvalidInputError, MissingDependencyError, UnreachableError
+
+__all__ = ["executor", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S"]
+
+#: Named schedulers (besides ``tcp://HOST:PORT``).
+SCHEDULERS = ("local", "slurm")
+#: How long joining a cluster may take before its address is called unreachable, s.
+CONNECT_TIMEOUT_S = 5.0
+
+
+def _import(module: str):
+    try:
+        return __import__(module, fromlist=["_"])
+    except ImportError:
+        raise MissingDependencyError(f"--scheduler needs {module.split('.')[0]} (distributed sweeps): "
+                                     'pip install -e ".[dask]"') from None
+
+
+def slurm_cluster(options: dict):
+    """A dask-jobqueue ``SLURMCluster`` with the ``[slurm]`` options (``jobs`` is how many to
+    submit, not a cluster keyword; ``cores`` defaults to 1, ``memory`` to 4 GB, ``processes`` to
+    ``cores``)."""
+    jq = _import("dask_jobqueue")
+    opts = {k: v for k, v in options.items() if k != "jobs"}
+    opts.setdefault("cores", 1)
+    opts.setdefault("memory", "4GB")
+    opts.setdefault("processes", opts["cores"])
+    try:
+        return jq.SLURMCluster(**opts)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"[slurm] options {sorted(opts)}: {' '.join(str(exc).split())}") from None
+
+
+def slurm_job_script(options: dict) -> str:
+    """The batch script dask-jobqueue submits for each SLURM job of ``options`` (what
+    ``quatform sweep ... --scheduler slurm --print-job-script`` shows)."""
+    cluster = slurm_cluster(options)
+    try:
+        return cluster.job_script()
+    finally:
+        cluster.close()
+
+
+@contextlib.contextmanager
+def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None = None,
+             timeout_s: float = CONNECT_TIMEOUT_S):
+    """The executor of ``--workers`` / ``--scheduler`` (None: in this process).
+
+    Parameters
+    ----------
+    workers : int
+        Local processes (no scheduler), Dask workers of a ``local`` cluster, SLURM jobs.
+    scheduler : str, optional
+        ``local`` (a ``LocalCluster`` of ``workers`` one-thread processes), ``tcp://HOST:PORT``
+        (join a running scheduler, at most ``timeout_s`` to reach it) or ``slurm``
+        (dask-jobqueue, the ``slurm`` options).
+    """
+    if not isinstance(workers, int) or workers < 1:
+        raise InvalidInputError(f"--workers {workers!r} must be a whole number >= 1")
+    if scheduler is None:
+        if workers == 1:
+            yield None
+            return
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            yield pool
+        return
+    if scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
+        raise InvalidInputError(f"--scheduler {scheduler!r} unknown{nearest(scheduler, SCHEDULERS)}; give local, "
+                                "slurm or tcp://HOST:PORT")
+    distributed = _import("distributed")
+    with contextlib.ExitStack() as stack:
+        if scheduler == "local":
+            cluster = stack.enter_context(distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
+                                                                   processes=True, dashboard_address=None))
+            client = stack.enter_context(distributed.Client(cluster))
+        elif scheduler == "slurm":
+            cluster = stack.enter_context(slurm_cluster(dict(slurm or {})))
+            cluster.scale(jobs=int((slurm or {}).get("jobs", workers)))
+            client = stack.enter_context(distributed.Client(cluster))
+        else:
+            try:
+                client = distributed.Client(scheduler, timeout=f"{timeout_s}s")
+            except ValueError as exc:
+                raise InvalidInputError(f"--scheduler {scheduler}: not a scheduler address ({exc}); give "
+                                        "tcp://HOST:PORT") from None
+            except (OSError, TimeoutError) as exc:
+                raise UnreachableError(f"--scheduler {scheduler}: no Dask scheduler answered within {timeout_s:g} s "
+                                       f"({type(exc).__name__}); start one (dask scheduler) or check the address"
+                                       ) from None
+            stack.enter_context(client)
+        yield client.get_executor()

@@ -1,0 +1,298 @@
+"""Trials of a sweep: one cell's scenario variant, its batch of worlds, their draws, their rows.
+
+Sweeps layer. A cell is one choice (a controller) at one point of the varied parameters; its
+trials run as ONE batch through :meth:`quatform.scenarios.Experiment.run` (B worlds per tick),
+each world with its own initial error and its own :class:`~quatform.sim.trial_measurement.TickMeasurement`
+noise and dropped frames. A trial's random numbers come from its own stream,
+``numpy.random.SeedSequence([seed, point, trial])``: they do not depend on the batch, the
+chunk, the worker or the controller (the controllers of one point face the same noise and
+the same initial errors: common random numbers). Per trial the metrics are the kind's own
+``Experiment.metrics`` of that world's finished log, so a trial with no noise and no offset
+equals ``quatform run``.
+
+:data:`SWEEP_KINDS` holds, per scenario kind, what the sweep may vary and how a cell's
+scenario and initial states are built (a registry: the spec reader asks it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..checks import nearest
+from ..errors import InvalidInputError, QuatformError
+from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair
+from ..sim.trial_measurement import TickMeasurement
+from ..tomlio import read_toml
+
+__all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "chunk_batch", "run_chunk", "trial_stream", "cell_experiment",
+           "COINCIDENT_M"]
+
+#: Robots closer than this (m) at any sample coincide: the trial failed.
+COINCIDENT_M = 1e-6
+
+_COMMON = ("noise_m", "noise_rad", "latency_s", "dropout_rate", "gain_scale", "initial_offset_m",
+           "initial_offset_rad", "seed")
+
+
+def _offset_scales(variables, m: float, rad: float) -> np.ndarray:
+    """Per entry, the bound of its random initial error: ``m`` for positions, ``rad`` for
+    angles, 0 for lengths (a pair's ``d_c``) and quaternion components."""
+    return np.array([m if v.kind == "position" else rad if v.kind == "angle" else 0.0 for v in variables])
+
+
+def _noise_scales(variables, m: float, rad: float) -> np.ndarray:
+    """Per measured entry, its noise standard deviation (units as :func:`_offset_scales`;
+    quaternion components are read without noise)."""
+    return np.array([m if v.unit == "m" else rad if v.unit == "rad" else 0.0 for v in variables])
+
+
+@dataclass(frozen=True)
+class SweepKind:
+    """How a sweep varies the scenarios of one kind.
+
+    Attributes
+    ----------
+    kind : str
+    parameters : tuple of str
+        The keys of :data:`~quatform.sweeps.spec.PARAMETERS` it can vary.
+    """
+
+    kind: str
+    parameters: tuple
+
+    def data(self, data: dict, values: dict, where: str) -> dict:
+        """The scenario file's table for a cell (``team_size`` changes the robot count)."""
+        if "team_size" not in values:
+            return data
+        n = int(values["team_size"])
+        groups = data.get("robots")
+        if not isinstance(groups, list) or len(groups) != 1:
+            raise InvalidInputError(f"{where}: [vary.team_size] needs a scenario with one [[robots]] group (it sets "
+                                    "its count); this one has " + str(len(groups) if isinstance(groups, list) else 0))
+        out = {**data, "robots": [{**groups[0], "count": n}]}
+        shape = dict(data.get("shape", {}))
+        if shape.get("template") == "grid":  # rows: the largest divisor of N up to sqrt(N) (a prime N: a line)
+            shape["rows"] = max(r for r in range(1, math.isqrt(n) + 1) if n % r == 0)
+            out["shape"] = shape
+        return out
+
+    def variables(self, exp):
+        """The entries a trial's initial error is drawn on (:class:`~quatform.formations.layout.Variable`)."""
+        return exp.controller.team.layout.variables
+
+    def initial(self, exp, unit: np.ndarray, m: float, rad: float) -> np.ndarray:
+        """Initial states ``(B, n_x)``: the experiment's own moved by ``unit`` (``(B, n)``
+        uniform in [-1, 1]) times the bounds ``m`` / ``rad``."""
+        return np.asarray(exp.x0, dtype=float)[None] + unit * _offset_scales(self.variables(exp), m, rad)
+
+
+@dataclass(frozen=True)
+class PairSweep(SweepKind):
+    """Seed 000's two robots: the initial error is drawn on the Euclidean cluster variables
+    (centroid in m, ``beta_c, gamma_c, phi_1, phi_2`` in rad; ``d_c`` kept), seed 000 eqs. (1)-(8)."""
+
+    def variables(self, exp):
+        return EUCLIDEAN_VARIABLES
+
+    def initial(self, exp, unit, m, rad):
+        sc = exp.scenario
+        e0 = np.asarray(sc.path(np.asarray(sc.times[:1]))[0])[0] + sc.initial_offset
+        e = e0[None] + unit * _offset_scales(EUCLIDEAN_VARIABLES, m, rad)
+        return EuclideanPair().inverse(e)  # seed 000 eqs. (1)-(8) solved for the robots
+
+
+#: Sweep adapters by scenario kind.
+SWEEP_KINDS = {
+    "pair": PairSweep("pair", _COMMON),
+    "team": SweepKind("team", (*_COMMON, "team_size")),
+}
+#: Why the other kinds cannot be swept yet (one line each).
+NOT_SWEEPABLE = {
+    "ugv_uav": "its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches but "
+               "the measurement does not",
+    "teleop": "its plant (the arms) runs one world at a time",
+}
+
+
+# --------------------------------------------------------------------------- one cell
+
+
+@lru_cache(maxsize=8)
+def _scenario_data(ref: str) -> tuple:
+    from ..scenarios import builtin_scenarios
+
+    data, p = read_toml(ref, builtin_scenarios(), "scenario")
+    return data, str(p)
+
+
+def _scaled(gains: dict, factor: float, only: str | None):
+    return {k: (v if only not in (None, k) else
+                [x * factor for x in v] if isinstance(v, list) else
+                np.asarray(v) * factor if isinstance(v, np.ndarray) else v * factor)
+            for k, v in gains.items()}
+
+
+def cell_scenario(spec, values: dict, choice: str):
+    """The scenario of one cell: the spec's overrides and the point's team size and gains."""
+    from ..scenarios import KINDS
+
+    data, where = _scenario_data(spec.scenario)
+    kind = KINDS[spec.data["kind"]]
+    adapter = SWEEP_KINDS[kind.name]
+    data = adapter.data(dict(data), values, spec.where)
+    sc = kind.from_dict(data, where)
+    # the first duration_s of the scenario (its changes past the end do not happen), measured from settle_s
+    short = {}
+    if spec.duration_s is not None:
+        short["duration_s"] = spec.duration_s
+    if spec.settle_s is not None:
+        short["metrics_from_s"] = spec.settle_s
+    if short:
+        try:
+            sc = dataclasses.replace(sc, **short)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}; set settle_s below duration_s"
+                                    ) from None
+    scale = values.get("gain_scale")
+    if scale is not None and scale != 1.0:
+        axis = spec.axis("gain_scale")
+        own = sc.gains.get(choice, {})
+        if axis.gain is not None and axis.gain not in own:
+            raise InvalidInputError(f"{spec.where}: [vary.gain_scale] gain = {axis.gain!r} is not a gain of the "
+                                    f"{choice} controller{nearest(axis.gain, own)}; it has {', '.join(own) or 'none'}")
+        gains = {**sc.gains, choice: _scaled(own, float(scale), axis.gain)}
+        try:
+            sc = dataclasses.replace(sc, gains=gains)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{spec.where}: gain_scale = {scale:g}: {exc}") from None
+    return sc
+
+
+def cell_experiment(spec, values: dict, choice: str):
+    """The single-world experiment of a cell (its scenario and choice, nothing drawn yet)."""
+    from ..scenarios import KINDS
+
+    kind = KINDS[spec.data["kind"]]
+    return kind.experiment(cell_scenario(spec, values, choice), **{spec.compare_key: choice})
+
+
+def trial_stream(seed: int, point: int, trial: int) -> np.random.Generator:
+    """The random stream of one trial: ``SeedSequence([seed, point, trial])``."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(point), int(trial)]))
+
+
+def _draws(seed, point, trials, T, k, n_off):
+    """Each trial's standard normals ``(T, k)``, uniforms ``(T,)`` (dropped frames) and
+    uniforms in [-1, 1] ``(n_off,)`` (initial error), in that order from its own stream:
+    ``(T, B, k)``, ``(T, B)``, ``(B, n_off)``."""
+    z = np.empty((T, len(trials), k))
+    u = np.empty((T, len(trials)))
+    off = np.empty((len(trials), n_off))
+    for b, i in enumerate(trials):
+        rng = trial_stream(seed, point, i)
+        z[:, b] = rng.standard_normal((T, k))
+        u[:, b] = rng.random(T)
+        off[b] = rng.uniform(-1.0, 1.0, n_off)
+    return z, u, off
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """A slice of one cell's trials, the unit of work an executor runs.
+
+    Attributes
+    ----------
+    spec : SweepSpec
+    cell : int
+        Index into ``spec.cells()``.
+    start, stop : int
+        Trials ``start <= i < stop``.
+    backend : str
+        The compute backend (:data:`quatform.sim.backends.SIM_BACKENDS`).
+    """
+
+    spec: object
+    cell: int
+    start: int
+    stop: int
+    backend: str = "numpy"
+
+    @property
+    def key(self) -> str:
+        return f"cell{self.cell:05d}-trials{self.start:06d}-{self.stop:06d}"
+
+
+def chunk_batch(chunk: Chunk):
+    """``(exp, batch, delay)``: the cell's single-world experiment, the batched one of the
+    chunk's trials (their initial states and their :class:`TickMeasurement`; its ``finish`` is
+    the identity: each world is finished on its own) and the latency in control ticks."""
+    spec = chunk.spec
+    point, choice, values = spec.cells()[chunk.cell]
+    seed = int(values.get("seed", spec.seed))
+    exp = cell_experiment(spec, values, choice)
+    adapter = SWEEP_KINDS[spec.data["kind"]]
+    trials = list(range(chunk.start, chunk.stop))
+    T = len(exp.times)
+    tick = exp.substeps * exp.dt
+    out_vars = _output_variables(exp)
+    off_vars = adapter.variables(exp)
+    z, u, off = _draws(seed, point, trials, T, len(out_vars), len(off_vars))
+    noise = z * _noise_scales(out_vars, values.get("noise_m", 0.0), values.get("noise_rad", 0.0))
+    delay = int(round(values.get("latency_s", 0.0) / tick))
+    dropped = u < values.get("dropout_rate", 0.0)
+    x0 = adapter.initial(exp, off, values.get("initial_offset_m", 0.0), values.get("initial_offset_rad", 0.0))
+    batch = dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, delay, dropped),
+                                finish=lambda log: log)
+    return exp, batch, delay
+
+
+def run_chunk(chunk: Chunk) -> list[dict]:
+    """Run one chunk's trials as one batch; a row per trial (its parameters, seed, metrics,
+    ``failed``/``failure``, ``lost``, ``success``)."""
+    spec = chunk.spec
+    point, choice, values = spec.cells()[chunk.cell]
+    seed = int(values.get("seed", spec.seed))
+    trials = list(range(chunk.start, chunk.stop))
+    exp, batch, delay = chunk_batch(chunk)
+    log = batch.run(backend=chunk.backend)
+    failed = np.asarray(log.meta.get("failed", np.zeros(len(trials), dtype=bool)))
+    failure = dict(log.meta.get("failure", {}))
+    rows = []
+    for b, i in enumerate(trials):
+        row = {"cell": chunk.cell, "point": point, spec.compare_key: choice, **values,
+               "latency_ticks": delay, "trial": i, "seed": seed}
+        reason = failure.get((b,)) if failed[b] else None
+        metrics = {}
+        try:
+            metrics = exp.metrics(exp.finish(log.world(b)))
+        except (QuatformError, ArithmeticError, ValueError) as exc:
+            reason = reason or f"metrics: {' '.join(str(exc).split())}"
+        sep = metrics.get("min_robot_separation_m")
+        if reason is None and isinstance(sep, float) and sep < COINCIDENT_M:
+            reason = f"robots coincide (separation {sep:.3g} m)"
+        metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()
+                   if isinstance(v, (bool, int, float, str, np.generic)) or v is None}
+        row.update(metrics)
+        row["failed"] = reason is not None
+        row["failure"] = reason or ""
+        row["lost"] = bool(metrics.get("reference_lost", False))
+        row["success"] = (reason is None) and spec.success(metrics)
+        rows.append(row)
+    return rows
+
+
+def _output_variables(exp):
+    """What the measurement reads, as layout variables (their units pick the noise)."""
+    layout = exp.controller.team.layout
+    if tuple(exp.plant.output_columns) != tuple(layout.names):
+        raise InvalidInputError(f"sweep: the {exp.label} run's plant outputs {exp.plant.output_columns[:4]}... are "
+                                "not the robots' points; its measurement cannot be varied")
+    if exp.measurement is not None:
+        raise InvalidInputError(f"sweep: the {exp.label} run has its own measurement model "
+                                f"({type(exp.measurement).__name__}); a sweep replaces it only for a perfect one")
+    return layout.variables

@@ -1,0 +1,96 @@
+"""Sweep executors: identical tables in process, on 2 local processes and on Dask; bad schedulers."""
+
+import json
+import time
+
+import pytest
+
+from quatform.errors import InvalidInputError, UnreachableError
+from quatform.sweeps import load_sweep, run_sweep
+from quatform.sweeps.executors import executor
+
+SPEC = """
+name = "tiny"
+scenario = "mas-kitts-helix"
+controllers = ["robot-space", "quaternion"]
+trials = 2
+chunk_trials = 1
+seed = 3
+duration_s = 1.0
+settle_s = 0.2
+
+[vary.noise_m]
+values = [0.0, 0.02]
+
+[vary.dropout_rate]
+values = [0.3]
+"""
+
+
+@pytest.fixture(scope="module")
+def spec(tmp_path_factory):
+    p = tmp_path_factory.mktemp("spec") / "tiny.toml"
+    p.write_text(SPEC)
+    return load_sweep(p)
+
+
+def _table(out):
+    return (out / "results.csv").read_text(), json.loads((out / "summary.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def in_process(spec, tmp_path_factory):
+    out = tmp_path_factory.mktemp("one") / "out"
+    run_sweep(spec, out, plots=False, quiet=True)
+    return _table(out)
+
+
+def test_two_processes_give_the_same_table(spec, in_process, tmp_path):
+    run_sweep(spec, tmp_path / "two", workers=2, plots=False, quiet=True)
+    assert _table(tmp_path / "two") == in_process
+
+
+def test_dask_local_cluster_gives_the_same_table(spec, in_process, tmp_path):
+    pytest.importorskip("distributed")
+    run_sweep(spec, tmp_path / "dask", workers=2, scheduler="local", plots=False, quiet=True)
+    assert _table(tmp_path / "dask") == in_process
+
+
+def test_unreachable_scheduler_is_one_line_and_quick():
+    pytest.importorskip("distributed")
+    t0 = time.perf_counter()
+    with pytest.raises(UnreachableError, match="tcp://127.0.0.1:9") as exc:
+        with executor(1, "tcp://127.0.0.1:9", timeout_s=1.0):
+            pass
+    assert "\n" not in str(exc.value)
+    assert time.perf_counter() - t0 < 30.0
+
+
+def test_unknown_scheduler_names_the_nearest():
+    with pytest.raises(InvalidInputError, match="local"):
+        with executor(1, "locl"):
+            pass
+
+
+def test_slurm_job_script():
+    pytest.importorskip("dask_jobqueue")
+    from quatform.sweeps.executors import slurm_job_script
+
+    script = slurm_job_script({"queue": "normal", "account": "lab", "cores": 2, "memory": "8GB",
+                               "walltime": "01:00:00"})
+    assert script.startswith("#!/")
+    for line in ("#SBATCH -p normal", "#SBATCH -A lab", "#SBATCH --cpus-per-task=2", "#SBATCH -t 01:00:00"):
+        assert line in script
+
+
+def test_slurm_job_script_from_the_cli(spec, tmp_path, capsys):
+    pytest.importorskip("dask_jobqueue")
+    from quatform.cli import main
+
+    p = tmp_path / "s.toml"
+    p.write_text(SPEC + '\n[slurm]\nqueue = "gpu"\ncores = 1\n')
+    assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--scheduler", "slurm", "--slurm",
+                 "walltime=00:30:00", "--print-job-script"]) == 0
+    out = capsys.readouterr().out
+    assert "#SBATCH -p gpu" in out and "#SBATCH -t 00:30:00" in out
+    assert not (tmp_path / "o").exists()
