@@ -104,9 +104,10 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
         FIGURES[kind.name].run(log, folder)
     _picture(log, folder, plots, metrics)
     if mcap:
-        from .bags import MCAP_FILE, write_foxglove_layout, write_mcap
+        from .bags import MCAP_FILE, SCENES, write_foxglove_layout, write_mcap
 
-        write_mcap(log, folder / MCAP_FILE, kind=kind.name)
+        # a kind without a scene builder (quatform.bags.SCENES) still gets its channels
+        write_mcap(log, folder / MCAP_FILE, kind=kind.name, scene=kind.name in SCENES)
         write_foxglove_layout(folder)
     write_metrics(metrics, folder / "metrics.json")
     if not quiet:
