@@ -429,3 +429,25 @@ def test_cli_run_writes_run_mcap_that_rosbags_reads_one_message_per_sample(tmp_p
             main([command, "--help"])
         text = capsys.readouterr().out
         assert "--no-mcap" in text and "--rerun" in text, command
+
+
+def test_a_mujoco_run_adds_each_quadrotors_rotors_and_full_attitude(tmp_path):
+    pytest.importorskip("mujoco")
+    sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=0.3, metrics_from_s=0.0)
+    kind = kind_of(sc)
+    log = kind.experiment(sc, controller="quaternion", backend="mujoco").run(None)
+    record = log.meta["physics_record"]
+    topics = _read_all(write_mcap(log, tmp_path / "mj.mcap", kind=kind.name))
+    n = len(log)
+    for i in (1, 2):
+        msgs = topics[f"/robot_{i}/rotors"][1]
+        assert len(msgs) == n
+        m = msgs[-1][1]
+        forces = [m.force_1, m.force_2, m.force_3, m.force_4]
+        np.testing.assert_array_equal(forces, record.rotor_force[-1, i - 1])
+        assert m.thrust == pytest.approx(sum(forces), rel=1e-12) and m.thrust > 0.0
+        _, _, q, _ = messages.pose_from_msg(topics[f"/robot_{i}/pose"][1][-1][1])
+        np.testing.assert_array_equal(q, record.attitude[-1, i - 1])  # tilt included
+        yaw = log["state"][-1, 4 * (i - 1) + 3]
+        assert abs(np.angle(np.exp(1j * (g.yaw_of(q) - yaw)))) < 1e-6  # its yaw is the state's
+    np.testing.assert_array_equal(read_log(tmp_path / "mj.mcap")["state"], log["state"])

@@ -15,7 +15,9 @@ Topics (``docs/ecosystem.md`` lists their types and rates): per body ``/<body>/p
 ``/<body>/path_desired`` (``nav_msgs/Path``, once); ``/tf`` (``tf2_msgs/TFMessage``: world to
 each body, to ``<body>_desired``, to ``formation`` and ``formation_desired``), ``/tf_static``;
 ``/formation/pose``, ``/formation/pose_desired``, ``/formation/edges``
-(``visualization_msgs/MarkerArray``, LINE_LIST); teleoperation: ``/<arm>/joint_states``
+(``visualization_msgs/MarkerArray``, LINE_LIST); MuJoCo runs: each quadrotor's
+``/<body>/rotors`` (``quatform_msgs/msg/Rotors``: collective thrust, four motor commands, four
+rotor forces, N) and its full attitude in its pose and TF; teleoperation: ``/<arm>/joint_states``
 (``sensor_msgs/JointState``), ``/slave_wrist/wrench`` (``geometry_msgs/WrenchStamped``);
 and every channel of the log as ``/quatform/<channel>``, a message whose fields are the
 channel's column names (``quatform_msgs/msg/<Channel>``: a header and one ``float64`` per
@@ -251,6 +253,14 @@ def _scene_topics(topics: _Topics, scene: Scene, t: np.ndarray) -> None:
         cols = {**hdr, **{("wrench", part, a): arr[:, j] for part, arr in (("force", w.force), ("torque", w.torque))
                           for j, a in enumerate("xyz")}}
         topics.add(f"/{w.name}/wrench", messages.wrench_stamped(t0, [0, 0, 0], [0, 0, 0], w.frame), cols)
+    if scene.rotors:
+        fields = ["thrust"] + [f"command_{j}" for j in range(1, 5)] + [f"force_{j}" for j in range(1, 5)]
+        name = f"{MSG_PACKAGE}/msg/Rotors"
+        topics.store.register({name: messages.named_type(fields)})
+        template = messages.named_message(topics.store.types[name], t0, fields, np.zeros(len(fields)))
+        for r in scene.rotors:
+            values = np.concatenate([r.force.sum(axis=1, keepdims=True), r.command, r.force], axis=1)
+            topics.add(f"/{r.body}/rotors", template, {**hdr, **{(f,): values[:, j] for j, f in enumerate(fields)}})
     if per_body:
         _paths(topics, scene, t)
 

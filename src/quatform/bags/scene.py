@@ -14,6 +14,7 @@ is controlled outside the formation) its own state's heading, where the state ha
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +23,7 @@ from ..errors import InvalidInputError
 from ..formations import geometry as g
 from ..formations.layout import RobotLayout
 
-__all__ = ["Scene", "Joints", "Wrench", "SCENES", "scene_of", "COMMAND_TWISTS", "CommandTwist"]
+__all__ = ["Scene", "Joints", "Wrench", "Rotors", "SCENES", "scene_of", "COMMAND_TWISTS", "CommandTwist"]
 
 #: Slots of a twist ``(v_x, v_y, v_z, w_x, w_y, w_z)``.
 _TWIST = {"lx": 0, "ly": 1, "lz": 2, "ax": 3, "ay": 4, "az": 5}
@@ -79,6 +80,15 @@ class Wrench:
 
 
 @dataclass(frozen=True)
+class Rotors:
+    """A quadrotor's four motor commands and rotor forces (N), each (T, 4), in a MuJoCo run."""
+
+    body: str
+    command: np.ndarray
+    force: np.ndarray
+
+
+@dataclass(frozen=True)
 class Scene:
     """The bodies of one run and what moves them.
 
@@ -106,6 +116,9 @@ class Scene:
     wrenches : tuple of Wrench
     static : tuple of (parent, child)
         Fixed identity frames (``/tf_static``): the arms' bases at the world origin.
+    rotors : tuple of Rotors
+        The quadrotors' motors in a MuJoCo run (whose bodies then carry their full attitude,
+        tilt included, in ``quaternion``).
     """
 
     bodies: tuple
@@ -125,6 +138,7 @@ class Scene:
     joints: tuple = ()
     wrenches: tuple = ()
     static: tuple = field(default_factory=tuple)
+    rotors: tuple = ()
 
 
 def _cols(log, channel: str, names) -> np.ndarray:
@@ -170,6 +184,25 @@ def _pair_edges(p: np.ndarray, pairs) -> np.ndarray:
     return p[:, idx]
 
 
+def _with_physics(scene: Scene, log, bodies: dict) -> Scene:
+    """``scene`` with a MuJoCo run's quadrotors (``log.meta["physics_record"]``, a
+    :class:`~quatform.sim.mujoco_backend.PhysicsRecord`) drawn with their full attitude and
+    their rotors; ``bodies`` maps the world's quadrotor names to the scene's bodies. A kinematic
+    run, or a record that does not cover every tick, leaves ``scene`` as it is."""
+    record = log.meta.get("physics_record")
+    attitude = None if record is None else record.attitude
+    if attitude is None or len(record.t) != len(log):
+        return scene
+    q = scene.quaternion.copy()
+    rotors = []
+    for j, name in enumerate(record.quads):
+        if name in bodies:
+            i = scene.bodies.index(bodies[name])
+            q[:, i] = attitude[:, j]
+            rotors.append(Rotors(bodies[name], record.rotor_command[:, j], record.rotor_force[:, j]))
+    return dataclasses.replace(scene, quaternion=q, rotors=tuple(rotors))
+
+
 def _twist(u: np.ndarray, spec: CommandTwist) -> np.ndarray:
     out = np.zeros(u.shape[:-1] + (6,))
     out[..., [_TWIST[s] for s in spec.slots]] = u
@@ -188,12 +221,13 @@ def pair_scene(log) -> Scene:
     pd, qd = _layout_poses(layout, _cols(log, "r_des", [n + "_des" for n in names])) if "r_des" in log else (None, None)
     pm, qm = _layout_poses(layout, _cols(log, "measured", names))
     u = np.asarray(log["command"], dtype=float).reshape(len(log), 2, 4)
-    return Scene(bodies=("robot_1", "robot_2"), parents=("world", "world"), position=p, quaternion=q,
-                 position_desired=pd, quaternion_desired=qd,
-                 **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
-                 twist=_twist(u, COMMAND_TWISTS["holonomic"]), twist_frames=("world", "world"),
-                 formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
-                 edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
+    scene = Scene(bodies=("robot_1", "robot_2"), parents=("world", "world"), position=p, quaternion=q,
+                  position_desired=pd, quaternion_desired=qd,
+                  **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
+                  twist=_twist(u, COMMAND_TWISTS["holonomic"]), twist_frames=("world", "world"),
+                  formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
+                  edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
+    return _with_physics(scene, log, {"robot1": "robot_1", "robot2": "robot_2"})
 
 
 def ugv_uav_scene(log) -> Scene:
@@ -211,12 +245,13 @@ def ugv_uav_scene(log) -> Scene:
         pd, qd = _layout_poses(layout, np.concatenate([des[:, :2], psi, des[:, 2:], psi_b], axis=1))
     u = _cols(log, "command", ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b"))
     twist = np.stack([_twist(u[:, :2], COMMAND_TWISTS["pioneer"]), _twist(u[:, 2:], COMMAND_TWISTS["bebop"])], axis=1)
-    return Scene(bodies=("pioneer", "bebop"), parents=("world", "world"), position=p, quaternion=q,
-                 position_desired=pd, quaternion_desired=qd,
-                 **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
-                 twist=twist, twist_frames=("pioneer", "bebop"),
-                 formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
-                 edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
+    scene = Scene(bodies=("pioneer", "bebop"), parents=("world", "world"), position=p, quaternion=q,
+                  position_desired=pd, quaternion_desired=qd,
+                  **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
+                  twist=twist, twist_frames=("pioneer", "bebop"),
+                  formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
+                  edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
+    return _with_physics(scene, log, {"uav": "bebop"})
 
 
 #: Teams of up to this many robots draw every pair as an edge; larger ones a star from the formation's origin.
@@ -262,12 +297,14 @@ def team_scene(log) -> Scene:
         frames.append("world" if spec.frame == "world" else f"robot_{layout.labels[i]}")
     formation, formation_desired = _formation(log, "cluster"), _formation(log, "c_des", "_des")
     bodies = tuple(f"robot_{lab}" for lab in layout.labels)
-    return Scene(bodies=bodies, parents=("world",) * layout.n, position=p, quaternion=q,
-                 position_desired=pd, quaternion_desired=qd, twist=twist, twist_frames=tuple(frames),
-                 formation=formation, formation_desired=formation_desired,
-                 edges=_team_edges(p, None if formation is None else formation[0]),
-                 edges_desired=None if pd is None else _team_edges(pd, None if formation_desired is None
-                                                                   else formation_desired[0]))
+    scene = Scene(bodies=bodies, parents=("world",) * layout.n, position=p, quaternion=q,
+                  position_desired=pd, quaternion_desired=qd, twist=twist, twist_frames=tuple(frames),
+                  formation=formation, formation_desired=formation_desired,
+                  edges=_team_edges(p, None if formation is None else formation[0]),
+                  edges_desired=None if pd is None else _team_edges(pd, None if formation_desired is None
+                                                                    else formation_desired[0]))
+    # the team plant names its world bodies robot1 ... robotN, in robot order
+    return _with_physics(scene, log, {f"robot{i + 1}": body for i, body in enumerate(bodies)})
 
 
 def teleop_scene(log) -> Scene:
