@@ -451,3 +451,19 @@ def test_a_mujoco_run_adds_each_quadrotors_rotors_and_full_attitude(tmp_path):
         yaw = log["state"][-1, 4 * (i - 1) + 3]
         assert abs(np.angle(np.exp(1j * (g.yaw_of(q) - yaw)))) < 1e-6  # its yaw is the state's
     np.testing.assert_array_equal(read_log(tmp_path / "mj.mcap")["state"], log["state"])
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: messages.line_list(0.0, np.zeros((3, 3))), r"\(2 E, 3\)"),
+    (lambda: messages.joint_state(0.0, ["a", "b"], [1.0]), "joint state position"),
+    (lambda: messages.wrench_stamped(0.0, [np.nan, 0, 0], [0, 0, 0], "w"), "force"),
+    (lambda: messages.pose_array(0.0, np.zeros((2, 3)), np.zeros((3, 4))), "pose array"),
+    (lambda: messages.path(0.0, [0.0], np.zeros((2, 3)), np.zeros((2, 4))), "a path is"),
+    (lambda: messages.named_type(["x_c", "F_s_x"]), "F_s_x"),
+    (lambda: messages.named_type(["a", "a"]), "distinct"),
+    (lambda: messages.transform_stamped(0.0, "world", "r", [0, 0], [1, 0, 0, 0]), "pose"),
+])
+def test_new_message_builders_refuse_bad_input_in_one_line(make, match):
+    with pytest.raises(InvalidInputError, match=match) as e:
+        make()
+    assert "\n" not in str(e.value)

@@ -159,7 +159,7 @@ def _layout_poses(layout: RobotLayout, r, heading=None) -> tuple[np.ndarray, np.
     q[..., 0] = 1.0
     yaw_robots = [i for i, k in enumerate(layout.kinds) if k in ("xy_yaw", "xyz_yaw")]
     if yaw_robots:
-        q[:, yaw_robots] = g.q_yaw(layout.yaws(r))
+        q[:, yaw_robots] = g.q_yaw(layout.yaws(r))  # seed 001 eq. (2.14), the axis z
     pose_robots = [i for i, k in enumerate(layout.kinds) if k == "pose"]
     if pose_robots:
         q[:, pose_robots] = layout.orientations(r)
