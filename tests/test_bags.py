@@ -413,7 +413,7 @@ def test_cli_run_writes_run_mcap_that_rosbags_reads_one_message_per_sample(tmp_p
 
     with Reader(out / MCAP_FILE) as reader:  # the single file, as rosbags reads it
         counts = {c.topic: c.msgcount for c in reader.connections}
-    n = len(read_log(out / MCAP_FILE))
+    n = len(read_log(out))  # the run's folder: its run.mcap
     assert n == 8001
     for topic in ("/robot_1/pose", "/robot_1/pose_desired", "/robot_2/cmd_vel", "/tf", "/formation/edges",
                   "/quatform/cluster", "/quatform/error"):

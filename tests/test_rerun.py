@@ -86,3 +86,41 @@ def test_a_recording_is_a_rrd_file(tmp_path):
     with pytest.raises(InvalidInputError, match="FILE.rrd"):
         write_rerun(log, tmp_path / "x.mcap", kind=kind)
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_an_independent_mcap_reader_decodes_the_named_channels_by_their_embedded_schemas(tmp_path):
+    """rerun-sdk's MCAP reader (its own Rust implementation, decoding ROS 2 messages from the
+    ros2msg schemas in the file, as Foxglove and PlotJuggler do) reads the named fields and the
+    poses back as the log holds them."""
+    chunk = pytest.importorskip("rerun.chunk")
+    if not hasattr(chunk, "McapReader"):
+        pytest.skip("this rerun-sdk has no MCAP reader in Python")
+    import numpy as np
+    import pyarrow as pa
+
+    from quatform.bags import write_mcap
+
+    kind, log = _short_log("mas-kitts-helix", controller="quaternion")
+    path = write_mcap(log, tmp_path / "run.mcap", kind=kind)
+    reader = chunk.McapReader(path, decoders=["ros2_reflection"],
+                              include_topic_regex=["/quatform/cluster$", "/robot_2/pose$"])
+    info = reader.info()
+    assert info.profile == "ros2" and info.summary_source == "embedded"
+    assert {c.schema.encoding for c in info.channels} == {"ros2msg"}
+    assert not info.chunks.has_overlapping_time_ranges  # written in time order
+    parts = {}
+    for c in reader.stream().to_chunks():
+        batch = c.to_record_batch()
+        names = [n for n in batch.schema.names if n.endswith(":message")]
+        if names:
+            parts.setdefault(c.entity_path, []).append((batch.column("message_log_time"), batch.column(names[0]).flatten()))
+    for entity, rows in parts.items():
+        order = np.argsort(np.concatenate([np.asarray(t.cast(pa.int64())) for t, _ in rows]), kind="stable")
+        parts[entity] = pa.concat_arrays([m for _, m in rows]).take(pa.array(order))
+    cluster, pose = parts["/quatform/cluster"], parts["/robot_2/pose"]
+    cols = log.columns("cluster")
+    for name in ("x_c", "q_c_w", "d_c", "q_c2_z"):
+        np.testing.assert_array_equal(np.asarray(cluster.field(name)), log["cluster"][:, cols.index(name)])
+    np.testing.assert_array_equal(np.asarray(pose.field("pose").field("position").field("z")), log["state"][:, 6])
+    np.testing.assert_allclose(np.asarray(pose.field("pose").field("orientation").field("w")),
+                               np.cos(log["state"][:, 7] / 2), atol=1e-15)

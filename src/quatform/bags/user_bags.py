@@ -60,13 +60,21 @@ class PoseTrack:
 
 @contextlib.contextmanager
 def open_bag(path):
-    """An open ``rosbags.highlevel.AnyReader`` of the bag ``path`` (an ``.mcap`` or ``.db3`` file or a
-    rosbag2 folder); types the bag does not define come from ROS 2 Humble's."""
+    """An open ``rosbags.highlevel.AnyReader`` of the bag ``path``: an ``.mcap`` or ``.db3`` file, a
+    rosbag2 folder (with ``metadata.yaml``) or a folder holding one ``.mcap`` file (a quatform
+    run's folder: rosbags reads the file, not such a folder); types the bag does not define
+    come from ROS 2 Humble's."""
     from rosbags.highlevel import AnyReader, AnyReaderError
 
     p = Path(path)
     if not p.exists():
         raise InvalidInputError(f"bag {path} does not exist; give an .mcap or .db3 file or a rosbag2 folder")
+    if p.is_dir() and not (p / "metadata.yaml").exists():  # a quatform run's folder: its one .mcap
+        files = sorted(p.glob("*.mcap"))
+        if len(files) != 1:
+            raise InvalidInputError(f"{path} is a folder without metadata.yaml (not a rosbag2 folder) and holds "
+                                    f"{len(files)} .mcap files; give the .mcap file itself")
+        p = files[0]
     if p.is_file() and p.suffix not in (".mcap", ".db3"):
         raise InvalidInputError(f"bag {path}: a ROS 2 bag is an .mcap or .db3 file or a rosbag2 folder, not "
                                 f"{p.suffix or 'a file without suffix'}")
