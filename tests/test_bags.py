@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quatform import messages
-from quatform.bags import (INFO_TOPIC, MCAP_FILE, foxglove_layout, read_log, read_poses, write_mcap)
+from quatform.bags import INFO_TOPIC, MCAP_FILE, foxglove_layout, read_log, read_poses, write_mcap
 from quatform.bags.cdr import Batch, field_offsets
 from quatform.cli import main
 from quatform.errors import InvalidInputError, NonUnitError
@@ -77,7 +77,7 @@ def runs(tmp_path_factory):
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _read_all(path):
     """``{topic: (msgtype, [(log time ns, message)])}`` read by rosbags' own reader (the oracle)."""
     from rosbags.highlevel import AnyReader
@@ -105,7 +105,7 @@ def test_read_log_round_trips_every_channel_exactly(runs, case):
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_rosbags_reads_the_standard_messages_one_per_sample(runs, case):
-    kind, log, path = runs[case]
+    _, log, path = runs[case]
     topics = _read_all(path)
     n = len(log)
     expected = {"pair": ("/robot_1/pose", "/robot_2/pose_desired", "/robot_1/cmd_vel", "/tf", "/formation/edges",
@@ -121,7 +121,7 @@ def test_rosbags_reads_the_standard_messages_one_per_sample(runs, case):
     assert not missing, f"missing topics {missing}; have {sorted(topics)}"
     once = ("/tf_static", INFO_TOPIC)
     for topic, (msgtype, msgs) in topics.items():
-        if topic in once or topic.endswith("/path") or topic.endswith("/path_desired"):
+        if topic in once or topic.endswith(("/path", "/path_desired")):
             assert len(msgs) == 1, topic
         else:
             assert len(msgs) == n, f"{topic}: {len(msgs)} messages for {n} samples"
@@ -219,7 +219,7 @@ def test_a_free_body_is_drawn_with_its_own_quaternion(runs):
     topics = _read_all(path)
     pts, names = log["points"], log.columns("points")
     k = len(log) - 1
-    _, p, q, _ = messages.pose_from_msg(topics["/robot_2/pose"][1][k][1])
+    _, _, q, _ = messages.pose_from_msg(topics["/robot_2/pose"][1][k][1])
     np.testing.assert_array_equal(q, pts[k, [names.index(c) for c in ("q_w2", "q_x2", "q_y2", "q_z2")]])
     tw = topics["/robot_2/cmd_vel"][1][k][1]
     ucols = log.columns("command")

@@ -254,15 +254,19 @@ def ugv_uav_scene(log) -> Scene:
     return _with_physics(scene, log, {"uav": "bebop"})
 
 
-#: Teams of up to this many robots draw every pair as an edge; larger ones a star from the formation's origin.
+#: Teams of up to this many robots draw every pair as an edge; larger ones a star from the formation's
+#: origin (the team chart's centroid, whose shape vectors ``s_i`` point at the robots).
 ALL_PAIRS_UP_TO = 6
 
 
 def _team_edges(p: np.ndarray, origin) -> np.ndarray:
+    """Every pair for a small team; a star from the formation's origin (else a chain) for a large one."""
     n = p.shape[1]
-    if n <= ALL_PAIRS_UP_TO or origin is None:
+    if n <= ALL_PAIRS_UP_TO:
         i, j = np.triu_indices(n, 1)
         return _pair_edges(p, np.stack([i, j], axis=1))
+    if origin is None:
+        return _pair_edges(p, np.stack([np.arange(n - 1), np.arange(1, n)], axis=1))
     both = np.concatenate([np.broadcast_to(origin[:, None, :], p.shape), p], axis=-1)  # (T, N, 6)
     return both.reshape(p.shape[0], 2 * n, 3)
 
