@@ -361,6 +361,8 @@ def test_read_poses_of_a_users_bag(tmp_path, storage):
         np.testing.assert_allclose(a.t, t, atol=1e-9)
         assert a.frame_id == "mocap" and b.frame_id == "odom"
     assert set(read_poses(bag)) == {"/vrpn_client_node/cf1/pose", "/cf2/odom"}  # default: every pose topic
+    received = read_poses(bag, ["/cf2/odom"], stamps="log")["/cf2/odom"]  # the recorder's times
+    np.testing.assert_allclose(received.t, 1e-3 * np.arange(1, 7), atol=1e-12)
     with pytest.raises(InvalidInputError, match=r"no topic '/vrpn_client_node/cf3/pose'.*cf1/pose") as e:
         read_poses(bag, ["/vrpn_client_node/cf3/pose"])
     assert "\n" not in str(e.value)

@@ -23,9 +23,10 @@ import numpy as np
 from .. import messages
 from ..errors import InvalidInputError, NonUnitError
 
-__all__ = ["PoseTrack", "read_poses", "pose_topics", "open_bag", "POSE_TYPES", "UNIT_TOLERANCE"]
+__all__ = ["PoseTrack", "read_poses", "pose_topics", "open_bag", "POSE_TYPES", "UNIT_TOLERANCE", "STAMP_SOURCES"]
 
-#: Message types :func:`read_poses` reads, with the function giving ``(t, p, q_wxyz, frame_id)``.
+#: Message types :func:`read_poses` reads, with the function giving ``(t, p, q_wxyz, frame_id)`` of a
+#: message (a registry: another pose type, e.g. PX4's ``VehicleOdometry`` converted to ENU, is one entry).
 POSE_TYPES = {
     "geometry_msgs/msg/PoseStamped": messages.pose_from_msg,
     "nav_msgs/msg/Odometry": messages.odometry_pose,
@@ -95,7 +96,11 @@ def pose_topics(path) -> dict:
         return {c.topic: c.msgtype for c in reader.connections if c.msgtype in POSE_TYPES}
 
 
-def read_poses(path, topics=None) -> dict:
+#: The time a pose is taken at: its header stamp, or when the recorder received it (the bag's log time).
+STAMP_SOURCES = ("header", "log")
+
+
+def read_poses(path, topics=None, stamps: str = "header") -> dict:
     """The poses of ``topics`` in the bag ``path``, one :class:`PoseTrack` per topic.
 
     Parameters
@@ -105,12 +110,17 @@ def read_poses(path, topics=None) -> dict:
     topics : sequence of str, optional
         The pose topics to read, in order (default: every ``PoseStamped`` and ``Odometry``
         topic of the bag).
+    stamps : {"header", "log"}
+        ``t`` from each message's ``header.stamp`` (default) or from the bag's log time (when
+        the recorder received it: what a live node's stale-pose rule sees).
 
     Returns
     -------
     dict
         ``{topic: PoseTrack}`` in the order of ``topics``.
     """
+    if stamps not in STAMP_SOURCES:
+        raise InvalidInputError(f"read_poses: stamps = {stamps!r} is not one of {', '.join(STAMP_SOURCES)}")
     with open_bag(path) as reader:
         by_topic: dict = {}
         for c in reader.connections:
@@ -134,6 +144,9 @@ def read_poses(path, topics=None) -> dict:
                                         f"{' or '.join(POSE_TYPES)}: name a pose topic instead")
             convert = POSE_TYPES[msgtype]
             rows = [convert(reader.deserialize(raw, conn.msgtype)) for conn, _, raw in reader.messages(connections=conns)]
+            if stamps == "log":
+                times = [ts * 1e-9 for _, ts, _ in reader.messages(connections=conns)]
+                rows = [(t, *row[1:]) for t, row in zip(times, rows)]
             out[topic] = _track(path, topic, rows)
     return out
 
