@@ -26,6 +26,16 @@ _MUJOCO_NOTE = ('--backend mujoco simulates MuJoCo physics (needs: pip install -
                 "collisions and a time-lapse picture.")
 
 
+def _add_output_flags(p) -> None:
+    """``--no-mcap`` and ``--rerun FILE.rrd`` (the ROS 2 bag every run writes; a Rerun recording)."""
+    p.add_argument("--no-mcap", action="store_true",
+                   help="do not write run.mcap (the run as ROS 2 messages: poses, commands, TF, formation edges, "
+                   "every logged channel; opens in Foxglove, PlotJuggler, ros2 bag) nor foxglove-layout.json")
+    p.add_argument("--rerun", metavar="FILE.rrd",
+                   help='also write the run as a Rerun recording (3-D scene and time series; needs: '
+                   'pip install -e ".[rerun]")')
+
+
 def _cited(source: str) -> list[str]:
     """The citations of the seed documents that a scenario's or plan's ``source`` names."""
     return [f"{p.tag}: {p.citation}" for p in cited(source)]
@@ -107,10 +117,11 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Run 'compare mas-kitts-spiral': the Euclidean cluster-space controller "
         "meets the singular pose at pitch 90 deg, the robot-space controller mis-reports the "
         "formation, the quaternion and dual-quaternion controllers track it. Writes every "
-        "run's files and plots and prints the table.",
+        "run's files and plots (and run.mcap) and prints the table.",
     )
     demo.add_argument("--out", metavar="DIR", default="quatform-demo",
                       help="output folder (default: ./quatform-demo)")
+    _add_output_flags(demo)
 
     from .scenarios import KINDS
 
@@ -119,13 +130,15 @@ def _build_parser() -> argparse.ArgumentParser:
         "run",
         help="simulate one scenario of any kind with one choice",
         description="Simulate SCENARIO (a built-in name or a .toml file of any kind: "
-        f"{', '.join(KINDS)}) and write DIR/metrics.json, DIR/timeseries.csv and PNG plots. Each "
+        f"{', '.join(KINDS)}) and write DIR/metrics.json, DIR/timeseries.csv, PNG plots and DIR/run.mcap "
+        "(a ROS 2 bag for Foxglove, PlotJuggler and ros2 bag; docs/ecosystem.md) with DIR/foxglove-layout.json. Each "
         "option below names the scenario kinds that take it (a kind refuses the others); a "
         "two-robot scenario (seed 000) needs --controller. " + _MUJOCO_NOTE,
     )
     run.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+    _add_output_flags(run)
     _add_kind_options(run, kinds)
 
     plan = sub.add_parser(
@@ -163,6 +176,7 @@ def _build_parser() -> argparse.ArgumentParser:
                       help=f"the option to vary: one of {', '.join(axes)} that the scenario's kind takes "
                       "(default: the kind's compare option)")
     cmp_.add_argument("--no-plots", action="store_true", help="write metrics, time series and the table only")
+    _add_output_flags(cmp_)
     _add_kind_options(cmp_, kinds)
 
     tele = sub.add_parser(
@@ -176,6 +190,7 @@ def _build_parser() -> argparse.ArgumentParser:
     tele.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
     tele.add_argument("--out", metavar="DIR", required=True, help="output folder")
     tele.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
+    _add_output_flags(tele)
     _add_kind_options(tele, (KINDS[TELEOP_KIND],))
 
     sub.add_parser("scenarios", help="list the built-in scenarios of every kind",
@@ -190,19 +205,21 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _compare(scenario, out, options=None, over=None, plots=True) -> None:
+def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, rerun=None) -> None:
     from .runs import compare, compare_columns, format_table, given_options
     from .scenarios import kind_of, load_scenario
 
     sc = load_scenario(scenario)
     kind = kind_of(sc)
     options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
-    rows = compare(sc, out, over=over, plots=plots, **options)
+    rows = compare(sc, out, over=over, plots=plots, mcap=mcap, rerun=rerun, **options)
     _say_options(kind, options)
     axis = over or kind.compare_over
     print(format_table(rows, compare_columns(kind, axis)))
     drawn = ", the compare plots" if plots else ""
     print(f"\nfiles in {out}/ (one folder per {axis.replace('_', ' ')}{drawn}, comparison.md)")
+    if rerun is not None:
+        print(f"rerun recording: {rerun}")
 
 
 def _say_options(kind, options) -> None:
@@ -273,9 +290,11 @@ def _run(args, kinds) -> None:
         raise InvalidInputError(f"{sc.name} is not a teleoperation scenario (its kind is {kind.name}): run it "
                                 f"with 'quatform run {args.scenario} ...'")
     options = given_options(kind, _options(args, kinds), where=str(sc.name), spell=_flag)
-    _, metrics = run(sc, args.out, plots=not args.no_plots, **options)
+    _, metrics = run(sc, args.out, plots=not args.no_plots, mcap=not args.no_mcap, rerun=args.rerun, **options)
     _say_options(kind, options)
     _print_run(metrics, kind.table_columns)
+    if args.rerun is not None:
+        print(f"rerun recording: {args.rerun}")
 
 
 def _plans(args) -> None:
@@ -312,9 +331,9 @@ def _ros2_cli():
 
 #: What each command does with its parsed arguments.
 COMMANDS = {
-    "demo": lambda args: _compare("mas-kitts-spiral", args.out),
+    "demo": lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun),
     "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over,
-                                     not args.no_plots),
+                                     not args.no_plots, not args.no_mcap, args.rerun),
     "run": lambda args: _run(args, _kinds().values()),
     "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),
     "plan": _plan,

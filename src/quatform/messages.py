@@ -15,6 +15,7 @@ reordering and nothing else. Times are scenario seconds as ``builtin_interfaces/
 from __future__ import annotations
 
 import math
+import re
 from functools import lru_cache
 
 import numpy as np
@@ -22,7 +23,8 @@ import numpy as np
 from .errors import InvalidInputError, MissingDependencyError
 
 __all__ = ["typestore", "msg_type", "stamp", "seconds", "pose_stamped", "pose_from_msg", "twist",
-           "twist_from_msg", "twist_stamped", "odometry_pose"]
+           "twist_from_msg", "twist_stamped", "odometry_pose", "transform_stamped", "tf_message", "line_list",
+           "marker_array", "pose_array", "joint_state", "wrench_stamped", "path", "string", "named_type", "named_message"]
 
 
 @lru_cache(maxsize=1)
@@ -132,3 +134,146 @@ def twist_from_msg(msg):
     tw = getattr(msg, "twist", msg)
     return (np.array([tw.linear.x, tw.linear.y, tw.linear.z]),
             np.array([tw.angular.x, tw.angular.y, tw.angular.z]))
+
+
+def _vector3(v, what: str):
+    v = np.asarray(v, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise InvalidInputError(f"{what} must be a finite (3,) vector, got {v.tolist()}")
+    return msg_type("geometry_msgs/msg/Vector3")(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def transform_stamped(t: float, parent: str, child: str, position, quaternion):
+    """``geometry_msgs/msg/TransformStamped``: the pose of frame ``child`` in ``parent`` at ``t`` s
+    (``position`` m (3,), ``quaternion`` ``(w, x, y, z)`` (4,), child to parent)."""
+    pose = _pose(position, quaternion)
+    p = pose.position
+    tr = msg_type("geometry_msgs/msg/Transform")(
+        translation=msg_type("geometry_msgs/msg/Vector3")(x=p.x, y=p.y, z=p.z), rotation=pose.orientation)
+    return msg_type("geometry_msgs/msg/TransformStamped")(header=_header(t, parent), child_frame_id=str(child),
+                                                           transform=tr)
+
+
+def tf_message(transforms):
+    """``tf2_msgs/msg/TFMessage`` of a sequence of :func:`transform_stamped`."""
+    return msg_type("tf2_msgs/msg/TFMessage")(transforms=list(transforms))
+
+
+def line_list(t: float, points, *, frame_id: str = "world", ns: str = "", marker_id: int = 0,
+              width: float = 0.02, rgba=(0.2, 0.4, 1.0, 1.0)):
+    """``visualization_msgs/msg/Marker`` of type ``LINE_LIST``: segments between the points
+    ``(2 E, 3)`` (m, in ``frame_id``; points ``2 k`` and ``2 k + 1`` are segment ``k``),
+    ``width`` m wide, colour ``rgba`` (each in [0, 1])."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] % 2 or not np.all(np.isfinite(pts)):
+        raise InvalidInputError(f"a line list is finite points of shape (2 E, 3), got shape {pts.shape}")
+    point = msg_type("geometry_msgs/msg/Point")
+    marker = msg_type("visualization_msgs/msg/Marker")
+    color = msg_type("std_msgs/msg/ColorRGBA")(**dict(zip("rgba", (float(c) for c in rgba))))
+    defaults = {f: _default(f, marker) for f in ("texture_resource", "texture", "uv_coordinates", "mesh_file")
+                if f in marker.__dataclass_fields__}
+    return marker(header=_header(t, frame_id), ns=str(ns), id=int(marker_id), type=marker.LINE_LIST,
+                  action=marker.ADD, pose=_pose([0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]),
+                  scale=msg_type("geometry_msgs/msg/Vector3")(x=float(width), y=0.0, z=0.0), color=color,
+                  lifetime=msg_type("builtin_interfaces/msg/Duration")(sec=0, nanosec=0), frame_locked=False,
+                  points=[point(x=float(a), y=float(b), z=float(c)) for a, b, c in pts], colors=[], text="",
+                  mesh_resource="", mesh_use_embedded_materials=False, **defaults)
+
+
+def _default(field: str, marker):
+    """Empty value of the Marker fields newer than ROS 2 Humble's first release (texture, mesh file)."""
+    if field == "texture":
+        return msg_type("sensor_msgs/msg/CompressedImage")(header=_header(0.0, ""), format="",
+                                                          data=np.zeros(0, dtype=np.uint8))
+    if field == "mesh_file":
+        return msg_type("visualization_msgs/msg/MeshFile")(filename="", data=np.zeros(0, dtype=np.uint8))
+    return [] if field == "uv_coordinates" else ""
+
+
+def marker_array(markers):
+    """``visualization_msgs/msg/MarkerArray`` of a sequence of markers."""
+    return msg_type("visualization_msgs/msg/MarkerArray")(markers=list(markers))
+
+
+def pose_array(t: float, positions, quaternions, frame_id: str = "world"):
+    """``geometry_msgs/msg/PoseArray`` at ``t`` s: ``positions`` (N, 3) m and ``quaternions`` ``(w, x, y, z)`` (N, 4)."""
+    p = np.asarray(positions, dtype=float)
+    q = np.asarray(quaternions, dtype=float)
+    if p.ndim != 2 or p.shape[1:] != (3,) or q.shape != (p.shape[0], 4):
+        raise InvalidInputError(f"a pose array is positions (N, 3) and quaternions (N, 4), got shapes {p.shape} "
+                                f"and {q.shape}")
+    return msg_type("geometry_msgs/msg/PoseArray")(header=_header(t, frame_id),
+                                                   poses=[_pose(a, b) for a, b in zip(p, q)])
+
+
+def joint_state(t: float, names, position, velocity=None, effort=None, frame_id: str = ""):
+    """``sensor_msgs/msg/JointState`` at ``t`` s: joint ``names`` (J,), ``position`` rad (J,),
+    ``velocity`` rad/s and ``effort`` N m (J,) each (empty when None)."""
+    names = [str(n) for n in names]
+    arrays = []
+    for what, a in (("position", position), ("velocity", velocity), ("effort", effort)):
+        a = np.zeros(0) if a is None else np.asarray(a, dtype=float)
+        if a.shape not in ((len(names),), (0,)) or not np.all(np.isfinite(a)):
+            raise InvalidInputError(f"joint state {what}: finite ({len(names)},) values for joints {names}, got "
+                                    f"shape {a.shape}")
+        arrays.append(a)
+    return msg_type("sensor_msgs/msg/JointState")(header=_header(t, frame_id), name=names, position=arrays[0],
+                                                  velocity=arrays[1], effort=arrays[2])
+
+
+def wrench_stamped(t: float, force, torque, frame_id: str):
+    """``geometry_msgs/msg/WrenchStamped`` at ``t`` s: ``force`` N (3,), ``torque`` N m (3,) in ``frame_id``."""
+    wrench = msg_type("geometry_msgs/msg/Wrench")(force=_vector3(force, "a force"), torque=_vector3(torque, "a torque"))
+    return msg_type("geometry_msgs/msg/WrenchStamped")(header=_header(t, frame_id), wrench=wrench)
+
+
+def path(t: float, times, positions, quaternions, frame_id: str = "world"):
+    """``nav_msgs/msg/Path`` stamped ``t`` s of the poses at ``times`` (P,) s: ``positions`` (P, 3) m,
+    ``quaternions`` ``(w, x, y, z)`` (P, 4)."""
+    p = np.asarray(positions, dtype=float)
+    q = np.asarray(quaternions, dtype=float)
+    times = np.asarray(times, dtype=float)
+    if p.shape != (times.size, 3) or q.shape != (times.size, 4):
+        raise InvalidInputError(f"a path is times (P,), positions (P, 3) and quaternions (P, 4), got shapes "
+                                f"{times.shape}, {p.shape} and {q.shape}")
+    return msg_type("nav_msgs/msg/Path")(header=_header(t, frame_id),
+                                         poses=[pose_stamped(s, a, b, frame_id) for s, a, b in zip(times, p, q)])
+
+
+def string(text: str):
+    """``std_msgs/msg/String``."""
+    return msg_type("std_msgs/msg/String")(data=str(text))
+
+
+#: A ROS 2 field name (rosidl): a lower-case letter, then lower-case letters, digits and single underscores.
+_FIELD = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")
+
+
+def named_type(fields) -> tuple:
+    """The definition of a message of named numbers, as a ``rosbags`` type-store entry
+    ``(constants, fields)`` (``Typestore.register({name: named_type(...)})``): a ``std_msgs/Header``
+    and one ``float64`` per name of ``fields`` (each a valid ROS 2 field name: lower case, digits,
+    single underscores). Its ``.msg`` text (``std_msgs/Header header``, ``float64 x_c`` ...) is
+    what a bag embeds.
+
+    Foxglove and PlotJuggler read the definition from the bag and plot each field by its name
+    (``/quatform/cluster.x_c``), which an unnamed ``std_msgs/Float64MultiArray`` cannot offer.
+    """
+    from rosbags.interfaces import Nodetype
+
+    fields = [str(f) for f in fields]
+    bad = [f for f in fields if not _FIELD.match(f) or f == "header"]
+    if bad or len(set(fields)) != len(fields):
+        raise InvalidInputError(f"named message fields must be distinct ROS 2 field names (lower case, digits, "
+                                f"single underscores, not 'header'), got {bad or fields}")
+    return [], [("header", (Nodetype.NAME, "std_msgs/msg/Header"))] + [(f, (Nodetype.BASE, ("float64", 0)))
+                                                                       for f in fields]
+
+
+def named_message(cls, t: float, fields, values):
+    """A message of the class ``cls`` (registered from :func:`named_type`) at ``t`` s: ``values`` (k,)
+    for the ``fields`` (k,)."""
+    values = np.asarray(values, dtype=float)
+    if values.shape != (len(fields),):
+        raise InvalidInputError(f"{len(fields)} fields take {len(fields)} values, got shape {values.shape}")
+    return cls(header=_header(t, ""), **{f: float(v) for f, v in zip(fields, values)})

@@ -5,8 +5,11 @@ One :func:`run` and one :func:`compare` for every scenario kind of
 :class:`~quatform.scenarios.base.Experiment` for the chosen options, simulates it
 (``log = experiment.run(progress)``), computes its metrics from the log and writes, in this
 order, ``timeseries.csv`` (:func:`quatform.report.writers.write_timeseries`, the kind's
-``csv_channels``), the kind's figures (:data:`quatform.report.FIGURES`) and ``metrics.json``
-last. A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
+``csv_channels``), the kind's figures (:data:`quatform.report.FIGURES`), ``run.mcap`` (the
+log as ROS 2 messages, :func:`quatform.bags.write_mcap`, with ``foxglove-layout.json`` beside
+it; ``mcap=False`` skips both) and ``metrics.json`` last. ``rerun=FILE.rrd`` also writes the
+run (a compare: every run, each under ``/<value>/``) as a Rerun recording
+(:func:`quatform.bags.rerun.write_rerun`, extra ``rerun``; checked before anything runs). A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
 ``backend`` compares the kinematic models with MuJoCo physics) into ``out/<value>/``, then draws
 the kind's compare figures and writes ``comparison.md`` / ``comparison.json`` with the kind's
 table columns.
@@ -86,9 +89,9 @@ def _record_options(kind, experiment, metrics: dict) -> dict:
     return metrics
 
 
-def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict):
+def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict, mcap: bool = True):
     """One run of ``sc`` with ``options`` written into ``folder`` (made here; ``shown``: the path
-    printed). Returns ``(log, metrics)``."""
+    printed; ``mcap``: write ``run.mcap`` and the Foxglove layout). Returns ``(log, metrics)``."""
     folder.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     experiment = kind.experiment(sc, **options)
@@ -100,6 +103,12 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
     if plots:
         FIGURES[kind.name].run(log, folder)
     _picture(log, folder, plots, metrics)
+    if mcap:
+        from .bags import MCAP_FILE, SCENES, write_foxglove_layout, write_mcap
+
+        # a kind without a scene builder (quatform.bags.SCENES) still gets its channels
+        write_mcap(log, folder / MCAP_FILE, kind=kind.name, scene=kind.name in SCENES)
+        write_foxglove_layout(folder)
     write_metrics(metrics, folder / "metrics.json")
     if not quiet:
         if log.meta.get("unreachable_at") is not None:
@@ -123,7 +132,17 @@ def _picture(log, folder: Path, plots: bool, metrics: dict) -> None:
         metrics["render"], metrics["render_backend"] = file.name, how
 
 
-def run(scenario, out, *, plots: bool = True, quiet: bool = False, **options):
+def _rerun_target(rerun):
+    """``rerun`` as a path, after checking that rerun-sdk is installed (None: no recording)."""
+    if rerun is None:
+        return None
+    from .bags.rerun import require_rerun
+
+    require_rerun()
+    return Path(rerun)
+
+
+def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = True, rerun=None, **options):
     """Simulate one scenario with one choice; write ``out/timeseries.csv``, the figures and
     ``out/metrics.json`` (last).
 
@@ -137,6 +156,10 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, **options):
         Draw the kind's figures.
     quiet : bool
         No progress or summary on stderr.
+    mcap : bool
+        Write ``out/run.mcap`` (and ``out/foxglove-layout.json``).
+    rerun : path-like, optional
+        Also write the run as this Rerun recording (``.rrd``; needs the extra ``rerun``).
     **options
         The kind's options (:attr:`ScenarioKind.options`: ``controller``, ``formation``,
         ``backend``, ``feedforward``, ``orientation_error`` ...); None means the default.
@@ -150,8 +173,14 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, **options):
     sc = _scenario(scenario)
     kind = kind_of(sc)
     given = given_options(kind, options, where=str(sc.name))
+    target = _rerun_target(rerun)
     with staged_dir(out) as tmp:
-        return _run_into(kind, sc, tmp, Path(out), plots, quiet, given)
+        log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap)
+    if target is not None:
+        from .bags.rerun import write_rerun
+
+        write_rerun({"": log}, target, kind=kind.name, name=str(sc.name))
+    return log, metrics
 
 
 def _suffix(options: dict) -> str:
@@ -161,7 +190,8 @@ def _suffix(options: dict) -> str:
     return f" ({', '.join(words)})" if words else ""
 
 
-def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, **options) -> list:
+def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, mcap: bool = True,
+            rerun=None, **options) -> list:
     """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
     kind's compare figures; write ``comparison.md`` and ``comparison.json``. A value the
     scenario cannot take (:meth:`~quatform.scenarios.base.ScenarioKind.compare_choices`) is
@@ -178,6 +208,10 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         Draw each run's figures and the compare figures (False: metrics, time series and
         the table only).
     quiet : bool
+    mcap : bool
+        Write each run's ``run.mcap`` (and ``foxglove-layout.json``).
+    rerun : path-like, optional
+        Also write every run into this one Rerun recording, each under ``/<value>/``.
     **options
         The other options, fixed for every run.
 
@@ -200,13 +234,15 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
                                 f"do not give {axis}")
     columns = compare_columns(kind, axis)
     values, skipped = kind.compare_choices(sc, axis)
+    target = _rerun_target(rerun)
     if not quiet:
         for value, why in skipped.items():
             print(f"  {sc.name} / {value}: not run: {why}", file=sys.stderr)
     with staged_dir(out) as tmp:
         logs, rows = [], []
         for value in values:
-            log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value})
+            log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value},
+                                     mcap)
             logs.append(log)
             rows.append({axis: value, **metrics})
         if plots:
@@ -216,6 +252,10 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         atomic_write_text(tmp / "comparison.md",
                           f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n{left}")
         write_json(rows, tmp / "comparison.json")
+    if target is not None:
+        from .bags.rerun import write_rerun
+
+        write_rerun(dict(zip(values, logs)), target, kind=kind.name, name=str(sc.name))
     return rows
 
 

@@ -561,6 +561,19 @@ class PhysicsWorld:
     def qpos(self) -> np.ndarray:
         return self.data.qpos.copy()
 
+    def quad_quaternions(self) -> np.ndarray:
+        """Every quadrotor's attitude, unit ``(w, x, y, z)`` (MuJoCo's order, body to world),
+        shape (N, 4), in ``quad_names`` order."""
+        return np.array([self.data.qpos[self._qadr[n] + 3:self._qadr[n] + 7] for n in self.quad_names]).reshape(-1, 4)
+
+    def rotor_commands(self) -> np.ndarray:
+        """Every quadrotor's four motor commands (the actuators' ``ctrl``, N), shape (N, 4)."""
+        return self.data.ctrl[self._motor_ids].copy()
+
+    def rotor_forces(self) -> np.ndarray:
+        """Every quadrotor's four rotor forces (the actuators' force, N), shape (N, 4)."""
+        return self.data.actuator_force[self._motor_ids].copy()
+
     # -- commands and stepping --------------------------------------------------------
     def command_quad(self, name, u):
         """Hold ``u`` (4,) as ``name``'s set point (a non-finite entry: zero)."""
@@ -688,6 +701,12 @@ class PhysicsRecord:
         The scenario and controller or formation, for the pictures.
     backend_label : str
         How figures name the backend (:data:`BACKEND_LABEL`).
+    quads : tuple of str
+        The quadrotors' names (world bodies, the ``robots`` keys), in the order of the arrays below.
+    attitude : ndarray, shape (T, N, 4), or None
+        Each quadrotor's attitude at every control tick, unit ``(w, x, y, z)``, body to world.
+    rotor_command, rotor_force : ndarray, shape (T, N, 4), or None
+        Each quadrotor's motor commands and rotor forces (N) at every control tick.
     """
 
     xml: str
@@ -700,6 +719,10 @@ class PhysicsRecord:
     gains_source: str = ""
     title: str = ""
     backend_label: str = BACKEND_LABEL
+    quads: tuple = ()
+    attitude: np.ndarray | None = None
+    rotor_command: np.ndarray | None = None
+    rotor_force: np.ndarray | None = None
 
     def metrics(self) -> dict:
         """The keys a physics run adds to ``metrics.json`` beside the errors: ``gains``,

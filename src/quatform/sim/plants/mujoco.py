@@ -76,6 +76,10 @@ class WorldPlant:
         self._x = x0
         self.times: list[float] = []  # time of each step call, s
         self.qpos: list[np.ndarray] = []  # MuJoCo positions at the start of each call
+        # the quadrotors' attitudes, motor commands and rotor forces at the start of each call
+        self.attitudes: list[np.ndarray] = []
+        self.rotor_commands: list[np.ndarray] = []
+        self.rotor_forces: list[np.ndarray] = []
 
     @property
     def output_columns(self) -> tuple[str, ...]:
@@ -111,6 +115,9 @@ class WorldPlant:
         n = self._substeps(dt)
         self.times.append(float(t))
         self.qpos.append(self.world.qpos())
+        self.attitudes.append(self.world.quad_quaternions())
+        self.rotor_commands.append(self.world.rotor_commands())
+        self.rotor_forces.append(self.world.rotor_forces())
         self._command(np.asarray(u, dtype=float))
         self.world.step(n)
         self._x = self._read()
@@ -264,5 +271,11 @@ def physics_record(plant: WorldPlant, log, title: str = "", gains: dict | None =
     else:
         idx, n = np.zeros(0, dtype=int), 0
     points = plant.robot_points(log["state"][:n])
+    n_quads = len(plant.world.quad_names)
+
+    def at_ticks(rows):
+        return np.asarray(rows, dtype=float).reshape(len(times), n_quads, 4)[idx]
+
     return PhysicsRecord(plant.world.xml, t[:n], q[idx], points, plant.world.contacts.summary(), plant.timestep,
-                         dict(gains or {}), gains_source, title, BACKEND_LABEL)
+                         dict(gains or {}), gains_source, title, BACKEND_LABEL, tuple(plant.world.quad_names),
+                         at_ticks(plant.attitudes), at_ticks(plant.rotor_commands), at_ticks(plant.rotor_forces))

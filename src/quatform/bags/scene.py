@@ -1,0 +1,350 @@
+"""What a run shows in 3-D: its bodies' poses, commands, formation frame, edges, arms and wrenches (bags layer).
+
+One :class:`Scene` per run, read from its :class:`~quatform.sim.log.Log` by the builder its
+scenario kind registers in :data:`SCENES` (``SCENES[kind name](log) -> Scene``). The MCAP
+writer (:mod:`.mcap`) and the Rerun writer (:mod:`.rerun`) draw the same scene. Arrays have a
+time axis first and a body axis next (``(T, N, 3)``, ``(T, N, 4)``), quaternions ``(w, x, y, z)``
+(REP-103: the world frame ENU, a body frame FLU, x forward).
+
+A body's orientation comes from its state: a 4-DOF robot ``(x, y, z, yaw)`` and a planar one
+``(x, y, yaw)`` (at z = 0) the quaternion of its yaw about z (``formations.geometry.q_yaw``);
+a free body its quaternion; a robot whose point has no heading (the Bebop in a team, whose yaw
+is controlled outside the formation) its own state's heading, where the state has one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..formations import geometry as g
+from ..formations.layout import RobotLayout
+
+__all__ = ["Scene", "Joints", "Wrench", "Rotors", "SCENES", "scene_of", "COMMAND_TWISTS", "CommandTwist"]
+
+#: Slots of a twist ``(v_x, v_y, v_z, w_x, w_y, w_z)``.
+_TWIST = {"lx": 0, "ly": 1, "lz": 2, "ax": 3, "ay": 4, "az": 5}
+
+
+@dataclass(frozen=True)
+class CommandTwist:
+    """How a robot model's commands read as a ``geometry_msgs/Twist``.
+
+    Attributes
+    ----------
+    frame : str
+        ``"world"`` (world-frame velocities) or ``"body"`` (the robot's FLU frame).
+    slots : tuple of str
+        The twist slot of each command entry (``lx`` linear x ... ``az`` angular z).
+    """
+
+    frame: str
+    slots: tuple
+
+
+#: Twist of each robot model's commands (by the model's ``name``). The Bebop's commands are the
+#: fractions of its limits (pitch, roll, climb, yaw rate) in its body frame, as the ROS driver
+#: ``bebop_autonomy`` reads its ``cmd_vel``; the Pioneer's ``(v, omega)`` its forward speed and
+#: turn rate (``RosAria``'s ``cmd_vel``).
+COMMAND_TWISTS = {
+    "holonomic": CommandTwist("world", ("lx", "ly", "lz", "az")),
+    "planar-holonomic": CommandTwist("world", ("lx", "ly", "az")),
+    "free-body": CommandTwist("world", ("lx", "ly", "lz", "ax", "ay", "az")),
+    "pioneer": CommandTwist("body", ("lx", "az")),
+    "bebop": CommandTwist("body", ("lx", "ly", "lz", "az")),
+}
+
+
+@dataclass(frozen=True)
+class Joints:
+    """One arm's joints: ``names`` (J,), ``position`` rad, ``velocity`` rad/s, ``effort`` N m, each (T, J)."""
+
+    arm: str
+    names: tuple
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+@dataclass(frozen=True)
+class Wrench:
+    """A force (N) and torque (N m), each (T, 3), sensed in ``frame`` (``slave_wrist`` ...)."""
+
+    name: str
+    frame: str
+    force: np.ndarray
+    torque: np.ndarray
+
+
+@dataclass(frozen=True)
+class Rotors:
+    """A quadrotor's four motor commands and rotor forces (N), each (T, 4), in a MuJoCo run."""
+
+    body: str
+    command: np.ndarray
+    force: np.ndarray
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The bodies of one run and what moves them.
+
+    Attributes
+    ----------
+    bodies : tuple of str
+        Frame and topic name of each body (``robot_1`` ..., ``pioneer``, ``master_hand``).
+    parents : tuple of str
+        The frame each body's pose is in (``world``, ``master_base`` ...).
+    position, quaternion : ndarray, shapes (T, N, 3) and (T, N, 4)
+        Each body's actual pose (the plant's state).
+    position_desired, quaternion_desired : ndarray or None
+        The reference's pose of each body.
+    position_measured, quaternion_measured : ndarray or None
+        What the controller read, where it differs from the state (a motion capture's noise).
+    twist : ndarray, shape (T, N, 6), or None
+        Each body's command as ``(v_x, v_y, v_z, w_x, w_y, w_z)`` in ``twist_frames``.
+    twist_frames : tuple of str
+        ``"world"`` or the body's own frame, per body.
+    formation, formation_desired : tuple of ndarray or None
+        The formation frame's ``(position (T, 3), quaternion (T, 4))`` in the world.
+    edges, edges_desired : ndarray, shape (T, 2 E, 3), or None
+        End points of the formation's edges (segment k: points 2k, 2k + 1), m, world.
+    joints : tuple of Joints
+    wrenches : tuple of Wrench
+    static : tuple of (parent, child)
+        Fixed identity frames (``/tf_static``): the arms' bases at the world origin.
+    rotors : tuple of Rotors
+        The quadrotors' motors in a MuJoCo run (whose bodies then carry their full attitude,
+        tilt included, in ``quaternion``).
+    """
+
+    bodies: tuple
+    parents: tuple
+    position: np.ndarray
+    quaternion: np.ndarray
+    position_desired: np.ndarray | None = None
+    quaternion_desired: np.ndarray | None = None
+    position_measured: np.ndarray | None = None
+    quaternion_measured: np.ndarray | None = None
+    twist: np.ndarray | None = None
+    twist_frames: tuple = ()
+    formation: tuple | None = None
+    formation_desired: tuple | None = None
+    edges: np.ndarray | None = None
+    edges_desired: np.ndarray | None = None
+    joints: tuple = ()
+    wrenches: tuple = ()
+    static: tuple = field(default_factory=tuple)
+    rotors: tuple = ()
+
+
+def _cols(log, channel: str, names) -> np.ndarray:
+    """The columns ``names`` of ``channel``, ``(T, len(names))``; a missing one is one line."""
+    have = log.columns(channel)
+    missing = [n for n in names if n not in have]
+    if missing:
+        raise InvalidInputError(f"log channel {channel!r} has no column(s) {', '.join(missing)}; it has "
+                                f"{', '.join(have)}")
+    return np.asarray(log[channel], dtype=float)[:, [have.index(n) for n in names]]
+
+
+def _layout_poses(layout: RobotLayout, r, heading=None) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (T, N, 3) and quaternions (T, N, 4) of the robots of ``layout`` at ``r`` (T, size);
+    ``heading`` (T, N) the yaw of robots whose point has none (NaN: identity)."""
+    p = layout.positions(r)
+    q = np.zeros(p.shape[:-1] + (4,))
+    q[..., 0] = 1.0
+    yaw_robots = [i for i, k in enumerate(layout.kinds) if k in ("xy_yaw", "xyz_yaw")]
+    if yaw_robots:
+        q[:, yaw_robots] = g.q_yaw(layout.yaws(r))  # seed 001 eq. (2.14), the axis z
+    pose_robots = [i for i, k in enumerate(layout.kinds) if k == "pose"]
+    if pose_robots:
+        q[:, pose_robots] = layout.orientations(r)
+    if heading is not None:
+        free = [i for i, k in enumerate(layout.kinds) if k == "xyz" and np.all(np.isfinite(heading[:, i]))]
+        if free:
+            q[:, free] = g.q_yaw(heading[:, free])
+    return p, q
+
+
+def _formation(log, channel: str, suffix: str = "") -> tuple | None:
+    names = ("x_c", "y_c", "z_c", "q_c_w", "q_c_x", "q_c_y", "q_c_z")
+    if channel not in log or not all(n + suffix in log.columns(channel) for n in names):
+        return None
+    c = _cols(log, channel, [n + suffix for n in names])
+    return c[:, :3], c[:, 3:]
+
+
+def _pair_edges(p: np.ndarray, pairs) -> np.ndarray:
+    """End points (T, 2 E, 3) of the segments between the bodies ``pairs`` ((i, j), ...) of ``p`` (T, N, 3)."""
+    idx = np.asarray(pairs, dtype=np.intp).reshape(-1)
+    return p[:, idx]
+
+
+def _with_physics(scene: Scene, log, bodies: dict) -> Scene:
+    """``scene`` with a MuJoCo run's quadrotors (``log.meta["physics_record"]``, a
+    :class:`~quatform.sim.mujoco_backend.PhysicsRecord`) drawn with their full attitude and
+    their rotors; ``bodies`` maps the world's quadrotor names to the scene's bodies. A kinematic
+    run, or a record that does not cover every tick, leaves ``scene`` as it is."""
+    record = log.meta.get("physics_record")
+    attitude = None if record is None else record.attitude
+    if attitude is None or len(record.t) != len(log):
+        return scene
+    q = scene.quaternion.copy()
+    rotors = []
+    for j, name in enumerate(record.quads):
+        if name in bodies:
+            i = scene.bodies.index(bodies[name])
+            q[:, i] = attitude[:, j]
+            rotors.append(Rotors(bodies[name], record.rotor_command[:, j], record.rotor_force[:, j]))
+    return dataclasses.replace(scene, quaternion=q, rotors=tuple(rotors))
+
+
+def _twist(u: np.ndarray, spec: CommandTwist) -> np.ndarray:
+    out = np.zeros(u.shape[:-1] + (6,))
+    out[..., [_TWIST[s] for s in spec.slots]] = u
+    return out
+
+
+def _differs(a, b) -> bool:
+    return a.shape != b.shape or not np.array_equal(a, b)
+
+
+def pair_scene(log) -> Scene:
+    """Seed 000's two 4-DOF robots (state ``x_i, y_i, z_i, theta_i``; commands world rates)."""
+    layout = RobotLayout.uniform("xyz_yaw", 2)
+    names = layout.names
+    p, q = _layout_poses(layout, _cols(log, "state", names))
+    pd, qd = _layout_poses(layout, _cols(log, "r_des", [n + "_des" for n in names])) if "r_des" in log else (None, None)
+    pm, qm = _layout_poses(layout, _cols(log, "measured", names))
+    u = np.asarray(log["command"], dtype=float).reshape(len(log), 2, 4)
+    scene = Scene(bodies=("robot_1", "robot_2"), parents=("world", "world"), position=p, quaternion=q,
+                  position_desired=pd, quaternion_desired=qd,
+                  **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
+                  twist=_twist(u, COMMAND_TWISTS["holonomic"]), twist_frames=("world", "world"),
+                  formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
+                  edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
+    return _with_physics(scene, log, {"robot1": "robot_1", "robot2": "robot_2"})
+
+
+def ugv_uav_scene(log) -> Scene:
+    """Seed 001's Pioneer (planar, z = 0) and Bebop; the desired Pioneer heading, which the
+    formation leaves free, is its actual one."""
+    layout = RobotLayout(("xy_yaw", "xyz_yaw"))
+    state = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b")
+    p, q = _layout_poses(layout, _cols(log, "state", state))
+    pm, qm = _layout_poses(layout, _cols(log, "measured", state))
+    pd = qd = None
+    if "r_des" in log:
+        des = _cols(log, "r_des", ("x_p_des", "y_p_des", "x_b_des", "y_b_des", "z_b_des"))
+        psi = _cols(log, "state", ("psi_p",))
+        psi_b = _cols(log, "ts_headings", ("psi_b_des",)) if "ts_headings" in log else _cols(log, "state", ("psi_b",))
+        pd, qd = _layout_poses(layout, np.concatenate([des[:, :2], psi, des[:, 2:], psi_b], axis=1))
+    u = _cols(log, "command", ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b"))
+    twist = np.stack([_twist(u[:, :2], COMMAND_TWISTS["pioneer"]), _twist(u[:, 2:], COMMAND_TWISTS["bebop"])], axis=1)
+    scene = Scene(bodies=("pioneer", "bebop"), parents=("world", "world"), position=p, quaternion=q,
+                  position_desired=pd, quaternion_desired=qd,
+                  **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
+                  twist=twist, twist_frames=("pioneer", "bebop"),
+                  formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
+                  edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
+    return _with_physics(scene, log, {"uav": "bebop"})
+
+
+#: Teams of up to this many robots draw every pair as an edge; larger ones a star from the formation's
+#: origin (the team chart's centroid, whose shape vectors ``s_i`` point at the robots).
+ALL_PAIRS_UP_TO = 6
+
+
+def _team_edges(p: np.ndarray, origin) -> np.ndarray:
+    """Every pair for a small team; a star from the formation's origin (else a chain) for a large one."""
+    n = p.shape[1]
+    if n <= ALL_PAIRS_UP_TO:
+        i, j = np.triu_indices(n, 1)
+        return _pair_edges(p, np.stack([i, j], axis=1))
+    if origin is None:
+        return _pair_edges(p, np.stack([np.arange(n - 1), np.arange(1, n)], axis=1))
+    both = np.concatenate([np.broadcast_to(origin[:, None, :], p.shape), p], axis=-1)  # (T, N, 6)
+    return both.reshape(p.shape[0], 2 * n, 3)
+
+
+def team_scene(log) -> Scene:
+    """Issue 14's team: the robots' points (``points``, ``r_des``) read with the run's layout."""
+    layout, team = log.meta.get("layout"), log.meta.get("team")
+    if not isinstance(layout, RobotLayout) or team is None:
+        raise InvalidInputError("a team log needs meta['layout'] (its RobotLayout) and meta['team']; "
+                                "write the log a team experiment's run returned")
+    state = np.asarray(log["state"], dtype=float)
+    heading = np.full((len(log), layout.n), np.nan)
+    parts = team.split(state)
+    for i, (model, x) in enumerate(zip(team.robots, parts)):
+        for stem in ("psi", "theta"):
+            if stem in model.state_columns:
+                heading[:, i] = x[:, model.state_columns.index(stem)]
+                break
+    p, q = _layout_poses(layout, np.asarray(log["points"], dtype=float), heading)
+    pd = qd = None
+    if "r_des" in log:
+        pd, qd = _layout_poses(layout, np.asarray(log["r_des"], dtype=float), heading)
+    u = np.asarray(log["command"], dtype=float)
+    twist = np.zeros((len(log), layout.n, 6))
+    frames = []
+    for i, (model, ui) in enumerate(zip(team.robots, team.split(u, team.command_slices))):
+        spec = COMMAND_TWISTS.get(model.name)
+        if spec is None:
+            raise InvalidInputError(f"robot model {model.name!r} has no entry in quatform.bags.scene.COMMAND_TWISTS; "
+                                    f"add how its commands {model.command_columns} read as a twist")
+        twist[:, i] = _twist(ui, spec)
+        frames.append("world" if spec.frame == "world" else f"robot_{layout.labels[i]}")
+    formation, formation_desired = _formation(log, "cluster"), _formation(log, "c_des", "_des")
+    bodies = tuple(f"robot_{lab}" for lab in layout.labels)
+    scene = Scene(bodies=bodies, parents=("world",) * layout.n, position=p, quaternion=q,
+                  position_desired=pd, quaternion_desired=qd, twist=twist, twist_frames=tuple(frames),
+                  formation=formation, formation_desired=formation_desired,
+                  edges=_team_edges(p, None if formation is None else formation[0]),
+                  edges_desired=None if pd is None else _team_edges(pd, None if formation_desired is None
+                                                                    else formation_desired[0]))
+    # the team plant names its world bodies robot1 ... robotN, in robot order
+    return _with_physics(scene, log, {f"robot{i + 1}": body for i, body in enumerate(bodies)})
+
+
+def teleop_scene(log) -> Scene:
+    """Seed 003's master and slave: their hands' poses in their base frames (both bases at the
+    world origin, so the slave's hand is drawn over the master's), joint states, the wrist wrench."""
+    p = np.stack([_cols(log, "p_m", ("p_m_x", "p_m_y", "p_m_z")), _cols(log, "p_s", ("p_s_x", "p_s_y", "p_s_z"))], axis=1)
+    q = np.stack([_cols(log, "r_m", ("r_m_w", "r_m_x", "r_m_y", "r_m_z")),
+                  _cols(log, "r_s", ("r_s_w", "r_s_x", "r_s_y", "r_s_z"))], axis=1)
+    state = log.columns("state")
+    command = log.columns("command")
+    arms = []
+    for arm, tag in (("master", "m"), ("slave", "s")):
+        names = tuple(c for c in state if c.startswith(f"q_{tag}"))
+        j = [c[len(f"q_{tag}"):] for c in names]
+        arms.append(Joints(arm, tuple(f"{arm}_joint_{k}" for k in j), _cols(log, "state", names),
+                           _cols(log, "state", [f"qd_{tag}{k}" for k in j]),
+                           _cols(log, "command", [f"tau_{tag}{k}" for k in j])
+                           if all(f"tau_{tag}{k}" in command for k in j) else np.zeros((len(log), len(j)))))
+    wrench = Wrench("slave_wrist", "slave_base", _cols(log, "state", ("F_s_x", "F_s_y", "F_s_z")),
+                    _cols(log, "state", ("M_s_x", "M_s_y", "M_s_z")))
+    return Scene(bodies=("master_hand", "slave_hand"), parents=("master_base", "slave_base"), position=p,
+                 quaternion=q, joints=tuple(arms), wrenches=(wrench,),
+                 static=(("world", "master_base"), ("world", "slave_base")))
+
+
+#: Scene builder of each scenario kind (by :attr:`ScenarioKind.name`).
+SCENES = {"pair": pair_scene, "ugv-uav": ugv_uav_scene, "team": team_scene, "teleop": teleop_scene}
+
+
+def scene_of(log, kind: str | None = None) -> Scene:
+    """The :class:`Scene` of one world's ``log`` (``kind``: default ``log.meta["kind"]``)."""
+    kind = kind or log.meta.get("kind")
+    if kind not in SCENES:
+        from ..checks import nearest
+
+        raise InvalidInputError(f"no scene for scenario kind {kind!r}{nearest(str(kind), SCENES)}; kinds: "
+                                f"{', '.join(SCENES)}")
+    return SCENES[kind](log)
+
