@@ -99,7 +99,7 @@ def test_bad_bags_are_one_line(pair_bag, tmp_path, capsys):
     base = ["--scenario", str(pair_bag["scenario"]), "--robots", str(pair_bag["robots"]), "--controller",
             "quaternion", "--out", str(tmp_path / "o")]
     err = _cli_error(["replay", str(tmp_path / "nope"), *base], capsys)
-    assert "no such bag" in err
+    assert "does not exist" in err
     one = H.write_bag(tmp_path / "one", [(rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped",
                                           list(zip(ns, msgs[0])))])
     err = _cli_error(["replay", str(one), *base], capsys)

@@ -31,6 +31,7 @@ bytes (:class:`.cdr.Batch`); the writer then costs a few microseconds per messag
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -346,8 +347,6 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
     Path
         ``path``.
     """
-    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
-
     if log.batch_shape:
         if world is None:
             raise InvalidInputError(f"the log holds a batch of worlds {log.batch_shape}; an MCAP file holds one: "
@@ -370,29 +369,46 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
             "topics": [topic for topic, _ in topics.every] + [topic for topic, _, _ in topics.once]}
     topics.once.insert(0, (INFO_TOPIC, "std_msgs/msg/String", messages.string(json.dumps(info))))
 
+    with mcap_writer(path) as writer:
+        once = [(writer.add_connection(topic, msgtype, typestore=topics.store), msg)
+                for topic, msgtype, msg in topics.once]
+        every = [(writer.add_connection(topic, batch.msgtype, typestore=topics.store), batch.data)
+                 for topic, batch in topics.every]
+        for conn, msg in once:
+            raw = msg if isinstance(msg, np.ndarray) else topics.store.serialize_cdr(msg, conn.msgtype)
+            writer.write(conn, int(ns[0]), memoryview(raw))
+        views = [(conn, memoryview(data.tobytes()), data.shape[1]) for conn, data in every]
+        write = writer.write
+        for k, stamp in enumerate(ns.tolist()):  # time order, so a player reads the file front to back
+            for conn, view, size in views:
+                write(conn, stamp, view[k * size:(k + 1) * size])
+    return path
+
+
+@contextlib.contextmanager
+def mcap_writer(path, compress: bool = True):
+    """An open ``rosbags.rosbag2.Writer`` (MCAP storage, zstd chunks when ``compress``) whose
+    bag becomes the one file ``path`` when the block ends without an error.
+
+    rosbags writes a rosbag2 folder (``metadata.yaml`` beside the ``.mcap``); PlotJuggler 4
+    opens one ``.mcap`` file, and the file alone holds its schemas, channels and summary, so
+    the folder is written beside ``path`` and only its ``.mcap`` is moved in (atomically);
+    a failed write leaves ``path`` as it was."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+
+    path = Path(path)
     folder = path.with_name(path.name + ".partial")
     if folder.exists():
         shutil.rmtree(folder)
     try:
         writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
-        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        if compress:
+            writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         with writer:
-            once = [(writer.add_connection(topic, msgtype, typestore=topics.store), msg)
-                    for topic, msgtype, msg in topics.once]
-            every = [(writer.add_connection(topic, batch.msgtype, typestore=topics.store), batch.data)
-                     for topic, batch in topics.every]
-            for conn, msg in once:
-                raw = msg if isinstance(msg, np.ndarray) else topics.store.serialize_cdr(msg, conn.msgtype)
-                writer.write(conn, int(ns[0]), memoryview(raw))
-            views = [(conn, memoryview(data.tobytes()), data.shape[1]) for conn, data in every]
-            write = writer.write
-            for k, stamp in enumerate(ns.tolist()):  # time order, so a player reads the file front to back
-                for conn, view, size in views:
-                    write(conn, stamp, view[k * size:(k + 1) * size])
+            yield writer
         os.replace(folder / f"{folder.name}.mcap", path)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    return path
 
 
 def _info(reader, path) -> dict:

@@ -82,8 +82,9 @@ def open_bag(path):
     reader = AnyReader([p], default_typestore=messages.typestore())
     try:
         reader.open()
-    except AnyReaderError as exc:
-        raise InvalidInputError(f"bag {path} cannot be read: {' '.join(str(exc).split())[:200]}") from None
+    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+        raise InvalidInputError(f"bag {path} cannot be read ({' '.join(str(exc).split())[:200]}); give a rosbag2 "
+                                "folder or an .mcap file recorded with ros2 bag record") from None
     try:
         yield reader
     finally:

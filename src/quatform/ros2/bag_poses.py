@@ -1,11 +1,12 @@
-"""Reading the robots' poses from a recorded ROS 2 bag (ROS 2 bridge layer).
+"""Reading the robots' pose messages from a recorded ROS 2 bag (ROS 2 bridge layer).
 
-The bridge's own small reader, until :mod:`quatform.bags` has ``read_poses`` (the lead unifies
-them): :func:`read_bag_poses` opens a rosbag2 folder or a single ``.mcap`` / ``.db3`` file with
-``rosbags.highlevel.AnyReader`` (its embedded message definitions; Humble's store for a bag
-without them) and returns every robot's pose messages with their times. Bad input is one
-line naming the topic and the fix: a missing topic, a topic of another type, a topic without
-messages, time stamps that go back.
+:func:`read_bag_poses` opens the bag with :func:`quatform.bags.open_bag` (an ``.mcap`` or
+``.db3`` file or a rosbag2 folder; PX4's message definitions registered) and returns every
+robot's pose *messages* with their times: the bridge reads velocities (odometry) and PX4's
+NED/FRD frames from the messages themselves, so this keeps them rather than the position
+and quaternion arrays of :func:`quatform.bags.read_poses`. Bad input is one line naming the
+topic and the fix: a missing topic, a topic of another type, a topic without messages, time
+stamps that go back.
 """
 
 from __future__ import annotations
@@ -15,15 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bags.user_bags import STAMP_SOURCES, open_bag
 from ..errors import InvalidInputError
 from .endpoints import POSE_READERS
+from .px4 import register_px4_types
 from .robots_file import RobotsFile
 
 __all__ = ["BagPoses", "read_bag_poses", "STAMP_SOURCES"]
 
-#: Which time a pose is taken at: its ``header.stamp`` (PX4: ``timestamp``), or the time the
-#: recorder received it (the bag's log time; what a live node's stale rule sees).
-STAMP_SOURCES = ("header", "log")
 
 
 @dataclass(frozen=True)
@@ -45,31 +45,14 @@ class BagPoses:
     topics: dict
 
 
-def _open(path: Path):
-    from rosbags.highlevel import AnyReader, AnyReaderError
-
-    from .px4 import register_px4_types
-
-    if not path.exists():
-        raise InvalidInputError(f"{path}: no such bag; give a rosbag2 folder (with metadata.yaml) or an .mcap file")
-    try:
-        reader = AnyReader([path], default_typestore=register_px4_types())
-        reader.open()
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
-        text = " ".join(str(exc).split())[:200]
-        raise InvalidInputError(f"{path}: not a readable ROS 2 bag ({text}); give a rosbag2 folder or an .mcap "
-                                "file recorded with ros2 bag record") from None
-    return reader
-
-
 def read_bag_poses(bag, robots: RobotsFile, stamps: str = "header") -> BagPoses:
     """Each robot's pose messages of ``bag`` (``robots``: the topics and types; ``stamps``: one of
     :data:`STAMP_SOURCES`)."""
     if stamps not in STAMP_SOURCES:
         raise InvalidInputError(f"--stamps {stamps!r} is not one of {', '.join(STAMP_SOURCES)}")
     path = Path(bag)
-    reader = _open(path)
-    try:
+    register_px4_types()  # the bag may hold PX4's VehicleOdometry
+    with open_bag(path) as reader:
         topics = {c.topic: c.msgtype for c in reader.connections}
         for link in robots.robots:
             want = POSE_READERS[link.pose_type].msg_type
@@ -100,8 +83,6 @@ def read_bag_poses(bag, robots: RobotsFile, stamps: str = "header") -> BagPoses:
                 t_ns = int(round(t * 1e9))
             times[i].append(t_ns)
             msgs[i].append(msg)
-    finally:
-        reader.close()
     out = []
     for link, ts in zip(robots.robots, times):
         if not ts:

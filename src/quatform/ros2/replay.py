@@ -16,7 +16,6 @@ topics), ``commands.png`` (commanded against measured, per robot) and ``metrics.
 from __future__ import annotations
 
 import heapq
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -114,20 +113,16 @@ def _metrics(bridge, ticks, poses, rate_hz) -> dict:
 
 def write_commands_mcap(ticks, bridge, path: Path) -> Path:
     """The published messages of ``ticks`` as a one-file MCAP bag at ``path`` (each at its tick time)."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
+    from ..bags.mcap import mcap_writer
     from .px4 import register_px4_types
 
     store = register_px4_types()
-    folder = path.with_name(path.stem + "-bag")
-    with Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    with mcap_writer(path, compress=False) as writer:
         conns = {topic: writer.add_connection(topic, typ, typestore=store) for topic, typ, _ in bridge.command_topics()}
         for tick in ticks:
             ns = int(round(tick.t * 1e9))
             for topic, msg in tick.messages:
                 writer.write(conns[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
-    (folder / f"{folder.name}.mcap").rename(path)
-    shutil.rmtree(folder)
     return path
 
 
