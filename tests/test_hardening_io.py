@@ -146,7 +146,8 @@ def test_a_rerun_replaces_the_old_plots_and_keeps_user_files_safe(tmp_path, caps
     assert cli.main(argv) == 0
     assert list(out.glob("*.png"))
     assert cli.main(argv + ["--no-plots"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted([OUTPUT_MARKER, "metrics.json", "timeseries.csv"])
+    assert sorted(p.name for p in out.iterdir()) == sorted([OUTPUT_MARKER, "metrics.json", "timeseries.csv",
+                                                            "run.mcap", "foxglove-layout.json"])
     # a file the user put there: the folder is no longer quatform's alone, so it is not replaced
     (out / "notes.txt").write_text("mine")
     capsys.readouterr()
