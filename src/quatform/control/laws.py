@@ -45,7 +45,7 @@ def proportional(e, c_dot_des, k, feedforward=1.0):
 
 def tanh_law(e, c_dot_des, k, feedforward=1.0):
     """``ff c_dot_des - k tanh(e)``: seed 001 eqs. (4.43)-(4.44) (the rate saturated at ``k``)."""
-    return feedforward * c_dot_des - k * np.tanh(e)
+    return feedforward * c_dot_des - k * kern.lib(e).tanh(e)
 
 
 def _mul_pure(q, w1, w2, w3):

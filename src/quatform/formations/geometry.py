@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
+from ..algebra.kernels import array_namespace as namespace
 from ..algebra.kernels import qmul_components
 from . import pair_kernels as kern
 
@@ -28,11 +29,11 @@ def conj(q):
 
 
 def dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return namespace(a).einsum("...i,...i->...", a, b)
 
 
 def norm(v):
-    return np.sqrt(dot(v, v))
+    return namespace(v).sqrt(dot(v, v))
 
 
 def q_yaw(theta):
