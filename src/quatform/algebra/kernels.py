@@ -35,6 +35,14 @@ def array_namespace(x):
     return np if concrete(x) or isinstance(x, (list, tuple)) else x.__array_namespace__()
 
 
+def dot_last(a, b):
+    """``sum_i a_i b_i`` over the last axis: NumPy's ``einsum`` for NumPy arrays, the products'
+    sum on another namespace (XLA runs a batched ``einsum`` as one tiny product per row)."""
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+        return np.einsum("...i,...i->...", a, b)
+    return array_namespace(a).sum(a * b, axis=-1)
+
+
 def concrete(x) -> bool:
     """Whether the values of ``x`` may be read on the host (a Python float or bool, NumPy):
     False for a JAX array (traced under ``jax.jit``), where a kernel takes both branches."""

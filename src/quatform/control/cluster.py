@@ -117,8 +117,11 @@ class ClusterController(Controller):
         F = self.formation
         e = kern.unpack(F.errors(c, c_des)) if F.wraps_angles else None
         err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des), e)
-        xp = kern.lib(c)
-        r_dot = xp.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), kern.pack(rate))
+        Ji, rate = F.inverse_jacobian_at(c, r=r), kern.pack(rate)
+        if isinstance(Ji, np.ndarray):
+            r_dot = np.einsum("...ij,...j->...i", Ji, rate)
+        else:  # another namespace (JAX): the products' sums (XLA runs a batched einsum row by row)
+            r_dot = (Ji * rate[..., None, :]).sum(axis=-1)
         return c, err, self._actuate(r, r_dot)
 
     def _actuate(self, r, r_dot):

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..algebra import wrap_angle
 from ..algebra.kernels import array_namespace as namespace
-from ..algebra.kernels import qmul_components
+from ..algebra.kernels import dot_last, qmul_components
 from . import pair_kernels as kern
 
 EX = np.array([1.0, 0.0, 0.0])
@@ -29,7 +29,7 @@ def conj(q):
 
 
 def dot(a, b):
-    return namespace(a).einsum("...i,...i->...", a, b)
+    return dot_last(a, b)
 
 
 def norm(v):

@@ -28,7 +28,7 @@ def _norm(v) -> np.ndarray:
         return abs(v[..., 0])
     if not concrete(v):  # traced (JAX): no test on values; squares finite below 1e150
         xp = namespace(v)
-        return xp.sqrt(xp.einsum("...i,...i->...", v, v))
+        return xp.sqrt(xp.sum(v * v, axis=-1))
     if v.size and np.max(np.abs(v)) < _SQUARES_FINITE:
         return np.sqrt(np.einsum("...i,...i->...", v, v))
     big = np.max(np.abs(v), axis=-1)

@@ -32,24 +32,40 @@ kinematic holonomic robots); anything else is refused in one line naming what ru
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
 from ..algebra.validate import as_array
 from ..control.base import Reference
 from ..control.cluster import ClusterController
-from ..errors import DegenerateInputError, InvalidInputError, MissingDependencyError, ShapeError
+from ..errors import (
+    DegenerateInputError,
+    InvalidInputError,
+    MissingDependencyError,
+    ShapeError,
+)
 from ..formations import DualQuaternionPair, EuclideanPair, QuaternionPair, RobotSpace
-from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations import pair_kernels as kern
+from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..robots import HolonomicRobot
 from .log import Channel, Log
 from .plants import KinematicTeam
 from .simulate import PerfectMeasurement
 from .trial_measurement import TickMeasurement
 
-__all__ = ["simulate", "JAX_FORMATIONS", "require_jax", "check_supported", "FAILURE_REASONS"]
+__all__ = [
+    "FAILURE_REASONS",
+    "JAX_FORMATIONS",
+    "check_supported",
+    "check_ticks",
+    "initial_carry",
+    "require_jax",
+    "simulate",
+    "stack_reference",
+    "tick_function",
+]
 
 #: Formation descriptions whose controllers run on JAX (seed 000's pair descriptions).
 JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
@@ -88,7 +104,7 @@ def check_supported(plant, controller, measurement) -> None:
                                 "(--backend numpy)")
 
 
-def _ticks(times, substeps, dt):
+def check_ticks(times, substeps, dt):
     """Checked ``(times, dt)`` (the rules of :func:`quatform.sim.simulate`)."""
     times = np.asarray(times, dtype=float)
     if times.ndim != 1 or times.size < 1:
@@ -110,7 +126,7 @@ def _ticks(times, substeps, dt):
     return times, float(dt)
 
 
-def _stack_reference(controller, reference: Callable, n: int, batch: tuple):
+def stack_reference(controller, reference: Callable, n: int, batch: tuple):
     """The reference of every tick, sampled and checked on the host: ``(c, c_dot, robots)``,
     each ``(T, B or 1, k)`` (``robots`` None when the reference gives none)."""
     refs = [reference(k) for k in range(n)]
@@ -160,8 +176,8 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     plant, controller, reference, times, x0, dt, substeps, measurement, progress, meta
         As :func:`quatform.sim.simulate`; ``x0`` of shape ``(*batch, n_x)``. ``measurement``:
         None (perfect) or a :class:`~quatform.sim.trial_measurement.TickMeasurement`.
-        ``progress(fraction)`` is called after each tenth of the ticks (the loop then runs
-        in ten compiled chunks of one shape: one compilation).
+        ``progress(fraction)`` is called after each chunk of ``ceil(T / 10)`` ticks (the loop
+        then runs in at most ten compiled chunks of one shape: one compilation).
 
     Returns
     -------
@@ -181,7 +197,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     """
     jax = require_jax()
     check_supported(plant, controller, measurement)
-    times, dt = _ticks(times, substeps, dt)
+    times, dt = check_ticks(times, substeps, dt)
     n = times.size
     x = np.array(x0, dtype=float)
     if x.shape[-1:] != (len(plant.state_columns),):
@@ -190,21 +206,21 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         raise InvalidInputError("jax simulate: x0 must be finite")
     batch = x.shape[:-1]
     B = math.prod(batch)
-    c_ref, cd_ref, r_ref = _stack_reference(controller, reference, n, batch)
+    c_ref, cd_ref, r_ref = stack_reference(controller, reference, n, batch)
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
     tick.start(float(times[0]), plant.output(x), batch)  # the shape checks of the measurement
     noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
     dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
     if (noise is not None and noise.shape[0] < n) or (dropped is not None and dropped.shape[0] < n):
         raise ShapeError(f"TickMeasurement: noise / dropped hold fewer than the run's {n} ticks")
-    step = _tick_function(plant, controller, dt, substeps, tick.delay_ticks, noise is not None,
+    step = _compiled_scan(jax, plant, controller, dt, substeps, tick.delay_ticks, noise is not None,
                           dropped is not None, r_ref is not None)
     xs = {"t": times, "c": c_ref, "cd": cd_ref}
     for key, arr in (("rd", r_ref), ("noise", noise), ("dropped", dropped)):
         if arr is not None:
             xs[key] = arr
     with jax.enable_x64(True):
-        ys, carry = _scan(jax, step, _initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, progress)
+        ys, carry = _scan(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, progress)
     names = ("state", "measured", "command", "cluster", "error", "raw_finite")
     data = {k: np.asarray(v).reshape((n,) + batch + (v.shape[-1],)) for k, v in zip(names, ys)}
     fail_tick, reason = (np.asarray(a).reshape(batch) for a in carry[3:5])
@@ -223,15 +239,17 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     return Log(times, chans, {"controller": controller.name, "controller_state": None, **(meta or {}), **extra})
 
 
-def _initial_carry(x, delay):
+def initial_carry(x, delay):
     """``(x, past, last, fail_tick, reason)``: the state, the outputs of the last ``d + 1`` ticks
-    (all ``y0``), the last reading, and each world's failure (tick -1, reason 0: none)."""
+    (all ``y0``), the last reading, and each world's failure (tick -1, reason 0: none); NumPy
+    or JAX arrays like ``x`` (``(B, n_x)``)."""
+    xp = namespace(x)
     B = x.shape[0]
-    return (x, np.broadcast_to(x, (delay + 1,) + x.shape).copy(), x.copy(), np.full(B, -1, dtype=np.int64),
-            np.zeros(B, dtype=np.int64))
+    return (x, xp.broadcast_to(x, (delay + 1,) + x.shape), x, xp.full(B, -1, dtype=xp.int64),
+            xp.zeros(B, dtype=xp.int64))
 
 
-def _tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned):
+def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned):
     """One control tick on JAX arrays: ``(carry, xs_k) -> (carry, (x, m, u, c, err, finite))``."""
     import jax.numpy as jnp
 
@@ -275,11 +293,32 @@ def _tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned
     return tick
 
 
+#: Compiled scans of recent (plant, controller, step, measurement structure), newest last: a
+#: second run of one experiment (another batch of the same shape, a benchmark's repeat)
+#: does not compile again. Holding the objects keeps their ids unique while cached.
+_CACHE: dict = {}
+_CACHE_SIZE = 8
+
+
+def _compiled_scan(jax, plant, controller, *key):
+    """``jax.jit`` of ``lax.scan`` of :func:`tick_function` (``.compiled`` of the tick), cached."""
+    k = (id(plant), id(controller), *key)
+    hit = _CACHE.pop(k, None)
+    if hit is None:
+        tick = tick_function(plant, controller, *key)
+        tick.compiled = jax.jit(lambda carry, xs: jax.lax.scan(tick, carry, xs)[::-1])
+        hit = (plant, controller, tick)
+    _CACHE[k] = hit
+    while len(_CACHE) > _CACHE_SIZE:
+        _CACHE.pop(next(iter(_CACHE)))
+    return hit[2]
+
+
 def _scan(jax, tick, carry, xs, n, progress):
     """``lax.scan`` of ``tick`` over the ``n`` ticks of ``xs`` (one compiled call, or ten
     chunks of one shape when ``progress`` is given): ``(ys, carry)``."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
-    run = jax.jit(lambda carry, xs: jax.lax.scan(tick, carry, xs)[::-1])
+    run = tick.compiled
     if progress is None:
         ys, carry = run(carry, xs)
         return ys, carry
