@@ -70,8 +70,6 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
         reason) as in :mod:`quatform.sim.backends`.
     """
     jax = require_jax()
-    import jax.numpy as jnp
-
     plant, ctrl = experiment.plant, experiment.controller
     measurement = experiment.measurement if measurement is None else measurement
     check_supported(plant, ctrl, measurement)
@@ -93,41 +91,22 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     tick.start(float(times[0]), plant.output(x), batch)
     noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
     dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
-    step = tick_function(plant, ctrl, dt, experiment.substeps, tick.delay_ticks, noise is not None,
-                         dropped is not None, True)
-    L = ctrl.team.layout
-
-    def body(carry, xs):
-        inner, acc = carry
-        inner, (xk, _, u, _, _, finite) = step(inner, xs)
-        err = robot_errors(xk, xs["rd"], xs["ed"])
-        lost = xs["late"] & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
-                             | (err["robot_position"] > LOST_POSITION_M))
-        speed = jnp.max(jnp.linalg.norm(L.positions(u), axis=-1), axis=-1)
-        acc = dict(acc)
-        for key, name in _MAXED.items():
-            acc[name] = jnp.where(xs["late"], jnp.maximum(acc[name], err[key]), acc[name])
-        acc["min_robot_separation_m"] = jnp.minimum(acc["min_robot_separation_m"], err["separation"])
-        acc["nonfinite_commands"] = acc["nonfinite_commands"] + (finite[:, 0] < 0.5)
-        acc["max_command_speed_m_s"] = jnp.maximum(acc["max_command_speed_m_s"], speed)
-        acc["first_lost"] = jnp.where((acc["first_lost"] < 0) & lost, xs["k"], acc["first_lost"])
-        return (inner, acc), None
-
-    def run(x_b, xs_b):
-        acc = {name: jnp.zeros(x_b.shape[0]) for name in _MAXED.values()}
-        acc.update(min_robot_separation_m=jnp.full(x_b.shape[0], jnp.inf), max_command_speed_m_s=jnp.zeros(x_b.shape[0]),
-                   nonfinite_commands=jnp.zeros(x_b.shape[0], dtype=jnp.int64),
-                   first_lost=jnp.full(x_b.shape[0], -1, dtype=jnp.int64))
-        (inner, acc), _ = jax.lax.scan(body, (initial_carry(x_b, tick.delay_ticks), acc), xs_b)
-        return acc, inner[3], inner[4]
-
+    key = (id(plant), id(ctrl), dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)
+    hit = _CACHE.pop(key, None)
+    if hit is None:
+        hit = (plant, ctrl, _compile(jax, tick_function(plant, ctrl, dt, experiment.substeps, tick.delay_ticks,
+                                                          noise is not None, dropped is not None, True),
+                                     ctrl.team.layout, tick.delay_ticks))
+    _CACHE[key] = hit  # newest last; holding the objects keeps their ids unique while cached
+    while len(_CACHE) > _CACHE_SIZE:
+        _CACHE.pop(next(iter(_CACHE)))
+    compiled = hit[2]
     size = B if trials_per_call is None else max(1, min(int(trials_per_call), B))
     shared = {"t": times, "c": c_ref, "cd": cd_ref, "rd": r_ref, "ed": e_des[:, None, :], "late": late,
               "k": np.arange(n, dtype=np.int64)}
     xb = x.reshape(B, -1)
     outs = []
     with jax.enable_x64(True):
-        compiled = jax.jit(run)
         for start in range(0, B, size):
             stop = min(start + size, B)
             sl = slice(start, stop)
@@ -156,3 +135,40 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     res["failure"] = {tuple(int(i) for i in idx): f"t = {times[fail_tick[idx]]:g} s: "
                       f"{FAILURE_REASONS[int(reason[idx])]}" for idx in zip(*np.nonzero(reason))}
     return res
+
+
+#: Compiled rollouts of recent (plant, controller, step, measurement structure).
+_CACHE: dict = {}
+_CACHE_SIZE = 8
+
+
+def _compile(jax, step, L, delay):
+    """``jax.jit`` of the scan of ``step`` with the metrics reduced tick by tick."""
+    import jax.numpy as jnp
+
+    def body(carry, xs):
+        inner, acc = carry
+        inner, (xk, _, u, _, _, finite) = step(inner, xs)
+        err = robot_errors(xk, xs["rd"], xs["ed"])
+        lost = xs["late"] & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
+                             | (err["robot_position"] > LOST_POSITION_M))
+        speed = jnp.max(jnp.linalg.norm(L.positions(u), axis=-1), axis=-1)
+        acc = dict(acc)
+        for key, name in _MAXED.items():
+            acc[name] = jnp.where(xs["late"], jnp.maximum(acc[name], err[key]), acc[name])
+        acc["min_robot_separation_m"] = jnp.minimum(acc["min_robot_separation_m"], err["separation"])
+        acc["nonfinite_commands"] = acc["nonfinite_commands"] + (finite[:, 0] < 0.5)
+        acc["max_command_speed_m_s"] = jnp.maximum(acc["max_command_speed_m_s"], speed)
+        acc["first_lost"] = jnp.where((acc["first_lost"] < 0) & lost, xs["k"], acc["first_lost"])
+        return (inner, acc), None
+
+    def run(x_b, xs_b):
+        acc = {name: jnp.zeros(x_b.shape[0]) for name in _MAXED.values()}
+        acc.update(min_robot_separation_m=jnp.full(x_b.shape[0], jnp.inf),
+                   max_command_speed_m_s=jnp.zeros(x_b.shape[0]),
+                   nonfinite_commands=jnp.zeros(x_b.shape[0], dtype=jnp.int64),
+                   first_lost=jnp.full(x_b.shape[0], -1, dtype=jnp.int64))
+        (inner, acc), _ = jax.lax.scan(body, (initial_carry(x_b, delay), acc), xs_b)
+        return acc, inner[3], inner[4]
+
+    return jax.jit(run)
