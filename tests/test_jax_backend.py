@@ -53,15 +53,21 @@ def test_metrics_equal_on_the_experiment():
 
 
 
-def test_refuses_what_it_does_not_run():
-    sc = load_scenario("marciano-circle")
-    ex = kind_of(sc).experiment(sc, formation="quaternion")
-    with pytest.raises(InvalidInputError, match="the jax backend runs the seed-000 pair experiments.*numpy"):
+@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion"}),
+                                                ("team-ring-flip", {"controller": "quaternion"}),
+                                                ("teleop-free-motion", {})])
+def test_refuses_what_it_does_not_run(scenario, choice):
+    sc = load_scenario(scenario)
+    ex = kind_of(sc).experiment(sc, **choice)
+    with pytest.raises(InvalidInputError, match=r"the jax backend runs the seed-000 pair experiments.*"
+                                                r"runs on numpy \(--backend numpy\)"):
         ex.run(backend="jax")
+
+
+def test_unknown_backend_names_jax():
     with pytest.raises(InvalidInputError, match="unknown compute backend 'jaks'.*jax"):
         simulator("jaks")
     assert "jax" in SIM_BACKENDS
-
 
 
 def test_missing_jax_names_the_extra(monkeypatch):

@@ -91,8 +91,7 @@ def require_jax():
 def check_supported(plant, controller, measurement) -> None:
     """Refuse (one line, naming what runs here) what the jax backend does not run."""
     if not isinstance(controller, ClusterController) or not isinstance(controller.formation, JAX_FORMATIONS):
-        what = getattr(controller, "name", type(controller).__name__)
-        raise InvalidInputError(f"{_RUNS}; the {what} controller runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{_RUNS}; {type(controller).__name__} runs on numpy (--backend numpy)")
     if controller.filters:
         raise InvalidInputError(f"{_RUNS}; a controller with filters runs on numpy (--backend numpy)")
     team = controller.team
