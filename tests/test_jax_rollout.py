@@ -83,6 +83,7 @@ def test_coincident_robots_fail_that_world_only():
     good = simulator("numpy")(ex.plant, ex.controller, ex.reference, ex.times, x0[:1], dt=ex.dt)
     np.testing.assert_allclose(log["state"][:, :1], good["state"], atol=TOL)
     np.testing.assert_array_equal(log["state"][:, 1], np.broadcast_to(x0[1], log["state"][:, 1].shape))
+    assert np.all(log["command"][:, 1] == 0.0) and np.all(np.isnan(log["cluster"][:, 1]))
 
 
 

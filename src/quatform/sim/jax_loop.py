@@ -15,12 +15,12 @@
   (its noise and dropped frames are arrays drawn up front; its latency is a ring buffer of
   the last ``d + 1`` outputs in the scan's carry).
 
-What NumPy refuses with an exception inside the loop (robots on each other, a non-finite
-measured state) cannot raise inside a compiled loop: a world where it happens is marked
-failed at that tick and holds its state from then on; ``log.meta["failed"]`` (bool, the
-batch shape) and ``log.meta["failure"]`` (index tuple -> one-line reason) report it, as
-:mod:`quatform.sim.backends` specifies. A run of one world (no batch axes) raises the
-error NumPy raises.
+What the controller refuses with an exception (robots on each other, a non-finite measured
+state) cannot raise inside a compiled loop: a world where it happens is marked failed at
+that tick and frozen from then on, as :func:`quatform.sim.simulate` freezes one (its state
+held, its commands zero, its signals NaN); ``log.meta["failed"]`` (bool, the batch shape)
+and ``log.meta["failure"]`` (index tuple -> ``"t = ... s: reason"``) report it, as
+:mod:`quatform.sim.backends` specifies. A run of one world (no batch axes) raises.
 
 Precision: float64. The computation runs inside ``jax.enable_x64(True)`` (a context
 manager: the user's global ``jax_enable_x64`` setting is left as it was). Device: JAX's
@@ -283,11 +283,14 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
         x_next = x
         for s in range(substeps):
             x_next = plant.step(x_next, u, dt, xs["t"] + s * dt)
-        x_next = jnp.where((reason > 0)[:, None], x, x_next)  # a failed world holds its state
+        bad = (reason > 0)[:, None]  # a failed world is frozen: its state held, commands 0, signals NaN
+        x_next = jnp.where(bad, x, x_next)
+        u = jnp.where(bad, 0.0, u)
+        c, err, finite = (jnp.where(bad, jnp.nan, v.astype(x.dtype)) for v in (c, err, finite))
         new_carry = (x_next, past, last, fail_tick, reason)
         if "valid" in xs:  # a padded tick past the run's end (progress chunks) changes nothing
             new_carry = tuple(jnp.where(xs["valid"], a, b) for a, b in zip(new_carry, carry))
-        return new_carry, (x, m, u, c, err, finite.astype(x.dtype))
+        return new_carry, (x, m, u, c, err, finite)
 
     return tick
 
