@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import ShapeError
 
+
 def namespace(x):
     """The module whose functions apply to ``x``: :mod:`math` for a Python float (or a NumPy
     float64, a float), :mod:`numpy` for NumPy arrays and scalars, otherwise the array's own
