@@ -81,7 +81,7 @@ class ClusterController(Controller):
             check(cd)
         return self._chain_components(rc, cd, cdd)
 
-    def chain(self, r, c_des, c_dot_des):
+    def chain(self, r, c_des, c_dot_des, stage=None):
         """The control chain without the checks, on arrays of any namespace (NumPy; JAX under
         ``jax.jit``, where no value can be tested): ``(c, err, r_dot)`` (tuples of components
         or arrays; ``kern.pack`` them) for the measured robots ``r`` (``(..., n_r)``, aligned
@@ -90,16 +90,22 @@ class ClusterController(Controller):
         The caller has run the reference checks (:attr:`checks`, on the whole reference at
         once) and marks the worlds whose robots coincide or whose state is not finite, which
         :meth:`update` refuses. The team must be passthrough or have no actuation memory.
+        ``stage`` (optional) maps the component tuples that the forward kinematics and the law
+        return to equal ones (the jax loop computes them once there, ``sim.jax_loop.hold``).
         """
         F = self.formation
         if F.component_kernels:
-            return self._chain_components(kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des))
+            return self._chain_components(kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des), stage)
         return self._chain_arrays(r, F.forward_arrays(r, c_des), c_des, c_dot_des)
 
-    def _chain_components(self, rc, cd, cdd):
+    def _chain_components(self, rc, cd, cdd, stage=None):
         F = self.formation
         c, rc = F.forward_components(rc, cd)  # the reference's branch (near_c)
+        if stage is not None:
+            c, rc = stage(c), stage(rc)
         err, rate = self.law(c, cd, cdd, F.error_components(c, cd) if F.wraps_angles else None)
+        if stage is not None:
+            err, rate = stage(err), stage(rate)
         r_dot = F.robot_rate_components(c, rate, rc)
         return c, err, self._actuate(rc, r_dot)
 
