@@ -96,7 +96,7 @@ class ClusterController(Controller):
         F = self.formation
         if F.component_kernels:
             return self._chain_components(kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des), stage)
-        return self._chain_arrays(r, F.forward_arrays(r, c_des), c_des, c_dot_des)
+        return self._chain_arrays(r, F.forward_arrays(r, c_des), c_des, c_dot_des, stage)
 
     def _chain_components(self, rc, cd, cdd, stage=None):
         F = self.formation
@@ -117,12 +117,16 @@ class ClusterController(Controller):
             check(kern.unpack(c_des))
         return self._chain_arrays(r, self.formation.forward(r, near_c=c_des), c_des, c_dot_des)
 
-    def _chain_arrays(self, r, c, c_des, c_dot_des):
+    def _chain_arrays(self, r, c, c_des, c_dot_des, stage=None):
         """Errors, the law and the dense inverse Jacobian (seed 000 Fig. 2) at the measured
         cluster state ``c`` (arrays of any namespace)."""
         F = self.formation
+        if stage is not None:
+            c = kern.pack(stage(kern.unpack(c)))
         e = kern.unpack(F.errors(c, c_des)) if F.wraps_angles else None
         err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des), e)
+        if stage is not None:
+            err, rate = stage(err), stage(rate)
         Ji, rate = F.inverse_jacobian_at(c, r=r), kern.pack(rate)
         if isinstance(Ji, np.ndarray):
             r_dot = np.einsum("...ij,...j->...i", Ji, rate)

@@ -24,6 +24,7 @@ from .jax_loop import (
     FAILURE_REASONS,
     check_supported,
     check_ticks,
+    hold,
     initial_carry,
     require_jax,
     stack_reference,
@@ -39,6 +40,7 @@ __all__ = ["ROLLOUT_METRICS", "rollout_metrics"]
 ROLLOUT_METRICS = ("reference_lost", "first_lost_time_s", "max_cluster_position_error_m", "max_shape_error_m",
                    "max_orientation_error_rad", "max_robot_position_error_m", "max_robot_yaw_error_rad",
                    "min_robot_separation_m", "nonfinite_commands", "max_command_speed_m_s")
+_ERRORS = ("cluster_position", "shape", "orientation", "robot_position", "robot_yaw", "separation")
 _MAXED = {"cluster_position": "max_cluster_position_error_m", "shape": "max_shape_error_m",
           "orientation": "max_orientation_error_rad", "robot_position": "max_robot_position_error_m",
           "robot_yaw": "max_robot_yaw_error_rad"}
@@ -150,6 +152,8 @@ def _compile(jax, step, L, delay):
         inner, acc = carry
         inner, (xk, _, u, _, _, finite) = step(inner, xs)
         err = robot_errors(xk, xs["rd"], xs["ed"])
+        held = hold(jnp.stack([err[k] for k in _ERRORS], axis=-1))  # each signal computed once
+        err = {k: held[:, q] for q, k in enumerate(_ERRORS)}
         lost = xs["late"] & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
                              | (err["robot_position"] > LOST_POSITION_M))
         speed = jnp.max(jnp.linalg.norm(L.positions(u), axis=-1), axis=-1)
