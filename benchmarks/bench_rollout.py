@@ -132,8 +132,8 @@ def monte_carlo(trials: int, seed: int = 0, trials_per_call: int = 2500) -> dict
     rng = np.random.default_rng(seed)
     x0 = ex.x0 + np.concatenate([rng.normal(0.0, 0.02, (trials, 3)), rng.normal(0.0, 0.02, (trials, 1)),
                                  rng.normal(0.0, 0.02, (trials, 3)), rng.normal(0.0, 0.02, (trials, 1))], axis=1)
-    scale = np.array([0.002, 0.002, 0.002, 0.002] * 2)
-    noise = rng.standard_normal((T, trials, 8)) * scale
+    noise = rng.standard_normal((T, trials, 8))
+    noise *= 0.002  # 2 mm on positions, 2 mrad on yaws (in place: the array is 8 T trials floats)
     meas = TickMeasurement(noise, 2, rng.random((T, trials)) < 0.01)
     t1 = time.perf_counter()
     res = rollout_metrics(ex, x0, meas, trials_per_call=min(trials_per_call, trials))
