@@ -12,7 +12,7 @@ import pytest
 
 jax = pytest.importorskip("jax")
 
-from quatform.errors import InvalidInputError
+from quatform.errors import InvalidInputError, ShapeError
 from quatform.scenarios import load_scenario
 from quatform.scenarios.pair import PAIR
 from quatform.sim.backends import simulator
@@ -120,3 +120,10 @@ def test_rollout_metrics_equal_compute_metrics(controller):
             else:
                 assert float(got) == pytest.approx(float(exp), abs=TOL), key
     assert not res["failed"].any() and res["failure"] == {}
+
+
+def test_short_tick_measurement_refused_in_one_line():
+    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.2), controller="quaternion")
+    meas = TickMeasurement(np.zeros((3, 8)), 0)  # 3 ticks of noise for a run of 21
+    with pytest.raises(ShapeError, match="fewer than the run's 21 ticks"):
+        dataclasses.replace(ex, measurement=meas).run(backend="jax")

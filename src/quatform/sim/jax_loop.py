@@ -208,10 +208,11 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     c_ref, cd_ref, r_ref = stack_reference(controller, reference, n, batch)
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
     tick.start(float(times[0]), plant.output(x), batch)  # the shape checks of the measurement
+    if any(arr is not None and arr.shape[0] < n for arr in (tick.noise, tick.dropped)):
+        raise ShapeError(f"TickMeasurement: noise / dropped hold fewer than the run's {n} ticks; give (T, *batch, ...) "
+                         f"with T = {n}")
     noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
     dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
-    if (noise is not None and noise.shape[0] < n) or (dropped is not None and dropped.shape[0] < n):
-        raise ShapeError(f"TickMeasurement: noise / dropped hold fewer than the run's {n} ticks")
     step = _compiled_scan(jax, plant, controller, dt, substeps, tick.delay_ticks, noise is not None,
                           dropped is not None, r_ref is not None)
     xs = {"t": times, "c": c_ref, "cd": cd_ref}
