@@ -93,3 +93,14 @@ def test_global_x64_setting_left_alone():
     log = ex.run(backend="jax")
     assert log["state"].dtype == np.float64
     assert jax.config.jax_enable_x64 == before
+
+
+def test_equal_configurations_share_one_compilation_key():
+    from quatform.sim.jax_loop import config_key
+
+    sc = _short("mas-kitts-helix", 0.1)
+    a, b = (PAIR.experiment(sc, controller="quaternion") for _ in range(2))
+    assert a.controller is not b.controller
+    assert config_key(a.plant, a.controller) == config_key(b.plant, b.controller)
+    other = PAIR.experiment(dataclasses.replace(sc, gains={"quaternion": {"k_x": [1, 1, 1]}}), controller="quaternion")
+    assert config_key(other.plant, other.controller) != config_key(a.plant, a.controller)

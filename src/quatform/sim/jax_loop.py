@@ -58,8 +58,11 @@ from .trial_measurement import TickMeasurement
 __all__ = [
     "FAILURE_REASONS",
     "JAX_FORMATIONS",
+    "cached",
     "check_supported",
     "check_ticks",
+    "config_key",
+    "hold",
     "initial_carry",
     "require_jax",
     "simulate",
@@ -317,25 +320,41 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
     return tick
 
 
-#: Compiled scans of recent (plant, controller, step, measurement structure), newest last: a
-#: second run of one experiment (another batch of the same shape, a benchmark's repeat)
-#: does not compile again. Holding the objects keeps their ids unique while cached.
+def config_key(plant, controller) -> tuple:
+    """What a compiled tick depends on, as a hashable value: the controller's class, its
+    formation's class (the pair descriptions hold no parameters), its law (gains), team,
+    feed-forward and checks, and the plant's team. Two experiments with equal configurations
+    (a sweep's chunks, a benchmark's repeats) share one compilation."""
+    return (type(controller), type(controller.formation), controller.law, controller.team, controller.feedforward,
+            controller.checks, type(plant), plant.team)
+
+
+#: Compiled scans of recent configurations and steps, newest last (:func:`config_key`).
 _CACHE: dict = {}
 _CACHE_SIZE = 8
 
 
+def cached(cache: dict, key: tuple, build: Callable):
+    """``cache[key]``, built by ``build()`` when missing; the cache keeps its newest
+    :data:`_CACHE_SIZE` entries."""
+    hit = cache.pop(key, None)
+    if hit is None:
+        hit = build()
+    cache[key] = hit
+    while len(cache) > _CACHE_SIZE:
+        cache.pop(next(iter(cache)))
+    return hit
+
+
 def _compiled_scan(jax, plant, controller, *key):
     """``jax.jit`` of ``lax.scan`` of :func:`tick_function` (``.compiled`` of the tick), cached."""
-    k = (id(plant), id(controller), *key)
-    hit = _CACHE.pop(k, None)
-    if hit is None:
+
+    def build():
         tick = tick_function(plant, controller, *key)
         tick.compiled = jax.jit(lambda carry, xs: jax.lax.scan(tick, carry, xs)[::-1])
-        hit = (plant, controller, tick)
-    _CACHE[k] = hit
-    while len(_CACHE) > _CACHE_SIZE:
-        _CACHE.pop(next(iter(_CACHE)))
-    return hit[2]
+        return tick
+
+    return cached(_CACHE, (config_key(plant, controller), *key), build)
 
 
 def _scan(jax, tick, carry, xs, n, progress):

@@ -22,8 +22,10 @@ import numpy as np
 from ..errors import InvalidInputError, ShapeError
 from .jax_loop import (
     FAILURE_REASONS,
+    cached,
     check_supported,
     check_ticks,
+    config_key,
     hold,
     initial_carry,
     require_jax,
@@ -96,16 +98,9 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
                          f"with T = {n}")
     noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
     dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
-    key = (id(plant), id(ctrl), dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)
-    hit = _CACHE.pop(key, None)
-    if hit is None:
-        hit = (plant, ctrl, _compile(jax, tick_function(plant, ctrl, dt, experiment.substeps, tick.delay_ticks,
-                                                          noise is not None, dropped is not None, True),
-                                     ctrl.team.layout, tick.delay_ticks))
-    _CACHE[key] = hit  # newest last; holding the objects keeps their ids unique while cached
-    while len(_CACHE) > _CACHE_SIZE:
-        _CACHE.pop(next(iter(_CACHE)))
-    compiled = hit[2]
+    step = (dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)
+    compiled = cached(_CACHE, (config_key(plant, ctrl), *step), lambda: _compile(
+        jax, tick_function(plant, ctrl, *step, True), ctrl.team.layout, tick.delay_ticks))
     size = B if trials_per_call is None else max(1, min(int(trials_per_call), B))
     shared = {"t": times, "c": c_ref, "cd": cd_ref, "rd": r_ref, "ed": e_des[:, None, :], "late": late,
               "k": np.arange(n, dtype=np.int64)}
@@ -142,9 +137,8 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     return res
 
 
-#: Compiled rollouts of recent (plant, controller, step, measurement structure).
+#: Compiled rollouts of recent configurations and steps (:func:`~quatform.sim.jax_loop.config_key`).
 _CACHE: dict = {}
-_CACHE_SIZE = 8
 
 
 def _compile(jax, step, L, delay):
