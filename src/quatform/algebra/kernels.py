@@ -5,7 +5,9 @@ The Hamilton product is 16 multiplications and 12 additions per quaternion. Writ
 memory; here the inputs are transposed block by block into contiguous component rows that
 stay in cache, the kernel runs on those rows, and the result is written back. The kernels
 only use ``+``, ``-`` and ``*``, so the same code also runs on Python floats, which is the
-fast path for a single quaternion.
+fast path for a single quaternion. The same kernels run on any array namespace with NumPy's
+operators (JAX arrays inside ``jax.jit``): :func:`namespace` names the module of an operand,
+:func:`concrete` says whether its values may be read on the host (a Python branch on them).
 """
 
 from __future__ import annotations
@@ -15,6 +17,39 @@ import math
 import numpy as np
 
 from ..errors import ShapeError
+
+
+def namespace(x):
+    """The module whose functions apply to ``x``: :mod:`math` for a Python float (or a NumPy
+    float64, a float), :mod:`numpy` for NumPy arrays and scalars, otherwise the array's own
+    namespace (``x.__array_namespace__()``: :mod:`jax.numpy` for a JAX array or tracer)."""
+    if isinstance(x, float):
+        return math
+    if isinstance(x, (np.ndarray, np.generic, bool, int)):
+        return np
+    return x.__array_namespace__()
+
+
+def array_namespace(x):
+    """The array module for ``x``: :mod:`numpy` for Python numbers and NumPy, the array's own
+    namespace otherwise (:func:`namespace` without :mod:`math`)."""
+    return np if concrete(x) or isinstance(x, (list, tuple)) else x.__array_namespace__()
+
+
+def dot_last(a, b):
+    """``sum_i a_i b_i`` over the last axis: NumPy's ``einsum`` for NumPy arrays, the products'
+    sum on another namespace (XLA runs a batched ``einsum`` as one tiny product per row)."""
+    xp = array_namespace(a)
+    if xp is np and array_namespace(b) is np:
+        return np.einsum("...i,...i->...", a, b)
+    return xp.sum(a * b, axis=-1)
+
+
+def concrete(x) -> bool:
+    """Whether the values of ``x`` may be read on the host (a Python float or bool, NumPy):
+    False for a JAX array (traced under ``jax.jit``), where a kernel takes both branches."""
+    return isinstance(x, (float, bool, int, np.ndarray, np.generic))
+
 
 #: Rows per block: 4 or 8 component rows of this length fit comfortably in L2 cache.
 BLOCK = 8192

@@ -79,23 +79,59 @@ class ClusterController(Controller):
         rc, cd, cdd = _comps(r), _comps(c_des), _comps(c_dot_des)
         for check in self.checks:
             check(cd)
+        return self._chain_components(rc, cd, cdd)
+
+    def chain(self, r, c_des, c_dot_des, stage=None):
+        """The control chain without the checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``, where no value can be tested): ``(c, err, r_dot)`` (tuples of components
+        or arrays; ``kern.pack`` them) for the measured robots ``r`` (``(..., n_r)``, aligned
+        as :meth:`update` aligns them) and the reference ``c_des``, ``c_dot_des``.
+
+        The caller has run the reference checks (:attr:`checks`, on the whole reference at
+        once) and marks the worlds whose robots coincide or whose state is not finite, which
+        :meth:`update` refuses. The team must be passthrough or have no actuation memory.
+        ``stage`` (optional) maps the component tuples that the forward kinematics and the law
+        return to equal ones (the jax loop computes them once there, ``sim.jax_loop.hold``).
+        """
+        F = self.formation
+        if F.component_kernels:
+            return self._chain_components(kern.unpack(r), kern.unpack(c_des), kern.unpack(c_dot_des), stage)
+        return self._chain_arrays(r, F.forward_arrays(r, c_des), c_des, c_dot_des, stage)
+
+    def _chain_components(self, rc, cd, cdd, stage=None):
+        F = self.formation
         c, rc = F.forward_components(rc, cd)  # the reference's branch (near_c)
+        if stage is not None:
+            c, rc = stage(c), stage(rc)
         err, rate = self.law(c, cd, cdd, F.error_components(c, cd) if F.wraps_angles else None)
+        if stage is not None:
+            err, rate = stage(err), stage(rate)
         r_dot = F.robot_rate_components(c, rate, rc)
         return c, err, self._actuate(rc, r_dot)
 
     def _control_arrays(self, r, c_des, c_dot_des):
         """The chain on arrays, for a description without component kernels (the Euclidean
         ones: forward kinematics and the dense inverse Jacobian of seed 000 Fig. 2)."""
-        F = self.formation
         r, c_des, c_dot_des = (np.asarray(a, dtype=float) for a in (r, c_des, c_dot_des))
-        cd = kern.unpack(c_des)
         for check in self.checks:
-            check(cd)
-        c = F.forward(r, near_c=c_des)
+            check(kern.unpack(c_des))
+        return self._chain_arrays(r, self.formation.forward(r, near_c=c_des), c_des, c_dot_des)
+
+    def _chain_arrays(self, r, c, c_des, c_dot_des, stage=None):
+        """Errors, the law and the dense inverse Jacobian (seed 000 Fig. 2) at the measured
+        cluster state ``c`` (arrays of any namespace)."""
+        F = self.formation
+        if stage is not None:
+            c = kern.pack(stage(kern.unpack(c)))
         e = kern.unpack(F.errors(c, c_des)) if F.wraps_angles else None
-        err, rate = self.law(kern.unpack(c), cd, kern.unpack(c_dot_des), e)
-        r_dot = np.einsum("...ij,...j->...i", F.inverse_jacobian_at(c, r=r), kern.pack(rate))
+        err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des), e)
+        if stage is not None:
+            err, rate = stage(err), stage(rate)
+        Ji, rate = F.inverse_jacobian_at(c, r=r), kern.pack(rate)
+        if isinstance(Ji, np.ndarray):
+            r_dot = np.einsum("...ij,...j->...i", Ji, rate)
+        else:  # another namespace (JAX): the products' sums (XLA runs a batched einsum row by row)
+            r_dot = (Ji * rate[..., None, :]).sum(axis=-1)
         return c, err, self._actuate(r, r_dot)
 
     def _actuate(self, r, r_dot):

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import concrete
 from ..errors import InvalidInputError
 from ..formations import pair_kernels as kern
 
@@ -45,7 +46,8 @@ def proportional(e, c_dot_des, k, feedforward=1.0):
 
 def tanh_law(e, c_dot_des, k, feedforward=1.0):
     """``ff c_dot_des - k tanh(e)``: seed 001 eqs. (4.43)-(4.44) (the rate saturated at ``k``)."""
-    return feedforward * c_dot_des - k * np.tanh(e)
+    tanh = np.tanh if concrete(e) else kern.lib(e).tanh  # NumPy's tanh for floats too (its rounding)
+    return feedforward * c_dot_des - k * tanh(e)
 
 
 def _mul_pure(q, w1, w2, w3):

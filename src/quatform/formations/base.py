@@ -30,6 +30,8 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from ..algebra import wrap_angle
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from .layout import POINT_KINDS, RobotLayout, Variable
@@ -315,6 +317,12 @@ class Formation(ABC):
         """Whether a cluster variable is an angle (its error is wrapped, :meth:`errors`)."""
         return any(v.kind == "angle" for v in self.variables)
 
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` of checked arrays of any namespace (NumPy, JAX), for a controller of a
+        description without component kernels; no check. Only a description that runs on
+        another array namespace offers it."""
+        raise NotImplementedError(f"{type(self).__name__} has no forward_arrays: it runs on NumPy arrays only")
+
     def robot_rate_components(self, c, c_dot, rc):
         """:meth:`robot_rate` on components, for a controller (the robot rates that move the
         cluster state ``c`` of the robots ``rc`` at ``c_dot``). Only a description with
@@ -334,11 +342,17 @@ class Formation(ABC):
 
     def errors(self, c, c_des) -> np.ndarray:
         """Per-variable error ``c - c_des`` with angles wrapped to ``[-pi, pi)``."""
+        if not concrete(c):  # another array namespace (JAX): the same rule, selected
+            return namespace(c).where(self._angle_mask, wrap_angle(c - c_des), c - c_des)
         e = np.asarray(c) - np.asarray(c_des)
         ang = [i for i, v in enumerate(self.variables) if v.kind == "angle"]
         if ang:
             e[..., ang] = wrap_angle(e[..., ang])
         return e
+
+    @functools.cached_property
+    def _angle_mask(self) -> np.ndarray:
+        return np.array([v.kind == "angle" for v in self.variables], dtype=bool)
 
     def length_scale(self, r) -> np.ndarray:
         """Size of the formation (m), used to make Jacobians dimensionless: half the largest

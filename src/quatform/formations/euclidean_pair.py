@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import DegenerateInputError
 from . import geometry as g
@@ -40,14 +42,16 @@ def segment_direction(beta, gamma):
 
     Inverse of seed 000 eqs. (4)-(5): ``(-sin b cos g, cos b cos g, sin g)``. Shape ``(..., 3)``.
     """
-    cb, sb, cg, sg = np.cos(beta), np.sin(beta), np.cos(gamma), np.sin(gamma)
-    return np.stack([-sb * cg, cb * cg, sg], axis=-1)
+    xp = namespace(beta)
+    cb, sb, cg, sg = xp.cos(beta), xp.sin(beta), xp.cos(gamma), xp.sin(gamma)
+    return xp.stack([-sb * cg, cb * cg, sg], axis=-1)
 
 
 def _direction_partials(beta, gamma):
-    cb, sb, cg, sg = np.cos(beta), np.sin(beta), np.cos(gamma), np.sin(gamma)
-    u_b = np.stack([-cb * cg, -sb * cg, np.zeros_like(cb)], axis=-1)
-    u_g = np.stack([sb * sg, -cb * sg, cg], axis=-1)
+    xp = namespace(beta)
+    cb, sb, cg, sg = xp.cos(beta), xp.sin(beta), xp.cos(gamma), xp.sin(gamma)
+    u_b = xp.stack([-cb * cg, -sb * cg, xp.zeros_like(cb)], axis=-1)
+    u_g = xp.stack([sb * sg, -cb * sg, cg], axis=-1)
     return u_b, u_g
 
 
@@ -76,28 +80,34 @@ class EuclideanPair(Formation):
 
     def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+        c = self.forward_arrays(r, near_c)
+        self.check_apart(r, separations=2.0 * c[..., 5])  # D = 2 d_c exactly
+        return c
+
+    def forward_arrays(self, r, near_c=None):
+        """Eqs. (1)-(8) of checked robot states ``r`` (``(..., 8)``, NumPy or another array
+        namespace, e.g. JAX under ``jax.jit``), with :meth:`forward`'s branch rule for ``near_c``;
+        no check (robots apart, finite values: the caller's)."""
+        xp = namespace(r)
         p = self.layout.positions(r)
         th = self.layout.yaws(r)
         p1, p2 = p[..., 0, :], p[..., 1, :]
         delta = p1 - p2
         D = g.norm(delta)
-        self.check_apart(r, separations=D)
-        rho = np.hypot(delta[..., 0], delta[..., 1])
-        c = np.empty(r.shape[:-1] + (8,))
-        c[..., 0:3] = 0.5 * (p1 + p2)  # seed 000 eqs. (1)-(3)
-        beta = np.arctan2(-delta[..., 0], delta[..., 1])  # eq. (4)
-        c[..., 4] = np.arctan2(delta[..., 2], rho)  # eq. (5)
-        c[..., 5] = 0.5 * D  # eq. (6), corrected
+        rho = xp.hypot(delta[..., 0], delta[..., 1])
+        mid = 0.5 * (p1 + p2)  # seed 000 eqs. (1)-(3)
+        beta = xp.arctan2(-delta[..., 0], delta[..., 1])  # eq. (4)
+        gamma = xp.arctan2(delta[..., 2], rho)  # eq. (5)
         if near_c is not None:
-            near_c = self.check_cluster_state(near_c, "near_c")
-            beta = np.where(rho <= VERTICAL_TOL * D, near_c[..., 3], g.unwrap_near(beta, near_c[..., 3]))
-            c[..., 6] = g.unwrap_near(th[..., 0] - beta, near_c[..., 6])  # eqs. (7)-(8)
-            c[..., 7] = g.unwrap_near(th[..., 1] - beta, near_c[..., 7])
+            beta = xp.where(rho <= VERTICAL_TOL * D, near_c[..., 3], g.unwrap_near(beta, near_c[..., 3]))
+            phi1 = g.unwrap_near(th[..., 0] - beta, near_c[..., 6])  # eqs. (7)-(8)
+            phi2 = g.unwrap_near(th[..., 1] - beta, near_c[..., 7])
         else:
-            c[..., 6] = g.wrap(th[..., 0] - beta)
-            c[..., 7] = g.wrap(th[..., 1] - beta)
-        c[..., 3] = beta
-        return c
+            phi1, phi2 = g.wrap(th[..., 0] - beta), g.wrap(th[..., 1] - beta)
+        # eq. (6), corrected: d_c = D / 2
+        return xp.stack([mid[..., 0], mid[..., 1], mid[..., 2], beta, gamma, 0.5 * D, phi1, phi2], axis=-1)
 
     def inverse(self, c, *, near_r=None):
         """Robots of the Euclidean cluster state ``c``: the inverse of eqs. (1)-(8).
@@ -192,20 +202,22 @@ class EuclideanPair(Formation):
         controller of seed 000 Fig. 2 applies this matrix every step, and building it from
         the rate map on the identity basis costs twice as much for one state). Rank 7 at a
         vertical segment."""
-        c = np.asarray(c, dtype=float)
+        if concrete(c) or isinstance(c, (list, tuple)):
+            c = np.asarray(c, dtype=float)
+        xp = namespace(c)
         u = segment_direction(c[..., 3], c[..., 4])
         u_b, u_g = _direction_partials(c[..., 3], c[..., 4])
         d = c[..., 5:6]
-        Ji = np.zeros(c.shape[:-1] + (8, 8))
-        eye = np.eye(3)
-        for rows, s in ((slice(0, 3), 1.0), (slice(4, 7), -1.0)):  # p1, p2 = x_c +- d_c u
-            Ji[..., rows, 0:3] = eye
-            Ji[..., rows, 3] = s * d * u_b
-            Ji[..., rows, 4] = s * d * u_g
-            Ji[..., rows, 5] = s * u
-        Ji[..., 3, 3] = Ji[..., 3, 6] = 1.0  # theta_1 = beta_c + phi_1
-        Ji[..., 7, 3] = Ji[..., 7, 7] = 1.0  # theta_2 = beta_c + phi_2
-        return Ji
+        zero = xp.zeros_like(c[..., 0])
+        one = zero + 1.0
+        rows = []
+        for s in (1.0, -1.0):  # p1, p2 = x_c +- d_c u
+            db, dg, du = s * d * u_b, s * d * u_g, s * u
+            rows += [[one if i == j else zero for j in range(3)] + [db[..., i], dg[..., i], du[..., i], zero, zero]
+                     for i in range(3)]
+            # theta_1 = beta_c + phi_1, theta_2 = beta_c + phi_2
+            rows.append([zero, zero, zero, one, zero, zero] + ([one, zero] if s > 0 else [zero, one]))
+        return xp.stack([xp.stack(row, axis=-1) for row in rows], axis=-2)
 
     def special_sets(self):
         return sp.pair_sets("beta_c = atan2(-dx, dy) of eq. (4) is atan2(0, 0) with one robot straight above the "
@@ -243,12 +255,17 @@ class RobotSpace(Formation):
     _euclidean = EuclideanPair()
 
     def forward(self, r, *, near_c=None):
-        r = self.check_robot_state(r).copy()
+        r = self.check_robot_state(r)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
-            for i in self.layout.yaw_indices:
-                r[..., i] = g.unwrap_near(r[..., i], near_c[..., i])
-        return r
+        return self.forward_arrays(r, near_c)
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` of checked arrays of any namespace (NumPy, JAX): ``r`` with its yaws
+        unwrapped near ``near_c``'s (a new array)."""
+        if near_c is None:
+            return r.copy() if isinstance(r, np.ndarray) else r
+        return namespace(r).where(self.layout.yaw_mask, g.unwrap_near(r, near_c), r)
 
     def inverse(self, c, *, near_r=None):
         return self.forward(c, near_c=near_r)
@@ -267,8 +284,11 @@ class RobotSpace(Formation):
 
     def inverse_jacobian_at(self, c, *, r=None):
         """The identity (robot space is its own cluster space), ``(..., 8, 8)``."""
-        c = self.check_robot_state(c, "c")
-        return np.broadcast_to(np.eye(8), c.shape[:-1] + (8, 8)).copy()
+        if concrete(c) or isinstance(c, (list, tuple)):
+            c = self.check_robot_state(c, "c")
+            return np.broadcast_to(np.eye(8), c.shape[:-1] + (8, 8)).copy()
+        xp = namespace(c)
+        return xp.broadcast_to(xp.eye(8), c.shape[:-1] + (8, 8))
 
     def length_scale(self, r):
         return np.ones(np.shape(r)[:-1])

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..algebra.kernels import qmul_components
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import dot_last, qmul_components
 from . import pair_kernels as kern
 
 EX = np.array([1.0, 0.0, 0.0])
@@ -28,11 +29,11 @@ def conj(q):
 
 
 def dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return dot_last(a, b)
 
 
 def norm(v):
-    return np.sqrt(dot(v, v))
+    return namespace(v).sqrt(dot(v, v))
 
 
 def q_yaw(theta):

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import concrete
 from ..errors import DegenerateInputError, InvalidInputError
 
 __all__ = ["PointKind", "POINT_KINDS", "RobotLayout", "Variable"]
@@ -184,7 +186,8 @@ class RobotLayout:
     # -- geometry -----------------------------------------------------------------------
     def check(self, r, name: str = "r") -> np.ndarray:
         """``r`` as a float array whose last axis has :attr:`size` entries."""
-        r = np.asarray(r, dtype=float)
+        if concrete(r) or isinstance(r, (list, tuple)):
+            r = np.asarray(r, dtype=float)
         if r.shape[-1:] != (self.size,):
             raise InvalidInputError(f"{name} must have shape (..., {self.size}) for {self.n} robots "
                                     f"({', '.join(self.kinds)}), got {r.shape}")
@@ -268,11 +271,22 @@ class RobotLayout:
             for i in idx:
                 out[i] += _TWO_PI * math.floor((ref[i] - out[i]) / _TWO_PI + 0.5)
             return np.array(out)
+        if not concrete(r):  # an array of another namespace (JAX): the same formula, selected
+            xp = namespace(r)
+            turns = _TWO_PI * xp.floor((r_ref - r) / _TWO_PI + 0.5)
+            return xp.where(self.yaw_mask, r + turns, r)
         out = np.array(np.broadcast_to(r, np.broadcast_shapes(r.shape, r_ref.shape)), dtype=float)
         if idx:
             i = np.asarray(idx, dtype=np.intp)
             out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
         return out
+
+    @functools.cached_property
+    def yaw_mask(self) -> np.ndarray:
+        """Bool array of :attr:`size`: True at the yaw entries (:attr:`yaw_indices`)."""
+        mask = np.zeros(self.size, dtype=bool)
+        mask[list(self.yaw_indices)] = True
+        return mask
 
     def compose(self, positions, yaws=(), orientations=None) -> np.ndarray:
         """Robot state of ``positions`` (m, ``(..., N, 3)``), ``yaws`` (rad,

@@ -2,7 +2,11 @@
 
 Each kernel takes and returns tuples of components. The components are either Python
 floats (one formation: the fast path, no NumPy call overhead) or broadcastable arrays
-(a batch); the same code serves both, so each formula is written once. Formulas cite
+(a batch) of NumPy or of any array namespace with NumPy's functions (JAX arrays under
+``jax.jit``: :func:`~quatform.algebra.kernels.namespace`); the same code serves all, so each
+formula is written once. A test on values (a branch, a refusal) is taken only where the
+values are concrete (:func:`~quatform.algebra.kernels.concrete`); on traced arrays both
+branches are computed and selected. Formulas cite
 seed 000; ``docs/derivations.md`` explains the departures from the printed forms.
 """
 
@@ -12,28 +16,43 @@ import math
 
 import numpy as np
 
+from ..algebra.kernels import concrete, namespace
 from ..algebra.kernels import qmul_components as qmul
 from ..errors import DegenerateInputError
 
 _EPS_ANTI = 1e-12
 
 
-def lib(x):
-    """``math`` for floats, ``numpy`` for arrays."""
-    return math if isinstance(x, float) else np
+def lib(*xs):
+    """``math`` for floats, ``numpy`` for NumPy arrays, the arrays' namespace otherwise (that of
+    the first operand that is not a float)."""
+    return namespace(next((x for x in xs if not isinstance(x, float)), xs[0]))
+
+
+def atan2(y, x):
+    """``atan2`` of floats or arrays (any namespace)."""
+    return math.atan2(y, x) if isinstance(y, float) and isinstance(x, float) else lib(y, x).arctan2(y, x)
+
+
+def any_true(mask) -> bool:
+    """Whether a concrete mask holds a True; True for a traced one (both branches are then taken)."""
+    if isinstance(mask, (bool, np.bool_)):
+        return bool(mask)
+    return bool(np.any(mask)) if concrete(mask) else True
 
 
 def select(mask, a, b):
     """``a`` where ``mask`` else ``b``, for floats or arrays (component tuples)."""
     if isinstance(mask, (bool, np.bool_)):
         return a if mask else b
-    return tuple(np.where(mask, x, y) for x, y in zip(a, b, strict=True))
+    where = lib(mask).where
+    return tuple(where(mask, x, y) for x, y in zip(a, b, strict=True))
 
 
 def neg_if(mask, a):
     if isinstance(mask, (bool, np.bool_)):
         return tuple(-x for x in a) if mask else a
-    s = np.where(mask, -1.0, 1.0)
+    s = lib(mask).where(mask, -1.0, 1.0)
     return tuple(s * x for x in a)
 
 
@@ -65,7 +84,7 @@ def yaw_of(q):
     w, x, y, z = q
     n = 2.0 * (w * z + x * y)
     d = w * w + x * x - y * y - z * z
-    return math.atan2(n, d) if isinstance(n, float) else np.arctan2(n, d)
+    return atan2(n, d)
 
 
 def yaw_rate(q, qd):
@@ -111,11 +130,12 @@ def quat_forward(r, qh, q1h=None, q2h=None):
     if isinstance(c, float):
         w = 1.0 + c if c >= 0.0 else vv / (1.0 - c)
     else:
-        w = np.where(c >= 0.0, 1.0 + c, vv / np.maximum(1.0 - c, 1.0))  # 1 - c >= 1 where used
+        L = lib(c)
+        w = L.where(c >= 0.0, 1.0 + c, vv / L.maximum(1.0 - c, 1.0))  # 1 - c >= 1 where used
     s = (w, vx, vy, vz)
     n = qdot(s, s) ** 0.5
     anti = n < _EPS_ANTI
-    if anti if isinstance(anti, bool) else np.any(anti):  # segment opposite the hint: half turn about the hint's z axis
+    if any_true(anti):  # segment opposite the hint: half turn about the hint's z axis
         zx, zy, zz = z_axis(qh)
         s = select(anti, (0.0 * n, zx, zy, zz), s)
         n = select(anti, (1.0 + 0.0 * n,), (n,))[0]
@@ -207,9 +227,8 @@ def dq_yaws(c):
     ``theta_1,2 = theta_c +- theta_s / 2``, the inverse of ``qhat_c = q_yaw((th1 + th2)/2)``,
     ``qhat_s = q_yaw(th1 - th2)``. Exact for yaw rotations; the yaw part of any other.
     """
-    at = math.atan2 if isinstance(c[0], float) else np.arctan2
-    th_c = 2.0 * at(c[3], c[0])
-    half_s = at(c[11], c[8])
+    th_c = 2.0 * atan2(c[3], c[0])
+    half_s = atan2(c[11], c[8])
     return th_c + half_s, th_c - half_s
 
 
@@ -230,7 +249,7 @@ def dq_align_yaws(r, t1, t2):
     (``docs/derivations.md``, Hardening (issue 12)).
     """
     flt = isinstance(r[3], float) and isinstance(t1, float)
-    fl = math.floor if flt else np.floor
+    fl = math.floor if flt else lib(r[3], t1).floor
     a1 = r[3] + _TWO_PI * fl((t1 - r[3]) / _TWO_PI + 0.5)
     a2 = r[7] + _TWO_PI * fl((t2 - r[7]) / _TWO_PI + 0.5)
     rel = (a1 - t1) - (a2 - t2)
@@ -279,20 +298,25 @@ def dq_inverse_jvp(c, cd, r):
 # -- packing --------------------------------------------------------------------------------
 
 def unpack(a):
-    """Components of ``(..., k)`` array ``a``: floats for 1-D input, array views otherwise."""
+    """Components of ``(..., k)`` array ``a``: floats for 1-D NumPy input, array views otherwise
+    (of any namespace)."""
+    if not isinstance(a, np.ndarray):
+        return tuple(a[..., i] for i in range(a.shape[-1]))
     return tuple(a.tolist()) if a.ndim == 1 else tuple(np.moveaxis(a, -1, 0))
 
 
 def pack(comps, axis=-1):
-    """Stack components (floats or arrays) into one array along ``axis``; arrays pass through."""
-    if isinstance(comps, np.ndarray):
+    """Stack components (floats or arrays of one namespace) into one array along ``axis``;
+    arrays pass through."""
+    if not isinstance(comps, (tuple, list)):
         return comps
     if isinstance(comps[0], float) and isinstance(comps[-1], float):
         try:
             return np.array(comps, dtype=float)
         except (TypeError, ValueError):
             pass
-    return np.stack(np.broadcast_arrays(*comps), axis=axis)
+    xp = next((lib(x) for x in comps if not isinstance(x, float)), np)
+    return xp.stack(xp.broadcast_arrays(*comps), axis=axis)
 
 
 def jacobian_from_jvp(jvp, c, n_c, *extra):
@@ -309,6 +333,8 @@ def check_apart(r, min_m):
     arrays within the magnitude limit, so the squares are finite) are within ``min_m``."""
     d2 = (r[0] - r[4]) ** 2 + (r[1] - r[5]) ** 2 + (r[2] - r[6]) ** 2
     close = d2 <= min_m * min_m
+    if not concrete(close):  # traced: the loop that traced it marks the worlds whose robots coincide
+        return
     if close if isinstance(close, bool) else np.any(close):
         raise DegenerateInputError(
             f"measured robots coincide (separation {float(np.min(np.sqrt(d2))):.3g} m); a two-robot "

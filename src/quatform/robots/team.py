@@ -23,6 +23,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from ..formations.layout import RobotLayout
@@ -275,7 +277,8 @@ class Team:
         part : str
             ``"state"``, ``"command"``, ``"rate"`` or ``"point"``.
         """
-        a = np.asarray(a, dtype=float)
+        if concrete(a) or isinstance(a, (list, tuple)):
+            a = np.asarray(a, dtype=float)
         return [getattr(g, part).gather(a) for g in self.groups]
 
     def scatter(self, parts, part: str = "state", batch: tuple | None = None) -> np.ndarray:
@@ -335,12 +338,13 @@ class Team:
     def limit_factor(self, u) -> np.ndarray:
         """The common factor of a holonomic team: the smallest any robot needs, shape ``(...)``
         (0 where a command is not finite)."""
+        xp = namespace(u)
         s = None
         for g, ug in zip(self.groups, self.gather(u, "command")):
             f = g.model.limit_factor(ug)
             if g.axis:
-                f = np.min(f, axis=-1)
-            s = f if s is None else np.minimum(s, f)
+                f = xp.min(f, axis=-1)
+            s = f if s is None else xp.minimum(s, f)
         return s
 
     def saturate(self, u) -> np.ndarray:
@@ -359,9 +363,15 @@ class Team:
         -------
         ndarray, shape (..., n)
         """
-        u = np.asarray(u, dtype=float)
+        if concrete(u) or isinstance(u, (list, tuple)):
+            u = np.asarray(u, dtype=float)
         if u.shape[-1:] != (self.n,):
             raise InvalidInputError(f"team command must have shape (..., {self.n}), got {u.shape}")
+        if not concrete(u):  # JAX (traced): a common-limit team of models with array-namespace limits
+            if not self.common_limit:
+                raise InvalidInputError("Team.saturate on JAX arrays needs a common-limit team of holonomic robots")
+            s = self.limit_factor(u)
+            return namespace(u).where(s[..., None] > 0, u * s[..., None], 0.0)
         if not self.common_limit:
             return self.scatter([g.model.saturate(ug) for g, ug in zip(self.groups, self.gather(u, "command"))],
                                 "command", u.shape[:-1])
@@ -386,7 +396,7 @@ class Team:
         team-saturated command; a team of 4-DOF and planar holonomic robots: ``x + dt u``
         with the common factor, exact)."""
         if self._additive:
-            x = as_array(x, "r", self.n_state)
+            x = as_array(x, "r", self.n_state) if concrete(x) else x
             return x + dt * self.saturate(u)
         x = np.asarray(x, dtype=float)
         us = self.gather(self.saturate(u), "command")

@@ -25,6 +25,7 @@ __all__ = ["SIM_BACKENDS", "simulator"]
 #: Backend name -> ``"module:function"`` (imported on first use).
 SIM_BACKENDS = {
     "numpy": "quatform.sim.simulate:simulate",
+    "jax": "quatform.sim.jax_loop:simulate",
 }
 
 

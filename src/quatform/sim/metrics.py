@@ -15,12 +15,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import dot_last
 from ..errors import InvalidInputError, ShapeError
 from ..formations import segment_direction
 from ..formations.base import PAIR_LAYOUT
 from .log import Log
 
-__all__ = ["compute_metrics", "errors_from_robots", "SINGULAR_THRESHOLD", "LOST_POSITION_M", "LOST_ANGLE_RAD"]
+__all__ = ["compute_metrics", "errors_from_robots", "robot_errors", "SINGULAR_THRESHOLD", "LOST_POSITION_M",
+           "LOST_ANGLE_RAD"]
 
 #: A measured state whose singularity measure falls below this is reported singular.
 SINGULAR_THRESHOLD = 0.02
@@ -44,21 +47,41 @@ def errors_from_robots(log: Log) -> dict:
     the recovered Euclidean variables, rad).
     """
     r, rd, e, e_des = log["state"], log["r_des"], log["e"], log["e_des"]
-    p, p_d = PAIR_LAYOUT.positions(r), PAIR_LAYOUT.positions(rd)  # (T, 2, 3)
-    mid = 0.5 * (p[:, 0] + p[:, 1])
-    mid_d = 0.5 * (p_d[:, 0] + p_d[:, 1])
-    delta = p[:, 0] - p[:, 1]
-    D = np.linalg.norm(delta, axis=1)
-    u = delta / D[:, None]
-    u_d = segment_direction(e_des[:, 3], e_des[:, 4])
+    return {**robot_errors(r, rd, e_des),
+            "recovered_euclidean": np.max(np.abs(wrap_angle(e[:, [3, 4, 6, 7]] - e_des[:, [3, 4, 6, 7]])), axis=1)}
+
+
+def robot_errors(r, r_des, e_des) -> dict:
+    """The error signals of :func:`errors_from_robots` but ``recovered_euclidean``, of robot
+    states with any leading axes (a time series, a batch of worlds at one tick ...), on NumPy
+    or JAX arrays (a batched rollout reduces them tick by tick).
+
+    Parameters
+    ----------
+    r, r_des : array_like, shape (..., 8)
+        Measured and desired robots (seed 000's pair), m and rad.
+    e_des : array_like, shape (..., 8)
+        Desired Euclidean cluster variables (eqs. (1)-(8)).
+
+    Returns
+    -------
+    dict of arrays, shape (...)
+    """
+    xp = namespace(r)
+    p, p_d = PAIR_LAYOUT.positions(r), PAIR_LAYOUT.positions(r_des)  # (..., 2, 3)
+    mid = 0.5 * (p[..., 0, :] + p[..., 1, :])
+    mid_d = 0.5 * (p_d[..., 0, :] + p_d[..., 1, :])
+    delta = p[..., 0, :] - p[..., 1, :]
+    D = xp.linalg.norm(delta, axis=-1)
+    u = delta / D[..., None]
+    u_d = segment_direction(e_des[..., 3], e_des[..., 4])
     return {
-        "cluster_position": np.linalg.norm(mid - mid_d, axis=1),
-        "shape": np.abs(0.5 * D - e_des[:, 5]),
-        "orientation": np.arccos(np.clip(np.einsum("ij,ij->i", u, u_d), -1.0, 1.0)),
-        "robot_position": np.max(np.linalg.norm(p - p_d, axis=-1), axis=-1),
-        "robot_yaw": np.max(np.abs(wrap_angle(PAIR_LAYOUT.yaws(r) - PAIR_LAYOUT.yaws(rd))), axis=-1),
+        "cluster_position": xp.linalg.norm(mid - mid_d, axis=-1),
+        "shape": xp.abs(0.5 * D - e_des[..., 5]),
+        "orientation": xp.arccos(xp.clip(dot_last(u, u_d), -1.0, 1.0)),
+        "robot_position": xp.max(xp.linalg.norm(p - p_d, axis=-1), axis=-1),
+        "robot_yaw": xp.max(xp.abs(wrap_angle(PAIR_LAYOUT.yaws(r) - PAIR_LAYOUT.yaws(r_des))), axis=-1),
         "separation": D,
-        "recovered_euclidean": np.max(np.abs(wrap_angle(e[:, [3, 4, 6, 7]] - e_des[:, [3, 4, 6, 7]])), axis=1),
     }
 
 
