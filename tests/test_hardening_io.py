@@ -423,7 +423,8 @@ def test_scenarios_and_plans_name_the_papers(capsys):
 def test_every_command_has_help_and_the_mujoco_hint_is_the_editable_install(capsys):
     parser = cli._build_parser()
     commands = next(a for a in parser._actions if a.dest == "command").choices
-    assert set(commands) == {"demo", "run", "plan", "plans", "compare", "teleop", "scenarios"}
+    assert set(commands) == {"demo", "run", "plan", "plans", "compare", "teleop", "scenarios", "sweep", "sweeps",
+                             "ros2", "replay"}
     for name in commands:
         with pytest.raises(SystemExit) as e:
             cli.main([name, "--help"])

@@ -5,13 +5,13 @@ reference), and the metrics, the time series and the figures read its Log (issue
 from __future__ import annotations
 
 import dataclasses
+import importlib
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import quatform.scenarios.base as scenario_base
 from quatform.errors import InvalidInputError, ShapeError
 from quatform.robots import Bebop, Pioneer
 from quatform.scenarios import KINDS
@@ -57,8 +57,9 @@ def test_marciano_circle_through_simulate_equals_todays_numbers(monkeypatch):
     """The run goes through quatform.sim.simulate (once) and gives main's metrics.json
     (values from /work/baseline_kin.json, marciano-circle/quaternion)."""
     calls = []
-    real = scenario_base.simulate
-    monkeypatch.setattr(scenario_base, "simulate", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
+    loop = importlib.import_module("quatform.sim.simulate")  # the module (quatform.sim.simulate is also the function)
+    real = loop.simulate  # the numpy backend of sim.backends.SIM_BACKENDS, looked up at each run
+    monkeypatch.setattr(loop, "simulate", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
     exp = UGV_UAV_KIND.experiment(load_scenario("marciano-circle"), formation="quaternion")
     assert isinstance(exp.plant, PioneerBebopPlant) and isinstance(exp.measurement, MotionCapture)
     log = exp.run()
