@@ -177,7 +177,8 @@ def plot_team_attitude(run: Log, path) -> Path:
     eu = unwrap_near(TeamChart.reading(e), eud)  # whole turns only: +-pi of one attitude read alike
     rows = [(f"q_c_{a} [-]", q[:, k], qd[:, k], False) for k, a in enumerate("wxyz")]
     rows += [(f"{a} [rad]", eu[:, k], eud[:, k], True) for k, a in enumerate(("yaw", "pitch", "roll"))]
-    return _measured_desired_grid(run, path, rows, "attitude: quaternion, and z-y-x Euler angles for reading")
+    return _measured_desired_grid(run, path, rows, "attitude: quaternion, and z-y-x Euler angles for reading "
+                                  "(principal values: yaw and roll jump by pi at pitch +-90 deg)")
 
 
 def plot_team_reading(run: Log, path) -> Path:
