@@ -38,10 +38,11 @@ def plan_to_dir(spec, out, alpha=None, plots: bool = True):
     built by :func:`~quatform.sim.output.staged_dir` (it appears only when complete;
     ``metrics.json`` is written last).
     """
+    given = spec
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     spec = _spec_with_alpha(spec, alpha)
     failure = None
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=(given,)) as tmp:
         try:
             plan, metrics = make_plan(spec)
         except ConvergenceError as exc:
@@ -85,9 +86,10 @@ def plan_case_to_dir(spec, out, case: str, plots: bool = True):
 def plan_alphas_to_dir(spec, out, alphas, plots: bool = True):
     """One plan per ``alpha`` in ``out/alpha-<A>/`` and, with ``plots``, ``out/paths_by_alpha.png``
     (seed 002 Figs. 3-4). Returns ``{alpha: metrics}``; a failed alpha has ``converged = false``."""
+    given = spec
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     plans, rows = {}, {}
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=(given,)) as tmp:
         for a in alphas:
             try:
                 plans[a], rows[a] = plan_to_dir(spec, tmp / f"alpha-{a:g}", a, plots)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..report.writers import write_columns, write_metrics
-from ..sim.output import staged_dir
+from ..sim.output import check_inputs_outside, staged_dir
 from .bag_poses import read_bag_poses
 from .bridge import STATUSES, FormationBridge, experiment_for
 from .robots_file import RobotsFile, read_robots_file
@@ -195,6 +195,8 @@ def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_
     plots : bool
         Draw ``commands.png``.
     """
+    inputs = (bag, robots if not isinstance(robots, RobotsFile) else None, scenario, reference)
+    check_inputs_outside(out, *inputs)  # before any work: the swap into out would delete them
     rf = robots if isinstance(robots, RobotsFile) else read_robots_file(robots)
     experiment = experiment_for(scenario, controller, reference)
     bridge = FormationBridge(experiment, rf)
@@ -203,7 +205,7 @@ def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_
     metrics = {"bag": str(bag), "scenario": str(experiment.scenario.name), "controller": experiment.label,
                "stamps": stamps, **result.metrics}
     result = ReplayResult(result.ticks, result.states, metrics)
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=inputs) as tmp:
         names, rows = _csv(result, bridge)
         write_columns(names, rows, tmp / "commands.csv")
         write_commands_mcap(result.ticks, bridge, tmp / "commands.mcap")
