@@ -105,10 +105,29 @@ def _metrics(bridge, ticks, poses, rate_hz) -> dict:
         "nonfinite_commands": int((~np.isfinite(u)).sum()),
         "stale_robots": sorted({n for t in ticks for n in t.stale}),
     }
-    errors = [t.signals["error"] for t in ticks if "error" in t.signals]
-    if errors:
-        out["max_abs_error"] = float(np.nanmax(np.abs(np.array(errors))))
+    out.update(_tracking_error(bridge, ticks))
     return out
+
+
+#: Endings of the error columns that are a (dual) quaternion block's scalar part ((w, x, y, z)
+#: order, docs/conventions.md): 1 (or -1) at zero error, so they are left out of the error.
+_SCALAR_PARTS = ("_w", "_rw")
+
+
+def _tracking_error(bridge, ticks) -> dict:
+    """``max_abs_tracking_error`` (over the ok ticks and the error's variables) and its value per
+    variable: the controller's error signal without the scalar parts of its quaternion blocks
+    (their body-frame error ``q_des* q`` is the identity at zero error; the vector part is
+    ``sin(angle / 2)`` times the axis). Empty when no tick computed an error."""
+    names = bridge.experiment.controller.signal_columns().get("error", ())
+    errors = [t.signals["error"] for t in ticks if "error" in t.signals]
+    keep = [j for j, n in enumerate(names) if not n.endswith(_SCALAR_PARTS)]
+    if not errors or not keep:
+        return {}
+    e = np.abs(np.asarray(errors, dtype=float).reshape(len(errors), -1)[:, keep])
+    per = np.nanmax(e, axis=0)
+    return {"max_abs_tracking_error": float(per.max()),
+            "max_abs_tracking_error_by_variable": {names[j]: round(float(v), 12) for j, v in zip(keep, per)}}
 
 
 def write_commands_mcap(ticks, bridge, path: Path) -> Path:
