@@ -183,3 +183,45 @@ def test_replay_refuses_a_bag_without_a_tick(pair_bag, tmp_path):
         (rf.robots[1].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns[5:6], msgs[1][5:6])))])
     with pytest.raises(InvalidInputError, match="no tick"):
         replay(bag, pair_bag["sc"], rf, tmp_path / "x", controller="quaternion", rate_hz=10.0)
+
+
+def _robots_toml(n: int) -> str:
+    return "".join(f'[[robots]]\nname = "robot_{i}"\npose_topic = "/robot_{i}/pose"\ncommand_type = "twist-stamped"\n'
+                   for i in range(1, n + 1))
+
+
+def _replay_of_a_run(tmp_path, scenario, controller: str, n_robots: int):
+    """``quatform run`` of ``scenario``, its run.mcap replayed through ``replay`` with a robots file
+    of ``/robot_i/pose``: (the ticks' commands, the run's timeseries.csv commands at the tick times)."""
+    from quatform.runs import run
+
+    run(scenario, tmp_path / "run", plots=False, quiet=True, controller=controller)
+    robots = H.write(tmp_path / "robots.toml", _robots_toml(n_robots))
+    res = replay(tmp_path / "run" / "run.mcap", scenario, robots, tmp_path / "replay", controller=controller,
+                 plots=False)
+    names = experiment_for(scenario, controller).controller.command_names
+    with open(tmp_path / "run" / "timeseries.csv") as f:
+        head = f.readline().strip().split(",")
+    table = np.loadtxt(tmp_path / "run" / "timeseries.csv", delimiter=",", skiprows=1, ndmin=2)
+    t_run, t_tick = table[:, 0], np.array([tk.t for tk in res.ticks])
+    assert res.metrics["ok_ticks"] == len(t_tick) == len(t_run)  # a tick at every pose time: every step
+    np.testing.assert_allclose(t_tick, t_run, rtol=0, atol=1e-9)
+    return np.array([tk.u for tk in res.ticks]), table[:, [head.index(n) for n in names]]
+
+
+def test_replaying_a_runs_mcap_gives_the_runs_commands(tmp_path):
+    """A real ``quatform run mas-kitts-helix`` run.mcap replayed gives its commands (timeseries.csv's,
+    9 significant digits) at the pose times."""
+    got, want = _replay_of_a_run(tmp_path, "mas-kitts-helix", "quaternion", 2)
+    assert np.abs(want).max() > 0.05  # the helix moves: the commands are not all zero
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+
+
+@pytest.mark.xfail(strict=False, reason="run.mcap publishes a Pioneer's control point, the bridge reads its "
+                   "wheel-axis middle (review finding 1): holds once quatform.bags writes REP-105 base_link")
+def test_replaying_a_pioneer_runs_mcap_gives_the_runs_commands(tmp_path):
+    """team-triangle-over-ugv (a Pioneer and three quadrotors; its first 10 s without the shape's
+    moves): replayed, the run's commands."""
+    got, want = _replay_of_a_run(tmp_path, H.short_triangle(tmp_path, 10.0), "quaternion", 4)
+    assert np.abs(want).max() > 0.05
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
