@@ -491,6 +491,8 @@ def test_an_out_holding_an_input_is_refused_before_any_work(tmp_path, monkeypatc
         (["run", "prev/sc.toml", "--controller", "quaternion", "--out", "prev"], "prev/sc.toml"),
         (["compare", "prev/sc.toml", "--out", "./prev/"], "prev/sc.toml"),
         (["plan", "prev/spec.toml", "--out", "prev"], "prev/spec.toml"),
+        (["plan", "prev/spec.toml", "--case", "a", "--out", "prev"], "prev/spec.toml"),
+        (["plan", "prev/spec.toml", "--alpha", "0.5", "--alpha", "0.9", "--out", "prev"], "prev/spec.toml"),
         (["replay", "prev/run.mcap", "--scenario", "mas-kitts-helix", "--controller", "quaternion", "--robots",
           "prev/robots.toml", "--out", "prev"], "prev/run.mcap"),
         (["replay", "prev", "--scenario", "mas-kitts-helix", "--controller", "quaternion", "--robots",

@@ -13,7 +13,7 @@ from pathlib import Path
 from .errors import ConvergenceError, InvalidInputError
 from .planning import load_plan_spec, make_plan
 from .report.writers import write_json
-from .sim.output import staged_dir
+from .sim.output import check_inputs_outside, staged_dir
 
 __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
 
@@ -75,6 +75,7 @@ def _write_plan(spec, plan, metrics, out, plots):
 
 def plan_case_to_dir(spec, out, case: str, plots: bool = True):
     """:func:`plan_to_dir` of a seed 004 ``[airplanes]`` spec with its ``case`` replaced."""
+    check_inputs_outside(out, spec)
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     if "airplanes" not in spec.options:
         raise InvalidInputError(f"--case applies to specs with an [airplanes] table (seed 004 §4); {spec.name} "
