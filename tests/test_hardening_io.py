@@ -465,3 +465,58 @@ def test_a_second_ctrl_c_while_reporting_the_first_is_ignored(tmp_path, monkeypa
     assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "r")]) == 130
     assert seen and seen[-1][0].startswith("interrupted") and seen[-1][1] is signal.SIG_IGN
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_an_out_holding_an_input_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    """Review finding 2: ``--out`` set to the folder of its own input would delete the input."""
+    from quatform.planning import builtin_plan_specs
+    from quatform.scenarios import builtin_scenarios
+
+    def no_work(*a, **k):
+        raise AssertionError("work started")
+
+    monkeypatch.setattr(Experiment, "run", no_work)
+    prev = tmp_path / "prev"
+    prev.mkdir()
+    files = {"plan.npz": b"npz", "run.mcap": b"mcap", "robots.toml": b"",
+             "spec.toml": builtin_plan_specs()["belta-kumar-2002-two-bodies"].read_bytes(),
+             "sc.toml": builtin_scenarios()["mas-kitts-helix"].read_bytes(), "sweep.toml": b""}
+    for name, data in files.items():
+        (prev / name).write_bytes(data)
+    (prev / OUTPUT_MARKER).write_text(json.dumps({"written_by": "quatform", "entries": sorted(files)}))
+    monkeypatch.chdir(tmp_path)
+    commands = [
+        (["run", "team-three-bodies", "--reference", "prev/plan.npz", "--out", "prev"], "prev/plan.npz"),
+        (["compare", "team-three-bodies", "--reference", "prev/plan.npz", "--out", "prev"], "prev/plan.npz"),
+        (["run", "prev/sc.toml", "--controller", "quaternion", "--out", "prev"], "prev/sc.toml"),
+        (["compare", "prev/sc.toml", "--out", "./prev/"], "prev/sc.toml"),
+        (["plan", "prev/spec.toml", "--out", "prev"], "prev/spec.toml"),
+        (["plan", "prev/spec.toml", "--case", "a", "--out", "prev"], "prev/spec.toml"),
+        (["plan", "prev/spec.toml", "--alpha", "0.5", "--alpha", "0.9", "--out", "prev"], "prev/spec.toml"),
+        (["replay", "prev/run.mcap", "--scenario", "mas-kitts-helix", "--controller", "quaternion", "--robots",
+          "prev/robots.toml", "--out", "prev"], "prev/run.mcap"),
+        (["replay", "prev", "--scenario", "mas-kitts-helix", "--controller", "quaternion", "--robots",
+          "prev/robots.toml", "--out", str(prev)], "'prev'"),
+        (["sweep", "prev/sweep.toml", "--out", "prev"], "prev/sweep.toml"),
+    ]
+    for argv, named in commands:
+        assert cli.main(argv) == 2, argv
+        err = _lines(capsys.readouterr().err)
+        assert len(err) == 1 and "inside the output folder" in err[0] and named in err[0], (argv, err)
+        assert "--out" in err[0] and "outside it" in err[0]
+    assert sorted(p.name for p in prev.iterdir()) == sorted([*files, OUTPUT_MARKER])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["prev"]
+
+
+def test_check_inputs_outside_follows_links_and_skips_names(tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "bag.mcap").write_text("x")
+    (tmp_path / "link").symlink_to(tmp_path / "out")
+    with pytest.raises(InvalidInputError, match="bag.mcap"):
+        output.check_inputs_outside(tmp_path / "link", tmp_path / "out" / "bag.mcap")
+    with pytest.raises(InvalidInputError, match="inside the output folder"):
+        with staged_dir(tmp_path / "out", inputs=[str(tmp_path / "link" / "bag.mcap")]):
+            raise AssertionError("entered")
+    output.check_inputs_outside(tmp_path / "out", None, "mas-kitts-helix", tmp_path / "bag.mcap", object())
+    output.check_inputs_outside(tmp_path / "out2", tmp_path / "out" / "bag.mcap")
+    assert (tmp_path / "out" / "bag.mcap").read_text() == "x"

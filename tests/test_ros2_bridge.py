@@ -84,6 +84,49 @@ def test_ned_frd_conversions_are_the_same_rotation(q, v, w):
     np.testing.assert_allclose(frames.enu_from_ned(frames.ned_from_enu(w)), w, atol=0)
 
 
+#: Independent constructions (review finding 17): the axes of NED in ENU coordinates (north = ENU y,
+#: east = ENU x, down = -ENU z) and of FRD in FLU ones (forward, right = -left, down = -up), as matrices.
+M_NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+M_FRD_FLU = np.diag([1.0, -1.0, -1.0])
+
+
+def _matrix(q_wxyz):
+    """Rotation matrix of a (w, x, y, z) quaternion by scipy (scalar-last), not quatform's algebra."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(np.r_[q_wxyz[1:], q_wxyz[0]]).as_matrix()
+
+
+@settings(max_examples=50, deadline=None)
+@given(q=unit_q, p=vec3, v=vec3, w=vec3)
+def test_ned_frd_conversions_match_explicit_matrices(q, p, v, w):
+    """Poses and twists through PX4's VehicleOdometry against the explicit ENU->NED and FLU->FRD
+    matrices and scipy's rotation matrices: ``R_NED_FRD = M_NED_ENU R_ENU_FLU M_FRD_FLU^T``."""
+    from quatform.ros2.px4 import vehicle_odometry, vehicle_odometry_pose
+
+    q = q / np.linalg.norm(q)
+    np.testing.assert_allclose(frames.ned_from_enu(p), M_NED_ENU @ p, atol=0)
+    np.testing.assert_allclose(frames.frd_from_flu(w), M_FRD_FLU @ w, atol=0)
+    R = _matrix(q)
+    want = M_NED_ENU @ R @ M_FRD_FLU.T
+    np.testing.assert_allclose(_matrix(frames.q_ned_frd_from_enu_flu(q)), want, atol=1e-12)
+    np.testing.assert_allclose(_matrix(frames.q_ned_frd_from_enu_flu(q)) @ (M_FRD_FLU @ v), M_NED_ENU @ (R @ v),
+                               atol=1e-9)
+    # a VehicleOdometry (float32 fields): NED position and velocity, FRD body rates, then back
+    v_world = R @ v
+    msg = vehicle_odometry(1.5, p, q, v_world, w)
+    np.testing.assert_allclose(msg.position, M_NED_ENU @ p, rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(msg.velocity, M_NED_ENU @ v_world, rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(msg.angular_velocity, M_FRD_FLU @ w, rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(_matrix(np.asarray(msg.q, dtype=float) / np.linalg.norm(msg.q)), want, atol=1e-6)
+    t, p_back, q_back, (lin, ang) = vehicle_odometry_pose(msg)
+    assert t == pytest.approx(1.5)
+    np.testing.assert_allclose(p_back, p, rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(_matrix(q_back), R, atol=1e-6)
+    np.testing.assert_allclose(lin, R.T @ v_world, rtol=1e-5, atol=1e-4)  # the body (FLU) velocity
+    np.testing.assert_allclose(ang, w, rtol=1e-6, atol=1e-5)
+
+
 def test_ned_of_a_yaw_is_its_negation_from_north():
     """Facing east in ENU (yaw 0) is yaw pi/2 in NED (heading measured from north toward east)."""
     q_ned = frames.q_ned_frd_from_enu_flu(np.array([1.0, 0, 0, 0]))
@@ -191,6 +234,8 @@ def test_bridge_refuses_what_the_robots_cannot_take(tmp_path):
     four = [{"name": f"r{i}", "pose_topic": f"/p{i}"} for i in range(4)]
     with pytest.raises(InvalidInputError, match=r"names 3 robots, .* has 4 \(Pioneer"):
         FormationBridge(exp, robots_from_dict({"robots": four[:3]}, "robots.toml"))
+    with pytest.raises(InvalidInputError, match=r"names 1 robot, .* has 4 \(Pioneer"):  # one: no plural
+        FormationBridge(exp, robots_from_dict({"robots": four[:1]}, "robots.toml"))
     with pytest.raises(InvalidInputError, match="robot 'r0' is a Pioneer.*command_frame = 'body'"):
         FormationBridge(exp, robots_from_dict({"robots": [{**four[0], "command_frame": "world"}, *four[1:]]}, "f"))
     with pytest.raises(InvalidInputError, match="robot 'r0' is a Pioneer.*px4 velocity setpoint"):

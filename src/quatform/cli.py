@@ -208,7 +208,9 @@ def _build_parser() -> argparse.ArgumentParser:
 def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, rerun=None) -> None:
     from .runs import compare, compare_columns, format_table, given_options
     from .scenarios import kind_of, load_scenario
+    from .sim.output import check_inputs_outside
 
+    check_inputs_outside(out, scenario)  # a scenario file in --out: refused before any work
     sc = load_scenario(scenario)
     kind = kind_of(sc)
     options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
@@ -281,7 +283,9 @@ def _run(args, kinds) -> None:
     """``quatform run`` (and ``teleop``): one run of any kind with the given options."""
     from .runs import given_options, run
     from .scenarios import kind_of, load_scenario
+    from .sim.output import check_inputs_outside
 
+    check_inputs_outside(args.out, args.scenario)  # a scenario file in --out: refused before any work
     sc = load_scenario(args.scenario)
     kind = kind_of(sc)
     if args.command == "teleop" and kind.name != TELEOP_KIND:

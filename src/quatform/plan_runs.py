@@ -13,7 +13,7 @@ from pathlib import Path
 from .errors import ConvergenceError, InvalidInputError
 from .planning import load_plan_spec, make_plan
 from .report.writers import write_json
-from .sim.output import staged_dir
+from .sim.output import check_inputs_outside, staged_dir
 
 __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
 
@@ -38,10 +38,11 @@ def plan_to_dir(spec, out, alpha=None, plots: bool = True):
     built by :func:`~quatform.sim.output.staged_dir` (it appears only when complete;
     ``metrics.json`` is written last).
     """
+    given = spec
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     spec = _spec_with_alpha(spec, alpha)
     failure = None
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=(given,)) as tmp:
         try:
             plan, metrics = make_plan(spec)
         except ConvergenceError as exc:
@@ -74,6 +75,7 @@ def _write_plan(spec, plan, metrics, out, plots):
 
 def plan_case_to_dir(spec, out, case: str, plots: bool = True):
     """:func:`plan_to_dir` of a seed 004 ``[airplanes]`` spec with its ``case`` replaced."""
+    check_inputs_outside(out, spec)
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     if "airplanes" not in spec.options:
         raise InvalidInputError(f"--case applies to specs with an [airplanes] table (seed 004 §4); {spec.name} "
@@ -85,9 +87,10 @@ def plan_case_to_dir(spec, out, case: str, plots: bool = True):
 def plan_alphas_to_dir(spec, out, alphas, plots: bool = True):
     """One plan per ``alpha`` in ``out/alpha-<A>/`` and, with ``plots``, ``out/paths_by_alpha.png``
     (seed 002 Figs. 3-4). Returns ``{alpha: metrics}``; a failed alpha has ``converged = false``."""
+    given = spec
     spec = load_plan_spec(spec) if isinstance(spec, (str, Path)) else spec
     plans, rows = {}, {}
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=(given,)) as tmp:
         for a in alphas:
             try:
                 plans[a], rows[a] = plan_to_dir(spec, tmp / f"alpha-{a:g}", a, plots)

@@ -174,7 +174,7 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
     kind = kind_of(sc)
     given = given_options(kind, options, where=str(sc.name))
     target = _rerun_target(rerun)
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
         log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap)
     if target is not None:
         from .bags.rerun import write_rerun
@@ -238,7 +238,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
     if not quiet:
         for value, why in skipped.items():
             print(f"  {sc.name} / {value}: not run: {why}", file=sys.stderr)
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
         logs, rows = [], []
         for value in values:
             log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value},

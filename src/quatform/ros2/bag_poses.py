@@ -6,7 +6,9 @@ robot's pose *messages* with their times: the bridge reads velocities (odometry)
 NED/FRD frames from the messages themselves, so this keeps them rather than the position
 and quaternion arrays of :func:`quatform.bags.read_poses`. Bad input is one line naming the
 topic and the fix: a missing topic, a topic of another type, a topic without messages, time
-stamps that go back.
+stamps that do not increase (equal ones too, as :func:`quatform.bags.read_poses`; messages are
+counted from 0 in both). A NaN or non-unit pose is not refused here: the bridge drops it as a
+lost frame, as the live node does, so a replay gives the node's commands.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ class BagPoses:
     Attributes
     ----------
     times_ns : tuple of ndarray (int64), one per robot
-        Each message's time, ns, not decreasing.
+        Each message's time, ns, increasing.
     messages : tuple of lists, one per robot
         The deserialised messages, in time order.
     topics : dict
@@ -89,12 +91,13 @@ def read_bag_poses(bag, robots: RobotsFile, stamps: str = "header") -> BagPoses:
             raise InvalidInputError(f"{path}: topic {link.pose_topic} (robot {link.name!r}) has no messages; record "
                                     "the robot's poses")
         a = np.asarray(ts, dtype=np.int64)
-        back = np.flatnonzero(np.diff(a) < 0)
+        back = np.flatnonzero(np.diff(a) <= 0)  # the rule of quatform.bags.read_poses: equal stamps too
         if back.size:
             k = int(back[0]) + 1
+            fix = ("fix the publisher's clock (a monotonic one), or replay with --stamps log (the recorder's "
+                   "receive times)" if stamps == "header" else "sort and de-duplicate the messages")
             raise InvalidInputError(
-                f"{path}: topic {link.pose_topic} (robot {link.name!r}): the {stamps} stamp of message {k + 1} "
-                f"({a[k] * 1e-9:.9f} s) is earlier than the one before ({a[k - 1] * 1e-9:.9f} s); stamps must not go "
-                "back: fix the publisher's clock" + (", or replay with --stamps log" if stamps == "header" else ""))
+                f"bag {path}: topic {link.pose_topic} (robot {link.name!r}) {stamps} stamps do not increase: "
+                f"message {k} (counted from 0) at t = {a[k] * 1e-9:.9f} s follows t = {a[k - 1] * 1e-9:.9f} s; {fix}")
         out.append(a)
     return BagPoses(tuple(out), tuple(msgs), topics)

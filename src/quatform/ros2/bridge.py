@@ -119,8 +119,10 @@ class FormationBridge:
         models = pr.models
         if len(robots.robots) != len(models):
             kinds = ", ".join(robot_io(m).kind for m in models)
-            raise InvalidInputError(f"{robots.where} names {len(robots.robots)} robots, {where} has {len(models)} "
-                                    f"({kinds}); give one [[robots]] table per robot, in the scenario's order")
+            n = len(robots.robots)
+            raise InvalidInputError(f"{robots.where} names {n} robot{'' if n == 1 else 's'}, {where} has "
+                                    f"{len(models)} ({kinds}); give one [[robots]] table per robot, in the "
+                                    "scenario's order")
         self.ios = tuple(robot_io(m) for m in models)
         frames = []
         for link, io, model in zip(robots.robots, self.ios, models):

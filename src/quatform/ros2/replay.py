@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..report.writers import write_columns, write_metrics
-from ..sim.output import staged_dir
+from ..sim.output import check_inputs_outside, staged_dir
 from .bag_poses import read_bag_poses
 from .bridge import STATUSES, FormationBridge, experiment_for
 from .robots_file import RobotsFile, read_robots_file
@@ -105,10 +105,29 @@ def _metrics(bridge, ticks, poses, rate_hz) -> dict:
         "nonfinite_commands": int((~np.isfinite(u)).sum()),
         "stale_robots": sorted({n for t in ticks for n in t.stale}),
     }
-    errors = [t.signals["error"] for t in ticks if "error" in t.signals]
-    if errors:
-        out["max_abs_error"] = float(np.nanmax(np.abs(np.array(errors))))
+    out.update(_tracking_error(bridge, ticks))
     return out
+
+
+#: Endings of the error columns that are a (dual) quaternion block's scalar part ((w, x, y, z)
+#: order, docs/conventions.md): 1 (or -1) at zero error, so they are left out of the error.
+_SCALAR_PARTS = ("_w", "_rw")
+
+
+def _tracking_error(bridge, ticks) -> dict:
+    """``max_abs_tracking_error`` (over the ok ticks and the error's variables) and its value per
+    variable: the controller's error signal without the scalar parts of its quaternion blocks
+    (their body-frame error ``q_des* q`` is the identity at zero error; the vector part is
+    ``sin(angle / 2)`` times the axis). Empty when no tick computed an error."""
+    names = bridge.experiment.controller.signal_columns().get("error", ())
+    errors = [t.signals["error"] for t in ticks if "error" in t.signals]
+    keep = [j for j, n in enumerate(names) if not n.endswith(_SCALAR_PARTS)]
+    if not errors or not keep:
+        return {}
+    e = np.abs(np.asarray(errors, dtype=float).reshape(len(errors), -1)[:, keep])
+    per = np.nanmax(e, axis=0)
+    return {"max_abs_tracking_error": float(per.max()),
+            "max_abs_tracking_error_by_variable": {names[j]: round(float(v), 12) for j, v in zip(keep, per)}}
 
 
 def write_commands_mcap(ticks, bridge, path: Path) -> Path:
@@ -195,6 +214,8 @@ def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_
     plots : bool
         Draw ``commands.png``.
     """
+    inputs = (bag, robots if not isinstance(robots, RobotsFile) else None, scenario, reference)
+    check_inputs_outside(out, *inputs)  # before any work: the swap into out would delete them
     rf = robots if isinstance(robots, RobotsFile) else read_robots_file(robots)
     experiment = experiment_for(scenario, controller, reference)
     bridge = FormationBridge(experiment, rf)
@@ -203,7 +224,7 @@ def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_
     metrics = {"bag": str(bag), "scenario": str(experiment.scenario.name), "controller": experiment.label,
                "stamps": stamps, **result.metrics}
     result = ReplayResult(result.ticks, result.states, metrics)
-    with staged_dir(out) as tmp:
+    with staged_dir(out, inputs=inputs) as tmp:
         names, rows = _csv(result, bridge)
         write_columns(names, rows, tmp / "commands.csv")
         write_commands_mcap(result.ticks, bridge, tmp / "commands.mcap")

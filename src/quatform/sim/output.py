@@ -19,7 +19,7 @@ import threading
 from pathlib import Path
 
 
-__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "OUTPUT_MARKER"]
+__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER"]
 
 
 # --------------------------------------------------------------------------- atomic files
@@ -92,6 +92,43 @@ def _check_out(out: Path, final: Path) -> None:
             "replaces its output folder as a whole, so give a new or empty folder, or move those files away")
 
 
+def check_inputs_outside(out, *inputs, flag: str = "--out") -> None:
+    """Refuse an output folder that is, or holds, one of the run's input files (one line naming both).
+
+    :func:`staged_dir` replaces ``out`` as a whole, so an input inside it (a bag, a plan, a
+    spec) would be deleted by the run that reads it. Links are followed (the real paths are
+    compared); ``None``, what is not path-like (a loaded scenario) and what is not a file or
+    folder (a built-in name) are skipped. An ``out`` holding a NUL character is refused too.
+
+    Parameters
+    ----------
+    out : str or path-like
+        The output folder.
+    *inputs : str, path-like or None
+        The files or folders the run reads.
+    flag : str
+        How the output folder is named in the message (the CLI's flag).
+    """
+    from ..errors import InvalidInputError
+
+    if "\x00" in str(out):
+        raise InvalidInputError(f"output folder {str(out)!r} holds a NUL character; give a folder name without it")
+    final = Path(os.path.realpath(out))
+    for given in inputs:
+        if not isinstance(given, (str, os.PathLike)) or "\x00" in str(given):
+            continue
+        path = Path(given)
+        if not path.exists():  # a built-in name, not a file
+            continue
+        real = Path(os.path.realpath(path))
+        if real == final or final in real.parents:
+            outside = os.path.join(os.path.dirname(os.path.abspath(out)) or ".", f"{final.name}-out")
+            raise InvalidInputError(
+                f"input {str(given)!r} is inside the output folder {flag} {str(out)!r}, which quatform replaces "
+                f"whole (the input would be deleted); give an {flag} outside it (e.g. {flag} {outside}) or move "
+                "the input out first")
+
+
 _STALE = re.compile(r"\.(?P<name>.+)\.(?:partial|old)-(?P<pid>\d+)$")
 
 
@@ -128,7 +165,7 @@ def _no_sigint():
 
 
 @contextlib.contextmanager
-def staged_dir(out):
+def staged_dir(out, inputs=()):
     """Build an output folder in a hidden sibling and swap it into place when the block succeeds.
 
     Yields the temporary folder ``<parent>/.<name>.partial-<pid>``; write every file of the
@@ -137,22 +174,22 @@ def staged_dir(out):
     removed. On any exception, KeyboardInterrupt included, the temporary folder and any parent
     folders made for it are removed and ``out`` is left as it was. Refused up front (one line):
     an ``out`` that is a file, a symbolic link, the current folder or one holding it, or a
-    folder holding entries quatform did not write (user files are never deleted).
+    folder holding entries quatform did not write (user files are never deleted), and an
+    ``out`` that holds one of ``inputs`` (:func:`check_inputs_outside`).
 
     Parameters
     ----------
     out : str or path-like
         The final output folder.
+    inputs : sequence of str, path-like or None
+        The files the run reads; none may lie inside ``out``.
 
     Yields
     ------
     pathlib.Path
         The temporary folder to write into.
     """
-    if "\x00" in str(out):
-        from ..errors import InvalidInputError
-
-        raise InvalidInputError(f"output folder {str(out)!r} holds a NUL character; give a folder name without it")
+    check_inputs_outside(out, *inputs)  # refuses a NUL in out too
     out = Path(out)
     final = Path(os.path.abspath(out))
     _check_out(out, final)

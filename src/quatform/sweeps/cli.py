@@ -64,8 +64,10 @@ def sweep_command(args) -> None:
     from ..errors import InvalidInputError
     from .executors import slurm_job_script
     from .runner import run_sweep
+    from ..sim.output import check_inputs_outside
     from .spec import load_sweep
 
+    check_inputs_outside(args.out, args.spec)  # a spec file inside --out: refused before any work
     if args.trials is not None and args.trials < 1:
         raise InvalidInputError(f"--trials {args.trials} must be >= 1")
     spec = load_sweep(args.spec, trials=args.trials)
