@@ -17,7 +17,8 @@ each body, to ``<body>_desired``, to ``formation`` and ``formation_desired``), `
 ``/formation/pose``, ``/formation/pose_desired``, ``/formation/edges``
 (``visualization_msgs/MarkerArray``, LINE_LIST); MuJoCo runs: each quadrotor's
 ``/<body>/rotors`` (``quatform_msgs/msg/Rotors``: collective thrust, four motor commands, four
-rotor forces, N) and its full attitude in its pose and TF; teleoperation: ``/<arm>/joint_states``
+rotor forces, N) and its full attitude in its pose and TF; the UGV-UAV's ``/bebop/odom``
+(``nav_msgs/Odometry``: pose and body twist, as ``bebop_autonomy`` publishes); teleoperation: ``/<arm>/joint_states``
 (``sensor_msgs/JointState``), ``/slave_wrist/wrench`` (``geometry_msgs/WrenchStamped``);
 and every channel of the log as ``/quatform/<channel>``, a message whose fields are the
 channel's column names (``quatform_msgs/msg/<Channel>``: a header and one ``float64`` per
@@ -262,6 +263,13 @@ def _scene_topics(topics: _Topics, scene: Scene, t: np.ndarray) -> None:
         for r in scene.rotors:
             values = np.concatenate([r.force.sum(axis=1, keepdims=True), r.command, r.force], axis=1)
             topics.add(f"/{r.body}/rotors", template, {**hdr, **{(f,): values[:, j] for j, f in enumerate(fields)}})
+    for od in scene.odometry:
+        i = scene.bodies.index(od.body)
+        parent = scene.parents[i]
+        cols = {**hdr, **_pose_columns(("pose", "pose"), scene.position[:, i], scene.quaternion[:, i]),
+                **{("twist", "twist", part, a): v[:, j] for part, v in (("linear", od.linear), ("angular", od.angular))
+                   for j, a in enumerate("xyz")}}
+        topics.add(f"/{od.body}/odom", messages.odometry(t0, *_IDENTITY, [0, 0, 0], [0, 0, 0], parent, od.body), cols)
     if per_body:
         _paths(topics, scene, t)
 
