@@ -404,22 +404,34 @@ def test_read_poses_refuses_bad_stamps_and_non_unit_quaternions(tmp_path):
         read_log(bag)
 
 
-def test_the_foxglove_layout_names_topics_and_fields_a_pair_run_has(runs):
-    """Every plotted path ``/topic.field`` of the shipped layout is a field of that topic in a pair run."""
-    _, _, path = runs["pair"]
+def _layout_values(topics):
+    """Every plotted ``/topic.field.path`` of the shipped layout read from the last message of its
+    topic in ``topics`` (a KeyError or AttributeError where a run lacks one)."""
     layout = foxglove_layout()
-    topics = _read_all(path)
-    info = json.loads(topics[INFO_TOPIC][1][0][1].data)
-    fields = {d["topic"]: d["fields"] for d in info["channels"].values()}
     plotted = [p["value"] for panel in layout["configById"].values() for p in panel.get("paths", [])]
-    assert len(plotted) >= 10
+    out = {}
     for value in plotted:
-        topic, field = value.split(".")
-        assert field in fields[topic], value
+        topic, *fields = value.split(".")
+        m = topics[topic][1][-1][1]
+        for f in fields:
+            m = getattr(m, f)
+        out[value] = float(m)
+    return out
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c != "teleop"])
+def test_the_foxglove_layout_plots_fields_every_formation_run_has(runs, case):
+    """Every plotted path of the shipped layout is a numeric field of a topic the run has."""
+    _, _, path = runs[case]
+    topics = _read_all(path)
+    values = _layout_values(topics)
+    assert len(values) >= 10 and all(np.isfinite(v) for v in values.values())
+    layout = foxglove_layout()
     three_d = next(c for k, c in layout["configById"].items() if k.startswith("3D!"))
     assert three_d["followTf"] == "world"
-    for topic in ("/formation/edges", "/robot_1/path", "/robot_1/path_desired"):
-        assert topic in topics and three_d["topics"][topic]["visible"]
+    if case == "pair":
+        for topic in ("/formation/edges", "/robot_1/path", "/robot_1/path_desired"):
+            assert topic in topics and three_d["topics"][topic]["visible"]
 
 
 def test_cli_run_writes_run_mcap_that_rosbags_reads_one_message_per_sample(tmp_path, capsys):
@@ -547,6 +559,11 @@ def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
     elif kind.name == "pair":
         np.testing.assert_allclose(np.r_[p, q], FORMATIONS["quaternion"].forward(log["state"][k])[:7], atol=1e-12)
     assert {"formation", "formation_desired"} <= {t.child_frame_id for t in topics["/tf"][1][k][1].transforms}
+    _, pd, qd, _ = messages.pose_from_msg(topics["/formation/pose_desired"][1][k][1])
+    err = topics["/formation/error"][1][k][1]
+    np.testing.assert_allclose([err.x, err.y, err.z], pd - p, atol=1e-12)
+    assert err.angle == pytest.approx(2 * np.arccos(min(1.0, abs(float(np.dot(q, qd))))), abs=1e-9)
+    assert len(_layout_values(topics)) >= 10  # the Foxglove layout's plots have data for every controller
 
 
 def test_a_read_back_team_log_is_refused_with_one_line(runs, tmp_path):
