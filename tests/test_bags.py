@@ -572,3 +572,10 @@ def test_a_read_back_team_log_is_refused_with_one_line(runs, tmp_path):
     with pytest.raises(InvalidInputError, match="read back from run.mcap.*scene=False"):
         write_mcap(back, tmp_path / "again.mcap", kind="team")
     assert write_mcap(back, tmp_path / "again.mcap", kind="team", scene=False).is_file()
+
+
+def test_read_log_of_a_no_mcap_run_folder_says_so(tmp_path):
+    assert main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "r"), "--no-plots",
+                 "--no-mcap"]) == 0
+    with pytest.raises(InvalidInputError, match=r"this run folder has no run.mcap \(written with --no-mcap\?\)"):
+        read_log(tmp_path / "r")
