@@ -510,22 +510,24 @@ def _pose_sample(msg):
     return PoseSample(t, p, q)
 
 
-@pytest.mark.parametrize("case, topic, model, columns", [
-    ("ugv-uav", "/pioneer/pose", Pioneer(), ("x_p", "y_p", "psi_p")),
-    ("ugv-uav", "/bebop/odom", Bebop(), ("x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")),
-    ("team-mixed", "/robot_1/pose", Pioneer(), ("x1", "y1", "psi1"))])
-def test_the_ros2_bridge_reads_a_runs_poses_back_as_the_state(runs, case, topic, model, columns):
+@pytest.mark.parametrize("case, topic, model, channel, columns", [
+    ("ugv-uav", "/pioneer/pose", Pioneer(), "state", ("x_p", "y_p", "psi_p")),
+    ("ugv-uav", "/pioneer/pose_measured", Pioneer(), "measured", ("x_p", "y_p", "psi_p")),
+    ("ugv-uav", "/bebop/odom", Bebop(), "measured", ("x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b",
+                                                     "psi_dot_b")),
+    ("team-mixed", "/robot_1/pose", Pioneer(), "state", ("x1", "y1", "psi1"))])
+def test_the_ros2_bridge_reads_a_runs_poses_back_as_the_state(runs, case, topic, model, channel, columns):
     """A Pioneer's pose is its base: the bridge's +a gives the state's control point back; the
-    Bebop's odometry (pose + body twist) gives its whole state back (the replay contract)."""
+    Bebop's odometry (pose + body twist) gives the whole state the controller read (the replay contract)."""
     from quatform.ros2.robot_io import robot_io
 
     _, log, path = runs[case]
     msgs = _read_all(path)[topic][1]
-    cols = log.columns("state")
+    cols = log.columns(channel)
     io = robot_io(model)
     for k in (0, len(log) // 2, len(log) - 1):
         got = io.state(model, _pose_sample(msgs[k][1]), None)
-        np.testing.assert_allclose(got, log["state"][k, [cols.index(c) for c in columns]], atol=1e-12)
+        np.testing.assert_allclose(got, log[channel][k, [cols.index(c) for c in columns]], atol=1e-12)
     if topic == "/bebop/odom":
         m = msgs[-1][1]
         assert (m.header.frame_id, m.child_frame_id) == ("world", "bebop")
@@ -579,3 +581,40 @@ def test_read_log_of_a_no_mcap_run_folder_says_so(tmp_path):
                  "--no-mcap"]) == 0
     with pytest.raises(InvalidInputError, match=r"this run folder has no run.mcap \(written with --no-mcap\?\)"):
         read_log(tmp_path / "r")
+
+
+REPLAY_ROBOTS = {
+    "marciano-circle": [("pioneer", "/pioneer/pose_measured", "pose"), ("bebop", "/bebop/odom", "odometry")],
+    "team-triangle-over-ugv": [(f"robot_{i}", f"/robot_{i}/pose", "pose") for i in range(1, 5)],
+}
+
+
+@pytest.mark.parametrize("name, options", [("marciano-circle", []),
+                                           ("team-triangle-over-ugv", ["--controller", "quaternion"])])
+def test_replaying_a_runs_mcap_gives_the_runs_commands(tmp_path, capsys, name, options):
+    """quatform replay on a run's own run.mcap (the Pioneer's base pose, the Bebop's odometry)
+    commands what the run commanded."""
+    import csv
+    import re
+
+    from quatform.scenarios import builtin_scenarios
+
+    text = builtin_scenarios()[name].read_text()
+    toml = tmp_path / f"{name}.toml"
+    for key, value in (("duration_s", 1.0), ("transient_s", 0.5), ("metrics_from_s", 0.0)):
+        text = re.sub(rf"(?m)^{key} = .*$", f"{key} = {value}", text, count=1)
+    text = re.sub(r"(?ms)^\[\[shape\.moves\]\].*?(?=^\[path\])", "", text)  # its move starts after 1 s
+    toml.write_text(text)
+    assert main(["run", str(toml), *options, "--out", str(tmp_path / "run"), "--no-plots"]) == 0
+    have = set(_read_all(tmp_path / "run" / MCAP_FILE))
+    robots = tmp_path / "robots.toml"  # what the controller read: pose_measured where the run has one
+    robots.write_text("".join(f'[[robots]]\nname = "{n}"\npose_topic = "{t if t in have else t.removesuffix("_measured")}"'
+                              f'\npose_type = "{k}"\n' for n, t, k in REPLAY_ROBOTS[name]))
+    assert main(["replay", str(tmp_path / "run" / MCAP_FILE), "--scenario", str(toml), *options, "--robots",
+                 str(robots), "--out", str(tmp_path / "rp")]) == 0
+    log = read_log(tmp_path / "run" / MCAP_FILE)
+    with open(tmp_path / "rp" / "commands.csv") as f:
+        rows = list(csv.reader(f))
+    got = np.array([[float(v) for v in row] for row in rows[1:]])[:, [rows[0].index(c) for c in log.columns("command")]]
+    assert got.shape == log["command"].shape
+    np.testing.assert_allclose(got, log["command"], rtol=1e-8, atol=1e-9)  # commands.csv: 9 significant digits

@@ -270,7 +270,7 @@ def _scene_topics(topics: _Topics, scene: Scene, t: np.ndarray) -> None:
     for od in scene.odometry:
         i = scene.bodies.index(od.body)
         parent = scene.parents[i]
-        cols = {**hdr, **_pose_columns(("pose", "pose"), scene.position[:, i], scene.quaternion[:, i]),
+        cols = {**hdr, **_pose_columns(("pose", "pose"), od.position, od.quaternion),
                 **{("twist", "twist", part, a): v[:, j] for part, v in (("linear", od.linear), ("angular", od.angular))
                    for j, a in enumerate("xyz")}}
         topics.add(f"/{od.body}/odom", messages.odometry(t0, *_IDENTITY, [0, 0, 0], [0, 0, 0], parent, od.body), cols)

@@ -93,10 +93,12 @@ class Rotors:
 @dataclass(frozen=True)
 class Odometry:
     """A body's ``nav_msgs/Odometry`` as its own driver publishes it (the Bebop's ``bebop_autonomy``
-    ``odom``): the body's pose (the scene's) with its twist in its body frame (FLU), ``linear``
-    m/s and ``angular`` rad/s, each (T, 3)."""
+    ``odom``): its pose (``position`` (T, 3) m, ``quaternion`` (T, 4)) with its twist in its body
+    frame (FLU), ``linear`` m/s and ``angular`` rad/s, each (T, 3)."""
 
     body: str
+    position: np.ndarray
+    quaternion: np.ndarray
     linear: np.ndarray
     angular: np.ndarray
 
@@ -329,21 +331,23 @@ def ugv_uav_scene(log) -> Scene:
                   edges=_pair_edges(points, [(0, 1)]),
                   edges_desired=None if points_d is None else _pair_edges(points_d, [(0, 1)]))
     scene = _with_physics(scene, log, {"uav": "bebop"})
-    velocity = _cols(log, "state", ("psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b"))
-    return dataclasses.replace(scene, odometry=(_bebop_odometry(velocity, scene.quaternion[:, 1]),))
+    # the Bebop's odometry is what the controller read of it (the measured state: its velocities
+    # come from the drone's odometry, every odometry_period_s in seed 001 §3.1.2)
+    velocity = _cols(log, "measured", ("psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b"))
+    return dataclasses.replace(scene, odometry=(_bebop_odometry(pm[:, 1], qm[:, 1], velocity),))
 
 
-def _bebop_odometry(state: np.ndarray, q: np.ndarray) -> Odometry:
-    """The Bebop's body twist from its state ``(psi, v_x, v_y, z_dot, psi_dot)`` (T, 5) and
-    attitude ``q`` (T, 4): ``(v_x, v_y)`` are in its heading frame and ``z_dot`` vertical (seed
-    001 eq. (3.8)), turned into the world by ``q_yaw(psi)`` and into the body frame by
-    ``conj(q)``; the angular rate is the yaw rate about the world's z in the body frame (a
-    MuJoCo run's tilt rates are left out)."""
+def _bebop_odometry(p: np.ndarray, q: np.ndarray, state: np.ndarray) -> Odometry:
+    """The Bebop's odometry at ``p`` (T, 3), ``q`` (T, 4) with the body twist of its state
+    ``(psi, v_x, v_y, z_dot, psi_dot)`` (T, 5): ``(v_x, v_y)`` are in its heading frame and
+    ``z_dot`` vertical (seed 001 eq. (3.8)), turned into the world by ``q_yaw(psi)`` and into the
+    body frame by ``conj(q)``; the angular rate is the yaw rate about the world's z in the body
+    frame."""
     psi, v_x, v_y, z_dot, psi_dot = state.T
     v_world = g.rotate(g.q_yaw(psi), np.stack([v_x, v_y, z_dot], axis=-1))
     w_world = np.stack([np.zeros_like(psi), np.zeros_like(psi), psi_dot], axis=-1)
     body = g.conj(q)
-    return Odometry("bebop", g.rotate(body, v_world), g.rotate(body, w_world))
+    return Odometry("bebop", p, q, g.rotate(body, v_world), g.rotate(body, w_world))
 
 
 #: Teams of up to this many robots draw every pair as an edge; larger ones a star from the formation's
