@@ -286,8 +286,8 @@ def _formation_error(topics: _Topics, scene: Scene, t0: float) -> None:
     """``/formation/error``: the desired formation frame less the actual one, the same fields for
     every controller (the Foxglove layout plots them): ``x, y, z`` the position error, m, world;
     ``angle`` the rotation between the frames, ``2 acos |w|`` of ``conj(q_c) q_c_des``, rad
-    (the geodesic distance of unit quaternions up to sign, Huynh 2009, "Metrics for 3D
-    rotations", J. Math. Imaging Vis. 35, eq. (19))."""
+    (the rotation angle between the frames: twice Huynh's ``Phi_3 = arccos |q_1 . q_2|``, Huynh
+    2009, "Metrics for 3D rotations: comparison and analysis", J. Math. Imaging Vis. 35)."""
     (p, q), (pd, qd) = scene.formation, scene.formation_desired
     w = np.abs(g.mul(g.conj(q), qd)[:, 0])
     values = np.concatenate([pd - p, 2.0 * np.arccos(np.clip(w, 0.0, 1.0))[:, None]], axis=1)

@@ -83,7 +83,10 @@ class Wrench:
 
 @dataclass(frozen=True)
 class Rotors:
-    """A quadrotor's four motor commands and rotor forces (N), each (T, 4), in a MuJoCo run."""
+    """A quadrotor's four motor commands and rotor forces (N), each (T, 4), in a MuJoCo run.
+
+    At sample ``k`` the force is the rotors' at ``t_k`` and the command the one in effect up to
+    ``t_k`` (sent at ``t_(k-1)``; zero at ``t = 0``, when the rotors already spin at hover)."""
 
     body: str
     command: np.ndarray
