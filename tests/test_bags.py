@@ -7,7 +7,6 @@ for the users' bags read by read_poses.
 
 import dataclasses
 import functools
-import json
 
 import numpy as np
 import pytest

@@ -149,10 +149,10 @@ def test_ctrl_c_during_the_rerun_write_leaves_neither_recording_nor_folder(tmp_p
     def interrupted(rr, rec, root, log):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(qr, "_channels", interrupted)
-    kind, log = _short_log("mas-kitts-helix", controller="quaternion")
-    import quatform.scenarios.base as base
+    from quatform.scenarios import base
 
+    monkeypatch.setattr(qr, "_channels", interrupted)
+    _, log = _short_log("mas-kitts-helix", controller="quaternion")
     monkeypatch.setattr(base.Experiment, "run", lambda self, *a, **k: log)
     code = main(["run", "mas-kitts-helix", "--controller", "quaternion", "--out", str(tmp_path / "out"), "--no-plots",
                  "--rerun", str(tmp_path / "k.rrd")])

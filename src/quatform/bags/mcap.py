@@ -50,7 +50,8 @@ from ..sim.log import Channel, Log
 from .cdr import Batch
 from .scene import Scene, scene_of
 
-__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "read_log", "channel_topic", "PATH_POSES"]
+__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "read_log", "channel_topic", "PATH_POSES",
+           "FORMATION_ERROR_FIELDS"]
 
 #: The file every run writes.
 MCAP_FILE = "run.mcap"
