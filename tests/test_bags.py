@@ -607,8 +607,9 @@ def test_replaying_a_runs_mcap_gives_the_runs_commands(tmp_path, capsys, name, o
     assert main(["run", str(toml), *options, "--out", str(tmp_path / "run"), "--no-plots"]) == 0
     have = set(_read_all(tmp_path / "run" / MCAP_FILE))
     robots = tmp_path / "robots.toml"  # what the controller read: pose_measured where the run has one
-    robots.write_text("".join(f'[[robots]]\nname = "{n}"\npose_topic = "{t if t in have else t.removesuffix("_measured")}"'
-                              f'\npose_type = "{k}"\n' for n, t, k in REPLAY_ROBOTS[name]))
+    topic = {n: t if t in have else t.removesuffix("_measured") for n, t, _ in REPLAY_ROBOTS[name]}
+    robots.write_text("".join(f'[[robots]]\nname = "{n}"\npose_topic = "{topic[n]}"\npose_type = "{k}"\n'
+                              for n, _, k in REPLAY_ROBOTS[name]))
     assert main(["replay", str(tmp_path / "run" / MCAP_FILE), "--scenario", str(toml), *options, "--robots",
                  str(robots), "--out", str(tmp_path / "rp")]) == 0
     log = read_log(tmp_path / "run" / MCAP_FILE)

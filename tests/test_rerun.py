@@ -126,7 +126,8 @@ def test_an_independent_mcap_reader_decodes_the_named_channels_by_their_embedded
                                np.cos(log["state"][:, 7] / 2), atol=1e-15)
 
 
-@pytest.mark.parametrize("bad, said", [("rx.txt", "FILE.rrd"), ("nonexist/dir/x.rrd", "does not exist or is not writable"),
+@pytest.mark.parametrize("bad, said", [("rx.txt", "FILE.rrd"),
+                                       ("nonexist/dir/x.rrd", "does not exist or is not writable"),
                                        ("out/x.rrd", "inside the output folder")])
 def test_a_bad_rerun_path_is_refused_before_the_run(tmp_path, monkeypatch, capsys, bad, said):
     """--rerun is checked before anything runs: a wrong suffix, a missing folder, a file inside --out."""

@@ -25,7 +25,8 @@ from ..formations import geometry as g
 from ..formations.layout import RobotLayout
 from ..robots import Pioneer
 
-__all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "pioneer_base", "scene_of", "COMMAND_TWISTS", "CommandTwist"]
+__all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "pioneer_base", "scene_of", "COMMAND_TWISTS",
+           "CommandTwist"]
 
 #: Slots of a twist ``(v_x, v_y, v_z, w_x, w_y, w_z)``.
 _TWIST = {"lx": 0, "ly": 1, "lz": 2, "ax": 3, "ay": 4, "az": 5}
