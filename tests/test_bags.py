@@ -7,7 +7,6 @@ for the users' bags read by read_poses.
 
 import dataclasses
 import functools
-import json
 
 import numpy as np
 import pytest
@@ -19,7 +18,9 @@ from quatform.bags import INFO_TOPIC, MCAP_FILE, foxglove_layout, read_log, read
 from quatform.bags.cdr import Batch, field_offsets
 from quatform.cli import main
 from quatform.errors import InvalidInputError, NonUnitError
+from quatform.formations import FORMATIONS
 from quatform.formations import geometry as g
+from quatform.robots import Bebop, Pioneer
 from quatform.scenarios import kind_of, load_scenario
 from quatform.sim.log import Log
 
@@ -111,11 +112,13 @@ def test_rosbags_reads_the_standard_messages_one_per_sample(runs, case):
     expected = {"pair": ("/robot_1/pose", "/robot_2/pose_desired", "/robot_1/cmd_vel", "/tf", "/formation/edges",
                          "/formation/pose", "/formation/pose_desired", "/robot_1/path_desired"),
                 "ugv-uav": ("/pioneer/pose", "/bebop/pose", "/bebop/pose_measured", "/pioneer/cmd_vel",
-                            "/bebop/cmd_vel", "/tf", "/formation/edges"),
+                            "/bebop/cmd_vel", "/tf", "/formation/edges", "/formation/pose",
+                            "/formation/pose_desired", "/bebop/odom"),
                 "teleop": ("/master_hand/pose", "/slave_hand/pose", "/master/joint_states", "/slave/joint_states",
                            "/slave_wrist/wrench", "/tf", "/tf_static"),
-                "team-planar": ("/robot_3/pose", "/robot_3/cmd_vel", "/tf", "/formation/edges"),
-                "team-mixed": ("/robot_1/pose", "/robot_4/pose_desired", "/robot_1/cmd_vel", "/tf"),
+                "team-planar": ("/robot_3/pose", "/robot_3/cmd_vel", "/tf", "/formation/edges", "/formation/pose"),
+                "team-mixed": ("/robot_1/pose", "/robot_4/pose_desired", "/robot_1/cmd_vel", "/tf",
+                               "/formation/pose", "/formation/pose_desired"),
                 "team-free": ("/robot_2/pose", "/robot_2/cmd_vel", "/tf")}[case]
     missing = [t for t in expected if t not in topics]
     assert not missing, f"missing topics {missing}; have {sorted(topics)}"
@@ -136,6 +139,7 @@ def test_rosbags_reads_the_standard_messages_one_per_sample(runs, case):
 
 def _stamp(msgtype, m):
     return {"tf2_msgs/msg/TFMessage": lambda: m.transforms[0].header.stamp,
+            "nav_msgs/msg/Odometry": lambda: m.header.stamp,
             "visualization_msgs/msg/MarkerArray": lambda: m.markers[0].header.stamp}.get(msgtype, lambda: m.header.stamp)()
 
 
@@ -143,6 +147,7 @@ def _orientations(msgtype, m):
     return {"geometry_msgs/msg/PoseStamped": lambda: [m.pose.orientation],
             "geometry_msgs/msg/PoseArray": lambda: [p.orientation for p in m.poses],
             "nav_msgs/msg/Path": lambda: [p.pose.orientation for p in m.poses],
+            "nav_msgs/msg/Odometry": lambda: [m.pose.pose.orientation],
             "tf2_msgs/msg/TFMessage": lambda: [t.transform.rotation for t in m.transforms]}.get(msgtype, list)()
 
 
@@ -167,10 +172,12 @@ def test_a_pair_runs_poses_commands_and_frames_are_its_state(runs):
     tf = {t.child_frame_id: t for t in topics["/tf"][1][k][1].transforms}
     assert set(tf) == {"robot_1", "robot_2", "robot_1_desired", "robot_2_desired", "formation", "formation_desired"}
     f = tf["formation"].transform
-    np.testing.assert_array_equal([f.translation.x, f.translation.y, f.translation.z],
-                                  cluster[k, [cc.index("x_c"), cc.index("y_c"), cc.index("z_c")]])
-    np.testing.assert_array_equal([f.rotation.w, f.rotation.x, f.rotation.y, f.rotation.z],
-                                  cluster[k, [cc.index(c) for c in ("q_c_w", "q_c_x", "q_c_y", "q_c_z")]])
+    # the formation frame: the quaternion pair's forward map of the robots (for every controller);
+    # this quaternion run's own cluster x_c, q_c agree with it
+    frame = FORMATIONS["quaternion"].forward(state[k])[:7]
+    for got in (frame, cluster[k, [cc.index(c) for c in ("x_c", "y_c", "z_c", "q_c_w", "q_c_x", "q_c_y", "q_c_z")]]):
+        np.testing.assert_allclose([f.translation.x, f.translation.y, f.translation.z], got[:3], atol=1e-12)
+        np.testing.assert_allclose([f.rotation.w, f.rotation.x, f.rotation.y, f.rotation.z], got[3:], atol=1e-9)
     edges = topics["/formation/edges"][1][k][1].markers
     assert edges[0].type == 5 and edges[0].ns == "edges"  # LINE_LIST between the two robots
     np.testing.assert_array_equal([[pt.x, pt.y, pt.z] for pt in edges[0].points],
@@ -186,7 +193,14 @@ def test_ugv_uav_bodies_are_planar_pioneer_and_bebop_with_body_frame_commands(ru
     k = len(log) - 1
     _, p, q, _ = messages.pose_from_msg(topics["/pioneer/pose"][1][k][1])
     assert p[2] == 0.0  # planar: z = 0
-    np.testing.assert_allclose(g.yaw_of(q), log["state"][k, cols.index("psi_p")], atol=1e-12)
+    psi = log["state"][k, cols.index("psi_p")]
+    np.testing.assert_allclose(g.yaw_of(q), psi, atol=1e-12)
+    # its base (REP-105 base_link), a behind the control point its state holds
+    a = Pioneer().a
+    np.testing.assert_allclose(p[:2] + a * np.array([np.cos(psi), np.sin(psi)]),
+                               log["state"][k, [cols.index("x_p"), cols.index("y_p")]], atol=1e-12)
+    edge = topics["/formation/edges"][1][k][1].markers[0].points[0]  # the edges join the control point
+    np.testing.assert_array_equal([edge.x, edge.y], log["state"][k, [cols.index("x_p"), cols.index("y_p")]])
     _, p, _, _ = messages.pose_from_msg(topics["/bebop/pose"][1][k][1])
     np.testing.assert_array_equal(p, log["state"][k, [cols.index(c) for c in ("x_b", "y_b", "z_b")]])
     tw = topics["/pioneer/cmd_vel"][1][k][1]
@@ -389,22 +403,34 @@ def test_read_poses_refuses_bad_stamps_and_non_unit_quaternions(tmp_path):
         read_log(bag)
 
 
-def test_the_foxglove_layout_names_topics_and_fields_a_pair_run_has(runs):
-    """Every plotted path ``/topic.field`` of the shipped layout is a field of that topic in a pair run."""
-    _, _, path = runs["pair"]
+def _layout_values(topics):
+    """Every plotted ``/topic.field.path`` of the shipped layout read from the last message of its
+    topic in ``topics`` (a KeyError or AttributeError where a run lacks one)."""
     layout = foxglove_layout()
-    topics = _read_all(path)
-    info = json.loads(topics[INFO_TOPIC][1][0][1].data)
-    fields = {d["topic"]: d["fields"] for d in info["channels"].values()}
     plotted = [p["value"] for panel in layout["configById"].values() for p in panel.get("paths", [])]
-    assert len(plotted) >= 10
+    out = {}
     for value in plotted:
-        topic, field = value.split(".")
-        assert field in fields[topic], value
+        topic, *fields = value.split(".")
+        m = topics[topic][1][-1][1]
+        for f in fields:
+            m = getattr(m, f)
+        out[value] = float(m)
+    return out
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c != "teleop"])
+def test_the_foxglove_layout_plots_fields_every_formation_run_has(runs, case):
+    """Every plotted path of the shipped layout is a numeric field of a topic the run has."""
+    _, _, path = runs[case]
+    topics = _read_all(path)
+    values = _layout_values(topics)
+    assert len(values) >= 10 and all(np.isfinite(v) for v in values.values())
+    layout = foxglove_layout()
     three_d = next(c for k, c in layout["configById"].items() if k.startswith("3D!"))
     assert three_d["followTf"] == "world"
-    for topic in ("/formation/edges", "/robot_1/path", "/robot_1/path_desired"):
-        assert topic in topics and three_d["topics"][topic]["visible"]
+    if case == "pair":
+        for topic in ("/formation/edges", "/robot_1/path", "/robot_1/path_desired"):
+            assert topic in topics and three_d["topics"][topic]["visible"]
 
 
 def test_cli_run_writes_run_mcap_that_rosbags_reads_one_message_per_sample(tmp_path, capsys):
@@ -469,3 +495,126 @@ def test_new_message_builders_refuse_bad_input_in_one_line(make, match):
     with pytest.raises(InvalidInputError, match=match) as e:
         make()
     assert "\n" not in str(e.value)
+
+
+def _pose_sample(msg):
+    from quatform.ros2.robot_io import PoseSample
+
+    if msg.__msgtype__ == "nav_msgs/msg/Odometry":
+        t, p, q, _ = messages.odometry_pose(msg)
+        tw = msg.twist.twist
+        return PoseSample(t, p, q, (np.array([tw.linear.x, tw.linear.y, tw.linear.z]),
+                                    np.array([tw.angular.x, tw.angular.y, tw.angular.z])))
+    t, p, q, _ = messages.pose_from_msg(msg)
+    return PoseSample(t, p, q)
+
+
+@pytest.mark.parametrize("case, topic, model, channel, columns", [
+    ("ugv-uav", "/pioneer/pose", Pioneer(), "state", ("x_p", "y_p", "psi_p")),
+    ("ugv-uav", "/pioneer/pose_measured", Pioneer(), "measured", ("x_p", "y_p", "psi_p")),
+    ("ugv-uav", "/bebop/odom", Bebop(), "measured", ("x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b",
+                                                     "psi_dot_b")),
+    ("team-mixed", "/robot_1/pose", Pioneer(), "state", ("x1", "y1", "psi1"))])
+def test_the_ros2_bridge_reads_a_runs_poses_back_as_the_state(runs, case, topic, model, channel, columns):
+    """A Pioneer's pose is its base: the bridge's +a gives the state's control point back; the
+    Bebop's odometry (pose + body twist) gives the whole state the controller read (the replay contract)."""
+    from quatform.ros2.robot_io import robot_io
+
+    _, log, path = runs[case]
+    msgs = _read_all(path)[topic][1]
+    cols = log.columns(channel)
+    io = robot_io(model)
+    for k in (0, len(log) // 2, len(log) - 1):
+        got = io.state(model, _pose_sample(msgs[k][1]), None)
+        np.testing.assert_allclose(got, log[channel][k, [cols.index(c) for c in columns]], atol=1e-12)
+    if topic == "/bebop/odom":
+        m = msgs[-1][1]
+        assert (m.header.frame_id, m.child_frame_id) == ("world", "bebop")
+
+
+def _controllers(name):
+    """The controller choices of scenario ``name``'s kind (its ``controller`` option)."""
+    return next(o.choices for o in kind_of(load_scenario(name)).options if o.name == "controller")
+
+
+@pytest.mark.parametrize("name, controller", [("mas-kitts-helix", c) for c in _controllers("mas-kitts-helix")]
+                         + [("team-triangle-over-ugv", c) for c in _controllers("team-triangle-over-ugv")]
+                         + [("marciano-circle", None)])
+def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
+    """/formation/pose, /formation/pose_desired and the formation TF frames for every description:
+    a pair's from the quaternion pair's forward map of the robots, a team's from its chart (e, e_des)."""
+    sc = load_scenario(name)
+    sc = dataclasses.replace(sc, duration_s=0.2, **({"transient_s": 0.0} if name == "marciano-circle" else
+                                                    {"metrics_from_s": 0.0}))
+    kind = kind_of(sc)
+    log = kind.experiment(sc, **({"controller": controller} if controller else {})).run(None)
+    topics = _read_all(write_mcap(log, tmp_path / "run.mcap", kind=kind.name))
+    for topic in ("/formation/pose", "/formation/pose_desired"):
+        assert len(topics[topic][1]) == len(log)
+    k = len(log) - 1
+    _, p, q, _ = messages.pose_from_msg(topics["/formation/pose"][1][k][1])
+    if kind.name == "team":
+        e, ec = log["e"], log.columns("e")
+        np.testing.assert_array_equal(np.r_[p, q], e[k, [ec.index(c) for c in ("x_c", "y_c", "z_c", "q_c_w", "q_c_x",
+                                                                                   "q_c_y", "q_c_z")]])
+    elif kind.name == "pair":
+        np.testing.assert_allclose(np.r_[p, q], FORMATIONS["quaternion"].forward(log["state"][k])[:7], atol=1e-12)
+    assert {"formation", "formation_desired"} <= {t.child_frame_id for t in topics["/tf"][1][k][1].transforms}
+    _, pd, qd, _ = messages.pose_from_msg(topics["/formation/pose_desired"][1][k][1])
+    err = topics["/formation/error"][1][k][1]
+    np.testing.assert_allclose([err.x, err.y, err.z], pd - p, atol=1e-12)
+    assert err.angle == pytest.approx(2 * np.arccos(min(1.0, abs(float(np.dot(q, qd))))), abs=1e-9)
+    assert len(_layout_values(topics)) >= 10  # the Foxglove layout's plots have data for every controller
+
+
+def test_a_read_back_team_log_is_refused_with_one_line(runs, tmp_path):
+    _, _, path = runs["team-mixed"]
+    back = read_log(path)
+    with pytest.raises(InvalidInputError, match="read back from run.mcap.*scene=False"):
+        write_mcap(back, tmp_path / "again.mcap", kind="team")
+    assert write_mcap(back, tmp_path / "again.mcap", kind="team", scene=False).is_file()
+
+
+def test_read_log_of_a_no_mcap_run_folder_says_so(tmp_path):
+    assert main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "r"), "--no-plots",
+                 "--no-mcap"]) == 0
+    with pytest.raises(InvalidInputError, match=r"this run folder has no run.mcap \(written with --no-mcap\?\)"):
+        read_log(tmp_path / "r")
+
+
+REPLAY_ROBOTS = {
+    "marciano-circle": [("pioneer", "/pioneer/pose_measured", "pose"), ("bebop", "/bebop/odom", "odometry")],
+    "team-triangle-over-ugv": [(f"robot_{i}", f"/robot_{i}/pose", "pose") for i in range(1, 5)],
+}
+
+
+@pytest.mark.parametrize("name, options", [("marciano-circle", []),
+                                           ("team-triangle-over-ugv", ["--controller", "quaternion"])])
+def test_replaying_a_runs_mcap_gives_the_runs_commands(tmp_path, capsys, name, options):
+    """quatform replay on a run's own run.mcap (the Pioneer's base pose, the Bebop's odometry)
+    commands what the run commanded."""
+    import csv
+    import re
+
+    from quatform.scenarios import builtin_scenarios
+
+    text = builtin_scenarios()[name].read_text()
+    toml = tmp_path / f"{name}.toml"
+    for key, value in (("duration_s", 1.0), ("transient_s", 0.5), ("metrics_from_s", 0.0)):
+        text = re.sub(rf"(?m)^{key} = .*$", f"{key} = {value}", text, count=1)
+    text = re.sub(r"(?ms)^\[\[shape\.moves\]\].*?(?=^\[path\])", "", text)  # its move starts after 1 s
+    toml.write_text(text)
+    assert main(["run", str(toml), *options, "--out", str(tmp_path / "run"), "--no-plots"]) == 0
+    have = set(_read_all(tmp_path / "run" / MCAP_FILE))
+    robots = tmp_path / "robots.toml"  # what the controller read: pose_measured where the run has one
+    topic = {n: t if t in have else t.removesuffix("_measured") for n, t, _ in REPLAY_ROBOTS[name]}
+    robots.write_text("".join(f'[[robots]]\nname = "{n}"\npose_topic = "{topic[n]}"\npose_type = "{k}"\n'
+                              for n, _, k in REPLAY_ROBOTS[name]))
+    assert main(["replay", str(tmp_path / "run" / MCAP_FILE), "--scenario", str(toml), *options, "--robots",
+                 str(robots), "--out", str(tmp_path / "rp")]) == 0
+    log = read_log(tmp_path / "run" / MCAP_FILE)
+    with open(tmp_path / "rp" / "commands.csv") as f:
+        rows = list(csv.reader(f))
+    got = np.array([[float(v) for v in row] for row in rows[1:]])[:, [rows[0].index(c) for c in log.columns("command")]]
+    assert got.shape == log["command"].shape
+    np.testing.assert_allclose(got, log["command"], rtol=1e-8, atol=1e-9)  # commands.csv: 9 significant digits

@@ -124,3 +124,39 @@ def test_an_independent_mcap_reader_decodes_the_named_channels_by_their_embedded
     np.testing.assert_array_equal(np.asarray(pose.field("pose").field("position").field("z")), log["state"][:, 6])
     np.testing.assert_allclose(np.asarray(pose.field("pose").field("orientation").field("w")),
                                np.cos(log["state"][:, 7] / 2), atol=1e-15)
+
+
+@pytest.mark.parametrize("bad, said", [("rx.txt", "FILE.rrd"),
+                                       ("nonexist/dir/x.rrd", "does not exist or is not writable"),
+                                       ("out/x.rrd", "inside the output folder")])
+def test_a_bad_rerun_path_is_refused_before_the_run(tmp_path, monkeypatch, capsys, bad, said):
+    """--rerun is checked before anything runs: a wrong suffix, a missing folder, a file inside --out."""
+    pytest.importorskip("rerun")
+    from quatform.scenarios import base
+
+    ran = []
+    monkeypatch.setattr(base.Experiment, "run", lambda self, *a, **k: ran.append(1))
+    code = main(["run", "mas-kitts-helix", "--controller", "quaternion", "--out", str(tmp_path / "out"),
+                 "--rerun", str(tmp_path / bad)])
+    err = capsys.readouterr().err
+    assert code == 2 and said in err and len(err.strip().splitlines()) == 1
+    assert ran == [] and not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_during_the_rerun_write_leaves_neither_recording_nor_folder(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("rerun")
+    from quatform.bags import rerun as qr
+
+    def interrupted(rr, rec, root, log):
+        raise KeyboardInterrupt
+
+    from quatform.scenarios import base
+
+    monkeypatch.setattr(qr, "_channels", interrupted)
+    _, log = _short_log("mas-kitts-helix", controller="quaternion")
+    monkeypatch.setattr(base.Experiment, "run", lambda self, *a, **k: log)
+    code = main(["run", "mas-kitts-helix", "--controller", "quaternion", "--out", str(tmp_path / "out"), "--no-plots",
+                 "--rerun", str(tmp_path / "k.rrd")])
+    err = capsys.readouterr().err
+    assert code == 130 and "left as it was" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

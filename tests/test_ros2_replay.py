@@ -217,8 +217,6 @@ def test_replaying_a_runs_mcap_gives_the_runs_commands(tmp_path):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
 
 
-@pytest.mark.xfail(strict=False, reason="run.mcap publishes a Pioneer's control point, the bridge reads its "
-                   "wheel-axis middle (review finding 1): holds once quatform.bags writes REP-105 base_link")
 def test_replaying_a_pioneer_runs_mcap_gives_the_runs_commands(tmp_path):
     """team-triangle-over-ugv (a Pioneer and three quadrotors; its first 10 s without the shape's
     moves): replayed, the run's commands."""

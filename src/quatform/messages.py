@@ -112,6 +112,17 @@ def odometry_pose(msg):
     return seconds(msg.header.stamp), p, q, msg.header.frame_id
 
 
+def odometry(t: float, position, quaternion, linear, angular, frame_id: str = "world", child_frame_id: str = ""):
+    """``nav_msgs/msg/Odometry`` at ``t`` s: the pose of ``child_frame_id`` in ``frame_id``
+    (``position`` (3,) m, ``quaternion`` ``(w, x, y, z)`` (4,)) and its twist in ``child_frame_id``
+    (REP-105: ``linear`` m/s, ``angular`` rad/s, each (3,)); covariances zero (unknown)."""
+    cov = np.zeros(36)
+    return msg_type("nav_msgs/msg/Odometry")(
+        header=_header(t, frame_id), child_frame_id=str(child_frame_id),
+        pose=msg_type("geometry_msgs/msg/PoseWithCovariance")(pose=_pose(position, quaternion), covariance=cov),
+        twist=msg_type("geometry_msgs/msg/TwistWithCovariance")(twist=twist(linear, angular), covariance=cov.copy()))
+
+
 def twist(linear, angular):
     """``geometry_msgs/msg/Twist``: ``linear`` m/s and ``angular`` rad/s, each (3,)."""
     v = np.asarray(linear, dtype=float)

@@ -9,7 +9,9 @@ order, ``timeseries.csv`` (:func:`quatform.report.writers.write_timeseries`, the
 log as ROS 2 messages, :func:`quatform.bags.write_mcap`, with ``foxglove-layout.json`` beside
 it; ``mcap=False`` skips both) and ``metrics.json`` last. ``rerun=FILE.rrd`` also writes the
 run (a compare: every run, each under ``/<value>/``) as a Rerun recording
-(:func:`quatform.bags.rerun.write_rerun`, extra ``rerun``; checked before anything runs). A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
+(:func:`quatform.bags.rerun.write_rerun`, extra ``rerun``; its name and folder checked before
+anything runs; written before the output folder is swapped in, so an interrupted run leaves
+neither). A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
 ``backend`` compares the kinematic models with MuJoCo physics) into ``out/<value>/``, then draws
 the kind's compare figures and writes ``comparison.md`` / ``comparison.json`` with the kind's
 table columns.
@@ -132,14 +134,35 @@ def _picture(log, folder: Path, plots: bool, metrics: dict) -> None:
         metrics["render"], metrics["render_backend"] = file.name, how
 
 
-def _rerun_target(rerun):
-    """``rerun`` as a path, after checking that rerun-sdk is installed (None: no recording)."""
+def _rerun_target(rerun, out):
+    """``rerun`` as a path, checked before anything runs (None: no recording): rerun-sdk installed,
+    a ``.rrd`` name, a writable existing folder, not inside the output folder ``out`` (which the
+    run replaces). Each a one-line :class:`~quatform.errors.InvalidInputError`."""
     if rerun is None:
         return None
     from .bags.rerun import require_rerun
 
     require_rerun()
-    return Path(rerun)
+    path = Path(rerun)
+    parent = Path(os.path.abspath(path)).parent
+    if path.suffix != ".rrd":
+        raise InvalidInputError(f"--rerun {rerun}: a Rerun recording is a .rrd file; give FILE.rrd")
+    if Path(os.path.abspath(out)) in (parent, *parent.parents):
+        raise InvalidInputError(f"--rerun {rerun} is inside the output folder {out}, which the run replaces; "
+                                "give a .rrd file outside it")
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise InvalidInputError(f"--rerun {rerun}: folder {parent} does not exist or is not writable; "
+                                "give a .rrd file in a writable folder")
+    return path
+
+
+def _write_recording(target, logs: dict, kind, sc) -> None:
+    """The Rerun recording ``target`` of ``logs`` (None: none), written inside the run's staged
+    folder: an interrupted or failed write leaves neither the recording nor the folder."""
+    if target is not None:
+        from .bags.rerun import write_rerun
+
+        write_rerun(logs, target, kind=kind.name, name=str(sc.name))
 
 
 def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = True, rerun=None, **options):
@@ -173,13 +196,10 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
     sc = _scenario(scenario)
     kind = kind_of(sc)
     given = given_options(kind, options, where=str(sc.name))
-    target = _rerun_target(rerun)
+    target = _rerun_target(rerun, out)
     with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
         log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap)
-    if target is not None:
-        from .bags.rerun import write_rerun
-
-        write_rerun({"": log}, target, kind=kind.name, name=str(sc.name))
+        _write_recording(target, {"": log}, kind, sc)
     return log, metrics
 
 
@@ -234,7 +254,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
                                 f"do not give {axis}")
     columns = compare_columns(kind, axis)
     values, skipped = kind.compare_choices(sc, axis)
-    target = _rerun_target(rerun)
+    target = _rerun_target(rerun, out)
     if not quiet:
         for value, why in skipped.items():
             print(f"  {sc.name} / {value}: not run: {why}", file=sys.stderr)
@@ -252,10 +272,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         atomic_write_text(tmp / "comparison.md",
                           f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n{left}")
         write_json(rows, tmp / "comparison.json")
-    if target is not None:
-        from .bags.rerun import write_rerun
-
-        write_rerun(dict(zip(values, logs)), target, kind=kind.name, name=str(sc.name))
+        _write_recording(target, dict(zip(values, logs)), kind, sc)
     return rows
 
 

@@ -14,10 +14,12 @@ Topics (``docs/ecosystem.md`` lists their types and rates): per body ``/<body>/p
 ``/<body>/cmd_vel`` (``geometry_msgs/TwistStamped``), ``/<body>/path`` and
 ``/<body>/path_desired`` (``nav_msgs/Path``, once); ``/tf`` (``tf2_msgs/TFMessage``: world to
 each body, to ``<body>_desired``, to ``formation`` and ``formation_desired``), ``/tf_static``;
-``/formation/pose``, ``/formation/pose_desired``, ``/formation/edges``
+``/formation/pose``, ``/formation/pose_desired``, ``/formation/error`` (their difference),
+``/formation/edges``
 (``visualization_msgs/MarkerArray``, LINE_LIST); MuJoCo runs: each quadrotor's
 ``/<body>/rotors`` (``quatform_msgs/msg/Rotors``: collective thrust, four motor commands, four
-rotor forces, N) and its full attitude in its pose and TF; teleoperation: ``/<arm>/joint_states``
+rotor forces, N) and its full attitude in its pose and TF; the UGV-UAV's ``/bebop/odom``
+(``nav_msgs/Odometry``: pose and body twist, as ``bebop_autonomy`` publishes); teleoperation: ``/<arm>/joint_states``
 (``sensor_msgs/JointState``), ``/slave_wrist/wrench`` (``geometry_msgs/WrenchStamped``);
 and every channel of the log as ``/quatform/<channel>``, a message whose fields are the
 channel's column names (``quatform_msgs/msg/<Channel>``: a header and one ``float64`` per
@@ -43,11 +45,13 @@ import numpy as np
 
 from .. import messages
 from ..errors import InvalidInputError
+from ..formations import geometry as g
 from ..sim.log import Channel, Log
 from .cdr import Batch
 from .scene import Scene, scene_of
 
-__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "read_log", "channel_topic", "PATH_POSES"]
+__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "read_log", "channel_topic", "PATH_POSES",
+           "FORMATION_ERROR_FIELDS"]
 
 #: The file every run writes.
 MCAP_FILE = "run.mcap"
@@ -221,6 +225,8 @@ def _scene_topics(topics: _Topics, scene: Scene, t: np.ndarray) -> None:
             topic = "/formation/pose" if name == "formation" else "/formation/pose_desired"
             poses(topic, "world", *pq)
             transforms.append(("world", name, *pq))
+    if scene.formation is not None and scene.formation_desired is not None:
+        _formation_error(topics, scene, t0)
     if transforms:
         template = messages.tf_message([messages.transform_stamped(t0, a, b, *_IDENTITY) for a, b, _, _ in transforms])
         cols = {}
@@ -262,8 +268,36 @@ def _scene_topics(topics: _Topics, scene: Scene, t: np.ndarray) -> None:
         for r in scene.rotors:
             values = np.concatenate([r.force.sum(axis=1, keepdims=True), r.command, r.force], axis=1)
             topics.add(f"/{r.body}/rotors", template, {**hdr, **{(f,): values[:, j] for j, f in enumerate(fields)}})
+    for od in scene.odometry:
+        i = scene.bodies.index(od.body)
+        parent = scene.parents[i]
+        cols = {**hdr, **_pose_columns(("pose", "pose"), od.position, od.quaternion),
+                **{("twist", "twist", part, a): v[:, j] for part, v in (("linear", od.linear), ("angular", od.angular))
+                   for j, a in enumerate("xyz")}}
+        topics.add(f"/{od.body}/odom", messages.odometry(t0, *_IDENTITY, [0, 0, 0], [0, 0, 0], parent, od.body), cols)
     if per_body:
         _paths(topics, scene, t)
+
+
+#: Fields of ``/formation/error`` (``quatform_msgs/msg/FormationError``).
+FORMATION_ERROR_FIELDS = ("x", "y", "z", "angle")
+
+
+def _formation_error(topics: _Topics, scene: Scene, t0: float) -> None:
+    """``/formation/error``: the desired formation frame less the actual one, the same fields for
+    every controller (the Foxglove layout plots them): ``x, y, z`` the position error, m, world;
+    ``angle`` the rotation between the frames, ``2 acos |w|`` of ``conj(q_c) q_c_des``, rad
+    (the rotation angle between the frames: twice Huynh's ``Phi_3 = arccos |q_1 . q_2|``, Huynh
+    2009, "Metrics for 3D rotations: comparison and analysis", J. Math. Imaging Vis. 35)."""
+    (p, q), (pd, qd) = scene.formation, scene.formation_desired
+    w = np.abs(g.mul(g.conj(q), qd)[:, 0])
+    values = np.concatenate([pd - p, 2.0 * np.arccos(np.clip(w, 0.0, 1.0))[:, None]], axis=1)
+    name = f"{MSG_PACKAGE}/msg/FormationError"
+    topics.store.register({name: messages.named_type(FORMATION_ERROR_FIELDS)})
+    template = messages.named_message(topics.store.types[name], t0, FORMATION_ERROR_FIELDS,
+                                      np.zeros(len(FORMATION_ERROR_FIELDS)))
+    topics.add("/formation/error", template, {**topics.stamp_columns("header"),
+                                             **{(f,): values[:, j] for j, f in enumerate(FORMATION_ERROR_FIELDS)}})
 
 
 def _paths(topics: _Topics, scene: Scene, t: np.ndarray) -> None:

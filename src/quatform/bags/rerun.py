@@ -118,12 +118,16 @@ def write_rerun(logs, path, *, kind: str | None = None, name: str = "quatform") 
     rec = rr.RecordingStream(str(name))
     rec.save(tmp)
     try:
-        for key, log in logs.items():
-            root = f"/{key}/" if key else "/"
-            _world(rr, rec, root, scene_of(log, kind), log.t)
-            _channels(rr, rec, root, log)
-        rec.flush()
-    finally:
-        rec.disconnect()
-    os.replace(tmp, path)
+        try:
+            for key, log in logs.items():
+                root = f"/{key}/" if key else "/"
+                _world(rr, rec, root, scene_of(log, kind), log.t)
+                _channels(rr, rec, root, log)
+            rec.flush()
+        finally:
+            rec.disconnect()
+        os.replace(tmp, path)
+    except BaseException:  # Ctrl-C included: no half-written recording is left behind
+        tmp.unlink(missing_ok=True)
+        raise
     return path

@@ -20,10 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..formations import FORMATIONS
 from ..formations import geometry as g
 from ..formations.layout import RobotLayout
+from ..robots import Pioneer
 
-__all__ = ["Scene", "Joints", "Wrench", "Rotors", "SCENES", "scene_of", "COMMAND_TWISTS", "CommandTwist"]
+__all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "pioneer_base", "scene_of", "COMMAND_TWISTS",
+           "CommandTwist"]
 
 #: Slots of a twist ``(v_x, v_y, v_z, w_x, w_y, w_z)``.
 _TWIST = {"lx": 0, "ly": 1, "lz": 2, "ax": 3, "ay": 4, "az": 5}
@@ -81,11 +84,27 @@ class Wrench:
 
 @dataclass(frozen=True)
 class Rotors:
-    """A quadrotor's four motor commands and rotor forces (N), each (T, 4), in a MuJoCo run."""
+    """A quadrotor's four motor commands and rotor forces (N), each (T, 4), in a MuJoCo run.
+
+    At sample ``k`` the force is the rotors' at ``t_k`` and the command the one in effect up to
+    ``t_k`` (sent at ``t_(k-1)``; zero at ``t = 0``, when the rotors already spin at hover)."""
 
     body: str
     command: np.ndarray
     force: np.ndarray
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """A body's ``nav_msgs/Odometry`` as its own driver publishes it (the Bebop's ``bebop_autonomy``
+    ``odom``): its pose (``position`` (T, 3) m, ``quaternion`` (T, 4)) with its twist in its body
+    frame (FLU), ``linear`` m/s and ``angular`` rad/s, each (T, 3)."""
+
+    body: str
+    position: np.ndarray
+    quaternion: np.ndarray
+    linear: np.ndarray
+    angular: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -119,6 +138,8 @@ class Scene:
     rotors : tuple of Rotors
         The quadrotors' motors in a MuJoCo run (whose bodies then carry their full attitude,
         tilt included, in ``quaternion``).
+    odometry : tuple of Odometry
+        Bodies whose driver publishes odometry (the UGV-UAV's Bebop).
     """
 
     bodies: tuple
@@ -139,6 +160,7 @@ class Scene:
     wrenches: tuple = ()
     static: tuple = field(default_factory=tuple)
     rotors: tuple = ()
+    odometry: tuple = ()
 
 
 def _cols(log, channel: str, names) -> np.ndarray:
@@ -176,6 +198,42 @@ def _formation(log, channel: str, suffix: str = "") -> tuple | None:
         return None
     c = _cols(log, channel, [n + suffix for n in names])
     return c[:, :3], c[:, 3:]
+
+
+def pioneer_base(p: np.ndarray, psi: np.ndarray, a) -> np.ndarray:
+    """The middle of a Pioneer's wheel axis (REP-105 ``base_link``) from its control point.
+
+    Parameters
+    ----------
+    p : ndarray, shape (..., 3)
+        The control point, m (quatform's Pioneer state ``(x, y, psi)`` is it).
+    psi : ndarray, shape (...)
+        The heading, rad.
+    a : float or ndarray, shape (...)
+        The control point's distance ahead of the axis, m (``robots.Pioneer.a``).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``p - a (cos psi, sin psi, 0)`` (seed 001 §3.1.1, eq. (3.5), Fig. 10).
+    """
+    a = np.asarray(a, dtype=float)
+    out = np.array(p, dtype=float, copy=True)
+    out[..., 0] -= a * np.cos(psi)
+    out[..., 1] -= a * np.sin(psi)
+    return out
+
+
+def _forward_frame(formation, r: np.ndarray) -> tuple | None:
+    """The formation frame ``(x_c (T, 3), q_c (T, 4))`` of the robots ``r`` (T, k) by the quaternion
+    description ``formation``'s forward map (its first seven variables are ``x_c``, ``q_c``; seed
+    000 eqs. (10), (14), (15): q_c the minimal rotation from x to the robots' separation); NaN at
+    samples with a NaN robot (a failed world)."""
+    out = np.full((r.shape[0], 7), np.nan)
+    ok = np.all(np.isfinite(r), axis=1)
+    if np.any(ok):
+        out[ok] = formation.forward(r[ok])[:, :7]
+    return out[:, :3], out[:, 3:]
 
 
 def _pair_edges(p: np.ndarray, pairs) -> np.ndarray:
@@ -221,37 +279,79 @@ def pair_scene(log) -> Scene:
     pd, qd = _layout_poses(layout, _cols(log, "r_des", [n + "_des" for n in names])) if "r_des" in log else (None, None)
     pm, qm = _layout_poses(layout, _cols(log, "measured", names))
     u = np.asarray(log["command"], dtype=float).reshape(len(log), 2, 4)
+    # the formation frame of every controller: the quaternion pair's forward map of the robots
+    frame = FORMATIONS["quaternion"]
+    formation = _forward_frame(frame, _cols(log, "state", names))
+    formation_desired = (_forward_frame(frame, _cols(log, "r_des", [n + "_des" for n in names]))
+                         if "r_des" in log else None)
     scene = Scene(bodies=("robot_1", "robot_2"), parents=("world", "world"), position=p, quaternion=q,
                   position_desired=pd, quaternion_desired=qd,
                   **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
                   twist=_twist(u, COMMAND_TWISTS["holonomic"]), twist_frames=("world", "world"),
-                  formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
+                  formation=formation, formation_desired=formation_desired,
                   edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
     return _with_physics(scene, log, {"robot1": "robot_1", "robot2": "robot_2"})
 
 
 def ugv_uav_scene(log) -> Scene:
     """Seed 001's Pioneer (planar, z = 0) and Bebop; the desired Pioneer heading, which the
-    formation leaves free, is its actual one."""
+    formation leaves free, is its actual one.
+
+    The Pioneer's pose is its base (the middle of its wheel axis, REP-105 ``base_link``), ``a``
+    behind the control point its state holds (:func:`pioneer_base`; ``a`` of the kind's default
+    :class:`~quatform.robots.Pioneer`, which its controller drives, or ``log.meta["pioneer_a"]``);
+    the formation's edges join the control point and the Bebop (the formation's points). The
+    Bebop also gets its odometry (its state's velocities as a body twist)."""
     layout = RobotLayout(("xy_yaw", "xyz_yaw"))
     state = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b")
-    p, q = _layout_poses(layout, _cols(log, "state", state))
+    a = float(log.meta.get("pioneer_a", Pioneer().a))
+    points, q = _layout_poses(layout, _cols(log, "state", state))
+    psi = _cols(log, "state", ("psi_p",))[:, 0]
+    p = points.copy()
+    p[:, 0] = pioneer_base(points[:, 0], psi, a)
     pm, qm = _layout_poses(layout, _cols(log, "measured", state))
-    pd = qd = None
+    pm[:, 0] = pioneer_base(pm[:, 0], _cols(log, "measured", ("psi_p",))[:, 0], a)
+    pd = qd = points_d = None
     if "r_des" in log:
         des = _cols(log, "r_des", ("x_p_des", "y_p_des", "x_b_des", "y_b_des", "z_b_des"))
-        psi = _cols(log, "state", ("psi_p",))
         psi_b = _cols(log, "ts_headings", ("psi_b_des",)) if "ts_headings" in log else _cols(log, "state", ("psi_b",))
-        pd, qd = _layout_poses(layout, np.concatenate([des[:, :2], psi, des[:, 2:], psi_b], axis=1))
+        points_d, qd = _layout_poses(layout, np.concatenate([des[:, :2], psi[:, None], des[:, 2:], psi_b], axis=1))
+        pd = points_d.copy()
+        pd[:, 0] = pioneer_base(points_d[:, 0], psi, a)
     u = _cols(log, "command", ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b"))
     twist = np.stack([_twist(u[:, :2], COMMAND_TWISTS["pioneer"]), _twist(u[:, 2:], COMMAND_TWISTS["bebop"])], axis=1)
+    # the formation frame of every description: the UGV-UAV quaternion description's forward map
+    # of the robots' points (the Pioneer's control point at the platform height, the Bebop)
+    frame = FORMATIONS["ugv-uav-quaternion"]
+    formation = _forward_frame(frame, _cols(log, "r_true", ("x_p", "y_p", "z_p", "x_b", "y_b", "z_b")))
+    formation_desired = (_forward_frame(frame, _cols(log, "r_des", ("x_p_des", "y_p_des", "z_p_des", "x_b_des",
+                                                                    "y_b_des", "z_b_des")))
+                         if "r_des" in log else None)
     scene = Scene(bodies=("pioneer", "bebop"), parents=("world", "world"), position=p, quaternion=q,
                   position_desired=pd, quaternion_desired=qd,
                   **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
                   twist=twist, twist_frames=("pioneer", "bebop"),
-                  formation=_formation(log, "cluster"), formation_desired=_formation(log, "c_des", "_des"),
-                  edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
-    return _with_physics(scene, log, {"uav": "bebop"})
+                  formation=formation, formation_desired=formation_desired,
+                  edges=_pair_edges(points, [(0, 1)]),
+                  edges_desired=None if points_d is None else _pair_edges(points_d, [(0, 1)]))
+    scene = _with_physics(scene, log, {"uav": "bebop"})
+    # the Bebop's odometry is what the controller read of it (the measured state: its velocities
+    # come from the drone's odometry, every odometry_period_s in seed 001 §3.1.2)
+    velocity = _cols(log, "measured", ("psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b"))
+    return dataclasses.replace(scene, odometry=(_bebop_odometry(pm[:, 1], qm[:, 1], velocity),))
+
+
+def _bebop_odometry(p: np.ndarray, q: np.ndarray, state: np.ndarray) -> Odometry:
+    """The Bebop's odometry at ``p`` (T, 3), ``q`` (T, 4) with the body twist of its state
+    ``(psi, v_x, v_y, z_dot, psi_dot)`` (T, 5): ``(v_x, v_y)`` are in its heading frame and
+    ``z_dot`` vertical (seed 001 eq. (3.8)), turned into the world by ``q_yaw(psi)`` and into the
+    body frame by ``conj(q)``; the angular rate is the yaw rate about the world's z in the body
+    frame."""
+    psi, v_x, v_y, z_dot, psi_dot = state.T
+    v_world = g.rotate(g.q_yaw(psi), np.stack([v_x, v_y, z_dot], axis=-1))
+    w_world = np.stack([np.zeros_like(psi), np.zeros_like(psi), psi_dot], axis=-1)
+    body = g.conj(q)
+    return Odometry("bebop", p, q, g.rotate(body, v_world), g.rotate(body, w_world))
 
 
 #: Teams of up to this many robots draw every pair as an edge; larger ones a star from the formation's
@@ -275,8 +375,9 @@ def team_scene(log) -> Scene:
     """Issue 14's team: the robots' points (``points``, ``r_des``) read with the run's layout."""
     layout, team = log.meta.get("layout"), log.meta.get("team")
     if not isinstance(layout, RobotLayout) or team is None:
-        raise InvalidInputError("a team log needs meta['layout'] (its RobotLayout) and meta['team']; "
-                                "write the log a team experiment's run returned")
+        raise InvalidInputError("a team log needs meta['layout'] (its RobotLayout) and meta['team'] (its "
+                                "Team), which a log read back from run.mcap lacks: write the log a team "
+                                "experiment's run returned (quatform run), or write_mcap(log, path, scene=False)")
     state = np.asarray(log["state"], dtype=float)
     heading = np.full((len(log), layout.n), np.nan)
     parts = team.split(state)
@@ -285,10 +386,20 @@ def team_scene(log) -> Scene:
             if stem in model.state_columns:
                 heading[:, i] = x[:, model.state_columns.index(stem)]
                 break
-    p, q = _layout_poses(layout, np.asarray(log["points"], dtype=float), heading)
-    pd = qd = None
+    points, q = _layout_poses(layout, np.asarray(log["points"], dtype=float), heading)
+    points_d = qd = None
     if "r_des" in log:
-        pd, qd = _layout_poses(layout, np.asarray(log["r_des"], dtype=float), heading)
+        points_d, qd = _layout_poses(layout, np.asarray(log["r_des"], dtype=float), heading)
+    # a Pioneer's pose is its base, a behind the control point the formation moves (its point)
+    pioneers = [i for i, model in enumerate(team.robots) if isinstance(model, Pioneer)]
+    a = np.array([team.robots[i].a for i in pioneers])
+    p, pd = points, points_d
+    if pioneers:
+        p = points.copy()
+        p[:, pioneers] = pioneer_base(points[:, pioneers], heading[:, pioneers], a)
+        if points_d is not None:
+            pd = points_d.copy()
+            pd[:, pioneers] = pioneer_base(points_d[:, pioneers], heading[:, pioneers], a)
     u = np.asarray(log["command"], dtype=float)
     twist = np.zeros((len(log), layout.n, 6))
     frames = []
@@ -299,14 +410,15 @@ def team_scene(log) -> Scene:
                                     f"add how its commands {model.command_columns} read as a twist")
         twist[:, i] = _twist(ui, spec)
         frames.append("world" if spec.frame == "world" else f"robot_{layout.labels[i]}")
-    formation, formation_desired = _formation(log, "cluster"), _formation(log, "c_des", "_des")
+    # the formation frame of every controller: the team chart's x_c, q_c (channels e, e_des)
+    formation, formation_desired = _formation(log, "e"), _formation(log, "e_des", "_des")
     bodies = tuple(f"robot_{lab}" for lab in layout.labels)
     scene = Scene(bodies=bodies, parents=("world",) * layout.n, position=p, quaternion=q,
                   position_desired=pd, quaternion_desired=qd, twist=twist, twist_frames=tuple(frames),
                   formation=formation, formation_desired=formation_desired,
-                  edges=_team_edges(p, None if formation is None else formation[0]),
-                  edges_desired=None if pd is None else _team_edges(pd, None if formation_desired is None
-                                                                    else formation_desired[0]))
+                  edges=_team_edges(points, None if formation is None else formation[0]),
+                  edges_desired=None if points_d is None else _team_edges(points_d, None if formation_desired is None
+                                                                          else formation_desired[0]))
     # the team plant names its world bodies robot1 ... robotN, in robot order
     return _with_physics(scene, log, {f"robot{i + 1}": body for i, body in enumerate(bodies)})
 

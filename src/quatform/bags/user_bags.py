@@ -72,6 +72,9 @@ def open_bag(path):
         raise InvalidInputError(f"bag {path} does not exist; give an .mcap or .db3 file or a rosbag2 folder")
     if p.is_dir() and not (p / "metadata.yaml").exists():  # a quatform run's folder: its one .mcap
         files = sorted(p.glob("*.mcap"))
+        if not files and (p / "metrics.json").is_file():
+            raise InvalidInputError(f"this run folder has no run.mcap (written with --no-mcap?): {path}; run it "
+                                    "again without --no-mcap")
         if len(files) != 1:
             raise InvalidInputError(f"{path} is a folder without metadata.yaml (not a rosbag2 folder) and holds "
                                     f"{len(files)} .mcap files; give the .mcap file itself")

@@ -3,9 +3,10 @@
 Import it in Foxglove (Layouts > Import from file) after opening a run's ``run.mcap``: a 3-D
 panel following the ``world`` frame with the robots' TF frames, the formation frame, the
 formation's edges (``/formation/edges``) and the robots' paths (``/<body>/path``,
-``/<body>/path_desired``); plots of the formation's position and attitude against the
-reference (``/quatform/cluster``, ``/quatform/c_des``), of the cluster-space error
-(``/quatform/error``) and of the singularity measure (``/quatform/singularity``).
+``/<body>/path_desired``); plots of the formation frame's position and attitude against the
+reference (``/formation/pose``, ``/formation/pose_desired``), of their difference
+(``/formation/error``) and of the singularity measure (``/quatform/singularity``): topics
+every pair, UGV-UAV and team run has, whatever its controller.
 """
 
 from __future__ import annotations
