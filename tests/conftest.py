@@ -86,3 +86,24 @@ class Constant(Controller):
 
     def update(self, t, measured, reference, state):
         return Step(np.array(self.u, dtype=float), state, {})
+
+
+#: The channels a compute backend's log must equal NumPy's on, and the tolerance (issue 15).
+BACKEND_CHANNELS = ("state", "measured", "command", "cluster", "error", "raw_finite")
+BACKEND_TOL = 1e-9
+
+
+def short_scenario(name, duration_s=0.6):
+    """A built-in scenario cut to ``duration_s`` with its metrics from t = 0."""
+    import dataclasses
+
+    from quatform.scenarios import load_scenario
+
+    return dataclasses.replace(load_scenario(name), duration_s=duration_s, metrics_from_s=0.0)
+
+
+def assert_logs_equal(a, b):
+    """Two logs' :data:`BACKEND_CHANNELS` equal within :data:`BACKEND_TOL`."""
+    for key in BACKEND_CHANNELS:
+        assert a[key].shape == b[key].shape, key
+        np.testing.assert_allclose(b[key], a[key], rtol=0, atol=BACKEND_TOL, err_msg=key)

@@ -14,36 +14,27 @@ import pytest
 
 jax = pytest.importorskip("jax")
 
+from conftest import BACKEND_TOL as TOL  # noqa: E402
+from conftest import assert_logs_equal, short_scenario  # noqa: E402
+
 from quatform.errors import InvalidInputError, MissingDependencyError
 from quatform.scenarios import kind_of, load_scenario
 from quatform.scenarios.pair import PAIR
 from quatform.sim.backends import SIM_BACKENDS, simulator
 
 CONTROLLERS = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
-CHANNELS = ("state", "measured", "command", "cluster", "error", "raw_finite")
-TOL = 1e-9
-
-
-def _short(name, duration_s=0.6):
-    return dataclasses.replace(load_scenario(name), duration_s=duration_s, metrics_from_s=0.0)
-
-
-def _assert_logs_equal(a, b):
-    for key in CHANNELS:
-        assert a[key].shape == b[key].shape, key
-        np.testing.assert_allclose(b[key], a[key], rtol=0, atol=TOL, err_msg=key)
 
 
 @pytest.mark.parametrize("scenario", ["mas-kitts-helix", "mas-kitts-spiral", "mas-kitts-yaw-step"])
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_one_world_equals_numpy(scenario, controller):
-    ex = PAIR.experiment(_short(scenario), controller=controller)
-    _assert_logs_equal(ex.run(backend="numpy"), ex.run(backend="jax"))
+    ex = PAIR.experiment(short_scenario(scenario), controller=controller)
+    assert_logs_equal(ex.run(backend="numpy"), ex.run(backend="jax"))
 
 
 
 def test_metrics_equal_on_the_experiment():
-    ex = PAIR.experiment(_short("mas-kitts-helix", 1.0), controller="cluster-space")
+    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 1.0), controller="cluster-space")
     a, b = ex.metrics(ex.run(backend="numpy")), ex.metrics(ex.run(backend="jax"))
     for key, value in a.items():
         if isinstance(value, float):
@@ -81,7 +72,7 @@ def test_missing_jax_names_the_extra(monkeypatch):
         return real(name, *args, **kwargs)
 
     monkeypatch.setattr(builtins, "__import__", no_jax)
-    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.1), controller="quaternion")
+    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.1), controller="quaternion")
     with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[jax\]"'):
         ex.run(backend="jax")
 
@@ -89,7 +80,7 @@ def test_missing_jax_names_the_extra(monkeypatch):
 
 def test_global_x64_setting_left_alone():
     before = jax.config.jax_enable_x64
-    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.1), controller="robot-space")
+    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.1), controller="robot-space")
     log = ex.run(backend="jax")
     assert log["state"].dtype == np.float64
     assert jax.config.jax_enable_x64 == before
@@ -98,7 +89,7 @@ def test_global_x64_setting_left_alone():
 def test_equal_configurations_share_one_compilation_key():
     from quatform.sim.jax_loop import config_key
 
-    sc = _short("mas-kitts-helix", 0.1)
+    sc = short_scenario("mas-kitts-helix", 0.1)
     a, b = (PAIR.experiment(sc, controller="quaternion") for _ in range(2))
     assert a.controller is not b.controller
     assert config_key(a.plant, a.controller) == config_key(b.plant, b.controller)

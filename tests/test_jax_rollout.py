@@ -12,8 +12,10 @@ import pytest
 
 jax = pytest.importorskip("jax")
 
+from conftest import BACKEND_TOL as TOL  # noqa: E402
+from conftest import assert_logs_equal, short_scenario  # noqa: E402
+
 from quatform.errors import InvalidInputError, ShapeError
-from quatform.scenarios import load_scenario
 from quatform.scenarios.pair import PAIR
 from quatform.sim.backends import simulator
 from quatform.sim.jax_rollout import ROLLOUT_METRICS, rollout_metrics
@@ -21,59 +23,47 @@ from quatform.sim.metrics import compute_metrics
 from quatform.sim.trial_measurement import TickMeasurement
 
 CONTROLLERS = ("cluster-space", "robot-space", "quaternion", "dual-quaternion")
-CHANNELS = ("state", "measured", "command", "cluster", "error", "raw_finite")
-TOL = 1e-9
-
-
-def _short(name, duration_s=0.6):
-    return dataclasses.replace(load_scenario(name), duration_s=duration_s, metrics_from_s=0.0)
-
-
-def _assert_logs_equal(a, b):
-    for key in CHANNELS:
-        assert a[key].shape == b[key].shape, key
-        np.testing.assert_allclose(b[key], a[key], rtol=0, atol=TOL, err_msg=key)
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_batch_with_tick_measurement_equals_numpy(controller):
     """Three worlds from offset starts, with noise, two ticks of latency and dropped frames."""
-    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.5), controller=controller)
+    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.5), controller=controller)
     T = ex.times.size
     rng = np.random.default_rng(7)
     x0 = ex.x0 + rng.normal(0.0, 0.2, (3, 8))
     meas = TickMeasurement(rng.normal(0.0, 0.01, (T, 3, 8)), 2, rng.random((T, 3)) < 0.2)
     ex = dataclasses.replace(ex, x0=x0, measurement=meas)
     a, b = ex.run(backend="numpy"), ex.run(backend="jax")
-    _assert_logs_equal(a, b)
+    assert_logs_equal(a, b)
     assert "failed" not in b.meta
 
 
 
 def test_batch_axes_kept_and_no_feedforward():
-    ex = PAIR.experiment(_short("mas-kitts-helix", 0.3), controller="quaternion", feedforward=False)
+    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.3), controller="quaternion", feedforward=False)
     x0 = np.broadcast_to(ex.x0, (2, 2, 8)) + np.arange(4.0).reshape(2, 2, 1) * 0.05
     ex = dataclasses.replace(ex, x0=x0)
     a, b = ex.run(backend="numpy"), ex.run(backend="jax")
     assert b["state"].shape == (ex.times.size, 2, 2, 8)
-    _assert_logs_equal(a, b)
+    assert_logs_equal(a, b)
 
 
 
 def test_progress_in_tenths_and_same_log():
-    ex = PAIR.experiment(_short("mas-kitts-yaw-step", 0.33), controller="dual-quaternion")
+    ex = PAIR.experiment(short_scenario("mas-kitts-yaw-step", 0.33), controller="dual-quaternion")
     seen = []
     log = ex.run(progress=seen.append, backend="jax")
     T = ex.times.size
     assert len(seen) == -(-T // -(-T // 10))  # chunks of ceil(T / 10) ticks
     assert seen[-1] == pytest.approx(1.0) and np.all(np.diff(seen) > 0)
-    _assert_logs_equal(ex.run(backend="numpy"), log)
+    assert_logs_equal(ex.run(backend="numpy"), log)
 
 
 
 def test_coincident_robots_fail_that_world_only():
     """NumPy refuses robots on each other; the compiled loop marks that world and goes on."""
-    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.2), controller="quaternion")
+    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="quaternion")
     x0 = np.stack([ex.x0, ex.x0])
     x0[1, 4:7] = x0[1, 0:3]  # robot 2 on robot 1
     # the loop itself (Experiment.finish reads every world's cluster state: a sweep masks failed ones)
@@ -88,7 +78,7 @@ def test_coincident_robots_fail_that_world_only():
 
 
 def test_one_world_failure_raises_like_numpy():
-    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.2), controller="dual-quaternion")
+    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="dual-quaternion")
     x0 = ex.x0.copy()
     x0[4:7] = x0[0:3]
     with pytest.raises(InvalidInputError, match="coincide"):
@@ -99,14 +89,14 @@ def test_one_world_failure_raises_like_numpy():
 @pytest.mark.parametrize("controller", ["quaternion", "robot-space"])
 def test_rollout_metrics_equal_compute_metrics(controller):
     """The reduced rollout's metrics equal compute_metrics of each world of a logged NumPy batch."""
-    ex = PAIR.experiment(_short("mas-kitts-helix", 0.8), controller=controller)
+    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.8), controller=controller)
     ex = dataclasses.replace(ex, meta={**ex.meta, "metrics_from_s": 0.3})
     T = ex.times.size
     rng = np.random.default_rng(3)
     x0 = ex.x0 + rng.normal(0.0, 0.08, (5, 8))
     meas = TickMeasurement(rng.normal(0.0, 0.004, (T, 5, 8)), 1, rng.random((T, 5)) < 0.05)
     res = rollout_metrics(ex, x0, meas, trials_per_call=2)  # chunks of 2, the last one padded
-    log = PAIR.experiment(dataclasses.replace(_short("mas-kitts-helix", 0.8), metrics_from_s=0.3),
+    log = PAIR.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8), metrics_from_s=0.3),
                           controller=controller)
     log = dataclasses.replace(log, x0=x0, measurement=meas).run(backend="numpy")
     for i in range(5):
@@ -123,7 +113,7 @@ def test_rollout_metrics_equal_compute_metrics(controller):
 
 
 def test_short_tick_measurement_refused_in_one_line():
-    ex = PAIR.experiment(_short("mas-kitts-spiral", 0.2), controller="quaternion")
+    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="quaternion")
     meas = TickMeasurement(np.zeros((3, 8)), 0)  # 3 ticks of noise for a run of 21
     with pytest.raises(ShapeError, match="fewer than the run's 21 ticks"):
         dataclasses.replace(ex, measurement=meas).run(backend="jax")

@@ -112,20 +112,19 @@ class _Worlds:
 
         return _map_worlds(np.asarray(m), self.batch, put, 1), _map_worlds(state, self.batch, put)
 
-    def _find(self, controller, t, m, reference, state, exc) -> None:
-        """Mark the worlds whose update raises on its own (re-raise ``exc`` when none does)."""
+    def _find(self, alone, what: str, exc) -> None:
+        """Mark the healthy worlds for which ``alone(idx)`` (the batch's call on world ``idx``
+        only) raises, each with ``what`` and its own reason; re-raise ``exc`` when none does."""
         found = False
         for idx in np.ndindex(*self.batch):
             if self.failed[idx]:
                 continue
-            take = (lambda a, idx=idx: a[idx])
             try:
-                controller.update(t, np.asarray(m)[idx], _map_worlds(reference, self.batch, take, 1),
-                                  _map_worlds(state, self.batch, take))
+                alone(idx)
             except _WORLD_ERRORS as own:
                 mask = np.zeros(self.batch, dtype=bool)
                 mask[idx] = True
-                self._mark(mask, f"t = {t:g} s: {' '.join(str(own).split())}")
+                self._mark(mask, what + " ".join(str(own).split()))
                 found = True
         if not found:
             raise exc
@@ -140,7 +139,11 @@ class _Worlds:
         try:
             step = controller.update(t, m, reference, state)
         except _WORLD_ERRORS as exc:
-            self._find(controller, t, m, reference, state, exc)
+            def alone(idx):
+                take = (lambda a: a[idx])
+                controller.update(t, np.asarray(m)[idx], _map_worlds(reference, self.batch, take, 1),
+                                  _map_worlds(state, self.batch, take))
+            self._find(alone, f"t = {t:g} s: ", exc)
             return self.update(controller, t, m, reference, state)
         u = np.asarray(step.u, dtype=float)
         self._mark(~np.all(np.isfinite(u), axis=-1), f"t = {t:g} s: non-finite command")
@@ -165,19 +168,8 @@ class _Worlds:
         try:
             x_new = plant.step(x_in, u, dt, t)
         except _WORLD_ERRORS as exc:
-            found = False
-            for idx in np.ndindex(*self.batch):
-                if self.failed[idx]:
-                    continue
-                try:
-                    plant.step(x_in[idx], np.asarray(u)[idx], dt, t)
-                except _WORLD_ERRORS as own:
-                    mask = np.zeros(self.batch, dtype=bool)
-                    mask[idx] = True
-                    self._mark(mask, f"t = {t:g} s: the plant refused the world's state: {' '.join(str(own).split())}")
-                    found = True
-            if not found:
-                raise exc
+            self._find(lambda idx: plant.step(x_in[idx], np.asarray(u)[idx], dt, t),
+                       f"t = {t:g} s: the plant refused the world's state: ", exc)
             return self.step(plant, x, u, dt, t)
         self._mark(~np.all(np.isfinite(x_new), axis=-1), f"t = {t + dt:g} s: non-finite plant state")
         return np.where(self.failed[..., None], x, x_new) if self.failed.any() else x_new
