@@ -10,6 +10,7 @@ fixed by the spec), so every executor gives the same table.
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
 from ..checks import nearest
@@ -56,6 +57,14 @@ def slurm_job_script(options: dict) -> str:
         cluster.close()
 
 
+def _process_context():
+    """Worker processes started clean: ``forkserver`` where the platform has it, else
+    ``spawn``; never a bare ``fork`` of this process, which may hold JAX's (or BLAS's) threads
+    and deadlock in the child (Python's own warning for JAX)."""
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
 @contextlib.contextmanager
 def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None = None,
              timeout_s: float = CONNECT_TIMEOUT_S):
@@ -76,7 +85,7 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
         if workers == 1:
             yield None
             return
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=_process_context()) as pool:
             yield pool
         return
     if scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
