@@ -190,7 +190,7 @@ class QuaternionTeam(Formation):
         c = super().check_cluster_state(c, name)
         as_unit_quaternion(c[..., 3:7], f"{name}[q_c]")
         if len(self._o):
-            as_unit_quaternion(c[..., self._o], f"{name}[q_c1..q_c{self._heads[-1][1]}]")
+            as_unit_quaternion(self._heading_rows(c), f"{name}[q_c1..q_c{self._heads[-1][1]}]")
         return c
 
     # -- pieces shared by the maps -----------------------------------------------------------
@@ -222,7 +222,15 @@ class QuaternionTeam(Formation):
         """``(template, hint)`` of the fit: ``near_c``'s shape and attitude, else the template and 1."""
         if near_c is None:
             return self.template, None
-        return near_c[..., self._s], near_c[..., 3:7]
+        return self._shape_rows(near_c), near_c[..., 3:7]
+
+    def _shape_rows(self, c):
+        """``s_i`` of ``c`` as rows ``(..., N, 3)``: a view (the block ``self._s`` is contiguous)."""
+        return c[..., 7:7 + self._s.size].reshape(c.shape[:-1] + self._s.shape)
+
+    def _heading_rows(self, c):
+        """``q_ci`` of ``c`` as rows ``(..., M, 4)``: a view (the block ``self._o`` closes ``c``)."""
+        return c[..., 7 + self._s.size:].reshape(c.shape[:-1] + self._o.shape)
 
     def _assemble(self, xc, q, s, qci):
         shape = np.broadcast_shapes(xc.shape[:-1], q.shape[:-1], s.shape[:-2], qci.shape[:-2])
@@ -271,8 +279,9 @@ class QuaternionTeam(Formation):
         else:
             qci = self._headings(r) @ _mT(Lc)
         if near_c is not None and len(self._o):
-            flip = np.einsum("...i,...i->...", qci, near_c[..., self._o]) < 0.0
-            qci = np.where(flip[..., None], -qci, qci)
+            flip = np.einsum("...i,...i->...", qci, self._heading_rows(near_c)) < 0.0
+            if flip.any():
+                qci = np.where(flip[..., None], -qci, qci)
         return self._assemble(xc, q, s, qci)
 
     def inverse(self, c, *, near_r=None):
@@ -291,8 +300,8 @@ class QuaternionTeam(Formation):
         L = self.layout
         q = c[..., 3:7]
         qn = q / np.linalg.norm(q, axis=-1, keepdims=True)
-        p = c[..., None, 0:3] + c[..., self._s] @ _mT(_rotation(qn))  # eqs. (16), (18)
-        qi = c[..., self._o] @ _mT(_left(q))  # eqs. (17), (19)
+        p = c[..., None, 0:3] + self._shape_rows(c) @ _mT(_rotation(qn))  # eqs. (16), (18)
+        qi = self._heading_rows(c) @ _mT(_left(q))  # eqs. (17), (19)
         if len(self._yaw_rows):
             qy = qi if self._all_yaw else qi[..., self._yaw_rows, :]
             tilt = np.linalg.norm(g.z_axis(qy / np.linalg.norm(qy, axis=-1, keepdims=True)) - g.EZ, axis=-1)
@@ -422,12 +431,12 @@ class QuaternionTeam(Formation):
         q, q_dot = np.broadcast_arrays(q, q_dot)
         qc = g.conj(q)[..., None, :]
         wb = 2.0 * g.mul(g.conj(q), q_dot)[..., 1:]
-        s = c[..., self._s]
+        s = self._shape_rows(c)
         s_dot = g.rotate(qc, cen_dot) - np.cross(wb[..., None, :], s)
         qi = self._headings(r)
         qi_dot = self._heading_rates(qi, r_dot)
         qci_raw = g.mul(qc, qi)
-        sign = np.where(np.sum(qci_raw * c[..., self._o], axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+        sign = np.where(np.sum(qci_raw * self._heading_rows(c), axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
         qci_dot = sign * (g.mul(g.conj(q_dot)[..., None, :], qi) + g.mul(qc, qi_dot))
         return self._assemble(vbar, q_dot, s_dot, qci_dot)
 
@@ -447,8 +456,8 @@ class QuaternionTeam(Formation):
         wb = (2.0 / nq) * (_left(qn * _CONJ) @ qd[..., None])[..., 0]  # (., w_b) = 2 q* q_c' / |q_c|
         R = _rotation(qn)
         # p_i' = x_c' + R (w_b x s_i + s_i') (eqs. (16), (18)), as rows: s (R [w_b]x)^T + s' R^T
-        v = cd[..., None, 0:3] + c[..., self._s] @ _mT(R @ _skew(wb)) + cd[..., self._s] @ _mT(R)
-        qci, qcid = c[..., self._o], cd[..., self._o]
+        v = cd[..., None, 0:3] + self._shape_rows(c) @ _mT(R @ _skew(wb)) + self._shape_rows(cd) @ _mT(R)
+        qci, qcid = self._heading_rows(c), self._heading_rows(cd)
         Lq = _mT(_left(q))
         qi = qci @ Lq  # eqs. (17), (19)
         qid = qci @ _mT(_left(qd)) + qcid @ Lq
@@ -478,7 +487,7 @@ class QuaternionTeam(Formation):
         d = np.broadcast_to(q2, c.shape[:-1] + (self.n_r,)).copy()  # positions: 1 (R R^T), pose rows |q_c|^2
         d[..., self._pos_rows] = 1.0
         if len(self._yaw_r):  # |d theta / d q_ci|^2 = |q_c|^2 |grad yaw_of(q_i)|^2 (pair_kernels.yaw_of)
-            qi = c[..., self._o] @ _mT(_left(c[..., 3:7]))
+            qi = self._heading_rows(c) @ _mT(_left(c[..., 3:7]))
             if not self._all_yaw:
                 qi = qi[..., self._yaw_rows, :]
             w, x, y, z = np.moveaxis(qi, -1, 0)
@@ -537,8 +546,8 @@ class QuaternionTeam(Formation):
         ch = self.chart
         e = np.empty(c.shape[:-1] + (ch.size,))
         e[..., 0:7] = c[..., 0:7]
-        e[..., ch.shape_index] = c[..., self._s]
-        qi = g.mul(c[..., None, 3:7], c[..., self._o])
+        e[..., ch.shape_index] = self._shape_rows(c)
+        qi = g.mul(c[..., None, 3:7], self._heading_rows(c))
         if len(self._yaw_rows):
             th = g.yaw_of(qi[..., self._yaw_rows, :])
             if near_e is not None:
