@@ -22,7 +22,7 @@ from ..formations import segment_direction
 from ..formations.base import PAIR_LAYOUT
 from .log import Log
 
-__all__ = ["compute_metrics", "errors_from_robots", "robot_errors", "SINGULAR_THRESHOLD", "LOST_POSITION_M",
+__all__ = ["compute_metrics", "measured_samples", "errors_from_robots", "robot_errors", "SINGULAR_THRESHOLD", "LOST_POSITION_M",
            "LOST_ANGLE_RAD"]
 
 #: A measured state whose singularity measure falls below this is reported singular.
@@ -85,6 +85,29 @@ def robot_errors(r, r_des, e_des) -> dict:
     }
 
 
+def measured_samples(log: Log, who: str) -> np.ndarray:
+    """The samples at or after ``meta["metrics_from_s"]`` of one world's log, ``(T,)`` bool.
+
+    Raises
+    ------
+    ShapeError
+        For a batched log (``who`` names the metrics function in the message).
+    InvalidInputError
+        When there is none: every max error would read 0 and a failed run would look perfect.
+    """
+    if log.batch_shape:
+        raise ShapeError(f"{who}: the log holds a batch of worlds {log.batch_shape}; measure one world at a time "
+                         f"with {who}(log.world(i))")
+    meta, t = log.meta, log.t
+    late = t >= meta["metrics_from_s"]
+    if not late.any():
+        last = float(t[-1]) if len(t) else float("nan")
+        raise InvalidInputError(
+            f"scenario {meta['scenario']!r}: metrics_from_s = {meta['metrics_from_s']:g} s is after the "
+            f"run's last sample ({last:g} s), so no error would be measured; choose metrics_from_s < duration_s")
+    return late
+
+
 def compute_metrics(log: Log) -> dict:
     """The metrics of one world's run as a JSON-ready dict (units in the key names).
 
@@ -95,16 +118,8 @@ def compute_metrics(log: Log) -> dict:
     InvalidInputError
         When no sample lies at or after ``metrics_from_s``.
     """
-    if log.batch_shape:
-        raise ShapeError(f"compute_metrics: the log holds a batch of worlds {log.batch_shape}; measure one "
-                         "world at a time with compute_metrics(log.world(i))")
     meta, t = log.meta, log.t
-    late = t >= meta["metrics_from_s"]
-    if not late.any():  # every max error would read 0: a failed run would look perfect
-        last = float(t[-1]) if len(t) else float("nan")
-        raise InvalidInputError(
-            f"scenario {meta['scenario']!r}: metrics_from_s = {meta['metrics_from_s']:g} s is after the "
-            f"run's last sample ({last:g} s), so no error would be measured; choose metrics_from_s < duration_s")
+    late = measured_samples(log, "compute_metrics")
     err = errors_from_robots(log)
     sing = log["singularity"][:, 0]
     u = log["command"]

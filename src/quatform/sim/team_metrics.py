@@ -28,11 +28,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..errors import InvalidInputError, ShapeError
 from ..formations import geometry as g
 from ..formations.team_chart import fit_attitude
 from .log import Log
-from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, SINGULAR_THRESHOLD
+from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, SINGULAR_THRESHOLD, measured_samples
 
 __all__ = ["singular_threshold", "team_errors", "team_metrics", "min_separations", "rotation_angle"]
 
@@ -175,16 +174,8 @@ def team_metrics(log: Log) -> dict:
     InvalidInputError
         When no sample lies at or after ``metrics_from_s``.
     """
-    if log.batch_shape:
-        raise ShapeError(f"team_metrics: the log holds a batch of worlds {log.batch_shape}; measure one world at a "
-                         "time with team_metrics(log.world(i))")
     meta, t = log.meta, log.t
-    late = t >= meta["metrics_from_s"]
-    if not late.any():
-        last = float(t[-1]) if len(t) else float("nan")
-        raise InvalidInputError(
-            f"scenario {meta['scenario']!r}: metrics_from_s = {meta['metrics_from_s']:g} s is after the run's last "
-            f"sample ({last:g} s), so no error would be measured; choose metrics_from_s < duration_s")
+    late = measured_samples(log, "team_metrics")
     err = team_errors(log)
     sing = np.asarray(log["singularity"])[:, 0]
     measured = np.isfinite(sing)
