@@ -299,6 +299,10 @@ def q_from_axis_angle(axis, angle) -> np.ndarray:
     return out
 
 
+#: Below this a vector's norm may have lost its relative precision (subnormal components).
+_TINY_NORM = 1e-290
+
+
 def axis_angle_from_q(q, shortest: bool = False):
     """Axis and angle of unit quaternions.
 
@@ -324,6 +328,11 @@ def axis_angle_from_q(q, shortest: bool = False):
     s = norm3(v)
     angle = 2.0 * np.arctan2(s, q[..., 0])
     axis = np.where((s > 0.0)[..., None], v / np.where(s > 0.0, s, 1.0)[..., None], [1.0, 0.0, 0.0])
+    tiny = (s > 0.0) & (s < _TINY_NORM)
+    if np.any(tiny):  # subnormal |v|: its norm rounds (5e-324 * sqrt 3 is 5e-324); scale v first
+        big = np.max(np.abs(v), axis=-1, keepdims=True)
+        w = v / np.where(big > 0.0, big, 1.0)
+        axis = np.where(tiny[..., None], w / norm3(w)[..., None], axis)
     return axis, angle
 
 
