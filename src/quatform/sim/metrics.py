@@ -22,8 +22,8 @@ from ..formations import segment_direction
 from ..formations.base import PAIR_LAYOUT
 from .log import Log
 
-__all__ = ["compute_metrics", "measured_samples", "errors_from_robots", "robot_errors", "SINGULAR_THRESHOLD", "LOST_POSITION_M",
-           "LOST_ANGLE_RAD"]
+__all__ = ["compute_metrics", "measured_samples", "first_time", "errors_from_robots", "robot_errors",
+           "SINGULAR_THRESHOLD", "LOST_POSITION_M", "LOST_ANGLE_RAD"]
 
 #: A measured state whose singularity measure falls below this is reported singular.
 SINGULAR_THRESHOLD = 0.02
@@ -32,7 +32,8 @@ LOST_POSITION_M = 0.1
 LOST_ANGLE_RAD = 0.1
 
 
-def _first(t, mask):
+def first_time(t, mask):
+    """The first time ``t[k]`` where ``mask[k]`` (s), or None."""
     idx = np.flatnonzero(mask)
     return float(t[idx[0]]) if idx.size else None
 
@@ -139,10 +140,10 @@ def compute_metrics(log: Log) -> dict:
         "metrics_from_s": meta["metrics_from_s"],
         "feedforward": bool(meta["feedforward"]),
         "singularity_detected": bool(singular.any()),
-        "first_singular_time_s": _first(t, singular),
+        "first_singular_time_s": first_time(t, singular),
         "min_singularity_measure": float(sing.min()),
         "reference_lost": bool(lost.any()),
-        "first_lost_time_s": _first(t, lost),
+        "first_lost_time_s": first_time(t, lost),
         "max_cluster_position_error_m": mx("cluster_position"),
         "max_shape_error_m": mx("shape"),
         "max_orientation_error_rad": mx("orientation"),

@@ -31,7 +31,7 @@ from ..algebra import wrap_angle
 from ..formations import geometry as g
 from ..formations.team_chart import fit_attitude
 from .log import Log
-from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, SINGULAR_THRESHOLD, measured_samples
+from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, SINGULAR_THRESHOLD, first_time, measured_samples
 
 __all__ = ["singular_threshold", "team_errors", "team_metrics", "min_separations", "rotation_angle"]
 
@@ -127,11 +127,6 @@ def _reading_metrics(log: Log, late) -> dict:
             "reading_folded_time_s": float(folded.sum() * tick)}
 
 
-def _first(t, mask):
-    idx = np.flatnonzero(mask)
-    return float(t[idx[0]]) if idx.size else None
-
-
 def _command_speed(team, u) -> float:
     """The fastest commanded robot, m/s: the norm of each robot's linear-velocity commands
     (the columns named ``v``, ``v_x``, ``v_y``, ``v_z``)."""
@@ -197,11 +192,11 @@ def team_metrics(log: Log) -> dict:
         "metrics_from_s": meta["metrics_from_s"],
         "feedforward": bool(meta["feedforward"]),
         "singularity_detected": bool(singular.any()),
-        "first_singular_time_s": _first(t, singular),
+        "first_singular_time_s": first_time(t, singular),
         "min_singularity_measure": float(sing[measured].min()) if measured.any() else None,
         "singularity_samples": int(measured.sum()),
         "reference_lost": bool(lost.any()),
-        "first_lost_time_s": _first(t, lost),
+        "first_lost_time_s": first_time(t, lost),
         "max_cluster_position_error_m": mx("cluster_position"),
         "max_shape_error_m": mx("shape"),
         "max_orientation_error_rad": mx("orientation"),
