@@ -92,3 +92,18 @@ def test_a_clean_batch_has_no_failure_keys(helix):
     exp = KINDS["pair"].experiment(helix, controller="dual-quaternion")
     log = _batch(exp, np.repeat(exp.x0[None], 2, axis=0))
     assert "failed" not in log.meta and "failure" not in log.meta
+
+
+@pytest.mark.parametrize("controller", ["cluster-space", "quaternion", "dual-quaternion"])
+def test_finish_reads_a_failed_world_as_nan(helix, controller):
+    """The pair kind's finish on a batch with a failed world (robots on each other; robot
+    space has no formation to lose, so its robots go on): its chart and singularity measure
+    NaN from its failure on, the healthy world's as its own run."""
+    exp = KINDS["pair"].experiment(helix, controller=controller)
+    x0 = np.repeat(exp.x0[None], 2, axis=0)
+    x0[1, 4:7] = x0[1, 0:3]
+    log = dataclasses.replace(exp, x0=x0).run()
+    assert np.all(np.isnan(log["singularity"][:, 1])) and np.all(np.isnan(log["e"][:, 1]))
+    one = exp.run()
+    assert np.allclose(log["singularity"][:, 0], one["singularity"], rtol=0, atol=1e-12)
+    assert np.allclose(log["e"][:, 0], one["e"], rtol=0, atol=1e-12)

@@ -560,8 +560,13 @@ class PairKind(ScenarioKind):
             shape = r.shape[:-1]
             ed, cd, rd = (np.broadcast_to(a.reshape((a.shape[0],) + (1,) * (r.ndim - 2) + a.shape[1:]),
                                           shape + a.shape[1:]) for a in (e_des, c_des, r_des))
+            held = ~np.all(np.isfinite(c), axis=-1)  # a failed world's samples (sim.simulate: signals NaN)
+            if np.any(held):  # its held robots may coincide: read the reference there, then NaN
+                c, r = np.where(held[..., None], cd, c), np.where(held[..., None], rd, r)
             e = F.to_chart(c, near_e=ed, r=r)
             sing = F.singularity_measure(r, near_c=cd)
+            if np.any(held):
+                e, sing = np.where(held[..., None], np.nan, e), np.where(held, np.nan, sing)
             names = [v.name for v in F.variables]
             euclid = ["euclid_" + v.name for v in EUCLIDEAN_VARIABLES]
             log = log.with_channels(

@@ -50,6 +50,7 @@ from ..formations import DualQuaternionPair, EuclideanPair, QuaternionPair, Robo
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..robots import HolonomicRobot
+from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
 from .simulate import PerfectMeasurement
@@ -82,12 +83,14 @@ FAILURE_REASONS = {1: "the measured robot state is not finite (or beyond 1e150)"
 
 
 def require_jax():
-    """The ``jax`` module, or one line naming the install command."""
+    """The ``jax`` module (its CPU devices configured: :func:`.jax_devices.configure`), or one
+    line naming the install command."""
     try:
         import jax
     except ImportError:
         raise MissingDependencyError('the jax compute backend needs JAX: pip install -e ".[jax]" '
                                      '(or --backend numpy)') from None
+    jax_devices.configure(jax)  # one CPU device per core, before JAX starts its backends
     return jax
 
 
@@ -225,8 +228,8 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     with jax.enable_x64(True):
         ys, carry = _scan(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, progress)
     names = ("state", "measured", "command", "cluster", "error", "raw_finite")
-    data = {k: np.asarray(v).reshape((n,) + batch + (v.shape[-1],)) for k, v in zip(names, ys)}
-    fail_tick, reason = (np.asarray(a).reshape(batch) for a in carry[3:5])
+    data = {k: np.asarray(v)[:, :B].reshape((n,) + batch + (v.shape[-1],)) for k, v in zip(names, ys)}
+    fail_tick, reason = (np.asarray(a)[:B].reshape(batch) for a in carry[3:5])
     extra = {}
     if np.any(reason > 0):
         if not batch:
@@ -240,6 +243,26 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
             **controller.signal_columns()}
     chans = [Channel(k, tuple(cols[k]), data[k]) for k in names]
     return Log(times, chans, {"controller": controller.name, "controller_state": None, **(meta or {}), **extra})
+
+
+def _spread(jax, carry, xs, B):
+    """The scan's carry and per-tick inputs spread over the devices (:mod:`.jax_devices`): the
+    batch padded to a multiple of the device count with copies of the last world (cut from
+    the results), its axis sharded."""
+    size = jax_devices.chunk_size(jax, B, B)
+    pad = size - B
+    arrays = {f"carry{q}": a for q, a in enumerate(carry)}
+    arrays.update(xs)
+    axes = {"carry0": 0, "carry1": 1, "carry2": 0, "carry3": 0, "carry4": 0, "noise": 1, "dropped": 1}
+    for key in ("c", "cd", "rd"):  # (T, B or 1, k): one reference for all worlds is replicated
+        if key in xs and xs[key].shape[1] == B and B > 1:
+            axes[key] = 1
+    for key, axis in axes.items():
+        if pad and key in arrays:
+            a = np.asarray(arrays[key])
+            arrays[key] = np.concatenate([a, np.repeat(np.take(a, [-1], axis=axis), pad, axis=axis)], axis=axis)
+    arrays = jax_devices.place(jax, arrays, axes)
+    return tuple(arrays.pop(f"carry{q}") for q in range(len(carry))), arrays
 
 
 def initial_carry(x, delay):
@@ -359,16 +382,20 @@ def _compiled_scan(jax, plant, controller, *key):
 
 def _scan(jax, tick, carry, xs, n, progress):
     """``lax.scan`` of ``tick`` over the ``n`` ticks of ``xs`` (one compiled call, or ten
-    chunks of one shape when ``progress`` is given): ``(ys, carry)``."""
+    chunks of one shape when ``progress`` is given), the batch spread over the devices
+    (:func:`_spread`): ``(ys, carry)``, the batch padded as :func:`_spread` pads it."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     run = tick.compiled
+    B = carry[0].shape[0]
     if progress is None:
+        carry, xs = _spread(jax, carry, xs, B)
         ys, carry = run(carry, xs)
         return ys, carry
     size = -(-n // 10)
     xs["valid"] = np.ones(n, dtype=bool)
     pad = {k: np.concatenate([v, np.repeat(v[-1:] if k != "valid" else ~v[-1:], 10 * size - n, axis=0)])
            for k, v in xs.items()}
+    carry, pad = _spread(jax, carry, pad, B)
     parts = []
     for chunk in range(10):
         take = min(size, n - chunk * size)

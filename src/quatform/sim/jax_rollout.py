@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from ..errors import InvalidInputError, ShapeError
+from . import jax_devices
 from .jax_loop import (
     FAILURE_REASONS,
     cached,
@@ -63,8 +64,10 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
         Noise ``(T, *batch, 8)``, latency and dropped frames of every trial (default: the
         experiment's; None: perfect).
     trials_per_call : int, optional
-        Trials per compiled call (one compilation; chunks bound the device memory). Default:
-        all at once.
+        Trials per compiled call (one compilation; chunks bound the device memory), rounded
+        up to a multiple of the device count. Default: :func:`.jax_devices.chunk_size` (a
+        cache-sized chunk per CPU core, the whole batch on a GPU). Each call's trials are
+        spread over JAX's devices (:mod:`.jax_devices`).
 
     Returns
     -------
@@ -101,7 +104,7 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     step = (dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)
     compiled = cached(_CACHE, (config_key(plant, ctrl), *step), lambda: _compile(
         jax, tick_function(plant, ctrl, *step, True), ctrl.team.layout, tick.delay_ticks))
-    size = B if trials_per_call is None else max(1, min(int(trials_per_call), B))
+    size = jax_devices.chunk_size(jax, B, trials_per_call)
     shared = {"t": times, "c": c_ref, "cd": cd_ref, "rd": r_ref, "ed": e_des[:, None, :], "late": late,
               "k": np.arange(n, dtype=np.int64)}
     xb = x.reshape(B, -1)
@@ -115,14 +118,15 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
                 xs["noise"] = noise[:, sl]
             if dropped is not None:
                 xs["dropped"] = dropped[:, sl]
-            x_chunk = xb[sl]
+            xs["x0"] = xb[sl]
             if stop - start < size:  # the last chunk padded to the compiled shape
                 pad = size - (stop - start)
-                x_chunk = np.concatenate([x_chunk, np.repeat(x_chunk[-1:], pad, axis=0)])
+                xs["x0"] = np.concatenate([xs["x0"], np.repeat(xs["x0"][-1:], pad, axis=0)])
                 for key in ("noise", "dropped"):
                     if key in xs:
                         xs[key] = np.concatenate([xs[key], np.repeat(xs[key][:, -1:], pad, axis=1)], axis=1)
-            acc, fail_tick, reason = compiled(x_chunk, xs)
+            xs = jax_devices.place(jax, xs, {"x0": 0, "noise": 1, "dropped": 1})  # the chunk split over devices
+            acc, fail_tick, reason = compiled(xs.pop("x0"), xs)
             outs.append(({k: np.asarray(v)[:stop - start] for k, v in acc.items()},
                          np.asarray(fail_tick)[:stop - start], np.asarray(reason)[:stop - start]))
     acc = {k: np.concatenate([o[0][k] for o in outs]).reshape(batch) for k in outs[0][0]}

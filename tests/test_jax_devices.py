@@ -1,0 +1,107 @@
+"""The batch spread over JAX's devices (:mod:`quatform.sim.jax_devices`): chunk sizes,
+the CPU device count, and sharded runs equal to NumPy (a subprocess with three CPU devices,
+so a batch that does not divide is padded).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+pytest.importorskip("jax")
+
+from quatform.sim import jax_devices  # noqa: E402
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+TESTS = str(Path(__file__).resolve().parent)
+
+
+def fake_jax(n: int, platform: str = "cpu"):
+    return SimpleNamespace(devices=lambda: [SimpleNamespace(platform=platform)] * n)
+
+
+@pytest.mark.parametrize(("n", "platform", "worlds", "per_call", "size"), [
+    (1, "cpu", 10_000, None, jax_devices.CPU_WORLDS_PER_DEVICE),
+    (2, "cpu", 10_000, None, 2 * jax_devices.CPU_WORLDS_PER_DEVICE),
+    (2, "cpu", 3, None, 4),        # a small batch: one padded call, an equal slice per device
+    (3, "cpu", 10, 10, 12),        # given: rounded up to the devices
+    (4, "gpu", 10_000, None, 10_000),  # an accelerator takes the whole batch
+    (1, "cpu", 5, 100, 5),         # never more than the batch
+])
+def test_chunk_size(n, platform, worlds, per_call, size):
+    assert jax_devices.chunk_size(fake_jax(n, platform), worlds, per_call) == size
+
+
+def test_usable_cores_positive():
+    assert 1 <= jax_devices.usable_cores() <= (os.cpu_count() or 1)
+
+
+SCRIPT = r"""
+import dataclasses, json, sys
+import numpy as np
+from conftest import assert_logs_equal, short_scenario
+from quatform.scenarios.pair import PAIR
+from quatform.sim.jax_loop import require_jax
+from quatform.sim.jax_rollout import rollout_metrics
+from quatform.sim.metrics import compute_metrics
+from quatform.sim.trial_measurement import TickMeasurement
+jax = require_jax()
+ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.4), controller="quaternion")
+T, B = ex.times.size, 4
+rng = np.random.default_rng(3)
+x0 = ex.x0 + rng.normal(0.0, 0.2, (B, 8))
+x0[2, 4:7] = x0[2, 0:3]  # world 2: its robots on each other (failed; the others go on)
+noise, dropped = rng.normal(0.0, 0.01, (T, B, 8)), rng.random((T, B)) < 0.1
+noise[:, 2], dropped[:, 2] = 0.0, False  # measured on each other too
+meas = TickMeasurement(noise, 1, dropped)
+ex = dataclasses.replace(ex, x0=x0, measurement=meas)
+a, b = ex.run(backend="numpy"), ex.run(backend="jax")
+assert_logs_equal(a, b)
+seen = []
+assert_logs_equal(a, ex.run(backend="jax", progress=seen.append))
+r = rollout_metrics(ex, x0, meas, trials_per_call=int(sys.argv[1]))
+print(json.dumps({"devices": len(jax.devices()), "failed": np.asarray(b.meta["failed"]).tolist(),
+                  "rollout_failed": r["failed"].tolist(), "progress": len(seen),
+                  "max_err": r["max_robot_position_error_m"].tolist()}))
+"""
+
+
+def run_script(env_extra: dict, script: str = SCRIPT, per_call: int = 2) -> dict:
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env.update(env_extra, PYTHONPATH=os.pathsep.join([SRC, TESTS]))
+    out = subprocess.run([sys.executable, "-c", script, str(per_call)], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_three_devices_pad_and_equal_numpy():
+    """Four worlds on three CPU devices: padded to six, sharded, equal to NumPy, the failed world marked."""
+    res = run_script({"XLA_FLAGS": "--xla_force_host_platform_device_count=3"})
+    assert res["devices"] == 3
+    assert res["failed"] == [False, False, True, False]
+    assert res["rollout_failed"] == res["failed"]
+    assert res["progress"] >= 2
+
+
+COUNT = r"""
+import json, sys
+import jax
+if sys.argv[1] != "0":
+    jax.config.update("jax_num_cpu_devices", int(sys.argv[1]))  # the user's choice
+from quatform.sim.jax_loop import require_jax
+print(json.dumps({"devices": len(require_jax().devices())}))
+"""
+
+
+@pytest.mark.parametrize("chosen", [0, 1, 3])
+def test_cpu_devices_are_the_cores_unless_chosen(chosen):
+    """Without the user's choice quatform asks JAX for one CPU device per usable core."""
+    want = chosen or jax_devices.usable_cores()
+    assert run_script({}, COUNT, chosen)["devices"] == want
