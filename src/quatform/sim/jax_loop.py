@@ -23,8 +23,9 @@ and ``log.meta["failure"]`` (index tuple -> ``"t = ... s: reason"``) report it, 
 :mod:`quatform.sim.backends` specifies. A run of one world (no batch axes) raises.
 
 Precision: float64. The computation runs inside ``jax.enable_x64(True)`` (a context
-manager: the user's global ``jax_enable_x64`` setting is left as it was). Device: JAX's
-default device - the GPU when a CUDA JAX is installed and sees one, otherwise the CPU; no
+manager: the user's global ``jax_enable_x64`` setting is left as it was). Devices: those of
+JAX's default backend - the GPUs when a CUDA JAX is installed and sees one, otherwise one
+CPU device per core (:mod:`.jax_devices`) - with the batch of worlds split over them; no
 code changes. Supported: the pair kind's experiments (seed 000's four controllers on
 kinematic holonomic robots); anything else is refused in one line naming what runs here.
 """
