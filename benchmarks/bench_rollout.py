@@ -9,7 +9,8 @@ Three measurements, printed as ratios in one run:
    :func:`quatform.sim.simulate` (the reference, one Python iteration per tick, every channel
    logged); JAX: :func:`quatform.sim.jax_rollout.rollout_metrics` (the same compiled tick as
    the ``jax`` backend, the metrics reduced as it runs; compile time excluded: the best of
-   ``--repeat`` runs after one warm-up).
+   ``--repeat`` runs after one warm-up; the batch in chunks split over JAX's devices, one
+   CPU device per core: :mod:`quatform.sim.jax_devices`).
 2. **crazyflow**: its batched ``Sim.step`` (``n_worlds`` worlds of one drone, default
    first-principles dynamics, attitude control, 500 Hz), run as a subprocess with the
    interpreter ``--crazyflow-python`` (default ``/work/venv-crazyflow/bin/python``; "not
@@ -160,6 +161,15 @@ def main(argv=None):
     load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
     print(f"load    : {load} (1, 5, 15 min averages; other processes share the CPUs)")
     out = {"rollouts": {}}
+    if jax is not None:
+        from quatform.sim import jax_devices
+        from quatform.sim.jax_loop import require_jax
+
+        devices = require_jax().devices()
+        size = jax_devices.chunk_size(jax, args.worlds)
+        print(f"jax     : {len(devices)} {devices[0].platform} device(s) (sim.jax_devices), {size} worlds per "
+              "compiled call")
+        out["jax_devices"] = [str(d) for d in devices]
     print(f"\nclosed-loop rollouts, M robot-steps/s (NumPy: {args.numpy_worlds} worlds x {args.numpy_ticks} ticks; "
           f"JAX: {args.worlds} worlds x {args.ticks} ticks)")
     print(f"{'controller':<18}{'numpy':>10}{'jax cpu':>10}{'jax/numpy':>11}")
