@@ -287,6 +287,14 @@ def physics_timestep(dt: float, largest: float = 0.0025) -> float:
     return dt / max(1, math.ceil(dt / largest - 1e-9))
 
 
+def _as_slice(ids: np.ndarray):
+    """``ids`` (k,) as the slice it spans where they run ``lo, lo + 1, ...`` (a slice reads and
+    writes the same entries as the index array, without a gather), else ``ids`` itself."""
+    ids = np.asarray(ids, dtype=int)
+    if ids.size and np.array_equal(ids, np.arange(ids[0], ids[0] + ids.size)):
+        return slice(int(ids[0]), int(ids[0]) + ids.size)
+    return ids
+
 
 
 @dataclass
@@ -609,26 +617,38 @@ class PhysicsWorld:
         """The quadrotors one after another, on Python floats (issue 7's loop)."""
         mj, m, d = self.mj, self.model, self.data
         dt = m.opt.timestep
-        R = np.empty(9)
-        quads = [(self._qadr[nm], self._vadr[nm], self._motors[nm], self._body[nm], self.cascades[nm],
-                  self._quad_cmd[i].tolist()) for i, nm in enumerate(self.quad_names)]
+        quat2mat, mj_step, check = mj.mju_quat2Mat, mj.mj_step, self.contacts.check
+        nq = len(self.quad_names)
+        # each vehicle's rotation, written by mju_quat2Mat from its quaternion (views into
+        # MjData's buffers, which keep their memory): one tolist a step for all of them
+        R = np.empty((nq, 9))
+        rotations = [(R[i], d.qpos[a + 3:a + 7]) for i, a in enumerate(self._qadr[nm] for nm in self.quad_names)]
         velocity = self.quad_mode == "velocity"
+        quads = [(self._vadr[nm], 4 * i, (self.cascades[nm].step_velocity if velocity else
+                                          self.cascades[nm].step_attitude), self._quad_cmd[i].tolist())
+                 for i, nm in enumerate(self.quad_names)]
+        # every motor command and every body's drag written with one assignment a step
+        motors, bodies = _as_slice(self._motor_ids.ravel()), _as_slice(self._quad_bodies)
+        ctrl, xfrc, force = d.ctrl, d.xfrc_applied, d.actuator_force
         for _ in range(n):
-            qvel, force = d.qvel.tolist(), d.actuator_force.tolist()  # read once a step (mj_step writes them)
-            for a, va, motors, body, cas, u in quads:
-                mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
-                Rl, vw = R.tolist(), qvel[va:va + 6]
-                if velocity:
-                    f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
-                else:
-                    f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
-                d.ctrl[motors] = f
-                d.xfrc_applied[body, 0:3] = cas.rotor_drag([force[k] for k in motors], vw[0:3], Rl)
+            # read once a step (mj_step writes them)
+            qvel, fq = d.qvel.tolist(), force[motors].tolist()
+            for rot, q in rotations:
+                quat2mat(rot, q)
+            f, drag = [], []
+            for (va, k, step, u), Rl in zip(quads, R.tolist()):
+                fi, di = step(u, qvel[va:va + 6], Rl, fq[k:k + 4], dt) if velocity else \
+                    step(u, qvel[va:va + 6], Rl, fq[k:k + 4])
+                f += fi
+                drag.append(di)
+            if nq:
+                ctrl[motors] = f
+                xfrc[bodies, 0:3] = drag
             t_before = d.time
-            mj.mj_step(m, d)
+            mj_step(m, d)
             if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
                 self._check_step()
-            self.contacts.check(m, d)
+            check(m, d)
         self._after_steps()
 
     def _step_vectorised(self, n: int):
