@@ -322,6 +322,8 @@ class ContactMonitor:
     _resting: set = field(default_factory=set)
 
     def check(self, model, data):
+        if not data.ncon and not self._resting:  # nothing touches, nothing rests: nothing to do
+            return
         now = {}  # pair -> only landing gear on the ground so far
         for i in range(data.ncon):
             c = data.contact[i]
@@ -548,8 +550,15 @@ class PhysicsWorld:
         """``(x, y, z, yaw)`` of every quadrotor, shape (N, 4), yaws continued (:meth:`quad_state`
         for all at once: one gather, one rotation per vehicle on arrays; vehicle by vehicle
         where the cascades run so, to keep the per-vehicle world's numbers)."""
-        if not self.vectorised:
-            return np.array([self.quad_state(n) for n in self.quad_names]).reshape(-1, 4)
+        if not self.vectorised:  # quad_state's numbers, without its copies
+            d, R = self.data, np.empty(9)
+            out = np.empty((len(self.quad_names), 4))
+            for i, n in enumerate(self.quad_names):
+                a = self._qadr[n]
+                self.mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+                out[i, 0:3] = d.qpos[a:a + 3]
+                out[i, 3] = self._unwrap(n, math.atan2(R[3], R[0]))
+            return out
         q = self.data.qpos[self._quad_qidx]  # (7, N)
         R = rotation_rows(q[3:7].T)
         self._quad_yaw = self._continued(self._quad_yaw, np.arctan2(R[:, 3], R[:, 0]))
