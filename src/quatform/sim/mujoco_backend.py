@@ -274,9 +274,13 @@ CASCADE_MODES = ("auto", "vectorised", "per-vehicle")
 
 #: Fewest quadrotors for which ``"auto"`` runs the cascades on arrays: one vectorised step
 #: costs ~150 us of NumPy calls whatever N, one vehicle on Python floats ~30 us (CPU time
-#: per physics step on this 2-core machine, ``docs/physics.md`` "Teams"): the arrays win
+#: per physics step on this 2-core machine, ``docs/physics.md`` "Teams"): the arrays won
 #: from 6 vehicles on (N = 4: 144 against 175 us; N = 6: 205 against 187 us; N = 10: 320
-#: against 215 us).
+#: against 215 us). Since the per-vehicle cascade runs on local floats (session 21) the
+#: per-vehicle loop is the faster one up to about 18 vehicles (simulated s per CPU s,
+#: per vehicle / arrays: N = 6: 28.8 / 14.8; N = 10: 18.9 / 13.5; N = 16: 10.5 / 9.8;
+#: N = 20: 8.4 / 8.7); the threshold is kept at 6 so that worlds of 6 or more quadrotors
+#: keep their floats (the two ways agree to rounding, not bit for bit).
 VECTORISED_FROM = 6
 
 
