@@ -300,7 +300,6 @@ def _as_slice(ids: np.ndarray):
     return ids
 
 
-
 @dataclass
 class ContactMonitor:
     """Collisions among robots and with the ground, counted as episodes.
@@ -650,8 +649,7 @@ class PhysicsWorld:
                 quat2mat(rot, q)
             f, drag = [], []
             for (va, k, step, u), Rl in zip(quads, R.tolist()):
-                fi, di = step(u, qvel[va:va + 6], Rl, fq[k:k + 4], dt) if velocity else \
-                    step(u, qvel[va:va + 6], Rl, fq[k:k + 4])
+                fi, di = step(u, qvel[va:va + 6], Rl, fq[k:k + 4], dt)
                 f += fi
                 drag.append(di)
             if nq:

@@ -256,10 +256,11 @@ class QuadrotorCascade:
         """
         return self._velocity_chain(u, vw, R, dt), self._rotor_drag(forces, vw, R)
 
-    def step_attitude(self, u, vw, R, forces) -> tuple[list, tuple]:
+    def step_attitude(self, u, vw, R, forces, dt: float | None = None) -> tuple[list, tuple]:
         """One physics step of the Bebop-like attitude mode: ``(rotor forces, rotor drag)``
         (:meth:`attitude_mode` and :meth:`rotor_drag`; arguments as :meth:`step_velocity`,
-        ``u`` the command ``(u_x, u_y, u_z, u_psi)``)."""
+        ``u`` the command ``(u_x, u_y, u_z, u_psi)``; ``dt`` unused: this mode keeps no
+        integrator, it is there so that a loop calls both modes alike)."""
         return self._attitude_list(u, vw[2], R, vw[3:6]), self._rotor_drag(forces, vw, R)
 
     # -- outer loops ------------------------------------------------------------------
