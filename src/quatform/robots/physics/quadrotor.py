@@ -139,7 +139,9 @@ def _floats(x) -> list:
 @dataclass
 class QuadrotorCascade:
     """PX4-style cascaded low-level controller of one quadrotor (stateful: the velocity
-    integrator).
+    integrator). Its numbers are read once, when it is made (the loops run at the physics
+    rate on each vehicle): for other numbers make another (``dataclasses.replace``), do not
+    assign its fields.
 
     Parameters
     ----------
