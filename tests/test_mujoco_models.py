@@ -366,3 +366,63 @@ def test_a_gl_import_failure_is_not_reported_as_mujoco_missing():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["disable", "0", "RuntimeWarning"]
+
+
+def _reference_loop(world, n_steps):
+    """The per-vehicle physics loop written plainly (issue 7's): per vehicle and step, its
+    rotation from ``mju_quat2Mat``, the public ``velocity_mode`` / ``attitude_mode`` and
+    ``rotor_drag``, its own motor and drag assignments, then ``mj_step``."""
+    m, d = world.model, world.data
+    R = np.empty(9)
+    for _ in range(n_steps):
+        qvel, force = d.qvel.tolist(), d.actuator_force.tolist()
+        for i, name in enumerate(world.quad_names):
+            body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+            a, va = int(m.jnt_qposadr[m.body_jntadr[body]]), int(m.jnt_dofadr[m.body_jntadr[body]])
+            motors = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{name}_motor{k}") for k in range(4)]
+            mujoco.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+            cas, u, vw = world.cascades[name], world._quad_cmd[i].tolist(), qvel[va:va + 6]
+            if world.quad_mode == "velocity":
+                f = cas.velocity_mode(u[0:3], u[3], vw[0:3], R.tolist(), vw[3:6], m.opt.timestep)
+            else:
+                f = cas.attitude_mode(u, vw[0:3], R.tolist(), vw[3:6])
+            d.ctrl[motors] = f
+            d.xfrc_applied[body, 0:3] = cas.rotor_drag([force[k] for k in motors], vw[0:3], R)
+        mujoco.mj_step(m, d)
+
+
+@pytest.mark.parametrize("mode", ["velocity", "attitude"])
+def test_the_per_vehicle_loop_is_the_plain_loop_bit_for_bit(mode):
+    """PhysicsWorld's per-vehicle loop (one rotation tolist, one motor and one drag assignment
+    a step, the cascades' step_velocity / step_attitude) gives the floats of the plain loop,
+    through saturating commands and a non-finite set point."""
+    quads = [(f"q{i}", (1.5 * i, 0.2 * i, 2.0), 0.7 * i - 1.0) for i in range(3)]
+    fast, plain = (PhysicsWorld(quads=quads, quad_mode=mode, cascades="per-vehicle") for _ in range(2))
+    rng = np.random.default_rng(7)
+    for k in range(40):
+        u = rng.normal(size=(3, 4)) * (4.0 if mode == "velocity" else 0.8)  # the tilt and the rotors saturate
+        if k == 5:
+            u[1, 2] = np.nan
+        for w in (fast, plain):
+            w.command_quads(u)
+        fast.step(4)
+        _reference_loop(plain, 4)
+        for name in ("qpos", "qvel", "act", "ctrl", "xfrc_applied"):
+            assert np.array_equal(getattr(fast.data, name), getattr(plain.data, name)), name
+    for a, b in zip(fast.cascades.values(), plain.cascades.values()):
+        assert a._integral == b._integral
+
+
+def test_step_velocity_is_velocity_mode_and_rotor_drag():
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        one, two = QuadrotorCascade(), QuadrotorCascade()
+        u, vw, forces = (rng.normal(size=4) * 5).tolist(), (rng.normal(size=6) * 3).tolist(), rng.uniform(-1, 8, 4)
+        q = rng.normal(size=4)
+        R = np.empty(9)
+        mujoco.mju_quat2Mat(R, q / np.linalg.norm(q))
+        f, drag = one.step_velocity(u, vw, R.tolist(), forces.tolist(), 0.0025)
+        assert f == two.velocity_mode(u[0:3], u[3], vw[0:3], R, vw[3:6], 0.0025).tolist()
+        assert drag == two.rotor_drag(forces, vw[0:3], R)
+        fa, drag_a = one.step_attitude(u, vw, R.tolist(), forces.tolist())
+        assert fa == two.attitude_mode(u, vw[0:3], R, vw[3:6]).tolist() and drag_a == drag

@@ -274,9 +274,13 @@ CASCADE_MODES = ("auto", "vectorised", "per-vehicle")
 
 #: Fewest quadrotors for which ``"auto"`` runs the cascades on arrays: one vectorised step
 #: costs ~150 us of NumPy calls whatever N, one vehicle on Python floats ~30 us (CPU time
-#: per physics step on this 2-core machine, ``docs/physics.md`` "Teams"): the arrays win
+#: per physics step on this 2-core machine, ``docs/physics.md`` "Teams"): the arrays won
 #: from 6 vehicles on (N = 4: 144 against 175 us; N = 6: 205 against 187 us; N = 10: 320
-#: against 215 us).
+#: against 215 us). Since the per-vehicle cascade runs on local floats (session 21) the
+#: per-vehicle loop is the faster one up to about 18 vehicles (simulated s per CPU s,
+#: per vehicle / arrays: N = 6: 28.8 / 14.8; N = 10: 18.9 / 13.5; N = 16: 10.5 / 9.8;
+#: N = 20: 8.4 / 8.7); the threshold is kept at 6 so that worlds of 6 or more quadrotors
+#: keep their floats (the two ways agree to rounding, not bit for bit).
 VECTORISED_FROM = 6
 
 
@@ -287,6 +291,13 @@ def physics_timestep(dt: float, largest: float = 0.0025) -> float:
     return dt / max(1, math.ceil(dt / largest - 1e-9))
 
 
+def _as_slice(ids: np.ndarray):
+    """``ids`` (k,) as the slice it spans where they run ``lo, lo + 1, ...`` (a slice reads and
+    writes the same entries as the index array, without a gather), else ``ids`` itself."""
+    ids = np.asarray(ids, dtype=int)
+    if ids.size and np.array_equal(ids, np.arange(ids[0], ids[0] + ids.size)):
+        return slice(int(ids[0]), int(ids[0]) + ids.size)
+    return ids
 
 
 @dataclass
@@ -314,6 +325,8 @@ class ContactMonitor:
     _resting: set = field(default_factory=set)
 
     def check(self, model, data):
+        if not data.ncon and not self._resting:  # nothing touches, nothing rests: nothing to do
+            return
         now = {}  # pair -> only landing gear on the ground so far
         for i in range(data.ncon):
             c = data.contact[i]
@@ -540,8 +553,15 @@ class PhysicsWorld:
         """``(x, y, z, yaw)`` of every quadrotor, shape (N, 4), yaws continued (:meth:`quad_state`
         for all at once: one gather, one rotation per vehicle on arrays; vehicle by vehicle
         where the cascades run so, to keep the per-vehicle world's numbers)."""
-        if not self.vectorised:
-            return np.array([self.quad_state(n) for n in self.quad_names]).reshape(-1, 4)
+        if not self.vectorised:  # quad_state's numbers, without its copies
+            d, R = self.data, np.empty(9)
+            out = np.empty((len(self.quad_names), 4))
+            for i, n in enumerate(self.quad_names):
+                a = self._qadr[n]
+                self.mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
+                out[i, 0:3] = d.qpos[a:a + 3]
+                out[i, 3] = self._unwrap(n, math.atan2(R[3], R[0]))
+            return out
         q = self.data.qpos[self._quad_qidx]  # (7, N)
         R = rotation_rows(q[3:7].T)
         self._quad_yaw = self._continued(self._quad_yaw, np.arctan2(R[:, 3], R[:, 0]))
@@ -609,26 +629,37 @@ class PhysicsWorld:
         """The quadrotors one after another, on Python floats (issue 7's loop)."""
         mj, m, d = self.mj, self.model, self.data
         dt = m.opt.timestep
-        R = np.empty(9)
-        quads = [(self._qadr[nm], self._vadr[nm], self._motors[nm], self._body[nm], self.cascades[nm],
-                  self._quad_cmd[i].tolist()) for i, nm in enumerate(self.quad_names)]
+        quat2mat, mj_step, check = mj.mju_quat2Mat, mj.mj_step, self.contacts.check
+        nq = len(self.quad_names)
+        # each vehicle's rotation, written by mju_quat2Mat from its quaternion (views into
+        # MjData's buffers, which keep their memory): one tolist a step for all of them
+        R = np.empty((nq, 9))
+        rotations = [(R[i], d.qpos[a + 3:a + 7]) for i, a in enumerate(self._qadr[nm] for nm in self.quad_names)]
         velocity = self.quad_mode == "velocity"
+        quads = [(self._vadr[nm], 4 * i, (self.cascades[nm].step_velocity if velocity else
+                                          self.cascades[nm].step_attitude), self._quad_cmd[i].tolist())
+                 for i, nm in enumerate(self.quad_names)]
+        # every motor command and every body's drag written with one assignment a step
+        motors, bodies = _as_slice(self._motor_ids.ravel()), _as_slice(self._quad_bodies)
+        ctrl, xfrc, force = d.ctrl, d.xfrc_applied, d.actuator_force
         for _ in range(n):
-            qvel, force = d.qvel.tolist(), d.actuator_force.tolist()  # read once a step (mj_step writes them)
-            for a, va, motors, body, cas, u in quads:
-                mj.mju_quat2Mat(R, d.qpos[a + 3:a + 7])
-                Rl, vw = R.tolist(), qvel[va:va + 6]
-                if velocity:
-                    f = cas.velocity_mode(u[0:3], u[3], vw[0:3], Rl, vw[3:6], dt)
-                else:
-                    f = cas.attitude_mode(u, vw[0:3], Rl, vw[3:6])
-                d.ctrl[motors] = f
-                d.xfrc_applied[body, 0:3] = cas.rotor_drag([force[k] for k in motors], vw[0:3], Rl)
+            # read once a step (mj_step writes them)
+            qvel, fq = d.qvel.tolist(), force[motors].tolist()
+            for rot, q in rotations:
+                quat2mat(rot, q)
+            f, drag = [], []
+            for (va, k, step, u), Rl in zip(quads, R.tolist()):
+                fi, di = step(u, qvel[va:va + 6], Rl, fq[k:k + 4], dt)
+                f += fi
+                drag.append(di)
+            if nq:
+                ctrl[motors] = f
+                xfrc[bodies, 0:3] = drag
             t_before = d.time
-            mj.mj_step(m, d)
+            mj_step(m, d)
             if not d.time > t_before:  # MuJoCo reset the state (time back to 0): a failed step
                 self._check_step()
-            self.contacts.check(m, d)
+            check(m, d)
         self._after_steps()
 
     def _step_vectorised(self, n: int):

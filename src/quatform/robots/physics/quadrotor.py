@@ -136,15 +136,12 @@ def _floats(x) -> list:
     return x if type(x) is list else np.ravel(x).tolist()
 
 
-def _cross(a, b) -> tuple:
-    """``a x b`` of two 3-vectors of floats (``np.cross`` costs ~20 us per call on one vector)."""
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
 @dataclass
 class QuadrotorCascade:
     """PX4-style cascaded low-level controller of one quadrotor (stateful: the velocity
-    integrator).
+    integrator). Its numbers are read once, when it is made (the loops run at the physics
+    rate on each vehicle): for other numbers make another (``dataclasses.replace``), do not
+    assign its fields.
 
     Parameters
     ----------
@@ -217,11 +214,56 @@ class QuadrotorCascade:
         # the largest collective thrust every rotor can share (f_i = M_i0 T), with headroom
         self._thrust_max = self.thrust_headroom * min(self._fmax / r[0] for r in self._mix_inv)
         self._tan_tilt = math.tan(self.tilt_max)
+        # the constants of the loops, computed once: the same floats as the expressions of
+        # the loops they stand for (t_max * t_max, margin * t_max, -0.7 g, ...), read with one
+        # attribute lookup per call (the loops run at the physics rate on every vehicle)
+        t_max = self._thrust_max
+        self._outer = (float(self.params.mass), t_max, t_max * t_max, self.thrust_xy_margin * t_max,
+                       self._tan_tilt, -0.7 * GRAVITY, float(self.vel_i_limit), *self._vp, *self._vi)
+        self._inner = (-self.att_p, self.yaw_rate_max, t_max, *self._J, *self._kJ)
+        self._mix_rows = tuple(x for r in self._mix_inv for x in r)  # (M_00, M_01, ..., M_33)
+        self._drag = (-self.params.rotor_drag_coefficient, float(self.params.motor_constant))
         self.reset()
 
     def reset(self):
         """Clear the velocity integrator."""
         self._integral = [0.0, 0.0, 0.0]
+
+    # -- the physics loop's entries (Python floats, no conversion) --------------------
+    def step_velocity(self, u, vw, R, forces, dt: float) -> tuple[list, tuple]:
+        """One physics step of velocity mode: ``(rotor forces, rotor drag)``.
+
+        :meth:`velocity_mode` and :meth:`rotor_drag` (the same floats) on the plain Python
+        values the physics loop holds, without their conversions.
+
+        Parameters
+        ----------
+        u : sequence of 4 floats
+            World-frame velocity set point (m/s) and yaw rate (rad/s); a non-finite entry is
+            zero (the velocity) or no yaw rate.
+        vw : sequence of 6 floats
+            World-frame velocity (m/s), then body-frame angular velocity (rad/s): the free
+            joint's ``qvel``.
+        R : sequence of 9 floats
+            Body-to-world rotation, rows first.
+        forces : sequence of 4 floats
+            The rotors' present forces, N (for the drag).
+        dt : float
+            The integrator's step, s.
+
+        Returns
+        -------
+        (list of 4 floats, tuple of 3 floats)
+            Rotor force commands (N) and the world-frame in-plane rotor drag (N).
+        """
+        return self._velocity_chain(u, vw, R, dt), self._rotor_drag(forces, vw, R)
+
+    def step_attitude(self, u, vw, R, forces, dt: float | None = None) -> tuple[list, tuple]:
+        """One physics step of the Bebop-like attitude mode: ``(rotor forces, rotor drag)``
+        (:meth:`attitude_mode` and :meth:`rotor_drag`; arguments as :meth:`step_velocity`,
+        ``u`` the command ``(u_x, u_y, u_z, u_psi)``; ``dt`` unused: this mode keeps no
+        integrator, it is there so that a loop calls both modes alike)."""
+        return self._attitude_list(u, vw[2], R, vw[3:6]), self._rotor_drag(forces, vw, R)
 
     # -- outer loops ------------------------------------------------------------------
     def velocity_mode(self, v_cmd, yaw_rate_cmd: float, v, R, omega, dt: float) -> np.ndarray:
@@ -236,47 +278,85 @@ class QuadrotorCascade:
         omega : (3,) body-frame angular velocity, rad/s
         dt : float, s (the integrator's step)
         """
-        lim_i = self.vel_i_limit
-        a = [0.0, 0.0, 0.0]
-        # a non-finite set point component means "hold" (0), as in attitude_mode; a
-        # non-finite state is an error (it would poison the integrator for good)
-        v_cmd = [x if math.isfinite(x) else 0.0 for x in _floats(v_cmd)]
-        v = _floats(v)
-        if not math.isfinite(sum(v) + sum(_floats(R)) + sum(_floats(omega))):
-            raise NonFiniteError(f"velocity_mode: the vehicle's state is not finite (v = {v!r}); "
+        u = [*_floats(v_cmd), float(yaw_rate_cmd)]
+        return np.array(self._velocity_chain(u, [*_floats(v), *_floats(omega)], _floats(R), dt))
+
+    def _velocity_chain(self, u, vw, R, dt) -> list:
+        """:meth:`velocity_mode` on Python floats: ``u`` (4,), ``vw`` (6,) velocity and body
+        rates, ``R`` the rotation's 9 entries row by row. Each ``min(max(x, lo), hi)`` of
+        floats is written as the comparisons Python's ``min`` and ``max`` make (``max(x, lo)``
+        is ``lo if lo > x else x``): the same values, NaN included."""
+        v0, v1, v2, w0, w1, w2 = vw
+        # a non-finite state is an error (it would poison the integrator for good): x - x is
+        # 0 exactly for every finite x, NaN otherwise
+        s = v0 + v1 + v2 + R[0] + R[1] + R[2] + R[3] + R[4] + R[5] + R[6] + R[7] + R[8] + w0 + w1 + w2
+        if not s - s == 0.0:
+            raise NonFiniteError(f"velocity_mode: the vehicle's state is not finite (v = {[v0, v1, v2]!r}); "
                                  "check the physics step")
-        for i in range(3):
-            err = v_cmd[i] - v[i]
-            self._integral[i] = min(max(self._integral[i] + self._vi[i] * err * dt, -lim_i), lim_i)
-            a[i] = self._vp[i] * err + self._integral[i]
-        m, g, t_max = self.params.mass, GRAVITY, self._thrust_max
-        fx, fy = m * a[0], m * a[1]
+        m, t_max, t_max2, xy_margin, tan_tilt, az_min, lim_i, p0, p1, p2, i0, i1, i2 = self._outer
+        c0, c1, c2, yaw_rate = u
+        # a non-finite set point component means "hold" (0), as in attitude_mode
+        c0 = c0 if c0 - c0 == 0.0 else 0.0
+        c1 = c1 if c1 - c1 == 0.0 else 0.0
+        c2 = c2 if c2 - c2 == 0.0 else 0.0
+        nlim = -lim_i
+        I = self._integral
+        # velocity PI, the integrator clamped to +-lim_i: x = min(max(x, -lim), lim)
+        e0, e1, e2 = c0 - v0, c1 - v1, c2 - v2
+        x = I[0] + i0 * e0 * dt
+        x = nlim if nlim > x else x
+        x = lim_i if lim_i < x else x
+        I[0] = x
+        a0 = p0 * e0 + x
+        x = I[1] + i1 * e1 * dt
+        x = nlim if nlim > x else x
+        x = lim_i if lim_i < x else x
+        I[1] = x
+        a1 = p1 * e1 + x
+        x = I[2] + i2 * e2 * dt
+        x = nlim if nlim > x else x
+        x = lim_i if lim_i < x else x
+        I[2] = x
+        a2 = p2 * e2 + x
+        g = GRAVITY
+        fx, fy = m * a0, m * a1
         nxy = math.hypot(fx, fy)
         # the thrust vector within the rotors' reach (PX4 PositionControl::_accelerationControl
         # and MPC_THR_XY_MARG): vertical first, less a margin kept for the horizontal demand,
         # then the horizontal within what is left and the tilt limit
-        margin = min(nxy, self.thrust_xy_margin * t_max)
-        fz = min(m * (g + min(max(a[2], -0.7 * g), g)), math.sqrt(t_max * t_max - margin * margin))
-        lim = min(fz * self._tan_tilt, math.sqrt(max(t_max * t_max - fz * fz, 0.0)))
+        margin = xy_margin if xy_margin < nxy else nxy  # min(nxy, margin t_max)
+        a2 = az_min if az_min > a2 else a2  # min(max(a_z, -0.7 g), g)
+        a2 = g if g < a2 else a2
+        fz = m * (g + a2)
+        x = math.sqrt(t_max2 - margin * margin)
+        fz = x if x < fz else fz
+        x = t_max2 - fz * fz
+        x = math.sqrt(0.0 if 0.0 > x else x)
+        lim = fz * tan_tilt  # min(fz tan(tilt_max), sqrt(max(t_max^2 - fz^2, 0)))
+        lim = x if x < lim else lim
         if nxy > lim:
             fx, fy = fx * lim / nxy, fy * lim / nxy
-        return np.array(self._attitude_chain(fx, fy, fz, float(yaw_rate_cmd), _floats(R), _floats(omega)))
+        return self._attitude_chain(fx, fy, fz, yaw_rate, R, (w0, w1, w2))
 
     def attitude_mode(self, u, v, R, omega) -> np.ndarray:
         """Rotor forces (4,) for a Bebop-like command ``(u_x, u_y, u_z, u_psi)`` in [-1, 1]
         (seed 001 eq. (3.6)): pitch and roll fractions of ``bebop_tilt_max`` in the heading
         frame, climb-rate and yaw-rate fractions."""
+        return np.array(self._attitude_list(u, v[2], _floats(R), _floats(omega)))
+
+    def _attitude_list(self, u, vz, R, w) -> list:
+        """:meth:`attitude_mode` (4 floats): ``vz`` the climb rate, ``R`` the rotation's 9
+        entries row by row, ``w`` the body rates (Python floats)."""
         u = [min(max(float(x), -1.0), 1.0) if math.isfinite(x) else 0.0 for x in u]
         m, g = self.params.mass, GRAVITY
-        az = self.bebop_climb_p * (u[2] * self.bebop_climb_max - float(v[2]))
+        az = self.bebop_climb_p * (u[2] * self.bebop_climb_max - float(vz))
         fz = min(m * (g + min(max(az, -0.7 * g), g)), self._thrust_max * math.cos(self.bebop_tilt_max))
         tx, ty = math.tan(u[0] * self.bebop_tilt_max), math.tan(u[1] * self.bebop_tilt_max)
-        Rl = _floats(R)
-        c, s = Rl[0], Rl[3]
+        c, s = R[0], R[3]
         h = math.hypot(c, s) or 1.0
         c, s = c / h, s / h
-        return np.array(self._attitude_chain(fz * (c * tx - s * ty), fz * (s * tx + c * ty), fz,
-                                             u[3] * self.bebop_yaw_rate_max, Rl, _floats(omega)))
+        return self._attitude_chain(fz * (c * tx - s * ty), fz * (s * tx + c * ty), fz,
+                                    u[3] * self.bebop_yaw_rate_max, R, w)
 
     # -- inner loops ------------------------------------------------------------------
     def _attitude_chain(self, fx, fy, fz, yaw_rate, R, w) -> list:
@@ -284,28 +364,38 @@ class QuadrotorCascade:
 
         ``R``: the rotation's 9 entries row by row; ``w``: body rates; all Python floats.
         """
+        R0, R1, R2, R3, R4, R5, R6, R7, R8 = R
+        w0, w1, w2 = w
         n = math.sqrt(fx * fx + fy * fy + fz * fz)
-        b3 = (fx / n, fy / n, fz / n)
-        xc = (R[0], R[3], 0.0) if R[0] * R[0] + R[3] * R[3] > 1e-12 else (1.0, 0.0, 0.0)  # the heading
-        b2 = _cross(b3, xc)
-        nb = math.sqrt(b2[0] * b2[0] + b2[1] * b2[1] + b2[2] * b2[2])
-        b2 = (b2[0] / nb, b2[1] / nb, b2[2] / nb)
-        b1 = _cross(b2, b3)
+        b30, b31, b32 = fx / n, fy / n, fz / n
+        if R0 * R0 + R3 * R3 > 1e-12:  # the heading
+            x0, x1, x2 = R0, R3, 0.0
+        else:
+            x0, x1, x2 = 1.0, 0.0, 0.0
+        b20, b21, b22 = b31 * x2 - b32 * x1, b32 * x0 - b30 * x2, b30 * x1 - b31 * x0  # b3 x heading
+        nb = math.sqrt(b20 * b20 + b21 * b21 + b22 * b22)
+        b20, b21, b22 = b20 / nb, b21 / nb, b22 / nb
+        b10, b11, b12 = b21 * b32 - b22 * b31, b22 * b30 - b20 * b32, b20 * b31 - b21 * b30  # b2 x b3
         # e_R = 1/2 vee(Rd^T R - R^T Rd), (Rd^T R)_ij = (column i of Rd) . (column j of R)
         # (Rd^T R)_ij written out: column i of Rd is b1, b2, b3, column j of R is (R[j], R[3 + j], R[6 + j])
-        e = (0.5 * ((b3[0] * R[1] + b3[1] * R[4] + b3[2] * R[7]) - (b2[0] * R[2] + b2[1] * R[5] + b2[2] * R[8])),
-             0.5 * ((b1[0] * R[2] + b1[1] * R[5] + b1[2] * R[8]) - (b3[0] * R[0] + b3[1] * R[3] + b3[2] * R[6])))
+        e0 = 0.5 * ((b30 * R1 + b31 * R4 + b32 * R7) - (b20 * R2 + b21 * R5 + b22 * R8))
+        e1 = 0.5 * ((b10 * R2 + b11 * R5 + b12 * R8) - (b30 * R0 + b31 * R3 + b32 * R6))
         # rate set point: attitude P on roll and pitch; the yaw rate (world z) in body axes
-        kp = self.att_p
-        lim = self.yaw_rate_max  # PX4 MC_YAWRATE_MAX
-        yaw_rate = min(max(yaw_rate, -lim), lim) if math.isfinite(yaw_rate) else 0.0
-        w_sp = (-kp * e[0] + yaw_rate * R[6], -kp * e[1] + yaw_rate * R[7], yaw_rate * R[8])
-        thrust = min(max(fx * R[2] + fy * R[5] + fz * R[8], 0.0), self._thrust_max)
-        J, kJ = self._J, self._kJ
-        Jw = (J[0] * w[0], J[1] * w[1], J[2] * w[2])
-        gyro = _cross(w, Jw)
-        tau = [kJ[i] * (w_sp[i] - w[i]) + gyro[i] for i in range(3)]
-        return self.mix(thrust, tau)
+        nkp, lim, t_max, J0, J1, J2, k0, k1, k2 = self._inner
+        if yaw_rate - yaw_rate == 0.0:  # finite: within PX4 MC_YAWRATE_MAX, min(max(r, -lim), lim)
+            x = -lim
+            yaw_rate = x if x > yaw_rate else yaw_rate
+            yaw_rate = lim if lim < yaw_rate else yaw_rate
+        else:
+            yaw_rate = 0.0
+        s0, s1, s2 = nkp * e0 + yaw_rate * R6, nkp * e1 + yaw_rate * R7, yaw_rate * R8
+        thrust = fx * R2 + fy * R5 + fz * R8  # min(max(thrust, 0), t_max)
+        thrust = 0.0 if 0.0 > thrust else thrust
+        thrust = t_max if t_max < thrust else thrust
+        Jw0, Jw1, Jw2 = J0 * w0, J1 * w1, J2 * w2
+        # torques: J rate_p (w_sp - w) + w x J w
+        return self._mix(thrust, k0 * (s0 - w0) + (w1 * Jw2 - w2 * Jw1), k1 * (s1 - w1) + (w2 * Jw0 - w0 * Jw2),
+                         k2 * (s2 - w2) + (w0 * Jw1 - w1 * Jw0))
 
     def mix(self, thrust: float, tau) -> list:
         """Rotor forces (4 floats) for collective thrust and body torques, within ``[0, f_max]``.
@@ -317,12 +407,39 @@ class QuadrotorCascade:
         ``s`` in ``[0, 1]`` that keeps every rotor in range. The thrust is first capped at
         the headroom's limit, so a thrust alone always fits.
         """
-        M, fmax = self._mix_inv, self._fmax
         t0 = min(max(float(thrust), 0.0), self._thrust_max)
-        t1, t2, t3 = float(tau[0]), float(tau[1]), float(tau[2])
-        f = [r[0] * t0 + r[1] * t1 + r[2] * t2 + r[3] * t3 for r in M]
-        if min(f) >= 0.0 and max(f) <= fmax:
-            return f
+        return self._mix(t0, float(tau[0]), float(tau[1]), float(tau[2]))
+
+    def _mix(self, t0, t1, t2, t3) -> list:
+        """:meth:`mix` of a thrust ``t0`` already within ``[0, thrust cap]`` (Python floats)."""
+        M = self._mix_rows
+        f0 = M[0] * t0 + M[1] * t1 + M[2] * t2 + M[3] * t3
+        f1 = M[4] * t0 + M[5] * t1 + M[6] * t2 + M[7] * t3
+        f2 = M[8] * t0 + M[9] * t1 + M[10] * t2 + M[11] * t3
+        f3 = M[12] * t0 + M[13] * t1 + M[14] * t2 + M[15] * t3
+        # min(f) >= 0 and max(f) <= f_max, with the comparisons min() and max() make
+        lo = f0
+        if f1 < lo:
+            lo = f1
+        if f2 < lo:
+            lo = f2
+        if f3 < lo:
+            lo = f3
+        if lo >= 0.0:
+            hi = f0
+            if f1 > hi:
+                hi = f1
+            if f2 > hi:
+                hi = f2
+            if f3 > hi:
+                hi = f3
+            if hi <= self._fmax:
+                return [f0, f1, f2, f3]
+        return self._desaturate(t0, t1, t2, t3)
+
+    def _desaturate(self, t0, t1, t2, t3) -> list:
+        """:meth:`mix` where the wrench is out of the rotors' reach (PX4's priorities)."""
+        M, fmax = self._mix_inv, self._fmax
         # rotor i: 0 <= m_i (T + dT) + k rp_i <= fmax, i.e. -T - k a_i <= dT <= u_i - T - k a_i
         # with a_i = rp_i / m_i, u_i = fmax / m_i; some dT fits iff k (a_j - a_i) <= u_j, all i, j
         m0 = [r[0] for r in M]
@@ -354,17 +471,24 @@ class QuadrotorCascade:
 
         ``R``: the rotation (3, 3) or its 9 entries row by row.
         """
-        p = self.params
-        c = p.motor_constant
-        speed = 0.0  # sum_i omega_i, in the rotors' order (the same floats as a sum() over them)
-        for f in forces:
-            speed += math.sqrt(max(float(f), 0.0) / c)
-        Rl = _floats(R)
-        vx, vy, vz = _floats(v)
-        bx = Rl[0] * vx + Rl[3] * vy + Rl[6] * vz  # body x, y components (R^T v)
-        by = Rl[1] * vx + Rl[4] * vy + Rl[7] * vz
-        k = -p.rotor_drag_coefficient * speed
-        return (k * (Rl[0] * bx + Rl[1] * by), k * (Rl[3] * bx + Rl[4] * by), k * (Rl[6] * bx + Rl[7] * by))
+        return self._rotor_drag([float(f) for f in forces], _floats(v), _floats(R))
+
+    def _rotor_drag(self, forces, v, R) -> tuple:
+        """:meth:`rotor_drag` on Python floats (``v``: the velocity first, 3 or more entries)."""
+        nc, c = self._drag
+        f0, f1, f2, f3 = forces
+        # sum_i omega_i, omega_i = sqrt(max(f_i, 0) / k_f), in the rotors' order (the same
+        # floats as a sum() over them)
+        speed = 0.0 + math.sqrt((0.0 if 0.0 > f0 else f0) / c)
+        speed += math.sqrt((0.0 if 0.0 > f1 else f1) / c)
+        speed += math.sqrt((0.0 if 0.0 > f2 else f2) / c)
+        speed += math.sqrt((0.0 if 0.0 > f3 else f3) / c)
+        R0, R1, _, R3, R4, _, R6, R7, _ = R
+        vx, vy, vz = v[0], v[1], v[2]
+        bx = R0 * vx + R3 * vy + R6 * vz  # body x, y components (R^T v)
+        by = R1 * vx + R4 * vy + R7 * vz
+        k = nc * speed
+        return (k * (R0 * bx + R1 * by), k * (R3 * bx + R4 * by), k * (R6 * bx + R7 * by))
 
 
 def quadrotor_mjcf(name: str, pos, yaw: float = 0.0, rgba=(0.2, 0.3, 0.8, 1.0),
