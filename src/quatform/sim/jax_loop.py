@@ -26,7 +26,8 @@ Precision: float64. The computation runs inside ``jax.enable_x64(True)`` (a cont
 manager: the user's global ``jax_enable_x64`` setting is left as it was). Device: JAX's
 default device - the GPU when a CUDA JAX is installed and sees one, otherwise the CPU; no
 code changes. Supported: the pair kind's experiments (seed 000's four controllers on
-kinematic holonomic robots) and the team kind's quaternion and robot-space team controllers
+kinematic holonomic robots) and the team kind's quaternion, dual-quaternion (shape
+``"frame"``) and robot-space team controllers
 (:meth:`~quatform.control.team.TeamController.chain`) on kinematic 4-DOF and planar
 holonomic robots, bare or in a :class:`~quatform.control.safety.SafeController`; anything
 else is refused in one line naming what runs here.
@@ -60,7 +61,15 @@ from ..errors import (
     MissingDependencyError,
     ShapeError,
 )
-from ..formations import DualQuaternionPair, EuclideanPair, QuaternionPair, QuaternionTeam, RobotSpace, RobotSpaceTeam
+from ..formations import (
+    DualQuaternionPair,
+    DualQuaternionTeam,
+    EuclideanPair,
+    QuaternionPair,
+    QuaternionTeam,
+    RobotSpace,
+    RobotSpaceTeam,
+)
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations.team_chart import team_positions
@@ -88,13 +97,13 @@ __all__ = [
 #: Formation descriptions whose controllers run on JAX (seed 000's pair descriptions).
 JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
 #: Team descriptions whose :class:`~quatform.control.team.TeamController` runs on JAX (issue 15).
-JAX_TEAM_FORMATIONS = (QuaternionTeam, RobotSpaceTeam)
+JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, RobotSpaceTeam)
 #: Robot models of a team that runs on JAX (kinematic, holonomic, one common limit factor).
 JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot)
 #: What the backend runs, for the one-line refusal of anything else.
 _RUNS = ("the jax backend runs the seed-000 pair experiments (cluster-space, robot-space, quaternion and "
-         "dual-quaternion controllers on kinematic holonomic robots) and the team kind's quaternion and "
-         "robot-space team controllers (with or without the separation barrier) on kinematic 4-DOF and planar "
+         "dual-quaternion controllers on kinematic holonomic robots) and the team kind's quaternion, "
+         "dual-quaternion (shape 'frame') and robot-space team controllers (with or without the separation barrier) on kinematic 4-DOF and planar "
          "holonomic robots, perfect or TickMeasurement measurement")
 #: Reason of a failed world, by code (0: none). Code 3 is no failure: the world is rerun on
 #: NumPy (:func:`simulate`), whose log replaces it.
@@ -135,6 +144,9 @@ def check_supported(plant, controller, measurement) -> None:
         if not isinstance(inner.formation, JAX_TEAM_FORMATIONS):
             raise InvalidInputError(f"{_RUNS}; the {inner.name} team controller ({type(inner.formation).__name__}) "
                                     "runs on numpy (--backend numpy)")
+        if isinstance(inner.formation, DualQuaternionTeam) and inner.formation.shape != "frame":
+            raise InvalidInputError(f"{_RUNS}; DualQuaternionTeam(shape={inner.formation.shape!r}) runs on numpy "
+                                    "(--backend numpy)")
         team = inner.team
         if controller.team != team:
             raise InvalidInputError(f"{_RUNS}; a SafeController over another team than its controller's runs on "
