@@ -26,9 +26,9 @@ Precision: float64. The computation runs inside ``jax.enable_x64(True)`` (a cont
 manager: the user's global ``jax_enable_x64`` setting is left as it was). Device: JAX's
 default device - the GPU when a CUDA JAX is installed and sees one, otherwise the CPU; no
 code changes. Supported: the pair kind's experiments (seed 000's four controllers on
-kinematic holonomic robots) and the team kind's quaternion, dual-quaternion (shape
-``"frame"``) and robot-space team controllers
-(:meth:`~quatform.control.team.TeamController.chain`) on kinematic 4-DOF and planar
+kinematic holonomic robots) and the team kind's four team controllers (quaternion,
+dual-quaternion of shape ``"frame"``, cluster-space, robot-space:
+:meth:`~quatform.control.team.TeamController.chain`) on kinematic 4-DOF and planar
 holonomic robots, bare or in a :class:`~quatform.control.safety.SafeController`; anything
 else is refused in one line naming what runs here.
 
@@ -65,6 +65,7 @@ from ..formations import (
     DualQuaternionPair,
     DualQuaternionTeam,
     EuclideanPair,
+    EuclideanTeam,
     QuaternionPair,
     QuaternionTeam,
     RobotSpace,
@@ -97,14 +98,14 @@ __all__ = [
 #: Formation descriptions whose controllers run on JAX (seed 000's pair descriptions).
 JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
 #: Team descriptions whose :class:`~quatform.control.team.TeamController` runs on JAX (issue 15).
-JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, RobotSpaceTeam)
+JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotSpaceTeam)
 #: Robot models of a team that runs on JAX (kinematic, holonomic, one common limit factor).
 JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot)
 #: What the backend runs, for the one-line refusal of anything else.
 _RUNS = ("the jax backend runs the seed-000 pair experiments (cluster-space, robot-space, quaternion and "
-         "dual-quaternion controllers on kinematic holonomic robots) and the team kind's quaternion, "
-         "dual-quaternion (shape 'frame') and robot-space team controllers (with or without the separation barrier) on kinematic 4-DOF and planar "
-         "holonomic robots, perfect or TickMeasurement measurement")
+         "dual-quaternion controllers on kinematic holonomic robots) and the team kind's four team controllers "
+         "(quaternion, dual-quaternion of shape 'frame', cluster-space, robot-space; with or without the separation "
+         "barrier) on kinematic 4-DOF and planar holonomic robots, perfect or TickMeasurement measurement")
 #: Reason of a failed world, by code (0: none). Code 3 is no failure: the world is rerun on
 #: NumPy (:func:`simulate`), whose log replaces it.
 FAILURE_REASONS = {1: "the measured robot state is not finite (or beyond 1e150)",
