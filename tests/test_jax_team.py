@@ -167,3 +167,13 @@ def test_what_does_not_run_on_jax_is_refused_in_one_line(scenario, controller, w
         exp.run(backend="jax")
     msg = str(info.value)
     assert "\n" not in msg and what in msg and "four team controllers" in msg
+
+
+def test_rollout_metrics_stays_pair_only():
+    pytest.importorskip("jax")
+    from quatform.sim.jax_rollout import rollout_metrics
+
+    exp = TEAM.experiment(short_scenario("team-tetrahedron-helix", 0.1), controller="quaternion")
+    with pytest.raises(InvalidInputError, match="rollout_metrics rolls out the pair kind's experiments; a team") as info:
+        rollout_metrics(exp)
+    assert "\n" not in str(info.value)

@@ -230,7 +230,7 @@ class TeamController(contract.Controller):
             c = stage(c)
         err = c - c_des
         if len(self._angles):  # the angles wrapped, the rest as it is (a select: the same floats)
-            err = xp.where(F._angle_mask, (err + math.pi) % (2.0 * math.pi) - math.pi, err)
+            err = xp.where(self._angle_mask, (err + math.pi) % (2.0 * math.pi) - math.pi, err)
         ff = 1.0 if self.feedforward else 0.0
         shape = np.broadcast_shapes(c.shape, c_dot_des.shape)
         idx, errs, rates = [], [], []
@@ -276,6 +276,13 @@ class TeamController(contract.Controller):
         c_des = np.stack(np.broadcast_arrays(*comps), axis=-1) if isinstance(comps, tuple) else np.asarray(comps)
         for law, _, blks in self._blocks:
             self._check_units(_rows(c_des, blks), blks, law != "quaternion")
+
+    @functools.cached_property
+    def _angle_mask(self) -> np.ndarray:
+        """``(n_c,)`` bool: which variables are angles (:attr:`_angles`)."""
+        mask = np.zeros(self.formation.n_c, dtype=bool)
+        mask[self._angles] = True
+        return mask
 
     @functools.cached_property
     def _angles(self) -> np.ndarray:

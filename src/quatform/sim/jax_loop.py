@@ -83,6 +83,8 @@ from .trial_measurement import TickMeasurement
 __all__ = [
     "FAILURE_REASONS",
     "JAX_FORMATIONS",
+    "JAX_TEAM_FORMATIONS",
+    "JAX_TEAM_ROBOTS",
     "cached",
     "check_supported",
     "check_ticks",
@@ -92,6 +94,8 @@ __all__ = [
     "require_jax",
     "simulate",
     "stack_reference",
+    "team_parts",
+    "team_tick_function",
     "tick_function",
 ]
 
