@@ -49,7 +49,14 @@ from .layout import POINT_KINDS, RobotLayout
 from .quaternion_pair import TILT_TOL
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
-from .team_chart import LawGroup, TeamChart, check_template, default_template, team_compose, team_positions
+from .team_chart import (
+    LawGroup,
+    TeamChart,
+    check_template,
+    default_template,
+    team_compose,
+    team_positions,
+)
 
 __all__ = ["CHARTS", "SHAPES", "DualQuaternionTeam"]
 

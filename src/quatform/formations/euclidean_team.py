@@ -50,7 +50,13 @@ from .base import MIN_SEPARATION_M, Formation, Variable
 from .euclidean_pair import EUCLIDEAN_VARIABLES, VERTICAL_TOL, EuclideanPair
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
-from .team_chart import LawGroup, TeamChart, check_template, team_compose, team_positions
+from .team_chart import (
+    LawGroup,
+    TeamChart,
+    check_template,
+    team_compose,
+    team_positions,
+)
 
 __all__ = ["COLLINEAR_TOL", "POLE_TOL", "EuclideanTeam"]
 
