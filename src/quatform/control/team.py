@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import InvalidInputError, NonUnitError, ShapeError
 from ..formations.base import Formation, check_magnitude
@@ -209,6 +210,80 @@ class TeamController(contract.Controller):
             _put_rows(rate, blks, np.stack(np.broadcast_arrays(*qd), axis=-1))
         return c, err, rate, r
 
+    def chain(self, r, c_des, c_dot_des, stage=None):
+        """The control chain without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``, where no value can be tested): ``(c, err, r_dot)`` for the measured robots
+        ``r`` (``(..., n_r)``, wound as :meth:`update` winds them) and the reference
+        ``c_des``, ``c_dot_des`` (``(..., n_c)``), as :meth:`update` computes them (the same
+        floats on NumPy), before the actuation and the saturation.
+
+        As :meth:`quatform.control.cluster.ClusterController.chain`: the caller has run the
+        reference checks (:attr:`checks`) and marks the worlds whose robots coincide or whose
+        state is not finite, which :meth:`update` refuses. ``stage`` (optional) maps an array
+        to an equal one (the jax loop computes it once there, ``sim.jax_loop.hold``); it is
+        applied to the cluster state and to the commanded cluster rate.
+        """
+        F = self.formation
+        xp = array_namespace(r)
+        c = F.forward_arrays(r, c_des)
+        if stage is not None:
+            c = stage(c)
+        err = c - c_des
+        if len(self._angles):  # the angles wrapped, the rest as it is (a select: the same floats)
+            err = xp.where(self._angle_mask, (err + math.pi) % (2.0 * math.pi) - math.pi, err)
+        ff = 1.0 if self.feedforward else 0.0
+        shape = np.broadcast_shapes(c.shape, c_dot_des.shape)
+        idx, errs, rates = [], [], []
+        for blk, k in self._linear:
+            idx.append(_flat(blk))
+            v = proportional(_get(err, blk), _get(c_dot_des, blk), k, ff)
+            rates.append(v.reshape(v.shape[:-2] + (-1,)))
+        for law, kk, blks in self._blocks:  # eqs. (20), (28) on every row of one law at once
+            comps = []
+            for g in (_rows(c, blks), _rows(c_des, blks), _rows(c_dot_des, blks)):
+                comps.append(tuple(g[..., j] for j in range(g.shape[-1])))
+            if law == "quaternion":
+                qe, qd = quaternion_feedback(*comps, kk, ff)
+            else:
+                qe, qd = dual_quaternion_feedback(*comps, kk, ff, signed_rotation=law == "dual-quaternion")
+            q_err, q_rate = (xp.stack(xp.broadcast_arrays(*v), axis=-1) for v in (qe, qd))
+            i = 0
+            for b in blks:
+                m = b.shape[0] if isinstance(b, np.ndarray) else b[1]
+                idx.append(_flat(b))
+                errs.append((_flat(b), q_err[..., i:i + m, :].reshape(q_err.shape[:-2] + (-1,))))
+                rates.append(q_rate[..., i:i + m, :].reshape(q_rate.shape[:-2] + (-1,)))
+                i += m
+        order = np.concatenate(idx)
+        rate = _scatter(xp, order, rates, shape)
+        if errs:  # the (dual) quaternion groups' errors replace c - c_des there (qe = q_des* q)
+            e_idx = np.concatenate([i for i, _ in errs])
+            keep = np.setdiff1d(np.arange(F.n_c), e_idx)
+            err = _scatter(xp, np.concatenate([keep, e_idx]), [err[..., keep]] + [v for _, v in errs],
+                           np.broadcast_shapes(err.shape, shape))
+        if stage is not None:
+            rate = stage(rate)
+        return c, err, F.robot_rate_arrays(c, rate)
+
+    @property
+    def checks(self) -> tuple:
+        """What :meth:`update` checks of the reference every tick, as callables of the desired
+        cluster state's components (:attr:`quatform.control.cluster.ClusterController.checks`):
+        its (dual) quaternion groups are unit."""
+        return (self._check_reference,)
+
+    def _check_reference(self, comps):
+        c_des = np.stack(np.broadcast_arrays(*comps), axis=-1) if isinstance(comps, tuple) else np.asarray(comps)
+        for law, _, blks in self._blocks:
+            self._check_units(_rows(c_des, blks), blks, law != "quaternion")
+
+    @functools.cached_property
+    def _angle_mask(self) -> np.ndarray:
+        """``(n_c,)`` bool: which variables are angles (:attr:`_angles`)."""
+        mask = np.zeros(self.formation.n_c, dtype=bool)
+        mask[self._angles] = True
+        return mask
+
     @functools.cached_property
     def _angles(self) -> np.ndarray:
         """Indices of the description's angle variables (their errors wrapped to [-pi, pi))."""
@@ -248,6 +323,26 @@ def _get(a, blk):
     return a[..., start:start + M * k].reshape(a.shape[:-1] + (M, k))
 
 
+def _flat(blk) -> np.ndarray:
+    """A group's variable indices, flat in row order."""
+    if isinstance(blk, np.ndarray):
+        return blk.ravel()
+    start, M, k = blk
+    return np.arange(start, start + M * k)
+
+
+def _scatter(xp, order, parts, shape):
+    """The ``shape`` array whose variables ``order`` are ``parts`` (each ``(..., m)``,
+    concatenated in order): a gather where ``order`` is no plain ``0 .. n - 1`` (no
+    arithmetic: the same floats)."""
+    lead = shape[:-1]
+    flat = [xp.broadcast_to(v, lead + v.shape[-1:]) for v in parts]
+    a = xp.concatenate(flat, axis=-1) if len(flat) > 1 else flat[0]
+    if np.array_equal(order, np.arange(order.size)):
+        return a
+    return a[..., np.argsort(order, kind="stable")]
+
+
 def _put(a, blk, value):
     """Write ``value`` (..., M, k) into ``a``'s variables of a group."""
     if isinstance(blk, np.ndarray):
@@ -259,7 +354,10 @@ def _put(a, blk, value):
 
 def _rows(a, blks):
     """The rows of several groups stacked, ``(..., sum M, k)``."""
-    return _get(a, blks[0]) if len(blks) == 1 else np.concatenate([_get(a, b) for b in blks], axis=-2)
+    if len(blks) == 1:
+        return _get(a, blks[0])
+    parts = [_get(a, b) for b in blks]
+    return array_namespace(a).concatenate(parts, axis=-2)
 
 
 def _put_rows(a, blks, value):

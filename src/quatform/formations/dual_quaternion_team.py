@@ -37,6 +37,7 @@ import math
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array, as_unit_dual_quaternion
 from ..errors import InvalidInputError, UnreachableError
 from . import geometry as g
@@ -48,7 +49,14 @@ from .layout import POINT_KINDS, RobotLayout
 from .quaternion_pair import TILT_TOL
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
-from .team_chart import LawGroup, TeamChart, check_template, default_template
+from .team_chart import (
+    LawGroup,
+    TeamChart,
+    check_template,
+    default_template,
+    team_compose,
+    team_positions,
+)
 
 __all__ = ["CHARTS", "SHAPES", "DualQuaternionTeam"]
 
@@ -96,6 +104,11 @@ def _dqmul(a, b):
 
 def _q_yaw(theta):
     """``(cos theta/2, 0, 0, sin theta/2)`` (geometry.q_yaw) in four NumPy calls, ``(..., 4)``."""
+    xp = array_namespace(theta)
+    if xp is not np:  # the same entries, stacked
+        h = 0.5 * theta
+        z = xp.zeros_like(h)
+        return xp.stack([xp.cos(h), z, z, xp.sin(h)], axis=-1)
     h = 0.5 * np.asarray(theta, dtype=float)
     q = np.zeros(h.shape + (4,))
     q[..., 0] = np.cos(h)
@@ -109,7 +122,8 @@ def _conj(q):
 
 def _pose(q, p):
     """``q + eps 1/2 p q`` (seed 000 §3.3), ``(..., 8)``; linear in ``q`` (not normalised)."""
-    return np.concatenate(np.broadcast_arrays(q, 0.5 * _pm(p, q)), axis=-1)
+    xp = array_namespace(q)
+    return xp.concatenate(xp.broadcast_arrays(q, 0.5 * _pm(p, q)), axis=-1)
 
 
 def _pose_rate(q, p, qd, pd):
@@ -120,7 +134,7 @@ def _pose_rate(q, p, qd, pd):
 def _translation(dq):
     """``t = 2 vec(d r*) / |r|^2`` (seed 000 §3.3's ``2 D P*``, scale-free in ``r``), ``(..., 3)``."""
     r = dq[..., :4]
-    return 2.0 * _qm(dq[..., 4:], _conj(r))[..., 1:] / np.sum(r * r, axis=-1, keepdims=True)
+    return 2.0 * _qm(dq[..., 4:], _conj(r))[..., 1:] / array_namespace(dq).sum(r * r, axis=-1, keepdims=True)
 
 
 def _yaw_and_translation_rates(dq, dqd, unit=False):
@@ -138,9 +152,10 @@ def _yaw_and_translation_rates(dq, dqd, unit=False):
     m = _qm(dd, rc) + _qm(d, _conj(rd))
     if unit:
         return 2.0 * w[..., 3], 2.0 * m[..., 1:]
-    n2 = np.sum(r * r, axis=-1, keepdims=True)
+    xp = array_namespace(dqd)
+    n2 = xp.sum(r * r, axis=-1, keepdims=True)
     t = 2.0 * _qm(d, rc)[..., 1:] / n2
-    td = (2.0 * m[..., 1:] - 2.0 * np.sum(r * rd, axis=-1, keepdims=True) * t) / n2
+    td = (2.0 * m[..., 1:] - 2.0 * xp.sum(r * rd, axis=-1, keepdims=True) * t) / n2
     return 2.0 * w[..., 3] / n2[..., 0], td
 
 
@@ -160,14 +175,15 @@ def _z_cross(v):
 
 def _wind(a, t):
     """``a`` moved by whole turns to within pi of ``t`` (``a - t`` in ``[-pi, pi)``; Formation.align's rule)."""
-    return a + _TWO_PI * np.floor((t - a) / _TWO_PI + 0.5)
+    return a + _TWO_PI * array_namespace(a).floor((t - a) / _TWO_PI + 0.5)
 
 
 def _join(C, S):
     """``(..., 8)`` and ``(..., M, 8)`` blocks, broadcast, as one ``(..., 8 (M + 1))`` state."""
     shape = np.broadcast_shapes(C.shape[:-1], S.shape[:-2])
-    return np.concatenate([np.broadcast_to(C, shape + (8,)),
-                           np.broadcast_to(S, shape + S.shape[-2:]).reshape(shape + (-1,))], axis=-1)
+    xp = array_namespace(S)
+    return xp.concatenate([xp.broadcast_to(C, shape + (8,)),
+                           xp.broadcast_to(S, shape + S.shape[-2:]).reshape(shape + (-1,))], axis=-1)
 
 
 def _dq_variables(prefix):
@@ -290,6 +306,8 @@ class DualQuaternionTeam(Formation):
         shape = r.shape[:-1]
         if self.mean_rule == "yaw" and len(self._yaw_robots) == L.n:
             return _q_yaw(yaws)
+        if array_namespace(r) is not np:
+            raise InvalidInputError("DualQuaternionTeam on JAX arrays: robots with a yaw only (xy_yaw, xyz_yaw)")
         Q = np.broadcast_to(_ONE, shape + (L.n, 4)).copy()
         if len(self._yaw_robots):
             Q[..., self._yaw_robots, :] = _q_yaw(yaws)
@@ -319,6 +337,9 @@ class DualQuaternionTeam(Formation):
             t_n = th_c - np.sum(th_s, axis=-1) / self.layout.n
             return np.concatenate([t_n[..., None] + th_s, t_n[..., None]], axis=-1), None
         rot = _qm(B[..., :1, :4], B[..., 1:, :4])[..., self._yaw_robots, :]  # q_c q_ci: the desired robots
+        xp = array_namespace(near_c)
+        if xp is not np:  # geometry.yaw_of's kernel on the namespace's axes
+            return (kern.yaw_of(tuple(xp.moveaxis(rot, -1, 0))), kern.yaw_of(tuple(xp.moveaxis(B[..., 0, :4], -1, 0))))
         return g.yaw_of(rot), g.yaw_of(B[..., 0, :4])
 
     def _candidate(self, t_n, th_n):
@@ -352,14 +373,21 @@ class DualQuaternionTeam(Formation):
             return a, 0.0
         a = _wind(yaws, t)
         n = t.shape[-1]
+        xp = array_namespace(t)
         # the desired yaws' mean differs from the desired formation yaw by whole 2 pi / n (on the
         # description's set): take the lift of the measured yaws with the same offset
-        k = np.round((th_c - np.mean(t, axis=-1)) * (n / _TWO_PI))
+        k = xp.round((th_c - xp.mean(t, axis=-1)) * (n / _TWO_PI))
         return a, k * (_TWO_PI / n)
 
     def _mean_rotation(self, r, yaws, shift, hint):
         """``q_c (..., 4)``: module docstring; sign nearest ``hint`` where given."""
         L = self.layout
+        xp = array_namespace(r)
+        if xp is not np and self.mean_rule != "yaw":
+            raise InvalidInputError("DualQuaternionTeam on JAX arrays: robots with a yaw only (xy_yaw, xyz_yaw)")
+        if xp is not np:  # geometry.closest_sign on the namespace
+            q = _q_yaw(xp.mean(yaws, axis=-1) + shift)
+            return q if hint is None else xp.where((xp.sum(q * hint, axis=-1) < 0.0)[..., None], -q, q)
         if self.mean_rule == "yaw":
             q = _q_yaw(np.mean(yaws, axis=-1) + shift)
         elif self.mean_rule == "pose":
@@ -372,16 +400,21 @@ class DualQuaternionTeam(Formation):
     def _parts(self, r, near_c):
         """What :meth:`forward` and :meth:`cluster_rate` share: the (wound) yaws, positions,
         centroid and ``q_c``."""
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+        return self._parts_arrays(r, near_c)
+
+    def _parts_arrays(self, r, near_c):
+        """:meth:`_parts` without the check of ``near_c``, on arrays of any namespace."""
         L = self.layout
         yaws = L.yaws(r)
         shift, hint = 0.0, None
         if near_c is not None:
-            near_c = self.check_cluster_state(near_c, "near_c")
             hint = near_c[..., :4]
             if yaws.shape[-1] and (self.mean_rule == "yaw" or self.shape == "relative"):
                 yaws, shift = self._align(yaws, near_c)
-        P = L.positions(r)
-        xc = np.mean(P, axis=-2)
+        P = team_positions(L, r)
+        xc = array_namespace(r).mean(P, axis=-2)
         return yaws, P, xc, self._mean_rotation(r, yaws, shift, hint)
 
     def forward(self, r, *, near_c=None):
@@ -401,7 +434,17 @@ class DualQuaternionTeam(Formation):
         """
         r = self.check_robot_state(r)
         self.check_apart(r)
-        yaws, P, xc, qc = self._parts(r, near_c)
+        if near_c is not None:
+            near_c = self.check_cluster_state(near_c, "near_c")
+        return self.forward_arrays(r, near_c)
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``: ``shape="frame"`` of robots with a yaw): the caller has checked ``r``
+        (finite, robots apart) and ``near_c``."""
+        if self.shape == "relative" and array_namespace(r) is not np:
+            raise InvalidInputError("DualQuaternionTeam(shape='relative') on JAX arrays: use shape='frame'")
+        yaws, P, xc, qc = self._parts_arrays(r, near_c)
         if self.shape == "relative":
             return self._relative_forward(P, xc, yaws, qc)
         C = _pose(qc, xc)
@@ -412,8 +455,9 @@ class DualQuaternionTeam(Formation):
         """``+-1 (..., N, 1)``: each ``qhat_ci`` signed nearest ``near_c``'s (1 without it)."""
         if near_c is None:
             return 1.0
-        ref = np.asarray(near_c, dtype=float)[..., 8:].reshape(near_c.shape[:-1] + (-1, 8))
-        return np.where(np.sum(S[..., :4] * ref[..., :4], axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+        xp = array_namespace(S)
+        ref = (np.asarray(near_c, dtype=float) if xp is np else near_c)[..., 8:].reshape(near_c.shape[:-1] + (-1, 8))
+        return xp.where(xp.sum(S[..., :4] * ref[..., :4], axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
 
     def _relative_forward(self, P, xc, yaws, qc):
         """Eq. (27) for N robots in closed form: ``qhat_sk = pose(q_yaw(th_k - th_N), R_z(-th_N)(p_k - p_N))``."""
@@ -575,8 +619,21 @@ class DualQuaternionTeam(Formation):
         """
         c = np.asarray(c, dtype=float)
         cd = as_array(c_dot, "c_dot", self.n_c)
+        return self.robot_rate_arrays(c, cd, r=r)
+
+    def robot_rate_arrays(self, c, cd, r=None):
+        """:meth:`robot_rate` without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``: ``shape="frame"`` of robots with a yaw)."""
         B, Bd = self._blocks(c), self._blocks(cd)
         L = self.layout
+        xp = array_namespace(cd)
+        if xp is not np:
+            if self.shape == "relative" or len(self._pose_robots):
+                raise InvalidInputError("DualQuaternionTeam on JAX arrays: shape='frame' of robots with a yaw only")
+            Qi = _dqmul(B[..., :1, :], B[..., 1:, :])
+            Qid = _dqmul(Bd[..., :1, :], B[..., 1:, :]) + _dqmul(B[..., :1, :], Bd[..., 1:, :])
+            yd, V = _yaw_and_translation_rates(Qi, Qid)
+            return team_compose(L, V, yd[..., self._yaw_robots])
         if self.shape == "relative":
             if r is None:
                 r = self.inverse(c)

@@ -41,6 +41,7 @@ import functools
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace, dot_last
 from ..algebra.validate import as_array
 from ..errors import DegenerateInputError, InvalidInputError
 from . import geometry as g
@@ -49,7 +50,13 @@ from .base import MIN_SEPARATION_M, Formation, Variable
 from .euclidean_pair import EUCLIDEAN_VARIABLES, VERTICAL_TOL, EuclideanPair
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
-from .team_chart import LawGroup, TeamChart, check_template
+from .team_chart import (
+    LawGroup,
+    TeamChart,
+    check_template,
+    team_compose,
+    team_positions,
+)
 
 __all__ = ["COLLINEAR_TOL", "POLE_TOL", "EuclideanTeam"]
 
@@ -65,26 +72,37 @@ _EZ = np.array([0.0, 0.0, 1.0])
 
 
 def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return dot_last(a, b)
+
+
+def _set(a, idx, v):
+    """``a`` with ``a[idx] = v``: in place for NumPy (as written), a functional update on
+    another namespace (JAX's ``a.at[idx].set(v)``); the same entries either way."""
+    if isinstance(a, np.ndarray):
+        a[idx] = v
+        return a
+    return a.at[idx].set(v)
 
 
 def _spoke_direction(psi, chi):
     """Unit spoke of azimuth ``psi`` and elevation ``chi`` in the formation frame, ``(..., 3)``:
     ``(cos chi sin psi, -cos chi cos psi, sin chi)`` (``psi = 0``: from robot 1 towards robot 2)."""
-    cc = np.cos(chi)
-    return np.stack([cc * np.sin(psi), -cc * np.cos(psi), np.sin(chi)], axis=-1)
+    xp = array_namespace(psi)
+    cc = xp.cos(chi)
+    return xp.stack([cc * xp.sin(psi), -cc * xp.cos(psi), xp.sin(chi)], axis=-1)
 
 
 def _frame(beta, gamma, alpha):
     """``(x0, u, z0, x_f, z_f)`` of ``R = Rz(beta) Rx(gamma) Ry(alpha)``: ``x0``, ``z0`` the frame
     before the roll (``x0`` horizontal), ``u`` the common y axis (seed 000 eqs. (4)-(5)
     inverted), ``x_f``, ``z_f`` the rolled axes. Each ``(..., 3)``."""
-    cb, sb, cg, sg = np.cos(beta), np.sin(beta), np.cos(gamma), np.sin(gamma)
-    zero = np.zeros(np.shape(cb))
-    x0 = np.stack([cb, sb, zero], axis=-1)
-    u = np.stack([-sb * cg, cb * cg, sg], axis=-1)
-    z0 = np.stack([sb * sg, -cb * sg, cg], axis=-1)
-    ca, sa = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
+    xp = array_namespace(beta)
+    cb, sb, cg, sg = xp.cos(beta), xp.sin(beta), xp.cos(gamma), xp.sin(gamma)
+    zero = xp.zeros(np.shape(cb))
+    x0 = xp.stack([cb, sb, zero], axis=-1)
+    u = xp.stack([-sb * cg, cb * cg, sg], axis=-1)
+    z0 = xp.stack([sb * sg, -cb * sg, cg], axis=-1)
+    ca, sa = xp.cos(alpha)[..., None], xp.sin(alpha)[..., None]
     return x0, u, z0, ca * x0 - sa * z0, sa * x0 + ca * z0
 
 
@@ -256,60 +274,63 @@ class EuclideanTeam(Formation):
         return c
 
     # -- forward kinematics ---------------------------------------------------------------
-    def _geometry(self, r, near_c=None):
-        """Everything the forward map and its rate read: a dict of arrays (module docstring)."""
+    def _geometry(self, r, near_c=None, check=True):
+        """Everything the forward map and its rate read: a dict of arrays (module docstring);
+        ``check=False``: robots apart taken as given (any namespace)."""
         L = self.layout
-        p = self._ordered(L.positions(r))
+        xp = array_namespace(r)
+        p = self._ordered(team_positions(L, r))
         delta = p[..., 0, :] - p[..., 1, :]
         D = g.norm(delta)
-        self.check_apart(r, separations=D if L.n == 2 else None)
-        dx, dy, dz = np.moveaxis(delta, -1, 0)
-        rho_h = np.hypot(dx, dy)
-        beta = np.arctan2(-dx, dy)  # seed 000 eq. (4)
+        if check:
+            self.check_apart(r, separations=D if L.n == 2 else None)
+        dx, dy, dz = xp.moveaxis(delta, -1, 0)
+        rho_h = xp.hypot(dx, dy)
+        beta = xp.arctan2(-dx, dy)  # seed 000 eq. (4)
         if self.planar:
-            gamma = np.zeros_like(beta)
-            vertical = np.zeros(beta.shape, dtype=bool)
+            gamma = xp.zeros_like(beta)
+            vertical = xp.zeros(beta.shape, dtype=bool)
         else:
-            gamma = np.arctan2(dz, rho_h)  # eq. (5)
+            gamma = xp.arctan2(dz, rho_h)  # eq. (5)
             vertical = rho_h <= VERTICAL_TOL * D
         if near_c is not None:  # beta_c held at the reference's where it is undefined
             nb = near_c[..., self._i_beta]
-            beta = np.where(vertical, nb, g.unwrap_near(beta, nb))
+            beta = xp.where(vertical, nb, g.unwrap_near(beta, nb))
         G = {"p": p, "delta": delta, "D": D, "rho_h": rho_h, "beta": beta, "gamma": gamma, "vertical": vertical}
         if L.n < 3:
-            x0, u, z0, xf, zf = _frame(beta, gamma, np.zeros_like(beta))
-            G.update(x0=x0, u=u, z0=z0, xf=xf, zf=zf, alpha=np.zeros_like(beta))
+            x0, u, z0, xf, zf = _frame(beta, gamma, xp.zeros_like(beta))
+            G.update(x0=x0, u=u, z0=z0, xf=xf, zf=zf, alpha=xp.zeros_like(beta))
             return G
         W = p[..., 2:, :] - p[..., :1, :]  # spokes from robot 1 (Kitts & Mas: p, q, beta at robot 1)
-        x0, u, z0, _, _ = _frame(beta, gamma, np.zeros_like(beta))
+        x0, u, z0, _, _ = _frame(beta, gamma, xp.zeros_like(beta))
         if self._roll:
             w3 = W[..., 0, :]
             a, b = _dot(w3, x0), _dot(w3, z0)
-            alpha = np.arctan2(-b, a)  # robot 3 on the formation's +x side
-            collinear = np.hypot(a, b) <= COLLINEAR_TOL * g.norm(w3)
+            alpha = xp.arctan2(-b, a)  # robot 3 on the formation's +x side
+            collinear = xp.hypot(a, b) <= COLLINEAR_TOL * g.norm(w3)
             if near_c is not None:
                 na = near_c[..., self._i_alpha]
-                alpha = np.where(collinear, na, g.unwrap_near(alpha, na))
+                alpha = xp.where(collinear, na, g.unwrap_near(alpha, na))
         else:
-            alpha = np.zeros_like(beta)
-            collinear = np.zeros(beta.shape, dtype=bool)
+            alpha = xp.zeros_like(beta)
+            collinear = xp.zeros(beta.shape, dtype=bool)
         x0, u, z0, xf, zf = _frame(beta, gamma, alpha)
-        S = np.stack([_dot(W, xf[..., None, :]), _dot(W, u[..., None, :]), _dot(W, zf[..., None, :])], axis=-1)
+        S = xp.stack([_dot(W, xf[..., None, :]), _dot(W, u[..., None, :]), _dot(W, zf[..., None, :])], axis=-1)
         if self._roll:
-            S[..., 0, 2] = 0.0  # robot 3 lies in the formation's x-y plane by the roll's definition
+            S = _set(S, (..., 0, 2), 0.0)  # robot 3 lies in the formation's x-y plane by the roll's definition
         rho = g.norm(S)
-        h = np.hypot(S[..., 0], S[..., 1])
-        psi = np.arctan2(S[..., 0], -S[..., 1])
-        chi = np.arctan2(S[..., 2], h)
+        h = xp.hypot(S[..., 0], S[..., 1])
+        psi = xp.arctan2(S[..., 0], -S[..., 1])
+        chi = xp.arctan2(S[..., 2], h)
         pole = h <= POLE_TOL * rho
         if self._roll:
-            pole[..., 0] = False  # robot 3's azimuth is the collinear set, not a pole
+            pole = _set(pole, (..., 0), False)  # robot 3's azimuth is the collinear set, not a pole
         if self.planar:
-            pole[...] = False
+            pole = _set(pole, Ellipsis, False)
         if near_c is not None and len(self._wrap_psi):
             npsi = near_c[..., self._i_psi]
             wp = self._wrap_psi
-            psi[..., wp] = np.where(pole[..., wp], npsi[..., wp], g.unwrap_near(psi[..., wp], npsi[..., wp]))
+            psi = _set(psi, (..., wp), xp.where(pole[..., wp], npsi[..., wp], g.unwrap_near(psi[..., wp], npsi[..., wp])))
         G.update(x0=x0, u=u, z0=z0, xf=xf, zf=zf, alpha=alpha, collinear=collinear, S=S, rho=rho, h=h, psi=psi,
                  chi=chi, pole=pole)
         return G
@@ -339,26 +360,38 @@ class EuclideanTeam(Formation):
         r = self.check_robot_state(r)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
-            r = np.broadcast_to(r, np.broadcast_shapes(r.shape[:-1], near_c.shape[:-1]) + r.shape[-1:])
-        G = self._geometry(r, near_c)
-        c = np.empty(r.shape[:-1] + (self.n_c,))
+        return self._forward(r, near_c, True)
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``, where the held angles are selects as on NumPy): the caller has checked
+        ``r`` (finite, robots apart) and ``near_c``."""
+        return self._forward(r, near_c, False)
+
+    def _forward(self, r, near_c, check):
+        xp = array_namespace(r)
+        if near_c is not None:
+            r = xp.broadcast_to(r, np.broadcast_shapes(r.shape[:-1], near_c.shape[:-1]) + r.shape[-1:])
+        G = self._geometry(r, near_c, check)
+        c = np.empty(r.shape[:-1] + (self.n_c,)) if xp is np else xp.zeros(r.shape[:-1] + (self.n_c,))
         nxc = self._nxc
-        c[..., 0:nxc] = G["p"].mean(axis=-2)[..., :nxc]  # seed 000 eqs. (1)-(3), N robots
-        c[..., self._i_beta] = G["beta"]
+        c = _set(c, (..., slice(0, nxc)), G["p"].mean(axis=-2)[..., :nxc])  # seed 000 eqs. (1)-(3), N robots
+        c = _set(c, (..., self._i_beta), G["beta"])
         if not self.planar:
-            c[..., self._i_gamma] = G["gamma"]
+            c = _set(c, (..., self._i_gamma), G["gamma"])
         if self._roll:
-            c[..., self._i_alpha] = G["alpha"]
-        c[..., self._i_d] = 0.5 * G["D"]  # eq. (6), half the distance
+            c = _set(c, (..., self._i_alpha), G["alpha"])
+        c = _set(c, (..., self._i_d), 0.5 * G["D"])  # eq. (6), half the distance
         if self.layout.n >= 3:
-            c[..., self._i_rho] = G["rho"]
-            c[..., self._i_psi] = G["psi"]
+            c = _set(c, (..., self._i_rho), G["rho"])
+            c = _set(c, (..., self._i_psi), G["psi"])
             if len(self._i_chi):
-                c[..., self._i_chi] = G["chi"][..., 1:]
+                c = _set(c, (..., self._i_chi), G["chi"][..., 1:])
         if len(self._i_phi):
             th = self.layout.yaws(r)
             phi = th - G["beta"][..., None]  # eqs. (7)-(8)
-            c[..., self._i_phi] = g.wrap(phi) if near_c is None else g.unwrap_near(phi, near_c[..., self._i_phi])
+            c = _set(c, (..., self._i_phi),
+                     g.wrap(phi) if near_c is None else g.unwrap_near(phi, near_c[..., self._i_phi]))
         return c
 
     # -- inverse kinematics ---------------------------------------------------------------
@@ -366,24 +399,26 @@ class EuclideanTeam(Formation):
         """Robot ``k``'s position from robot 1 in the formation frame, ``(..., N, 3)`` (robot 1: 0,
         robot 2: ``(0, -2 d_c, 0)``), and the spherical directions ``(..., N - 2, 3)``."""
         L = self.layout
+        xp = array_namespace(c)
         shape = c.shape[:-1]
-        S = np.zeros(shape + (L.n, 3))
-        S[..., 1, 1] = -2.0 * c[..., self._i_d]
+        S = xp.zeros(shape + (L.n, 3))
+        S = _set(S, (..., 1, 1), -2.0 * c[..., self._i_d])
         if L.n < 3:
             return S, None, None, None
         psi = c[..., self._i_psi]
-        chi = np.zeros_like(psi)
+        chi = xp.zeros_like(psi)
         if len(self._i_chi):
-            chi[..., 1:] = c[..., self._i_chi]
+            chi = _set(chi, (..., slice(1, None)), c[..., self._i_chi])
         dirs = _spoke_direction(psi, chi)
         rho = c[..., self._i_rho]
-        S[..., 2:, :] = rho[..., None] * dirs
+        S = _set(S, (..., slice(2, None), slice(None)), rho[..., None] * dirs)
         return S, dirs, psi, chi
 
     def _angles_of(self, c):
         beta = c[..., self._i_beta]
-        gamma = np.zeros_like(beta) if self.planar else c[..., self._i_gamma]
-        alpha = c[..., self._i_alpha] if self._roll else np.zeros_like(beta)
+        xp = array_namespace(c)
+        gamma = xp.zeros_like(beta) if self.planar else c[..., self._i_gamma]
+        alpha = c[..., self._i_alpha] if self._roll else xp.zeros_like(beta)
         return beta, gamma, alpha
 
     def _place(self, c):
@@ -393,11 +428,11 @@ class EuclideanTeam(Formation):
         S, dirs, psi, chi = self._spokes(c)
         Sc = S - S.mean(axis=-2, keepdims=True)
         off = (Sc[..., 0:1] * xf[..., None, :] + Sc[..., 1:2] * u[..., None, :] + Sc[..., 2:3] * zf[..., None, :])
-        xc = np.zeros(c.shape[:-1] + (3,))
+        xc = array_namespace(c).zeros(c.shape[:-1] + (3,))
         nxc = self._nxc
-        xc[..., :nxc] = c[..., :nxc]
+        xc = _set(xc, (..., slice(None, nxc)), c[..., :nxc])
         if self._ground is not None:  # the ground robot at z = 0 fixes the centroid's height
-            xc[..., 2] = -off[..., self._ground, 2]
+            xc = _set(xc, (..., 2), -off[..., self._ground, 2])
         return xc, (x0, u, z0, xf, zf), off, (S, dirs, psi, chi)
 
     def inverse(self, c, *, near_r=None):
@@ -439,40 +474,50 @@ class EuclideanTeam(Formation):
         Two ``xyz_yaw`` robots: the seed's 8 x 8 closed form (:meth:`inverse_jacobian_at`)
         applied to ``c_dot``, the floats of the pair cluster-space controller (seed 000 Fig. 2),
         so that a team controller reproduces its runs bit for bit (``docs/derivations.md``)."""
-        c = np.asarray(c, dtype=float)
-        cd = as_array(c_dot, "c_dot", self.n_c)
+        return self.robot_rate_arrays(np.asarray(c, dtype=float), as_array(c_dot, "c_dot", self.n_c))
+
+    def robot_rate_arrays(self, c, cd):
+        """:meth:`robot_rate` without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``)."""
         if self._seed is not None:
-            return np.einsum("...ij,...j->...i", self._seed.inverse_jacobian_at(c), cd)
+            Ji = self._seed.inverse_jacobian_at(c)
+            if isinstance(Ji, np.ndarray) and isinstance(cd, np.ndarray):
+                return np.einsum("...ij,...j->...i", Ji, cd)
+            return (Ji * cd[..., None, :]).sum(axis=-1)  # the products' sums (as ClusterController on JAX)
         return self._rate_map(c, cd)
 
     def _rate_map(self, c, cd):
         """:meth:`robot_rate` for any team (the O(N) directional derivative)."""
-        c, cd = np.broadcast_arrays(c, cd)
+        xp = array_namespace(cd)
+        c, cd = xp.broadcast_arrays(c, cd)
         _, (x0, u, _, xf, zf), off, (S, dirs, psi, chi) = self._place(c)
         bd, gd, ad = self._angles_of(cd)
         w = bd[..., None] * _EZ + gd[..., None] * x0 + ad[..., None] * u
-        Sd = np.zeros(S.shape)
-        Sd[..., 1, 1] = -2.0 * cd[..., self._i_d]
+        Sd = xp.zeros(S.shape)
+        Sd = _set(Sd, (..., 1, 1), -2.0 * cd[..., self._i_d])
         if self.layout.n >= 3:
             rho = c[..., self._i_rho][..., None]
             psid = cd[..., self._i_psi][..., None]
-            chid = np.zeros_like(psid)
+            chid = xp.zeros_like(psid)
             if len(self._i_chi):
-                chid[..., 1:, :] = cd[..., self._i_chi][..., None]
-            cc, sc, cp, spsi = np.cos(chi)[..., None], np.sin(chi)[..., None], np.cos(psi)[..., None], \
-                np.sin(psi)[..., None]
-            d_psi = np.concatenate([cc * cp, cc * spsi, np.zeros_like(cc)], axis=-1)
-            d_chi = np.concatenate([-sc * spsi, sc * cp, cc], axis=-1)
-            Sd[..., 2:, :] = cd[..., self._i_rho][..., None] * dirs + rho * (psid * d_psi + chid * d_chi)
+                chid = _set(chid, (..., slice(1, None), slice(None)), cd[..., self._i_chi][..., None])
+            cc, sc, cp, spsi = xp.cos(chi)[..., None], xp.sin(chi)[..., None], xp.cos(psi)[..., None], \
+                xp.sin(psi)[..., None]
+            d_psi = xp.concatenate([cc * cp, cc * spsi, xp.zeros_like(cc)], axis=-1)
+            d_chi = xp.concatenate([-sc * spsi, sc * cp, cc], axis=-1)
+            Sd = _set(Sd, (..., slice(2, None), slice(None)),
+                      cd[..., self._i_rho][..., None] * dirs + rho * (psid * d_psi + chid * d_chi))
         Sdc = Sd - Sd.mean(axis=-2, keepdims=True)
         v = (Sdc[..., 0:1] * xf[..., None, :] + Sdc[..., 1:2] * u[..., None, :] + Sdc[..., 2:3] * zf[..., None, :])
-        xcd = np.zeros(cd.shape[:-1] + (3,))
+        xcd = xp.zeros(cd.shape[:-1] + (3,))
         nxc = self._nxc
-        xcd[..., :nxc] = cd[..., :nxc]
-        v = np.cross(w[..., None, :], off) + v
+        xcd = _set(xcd, (..., slice(None, nxc)), cd[..., :nxc])
+        v = xp.cross(w[..., None, :], off) + v
         if self._ground is not None:  # the ground robot stays at z = 0
-            xcd[..., 2] = -v[..., self._ground, 2]
+            xcd = _set(xcd, (..., 2), -v[..., self._ground, 2])
         v = self._unordered(xcd[..., None, :] + v)
+        if xp is not np:
+            return team_compose(self.layout, v, cd[..., self._i_phi] + bd[..., None])
         return self.layout.compose(v, cd[..., self._i_phi] + bd[..., None])
 
     def inverse_jacobian_at(self, c, *, r=None):

@@ -28,6 +28,7 @@ import functools
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
@@ -39,7 +40,8 @@ from .quaternion_pair import TILT_TOL, QuaternionPair
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from . import team_special_sets as tss
-from .team_chart import TIE, TIE_DECAY, LawGroup, TeamChart, check_template, default_template, fit_attitude, horn_matrix
+from .team_chart import (TIE, TIE_DECAY, LawGroup, TeamChart, check_template, default_template, fit_attitude, horn_matrix,
+                         team_compose, team_positions)
 
 __all__ = ["QuaternionTeam", "CHARTS", "PLANAR_TOL"]
 
@@ -234,6 +236,10 @@ class QuaternionTeam(Formation):
 
     def _assemble(self, xc, q, s, qci):
         shape = np.broadcast_shapes(xc.shape[:-1], q.shape[:-1], s.shape[:-2], qci.shape[:-2])
+        xp = array_namespace(s)
+        if xp is not np:  # the same entries, concatenated
+            parts = (xc, q, s.reshape(s.shape[:-2] + (-1,)), qci.reshape(qci.shape[:-2] + (-1,)))
+            return xp.concatenate([xp.broadcast_to(a, shape + a.shape[-1:]) for a in parts], axis=-1)
         c = np.empty(shape + (self.n_c,))
         c[..., 0:3] = xc
         c[..., 3:7] = q
@@ -260,12 +266,20 @@ class QuaternionTeam(Formation):
             Two robots closer than ``MIN_SEPARATION_M``.
         """
         r = self.check_robot_state(r)
-        L = self.layout
-        p = L.positions(r)
         self.check_apart(r)
         if near_c is not None:
             near_c = super().check_cluster_state(near_c, "near_c")
-        xc = (self._mean_row @ p)[..., 0, :]  # eq. (9) for N robots (a matrix product: one BLAS call)
+        return self.forward_arrays(r, near_c)
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``, where the sign flip is a select): the caller has checked ``r`` (finite,
+        robots apart) and ``near_c``."""
+        xp = array_namespace(r)
+        L = self.layout
+        p = team_positions(L, r)
+        mean_row = self._mean_row if xp is np else xp.asarray(self._mean_row)
+        xc = (mean_row @ p)[..., 0, :]  # eq. (9) for N robots (a matrix product: one BLAS call)
         cen = p - xc[..., None, :]
         tmpl, hint = self._reference(near_c)
         q = fit_attitude(tmpl, cen, hint)  # Horn 1987; seed 000 eqs. (10), (14)-(15) for N = 2
@@ -273,15 +287,22 @@ class QuaternionTeam(Formation):
         Lc = _left(q * _CONJ)
         if self._all_yaw:  # q_c* q_yaw(theta) = cos(theta/2) q_c* + sin(theta/2) q_c* k (eqs. (12)-(13))
             half = 0.5 * r[..., self._yaw_r]
-            cs = np.empty(half.shape + (2,))
-            cs[..., 0], cs[..., 1] = np.cos(half), np.sin(half)
+            if xp is np:
+                cs = np.empty(half.shape + (2,))
+                cs[..., 0], cs[..., 1] = np.cos(half), np.sin(half)
+            else:
+                cs = xp.stack([xp.cos(half), xp.sin(half)], axis=-1)
             qci = cs @ _mT(Lc[..., :, 0::3])
         else:
             qci = self._headings(r) @ _mT(Lc)
         if near_c is not None and len(self._o):
-            flip = np.einsum("...i,...i->...", qci, self._heading_rows(near_c)) < 0.0
-            if flip.any():
-                qci = np.where(flip[..., None], -qci, qci)
+            if xp is np:
+                flip = np.einsum("...i,...i->...", qci, self._heading_rows(near_c)) < 0.0
+                if flip.any():
+                    qci = np.where(flip[..., None], -qci, qci)
+            else:  # the flip selected (it changes nothing where no row flips)
+                flip = xp.sum(qci * self._heading_rows(near_c), axis=-1) < 0.0
+                qci = xp.where(flip[..., None], -qci, qci)
         return self._assemble(xc, q, s, qci)
 
     def inverse(self, c, *, near_r=None):
@@ -448,10 +469,14 @@ class QuaternionTeam(Formation):
         (:func:`~.pair_kernels.yaw_rate`), a pose robot's ``q_c' q_ci + q_c q_ci'``. A planar
         robot's vertical rate is dropped (it has none). ``r`` is not needed (one branch).
         """
-        c = np.asarray(c, dtype=float)
-        cd = as_array(c_dot, "c_dot", self.n_c)
+        return self.robot_rate_arrays(np.asarray(c, dtype=float), as_array(c_dot, "c_dot", self.n_c))
+
+    def robot_rate_arrays(self, c, cd):
+        """:meth:`robot_rate` without its checks, on arrays of any namespace (NumPy; JAX under
+        ``jax.jit``)."""
+        xp = array_namespace(cd)
         q, qd = c[..., 3:7], cd[..., 3:7]
-        nq = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
+        nq = xp.sqrt(xp.sum(q * q, axis=-1, keepdims=True))
         qn = q / nq
         wb = (2.0 / nq) * (_left(qn * _CONJ) @ qd[..., None])[..., 0]  # (., w_b) = 2 q* q_c' / |q_c|
         R = _rotation(qn)
@@ -462,10 +487,12 @@ class QuaternionTeam(Formation):
         qi = qci @ Lq  # eqs. (17), (19)
         qid = qci @ _mT(_left(qd)) + qcid @ Lq
         if self._all_yaw:
-            th = kern.yaw_rate(tuple(np.moveaxis(qi, -1, 0)), tuple(np.moveaxis(qid, -1, 0)))
-            return self.layout.compose(v, th)
+            th = kern.yaw_rate(tuple(xp.moveaxis(qi, -1, 0)), tuple(xp.moveaxis(qid, -1, 0)))
+            return self.layout.compose(v, th) if xp is np else team_compose(self.layout, v, th)
         y = self._yaw_rows
-        th = kern.yaw_rate(tuple(np.moveaxis(qi[..., y, :], -1, 0)), tuple(np.moveaxis(qid[..., y, :], -1, 0)))
+        th = kern.yaw_rate(tuple(xp.moveaxis(qi[..., y, :], -1, 0)), tuple(xp.moveaxis(qid[..., y, :], -1, 0)))
+        if xp is not np:
+            return team_compose(self.layout, v, th, qid[..., self._pose_rows, :])
         return self.layout.compose(v, th, qid[..., self._pose_rows, :])
 
     # -- singularity measure ---------------------------------------------------------------------

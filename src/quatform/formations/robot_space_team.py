@@ -13,6 +13,7 @@ import functools
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from . import geometry as g
@@ -90,14 +91,31 @@ class RobotSpaceTeam(Formation):
     def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
         self.check_apart(r)
-        out = np.array(r, dtype=float)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
-            out = self.layout.wind(out, near_c)
-            rows = self.layout.orientation_index
-            if len(rows):
-                out[..., rows] = g.closest_sign(out[..., rows], near_c[..., rows])
-        return out
+        return self.forward_arrays(r, near_c)
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` without its checks, on arrays of any namespace (JAX under
+        ``jax.jit``): the yaws wound near ``near_c``'s (:meth:`RobotLayout.wind`); a team with
+        ``pose`` robots (their quaternions' signs) on NumPy only."""
+        if array_namespace(r) is np:
+            out = np.array(r, dtype=float)
+            if near_c is not None:
+                out = self.layout.wind(out, near_c)
+                rows = self.layout.orientation_index
+                if len(rows):
+                    out[..., rows] = g.closest_sign(out[..., rows], near_c[..., rows])
+            return out
+        if len(self.layout.orientation_index):
+            raise InvalidInputError("RobotSpaceTeam.forward_arrays: a team with pose robots runs on numpy")
+        return r if near_c is None else self.layout.wind(r, near_c)
+
+    def robot_rate_arrays(self, c, c_dot):
+        """:meth:`robot_rate` without its checks, on arrays of any namespace: ``c_dot``."""
+        if array_namespace(c_dot) is np:
+            return self.robot_rate(c, c_dot)
+        return array_namespace(c_dot).broadcast_to(c_dot, np.broadcast_shapes(c.shape, c_dot.shape))
 
     def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)

@@ -30,13 +30,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace, qmul_components
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, ShapeError
 from . import geometry as g
 from .layout import POINT_KINDS, RobotLayout, Variable
 
 __all__ = ["TeamChart", "LawGroup", "ROLE_WIDTHS", "fit_attitude", "default_template", "check_template",
-           "horn_matrix", "TIE", "TIE_DECAY"]
+           "horn_matrix", "team_compose", "team_positions", "TIE", "TIE_DECAY"]
 
 #: Width of each block role (the last axis of :attr:`LawGroup.index`); ``control.team`` maps
 #: a role to its law and gain key.
@@ -147,8 +148,9 @@ def horn_matrix(template, centred) -> np.ndarray:
     rotation. ``N`` is linear in ``S``: one product with a constant 9 x 16 matrix. Shape
     ``(..., 4, 4)``; O(N).
     """
-    S = np.matmul(np.swapaxes(template, -1, -2), centred)
-    return (S.reshape(S.shape[:-2] + (9,)) @ _HORN).reshape(S.shape[:-2] + (4, 4))
+    xp = array_namespace(centred)
+    S = xp.matmul(xp.swapaxes(xp.asarray(template), -1, -2), centred)
+    return (S.reshape(S.shape[:-2] + (9,)) @ (_HORN if xp is np else xp.asarray(_HORN))).reshape(S.shape[:-2] + (4, 4))
 
 
 _HALF_TURNS = (np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0, 0.0]), np.array([0.0, 1.0, 0.0, 0.0]))
@@ -181,6 +183,9 @@ def fit_attitude(template, centred, hint=None) -> np.ndarray:
     ndarray, shape (..., 4)
         Unit quaternion, sign nearest the hint.
     """
+    xp = array_namespace(centred)
+    if xp is not np:  # another namespace (JAX, traced): the same formulas, branches selected
+        return _fit_attitude_xp(xp, template, centred, hint)
     Nm = horn_matrix(template, centred)
     lam, V = np.linalg.eigh(Nm)
     t, c = np.asarray(template, dtype=float), np.asarray(centred, dtype=float)
@@ -211,6 +216,49 @@ def fit_attitude(template, centred, hint=None) -> np.ndarray:
         top = top * np.where(top[..., :1] < 0.0, -1.0, 1.0)
         q = np.where(bad[..., None], top, q)
         n = np.where(bad, 1.0, n)
+    return q / n[..., None]
+
+
+def _mul_xp(xp, q, p):
+    """Hamilton product of broadcast ``(..., 4)`` arrays of the namespace ``xp``
+    (:func:`~quatform.algebra.kernels.qmul_components`, as :func:`.geometry.mul`)."""
+    q, p = xp.asarray(q), xp.asarray(p)
+    return xp.stack(xp.broadcast_arrays(*qmul_components(*(q[..., k] for k in range(4)),
+                                                          *(p[..., k] for k in range(4)))), axis=-1)
+
+
+def _fit_attitude_xp(xp, template, centred, hint):
+    """:func:`fit_attitude` on an array namespace whose values cannot be read (JAX under
+    ``jax.jit``): every half-turn alternative and the top-eigenvector fallback computed and
+    selected where the projection vanishes (``docs/derivations.md``, Issue 15: the team kind
+    on JAX). ``V w V^T h`` does not depend on the eigenvectors' signs, so another ``eigh``
+    gives the same ``q`` up to rounding."""
+    Nm = horn_matrix(template, centred)
+    lam, V = xp.linalg.eigh(Nm)
+    t = xp.asarray(template)
+    scale = xp.sqrt(xp.sum(t * t, axis=(-2, -1)) * xp.sum(centred * centred, axis=(-2, -1)))
+    tie, tau = (TIE * scale)[..., None], (TIE_DECAY * scale + 1e-300)[..., None]
+    arg = -xp.maximum(lam[..., -1:] - lam - tie, 0.0) / tau
+    w = xp.where(arg < -700.0, 0.0, xp.exp(xp.maximum(arg, -700.0)))
+    h = xp.broadcast_to(xp.asarray([1.0, 0.0, 0.0, 0.0]) if hint is None else xp.asarray(hint), lam.shape)
+    Vt = xp.swapaxes(V, -1, -2)
+
+    def project(v):
+        return (V @ (w * (Vt @ v[..., None])[..., 0])[..., None])[..., 0]
+
+    q = project(h)
+    n = xp.sqrt(xp.sum(q * q, axis=-1))
+    for turn in _HALF_TURNS:  # the loop of fit_attitude with every step taken: where no entry is bad it changes nothing
+        bad = n < 1e-9
+        alt = project(_mul_xp(xp, h, turn))
+        an = xp.sqrt(xp.sum(alt * alt, axis=-1))
+        q = xp.where(bad[..., None], alt, q)
+        n = xp.where(bad, an, n)
+    bad = n < 1e-9
+    top = V[..., :, -1]
+    top = top * xp.where(top[..., :1] < 0.0, -1.0, 1.0)
+    q = xp.where(bad[..., None], top, q)
+    n = xp.where(bad, 1.0, n)
     return q / n[..., None]
 
 
@@ -380,3 +428,43 @@ class TeamChart:
         pitch = np.arcsin(np.clip(2.0 * (w * y - z * x) / n, -1.0, 1.0))
         roll = np.arctan2(2.0 * (w * x + y * z), w * w - x * x - y * y + z * z)
         return np.stack([yaw, pitch, roll], axis=-1)
+
+
+@functools.lru_cache(maxsize=64)
+def _compose_gather(layout: RobotLayout) -> np.ndarray:
+    """Index of every robot-state entry in ``concat(positions (3 N), yaws, orientations (4 M))``."""
+    src = np.empty(layout.size, dtype=np.intp)
+    flat = layout.position_index.ravel()
+    keep = flat < layout.size
+    src[flat[keep]] = np.flatnonzero(keep)
+    n_yaw = len(layout.yaw_indices)
+    src[list(layout.yaw_indices)] = 3 * layout.n + np.arange(n_yaw)
+    if len(layout.orientation_index):
+        src[layout.orientation_index.ravel()] = 3 * layout.n + n_yaw + np.arange(layout.orientation_index.size)
+    return src
+
+
+def team_compose(layout: RobotLayout, positions, yaws=None, orientations=None):
+    """:meth:`RobotLayout.compose` on arrays of any namespace (JAX under ``jax.jit``), without
+    its checks: the same entries gathered from ``positions`` (``(..., N, 3)``), ``yaws``
+    (``(..., len(yaw_indices))``) and ``orientations`` (``(..., M, 4)``); a planar robot's z
+    dropped."""
+    xp = array_namespace(positions)
+    parts = [positions.reshape(positions.shape[:-2] + (3 * layout.n,))]
+    if len(layout.yaw_indices):
+        parts.append(yaws)
+    if len(layout.orientation_index):
+        parts.append(orientations.reshape(orientations.shape[:-2] + (-1,)))
+    shape = np.broadcast_shapes(*(a.shape[:-1] for a in parts))
+    src = xp.concatenate([xp.broadcast_to(a, shape + a.shape[-1:]) for a in parts], axis=-1)
+    return src[..., _compose_gather(layout)]
+
+
+def team_positions(layout: RobotLayout, r):
+    """:meth:`RobotLayout.positions` on arrays of any namespace (JAX under ``jax.jit``),
+    without its checks: ``(..., N, 3)``, a planar robot at z = 0 (the same entries)."""
+    xp = array_namespace(r)
+    if xp is np:
+        return layout.positions(r)
+    padded = xp.concatenate([r, xp.zeros(r.shape[:-1] + (1,), dtype=r.dtype)], axis=-1)
+    return padded[..., layout.position_index]

@@ -27,7 +27,20 @@ manager: the user's global ``jax_enable_x64`` setting is left as it was). Device
 JAX's default backend - the GPUs when a CUDA JAX is installed and sees one, otherwise one
 CPU device per core (:mod:`.jax_devices`) - with the batch of worlds split over them; no
 code changes. Supported: the pair kind's experiments (seed 000's four controllers on
-kinematic holonomic robots); anything else is refused in one line naming what runs here.
+kinematic holonomic robots) and the team kind's four team controllers (quaternion,
+dual-quaternion of shape ``"frame"``, cluster-space, robot-space:
+:meth:`~quatform.control.team.TeamController.chain`) on kinematic 4-DOF and planar
+holonomic robots, bare or in a :class:`~quatform.control.safety.SafeController`; anything
+else is refused in one line naming what runs here.
+
+The separation barrier: on JAX each tick computes every pair's constraint of
+:class:`~quatform.control.safety.SeparationBarrier` and its minimum separation; where no
+pair binds the filter returns the commands bitwise, so that is the whole filter. A world
+where some pair binds (or whose robots start closer than the barrier's minimum, which
+``SafeController`` refuses) is rerun on NumPy from its start, with its own initial state,
+measurement draws and reference (the exact programme's active set is a host algorithm), and
+its channels and failure replace the JAX run's; ``log.meta["numpy_worlds"]`` (bool, the
+batch shape) says which, when any.
 """
 
 from __future__ import annotations
@@ -41,16 +54,28 @@ from ..algebra.kernels import array_namespace as namespace
 from ..algebra.validate import as_array
 from ..control.base import Reference
 from ..control.cluster import ClusterController
+from ..control.safety import SafeController
+from ..control.team import TeamController
 from ..errors import (
     DegenerateInputError,
     InvalidInputError,
     MissingDependencyError,
     ShapeError,
 )
-from ..formations import DualQuaternionPair, EuclideanPair, QuaternionPair, RobotSpace
+from ..formations import (
+    DualQuaternionPair,
+    DualQuaternionTeam,
+    EuclideanPair,
+    EuclideanTeam,
+    QuaternionPair,
+    QuaternionTeam,
+    RobotSpace,
+    RobotSpaceTeam,
+)
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
-from ..robots import HolonomicRobot
+from ..formations.team_chart import team_positions
+from ..robots import HolonomicRobot, PlanarHolonomicRobot
 from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
@@ -60,6 +85,8 @@ from .trial_measurement import TickMeasurement
 __all__ = [
     "FAILURE_REASONS",
     "JAX_FORMATIONS",
+    "JAX_TEAM_FORMATIONS",
+    "JAX_TEAM_ROBOTS",
     "cached",
     "check_supported",
     "check_ticks",
@@ -69,18 +96,30 @@ __all__ = [
     "require_jax",
     "simulate",
     "stack_reference",
+    "team_parts",
+    "team_tick_function",
     "tick_function",
 ]
 
 #: Formation descriptions whose controllers run on JAX (seed 000's pair descriptions).
 JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
+#: Team descriptions whose :class:`~quatform.control.team.TeamController` runs on JAX (issue 15).
+JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotSpaceTeam)
+#: Robot models of a team that runs on JAX (kinematic, holonomic, one common limit factor).
+JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot)
 #: What the backend runs, for the one-line refusal of anything else.
 _RUNS = ("the jax backend runs the seed-000 pair experiments (cluster-space, robot-space, quaternion and "
-         "dual-quaternion controllers on kinematic holonomic robots, perfect or TickMeasurement measurement)")
-#: Reason of a failed world, by code (0: none).
+         "dual-quaternion controllers on kinematic holonomic robots) and the team kind's four team controllers "
+         "(quaternion, dual-quaternion of shape 'frame', cluster-space, robot-space; with or without the separation "
+         "barrier) on kinematic 4-DOF and planar holonomic robots, perfect or TickMeasurement measurement")
+#: Reason of a failed world, by code (0: none). Code 3 is no failure: the world is rerun on
+#: NumPy (:func:`simulate`), whose log replaces it.
 FAILURE_REASONS = {1: "the measured robot state is not finite (or beyond 1e150)",
-                   2: f"the measured robots coincide (closer than {MIN_SEPARATION_M:g} m): a two-robot formation "
-                      "is undefined there"}
+                   2: f"the measured robots coincide (closer than {MIN_SEPARATION_M:g} m): a "
+                      "formation is undefined there",
+                   3: "the separation barrier binds (its quadratic programme runs on the host)"}
+#: Failure code of a world whose separation barrier binds (rerun on NumPy).
+_HOST = 3
 
 
 def require_jax():
@@ -95,8 +134,41 @@ def require_jax():
     return jax
 
 
+def team_parts(controller):
+    """``(team controller, barrier or None)`` of a team experiment's controller (a
+    :class:`~quatform.control.team.TeamController`, bare or in a
+    :class:`~quatform.control.safety.SafeController`), else None."""
+    if isinstance(controller, SafeController) and isinstance(controller.inner, TeamController):
+        return controller.inner, controller.barrier
+    if isinstance(controller, TeamController):
+        return controller, None
+    return None
+
+
 def check_supported(plant, controller, measurement) -> None:
     """Refuse (one line, naming what runs here) what the jax backend does not run."""
+    parts = team_parts(controller)
+    if parts is not None:
+        inner, _ = parts
+        if not isinstance(inner.formation, JAX_TEAM_FORMATIONS):
+            raise InvalidInputError(f"{_RUNS}; the {inner.name} team controller ({type(inner.formation).__name__}) "
+                                    "runs on numpy (--backend numpy)")
+        if isinstance(inner.formation, DualQuaternionTeam) and inner.formation.shape != "frame":
+            raise InvalidInputError(f"{_RUNS}; DualQuaternionTeam(shape={inner.formation.shape!r}) runs on numpy "
+                                    "(--backend numpy)")
+        team = inner.team
+        if controller.team != team:
+            raise InvalidInputError(f"{_RUNS}; a SafeController over another team than its controller's runs on "
+                                    "numpy (--backend numpy)")
+        if not (isinstance(plant, KinematicTeam) and plant.team == team and team.common_limit and team.passthrough
+                and all(type(r) in JAX_TEAM_ROBOTS for r in team.robots)):
+            models = sorted({type(r).__name__ for r in team.robots})
+            raise InvalidInputError(f"{_RUNS}; the plant {type(plant).__name__} of {', '.join(models)} robots runs on "
+                                    "numpy (--backend numpy)")
+        if measurement is not None and type(measurement) not in (PerfectMeasurement, TickMeasurement):
+            raise InvalidInputError(f"{_RUNS}; the measurement {type(measurement).__name__} runs on numpy "
+                                    "(--backend numpy)")
+        return
     if not isinstance(controller, ClusterController) or not isinstance(controller.formation, JAX_FORMATIONS):
         raise InvalidInputError(f"{_RUNS}; {type(controller).__name__} runs on numpy (--backend numpy)")
     if controller.filters:
@@ -212,7 +284,8 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         raise InvalidInputError("jax simulate: x0 must be finite")
     batch = x.shape[:-1]
     B = math.prod(batch)
-    c_ref, cd_ref, r_ref = stack_reference(controller, reference, n, batch)
+    parts = team_parts(controller)
+    c_ref, cd_ref, r_ref = stack_reference(controller if parts is None else parts[0], reference, n, batch)
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
     tick.start(float(times[0]), plant.output(x), batch)  # the shape checks of the measurement
     if any(arr is not None and arr.shape[0] < n for arr in (tick.noise, tick.dropped)):
@@ -229,16 +302,28 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     with jax.enable_x64(True):
         ys, carry = _scan(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, progress)
     names = ("state", "measured", "command", "cluster", "error", "raw_finite")
+    if parts is not None and parts[1] is not None:
+        names += ("min_separation", "safety_active")
     data = {k: np.asarray(v)[:, :B].reshape((n,) + batch + (v.shape[-1],)) for k, v in zip(names, ys)}
-    fail_tick, reason = (np.asarray(a)[:B].reshape(batch) for a in carry[3:5])
+    fail_tick, reason = (np.array(a)[:B].reshape(batch) for a in carry[3:5])
     extra = {}
-    if np.any(reason > 0):
+    host_failure = {}
+    if np.any(reason == _HOST):  # the barrier binds: those worlds' runs are NumPy's
+        host_failure = _rerun_on_host(plant, controller, times, x, dt, substeps, tick, noise, dropped,
+                                      (c_ref, cd_ref, r_ref), reason == _HOST, data, names, meta)
+        extra["numpy_worlds"] = reason == _HOST
+        reason[reason == _HOST] = 0
+    if np.any(reason > 0) or host_failure:
         if not batch:
             err = DegenerateInputError if int(reason) == 2 else InvalidInputError
             raise err(f"jax simulate: at t = {times[int(fail_tick)]:g} s {FAILURE_REASONS[int(reason)]}")
-        extra = {"failed": reason > 0,
-                 "failure": {tuple(int(i) for i in idx): f"t = {times[fail_tick[idx]]:g} s: "
-                             f"{FAILURE_REASONS[int(reason[idx])]}" for idx in zip(*np.nonzero(reason))}}
+        failure = {tuple(int(i) for i in idx): f"t = {times[fail_tick[idx]]:g} s: "
+                   f"{FAILURE_REASONS[int(reason[idx])]}" for idx in zip(*np.nonzero(reason))}
+        failure.update(host_failure)
+        failed = reason > 0
+        for idx in host_failure:
+            failed[idx] = True
+        extra.update(failed=failed, failure=dict(sorted(failure.items())))
     out_cols = tick.columns if tick.columns is not None else plant.output_columns
     cols = {"state": plant.state_columns, "measured": out_cols, "command": controller.command_names,
             **controller.signal_columns()}
@@ -264,6 +349,42 @@ def _spread(jax, carry, xs, B):
             arrays[key] = np.concatenate([a, np.repeat(np.take(a, [-1], axis=axis), pad, axis=axis)], axis=axis)
     arrays = jax_devices.place(jax, arrays, axes)
     return tuple(arrays.pop(f"carry{q}") for q in range(len(carry))), arrays
+
+
+def _rerun_on_host(plant, controller, times, x, dt, substeps, tick, noise, dropped, refs, host, data, names, meta):
+    """Run the worlds ``host`` (bool, the batch shape) on NumPy (:func:`quatform.sim.simulate`:
+    their separation barrier binds, whose programme is solved on the host) with their own
+    initial states, measurement draws and references, and write their channels into ``data``;
+    their failures (world index tuple -> reason) are returned."""
+    from .simulate import simulate as numpy_simulate
+
+    batch = host.shape
+    n = times.size
+    sel = np.flatnonzero(host.reshape(-1))
+    pick = [np.asarray(a)[:, sel if a.shape[1] > 1 else np.zeros(sel.size, dtype=np.intp)] if a is not None else None
+            for a in refs]
+
+    def reference(k):
+        return Reference(pick[0][k], pick[1][k], None if pick[2] is None else pick[2][k])
+
+    if not batch:  # one world: NumPy's run as it is (it raises where that world fails)
+        sel = slice(None)
+        pick = [None if a is None else np.asarray(a)[:, 0] for a in refs]
+    measurement = TickMeasurement(None if noise is None else noise[:, sel][:, 0] if not batch else noise[:, sel],
+                                  tick.delay_ticks, None if dropped is None else
+                                  dropped[:, 0] if not batch else dropped[:, sel], columns=tick.columns)
+    x_host = x if not batch else x.reshape(-1, x.shape[-1])[sel]
+    log = numpy_simulate(plant, controller, reference, times, x_host, dt=dt, substeps=substeps,
+                         measurement=measurement, meta=meta)
+    for k in names:
+        flat = np.array(data[k]).reshape((n, -1, data[k].shape[-1]))
+        flat[:, sel] = log[k].reshape((n, -1, data[k].shape[-1]))
+        data[k] = flat.reshape(data[k].shape)
+    out = {}
+    for local, reason in log.meta.get("failure", {}).items():
+        idx = np.unravel_index(int(sel[local[0]]), batch)
+        out[tuple(int(i) for i in idx)] = reason
+    return out
 
 
 def initial_carry(x, delay):
@@ -292,9 +413,13 @@ def hold(a):
 
 
 def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned):
-    """One control tick on JAX arrays: ``(carry, xs_k) -> (carry, (x, m, u, c, err, finite))``."""
+    """One control tick on JAX arrays: ``(carry, xs_k) -> (carry, (x, m, u, c, err, finite))``
+    (a team controller in a :class:`~quatform.control.safety.SafeController`: also
+    ``min_separation`` and ``safety_active``, :func:`team_tick_function`)."""
     import jax.numpy as jnp
 
+    if team_parts(controller) is not None:
+        return team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
     F, team = controller.formation, controller.team
     L = team.layout
     i, j = L.pairs
@@ -344,11 +469,103 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
     return tick
 
 
+def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned):
+    """One control tick of a team experiment on JAX arrays: ``(carry, xs_k) -> (carry, (x, m,
+    u, c, err, finite[, min_separation, safety_active]))``.
+
+    The chain of :meth:`~quatform.control.team.TeamController.chain`, the team's saturation
+    and step; what :meth:`~quatform.control.team.TeamController.update` refuses (a measured
+    state not finite or beyond 1e150, two robots closer than ``MIN_SEPARATION_M``, every pair
+    of the layout) marks the world failed. With a separation barrier
+    (:class:`~quatform.control.safety.SeparationBarrier`): its minimum separation over every
+    pair and the test whether any pair's constraint binds (Wang et al. 2017: ``2 p_ij .
+    (v_i - v_j) + gamma h_ij < 0`` for a pair within the barrier's range), where it does not
+    the filter returns the commands bitwise; a world where it binds, or whose robots start
+    closer than the barrier's minimum, is marked with code 3 and rerun on NumPy (the
+    programme's active set is a host algorithm; :func:`simulate`).
+    """
+    import jax.numpy as jnp
+
+    inner, barrier = team_parts(controller)
+    F, team = inner.formation, inner.team
+    L = team.layout
+    i, j = L.pairs
+
+    def tick(carry, xs):
+        x, past, last, fail_tick, reason = carry
+        B = x.shape[0]
+
+        def stage(a):  # an array materialised once (hold)
+            return hold(jnp.broadcast_to(a, (B,) + a.shape[-1:]))
+        past = jnp.concatenate([past[1:], x[None]], axis=0) if delay else x[None]
+        m = past[0]  # y(t_{k-d}); y0 before the first tick (TickMeasurement)
+        if noisy:
+            m = m + xs["noise"]
+        if lossy:
+            m = jnp.where(xs["dropped"][:, None], last, m)
+        last = m
+        c_des, c_dot_des = (jnp.broadcast_to(a, (B, a.shape[-1])) for a in (xs["c"], xs["cd"]))
+        r = hold(F.align(m, xs["rd"]) if aligned else m)
+        c, err, r_dot = inner.chain(r, c_des, c_dot_des, stage=stage)
+        c, err, r_dot = (jnp.broadcast_to(v, (B, v.shape[-1])) for v in (c, err, r_dot))
+        r_dot = hold(r_dot)
+        finite = jnp.all(jnp.isfinite(r_dot), axis=-1, keepdims=True)
+        u = hold(team.saturate(r_dot))
+        # what update() refuses: a non-finite measured state, robots on each other
+        p = team_positions(L, r)
+        d = p[:, i, :] - p[:, j, :]
+        dist = jnp.sqrt(jnp.sum(d * d, axis=-1))  # (B, pairs)
+        close = jnp.any(dist < MIN_SEPARATION_M, axis=-1)
+        bad_m = ~jnp.all(jnp.isfinite(m) & (jnp.abs(m) <= MAX_MAGNITUDE), axis=-1)
+        code = jnp.where(bad_m, 1, jnp.where(close, 2, 0))
+        signals = ()
+        if barrier is not None:  # SeparationBarrier.filter where no pair binds: u itself
+            P = team_positions(L, m)
+            V = team_positions(L, u)
+            pij = P[:, i, :] - P[:, j, :]
+            sep = jnp.sqrt(jnp.sum(pij * pij, axis=-1))
+            d2, gam = barrier.min_separation_m ** 2, barrier.gamma
+            if barrier.range_m is None:  # SeparationBarrier._range of the largest point speed
+                speed = jnp.sqrt(jnp.max(jnp.sum(V * V, axis=-1), axis=-1, keepdims=True))
+                R = (2.0 * speed + jnp.sqrt(4.0 * speed * speed + gam * gam * d2)) / gam
+            else:
+                R = barrier.range_m
+            h = jnp.sum(pij * pij, axis=-1) - d2  # the single-integrator barrier (Robotarium certificate)
+            g = 2.0 * jnp.sum(pij * (V[:, i, :] - V[:, j, :]), axis=-1) + gam * h  # Wang et al. 2017
+            binds = jnp.any((sep <= R) & (g < 0.0), axis=-1)
+            start = (xs["k"] == 0) & jnp.any(sep < barrier.min_separation_m, axis=-1)  # SafeController._check_start
+            code = jnp.where(start, _HOST, jnp.where(code > 0, code, jnp.where(binds, _HOST, 0)))
+            signals = (jnp.min(sep, axis=-1, keepdims=True), jnp.zeros((B, 1), dtype=x.dtype))
+        new = (reason == 0) & (code > 0)
+        fail_tick = jnp.where(new, jnp.asarray(xs["k"], dtype=fail_tick.dtype), fail_tick)
+        reason = jnp.where(new, code, reason)
+        x_next = x
+        for s in range(substeps):
+            x_next = plant.step(x_next, u, dt, xs["t"] + s * dt)
+        bad = (reason > 0)[:, None]  # a failed world is frozen: its state held, commands 0, signals NaN
+        x_next = jnp.where(bad, x, x_next)
+        u = jnp.where(bad, 0.0, u)
+        out = tuple(jnp.where(bad, jnp.nan, v.astype(x.dtype)) for v in (c, err, finite) + signals)
+        new_carry = (x_next, past, last, fail_tick, reason)
+        if "valid" in xs:  # a padded tick past the run's end (progress chunks) changes nothing
+            new_carry = tuple(jnp.where(xs["valid"], a, b) for a, b in zip(new_carry, carry))
+        return new_carry, (x, m, u) + out
+
+    return tick
+
+
 def config_key(plant, controller) -> tuple:
     """What a compiled tick depends on, as a hashable value: the controller's class, its
     formation's class (the pair descriptions hold no parameters), its law (gains), team,
     feed-forward and checks, and the plant's team. Two experiments with equal configurations
     (a sweep's chunks, a benchmark's repeats) share one compilation."""
+    parts = team_parts(controller)
+    if parts is not None:  # a team description holds its layout and template; the gains are a dict
+        inner, barrier = parts
+        F = inner.formation
+        gains = tuple(sorted((k, tuple(np.ravel(v).tolist())) for k, v in inner.gains.items()))
+        return (type(controller), type(F), F.layout, np.asarray(F.template).tobytes(), gains, inner.team,
+                inner.feedforward, barrier, type(plant), plant.team)
     return (type(controller), type(controller.formation), controller.law, controller.team, controller.feedforward,
             controller.checks, type(plant), plant.team)
 

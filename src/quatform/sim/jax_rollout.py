@@ -31,6 +31,7 @@ from .jax_loop import (
     initial_carry,
     require_jax,
     stack_reference,
+    team_parts,
     tick_function,
 )
 from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, robot_errors
@@ -80,6 +81,9 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     plant, ctrl = experiment.plant, experiment.controller
     measurement = experiment.measurement if measurement is None else measurement
     check_supported(plant, ctrl, measurement)
+    if team_parts(ctrl) is not None:
+        raise InvalidInputError("rollout_metrics rolls out the pair kind's experiments; a team experiment runs on jax "
+                                "through its log (Experiment.run(backend='jax'), quatform sweep --backend jax)")
     times, dt = check_ticks(experiment.times, experiment.substeps, experiment.dt)
     n = times.size
     x = np.array(experiment.x0 if x0 is None else x0, dtype=float)
