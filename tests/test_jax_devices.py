@@ -72,7 +72,7 @@ print(json.dumps({"devices": len(jax.devices()), "failed": np.asarray(b.meta["fa
 """
 
 
-def run_script(env_extra: dict, script: str = SCRIPT, per_call: int = 2) -> dict:
+def run_script(env_extra: dict, script: str = SCRIPT, per_call: int | str = 2) -> dict:
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     env.update(env_extra, PYTHONPATH=os.pathsep.join([SRC, TESTS]))
     out = subprocess.run([sys.executable, "-c", script, str(per_call)], env=env, capture_output=True, text=True,
@@ -93,7 +93,10 @@ def test_three_devices_pad_and_equal_numpy():
 COUNT = r"""
 import json, sys
 import jax
-if sys.argv[1] != "0":
+from quatform.sim.jax_devices import share_cores
+if sys.argv[1].startswith("share"):
+    share_cores(int(sys.argv[1][5:]))  # a sweep's worker among others
+elif sys.argv[1] != "0":
     jax.config.update("jax_num_cpu_devices", int(sys.argv[1]))  # the user's choice
 from quatform.sim.jax_loop import require_jax
 print(json.dumps({"devices": len(require_jax().devices())}))
@@ -105,3 +108,10 @@ def test_cpu_devices_are_the_cores_unless_chosen(chosen):
     """Without the user's choice quatform asks JAX for one CPU device per usable core."""
     want = chosen or jax_devices.usable_cores()
     assert run_script({}, COUNT, chosen)["devices"] == want
+
+
+def test_workers_share_the_cores():
+    """A sweep's worker among ``w`` asks for ``cores // w`` devices (at least one)."""
+    cores = jax_devices.usable_cores()
+    assert run_script({}, COUNT, "share2")["devices"] == max(1, cores // 2)
+    assert run_script({}, COUNT, f"share{cores + 1}")["devices"] == 1

@@ -117,3 +117,33 @@ def test_short_tick_measurement_refused_in_one_line():
     meas = TickMeasurement(np.zeros((3, 8)), 0)  # 3 ticks of noise for a run of 21
     with pytest.raises(ShapeError, match="fewer than the run's 21 ticks"):
         dataclasses.replace(ex, measurement=meas).run(backend="jax")
+
+
+@pytest.mark.parametrize("bad", [0, -1, 0.5, 2.5, "3", True, float("nan"), float("inf")])
+def test_trials_per_call_must_be_a_whole_number(bad):
+    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.05), controller="quaternion")
+    with pytest.raises(InvalidInputError, match="trials_per_call"):
+        rollout_metrics(ex, np.broadcast_to(ex.x0, (2, 8)), trials_per_call=bad)
+
+
+def test_an_empty_batch_is_refused_in_one_line():
+    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.05), controller="quaternion")
+    with pytest.raises(ShapeError, match="at least one world"):
+        rollout_metrics(ex, np.zeros((0, 8)))
+    with pytest.raises(ShapeError, match="holds no world"):
+        dataclasses.replace(ex, x0=np.zeros((0, 8))).run(backend="jax")
+
+
+def test_failure_reasons_are_numpys_and_a_nan_start_fails_alone():
+    """A world starting with NaN and one with its robots on each other fail with NumPy's own
+    reasons; robot space (defined with robots on each other) goes on as on NumPy."""
+    for controller in ("quaternion", "robot-space"):
+        ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.1), controller=controller)
+        x0 = np.repeat(ex.x0[None], 3, axis=0)
+        x0[1, 0] = np.nan
+        x0[2, 4:7] = x0[2, 0:3]
+        ex = dataclasses.replace(ex, x0=x0, finish=lambda log: log)
+        a, b = ex.run(backend="numpy"), ex.run(backend="jax")
+        assert np.array_equal(a.meta["failed"], b.meta["failed"])
+        assert a.meta["failure"] == b.meta["failure"]
+        assert b.meta["failed"].tolist() == [False, True, controller != "robot-space"]

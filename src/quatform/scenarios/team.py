@@ -714,10 +714,14 @@ class TeamKind(ScenarioKind):
         def finish(log: Log) -> Log:
             r = team.point(log["state"])
             c = log["cluster"]
-            e = F.to_chart(c, near_e=e_des, r=r)
+            held = ~np.all(np.isfinite(c), axis=-1)  # a failed world's samples (sim.simulate: signals NaN)
+            r_read, c_read = (np.where(held[..., None], b, a) if held.any() else a for a, b in ((r, r_des), (c, c_des)))
+            e = F.to_chart(c_read, near_e=e_des, r=r_read)  # its held robots may coincide: read the reference there
             idx = singularity_samples(len(t), F.n_c)
             sing = np.full(len(t), np.nan)
-            sing[idx] = F.singularity_measure(r[idx], near_c=c_des[idx])
+            sing[idx] = F.singularity_measure(r_read[idx], near_c=c_des[idx])
+            if held.any():
+                e, sing = np.where(held[..., None], np.nan, e), np.where(held, np.nan, sing)
             names = chart.names
             chans = [Channel("points", team.layout.names, r),
                      Channel("r_des", tuple(n + "_des" for n in team.layout.names), r_des),
@@ -725,7 +729,9 @@ class TeamKind(ScenarioKind):
                      Channel("e", names, e), Channel("e_des", tuple(n + "_des" for n in names), e_des),
                      Channel("singularity", ("singularity_measure",), sing[:, None])]
             if reader is not None:
-                chans += [Channel("reading", reader.reading_names, _reading(F, reader, r, c, reading_des)),
+                reading = _reading(F, reader, r_read, c_read, reading_des)
+                chans += [Channel("reading", reader.reading_names,
+                                  np.where(held[..., None], np.nan, reading) if held.any() else reading),
                           Channel("reading_des", tuple(n + "_des" for n in reader.reading_names), reading_des)]
             extra = {}
             if physics is not None:

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["CPU_WORLDS_PER_DEVICE", "batch_devices", "chunk_size", "configure", "place", "usable_cores"]
+__all__ = ["CPU_WORLDS_PER_DEVICE", "batch_devices", "chunk_size", "configure", "place", "share_cores",
+           "usable_cores"]
 
 #: Worlds per CPU device in one compiled call (the cache-sized chunk; docs/performance.md).
 CPU_WORLDS_PER_DEVICE = 512
@@ -38,14 +39,26 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+#: Processes of this machine sharing its cores for JAX (:func:`share_cores`; 1: this one alone).
+_SHARERS = [1]
+
+
+def share_cores(processes: int) -> None:
+    """Say that ``processes`` worker processes (a sweep's ``--workers``) share this machine's
+    cores: :func:`configure` then asks for ``usable_cores() // processes`` CPU devices (at
+    least one) in each, not one per core in every worker. A process pool's initializer."""
+    _SHARERS[0] = max(1, int(processes))
+
+
 def configure(jax) -> None:
-    """Ask JAX for one CPU device per usable core, unless the user chose a number or JAX's
-    backends already run (the setting is read once, when they start; then nothing changes)."""
-    if jax.config.jax_num_cpu_devices != -1 or "xla_force_host_platform_device_count" in os.environ.get(
-            "XLA_FLAGS", ""):
+    """Ask JAX for one CPU device per usable core (per core of this process's share,
+    :func:`share_cores`), unless the user chose a number or JAX's backends already run (the
+    setting is read once, when they start; then nothing changes)."""
+    chosen = getattr(jax.config, "jax_num_cpu_devices", None)  # None: a JAX without the setting
+    if chosen is None or chosen != -1 or "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", ""):
         return
     try:
-        jax.config.update("jax_num_cpu_devices", usable_cores())
+        jax.config.update("jax_num_cpu_devices", max(1, usable_cores() // _SHARERS[0]))
     except RuntimeError:  # JAX already ran something: its devices stay as they are
         pass
 

@@ -79,7 +79,7 @@ from ..robots import HolonomicRobot, PlanarHolonomicRobot
 from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
-from .simulate import PerfectMeasurement
+from .simulate import WORLD_ERRORS, PerfectMeasurement
 from .trial_measurement import TickMeasurement
 
 __all__ = [
@@ -280,10 +280,10 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     x = np.array(x0, dtype=float)
     if x.shape[-1:] != (len(plant.state_columns),):
         raise ShapeError(f"jax simulate: x0 must have shape (*batch, {len(plant.state_columns)}), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise InvalidInputError("jax simulate: x0 must be finite")
     batch = x.shape[:-1]
     B = math.prod(batch)
+    if B == 0:
+        raise ShapeError(f"jax simulate: x0 of shape {x.shape} holds no world; give at least one")
     parts = team_parts(controller)
     c_ref, cd_ref, r_ref = stack_reference(controller if parts is None else parts[0], reference, n, batch)
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
@@ -314,11 +314,10 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         extra["numpy_worlds"] = reason == _HOST
         reason[reason == _HOST] = 0
     if np.any(reason > 0) or host_failure:
-        if not batch:
-            err = DegenerateInputError if int(reason) == 2 else InvalidInputError
-            raise err(f"jax simulate: at t = {times[int(fail_tick)]:g} s {FAILURE_REASONS[int(reason)]}")
-        failure = {tuple(int(i) for i in idx): f"t = {times[fail_tick[idx]]:g} s: "
-                   f"{FAILURE_REASONS[int(reason[idx])]}" for idx in zip(*np.nonzero(reason))}
+        worlds = list(zip(*np.nonzero(reason))) if batch else [()]  # one world: its reason raised
+        failure = {tuple(int(i) for i in idx): _failure_reason(controller, times, data["measured"], fail_tick, reason,
+                                                               (c_ref, cd_ref, r_ref), tuple(int(i) for i in idx))
+                   for idx in worlds}
         failure.update(host_failure)
         failed = reason > 0
         for idx in host_failure:
@@ -329,6 +328,28 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
             **controller.signal_columns()}
     chans = [Channel(k, tuple(cols[k]), data[k]) for k in names]
     return Log(times, chans, {"controller": controller.name, "controller_state": None, **(meta or {}), **extra})
+
+
+def _failure_reason(controller, times, measured, fail_tick, reason, refs, idx):
+    """NumPy's reason for world ``idx``'s failure: ``controller.update`` at its failing tick on
+    its measured state, as :func:`quatform.sim.simulate` calls it on one world, gives the
+    same one-line message (``"t = ... s: ..."``); a run of one world raises it, as there.
+    :data:`FAILURE_REASONS` where that call does not refuse (a test of the compiled tick
+    that the host does not make the same way)."""
+    k = int(fail_tick[idx])
+    flat = int(np.ravel_multi_index(idx, fail_tick.shape)) if idx else 0
+    c, cd, rd = (None if a is None else a[k, flat if a.shape[1] > 1 else 0] for a in refs)
+    try:
+        controller.update(float(times[k]), measured[(k, *idx)], Reference(c, cd, rd), controller.init(()))
+    except WORLD_ERRORS as own:
+        if not idx:
+            raise
+        return f"t = {times[k]:g} s: " + " ".join(str(own).split())
+    text = FAILURE_REASONS[int(reason[idx])]
+    if not idx:
+        raise (DegenerateInputError if int(reason) == 2 else InvalidInputError)(
+            f"jax simulate: at t = {times[k]:g} s {text}")
+    return f"t = {times[k]:g} s: {text}"
 
 
 def _spread(jax, carry, xs, B):
@@ -423,6 +444,7 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
     F, team = controller.formation, controller.team
     L = team.layout
     i, j = L.pairs
+    apart = not isinstance(F, RobotSpace)  # robot space is defined with the robots on each other
 
     def tick(carry, xs):
         x, past, last, fail_tick, reason = carry
@@ -448,7 +470,7 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
         # what update() refuses: a non-finite measured state, robots on each other
         p = L.positions(r)
         d = p[:, i, :] - p[:, j, :]
-        close = jnp.any(jnp.sum(d * d, axis=-1) <= MIN_SEPARATION_M * MIN_SEPARATION_M, axis=-1)
+        close = jnp.any(jnp.sum(d * d, axis=-1) <= MIN_SEPARATION_M * MIN_SEPARATION_M, axis=-1) & apart
         bad_m = ~jnp.all(jnp.isfinite(m) & (jnp.abs(m) <= MAX_MAGNITUDE), axis=-1)
         code = jnp.where(bad_m, 1, jnp.where(close, 2, 0))
         new = (reason == 0) & (code > 0)

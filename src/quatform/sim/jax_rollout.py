@@ -87,9 +87,9 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     times, dt = check_ticks(experiment.times, experiment.substeps, experiment.dt)
     n = times.size
     x = np.array(experiment.x0 if x0 is None else x0, dtype=float)
-    if x.shape[-1:] != (len(plant.state_columns),) or not np.all(np.isfinite(x)):
-        raise ShapeError(f"rollout_metrics: x0 must be finite of shape (*batch, {len(plant.state_columns)}), got "
-                         f"{x.shape}")
+    if x.shape[-1:] != (len(plant.state_columns),) or x.size == 0:
+        raise ShapeError(f"rollout_metrics: x0 must have shape (*batch, {len(plant.state_columns)}) with at least "
+                         f"one world, got {x.shape}")
     batch = x.shape[:-1]
     B = math.prod(batch)
     c_ref, cd_ref, r_ref = stack_reference(ctrl, experiment.reference, n, batch)
@@ -108,6 +108,10 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     step = (dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)
     compiled = cached(_CACHE, (config_key(plant, ctrl), *step), lambda: _compile(
         jax, tick_function(plant, ctrl, *step, True), ctrl.team.layout, tick.delay_ticks))
+    if trials_per_call is not None and (not isinstance(trials_per_call, (int, np.integer))
+                                        or isinstance(trials_per_call, bool) or trials_per_call < 1):
+        raise InvalidInputError(f"rollout_metrics: trials_per_call = {trials_per_call!r} must be a whole number >= 1 "
+                                "(trials per compiled call), or None for the default")
     size = jax_devices.chunk_size(jax, B, trials_per_call)
     shared = {"t": times, "c": c_ref, "cd": cd_ref, "rd": r_ref, "ed": e_des[:, None, :], "late": late,
               "k": np.arange(n, dtype=np.int64)}

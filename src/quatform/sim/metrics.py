@@ -48,7 +48,9 @@ def errors_from_robots(log: Log) -> dict:
     the recovered Euclidean variables, rad).
     """
     r, rd, e, e_des = log["state"], log["r_des"], log["e"], log["e_des"]
-    return {**robot_errors(r, rd, e_des),
+    with np.errstate(invalid="ignore", divide="ignore"):  # a failed world held on each other reads NaN
+        errs = robot_errors(r, rd, e_des)
+    return {**errs,
             "recovered_euclidean": np.max(np.abs(wrap_angle(e[:, [3, 4, 6, 7]] - e_des[:, [3, 4, 6, 7]])), axis=1)}
 
 

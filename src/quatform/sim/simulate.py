@@ -33,7 +33,7 @@ from ..control.contract import Step
 from ..errors import InvalidInputError, QuatformError, ShapeError
 from .log import Channel, Log
 
-__all__ = ["simulate", "PerfectMeasurement"]
+__all__ = ["simulate", "PerfectMeasurement", "WORLD_ERRORS"]
 
 
 class PerfectMeasurement:
@@ -53,7 +53,7 @@ class PerfectMeasurement:
 
 #: What a controller may raise because of some worlds of a batch (their measurement left the
 #: description's domain, two robots coincide ...); anything else (a TypeError: a bug) propagates.
-_WORLD_ERRORS = (QuatformError, ArithmeticError, ValueError)
+WORLD_ERRORS = (QuatformError, ArithmeticError, ValueError)
 
 
 def _map_worlds(value, batch: tuple, fn, min_extra: int = 0):
@@ -121,7 +121,7 @@ class _Worlds:
                 continue
             try:
                 alone(idx)
-            except _WORLD_ERRORS as own:
+            except WORLD_ERRORS as own:
                 mask = np.zeros(self.batch, dtype=bool)
                 mask[idx] = True
                 self._mark(mask, what + " ".join(str(own).split()))
@@ -138,7 +138,7 @@ class _Worlds:
                                      {k: np.zeros(self.batch + (w,)) for k, w in self.widths.items()}))
         try:
             step = controller.update(t, m, reference, state)
-        except _WORLD_ERRORS as exc:
+        except WORLD_ERRORS as exc:
             def alone(idx):
                 take = (lambda a: a[idx])
                 controller.update(t, np.asarray(m)[idx], _map_worlds(reference, self.batch, take, 1),
@@ -167,7 +167,7 @@ class _Worlds:
             x_in[self.failed] = x[healthy]
         try:
             x_new = plant.step(x_in, u, dt, t)
-        except _WORLD_ERRORS as exc:
+        except WORLD_ERRORS as exc:
             self._find(lambda idx: plant.step(x_in[idx], np.asarray(u)[idx], dt, t),
                        f"t = {t:g} s: the plant refused the world's state: ", exc)
             return self.step(plant, x, u, dt, t)

@@ -15,6 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from ..checks import nearest
 from ..errors import InvalidInputError, MissingDependencyError, UnreachableError
+from ..sim.jax_devices import share_cores
 
 __all__ = ["executor", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S"]
 
@@ -85,7 +86,8 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
         if workers == 1:
             yield None
             return
-        with ProcessPoolExecutor(max_workers=workers, mp_context=_process_context()) as pool:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=_process_context(), initializer=share_cores,
+                                 initargs=(workers,)) as pool:  # JAX's CPU devices: the cores shared
             yield pool
         return
     if scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
@@ -97,6 +99,7 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
             cluster = stack.enter_context(distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
                                                                    processes=True, dashboard_address=None))
             client = stack.enter_context(distributed.Client(cluster))
+            client.run(share_cores, workers)  # this machine's cores shared by its workers (JAX's CPU devices)
         elif scheduler == "slurm":
             cluster = stack.enter_context(slurm_cluster(dict(slurm or {})))
             cluster.scale(jobs=int((slurm or {}).get("jobs", workers)))
