@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..algebra.angles import wrap_entries
 from ..algebra.kernels import array_namespace
 from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import InvalidInputError, NonUnitError, ShapeError
@@ -230,7 +231,7 @@ class TeamController(contract.Controller):
             c = stage(c)
         err = c - c_des
         if len(self._angles):  # the angles wrapped, the rest as it is (a select: the same floats)
-            err = xp.where(self._angle_mask, (err + math.pi) % (2.0 * math.pi) - math.pi, err)
+            err = wrap_entries(err, self._angles)
         ff = 1.0 if self.feedforward else 0.0
         shape = np.broadcast_shapes(c.shape, c_dot_des.shape)
         idx, errs, rates = [], [], []

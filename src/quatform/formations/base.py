@@ -30,7 +30,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from ..algebra import wrap_angle
-from ..algebra.kernels import array_namespace as namespace
+from ..algebra.angles import wrap_entries
 from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
@@ -343,7 +343,7 @@ class Formation(ABC):
     def errors(self, c, c_des) -> np.ndarray:
         """Per-variable error ``c - c_des`` with angles wrapped to ``[-pi, pi)``."""
         if not concrete(c):  # another array namespace (JAX): the same rule, selected
-            return namespace(c).where(self._angle_mask, wrap_angle(c - c_des), c - c_des)
+            return wrap_entries(c - c_des, np.flatnonzero(self._angle_mask))
         e = np.asarray(c) - np.asarray(c_des)
         ang = [i for i, v in enumerate(self.variables) if v.kind == "angle"]
         if ang:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra.angles import map_entries
 from ..algebra.kernels import array_namespace as namespace
 from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
@@ -265,7 +266,9 @@ class RobotSpace(Formation):
         unwrapped near ``near_c``'s (a new array)."""
         if near_c is None:
             return r.copy() if isinstance(r, np.ndarray) else r
-        return namespace(r).where(self.layout.yaw_mask, g.unwrap_near(r, near_c), r)
+        near_c = namespace(r).broadcast_to(near_c, np.broadcast_shapes(np.shape(r), np.shape(near_c)))
+        r = namespace(r).broadcast_to(r, near_c.shape)
+        return map_entries(r, self.layout.yaw_indices, lambda a, b: g.unwrap_near(r[..., a:b], near_c[..., a:b]))
 
     def inverse(self, c, *, near_r=None):
         return self.forward(c, near_c=near_r)

@@ -29,7 +29,7 @@ __all__ = ["CPU_WORLDS_PER_DEVICE", "batch_devices", "chunk_size", "configure", 
            "usable_cores"]
 
 #: Worlds per CPU device in one compiled call (the cache-sized chunk; docs/performance.md).
-CPU_WORLDS_PER_DEVICE = 512
+CPU_WORLDS_PER_DEVICE = 256
 
 
 def usable_cores() -> int:

@@ -12,6 +12,8 @@ batch axes) is measured one world at a time: ``compute_metrics(log.world(i))``.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..algebra import wrap_angle
@@ -83,7 +85,9 @@ def robot_errors(r, r_des, e_des) -> dict:
         "shape": xp.abs(0.5 * D - e_des[..., 5]),
         "orientation": xp.arccos(xp.clip(dot_last(u, u_d), -1.0, 1.0)),
         "robot_position": xp.max(xp.linalg.norm(p - p_d, axis=-1), axis=-1),
-        "robot_yaw": xp.max(xp.abs(wrap_angle(PAIR_LAYOUT.yaws(r) - PAIR_LAYOUT.yaws(r_des))), axis=-1),
+        # each robot's yaw apart (the compiled rollout then wraps the two yaws alone, not all 8 entries)
+        "robot_yaw": functools.reduce(xp.maximum, [xp.abs(wrap_angle(r[..., q] - r_des[..., q]))
+                                                   for q in PAIR_LAYOUT.yaw_indices]),
         "separation": D,
     }
 
