@@ -16,9 +16,8 @@ arithmetic of each world is that of one device, so the results equal the unshard
 :func:`chunk_size` picks how many worlds one compiled call runs. On the CPU a chunk of a
 few hundred worlds per device keeps a tick's working set (tens of arrays of the chunk's
 length) in cache and bounds the memory of a large batch; on this project's 2-core machine
-two devices run the helix rollouts 1.4-1.7x the rate of one, and 512-world chunks per
-device against one call of 10^4 worlds 1.1x (quaternion controller) to 0.97x (robot space)
-(docs/performance.md, issue 15). On an accelerator one call takes the whole batch.
+two devices run the helix rollouts 1.4-1.7x the rate of one, and chunks of a few hundred
+worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, issue 15). On an accelerator one call takes the whole batch.
 """
 
 from __future__ import annotations
