@@ -433,6 +433,47 @@ def hold(a):
     return a @ jnp.eye(a.shape[-1], dtype=a.dtype)
 
 
+def _measure(xs, x, past, last, delay, noisy, lossy):
+    """The tick's reading (:class:`~quatform.sim.trial_measurement.TickMeasurement` on JAX
+    arrays): ``(past, m)``, the outputs of the last ``delay + 1`` ticks and ``m = y(t_{k-d})``
+    (``y0`` before the first tick) plus the tick's noise, the last reading where the frame
+    is dropped."""
+    import jax.numpy as jnp
+
+    past = jnp.concatenate([past[1:], x[None]], axis=0) if delay else x[None]
+    m = past[0]
+    if noisy:
+        m = m + xs["noise"]
+    if lossy:
+        m = jnp.where(xs["dropped"][:, None], last, m)
+    return past, m
+
+
+def _end_tick(plant, dt, substeps, xs, carry, state, code, u, signals):
+    """The end of a compiled tick (pair and team): a world's first failure ``code`` (> 0)
+    recorded, the plant stepped ``substeps`` times, a failed world frozen (its state held,
+    its commands 0, its ``signals`` NaN), a padded tick past the run's end (progress chunks)
+    changing nothing. ``state`` is ``(x, past, last, fail_tick, reason)`` of this tick, ``carry``
+    the tick's input: ``(new_carry, u, signals)``."""
+    import jax.numpy as jnp
+
+    x, past, last, fail_tick, reason = state
+    new = (reason == 0) & (code > 0)
+    fail_tick = jnp.where(new, jnp.asarray(xs["k"], dtype=fail_tick.dtype), fail_tick)
+    reason = jnp.where(new, code, reason)
+    x_next = x
+    for s in range(substeps):
+        x_next = plant.step(x_next, u, dt, xs["t"] + s * dt)
+    bad = (reason > 0)[:, None]
+    x_next = jnp.where(bad, x, x_next)
+    u = jnp.where(bad, 0.0, u)
+    signals = tuple(jnp.where(bad, jnp.nan, v.astype(x.dtype)) for v in signals)
+    new_carry = (x_next, past, last, fail_tick, reason)
+    if "valid" in xs:
+        new_carry = tuple(jnp.where(xs["valid"], a, b) for a, b in zip(new_carry, carry))
+    return new_carry, u, signals
+
+
 def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned):
     """One control tick on JAX arrays: ``(carry, xs_k) -> (carry, (x, m, u, c, err, finite))``
     (a team controller in a :class:`~quatform.control.safety.SafeController`: also
@@ -452,12 +493,7 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
         def stage(comps):  # a stage's component tuple, materialised once (hold)
             a = hold(jnp.stack(jnp.broadcast_arrays(*[jnp.broadcast_to(v, x.shape[:1]) for v in comps]), axis=-1))
             return tuple(a[:, q] for q in range(a.shape[-1]))
-        past = jnp.concatenate([past[1:], x[None]], axis=0) if delay else x[None]
-        m = past[0]  # y(t_{k-d}); y0 before the first tick (TickMeasurement)
-        if noisy:
-            m = m + xs["noise"]
-        if lossy:
-            m = jnp.where(xs["dropped"][:, None], last, m)
+        past, m = _measure(xs, x, past, last, delay, noisy, lossy)
         last = m
         c_des, c_dot_des = (jnp.broadcast_to(a, (x.shape[0], a.shape[-1])) for a in (xs["c"], xs["cd"]))
         r = F.align(m, xs["rd"]) if aligned else m
@@ -473,20 +509,9 @@ def tick_function(plant, controller, dt, substeps, delay, noisy, lossy, aligned)
         close = jnp.any(jnp.sum(d * d, axis=-1) <= MIN_SEPARATION_M * MIN_SEPARATION_M, axis=-1) & apart
         bad_m = ~jnp.all(jnp.isfinite(m) & (jnp.abs(m) <= MAX_MAGNITUDE), axis=-1)
         code = jnp.where(bad_m, 1, jnp.where(close, 2, 0))
-        new = (reason == 0) & (code > 0)
-        fail_tick = jnp.where(new, jnp.asarray(xs["k"], dtype=fail_tick.dtype), fail_tick)
-        reason = jnp.where(new, code, reason)
-        x_next = x
-        for s in range(substeps):
-            x_next = plant.step(x_next, u, dt, xs["t"] + s * dt)
-        bad = (reason > 0)[:, None]  # a failed world is frozen: its state held, commands 0, signals NaN
-        x_next = jnp.where(bad, x, x_next)
-        u = jnp.where(bad, 0.0, u)
-        c, err, finite = (jnp.where(bad, jnp.nan, v.astype(x.dtype)) for v in (c, err, finite))
-        new_carry = (x_next, past, last, fail_tick, reason)
-        if "valid" in xs:  # a padded tick past the run's end (progress chunks) changes nothing
-            new_carry = tuple(jnp.where(xs["valid"], a, b) for a, b in zip(new_carry, carry))
-        return new_carry, (x, m, u, c, err, finite)
+        new_carry, u, out = _end_tick(plant, dt, substeps, xs, carry, (x, past, last, fail_tick, reason), code, u,
+                                      (c, err, finite))
+        return new_carry, (x, m, u) + out
 
     return tick
 
@@ -519,12 +544,7 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
 
         def stage(a):  # an array materialised once (hold)
             return hold(jnp.broadcast_to(a, (B,) + a.shape[-1:]))
-        past = jnp.concatenate([past[1:], x[None]], axis=0) if delay else x[None]
-        m = past[0]  # y(t_{k-d}); y0 before the first tick (TickMeasurement)
-        if noisy:
-            m = m + xs["noise"]
-        if lossy:
-            m = jnp.where(xs["dropped"][:, None], last, m)
+        past, m = _measure(xs, x, past, last, delay, noisy, lossy)
         last = m
         c_des, c_dot_des = (jnp.broadcast_to(a, (B, a.shape[-1])) for a in (xs["c"], xs["cd"]))
         r = hold(F.align(m, xs["rd"]) if aligned else m)
@@ -558,19 +578,8 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
             start = (xs["k"] == 0) & jnp.any(sep < barrier.min_separation_m, axis=-1)  # SafeController._check_start
             code = jnp.where(start, _HOST, jnp.where(code > 0, code, jnp.where(binds, _HOST, 0)))
             signals = (jnp.min(sep, axis=-1, keepdims=True), jnp.zeros((B, 1), dtype=x.dtype))
-        new = (reason == 0) & (code > 0)
-        fail_tick = jnp.where(new, jnp.asarray(xs["k"], dtype=fail_tick.dtype), fail_tick)
-        reason = jnp.where(new, code, reason)
-        x_next = x
-        for s in range(substeps):
-            x_next = plant.step(x_next, u, dt, xs["t"] + s * dt)
-        bad = (reason > 0)[:, None]  # a failed world is frozen: its state held, commands 0, signals NaN
-        x_next = jnp.where(bad, x, x_next)
-        u = jnp.where(bad, 0.0, u)
-        out = tuple(jnp.where(bad, jnp.nan, v.astype(x.dtype)) for v in (c, err, finite) + signals)
-        new_carry = (x_next, past, last, fail_tick, reason)
-        if "valid" in xs:  # a padded tick past the run's end (progress chunks) changes nothing
-            new_carry = tuple(jnp.where(xs["valid"], a, b) for a, b in zip(new_carry, carry))
+        new_carry, u, out = _end_tick(plant, dt, substeps, xs, carry, (x, past, last, fail_tick, reason), code, u,
+                                      (c, err, finite) + signals)
         return new_carry, (x, m, u) + out
 
     return tick
