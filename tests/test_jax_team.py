@@ -113,18 +113,29 @@ def test_a_world_with_robots_on_each_other_fails_alone():
                 np.testing.assert_allclose(b[key][:, w], a[key][:, w], rtol=0, atol=TOL, err_msg=key)
 
 
-def test_a_world_whose_barrier_binds_is_numpys_run():
+def test_a_world_whose_barrier_binds_is_numpys_run(monkeypatch):
     pytest.importorskip("jax")
+    from quatform.sim import jax_loop
+
+    calls = []
+    rerun = jax_loop._rerun_on_host
+    monkeypatch.setattr(jax_loop, "_rerun_on_host", lambda *a, **k: calls.append(1) or rerun(*a, **k))
+
+    def reruns():
+        return len(calls)
     exp = TEAM.experiment(short_scenario("team-three-bodies", 0.4), controller="robot-space")
     batch = _batch(exp, B=3, spread=0.0)
     x0 = np.array(batch.x0)
     p1, p2 = x0[2, 0:2], x0[2, 3:5]  # world 2: robot 1 behind robot 2 (0.35 m, barrier 0.3 m), its way home through it
     x0[2, 0:2] = p2 + 0.35 * (p2 - p1) / np.linalg.norm(p2 - p1)
     run = dataclasses.replace(batch, x0=x0)
-    a, b = run.run(backend="numpy"), run.run(backend="jax")
+    seen = []
+    a, b = run.run(backend="numpy"), run.run(backend="jax", progress=lambda f: seen.append((f, reruns())))
     assert np.nanmax(a["safety_active"][:, 2]) == 1.0 and np.nanmax(a["safety_active"][:, :2]) == 0.0
     assert b.meta["numpy_worlds"].tolist() == [False, False, True]
     _assert_equal(a, b, SAFETY)
+    # progress reaches 1 only once the NumPy rerun is done, in as many calls as chunks
+    assert seen[-1] == (1.0, 1) and all(f < 1.0 and k == 0 for f, k in seen[:-1]) and len(seen) <= 10
     one = dataclasses.replace(exp, x0=x0[2], finish=lambda log: log)  # one world: NumPy's run as it is
     a, b = one.run(backend="numpy"), one.run(backend="jax")
     assert b.meta["numpy_worlds"] == np.True_

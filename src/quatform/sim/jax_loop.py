@@ -300,7 +300,9 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         if arr is not None:
             xs[key] = arr
     with jax.enable_x64(True):
-        ys, carry = _scan(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, progress)
+        # the last chunk's progress is told when the run is complete (after any NumPy reruns)
+        held = None if progress is None else (lambda f: progress(f) if f < 1.0 else None)
+        ys, carry = _scan(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, held)
     names = ("state", "measured", "command", "cluster", "error", "raw_finite")
     if parts is not None and parts[1] is not None:
         names += ("min_separation", "safety_active")
@@ -313,6 +315,8 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
                                       (c_ref, cd_ref, r_ref), reason == _HOST, data, names, meta)
         extra["numpy_worlds"] = reason == _HOST
         reason[reason == _HOST] = 0
+    if progress is not None:
+        progress(1.0)
     if np.any(reason > 0) or host_failure:
         worlds = list(zip(*np.nonzero(reason))) if batch else [()]  # one world: its reason raised
         failure = {tuple(int(i) for i in idx): _failure_reason(controller, times, data["measured"], fail_tick, reason,
