@@ -100,7 +100,7 @@ class ClusterController(Controller):
 
     def _chain_components(self, rc, cd, cdd, stage=None):
         F = self.formation
-        c, rc = F.forward_components(rc, cd)  # the reference's branch (near_c)
+        c, rc = F.forward_components(rc, cd, stage=stage)  # the reference's branch (near_c)
         if stage is not None:
             c, rc = stage(c), stage(rc)
         err, rate = self.law(c, cd, cdd, F.error_components(c, cd) if F.wraps_angles else None)

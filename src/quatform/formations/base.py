@@ -294,11 +294,13 @@ class Formation(ABC):
     #: floats for one formation); otherwise a controller runs on arrays.
     component_kernels = False
 
-    def forward_components(self, rc, near_c):
+    def forward_components(self, rc, near_c, stage=None):
         """Measured cluster state for a controller: ``(c, rc)`` as tuples of components
         (Python floats for one formation, arrays for a batch), with ``rc`` the robot state
         the cluster state is of (a description may wind its yaws onto ``near_c``'s branch).
-        Only a description with :attr:`component_kernels` offers it."""
+        ``stage`` (optional): a compiled loop's hold of intermediate components
+        (:meth:`~quatform.control.cluster.ClusterController.chain`). Only a description with
+        :attr:`component_kernels` offers it."""
         raise NotImplementedError(f"{type(self).__name__} has no component kernels (component_kernels = False): "
                                   "a controller runs it on arrays")
 

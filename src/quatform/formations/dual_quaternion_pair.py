@@ -117,14 +117,14 @@ class DualQuaternionPair(Formation):
 
     component_kernels = True
 
-    def forward_components(self, rc, near_c):
+    def forward_components(self, rc, near_c, stage=None):
         """Eqs. (26)-(27) on components for a controller: the measured yaws moved by whole
         turns onto ``near_c``'s branch (each within pi of the desired robot's, the shape's
         relative-yaw error within 3 pi / 2; the sign of ``qhat_s`` is the branch), ``qhat_c``
         with ``near_c``'s sign: ``(c, rc)`` with ``rc`` the wound robots."""
         rc = kern.dq_align_yaws(rc, *kern.dq_yaws(near_c))
         kern.check_apart(rc, MIN_SEPARATION_M)
-        return kern.dq_forward(rc, near_c[0:4]), rc
+        return kern.dq_forward(rc, near_c[0:4], stage=stage), rc
 
     def robot_rate_components(self, c, c_dot, rc):
         """:meth:`robot_rate` on components (:func:`~.pair_kernels.dq_inverse_jvp`)."""

@@ -110,12 +110,15 @@ def z_axis(q):
 
 # -- quaternion pair, seed 000 eqs. (9)-(19) -----------------------------------------------
 
-def quat_forward(r, qh, q1h=None, q2h=None):
+def quat_forward(r, qh, q1h=None, q2h=None, stage=None):
     """Forward kinematics, eqs. (9)-(15), with the twist of ``q_c`` taken from ``qh``.
 
     ``qh = (1, 0, 0, 0)`` gives the seed's minimal rotation from ``i`` (eqs. (14)-(15));
     any other ``qh`` gives the point of the measured fibre nearest ``qh``. ``q1h``, ``q2h``
-    (optional) set the signs of ``q_c1``, ``q_c2``. Returns 16 components.
+    (optional) set the signs of ``q_c1``, ``q_c2``. ``stage`` (optional, a compiled loop's
+    hold: ``ClusterController.chain``) maps the robots' half-yaw cosines and sines to equal
+    ones computed once (each output component's loop would recompute them). Returns 16
+    components.
     """
     x1, y1, z1, t1, x2, y2, z2, t2 = r
     dx, dy, dz = x1 - x2, y1 - y2, z1 - z2
@@ -142,8 +145,12 @@ def quat_forward(r, qh, q1h=None, q2h=None):
     s = qscale(1.0 / n, s)
     qc = qmul(*s, *qh)
     qcc = qconj(qc)
-    q1 = qmul(*qcc, *qyaw(t1))  # eqs. (12)-(13)
-    q2 = qmul(*qcc, *qyaw(t2))
+    h1, h2 = qyaw(t1), qyaw(t2)
+    if stage is not None:
+        c1, s1, c2, s2 = stage((h1[0], h1[3], h2[0], h2[3]))
+        h1, h2 = (c1, h1[1], h1[2], s1), (c2, h2[1], h2[2], s2)
+    q1 = qmul(*qcc, *h1)  # eqs. (12)-(13)
+    q2 = qmul(*qcc, *h2)
     if q1h is not None:
         q1 = neg_if(qdot(q1, q1h) < 0.0, q1)
         q2 = neg_if(qdot(q2, q2h) < 0.0, q2)
@@ -199,21 +206,27 @@ def translation(dq):
     return (2.0 * m[1], 2.0 * m[2], 2.0 * m[3])
 
 
-def dq_forward(r, qch=None):
+def dq_forward(r, qch=None, stage=None):
     """Eqs. (26)-(27) in closed form on the branch of the given (real) yaws (16 components).
 
     ``qhat_c``: yaw ``(th1 + th2)/2`` at the midpoint; ``qhat_s``: yaw ``th1 - th2`` at
     ``R_z(-th2)(p1 - p2)``. ``qch`` (the rotation part of a hint's ``qhat_c``) sets the sign
     of ``qhat_c``, which means nothing. The sign of ``qhat_s`` is the branch of the
     half-way yaw and is never flipped: ``(qhat_c, -qhat_s)`` is the formation turned half a
-    turn (``docs/derivations.md``, Hardening (issue 12)).
+    turn (``docs/derivations.md``, Hardening (issue 12)). ``stage`` (optional, a compiled
+    loop's hold, as :func:`quat_forward`'s) maps the yaws' cosines and sines to equal ones
+    computed once.
     """
     x1, y1, z1, t1, x2, y2, z2, t2 = r
     L = lib(t2)
-    qc = pose(qyaw(0.5 * (t1 + t2)), (0.5 * (x1 + x2), 0.5 * (y1 + y2), 0.5 * (z1 + z2)))
-    dx, dy, dz = x1 - x2, y1 - y2, z1 - z2
+    ha, hb = qyaw(0.5 * (t1 + t2)), qyaw(t1 - t2)
     c2, s2 = L.cos(t2), L.sin(t2)
-    qs = pose(qyaw(t1 - t2), (c2 * dx + s2 * dy, -s2 * dx + c2 * dy, dz))
+    if stage is not None:
+        ca, sa, cb, sb, c2, s2 = stage((ha[0], ha[3], hb[0], hb[3], c2, s2))
+        ha, hb = (ca, ha[1], ha[2], sa), (cb, hb[1], hb[2], sb)
+    qc = pose(ha, (0.5 * (x1 + x2), 0.5 * (y1 + y2), 0.5 * (z1 + z2)))
+    dx, dy, dz = x1 - x2, y1 - y2, z1 - z2
+    qs = pose(hb, (c2 * dx + s2 * dy, -s2 * dx + c2 * dy, dz))
     if qch is not None:
         qc = neg_if(qdot(qc[:4], qch) < 0.0, qc)
     return qc + qs

@@ -82,11 +82,12 @@ class QuaternionPair(Formation):
 
     component_kernels = True
 
-    def forward_components(self, rc, near_c):
+    def forward_components(self, rc, near_c, stage=None):
         """Eqs. (10)-(15) on components, the twists of ``q_c``, ``q_c1``, ``q_c2`` from
-        ``near_c`` (the controller's reference): ``(c, rc)``."""
+        ``near_c`` (the controller's reference): ``(c, rc)`` (``stage``:
+        :func:`~.pair_kernels.quat_forward`'s)."""
         kern.check_apart(rc, MIN_SEPARATION_M)
-        return kern.quat_forward(rc, near_c[3:7], near_c[8:12], near_c[12:16]), rc
+        return kern.quat_forward(rc, near_c[3:7], near_c[8:12], near_c[12:16], stage=stage), rc
 
     def robot_rate_components(self, c, c_dot, rc):
         """:meth:`robot_rate` on components (:func:`~.pair_kernels.quat_inverse_jvp`)."""
