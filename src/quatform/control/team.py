@@ -16,13 +16,12 @@ four seed-000 controllers for a team by name (:data:`TEAM_FORMATIONS`).
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..algebra.angles import wrap_entries
+from ..algebra.angles import wrap_angle, wrap_entries
 from ..algebra.kernels import array_namespace
 from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import InvalidInputError, NonUnitError, ShapeError
@@ -194,7 +193,7 @@ class TeamController(contract.Controller):
         c = F.forward(r, near_c=c_des)
         err = c - c_des
         if len(self._angles):
-            err[..., self._angles] = (err[..., self._angles] + math.pi) % (2.0 * math.pi) - math.pi
+            err[..., self._angles] = wrap_angle(err[..., self._angles])
         rate = np.empty(np.broadcast_shapes(c.shape, c_dot.shape))  # every variable is in one group
         ff = 1.0 if self.feedforward else 0.0
         for blk, k in self._linear:
@@ -230,7 +229,7 @@ class TeamController(contract.Controller):
         if stage is not None:
             c = stage(c)
         err = c - c_des
-        if len(self._angles):  # the angles wrapped, the rest as it is (a select: the same floats)
+        if len(self._angles):  # the angles wrapped, the rest as it is (the floats of the in-place wrap)
             err = wrap_entries(err, self._angles)
         ff = 1.0 if self.feedforward else 0.0
         shape = np.broadcast_shapes(c.shape, c_dot_des.shape)
@@ -277,13 +276,6 @@ class TeamController(contract.Controller):
         c_des = np.stack(np.broadcast_arrays(*comps), axis=-1) if isinstance(comps, tuple) else np.asarray(comps)
         for law, _, blks in self._blocks:
             self._check_units(_rows(c_des, blks), blks, law != "quaternion")
-
-    @functools.cached_property
-    def _angle_mask(self) -> np.ndarray:
-        """``(n_c,)`` bool: which variables are angles (:attr:`_angles`)."""
-        mask = np.zeros(self.formation.n_c, dtype=bool)
-        mask[self._angles] = True
-        return mask
 
     @functools.cached_property
     def _angles(self) -> np.ndarray:
@@ -393,7 +385,7 @@ def team_lyapunov(controller: TeamController, c, c_des) -> np.ndarray:
     err = c - c_des
     idx_ang = controller._angles
     if len(idx_ang):
-        err[..., idx_ang] = (err[..., idx_ang] + math.pi) % (2.0 * math.pi) - math.pi
+        err[..., idx_ang] = wrap_angle(err[..., idx_ang])
     V = np.zeros(np.broadcast_shapes(c.shape, c_des.shape)[:-1])
     for role, law, idx, _ in controller._plan:
         if law == "proportional":

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 __all__ = ["CPU_WORLDS_PER_DEVICE", "batch_devices", "chunk_size", "configure", "place", "share_cores",
            "usable_cores"]
 
@@ -87,7 +89,6 @@ def place(jax, arrays: dict, batch_axes: dict) -> dict:
     devices = batch_devices(jax)
     if len(devices) == 1:
         return arrays
-    import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
     mesh = Mesh(np.array(devices), ("batch",))
