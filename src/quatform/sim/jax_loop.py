@@ -91,10 +91,13 @@ __all__ = [
     "check_supported",
     "check_ticks",
     "config_key",
+    "LOOP_AXES",
     "hold",
     "initial_carry",
     "require_jax",
+    "scan_ticks",
     "simulate",
+    "spread",
     "stack_reference",
     "team_parts",
     "team_tick_function",
@@ -302,7 +305,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     with jax.enable_x64(True):
         # the last chunk's progress is told when the run is complete (after any NumPy reruns)
         held = None if progress is None else (lambda f: progress(f) if f < 1.0 else None)
-        ys, carry = _scan(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, held)
+        ys, carry = scan_ticks(jax, step, initial_carry(x.reshape(B, -1), tick.delay_ticks), xs, n, held)
     names = ("state", "measured", "command", "cluster", "error", "raw_finite")
     if parts is not None and parts[1] is not None:
         names += ("min_separation", "safety_active")
@@ -356,23 +359,32 @@ def _failure_reason(controller, times, measured, fail_tick, reason, refs, idx):
     return f"t = {times[k]:g} s: {text}"
 
 
-def _spread(jax, carry, xs, B):
-    """The scan's carry and per-tick inputs spread over the devices (:mod:`.jax_devices`): the
-    batch padded to a multiple of the device count with copies of the last world (cut from
-    the results), its axis sharded."""
+#: Batch axis of each slot of the pair and team ticks' carry (:func:`initial_carry`) and of
+#: their per-tick inputs beyond the references (whose axis is 1 when they hold one per world).
+LOOP_AXES = ((0, 1, 0, 0, 0), {"noise": 1, "dropped": 1})
+
+
+def spread(jax, carry, xs, B, axes=LOOP_AXES):
+    """The scan's carry (a tuple of arrays) and per-tick inputs (a dict) spread over the
+    devices (:mod:`.jax_devices`): the batch padded to a multiple of the device count with
+    copies of the last world (cut from the results), its axis sharded. ``axes``: the batch
+    axis of each carry slot and of the named inputs (:data:`LOOP_AXES`); the references
+    ``c``, ``cd``, ``rd`` of shape ``(T, B or 1, k)`` are split when they hold one per world."""
     size = jax_devices.chunk_size(jax, B, B)
     pad = size - B
+    carry_axes, xs_axes = axes
     arrays = {f"carry{q}": a for q, a in enumerate(carry)}
     arrays.update(xs)
-    axes = {"carry0": 0, "carry1": 1, "carry2": 0, "carry3": 0, "carry4": 0, "noise": 1, "dropped": 1}
+    where = {f"carry{q}": axis for q, axis in enumerate(carry_axes)}
+    where.update(xs_axes)
     for key in ("c", "cd", "rd"):  # (T, B or 1, k): one reference for all worlds is replicated
         if key in xs and xs[key].shape[1] == B and B > 1:
-            axes[key] = 1
-    for key, axis in axes.items():
+            where[key] = 1
+    for key, axis in where.items():
         if pad and key in arrays:
             a = np.asarray(arrays[key])
             arrays[key] = np.concatenate([a, np.repeat(np.take(a, [-1], axis=axis), pad, axis=axis)], axis=axis)
-    arrays = jax_devices.place(jax, arrays, axes)
+    arrays = jax_devices.place(jax, arrays, where)
     return tuple(arrays.pop(f"carry{q}") for q in range(len(carry))), arrays
 
 
@@ -633,22 +645,24 @@ def _compiled_scan(jax, plant, controller, *key):
     return cached(_CACHE, (config_key(plant, controller), *key), build)
 
 
-def _scan(jax, tick, carry, xs, n, progress):
+def scan_ticks(jax, tick, carry, xs, n, progress, axes=LOOP_AXES):
     """``lax.scan`` of ``tick`` over the ``n`` ticks of ``xs`` (one compiled call, or ten
     chunks of one shape when ``progress`` is given), the batch spread over the devices
-    (:func:`_spread`): ``(ys, carry)``, the batch padded as :func:`_spread` pads it."""
+    (:func:`spread`, ``axes`` as there): ``(ys, carry)``, the batch padded as :func:`spread`
+    pads it. ``tick.compiled`` is the jitted scan of ``tick``; ``carry[0]`` has the batch
+    axis first."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     run = tick.compiled
     B = carry[0].shape[0]
     if progress is None:
-        carry, xs = _spread(jax, carry, xs, B)
+        carry, xs = spread(jax, carry, xs, B, axes)
         ys, carry = run(carry, xs)
         return ys, carry
     size = -(-n // 10)
     xs["valid"] = np.ones(n, dtype=bool)
     pad = {k: np.concatenate([v, np.repeat(v[-1:] if k != "valid" else ~v[-1:], 10 * size - n, axis=0)])
            for k, v in xs.items()}
-    carry, pad = _spread(jax, carry, pad, B)
+    carry, pad = spread(jax, carry, pad, B, axes)
     parts = []
     for chunk in range(10):
         take = min(size, n - chunk * size)
