@@ -115,3 +115,57 @@ def test_workers_share_the_cores():
     cores = jax_devices.usable_cores()
     assert run_script({}, COUNT, "share2")["devices"] == max(1, cores // 2)
     assert run_script({}, COUNT, f"share{cores + 1}")["devices"] == 1
+
+
+CACHED = r"""
+import dataclasses, json, sys, time
+import numpy as np
+from quatform.scenarios import load_scenario
+from quatform.scenarios.pair import PAIR
+ex = PAIR.experiment(load_scenario("mas-kitts-spiral"), controller="quaternion")
+ex = dataclasses.replace(ex, times=ex.times[:40], x0=ex.x0 + np.linspace(0.0, 0.02, 3)[:, None],
+                         finish=lambda log: log)
+from quatform.sim.jax_loop import require_jax
+jax = require_jax()
+jax.config.update("jax_log_compiles", True)  # JAX logs its persistent cache's hits and misses
+import logging
+said = []
+handler = logging.Handler()
+handler.emit = lambda record: said.append(record.getMessage())
+logging.getLogger("jax").addHandler(handler)
+log = ex.run(backend="jax")
+print(json.dumps({"dir": jax.config.jax_compilation_cache_dir, "state": log["state"].tolist(),
+                  "hits": sum("compilation cache hit" in m.lower() for m in said)}))
+"""
+
+
+def test_compiled_programs_kept_on_disk(tmp_path):
+    """With ``QUATFORM_JAX_CACHE`` a run keeps its compiled tick there (a folder of this user's
+    alone); a second process loads it and gets the same floats as a process that compiles
+    (``off``: no folder)."""
+    where = tmp_path / "cache"
+    first = run_script({jax_devices.CACHE_ENV: str(where)}, CACHED)
+    assert first["dir"] == str(where)
+    entries = sorted(p.name for p in where.iterdir())
+    assert entries and (where.stat().st_mode & 0o077) == 0
+    again = run_script({jax_devices.CACHE_ENV: str(where)}, CACHED)
+    assert sorted(p.name for p in where.iterdir()) == entries  # loaded, nothing compiled anew
+    assert first["hits"] == 0 and again["hits"] >= 1
+    fresh = run_script({jax_devices.CACHE_ENV: "off"}, CACHED)
+    assert fresh["dir"] is None
+    assert first["state"] == again["state"] == fresh["state"]
+
+
+@pytest.mark.parametrize(("value", "want"), [("off", None), ("OFF", None), ("", None), ("0", None),
+                                             ("/x/y", Path("/x/y"))])
+def test_cache_dir_from_the_environment(monkeypatch, value, want):
+    monkeypatch.setenv(jax_devices.CACHE_ENV, value)
+    assert jax_devices.cache_dir() == want
+
+
+def test_cache_dir_default(monkeypatch, tmp_path):
+    monkeypatch.delenv(jax_devices.CACHE_ENV, raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert jax_devices.cache_dir() == tmp_path / "quatform" / "jax"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    assert jax_devices.cache_dir() == Path.home() / ".cache" / "quatform" / "jax"

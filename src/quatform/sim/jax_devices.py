@@ -18,16 +18,30 @@ few hundred worlds per device keeps a tick's working set (tens of arrays of the 
 length) in cache and bounds the memory of a large batch; on this project's 2-core machine
 two devices run the helix rollouts 1.4-1.7x the rate of one, and chunks of a few hundred
 worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, issue 15). On an accelerator one call takes the whole batch.
+
+:func:`configure` also keeps JAX's compiled programs on disk (JAX's persistent compilation
+cache) in a folder of this user's (:func:`cache_dir`: ``$QUATFORM_JAX_CACHE``, else
+``$XDG_CACHE_HOME/quatform/jax``, else ``~/.cache/quatform/jax``; ``QUATFORM_JAX_CACHE=off``
+keeps none), unless the user set JAX's own ``jax_compilation_cache_dir``: a sweep's worker
+processes, a resumed sweep and a rerun then load a configuration's compiled tick instead of
+compiling it again (about 1 s each for the pair kind, more for large teams). A loaded
+program is the one compiled before (JAX keys it by the program, the devices and its own
+version), so the floats are the same. The folder is trusted code (a program read from it
+runs): it is created readable by this user alone.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CPU_WORLDS_PER_DEVICE", "batch_devices", "chunk_size", "configure", "place", "share_cores",
-           "usable_cores"]
+__all__ = ["CACHE_ENV", "CPU_WORLDS_PER_DEVICE", "batch_devices", "cache_dir", "chunk_size", "configure", "place",
+           "share_cores", "usable_cores"]
+
+#: Environment variable naming the folder of the compiled programs (``off``: keep none).
+CACHE_ENV = "QUATFORM_JAX_CACHE"
 
 #: Worlds per CPU device in one compiled call (the cache-sized chunk; docs/performance.md).
 CPU_WORLDS_PER_DEVICE = 256
@@ -52,10 +66,39 @@ def share_cores(processes: int) -> None:
     _SHARERS[0] = max(1, int(processes))
 
 
+def cache_dir() -> Path | None:
+    """The folder of JAX's compiled programs (module docstring): ``$QUATFORM_JAX_CACHE``
+    (None when it is ``off``, ``none``, ``0`` or empty), else ``quatform/jax`` in
+    ``$XDG_CACHE_HOME`` or ``~/.cache``."""
+    value = os.environ.get(CACHE_ENV)
+    if value is not None:
+        return None if value.strip().lower() in ("", "off", "none", "0") else Path(value).expanduser()
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "quatform" / "jax"
+
+
+def _keep_compiled(jax) -> None:
+    """Point JAX's persistent compilation cache at :func:`cache_dir` (every program kept,
+    however quick its compilation), unless the user set JAX's own folder or asked for none;
+    a folder that cannot be made leaves compilation as it was."""
+    if getattr(jax.config, "jax_compilation_cache_dir", None):  # the user's own cache
+        return
+    path = cache_dir()
+    if path is None:
+        return
+    try:
+        path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    except OSError:  # read-only home, a file in the way: compile every time
+        return
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+
+
 def configure(jax) -> None:
     """Ask JAX for one CPU device per usable core (per core of this process's share,
     :func:`share_cores`), unless the user chose a number or JAX's backends already run (the
-    setting is read once, when they start; then nothing changes)."""
+    setting is read once, when they start; then nothing changes); keep compiled programs on
+    disk (:func:`cache_dir`)."""
+    _keep_compiled(jax)
     chosen = getattr(jax.config, "jax_num_cpu_devices", None)  # None: a JAX without the setting
     if chosen is None or chosen != -1 or "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", ""):
         return
