@@ -66,6 +66,37 @@ def test_unreachable_scheduler_is_one_line_and_quick():
     assert time.perf_counter() - t0 < 30.0
 
 
+def test_a_server_that_is_no_scheduler_is_one_line():
+    """An address where another server answers (a web server's bytes read as a Dask frame
+    length ask for exabytes): one line saying it is not a scheduler, not 'out of memory'."""
+    pytest.importorskip("distributed")
+    import socket
+    import threading
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    port = server.getsockname()[1]
+
+    def answer():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            with conn:
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 8)
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        with pytest.raises(UnreachableError, match="not a Dask scheduler") as exc:
+            with executor(1, f"tcp://127.0.0.1:{port}", timeout_s=2.0):
+                pass
+    finally:
+        server.close()
+    assert "\n" not in str(exc.value) and f"127.0.0.1:{port}" in str(exc.value)
+
+
 def test_unknown_scheduler_names_the_nearest():
     with pytest.raises(InvalidInputError, match="local"):
         with executor(1, "locl"):

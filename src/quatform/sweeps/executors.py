@@ -114,5 +114,9 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
                 raise UnreachableError(f"--scheduler {scheduler}: no Dask scheduler answered within {timeout_s:g} s "
                                        f"({type(exc).__name__}); start one (dask scheduler) or check the address"
                                        ) from None
+            except Exception as exc:  # something else answered: its bytes are no Dask handshake
+                raise UnreachableError(f"--scheduler {scheduler}: what answered there is not a Dask scheduler (its "
+                                       f"reply failed the handshake: {type(exc).__name__}); check the address and "
+                                       "port (dask scheduler listens on 8786)") from None
             stack.enter_context(client)
         yield client.get_executor()
