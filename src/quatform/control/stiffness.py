@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra import relative_euler_parameters, w_matrix
+from ..algebra.kernels import array_namespace, concrete
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import InvalidInputError
 
@@ -140,7 +141,9 @@ def force_stability_term(x_m_dot=None, F_s=None, k_for=None, constant=-0.5):
         return constant
     if not (np.isfinite(k_for) and k_for >= 0):
         raise InvalidInputError(f"k_for must be finite and >= 0 (v = -k_for x_m_dot . F_s), got {k_for!r}")
-    return -k_for * float(np.dot(np.asarray(x_m_dot, float), np.asarray(F_s, float)))
+    if concrete(x_m_dot) and concrete(F_s):
+        return -k_for * float(np.dot(np.asarray(x_m_dot, float), np.asarray(F_s, float)))
+    return -k_for * array_namespace(F_s).dot(x_m_dot, F_s)  # JAX arrays (traced)
 
 
 def deadband(tau, width) -> np.ndarray:
@@ -166,13 +169,16 @@ def virtual_wall_force(p, p_dot, normal, offset, stiffness, damping=0.0) -> np.n
     """Repelling force of a virtual wall ``n . p <= offset`` in the master's Cartesian space.
 
     Zero on the free side; inside, ``-(k depth + b n . p_dot) n`` (the damping only resists
-    motion into the wall). Shape ``(..., 3)``.
+    motion into the wall). Shape ``(..., 3)``; NumPy or JAX arrays.
     """
+    xp = array_namespace(p)
+    if xp is np:
+        p, p_dot = np.asarray(p, float), np.asarray(p_dot, float)
     n = np.asarray(normal, float)
     n = n / np.linalg.norm(n)
-    depth = np.einsum("...i,i->...", np.asarray(p, float), n) - offset
-    inward = np.maximum(np.einsum("...i,i->...", np.asarray(p_dot, float), n), 0.0)
-    mag = np.where(depth > 0, stiffness * depth + damping * inward, 0.0)
+    depth = xp.einsum("...i,i->...", p, n) - offset
+    inward = xp.maximum(xp.einsum("...i,i->...", p_dot, n), 0.0)
+    mag = xp.where(depth > 0, stiffness * depth + damping * inward, 0.0)
     return -mag[..., None] * n
 
 

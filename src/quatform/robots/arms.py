@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace
 from ..errors import InvalidInputError
 from ..teleop.arm import SerialArm
 from ..teleop.kraft import KRAFT_DEADBAND, KRAFT_FULL_SCALE, KRAFT_MASTER
@@ -61,16 +62,19 @@ def friction_step(qd, inertia, tau, static, dt) -> np.ndarray:
     Per joint: at rest it stays at rest while ``|tau| <= static``; moving, it feels
     ``-static sign(qd)`` (seed 003 §6's dead region), and friction alone never reverses its
     velocity within a step. ``qd``, ``tau`` ``(..., n)``; ``inertia``, ``static`` ``(n,)``.
+    Selections only (no branch on the values), so it runs on NumPy and JAX arrays alike.
     """
-    qd, tau = np.asarray(qd, dtype=float), np.asarray(tau, dtype=float)
+    xp = array_namespace(qd)
+    if xp is np:
+        qd, tau = np.asarray(qd, dtype=float), np.asarray(tau, dtype=float)
     qd_new = qd + dt * tau / inertia
     if not np.any(static > 0):
         return qd_new
-    stuck = (qd == 0.0) & (np.abs(tau) <= static)
-    direction = np.where(qd != 0.0, np.copysign(1.0, qd), np.copysign(1.0, tau))
+    stuck = (qd == 0.0) & (xp.abs(tau) <= static)
+    direction = xp.where(qd != 0.0, xp.copysign(1.0, qd), xp.copysign(1.0, tau))
     v = qd + dt * (tau - static * direction) / inertia
-    v = np.where(v * direction < 0, 0.0, v)  # friction stops the joint within this step
-    return np.where(static > 0, np.where(stuck, 0.0, v), qd_new)
+    v = xp.where(v * direction < 0, 0.0, v)  # friction stops the joint within this step
+    return xp.where(static > 0, xp.where(stuck, 0.0, v), qd_new)
 
 
 @dataclass(frozen=True)
@@ -131,7 +135,7 @@ class KraftMaster:
         n = self.arm.n
         q, qd = x[..., :n], x[..., n:]
         qd = friction_step(qd, np.asarray(self.inertia, float), u - self.viscous * qd, self.static_friction, dt)
-        return np.concatenate([q + dt * qd, qd], axis=-1)
+        return array_namespace(qd).concatenate([q + dt * qd, qd], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -180,9 +184,10 @@ class PandaSlave:
         """State after ``dt`` s of the net joint torque ``u`` (actuators + environment):
         ``qd += dt M^-1 (u - damping qd - C qd)``, then ``q += dt qd`` (one configuration;
         ``M``: the mass matrix at ``q`` if already computed)."""
+        xp = array_namespace(x)
         n = self.arm.arm.n
         q, qd = x[:n], x[n:]
         M = self.arm.mass_matrix(q) if M is None else M
         coriolis = self.arm.coriolis(q, qd, M)
-        qd = qd + dt * np.linalg.solve(M, u - self.damping * qd - coriolis)
-        return np.concatenate([q + dt * qd, qd])
+        qd = qd + dt * xp.linalg.solve(M, u - self.damping * qd - coriolis)
+        return xp.concatenate([q + dt * qd, qd])

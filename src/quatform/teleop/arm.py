@@ -16,6 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from ..algebra import q_from_matrix
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array
 from ..errors import ShapeError
 from .kernels import cross, q_from_rotation
@@ -57,6 +58,10 @@ class SerialArm:
         return len(self.links)
 
     def _q(self, q):
+        if array_namespace(q) is not np:  # a JAX array (traced): its shape only
+            if q.shape[-1:] != (self.n,):
+                raise ShapeError(f"{self.name}: joint vector must have shape (..., {self.n}), got {q.shape}")
+            return q
         q = as_array(q, "q", None)
         if q.shape[-1:] != (self.n,):
             raise ShapeError(f"{self.name}: joint vector must have shape (..., {self.n}), got {q.shape}")
@@ -79,22 +84,25 @@ class SerialArm:
         """Homogeneous transforms ``0_T_i`` of every link frame, shape ``(..., n, 4, 4)``."""
         return self.frames_unchecked(self._q(q))
 
-    def frames_unchecked(self, q: np.ndarray) -> np.ndarray:
-        """:meth:`frames` of a float array already validated (the control cycle's fast path)."""
+    def frames_unchecked(self, q):
+        """:meth:`frames` of a float array already validated (the control cycle's fast path;
+        NumPy or JAX, :func:`quatform.algebra.kernels.array_namespace`)."""
+        xp = array_namespace(q)
         offset, ca, sa, template = self._constants
         th = q + offset
-        ct, st = np.cos(th), np.sin(th)
+        ct, st = xp.cos(th), xp.sin(th)
         # every link's Rx(alpha) Tx(a) Rz(theta) Tz(d) at once, Craig eq. (3.6): the constant
         # entries come from the template, the rotation's first two columns from theta
-        A = np.broadcast_to(template, q.shape + (4, 4)).copy()
-        A[..., 0, 0], A[..., 0, 1] = ct, -st
-        A[..., 1, 0], A[..., 1, 1] = st * ca, ct * ca
-        A[..., 2, 0], A[..., 2, 1] = st * sa, ct * sa
-        out = np.empty_like(A)
-        T = out[..., 0, :, :] = A[..., 0, :, :]
+        T0 = xp.broadcast_to(template, q.shape + (4, 4))
+        cols = xp.stack([xp.stack([ct, st * ca, st * sa, T0[..., 3, 0]], axis=-1),
+                         xp.stack([-st, ct * ca, ct * sa, T0[..., 3, 1]], axis=-1)], axis=-1)
+        A = xp.concatenate([cols, T0[..., :, 2:]], axis=-1)
+        T = A[..., 0, :, :]
+        out = [T]
         for i in range(1, self.n):
-            T = out[..., i, :, :] = T @ A[..., i, :, :]
-        return out
+            T = T @ A[..., i, :, :]
+            out.append(T)
+        return xp.stack(out, axis=-3)
 
     def tool(self, F) -> np.ndarray:
         """Tool point of the frames ``F``: ``tool_d`` along the last frame's z axis, ``(..., 3)``."""
@@ -109,7 +117,7 @@ class SerialArm:
         F = self.frames(q) if F is None else F
         R = F[..., -1, 0:3, 0:3]
         # the frames are orthonormal by construction: one configuration takes the float path
-        return self.tool(F), (np.array(q_from_rotation(R)) if R.ndim == 2 else q_from_matrix(R))
+        return self.tool(F), (array_namespace(R).asarray(q_from_rotation(R)) if R.ndim == 2 else q_from_matrix(R))
 
     def jacobian(self, q, F=None) -> np.ndarray:
         """Geometric Jacobian ``[p_dot; omega] = J q_dot`` in the base frame, ``(..., 6, n)``.
@@ -118,10 +126,9 @@ class SerialArm:
         joint ``i`` (frame ``i`` of the modified convention).
         """
         F = self.frames(q) if F is None else F
+        xp = array_namespace(F)
         p = self.tool(F)
         z = F[..., :, 0:3, 2]
         o = F[..., :, 0:3, 3]
-        J = np.zeros(F.shape[:-3] + (6, self.n))
-        J[..., 0:3, :] = np.swapaxes(cross(z, p[..., None, :] - o), -1, -2)
-        J[..., 3:6, :] = np.swapaxes(z, -1, -2)
-        return J
+        J = xp.concatenate([xp.swapaxes(cross(z, p[..., None, :] - o), -1, -2), xp.swapaxes(z, -1, -2)], axis=-2)
+        return np.ascontiguousarray(J) if xp is np else J  # row-major: products with J take one BLAS path

@@ -31,6 +31,7 @@ from functools import cached_property
 import numpy as np
 
 from ..algebra import matrix_from_q, qconj, qmul
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..checks import short
 from ..control.contract import Controller, Step
@@ -40,7 +41,7 @@ from .arm import SerialArm
 from .kernels import q_from_rotation
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
-from .task import rpy_from_matrix, rpy_rate_from_angular_velocity, wrap_angle
+from .task import rpy_from_matrix, rpy_rates, wrap_angle
 
 __all__ = ["ORIENTATION_ERRORS", "MAX_WALL_STIFFNESS", "MAX_JOINT_ANGLE", "MAX_JOINT_RATE", "MAX_WRIST_FORCE",
            "MAX_WRIST_MOMENT", "Registration", "VirtualWall", "TeleopMeasurement",
@@ -388,10 +389,25 @@ class TeleopController(Controller):
         comes from ``R_M^T R_S`` directly. ``tests/test_teleop_controller.py`` checks it
         against the general functions of :mod:`.control` and :mod:`.task`.
         """
-        M, S, K = self.master, self.slave.arm, self._fixed
+        M, S = self.master, self.slave.arm
         q_m, qd_m = _measured(measured.q_m, "q_m", M.n), _measured(measured.qd_m, "qd_m", M.n)
         q_s, qd_s = _measured(measured.q_s, "q_s", S.n), _measured(measured.qd_s, "qd_s", S.n)
         F_s = _measured(measured.F_s, "F_s", 6)
+        out = self.law(q_m, qd_m, q_s, qd_s, F_s, details)
+        if not details:
+            return out
+        tau_m, tau_s, e, p_m, r_m, p_s, r_s, wall, finite, saturated, null_ok, J_mf, J_sf, M_s = out
+        return TeleopCommand(tau_m, tau_s, e, p_m, np.array(r_m), p_s, np.array(r_s), wall, bool(finite),
+                             bool(saturated), bool(null_ok), J_mf, J_sf, M_s)
+
+    def law(self, q_m, qd_m, q_s, qd_s, F_s, details: bool = True):
+        """The control law of one cycle on measurements already checked (:func:`_measured`):
+        NumPy or JAX arrays (:func:`quatform.algebra.kernels.array_namespace`; the teleop
+        kind's loop of :mod:`quatform.sim.jax_teleop` runs it compiled). Returns ``(tau_m,
+        tau_s)``, or with ``details`` the fields of :class:`TeleopCommand` in order (the
+        quaternions as component tuples, the flags as booleans of the namespace)."""
+        xp = array_namespace(q_m)
+        M, S, K = self.master, self.slave.arm, self._fixed
         Fm, Fs = M.frames_unchecked(q_m), S.frames_unchecked(q_s)  # each arm's frames once per cycle
         J_mf, J_sf = M.jacobian(q_m, Fm), S.jacobian(q_s, Fs)
         reg = self.registration
@@ -403,27 +419,22 @@ class TeleopController(Controller):
             R_m = K["R_base"] @ Fm[-1, 0:3, 0:3] @ K["R_tool"]
             Jm = K["G6"] @ J_mf  # the master's Jacobian in the slave's workspace
         p_s, R_s = S.tool(Fs), Fs[-1, 0:3, 0:3]
+        I3, O3 = np.eye(3), np.zeros((3, 3))
         if self.orientation_error == "euler-parameters":
             # seed 003 eqs. (8)-(10): {d_eps4, d_eps_hat} of R_M^T R_S, the short way (d_eps4 >= 0)
             w, x, y, z = q_from_rotation(R_m.T @ R_s)
             # seed 003 eq. (19): d/dt d_eps_hat = W (omega_S - omega_M), W = 1/2 (d_eps4 I - [d_eps_hat]x) R_M^T
-            rot = 0.5 * np.array([[w, z, -y], [-z, w, x], [y, -x, w]]) @ R_m.T
-            e = np.empty(6)
-            e[0:3], e[3:6] = p_s - p_m, (x, y, z)
-        else:
-            rpy_m, rpy_s = rpy_from_matrix(R_m), rpy_from_matrix(R_s)
-            e = np.concatenate([p_s - p_m, wrap_angle(rpy_s - rpy_m)])
-        T6 = np.eye(6)
-        if self.orientation_error == "euler-parameters":
-            T6[3:6, 3:6] = rot
+            rot = 0.5 * xp.asarray([[w, z, -y], [-z, w, x], [y, -x, w]]) @ R_m.T
+            e = xp.concatenate([p_s - p_m, xp.asarray([x, y, z])])
+            T6 = xp.block([[I3, O3], [O3, rot]])
             J_m, J_s = T6 @ Jm, T6 @ J_sf  # seed 003 eqs. (16), (18)
             kp_m, kv_m, kp_s, kv_s = K["kp_m"], K["kv_m"], K["kp_s"], K["kv_s"]
         else:
-            J_m, J_s = T6.copy(), T6
+            rpy_m, rpy_s = rpy_from_matrix(R_m), rpy_from_matrix(R_s)
+            e = xp.concatenate([p_s - p_m, wrap_angle(rpy_s - rpy_m)])
             with np.errstate(divide="ignore", invalid="ignore"):  # E^-1 divides by cos(pitch)
-                J_m[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_m)
-                J_s[3:6, 3:6] = rpy_rate_from_angular_velocity(rpy_s)
-            J_m, J_s = J_m @ Jm, J_s @ J_sf
+                J_m = xp.block([[I3, O3], [O3, rpy_rates(rpy_m)]]) @ Jm
+                J_s = xp.block([[I3, O3], [O3, rpy_rates(rpy_s)]]) @ J_sf
             # gains kp_rot / 4: at pitch 0 the same small-angle stiffness and damping as the
             # Euler-parameter law, whose moment per radian is kp_rot / 4 (delta_eps ~ angle / 2,
             # W ~ R^T / 2); elsewhere the RPY law's is (kp_rot / 4) E^-T E^-1, whose eigenvalues
@@ -436,19 +447,19 @@ class TeleopController(Controller):
         # tau_red = (I - J^T J_bar^T) y with J_bar = M^-1 J^T (J M^-1 J^T)^-1 (eq. (13)):
         # J^T J_bar^T y = J^T (J X)^-1 X^T y, X = M^-1 J^T
         M_s = self.slave.mass_matrix(q_s, Fs)
-        X = np.linalg.solve(M_s, J_sf.T)
+        X = xp.linalg.solve(M_s, J_sf.T)
         y_null = -self.k_null * (q_s - self.q_rest) - self.d_null * qd_s
         try:
-            tau_red = y_null - J_sf.T @ np.linalg.solve(J_sf @ X, X.T @ y_null)
-            null_ok = bool(np.isfinite(tau_red).all())
-        except np.linalg.LinAlgError:  # the slave at a kinematic singularity: J M^-1 J^T singular
-            null_ok = False
-        tau_s = tau_s + tau_red if null_ok else tau_s
+            tau_red = y_null - J_sf.T @ xp.linalg.solve(J_sf @ X, X.T @ y_null)
+            null_ok = xp.all(xp.isfinite(tau_red))
+        except np.linalg.LinAlgError:  # the slave at a kinematic singularity: J M^-1 J^T singular (NumPy)
+            tau_red, null_ok = y_null, np.False_
+        tau_s = xp.where(null_ok, tau_s + tau_red, tau_s)
         # force reflection, seed 003 eq. (11): v J_mf^T F_s, with the registered J_mf
         # (F_s is in the slave's base axes)
         v = self.reflection if self.k_for is None else force_stability_term(Jm @ qd_m, F_s, self.k_for)
         tau_m = tau_m + v * (Jm.T @ F_s)
-        wall = np.zeros(3)
+        wall = xp.zeros(3)
         if self.walls:
             p_master, v_master = M.tool(Fm), J_mf[0:3] @ qd_m
             for wl in self.walls:
@@ -456,21 +467,21 @@ class TeleopController(Controller):
             tau_m = tau_m + J_mf[0:3].T @ wall
         tau_m = tau_m * K["actuated"]
         # one sum per arm: NaN or inf in any component makes it non-finite
-        finite = math.isfinite(float(tau_m.sum())) and math.isfinite(float(tau_s.sum()))
-        if not finite:  # never send part of a broken command: hold both arms
-            tau_m, tau_s = np.zeros_like(tau_m), np.zeros_like(tau_s)
+        finite = xp.isfinite(xp.sum(tau_m)) & xp.isfinite(xp.sum(tau_s))
+        # never send part of a broken command: hold both arms
+        tau_m, tau_s = xp.where(finite, tau_m, 0.0), xp.where(finite, tau_s, 0.0)
         if self.preload_nm is not None:
             # seed 003 §6, the inverse of the deadband: preload(tau_m, preload_nm) with its
             # constants precomputed (tests check the two agree)
-            tau_m = tau_m + K["preload"] * np.minimum(np.maximum(tau_m * K["inv_switch"], -1.0), 1.0)
+            tau_m = tau_m + K["preload"] * xp.minimum(xp.maximum(tau_m * K["inv_switch"], -1.0), 1.0)
         lim_m, lim_s = self.master_limits, self.slave_limits
-        saturated = details and bool((np.abs(tau_m) > lim_m).any() or (np.abs(tau_s) > lim_s).any())
-        tau_m = np.minimum(np.maximum(tau_m, -lim_m), lim_m)
-        tau_s = np.minimum(np.maximum(tau_s, -lim_s), lim_s)
+        saturated = xp.any(xp.abs(tau_m) > lim_m) | xp.any(xp.abs(tau_s) > lim_s)
+        tau_m = xp.minimum(xp.maximum(tau_m, -lim_m), lim_m)
+        tau_s = xp.minimum(xp.maximum(tau_s, -lim_s), lim_s)
         if not details:
             return tau_m, tau_s
-        return TeleopCommand(tau_m, tau_s, e, p_m, np.array(q_from_rotation(R_m)), p_s,
-                             np.array(q_from_rotation(R_s)), wall, finite, saturated, null_ok, J_mf, J_sf, M_s)
+        return (tau_m, tau_s, e, p_m, q_from_rotation(R_m), p_s, q_from_rotation(R_s), wall, finite, saturated,
+                null_ok, J_mf, J_sf, M_s)
 
 
 #: Largest joint angle a measurement may hold, rad: a revolute joint wound many turns (an

@@ -3,7 +3,8 @@
 A control cycle works on one configuration of each arm: a handful of 3-vectors and
 3x3 matrices. NumPy's general routines (``np.cross``, validated conversions) cost more
 in call overhead than in arithmetic there, so these do the same on plain slices or
-Python floats. Each is checked against its general counterpart in the tests.
+Python floats. Each is checked against its general counterpart in the tests. They run on
+JAX arrays too (the teleop kind's loop of :mod:`quatform.sim.jax_teleop`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from ..algebra.kernels import array_namespace
 
 #: ``a @ LEVI`` reshaped to ``(..., 3, 3)`` is ``[a]x``: ``LEVI[j, 3 i + k] = epsilon_ijk``.
 LEVI = np.zeros((3, 3, 3))
@@ -28,25 +31,45 @@ def cross(a, b) -> np.ndarray:
     return (skew_rows(a) @ b[..., None])[..., 0]
 
 
+def _shepperd(k, big, f, m01, m02, m10, m12, m20, m21):
+    """The quaternion of Shepperd's branch ``k`` (its largest component ``big``, ``f = 1 / (4 big)``)."""
+    if k == 0:
+        return (big, (m21 - m12) * f, (m02 - m20) * f, (m10 - m01) * f)
+    if k == 1:
+        return ((m21 - m12) * f, big, (m01 + m10) * f, (m02 + m20) * f)
+    if k == 2:
+        return ((m02 - m20) * f, (m01 + m10) * f, big, (m12 + m21) * f)
+    return ((m10 - m01) * f, (m02 + m20) * f, (m12 + m21) * f, big)
+
+
 def q_from_rotation(R) -> tuple:
     """Unit quaternion ``(w, x, y, z)``, ``w >= 0``, of one orthonormal 3x3 matrix (Shepperd).
 
     No validation: for matrices that are rotations by construction (products of DH
-    transforms). The branch takes the largest of ``4w^2, 4x^2, 4y^2, 4z^2``.
+    transforms). The branch takes the largest of ``4w^2, 4x^2, 4y^2, 4z^2`` (the first of
+    equal ones). A NumPy matrix runs on Python floats; a JAX array (traced, whose values
+    the host cannot read) computes every branch and selects (the same floats).
     """
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist() if isinstance(R, np.ndarray) else R
+    if array_namespace(R) is np:
+        (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist() if isinstance(R, np.ndarray) else R
+        sqrt, rest = math.sqrt, (m01, m02, m10, m12, m20, m21)
+        c = (1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22)
+        k = max(range(4), key=c.__getitem__)
+        big = 0.5 * sqrt(c[k])
+        q = _shepperd(k, big, 0.25 / big, *rest)
+        n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+        s = 1.0 / n if q[0] >= 0 else -1.0 / n
+        return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
+    xp = R.__array_namespace__()
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (R[..., i, j] for i in range(3) for j in range(3))
+    rest = (m01, m02, m10, m12, m20, m21)
     c = (1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22)
-    k = max(range(4), key=c.__getitem__)
-    big = 0.5 * math.sqrt(c[k])
-    f = 0.25 / big
-    if k == 0:
-        q = (big, (m21 - m12) * f, (m02 - m20) * f, (m10 - m01) * f)
-    elif k == 1:
-        q = ((m21 - m12) * f, big, (m01 + m10) * f, (m02 + m20) * f)
-    elif k == 2:
-        q = ((m02 - m20) * f, (m01 + m10) * f, big, (m12 + m21) * f)
-    else:
-        q = ((m10 - m01) * f, (m02 + m20) * f, (m12 + m21) * f, big)
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    s = 1.0 / n if q[0] >= 0 else -1.0 / n
+    k = xp.argmax(xp.stack(c, axis=-1), axis=-1)
+    q = [0.0] * 4
+    for branch in range(4):  # every branch (a negative c gives NaN where it is not taken)
+        big = 0.5 * xp.sqrt(c[branch])
+        cand = _shepperd(branch, big, 0.25 / big, *rest)
+        q = [xp.where(k == branch, a, b) for a, b in zip(cand, q)]
+    n = xp.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    s = xp.where(q[0] >= 0, 1.0 / n, -1.0 / n)
     return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)

@@ -21,6 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace, concrete
 from .kernels import skew_rows
 from .arm import DHLink, SerialArm
 
@@ -94,11 +95,10 @@ class RigidArm:
         direction; its inertia is then the "along" value about every axis that matters.
         """
         F = self.arm.frames(q) if F is None else F
+        xp = array_namespace(F)
         K = self._constants
         o = F[..., :, 0:3, 3]
-        ends = np.empty_like(o)
-        ends[..., :-1, :] = o[..., 1:, :]
-        ends[..., -1, :] = self.arm.tool(F)
+        ends = xp.concatenate([o[..., 1:, :], self.arm.tool(F)[..., None, :]], axis=-2)
         seg = ends - o
         u = seg * K["inv_L"] + K["no_rod"] * F[..., :, 0:3, 2]
         return F, 0.5 * (o + ends), u, K["L"]
@@ -112,16 +112,17 @@ class RigidArm:
         ``B^T diag(along - across) B`` with ``B_ij = u_i . z_j`` (``j <= i``): all links at once.
         """
         F, com, u, _ = self._coms(q, F)
+        xp = array_namespace(F)
         K = self._constants
         z, o = F[..., :, 0:3, 2], F[..., :, 0:3, 3]
         n = self.arm.n
         Zx = skew_rows(z)  # [z_j]x
         D = com[..., :, None, :, None] - o[..., None, :, :, None]  # (..., i, j, 3, 1)
         Jv = (Zx[..., None, :, :, :] @ D)[..., 0] * K["lower_sqrt_m"]
-        A = np.swapaxes(Jv, -3, -2).reshape(Jv.shape[:-3] + (n, 3 * n))
-        zt = np.swapaxes(z, -1, -2)
+        A = xp.reshape(xp.swapaxes(Jv, -3, -2), Jv.shape[:-3] + (n, 3 * n))
+        zt = xp.swapaxes(z, -1, -2)
         B = (u @ zt) * K["lower"]  # (..., i, j)
-        return (A @ np.swapaxes(A, -1, -2) + (z @ zt) * K["G_weight"] + np.swapaxes(B, -1, -2) @ (K["c"] * B)
+        return (A @ xp.swapaxes(A, -1, -2) + (z @ zt) * K["G_weight"] + xp.swapaxes(B, -1, -2) @ (K["c"] * B)
                 + K["armature"])
 
     def coriolis(self, q, qd, M=None, h: float = 1e-7) -> np.ndarray:
@@ -132,17 +133,24 @@ class RigidArm:
         ``M`` (step ``h`` rad; relative error ~1e-7), the ``n + 1`` shifted configurations in
         one batched call; ``M``: the mass matrix at ``q`` if already computed. Its power is
         ``qd^T C qd = 1/2 qd^T M_dot qd``, so without torques the kinetic energy is conserved.
+        NumPy or JAX arrays (a JAX ``qd`` at rest takes the moving branch on a unit speed and
+        selects the zeros).
         """
-        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        xp = array_namespace(qd)
+        if xp is np:
+            q, qd = np.asarray(q, float), np.asarray(qd, float)
         n = self.arm.n
-        speed = float(np.linalg.norm(qd))
-        if speed == 0.0:
+        speed = xp.linalg.norm(qd)
+        if concrete(speed) and speed == 0.0:
             return np.zeros(n)
+        rest = speed == 0.0
+        unit = speed if concrete(speed) else xp.where(rest, 1.0, speed)
         M = self.mass_matrix(q) if M is None else M
-        Ms = self.mass_matrix(q + h * np.vstack([qd / speed, np.eye(n)])) - M
-        M_dot = (speed / h) * Ms[0]
-        grad = np.einsum("i,kij,j->k", qd, Ms[1:], qd) / h
-        return M_dot @ qd - 0.5 * grad
+        Ms = self.mass_matrix(q + h * xp.concatenate([(qd / unit)[None], np.eye(n)])) - M
+        M_dot = (unit / h) * Ms[0]
+        grad = xp.einsum("i,kij,j->k", qd, Ms[1:], qd) / h
+        out = M_dot @ qd - 0.5 * grad
+        return out if concrete(speed) else xp.where(rest, 0.0, out)
 
     def generalized_inverse(self, q, J=None, F=None) -> np.ndarray:
         """``J_bar = M^-1 J^T (J M^-1 J^T)^-1`` (seed 003 eq. (13)), shape ``(..., n, 6)``.

@@ -18,11 +18,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra import matrix_from_q, wrap_angle
+from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array
 from ..control.stiffness import orientation_error, task_jacobian
 
 __all__ = ["orientation_error", "task_jacobian", "rpy_from_q", "rpy_from_matrix", "rpy_error", "wrap_angle",
-           "rpy_rate_from_angular_velocity", "rpy_task_jacobian"]
+           "rpy_rate_from_angular_velocity", "rpy_rates", "rpy_task_jacobian"]
 
 
 def rpy_from_q(q) -> np.ndarray:
@@ -36,12 +37,14 @@ def rpy_from_q(q) -> np.ndarray:
 
 
 def rpy_from_matrix(R) -> np.ndarray:
-    """:func:`rpy_from_q` of rotation matrices ``(..., 3, 3)`` (not validated)."""
-    R = np.asarray(R, dtype=float)
-    pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
-    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
-    return np.stack([roll, pitch, yaw], axis=-1)
+    """:func:`rpy_from_q` of rotation matrices ``(..., 3, 3)`` (not validated; NumPy or JAX)."""
+    xp = array_namespace(R)
+    if xp is np:
+        R = np.asarray(R, dtype=float)
+    pitch = xp.arcsin(xp.clip(-R[..., 2, 0], -1.0, 1.0))
+    roll = xp.arctan2(R[..., 2, 1], R[..., 2, 2])
+    yaw = xp.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return xp.stack([roll, pitch, yaw], axis=-1)
 
 
 def rpy_error(q_m, q_s) -> np.ndarray:
@@ -59,17 +62,22 @@ def rpy_rate_from_angular_velocity(rpy) -> np.ndarray:
     (about 1e16 at the rounded pi/2). Returned as computed: the baseline is meant to show
     the singularity.
     """
-    rpy = as_array(rpy, "rpy", 3)
+    return rpy_rates(as_array(rpy, "rpy", 3))
+
+
+def rpy_rates(rpy):
+    """:func:`rpy_rate_from_angular_velocity` of angles already checked (NumPy or JAX arrays)."""
+    xp = array_namespace(rpy)
     p, y = rpy[..., 1], rpy[..., 2]
-    cp, sp, cy, sy = np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    cp, sp, cy, sy = xp.cos(p), xp.sin(p), xp.cos(y), xp.sin(y)
     with np.errstate(divide="ignore", invalid="ignore"):
         tp = sp / cp
         rows = [
-            [cy / cp, sy / cp, np.zeros_like(p)],
-            [-sy, cy, np.zeros_like(p)],
-            [cy * tp, sy * tp, np.ones_like(p)],
+            [cy / cp, sy / cp, xp.zeros_like(p)],
+            [-sy, cy, xp.zeros_like(p)],
+            [cy * tp, sy * tp, xp.ones_like(p)],
         ]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    return xp.stack([xp.stack(r, axis=-1) for r in rows], axis=-2)
 
 
 def rpy_task_jacobian(J_f, q=None, rpy=None) -> np.ndarray:

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...algebra import q_from_axis_angle, qmul, qslerp
-from ...algebra.kernels import qmul_components
+from ...algebra.kernels import array_namespace, qmul_components
 from ...robots.arms import KraftMaster, PandaSlave
 from ...teleop import KRAFT_MASTER
 
@@ -158,14 +158,15 @@ class ContactWall:
     damping: float = 50.0
 
     def force_on_slave(self, p, v):
+        """The wall's force on the tool point ``p`` moving at ``v`` (slave axes, N) and its
+        depth (m; 0 outside); NumPy or JAX arrays."""
+        xp = array_namespace(p)
         n = np.asarray(self.normal, float)
         n = n / np.linalg.norm(n)
-        depth = -float(n @ (p - np.asarray(self.point, float)))
-        if depth <= 0.0:
-            return np.zeros(3), 0.0
-        inward = max(-float(n @ v), 0.0)
-        return (self.stiffness * depth + self.damping * inward) * n, depth
-
+        depth = -xp.dot(n, p - np.asarray(self.point, float))
+        inward = xp.maximum(-xp.dot(n, v), 0.0)
+        inside = depth > 0.0
+        return xp.where(inside, (self.stiffness * depth + self.damping * inward) * n, 0.0), xp.where(inside, depth, 0.0)
 
 
 def angle_between(q1, q2) -> np.ndarray:
@@ -223,42 +224,57 @@ class TeleopPlant:
     def output(self, x):
         return x
 
-    def _hand_wrench(self, t, p_master, r_master, v_m):
-        """The hand's wrench on the handle ``[force; moment]`` (master axes)."""
+    def _hand_wrench(self, hand_pose, p_master, r_master, v_m):
+        """The hand's wrench on the handle ``[force; moment]`` (master axes); ``hand_pose``
+        the hand's target ``(p, r)`` (:meth:`Hand.target`)."""
+        xp = array_namespace(p_master)
         h = self.hand
-        p_h, r_h = h.target(t, self.hand_poses)
+        p_h, r_h = hand_pose
         d = qmul_components(*r_h, r_master[0], -r_master[1], -r_master[2], -r_master[3])  # the hand's error
-        d = d if d[0] >= 0 else tuple(-x for x in d)
-        return np.r_[h.stiffness * (p_h - p_master) - h.damping * v_m[0:3],
-                     h.rot_stiffness * 2.0 * np.array(d[1:]) - h.rot_damping * v_m[3:6]]
+        short = d[0] >= 0  # the short way
+        d = tuple(xp.where(short, c, -c) for c in d)
+        return xp.concatenate([h.stiffness * (p_h - p_master) - h.damping * v_m[0:3],
+                               h.rot_stiffness * 2.0 * xp.stack(d[1:]) - h.rot_damping * v_m[3:6]])
 
-    def _environment_force(self, t, p_s, v_s):
-        """The wall's and the push's force on the slave's tool (slave axes), N."""
-        F_env = np.zeros(3)
+    def _environment_force(self, push_target, p_s, v_s):
+        """The wall's and the push's force on the slave's tool (slave axes), N; ``push_target``
+        the push's target (:meth:`SlavePush.target`; None without a push)."""
+        F_env = array_namespace(p_s).zeros(3)
         if self.wall is not None:
             F_env = F_env + self.wall.force_on_slave(p_s, v_s)[0]
         if self.push is not None:
-            F_env = F_env + self.push.stiffness * (self.push.target(t, self.p_s0) - p_s) - self.push.damping * v_s
+            F_env = F_env + self.push.stiffness * (push_target - p_s) - self.push.damping * v_s
         return F_env
+
+    def targets_at(self, t):
+        """What moves the plant at ``t`` independently of its state: the hand's target pose
+        ``(p, r)`` and the push's target position (None without a push), for :meth:`step_at`."""
+        return self.hand.target(t, self.hand_poses), None if self.push is None else self.push.target(t, self.p_s0)
 
     def step(self, x, u, dt: float, t: float) -> np.ndarray:
         """The state one control cycle later under the held torques ``u`` (``tau_m``, ``tau_s``)."""
+        return self.step_at(x, u, dt, *self.targets_at(t))
+
+    def step_at(self, x, u, dt: float, hand_pose, push_target):
+        """:meth:`step` with the targets of :meth:`targets_at` given (NumPy or JAX arrays: the
+        teleop kind's loop of :mod:`quatform.sim.jax_teleop` samples them on the host)."""
+        xp = array_namespace(x)
         M, S = self.master, self.slave
         n_m = M.arm.n
         q_m, qd_m, q_s, qd_s = _split(x, n_m, S.arm.arm.n)
         Fm = M.arm.frames(q_m)
         J_mf = M.arm.jacobian(q_m, Fm)
         p_master, r_master = M.arm.forward(q_m, Fm)
-        wrench = self._hand_wrench(t, p_master, r_master, J_mf @ qd_m)
+        wrench = self._hand_wrench(hand_pose, p_master, r_master, J_mf @ qd_m)
         x_m = M.step(x[:2 * n_m], u[:n_m] + J_mf.T @ wrench, dt)
         arm = S.arm.arm
         Fs = arm.frames(q_s)
         J_sf = arm.jacobian(q_s, Fs)
         p_s = arm.tool(Fs)
-        F_env = self._environment_force(t, p_s, J_sf[0:3] @ qd_s)
+        F_env = self._environment_force(push_target, p_s, J_sf[0:3] @ qd_s)
         x_s = S.step(x[2 * n_m:-6], u[n_m:] + J_sf[0:3].T @ F_env, dt, M=S.arm.mass_matrix(q_s, Fs))
         # the wrist sensor: what the slave exerts on its environment
-        return np.concatenate([x_m, x_s, -F_env, np.zeros(3)])
+        return xp.concatenate([x_m, x_s, -F_env, xp.zeros(3)])
 
     def forces(self, t, x, u) -> dict:
         """What the environment did at each logged tick, from the states ``x`` ``(T, n_x)``
