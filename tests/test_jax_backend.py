@@ -45,8 +45,7 @@ def test_metrics_equal_on_the_experiment():
 
 
 @pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion"}),
-                                                ("team-triangle-over-ugv", {"controller": "quaternion"}),
-                                                ("teleop-free-motion", {})])
+                                                ("team-triangle-over-ugv", {"controller": "quaternion"})])
 def test_refuses_what_it_does_not_run(scenario, choice):
     sc = load_scenario(scenario)
     ex = kind_of(sc).experiment(sc, **choice)

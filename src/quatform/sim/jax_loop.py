@@ -30,8 +30,11 @@ code changes. Supported: the pair kind's experiments (seed 000's four controller
 kinematic holonomic robots) and the team kind's four team controllers (quaternion,
 dual-quaternion of shape ``"frame"``, cluster-space, robot-space:
 :meth:`~quatform.control.team.TeamController.chain`) on kinematic 4-DOF and planar
-holonomic robots, bare or in a :class:`~quatform.control.safety.SafeController`; anything
-else is refused in one line naming what runs here.
+holonomic robots, bare or in a :class:`~quatform.control.safety.SafeController`; the teleop
+kind (seed 003: :class:`~quatform.sim.plants.teleop.TeleopPlant` under a
+:class:`~quatform.teleop.TeleopController`, one world or a vmapped batch) in
+:mod:`.jax_teleop`, reached through :data:`KIND_LOOPS`; anything else is refused in one
+line naming what runs here.
 
 The separation barrier: on JAX each tick computes every pair's constraint of
 :class:`~quatform.control.safety.SeparationBarrier` and its minimum separation; where no
@@ -47,6 +50,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from importlib import import_module
 
 import numpy as np
 
@@ -79,6 +83,7 @@ from ..robots import HolonomicRobot, PlanarHolonomicRobot
 from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
+from .plants.teleop import TeleopPlant
 from .simulate import WORLD_ERRORS, PerfectMeasurement
 from .trial_measurement import TickMeasurement
 
@@ -87,6 +92,7 @@ __all__ = [
     "JAX_FORMATIONS",
     "JAX_TEAM_FORMATIONS",
     "JAX_TEAM_ROBOTS",
+    "KIND_LOOPS",
     "cached",
     "check_supported",
     "check_ticks",
@@ -110,6 +116,9 @@ JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
 JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotSpaceTeam)
 #: Robot models of a team that runs on JAX (kinematic, holonomic, one common limit factor).
 JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot)
+#: Plant type -> ``"module:function"`` of its kind's JAX loop (imported on first use; the pair and
+#: team kinds' loop is this module's).
+KIND_LOOPS = {TeleopPlant: "quatform.sim.jax_teleop:simulate"}
 #: What the backend runs, for the one-line refusal of anything else.
 _RUNS = ("the jax backend runs the seed-000 pair experiments (cluster-space, robot-space, quaternion and "
          "dual-quaternion controllers on kinematic holonomic robots) and the team kind's four team controllers "
@@ -276,6 +285,11 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         For a plant, controller or measurement the backend does not run (one line naming
         what it runs), and the errors of :func:`quatform.sim.simulate`.
     """
+    if type(plant) in KIND_LOOPS:  # another kind's loop
+        module, function = KIND_LOOPS[type(plant)].split(":")
+        return getattr(import_module(module), function)(plant, controller, reference, times, x0, dt=dt,
+                                                        substeps=substeps, measurement=measurement,
+                                                        progress=progress, meta=meta)
     jax = require_jax()
     check_supported(plant, controller, measurement)
     times, dt = check_ticks(times, substeps, dt)

@@ -1,0 +1,148 @@
+"""The teleop kind on the jax compute backend (issue 15 item 3 with seed 003's teleoperator).
+
+Each built-in teleop scenario with both orientation errors runs on NumPy and on JAX, cut to
+a length that keeps its event (the hand's motion, the slave's contact with the wall, the
+master in the virtual wall, the preload on the master's dead band, the tools at and through
+roll-pitch-yaw pitch -90 deg); every channel of the finished log (:func:`teleop_finish`) and
+every metric are compared. Tolerances: angles, positions and quaternions 1e-9 absolute (a
+quaternion up to its sign: where ``w`` crosses 0, Shepperd's ``w >= 0`` picks the sign on a
+rounding); rates, forces and torques 1e-9 relative to the column's peak (absolute below 1);
+metrics 1e-9 relative.
+
+The RPY law at the lock is chaotic on NumPy alone: 1e-15 rad on the master's first joint
+changes its state by 2.9 rad (through 90) and 20 rad (held at 90) from t = 1.92 s and
+2.41 s on, which no two implementations of its arithmetic can agree past; those two runs
+stop before it (the Euler-parameter runs go through the lock).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from conftest import BACKEND_TOL as TOL
+
+from quatform.errors import InvalidInputError, NonFiniteError
+from quatform.scenarios import KINDS, load_scenario
+from quatform.sim.plants import KinematicTeam
+from quatform.sim.trial_measurement import TickMeasurement
+from quatform.teleop.controller import MAX_JOINT_ANGLE
+
+pytest.importorskip("jax")
+
+from quatform.sim.jax_loop import simulate as jax_simulate  # noqa: E402
+
+TELEOP = KINDS["teleop"]
+ERRORS = ("euler-parameters", "rpy")
+#: (scenario, preload, duration_s per orientation error): long enough for the event.
+CASES = {
+    "teleop-free-motion": (False, {"euler-parameters": 0.8, "rpy": 0.8}),  # the hand moves from 0.3 s
+    "teleop-pitch-hold-at-90": (False, {"euler-parameters": 3.1, "rpy": 2.3}),  # at the lock 3.0 s
+    "teleop-pitch-through-90": (False, {"euler-parameters": 2.2, "rpy": 1.85}),  # through it at 2.0 s
+    "teleop-preload": (True, {"euler-parameters": 1.0, "rpy": 1.0}),  # the push moves the slave from 0.3 s
+    "teleop-virtual-wall": (False, {"euler-parameters": 1.6, "rpy": 1.6}),  # the master in the wall from 1.33 s
+    "teleop-wall-contact": (False, {"euler-parameters": 1.4, "rpy": 1.4}),  # the slave on the wall from 1.14 s
+}
+#: Column prefixes of rates, forces and torques (compared relative to the column's peak).
+SCALED = ("qd_", "F_", "M_", "tau_", "wall_force")
+
+
+def _experiment(name, oe, duration_s=None, preload=None):
+    pre, durations = CASES[name]
+    sc = load_scenario(name)
+    sc = dataclasses.replace(sc, duration_s=durations[oe] if duration_s is None else duration_s)
+    return TELEOP.experiment(sc, oe, pre if preload is None else preload)
+
+
+def _assert_channels_equal(a, b):
+    assert set(a.channels) == set(b.channels)
+    for ch in a.channels:
+        x, y = a[ch], b[ch]
+        assert x.shape == y.shape, ch
+        if ch in ("r_m", "r_s"):  # q and -q: the same orientation
+            y = np.where(np.sum(x * y, axis=-1, keepdims=True) < 0, -y, y)
+        cols = a.columns(ch)
+        for c, col in enumerate(cols):
+            scale = max(1.0, float(np.max(np.abs(x[..., c])))) if col.startswith(SCALED) else 1.0
+            np.testing.assert_allclose(y[..., c], x[..., c], rtol=0, atol=TOL * scale, err_msg=f"{ch}.{col}")
+
+
+def _assert_metrics_equal(m, n, path=""):
+    if isinstance(m, dict):
+        assert set(m) == set(n), path
+        for k in m:
+            _assert_metrics_equal(m[k], n[k], f"{path}{k}.")
+    elif isinstance(m, (list, tuple)):
+        assert len(m) == len(n), path
+        for i, (x, y) in enumerate(zip(m, n)):
+            _assert_metrics_equal(x, y, f"{path}{i}.")
+    elif isinstance(m, float) and not isinstance(n, bool):
+        assert math.isclose(m, n, rel_tol=TOL, abs_tol=1e-300) or (math.isnan(m) and math.isnan(n)), (path, m, n)
+    else:
+        assert m == n, path
+
+
+@pytest.mark.parametrize("oe", ERRORS)
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_jax_equals_numpy(name, oe):
+    exp = _experiment(name, oe)
+    a, b = exp.run(backend="numpy"), exp.run(backend="jax")
+    _assert_channels_equal(a, b)
+    _assert_metrics_equal(exp.metrics(a), exp.metrics(b))
+    assert "failed" not in b.meta and b.meta["controller_state"] is None
+    # the event the run is cut to keep happened
+    if name == "teleop-wall-contact":
+        assert np.abs(a["F_s"]).max() > 1.0
+    if name == "teleop-virtual-wall":
+        assert a["wall_depth"].max() > 0.0 and np.abs(a["wall_force"]).max() > 0.1
+    if name == "teleop-preload":
+        assert np.ptp(a["p_master"][:, 1]) > 0.005  # the master followed the pushed slave
+    if "90" in name and oe == "euler-parameters":  # at / through pitch -90 deg
+        R20 = 2.0 * (a["r_s"][:, 1] * a["r_s"][:, 3] - a["r_s"][:, 0] * a["r_s"][:, 2])
+        assert np.max(R20) > 0.999
+
+
+def test_batch_equals_each_world_and_a_failed_world_is_frozen():
+    exp = _experiment("teleop-wall-contact", "euler-parameters", duration_s=0.3)
+    rng = np.random.default_rng(3)
+    x0 = np.repeat(exp.x0[None], 3, axis=0)
+    x0[:, :26] += 0.02 * rng.standard_normal((3, 26))  # the joints' angles and rates; the wrist sensor at 0
+    x0[2, 0] = 2.0 * MAX_JOINT_ANGLE  # a reading no arm makes: the controller refuses it
+    raw = dataclasses.replace(exp, finish=lambda log: log)
+    batch = jax_simulate(exp.plant, exp.controller, exp.reference, exp.times, x0, dt=exp.dt)
+    for w in range(2):
+        one = dataclasses.replace(raw, x0=x0[w])
+        _assert_channels_equal(one.run(backend="numpy"), batch.world(w))
+    assert batch.meta["failed"].tolist() == [False, False, True]
+    assert "t = 0 s: measurement q_m[0] = 2000 rad is beyond" in batch.meta["failure"][(2,)]
+    assert np.all(batch["state"][:, 2] == x0[2]) and np.all(batch["command"][:, 2] == 0.0)
+    assert np.all(np.isnan(batch["e"][:, 2]))
+    told = []  # in ten chunks, with progress: the same run
+    chunked = jax_simulate(exp.plant, exp.controller, exp.reference, exp.times, x0, dt=exp.dt, progress=told.append)
+    assert told[-1] == 1.0 and len(told) == 10
+    _assert_channels_equal(batch, chunked)
+
+
+def test_one_world_raises_numpys_error():
+    exp = _experiment("teleop-free-motion", "euler-parameters", duration_s=0.05)
+    x0 = exp.x0.copy()
+    x0[7] = np.nan
+    with pytest.raises(NonFiniteError, match="measurement qd_m") as numpy_error:
+        dataclasses.replace(exp, x0=x0).run(backend="numpy")
+    with pytest.raises(NonFiniteError, match="measurement qd_m") as jax_error:
+        dataclasses.replace(exp, x0=x0).run(backend="jax")
+    assert str(jax_error.value) == str(numpy_error.value)
+
+
+def test_what_does_not_run_on_jax_is_refused_in_one_line():
+    exp = _experiment("teleop-free-motion", "euler-parameters", duration_s=0.05)
+    with pytest.raises(InvalidInputError, match="teleop kind") as err:
+        jax_simulate(exp.plant, exp.controller, exp.reference, exp.times, exp.x0, dt=exp.dt,
+                     measurement=TickMeasurement())
+    assert "\n" not in str(err.value) and "TickMeasurement runs on numpy" in str(err.value)
+    team = KINDS["team"].experiment(load_scenario("team-three-bodies"), controller="quaternion")
+    with pytest.raises(InvalidInputError, match="TeleopController runs on numpy") as err:
+        jax_simulate(team.plant, exp.controller, exp.reference, exp.times, team.x0, dt=exp.dt)
+    assert isinstance(team.plant, KinematicTeam) and "\n" not in str(err.value)
