@@ -104,6 +104,26 @@ def test_jax_equals_numpy(name, oe):
         assert np.max(R20) > 0.999
 
 
+def test_shepperd_selection_on_jax_is_the_float_branch():
+    """``q_from_rotation`` on JAX computes all four branches and selects: each of them taken
+    (turns of pi about x, y, z take branches 1-3) gives the float path's quaternion."""
+    import jax
+    import jax.numpy as jnp
+
+    from quatform.algebra import matrix_from_q
+    from quatform.teleop.kernels import q_from_rotation
+
+    rng = np.random.default_rng(5)
+    q = rng.standard_normal((40, 4))
+    q = np.vstack([q / np.linalg.norm(q, axis=1, keepdims=True), np.eye(4), [[0.0, 1.0, 1e-9, 0.0]]])
+    R = matrix_from_q(q)
+    with jax.enable_x64(True):
+        got = np.stack(jax.jit(q_from_rotation)(jnp.asarray(R)), axis=-1)
+    want = np.array([q_from_rotation(r) for r in R])
+    assert {int(np.argmax(np.abs(w))) for w in want} == {0, 1, 2, 3}
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+
+
 def test_batch_equals_each_world_and_a_failed_world_is_frozen():
     exp = _experiment("teleop-wall-contact", "euler-parameters", duration_s=0.3)
     rng = np.random.default_rng(3)
