@@ -51,6 +51,13 @@ def concrete(x) -> bool:
     return isinstance(x, (float, bool, int, np.ndarray, np.generic))
 
 
+def as_floats(x):
+    """``x`` as a NumPy float array where its values are on the host (numbers, sequences,
+    NumPy), a JAX array (traced under ``jax.jit``) as it is: the ``np.asarray(x, dtype=float)``
+    of a kernel that runs on both."""
+    return np.asarray(x, dtype=float) if concrete(x) or isinstance(x, (list, tuple)) else x
+
+
 #: Rows per block: 4 or 8 component rows of this length fit comfortably in L2 cache.
 BLOCK = 8192
 

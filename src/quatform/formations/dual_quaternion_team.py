@@ -306,8 +306,13 @@ class DualQuaternionTeam(Formation):
         shape = r.shape[:-1]
         if self.mean_rule == "yaw" and len(self._yaw_robots) == L.n:
             return _q_yaw(yaws)
-        if array_namespace(r) is not np:
-            raise InvalidInputError("DualQuaternionTeam on JAX arrays: robots with a yaw only (xy_yaw, xyz_yaw)")
+        xp = array_namespace(r)
+        if xp is not np:  # JAX: the yaw robots' rotations, the pose robots' and the identity of the rest, in order
+            rest = np.setdiff1d(np.arange(L.n), np.concatenate([self._yaw_robots, self._pose_robots]))
+            parts = [_q_yaw(yaws), r[..., L.orientation_index], xp.broadcast_to(_ONE, shape + (rest.size, 4))]
+            order = np.concatenate([self._yaw_robots, self._pose_robots, rest])
+            return xp.concatenate([xp.broadcast_to(a, shape + a.shape[-2:]) for a in parts], axis=-2)[
+                ..., np.argsort(order), :]
         Q = np.broadcast_to(_ONE, shape + (L.n, 4)).copy()
         if len(self._yaw_robots):
             Q[..., self._yaw_robots, :] = _q_yaw(yaws)
@@ -383,10 +388,14 @@ class DualQuaternionTeam(Formation):
         """``q_c (..., 4)``: module docstring; sign nearest ``hint`` where given."""
         L = self.layout
         xp = array_namespace(r)
-        if xp is not np and self.mean_rule != "yaw":
-            raise InvalidInputError("DualQuaternionTeam on JAX arrays: robots with a yaw only (xy_yaw, xyz_yaw)")
-        if xp is not np:  # geometry.closest_sign on the namespace
-            q = _q_yaw(xp.mean(yaws, axis=-1) + shift)
+        if xp is not np:  # the rules below without the layout's checks; geometry.closest_sign on the namespace
+            if self.mean_rule == "yaw":
+                q = _q_yaw(xp.mean(yaws, axis=-1) + shift)
+            elif self.mean_rule == "pose":
+                q = r[..., L.orientation_index[0]]
+                q = q / xp.linalg.norm(q, axis=-1, keepdims=True)
+            else:
+                q = xp.broadcast_to(_ONE, r.shape[:-1] + (4,))
             return q if hint is None else xp.where((xp.sum(q * hint, axis=-1) < 0.0)[..., None], -q, q)
         if self.mean_rule == "yaw":
             q = _q_yaw(np.mean(yaws, axis=-1) + shift)
@@ -628,12 +637,12 @@ class DualQuaternionTeam(Formation):
         L = self.layout
         xp = array_namespace(cd)
         if xp is not np:
-            if self.shape == "relative" or len(self._pose_robots):
-                raise InvalidInputError("DualQuaternionTeam on JAX arrays: shape='frame' of robots with a yaw only")
+            if self.shape == "relative":
+                raise InvalidInputError("DualQuaternionTeam on JAX arrays: use shape='frame'")
             Qi = _dqmul(B[..., :1, :], B[..., 1:, :])
             Qid = _dqmul(Bd[..., :1, :], B[..., 1:, :]) + _dqmul(B[..., :1, :], Bd[..., 1:, :])
             yd, V = _yaw_and_translation_rates(Qi, Qid)
-            return team_compose(L, V, yd[..., self._yaw_robots])
+            return team_compose(L, V, yd[..., self._yaw_robots], Qid[..., self._pose_robots, :4])
         if self.shape == "relative":
             if r is None:
                 r = self.inverse(c)

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..algebra import wrap_angle
 from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import as_floats
 from ..algebra.kernels import dot_last, qmul_components
 from . import pair_kernels as kern
 
@@ -20,8 +21,11 @@ _CONJ = np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def mul(q, p):
-    """Hamilton product ``q p`` of broadcast ``(..., 4)`` arrays."""
-    return np.stack(qmul_components(*np.moveaxis(q, -1, 0), *np.moveaxis(p, -1, 0)), axis=-1)
+    """Hamilton product ``q p`` of broadcast ``(..., 4)`` arrays (NumPy, or JAX where either is)."""
+    xp = namespace(q)
+    if xp is np:
+        xp = namespace(p)
+    return xp.stack(qmul_components(*xp.moveaxis(q, -1, 0), *xp.moveaxis(p, -1, 0)), axis=-1)
 
 
 def conj(q):
@@ -38,7 +42,7 @@ def norm(v):
 
 def q_yaw(theta):
     """Rotation by ``theta`` about ``z``: ``(cos theta/2, 0, 0, sin theta/2)``, shape ``(..., 4)``."""
-    theta = np.asarray(theta, dtype=float)
+    theta = as_floats(theta)
     return _pack(kern.qyaw(theta), theta.shape)
 
 
@@ -83,7 +87,8 @@ def concat(parts):
 
 
 def _pack(comps, shape):
-    return np.stack([np.broadcast_to(x, shape) for x in comps], axis=-1)
+    xp = namespace(comps[0])
+    return xp.stack([xp.broadcast_to(x, shape) for x in comps], axis=-1)
 
 
 def closest_sign(q, ref):

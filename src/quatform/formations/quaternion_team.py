@@ -202,6 +202,11 @@ class QuaternionTeam(Formation):
         L = self.layout
         if self._all_yaw:
             return g.q_yaw(r[..., self._yaw_r])
+        xp = array_namespace(r)
+        if xp is not np:  # JAX: the rows stacked, yaw rows then pose rows, and put in order
+            rows = np.concatenate([self._yaw_rows, self._pose_rows])
+            out = xp.concatenate([g.q_yaw(r[..., self._yaw_r]), r[..., L.orientation_index]], axis=-2)
+            return out[..., np.argsort(rows), :]
         out = np.empty(r.shape[:-1] + (len(self._o), 4))
         if len(self._yaw_rows):
             out[..., self._yaw_rows, :] = g.q_yaw(r[..., self._yaw_r])

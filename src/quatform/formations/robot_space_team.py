@@ -97,8 +97,8 @@ class RobotSpaceTeam(Formation):
 
     def forward_arrays(self, r, near_c=None):
         """:meth:`forward` without its checks, on arrays of any namespace (JAX under
-        ``jax.jit``): the yaws wound near ``near_c``'s (:meth:`RobotLayout.wind`); a team with
-        ``pose`` robots (their quaternions' signs) on NumPy only."""
+        ``jax.jit``): the yaws wound near ``near_c``'s (:meth:`RobotLayout.wind`), the ``pose``
+        robots' quaternions signed nearest its (:func:`.geometry.closest_sign`)."""
         if array_namespace(r) is np:
             out = np.array(r, dtype=float)
             if near_c is not None:
@@ -107,9 +107,24 @@ class RobotSpaceTeam(Formation):
                 if len(rows):
                     out[..., rows] = g.closest_sign(out[..., rows], near_c[..., rows])
             return out
-        if len(self.layout.orientation_index):
-            raise InvalidInputError("RobotSpaceTeam.forward_arrays: a team with pose robots runs on numpy")
-        return r if near_c is None else self.layout.wind(r, near_c)
+        if near_c is None:
+            return r
+        xp = array_namespace(r)
+        out = self.layout.wind(r, near_c)
+        rows = self.layout.orientation_index
+        if len(rows):  # closest_sign without writes: each entry times its quaternion's sign (or 1)
+            flip = xp.sum(out[..., rows] * near_c[..., rows], axis=-1) < 0.0
+            sign = xp.concatenate([xp.ones(flip.shape[:-1] + (1,)), xp.where(flip, -1.0, 1.0)], axis=-1)
+            out = out * sign[..., self._sign_index]
+        return out
+
+    @functools.cached_property
+    def _sign_index(self) -> np.ndarray:
+        """Each robot-state entry's column in ``(1, sign of pose robot 1, ...)``."""
+        idx = np.zeros(self.layout.size, dtype=np.intp)
+        for m, rows in enumerate(self.layout.orientation_index):
+            idx[rows] = m + 1
+        return idx
 
     def robot_rate_arrays(self, c, c_dot):
         """:meth:`robot_rate` without its checks, on arrays of any namespace: ``c_dot``."""
