@@ -11,7 +11,8 @@ quaternion), so a step is exact; the result is renormalised (eq. (2.37)) against
 It offers a formation its whole state (a ``pose`` point); :meth:`FreeBodyRobot.actuate`
 turns a rate of that point ``(p_dot, q_dot)`` into ``(p_dot, w)``, ``w = 2 q_dot q*``
 (vector part). Limits: the linear speed and the angular speed in norm; a command beyond them
-is scaled down as a whole, so a team of holonomic robots may share one factor.
+is scaled down as a whole, so a team of holonomic robots may share one factor. Its actuation,
+limits and step run on NumPy and on JAX arrays alike (:func:`quatform.algebra.kernels.array_namespace`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from . import limits
@@ -87,10 +90,11 @@ class FreeBodyRobot:
         u : ndarray, shape (..., 6)
         memory : None
         """
-        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        x, rate = as_floats(x), as_floats(rate)
+        xp = namespace(rate)
         w = 2.0 * g.mul(rate[..., 3:7], g.conj(x[..., 3:7]))[..., 1:]
         shape = np.broadcast_shapes(rate.shape[:-1], w.shape[:-1])
-        return np.concatenate([np.broadcast_to(rate[..., 0:3], shape + (3,)), w], axis=-1), memory
+        return xp.concatenate([xp.broadcast_to(rate[..., 0:3], shape + (3,)), w], axis=-1), memory
 
     def brake(self, x, memory=None):
         """Commands that stop the body: zero, shape ``(..., 6)``."""
@@ -138,12 +142,13 @@ class FreeBodyRobot:
         -------
         ndarray, shape (..., 7)
         """
-        x = as_array(x, "free-body state", 7)
+        x = as_array(x, "free-body state", 7) if concrete(x) else x
         u = self.saturate(u)
+        xp = namespace(u)
         half = 0.5 * dt * u[..., 3:6]
-        a = np.linalg.norm(half, axis=-1)
+        a = xp.linalg.norm(half, axis=-1)
         # exp of the pure quaternion (0, half): (cos|half|, sinc|half| half), seed 001 eq. (2.28)
-        e = np.concatenate([np.cos(a)[..., None], np.sinc(a / np.pi)[..., None] * half], axis=-1)
+        e = xp.concatenate([xp.cos(a)[..., None], xp.sinc(a / np.pi)[..., None] * half], axis=-1)
         q = g.mul(e, x[..., 3:7])
-        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-        return np.concatenate([x[..., 0:3] + dt * u[..., 0:3], q], axis=-1)
+        q = q / xp.linalg.norm(q, axis=-1, keepdims=True)  # eq. (2.37)
+        return xp.concatenate([x[..., 0:3] + dt * u[..., 0:3], q], axis=-1)

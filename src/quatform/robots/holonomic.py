@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from . import limits
@@ -63,7 +64,7 @@ class HolonomicRobot:
 
     def actuate(self, x, rate, t: float, memory=None):
         """The commands are the point's world rates (seed 000 §4.1): ``(rate, memory)``."""
-        return np.asarray(rate, dtype=float), memory
+        return as_floats(rate), memory
 
     def brake(self, x, memory=None):
         """Commands that stop the robot: zero, shape ``(..., 4)``."""
@@ -109,6 +110,6 @@ class HolonomicRobot:
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` seconds of the saturated command ``u`` (exact)."""
-        return as_array(x, "x", 4) + dt * self.saturate(u)
+        return (as_array(x, "x", 4) if concrete(x) else x) + dt * self.saturate(u)
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..algebra.kernels import array_namespace as namespace
-from ..algebra.kernels import concrete
+from ..algebra.kernels import as_floats, concrete
 from ..errors import InvalidInputError
 
 __all__ = ["limit_factor", "saturate"]
@@ -57,8 +57,8 @@ def saturate(u, factor, width: int, what: str) -> np.ndarray:
 
     ``what`` names the command in the one-line error of a wrong shape.
     """
-    u = np.asarray(u, dtype=float)
+    u = as_floats(u)
     if u.shape[-1:] != (width,):
         raise InvalidInputError(f"a {what} command has shape (..., {width}), got {u.shape}")
     s = factor(u)[..., None]
-    return np.where(s > 0, u * s, 0.0)
+    return namespace(u).where(s > 0, u * s, 0.0)

@@ -15,6 +15,10 @@ For a command held over a step of ``dt`` the control point's mean velocity is
 ``sinc(theta/2) R(psi + theta/2) (v, a omega)``, ``theta = omega dt``, and its inverse is
 closed form (:meth:`Pioneer.mean_point_velocity`, :meth:`Pioneer.commands_from_mean_velocity`;
 ``docs/derivations.md``, Teams (issue 14)): what a sampled-time safety filter needs.
+
+Its actuation, point velocities, limits and step are written once on array components, so
+they run on NumPy and on JAX arrays (under ``jax.jit``, the compute backend's loop) alike
+(:func:`quatform.algebra.kernels.array_namespace`); on NumPy the step also checks its state.
 """
 
 from __future__ import annotations
@@ -24,6 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import as_floats as _floats
+from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 
@@ -81,10 +88,11 @@ class Pioneer:
     def point(self, x) -> np.ndarray:
         """``(x, y, z)``: the control point at the platform height, shape ``(..., 3)``; with
         ``point_kind = "xy_yaw"`` the state ``(x, y, psi)`` itself."""
-        x = np.asarray(x, dtype=float)
+        x = _floats(x)
         if self.point_kind == "xy_yaw":
             return x
-        return np.stack([x[..., 0], x[..., 1], np.full(x.shape[:-1], self.z)], axis=-1)
+        xp = namespace(x)
+        return xp.stack([x[..., 0], x[..., 1], xp.full(x.shape[:-1], self.z)], axis=-1)
 
     def initial_memory(self, batch: tuple = ()):
         """None: its actuation remembers nothing."""
@@ -94,7 +102,7 @@ class Pioneer:
         """``(v, omega)`` that move the control point at the world rate ``rate[..., 0:2]``,
         eq. (3.5) (:meth:`commands_from_velocity`), and ``memory`` unchanged. The third entry
         (the point's z rate, or the heading rate of an ``xy_yaw`` point) is not commanded."""
-        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        x, rate = _floats(x), _floats(rate)
         return self.commands_from_velocity(x[..., 2], rate[..., 0:2]), memory
 
     def brake(self, x, memory=None):
@@ -111,19 +119,21 @@ class Pioneer:
 
         ``A_p`` has determinant ``a``: invertible for every heading.
         """
-        xy_dot = np.asarray(xy_dot, dtype=float)
-        c, s = np.cos(psi), np.sin(psi)
+        xy_dot = _floats(xy_dot)
+        xp = namespace(xy_dot)
+        c, s = xp.cos(psi), xp.sin(psi)
         v = c * xy_dot[..., 0] + s * xy_dot[..., 1]
         w = (-s * xy_dot[..., 0] + c * xy_dot[..., 1]) / self.a
-        return np.stack([v, w], axis=-1)
+        return xp.stack([v, w], axis=-1)
 
     def point_velocity(self, psi, u) -> np.ndarray:
         """World velocity of the control point for the commands ``u = (v, omega)``, eq. (3.4):
         ``A_p u``, shape ``(..., 2)``."""
-        u = np.asarray(u, dtype=float)
-        c, s = np.cos(psi), np.sin(psi)
+        u = _floats(u)
+        xp = namespace(u)
+        c, s = xp.cos(psi), xp.sin(psi)
         fw, lat = u[..., 0], self.a * u[..., 1]
-        return np.stack([c * fw - s * lat, s * fw + c * lat], axis=-1)
+        return xp.stack([c * fw - s * lat, s * fw + c * lat], axis=-1)
 
     def mean_point_velocity(self, psi, u, dt: float) -> np.ndarray:
         """Mean world velocity of the control point over ``dt`` s of the held command ``u``.
@@ -144,12 +154,13 @@ class Pioneer:
         -------
         ndarray, shape (..., 2)
         """
-        u = np.asarray(u, dtype=float)
+        u = _floats(u)
+        xp = namespace(u)
         half = 0.5 * dt * u[..., 1]
-        k = np.sinc(half / np.pi)
-        c, s = np.cos(psi + half), np.sin(psi + half)
+        k = xp.sinc(half / np.pi)
+        c, s = xp.cos(psi + half), xp.sin(psi + half)
         fw, lat = k * u[..., 0], k * self.a * u[..., 1]
-        return np.stack([c * fw - s * lat, s * fw + c * lat], axis=-1)
+        return xp.stack([c * fw - s * lat, s * fw + c * lat], axis=-1)
 
     def commands_from_mean_velocity(self, psi, mean, dt: float) -> np.ndarray:
         """``(v, omega)`` whose held step of ``dt`` s moves the control point by ``dt mean``.
@@ -183,34 +194,40 @@ class Pioneer:
     def limit_factor(self, u) -> np.ndarray:
         """Largest ``s`` in ``[0, 1]`` with ``s u`` within the limits (0 for a non-finite ``u``),
         shape ``(...)``: the factor :meth:`saturate` applies."""
-        u = np.asarray(u, dtype=float)
-        finite = np.all(np.isfinite(u), axis=-1)
-        u = np.where(finite[..., None], u, 0.0)
-        with np.errstate(divide="ignore", over="ignore"):
-            s = np.minimum(self.max_v / np.abs(u[..., 0]), self.max_omega / np.abs(u[..., 1]))
-        return np.where(finite, np.minimum(1.0, s), 0.0)
+        u, finite, s = self._scale(u)
+        return namespace(u).where(finite, s, 0.0)
 
     def saturate(self, u) -> np.ndarray:
         """``(v, omega)`` scaled as a whole into the limits (path curvature kept); NaN -> 0."""
-        u = np.asarray(u, dtype=float)
-        finite = np.all(np.isfinite(u), axis=-1)
-        u = np.where(finite[..., None], u, 0.0)
+        u, _, s = self._scale(u)
+        return u * s[..., None]
+
+    def _scale(self, u):
+        """``(u0, finite, s)``: ``u`` with its non-finite commands zeroed, which are finite
+        (shape ``(...)``), and the factor ``min(1, max_v / |v|, max_omega / |omega|)`` of
+        ``u0`` (1 for a zeroed command)."""
+        u = _floats(u)
+        xp = namespace(u)
+        finite = xp.all(xp.isfinite(u), axis=-1)
+        u = xp.where(finite[..., None], u, 0.0)
         with np.errstate(divide="ignore", over="ignore"):
-            s = np.minimum(self.max_v / np.abs(u[..., 0]), self.max_omega / np.abs(u[..., 1]))
-        return u * np.minimum(1.0, s)[..., None]
+            s = xp.minimum(self.max_v / xp.abs(u[..., 0]), self.max_omega / xp.abs(u[..., 1]))
+        return u, finite, xp.minimum(1.0, s)
 
     def step(self, state, u, dt: float) -> np.ndarray:
         """State ``(x, y, psi)`` after ``dt`` s of the saturated command ``(v, omega)`` (exact arc)."""
-        state = as_array(state, "Pioneer state", 3)
-        v, w = np.moveaxis(self.saturate(u), -1, 0)
-        x, y, psi = np.moveaxis(state, -1, 0)
+        state = as_array(state, "Pioneer state", 3) if concrete(state) else state
+        u = self.saturate(u)
+        xp = namespace(u)
+        v, w = u[..., 0], u[..., 1]
+        x, y, psi = state[..., 0], state[..., 1], state[..., 2]
         # middle of the wheel axis moves on an arc; the control point follows rigidly
-        cx, cy = x - self.a * np.cos(psi), y - self.a * np.sin(psi)
+        cx, cy = x - self.a * xp.cos(psi), y - self.a * xp.sin(psi)
         psi1 = psi + w * dt
-        small = np.abs(w * dt) < 1e-9
+        small = xp.abs(w * dt) < 1e-9
         with np.errstate(divide="ignore", invalid="ignore"):
-            R = np.where(small, 0.0, v / np.where(small, 1.0, w))
-        dx = np.where(small, v * dt * np.cos(psi + 0.5 * w * dt), R * (np.sin(psi1) - np.sin(psi)))
-        dy = np.where(small, v * dt * np.sin(psi + 0.5 * w * dt), -R * (np.cos(psi1) - np.cos(psi)))
+            R = xp.where(small, 0.0, v / xp.where(small, 1.0, w))
+        dx = xp.where(small, v * dt * xp.cos(psi + 0.5 * w * dt), R * (xp.sin(psi1) - xp.sin(psi)))
+        dy = xp.where(small, v * dt * xp.sin(psi + 0.5 * w * dt), -R * (xp.cos(psi1) - xp.cos(psi)))
         cx, cy = cx + dx, cy + dy
-        return np.stack([cx + self.a * np.cos(psi1), cy + self.a * np.sin(psi1), psi1], axis=-1)
+        return xp.stack([cx + self.a * xp.cos(psi1), cy + self.a * xp.sin(psi1), psi1], axis=-1)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from . import limits
@@ -64,7 +65,7 @@ class PlanarHolonomicRobot:
 
     def actuate(self, x, rate, t: float, memory=None):
         """The commands are the point's world rates: ``(rate, memory)``."""
-        return np.asarray(rate, dtype=float), memory
+        return as_floats(rate), memory
 
     def brake(self, x, memory=None):
         """Commands that stop the robot: zero, shape ``(..., 3)``."""
@@ -98,4 +99,4 @@ class PlanarHolonomicRobot:
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` s of the saturated command ``u`` (exact for a held command)."""
-        return as_array(x, "planar robot state", 3) + dt * self.saturate(u)
+        return (as_array(x, "planar robot state", 3) if concrete(x) else x) + dt * self.saturate(u)

@@ -6,7 +6,10 @@ points they offer, and actuates, saturates and steps them all. A team of holonom
 (seed 000's 4-DOF robots, planar holonomic robots, free bodies: commands that scale as a
 whole) scales all its robots' commands by one common factor by default, so the formation's
 motion keeps its direction; a team with other robots (the Pioneer and the Bebop of seed
-001) saturates each robot on its own. Every method takes leading batch axes.
+001) saturates each robot on its own. Every method takes leading batch axes; ``gather``,
+``scatter``, ``actuate``, ``limit_factor``, ``saturate`` and ``step`` also run on JAX arrays
+(under ``jax.jit``: the compute backend's loop) with the models' same code, writing into no
+array there.
 
 Robots of one class with equal parameters form a :class:`RobotGroup`; every team method
 gathers a group's entries into one ``(..., m, k)`` array (a view when the group's robots
@@ -24,7 +27,7 @@ from functools import cached_property
 import numpy as np
 
 from ..algebra.kernels import array_namespace as namespace
-from ..algebra.kernels import concrete
+from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from ..formations.layout import RobotLayout
@@ -300,6 +303,13 @@ class Team:
             batch = np.broadcast_shapes(*(np.shape(p)[:np.ndim(p) - t] for p, t in zip(parts, tails)))
         batch = tuple(batch)
         one = idx[0]
+        if not all(concrete(p) or isinstance(p, (list, tuple)) for p in parts):  # JAX: no writes into an array
+            xp = next(namespace(p) for p in parts if not concrete(p) and not isinstance(p, (list, tuple)))
+            flat = [xp.broadcast_to(xp.asarray(p, dtype=float), batch + np.shape(p)[np.ndim(p) - t:]).reshape(
+                batch + (ix.m * ix.k,)) for p, t, ix in zip(parts, tails, idx)]
+            out = xp.concatenate(flat, axis=-1) if len(flat) > 1 else flat[0]
+            order = np.concatenate([ix.index.ravel() for ix in idx])
+            return out if np.array_equal(order, np.arange(order.size)) else out[..., np.argsort(order)]
         if len(idx) == 1 and one.block is not None and one.block == slice(0, one.m * one.k):
             p = np.broadcast_to(parts[0], batch + np.shape(parts[0])[np.ndim(parts[0]) - tails[0]:])
             return np.array(p, dtype=float).reshape(batch + (one.m * one.k,))
@@ -323,7 +333,7 @@ class Team:
     def actuate(self, x, rate, t: float, memory: tuple):
         """Unsaturated commands ``(..., n)`` for the stacked rates ``rate`` (``(..., n_rate)``)
         and the next memory (one entry per group)."""
-        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        x, rate = as_floats(x), as_floats(rate)
         out = [g.model.actuate(xg, rg, t, mg)
                for g, xg, rg, mg in zip(self.groups, self.gather(x), self.gather(rate, "rate"), memory)]
         batch = np.broadcast_shapes(x.shape[:-1], rate.shape[:-1])
@@ -363,22 +373,16 @@ class Team:
         -------
         ndarray, shape (..., n)
         """
-        if concrete(u) or isinstance(u, (list, tuple)):
-            u = np.asarray(u, dtype=float)
+        u = as_floats(u)
         if u.shape[-1:] != (self.n,):
             raise InvalidInputError(f"team command must have shape (..., {self.n}), got {u.shape}")
-        if not concrete(u):  # JAX (traced): a common-limit team of models with array-namespace limits
-            if not self.common_limit:
-                raise InvalidInputError("Team.saturate on JAX arrays needs a common-limit team of holonomic robots")
-            s = self.limit_factor(u)
-            return namespace(u).where(s[..., None] > 0, u * s[..., None], 0.0)
         if not self.common_limit:
             return self.scatter([g.model.saturate(ug) for g, ug in zip(self.groups, self.gather(u, "command"))],
                                 "command", u.shape[:-1])
-        if u.ndim == 1 and self._float_path:
+        if u.ndim == 1 and self._float_path and concrete(u):
             return self.saturate_floats(u.tolist())
         s = self.limit_factor(u)
-        return np.where(s[..., None] > 0, u * s[..., None], 0.0)
+        return namespace(u).where(s[..., None] > 0, u * s[..., None], 0.0)
 
     def saturate_floats(self, u) -> np.ndarray:
         """:meth:`saturate` of a holonomic team for one command given as Python floats."""
@@ -398,7 +402,7 @@ class Team:
         if self._additive:
             x = as_array(x, "r", self.n_state) if concrete(x) else x
             return x + dt * self.saturate(u)
-        x = np.asarray(x, dtype=float)
+        x = as_floats(x)
         us = self.gather(self.saturate(u), "command")
         return self.scatter([g.model.step(xg, ug, dt) for g, xg, ug in zip(self.groups, self.gather(x), us)],
                             "state")
