@@ -44,8 +44,7 @@ def test_metrics_equal_on_the_experiment():
 
 
 
-@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion"}),
-                                                ("team-triangle-over-ugv", {"controller": "quaternion"})])
+@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion"})])
 def test_refuses_what_it_does_not_run(scenario, choice):
     sc = load_scenario(scenario)
     ex = kind_of(sc).experiment(sc, **choice)

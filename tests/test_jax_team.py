@@ -58,8 +58,9 @@ def test_chain_on_numpy_is_update_bitwise(scenario, controller):
     c, err, r_dot = ctrl.chain(ctrl.formation.align(x, ref.robots), ref.c, ref.c_dot)
     assert np.array_equal(c, step.signals["cluster"])
     assert np.array_equal(err, step.signals["error"])
-    if ctrl.team.passthrough:
-        assert np.array_equal(ctrl.team.saturate(r_dot), step.u)
+    team, r = ctrl.team, ctrl.formation.align(x, ref.robots)
+    u = r_dot if team.passthrough else team.actuate(r, r_dot, 0.0, team.initial_memory((3,)))[0]
+    assert np.array_equal(team.saturate(u), step.u)
 
 
 # -- JAX against NumPy -----------------------------------------------------------------------------
@@ -171,12 +172,12 @@ def test_team_sweep_on_jax_equals_numpy(tmp_path):
 # -- refusals ---------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("scenario, controller, what", [
-    ("team-triangle-over-ugv", "quaternion", "Pioneer"),
-    ("team-triangle-over-ugv", "robot-space", "Pioneer"),
+    ("team-triangle-over-ugv", "quaternion", "the plant TeamPlant of HolonomicRobot, Pioneer robots runs on numpy"),
 ])
 def test_what_does_not_run_on_jax_is_refused_in_one_line(scenario, controller, what):
     pytest.importorskip("jax")
-    exp = TEAM.experiment(short_scenario(scenario, 0.1), controller=controller)
+    pytest.importorskip("mujoco")
+    exp = TEAM.experiment(short_scenario(scenario, 0.1), controller=controller, backend="mujoco")
     with pytest.raises(InvalidInputError) as info:
         exp.run(backend="jax")
     msg = str(info.value)

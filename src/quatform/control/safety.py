@@ -32,7 +32,8 @@ moves a point ahead of the wheel axis. With ``dt_s`` given the Pioneer's point v
 exact mean velocity over the held step (:meth:`~quatform.robots.Pioneer.mean_point_velocity`),
 so the sampled-time argument below holds for it too. A planar robot's point moves at ``z =
 0`` (or its platform height): its z velocity is not a variable. A model whose commands are
-not such a map (the Bebop with its dynamic compensation) is refused.
+not such a map (the Bebop with its dynamic compensation) is refused. The maps' ``velocity``
+runs on NumPy and on JAX arrays alike (the jax backend's test whether a pair binds).
 
 Sampled time (``docs/derivations.md``, Teams (issue 14)): for points that move by ``dt v``
 over a step, ``h_{k+1} = h_k + 2 dt dp.dv + dt^2 |dv|^2 >= (1 - gamma dt) h_k``, so with
@@ -55,6 +56,7 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.spatial import cKDTree
 
+from ..algebra.kernels import array_namespace
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS, RobotLayout
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
@@ -114,7 +116,8 @@ class _Planar(_Holonomic4):
     planar = True
 
     def velocity(self, model, x, u, dt):
-        return np.concatenate([u[..., 0:2], np.zeros(u.shape[:-1] + (1,))], axis=-1)
+        xp = array_namespace(u)
+        return xp.concatenate([u[..., 0:2], xp.zeros(u.shape[:-1] + (1,))], axis=-1)
 
     def commands(self, model, x, u, v, dt):
         return np.concatenate([v[..., 0:2], u[..., 2:3]], axis=-1)
@@ -135,7 +138,8 @@ class _Unicycle:
     def velocity(self, model, x, u, dt):
         psi = x[..., 2]
         v = model.point_velocity(psi, u) if dt is None else model.mean_point_velocity(psi, u, dt)
-        return np.concatenate([v, np.zeros(v.shape[:-1] + (1,))], axis=-1)
+        xp = array_namespace(v)
+        return xp.concatenate([v, xp.zeros(v.shape[:-1] + (1,))], axis=-1)
 
     def commands(self, model, x, u, v, dt):
         psi = x[..., 2]

@@ -7,8 +7,9 @@
   (:meth:`~quatform.control.cluster.ClusterController.chain`: the formation's forward
   kinematics, the law of :mod:`quatform.control.laws`, the rate map), the measured yaws
   wound onto the reference's (:meth:`~quatform.formations.base.Formation.align`), the team's
-  saturation and step (:class:`~quatform.robots.Team`) - component arithmetic that runs on
-  NumPy and on JAX arrays alike (:func:`quatform.algebra.kernels.namespace`);
+  actuation, saturation and step (:class:`~quatform.robots.Team` and its robot models) -
+  component arithmetic that runs on NumPy and on JAX arrays alike
+  (:func:`quatform.algebra.kernels.namespace`);
 * the reference, which does not depend on the state: sampled on the host with NumPy for
   every tick (exact) and checked there once, as the controller checks it every tick;
 * the measurement: perfect, or :class:`~quatform.sim.trial_measurement.TickMeasurement`
@@ -29,15 +30,21 @@ CPU device per core (:mod:`.jax_devices`) - with the batch of worlds split over 
 code changes. Supported: the pair kind's experiments (seed 000's four controllers on
 kinematic holonomic robots) and the team kind's four team controllers (quaternion,
 dual-quaternion of shape ``"frame"``, cluster-space, robot-space:
-:meth:`~quatform.control.team.TeamController.chain`) on kinematic 4-DOF and planar
-holonomic robots, bare or in a :class:`~quatform.control.safety.SafeController`; the teleop
-kind (seed 003: :class:`~quatform.sim.plants.teleop.TeleopPlant` under a
+:meth:`~quatform.control.team.TeamController.chain`), bare or in a
+:class:`~quatform.control.safety.SafeController`, on kinematic robots of
+:data:`JAX_TEAM_ROBOTS` in any mix: 4-DOF and planar holonomic robots and free bodies (a team
+of them shares one limit factor) and Pioneers offering ``xy_yaw`` points (their state; seed
+001 eq. (3.5) actuation, each robot then saturated on its own, as
+:meth:`~quatform.control.team.TeamController.update` does); the teleop kind (seed 003:
+:class:`~quatform.sim.plants.teleop.TeleopPlant` under a
 :class:`~quatform.teleop.TeleopController`, one world or a vmapped batch) in
 :mod:`.jax_teleop`, reached through :data:`KIND_LOOPS`; anything else is refused in one
 line naming what runs here.
 
 The separation barrier: on JAX each tick computes every pair's constraint of
-:class:`~quatform.control.safety.SeparationBarrier` and its minimum separation; where no
+:class:`~quatform.control.safety.SeparationBarrier` (with the robots' point velocities of
+:data:`~quatform.control.safety.POINT_MAPS`, :func:`point_velocities`, for robots whose
+commands are not their points' rates) and its minimum separation; where no
 pair binds the filter returns the commands bitwise, so that is the whole filter. A world
 where some pair binds (or whose robots start closer than the barrier's minimum, which
 ``SafeController`` refuses) is rerun on NumPy from its start, with its own initial state,
@@ -58,7 +65,7 @@ from ..algebra.kernels import array_namespace as namespace
 from ..algebra.validate import as_array
 from ..control.base import Reference
 from ..control.cluster import ClusterController
-from ..control.safety import SafeController
+from ..control.safety import POINT_MAPS, SafeController
 from ..control.team import TeamController
 from ..errors import (
     DegenerateInputError,
@@ -79,7 +86,7 @@ from ..formations import (
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations.team_chart import team_positions
-from ..robots import HolonomicRobot, PlanarHolonomicRobot
+from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot
 from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
@@ -100,6 +107,7 @@ __all__ = [
     "LOOP_AXES",
     "hold",
     "initial_carry",
+    "point_velocities",
     "require_jax",
     "scan_ticks",
     "simulate",
@@ -114,16 +122,17 @@ __all__ = [
 JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
 #: Team descriptions whose :class:`~quatform.control.team.TeamController` runs on JAX (issue 15).
 JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotSpaceTeam)
-#: Robot models of a team that runs on JAX (kinematic, holonomic, one common limit factor).
-JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot)
+#: Robot models of a team that runs on JAX (kinematic; a Pioneer offering its state, ``xy_yaw``),
+#: in any mix, with one common limit factor or each robot saturated on its own.
+JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot, Pioneer, FreeBodyRobot)
 #: Plant type -> ``"module:function"`` of its kind's JAX loop (imported on first use; the pair and
 #: team kinds' loop is this module's).
 KIND_LOOPS = {TeleopPlant: "quatform.sim.jax_teleop:simulate"}
 #: What the backend runs, for the one-line refusal of anything else.
-_RUNS = ("the jax backend runs the seed-000 pair experiments (cluster-space, robot-space, quaternion and "
-         "dual-quaternion controllers on kinematic holonomic robots) and the team kind's four team controllers "
-         "(quaternion, dual-quaternion of shape 'frame', cluster-space, robot-space; with or without the separation "
-         "barrier) on kinematic 4-DOF and planar holonomic robots, perfect or TickMeasurement measurement")
+_RUNS = ("the jax backend runs the seed-000 pair experiments (its four controllers on kinematic holonomic robots) "
+         "and the team kind's four team controllers (quaternion, dual-quaternion of shape 'frame', cluster-space, "
+         "robot-space; with or without the separation barrier) on kinematic robots (4-DOF, planar, free-body, "
+         "Pioneer offering 'xy_yaw'; any mix), perfect or TickMeasurement measurement")
 #: Reason of a failed world, by code (0: none). Code 3 is no failure: the world is rerun on
 #: NumPy (:func:`simulate`), whose log replaces it.
 FAILURE_REASONS = {1: "the measured robot state is not finite (or beyond 1e150)",
@@ -172,11 +181,13 @@ def check_supported(plant, controller, measurement) -> None:
         if controller.team != team:
             raise InvalidInputError(f"{_RUNS}; a SafeController over another team than its controller's runs on "
                                     "numpy (--backend numpy)")
-        if not (isinstance(plant, KinematicTeam) and plant.team == team and team.common_limit and team.passthrough
+        if not (isinstance(plant, KinematicTeam) and plant.team == team
                 and all(type(r) in JAX_TEAM_ROBOTS for r in team.robots)):
             models = sorted({type(r).__name__ for r in team.robots})
             raise InvalidInputError(f"{_RUNS}; the plant {type(plant).__name__} of {', '.join(models)} robots runs on "
                                     "numpy (--backend numpy)")
+        if any(type(r) is Pioneer and r.point_kind != "xy_yaw" for r in team.robots):  # the loop measures states
+            raise InvalidInputError(f"{_RUNS}; a Pioneer of point_kind = 'xyz' runs on numpy (--backend numpy)")
         if measurement is not None and type(measurement) not in (PerfectMeasurement, TickMeasurement):
             raise InvalidInputError(f"{_RUNS}; the measurement {type(measurement).__name__} runs on numpy "
                                     "(--backend numpy)")
@@ -581,8 +592,11 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
         c, err, r_dot = inner.chain(r, c_des, c_dot_des, stage=stage)
         c, err, r_dot = (jnp.broadcast_to(v, (B, v.shape[-1])) for v in (c, err, r_dot))
         r_dot = hold(r_dot)
-        finite = jnp.all(jnp.isfinite(r_dot), axis=-1, keepdims=True)
-        u = hold(team.saturate(r_dot))
+        # TeamController.update: the robots' actuation (of a fresh memory), a non-finite command
+        # stopping the team, the saturation (a common-limit team's factor is 0 there already)
+        u = r_dot if team.passthrough else team.actuate(r, r_dot, xs["t"], team.initial_memory((B,)))[0]
+        finite = jnp.all(jnp.isfinite(u), axis=-1, keepdims=True)
+        u = hold(team.saturate(u if team.common_limit else jnp.where(finite, u, 0.0)))
         # what update() refuses: a non-finite measured state, robots on each other
         p = team_positions(L, r)
         d = p[:, i, :] - p[:, j, :]
@@ -593,7 +607,7 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
         signals = ()
         if barrier is not None:  # SeparationBarrier.filter where no pair binds: u itself
             P = team_positions(L, m)
-            V = team_positions(L, u)
+            V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
             pij = P[:, i, :] - P[:, j, :]
             sep = jnp.sqrt(jnp.sum(pij * pij, axis=-1))
             d2, gam = barrier.min_separation_m ** 2, barrier.gamma
@@ -613,6 +627,23 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
         return new_carry, (x, m, u) + out
 
     return tick
+
+
+def point_velocities(barrier, team, x, u):
+    """The robots' point velocities, m/s, ``(B, N, 3)``, at the measured state ``x`` for the
+    team's commands ``u`` (``(B, n_state)`` and ``(B, n)``), as
+    :meth:`~quatform.control.safety.SeparationBarrier.filter` reads them
+    (:data:`~quatform.control.safety.POINT_MAPS`: a Pioneer's mean control-point velocity over
+    the barrier's ``dt_s``, seed 001 eq. (3.4); a free body's linear velocity)."""
+    import jax.numpy as jnp
+
+    parts, robots = [], []
+    for g, xg, ug in zip(team.groups, team.gather(x), team.gather(u, "command")):
+        v = POINT_MAPS[type(g.model)].velocity(g.model, xg, ug, barrier.dt_s)
+        parts.append(v if g.axis else v[..., None, :])
+        robots.extend(g.robots)
+    V = jnp.concatenate(parts, axis=-2) if len(parts) > 1 else parts[0]
+    return V if robots == sorted(robots) else V[..., np.argsort(robots), :]
 
 
 def config_key(plant, controller) -> tuple:
