@@ -86,9 +86,20 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
         if workers == 1:
             yield None
             return
-        with ProcessPoolExecutor(max_workers=workers, mp_context=_process_context(), initializer=share_cores,
-                                 initargs=(workers,)) as pool:  # JAX's CPU devices: the cores shared
+        before = set(multiprocessing.active_children())
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_process_context(), initializer=share_cores,
+                                   initargs=(workers,))  # JAX's CPU devices: the cores shared
+        try:
             yield pool
+        except BaseException:
+            # Ctrl-C or an error: the queued chunks dropped and the workers stopped now (waiting for
+            # the running chunks could hang the exit; a chunk cut off is not stored, a rerun runs it)
+            # (not cancel_futures: Python 3.11's pool then fails setting BrokenProcessPool on them)
+            pool.shutdown(wait=False)
+            for proc in set(multiprocessing.active_children()) - before:
+                proc.terminate()
+            raise
+        pool.shutdown(wait=True)
         return
     if scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
         raise InvalidInputError(f"--scheduler {scheduler!r} unknown{nearest(scheduler, SCHEDULERS)}; give local, "

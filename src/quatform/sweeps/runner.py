@@ -168,15 +168,13 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
             for ch in todo:
                 finished(ch, run_chunk(ch))
         else:
+            # on Ctrl-C or an error the executor's exit drops what is pending (its workers stopped,
+            # the Dask client closed), so the futures are not cancelled here
             pending = {ex.submit(run_chunk, ch): ch for ch in todo}
-            try:
-                while pending:
-                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in done:
-                        finished(pending.pop(fut), fut.result())
-            finally:
-                for fut in pending:
-                    fut.cancel()
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    finished(pending.pop(fut), fut.result())
     rows = ordered_rows(rows)
     summary = summarize(spec, rows)
     out = Path(out)

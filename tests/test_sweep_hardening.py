@@ -1,0 +1,41 @@
+"""quatform sweep under hostile use: Ctrl-C, non-sweepable kinds, bad specs and flags, locked outputs."""
+
+import time
+from concurrent.futures.process import BrokenProcessPool
+
+import pytest
+
+from quatform.sweeps.executors import executor
+
+SPEC = """
+name = "tiny"
+scenario = "mas-kitts-helix"
+controllers = ["quaternion"]
+trials = 1
+duration_s = 1.0
+settle_s = 0.2
+"""
+
+
+def _spec(tmp_path, text=SPEC, name="tiny.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _one_line(capsys):
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_ctrl_c_stops_the_local_workers():
+    """An interrupt inside the pool stops its workers instead of waiting for their chunks (the
+    exit hung for good when a second Ctrl-C came during that wait)."""
+    with pytest.raises(KeyboardInterrupt):
+        with executor(2) as ex:
+            fut = ex.submit(time.sleep, 20)
+            time.sleep(1.0)  # the worker has started it
+            raise KeyboardInterrupt
+    assert isinstance(fut.exception(timeout=30), BrokenProcessPool)
+
