@@ -5,6 +5,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import pytest
 
+from quatform.cli import main
 from quatform.sweeps.executors import executor
 
 SPEC = """
@@ -38,4 +39,16 @@ def test_ctrl_c_stops_the_local_workers():
             time.sleep(1.0)  # the worker has started it
             raise KeyboardInterrupt
     assert isinstance(fut.exception(timeout=30), BrokenProcessPool)
+
+
+def test_ctrl_c_says_the_chunks_are_kept(tmp_path, capsys, monkeypatch):
+    import quatform.sweeps.runner as runner
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "run_sweep", interrupted)
+    assert main(["sweep", str(_spec(tmp_path)), "--out", str(tmp_path / "o")]) == 130
+    err = _one_line(capsys)
+    assert "chunks" in err and "rerun the same command to resume" in err and "no partial" not in err
 
