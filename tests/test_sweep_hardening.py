@@ -6,7 +6,11 @@ from concurrent.futures.process import BrokenProcessPool
 import pytest
 
 from quatform.cli import main
+from quatform.errors import InvalidInputError
+from quatform.scenarios import KINDS
+from quatform.sweeps import load_sweep
 from quatform.sweeps.executors import executor
+from quatform.sweeps.trials import NOT_SWEEPABLE, SWEEP_KINDS
 
 SPEC = """
 name = "tiny"
@@ -52,3 +56,11 @@ def test_ctrl_c_says_the_chunks_are_kept(tmp_path, capsys, monkeypatch):
     err = _one_line(capsys)
     assert "chunks" in err and "rerun the same command to resume" in err and "no partial" not in err
 
+
+def test_every_kind_is_sweepable_or_says_why():
+    assert set(KINDS) <= set(SWEEP_KINDS) | set(NOT_SWEEPABLE), set(KINDS) - set(SWEEP_KINDS) - set(NOT_SWEEPABLE)
+
+
+def test_a_ugv_uav_sweep_says_why_not(tmp_path):
+    with pytest.raises(InvalidInputError, match="ugv-uav.*motion capture one world at a time"):
+        load_sweep(_spec(tmp_path, 'scenario = "marciano-circle"\ntrials = 1\n'))

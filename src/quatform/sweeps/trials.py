@@ -113,7 +113,7 @@ SWEEP_KINDS = {
 }
 #: Why the other kinds cannot be swept yet (one line each).
 NOT_SWEEPABLE = {
-    "ugv_uav": "its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches but "
+    "ugv-uav": "its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches but "
                "the measurement does not",
     "teleop": "its plant (the arms) runs one world at a time",
 }
