@@ -1,5 +1,6 @@
 """quatform sweep under hostile use: Ctrl-C, non-sweepable kinds, bad specs and flags, locked outputs."""
 
+import re
 import time
 from concurrent.futures.process import BrokenProcessPool
 
@@ -64,3 +65,19 @@ def test_every_kind_is_sweepable_or_says_why():
 def test_a_ugv_uav_sweep_says_why_not(tmp_path):
     with pytest.raises(InvalidInputError, match="ugv-uav.*motion capture one world at a time"):
         load_sweep(_spec(tmp_path, 'scenario = "marciano-circle"\ntrials = 1\n'))
+
+
+@pytest.mark.parametrize("success, match", [
+    ("below = {max_cluster_position_eror_m = 0.1}", "did you mean 'max_cluster_position_error_m'"),
+    ('false = ["max_cluster_position_error_m"]', "is not a flag.*reference_lost"),
+    ("below = {reference_lost = 0.5}", "is not a number.*false"),
+    ('false = ["failed"]', "names the metric 'failed'"),  # a row's column, not a metric Success reads
+])
+def test_a_bad_success_leaves_out_free_for_the_fixed_spec(tmp_path, capsys, success, match):
+    out = tmp_path / "o"
+    bad = _spec(tmp_path, SPEC + "[success]\n" + success + "\n")
+    assert main(["sweep", str(bad), "--out", str(out), "--no-plots", "--quiet"]) == 2
+    assert re.search(match, _one_line(capsys))
+    assert not out.exists()  # no sweep.json that would lock --out to the bad spec
+    assert main(["sweep", str(_spec(tmp_path)), "--out", str(out), "--no-plots", "--quiet"]) == 0
+    assert (out / "results.csv").is_file()

@@ -31,7 +31,8 @@ SPEC_FILE = "sweep.json"
 class ChunkStore:
     """The finished chunks of one sweep in ``out/chunks/``.
 
-    Opening refuses a folder that holds another spec's sweep, or files quatform did not write.
+    Opening refuses a folder that holds another spec's sweep, or files quatform did not write;
+    the folder and its ``sweep.json`` are made when the first chunk is saved.
     """
 
     def __init__(self, out, spec, backend: str):
@@ -54,9 +55,8 @@ class ChunkStore:
         elif self.out.exists() and [n for n in os.listdir(self.out) if n != OUTPUT_MARKER]:
             raise InvalidInputError(f"--out {str(out)!r} holds files quatform did not write; give a new or empty "
                                     "folder")
-        self.folder.mkdir(parents=True, exist_ok=True)
-        if not meta.is_file():
-            atomic_write_text(meta, json.dumps(ident, indent=2, sort_keys=True, default=str) + "\n")
+        self._ident, self._meta = ident, meta  # written with the first chunk: a sweep refused before it
+        # (a [success] metric it does not compute) leaves no folder that locks --out to that spec
 
     def path(self, chunk) -> Path:
         return self.folder / f"{chunk.key}.json"
@@ -73,6 +73,9 @@ class ChunkStore:
         return rows if isinstance(rows, list) and len(rows) == chunk.stop - chunk.start else None
 
     def save(self, chunk, rows: list) -> None:
+        if not self._meta.is_file():
+            self.folder.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(self._meta, json.dumps(self._ident, indent=2, sort_keys=True, default=str) + "\n")
         atomic_write_text(self.path(chunk), json.dumps({"chunk": chunk.key, "rows": rows}, default=_json) + "\n")
 
 

@@ -22,7 +22,7 @@ from ..checks import memory_budget_bytes, time_budget_s
 from ..errors import ResourceLimitError
 from .executors import executor
 from .results import ChunkStore, ordered_rows, summarize, write_table
-from .trials import Chunk, cell_experiment, run_chunk
+from .trials import Chunk, cell_experiment, row_metrics, run_chunk
 
 __all__ = ["plan_chunks", "estimate", "Estimate", "run_sweep", "SECONDS_PER_TICK", "SECONDS_PER_ROBOT_STEP",
            "BYTES_PER_VALUE", "MEMORY_FACTOR"]
@@ -153,12 +153,12 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
         progress = _Progress(spec.name, est.trials, len(rows), quiet=quiet)
         checked = bool(rows)
         if rows:
-            spec.success.check_metrics(rows[0], spec.where)
+            spec.success.check_metrics(row_metrics(spec, rows[0]), spec.where)
 
         def finished(ch, got):
             nonlocal checked
             if not checked:
-                spec.success.check_metrics(got[0], spec.where)
+                spec.success.check_metrics(row_metrics(spec, got[0]), spec.where)
                 checked = True
             store.save(ch, got)
             rows.extend(got)

@@ -158,6 +158,16 @@ class Success:
             if key not in metrics:
                 raise InvalidInputError(f"{where}: [success] names the metric {key!r}, which this scenario's runs do "
                                         f"not compute{nearest(key, metrics)}; metrics: {', '.join(sorted(metrics))}")
+        flags = sorted(k for k, v in metrics.items() if isinstance(v, bool))
+        for key in self.below:  # a flag or a word has no threshold: every trial would read as failed
+            if isinstance(metrics[key], (bool, str)):
+                raise InvalidInputError(f"{where}: [success] below = {{{key} = ...}}: {key} is not a number "
+                                        f"({short(metrics[key])}); list flags in false = [...] instead")
+        for key in self.false:  # bool() of a number is true for any non-zero error: success would never hold
+            if not isinstance(metrics[key], bool):
+                raise InvalidInputError(f"{where}: [success] false = [{key!r}]: {key} is not a flag "
+                                        f"({short(metrics[key])}); put numbers in below = {{...}}; flags: "
+                                        f"{', '.join(flags)}")
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from ..sim.trial_measurement import TickMeasurement
 from ..tomlio import read_toml
 
 __all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "chunk_batch", "run_chunk", "trial_stream", "cell_experiment",
-           "COINCIDENT_M"]
+           "COINCIDENT_M", "ROW_COLUMNS", "row_metrics"]
 
 #: Robots closer than this (m) at any sample coincide: the trial failed.
 COINCIDENT_M = 1e-6
@@ -284,6 +284,16 @@ def run_chunk(chunk: Chunk) -> list[dict]:
         row["success"] = (reason is None) and spec.success(metrics)
         rows.append(row)
     return rows
+
+
+#: The columns a row holds besides the kind's metrics (and the compare key and the varied parameters).
+ROW_COLUMNS = ("cell", "point", "latency_ticks", "trial", "seed", "failed", "failure", "lost", "success")
+
+
+def row_metrics(spec, row: dict) -> dict:
+    """The kind's metrics of one row (what :class:`~quatform.sweeps.spec.Success` is called on)."""
+    own = {*ROW_COLUMNS, spec.compare_key, *(a.name for a in spec.axes)}
+    return {k: v for k, v in row.items() if k not in own}
 
 
 def _output_variables(exp):
