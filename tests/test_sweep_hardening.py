@@ -81,3 +81,24 @@ def test_a_bad_success_leaves_out_free_for_the_fixed_spec(tmp_path, capsys, succ
     assert not out.exists()  # no sweep.json that would lock --out to the bad spec
     assert main(["sweep", str(_spec(tmp_path)), "--out", str(out), "--no-plots", "--quiet"]) == 0
     assert (out / "results.csv").is_file()
+
+
+def test_huge_workers_neither_start_nor_shrink_the_estimate(tmp_path, capsys):
+    from quatform.sim.jax_devices import usable_cores
+    from quatform.sweeps import estimate, plan_chunks
+    from quatform.sweeps.executors import LOCAL_WORKERS_PER_CORE, parallel_workers
+
+    spec = load_sweep(_spec(tmp_path, SPEC.replace("trials = 1", "trials = 3\nchunk_trials = 1")))
+    n = len(plan_chunks(spec))
+    assert n == 3
+    # no more chunks at once than there are: 10^6 workers do not make the time budget check pass
+    assert estimate(spec, 10**6).seconds == pytest.approx(estimate(spec, n).seconds, rel=1e-12)
+    assert estimate(spec, 1).seconds == pytest.approx(n * estimate(spec, n).seconds, rel=1e-12)
+    assert parallel_workers(10**6, None) == parallel_workers(10**6, "local") == usable_cores()
+    assert parallel_workers(10**6, "tcp://h:1") == 10**6  # a cluster's workers are its own
+    too_many = LOCAL_WORKERS_PER_CORE * usable_cores() + 1
+    for extra in ([], ["--scheduler", "local"]):
+        assert main(["sweep", str(_spec(tmp_path)), "--out", str(tmp_path / "o"), "--workers", str(too_many),
+                     *extra]) == 2
+        assert f"--workers {too_many}" in _one_line(capsys)
+        assert not (tmp_path / "o").exists()

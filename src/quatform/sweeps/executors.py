@@ -14,15 +14,26 @@ import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
 from ..checks import nearest
-from ..errors import InvalidInputError, MissingDependencyError, UnreachableError
-from ..sim.jax_devices import share_cores
+from ..errors import InvalidInputError, MissingDependencyError, ResourceLimitError, UnreachableError
+from ..sim.jax_devices import share_cores, usable_cores
 
-__all__ = ["executor", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S"]
+__all__ = ["executor", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S", "LOCAL_WORKERS_PER_CORE",
+           "parallel_workers"]
 
 #: Named schedulers (besides ``tcp://HOST:PORT``).
 SCHEDULERS = ("local", "slurm")
 #: How long joining a cluster may take before its address is called unreachable, s.
 CONNECT_TIMEOUT_S = 5.0
+#: Most local worker processes (a pool or a Dask LocalCluster) per usable core: beyond the
+#: cores they only add memory (each imports quatform, NumPy and perhaps JAX), and a huge
+#: --workers would start that many processes.
+LOCAL_WORKERS_PER_CORE = 4
+
+
+def parallel_workers(workers: int, scheduler: str | None) -> int:
+    """How many chunks can run at once: local workers are bounded by this machine's usable
+    cores; a cluster's (``tcp://``, ``slurm``) are taken as given."""
+    return min(workers, usable_cores()) if scheduler in (None, "local") else workers
 
 
 def _import(module: str):
@@ -82,6 +93,11 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
     """
     if not isinstance(workers, int) or workers < 1:
         raise InvalidInputError(f"--workers {workers!r} must be a whole number >= 1")
+    cores = usable_cores()
+    if scheduler in (None, "local") and workers > LOCAL_WORKERS_PER_CORE * cores:
+        raise ResourceLimitError(f"--workers {workers}: this machine has {cores} usable core(s), and more than "
+                                 f"{LOCAL_WORKERS_PER_CORE * cores} local worker processes only add memory; give "
+                                 f"--workers {cores}, or run on a cluster (--scheduler tcp://HOST:PORT or slurm)")
     if scheduler is None:
         if workers == 1:
             yield None

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..checks import memory_budget_bytes, time_budget_s
 from ..errors import ResourceLimitError
-from .executors import executor
+from .executors import executor, parallel_workers
 from .results import ChunkStore, ordered_rows, summarize, write_table
 from .trials import Chunk, cell_experiment, row_metrics, run_chunk
 
@@ -59,7 +59,7 @@ class Estimate:
 
 
 def estimate(spec, workers: int = 1) -> Estimate:
-    """The sweep's trials, robot-steps, wall time (on ``workers``) and largest chunk's memory;
+    """The sweep's trials, robot-steps, wall time (``workers`` chunks at once) and largest chunk's memory;
     refuses (one line with the numbers and the key to change) what cannot fit."""
     shapes: dict = {}
     cells = spec.cells()
@@ -89,7 +89,7 @@ def estimate(spec, workers: int = 1) -> Estimate:
             f"{where}: one batch of {size} trials needs about {chunk_bytes / 1e9:.3g} GB (batch x T x channels x 8 B "
             f"x {MEMORY_FACTOR}), more than the {cap / 1e9:.3g} GB allowed (QUATFORM_MAX_MEMORY_BYTES); lower "
             "chunk_trials (or trials), or shorten duration_s")
-    wall = seconds / max(1, workers)
+    wall = seconds / max(1, min(workers, len(cells) * n_chunks))  # no more chunks at once than there are
     budget = time_budget_s()
     if wall > budget:
         raise ResourceLimitError(
@@ -139,7 +139,7 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
         raise
     except ImportError as exc:
         raise MissingDependencyError(f"--backend {backend}: {exc}; pip install -e \".[{backend}]\"") from None
-    est = estimate(spec, workers)
+    est = estimate(spec, parallel_workers(workers, scheduler))
     with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any file is made
         store = ChunkStore(out, spec, backend)
         rows: list[dict] = []
