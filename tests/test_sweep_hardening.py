@@ -102,3 +102,16 @@ def test_huge_workers_neither_start_nor_shrink_the_estimate(tmp_path, capsys):
                      *extra]) == 2
         assert f"--workers {too_many}" in _one_line(capsys)
         assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("edit, match", [
+    (("duration_s = 1.0", "duration_s = 500.0"), r"duration_s = 500 s is longer than the scenario's own 80 s"),
+    (("duration_s = 1.0", "duration_s = 1e-6"), r"shorter than two of the scenario's control ticks"),
+    (("settle_s = 0.2", "settle_s = 1.0"), r"settle_s = 1 is not before the end of the run"),
+    (("settle_s = 0.2\n", ""), r"the scenario's metrics_from_s = 5 s \(settle_s not given\)"),
+    (("settle_s = 0.2", "settle_s = 0.2\n[vary.latency_s]\nvalues = [0.0, 1.0]"), r"latency_s\] value 1 s is not shorter"),
+])
+def test_run_length_mistakes_are_one_line(tmp_path, edit, match):
+    with pytest.raises(InvalidInputError, match=match) as exc:
+        load_sweep(_spec(tmp_path, SPEC.replace(*edit)))
+    assert "\n" not in str(exc.value)

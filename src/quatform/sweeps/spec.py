@@ -399,6 +399,7 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
                                     f"vary {', '.join(p for p in PARAMETERS if p in can)}")
     duration = number(data, "duration_s", where, None, low=0.0, low_open=True)
     settle = number(data, "settle_s", where, None, low=0.0)
+    _check_times(sc, duration, settle, axes, where)
     chunk = integer(data, "chunk_trials", where, None, low=1, high=MAX_TRIALS)
     slurm = table(data, "slurm", where, default={})
     check_keys(slurm, SLURM_KEYS, where, "[slurm]", _HINT)
@@ -408,6 +409,30 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
                      success=_success(data, where), slurm=slurm, where=where,
                      data={**data, "scenario": scenario, "kind": kind_name,
                            "scenario_sha256": _file_hash(scenario)})
+
+
+def _check_times(sc, duration, settle, axes, where: str) -> None:
+    """The run's length against the scenario's and the varied latency (one line each)."""
+    own = float(sc.duration_s)
+    if duration is not None and duration > own:
+        raise InvalidInputError(f"{where}: duration_s = {duration:g} s is longer than the scenario's own {own:g} s; a "
+                                f"sweep runs the first duration_s of it: give at most {own:g} (or lengthen the "
+                                "scenario file's duration_s)")
+    run = own if duration is None else duration
+    if run < 2 * float(sc.dt_s):
+        raise InvalidInputError(f"{where}: duration_s = {run:g} s is shorter than two of the scenario's control "
+                                f"ticks (dt_s = {sc.dt_s:g} s); give a longer duration_s")
+    start = float(sc.metrics_from_s) if settle is None else settle
+    if start >= run:
+        what = f"settle_s = {settle:g}" if settle is not None else \
+            f"the scenario's metrics_from_s = {start:g} s (settle_s not given)"
+        raise InvalidInputError(f"{where}: {what} is not before the end of the run (duration_s = {run:g} s): no "
+                                "sample would be measured; set settle_s below duration_s")
+    lat = next((a for a in axes if a.name == "latency_s"), None)
+    if lat is not None and max(lat.values) >= run:
+        raise InvalidInputError(f"{where}: [vary.latency_s] value {max(lat.values):g} s is not shorter than the run "
+                                f"(duration_s = {run:g} s): the controller would never read a measurement; give "
+                                "latencies below duration_s")
 
 
 def _file_hash(ref: str) -> str:

@@ -156,8 +156,7 @@ def cell_scenario(spec, values: dict, choice: str):
         try:
             sc = dataclasses.replace(sc, **short)
         except InvalidInputError as exc:
-            raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}; set settle_s below duration_s"
-                                    ) from None
+            raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}") from None
     scale = values.get("gain_scale")
     if scale is not None and scale != 1.0:
         axis = spec.axis("gain_scale")
