@@ -115,3 +115,38 @@ def test_run_length_mistakes_are_one_line(tmp_path, edit, match):
     with pytest.raises(InvalidInputError, match=match) as exc:
         load_sweep(_spec(tmp_path, SPEC.replace(*edit)))
     assert "\n" not in str(exc.value)
+
+
+def test_an_empty_out_or_an_unreadable_sweep_json_is_one_line(tmp_path, capsys):
+    spec = str(_spec(tmp_path))
+    for out in ("", "  "):
+        assert main(["sweep", spec, "--out", out]) == 2
+        assert "is empty; give a folder" in _one_line(capsys)
+    out = tmp_path / "o"
+    assert main(["sweep", spec, "--out", str(out), "--no-plots", "--quiet"]) == 0
+    capsys.readouterr()
+    (out / "sweep.json").write_text('{"identity": ')  # cut off
+    assert main(["sweep", spec, "--out", str(out), "--no-plots", "--quiet"]) == 2
+    assert "sweep.json is unreadable" in _one_line(capsys)
+
+
+@pytest.mark.parametrize("slurm", ['cores = "4"', "jobs = 0", "processes = 1.5", "cores = true"])
+def test_slurm_counts_are_whole_numbers(tmp_path, slurm):
+    with pytest.raises(InvalidInputError, match=r"\[slurm\]: \w+ = .* must be a whole number >= 1"):
+        load_sweep(_spec(tmp_path, SPEC + "[slurm]\n" + slurm + "\n"))
+
+
+def test_slurm_flag_counts_are_whole_numbers(tmp_path, capsys):
+    assert main(["sweep", str(_spec(tmp_path)), "--out", str(tmp_path / "o"), "--scheduler", "slurm",
+                 "--slurm", "cores=abc", "--print-job-script"]) == 2
+    assert "cores = 'abc' must be a whole number" in _one_line(capsys)
+
+
+def test_a_team_size_the_scenario_cannot_take_names_the_axis(tmp_path):
+    text = ('scenario = "team-three-bodies"\ntrials = 1\nduration_s = 1.0\nsettle_s = 0.2\n'
+            'controllers = ["quaternion"]\n[vary.team_size]\nvalues = [4]\n')
+    from quatform.sweeps import estimate
+
+    with pytest.raises(InvalidInputError, match=r"\[vary.team_size\] value 4: .*triangle template holds 3") as exc:
+        estimate(load_sweep(_spec(tmp_path, text)))
+    assert "\n" not in str(exc.value)

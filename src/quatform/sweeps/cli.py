@@ -46,7 +46,7 @@ def add_parsers(sub) -> None:
 def _slurm_options(spec, pairs) -> dict:
     from ..checks import check_keys
     from ..errors import InvalidInputError
-    from .spec import SLURM_KEYS
+    from .spec import SLURM_KEYS, check_slurm
 
     opts = dict(spec.slurm)
     for pair in pairs:
@@ -55,6 +55,7 @@ def _slurm_options(spec, pairs) -> dict:
             raise InvalidInputError(f"--slurm {pair!r}: give KEY=VALUE (e.g. --slurm queue=normal)")
         check_keys({key: value}, SLURM_KEYS, "--slurm", "the options", "see docs/sweeps.md")
         opts[key] = int(value) if value.isdigit() else value
+    check_slurm(opts, "--slurm / [slurm]")
     return opts
 
 
@@ -67,6 +68,8 @@ def sweep_command(args) -> None:
     from ..sim.output import check_inputs_outside
     from .spec import load_sweep
 
+    if not args.out.strip():
+        raise InvalidInputError(f"--out {args.out!r} is empty; give a folder (e.g. --out runs/sweep)")
     check_inputs_outside(args.out, args.spec)  # a spec file inside --out: refused before any work
     if args.trials is not None and args.trials < 1:
         raise InvalidInputError(f"--trials {args.trials} must be >= 1")

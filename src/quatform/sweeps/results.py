@@ -46,7 +46,10 @@ class ChunkStore:
             try:
                 old = json.loads(meta.read_text(encoding="utf-8"))
             except (OSError, ValueError):
-                old = {}
+                old = None
+            if not isinstance(old, dict):
+                raise InvalidInputError(f"--out {str(out)!r}: its {SPEC_FILE} is unreadable, so its chunks cannot be told "
+                                        "to be this spec's; give a new --out")
             if (old.get("identity"), old.get("backend")) != (spec.identity, backend):
                 raise InvalidInputError(
                     f"--out {str(out)!r} holds the sweep {old.get('name')!r} of another spec or backend "

@@ -28,7 +28,8 @@ from ..errors import InvalidInputError, ResourceLimitError
 from ..tomlio import builtin_files, read_toml
 
 __all__ = ["Parameter", "PARAMETERS", "Axis", "Success", "SweepSpec", "load_sweep", "sweep_from_dict",
-           "builtin_sweeps", "DEFAULT_SUCCESS_BELOW", "DEFAULT_SUCCESS_FALSE", "MAX_TRIALS", "SLURM_KEYS"]
+           "builtin_sweeps", "DEFAULT_SUCCESS_BELOW", "DEFAULT_SUCCESS_FALSE", "MAX_TRIALS", "SLURM_KEYS",
+           "SLURM_COUNTS", "check_slurm"]
 
 _HINT = "see docs/sweeps.md"
 
@@ -403,12 +404,25 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     chunk = integer(data, "chunk_trials", where, None, low=1, high=MAX_TRIALS)
     slurm = table(data, "slurm", where, default={})
     check_keys(slurm, SLURM_KEYS, where, "[slurm]", _HINT)
+    check_slurm(slurm, f"{where}: [slurm]")
     return SweepSpec(name=text(data, "name", where, Path(where).stem), title=text(data, "title", where, ""),
                      source=text(data, "source", where, ""), scenario=scenario, compare_key=key, choices=choices,
                      axes=axes, trials=trials, seed=seed, duration_s=duration, settle_s=settle, chunk_trials=chunk,
                      success=_success(data, where), slurm=slurm, where=where,
                      data={**data, "scenario": scenario, "kind": kind_name,
                            "scenario_sha256": _file_hash(scenario)})
+
+
+#: The [slurm] options that count (jobs, cores, worker processes per job): whole numbers >= 1.
+SLURM_COUNTS = ("cores", "processes", "jobs")
+
+
+def check_slurm(options: dict, where: str) -> None:
+    """Refuse a count of ``[slurm]`` / ``--slurm`` that is not a whole number >= 1 (one line)."""
+    for key in SLURM_COUNTS:
+        v = options.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
+            raise InvalidInputError(f"{where}: {key} = {short(v)} must be a whole number >= 1 (e.g. {key} = 4)")
 
 
 def _check_times(sc, duration, settle, axes, where: str) -> None:

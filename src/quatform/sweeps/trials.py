@@ -145,7 +145,12 @@ def cell_scenario(spec, values: dict, choice: str):
     kind = KINDS[spec.data["kind"]]
     adapter = SWEEP_KINDS[kind.name]
     data = adapter.data(dict(data), values, spec.where)
-    sc = kind.from_dict(data, where)
+    try:
+        sc = kind.from_dict(data, where)
+    except InvalidInputError as exc:
+        if "team_size" not in values:
+            raise
+        raise InvalidInputError(f"{spec.where}: [vary.team_size] value {values['team_size']}: {exc}") from None
     # the first duration_s of the scenario (its changes past the end do not happen), measured from settle_s
     short = {}
     if spec.duration_s is not None:
