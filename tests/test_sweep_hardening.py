@@ -46,6 +46,15 @@ def test_ctrl_c_stops_the_local_workers():
     assert isinstance(fut.exception(timeout=30), BrokenProcessPool)
 
 
+def test_local_workers_leave_ctrl_c_to_the_sweep():
+    """A terminal's Ctrl-C reaches every process of the group: the workers ignore it (no
+    tracebacks from them) and the sweep's process stops them."""
+    import signal
+
+    with executor(2) as ex:
+        assert ex.submit(signal.getsignal, signal.SIGINT).result(timeout=60) == signal.SIG_IGN
+
+
 def test_ctrl_c_says_the_chunks_are_kept(tmp_path, capsys, monkeypatch):
     import quatform.sweeps.runner as runner
 

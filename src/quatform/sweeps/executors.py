@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import signal
 from concurrent.futures import ProcessPoolExecutor
 
 from ..checks import nearest
@@ -69,6 +70,14 @@ def slurm_job_script(options: dict) -> str:
         cluster.close()
 
 
+def _worker_setup(processes: int) -> None:
+    """In each local worker: JAX's CPU devices shared (:func:`share_cores`), and Ctrl-C left to
+    the sweep's own process, which stops the workers (a terminal's Ctrl-C reaches the whole
+    process group: the workers printed their tracebacks)."""
+    share_cores(processes)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _process_context():
     """Worker processes started clean: ``forkserver`` where the platform has it, else
     ``spawn``; never a bare ``fork`` of this process, which may hold JAX's (or BLAS's) threads
@@ -103,8 +112,8 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
             yield None
             return
         before = set(multiprocessing.active_children())
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_process_context(), initializer=share_cores,
-                                   initargs=(workers,))  # JAX's CPU devices: the cores shared
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_process_context(), initializer=_worker_setup,
+                                   initargs=(workers,))
         try:
             yield pool
         except BaseException:
@@ -126,7 +135,7 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
             cluster = stack.enter_context(distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
                                                                    processes=True, dashboard_address=None))
             client = stack.enter_context(distributed.Client(cluster))
-            client.run(share_cores, workers)  # this machine's cores shared by its workers (JAX's CPU devices)
+            client.run(_worker_setup, workers)  # this machine's cores shared by its workers; Ctrl-C is ours
         elif scheduler == "slurm":
             cluster = stack.enter_context(slurm_cluster(dict(slurm or {})))
             cluster.scale(jobs=int((slurm or {}).get("jobs", workers)))
