@@ -159,3 +159,9 @@ def test_a_team_size_the_scenario_cannot_take_names_the_axis(tmp_path):
     with pytest.raises(InvalidInputError, match=r"\[vary.team_size\] value 4: .*triangle template holds 3") as exc:
         estimate(load_sweep(_spec(tmp_path, text)))
     assert "\n" not in str(exc.value)
+
+
+def test_a_grid_value_listed_twice_is_refused(tmp_path):
+    text = SPEC + "[vary.noise_m]\nvalues = [0.0, 0.01, 0.01]\n"
+    with pytest.raises(InvalidInputError, match=r"\[vary.noise_m\] values = .* lists 0.01 twice; list each value once"):
+        load_sweep(_spec(tmp_path, text))

@@ -294,6 +294,10 @@ def _axis(name: str, d, where: str, seed: int, index: int) -> Axis:
         if not vals:
             raise InvalidInputError(f"{where}: {place} values = [] is an empty range; give at least one value")
         values = tuple(read({"values": v}, "values") for v in vals)
+        twice = next((v for i, v in enumerate(values) if v in values[:i]), None)
+        if twice is not None:  # two cells with the same parameters and label: a typo, most likely
+            raise InvalidInputError(f"{where}: {place} values = {short(vals)} lists {twice:g} twice; list each value "
+                                    "once (for more trials of it, raise trials)")
     elif form == ("start", "stop", "count"):
         for k in form:
             if k not in d:
