@@ -165,3 +165,22 @@ def test_a_grid_value_listed_twice_is_refused(tmp_path):
     text = SPEC + "[vary.noise_m]\nvalues = [0.0, 0.01, 0.01]\n"
     with pytest.raises(InvalidInputError, match=r"\[vary.noise_m\] values = .* lists 0.01 twice; list each value once"):
         load_sweep(_spec(tmp_path, text))
+
+
+def test_a_scenario_refused_at_its_own_length_says_so(tmp_path, monkeypatch):
+    """The kinds check a scenario at its file's duration_s (80 s here) before the sweep's
+    duration_s applies: the line says so instead of asking to shorten a duration already short."""
+    from quatform.errors import ResourceLimitError
+
+    monkeypatch.setenv("QUATFORM_MAX_WORK_S", "1")
+    with pytest.raises(ResourceLimitError, match=r"checked at its own length before the sweep's duration_s = 1.0 s") as exc:
+        load_sweep(_spec(tmp_path))
+    assert "\n" not in str(exc.value)
+    text = ('scenario = "team-grid-100"\ntrials = 1\nduration_s = 1.0\nsettle_s = 0.2\ncontrollers = ["quaternion"]\n'
+            "[vary.team_size]\nvalues = [10000]\n")
+    monkeypatch.delenv("QUATFORM_MAX_WORK_S")
+    monkeypatch.setenv("QUATFORM_MAX_MEMORY_BYTES", "1e9")
+    from quatform.sweeps import estimate
+
+    with pytest.raises(ResourceLimitError, match=r"before the sweep's duration_s = 1 s applies.*10000 robots"):
+        estimate(load_sweep(_spec(tmp_path, text)))

@@ -359,7 +359,13 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     if not isinstance(data, dict):
         raise InvalidInputError(f"{where}: a sweep spec is a TOML table")
     scenario = _scenario_ref(data, where, base)
-    sc = load_scenario(scenario)
+    try:
+        sc = load_scenario(scenario)
+    except ResourceLimitError as exc:  # its kind checks it at its file's length; duration_s applies after
+        if "duration_s" not in data:
+            raise
+        raise ResourceLimitError(f"{where}: the scenario is checked at its own length before the sweep's "
+                                 f"duration_s = {short(data['duration_s'])} s applies, and refused: {exc}") from None
     kind = kind_of(sc)
     kind_name = kind.name
     if kind_name not in SWEEP_KINDS:

@@ -24,7 +24,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..checks import nearest
-from ..errors import InvalidInputError, QuatformError
+from ..errors import InvalidInputError, QuatformError, ResourceLimitError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair
 from ..sim.trial_measurement import TickMeasurement
 from ..tomlio import read_toml
@@ -147,6 +147,12 @@ def cell_scenario(spec, values: dict, choice: str):
     data = adapter.data(dict(data), values, spec.where)
     try:
         sc = kind.from_dict(data, where)
+    except ResourceLimitError as exc:
+        # the kind checks the scenario as its file has it; the sweep's duration_s applies after
+        if spec.duration_s is None:
+            raise
+        raise ResourceLimitError(f"{spec.where}: the scenario is checked at its own length before the sweep's "
+                                 f"duration_s = {spec.duration_s:g} s applies, and refused: {exc}") from None
     except InvalidInputError as exc:
         if "team_size" not in values:
             raise
