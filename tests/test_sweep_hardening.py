@@ -184,3 +184,13 @@ def test_a_scenario_refused_at_its_own_length_says_so(tmp_path, monkeypatch):
 
     with pytest.raises(ResourceLimitError, match=r"before the sweep's duration_s = 1 s applies.*10000 robots"):
         estimate(load_sweep(_spec(tmp_path, text)))
+
+
+def test_a_bad_cell_is_refused_before_any_chunk_runs(tmp_path, capsys):
+    """Only the first cell of each run shape was built up front: a gain scale making the loop
+    unstable was found mid-run, after the first chunks had locked --out to the spec."""
+    text = SPEC + "[vary.gain_scale]\nvalues = [1.0, 1e6]\n"
+    out = tmp_path / "o"
+    assert main(["sweep", str(_spec(tmp_path, text)), "--out", str(out), "--no-plots", "--quiet"]) == 2
+    assert "gain_scale = 1e+06" in _one_line(capsys)
+    assert not out.exists()

@@ -22,7 +22,7 @@ from ..checks import memory_budget_bytes, time_budget_s
 from ..errors import ResourceLimitError
 from .executors import executor, parallel_workers
 from .results import ChunkStore, ordered_rows, summarize, write_table
-from .trials import Chunk, cell_experiment, row_metrics, run_chunk
+from .trials import Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
 
 __all__ = ["plan_chunks", "estimate", "Estimate", "run_sweep", "SECONDS_PER_TICK", "SECONDS_PER_ROBOT_STEP",
            "BYTES_PER_VALUE", "MEMORY_FACTOR"]
@@ -64,7 +64,12 @@ def estimate(spec, workers: int = 1) -> Estimate:
     shapes: dict = {}
     cells = spec.cells()
     size = spec.chunk_trials or spec.trials
+    checked = set()
     for _, choice, values in cells:
+        variant = (choice, values.get("team_size"), values.get("gain_scale"))
+        if variant not in checked:  # every scenario variant built once: a bad one is refused before any run
+            checked.add(variant)
+            cell_scenario(spec, values, choice)
         key = (choice, values.get("team_size"))
         if key not in shapes:
             exp = cell_experiment(spec, values, choice)
