@@ -194,3 +194,41 @@ def test_a_bad_cell_is_refused_before_any_chunk_runs(tmp_path, capsys):
     assert main(["sweep", str(_spec(tmp_path, text)), "--out", str(out), "--no-plots", "--quiet"]) == 2
     assert "gain_scale = 1e+06" in _one_line(capsys)
     assert not out.exists()
+
+
+def test_sigint_mid_sweep_then_rerun_gives_the_same_table(tmp_path):
+    """A real Ctrl-C after the first stored chunk: status 130, one line, no table; the rerun
+    resumes (skipping the stored chunks) and writes the table of an uninterrupted run."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    text = SPEC.replace("trials = 1", "trials = 4\nchunk_trials = 1").replace("duration_s = 1.0", "duration_s = 3.0")
+    spec = _spec(tmp_path, text)
+    out, ref = tmp_path / "o", tmp_path / "ref"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    cmd = [sys.executable, "-m", "quatform.cli", "sweep", str(spec), "--no-plots"]
+    proc = subprocess.Popen([*cmd, "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    deadline = time.monotonic() + 120
+    while not (out / "chunks").is_dir() or not any((out / "chunks").glob("cell*.json")):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the sweep finished before the interrupt arrived")
+    assert proc.returncode == 130, err
+    last = err.strip().splitlines()[-1]
+    assert "Traceback" not in err and "rerun the same command to resume" in last
+    assert not (out / "results.csv").exists()
+    stored = len(list((out / "chunks").glob("cell*.json")))
+    again = subprocess.run([*cmd, "--out", str(out)], env=env, capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0, again.stderr
+    assert f"resuming, {stored}/4 trials already stored" in again.stderr
+    whole = subprocess.run([*cmd, "--out", str(ref), "--quiet"], env=env, capture_output=True, text=True, timeout=120)
+    assert whole.returncode == 0, whole.stderr
+    assert (out / "results.csv").read_text() == (ref / "results.csv").read_text()
+    assert (out / "summary.json").read_text() == (ref / "summary.json").read_text()
