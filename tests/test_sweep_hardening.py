@@ -232,3 +232,12 @@ def test_sigint_mid_sweep_then_rerun_gives_the_same_table(tmp_path):
     assert whole.returncode == 0, whole.stderr
     assert (out / "results.csv").read_text() == (ref / "results.csv").read_text()
     assert (out / "summary.json").read_text() == (ref / "summary.json").read_text()
+
+
+def test_an_out_holding_other_files_names_one(tmp_path, capsys):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "metrics.json").write_text("{}")  # e.g. a quatform run's folder
+    assert main(["sweep", str(_spec(tmp_path)), "--out", str(out), "--no-plots", "--quiet"]) == 2
+    assert "not a sweep's (no sweep.json; e.g. 'metrics.json')" in _one_line(capsys)
+    assert sorted(p.name for p in out.iterdir()) == ["metrics.json"]

@@ -55,9 +55,9 @@ class ChunkStore:
                     f"--out {str(out)!r} holds the sweep {old.get('name')!r} of another spec or backend "
                     f"({old.get('identity')}, {old.get('backend')}; this is {spec.identity}, {backend}); give a new "
                     "--out, or rerun the same spec to resume it")
-        elif self.out.exists() and [n for n in os.listdir(self.out) if n != OUTPUT_MARKER]:
-            raise InvalidInputError(f"--out {str(out)!r} holds files quatform did not write; give a new or empty "
-                                    "folder")
+        elif self.out.exists() and (other := sorted(n for n in os.listdir(self.out) if n != OUTPUT_MARKER)):
+            raise InvalidInputError(f"--out {str(out)!r} holds files that are not a sweep's (no {SPEC_FILE}; e.g. "
+                                    f"{other[0]!r}); give a new or empty folder")
         self._ident, self._meta = ident, meta  # written with the first chunk: a sweep refused before it
         # (a [success] metric it does not compute) leaves no folder that locks --out to that spec
 
