@@ -31,7 +31,7 @@ SPEC_FILE = "sweep.json"
 class ChunkStore:
     """The finished chunks of one sweep in ``out/chunks/``.
 
-    Opening refuses a folder that holds another spec's sweep, or files quatform did not write;
+    Opening refuses a folder that holds another spec's sweep, or files that are not a sweep's;
     the folder and its ``sweep.json`` are made when the first chunk is saved.
     """
 
