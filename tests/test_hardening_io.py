@@ -520,3 +520,28 @@ def test_check_inputs_outside_follows_links_and_skips_names(tmp_path):
     output.check_inputs_outside(tmp_path / "out", None, "mas-kitts-helix", tmp_path / "bag.mcap", object())
     output.check_inputs_outside(tmp_path / "out2", tmp_path / "out" / "bag.mcap")
     assert (tmp_path / "out" / "bag.mcap").read_text() == "x"
+
+
+@pytest.mark.parametrize("name", ["QUATFORM_MAX_MEMORY_BYTES", "QUATFORM_MAX_WORK_S"])
+@pytest.mark.parametrize("value", ["abc", "-5", "0", "nan", "inf"])
+def test_a_budget_that_is_no_positive_number_is_one_line(monkeypatch, name, value):
+    from quatform.checks import memory_budget_bytes, time_budget_s
+    from quatform.errors import InvalidInputError
+
+    monkeypatch.setenv(name, value)
+    budget = memory_budget_bytes if "MEMORY" in name else time_budget_s
+    with pytest.raises(InvalidInputError, match=name) as exc:
+        budget()
+    assert "\n" not in str(exc.value) and repr(value) in str(exc.value)
+    monkeypatch.setenv(name, " 2.5e3 ")
+    assert budget() == 2500.0
+
+
+def test_a_toml_file_with_a_byte_order_mark_reads(tmp_path):
+    """Some editors start a UTF-8 file with a byte-order mark: the scenario reads as without it."""
+    from quatform.scenarios import builtin_scenarios, load_scenario
+
+    text = builtin_scenarios()["mas-kitts-spiral"].read_text(encoding="utf-8")
+    f = tmp_path / "bom.toml"
+    f.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert repr(load_scenario(f)) == repr(load_scenario("mas-kitts-spiral"))

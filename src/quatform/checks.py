@@ -236,11 +236,27 @@ def check_within_run(where: str, key: str, value: float, duration_s: float, last
             f"time {last_sample_s:g} s; else {consequence}")
 
 
+def _env_budget(name: str, unit: str) -> float | None:
+    """The positive number the environment variable ``name`` gives (None when unset or
+    empty); anything else is one line naming it."""
+    env = os.environ.get(name, "").strip()
+    if not env:
+        return None
+    try:
+        value = float(env)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InvalidInputError(f"{name}={env!r} must be a positive number of {unit}; set it so "
+                                f"(e.g. {name}=8e9 or 3600) or unset it for the default")
+    return value
+
+
 def memory_budget_bytes() -> float:
     """Half of this machine's physical memory (``QUATFORM_MAX_MEMORY_BYTES`` overrides it)."""
-    env = os.environ.get("QUATFORM_MAX_MEMORY_BYTES")
-    if env:
-        return float(env)
+    env = _env_budget("QUATFORM_MAX_MEMORY_BYTES", "bytes")
+    if env is not None:
+        return env
     try:
         return 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
@@ -249,8 +265,8 @@ def memory_budget_bytes() -> float:
 
 def time_budget_s() -> float:
     """The longest run accepted, in wall seconds: 6 h (``QUATFORM_MAX_WORK_S`` overrides it)."""
-    env = os.environ.get("QUATFORM_MAX_WORK_S")
-    return float(env) if env else 6 * 3600.0
+    env = _env_budget("QUATFORM_MAX_WORK_S", "seconds")
+    return 6 * 3600.0 if env is None else env
 
 
 def check_work(where: str, key: str, steps: float, *, bytes_per_step: float = 0.0,

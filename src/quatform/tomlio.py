@@ -61,7 +61,7 @@ def _read_text(p: Path, what: str) -> str:
     if len(raw) > MAX_TOML_BYTES:  # grew since stat
         raise InvalidInputError(f"{p}: too large for a {what} file (at most {MAX_TOML_BYTES:,} bytes); {fix}")
     try:
-        return raw.decode("utf-8")
+        return raw.decode("utf-8-sig")  # a byte-order mark some editors write is no TOML statement
     except UnicodeDecodeError as exc:
         line = raw.count(b"\n", 0, exc.start) + 1
         raise InvalidInputError(f"{p}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}); save the "
