@@ -107,6 +107,7 @@ __all__ = [
     "LOOP_AXES",
     "hold",
     "initial_carry",
+    "initial_states",
     "point_velocities",
     "require_jax",
     "scan_ticks",
@@ -305,13 +306,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     check_supported(plant, controller, measurement)
     times, dt = check_ticks(times, substeps, dt)
     n = times.size
-    x = np.array(x0, dtype=float)
-    if x.shape[-1:] != (len(plant.state_columns),):
-        raise ShapeError(f"jax simulate: x0 must have shape (*batch, {len(plant.state_columns)}), got {x.shape}")
-    batch = x.shape[:-1]
-    B = math.prod(batch)
-    if B == 0:
-        raise ShapeError(f"jax simulate: x0 of shape {x.shape} holds no world; give at least one")
+    x, batch, B = initial_states(plant, x0)
     parts = team_parts(controller)
     c_ref, cd_ref, r_ref = stack_reference(controller if parts is None else parts[0], reference, n, batch)
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
@@ -447,6 +442,19 @@ def _rerun_on_host(plant, controller, times, x, dt, substeps, tick, noise, dropp
         idx = np.unravel_index(int(sel[local[0]]), batch)
         out[tuple(int(i) for i in idx)] = reason
     return out
+
+
+def initial_states(plant, x0):
+    """``(x, batch, B)``: the initial states ``x0`` as a float array of shape ``(*batch, n_x)``
+    for ``plant``, the batch shape and the number of worlds (at least one; one-line errors)."""
+    x = np.array(x0, dtype=float)
+    if x.shape[-1:] != (len(plant.state_columns),):
+        raise ShapeError(f"jax simulate: x0 must have shape (*batch, {len(plant.state_columns)}), got {x.shape}")
+    batch = x.shape[:-1]
+    B = math.prod(batch)
+    if B == 0:
+        raise ShapeError(f"jax simulate: x0 of shape {x.shape} holds no world; give at least one")
+    return x, batch, B
 
 
 def initial_carry(x, delay):

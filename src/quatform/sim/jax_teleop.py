@@ -27,15 +27,14 @@ NumPy's error, as :func:`quatform.sim.simulate` does. float64 inside ``jax.enabl
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
 
-from ..errors import InvalidInputError, ShapeError
+from ..errors import InvalidInputError
 from ..teleop import TeleopController
 from ..teleop.controller import MAX_JOINT_ANGLE, MAX_JOINT_RATE, MAX_WRIST_FORCE, MAX_WRIST_MOMENT
-from .jax_loop import cached, check_ticks, require_jax, scan_ticks
+from .jax_loop import cached, check_ticks, initial_states, require_jax, scan_ticks
 from .log import Channel, Log
 from .plants.teleop import TeleopPlant
 from .simulate import WORLD_ERRORS, PerfectMeasurement
@@ -183,13 +182,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     check_teleop(plant, controller, measurement)
     times, dt = check_ticks(times, substeps, dt)
     n = times.size
-    x = np.array(x0, dtype=float)
-    if x.shape[-1:] != (len(plant.state_columns),):
-        raise ShapeError(f"jax simulate: x0 must have shape (*batch, {len(plant.state_columns)}), got {x.shape}")
-    batch = x.shape[:-1]
-    B = math.prod(batch)
-    if B == 0:
-        raise ShapeError(f"jax simulate: x0 of shape {x.shape} holds no world; give at least one")
+    x, batch, B = initial_states(plant, x0)
     tick = _compiled_scan(jax, plant, controller, dt, substeps)
     xs = dict(_targets(plant, times, dt, substeps), t=times)
     carry = (x.reshape(B, -1), np.full(B, -1, dtype=np.int64), np.zeros(B, dtype=np.int64))
