@@ -36,6 +36,13 @@ def array_namespace(x):
     return np if concrete(x) or isinstance(x, (list, tuple)) else x.__array_namespace__()
 
 
+def common_namespace(*arrays):
+    """NumPy, or the namespace of the first operand that is not concrete (a JAX array or tracer;
+    None is skipped): the module a kernel on mixed operands (NumPy constants, JAX arrays) computes with."""
+    return next((a.__array_namespace__() for a in arrays
+                 if a is not None and not concrete(a) and not isinstance(a, (list, tuple))), np)
+
+
 def dot_last(a, b):
     """``sum_i a_i b_i`` over the last axis: NumPy's ``einsum`` for NumPy arrays, the products'
     sum on another namespace (XLA runs a batched ``einsum`` as one tiny product per row)."""

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..algebra.kernels import common_namespace
 from ..errors import InvalidInputError
 from ..formations import geometry as g
 
@@ -71,16 +72,40 @@ class MocapScreen:
         """
         if not finite:
             return FRAME_DROPPED
+        code = self.frame_code(t, points, True, good_points, good_t)
+        return FRAME_GOOD if code == 0 else FRAME_REJECTED
+
+    def frame_code(self, t, points, finite, good_points, good_t):
+        """:meth:`classify` as a code, on arrays of any namespace (NumPy, JAX under ``jax.jit``):
+        0 good, 1 dropped, 2 rejected, shape that of ``finite``.
+
+        Parameters
+        ----------
+        t : float or array
+            Time of the frame, s.
+        points : sequence of arrays, shape (..., 3) each
+        finite : bool array, shape (...)
+        good_points : sequence of arrays (..., 3), or None
+            The last good frame's positions (anything where there is none).
+        good_t : float or array, shape (...), or None
+            Its time, s; NaN where there is no good frame yet (its positions are not read there).
+        """
+        xp = common_namespace(t, finite, good_t, *points, *(good_points or ()))
+
+        def dist(a, b):
+            d = a - b
+            return xp.sqrt(xp.sum(d * d, axis=-1))
+
+        rejected = xp.zeros(np.shape(finite), dtype=bool)
         for i in range(len(points)):
             for j in range(i + 1, len(points)):
-                if np.linalg.norm(points[j] - points[i]) < self.min_separation_m:
-                    return FRAME_REJECTED
+                rejected = rejected | (dist(points[j], points[i]) < self.min_separation_m)
         if good_points is not None:
-            dt = max(t - good_t, 0.0)
+            dt = t - good_t
+            dt = xp.where(0.0 > dt, 0.0, dt)  # max(t - good_t, 0)
             for p, q, v in zip(points, good_points, self.top_speeds):
-                if np.linalg.norm(p - q) > v * dt + self.jump_margin_m:
-                    return FRAME_REJECTED
-        return FRAME_GOOD
+                rejected = rejected | (dist(p, q) > v * dt + self.jump_margin_m)
+        return xp.where(finite, xp.where(rejected, 2, 0), 1)
 
     def expired(self, t: float, bad_since: float) -> bool:
         """Whether bad frames since ``bad_since`` have lasted longer than ``max_hold_s``."""
@@ -125,18 +150,23 @@ class ArenaWalls:
         points : sequence of ndarray, shape (3,) each
         rates : ndarray, shape (3 N,)
         """
-        out = np.array(rates, dtype=float)
+        xp = common_namespace(rates, *points)
+        rates = np.asarray(rates, dtype=float) if xp is np else rates
+        out = [rates[..., i] for i in range(rates.shape[-1])]
         for k, pos in enumerate(points):
             for axis in range(3):
-                lo, hi = self.box[axis]
-                room_hi = max(0.0, hi - self.margin - pos[axis])
-                room_lo = max(0.0, pos[axis] - (lo + self.margin))
                 if (k, axis) in self.free:
                     continue
+                lo, hi = self.box[axis]
+                room_hi = hi - self.margin - pos[..., axis]
+                room_lo = pos[..., axis] - (lo + self.margin)
+                room_hi = xp.where(room_hi > 0.0, room_hi, 0.0)  # max(0, room): NaN reads as no room
+                room_lo = xp.where(room_lo > 0.0, room_lo, 0.0)
                 i = 3 * k + axis
-                out[i] = min(out[i], self.gain * room_hi)
-                out[i] = max(out[i], -self.gain * room_lo)
-        return out
+                top, bottom = self.gain * room_hi, -self.gain * room_lo
+                out[i] = xp.where(top < out[i], top, out[i])  # min(rate, top)
+                out[i] = xp.where(bottom > out[i], bottom, out[i])  # max(rate, bottom)
+        return xp.stack(out, axis=-1)
 
 
 @dataclass(frozen=True)
@@ -159,4 +189,4 @@ class HeadingLaw:
 
     def rate(self, psi_des, psi):
         """Yaw rate, rad/s, for the yaw ``psi`` toward ``psi_des`` (floats or arrays)."""
-        return self.k * np.tanh(g.wrap(psi_des - psi))  # (4.50)-(4.51)
+        return self.k * common_namespace(psi_des, psi).tanh(g.wrap(psi_des - psi))  # (4.50)-(4.51)

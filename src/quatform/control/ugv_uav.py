@@ -21,9 +21,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..algebra.kernels import common_namespace, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, UnreachableError
 from ..formations import UgvUavQuaternion
+from ..formations import pair_kernels as kern
 from ..formations.base import Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
 from . import contract
@@ -268,6 +270,10 @@ class UgvUavController(ClusterController):
     def cluster_rates(self, c, c_des, c_dot_des):
         """Cluster error and rate reference, eqs. (4.43)-(4.45) (:attr:`law`)."""
         F = self.formation
+        if not concrete(c):  # JAX (traced, (..., n_c)): the law on components
+            e = None if isinstance(F, UgvUavQuaternion) else kern.unpack(F.errors(c, c_des))
+            err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des), e)
+            return kern.pack(err), kern.pack(rate)
         e = None if isinstance(F, UgvUavQuaternion) else F.errors(c, c_des).tolist()  # angles wrapped
         err, rate = self.law(c.tolist(), c_des.tolist(), c_dot_des.tolist(), e)
         return np.array(err), np.array(rate)
@@ -289,8 +295,8 @@ class UgvUavController(ClusterController):
         yet; ``state`` remembers the good frame or the start of the run of bad ones.
         """
         finite = bool(np.all(np.isfinite(m[0:7])))
-        frame = self.mocap.classify(t, self._points(m) if finite else None, finite,
-                                    None if state.good is None else self._points(state.good), state.good_t)
+        frame = self.mocap.classify(t, self.measured_points(m) if finite else None, finite,
+                                    None if state.good is None else self.measured_points(state.good), state.good_t)
         if frame == FRAME_GOOD:
             if not np.all(np.isfinite(m[7:11])):  # the Bebop's odometry: the last finite one, or rest
                 m = np.r_[m[0:7], np.where(np.isfinite(m[7:11]), m[7:11],
@@ -308,13 +314,16 @@ class UgvUavController(ClusterController):
             m = as_array(measured, "measured state", 11)
         frame, used, state = self.screen(state, t, m)
         if frame != FRAME_GOOD and not state.stopped and self.mocap.expired(t, state.bad_since):
-            state = replace(state, stopped=True, stop_reason=(
-                f"motion capture: no good frame for {t - state.bad_since:.3g} s (more than max_hold_s = "
-                f"{self.max_hold_s:g} s) from t = {state.bad_since:.6g} s; both robots stopped"))
+            state = replace(state, stopped=True, stop_reason=self.stop_reason(t, state.bad_since))
         if used is None or frame == FRAME_GOOD:
             return frame, used, False, m, state
         # the pose is held; the Bebop's own odometry is not from the motion capture
         return frame, np.r_[used[0:7], np.where(np.isfinite(m[7:11]), m[7:11], used[7:11])], True, m, state
+
+    def stop_reason(self, t: float, bad_since: float) -> str:
+        """Why the screen stopped both robots at ``t`` after bad frames since ``bad_since``, s."""
+        return (f"motion capture: no good frame for {t - bad_since:.3g} s (more than max_hold_s = "
+                f"{self.max_hold_s:g} s) from t = {bad_since:.6g} s; both robots stopped")
 
     def _step(self, state, u, c, err, x_rate, finite, frame, held, outside, used) -> contract.Step:
         nan11 = np.full(11, np.nan)
@@ -381,10 +390,15 @@ class UgvUavController(ClusterController):
         u, memory = self.team.actuate(m, np.r_[x_rate, psi_rate], t, state.memory)
         return self.team.saturate(u), replace(state, memory=memory)
 
-    def _points(self, m):
-        """The robots' positions in the 11 measured values (the Pioneer's at ``z_ugv``)."""
-        return (np.array([m[0], m[1], self.z_ugv]), m[3:6])
+    def measured_points(self, m):
+        """The robots' positions in the 11 measured values (the Pioneer's at ``z_ugv``), ``(..., 3)``
+        each (any namespace)."""
+        if concrete(m):
+            return (np.array([m[0], m[1], self.z_ugv]), m[3:6])
+        xp = common_namespace(m)
+        return (xp.concatenate([m[..., 0:2], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
+                m[..., 3:6])
 
     def _keep_inside(self, m, x_rate):
         """:attr:`walls` on the robots' world rates."""
-        return self.walls.limit(self._points(m), x_rate)
+        return self.walls.limit(self.measured_points(m), x_rate)

@@ -12,6 +12,7 @@ import numpy as np
 from ..algebra import wrap_angle
 from ..algebra.kernels import array_namespace as namespace
 from ..algebra.kernels import as_floats
+from ..algebra.kernels import common_namespace as _xp
 from ..algebra.kernels import dot_last, qmul_components
 from . import pair_kernels as kern
 
@@ -21,11 +22,10 @@ _CONJ = np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def mul(q, p):
-    """Hamilton product ``q p`` of broadcast ``(..., 4)`` arrays (NumPy, or JAX where either is)."""
-    xp = namespace(q)
-    if xp is np:
-        xp = namespace(p)
-    return xp.stack(qmul_components(*xp.moveaxis(q, -1, 0), *xp.moveaxis(p, -1, 0)), axis=-1)
+    """Hamilton product ``q p`` of broadcast ``(..., 4)`` arrays (any namespace)."""
+    xp = _xp(q, p)
+    return xp.stack(xp.broadcast_arrays(*qmul_components(*xp.moveaxis(q, -1, 0), *xp.moveaxis(p, -1, 0))),
+                    axis=-1)
 
 
 def conj(q):
@@ -57,43 +57,46 @@ def q_pitch_y(angle):
 
 def yaw_of(q):
     """Yaw (z-y-x) of nonzero quaternions ``(..., 4)``; see :func:`pair_kernels.yaw_of`."""
-    return kern.yaw_of(tuple(np.moveaxis(np.asarray(q, dtype=float), -1, 0)))
+    q = as_floats(q)
+    return kern.yaw_of(tuple(_xp(q).moveaxis(q, -1, 0)))
 
 
 def rotate(q, v):
     """``R(q) v`` for unit ``q`` (vector part of ``q v q*``)."""
+    xp = _xp(q, v)
     w = q[..., :1]
     u = q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    t = 2.0 * xp.cross(u, v)
+    return v + w * t + xp.cross(u, t)
 
 
 def x_axis(q):
     """First column of ``R(q)`` for unit ``q``, shape ``(..., 3)``."""
-    q = np.asarray(q, dtype=float)
-    return _pack(kern.x_axis(tuple(np.moveaxis(q, -1, 0))), q.shape[:-1])
+    q = as_floats(q)
+    return _pack(kern.x_axis(tuple(_xp(q).moveaxis(q, -1, 0))), q.shape[:-1])
 
 
 def z_axis(q):
     """Third column of ``R(q)`` for unit ``q``, shape ``(..., 3)``."""
-    q = np.asarray(q, dtype=float)
-    return _pack(kern.z_axis(tuple(np.moveaxis(q, -1, 0))), q.shape[:-1])
+    q = as_floats(q)
+    return _pack(kern.z_axis(tuple(_xp(q).moveaxis(q, -1, 0))), q.shape[:-1])
 
 
 def concat(parts):
-    """Concatenate ``(..., k_i)`` arrays along the last axis, broadcasting their batch axes."""
+    """Concatenate ``(..., k_i)`` arrays along the last axis, broadcasting their batch axes (any namespace)."""
+    xp = _xp(*parts)
     shape = np.broadcast_shapes(*(np.shape(p)[:-1] for p in parts))
-    return np.concatenate([np.broadcast_to(p, shape + np.shape(p)[-1:]) for p in parts], axis=-1)
+    return xp.concatenate([xp.broadcast_to(p, shape + np.shape(p)[-1:]) for p in parts], axis=-1)
 
 
 def _pack(comps, shape):
-    xp = namespace(comps[0])
+    xp = _xp(*comps)
     return xp.stack([xp.broadcast_to(x, shape) for x in comps], axis=-1)
 
 
 def closest_sign(q, ref):
     """``q`` or ``-q``, whichever is nearer ``ref`` (``q . ref >= 0``)."""
-    return np.where((dot(q, ref) < 0.0)[..., None], -q, q)
+    return _xp(q, ref).where((dot(q, ref) < 0.0)[..., None], -q, q)
 
 
 def swing(a, b, fallback_axis):
@@ -103,15 +106,16 @@ def swing(a, b, fallback_axis):
     At ``b = -a`` the axis is undefined; ``fallback_axis`` (a unit vector orthogonal to
     ``a``) is used there, giving the half turn about it.
     """
+    xp = _xp(a, b)
     c = 1.0 + dot(a, b)
-    v = np.cross(a, b)
-    q = np.concatenate([c[..., None], v], axis=-1)
+    v = xp.cross(a, b)
+    q = xp.concatenate([c[..., None], v], axis=-1)
     n = norm(q)
     anti = n < 1e-12
-    if np.any(anti):
-        half = np.concatenate([np.zeros(np.shape(c) + (1,)), np.broadcast_to(fallback_axis, v.shape)], axis=-1)
-        q = np.where(anti[..., None], half, q)
-        n = np.where(anti, 1.0, n)
+    if xp is not np or np.any(anti):  # on JAX both branches, selected
+        half = xp.concatenate([xp.zeros(np.shape(c) + (1,)), xp.broadcast_to(fallback_axis, v.shape)], axis=-1)
+        q = xp.where(anti[..., None], half, q)
+        n = xp.where(anti, 1.0, n)
     return q / n[..., None]
 
 

@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace as namespace
+from ..algebra.kernels import as_floats, common_namespace, concrete, dot_last
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
@@ -74,8 +76,19 @@ class _UgvUav(Formation):
         return r, p[..., 0, :], d
 
     def _robots(self, x_p, x_b):
-        """Robot state (or rate) of the UGV point and the UAV position."""
-        return self.layout.compose(np.stack(np.broadcast_arrays(x_p, x_b), axis=-2))
+        """Robot state (or rate) of the UGV point and the UAV position (any namespace)."""
+        if concrete(x_p) and concrete(x_b):
+            return self.layout.compose(np.stack(np.broadcast_arrays(x_p, x_b), axis=-2))
+        xp = common_namespace(x_p, x_b)
+        return xp.concatenate(xp.broadcast_arrays(x_p, x_b), axis=-1)  # the layout (xyz, xyz): x_p then x_b
+
+    def inverse_jacobian_arrays(self, c):
+        """:meth:`inverse_jacobian_at` of checked arrays of any namespace (``(..., 6, n_c)``):
+        ``robot_rate_arrays`` (each description's :meth:`robot_rate` without its checks, on
+        NumPy or JAX arrays) on the unit vectors. ``forward_arrays`` is :meth:`forward`
+        without its checks (robots apart, the state inside the description: the caller's)."""
+        cols = self.robot_rate_arrays(c, self._basis(self.n_c, c.ndim - 1))
+        return namespace(c).moveaxis(cols, 0, -1)
 
     def to_chart(self, c, *, near_e=None, r=None):
         return UgvUavSpherical().forward(self.inverse(c) if r is None else r, near_c=near_e)
@@ -89,18 +102,20 @@ class UgvUavSpherical(_UgvUav):
     variables = SPHERICAL_VARIABLES
 
     def forward(self, r, *, near_c=None):
-        r, x_p, d = self._delta(r)
-        rho_h = np.hypot(d[..., 0], d[..., 1])
-        c = np.empty(r.shape[:-1] + (6,))
-        c[..., 0:3] = x_p  # (4.1)-(4.3)
-        c[..., 3] = np.linalg.norm(d, axis=-1)  # (4.4)
-        alpha = np.arctan2(d[..., 1], d[..., 0])  # (4.5)
+        r, _, _ = self._delta(r)
+        return self.forward_arrays(r, None if near_c is None else as_array(near_c, "near_c", 6))
+
+    def forward_arrays(self, r, near_c=None):
+        xp = namespace(r)
+        p = self.layout.positions(r) if xp is np else r.reshape(r.shape[:-1] + (2, 3))
+        x_p, d = p[..., 0, :], p[..., 1, :] - p[..., 0, :]
+        rho_h = xp.hypot(d[..., 0], d[..., 1])
+        rho = xp.linalg.norm(d, axis=-1)  # (4.4)
+        alpha = xp.arctan2(d[..., 1], d[..., 0])  # (4.5)
         if near_c is not None:
-            near_c = as_array(near_c, "near_c", 6)
-            alpha = np.where(rho_h <= OVERHEAD_TOL * c[..., 3], near_c[..., 4], g.unwrap_near(alpha, near_c[..., 4]))
-        c[..., 4] = alpha
-        c[..., 5] = np.arctan2(d[..., 2], rho_h)  # (4.6)
-        return c
+            alpha = xp.where(rho_h <= OVERHEAD_TOL * rho, near_c[..., 4], g.unwrap_near(alpha, near_c[..., 4]))
+        # (4.1)-(4.3), (4.4), (4.5), (4.6)
+        return g.concat([x_p, xp.stack(xp.broadcast_arrays(rho, alpha, xp.arctan2(d[..., 2], rho_h)), axis=-1)])
 
     def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
@@ -131,13 +146,15 @@ class UgvUavSpherical(_UgvUav):
 
     def robot_rate(self, c, c_dot, *, r=None):
         """Derivative of (4.7)-(4.12) along ``c_dot``; rank 5 with the UAV overhead (``cos beta_c = 0``)."""
-        c = np.asarray(c, dtype=float)
-        cd = as_array(c_dot, "c_dot", 6)
+        return self.robot_rate_arrays(np.asarray(c, dtype=float), as_array(c_dot, "c_dot", 6))
+
+    def robot_rate_arrays(self, c, cd):
+        xp = common_namespace(c, cd)
         rho, a, b = c[..., 3:4], c[..., 4:5], c[..., 5:6]
-        ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
-        v_b = (cd[..., 0:3] + cd[..., 3:4] * np.concatenate([ca * cb, sa * cb, sb], -1)
-               + cd[..., 4:5] * rho * np.concatenate([-sa * cb, ca * cb, 0 * cb], -1)
-               + cd[..., 5:6] * rho * np.concatenate([-ca * sb, -sa * sb, cb], -1))
+        ca, sa, cb, sb = xp.cos(a), xp.sin(a), xp.cos(b), xp.sin(b)
+        v_b = (cd[..., 0:3] + cd[..., 3:4] * xp.concatenate([ca * cb, sa * cb, sb], -1)
+               + cd[..., 4:5] * rho * xp.concatenate([-sa * cb, ca * cb, 0 * cb], -1)
+               + cd[..., 5:6] * rho * xp.concatenate([-ca * sb, -sa * sb, cb], -1))
         return self._robots(cd[..., 0:3], v_b)
 
     def special_sets(self):
@@ -204,22 +221,26 @@ class UgvUavRestricted(_UgvUav):
         return [(name, (c[..., i] < lo - tol) | (c[..., i] > hi + tol)) for i, name in ((4, "alpha_f"), (5, "beta_f"))]
 
     def _formulas(self, r):
-        """Eqs. (4.13)-(4.18) without checks, and ``z_b - z_p``: ``(c (..., 6), dz (...))``."""
-        p = self.layout.positions(r)
+        """Eqs. (4.13)-(4.18) without checks, and ``z_b - z_p``: ``(c (..., 6), dz (...))`` (any namespace)."""
+        xp = namespace(r)
+        p = self.layout.positions(r) if xp is np else r.reshape(r.shape[:-1] + (2, 3))
         d = p[..., 1, :] - p[..., 0, :]
-        rho = np.linalg.norm(d, axis=-1)
-        c = np.empty(r.shape[:-1] + (6,))
-        c[..., 0:3] = p[..., 0, :]  # (4.13)-(4.15)
-        c[..., 3] = rho  # (4.16)
+        rho = xp.linalg.norm(d, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            c[..., 4] = np.arcsin(np.clip(d[..., 0] / rho, -1, 1))  # (4.17)
-            c[..., 5] = np.arcsin(np.clip(d[..., 1] / rho, -1, 1))  # (4.18)
-        return c, d[..., 2]
+            alpha = xp.arcsin(xp.clip(d[..., 0] / rho, -1, 1))  # (4.17)
+            beta = xp.arcsin(xp.clip(d[..., 1] / rho, -1, 1))  # (4.18)
+        # (4.13)-(4.15), (4.16)
+        return xp.concatenate([p[..., 0, :], xp.stack([rho, alpha, beta], axis=-1)], axis=-1), d[..., 2]
+
+    def forward_arrays(self, r, near_c=None):
+        """Eqs. (4.13)-(4.18) (``near_c`` is not needed: no angle is wound); where
+        :meth:`reachable` is False :meth:`forward` refuses the state."""
+        return self._formulas(r)[0]
 
     def reachable(self, r):
         """Where ``r`` is inside the description: the UAV at or above the platform and both
-        angles within ``tolerance_deg`` of the range; a bool array (...). Raises nothing."""
-        c, dz = self._formulas(np.asarray(r, dtype=float))
+        angles within ``tolerance_deg`` of the range; a bool array (...). Raises nothing (any namespace)."""
+        c, dz = self._formulas(as_floats(r))
         out = dz < 0
         for _, bad in self._angles_out(c, self.tolerance):
             out |= bad
@@ -303,11 +324,15 @@ class UgvUavRestricted(_UgvUav):
         return self._expressible(r)[2]
 
     def inverse(self, c, *, near_r=None):
-        c = self._expressible_cluster(c)
-        sa, sb = np.sin(c[..., 4]), np.sin(c[..., 5])
-        x_b = np.stack([c[..., 0] + c[..., 3] * sa,  # (4.22)
+        return self.inverse_arrays(self._expressible_cluster(c))
+
+    def inverse_arrays(self, c):
+        """Eqs. (4.19)-(4.24) of a checked cluster state (any namespace), without the checks."""
+        xp = namespace(c)
+        sa, sb = xp.sin(c[..., 4]), xp.sin(c[..., 5])
+        x_b = xp.stack([c[..., 0] + c[..., 3] * sa,  # (4.22)
                         c[..., 1] + c[..., 3] * sb,  # (4.23)
-                        c[..., 2] + c[..., 3] * np.sqrt(np.maximum(0.0, 1 - sa * sa - sb * sb))], axis=-1)  # (4.24)
+                        c[..., 2] + c[..., 3] * xp.sqrt(xp.maximum(0.0, 1 - sa * sa - sb * sb))], axis=-1)  # (4.24)
         return self._robots(c[..., 0:3], x_b)  # (4.19)-(4.21)
 
     def cluster_rate(self, r, r_dot, *, near_c=None):
@@ -341,14 +366,17 @@ class UgvUavRestricted(_UgvUav):
         c = self._expressible_cluster(c)
         if r is not None:
             self._expressible(r)
-        cd = as_array(c_dot, "c_dot", 6)
+        return self.robot_rate_arrays(c, as_array(c_dot, "c_dot", 6))
+
+    def robot_rate_arrays(self, c, cd):
+        xp = common_namespace(c, cd)
         rho, a, b = c[..., 3:4], c[..., 4:5], c[..., 5:6]
-        sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
+        sa, ca, sb, cb = xp.sin(a), xp.cos(a), xp.sin(b), xp.cos(b)
         # (4.24)'s root: its derivative is infinite at platform level; clipped at W_MIN
-        w = np.sqrt(np.maximum(W_MIN ** 2, 1 - sa * sa - sb * sb))
-        v_b = (cd[..., 0:3] + cd[..., 3:4] * np.concatenate([sa, sb, w], -1)
-               + cd[..., 4:5] * rho * np.concatenate([ca, 0 * ca, -sa * ca / w], -1)
-               + cd[..., 5:6] * rho * np.concatenate([0 * cb, cb, -sb * cb / w], -1))
+        w = xp.sqrt(xp.maximum(W_MIN ** 2, 1 - sa * sa - sb * sb))
+        v_b = (cd[..., 0:3] + cd[..., 3:4] * xp.concatenate([sa, sb, w], -1)
+               + cd[..., 4:5] * rho * xp.concatenate([ca, 0 * ca, -sa * ca / w], -1)
+               + cd[..., 5:6] * rho * xp.concatenate([0 * cb, cb, -sb * cb / w], -1))
         return self._robots(cd[..., 0:3], v_b)
 
     def from_chart(self, e, e_dot=None):
@@ -381,19 +409,23 @@ class UgvUavQuaternion(_UgvUav):
         return c
 
     def forward(self, r, *, near_c=None):
-        r, x_p, d = self._delta(r)
-        D = np.linalg.norm(d, axis=-1)
+        r, _, _ = self._delta(r)
+        return self.forward_arrays(r, None if near_c is None else self.check_cluster_state(near_c, "near_c"))
+
+    def forward_arrays(self, r, near_c=None):
+        xp = namespace(r)
+        p = self.layout.positions(r) if xp is np else r.reshape(r.shape[:-1] + (2, 3))
+        x_p, d = p[..., 0, :], p[..., 1, :] - p[..., 0, :]
+        D = xp.linalg.norm(d, axis=-1)
         u = d / D[..., None]
         if near_c is None:  # eqs. (4.26), (4.28), (4.29): minimal rotation from i
             qh = np.array([1.0, 0.0, 0.0, 0.0])
         else:
-            qh = self.check_cluster_state(near_c, "near_c")[..., 3:7]
+            qh = near_c[..., 3:7]
         qc = g.mul(g.swing(g.x_axis(qh), u, g.z_axis(qh)), qh)
-        c = np.zeros(r.shape[:-1] + (10,))
-        c[..., 0:3] = x_p  # (4.25)
-        c[..., 3:7] = g.closest_sign(qc, qh)
-        c[..., 7] = D  # (4.27)
-        return c
+        qc = g.closest_sign(qc, qh)
+        # (4.25), q_c, (4.27), d_c = (D, 0, 0)
+        return g.concat([x_p, qc, D[..., None], xp.zeros(np.shape(D) + (2,))])
 
     def inverse(self, c, *, near_r=None):
         c = self.check_cluster_state(c)
@@ -421,17 +453,19 @@ class UgvUavQuaternion(_UgvUav):
         with (4.40) ``d(q d q*)/dq q' = 2 [w' (w d + u x d) + (u . d) u' + u (d . u') - d (u . u')
         - w (d x u')]`` (seed 001 eq. (2.47), derived form) and (4.41) ``R(q) d' = (w^2 - |u|^2) d'
         + 2 u (u . d') + 2 w (u x d')`` (eq. (2.45)), for ``q = (w, u)`` as given (not normalised)."""
-        c = np.asarray(c, dtype=float)
-        cd = as_array(c_dot, "c_dot", 10)
+        return self.robot_rate_arrays(np.asarray(c, dtype=float), as_array(c_dot, "c_dot", 10))
+
+    def robot_rate_arrays(self, c, cd):
+        xp = common_namespace(c, cd)
         w, u, d = c[..., 3:4], c[..., 4:7], c[..., 7:10]
         wd, ud, dd = cd[..., 3:4], cd[..., 4:7], cd[..., 7:10]
 
         def dot(a, b):
-            return np.einsum("...i,...i->...", a, b)[..., None]
+            return dot_last(a, b)[..., None]
 
-        rot_q = 2.0 * (wd * (w * d + np.cross(u, d)) + dot(u, d) * ud + u * dot(d, ud) - d * dot(u, ud)
-                       - w * np.cross(d, ud))
-        rot_d = (w * w - dot(u, u)) * dd + 2.0 * u * dot(u, dd) + 2.0 * w * np.cross(u, dd)
+        rot_q = 2.0 * (wd * (w * d + xp.cross(u, d)) + dot(u, d) * ud + u * dot(d, ud) - d * dot(u, ud)
+                       - w * xp.cross(d, ud))
+        rot_d = (w * w - dot(u, u)) * dd + 2.0 * u * dot(u, dd) + 2.0 * w * xp.cross(u, dd)
         return self._robots(cd[..., 0:3], cd[..., 0:3] + rot_q + rot_d)
 
     def special_sets(self):

@@ -23,6 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..algebra.kernels import as_floats as _float
+from ..algebra.kernels import common_namespace as _xp
+from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 
@@ -33,13 +36,13 @@ TABLE2_K = (0.8417, 0.1823, 0.8354, 0.1710, 3.966, 4.001, 9.8524, 4.7295)
 
 
 def yaw_matrix(psi) -> np.ndarray:
-    """``A_b`` of eq. (3.7), shape ``(..., 4, 4)``."""
-    psi = np.asarray(psi, dtype=float)
-    c, s = np.cos(psi), np.sin(psi)
-    A = np.zeros(psi.shape + (4, 4))
-    A[..., 0, 0], A[..., 0, 1], A[..., 1, 0], A[..., 1, 1] = c, -s, s, c
-    A[..., 2, 2] = A[..., 3, 3] = 1.0
-    return A
+    """``A_b`` of eq. (3.7), shape ``(..., 4, 4)`` (any namespace)."""
+    psi = _float(psi)
+    xp = _xp(psi)
+    c, s = xp.cos(psi), xp.sin(psi)
+    o, i = xp.zeros_like(c), xp.ones_like(c)
+    return xp.stack([xp.stack(row, axis=-1) for row in ((c, -s, o, o), (s, c, o, o), (o, o, i, o), (o, o, o, i))],
+                    axis=-2)
 
 
 @dataclass(frozen=True)
@@ -156,33 +159,37 @@ class Bebop:
         memory : BebopMemory
             With this step's ``v_r`` and ``t``.
         """
-        x, rate = np.asarray(x, dtype=float), np.asarray(rate, dtype=float)
+        x, rate = _float(x), _float(rate)
+        xp = _xp(x, rate, t, memory.t)
         A = yaw_matrix(-x[..., 3])
-        v_r = A @ rate if rate.ndim == 1 else np.einsum("...ij,...j->...i", A, rate)  # (3.10)
+        v_r = A @ rate if rate.ndim == 1 else xp.einsum("...ij,...j->...i", A, rate)  # (3.10)
         v_dot = memory.v_dot
         if self.compensation:
             t_prev = memory.t
-            new = np.isfinite(t_prev) & (t > t_prev)
-            if np.any(new):
+            new = xp.isfinite(t_prev) & (t > t_prev)
+            if xp is not np or np.any(new):  # on JAX both branches, selected
                 with np.errstate(invalid="ignore", divide="ignore"):
                     raw = (v_r - memory.v_r) / (t - t_prev)[..., None]
                     # first-order filter on the differentiated reference (it carries the noise)
                     alpha = ((t - t_prev) / (self.derivative_filter_s + t - t_prev))[..., None]
-                    v_dot = np.where(new[..., None], v_dot + alpha * (raw - v_dot), v_dot)
+                    v_dot = xp.where(new[..., None], v_dot + alpha * (raw - v_dot), v_dot)
             v = x[..., 4:8]
             u = (v_dot + np.asarray(self.l_d) * (v_r - v) + self.k_v * v) / self.k_u  # (4.47)-(4.49)
         else:
             u = self.k_v / self.k_u * v_r
-        return u, BebopMemory(v_r, np.broadcast_to(np.float64(t), np.shape(memory.t)).copy(), v_dot)
+        t_now = np.broadcast_to(np.float64(t), np.shape(memory.t)).copy() if xp is np else \
+            xp.broadcast_to(xp.asarray(t, dtype=v_r.dtype), np.shape(memory.t))
+        return u, BebopMemory(v_r, t_now, v_dot)
 
     def brake(self, x, memory: BebopMemory):
         """Commands that brake to a hover: (4.47) with ``v_r = 0`` and no derivative,
         ``u = K_u^-1 (-L_d v + K_v v)`` (non-finite velocities read as 0); the memory
         forgets its reference (the next derivative is not taken)."""
-        v = np.asarray(x, dtype=float)[..., 4:8]
-        v = np.where(np.isfinite(v), v, 0.0)
+        v = _float(x)[..., 4:8]
+        xp = _xp(v, memory.v_r)
+        v = xp.where(xp.isfinite(v), v, 0.0)
         u = (-np.asarray(self.l_d) * v + self.k_v * v) / self.k_u
-        return u, BebopMemory(np.full_like(memory.v_r, np.nan), np.full_like(memory.t, np.nan), memory.v_dot)
+        return u, BebopMemory(xp.full_like(memory.v_r, np.nan), xp.full_like(memory.t, np.nan), memory.v_dot)
 
     @property
     def k_u(self) -> np.ndarray:
@@ -198,10 +205,11 @@ class Bebop:
         return self.k_u / self.k_v * self.max_fraction
 
     def saturate(self, u) -> np.ndarray:
-        """Commands clipped to ``+-max_fraction``; non-finite commands become zero."""
-        u = np.asarray(u, dtype=float)
-        u = np.where(np.all(np.isfinite(u), axis=-1, keepdims=True), u, 0.0)
-        return np.clip(u, -self.max_fraction, self.max_fraction)
+        """Commands clipped to ``+-max_fraction``; non-finite commands become zero (any namespace)."""
+        u = _float(u)
+        xp = _xp(u)
+        u = xp.where(xp.all(xp.isfinite(u), axis=-1, keepdims=True), u, 0.0)
+        return xp.clip(u, -self.max_fraction, self.max_fraction)
 
     def step(self, state, u, dt: float) -> np.ndarray:
         """State ``(x, y, z, psi, v_x, v_y, z_dot, psi_dot)`` (body velocities) after ``dt`` s.
@@ -209,7 +217,8 @@ class Bebop:
         The body velocity relaxes exactly (first-order lag, command held); the pose is
         integrated with the mean velocity over the step and the mid-step yaw.
         """
-        state = as_array(state, "Bebop state", 8)
+        state = as_array(state, "Bebop state", 8) if concrete(state) else state
+        xp = _xp(state, u)
         u = self.saturate(u)
         pose, v0 = state[..., :4], state[..., 4:]
         v_inf = self.k_u / self.k_v * u
@@ -220,5 +229,6 @@ class Bebop:
         else:
             v1 = mean = v_inf
         psi_mid = pose[..., 3] + 0.5 * dt * mean[..., 3]
-        world = np.einsum("...ij,...j->...i", yaw_matrix(psi_mid), mean)
-        return np.concatenate([pose + dt * world, v1], axis=-1)
+        world = xp.einsum("...ij,...j->...i", yaw_matrix(psi_mid), mean)
+        return xp.concatenate([pose + dt * world, v1], axis=-1)
+

@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ..algebra import q_from_axis_angle
+from ..algebra.kernels import common_namespace
 from ..errors import InvalidInputError, ShapeError
 from ..formations import geometry as g
 
@@ -113,23 +114,98 @@ class MotionCapture:
 
     def read(self, t: float) -> np.ndarray:
         """The 11 measured values available to the controller at ``t``, s."""
-        frame_t = math.floor(t * self.rate + 1e-9) / self.rate
+        frame_t = self._frame_time(t)
         if frame_t != self._frame_t:
-            x = self.history.at(frame_t - self.latency)
-            noise = self.rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
-            self._pose = np.r_[x[0:2] + noise[0:2], self._orientation(x[2]), x[3:6] + noise[2:5],
-                               self._orientation(x[6])]
-            if self.dropout_rate > 0 and self.fault_rng.random() < self.dropout_rate:
-                self._pose[:] = np.nan  # a lost frame
-            elif self.glitch_rate > 0 and self.fault_rng.random() < self.glitch_rate:
-                self._pose[3:6] = [self._pose[0], self._pose[1], self.ugv_z]  # the UAV's marker read at the UGV
+            self._pose = self.frame_pose(self.history.at(frame_t - self.latency), *self._draw())
             self._frame_t = frame_t
-        odo_t = math.floor(t / self.odo + 1e-9) * self.odo
-        return np.r_[self._pose, self.history.at(odo_t)[7:11]]
+        return np.r_[self._pose, self.history.at(self._odometry_time(t))[7:11]]
 
-    def _orientation(self, psi):
-        q = g.q_yaw(psi)
+    def _frame_time(self, t: float) -> float:
+        """Time of the motion-capture frame available at ``t``, s (frames every ``1 / rate_hz``)."""
+        return math.floor(t * self.rate + 1e-9) / self.rate
+
+    def _odometry_time(self, t: float) -> float:
+        """Time of the Bebop's odometry sample available at ``t``, s."""
+        return math.floor(t / self.odo + 1e-9) * self.odo
+
+    def _draw(self):
+        """One frame's random draws, in the order of their streams: ``(noise (5,), turns, lost,
+        glitched)``: the position noise, the two orientations' noise rotations (unit
+        quaternions ``(2, 4)``, or None without orientation noise), whether the frame is lost
+        and whether it reads the UAV's marker at the UGV."""
+        noise = self.rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
+        turns = None
         if self.noise_rad > 0:
-            axis = self.rng.normal(size=3)
-            q = g.mul(q_from_axis_angle(axis / np.linalg.norm(axis), self.rng.normal(0.0, self.noise_rad)), q)
-        return g.yaw_of(q)  # the lab receives a quaternion; the controllers need the yaw
+            turns = []
+            for _ in range(2):  # the UGV's heading, then the UAV's
+                axis = self.rng.normal(size=3)
+                turns.append(q_from_axis_angle(axis / np.linalg.norm(axis), self.rng.normal(0.0, self.noise_rad)))
+            turns = np.stack(turns)
+        lost = self.dropout_rate > 0 and self.fault_rng.random() < self.dropout_rate
+        glitched = not lost and self.glitch_rate > 0 and self.fault_rng.random() < self.glitch_rate
+        return noise, turns, lost, glitched
+
+    def frame_pose(self, x, noise, turns, lost, glitched):
+        """The 7 pose values of a frame of the plant output ``x`` (``(..., 11)``) with its draws
+        (:meth:`_draw`; leading axes as ``x``'s, ``turns`` ``(..., 2, 4)`` or None), on any
+        array namespace (NumPy, JAX under ``jax.jit``): the positions plus the noise, the yaws
+        read from the noise-rotated quaternions; all NaN where the frame is lost, the UAV's
+        position read at the UGV (at ``ugv_z``) where it is glitched."""
+        xp = common_namespace(x, noise, lost, glitched, turns)
+        pose = xp.concatenate([x[..., 0:2] + noise[..., 0:2], self._orientation(x[..., 2:3], turns, 0),
+                               x[..., 3:6] + noise[..., 2:5], self._orientation(x[..., 6:7], turns, 1)], axis=-1)
+        at_ugv = xp.concatenate([pose[..., 0:3], pose[..., 0:2], xp.full(np.shape(pose[..., :1]), float(self.ugv_z)),
+                                 pose[..., 6:7]], axis=-1)  # the UAV's marker read at the UGV
+        pose = xp.where(xp.asarray(glitched)[..., None], at_ugv, pose)
+        return xp.where(xp.asarray(lost)[..., None], np.nan, pose)  # a lost frame
+
+    @staticmethod
+    def _orientation(psi, turns, i):
+        """The yaw ``(..., 1)`` read from the quaternion of ``psi`` (``(..., 1)``) turned by ``turns[..., i, :]``."""
+        q = g.q_yaw(psi[..., 0])
+        if turns is not None:
+            q = g.mul(turns[..., i, :], q)
+        yaw = g.yaw_of(q)  # the lab receives a quaternion; the controllers need the yaw
+        return common_namespace(q).asarray(yaw)[..., None]
+
+    def schedule(self, times, dt: float, substeps: int) -> dict:
+        """What :meth:`read` will do at each control tick of a run of :func:`quatform.sim.simulate`
+        (ticks ``times``, ``substeps`` plant steps of ``dt`` between them), which does not depend
+        on the plant's states: drawn here with the same streams in the same order, for a loop
+        that consumes them (:mod:`quatform.sim.jax_ugv_uav`). The model is left fresh.
+
+        Returns
+        -------
+        dict
+            ``new`` (T,) bool: a new frame at the tick; ``pose_step``, ``odometry_step`` (T,)
+            int: the plant step (0: the start, ``k substeps + j``: after step ``j`` of tick
+            ``k - 1``...) whose output the frame and the odometry read; ``noise`` (T, 5),
+            ``turns`` (T, 2, 4) or None, ``lost``, ``glitched`` (T,) bool: the draws of each
+            new frame (zeros elsewhere).
+        """
+        times = np.asarray(times, dtype=float)
+        n = times.size
+        self._reset()
+        steps = LatencyHistory(self.history.horizon)  # the plant steps by time, as the outputs are kept
+        new, lost, glitched = (np.zeros(n, dtype=bool) for _ in range(3))
+        pose_step, odo_step = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        noise = np.zeros((n, 5))
+        turns = None if self.noise_rad <= 0 else np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (n, 2, 1))
+        frame = None
+        if n:
+            steps.add(float(times[0]), 0)
+        for k in range(n):
+            t = float(times[k])
+            frame_t = self._frame_time(t)
+            if frame_t != frame:
+                new[k], frame = True, frame_t
+                pose_step[k] = steps.at(frame_t - self.latency)
+                noise[k], turn, lost[k], glitched[k] = self._draw()
+                if turns is not None:
+                    turns[k] = turn
+            odo_step[k] = steps.at(self._odometry_time(t))
+            for j in range(substeps):
+                steps.add(t + (j + 1) * dt, k * substeps + j + 1)
+        self._reset()
+        return {"new": new, "pose_step": pose_step, "odometry_step": odo_step, "noise": noise, "turns": turns,
+                "lost": lost, "glitched": glitched}

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...algebra.kernels import as_floats, common_namespace, concrete
 from ...robots import Bebop, Pioneer
 from ..measurement import MOTION_CAPTURE_COLUMNS
 
@@ -40,13 +41,14 @@ class PioneerBebopPlant:
         self.pioneer, self.bebop, self.floor = pioneer, bebop, float(floor)
 
     def output(self, x) -> np.ndarray:
-        """What the sensors see: the state itself, shape ``(..., 11)`` (a copy)."""
-        return np.array(x, dtype=float)
+        """What the sensors see: the state itself, shape ``(..., 11)`` (a copy; a JAX array as it is)."""
+        return np.array(x, dtype=float) if concrete(x) or isinstance(x, (list, tuple)) else x
 
     def step(self, x, u, dt: float, t: float = 0.0) -> np.ndarray:
-        """The state ``(..., 11)`` after ``dt`` s of the commands ``u`` ``(..., 6)`` (held)."""
-        x = np.asarray(x, dtype=float)
-        u = np.asarray(u, dtype=float)
+        """The state ``(..., 11)`` after ``dt`` s of the commands ``u`` ``(..., 6)`` (held; any namespace)."""
+        x, u = as_floats(x), as_floats(u)
+        xp = common_namespace(x, u)
         b = self.bebop.step(x[..., 3:11], u[..., 2:6], dt)
-        b[..., 2] = np.maximum(b[..., 2], self.floor)  # the floor
-        return np.concatenate([self.pioneer.step(x[..., 0:3], u[..., 0:2], dt), b], axis=-1)
+        floor = xp.maximum(b[..., 2:3], self.floor)  # the floor
+        return xp.concatenate([self.pioneer.step(x[..., 0:3], u[..., 0:2], dt), b[..., 0:2], floor, b[..., 3:]],
+                              axis=-1)
