@@ -38,8 +38,10 @@ of them shares one limit factor) and Pioneers offering ``xy_yaw`` points (their 
 :meth:`~quatform.control.team.TeamController.update` does); the teleop kind (seed 003:
 :class:`~quatform.sim.plants.teleop.TeleopPlant` under a
 :class:`~quatform.teleop.TeleopController`, one world or a vmapped batch) in
-:mod:`.jax_teleop`, reached through :data:`KIND_LOOPS`; anything else is refused in one
-line naming what runs here.
+:mod:`.jax_teleop`, and the ugv-uav kind (seed 001 §5:
+:class:`~quatform.control.ugv_uav.UgvUavController` on the Pioneer-Bebop plant with the
+motion capture, one world) in :mod:`.jax_ugv_uav`, both reached through :data:`KIND_LOOPS`;
+anything else is refused in one line naming what runs here.
 
 The separation barrier: on JAX each tick computes every pair's constraint of
 :class:`~quatform.control.safety.SeparationBarrier` (with the robots' point velocities of
@@ -91,6 +93,7 @@ from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
 from .plants.teleop import TeleopPlant
+from .plants.ugv_uav import PioneerBebopPlant
 from .simulate import WORLD_ERRORS, PerfectMeasurement
 from .trial_measurement import TickMeasurement
 
@@ -128,7 +131,8 @@ JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotS
 JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot, Pioneer, FreeBodyRobot)
 #: Plant type -> ``"module:function"`` of its kind's JAX loop (imported on first use; the pair and
 #: team kinds' loop is this module's).
-KIND_LOOPS = {TeleopPlant: "quatform.sim.jax_teleop:simulate"}
+KIND_LOOPS = {TeleopPlant: "quatform.sim.jax_teleop:simulate",
+              PioneerBebopPlant: "quatform.sim.jax_ugv_uav:simulate"}
 #: What the backend runs, for the one-line refusal of anything else.
 _RUNS = ("the jax backend runs the seed-000 pair experiments (its four controllers on kinematic holonomic robots) "
          "and the team kind's four team controllers (quaternion, dual-quaternion of shape 'frame', cluster-space, "
