@@ -44,8 +44,10 @@ def test_metrics_equal_on_the_experiment():
 
 
 
-@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion"})])
+@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion", "backend": "mujoco"})])
 def test_refuses_what_it_does_not_run(scenario, choice):
+    if choice.get("backend") == "mujoco":
+        pytest.importorskip("mujoco")
     sc = load_scenario(scenario)
     ex = kind_of(sc).experiment(sc, **choice)
     with pytest.raises(InvalidInputError, match=r"the jax backend runs the seed-000 pair experiments.*"

@@ -106,12 +106,3 @@ def test_refusals_are_one_line():
     assert "\n" not in str(err.value)
     assert isinstance(exp.measurement, MotionCapture)
 
-
-def test_mujoco_backend_is_refused():
-    pytest.importorskip("mujoco")
-    from quatform.scenarios.ugv_uav import mujoco_experiment
-
-    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=0.1)
-    with pytest.raises(InvalidInputError, match="numpy") as err:
-        mujoco_experiment(sc, "quaternion").run(backend="jax")
-    assert "\n" not in str(err.value)
