@@ -237,9 +237,9 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     _check(plant, controller, measurement)
     times, dt = jax_loop.check_ticks(times, substeps, dt)
     n = times.size
-    x = np.array(x0, dtype=float)
-    if x.shape != (len(plant.state_columns),):
-        raise ShapeError(f"jax simulate: MotionCapture measures one world at a time; x0 must have shape "
+    x, batch, _ = jax_loop.initial_states(plant, x0)
+    if batch:
+        raise ShapeError(f"jax simulate: MotionCapture measures one world at a time; give x0 of shape "
                          f"({len(plant.state_columns)},), got {x.shape}")
     c_ref, cd_ref, hold = _references(controller, reference, n)
     sched = measurement.schedule(times, dt, substeps)
