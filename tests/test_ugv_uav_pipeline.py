@@ -181,3 +181,16 @@ def test_controller_switches_must_be_booleans():
 def test_check_refuses_a_changed_scenario():
     with pytest.raises(InvalidInputError, match="mocap_dropout_rate"):
         check_ugv_uav_scenario(dataclasses.replace(_short(), mocap_dropout_rate=1.0))
+
+
+def test_the_scenarios_hold_limit_reaches_the_controller():
+    """``mocap_max_hold_s`` of the scenario file is the controller's ``max_hold_s`` (it kept
+    the default 0.5 s); a ``[gains]`` entry of the same name still wins."""
+    import dataclasses
+
+    from quatform.scenarios import load_scenario
+
+    sc = dataclasses.replace(load_scenario("marciano-circle"), mocap_max_hold_s=0.12)
+    assert sc.controller("quaternion").max_hold_s == 0.12
+    assert sc.controller("quaternion").mocap.max_hold_s == 0.12
+    assert dataclasses.replace(sc, gains={"max_hold_s": 0.3}).controller("quaternion").max_hold_s == 0.3

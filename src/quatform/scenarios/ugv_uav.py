@@ -151,7 +151,7 @@ class UgvUavScenario:
         try:
             bebop = bebop if bebop is not None else Bebop(max_fraction=self.max_fraction)
             return UgvUavController(UGV_UAV_FORMATIONS[formation], bebop=bebop, z_ugv=cz, arena=arena,
-                                    **{**self.gains, **options})
+                                    **{"max_hold_s": self.mocap_max_hold_s, **self.gains, **options})
         except TypeError as exc:
             raise InvalidInputError(f"scenario {self.name}: [gains]: {exc}") from None
 
