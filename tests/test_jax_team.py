@@ -3,8 +3,9 @@
 Short pieces of the built-in team scenarios run on NumPy and on JAX (batches with
 TickMeasurement noise, latency and dropped frames; one world) and every logged channel is
 compared within 1e-9, the separation barrier's signals included; a world whose robots sit on
-each other fails alone; a world whose barrier binds is NumPy's own run; the team sweep gives
-the same rows on both backends; what does not run on JAX is refused in one line.
+each other fails alone; a world whose barrier JAX cannot solve is NumPy's own run (the
+barrier solved on JAX: test_jax_barrier.py); the team sweep gives the same rows on both
+backends; what does not run on JAX is refused in one line.
 """
 
 from __future__ import annotations
@@ -114,13 +115,16 @@ def test_a_world_with_robots_on_each_other_fails_alone():
                 np.testing.assert_allclose(b[key][:, w], a[key][:, w], rtol=0, atol=TOL, err_msg=key)
 
 
-def test_a_world_whose_barrier_binds_is_numpys_run(monkeypatch):
+def test_a_world_whose_barrier_jax_cannot_solve_is_numpys_run(monkeypatch):
     pytest.importorskip("jax")
-    from quatform.sim import jax_loop
+    from quatform.sim import jax_barrier, jax_loop
 
     calls = []
     rerun = jax_loop._rerun_on_host
     monkeypatch.setattr(jax_loop, "_rerun_on_host", lambda *a, **k: calls.append(1) or rerun(*a, **k))
+    solve = jax_barrier.barrier_filter  # as if no world where a pair binds were solved (test_jax_barrier: K pairs)
+    monkeypatch.setattr(jax_barrier, "barrier_filter", lambda *a: (lambda r: r[:3] + (~r[2],))(solve(*a)))
+    monkeypatch.setattr(jax_loop, "_CACHE", {})  # no compiled tick of the real filter
 
     def reruns():
         return len(calls)

@@ -89,7 +89,7 @@ from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations.team_chart import team_positions
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot
-from . import jax_devices
+from . import jax_barrier, jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
 from .plants.teleop import TeleopPlant
@@ -617,7 +617,9 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
         bad_m = ~jnp.all(jnp.isfinite(m) & (jnp.abs(m) <= MAX_MAGNITUDE), axis=-1)
         code = jnp.where(bad_m, 1, jnp.where(close, 2, 0))
         signals = ()
-        if barrier is not None:  # SeparationBarrier.filter where no pair binds: u itself
+        if barrier is not None and jax_barrier.solves(team):  # SeparationBarrier.filter on JAX (jax_barrier)
+            u, sep, active, solved = jax_barrier.barrier_filter(barrier, team, m, u)
+        elif barrier is not None:  # SeparationBarrier.filter where no pair binds: u itself; where one does: NumPy's
             P = team_positions(L, m)
             V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
             pij = P[:, i, :] - P[:, j, :]
@@ -630,10 +632,12 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
                 R = barrier.range_m
             h = jnp.sum(pij * pij, axis=-1) - d2  # the single-integrator barrier (Robotarium certificate)
             g = 2.0 * jnp.sum(pij * (V[:, i, :] - V[:, j, :]), axis=-1) + gam * h  # Wang et al. 2017
-            binds = jnp.any((sep <= R) & (g < 0.0), axis=-1)
+            active = jnp.any((sep <= R) & (g < 0.0), axis=-1)
+            solved = ~active
+        if barrier is not None:
             start = (xs["k"] == 0) & jnp.any(sep < barrier.min_separation_m, axis=-1)  # SafeController._check_start
-            code = jnp.where(start, _HOST, jnp.where(code > 0, code, jnp.where(binds, _HOST, 0)))
-            signals = (jnp.min(sep, axis=-1, keepdims=True), jnp.zeros((B, 1), dtype=x.dtype))
+            code = jnp.where(start, _HOST, jnp.where(code > 0, code, jnp.where(solved, 0, _HOST)))
+            signals = (jnp.min(sep, axis=-1, keepdims=True), active[:, None])
         new_carry, u, out = _end_tick(plant, dt, substeps, xs, carry, (x, past, last, fail_tick, reason), code, u,
                                       (c, err, finite) + signals)
         return new_carry, (x, m, u) + out
@@ -661,15 +665,17 @@ def point_velocities(barrier, team, x, u):
 def config_key(plant, controller) -> tuple:
     """What a compiled tick depends on, as a hashable value: the controller's class, its
     formation's class (the pair descriptions hold no parameters), its law (gains), team,
-    feed-forward and checks, and the plant's team. Two experiments with equal configurations
-    (a sweep's chunks, a benchmark's repeats) share one compilation."""
+    feed-forward and checks, the plant's team and a barrier's candidate count
+    (:data:`.jax_barrier.CANDIDATES`). Two experiments with equal configurations (a sweep's
+    chunks, a benchmark's repeats) share one compilation."""
     parts = team_parts(controller)
     if parts is not None:  # a team description holds its layout and template; the gains are a dict
         inner, barrier = parts
         F = inner.formation
         gains = tuple(sorted((k, tuple(np.ravel(v).tolist())) for k, v in inner.gains.items()))
         return (type(controller), type(F), F.layout, np.asarray(F.template).tobytes(), gains, inner.team,
-                inner.feedforward, barrier, type(plant), plant.team)
+                inner.feedforward, barrier, type(plant), plant.team,
+                None if barrier is None else jax_barrier.CANDIDATES)
     return (type(controller), type(controller.formation), controller.law, controller.team, controller.feedforward,
             controller.checks, type(plant), plant.team)
 
