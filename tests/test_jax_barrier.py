@@ -85,13 +85,14 @@ _KERNELS = {}
 
 def _kernel(name, barrier):
     import jax
+    import jax.numpy as jnp
 
     from quatform.sim.jax_barrier import barrier_filter
 
     key = (name, barrier)
     if key not in _KERNELS:
         team = Team(TEAMS[name])
-        _KERNELS[key] = team, jax.jit(lambda m, u: barrier_filter(barrier, team, m, u))
+        _KERNELS[key] = team, jax.jit(lambda m, u: barrier_filter(barrier, team, m, u, jnp.ones(m.shape[0], dtype=bool)))
     return _KERNELS[key]
 
 

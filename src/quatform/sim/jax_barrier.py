@@ -45,7 +45,7 @@ def solves(team) -> bool:
                 and all(type(r) in (HolonomicRobot, PlanarHolonomicRobot) for r in team.robots))
 
 
-def nnls_gram(A, b, valid, tol, max_iter):
+def nnls_gram(A, b, valid, tol, max_iter, skip):
     """Lawson and Hanson's NNLS (1974, ch. 23, Algorithm NNLS) on its normal equations,
     batched: ``min_y>=0 |E y - f|`` given ``A = E^T E`` and ``b = E^T f``.
 
@@ -59,6 +59,8 @@ def nnls_gram(A, b, valid, tol, max_iter):
         A column enters while its gradient ``b - A y`` exceeds ``tol``.
     max_iter : int
         Bound of the loop (each step adds or drops one column).
+    skip : jax array of bool, shape (B,)
+        Worlds not solved (their ``y`` stays 0, not converged).
 
     Returns
     -------
@@ -106,12 +108,11 @@ def nnls_gram(A, b, valid, tol, max_iter):
         return (state[3] < max_iter) & ~jnp.all(state[2])
 
     zero = jnp.zeros((B, K), dtype=A.dtype)
-    y, _, done, _ = jax.lax.while_loop(cond, body, (zero, jnp.zeros((B, K), dtype=bool), jnp.zeros(B, dtype=bool),
-                                                    jnp.asarray(0)))
-    return y, done
+    y, _, done, _ = jax.lax.while_loop(cond, body, (zero, jnp.zeros((B, K), dtype=bool), skip, jnp.asarray(0)))
+    return y, done & ~skip
 
 
-def barrier_filter(barrier, team, m, u):
+def barrier_filter(barrier, team, m, u, live):
     """:meth:`~quatform.control.safety.SeparationBarrier.filter` of a common-limit team of
     4-DOF and planar holonomic robots on JAX arrays, for a batch of worlds.
 
@@ -125,6 +126,8 @@ def barrier_filter(barrier, team, m, u):
         Measured states.
     u : jax array, shape (B, n)
         Nominal (saturated) commands.
+    live : jax array of bool, shape (B,)
+        Worlds whose programme is wanted (a failed or frozen world's is not solved).
 
     Returns
     -------
@@ -136,8 +139,9 @@ def barrier_filter(barrier, team, m, u):
     active : jax array of bool, shape (B,)
         Whether some pair within range binds (the filter changes the commands).
     solved : jax array of bool, shape (B,)
-        False where the fixed-size programme could not be shown to be the exact one (the
-        world must be filtered on the host).
+        False where the fixed-size programme could not be shown to be the exact one, or
+        was not tried (more pairs binding at ``u`` than ``K``, a world not ``live``): the
+        world must be filtered on the host.
     """
     import jax
     import jax.numpy as jnp
@@ -171,6 +175,9 @@ def barrier_filter(barrier, team, m, u):
     flat = L.position_index[L.position_index < L.size]  # the point velocities' entries of u
     ia, ib = jnp.asarray(i), jnp.asarray(j)
 
+    # more pairs binding at u than candidates: the check would fail, the loop is not run
+    tried = active & live & (jnp.sum(seen & (g < 0.0), axis=-1) <= K)
+
     def solve(_):
         key = jnp.where(seen, g, jnp.inf)
         if K < n_pairs:
@@ -190,7 +197,7 @@ def barrier_filter(barrier, team, m, u):
                 Q = Q + jnp.where(ra[:, :, None] == rb[:, None, :], jnp.einsum("bkd,bld->bkl", wa, wb), 0.0)
         A = Q + c[:, :, None] * c[:, None, :]  # E^T E, E = [G^T; c^T]
         scale = 1.0 + jnp.max(jnp.abs(c), axis=-1)
-        y, converged = nnls_gram(A, c, valid, 1e-14 * scale, 4 * K + 8)
+        y, converged = nnls_gram(A, c, valid, 1e-14 * scale, 4 * K + 8, ~tried)
         onehot = jnp.arange(n)
         Gy = (jnp.einsum("bkn,bkd->bnd", (a[..., None] == onehot).astype(u.dtype), y[..., None] * va)
               + jnp.einsum("bkn,bkd->bnd", (bb[..., None] == onehot).astype(u.dtype), y[..., None] * vb))
@@ -206,7 +213,7 @@ def barrier_filter(barrier, team, m, u):
         return out, ~active | (converged & feasible & kept & (s > 0.0))
 
     def skip(_):
-        return u, jnp.ones(u.shape[:1], dtype=bool)
+        return u, ~active
 
-    u_safe, solved = jax.lax.cond(jnp.any(active), solve, skip, None)
+    u_safe, solved = jax.lax.cond(jnp.any(tried), solve, skip, None)
     return u_safe, sep, active, solved

@@ -43,16 +43,22 @@ of them shares one limit factor) and Pioneers offering ``xy_yaw`` points (their 
 motion capture, one world) in :mod:`.jax_ugv_uav`, both reached through :data:`KIND_LOOPS`;
 anything else is refused in one line naming what runs here.
 
-The separation barrier: on JAX each tick computes every pair's constraint of
-:class:`~quatform.control.safety.SeparationBarrier` (with the robots' point velocities of
+The separation barrier: on JAX each tick solves
+:class:`~quatform.control.safety.SeparationBarrier`'s programme in the compiled tick for a
+team of 4-DOF and planar holonomic robots with one common limit factor
+(:mod:`.jax_barrier`: the ``K`` pairs nearest to binding as candidates, Lawson and Hanson's
+NNLS on their Gram matrix in a bounded loop, every pair checked at the solution, the common
+limit factor), with its signals ``min_separation`` and ``safety_active``; where no pair
+binds the commands pass bitwise. For other teams (Pioneers, free bodies) each tick computes
+every pair's constraint (with the robots' point velocities of
 :data:`~quatform.control.safety.POINT_MAPS`, :func:`point_velocities`, for robots whose
-commands are not their points' rates) and its minimum separation; where no
-pair binds the filter returns the commands bitwise, so that is the whole filter. A world
-where some pair binds (or whose robots start closer than the barrier's minimum, which
-``SafeController`` refuses) is rerun on NumPy from its start, with its own initial state,
-measurement draws and reference (the exact programme's active set is a host algorithm), and
-its channels and failure replace the JAX run's; ``log.meta["numpy_worlds"]`` (bool, the
-batch shape) says which, when any.
+commands are not their points' rates): where no pair binds that is the whole filter. A
+world where the programme binds and is not solved on JAX (another team; more binding pairs
+than ``K``, no convergence, an infeasible programme), or whose robots start closer than the
+barrier's minimum (which ``SafeController`` refuses), is rerun on NumPy from its start, with
+its own initial state, measurement draws and reference, and its channels and failure
+replace the JAX run's; ``log.meta["numpy_worlds"]`` (bool, the batch shape) says which,
+when any.
 """
 
 from __future__ import annotations
@@ -143,8 +149,8 @@ _RUNS = ("the jax backend runs the seed-000 pair experiments (its four controlle
 FAILURE_REASONS = {1: "the measured robot state is not finite (or beyond 1e150)",
                    2: f"the measured robots coincide (closer than {MIN_SEPARATION_M:g} m): a "
                       "formation is undefined there",
-                   3: "the separation barrier binds (its quadratic programme runs on the host)"}
-#: Failure code of a world whose separation barrier binds (rerun on NumPy).
+                   3: "the separation barrier's programme is not solved on JAX (it runs on the host)"}
+#: Failure code of a world whose separation barrier JAX does not solve (rerun on NumPy).
 _HOST = 3
 
 
@@ -337,7 +343,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     fail_tick, reason = (np.array(a)[:B].reshape(batch) for a in carry[3:5])
     extra = {}
     host_failure = {}
-    if np.any(reason == _HOST):  # the barrier binds: those worlds' runs are NumPy's
+    if np.any(reason == _HOST):  # barriers JAX did not solve: those worlds' runs are NumPy's
         host_failure = _rerun_on_host(plant, controller, times, x, dt, substeps, tick, noise, dropped,
                                       (c_ref, cd_ref, r_ref), reason == _HOST, data, names, meta)
         extra["numpy_worlds"] = reason == _HOST
@@ -414,9 +420,9 @@ def spread(jax, carry, xs, B, axes=LOOP_AXES):
 
 def _rerun_on_host(plant, controller, times, x, dt, substeps, tick, noise, dropped, refs, host, data, names, meta):
     """Run the worlds ``host`` (bool, the batch shape) on NumPy (:func:`quatform.sim.simulate`:
-    their separation barrier binds, whose programme is solved on the host) with their own
-    initial states, measurement draws and references, and write their channels into ``data``;
-    their failures (world index tuple -> reason) are returned."""
+    their separation barrier's programme is not solved on JAX, or their robots start too
+    close for it) with their own initial states, measurement draws and references, and write
+    their channels into ``data``; their failures (world index tuple -> reason) are returned."""
     from .simulate import simulate as numpy_simulate
 
     batch = host.shape
@@ -577,12 +583,12 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
     and step; what :meth:`~quatform.control.team.TeamController.update` refuses (a measured
     state not finite or beyond 1e150, two robots closer than ``MIN_SEPARATION_M``, every pair
     of the layout) marks the world failed. With a separation barrier
-    (:class:`~quatform.control.safety.SeparationBarrier`): its minimum separation over every
-    pair and the test whether any pair's constraint binds (Wang et al. 2017: ``2 p_ij .
-    (v_i - v_j) + gamma h_ij < 0`` for a pair within the barrier's range), where it does not
-    the filter returns the commands bitwise; a world where it binds, or whose robots start
-    closer than the barrier's minimum, is marked with code 3 and rerun on NumPy (the
-    programme's active set is a host algorithm; :func:`simulate`).
+    (:class:`~quatform.control.safety.SeparationBarrier`): its filter on JAX
+    (:func:`.jax_barrier.barrier_filter`, a team it runs: :func:`.jax_barrier.solves`; other
+    teams: the test whether any pair binds), its minimum separation over every pair and
+    whether it changed the commands; a world whose programme binds and is not solved exactly
+    on JAX, or whose robots start closer than the barrier's minimum, is marked with code 3
+    and rerun on NumPy (:func:`simulate`).
     """
     import jax.numpy as jnp
 
@@ -618,7 +624,7 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
         code = jnp.where(bad_m, 1, jnp.where(close, 2, 0))
         signals = ()
         if barrier is not None and jax_barrier.solves(team):  # SeparationBarrier.filter on JAX (jax_barrier)
-            u, sep, active, solved = jax_barrier.barrier_filter(barrier, team, m, u)
+            u, sep, active, solved = jax_barrier.barrier_filter(barrier, team, m, u, (reason == 0) & (code == 0))
         elif barrier is not None:  # SeparationBarrier.filter where no pair binds: u itself; where one does: NumPy's
             P = team_positions(L, m)
             V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
