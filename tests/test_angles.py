@@ -40,3 +40,43 @@ def test_map_entries_runs_and_jax():
         x = np.random.default_rng(1).uniform(-9, 9, (4, 8))
         got = jax.jit(lambda v: wrap_entries(v, [3, 7]))(jnp.asarray(x))
         assert np.array_equal(np.asarray(got), wrap_entries(x, [3, 7]))
+
+
+def test_winding_a_half_turn_is_the_same_whatever_its_rounding():
+    """A yaw exactly half a turn from its reference, or a few ulp short of it (what another
+    backend's rounding gives), is wound the same way: to +pi from the reference's side."""
+    import math
+
+    from quatform.algebra.angles import TIE_TURNS
+    from quatform.formations import pair_kernels as kern
+    from quatform.formations.base import PAIR_LAYOUT
+
+    for t in (math.pi, math.nextafter(math.pi, 0.0), math.pi - 4e-16, 3 * math.pi, -math.pi):
+        r = np.zeros(8)
+        ref = np.zeros(8)
+        ref[[3, 7]] = t
+        wound = PAIR_LAYOUT.wind(r, ref)  # the float path
+        batch = PAIR_LAYOUT.wind(r[None], ref[None])[0]  # the array path
+        aligned = kern.dq_align_yaws(tuple(r.tolist()), t, t)
+        want = r[3] + 2 * math.pi * math.floor(t / (2 * math.pi) + 0.5 + 0.5 * TIE_TURNS)
+        assert wound[3] == batch[3] == aligned[3] == want
+        assert -math.pi < wound[3] - t <= math.pi + 1e-12
+    # a real difference (not a rounding of half a turn) keeps the rule (-pi, pi]
+    r, ref = np.zeros(8), np.zeros(8)
+    ref[3] = math.pi - 1e-9
+    assert PAIR_LAYOUT.wind(r, ref)[3] == 0.0
+
+
+def test_the_error_quaternions_half_turn_tie():
+    """qe_0 within HALF_TURN_TIE of 0 is read as 0 (sgn = +1): the law's rate is the same for
+    the roundings of a half turn either side of it."""
+    from quatform.control.laws import HALF_TURN_TIE, quaternion_feedback
+
+    rates = []
+    for w in (0.0, 6e-17, -6e-17, -0.5 * HALF_TURN_TIE):
+        q = (w, 0.0, 0.0, float(np.sqrt(1.0 - w * w)))
+        rates.append(quaternion_feedback(q, (1.0, 0.0, 0.0, 0.0), (0.0,) * 4, (1.0, 1.0, 1.0), 0.0)[1])
+    np.testing.assert_allclose(rates, [rates[0]] * 4, atol=1e-12)  # the same way: w driven up
+    q = (-2 * HALF_TURN_TIE, 0.0, 0.0, 1.0)  # beyond the tie: the other way
+    other = quaternion_feedback(q, (1.0, 0.0, 0.0, 0.0), (0.0,) * 4, (1.0, 1.0, 1.0), 0.0)[1]
+    assert rates[0][0] == pytest.approx(0.5) and other[0] == pytest.approx(-0.5, abs=1e-9)

@@ -33,6 +33,16 @@ def test_one_world_equals_numpy(scenario, controller):
 
 
 
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_the_half_turn_step_turns_the_same_way(controller):
+    """Seed 000 Fig. 4's 180 deg yaw step (t = 1 s) is a tie between the two ways round: a
+    backend that rounds ``d / 2 pi`` or ``atan2`` apart would turn the other way (the
+    dual-quaternion robots did, 2 pi apart); the tie rule (algebra.angles.TIE_TURNS) turns
+    both the same way."""
+    ex = PAIR.experiment(short_scenario("mas-kitts-yaw-step", 1.3), controller=controller)
+    assert_logs_equal(ex.run(backend="numpy"), ex.run(backend="jax"))
+
+
 def test_metrics_equal_on_the_experiment():
     ex = PAIR.experiment(short_scenario("mas-kitts-helix", 1.0), controller="cluster-space")
     a, b = ex.metrics(ex.run(backend="numpy")), ex.metrics(ex.run(backend="jax"))

@@ -6,7 +6,15 @@ import numpy as np
 
 from .kernels import array_namespace, concrete
 
-__all__ = ["map_entries", "wrap_angle", "wrap_entries"]
+__all__ = ["TIE_TURNS", "map_entries", "wrap_angle", "wrap_entries"]
+
+
+#: Turns by which a yaw difference a hair short of half a turn is read as half a turn when a
+#: yaw is wound to within pi of a reference (``floor(d / 2 pi + 1/2 + TIE_TURNS)`` whole turns):
+#: a 180 deg step is a tie between the two ways round that the rounding of ``d / 2 pi`` (and
+#: of ``atan2``) would break one way on NumPy and the other on JAX, which divides by a
+#: constant through its reciprocal (docs/derivations.md, "A half turn's tie on every backend").
+TIE_TURNS = 1e-12
 
 
 def wrap_angle(a) -> np.ndarray:

@@ -28,7 +28,14 @@ from ..errors import InvalidInputError
 from ..formations import pair_kernels as kern
 
 __all__ = ["proportional", "tanh_law", "quaternion_feedback", "dual_quaternion_feedback", "Block",
-           "BlockLaw", "LAWS"]
+           "BlockLaw", "LAWS", "HALF_TURN_TIE"]
+
+#: An error quaternion's scalar part within this of 0 is a half turn, whose two shortest ways
+#: are a tie that ``sgn(0) = +1`` breaks (seed 000 eq. (20)): a 180 deg step gives ``qe_0 =
+#: cos(pi/2) = 6e-17`` on NumPy and a few 1e-17 of either sign on JAX (its ``sin`` / ``cos`` and
+#: fused products round apart), so the robots would turn opposite ways on the two backends
+#: (``docs/derivations.md``, "A half turn's tie on every backend").
+HALF_TURN_TIE = 1e-12
 
 
 def proportional(e, c_dot_des, k, feedforward=1.0):
@@ -75,7 +82,7 @@ def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
 
     ``qe = q_des* q`` (body frame), ``q_dot = 1/2 q (0, -sgn(qe_0) K qe_vec) + q_dot_des qe``
-    with ``sgn(0) = +1``; ``q_dot_des qe = q_dot_des q_des* q`` keeps ``qe`` still when there
+    with ``sgn(0) = +1``, ``qe_0`` within :data:`HALF_TURN_TIE` of 0 read as 0; ``q_dot_des qe = q_dot_des q_des* q`` keeps ``qe`` still when there
     is no feedback. Used by the two-robot and the UGV-UAV (seed 001 eq. (4.45)) controllers.
 
     Parameters
@@ -90,7 +97,7 @@ def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     qe, q_dot : tuples of 4 components
     """
     qe = _conj_mul(q_des, q)  # q_des* q
-    h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_0)/2, sgn(0) = +1
+    h = -0.5 + 1.0 * (qe[0] < -HALF_TURN_TIE)  # -sgn(qe_0)/2, sgn(0) = +1 (a half turn's tie)
     q_dot = _mul_pure(q, h * k[0] * qe[1], h * k[1] * qe[2], h * k[2] * qe[3])  # 1/2 q (0, -sgn K qe_vec)
     if feedforward:
         q_dot = kern.qadd(q_dot, kern.qmul(*q_des_dot, *qe))
@@ -101,7 +108,8 @@ def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rot
     """Seed 000 eq. (28) with the error order corrected, on 8 components (floats or arrays).
 
     ``qe = qhat_des* qhat`` (body frame), ``qhat_dot = 1/2 qhat (0, -s K qe_p; 0, -sgn(qe_p0)
-    K qe_d) + qhat_dot_des qe`` with ``sgn(0) = +1``. ``s = sgn(qe_p0)`` (the seed's) where
+    K qe_d) + qhat_dot_des qe`` with ``sgn(0) = +1`` (``qe_p0`` within :data:`HALF_TURN_TIE`
+    of 0 read as 0). ``s = sgn(qe_p0)`` (the seed's) where
     the sign of ``qhat`` means nothing (``signed_rotation=True``, the cluster pose); ``s =
     1`` where it is the branch of the half-way yaw (the shape ``qhat_s``: driven to
     ``+qhat_s_des``; ``docs/derivations.md``, Hardening (issue 12)).
@@ -111,7 +119,7 @@ def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rot
     qe, q_dot : tuples of 8 components
     """
     qe = kern.dqmul(kern.dqconj(q_des), q)
-    h = -0.5 + 1.0 * (qe[0] < 0.0)  # -sgn(qe_p0)/2, sgn(0) = +1
+    h = -0.5 + 1.0 * (qe[0] < -HALF_TURN_TIE)  # -sgn(qe_p0)/2, sgn(0) = +1 (a half turn's tie)
     hp = h if signed_rotation else -0.5
     w = (0.0, hp * k[0] * qe[1], hp * k[1] * qe[2], hp * k[2] * qe[3],
          0.0, h * k[0] * qe[5], h * k[1] * qe[6], h * k[2] * qe[7])

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra.kernels import array_namespace as namespace
+from ..algebra.angles import TIE_TURNS
 from ..algebra.kernels import concrete
 from ..errors import DegenerateInputError, InvalidInputError
 
@@ -263,22 +264,24 @@ class RobotLayout:
                 + "); a formation needs its robots apart")
 
     def wind(self, r, r_ref) -> np.ndarray:
-        """``r`` with each yaw moved by whole turns to within pi of ``r_ref``'s (same robots)."""
+        """``r`` with each yaw moved by whole turns to within pi of ``r_ref``'s (same robots; a
+        difference within :data:`~quatform.algebra.angles.TIE_TURNS` turns short of half a turn
+        is half a turn)."""
         idx = self.yaw_indices
         if r.ndim == 1 and r_ref.ndim == 1:  # one state: Python floats
             out = r.tolist()
             ref = r_ref.tolist()
             for i in idx:
-                out[i] += _TWO_PI * math.floor((ref[i] - out[i]) / _TWO_PI + 0.5)
+                out[i] += _TWO_PI * math.floor((ref[i] - out[i]) / _TWO_PI + 0.5 + TIE_TURNS)
             return np.array(out)
         if not concrete(r):  # an array of another namespace (JAX): the same formula, selected
             xp = namespace(r)
-            turns = _TWO_PI * xp.floor((r_ref - r) / _TWO_PI + 0.5)
+            turns = _TWO_PI * xp.floor((r_ref - r) / _TWO_PI + 0.5 + TIE_TURNS)
             return xp.where(self.yaw_mask, r + turns, r)
         out = np.array(np.broadcast_to(r, np.broadcast_shapes(r.shape, r_ref.shape)), dtype=float)
         if idx:
             i = np.asarray(idx, dtype=np.intp)
-            out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5)
+            out[..., i] += _TWO_PI * np.floor((r_ref[..., i] - out[..., i]) / _TWO_PI + 0.5 + TIE_TURNS)
         return out
 
     @functools.cached_property

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ..algebra.angles import TIE_TURNS
 from ..algebra.kernels import concrete, namespace
 from ..algebra.kernels import qmul_components as qmul
 from ..errors import DegenerateInputError
@@ -263,8 +264,8 @@ def dq_align_yaws(r, t1, t2):
     """
     flt = isinstance(r[3], float) and isinstance(t1, float)
     fl = math.floor if flt else lib(r[3], t1).floor
-    a1 = r[3] + _TWO_PI * fl((t1 - r[3]) / _TWO_PI + 0.5)
-    a2 = r[7] + _TWO_PI * fl((t2 - r[7]) / _TWO_PI + 0.5)
+    a1 = r[3] + _TWO_PI * fl((t1 - r[3]) / _TWO_PI + 0.5 + TIE_TURNS)  # a half turn's tie: the rule's way
+    a2 = r[7] + _TWO_PI * fl((t2 - r[7]) / _TWO_PI + 0.5 + TIE_TURNS)
     rel = (a1 - t1) - (a2 - t2)
     if flt:
         a1 -= _TWO_PI if rel > _THREE_HALF_PI else (-_TWO_PI if rel < -_THREE_HALF_PI else 0.0)
