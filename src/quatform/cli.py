@@ -36,6 +36,16 @@ def _add_output_flags(p) -> None:
                    'pip install -e ".[rerun]")')
 
 
+def _add_compute_flag(p) -> None:
+    """``--compute`` (the closed loop's compute backend, :data:`quatform.sim.backends.SIM_BACKENDS`)."""
+    from .sim.backends import SIM_BACKENDS
+
+    p.add_argument("--compute", choices=tuple(SIM_BACKENDS), default="numpy",
+                   help="compute backend of the closed loop: numpy (the reference, default) or jax (compiled with "
+                   "jax.jit, float64, equal to NumPy within 1e-9; on a GPU when a CUDA JAX sees one; needs: "
+                   'pip install -e ".[jax]"); not the same as --backend, which says what moves the robots')
+
+
 def _cited(source: str) -> list[str]:
     """The citations of the seed documents that a scenario's or plan's ``source`` names."""
     return [f"{p.tag}: {p.citation}" for p in cited(source)]
@@ -139,6 +149,7 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
     _add_output_flags(run)
+    _add_compute_flag(run)
     _add_kind_options(run, kinds)
 
     plan = sub.add_parser(
@@ -177,6 +188,7 @@ def _build_parser() -> argparse.ArgumentParser:
                       "(default: the kind's compare option)")
     cmp_.add_argument("--no-plots", action="store_true", help="write metrics, time series and the table only")
     _add_output_flags(cmp_)
+    _add_compute_flag(cmp_)
     _add_kind_options(cmp_, kinds)
 
     tele = sub.add_parser(
@@ -191,6 +203,7 @@ def _build_parser() -> argparse.ArgumentParser:
     tele.add_argument("--out", metavar="DIR", required=True, help="output folder")
     tele.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
     _add_output_flags(tele)
+    _add_compute_flag(tele)
     _add_kind_options(tele, (KINDS[TELEOP_KIND],))
 
     sub.add_parser("scenarios", help="list the built-in scenarios of every kind",
@@ -205,7 +218,7 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, rerun=None) -> None:
+def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, rerun=None, compute="numpy") -> None:
     from .runs import compare, compare_columns, format_table, given_options
     from .scenarios import kind_of, load_scenario
     from .sim.output import check_inputs_outside
@@ -214,7 +227,7 @@ def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, reru
     sc = load_scenario(scenario)
     kind = kind_of(sc)
     options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
-    rows = compare(sc, out, over=over, plots=plots, mcap=mcap, rerun=rerun, **options)
+    rows = compare(sc, out, over=over, plots=plots, mcap=mcap, rerun=rerun, compute=compute, **options)
     _say_options(kind, options)
     axis = over or kind.compare_over
     print(format_table(rows, compare_columns(kind, axis)))
@@ -294,7 +307,8 @@ def _run(args, kinds) -> None:
         raise InvalidInputError(f"{sc.name} is not a teleoperation scenario (its kind is {kind.name}): run it "
                                 f"with 'quatform run {args.scenario} ...'")
     options = given_options(kind, _options(args, kinds), where=str(sc.name), spell=_flag)
-    _, metrics = run(sc, args.out, plots=not args.no_plots, mcap=not args.no_mcap, rerun=args.rerun, **options)
+    _, metrics = run(sc, args.out, plots=not args.no_plots, mcap=not args.no_mcap, rerun=args.rerun,
+                     compute=args.compute, **options)
     _say_options(kind, options)
     _print_run(metrics, kind.table_columns)
     if args.rerun is not None:
@@ -337,7 +351,7 @@ def _ros2_cli():
 COMMANDS = {
     "demo": lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun),
     "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over,
-                                     not args.no_plots, not args.no_mcap, args.rerun),
+                                     not args.no_plots, not args.no_mcap, args.rerun, args.compute),
     "run": lambda args: _run(args, _kinds().values()),
     "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),
     "plan": _plan,

@@ -39,6 +39,7 @@ from .errors import InvalidInputError
 from .report import FIGURES
 from .report.writers import write_json, write_metrics, write_timeseries
 from .scenarios import Option, kind_of, load_scenario
+from .sim.backends import simulator
 from .sim.output import atomic_write_text, staged_dir
 
 __all__ = ["run", "compare", "format_table", "compare_columns", "progress_line", "given_options"]
@@ -91,15 +92,19 @@ def _record_options(kind, experiment, metrics: dict) -> dict:
     return metrics
 
 
-def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict, mcap: bool = True):
+def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict, mcap: bool = True,
+              compute: str = "numpy"):
     """One run of ``sc`` with ``options`` written into ``folder`` (made here; ``shown``: the path
-    printed; ``mcap``: write ``run.mcap`` and the Foxglove layout). Returns ``(log, metrics)``."""
+    printed; ``mcap``: write ``run.mcap`` and the Foxglove layout; ``compute``: the closed loop's
+    backend, :data:`quatform.sim.backends.SIM_BACKENDS`). Returns ``(log, metrics)``."""
     folder.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     experiment = kind.experiment(sc, **options)
     label = f"{sc.name} / {experiment.label}" if experiment.label else str(sc.name)
-    log = experiment.run(None if quiet else progress_line(label))
+    log = experiment.run(None if quiet else progress_line(label), backend=compute)
     metrics = _record_options(kind, experiment, dict(experiment.metrics(log)))
+    if compute != "numpy":  # the reference's files stay as they were
+        metrics["compute_backend"] = compute
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     write_timeseries(log, folder / "timeseries.csv", experiment.csv_channels)
     if plots:
@@ -165,7 +170,8 @@ def _write_recording(target, logs: dict, kind, sc) -> None:
         write_rerun(logs, target, kind=kind.name, name=str(sc.name))
 
 
-def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = True, rerun=None, **options):
+def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = True, rerun=None,
+        compute: str = "numpy", **options):
     """Simulate one scenario with one choice; write ``out/timeseries.csv``, the figures and
     ``out/metrics.json`` (last).
 
@@ -183,6 +189,10 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
         Write ``out/run.mcap`` (and ``out/foxglove-layout.json``).
     rerun : path-like, optional
         Also write the run as this Rerun recording (``.rrd``; needs the extra ``rerun``).
+    compute : str
+        The closed loop's compute backend (:data:`quatform.sim.backends.SIM_BACKENDS`):
+        ``numpy`` (the reference) or ``jax`` (compiled, equal to NumPy within 1e-9; ``pip
+        install -e ".[jax]"``); recorded as ``compute_backend`` in the metrics when not NumPy.
     **options
         The kind's options (:attr:`ScenarioKind.options`: ``controller``, ``formation``,
         ``backend``, ``feedforward``, ``orientation_error`` ...); None means the default.
@@ -196,9 +206,10 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
     sc = _scenario(scenario)
     kind = kind_of(sc)
     given = given_options(kind, options, where=str(sc.name))
+    simulator(compute)  # an unknown backend: one line before any work
     target = _rerun_target(rerun, out)
     with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
-        log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap)
+        log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap, compute)
         _write_recording(target, {"": log}, kind, sc)
     return log, metrics
 
@@ -211,7 +222,7 @@ def _suffix(options: dict) -> str:
 
 
 def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, mcap: bool = True,
-            rerun=None, **options) -> list:
+            rerun=None, compute: str = "numpy", **options) -> list:
     """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
     kind's compare figures; write ``comparison.md`` and ``comparison.json``. A value the
     scenario cannot take (:meth:`~quatform.scenarios.base.ScenarioKind.compare_choices`) is
@@ -232,6 +243,8 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         Write each run's ``run.mcap`` (and ``foxglove-layout.json``).
     rerun : path-like, optional
         Also write every run into this one Rerun recording, each under ``/<value>/``.
+    compute : str
+        As in :func:`run`, for every run.
     **options
         The other options, fixed for every run.
 
@@ -253,6 +266,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         raise InvalidInputError(f"{sc.name}: compare runs every {axis} ({', '.join(own[axis].choices)}); "
                                 f"do not give {axis}")
     columns = compare_columns(kind, axis)
+    simulator(compute)
     values, skipped = kind.compare_choices(sc, axis)
     target = _rerun_target(rerun, out)
     if not quiet:
@@ -262,7 +276,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         logs, rows = [], []
         for value in values:
             log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value},
-                                     mcap)
+                                     mcap, compute)
             logs.append(log)
             rows.append({axis: value, **metrics})
         if plots:

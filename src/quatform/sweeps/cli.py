@@ -26,8 +26,9 @@ def add_parsers(sub) -> None:
     p.add_argument("spec", metavar="SPEC", help="built-in sweep name (see 'quatform sweeps') or file.toml")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (resumed when it holds this sweep)")
     p.add_argument("--trials", type=int, metavar="K", help="trials per cell instead of the spec's (a quick look)")
-    p.add_argument("--backend", default="numpy", help=f"compute backend: {', '.join(SIM_BACKENDS)} or jax "
-                   "(pip install -e \".[jax]\")")
+    p.add_argument("--backend", "--compute", dest="backend", default="numpy",
+                   help=f"compute backend: {' or '.join(SIM_BACKENDS)} (jax: pip install -e \".[jax]\"); "
+                   "--compute is the same flag, as 'quatform run' names it")
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="local processes, or Dask workers with --scheduler local (default 1: in this process)")
     p.add_argument("--scheduler", metavar="ADDR",
