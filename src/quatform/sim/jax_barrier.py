@@ -32,7 +32,7 @@ from __future__ import annotations
 from ..formations.team_chart import team_positions
 from ..robots import HolonomicRobot, PlanarHolonomicRobot
 
-__all__ = ["CANDIDATES", "barrier_filter", "nnls_gram", "solves"]
+__all__ = ["CANDIDATES", "barrier_filter", "nnls_gram", "pair_constraints", "solves"]
 
 #: Most candidate pairs of one world's programme on JAX (the static size ``K``).
 CANDIDATES = 32
@@ -112,6 +112,29 @@ def nnls_gram(A, b, valid, tol, max_iter, skip):
     return y, done & ~skip
 
 
+def pair_constraints(barrier, L, P, V):
+    """Every pair's constraint of :class:`~quatform.control.safety.SeparationBarrier` at the
+    points ``P`` moving at ``V`` (``(B, n, 3)``, JAX arrays): ``(pij, sep, R, h, g, active)``,
+    the pairs' offsets ``(B, pairs, 3)`` and separations, the range (``range_m`` or
+    ``SeparationBarrier._range`` of the largest point speed, ``(B, 1)``), ``h`` and ``g`` (``(B,
+    pairs)``) and whether some pair within range binds (``(B,)``)."""
+    import jax.numpy as jnp
+
+    i, j = L.pairs
+    pij = P[:, i, :] - P[:, j, :]
+    sep = jnp.sqrt(jnp.sum(pij * pij, axis=-1))  # (B, pairs)
+    d2, gam = barrier.min_separation_m ** 2, barrier.gamma
+    if barrier.range_m is None:  # SeparationBarrier._range of the largest point speed
+        speed = jnp.sqrt(jnp.max(jnp.sum(V * V, axis=-1), axis=-1, keepdims=True))
+        R = (2.0 * speed + jnp.sqrt(4.0 * speed * speed + gam * gam * d2)) / gam
+    else:
+        R = barrier.range_m
+    h = jnp.sum(pij * pij, axis=-1) - d2  # the single-integrator barrier (Robotarium certificate)
+    g = 2.0 * jnp.sum(pij * (V[:, i, :] - V[:, j, :]), axis=-1) + gam * h  # Wang et al. 2017
+    active = jnp.any((sep <= R) & (g < 0.0), axis=-1)
+    return pij, sep, R, h, g, active
+
+
 def barrier_filter(barrier, team, m, u, live):
     """:meth:`~quatform.control.safety.SeparationBarrier.filter` of a common-limit team of
     4-DOF and planar holonomic robots on JAX arrays, for a batch of worlds.
@@ -152,17 +175,8 @@ def barrier_filter(barrier, team, m, u, live):
     K = min(n_pairs, CANDIDATES)
     P = team_positions(L, m)
     V = team_positions(L, u)
-    pij = P[:, i, :] - P[:, j, :]
-    sep = jnp.sqrt(jnp.sum(pij * pij, axis=-1))  # (B, pairs)
+    pij, sep, R, h, g, active = pair_constraints(barrier, L, P, V)
     d2, gam = barrier.min_separation_m ** 2, barrier.gamma
-    if barrier.range_m is None:  # SeparationBarrier._range of the largest point speed
-        speed = jnp.sqrt(jnp.max(jnp.sum(V * V, axis=-1), axis=-1, keepdims=True))
-        R = (2.0 * speed + jnp.sqrt(4.0 * speed * speed + gam * gam * d2)) / gam
-    else:
-        R = barrier.range_m
-    h = jnp.sum(pij * pij, axis=-1) - d2  # the single-integrator barrier (Robotarium certificate)
-    g = 2.0 * jnp.sum(pij * (V[:, i, :] - V[:, j, :]), axis=-1) + gam * h  # Wang et al. 2017
-    active = jnp.any((sep <= R) & (g < 0.0), axis=-1)
     if barrier.range_m is None:
         # every pair: NumPy widens its range to that of the solution's speed, beyond which no
         # pair can bind (SeparationBarrier._range), so its solution satisfies every pair

@@ -628,17 +628,7 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
         elif barrier is not None:  # SeparationBarrier.filter where no pair binds: u itself; where one does: NumPy's
             P = team_positions(L, m)
             V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
-            pij = P[:, i, :] - P[:, j, :]
-            sep = jnp.sqrt(jnp.sum(pij * pij, axis=-1))
-            d2, gam = barrier.min_separation_m ** 2, barrier.gamma
-            if barrier.range_m is None:  # SeparationBarrier._range of the largest point speed
-                speed = jnp.sqrt(jnp.max(jnp.sum(V * V, axis=-1), axis=-1, keepdims=True))
-                R = (2.0 * speed + jnp.sqrt(4.0 * speed * speed + gam * gam * d2)) / gam
-            else:
-                R = barrier.range_m
-            h = jnp.sum(pij * pij, axis=-1) - d2  # the single-integrator barrier (Robotarium certificate)
-            g = 2.0 * jnp.sum(pij * (V[:, i, :] - V[:, j, :]), axis=-1) + gam * h  # Wang et al. 2017
-            active = jnp.any((sep <= R) & (g < 0.0), axis=-1)
+            _, sep, _, _, _, active = jax_barrier.pair_constraints(barrier, L, P, V)
             solved = ~active
         if barrier is not None:
             start = (xs["k"] == 0) & jnp.any(sep < barrier.min_separation_m, axis=-1)  # SafeController._check_start
