@@ -101,7 +101,8 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
     t0 = time.perf_counter()
     experiment = kind.experiment(sc, **options)
     label = f"{sc.name} / {experiment.label}" if experiment.label else str(sc.name)
-    log = experiment.run(None if quiet else progress_line(label), backend=compute)
+    shown_progress = None if quiet else progress_line(label)
+    log = experiment.run(shown_progress) if compute == "numpy" else experiment.run(shown_progress, backend=compute)
     metrics = _record_options(kind, experiment, dict(experiment.metrics(log)))
     if compute != "numpy":  # the reference's files stay as they were
         metrics["compute_backend"] = compute
