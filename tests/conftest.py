@@ -107,3 +107,18 @@ def assert_logs_equal(a, b):
     for key in BACKEND_CHANNELS:
         assert a[key].shape == b[key].shape, key
         np.testing.assert_allclose(b[key], a[key], rtol=0, atol=BACKEND_TOL, err_msg=key)
+
+
+def noisy_batch(exp, B=3, seed=1, spread=0.02, sigma=0.003):
+    """``exp`` as a batch of ``B`` worlds: starts moved by ``spread``, ``sigma`` of noise, one
+    tick of latency, 10 % dropped frames; the identity finish (the raw loop's log)."""
+    import dataclasses
+
+    from quatform.sim.trial_measurement import TickMeasurement
+
+    rng = np.random.default_rng(seed)
+    T = len(exp.times)
+    x0 = exp.x0[None] + spread * rng.standard_normal((B, exp.x0.size))
+    noise = sigma * rng.standard_normal((T, B, exp.x0.size))
+    return dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, 1, rng.random((T, B)) < 0.1),
+                               finish=lambda log: log)

@@ -16,27 +16,15 @@ import json
 import numpy as np
 import pytest
 from conftest import BACKEND_TOL as TOL
-from conftest import assert_logs_equal, short_scenario
+from conftest import assert_logs_equal, noisy_batch, short_scenario
 
 from quatform.control.team import TeamController
 from quatform.errors import InvalidInputError
 from quatform.scenarios import KINDS
-from quatform.sim.trial_measurement import TickMeasurement
 
 TEAM = KINDS["team"]
 JAX_CONTROLLERS = ("quaternion", "dual-quaternion", "cluster-space", "robot-space")
 SAFETY = ("min_separation", "safety_active")
-
-
-def _batch(exp, B=3, seed=1, spread=0.02, sigma=0.003):
-    """``exp`` as a batch of ``B`` worlds: starts moved by ``spread`` m, ``sigma`` of noise,
-    one tick of latency, 10 % dropped frames; the identity finish (the raw loop's log)."""
-    rng = np.random.default_rng(seed)
-    T = len(exp.times)
-    x0 = exp.x0[None] + spread * rng.standard_normal((B, exp.x0.size))
-    noise = sigma * rng.standard_normal((T, B, exp.x0.size))
-    return dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, 1, rng.random((T, B)) < 0.1),
-                               finish=lambda log: log)
 
 
 def _assert_equal(a, b, channels=()):
@@ -70,7 +58,7 @@ def test_chain_on_numpy_is_update_bitwise(scenario, controller):
 @pytest.mark.parametrize("controller", JAX_CONTROLLERS)
 def test_batch_equals_numpy(scenario, controller):
     pytest.importorskip("jax")
-    batch = _batch(TEAM.experiment(short_scenario(scenario, 0.4), controller=controller))
+    batch = noisy_batch(TEAM.experiment(short_scenario(scenario, 0.4), controller=controller))
     a, b = batch.run(backend="numpy"), batch.run(backend="jax")
     _assert_equal(a, b, SAFETY)
     assert "failed" not in b.meta and "numpy_worlds" not in b.meta  # every world ran on JAX
@@ -93,7 +81,7 @@ def test_one_world_and_its_metrics_equal_numpy():
 def test_without_the_barrier_equals_numpy():
     pytest.importorskip("jax")
     exp = TEAM.experiment(short_scenario("team-tetrahedron-helix", 0.3), controller="quaternion")
-    bare = dataclasses.replace(_batch(exp), controller=exp.controller.inner)
+    bare = dataclasses.replace(noisy_batch(exp), controller=exp.controller.inner)
     assert isinstance(bare.controller, TeamController)
     _assert_equal(bare.run(backend="numpy"), bare.run(backend="jax"))
 
@@ -101,7 +89,7 @@ def test_without_the_barrier_equals_numpy():
 def test_a_world_with_robots_on_each_other_fails_alone():
     pytest.importorskip("jax")
     exp = TEAM.experiment(short_scenario("team-tetrahedron-helix", 0.3), controller="quaternion")
-    batch = _batch(exp, B=3, spread=0.0, sigma=0.0)
+    batch = noisy_batch(exp, B=3, spread=0.0, sigma=0.0)
     x0 = np.array(batch.x0)
     x0[1, 4:7] = x0[1, 0:3]  # robot 2 on robot 1 in world 1
     for ctrl in (exp.controller.inner, exp.controller):  # bare (JAX marks it) and with the barrier (NumPy's run)
@@ -129,7 +117,7 @@ def test_a_world_whose_barrier_jax_cannot_solve_is_numpys_run(monkeypatch):
     def reruns():
         return len(calls)
     exp = TEAM.experiment(short_scenario("team-three-bodies", 0.4), controller="robot-space")
-    batch = _batch(exp, B=3, spread=0.0)
+    batch = noisy_batch(exp, B=3, spread=0.0)
     x0 = np.array(batch.x0)
     p1, p2 = x0[2, 0:2], x0[2, 3:5]  # world 2: robot 1 behind robot 2 (0.35 m, barrier 0.3 m), its way home through it
     x0[2, 0:2] = p2 + 0.35 * (p2 - p1) / np.linalg.norm(p2 - p1)

@@ -18,12 +18,11 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import BACKEND_TOL as TOL
-from conftest import assert_logs_equal
+from conftest import assert_logs_equal, noisy_batch
 
 from quatform.errors import InvalidInputError
 from quatform.robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
 from quatform.scenarios import KINDS, builtin_scenarios
-from quatform.sim.trial_measurement import TickMeasurement
 from quatform.tomlio import read_toml
 
 TEAM = KINDS["team"]
@@ -62,17 +61,6 @@ BODY_TEAMS = {
 }
 
 
-def _batch(exp, B=3, seed=1, spread=0.02, sigma=0.003):
-    """``exp`` as a batch of ``B`` worlds: starts moved by ``spread``, ``sigma`` of noise, one
-    tick of latency, 10 % dropped frames; the identity finish (the raw loop's log)."""
-    rng = np.random.default_rng(seed)
-    T = len(exp.times)
-    x0 = exp.x0[None] + spread * rng.standard_normal((B, exp.x0.size))
-    noise = sigma * rng.standard_normal((T, B, exp.x0.size))
-    return dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, 1, rng.random((T, B)) < 0.1),
-                               finish=lambda log: log)
-
-
 def _assert_equal(a, b):
     assert_logs_equal(a, b)
     for key in SAFETY:
@@ -95,7 +83,7 @@ def test_triangle_over_ugv_batch_equals_numpy(controller):
     pytest.importorskip("jax")
     scenario = _ugv()
     assert not scenario.team.common_limit and type(scenario.team.robots[0]) is Pioneer
-    batch = _batch(TEAM.experiment(scenario, controller=controller))
+    batch = noisy_batch(TEAM.experiment(scenario, controller=controller))
     a, b = batch.run(backend="numpy"), batch.run(backend="jax")
     _assert_equal(a, b)
     assert "failed" not in b.meta and "numpy_worlds" not in b.meta  # every world ran on JAX
@@ -122,7 +110,7 @@ def test_one_world_after_finish_and_its_metrics_equal_numpy(scenario, controller
 def test_a_pioneer_world_whose_barrier_binds_is_numpys_run():
     pytest.importorskip("jax")
     exp = TEAM.experiment(_ugv(0.4), controller="robot-space")
-    batch = _batch(exp, B=3, spread=0.0)
+    batch = noisy_batch(exp, B=3, spread=0.0)
     x0 = np.array(batch.x0)
     x0[2, 3:6] = [x0[2, 0], x0[2, 1], -0.55]  # world 2: robot 2 starts 0.55 m under the UGV, its way up through it
     run = dataclasses.replace(batch, x0=x0)
@@ -146,7 +134,7 @@ def test_free_body_team_batch_equals_numpy(team, controller):
     pytest.importorskip("jax")
     scenario = _bodies(BODY_TEAMS[team])
     assert scenario.team.common_limit == (team == "free-bodies")
-    batch = _batch(TEAM.experiment(scenario, controller=controller))
+    batch = noisy_batch(TEAM.experiment(scenario, controller=controller))
     a, b = batch.run(backend="numpy"), batch.run(backend="jax")
     _assert_equal(a, b)
     assert "failed" not in b.meta and "numpy_worlds" not in b.meta
