@@ -332,7 +332,8 @@ def axis_angle_from_q(q, shortest: bool = False):
     if np.any(tiny):  # subnormal |v|: its norm rounds (5e-324 * sqrt 3 is 5e-324); scale v first
         big = np.max(np.abs(v), axis=-1, keepdims=True)
         w = v / np.where(big > 0.0, big, 1.0)
-        axis = np.where(tiny[..., None], w / norm3(w)[..., None], axis)
+        nw = norm3(w)  # 0 in the worlds that are not tiny (v = 0): those keep the axis above
+        axis = np.where(tiny[..., None], w / np.where(tiny, nw, 1.0)[..., None], axis)
     return axis, angle
 
 
