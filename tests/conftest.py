@@ -122,3 +122,14 @@ def noisy_batch(exp, B=3, seed=1, spread=0.02, sigma=0.003):
     noise = sigma * rng.standard_normal((T, B, exp.x0.size))
     return dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, 1, rng.random((T, B)) < 0.1),
                                finish=lambda log: log)
+
+
+def assert_metrics_equal(ma, mb):
+    """Two runs' metrics dicts: the same keys, finite floats within :data:`BACKEND_TOL`, the
+    rest (NaN, None, flags, strings) equal."""
+    assert ma.keys() == mb.keys()
+    for key, value in ma.items():
+        if isinstance(value, float) and np.isfinite(value):
+            assert abs(mb[key] - value) <= BACKEND_TOL, key
+        else:
+            assert mb[key] == value or (isinstance(value, float) and np.isnan(value) and np.isnan(mb[key])), key

@@ -16,7 +16,7 @@ import json
 import numpy as np
 import pytest
 from conftest import BACKEND_TOL as TOL
-from conftest import assert_logs_equal, noisy_batch, short_scenario
+from conftest import assert_logs_equal, assert_metrics_equal, noisy_batch, short_scenario
 
 from quatform.control.team import TeamController
 from quatform.errors import InvalidInputError
@@ -69,13 +69,7 @@ def test_one_world_and_its_metrics_equal_numpy():
     exp = TEAM.experiment(short_scenario("team-ring-flip", 0.4), controller="quaternion")
     a, b = exp.run(backend="numpy"), exp.run(backend="jax")
     _assert_equal(a, b, SAFETY)
-    ma, mb = exp.metrics(a), exp.metrics(b)
-    assert ma.keys() == mb.keys()
-    for key, value in ma.items():
-        if isinstance(value, float) and np.isfinite(value):
-            assert abs(mb[key] - value) <= TOL, key
-        else:
-            assert mb[key] == value or (isinstance(value, float) and np.isnan(value) and np.isnan(mb[key])), key
+    assert_metrics_equal(exp.metrics(a), exp.metrics(b))
 
 
 def test_without_the_barrier_equals_numpy():

@@ -18,7 +18,7 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import BACKEND_TOL as TOL
-from conftest import assert_logs_equal, noisy_batch
+from conftest import assert_logs_equal, assert_metrics_equal, noisy_batch
 
 from quatform.errors import InvalidInputError
 from quatform.robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
@@ -67,15 +67,6 @@ def _assert_equal(a, b):
         np.testing.assert_allclose(b[key], a[key], rtol=0, atol=TOL, err_msg=key)
 
 
-def _assert_metrics_equal(ma, mb):
-    assert ma.keys() == mb.keys()
-    for key, value in ma.items():
-        if isinstance(value, float) and np.isfinite(value):
-            assert abs(mb[key] - value) <= TOL, key
-        else:
-            assert mb[key] == value or (isinstance(value, float) and np.isnan(value) and np.isnan(mb[key])), key
-
-
 # -- the Pioneer team --------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("controller", UGV_CONTROLLERS)
@@ -104,7 +95,7 @@ def test_one_world_after_finish_and_its_metrics_equal_numpy(scenario, controller
     assert list(a.channels) == list(b.channels) and len(a.channels) > 10
     for key in a.channels:  # every channel of the finished log (the chart, the singularity measure, ...)
         np.testing.assert_allclose(b[key], a[key], rtol=0, atol=TOL, err_msg=key)
-    _assert_metrics_equal(exp.metrics(a), exp.metrics(b))
+    assert_metrics_equal(exp.metrics(a), exp.metrics(b))
 
 
 def test_a_pioneer_world_whose_barrier_binds_is_numpys_run():
