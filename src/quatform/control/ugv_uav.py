@@ -35,10 +35,16 @@ from .filters import FRAME_DROPPED, FRAME_GOOD, FRAME_REJECTED, ArenaWalls, Head
 from .laws import Block, BlockLaw
 
 __all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES",
-           "FRAME_CODES"]
+           "FRAME_CODES", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART"]
 
 #: Layout of the 11 measured values the UGV-UAV controller reads.
 UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
+#: Parts of the measured values: the motion capture's (both robots' poses) and the Bebop's
+#: odometry; the Pioneer's and the Bebop's (what each robot's actuation reads).
+MOCAP_PART = slice(0, UGV_UAV_MEASURED_NAMES.index("v_x_b"))
+ODOMETRY_PART = slice(MOCAP_PART.stop, len(UGV_UAV_MEASURED_NAMES))
+PIONEER_PART = slice(0, UGV_UAV_MEASURED_NAMES.index("x_b"))
+BEBOP_PART = slice(PIONEER_PART.stop, len(UGV_UAV_MEASURED_NAMES))
 #: Layout of the 6 commands it sends (the Pioneer's, then the Bebop's).
 UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
 
@@ -294,13 +300,14 @@ class UgvUavController(ClusterController):
         ``measured`` is ``m`` if good, else the last good frame, or None if there is none
         yet; ``state`` remembers the good frame or the start of the run of bad ones.
         """
-        finite = bool(np.all(np.isfinite(m[0:7])))
+        finite = bool(np.all(np.isfinite(m[MOCAP_PART])))
         frame = self.mocap.classify(t, self.measured_points(m) if finite else None, finite,
                                     None if state.good is None else self.measured_points(state.good), state.good_t)
         if frame == FRAME_GOOD:
-            if not np.all(np.isfinite(m[7:11])):  # the Bebop's odometry: the last finite one, or rest
-                m = np.r_[m[0:7], np.where(np.isfinite(m[7:11]), m[7:11],
-                                           0.0 if state.good is None else state.good[7:11])]
+            odo = m[ODOMETRY_PART]
+            if not np.all(np.isfinite(odo)):  # the Bebop's odometry: the last finite one, or rest
+                m = np.r_[m[MOCAP_PART], np.where(np.isfinite(odo), odo,
+                                                  0.0 if state.good is None else state.good[ODOMETRY_PART])]
             return frame, m, replace(state, good=m.copy(), good_t=t, bad_since=None)
         if state.bad_since is None:
             state = replace(state, bad_since=t)
@@ -318,7 +325,8 @@ class UgvUavController(ClusterController):
         if used is None or frame == FRAME_GOOD:
             return frame, used, False, m, state
         # the pose is held; the Bebop's own odometry is not from the motion capture
-        return frame, np.r_[used[0:7], np.where(np.isfinite(m[7:11]), m[7:11], used[7:11])], True, m, state
+        odo = m[ODOMETRY_PART]
+        return frame, np.r_[used[MOCAP_PART], np.where(np.isfinite(odo), odo, used[ODOMETRY_PART])], True, m, state
 
     def stop_reason(self, t: float, bad_since: float) -> str:
         """Why the screen stopped both robots at ``t`` after bad frames since ``bad_since``, s."""

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..algebra.validate import as_array
 from ..control.base import Reference
-from ..control.ugv_uav import UgvUavController, UgvUavState
+from ..control.ugv_uav import BEBOP_PART, MOCAP_PART, ODOMETRY_PART, PIONEER_PART, UgvUavController, UgvUavState
 from ..errors import InvalidInputError, ShapeError
 from ..formations import UgvUavRestricted
 from ..robots import BebopMemory
@@ -106,7 +106,8 @@ def _freeze(v):
 def _config_key(plant, controller, mocap) -> tuple:
     """What a compiled tick depends on: the controller's settings, the plant's robots and floor,
     the motion capture's ``ugv_z`` (two experiments with equal ones share one compilation)."""
-    return (_freeze(vars(controller)), type(controller.formation), plant.pioneer, plant.bebop, plant.floor, float(mocap.ugv_z))
+    return (_freeze(vars(controller)), type(controller.formation), plant.pioneer, plant.bebop, plant.floor,
+            float(mocap.ugv_z))
 
 
 def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
@@ -134,16 +135,16 @@ def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
         fresh = mocap.frame_pose(frame_x, jnp.broadcast_to(xs["noise"], (B, 5)), turns,
                                  jnp.broadcast_to(xs["lost"], (B,)), jnp.broadcast_to(xs["glitched"], (B,)))
         pose = jnp.where(xs["new"], fresh, pose)
-        m = jnp.concatenate([pose, hist[length - 1 - xs["odo_off"]][:, 7:11]], axis=-1)
+        m = jnp.concatenate([pose, hist[length - 1 - xs["odo_off"]][:, ODOMETRY_PART]], axis=-1)
         # -- the screen (UgvUavController.screen, _screened)
         has_good = jnp.isfinite(good_t)
-        finite = jnp.all(jnp.isfinite(m[:, 0:7]), axis=-1)
+        finite = jnp.all(jnp.isfinite(m[:, MOCAP_PART]), axis=-1)
         code = ctrl.mocap.frame_code(t, ctrl.measured_points(m), finite, ctrl.measured_points(good), good_t)
         ok = code == 0
-        odo = jnp.isfinite(m[:, 7:11])
-        m_good = jnp.concatenate([m[:, 0:7], jnp.where(odo, m[:, 7:11], jnp.where(has_good[:, None], good[:, 7:11],
-                                                                                   0.0))], axis=-1)
-        m_held = jnp.concatenate([good[:, 0:7], jnp.where(odo, m[:, 7:11], good[:, 7:11])], axis=-1)
+        mo, go = m[:, ODOMETRY_PART], good[:, ODOMETRY_PART]
+        odo = jnp.isfinite(mo)
+        m_good = jnp.concatenate([m[:, MOCAP_PART], jnp.where(odo, mo, jnp.where(has_good[:, None], go, 0.0))], axis=-1)
+        m_held = jnp.concatenate([good[:, MOCAP_PART], jnp.where(odo, mo, go)], axis=-1)
         used = jnp.where(ok[:, None], m_good, m_held)
         none = ~ok & ~has_good  # no good frame yet: nothing to go on
         held = ~ok & has_good
@@ -178,11 +179,11 @@ def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
         # -- the commands: brake (no frame, hold, stopped) or actuate (3.5), (3.10), (4.47)-(4.51)
         brake = none | hold | stopped
         m_brake = jnp.where(none[:, None], m, used)
-        u_b_brake, mem_brake = b.brake(m_brake[:, 3:11], BebopMemory(v_r, mem_t, v_dot))
+        u_b_brake, mem_brake = b.brake(m_brake[:, BEBOP_PART], BebopMemory(v_r, mem_t, v_dot))
         u_brake = actuation_commands(jnp.zeros((B, 2), dtype=x.dtype), u_b_brake)
         psi_rate = ctrl.heading.rate(used[:, 2], used[:, 6])  # (4.50)-(4.51), psi_bd = psi_p
-        u_p, _ = p.actuate(used[:, 0:3], x_rate[:, 0:3], t)
-        u_b, mem = b.actuate(used[:, 3:11], jnp.concatenate([x_rate[:, 3:6], psi_rate[:, None]], axis=-1), t,
+        u_p, _ = p.actuate(used[:, PIONEER_PART], x_rate[:, 0:3], t)
+        u_b, mem = b.actuate(used[:, BEBOP_PART], jnp.concatenate([x_rate[:, 3:6], psi_rate[:, None]], axis=-1), t,
                              BebopMemory(v_r, mem_t, v_dot))
         u = jnp.where(brake[:, None], u_brake, actuation_commands(u_p, u_b))
         v_r, mem_t, v_dot = (jnp.where(brake.reshape((B,) + (1,) * (a.ndim - 1)), a_brake, a)
