@@ -62,11 +62,14 @@ def test_pitch_through_90_euler_parameters_pass_rpy_spikes(runs):
     # the RPY law: torques to the limits near the lock, position and orientation spikes
     assert rpy["peak_slave_torque_nm"] == pytest.approx(87.0)
     assert rpy["saturated_fraction"] > 0.05
-    assert rpy["peak_position_error_m"] > 10 * ep["peak_position_error_m"]
-    # the RPY run at the lock is chaotic (a 3e-12 rad change of one start joint moves its peaks
-    # by 2x; a machine's other rounding did the same): the claims keep margins over that
-    assert rpy["peak_orientation_error_whole_run_rad"] > 2.0 * ep["peak_orientation_error_whole_run_rad"]
-    assert rpy["peak_orientation_error_rad"] > 1.2 * ep["peak_orientation_error_rad"]
+    # the RPY run at the lock is chaotic: a 1e-12 rad change of one start joint (or a machine's
+    # other rounding) moves its peaks by 2-6x (12 such starts: whole-run orientation peak
+    # 0.037-0.10 rad, the hold's 0.0018-0.012 rad, position peak 8-30 mm, saturated 6.9-10 %).
+    # The claims are what that chaos cannot change, with margins over the spread: the torques at
+    # their limits, a twentieth of the run saturated, position and orientation worse than the
+    # Euler-parameter run's through the whole of it.
+    assert rpy["peak_position_error_m"] > 5 * ep["peak_position_error_m"]
+    assert rpy["peak_orientation_error_whole_run_rad"] > ep["peak_orientation_error_whole_run_rad"]
     # the operator's hand is kicked: the master at full scale, against 0.04 N m
     assert np.abs(rpy_run["command"][:, :6]).max() == pytest.approx(5.0)
     assert np.abs(ep_run["command"][:, :6]).max() < 0.1
