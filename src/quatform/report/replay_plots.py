@@ -11,7 +11,7 @@ y-range set by the commands and that mean, so the noise cannot hide the commands
 top, solid).
 
 * :func:`column_unit` - the unit of a robot's state or command column;
-* :func:`plot_replay_commands` - the figure, written to a PNG.
+* :func:`replay_commands_figure` - the figure; :func:`plot_replay_commands` - written to a PNG.
 """
 
 from __future__ import annotations
@@ -19,10 +19,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from .figures import intervals, new_figure, save
 
-__all__ = ["RATE_WINDOW_S", "COMMAND_ZORDER", "RATE_ZORDER", "column_unit", "plot_replay_commands"]
+__all__ = ["RATE_WINDOW_S", "COMMAND_ZORDER", "RATE_MEAN_ZORDER", "RATE_ZORDER", "RATE_ALPHA", "column_unit",
+           "plot_replay_commands", "replay_commands_figure"]
 
 #: Width of the moving mean drawn over a measured rate, s.
 RATE_WINDOW_S = 0.5
@@ -86,7 +88,14 @@ def _ylim(ax, *series):
 
 def plot_replay_commands(t, states, commands, held, names, models, state_slices, command_slices,
                          command_names, path) -> Path:
-    """Draw the replay's commands against the measured state, per robot, into ``path`` (PNG).
+    """:func:`replay_commands_figure` written to ``path`` (PNG); returns the path."""
+    return save(replay_commands_figure(t, states, commands, held, names, models, state_slices, command_slices,
+                                       command_names), path)
+
+
+def replay_commands_figure(t, states, commands, held, names, models, state_slices, command_slices,
+                           command_names) -> Figure:
+    """The replay's commands against the measured state, per robot (the module docstring).
 
     Parameters
     ----------
@@ -106,11 +115,10 @@ def plot_replay_commands(t, states, commands, held, names, models, state_slices,
         Each robot's columns of ``states`` and ``commands``.
     command_names : sequence of str
         The controller's command names (legend).
-    path : str or Path
 
     Returns
     -------
-    Path
+    matplotlib.figure.Figure
     """
     t = np.asarray(t, dtype=float)
     t = t - t[0]
@@ -170,4 +178,4 @@ def plot_replay_commands(t, states, commands, held, names, models, state_slices,
     fig.suptitle("measured state (left) and commands (right); grey: held (stale pose or e-stop)"
                  + (f"\nsolid: commanded, dashed: measured rate ({RATE_WINDOW_S:g} s moving mean), faint: measured rate per tick"
                     if passthrough else ""), fontsize=9)
-    return save(fig, path)
+    return fig
