@@ -86,12 +86,16 @@ def test_every_metrics_key_of_a_run_is_defined(tmp_path, name, kind, options):
     _check(_written(tmp_path, _short(name), **options), kind)
 
 
-def test_every_metrics_key_of_a_physics_run_is_defined(tmp_path):
+@pytest.mark.parametrize("name, kind, options", [
+    ("mas-kitts-helix", "pair", {"controller": "quaternion"}),
+    ("team-triangle-over-ugv", "team", {"controller": "quaternion"}),
+    ("marciano-circle", "ugv-uav", {"formation": "quaternion"}),
+])
+def test_every_metrics_key_of_a_physics_run_is_defined(tmp_path, name, kind, options):
     pytest.importorskip("mujoco")
-    sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=0.1, metrics_from_s=0.0)
-    keys = _written(tmp_path, sc, controller="quaternion", backend="mujoco")
-    assert {"collisions", "physics_timestep_s", "gains_source"} <= keys
-    _check(keys, "pair")
+    keys = _written(tmp_path, _short(name, duration_s=0.3), backend="mujoco", **options)
+    assert {"collisions", "physics_timestep_s", "render"} <= keys
+    _check(keys, kind)
 
 
 def test_every_metrics_key_of_a_plan_is_defined(tmp_path):
