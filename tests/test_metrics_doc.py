@@ -72,7 +72,8 @@ def test_every_section_row_has_a_unit_and_a_definition():
             assert len(r) == len(rows[0]), f"docs/metrics.md, {head}: {r} has not the header's {len(rows[0])} cells"
 
 
-@pytest.mark.parametrize("name, kind, options", [
+#: A short run of each kind (and of the options that add keys).
+RUNS = [
     ("mas-kitts-helix", "pair", {"controller": "quaternion"}),
     ("mas-kitts-helix", "pair", {"controller": "cluster-space"}),
     ("team-tetrahedron-helix", "team", {"controller": "quaternion"}),
@@ -81,7 +82,14 @@ def test_every_section_row_has_a_unit_and_a_definition():
     ("marciano-circle", "ugv-uav", {"formation": "quaternion"}),
     ("teleop-wall-contact", "teleop", {}),
     ("teleop-virtual-wall", "teleop", {}),
-])
+]
+
+
+def test_every_kind_is_run_here():
+    assert {kind for _, kind, _ in RUNS} == set(KINDS), "add a short run of the new kind to RUNS"
+
+
+@pytest.mark.parametrize("name, kind, options", RUNS)
 def test_every_metrics_key_of_a_run_is_defined(tmp_path, name, kind, options):
     _check(_written(tmp_path, _short(name), **options), kind)
 
@@ -133,6 +141,7 @@ def test_every_metrics_key_of_a_replay_is_defined(tmp_path):
 def test_every_table_column_is_defined():
     sections = _sections()
     for kind in KINDS.values():
+        assert f"table: {kind.name}" in sections, f"docs/metrics.md has no section 'table: {kind.name}'"
         rows = {r[0]: r for r in sections[f"table: {kind.name}"][1:]}
         axes = [o.name for o in kind.options if o.choices is not None]
         columns = set()
