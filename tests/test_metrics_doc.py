@@ -116,7 +116,8 @@ def test_every_metrics_key_of_a_plan_is_defined(tmp_path):
 
 
 def test_every_metrics_key_of_a_replay_is_defined(tmp_path):
-    spec = importlib.util.spec_from_file_location("ros2_helpers", Path(__file__).parent / "fake_rclpy" / "ros2_helpers.py")
+    helpers = Path(__file__).parent / "fake_rclpy" / "ros2_helpers.py"
+    spec = importlib.util.spec_from_file_location("ros2_helpers", helpers)
     H = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(H)
     from quatform.ros2.bridge import FormationBridge, experiment_for

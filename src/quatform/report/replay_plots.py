@@ -176,6 +176,6 @@ def replay_commands_figure(t, states, commands, held, names, models, state_slice
         ax.tick_params(labelbottom=True)
     passthrough = any(m.passthrough for m in models)
     fig.suptitle("measured state (left) and commands (right); grey: held (stale pose or e-stop)"
-                 + (f"\nsolid: commanded, dashed: measured rate ({RATE_WINDOW_S:g} s moving mean), faint: measured rate per tick"
-                    if passthrough else ""), fontsize=9)
+                 + (f"\nsolid: commanded, dashed: measured rate ({RATE_WINDOW_S:g} s moving mean), "
+                    "faint: measured rate per tick" if passthrough else ""), fontsize=9)
     return fig
