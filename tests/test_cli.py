@@ -121,7 +121,7 @@ def test_ugv_uav_run_and_compare(tmp_path, capsys):
     rows = json.loads((cmp_dir / "comparison.json").read_text())
     assert [r["formation"] for r in rows] == ["spherical", "restricted", "quaternion"]
     assert rows[1]["unreachable_reference"] and not rows[2]["unreachable_reference"]
-    assert "| restricted | True |" in text and (cmp_dir / "compare_formations.png").exists()
+    assert "| restricted | 60.0 |" in text and (cmp_dir / "compare_formations.png").exists()  # unreachable ref. (s)
     # a two-robot scenario needs --controller
     assert cli.main(["run", "mas-kitts-yaw-step", "--out", str(tmp_path / "x")]) == 2
 

@@ -5,7 +5,9 @@
 * :mod:`.figures` - the shared figure helpers; :mod:`.writers` - ``timeseries.csv`` and strict
   JSON for every kind;
 * one figure module per kind (:mod:`.plots` for seed 000's pairs, :mod:`.ugv_uav_plots`,
-  :mod:`.teleop_plots`, :mod:`.team_plots` for teams of N robots).
+  :mod:`.teleop_plots`, :mod:`.team_plots` for teams of N robots); the planners' figures
+  (:mod:`.plan_plots`, :mod:`.planning_plots`) and the replay's ``commands.png``
+  (:mod:`.replay_plots`).
 """
 
 from .figure_set import NO_FIGURES, FigureSet

@@ -4,7 +4,8 @@
   (solid, where defined), with snapshots of the formation at evenly spaced times; a
   spatial plan is drawn in the two views x-y and x-z.
 * :func:`plot_plan_separation` - the smallest and every pairwise separation against time.
-* :func:`plot_alpha_panels` - one panel per alpha, stacked as in the seed's figures.
+* :func:`plot_alpha_panels` - one panel per alpha, stacked as in the seed's figures (by
+  increasing alpha, one x-y scale, equal on both axes; a legend naming each alpha).
 
 Agg canvases only; nothing touches pyplot's global state.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from ..planning import Plan, pair_separations, rigid_motion
 
@@ -92,13 +94,56 @@ def plot_plan_separation(plan: Plan, clearance_m: float | None = None) -> Figure
     return fig
 
 
+def _extent(plans, axes=(0, 1)):
+    """Lower and upper corners of every plan's paths (and rigid reference) in the view ``axes``."""
+    pts = []
+    for plan in plans:
+        t = np.linspace(plan.times[0], plan.times[-1], 201)
+        pos, _, _ = plan.sample(t)
+        pts.append(pos[..., list(axes)].reshape(-1, 2))
+        if plan.info.get("kind") != "rigid-se3":
+            s = (t - t[0]) / (t[-1] - t[0])
+            pts.append(rigid_motion(pos[0], pos[-1], plan.masses, s)[..., list(axes)].reshape(-1, 2))
+    pts = np.concatenate(pts)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    return pts.min(axis=0), pts.max(axis=0)
+
+
 def plot_alpha_panels(plans: dict, title: str = "") -> Figure:
-    """One panel per ``alpha`` (``{alpha: Plan}``), top to bottom as in seed 002 Figs. 3-4."""
-    fig = _figure(6.5, 2.8 * len(plans))
-    for k, (alpha, plan) in enumerate(plans.items()):
-        ax = fig.add_subplot(len(plans), 1, k + 1)
-        _draw(ax, plan, (0, 1), f"{title} alpha = {alpha:g}".strip())
-    fig.tight_layout()
+    """One panel per ``alpha`` (``{alpha: Plan}``), as in seed 002 Figs. 3-4.
+
+    The panels are stacked by increasing alpha (the seed's order: alpha = 0.2 on top, 0.99 at
+    the bottom), share one x-y scale (metres, equal on both axes: a circle looks round), and
+    each names its alpha in its legend; the figure's legend names the robots (with their
+    masses), the optimal rigid motion (solid grey) and the formation snapshots.
+    """
+    items = sorted(plans.items(), key=lambda kv: float(kv[0]))
+    lo, hi = _extent([p for _, p in items])
+    pad = 0.06 * float(max(hi - lo))
+    lo, hi = lo - pad, hi + pad
+    width = 6.5
+    panel_h = float(np.clip((width - 1.0) * (hi[1] - lo[1]) / (hi[0] - lo[0]), 1.0, 6.0)) + 0.55  # + tick labels
+    fig = Figure(figsize=(width, panel_h * len(items) + 0.9), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(len(items), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
+    for ax, (alpha, plan) in zip(axes, items):
+        _draw(ax, plan, (0, 1))
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal", adjustable="box")
+        ax.tick_params(labelbottom=True)
+        ax.legend(handles=[Line2D([], [], color="k", ls="--", lw=1.4, label=f"α = {float(alpha):g}")],
+                  loc="upper right", fontsize=9, handlelength=2.5)
+    plan = items[0][1]
+    shared = [Line2D([], [], color=f"C{k}", ls="--", lw=1.4, marker="o", ms=4,
+                     label=f"robot {k + 1} (m = {plan.masses[k]:g} kg), geodesic of the shaped metric")
+              for k in range(plan.n_robots)]
+    if plan.info.get("kind") != "rigid-se3":
+        shared.append(Line2D([], [], color="0.55", lw=1.0, label="optimal rigid motion (SE(2))"))
+    shared.append(Line2D([], [], color="k", lw=0.6, alpha=0.6, label=f"formation at {SNAPSHOTS} instants"))
+    fig.legend(handles=shared, loc="outside lower center", ncol=2, fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=9)
     return fig
 
 

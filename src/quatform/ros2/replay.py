@@ -156,39 +156,12 @@ def _csv(result: ReplayResult, bridge) -> tuple[list, np.ndarray]:
 
 
 def _figure(result: ReplayResult, bridge, path: Path) -> Path:
-    from ..report.figures import intervals, new_figure, save
+    from ..report.replay_plots import plot_replay_commands
 
-    t = np.array([tk.t for tk in result.ticks])
-    t = t - t[0]
-    u = np.array([tk.u for tk in result.ticks])
-    held = np.array([tk.status != "ok" for tk in result.ticks])
     pr = bridge.plant_robots
-    cols = bridge.experiment.plant.state_columns
-    ucols = bridge.experiment.controller.command_names
-    n = len(pr.models)
-    fig = new_figure((11, 2.6 * n))
-    axes = fig.subplots(n, 2, squeeze=False)
-    for i, (model, ss, cs) in enumerate(zip(pr.models, pr.state_slices, pr.command_slices)):
-        x = result.states[:, ss]
-        ax = axes[i, 0]
-        for j, c in enumerate(cols[ss]):
-            ax.plot(t, x[:, j], lw=1, label=c)
-        ax.set_title(f"{bridge.names[i]}: measured state", fontsize=9)
-        ax.legend(fontsize=7, ncol=4, loc="best")
-        ax = axes[i, 1]
-        for j, c in enumerate(ucols[cs]):
-            line, = ax.plot(t, u[:, cs][:, j], lw=1, label=f"{c} commanded")
-            if model.passthrough and len(t) > 1:  # its commands are its state's world rates: measured beside
-                rate = np.gradient(x[:, j], t)
-                ax.plot(t, rate, lw=0.8, ls="--", color=line.get_color(), label=f"{c} measured rate")
-        for a, b in intervals(t, held):
-            ax.axvspan(a, b, color="0.85", lw=0, zorder=0)
-        ax.set_title(f"{bridge.names[i]}: commanded" + (" vs measured rate" if model.passthrough else "")
-                     + " (grey: held, stale pose or e-stop)", fontsize=9)
-        ax.legend(fontsize=7, ncol=2, loc="best")
-    for ax in axes[-1]:
-        ax.set_xlabel("time since the first tick (s)")
-    return save(fig, path)
+    return plot_replay_commands([tk.t for tk in result.ticks], result.states, np.array([tk.u for tk in result.ticks]),
+                                [tk.status != "ok" for tk in result.ticks], bridge.names, pr.models,
+                                pr.state_slices, pr.command_slices, bridge.experiment.controller.command_names, path)
 
 
 def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_hz: float | None = None,

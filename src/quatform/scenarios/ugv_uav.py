@@ -66,14 +66,16 @@ DERIVED_CHANNELS = ("r_true", "r_des", "r_measured", "c_des", "c_continuous", "e
 #: Channels of ``timeseries.csv``, in order (with ``t`` first: the columns of today's files).
 UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity")
 
-#: Columns of the comparison table: (metrics key, header, format).
+#: Columns of the comparison table: (metrics key, header, format). The errors count only the
+#: samples whose reference the description can express (:func:`ugv_uav_metrics`); the time it
+#: cannot (``unreachable_reference_s``) has its own column, and the headers say so.
 UGV_UAV_COLUMNS = (
     ("formation", "formation", "{}"),
-    ("unreachable_reference", "unreachable", "{}"),
+    ("unreachable_reference_s", "unreachable ref. (s)", "{:.1f}"),
     ("first_singular_time_s", "singular at (s)", "{:.2f}"),
-    ("max_ugv_position_error_m", "UGV (m)", "{:.3f}"),
-    ("max_uav_position_error_m", "UAV (m)", "{:.3f}"),
-    ("max_uav_yaw_error_rad", "UAV yaw (rad)", "{:.3f}"),
+    ("max_ugv_position_error_m", "UGV err, reachable (m)", "{:.3f}"),
+    ("max_uav_position_error_m", "UAV err, reachable (m)", "{:.3f}"),
+    ("max_uav_yaw_error_rad", "UAV yaw err, reachable (rad)", "{:.3f}"),
     ("max_unexplained_cluster_jump", "state jump", "{:.1e}"),
     ("mocap_dropped_frames", "mocap dropped", "{}"),
     ("mocap_rejected_frames", "mocap rejected", "{}"),
