@@ -64,7 +64,7 @@ def sweep_command(args) -> None:
     from dataclasses import replace
 
     from ..errors import InvalidInputError
-    from .executors import slurm_job_script
+    from .executors import check_scheduler, slurm_job_script
     from .runner import run_sweep
     from ..sim.output import check_inputs_outside
     from .spec import load_sweep
@@ -74,6 +74,7 @@ def sweep_command(args) -> None:
     check_inputs_outside(args.out, args.spec)  # a spec file inside --out: refused before any work
     if args.trials is not None and args.trials < 1:
         raise InvalidInputError(f"--trials {args.trials} must be >= 1")
+    check_scheduler(args.scheduler)  # Dask missing: one line before the spec's experiments are built
     spec = load_sweep(args.spec, trials=args.trials)
     if args.slurm or args.scheduler == "slurm":
         spec = replace(spec, slurm=_slurm_options(spec, args.slurm))
