@@ -1,28 +1,28 @@
 """``quatform sweep SPEC --out DIR`` and ``quatform sweeps`` (registered by :mod:`quatform.cli`).
 
-Sweeps layer. :func:`add_parsers` adds both subcommands to the CLI's subparsers; the
-functions :func:`sweep_command` and :func:`sweeps_command` run them.
+Sweeps layer. :func:`sweep_arguments` and :func:`sweeps_arguments` fill in the two
+subcommands' parsers (the CLI names them); :func:`sweep_command` and :func:`sweeps_command`
+run them.
 """
 
 from __future__ import annotations
 
 import sys
 
-__all__ = ["add_parsers", "sweep_command", "sweeps_command"]
+__all__ = ["sweep_arguments", "sweeps_arguments", "sweep_command", "sweeps_command"]
 
 #: Most cells the summary printed on stdout shows (all are in summary.csv).
 _MAX_PRINTED = 60
 
 
-def add_parsers(sub) -> None:
-    """Add ``sweep`` and ``sweeps`` to the CLI's subparsers ``sub``."""
+def sweep_arguments(p) -> None:
+    """The description and options of ``quatform sweep`` on its parser ``p``."""
     from ..sim.backends import SIM_BACKENDS
 
-    p = sub.add_parser(
-        "sweep", help="run a Monte Carlo sweep (controllers x noise, latency, gains, starts, team sizes)",
-        description="Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes "
-                    "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into "
-                    "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
+    p.description = (
+        "Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes "
+        "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into "
+        "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
     p.add_argument("spec", metavar="SPEC", help="built-in sweep name (see 'quatform sweeps') or file.toml")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (resumed when it holds this sweep)")
     p.add_argument("--trials", type=int, metavar="K", help="trials per cell instead of the spec's (a quick look)")
@@ -40,8 +40,11 @@ def add_parsers(sub) -> None:
                    help="with --scheduler slurm: print the job script dask-jobqueue would submit, run nothing")
     p.add_argument("--no-plots", action="store_true", help="write the tables only")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
-    sub.add_parser("sweeps", help="list the built-in sweeps",
-                   description="List the built-in sweep specs with their titles and sources.")
+
+
+def sweeps_arguments(p) -> None:
+    """The description of ``quatform sweeps`` on its parser ``p``."""
+    p.description = "List the built-in sweep specs with their titles and sources."
 
 
 def _slurm_options(spec, pairs) -> dict:
