@@ -136,8 +136,9 @@ class BridgeNode:
     def _pose_callback(self, i):
         def callback(msg):
             if not self.bridge.on_pose(i, msg, self.now_ns()):
-                self.node.get_logger().warning(f"robot {self.bridge.names[i]!r}: lost frame on "
-                                               f"{self.bridge.robots.robots[i].pose_topic} (NaN or non-unit quaternion)")
+                topic = self.bridge.robots.robots[i].pose_topic
+                self.node.get_logger().warning(f"robot {self.bridge.names[i]!r}: lost frame on {topic} (NaN or "
+                                               "non-unit quaternion)")
         return callback
 
     def _estop_topic(self, msg):

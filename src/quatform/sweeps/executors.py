@@ -18,8 +18,8 @@ from ..checks import nearest
 from ..errors import InvalidInputError, MissingDependencyError, ResourceLimitError, UnreachableError
 from ..sim.jax_devices import share_cores, usable_cores
 
-__all__ = ["executor", "check_scheduler", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S", "LOCAL_WORKERS_PER_CORE",
-           "parallel_workers"]
+__all__ = ["executor", "check_scheduler", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S",
+           "LOCAL_WORKERS_PER_CORE", "parallel_workers"]
 
 #: Named schedulers (besides ``tcp://HOST:PORT``).
 SCHEDULERS = ("local", "slurm")
