@@ -61,7 +61,7 @@ def test_refuses_what_it_does_not_run(scenario, choice):
     sc = load_scenario(scenario)
     ex = kind_of(sc).experiment(sc, **choice)
     with pytest.raises(InvalidInputError, match=r"the jax backend runs the seed-000 pair experiments.*"
-                                                r"runs on numpy \(--backend numpy\)"):
+                                                r"runs on numpy \(--compute numpy\)"):
         ex.run(backend="jax")
 
 

@@ -134,7 +134,7 @@ def test_stale_pose_zeros_and_holds_then_resumes(fake_ros, tmp_path):
             np.testing.assert_array_equal(_twists(bus, link.command_topic)[k], np.zeros(6))
     # held: the reference time does not advance while stale; it resumes where it stopped
     assert node.ticks[34].tau == node.ticks[24].tau and node.ticks[35].tau == pytest.approx(node.ticks[24].tau + 0.01)
-    assert any("stale pose from r2" in text for level, text in bus.logs if level == "warn")
+    assert any("stale pose from r2" in text for level, text in bus.logs if level == "warning")
 
 
 def test_estop_latches_until_released(fake_ros, tmp_path):
@@ -161,6 +161,93 @@ def test_estop_latches_until_released(fake_ros, tmp_path):
     bus.call("/quatform/set_estop", data=True)
     r1 = rf.robots[0].command_topic
     assert np.all(_twists(bus, r1)[-1] == 0)  # engaging publishes zero at once
+
+
+def _started_pair(fake_ros, tmp_path):
+    exp, log, rf = _pair_setup(tmp_path)
+    bag = _pair_bag(tmp_path, log, rf, exp)
+    _schedule_bag(fake_ros.fake_bus.BUS, bag, rf)
+    from quatform.ros2.node import BridgeNode
+
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node.start()
+    return node, rf
+
+
+def test_fake_rclpy_refuses_what_rclpy_refuses(fake_ros):
+    """The fake is as strict as rclpy: no deprecated ``warn``, no publish or spin after shutdown."""
+    from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+
+    fake_ros.init()
+    node = Node("n")
+    assert not hasattr(node.get_logger(), "warn") and hasattr(node.get_logger(), "warning")
+    pub = node.create_publisher(messages.msg_type("std_msgs/msg/Bool"), "/b", 10)
+    fake_ros.shutdown()
+    with pytest.raises(RCLError, match="publisher's context is invalid"):
+        pub.publish(messages.msg_type("std_msgs/msg/Bool")(data=True))
+    with pytest.raises(ExternalShutdownException):
+        fake_ros.spin_once(node, timeout_sec=0.1)
+    with pytest.raises(RCLError, match="already called"):
+        fake_ros.shutdown()
+    with pytest.raises(TypeError):
+        fake_ros.init(None)  # keyword arguments only
+
+
+def test_ctrl_c_sends_zero_to_every_robot_before_shutdown(fake_ros, tmp_path):
+    node, rf = _started_pair(fake_ros, tmp_path)
+    bus = fake_ros.fake_bus.BUS
+    assert bus.signal_handler_options.name == "NO"  # rclpy's handler would shut the context down first
+    t_stop = 10 * DT_NS + DT_NS // 2
+    bus.interrupt(t_stop)
+    with pytest.raises(KeyboardInterrupt):
+        node.spin()
+    for link in rf.robots:
+        sent = bus.published[link.command_topic]
+        assert len(sent) == 11 and sent[-1][0] == t_stop  # ten ticks, then the zero command at Ctrl-C
+        tw = _twists(bus, link.command_topic)
+        assert np.any(tw[:-1] != 0) and np.all(tw[-1] == 0)
+    assert not fake_ros.ok() and bus.nodes == []  # shut down after the zero command
+    assert not any(level == "error" for level, _ in bus.logs)
+
+
+def test_sigterm_sends_zero_as_ctrl_c_does(fake_ros, tmp_path):
+    import os
+    import signal
+
+    node, rf = _started_pair(fake_ros, tmp_path)
+    bus = fake_ros.fake_bus.BUS
+    node.node.create_timer(0.055, lambda: os.kill(os.getpid(), signal.SIGTERM))
+
+    def not_the_node(signum, frame):  # a node that does not take SIGTERM over ends up here, not killed
+        raise RuntimeError("SIGTERM reached the test's handler")
+
+    previous = signal.signal(signal.SIGTERM, not_the_node)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            node.spin()
+        assert signal.getsignal(signal.SIGTERM) is not_the_node  # restored
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    for link in rf.robots:
+        assert bus.published[link.command_topic][-1][0] == 55 * DT_NS // 10
+        assert np.all(_twists(bus, link.command_topic)[-1] == 0)
+    assert not fake_ros.ok()
+
+
+def test_context_shut_down_elsewhere_logs_instead_of_raising(fake_ros, tmp_path):
+    """rclpy initialised by someone else with its signal handlers: Ctrl-C shuts the context down
+    before the node sees it; no message can go out, and the node says so in one line."""
+    fake_ros.init()
+    node, rf = _started_pair(fake_ros, tmp_path)
+    bus = fake_ros.fake_bus.BUS
+    bus.interrupt(5 * DT_NS + DT_NS // 2)
+    with pytest.raises(KeyboardInterrupt):
+        node.spin()
+    errors = [text for level, text in bus.logs if level == "error"]
+    assert len(errors) == 1 and "before the zero command" in errors[0]
+    assert len(bus.published[rf.robots[0].command_topic]) == 5 and bus.nodes == []
 
 
 def test_missing_robot_refuses_to_start(fake_ros, tmp_path):

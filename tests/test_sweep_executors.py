@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from quatform.errors import InvalidInputError, UnreachableError
+from quatform.errors import InvalidInputError, MissingDependencyError, UnreachableError
 from quatform.sweeps import load_sweep, run_sweep
 from quatform.sweeps.executors import executor
 
@@ -125,3 +125,29 @@ def test_slurm_job_script_from_the_cli(spec, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "#SBATCH -p gpu" in out and "#SBATCH -t 00:30:00" in out
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("scheduler, missing, names", [
+    ("local", "distributed", "Dask"), ("tcp://127.0.0.1:9", "distributed", "Dask"),
+    ("slurm", "dask_jobqueue", "dask-jobqueue")])
+def test_dask_missing_is_one_line_before_any_experiment_is_built(spec, monkeypatch, capsys, tmp_path, scheduler,
+                                                                 missing, names):
+    """Without Dask, ``--scheduler`` is refused up front: no spec loaded, no experiment built."""
+    import sys
+
+    from quatform import cli
+    from quatform.sweeps import runner, spec as spec_module
+
+    monkeypatch.setitem(sys.modules, missing, None)  # import raises ImportError
+
+    def built(*args, **kwargs):
+        raise AssertionError("experiments built before the scheduler was checked")
+
+    monkeypatch.setattr(spec_module, "load_sweep", built)
+    monkeypatch.setattr(runner, "estimate", built)
+    assert cli.main(["sweep", "team-size-sweep", "--out", str(tmp_path / "o"), "--scheduler", scheduler]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--scheduler {scheduler} needs {names}" in err
+    assert 'pip install -e ".[dask]"' in err
+    with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[dask\]"'):  # the library's entry too
+        run_sweep(spec, tmp_path / "p", scheduler=scheduler)

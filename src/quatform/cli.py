@@ -14,7 +14,6 @@ import sys
 
 from . import __version__
 from .errors import QuatformError
-from .papers import cited
 
 #: Exit statuses.
 EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 2, 3, 130
@@ -48,6 +47,8 @@ def _add_compute_flag(p) -> None:
 
 def _cited(source: str) -> list[str]:
     """The citations of the seed documents that a scenario's or plan's ``source`` names."""
+    from .papers import cited
+
     return [f"{p.tag}: {p.citation}" for p in cited(source)]
 
 
@@ -112,55 +113,60 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"{self.prog}: error: {text} (see '{self.prog} --help')\n")
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="quatform",
-        description="Singularity-free control of robot teams and robot arms with quaternions, "
-        "dual quaternions and Euler parameters.",
-    )
-    parser.add_argument("--version", action="version", version=f"quatform {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+#: Every subcommand and its one-line help, in the order ``quatform --help`` lists them. The
+#: top-level parser is built from these names alone; a subcommand's own options (and the
+#: modules they come from: the scenario kinds, the compute backends, the sweeps, the ROS 2
+#: bridge) are built only for the command given (:func:`_build_parser`, :data:`ARGUMENTS`).
+COMMAND_HELP = {
+    "demo": "compare the four seed 000 controllers on the rising spiral",
+    "run": "simulate one scenario of any kind with one choice",
+    "plan": "plan a formation motion (seed 002 shaped geodesics, seed 004 rigid formations on SE(3))",
+    "plans": "list the built-in plan specs",
+    "compare": "run every choice of one option (every controller, every formation description ...) on one scenario",
+    "teleop": "simulate a master-slave teleoperation scenario (seed 003; 'run' for teleop scenarios)",
+    "scenarios": "list the built-in scenarios of every kind",
+    "sweep": "run a Monte Carlo sweep (controllers x noise, latency, gains, starts, team sizes)",
+    "sweeps": "list the built-in sweeps",
+    "ros2": "drive real robots over ROS 2 with a scenario's controller (needs a sourced ROS 2)",
+    "replay": "run a controller offline on a recorded bag's poses and write what it would have commanded",
+}
 
-    demo = sub.add_parser(
-        "demo",
-        help="compare the four seed 000 controllers on the rising spiral",
-        description="Run 'compare mas-kitts-spiral': the Euclidean cluster-space controller "
+
+def _demo_arguments(demo) -> None:
+    demo.description = (
+        "Run 'compare mas-kitts-spiral': the Euclidean cluster-space controller "
         "meets the singular pose at pitch 90 deg, the robot-space controller mis-reports the "
         "formation, the quaternion and dual-quaternion controllers track it. Writes every "
-        "run's files and plots (and run.mcap) and prints the table.",
-    )
+        "run's files and plots (and run.mcap) and prints the table.")
     demo.add_argument("--out", metavar="DIR", default="quatform-demo",
                       help="output folder (default: ./quatform-demo)")
     _add_output_flags(demo)
 
+
+def _run_arguments(run) -> None:
     from .scenarios import KINDS
 
-    kinds = tuple(KINDS.values())
-    run = sub.add_parser(
-        "run",
-        help="simulate one scenario of any kind with one choice",
-        description="Simulate SCENARIO (a built-in name or a .toml file of any kind: "
+    run.description = (
+        "Simulate SCENARIO (a built-in name or a .toml file of any kind: "
         f"{', '.join(KINDS)}) and write DIR/metrics.json, DIR/timeseries.csv, PNG plots and DIR/run.mcap "
         "(a ROS 2 bag for Foxglove, PlotJuggler and ros2 bag; docs/ecosystem.md) with DIR/foxglove-layout.json. Each "
         "option below names the scenario kinds that take it (a kind refuses the others); a "
-        "two-robot scenario (seed 000) needs --controller. " + _MUJOCO_NOTE,
-    )
+        "two-robot scenario (seed 000) needs --controller. " + _MUJOCO_NOTE)
     run.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
     run.add_argument("--out", metavar="DIR", required=True, help="output folder")
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
     _add_output_flags(run)
     _add_compute_flag(run)
-    _add_kind_options(run, kinds)
+    _add_kind_options(run, tuple(KINDS.values()))
 
-    plan = sub.add_parser(
-        "plan",
-        help="plan a formation motion (seed 002 shaped geodesics, seed 004 rigid formations on SE(3))",
-        description="Solve SPEC (a built-in plan name, see 'quatform plans', or a .toml file) and write "
+
+def _plan_arguments(plan) -> None:
+    plan.description = (
+        "Solve SPEC (a built-in plan name, see 'quatform plans', or a .toml file) and write "
         "DIR/plan.npz, DIR/metrics.json (converged, solve_time_s, min_separation_m, deviations from the "
         "straight lines and from the rigid motion; for rigid-se3 specs also max_distance_change_m, "
         "max_nonholonomic_violation and energy) and PNG plots. Repeat --alpha to draw seed 002's "
-        "panels: one folder per alpha and DIR/paths_by_alpha.png.",
-    )
+        "panels: one folder per alpha and DIR/paths_by_alpha.png.")
     plan.add_argument("spec", metavar="SPEC", help="built-in plan name or file.toml")
     plan.add_argument("--out", metavar="DIR", required=True, help="output folder")
     plan.add_argument("--alpha", type=float, action="append", metavar="A",
@@ -168,18 +174,22 @@ def _build_parser() -> argparse.ArgumentParser:
     plan.add_argument("--case", choices=("holonomic", "a", "b"),
                       help="seed 004 §4 airplanes: fully actuated robots, or airplanes ending as in case (a) or (b)")
     plan.add_argument("--no-plots", action="store_true", help="write the plan and metrics only")
-    sub.add_parser("plans", help="list the built-in plan specs",
-                   description="List the built-in plan specs with their titles and sources.")
 
-    cmp_ = sub.add_parser(
-        "compare",
-        help="run every choice of one option (every controller, every formation description ...) on one scenario",
-        description="Run SCENARIO with every value of its kind's compare option (the controllers of a "
+
+def _plans_arguments(p) -> None:
+    p.description = "List the built-in plan specs with their titles and sources."
+
+
+def _compare_arguments(cmp_) -> None:
+    from .scenarios import KINDS
+
+    kinds = tuple(KINDS.values())
+    cmp_.description = (
+        "Run SCENARIO with every value of its kind's compare option (the controllers of a "
         "two-robot scenario, the formation descriptions of a UGV-UAV one, the orientation errors of a "
         "teleoperation one), or of --over (e.g. --over backend: kinematic models against MuJoCo physics), "
         "into DIR/<value>/; draw them side by side (seed 000 Fig. 13) and print a table. The other "
-        "options are fixed for every run. " + _MUJOCO_NOTE,
-    )
+        "options are fixed for every run. " + _MUJOCO_NOTE)
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
     axes = sorted({o.name for k in kinds for o in k.options if o.choices is not None})
@@ -191,14 +201,15 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_compute_flag(cmp_)
     _add_kind_options(cmp_, kinds)
 
-    tele = sub.add_parser(
-        "teleop",
-        help="simulate a master-slave teleoperation scenario (seed 003; 'run' for teleop scenarios)",
-        description="Simulate SCENARIO (a built-in teleop-* name or a .toml file with kind = 'teleop'): "
+
+def _teleop_arguments(tele) -> None:
+    from .scenarios import KINDS
+
+    tele.description = (
+        "Simulate SCENARIO (a built-in teleop-* name or a .toml file with kind = 'teleop'): "
         "the Kraft master, a 7-DOF slave, the operator's hand and the environment under seed 003's "
         "Euler-parameter stiffness controllers. Writes DIR/metrics.json, DIR/timeseries.csv and PNG plots. "
-        "The same as 'quatform run' for a teleoperation scenario.",
-    )
+        "The same as 'quatform run' for a teleoperation scenario.")
     tele.add_argument("scenario", metavar="SCENARIO", help="built-in name (see 'quatform scenarios') or file.toml")
     tele.add_argument("--out", metavar="DIR", required=True, help="output folder")
     tele.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
@@ -206,16 +217,50 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_compute_flag(tele)
     _add_kind_options(tele, (KINDS[TELEOP_KIND],))
 
-    sub.add_parser("scenarios", help="list the built-in scenarios of every kind",
-                   description="List the built-in scenarios of every kind with their titles and sources.")
 
-    from .ros2.cli import add_replay_parser, add_ros2_parser
-    from .sweeps.cli import add_parsers as add_sweep_parsers
+def _scenarios_arguments(p) -> None:
+    p.description = "List the built-in scenarios of every kind with their titles and sources."
 
-    add_sweep_parsers(sub)
-    add_ros2_parser(sub)
-    add_replay_parser(sub)
+
+#: What each command's parser holds: a function adding its description and options to it
+#: (the modules it needs imported there, only for that command).
+ARGUMENTS = {
+    "demo": _demo_arguments,
+    "run": _run_arguments,
+    "plan": _plan_arguments,
+    "plans": _plans_arguments,
+    "compare": _compare_arguments,
+    "teleop": _teleop_arguments,
+    "scenarios": _scenarios_arguments,
+    "sweep": lambda p: _sweeps_cli().sweep_arguments(p),
+    "sweeps": lambda p: _sweeps_cli().sweeps_arguments(p),
+    "ros2": lambda p: _ros2_cli().ros2_arguments(p),
+    "replay": lambda p: _ros2_cli().replay_arguments(p),
+}
+
+
+def _build_parser(only=None) -> argparse.ArgumentParser:
+    """The ``quatform`` parser: every subcommand by name (:data:`COMMAND_HELP`), with its own
+    options (:data:`ARGUMENTS`) for the commands in ``only`` (default: all of them). ``quatform
+    --help`` builds none, so it imports none of the layers below."""
+    parser = _Parser(
+        prog="quatform",
+        description="Singularity-free control of robot teams and robot arms with quaternions, "
+        "dual quaternions and Euler parameters.",
+    )
+    parser.add_argument("--version", action="version", version=f"quatform {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, text in COMMAND_HELP.items():
+        p = sub.add_parser(name, help=text)
+        if only is None or name in only:
+            ARGUMENTS[name](p)
     return parser
+
+
+def _given_command(argv) -> str | None:
+    """The subcommand named in ``argv``: its first word that is not an option (the top-level
+    options take no value), or None."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
 
 def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, rerun=None, compute="numpy") -> None:
@@ -407,7 +452,8 @@ def _sigint_ignored():
 def main(argv: list[str] | None = None) -> int:
     """Run the ``quatform`` command; return its exit status (0 success, 1 file system, 2 bad
     input or too large, 3 internal error, 130 interrupted). Nothing but one line reaches stderr."""
-    parser = _build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = _build_parser(only=(_given_command(argv),))  # only the command given: 'quatform --help' stays light
     args = None
     import warnings
 

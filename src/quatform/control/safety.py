@@ -53,8 +53,6 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import nnls
-from scipy.spatial import cKDTree
 
 from ..algebra.kernels import array_namespace
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
@@ -430,6 +428,8 @@ class SeparationBarrier:
 
     def _pairs(self, P, R):
         """Pairs ``(i, j)``, ``i < j``, no farther apart than ``R``, and the smallest separation."""
+        from scipy.spatial import cKDTree  # scipy imported when used: the CLI's parsers stay light
+
         n = P.shape[0]
         if n < 2:
             return np.zeros(0, np.intp), np.zeros(0, np.intp), math.inf
@@ -494,6 +494,8 @@ class SeparationBarrier:
     def _solve(self, P, V, planar, i, j, pij, g, n):
         """Velocity changes ``W`` (``(N, 3)``) of the programme over the pairs ``(i, j)``: one
         least-distance problem per connected component (Lawson and Hanson 1974, ch. 23)."""
+        from scipy.optimize import nnls  # scipy imported when used: the CLI's parsers stay light
+
         W = np.zeros((n, 3))
         pair_comp = components(n, i, j)[i]
         order = np.argsort(pair_comp, kind="stable")

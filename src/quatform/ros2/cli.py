@@ -5,15 +5,13 @@ from __future__ import annotations
 import json
 import math
 
-__all__ = ["add_ros2_parser", "add_replay_parser", "run_ros2", "run_replay"]
+__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay"]
 
 
-def add_ros2_parser(sub) -> None:
-    """Register ``quatform ros2`` on the subparsers ``sub``."""
-    p = sub.add_parser(
-        "ros2",
-        help="drive real robots over ROS 2 with a scenario's controller (needs a sourced ROS 2)",
-        description="Start a ROS 2 node that subscribes to each robot's pose (robots.toml), runs the controller "
+def ros2_arguments(p) -> None:
+    """The description and options of ``quatform ros2`` on its parser ``p``."""
+    p.description = (
+        "Start a ROS 2 node that subscribes to each robot's pose (robots.toml), runs the controller "
         "of SCENARIO at --rate on its reference (or a plan.npz) and publishes each robot's commands (Twist, "
         "TwistStamped, MAVROS or PX4 velocity setpoints). Stale poses zero and hold every command; a robot "
         "without a pose within [bridge] start_timeout_s stops the start; the e-stop topic/service latches zero "
@@ -25,12 +23,10 @@ def add_ros2_parser(sub) -> None:
     p.add_argument("--reference", metavar="PLAN_NPZ", help="a plan.npz to follow instead of the scenario's path")
 
 
-def add_replay_parser(sub) -> None:
-    """Register ``quatform replay`` on the subparsers ``sub``."""
-    p = sub.add_parser(
-        "replay",
-        help="run a controller offline on a recorded bag's poses and write what it would have commanded",
-        description="Read every robot's poses from BAG (a rosbag2 folder or .mcap file; topics from robots.toml), "
+def replay_arguments(p) -> None:
+    """The description and options of ``quatform replay`` on its parser ``p``."""
+    p.description = (
+        "Read every robot's poses from BAG (a rosbag2 folder or .mcap file; topics from robots.toml), "
         "run the controller of SCENARIO on them as the ROS 2 node would (same stale rule, same reference time) "
         "and write DIR/commands.csv, DIR/commands.mcap (the messages on their topics), DIR/commands.png "
         "(commanded vs measured) and DIR/metrics.json. No ROS needed.")

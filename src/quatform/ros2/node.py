@@ -10,12 +10,22 @@ Messages are built as ``rosbags`` classes (:mod:`quatform.messages`) and convert
 field to the ROS installation's classes (:func:`to_ros`); incoming ROS messages are read by
 field name, which both share. rclpy is never a pip dependency: a machine without it gets one
 line saying to source ROS 2 (:func:`import_rclpy`).
+
+Shutdown: rclpy's own SIGINT/SIGTERM handlers (Humble and later) shut the context down before
+``KeyboardInterrupt`` reaches the node, after which a publish raises (``publisher's context is
+invalid``). The node therefore initialises rclpy without them
+(``SignalHandlerOptions.NO``): Ctrl-C raises ``KeyboardInterrupt`` in the spin with the
+context still valid, and :meth:`BridgeNode.close` publishes the zero command to every robot
+first, then destroys the node and shuts rclpy down.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib
+import signal
+import threading
 
 import numpy as np
 
@@ -35,6 +45,7 @@ def import_rclpy():
         rclpy = importlib.import_module("rclpy")
         importlib.import_module("rclpy.node")
         importlib.import_module("rclpy.qos")
+        importlib.import_module("rclpy.signals")
     except ImportError:
         raise MissingDependencyError(ROS_MISSING) from None
     return rclpy
@@ -105,8 +116,9 @@ class BridgeNode:
         self.ticks: list = []
         self.timer = None
         self._said: tuple = ()
-        if not self.rclpy.ok():
-            self.rclpy.init()
+        if not self.rclpy.ok():  # without rclpy's signal handlers: the zero command on Ctrl-C still goes out
+            no_handlers = importlib.import_module("rclpy.signals").SignalHandlerOptions.NO
+            self.rclpy.init(signal_handler_options=no_handlers)
         self.node = importlib.import_module("rclpy.node").Node(name)
         s = bridge.robots.settings
         for i, (topic, typ, qos) in enumerate(bridge.pose_topics()):
@@ -124,8 +136,9 @@ class BridgeNode:
     def _pose_callback(self, i):
         def callback(msg):
             if not self.bridge.on_pose(i, msg, self.now_ns()):
-                self.node.get_logger().warn(f"robot {self.bridge.names[i]!r}: lost frame on "
-                                            f"{self.bridge.robots.robots[i].pose_topic} (NaN or non-unit quaternion)")
+                topic = self.bridge.robots.robots[i].pose_topic
+                self.node.get_logger().warning(f"robot {self.bridge.names[i]!r}: lost frame on {topic} (NaN or "
+                                               "non-unit quaternion)")
         return callback
 
     def _estop_topic(self, msg):
@@ -141,7 +154,7 @@ class BridgeNode:
         """Engage (latched: zero commands from the next tick on, and at once) or release the e-stop."""
         if engaged:
             self.bridge.engage_estop()
-            self.node.get_logger().warn("e-stop engaged: zero commands until released")
+            self.node.get_logger().warning("e-stop engaged: zero commands until released")
             self.publish_zero()
         else:
             self.bridge.release_estop()
@@ -152,7 +165,7 @@ class BridgeNode:
         self.ticks.append(tick)
         if tick.stale != self._said:
             if tick.stale:
-                self.node.get_logger().warn(f"stale pose from {', '.join(tick.stale)}: commands zeroed and held")
+                self.node.get_logger().warning(f"stale pose from {', '.join(tick.stale)}: commands zeroed and held")
             self._said = tick.stale
         self._publish(tick.messages)
 
@@ -179,6 +192,8 @@ class BridgeNode:
         timeout_s = self.bridge.robots.settings.start_timeout_s if timeout_s is None else timeout_s
         start = self.now_ns()
         while self.bridge.missing():
+            if not self.rclpy.ok():
+                raise InvalidInputError("ROS 2 was shut down while waiting for the robots' poses; not starting")
             if self.now_ns() - start > timeout_s * 1e9:
                 i = self.bridge.missing()[0]
                 link = self.bridge.robots.robots[i]
@@ -195,18 +210,44 @@ class BridgeNode:
         self.timer = self.node.create_timer(1.0 / self.rate_hz, self._on_timer)
 
     def spin(self) -> None:
-        """Run until ROS shuts down or Ctrl-C; zero commands on the way out."""
-        try:
-            while self.rclpy.ok():
-                self.rclpy.spin_once(self.node, timeout_sec=0.1)
-        finally:
-            self.close()
+        """Run until ROS shuts down, Ctrl-C or SIGTERM (raised here as ``KeyboardInterrupt``);
+        zero commands on the way out (:meth:`close`)."""
+        with _sigterm_interrupts():
+            try:
+                while self.rclpy.ok():
+                    self.rclpy.spin_once(self.node, timeout_sec=0.1)
+            finally:
+                self.close()
 
     def close(self) -> None:
-        """Zero commands, destroy the node, shut rclpy down."""
+        """Zero commands to every robot while the context is still valid, then destroy the node
+        and shut rclpy down, in that order. A context someone else already shut down can carry
+        no message: the node logs one error line saying so instead of raising."""
         try:
-            self.publish_zero()
+            if self.rclpy.ok():
+                self.publish_zero()
+            else:
+                self.node.get_logger().error("ROS 2 was shut down before the zero command could be sent: the "
+                                             "robots keep their last command until their own timeout")
         finally:
             self.node.destroy_node()
             if self.rclpy.ok():
                 self.rclpy.shutdown()
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts():
+    """SIGTERM raises ``KeyboardInterrupt`` inside the block (main thread only; restored after),
+    so a terminated bridge sends its zero command as on Ctrl-C."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

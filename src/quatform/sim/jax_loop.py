@@ -161,7 +161,7 @@ def require_jax():
         import jax
     except ImportError:
         raise MissingDependencyError('the jax compute backend needs JAX: pip install -e ".[jax]" '
-                                     '(or --backend numpy)') from None
+                                     '(or --compute numpy)') from None
     jax_devices.configure(jax)  # one CPU device per core, before JAX starts its backends
     return jax
 
@@ -184,36 +184,36 @@ def check_supported(plant, controller, measurement) -> None:
         inner, _ = parts
         if not isinstance(inner.formation, JAX_TEAM_FORMATIONS):
             raise InvalidInputError(f"{_RUNS}; the {inner.name} team controller ({type(inner.formation).__name__}) "
-                                    "runs on numpy (--backend numpy)")
+                                    "runs on numpy (--compute numpy)")
         if isinstance(inner.formation, DualQuaternionTeam) and inner.formation.shape != "frame":
             raise InvalidInputError(f"{_RUNS}; DualQuaternionTeam(shape={inner.formation.shape!r}) runs on numpy "
-                                    "(--backend numpy)")
+                                    "(--compute numpy)")
         team = inner.team
         if controller.team != team:
             raise InvalidInputError(f"{_RUNS}; a SafeController over another team than its controller's runs on "
-                                    "numpy (--backend numpy)")
+                                    "numpy (--compute numpy)")
         if not (isinstance(plant, KinematicTeam) and plant.team == team
                 and all(type(r) in JAX_TEAM_ROBOTS for r in team.robots)):
             models = sorted({type(r).__name__ for r in team.robots})
             raise InvalidInputError(f"{_RUNS}; the plant {type(plant).__name__} of {', '.join(models)} robots runs on "
-                                    "numpy (--backend numpy)")
+                                    "numpy (--compute numpy)")
         if any(type(r) is Pioneer and r.point_kind != "xy_yaw" for r in team.robots):  # the loop measures states
-            raise InvalidInputError(f"{_RUNS}; a Pioneer of point_kind = 'xyz' runs on numpy (--backend numpy)")
+            raise InvalidInputError(f"{_RUNS}; a Pioneer of point_kind = 'xyz' runs on numpy (--compute numpy)")
         if measurement is not None and type(measurement) not in (PerfectMeasurement, TickMeasurement):
             raise InvalidInputError(f"{_RUNS}; the measurement {type(measurement).__name__} runs on numpy "
-                                    "(--backend numpy)")
+                                    "(--compute numpy)")
         return
     if not isinstance(controller, ClusterController) or not isinstance(controller.formation, JAX_FORMATIONS):
-        raise InvalidInputError(f"{_RUNS}; {type(controller).__name__} runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{_RUNS}; {type(controller).__name__} runs on numpy (--compute numpy)")
     if controller.filters:
-        raise InvalidInputError(f"{_RUNS}; a controller with filters runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{_RUNS}; a controller with filters runs on numpy (--compute numpy)")
     team = controller.team
     if not (isinstance(plant, KinematicTeam) and plant.team == team and team.common_limit
             and all(type(r) is HolonomicRobot for r in team.robots)):
-        raise InvalidInputError(f"{_RUNS}; the plant {type(plant).__name__} runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{_RUNS}; the plant {type(plant).__name__} runs on numpy (--compute numpy)")
     if measurement is not None and type(measurement) not in (PerfectMeasurement, TickMeasurement):
         raise InvalidInputError(f"{_RUNS}; the measurement {type(measurement).__name__} runs on numpy "
-                                "(--backend numpy)")
+                                "(--compute numpy)")
 
 
 def check_ticks(times, substeps, dt):

@@ -83,7 +83,7 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     check_supported(plant, ctrl, measurement)
     if team_parts(ctrl) is not None:
         raise InvalidInputError("rollout_metrics rolls out the pair kind's experiments; a team experiment runs on jax "
-                                "through its log (Experiment.run(backend='jax'), quatform sweep --backend jax)")
+                                "through its log (Experiment.run(backend='jax'), quatform sweep --compute jax)")
     times, dt = check_ticks(experiment.times, experiment.substeps, experiment.dt)
     n = times.size
     x = np.array(experiment.x0 if x0 is None else x0, dtype=float)

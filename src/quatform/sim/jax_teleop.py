@@ -52,12 +52,12 @@ TELEOP_AXES = ((0, 0, 0), {})
 def check_teleop(plant, controller, measurement) -> None:
     """Refuse (one line, naming what runs here) what this loop does not run."""
     if not isinstance(plant, TeleopPlant):
-        raise InvalidInputError(f"{TELEOP_RUNS}; the plant {type(plant).__name__} runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{TELEOP_RUNS}; the plant {type(plant).__name__} runs on numpy (--compute numpy)")
     if not isinstance(controller, TeleopController):
-        raise InvalidInputError(f"{TELEOP_RUNS}; {type(controller).__name__} runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{TELEOP_RUNS}; {type(controller).__name__} runs on numpy (--compute numpy)")
     if measurement is not None and type(measurement) is not PerfectMeasurement:
         raise InvalidInputError(f"{TELEOP_RUNS}; the measurement {type(measurement).__name__} runs on numpy "
-                                "(--backend numpy)")
+                                "(--compute numpy)")
     if (plant.master.arm.n, plant.slave.arm.arm.n) != (controller.master.n, controller.slave.arm.n):
         raise InvalidInputError(f"{TELEOP_RUNS}; the controller's arms ({controller.master.n} and "
                                 f"{controller.slave.arm.n} joints) are not the plant's ({plant.master.arm.n} and "

@@ -60,10 +60,10 @@ _AXES = ((0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), {})
 
 def _check(plant, controller, measurement):
     if not isinstance(controller, UgvUavController):
-        raise InvalidInputError(f"{_RUNS}; {type(controller).__name__} runs on numpy (--backend numpy)")
+        raise InvalidInputError(f"{_RUNS}; {type(controller).__name__} runs on numpy (--compute numpy)")
     if type(measurement) is not MotionCapture:
         raise InvalidInputError(f"{_RUNS}; the measurement {type(measurement).__name__} runs on numpy "
-                                "(--backend numpy)")
+                                "(--compute numpy)")
 
 
 def _references(controller, reference: Callable, n: int):

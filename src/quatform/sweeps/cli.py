@@ -1,28 +1,28 @@
 """``quatform sweep SPEC --out DIR`` and ``quatform sweeps`` (registered by :mod:`quatform.cli`).
 
-Sweeps layer. :func:`add_parsers` adds both subcommands to the CLI's subparsers; the
-functions :func:`sweep_command` and :func:`sweeps_command` run them.
+Sweeps layer. :func:`sweep_arguments` and :func:`sweeps_arguments` fill in the two
+subcommands' parsers (the CLI names them); :func:`sweep_command` and :func:`sweeps_command`
+run them.
 """
 
 from __future__ import annotations
 
 import sys
 
-__all__ = ["add_parsers", "sweep_command", "sweeps_command"]
+__all__ = ["sweep_arguments", "sweeps_arguments", "sweep_command", "sweeps_command"]
 
 #: Most cells the summary printed on stdout shows (all are in summary.csv).
 _MAX_PRINTED = 60
 
 
-def add_parsers(sub) -> None:
-    """Add ``sweep`` and ``sweeps`` to the CLI's subparsers ``sub``."""
+def sweep_arguments(p) -> None:
+    """The description and options of ``quatform sweep`` on its parser ``p``."""
     from ..sim.backends import SIM_BACKENDS
 
-    p = sub.add_parser(
-        "sweep", help="run a Monte Carlo sweep (controllers x noise, latency, gains, starts, team sizes)",
-        description="Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes "
-                    "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into "
-                    "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
+    p.description = (
+        "Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes "
+        "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into "
+        "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
     p.add_argument("spec", metavar="SPEC", help="built-in sweep name (see 'quatform sweeps') or file.toml")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (resumed when it holds this sweep)")
     p.add_argument("--trials", type=int, metavar="K", help="trials per cell instead of the spec's (a quick look)")
@@ -40,8 +40,11 @@ def add_parsers(sub) -> None:
                    help="with --scheduler slurm: print the job script dask-jobqueue would submit, run nothing")
     p.add_argument("--no-plots", action="store_true", help="write the tables only")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
-    sub.add_parser("sweeps", help="list the built-in sweeps",
-                   description="List the built-in sweep specs with their titles and sources.")
+
+
+def sweeps_arguments(p) -> None:
+    """The description of ``quatform sweeps`` on its parser ``p``."""
+    p.description = "List the built-in sweep specs with their titles and sources."
 
 
 def _slurm_options(spec, pairs) -> dict:
@@ -64,7 +67,7 @@ def sweep_command(args) -> None:
     from dataclasses import replace
 
     from ..errors import InvalidInputError
-    from .executors import slurm_job_script
+    from .executors import check_scheduler, slurm_job_script
     from .runner import run_sweep
     from ..sim.output import check_inputs_outside
     from .spec import load_sweep
@@ -74,6 +77,7 @@ def sweep_command(args) -> None:
     check_inputs_outside(args.out, args.spec)  # a spec file inside --out: refused before any work
     if args.trials is not None and args.trials < 1:
         raise InvalidInputError(f"--trials {args.trials} must be >= 1")
+    check_scheduler(args.scheduler)  # Dask missing: one line before the spec's experiments are built
     spec = load_sweep(args.spec, trials=args.trials)
     if args.slurm or args.scheduler == "slurm":
         spec = replace(spec, slurm=_slurm_options(spec, args.slurm))

@@ -18,8 +18,8 @@ from ..checks import nearest
 from ..errors import InvalidInputError, MissingDependencyError, ResourceLimitError, UnreachableError
 from ..sim.jax_devices import share_cores, usable_cores
 
-__all__ = ["executor", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S", "LOCAL_WORKERS_PER_CORE",
-           "parallel_workers"]
+__all__ = ["executor", "check_scheduler", "SCHEDULERS", "slurm_cluster", "slurm_job_script", "CONNECT_TIMEOUT_S",
+           "LOCAL_WORKERS_PER_CORE", "parallel_workers"]
 
 #: Named schedulers (besides ``tcp://HOST:PORT``).
 SCHEDULERS = ("local", "slurm")
@@ -37,12 +37,30 @@ def parallel_workers(workers: int, scheduler: str | None) -> int:
     return min(workers, usable_cores()) if scheduler in (None, "local") else workers
 
 
-def _import(module: str):
+def _import(module: str, scheduler: str = "slurm"):
     try:
         return __import__(module, fromlist=["_"])
     except ImportError:
-        raise MissingDependencyError(f"--scheduler needs {module.split('.')[0]} (distributed sweeps): "
-                                     'pip install -e ".[dask]"') from None
+        what = "dask-jobqueue" if module == "dask_jobqueue" else "Dask (its distributed package)"
+        raise MissingDependencyError(f"--scheduler {scheduler} needs {what}, which is not installed here: "
+                                     'pip install -e ".[dask]" (or leave --scheduler out to run on this machine)'
+                                     ) from None
+
+
+def _modules(scheduler: str) -> tuple:
+    """The optional modules the ``--scheduler`` needs (one line for an unknown one)."""
+    if scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
+        raise InvalidInputError(f"--scheduler {scheduler!r} unknown{nearest(scheduler, SCHEDULERS)}; give local, "
+                                "slurm or tcp://HOST:PORT")
+    return ("distributed", "dask_jobqueue") if scheduler == "slurm" else ("distributed",)
+
+
+def check_scheduler(scheduler: str | None) -> None:
+    """Refuse (one line naming ``pip install -e ".[dask]"``) a ``--scheduler`` that is unknown or
+    whose Dask packages are not importable, before any experiment is built."""
+    if scheduler is not None:
+        for module in _modules(scheduler):
+            _import(module, scheduler)
 
 
 def slurm_cluster(options: dict):
@@ -126,10 +144,8 @@ def executor(workers: int = 1, scheduler: str | None = None, slurm: dict | None 
             raise
         pool.shutdown(wait=True)
         return
-    if scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
-        raise InvalidInputError(f"--scheduler {scheduler!r} unknown{nearest(scheduler, SCHEDULERS)}; give local, "
-                                "slurm or tcp://HOST:PORT")
-    distributed = _import("distributed")
+    _modules(scheduler)
+    distributed = _import("distributed", scheduler)
     with contextlib.ExitStack() as stack:
         if scheduler == "local":
             cluster = stack.enter_context(distributed.LocalCluster(n_workers=workers, threads_per_worker=1,

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..checks import memory_budget_bytes, time_budget_s
 from ..errors import ResourceLimitError
-from .executors import executor, parallel_workers
+from .executors import check_scheduler, executor, parallel_workers
 from .results import ChunkStore, ordered_rows, summarize, write_table
 from .trials import Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
 
@@ -136,14 +136,15 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
     from ..sim.backends import SIM_BACKENDS, simulator
 
     if backend == "jax" and backend not in SIM_BACKENDS:
-        raise InvalidInputError('--backend jax: the JAX backend is not registered in this install (it needs '
-                                'quatform.sim.jax_loop and pip install -e ".[jax]"); use --backend numpy')
+        raise InvalidInputError('--compute jax: the JAX backend is not registered in this install (it needs '
+                                'quatform.sim.jax_loop and pip install -e ".[jax]"); use --compute numpy')
     try:
         simulator(backend)  # an unknown or uninstallable backend: one line before anything runs
     except MissingDependencyError:
         raise
     except ImportError as exc:
-        raise MissingDependencyError(f"--backend {backend}: {exc}; pip install -e \".[{backend}]\"") from None
+        raise MissingDependencyError(f"--compute {backend}: {exc}; pip install -e \".[{backend}]\"") from None
+    check_scheduler(scheduler)  # Dask missing: one line before the experiments are built
     est = estimate(spec, parallel_workers(workers, scheduler))
     with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any file is made
         store = ChunkStore(out, spec, backend)

@@ -12,6 +12,8 @@ class Bus:
 
     def reset(self, now_ns: int = 0):
         self.initialized = False
+        self.signal_handler_options = None
+        self.interrupt_ns: int | None = None  # a simulated Ctrl-C at this time
         self.now_ns = int(now_ns)
         self.subscriptions: dict = {}
         self.publishers: dict = {}
@@ -38,6 +40,20 @@ class Bus:
         name, data = self._wire(msg)
         heapq.heappush(self._queue, (int(time_ns), next(self._seq), topic, name, data))
 
+    def interrupt(self, time_ns: int) -> None:
+        """A Ctrl-C (SIGINT) at ``time_ns``, seen by the next :meth:`spin_once` that reaches it."""
+        self.interrupt_ns = int(time_ns)
+
+    def _sigint(self) -> None:
+        """What a SIGINT does to a spinning process: rclpy's handler (installed unless ``init`` was
+        given ``SignalHandlerOptions.NO`` or ``SIGTERM``) shuts the context down first, then
+        Python's raises ``KeyboardInterrupt``."""
+        self.now_ns = max(self.now_ns, self.interrupt_ns)
+        self.interrupt_ns = None
+        if self.signal_handler_options is not None and self.signal_handler_options.name in ("SIGINT", "ALL"):
+            self.initialized = False
+        raise KeyboardInterrupt
+
     def call(self, service: str, **fields):
         """Call a service with a request of ``fields``; returns its response."""
         srv_type, callback = self.services[service]
@@ -45,6 +61,10 @@ class Bus:
 
     # -- the middleware -----------------------------------------------------------------------
     def publish(self, topic: str, msg) -> None:
+        if not self.initialized:
+            from ._rclpy_pybind11 import RCLError
+
+            raise RCLError("Failed to publish: publisher's context is invalid")
         name, data = self._wire(msg)
         self.published.setdefault(topic, []).append((self.now_ns, self._store().deserialize_cdr(data, name)))
         if self.subscriptions.get(topic):
@@ -60,6 +80,13 @@ class Bus:
     def spin_once(self, node, timeout_sec) -> bool:
         """Run the next event within ``timeout_sec`` (None: whenever it is); False if none ran."""
         limit = None if timeout_sec is None else self.now_ns + int(round(timeout_sec * 1e9))
+        if self.interrupt_ns is not None and (limit is None or self.interrupt_ns <= limit):
+            t_first = self._queue[0][0] if self._queue else None
+            due = [t.next_due for t in node.timers if not t.cancelled]
+            if t_first is not None:
+                due.append(t_first)
+            if not due or self.interrupt_ns <= min(due):
+                self._sigint()
         t_msg = self._queue[0][0] if self._queue else None
         timers = [t for t in node.timers if not t.cancelled]
         timer = min(timers, key=lambda t: t.next_due) if timers else None

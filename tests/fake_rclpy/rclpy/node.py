@@ -5,6 +5,13 @@ from __future__ import annotations
 from . import fake_bus
 
 
+def _context_valid(what: str) -> None:
+    if not fake_bus.BUS.initialized:
+        from ._rclpy_pybind11 import RCLError
+
+        raise RCLError(f"failed to create {what}: rcl node's context is invalid")
+
+
 class Time:
     def __init__(self, nanoseconds: int):
         self.nanoseconds = int(nanoseconds)
@@ -27,19 +34,20 @@ class Logger:
     def _log(self, level, text):
         fake_bus.BUS.logs.append((level, text))
 
-    def info(self, text):
+    def debug(self, text, **kwargs):
+        self._log("debug", text)
+
+    def info(self, text, **kwargs):
         self._log("info", text)
 
-    def warn(self, text):
-        self._log("warn", text)
+    def warning(self, text, **kwargs):  # rclpy's RcutilsLogger: ``warn`` is deprecated, gone from the fake
+        self._log("warning", text)
 
-    warning = warn
-
-    def error(self, text):
+    def error(self, text, **kwargs):
         self._log("error", text)
 
-    def debug(self, text):
-        self._log("debug", text)
+    def fatal(self, text, **kwargs):
+        self._log("fatal", text)
 
 
 class Publisher:
@@ -70,8 +78,7 @@ class Timer:
 
 class Node:
     def __init__(self, node_name, *, namespace=None, **kwargs):
-        if not fake_bus.BUS.initialized:
-            raise RuntimeError("rclpy.init() must be called before creating a node")
+        _context_valid("node")
         self.name = node_name
         self.timers: list[Timer] = []
         self._clock = Clock()
@@ -79,21 +86,25 @@ class Node:
         fake_bus.BUS.nodes.append(self)
 
     def create_subscription(self, msg_type, topic, callback, qos_profile, **kwargs):
+        _context_valid("subscription")
         sub = Subscription(self, msg_type, topic, callback, qos_profile)
         fake_bus.BUS.subscriptions.setdefault(topic, []).append(sub)
         return sub
 
     def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        _context_valid("publisher")
         pub = Publisher(msg_type, topic, qos_profile)
         fake_bus.BUS.publishers[topic] = pub
         return pub
 
     def create_timer(self, timer_period_sec, callback, **kwargs):
+        _context_valid("timer")
         t = Timer(int(round(timer_period_sec * 1e9)), callback)
         self.timers.append(t)
         return t
 
     def create_service(self, srv_type, srv_name, callback, **kwargs):
+        _context_valid("service")
         fake_bus.BUS.services[srv_name] = (srv_type, callback)
         return srv_name
 

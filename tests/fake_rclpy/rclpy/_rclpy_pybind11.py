@@ -1,0 +1,5 @@
+"""``rclpy._rclpy_pybind11.RCLError``: what rcl's failures raise (a RuntimeError)."""
+
+
+class RCLError(RuntimeError):
+    pass

@@ -1,0 +1,5 @@
+"""``rclpy.executors.ExternalShutdownException``: what spinning a shut-down context raises."""
+
+
+class ExternalShutdownException(Exception):
+    pass

@@ -1,0 +1,68 @@
+"""Every command-line flag the source names (in an error, a hint or a help text) is one the
+CLI takes, with the value it names where the flag has choices."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import re
+from pathlib import Path
+
+from quatform import cli
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "quatform"
+#: ``--flag`` and, when one follows (``--flag value`` / ``--flag=value``), the word after it;
+#: not a fragment such as ``"--no-" + name``.
+FLAG = re.compile(r"(?<![\w-])(--[a-z][a-z0-9]*(?:-[a-z0-9]+)*)(?![\w-])(?:[ =]([a-z0-9][\w.]*))?")
+
+
+def _docstrings(tree) -> set:
+    return {id(node.body[0].value) for node in ast.walk(tree)
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.body and isinstance(node.body[0], ast.Expr) and isinstance(node.body[0].value, ast.Constant)}
+
+
+def named_flags() -> dict:
+    """``{(flag, word after it or ''): [file:line, ...]}`` over every string of the source but docstrings."""
+    found: dict = {}
+    for f in sorted(SRC.rglob("*.py")):
+        tree = ast.parse(f.read_text(encoding="utf-8"))
+        docs = _docstrings(tree)
+        for c in ast.walk(tree):
+            if isinstance(c, ast.Constant) and isinstance(c.value, str) and id(c) not in docs:
+                for m in FLAG.findall(c.value):
+                    found.setdefault(m, []).append(f"{f.relative_to(SRC)}:{c.lineno}")
+    return found
+
+
+def parser_actions() -> dict:
+    """``{flag: [its actions on every parser that has it]}`` of the whole CLI."""
+    actions: dict = {}
+
+    def walk(parser):
+        for a in parser._actions:
+            for s in a.option_strings:
+                actions.setdefault(s, []).append(a)
+            if isinstance(a, argparse._SubParsersAction):
+                for p in a.choices.values():
+                    walk(p)
+
+    walk(cli._build_parser())
+    return actions
+
+
+def test_every_flag_named_in_the_source_exists_with_its_value():
+    actions = parser_actions()
+    choice_words = {str(c) for acts in actions.values() for a in acts for c in (a.choices or ())
+                    if not isinstance(a, argparse._SubParsersAction)}
+    found = named_flags()
+    assert ("--compute", "numpy") in found and ("--scheduler", "local") in found  # the scan sees them
+    wrong = []
+    for (flag, word), where in sorted(found.items()):
+        if flag not in actions:
+            wrong.append(f"{flag} (no command takes it): {where}")
+        elif word in choice_words:  # a value the CLI knows: every parser with choices for the flag takes it
+            refused = [a for a in actions[flag] if a.choices is not None and word not in a.choices]
+            if refused:
+                wrong.append(f"{flag} {word} (refused: choices {list(refused[0].choices)}): {where}")
+    assert not wrong, "\n".join(wrong)
