@@ -224,6 +224,13 @@ class DualQuaternionController(ClusterController):
     of :class:`DualQuaternionPair`; the cluster pose ``qhat_c`` (sign free) and the shape
     ``qhat_s`` (its rotation's sign is the branch of the half-way yaw) each a block.
 
+    Not collision-free: with the robots in place and their yaws off by more than about 2 rad
+    the shape's translation error (robot 2's yaw error turning the relative position) is
+    corrected along a chord and the robots can come arbitrarily close. To hold them apart
+    wrap it: ``SafeController(DualQuaternionController(), SeparationBarrier(d, dt_s=dt))``
+    (:mod:`quatform.control.safety`; the pair kind's ``[safety] min_separation_m``,
+    ``docs/derivations.md``, "The dual-quaternion pair's yaw-only starts").
+
     Parameters
     ----------
     k_dw : array_like, shape (3,)

@@ -386,9 +386,16 @@ class Formation(ABC):
         """The robots ``r`` with their centroid at the origin and positions divided by
         :meth:`length_scale` (yaws and orientations kept): the formation on which
         :meth:`singularity_measure` is taken. A team with planar (``xy_yaw``) robots is moved
-        horizontally only: they stay on the ground (``z = 0``), which scaling keeps."""
+        horizontally only: they stay on the ground (``z = 0``), which scaling keeps.
+
+        Robots on each other (a length scale below :data:`MIN_SEPARATION_M`, nothing to divide
+        by) are refused as :meth:`forward` refuses them: :meth:`check_apart` names them.
+        """
         r = self.check_robot_state(r)
-        L = self.length_scale(r)[..., None, None]
+        L = self.length_scale(r)
+        if np.any(L < MIN_SEPARATION_M):
+            self.check_apart(r)
+        L = L[..., None, None]
         p = self.layout.positions(r)
         centre = p.mean(axis=-2, keepdims=True)
         if "xy_yaw" in self.layout.kinds:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import check_keys, check_within_run, check_work, flag, number, records, short, table, text, vector
-from ..control import CONTROLLERS, TABLE1, TABLE2, Reference
+from ..control import CONTROLLERS, TABLE1, TABLE2, Reference, SafeController, SeparationBarrier
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
 from ..references import EuclideanPath, Ramp, Step as StepChange
@@ -35,7 +35,8 @@ from ..sim.plants import KinematicTeam
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 
-__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "BYTES_PER_STEP",
+__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "check_barrier_reference",
+           "separation_barrier", "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
            "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics",
            "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
            "PLAN_RUN_SECONDS_PER_STEP"]
@@ -56,7 +57,10 @@ SECONDS_PER_STEP = 2e-3
 
 #: Keys of each table of a two-robot scenario file.
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "gains", "feedforward",
-             "robots", "path", "initial_offset")
+             "robots", "path", "initial_offset", "safety")
+_SAFETY_KEYS = ("enabled", "min_separation_m")
+#: ``[safety] min_separation_m`` when ``enabled = true`` names none, m (the team kind's default).
+DEFAULT_MIN_SEPARATION_M = 0.3
 _ROBOT_KEYS = ("max_speed_m_s", "max_yaw_rate_rad_s")
 _PATH_KEYS = ("centroid", "center", "velocity", "radius", "period_s", "climb_m_s", *_NAMES[3:], "ramps", "steps")
 _RAMP_KEYS = ("variable", "start_s", "duration_s", "change")
@@ -154,6 +158,13 @@ class Scenario:
     feedforward : bool
         Whether the controllers feed the reference's rate forward (default of
         :meth:`controller` and :meth:`PairKind.experiment`).
+    safety : dict
+        ``enabled`` (bool) and ``min_separation_m`` (m, > 0): the controller's commands pass
+        through the separation barrier (:class:`~quatform.control.SeparationBarrier`), which
+        holds the robots at least ``min_separation_m`` apart. Off unless the file has a
+        ``[safety]`` table (the seed's runs show the robots' own paths, e.g. Fig. 4b's
+        robot-space robots crossing); :func:`separation_barrier` and ``docs/scenarios.md`` say
+        which starts need it.
 
     Raises
     ------
@@ -173,9 +184,11 @@ class Scenario:
     gains: dict = field(default_factory=lambda: TABLE1)
     metrics_from_s: float = 5.0
     feedforward: bool = True
+    safety: dict = field(default_factory=lambda: {"enabled": False, "min_separation_m": DEFAULT_MIN_SEPARATION_M})
 
     def __post_init__(self):
         where = f"scenario {self.name!r}"
+        object.__setattr__(self, "safety", _safety(self.safety, where))
         for key in ("duration_s", "dt_s", "metrics_from_s"):  # finite real numbers (numpy scalars too)
             v = getattr(self, key)
             if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) or not math.isfinite(v):
@@ -238,6 +251,13 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
         offset = np.array([number(off, n, where, 0.0, place="[initial_offset]") for n in _NAMES])
         gains = _gains(data, where)
         check_step_stable(where, dt, gains)
+        saf = table(data, "safety", where) if "safety" in data else None
+        safety = {"enabled": False, "min_separation_m": DEFAULT_MIN_SEPARATION_M}
+        if saf is not None:  # a [safety] table turns the barrier on unless it says enabled = false
+            check_keys(saf, _SAFETY_KEYS, where, "[safety]", _HINT)
+            safety = {"enabled": flag(saf, "enabled", where, True, place="[safety]"),
+                      "min_separation_m": number(saf, "min_separation_m", where, DEFAULT_MIN_SEPARATION_M,
+                                                 place="[safety]", low=0.0, low_open=True)}
         sc = Scenario(
             name=text(data, "name", where, Path(where).stem),
             title=text(data, "title", where, ""),
@@ -250,17 +270,74 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
             gains=gains,
             metrics_from_s=metrics_from,
             feedforward=flag(data, "feedforward", where, True),
+            safety=safety,
         )
         d0 = float(path(0.0)[0][5] + offset[5])
         if not d0 > 0:
             raise InvalidInputError(f"{where}: [path] d_c + [initial_offset] d_c = {d0:g} m at t = 0; the robots "
                                     "would start on top of each other: make it > 0")
+        if safety["enabled"]:
+            check_barrier_reference(sc, safety["min_separation_m"], where, "[safety] min_separation_m")
         for name in CONTROLLERS:  # the gains must make a controller
             sc.controller(name)
     except InvalidInputError as exc:
         msg = str(exc)
         raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
     return sc
+
+
+def _safety(value, where: str) -> dict:
+    """A :attr:`Scenario.safety` checked: ``{"enabled": bool, "min_separation_m": float > 0}``."""
+    if not isinstance(value, dict):
+        raise InvalidInputError(f"{where}: safety must be a dict with keys enabled and min_separation_m, got "
+                                f"{short(value)}")
+    check_keys(value, _SAFETY_KEYS, where, "safety", _HINT)
+    enabled = value.get("enabled", False)
+    if not isinstance(enabled, (bool, np.bool_)):
+        raise InvalidInputError(f"{where}: safety enabled = {short(enabled)} must be True or False")
+    d = number(value, "min_separation_m", where, DEFAULT_MIN_SEPARATION_M, place="safety", low=0.0, low_open=True)
+    return {"enabled": bool(enabled), "min_separation_m": d}
+
+
+#: Samples of the reference the barrier's reference check reads (at most; evenly spaced).
+_BARRIER_CHECK_SAMPLES = 2000
+
+
+def check_barrier_reference(sc: Scenario, d: float, where: str, label: str, e_des=None, t=None,
+                            start: bool = True) -> None:
+    """Refuse a barrier of ``d`` m the run cannot keep: the robots start closer than ``d``
+    (``start``: the scenario's own start, the reference at ``t = 0`` plus ``initial_offset``),
+    or the reference brings them closer (``2 d_c < d``: the barrier would hold them apart and
+    the formation could not be tracked). ``e_des`` (sampled at ``t``) if the caller has it,
+    else the scenario's path at most every 1/2000 of the run; ``label`` names the setting."""
+    if t is None:
+        t = sc.times
+        t = t[::max(1, len(t) // _BARRIER_CHECK_SAMPLES)]
+        e_des = sc.path(t)[0]
+    d0 = 2.0 * float(e_des[0][5] + sc.initial_offset[5])  # seed 000 eq. (6): the robots 2 d_c apart
+    if start and d0 < d:
+        raise InvalidInputError(f"{where}: the robots start {d0:.4g} m apart (2 x ([path] d_c + [initial_offset] "
+                                f"d_c)), closer than {label} = {d:g} m; start them farther apart or lower it")
+    sep = 2.0 * np.asarray(e_des)[..., 5]
+    k = int(np.argmin(sep))
+    if sep[k] < d:
+        raise InvalidInputError(f"{where}: the reference brings the robots to {sep[k]:.4g} m at t = {t[k]:g} s, below "
+                                f"{label} = {d:g} m (the barrier would hold them apart); raise d_c or lower it")
+
+
+def separation_barrier(sc: Scenario, d: float) -> SeparationBarrier:
+    """The barrier a pair run of ``sc`` with ``min_separation_m = d`` filters its commands
+    through: the team kind's (Wang, Ames and Egerstedt 2017; :mod:`quatform.control.safety`),
+    its rate ``gamma`` at most ``1 / dt_s`` so that the sampled robots keep ``h >= 0``.
+
+    Which starts need it: under the dual-quaternion law (seed 000 eq. (28)) a start with
+    the robots in place and their yaws off by more than about 2 rad each (within +-pi) can
+    bring them arbitrarily close (the shape ``qhat_s`` carries robot 2's yaw error as a
+    rotation of the relative position, corrected along a chord; ``docs/derivations.md``,
+    "The dual-quaternion pair's yaw-only starts"); the robot-space law drives robots straight
+    through each other's paths (seed 000 Fig. 4b).
+    """
+    return SeparationBarrier(d, gamma=min(SeparationBarrier.gamma, 1.0 / sc.dt_s), dt_s=sc.dt_s)
 
 
 #: Keys of ``[path]`` that only one centroid kind uses (seed 000 §4: the circle of §4.1, the
@@ -464,6 +541,8 @@ class PairKind(ScenarioKind):
         Option("backend", "what moves the robots", BACKENDS, "kinematic"),
         Option("reference", "a plan.npz (quatform plan) to follow instead of the scenario's path: two robots for a "
                "pair scenario, N for a team", None, None, str),
+        Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
+               "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
     )
     compare_over = "controller"
     table_columns = TABLE_COLUMNS
@@ -472,7 +551,8 @@ class PairKind(ScenarioKind):
         return scenario_from_dict(data, where)
 
     def experiment(self, scenario: Scenario, controller=None, feedforward: bool | None = None,
-                   backend: str = "kinematic", reference=None, r0=None, physics: dict | None = None) -> Experiment:
+                   backend: str = "kinematic", reference=None, r0=None, physics: dict | None = None,
+                   min_separation: float | None = None) -> Experiment:
         """The run of ``scenario`` with ``controller`` (a name of :data:`~quatform.control.CONTROLLERS`
         or a controller object; required).
 
@@ -496,6 +576,13 @@ class PairKind(ScenarioKind):
             For ``backend="mujoco"``: ``gains`` (of
             :func:`~quatform.sim.mujoco_backend.physics_controller`) and ``cascade_options``
             (of :func:`~quatform.sim.mujoco_backend.pair_plant`).
+        min_separation : float, optional
+            Hold the robots at least this far apart, m (> 0; 0 turns the barrier off): the
+            controller in a :class:`~quatform.control.SafeController` with
+            :func:`separation_barrier`. Default: the scenario's ``safety``. The run then logs
+            ``min_separation`` and ``safety_active`` and its metrics hold
+            ``safety_min_separation_m`` and ``safety_active_time_s`` (the time any world's
+            commands were filtered, s).
         """
         if not isinstance(scenario, Scenario):
             raise InvalidInputError(f"pair experiment: scenario must be a two-robot Scenario, got "
@@ -510,6 +597,16 @@ class PairKind(ScenarioKind):
                    "see quatform.sim.mujoco_backend.pair_plant")
         if physics and backend != "mujoco":
             raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
+        safety = dict(scenario.safety)
+        label = "[safety] min_separation_m"
+        if min_separation is not None:
+            if isinstance(min_separation, bool) or not isinstance(min_separation, numbers.Real) \
+                    or not math.isfinite(min_separation) or min_separation < 0:
+                raise InvalidInputError(f"scenario {scenario.name!r}: min_separation = {short(min_separation)} must "
+                                        "be a finite number of m >= 0 (0 turns the separation barrier off)")
+            safety = {"enabled": min_separation > 0, "min_separation_m": float(min_separation or
+                                                                               safety["min_separation_m"])}
+            label = "min_separation"
         if reference is not None:
             scenario = with_plan(scenario, reference)
         # up front, before the reference is sampled (a Scenario checks this when built; its
@@ -517,6 +614,9 @@ class PairKind(ScenarioKind):
         check_scenario_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s)
         t = scenario.times
         e_des, ed_des = scenario.path(t)  # references.sample_reference, the chart part first
+        if safety["enabled"]:  # a given r0 is checked by SafeController's first update
+            check_barrier_reference(scenario, safety["min_separation_m"], f"scenario {scenario.name!r}", label,
+                                    e_des, t, start=r0 is None)
         if r0 is None:
             r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
         x0 = np.array(r0, dtype=float)
@@ -551,6 +651,9 @@ class PairKind(ScenarioKind):
         r_des = RobotSpace().from_chart(e_des)
         meta.update(formation=F.name, cluster_variables=F.variables,
                     feedforward=bool(ctrl.feedforward))
+        if safety["enabled"]:  # the barrier filters the controller's commands (SafeController)
+            ctrl = SafeController(ctrl, separation_barrier(scenario, safety["min_separation_m"]), ctrl.team)
+            meta["safety"] = safety
 
         def reference_at(k):
             return Reference(c_des[k], cd_des[k], r_des[k])
@@ -577,11 +680,18 @@ class PairKind(ScenarioKind):
             return log.with_channels(**record(log))
 
         def metrics(log: Log) -> dict:
-            return {**compute_metrics(log), **physics_metrics(log)}
+            out = {**compute_metrics(log), **physics_metrics(log)}
+            if safety["enabled"]:  # as the team kind's metrics (sim.team_metrics)
+                active = np.asarray(log["safety_active"]) > 0.5  # (T, *batch, 1): NaN (a failed world) is not
+                ticks = int(np.count_nonzero(np.any(active.reshape(active.shape[0], -1), axis=-1)))
+                out.update(safety_min_separation_m=safety["min_separation_m"],
+                           safety_active_time_s=ticks * scenario.dt_s)
+            return out
 
+        csv = pair_csv_channels(F.name) + (("min_separation", "safety_active") if safety["enabled"] else ())
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
                           reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
-                          metrics=metrics, csv_channels=pair_csv_channels(F.name), meta=meta)
+                          metrics=metrics, csv_channels=csv, meta=meta)
 
 
 def _channels(*specs):
