@@ -76,6 +76,7 @@ def test_every_section_row_has_a_unit_and_a_definition():
 RUNS = [
     ("mas-kitts-helix", "pair", {"controller": "quaternion"}),
     ("mas-kitts-helix", "pair", {"controller": "cluster-space"}),
+    ("mas-kitts-helix", "pair", {"controller": "dual-quaternion", "min_separation": 0.5}),
     ("team-tetrahedron-helix", "team", {"controller": "quaternion"}),
     ("team-triangle-over-ugv", "team", {"controller": "robot-space"}),
     ("marciano-front-to-over", "ugv-uav", {"formation": "restricted"}),
