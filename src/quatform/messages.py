@@ -22,8 +22,8 @@ import numpy as np
 
 from .errors import InvalidInputError, MissingDependencyError
 
-__all__ = ["typestore", "msg_type", "stamp", "stamp_ns", "nanoseconds", "seconds", "pose_stamped", "pose_from_msg", "twist",
-           "twist_from_msg", "twist_stamped", "odometry_pose", "transform_stamped", "tf_message", "line_list",
+__all__ = ["typestore", "msg_type", "stamp", "stamp_ns", "nanoseconds", "seconds", "pose_stamped", "pose_from_msg",
+           "twist", "twist_from_msg", "twist_stamped", "odometry_pose", "transform_stamped", "tf_message", "line_list",
            "marker_array", "pose_array", "joint_state", "wrench_stamped", "path", "string", "named_type", "named_message"]
 
 

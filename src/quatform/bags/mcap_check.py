@@ -163,7 +163,8 @@ def _chunk_index(rec: _Record, end: int) -> None:
     compression = rec.string("its compression name")
     compressed, uncompressed = rec.u64("its compressed size"), rec.u64("its uncompressed size")
     if start > end or length > end - start:
-        rec.fail(f"points at a chunk of {_bytes(length)} at byte {start}, the file has {max(0, end - start)} left there")
+        left = max(0, end - start)
+        rec.fail(f"points at a chunk of {_bytes(length)} at byte {start}, the file has {left} left there")
     if compressed > length:
         rec.fail(f"declares a compressed chunk of {_bytes(compressed)} in a chunk record of {_bytes(length)}")
     _uncompressed(rec, compression, compressed, uncompressed)
