@@ -72,17 +72,28 @@ def write_columns(names, data, path, *, ns=None) -> Path:
     unknown = sorted(set(ns) - set(names))
     if unknown:
         raise InvalidInputError(f"write_columns: ns names columns {unknown} that the header {names} lacks")
-    fmt, table = "%.9g", data
     exact = [j for j, n in enumerate(names) if n in ns or n in TIME_COLUMNS]
-    if exact and data.ndim == 2 and data.shape[1] == len(names):
-        fmt, table = ["%.9g"] * len(names), data.astype(object)
-        for j in exact:
-            name = names[j]
-            table[:, j] = ns_text(ns[name]) if name in ns else [repr(v) for v in data[:, j].tolist()]
-            fmt[j] = "%s"
+    if not exact or data.ndim != 2 or data.shape[1] != len(names) or data.shape[0] == 0:
+        buf = io.StringIO()
+        np.savetxt(buf, data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+        return atomic_write_text(path, buf.getvalue())
+    texts = {j: ns_text(ns[names[j]]) if names[j] in ns else [repr(v) for v in data[:, j].tolist()] for j in exact}
+    rest = [j for j in range(len(names)) if j not in texts]
     buf = io.StringIO()
-    np.savetxt(buf, table, delimiter=",", header=",".join(names), comments="", fmt=fmt)
-    return atomic_write_text(path, buf.getvalue())
+    if rest:
+        np.savetxt(buf, data[:, rest], delimiter=",", fmt="%.9g")
+    rest_lines = buf.getvalue().splitlines() if rest else [""] * data.shape[0]
+    lines = [",".join(names)]
+    if exact == list(range(len(exact))):  # the exact columns lead (t first): a prefix of each row
+        heads = [",".join(row) for row in zip(*(texts[j] for j in exact))]
+        lines += [f"{h},{line}" for h, line in zip(heads, rest_lines)] if rest else heads
+    else:
+        for k, line in enumerate(rest_lines):  # the exact columns put back in their places, row by row
+            cells = line.split(",") if rest else []
+            for j in exact:
+                cells.insert(j, texts[j][k])
+            lines.append(",".join(cells))
+    return atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def timeseries_table(log, channels=None) -> tuple[list[str], np.ndarray]:
