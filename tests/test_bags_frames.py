@@ -8,6 +8,7 @@ consecutive segment directions and the steps of the desired yaw and pitch ``beta
 error signals (``sim.metrics.errors_from_robots``, ``sim.team_metrics.team_errors``).
 """
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -204,3 +205,23 @@ def test_a_failed_worlds_nan_samples_stay_nan_and_the_frame_resumes():
     c = continuous_states(F, r)
     assert np.all(np.isnan(c[5:8])) and np.all(np.isfinite(c[[4, 8]]))
     np.testing.assert_allclose(g.x_axis(c[8, 3:7]), r[8, 0:3] / np.linalg.norm(r[8, 0:3]), atol=1e-12)
+
+
+def test_a_ugv_uav_runs_error_angle_is_the_angle_between_its_segments():
+    """The UGV-UAV frames: the desired one carried along the run, the actual one nearest it, so
+    the plotted angle is the metrics' orientation error (the angle between the segments
+    Pioneer -> Bebop, ``ugv_uav_metrics``), at every sample."""
+    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=2.0, transient_s=0.0)
+    kind = kind_of(sc)
+    log = kind.experiment(sc).run(None)
+    scene = scene_of(log, kind.name)
+    angle = _angle(scene.formation[1], scene.formation_desired[1])
+    p, pd = (np.asarray(log[c]).reshape(len(log), 2, 3) for c in ("r_true", "r_des"))
+    d, dd = p[:, 1] - p[:, 0], pd[:, 1] - pd[:, 0]
+    cos = np.sum(d * dd, axis=-1) / (np.linalg.norm(d, axis=-1) * np.linalg.norm(dd, axis=-1))
+    np.testing.assert_allclose(angle, np.arccos(np.clip(cos, -1.0, 1.0)), rtol=0, atol=ANGLE_ATOL)
+    bound = MARGIN * max(float(np.max(np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=-1), -1, 1))))
+                         for u in (d / np.linalg.norm(d, axis=-1, keepdims=True),
+                                   dd / np.linalg.norm(dd, axis=-1, keepdims=True))) + ANGLE_ATOL
+    for q in (scene.formation[1], scene.formation_desired[1]):
+        assert np.max(_angle(q[:-1], q[1:])) <= bound
