@@ -542,7 +542,8 @@ def _controllers(name):
                          + [("marciano-circle", None)])
 def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
     """/formation/pose, /formation/pose_desired and the formation TF frames for every description:
-    a pair's from the quaternion pair's forward map of the robots, a team's from its chart (e, e_des)."""
+    a pair's from the quaternion pair's forward map of the robots (nearest the reference's frame), a
+    team's from its chart (e, e_des)."""
     sc = load_scenario(name)
     sc = dataclasses.replace(sc, duration_s=0.2, **({"transient_s": 0.0} if name == "marciano-circle" else
                                                     {"metrics_from_s": 0.0}))
@@ -558,7 +559,9 @@ def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
         np.testing.assert_array_equal(np.r_[p, q], e[k, [ec.index(c) for c in ("x_c", "y_c", "z_c", "q_c_w", "q_c_x",
                                                                                    "q_c_y", "q_c_z")]])
     elif kind.name == "pair":
-        np.testing.assert_allclose(np.r_[p, q], FORMATIONS["quaternion"].forward(log["state"][k])[:7], atol=1e-12)
+        F = FORMATIONS["quaternion"]
+        want = F.forward(log["state"][k], near_c=F.from_chart(log["e_des"][k]))[:7]
+        np.testing.assert_allclose(np.r_[p, q], want, atol=1e-12)
     assert {"formation", "formation_desired"} <= {t.child_frame_id for t in topics["/tf"][1][k][1].transforms}
     _, pd, qd, _ = messages.pose_from_msg(topics["/formation/pose_desired"][1][k][1])
     err = topics["/formation/error"][1][k][1]

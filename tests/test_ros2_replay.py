@@ -223,3 +223,64 @@ def test_replaying_a_pioneer_runs_mcap_gives_the_runs_commands(tmp_path):
     got, want = _replay_of_a_run(tmp_path, H.short_triangle(tmp_path, 10.0), "quaternion", 4)
     assert np.abs(want).max() > 0.05
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+
+
+#: A wall-clock bag: 1.7e9 s since the epoch, plus an odd 123 ns so no stamp is a round number.
+EPOCH_NS = 1_700_000_000_000_000_123
+
+
+@pytest.fixture(scope="module")
+def epoch_replay(tmp_path_factory):
+    """The helix's 80 s at 100 Hz recorded with epoch stamps (integer ns), replayed (no plots)."""
+    tmp = tmp_path_factory.mktemp("epoch")
+    sc = H.short_pair(80.0)
+    exp = experiment_for(sc, "quaternion")
+    log = exp.run()
+    robots = H.write(tmp / "robots.toml", H.PAIR_ROBOTS)
+    rf = read_robots_file(robots)
+    pr = FormationBridge(exp, rf).plant_robots
+    ns = [EPOCH_NS + k * 10_000_000 for k in range(len(log.t))]
+    poses = H.robot_poses(pr.models, pr.state_slices, log["state"])
+    time = messages.msg_type("builtin_interfaces/msg/Time")
+
+    def pose(n, p, q):  # stamped in integer ns, as a recorder stamps it
+        msg = messages.pose_stamped(0.0, p, q)
+        msg.header.stamp = time(sec=n // 1_000_000_000, nanosec=n % 1_000_000_000)
+        return msg
+
+    streams = [(link.pose_topic, "geometry_msgs/msg/PoseStamped", [(n, pose(n, p[k], q[k])) for k, n in enumerate(ns)])
+               for link, (p, q) in zip(rf.robots, poses)]
+    bag = H.write_bag(tmp / "lab", streams)
+    out = tmp / "out"
+    replay(bag, sc, robots, out, controller="quaternion", plots=False)
+    return {"ns": ns, "out": out, "log": log}
+
+
+def test_commands_csv_of_a_wall_clock_bag_keeps_every_stamp(epoch_replay):
+    """commands.csv's t was written with 9 significant digits: 80 s at 1.7e9 s gave 9 distinct
+    values. Each row's t now reads, as a decimal, the pose stamp of its tick to the nanosecond."""
+    lines = (epoch_replay["out"] / "commands.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    rows = [line.split(",") for line in lines[1:]]
+    t_text = [r[head.index("t")] for r in rows]
+    sec, frac = zip(*(s.split(".") for s in t_text))
+    got = [int(a) * 1_000_000_000 + int(b) for a, b in zip(sec, frac)]
+    assert got == epoch_replay["ns"] and len(set(got)) == len(got) == 8001
+    tau = [r[head.index("reference_time")] for r in rows]
+    assert tau[0] == "0.000000000" and tau[-1] == "80.000000000"
+    assert len({float(s) for s in t_text}) == 8001  # distinct as floats too (238 ns apart at most, 10 ms steps)
+
+
+def test_commands_mcap_stamps_are_the_triggering_pose_stamps(epoch_replay):
+    """Each command's header stamp and log time equal the pose stamp that triggered its tick
+    (they were about 128 ns off: the stamp went through float seconds)."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([epoch_replay["out"] / "commands.mcap"]) as reader:
+        stamps = [(log_ns, reader.deserialize(raw, c.msgtype).header.stamp)
+                  for c, log_ns, raw in reader.messages() if c.topic == "/r1/cmd_vel"]
+    got = [(log_ns, s.sec * 1_000_000_000 + s.nanosec) for log_ns, s in stamps]
+    assert [a for a, _ in got] == epoch_replay["ns"]
+    assert [b for _, b in got] == epoch_replay["ns"]
+    m = json.loads((epoch_replay["out"] / "metrics.json").read_text())
+    assert (m["first_tick_ns"], m["last_tick_ns"]) == (epoch_replay["ns"][0], epoch_replay["ns"][-1])

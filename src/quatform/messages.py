@@ -22,8 +22,8 @@ import numpy as np
 
 from .errors import InvalidInputError, MissingDependencyError
 
-__all__ = ["typestore", "msg_type", "stamp", "seconds", "pose_stamped", "pose_from_msg", "twist",
-           "twist_from_msg", "twist_stamped", "odometry_pose", "transform_stamped", "tf_message", "line_list",
+__all__ = ["typestore", "msg_type", "stamp", "stamp_ns", "nanoseconds", "seconds", "pose_stamped", "pose_from_msg",
+           "twist", "twist_from_msg", "twist_stamped", "odometry_pose", "transform_stamped", "tf_message", "line_list",
            "marker_array", "pose_array", "joint_state", "wrench_stamped", "path", "string", "named_type", "named_message"]
 
 
@@ -48,12 +48,35 @@ def msg_type(name: str):
 
 
 def stamp(t: float):
-    """``builtin_interfaces/msg/Time`` of ``t`` s (rounded to the nanosecond; ``t`` >= 0 and finite)."""
+    """``builtin_interfaces/msg/Time`` of ``t`` s (rounded to the nanosecond; ``t`` >= 0 and finite).
+
+    ``t`` may also be a ``Time`` already (:func:`stamp_ns`'s): it is returned as it is, so a
+    stamp given in integer nanoseconds (a ROS clock's, a bag's) reaches a message without a
+    round trip through float seconds (which at an epoch time of 1.7e9 s resolves 238 ns)."""
+    if _is_time(t):
+        return t
     t = float(t)
     if not math.isfinite(t) or t < 0:
         raise InvalidInputError(f"a ROS 2 time stamp must be finite and >= 0 s, got {t!r}")
     ns = round(t * 1e9)
     return msg_type("builtin_interfaces/msg/Time")(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def stamp_ns(ns: int):
+    """``builtin_interfaces/msg/Time`` of ``ns`` integer nanoseconds (>= 0), exactly."""
+    ns = int(ns)
+    if ns < 0:
+        raise InvalidInputError(f"a ROS 2 time stamp must be >= 0 ns, got {ns}")
+    return msg_type("builtin_interfaces/msg/Time")(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def nanoseconds(time) -> int:
+    """Integer nanoseconds of a ``builtin_interfaces/msg/Time`` (exact)."""
+    return int(time.sec) * 1_000_000_000 + int(time.nanosec)
+
+
+def _is_time(t) -> bool:
+    return hasattr(t, "sec") and hasattr(t, "nanosec")
 
 
 def seconds(time) -> float:

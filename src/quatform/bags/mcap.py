@@ -404,7 +404,7 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
     topics.once.insert(0, (INFO_TOPIC, "std_msgs/msg/String", messages.string(json.dumps(info))))
 
     with mcap_writer(path) as writer:
-        once = [(writer.add_connection(topic, msgtype, typestore=topics.store), msg)
+        once = [(writer.add_connection(topic, msgtype, typestore=topics.store, **_qos(topic)), msg)
                 for topic, msgtype, msg in topics.once]
         every = [(writer.add_connection(topic, batch.msgtype, typestore=topics.store), batch.data)
                  for topic, batch in topics.every]
@@ -419,6 +419,26 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
     return path
 
 
+#: Topics recorded with the transient-local QoS their publishers offer (a late subscriber gets
+#: the last message): ``/tf_static``, as tf2's static broadcaster publishes it.
+LATCHED_TOPICS = ("/tf_static",)
+
+
+def _qos(topic: str) -> dict:
+    """``add_connection`` keywords of ``topic``: for :data:`LATCHED_TOPICS` the profile tf2_ros's
+    ``StaticBroadcasterQoS`` offers (keep last 1, reliable, transient local; other policies at
+    ROS 2's defaults), which rosbag2 stores as the channel's ``offered_qos_profiles`` and
+    ``ros2 bag play`` offers again; other topics leave it empty (the player's default)."""
+    if topic not in LATCHED_TOPICS:
+        return {}
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    zero = QosTime(0, 0)
+    latched = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, zero, zero,
+                  QosLiveliness.AUTOMATIC, zero, False)
+    return {"offered_qos_profiles": [latched]}
+
+
 @contextlib.contextmanager
 def mcap_writer(path, compress: bool = True):
     """An open ``rosbags.rosbag2.Writer`` (MCAP storage, zstd chunks when ``compress``) whose
@@ -427,14 +447,21 @@ def mcap_writer(path, compress: bool = True):
     rosbags writes a rosbag2 folder (``metadata.yaml`` beside the ``.mcap``); PlotJuggler 4
     opens one ``.mcap`` file, and the file alone holds its schemas, channels and summary, so
     the folder is written beside ``path`` and only its ``.mcap`` is moved in (atomically);
-    a failed write leaves ``path`` as it was."""
+    a failed write leaves ``path`` as it was.
+
+    rosbags names the ``.mcap`` after its folder (``<folder>/<folder>.mcap``) and records that
+    name in the rosbag2 metadata the file carries (``relative_file_paths``, ``files``), so the
+    folder is ``<stem>`` (``path``'s name less ``.mcap``) inside a staging folder beside
+    ``path``: the metadata names the file that is moved in (``run.mcap``)."""
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
     path = Path(path)
-    folder = path.with_name(path.name + ".partial")
-    if folder.exists():
-        shutil.rmtree(folder)
+    staging = path.with_name(f".{path.name}.partial")
+    folder = staging / (path.name.removesuffix(".mcap") or "bag")
+    if staging.exists():
+        shutil.rmtree(staging)
     try:
+        staging.mkdir()
         writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
         if compress:
             writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
@@ -442,7 +469,7 @@ def mcap_writer(path, compress: bool = True):
             yield writer
         os.replace(folder / f"{folder.name}.mcap", path)
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def _info(reader, path) -> dict:

@@ -10,6 +10,19 @@ A body's orientation comes from its state: a 4-DOF robot ``(x, y, z, yaw)`` and 
 ``(x, y, yaw)`` (at z = 0) the quaternion of its yaw about z (``formations.geometry.q_yaw``);
 a free body its quaternion; a robot whose point has no heading (the Bebop in a team, whose yaw
 is controlled outside the formation) its own state's heading, where the state has one.
+
+Every frame is continuous along the run. A two-robot formation's frame is fixed by its
+segment up to the twist about it, and no rule that reads one sample alone can fix the twist
+without a jump somewhere (seed 000's minimal rotation from ``i``, eqs. (14)-(15), turns by
+pi in one sample where the segment passes ``-i``: the helix at t = 40 s). So the desired
+frame is the reference's own (the quaternion description's ``from_chart`` of the desired
+Euclidean variables, continuous in them), or else the seed's frame at the first sample
+carried along by the minimal rotation from each sample's segment to the next (parallel
+transport, :func:`continuous_states`); the actual frame is the point of its fibre nearest the
+desired one (``forward(r, near_c=...)``), so the angle between them is the angle between the
+segments, the orientation error ``metrics.json`` reports. Every quaternion written, a body's
+too, has the sign nearer the previous sample's (:func:`sign_continuous`; q and -q are one
+rotation, but a plot of the components or a player that interpolates them would jump).
 """
 
 from __future__ import annotations
@@ -26,7 +39,7 @@ from ..formations.layout import RobotLayout
 from ..robots import Pioneer
 
 __all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "pioneer_base", "scene_of", "COMMAND_TWISTS",
-           "CommandTwist"]
+           "CommandTwist", "sign_continuous", "continuous_states"]
 
 #: Slots of a twist ``(v_x, v_y, v_z, w_x, w_y, w_z)``.
 _TWIST = {"lx": 0, "ly": 1, "lz": 2, "ax": 3, "ay": 4, "az": 5}
@@ -224,15 +237,65 @@ def pioneer_base(p: np.ndarray, psi: np.ndarray, a) -> np.ndarray:
     return out
 
 
-def _forward_frame(formation, r: np.ndarray) -> tuple | None:
-    """The formation frame ``(x_c (T, 3), q_c (T, 4))`` of the robots ``r`` (T, k) by the quaternion
-    description ``formation``'s forward map (its first seven variables are ``x_c``, ``q_c``; seed
-    000 eqs. (10), (14), (15): q_c the minimal rotation from x to the robots' separation); NaN at
-    samples with a NaN robot (a failed world)."""
-    out = np.full((r.shape[0], 7), np.nan)
+def sign_continuous(q: np.ndarray) -> np.ndarray:
+    """``q`` (T, ..., 4) with each sample's sign the one nearer the previous sample's (``q_k .
+    q_(k-1) >= 0``, the first sample as it is): the same rotations, without sign jumps. A NaN
+    sample keeps its neighbours' signs apart (the next one is compared with it: no flip)."""
+    q = np.asarray(q, dtype=float)
+    if q.shape[0] < 2:
+        return q
+    d = np.sum(q[1:] * q[:-1], axis=-1)
+    flip = np.cumsum(np.where(np.isfinite(d), d < 0.0, False), axis=0) % 2 == 1
+    out = q.copy()
+    out[1:] = np.where(flip[..., None], -q[1:], q[1:])
+    return out
+
+
+def _cumulative_product(s: np.ndarray) -> np.ndarray:
+    """``out[k] = s[k] s[k-1] ... s[0]`` of unit quaternions ``s`` (T, 4), normalised: a doubling
+    scan (log2 T vectorised products; each result is a product of at most log2 T partial ones)."""
+    out = np.array(s, dtype=float, copy=True)
+    d = 1
+    while d < out.shape[0]:
+        out[d:] = g.mul(out[d:], out[:-d])  # the right side is computed from the previous pass
+        d *= 2
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+def continuous_states(formation, r: np.ndarray) -> np.ndarray:
+    """Cluster states (T, n_c) of ``formation`` (a description whose variables 4-7 are ``q_c``, x
+    axis along the robots' segment: the quaternion pair, the UGV-UAV quaternion) of the robots
+    ``r`` (T, k), with a continuous ``q_c``: seed 000's minimal rotation from ``i`` (eqs. (14)-(15))
+    at the first finite sample, then carried to each next sample by the minimal rotation taking
+    its segment to the next one (parallel transport: the frame turns only as the segment does,
+    never about it), each sample then the point of its fibre nearest that (``near_c``). NaN at
+    samples with a NaN robot (a failed world); the transport joins the finite samples around them."""
+    out = np.full((r.shape[0], formation.n_c), np.nan)
     ok = np.all(np.isfinite(r), axis=1)
-    if np.any(ok):
-        out[ok] = formation.forward(r[ok])[:, :7]
+    if not np.any(ok):
+        return out
+    c = formation.forward(r[ok])
+    q = c[:, 3:7]
+    u = g.x_axis(q)
+    steps = np.concatenate([q[:1], g.swing(u[:-1], u[1:], g.z_axis(q[:-1]))], axis=0)
+    hint = c.copy()
+    hint[:, 3:7] = _cumulative_product(steps)
+    out[ok] = formation.forward(r[ok], near_c=hint)
+    return out
+
+
+def _forward_frame(formation, r: np.ndarray, near: np.ndarray | None = None) -> tuple:
+    """The formation frame ``(x_c (T, 3), q_c (T, 4))`` of the robots ``r`` (T, k) by ``formation``'s
+    forward map (its first seven variables are ``x_c``, ``q_c``), each ``q_c`` the point of its
+    fibre nearest ``near`` (T, n_c) (continuous where ``near`` is), or :func:`continuous_states`
+    without ``near``; NaN at samples with a NaN robot or hint (a failed world)."""
+    if near is None:
+        out = continuous_states(formation, r)[:, :7]
+    else:
+        out = np.full((r.shape[0], 7), np.nan)
+        ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(near), axis=1)
+        if np.any(ok):
+            out[ok] = formation.forward(r[ok], near_c=near[ok])[:, :7]
     return out[:, :3], out[:, 3:]
 
 
@@ -279,11 +342,16 @@ def pair_scene(log) -> Scene:
     pd, qd = _layout_poses(layout, _cols(log, "r_des", [n + "_des" for n in names])) if "r_des" in log else (None, None)
     pm, qm = _layout_poses(layout, _cols(log, "measured", names))
     u = np.asarray(log["command"], dtype=float).reshape(len(log), 2, 4)
-    # the formation frame of every controller: the quaternion pair's forward map of the robots
+    # the formation frame of every controller: the quaternion pair's forward map of the robots,
+    # nearest the desired frame: the quaternion description's of the desired Euclidean variables
+    # (continuous in them), else the desired robots' carried along the run
     frame = FORMATIONS["quaternion"]
-    formation = _forward_frame(frame, _cols(log, "state", names))
-    formation_desired = (_forward_frame(frame, _cols(log, "r_des", [n + "_des" for n in names]))
-                         if "r_des" in log else None)
+    formation_desired = near = None
+    if "r_des" in log:
+        r_des = _cols(log, "r_des", [n + "_des" for n in names])
+        near = _desired_states(frame, log, r_des)
+        formation_desired = _forward_frame(frame, r_des, near)
+    formation = _forward_frame(frame, _cols(log, "state", names), near)
     scene = Scene(bodies=("robot_1", "robot_2"), parents=("world", "world"), position=p, quaternion=q,
                   position_desired=pd, quaternion_desired=qd,
                   **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
@@ -291,6 +359,20 @@ def pair_scene(log) -> Scene:
                   formation=formation, formation_desired=formation_desired,
                   edges=_pair_edges(p, [(0, 1)]), edges_desired=None if pd is None else _pair_edges(pd, [(0, 1)]))
     return _with_physics(scene, log, {"robot1": "robot_1", "robot2": "robot_2"})
+
+
+def _desired_states(frame, log, r_des: np.ndarray) -> np.ndarray:
+    """The desired cluster states (T, 16) of a pair: ``frame.from_chart`` of the desired Euclidean
+    variables (``e_des``, seed 000 eqs. (1)-(8), whose ``q_c`` is continuous in them), else
+    :func:`continuous_states` of the desired robots."""
+    if "e_des" not in log:
+        return continuous_states(frame, r_des)
+    e_des = np.asarray(log["e_des"], dtype=float)
+    out = np.full((len(log), frame.n_c), np.nan)
+    ok = np.all(np.isfinite(e_des), axis=1)
+    if np.any(ok):
+        out[ok] = frame.from_chart(e_des[ok])
+    return out
 
 
 def ugv_uav_scene(log) -> Scene:
@@ -321,12 +403,15 @@ def ugv_uav_scene(log) -> Scene:
     u = _cols(log, "command", ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b"))
     twist = np.stack([_twist(u[:, :2], COMMAND_TWISTS["pioneer"]), _twist(u[:, 2:], COMMAND_TWISTS["bebop"])], axis=1)
     # the formation frame of every description: the UGV-UAV quaternion description's forward map
-    # of the robots' points (the Pioneer's control point at the platform height, the Bebop)
+    # of the robots' points (the Pioneer's control point at the platform height, the Bebop); the
+    # desired one carried along the run, the actual one nearest it
     frame = FORMATIONS["ugv-uav-quaternion"]
-    formation = _forward_frame(frame, _cols(log, "r_true", ("x_p", "y_p", "z_p", "x_b", "y_b", "z_b")))
-    formation_desired = (_forward_frame(frame, _cols(log, "r_des", ("x_p_des", "y_p_des", "z_p_des", "x_b_des",
-                                                                    "y_b_des", "z_b_des")))
-                         if "r_des" in log else None)
+    formation_desired = near = None
+    if "r_des" in log:
+        near = continuous_states(frame, _cols(log, "r_des", ("x_p_des", "y_p_des", "z_p_des", "x_b_des", "y_b_des",
+                                                             "z_b_des")))
+        formation_desired = near[:, :3], near[:, 3:7]
+    formation = _forward_frame(frame, _cols(log, "r_true", ("x_p", "y_p", "z_p", "x_b", "y_b", "z_b")), near)
     scene = Scene(bodies=("pioneer", "bebop"), parents=("world", "world"), position=p, quaternion=q,
                   position_desired=pd, quaternion_desired=qd,
                   **({"position_measured": pm, "quaternion_measured": qm} if _differs(pm, p) else {}),
@@ -458,5 +543,20 @@ def scene_of(log, kind: str | None = None) -> Scene:
 
         raise InvalidInputError(f"no scene for scenario kind {kind!r}{nearest(str(kind), SCENES)}; kinds: "
                                 f"{', '.join(SCENES)}")
-    return SCENES[kind](log)
+    return _signs_continuous(SCENES[kind](log))
+
+
+def _signs_continuous(scene: Scene) -> Scene:
+    """``scene`` with every quaternion series :func:`sign_continuous`."""
+    def pose(pq):
+        return None if pq is None else (pq[0], sign_continuous(pq[1]))
+
+    def maybe(q):
+        return None if q is None else sign_continuous(q)
+
+    return dataclasses.replace(
+        scene, quaternion=sign_continuous(scene.quaternion), quaternion_desired=maybe(scene.quaternion_desired),
+        quaternion_measured=maybe(scene.quaternion_measured), formation=pose(scene.formation),
+        formation_desired=pose(scene.formation_desired),
+        odometry=tuple(dataclasses.replace(od, quaternion=sign_continuous(od.quaternion)) for od in scene.odometry))
 

@@ -15,13 +15,15 @@ that is not unit (a pose stream's quaternions are unit to float precision; one o
 from __future__ import annotations
 
 import contextlib
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .. import messages
-from ..errors import InvalidInputError, NonUnitError
+from ..errors import InvalidInputError, NonUnitError, QuatformError
+from .mcap_check import check_mcap
 
 __all__ = ["PoseTrack", "read_poses", "pose_topics", "open_bag", "POSE_TYPES", "UNIT_TOLERANCE", "STAMP_SOURCES"]
 
@@ -66,6 +68,7 @@ def open_bag(path):
     run's folder: rosbags reads the file, not such a folder); types the bag does not define
     come from ROS 2 Humble's."""
     from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.rosbag2 import ReaderError
 
     p = Path(path)
     if not p.exists():
@@ -82,14 +85,22 @@ def open_bag(path):
     if p.is_file() and p.suffix not in (".mcap", ".db3"):
         raise InvalidInputError(f"bag {path}: a ROS 2 bag is an .mcap or .db3 file or a rosbag2 folder, not "
                                 f"{p.suffix or 'a file without suffix'}")
+    for f in ([p] if p.is_file() else sorted(p.glob("*.mcap"))):
+        if f.suffix == ".mcap":
+            check_mcap(f)  # declared record lengths against the file, before the reader allocates them
     reader = AnyReader([p], default_typestore=messages.typestore())
     try:
         reader.open()
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+    except (AnyReaderError, OSError, ValueError, KeyError, struct.error) as exc:
         raise InvalidInputError(f"bag {path} cannot be read ({' '.join(str(exc).split())[:200]}); give a rosbag2 "
                                 "folder or an .mcap file recorded with ros2 bag record") from None
     try:
         yield reader
+    except QuatformError:
+        raise
+    except (ReaderError, AnyReaderError, struct.error, EOFError) as exc:  # a chunk found bad while reading it
+        raise InvalidInputError(f"bag {path} is truncated or corrupt ({' '.join(str(exc).split())[:200]}); copy or "
+                                "record the file again") from None
     finally:
         reader.close()
 

@@ -10,6 +10,14 @@ Every file is written to a temporary name and renamed into place
 (:func:`quatform.sim.output.atomic_write_text`), so a run cut off by Ctrl-C never leaves a
 truncated file under its final name. JSON is strict (:func:`strict_json`): a NaN or infinite
 value is written as ``null`` and named under ``nonfinite_values``.
+
+Times in CSV files (:data:`TIME_COLUMNS`) are written exactly, so a bag's nanosecond stamps
+survive: a time held as integer nanoseconds (``quatform replay``'s ``commands.csv``: the
+bag's stamps) as its decimal seconds with nine decimals (``1700000000.010000000``), a float
+time (a simulation's ``timeseries.csv``) as the shortest decimal that reads back as the same
+float64 (``repr``; ``round(t * 1e9)`` is then the stamp ``run.mcap`` holds). Other columns
+have 9 significant digits. (At an epoch time of 1.7e9 s, 9 digits would resolve 1 s and a
+float64 238 ns.)
 """
 
 from __future__ import annotations
@@ -24,11 +32,27 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..sim.output import atomic_write_text
 
-__all__ = ["write_timeseries", "timeseries_table", "write_columns", "write_metrics", "write_json", "strict_json"]
+__all__ = ["write_timeseries", "timeseries_table", "write_columns", "write_metrics", "write_json", "strict_json",
+           "TIME_COLUMNS", "ns_text"]
+
+#: Columns written exactly (see the module docstring): the time and a replay's reference time, s.
+TIME_COLUMNS = ("t", "reference_time")
 
 
-def write_columns(names, data, path) -> Path:
-    """A CSV file with a header row ``names`` and the ``(T, n)`` array ``data`` (9 digits).
+def ns_text(ns) -> list[str]:
+    """Decimal seconds, nine decimals, of integer nanoseconds ``ns`` (T,): exact (``1700000000.010000000``)."""
+    out = []
+    for v in np.asarray(ns, dtype=np.int64).tolist():
+        sec, frac = divmod(abs(v), 1_000_000_000)
+        out.append(f"{'-' if v < 0 else ''}{sec}.{frac:09d}")
+    return out
+
+
+def write_columns(names, data, path, *, ns=None) -> Path:
+    """A CSV file with a header row ``names`` and the ``(T, n)`` array ``data``.
+
+    :data:`TIME_COLUMNS` are written exactly (float times as their shortest round-trip
+    decimal, ``repr``), every other column with 9 significant digits.
 
     Parameters
     ----------
@@ -36,13 +60,40 @@ def write_columns(names, data, path) -> Path:
         Header.
     data : array_like, shape (T, n)
     path : path-like
+    ns : dict, optional
+        ``{column name: (T,) integer nanoseconds}``: those columns' text comes from the integers
+        (:func:`ns_text`, exact to the nanosecond) rather than from ``data``'s floats.
 
     Written atomically (a temporary file renamed into place).
     """
+    names = list(names)
+    data = np.asarray(data, dtype=float)
+    ns = dict(ns or {})
+    unknown = sorted(set(ns) - set(names))
+    if unknown:
+        raise InvalidInputError(f"write_columns: ns names columns {unknown} that the header {names} lacks")
+    exact = [j for j, n in enumerate(names) if n in ns or n in TIME_COLUMNS]
+    if not exact or data.ndim != 2 or data.shape[1] != len(names) or data.shape[0] == 0:
+        buf = io.StringIO()
+        np.savetxt(buf, data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+        return atomic_write_text(path, buf.getvalue())
+    texts = {j: ns_text(ns[names[j]]) if names[j] in ns else [repr(v) for v in data[:, j].tolist()] for j in exact}
+    rest = [j for j in range(len(names)) if j not in texts]
     buf = io.StringIO()
-    np.savetxt(buf, np.asarray(data, dtype=float), delimiter=",", header=",".join(names), comments="",
-               fmt="%.9g")
-    return atomic_write_text(path, buf.getvalue())
+    if rest:
+        np.savetxt(buf, data[:, rest], delimiter=",", fmt="%.9g")
+    rest_lines = buf.getvalue().splitlines() if rest else [""] * data.shape[0]
+    lines = [",".join(names)]
+    if exact == list(range(len(exact))):  # the exact columns lead (t first): a prefix of each row
+        heads = [",".join(row) for row in zip(*(texts[j] for j in exact))]
+        lines += [f"{h},{line}" for h, line in zip(heads, rest_lines)] if rest else heads
+    else:
+        for k, line in enumerate(rest_lines):  # the exact columns put back in their places, row by row
+            cells = line.split(",") if rest else []
+            for j in exact:
+                cells.insert(j, texts[j][k])
+            lines.append(",".join(cells))
+    return atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def timeseries_table(log, channels=None) -> tuple[list[str], np.ndarray]:
@@ -75,8 +126,8 @@ def timeseries_table(log, channels=None) -> tuple[list[str], np.ndarray]:
 
 
 def write_timeseries(log, path, channels=None) -> Path:
-    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_table` (``t``,
-    then ``channels`` in order, 9 digits), written atomically."""
+    """``timeseries.csv`` of one world's log: the columns of :func:`timeseries_table` (``t``
+    exactly, then ``channels`` in order, 9 digits), written atomically."""
     return write_columns(*timeseries_table(log, channels), path)
 
 

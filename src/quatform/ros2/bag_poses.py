@@ -80,9 +80,8 @@ def read_bag_poses(bag, robots: RobotsFile, stamps: str = "header") -> BagPoses:
             msg = reader.deserialize(raw, conn.msgtype)
             if stamps == "log":
                 t_ns = int(log_ns)
-            else:
-                t = POSE_READERS[robots.robots[i].pose_type].read(msg)[0]
-                t_ns = int(round(t * 1e9))
+            else:  # the header stamp in integer ns (float seconds would move an epoch stamp by ~100 ns)
+                t_ns = POSE_READERS[robots.robots[i].pose_type].stamp_ns(msg)
             times[i].append(t_ns)
             msgs[i].append(msg)
     out = []

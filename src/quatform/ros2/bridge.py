@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import messages
 from ..errors import InvalidInputError
 from .endpoints import COMMAND_WRITERS, POSE_READERS, pose_sample
 from .robot_io import PoseSample, plant_robots, robot_io
@@ -49,7 +50,7 @@ class Tick:
     Attributes
     ----------
     t : float
-        Its time, s (ROS time).
+        Its time, s (ROS time; ``t_ns`` exactly).
     status : str
         One of :data:`STATUSES`.
     tau : float
@@ -63,7 +64,11 @@ class Tick:
     signals : dict
         The controller's signals of this tick (empty unless ``ok``).
     messages : tuple of (topic, message)
-        What to publish (``rosbags`` messages).
+        What to publish (``rosbags`` messages), stamped ``t_ns`` exactly.
+    t_ns : int
+        Its time, integer nanoseconds (ROS time): the pose stamp that triggered it, in a replay.
+    tau_ns : int
+        The reference time, integer nanoseconds.
     """
 
     t: float
@@ -74,6 +79,8 @@ class Tick:
     stale: tuple
     signals: dict
     messages: tuple
+    t_ns: int = 0
+    tau_ns: int = 0
 
 
 def experiment_for(scenario, controller=None, reference=None):
@@ -249,7 +256,7 @@ class FormationBridge:
             signals = {k: np.asarray(v, dtype=float) for k, v in step.signals.items()}
         self.last_ok = status == "ok"
         self.last_tick_ns = now_ns
-        t = now_ns * 1e-9
+        t = messages.stamp_ns(now_ns)  # the messages' stamp: the integer ns, no float round trip
         twists = np.zeros((len(self.robots.robots), 6))
         if status == "ok":
             q = np.array([p.quaternion for p in self.poses])
@@ -260,5 +267,6 @@ class FormationBridge:
         for i, link in enumerate(self.robots.robots):  # one message (or two) per robot: ROS's I/O
             msgs.extend(COMMAND_WRITERS[link.command_type].build(link, t, twists[i, 0:3], twists[i, 3:6],
                                                                  self.robots.settings.world_frame, self.frames[i]))
-        return Tick(t, status, self.tau_ns * 1e-9, u, tuple((w[0:3], w[3:6]) for w in twists),
-                    tuple(self.names[i] for i in stale), signals, tuple(msgs))
+        return Tick(now_ns * 1e-9, status, self.tau_ns * 1e-9, u, tuple((w[0:3], w[3:6]) for w in twists),
+                    tuple(self.names[i] for i in stale), signals, tuple(msgs), now_ns,
+                    self.tau_ns)

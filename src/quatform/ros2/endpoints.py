@@ -26,13 +26,24 @@ __all__ = ["PoseReader", "CommandWriter", "POSE_READERS", "COMMAND_WRITERS", "po
 UNIT_SLACK = 1e-3
 
 
+def _header_ns(msg) -> int:
+    return messages.nanoseconds(msg.header.stamp)
+
+
+def _px4_ns(msg) -> int:
+    return int(msg.timestamp) * 1000  # PX4's timestamp is integer microseconds
+
+
 @dataclass(frozen=True)
 class PoseReader:
-    """``msg_type`` (the ROS 2 type name) and ``read(msg) -> (t, position, quaternion, twist)``."""
+    """``msg_type`` (the ROS 2 type name), ``read(msg) -> (t, position, quaternion, twist)`` and
+    ``stamp_ns(msg) -> int`` (the message's time in integer nanoseconds, exactly: a bag's
+    epoch stamps keep every nanosecond, which ``t`` in float seconds does not)."""
 
     msg_type: str
     read: Callable
     qos: str = "sensor"
+    stamp_ns: Callable = _header_ns
 
 
 def _pose(msg):
@@ -49,7 +60,7 @@ def _odometry(msg):
 POSE_READERS = {
     "pose": PoseReader("geometry_msgs/msg/PoseStamped", _pose),
     "odometry": PoseReader("nav_msgs/msg/Odometry", _odometry),
-    "px4": PoseReader("px4_msgs/msg/VehicleOdometry", px4.vehicle_odometry_pose, qos="px4"),
+    "px4": PoseReader("px4_msgs/msg/VehicleOdometry", px4.vehicle_odometry_pose, qos="px4", stamp_ns=_px4_ns),
 }
 
 

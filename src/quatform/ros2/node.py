@@ -29,6 +29,7 @@ import threading
 
 import numpy as np
 
+from .. import messages
 from ..errors import InvalidInputError, MissingDependencyError
 from .bridge import FormationBridge
 
@@ -181,8 +182,8 @@ class BridgeNode:
 
         zero = np.zeros(3)
         for link, frame in zip(b.robots.robots, b.frames):
-            msgs.extend(COMMAND_WRITERS[link.command_type].build(link, self.now_ns() * 1e-9, zero, zero,
-                                                                 b.robots.settings.world_frame, frame))
+            msgs.extend(COMMAND_WRITERS[link.command_type].build(link, messages.stamp_ns(self.now_ns()), zero,
+                                                                 zero, b.robots.settings.world_frame, frame))
         self._publish(msgs)
 
     # -- running ------------------------------------------------------------------------------

@@ -94,7 +94,10 @@ def _cls(name: str):
 
 
 def microseconds(t: float) -> int:
-    """PX4's ``timestamp`` (µs) of ``t`` s (finite, >= 0)."""
+    """PX4's ``timestamp`` (µs) of ``t`` s (finite, >= 0), or of a ``builtin_interfaces/msg/Time``
+    (:func:`quatform.messages.stamp_ns`; rounded to the microsecond in integers)."""
+    if hasattr(t, "sec") and hasattr(t, "nanosec"):
+        return (messages.nanoseconds(t) + 500) // 1000
     if not (math.isfinite(t) and t >= 0):
         raise InvalidInputError(f"a PX4 timestamp must be finite and >= 0 s, got {t!r}")
     return int(round(t * 1e6))

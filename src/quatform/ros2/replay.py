@@ -98,6 +98,7 @@ def _metrics(bridge, ticks, poses, rate_hz) -> dict:
         "ticks": len(ticks), "ok_ticks": int(ok.sum()), "stale_ticks": int((status == 1).sum()),
         "estop_ticks": int((status == 2).sum()),
         "first_tick_s": ticks[0].t, "last_tick_s": ticks[-1].t, "reference_time_s": ticks[-1].tau,
+        "first_tick_ns": ticks[0].t_ns, "last_tick_ns": ticks[-1].t_ns,
         "rate_hz": rate_hz, "poses": {n: int(len(ts)) for n, ts in zip(bridge.names, poses.times_ns)},
         "lost_frames": dict(zip(bridge.names, bridge.lost_frames)),
         "max_abs_command": dict(zip(bridge.experiment.controller.command_names,
@@ -139,9 +140,8 @@ def write_commands_mcap(ticks, bridge, path: Path) -> Path:
     with mcap_writer(path, compress=False) as writer:
         conns = {topic: writer.add_connection(topic, typ, typestore=store) for topic, typ, _ in bridge.command_topics()}
         for tick in ticks:
-            ns = int(round(tick.t * 1e9))
-            for topic, msg in tick.messages:
-                writer.write(conns[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
+            for topic, msg in tick.messages:  # log time = header stamp = the tick's integer ns
+                writer.write(conns[topic], tick.t_ns, store.serialize_cdr(msg, msg.__msgtype__))
     return path
 
 
@@ -158,8 +158,9 @@ def _csv(result: ReplayResult, bridge) -> tuple[list, np.ndarray]:
 def _figure(result: ReplayResult, bridge, path: Path) -> Path:
     from ..report.replay_plots import plot_replay_commands
 
+    t = (np.array([tk.t_ns for tk in result.ticks], dtype=np.int64) - result.ticks[0].t_ns) * 1e-9
     pr = bridge.plant_robots
-    return plot_replay_commands([tk.t for tk in result.ticks], result.states, np.array([tk.u for tk in result.ticks]),
+    return plot_replay_commands(t, result.states, np.array([tk.u for tk in result.ticks]),
                                 [tk.status != "ok" for tk in result.ticks], bridge.names, pr.models,
                                 pr.state_slices, pr.command_slices, bridge.experiment.controller.command_names, path)
 
@@ -199,7 +200,8 @@ def replay(bag, scenario, robots, out, *, controller=None, reference=None, rate_
     result = ReplayResult(result.ticks, result.states, metrics)
     with staged_dir(out, inputs=inputs) as tmp:
         names, rows = _csv(result, bridge)
-        write_columns(names, rows, tmp / "commands.csv")
+        write_columns(names, rows, tmp / "commands.csv",  # the times exactly, to the nanosecond
+                      ns={"t": [tk.t_ns for tk in result.ticks], "reference_time": [tk.tau_ns for tk in result.ticks]})
         write_commands_mcap(result.ticks, bridge, tmp / "commands.mcap")
         if plots:
             _figure(result, bridge, tmp / "commands.png")
