@@ -4,8 +4,9 @@ Scenarios layer. A scenario (TOML, ``kind = "ugv-uav"``) gives the cluster path 
 lemniscate of the UGV, eqs. (5.1)-(5.7)), the UAV's place relative to the UGV (over it,
 eq. (5.3); or in front of it at platform level, then over it), the robots' limits and the
 measurement: motion-capture rate, noise and latency, and the Bebop's odometry period
-(200 ms). :class:`UgvUavKind` builds the :class:`~quatform.scenarios.base.Experiment` that
-:func:`quatform.sim.simulate` runs: the plant (:class:`~quatform.sim.plants.ugv_uav.UgvUavPlant`,
+(200 ms), and the world (``profile``: ideal, or the thesis's lab,
+:mod:`quatform.scenarios.ugv_uav_profiles`). :class:`UgvUavKind` builds the
+:class:`~quatform.scenarios.base.Experiment` that :func:`quatform.sim.simulate` runs: the plant (:class:`~quatform.sim.plants.ugv_uav.UgvUavPlant`,
 integrated every ``dt_s``), the motion capture (:class:`~quatform.sim.measurement.MotionCapture`),
 the controller of Fig. 18 (every ``control_period_s``, zero-order hold) and the cluster
 reference of each tick (NaN where the description cannot express it: the controller then
