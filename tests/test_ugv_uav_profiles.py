@@ -87,7 +87,8 @@ def test_an_unknown_profile_is_one_line_naming_the_key_and_the_valid_names(call)
 
 
 def test_the_pioneers_acceleration_limits_come_both_or_neither():
-    with pytest.raises(InvalidInputError, match=r"pioneer_accel_m_s2 = 0\.3 and pioneer_accel_rad_s2 = 0\.0: give both"):
+    both = r"pioneer_accel_m_s2 = 0\.3 and pioneer_accel_rad_s2 = 0\.0: give both"
+    with pytest.raises(InvalidInputError, match=both):
         ugv_uav_scenario_from_dict(_dict(pioneer_accel_m_s2=0.3), "t.toml")
     with pytest.raises(InvalidInputError, match="pioneer_accel_rad_s2"):
         ugv_uav_scenario_from_dict(_dict(pioneer_accel_m_s2=0.3, pioneer_accel_rad_s2=-1.0), "t.toml")

@@ -6,8 +6,8 @@ eq. (5.3); or in front of it at platform level, then over it), the robots' limit
 measurement: motion-capture rate, noise and latency, and the Bebop's odometry period
 (200 ms), and the world (``profile``: ideal, or the thesis's lab,
 :mod:`quatform.scenarios.ugv_uav_profiles`). :class:`UgvUavKind` builds the
-:class:`~quatform.scenarios.base.Experiment` that :func:`quatform.sim.simulate` runs: the plant (:class:`~quatform.sim.plants.ugv_uav.UgvUavPlant`,
-integrated every ``dt_s``), the motion capture (:class:`~quatform.sim.measurement.MotionCapture`),
+:class:`~quatform.scenarios.base.Experiment` that :func:`quatform.sim.simulate` runs: the
+plant (:class:`~quatform.sim.plants.ugv_uav.UgvUavPlant`, integrated every ``dt_s``), the motion capture (:class:`~quatform.sim.measurement.MotionCapture`),
 the controller of Fig. 18 (every ``control_period_s``, zero-order hold) and the cluster
 reference of each tick (NaN where the description cannot express it: the controller then
 holds, braking). ``finish`` adds the derived channels (:data:`DERIVED_CHANNELS`) and
