@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
@@ -18,7 +17,7 @@ from quatform.sim.plants.ugv_uav import PioneerBebopPlant
 
 #: The lab's values and the numbers they cite (ugv_uav_profiles; docs/scenarios.md).
 LAB = {"mocap_rate_hz": 180.0, "mocap_latency_s": 0.0055, "mocap_noise_m": 0.0002, "odometry_period_s": 0.2,
-       "pioneer_accel_m_s2": 0.3, "pioneer_accel_rad_s2": math.radians(100.0)}
+       "pioneer_accel_m_s2": 0.3, "pioneer_accel_rad_s2": 1.74}
 
 
 def _dict(**extra):
@@ -33,11 +32,16 @@ def test_the_profiles_are_registered_with_their_cited_values():
     fields = UgvUavScenario.__dataclass_fields__
     for s in lab.settings:
         assert s.key in fields and "seed 001 §3." in s.source, s
-    # what the thesis gives is the thesis's; the rest names the hardware's documentation
+    # what the thesis gives is the thesis's; the camera's numbers say they are unconfirmed
+    # nominal values; the Pioneer's name the simulator model they were read from
     sources = {s.key: s.source for s in lab.settings}
     assert "200 ms" in sources["odometry_period_s"]
-    assert all("OptiTrack Prime" in sources[k] for k in ("mocap_rate_hz", "mocap_latency_s", "mocap_noise_m"))
-    assert all("ARCOS" in sources[k] for k in ("pioneer_accel_m_s2", "pioneer_accel_rad_s2"))
+    assert all("OptiTrack Prime" in sources[k] and "not confirmed from an offline source" in sources[k]
+               for k in ("mocap_rate_hz", "mocap_latency_s", "mocap_noise_m"))
+    assert all("AMRISim" in sources[k] and "PioneerRobotModels.world.inc" in sources[k]
+               for k in ("pioneer_accel_m_s2", "pioneer_accel_rad_s2"))
+    assert "accel 0.3 m/s^2" in sources["pioneer_accel_m_s2"] and "1.74 rad/s^2" in sources["pioneer_accel_rad_s2"]
+    assert not any("ARCOS" in src for src in sources.values())  # the firmware's defaults were not confirmed
 
 
 def test_the_builtin_scenarios_stay_in_the_ideal_world():
@@ -50,7 +54,7 @@ def test_the_builtin_scenarios_stay_in_the_ideal_world():
 
 def test_a_file_selects_the_profile_and_its_own_keys_win():
     sc = ugv_uav_scenario_from_dict(_dict(profile="lab"), "t.toml")
-    assert sc.profile == "lab" and sc.pioneer_accel == (0.3, pytest.approx(math.radians(100.0)))
+    assert sc.profile == "lab" and sc.pioneer_accel == (0.3, 1.74)
     assert {k: getattr(sc, k) for k in LAB} == pytest.approx(LAB)
     sc = ugv_uav_scenario_from_dict(_dict(profile="lab", mocap_latency_s=0.02), "t.toml")
     assert sc.mocap_latency_s == 0.02 and sc.mocap_rate_hz == 180.0
@@ -63,7 +67,7 @@ def test_the_run_option_sets_the_profiles_keys_over_the_scenarios():
     exp = UGV_UAV_KIND.experiment(sc, profile="lab", mocap_noise_m=0.001)
     assert exp.scenario.profile == "lab" and exp.scenario.mocap_latency_s == 0.0055
     assert exp.scenario.mocap_noise_m == 0.001  # the mocap override comes after the profile
-    assert exp.measurement.rate == 180.0 and exp.plant.pioneer_accel == pytest.approx((0.3, math.radians(100)))
+    assert exp.measurement.rate == 180.0 and exp.plant.pioneer_accel == pytest.approx((0.3, 1.74))
     assert exp.x0.shape == (13,) and np.all(exp.x0[11:] == 0.0)
     log = exp.run()
     assert log["state"].shape[1] == 13 and log["measured"].shape[1] == 11
@@ -97,8 +101,8 @@ def test_the_pioneers_acceleration_limits_come_both_or_neither():
 
 
 def test_the_pioneer_ramps_its_speeds_at_its_accelerations():
-    """From rest, v follows a 0.5 m/s command at 0.3 m/s^2 and omega a 1 rad/s one at 100 deg/s^2."""
-    plant = PioneerBebopPlant(Pioneer(), Bebop(), -0.3, (0.3, math.radians(100.0)))
+    """From rest, v follows a 0.5 m/s command at 0.3 m/s^2 and omega a 1 rad/s one at 1.74 rad/s^2."""
+    plant = PioneerBebopPlant(Pioneer(), Bebop(), -0.3, (0.3, 1.74))
     x = plant.initial_state(np.r_[0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0, np.zeros(4)])
     u = np.r_[0.5, 1.0, np.zeros(4)]
     speeds = []
@@ -106,7 +110,7 @@ def test_the_pioneer_ramps_its_speeds_at_its_accelerations():
         x = plant.step(x, u, 0.005)
         speeds.append(x[11:13])
     speeds = np.array(speeds)
-    assert np.all(np.diff(speeds, axis=0) <= np.array([0.3, math.radians(100.0)]) * 0.005 * (1 + 1e-12))
+    assert np.all(np.diff(speeds, axis=0) <= np.array([0.3, 1.74]) * 0.005 * (1 + 1e-12))
     assert speeds[-1] == pytest.approx([0.3, 1.0], abs=1e-12)  # v still ramping; omega reached at 0.57 s
     assert plant.output(x).shape == (11,)
     # a batch steps as its worlds

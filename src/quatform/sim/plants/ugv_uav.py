@@ -6,8 +6,9 @@ body-velocity response to its commands (eq. (3.10)-(3.11)). The floor, ``floor``
 high, stops the Bebop's descent (it rests on it). Output: the 11 values
 (:data:`UGV_UAV_STATE_COLUMNS`); commands are the controller's 6.
 
-With ``pioneer_accel = (a_v, a_omega)`` the Pioneer has the acceleration limits of its
-firmware (the lab profile, :mod:`quatform.scenarios.ugv_uav_profiles`): the speeds it runs,
+With ``pioneer_accel = (a_v, a_omega)`` the Pioneer ramps its speeds as its firmware does
+(the lab profile's rates are the MobileRobots simulator's P3-DX model's,
+:mod:`quatform.scenarios.ugv_uav_profiles`): the speeds it runs,
 ``(v_p, omega_p)``, follow its commands by at most ``a_v dt`` and ``a_omega dt`` per plant
 step, and the state appends them (13 values; the output stays the 11 the sensors see).
 """
