@@ -8,7 +8,7 @@ import pytest
 
 from quatform.errors import InvalidInputError, ShapeError
 from quatform.scenarios import load_scenario
-from quatform.scenarios.ugv_uav import UGV_UAV_FORMATIONS, ugv_uav_experiment
+from quatform.scenarios.ugv_uav import UGV_UAV_FORMATIONS, ugv_uav_experiment, with_profile
 from quatform.sim.measurement import MotionCapture
 
 jax = pytest.importorskip("jax")
@@ -59,6 +59,15 @@ def test_builtin_scenarios_equal_numpy(name, formation):
         # in front at platform level the restricted description holds (brakes): both branches ran
         reach = log["reachable"][:, 0]
         assert 0 < reach.sum() < reach.size
+
+
+@pytest.mark.parametrize("formation", ["quaternion", "spherical"])
+def test_the_lab_profile_equals_numpy(formation):
+    """The lab's world (motion-capture rate, latency, noise; the Pioneer's acceleration limits,
+    two more state columns) runs the same on JAX."""
+    sc = with_profile(dataclasses.replace(load_scenario("marciano-circle"), **SHORT["marciano-circle"]), "lab")
+    log = assert_equal_runs(ugv_uav_experiment(sc, formation))
+    assert log["state"].shape[1] == 13 and np.any(log["state"][1:, 11] != log["command"][:-1, 0])  # ramping
 
 
 @pytest.mark.parametrize("formation", ["quaternion", "restricted"])

@@ -4,9 +4,10 @@ Scenarios layer. A scenario (TOML, ``kind = "ugv-uav"``) gives the cluster path 
 lemniscate of the UGV, eqs. (5.1)-(5.7)), the UAV's place relative to the UGV (over it,
 eq. (5.3); or in front of it at platform level, then over it), the robots' limits and the
 measurement: motion-capture rate, noise and latency, and the Bebop's odometry period
-(200 ms). :class:`UgvUavKind` builds the :class:`~quatform.scenarios.base.Experiment` that
-:func:`quatform.sim.simulate` runs: the plant (:class:`~quatform.sim.plants.ugv_uav.UgvUavPlant`,
-integrated every ``dt_s``), the motion capture (:class:`~quatform.sim.measurement.MotionCapture`),
+(200 ms), and the world (``profile``: ideal, or the thesis's lab,
+:mod:`quatform.scenarios.ugv_uav_profiles`). :class:`UgvUavKind` builds the
+:class:`~quatform.scenarios.base.Experiment` that :func:`quatform.sim.simulate` runs: the
+plant (:class:`~quatform.sim.plants.ugv_uav.UgvUavPlant`, integrated every ``dt_s``), the motion capture (:class:`~quatform.sim.measurement.MotionCapture`),
 the controller of Fig. 18 (every ``control_period_s``, zero-order hold) and the cluster
 reference of each tick (NaN where the description cannot express it: the controller then
 holds, braking). ``finish`` adds the derived channels (:data:`DERIVED_CHANNELS`) and
@@ -33,6 +34,7 @@ from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.plants.ugv_uav import PioneerBebopPlant
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
+from .ugv_uav_profiles import DEFAULT_PROFILE, PROFILES, profile_named
 
 __all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS", "UGV_UAV_BACKENDS",
            "UGV_UAV_COLUMNS", "UGV_UAV_CSV_CHANNELS", "DERIVED_CHANNELS", "check_ugv_uav_scenario",
@@ -115,6 +117,18 @@ class UgvUavScenario:
     mocap_glitch_rate: float = 0.0  # probability that a frame reads the UAV's marker at the UGV
     mocap_max_hold_s: float = 0.5  # longest the controller holds the last good frame, then stops
     gains: dict = field(default_factory=dict)
+    #: The world (:data:`~quatform.scenarios.ugv_uav_profiles.PROFILES`): its keys' values
+    #: stand in for the defaults of the keys the file does not set.
+    profile: str = DEFAULT_PROFILE
+    pioneer_accel_m_s2: float = 0.0  # the Pioneer's largest linear acceleration, m/s^2 (0: none, it follows at once)
+    pioneer_accel_rad_s2: float = 0.0  # ... and angular, rad/s^2 (both or neither)
+
+    @property
+    def pioneer_accel(self):
+        """``(m/s^2, rad/s^2)``: the Pioneer's acceleration limits, or None (it follows its commands at once)."""
+        if self.pioneer_accel_m_s2 > 0 and self.pioneer_accel_rad_s2 > 0:
+            return (self.pioneer_accel_m_s2, self.pioneer_accel_rad_s2)
+        return None
 
     def e_reference(self, t):
         """Desired spherical variables and rates (``x_c, y_c, z_c, rho_c, alpha_c, beta_c``), (T, 6)."""
@@ -233,7 +247,8 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
     floor = sc.center[2] - sc.floor_below_platform_m
     x0 = _initial_state(sc, e_des[0], ed_des[0])
     if plant is None:
-        plant_ = PioneerBebopPlant(ctrl.pioneer, ctrl.bebop, floor)
+        plant_ = PioneerBebopPlant(ctrl.pioneer, ctrl.bebop, floor, sc.pioneer_accel)
+        x0 = plant_.initial_state(x0)
     else:
         plant_ = plant(x0, floor)
         x0 = plant_.x0
@@ -244,7 +259,8 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
         # NaN where the description cannot express the reference: the controller holds (brakes)
         return Reference(c_des[k], cd_des[k])
 
-    meta = {"scenario": sc, "formation": formation, "backend": backend, "uav_model_k": tuple(ctrl.bebop.k),
+    meta = {"scenario": sc, "formation": formation, "backend": backend, "profile": sc.profile,
+            "uav_model_k": tuple(ctrl.bebop.k),
             "unreachable_at": unreachable_at, "unreachable_message": message}
 
     def finish(log: Log) -> Log:
@@ -374,6 +390,7 @@ def ugv_uav_metrics(log: Log) -> dict:
     unreachable_at = log.meta["unreachable_at"]
     return {
         "scenario": sc.name,
+        "profile": sc.profile,
         "controller": f"ugv-uav-{formation}",
         "formation": formation,
         "duration_s": float(t[-1]) if n else 0.0,
@@ -476,6 +493,8 @@ class UgvUavKind(ScenarioKind):
         Option("mocap_noise_m", "motion-capture position noise, m (standard deviation; default: the scenario's)",
                None, None, float),
         Option("mocap_latency_s", "motion-capture latency, s (default: the scenario's)", None, None, float),
+        Option("profile", "the world: ideal, or the lab of Marciano 2021 (its keys over the scenario's; default: "
+               "the scenario's)", tuple(PROFILES), None),
     )
     compare_over = "formation"
     table_columns = UGV_UAV_COLUMNS
@@ -484,14 +503,18 @@ class UgvUavKind(ScenarioKind):
         return ugv_uav_scenario_from_dict(data, where)
 
     def experiment(self, scenario: UgvUavScenario, formation: str = "quaternion", backend: str = "kinematic",
-                   mocap_noise_m: float | None = None, mocap_latency_s: float | None = None) -> Experiment:
-        """The run of ``scenario`` with the description ``formation`` on ``backend``; the
-        motion-capture overrides are checked with the scenario's own bounds."""
+                   mocap_noise_m: float | None = None, mocap_latency_s: float | None = None,
+                   profile: str | None = None) -> Experiment:
+        """The run of ``scenario`` with the description ``formation`` on ``backend``; ``profile``
+        sets its keys over the scenario's (:func:`with_profile`), then the motion-capture
+        overrides, checked with the scenario's own bounds."""
         for opt, value in (("formation", formation), ("backend", backend)):
             choices = next(o.choices for o in self.options if o.name == opt)
             if value not in choices:
                 raise InvalidInputError(f"unknown {opt} {value!r}{checks.nearest(value, choices)}; choose "
                                         f"{', '.join(choices)}")
+        if profile is not None:
+            scenario = with_profile(scenario, profile)
         changes = {key: value for key, value in (("mocap_noise_m", mocap_noise_m),
                                                   ("mocap_latency_s", mocap_latency_s)) if value is not None}
         if changes:
@@ -500,6 +523,15 @@ class UgvUavKind(ScenarioKind):
         if backend == "mujoco":
             return mujoco_experiment(scenario, formation)
         return ugv_uav_experiment(scenario, formation)
+
+
+def with_profile(sc: UgvUavScenario, profile: str) -> UgvUavScenario:
+    """``sc`` in the world ``profile``: the profile's keys set over the scenario's (an unknown
+    name is refused in one line naming the valid ones)."""
+    chosen = profile_named(profile, f"scenario {sc.name}")
+    out = dataclasses.replace(sc, profile=chosen.name, **chosen.values())
+    check_ugv_uav_scenario(out, f"scenario {sc.name} with profile {chosen.name!r}")
+    return out
 
 
 def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion", **controller_options) -> Experiment:
@@ -571,6 +603,8 @@ _NUMBER_BOUNDS = {
     "mocap_dropout_rate": (0.0, False, 1.0, True),
     "mocap_glitch_rate": (0.0, False, 1.0, True),
     "mocap_max_hold_s": (0.0, True, None, False),
+    "pioneer_accel_m_s2": (0.0, False, None, False),
+    "pioneer_accel_rad_s2": (0.0, False, None, False),
 }
 #: ``[gains]`` keys (keywords of :class:`~quatform.control.UgvUavController`) and how many
 #: numbers each takes (1: a number; n > 1: a number or a list of n), or ``bool``.
@@ -636,13 +670,21 @@ def _scenario_fields(data, where: str, report: bool = True) -> dict:
     fields = UgvUavScenario.__dataclass_fields__
     checks.check_keys(data, set(fields) | {"kind"}, where)
     kw = {"name": checks.text(data, "name", where)}
+    # the profile's values stand in for the defaults of the keys the file does not set
+    kw["profile"] = checks.text(data, "profile", where, default=DEFAULT_PROFILE, choices=tuple(PROFILES))
+    defaults = {key: f.default for key, f in fields.items()} | PROFILES[kw["profile"]].values()
     for key in ("title", "source"):
         kw[key] = checks.text(data, key, where, default=fields[key].default)
     kw["path"] = checks.text(data, "path", where, default=fields["path"].default, choices=("circle", "lemniscate"))
     for key, (low, low_open, high, high_open) in _NUMBER_BOUNDS.items():
-        default = checks.MISSING if key == "duration_s" else fields[key].default
+        default = checks.MISSING if key == "duration_s" else defaults[key]
         kw[key] = checks.number(data, key, where, default, low=low, low_open=low_open, high=high,
                                 high_open=high_open)
+    if (kw["pioneer_accel_m_s2"] > 0) != (kw["pioneer_accel_rad_s2"] > 0):
+        raise InvalidInputError(
+            f"{where}: pioneer_accel_m_s2 = {kw['pioneer_accel_m_s2']!r} and pioneer_accel_rad_s2 = "
+            f"{kw['pioneer_accel_rad_s2']!r}: give both (the Pioneer's acceleration limits) or neither (0: it "
+            "follows its commands at once)")
     if kw["omega"] == 0.0:
         raise InvalidInputError(f"{where}: omega = 0.0 must be nonzero (rad/s; the path would stand still)")
     if kw["mocap_latency_s"] >= kw["duration_s"]:

@@ -104,10 +104,10 @@ def _freeze(v):
 
 
 def _config_key(plant, controller, mocap) -> tuple:
-    """What a compiled tick depends on: the controller's settings, the plant's robots and floor,
-    the motion capture's ``ugv_z`` (two experiments with equal ones share one compilation)."""
+    """What a compiled tick depends on: the controller's settings, the plant's robots, floor and
+    acceleration limits, the motion capture's ``ugv_z`` (two experiments with equal ones share one compilation)."""
     return (_freeze(vars(controller)), type(controller.formation), plant.pioneer, plant.bebop, plant.floor,
-            float(mocap.ugv_z))
+            plant.pioneer_accel, float(mocap.ugv_z))
 
 
 def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
@@ -262,7 +262,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     step = jax_loop.cached(_CACHE, key, build)
     y0 = plant.output(x)[None]
     nan = np.full(1, np.nan)
-    carry = (y0, np.broadcast_to(y0, (length, 1, y0.shape[-1])).copy(), np.full((1, 7), np.nan),
+    carry = (x[None], np.broadcast_to(y0, (length, 1, y0.shape[-1])).copy(), np.full((1, 7), np.nan),
              np.full((1, 11), np.nan), nan, nan, np.zeros(1, dtype=bool), nan, nan, np.full((1, 4), np.nan), nan,
              np.zeros((1, 4)))
     with jax.enable_x64(True):
