@@ -47,6 +47,7 @@ from .. import messages
 from ..errors import InvalidInputError
 from ..formations import geometry as g
 from ..sim.log import Channel, Log
+from ..sim.output import writing
 from .cdr import Batch
 from .scene import Scene, scene_of
 
@@ -435,12 +436,13 @@ def mcap_writer(path, compress: bool = True):
     if folder.exists():
         shutil.rmtree(folder)
     try:
-        writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
-        if compress:
-            writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        with writer:
-            yield writer
-        os.replace(folder / f"{folder.name}.mcap", path)
+        with writing(path):  # a full disk names the bag
+            writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
+            if compress:
+                writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+            with writer:
+                yield writer
+            os.replace(folder / f"{folder.name}.mcap", path)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
