@@ -154,7 +154,8 @@ def test_a_sweep_on_a_full_disk_names_the_folder_and_keeps_only_whole_files(tmp_
     spec.write_text(SWEEP)
     out = tmp_path / "out"
     full_disk(match)
-    assert cli.main(["sweep", str(spec), "--out", str(out), "--quiet", *([] if match == ".png" else ["--no-plots"])]) == 1
+    plots = [] if match == ".png" else ["--no-plots"]
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--quiet", *plots]) == 1
     assert _refused(capsys, out).endswith(named)
     left = [p for p in tmp_path.rglob("*") if ".tmp-" in p.name or ".partial" in p.name]
     assert left == []  # finished chunks may stay (a rerun resumes them), never a half-written file

@@ -746,7 +746,8 @@ def plan_from_geodesic(sol: GeodesicSolution, duration_s: float, knots: int = 20
     s = np.linspace(0.0, 1.0, int(knots))
     q, qd = sol.state(s)
     qdd = sol.acceleration(q, qd)
-    check_plan_rates(T, qd, qdd, (info or {}).get("name"))  # velocities qd / T, accelerations qdd / T^2 within the plan's bound
+    # velocities qd / T and accelerations qdd / T^2 within the plan's bound
+    check_plan_rates(T, qd, qdd, (info or {}).get("name"))
     N, d = sol.masses.size, sol.dim
     shape = (s.size, N, d)
     return Plan(s * T, q.reshape(shape), (qd / T).reshape(shape), (qdd / (T * T)).reshape(shape), sol.masses,

@@ -55,9 +55,9 @@ def _check_bounded(name: str, value) -> None:
         k = int(np.argmax(bad.ravel()))
         where = f" at index {tuple(int(i) for i in np.unravel_index(k, a.shape))}" if a.ndim else ""
         unit = f" {_UNITS[name]}" if _UNITS[name] else ""
-        raise InvalidInputError(f"plan {name} holds {float(a.ravel()[k]):.6g}{unit}{where}, beyond the bound |value| <= "
-                                f"{PLAN_MAX_ABS:g}{unit} of every plan number (docs/planning.md, plan files); "
-                                "re-plan it")
+        raise InvalidInputError(f"plan {name} holds {float(a.ravel()[k]):.6g}{unit}{where}, beyond the bound "
+                                f"|value| <= {PLAN_MAX_ABS:g}{unit} of every plan number (docs/planning.md, "
+                                "plan files); re-plan it")
 
 
 def check_plan_rates(duration_s: float, rate, rate2, where: str | None = None) -> None:
