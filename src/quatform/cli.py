@@ -467,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
         _command(args)
     except QuatformError as exc:
         _say(f"error: {exc}")
-        return EXIT_INPUT
+        return EXIT_FILE_SYSTEM if isinstance(exc, OSError) else EXIT_INPUT  # OutputWriteError: a full disk
     except KeyboardInterrupt:
         with _sigint_ignored():  # a second Ctrl-C while saying so must not end the process by the signal
             out = getattr(args, "out", None)

@@ -20,6 +20,7 @@ __all__ = [
     "ConvergenceError",
     "ResourceLimitError",
     "MissingDependencyError",
+    "OutputWriteError",
 ]
 
 
@@ -84,3 +85,9 @@ class ResourceLimitError(InvalidInputError):
 class MissingDependencyError(QuatformError, ImportError):
     """An optional package that the requested feature needs is not installed (the message
     names the ``pip install`` command)."""
+
+
+class OutputWriteError(QuatformError, OSError):
+    """An output file could not be written: the disk is full, a quota is reached, the folder is
+    read-only or not the user's (the message names the folder, the file and the fix; ``errno``
+    is the system's). Nothing half-written is left under the file's name."""

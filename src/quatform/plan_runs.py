@@ -13,7 +13,7 @@ from pathlib import Path
 from .errors import ConvergenceError, InvalidInputError
 from .planning import load_plan_spec, make_plan
 from .report.writers import write_json
-from .sim.output import check_inputs_outside, staged_dir
+from .sim.output import check_inputs_outside, staged_dir, writing
 
 __all__ = ["PLAN_FILE", "meet_warning", "plan_alphas_to_dir", "plan_case_to_dir", "plan_to_dir", "scenario_with_plan"]
 
@@ -58,7 +58,8 @@ def plan_to_dir(spec, out, alpha=None, plots: bool = True):
 
 def _write_plan(spec, plan, metrics, out, plots):
     """The files of a solved plan in the folder ``out``; ``metrics.json`` last."""
-    plan.save(out / PLAN_FILE)
+    with writing(out / PLAN_FILE):  # a full disk names the plan
+        plan.save(out / PLAN_FILE)
     if plots:
         from .report.plan_plots import write_plan_plots
 

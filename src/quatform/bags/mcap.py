@@ -47,6 +47,7 @@ from .. import messages
 from ..errors import InvalidInputError
 from ..formations import geometry as g
 from ..sim.log import Channel, Log
+from ..sim.output import writing
 from .cdr import Batch
 from .scene import Scene, scene_of
 
@@ -462,12 +463,13 @@ def mcap_writer(path, compress: bool = True):
         shutil.rmtree(staging)
     try:
         staging.mkdir()
-        writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
-        if compress:
-            writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        with writer:
-            yield writer
-        os.replace(folder / f"{folder.name}.mcap", path)
+        with writing(path):  # a full disk names the bag
+            writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
+            if compress:
+                writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+            with writer:
+                yield writer
+            os.replace(folder / f"{folder.name}.mcap", path)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 

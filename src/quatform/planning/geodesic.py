@@ -694,7 +694,7 @@ def plan_through_meeting(q0, q1, masses, alpha, duration_s: float, knots: int = 
     about ``3 |v| / h`` there, ``h = T / (knots - 1)``: a physical stop at contact, where the
     ideal path has a velocity jump).
     """
-    from .plan import Plan
+    from .plan import Plan, check_plan_rates
 
     a, b, m = _check_ends(q0, q1, masses)
     alpha = check_alpha(alpha)
@@ -720,7 +720,9 @@ def plan_through_meeting(q0, q1, masses, alpha, duration_s: float, knots: int = 
     rel_dot[np.isclose(s, s_meet, rtol=0.0, atol=1e-12)] = 0.0
     com = c0 + s[:, None] * (c1 - c0)
     pos = np.stack([com + w[1] * rel, com - w[0] * rel], axis=1)
-    vel = np.stack([(c1 - c0) + w[1] * rel_dot, (c1 - c0) - w[0] * rel_dot], axis=1) / T
+    rate = np.stack([(c1 - c0) + w[1] * rel_dot, (c1 - c0) - w[0] * rel_dot], axis=1)
+    check_plan_rates(T, rate, 0.0, (info or {}).get("name"))
+    vel = rate / T
     info = {**(info or {}), "through_meeting": True, "meeting_time_s": s_meet * T,
             "energy": float((alpha * (m[0] * m[1] / m.sum()) * (r0 + r1) ** 2
                              + (1.0 - alpha) * m.sum() * float((c1 - c0) @ (c1 - c0))) / (T * T))}
@@ -734,7 +736,7 @@ def plan_from_geodesic(sol: GeodesicSolution, duration_s: float, knots: int = 20
     collocation solution at ``knots`` uniform times, velocities ``q'/T`` and accelerations
     ``q''/T^2`` with ``q''`` from the geodesic equation (seed 002 eq. (15)).
     """
-    from .plan import Plan
+    from .plan import Plan, check_plan_rates
 
     T = float(duration_s)
     if not (np.isfinite(T) and T > 0):
@@ -744,6 +746,8 @@ def plan_from_geodesic(sol: GeodesicSolution, duration_s: float, knots: int = 20
     s = np.linspace(0.0, 1.0, int(knots))
     q, qd = sol.state(s)
     qdd = sol.acceleration(q, qd)
+    # velocities qd / T and accelerations qdd / T^2 within the plan's bound
+    check_plan_rates(T, qd, qdd, (info or {}).get("name"))
     N, d = sol.masses.size, sol.dim
     shape = (s.size, N, d)
     return Plan(s * T, q.reshape(shape), (qd / T).reshape(shape), (qdd / (T * T)).reshape(shape), sol.masses,

@@ -9,6 +9,7 @@ positions, velocities and accelerations that are exact derivatives of one anothe
 from __future__ import annotations
 
 import json
+import math
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,13 +18,77 @@ import numpy as np
 
 from ..algebra import q_continuous, qslerp
 from ..algebra.validate import as_array, as_unit_quaternion
-from ..checks import check_work, short
+from ..checks import MAX_NUMBER, check_work, short
 from ..errors import InvalidInputError, ShapeError
 
-__all__ = ["PLAN_FORMAT", "Plan", "load_plan"]
+__all__ = ["PLAN_FORMAT", "PLAN_MAX_ABS", "PLAN_MIN_STEP_S", "Plan", "check_plan_rates", "load_plan"]
 
 #: Value of the ``format`` entry of a plan file.
 PLAN_FORMAT = "quatform-plan-1"
+
+#: Largest magnitude of any number of a plan (times s, positions m, velocities m/s,
+#: accelerations m/s^2, masses kg): the bound of every number quatform reads
+#: (:data:`quatform.checks.MAX_NUMBER`).
+PLAN_MAX_ABS = MAX_NUMBER
+#: Smallest spacing of a plan's knot times, s. With every number within ``B =``
+#: :data:`PLAN_MAX_ABS` and every knot spacing ``h`` in ``[1/B, 2B]``, each of the six terms
+#: of :meth:`Plan.sample` (``p``, ``v h`` or ``a h^2``, at most ``4 B^3``, times a quintic
+#: Hermite basis value or derivative, at most ``10 / sqrt(3)``, then divided by ``h`` or
+#: ``h^2``) stays below ``24 B^3``, their sum below ``150 B^3`` (about 1.5e38): finite, as are
+#: the squared distances and energies computed from it.
+PLAN_MIN_STEP_S = 1.0 / PLAN_MAX_ABS
+#: Units of the plan's arrays, for messages.
+_UNITS = {"times": "s", "positions": "m", "velocities": "m/s", "accelerations": "m/s^2", "masses": "kg",
+          "orientations": ""}
+
+
+def _check_bounded(name: str, value) -> None:
+    """Refuse a plan array with a NaN, an infinity or an entry beyond +-:data:`PLAN_MAX_ABS`
+    (one line naming the array, the first such entry and the bound); a non-numeric array is
+    left to :func:`~quatform.algebra.validate.as_array`."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return
+    bad = ~(np.abs(a) <= PLAN_MAX_ABS)  # NaN too
+    if bad.any():
+        k = int(np.argmax(bad.ravel()))
+        where = f" at index {tuple(int(i) for i in np.unravel_index(k, a.shape))}" if a.ndim else ""
+        unit = f" {_UNITS[name]}" if _UNITS[name] else ""
+        raise InvalidInputError(f"plan {name} holds {float(a.ravel()[k]):.6g}{unit}{where}, beyond the bound "
+                                f"|value| <= {PLAN_MAX_ABS:g}{unit} of every plan number (docs/planning.md, "
+                                "plan files); re-plan it")
+
+
+def check_plan_rates(duration_s: float, rate, rate2, where: str | None = None) -> None:
+    """Refuse a planned motion whose rates would leave the plan's bounds, naming ``duration_s``.
+
+    ``rate`` and ``rate2`` are the motion's first and second derivatives per unit of the
+    normalised time ``s = t / T`` (``T = duration_s``); the plan's velocities are
+    ``rate / T`` and accelerations ``rate2 / T^2``, within :data:`PLAN_MAX_ABS` when
+    ``T >= max(max|rate| / B, sqrt(max|rate2| / B))``: the shortest duration named in the
+    message (prefixed by ``where``, the spec's name, when given).
+    """
+    T = float(duration_s)
+    at = f"{where}: " if where else ""
+    d1 = float(np.max(np.abs(rate), initial=0.0))
+    d2 = float(np.max(np.abs(rate2), initial=0.0))
+    shortest = max(d1 / PLAN_MAX_ABS, np.sqrt(d2 / PLAN_MAX_ABS))
+    if not (np.isfinite(d1) and np.isfinite(d2)):
+        raise InvalidInputError(f"{at}duration_s = {T:g} s: the planned motion's rates are not finite; re-plan it")
+    if T < shortest:
+        what, value = (("velocities", f"{d1 / T:.3g} m/s") if d1 / T > PLAN_MAX_ABS
+                       else ("accelerations", f"{d2 / (T * T):.3g} m/s^2"))
+        raise InvalidInputError(f"{at}duration_s = {T:g} s makes the plan's {what} reach {value}, beyond the bound "
+                                f"{PLAN_MAX_ABS:g} of every plan number; give a duration_s of at least "
+                                f"{_round_up(shortest):g} s (docs/planning.md)")
+
+
+def _round_up(x: float) -> float:
+    """``x > 0`` rounded up to three significant digits (a bound quoted in a message that,
+    given back, passes)."""
+    step = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.ceil(x / step * (1 + 1e-12)) * step
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,9 +118,19 @@ class Plan:
     orientations: np.ndarray | None = None
 
     def __post_init__(self):
+        for name in _UNITS:
+            if getattr(self, name) is not None:
+                _check_bounded(name, getattr(self, name))
         t = as_array(self.times, "times", None)
         if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0):
             raise InvalidInputError("plan times must be a strictly increasing 1-D array of at least 2 knots")
+        close = np.diff(t) < PLAN_MIN_STEP_S
+        if close.any():
+            k = int(np.argmax(close))
+            raise InvalidInputError(f"plan times {k} and {k + 1} are {t[k + 1] - t[k]:.3g} s apart, closer than the "
+                                    f"bound {PLAN_MIN_STEP_S:g} s of a plan's knot spacing (1 / {PLAN_MAX_ABS:g}: "
+                                    "its sampled rates divide by the spacing squared; docs/planning.md); re-plan "
+                                    "it with a longer duration_s or fewer knots")
         p = as_array(self.positions, "positions", None)
         if p.ndim != 3 or p.shape[0] != t.size or p.shape[2] not in (2, 3):
             raise ShapeError(f"positions must have shape (T, N, d) = ({t.size}, N, 2 or 3), got {p.shape}")
@@ -227,8 +302,13 @@ def load_plan(path) -> Plan:
         with np.load(path, allow_pickle=False) as z:
             if "format" not in z.files or str(z["format"]) != PLAN_FORMAT:
                 raise InvalidInputError(f"{path} is not a quatform plan file (format {PLAN_FORMAT!r})")
-            return Plan(z["times"], z["positions"], z["velocities"], z["accelerations"], z["masses"],
-                        _read_info(path, str(z["info"])), z["orientations"] if "orientations" in z.files else None)
+            arrays = {name: z[name] for name in ("times", "positions", "velocities", "accelerations", "masses")}
+            info = _read_info(path, str(z["info"]))
+            orientations = z["orientations"] if "orientations" in z.files else None
+        try:
+            return Plan(**arrays, info=info, orientations=orientations)
+        except InvalidInputError as exc:  # name the file
+            raise type(exc)(f"{path}: {exc}") from None
     except (ValueError, KeyError, zipfile.BadZipFile, EOFError, OSError) as exc:
         if isinstance(exc, InvalidInputError):
             raise

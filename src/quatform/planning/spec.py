@@ -24,7 +24,7 @@ from ..checks import table as table_
 from ..errors import InvalidInputError, QuatformError
 from .geodesic import meeting_bound, plan_from_geodesic, plan_through_meeting, solve_geodesic
 from .measures import min_separation, rigid_motion, straight_line_motion
-from .plan import Plan
+from .plan import PLAN_MAX_ABS, PLAN_MIN_STEP_S, Plan, check_plan_rates
 from .rigid_formation import AIRPLANE_CASES, RIGID_SPEC_KEYS, airplanes_spec, rigid_plan_from_spec
 from .shaping import check_alpha, check_masses
 
@@ -90,7 +90,21 @@ def _common(data: dict, where: str) -> tuple[float, int, float]:
     duration = number(data, "duration_s", where, 1.0, low=0.0, low_open=True)
     knots = integer(data, "knots", where, 201, low=2)
     clearance = number(data, "min_clearance_m", where, 0.05, low=0.0)
+    _check_spacing(where, duration, knots)
     return duration, knots, clearance
+
+
+def _check_spacing(where: str, duration: float, knots: int) -> None:
+    """Refuse a ``duration_s`` beyond :data:`~.plan.PLAN_MAX_ABS` or one that spaces the ``knots``
+    closer than :data:`~.plan.PLAN_MIN_STEP_S` (the bounds of every plan, docs/planning.md)."""
+    if duration > PLAN_MAX_ABS:
+        raise InvalidInputError(f"{where}: duration_s = {duration:g} s is beyond the bound {PLAN_MAX_ABS:g} s of "
+                                "a plan's times (docs/planning.md); give a physical duration")
+    if duration / (knots - 1) < PLAN_MIN_STEP_S:
+        raise InvalidInputError(f"{where}: duration_s = {duration:g} s over knots = {knots} spaces the knots "
+                                f"{duration / (knots - 1):.3g} s apart, below a plan's smallest knot spacing "
+                                f"{PLAN_MIN_STEP_S:g} s (its rates divide by the spacing squared; docs/planning.md); "
+                                f"give a duration_s of at least {(knots - 1) * PLAN_MIN_STEP_S:.3g} s or fewer knots")
 
 
 def _check_knots(where: str, knots: int, coords: int) -> None:
@@ -283,6 +297,7 @@ def _rigid_spec_from_dict(data: dict, where: str) -> PlanSpec:
 def _rigid_se3(spec: PlanSpec):
     rigid = rigid_plan_from_spec(rigid_formation_dict(spec))
     s = rigid.sample(rigid.times)
+    check_plan_rates(spec.duration_s, s.velocities * spec.duration_s, s.accelerations * spec.duration_s ** 2, spec.name)
     info = {"kind": spec.kind, "name": spec.name, "source": spec.source, "masses": rigid.masses.tolist(),
             "actuation": ["airplane" if a else "full" for a in rigid.airplane]}
     if "airplanes" in spec.options:
@@ -302,6 +317,7 @@ PLANNERS = {"shaped-geodesic": ("shaping", _shaped_geodesic), "rigid-se3": ("for
 def make_plan(spec: PlanSpec):
     """Solve ``spec``: returns ``(plan, metrics)`` with ``converged = True`` and the measures of
     :func:`plan_metrics`; a planner that fails raises (e.g. ConvergenceError)."""
+    _check_spacing(spec.name, spec.duration_s, spec.knots)
     plan, extra = PLANNERS[spec.kind][1](spec)
     metrics = {"converged": True, **extra, **plan_metrics(plan, spec)}
     return plan, metrics

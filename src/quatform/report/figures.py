@@ -16,6 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..errors import InvalidInputError
+from ..sim.output import writing
 
 __all__ = ["MAX_POINTS", "DPI", "MEAS_STYLE", "DES_STYLE", "SINGULAR_COLOR", "ANGLE_TICKS", "ANGLE_LABELS",
            "MIN_HALF_SPAN", "new_figure", "save", "finite", "decimate", "break_wraps", "unwrap", "intervals",
@@ -48,7 +49,8 @@ def save(fig: Figure, path) -> Path:
     """Write ``fig`` as a PNG at :data:`DPI` (folders made as needed); return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=DPI)
     return path
 
 

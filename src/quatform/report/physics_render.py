@@ -31,6 +31,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' projection)
 
+from ..sim.output import writing
+
 __all__ = ["RENDER_FILE", "annotate_render", "plot_time_lapse", "project_points", "render_or_fallback",
            "render_time_lapse", "time_lapse_figure", "time_lapse_title"]
 
@@ -195,7 +197,8 @@ def render_time_lapse(record, path, n_snapshots: int = 9, width: int = 1200, hei
         img = renderer.render()
     fig = annotate_render(img, record, ks, lambda p: project_points(cam, fovy, width, height, p), origin)
     path = Path(path)
-    fig.savefig(path, dpi=fig.dpi)
+    with writing(path):  # a full disk names the picture
+        fig.savefig(path, dpi=fig.dpi)
     return path
 
 
@@ -265,7 +268,8 @@ def plot_time_lapse(record, path, n_snapshots: int = 9, note: str = "", width: i
     :func:`time_lapse_figure` written to ``path``."""
     fig = time_lapse_figure(record, n_snapshots, note, width, height)
     path = Path(path)
-    fig.savefig(path, dpi=fig.dpi)
+    with writing(path):  # a full disk names the picture
+        fig.savefig(path, dpi=fig.dpi)
     return path
 
 

@@ -10,6 +10,7 @@ as it was.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -18,8 +19,84 @@ import signal
 import threading
 from pathlib import Path
 
+from ..errors import OutputWriteError
 
-__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER"]
+__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
+           "WRITE_FAILURES", "writing", "write_failures"]
+
+
+# --------------------------------------------------------------------------- write failures
+
+#: The ``errno`` of a write that fails for lack of room or rights, what it says and its fix.
+WRITE_FAILURES = {
+    errno.ENOSPC: ("no space left on device", "free space or choose another --out"),
+    errno.EDQUOT: ("disk quota exceeded", "free space or choose another --out"),
+    errno.EFBIG: ("file too large (the file system's or the process's size limit)",
+                  "choose another --out or raise the limit (ulimit -f)"),
+    errno.EROFS: ("read-only file system", "choose a writable --out"),
+    errno.EACCES: ("permission denied", "choose a folder you may write to as --out"),
+    errno.EPERM: ("operation not permitted", "choose a folder you may write to as --out"),
+}
+
+
+@contextlib.contextmanager
+def writing(path):
+    """Name ``path`` (the file being written, by its final name) on a :data:`WRITE_FAILURES`
+    error raised in the block: a full disk's ``write()`` names no file, a temporary file's
+    ``open()`` names the temporary one."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno in WRITE_FAILURES and not isinstance(exc, OutputWriteError):
+            exc.filename = os.fspath(path)
+        raise
+
+
+_outer = threading.local()
+#: The errors of :data:`WRITE_FAILURES` that a file read raises too: converted only for files
+#: in the output folder.
+_RIGHTS = {errno.EROFS, errno.EACCES, errno.EPERM}
+
+
+def _within(name, folder) -> bool:
+    """Whether the path ``name`` is ``folder`` or lies inside it."""
+    rel = os.path.relpath(os.path.abspath(name), os.path.abspath(folder))
+    return rel == os.curdir or not (rel == os.pardir or rel.startswith(os.pardir + os.sep))
+
+
+@contextlib.contextmanager
+def write_failures(folder, staged=None):
+    """Turn a :data:`WRITE_FAILURES` error raised in the block into one
+    :class:`~quatform.errors.OutputWriteError` line naming ``folder`` and the file being written
+    (``no space left on device writing out/x/run.mcap in out/x: free space or choose another
+    --out``). ``staged``: the temporary folder the block writes in place of ``folder``
+    (:func:`staged_dir`), whose files are named by their final path. Nested blocks leave the
+    conversion to the outermost, which names the user's folder."""
+    depth = getattr(_outer, "depth", 0)
+    _outer.depth = depth + 1
+    try:
+        yield
+    except OSError as exc:
+        why = WRITE_FAILURES.get(exc.errno)
+        if why is None or isinstance(exc, OutputWriteError):
+            raise
+        name = exc.filename if isinstance(exc.filename, (str, os.PathLike)) else None
+        inside = name is None or _within(name, folder)
+        if name is not None and staged is not None and _within(name, staged):
+            rel = os.path.relpath(os.path.abspath(name), os.path.abspath(staged))
+            name = os.fspath(folder) if rel == os.curdir else os.path.join(os.fspath(folder), rel)
+            inside = True
+        if not inside and exc.errno in _RIGHTS:  # a file the run reads, not one it writes
+            raise
+        if depth:  # an enclosing block names its own folder
+            exc.filename = name
+            raise
+        file = f"writing {name}" if name is not None else "writing a file"
+        err = OutputWriteError(f"{why[0]} {file} in {os.fspath(folder)}: {why[1]}")
+        err.errno = exc.errno
+        raise err from None
+    finally:
+        _outer.depth = depth
 
 
 # --------------------------------------------------------------------------- atomic files
@@ -33,9 +110,10 @@ def atomic_write_bytes(path, data: bytes) -> Path:
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with open(tmp, "wb") as f:
+        with writing(path), open(tmp, "wb") as f:
             f.write(data)
-        os.replace(tmp, path)
+        with writing(path):
+            os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
@@ -194,13 +272,19 @@ def staged_dir(out, inputs=()):
     final = Path(os.path.abspath(out))
     _check_out(out, final)
     parent = final.parent
+    tmp = parent / f".{final.name}.partial-{os.getpid()}"
+    with write_failures(out, tmp):
+        yield from _staged(out, final, parent, tmp)
+
+
+def _staged(out: Path, final: Path, parent: Path, tmp: Path):
+    """The body of :func:`staged_dir` (its write failures made one line there)."""
     made = []
     for p in reversed([parent, *parent.parents]):
         if not p.exists():
             made.append(p)
     parent.mkdir(parents=True, exist_ok=True)
     _remove_stale(parent, final.name)
-    tmp = parent / f".{final.name}.partial-{os.getpid()}"
     try:
         if tmp.exists():
             shutil.rmtree(tmp)

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..report.figures import new_figure
+from ..sim.output import writing
 
 __all__ = ["sweep_figures"]
 
@@ -31,8 +32,9 @@ def _save(fig, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
     try:
-        fig.savefig(tmp, dpi=_DPI)
-        os.replace(tmp, path)
+        with writing(path):  # a full disk names the figure
+            fig.savefig(tmp, dpi=_DPI)
+            os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..checks import memory_budget_bytes, time_budget_s
 from ..errors import ResourceLimitError
+from ..sim.output import write_failures
 from .executors import check_scheduler, executor, parallel_workers
 from .results import ChunkStore, ordered_rows, summarize, write_table
 from .trials import Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
@@ -146,6 +147,12 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
         raise MissingDependencyError(f"--compute {backend}: {exc}; pip install -e \".[{backend}]\"") from None
     check_scheduler(scheduler)  # Dask missing: one line before the experiments are built
     est = estimate(spec, parallel_workers(workers, scheduler))
+    with write_failures(out):  # a full disk: one line naming --out and the file
+        return _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est)
+
+
+def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est) -> list[dict]:
+    """The body of :func:`run_sweep` (its files written into ``out``)."""
     with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any file is made
         store = ChunkStore(out, spec, backend)
         rows: list[dict] = []

@@ -1,0 +1,140 @@
+"""Plans with absurd values: a spec's duration_s and a plan file's arrays are held within the
+bounds that keep a plan's arithmetic finite (docs/planning.md, plan files), and each refusal is
+one line naming the key, or the file, the array and the bound."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import numpy as np
+import pytest
+
+from quatform import cli
+from quatform.errors import InvalidInputError
+from quatform.planning import Plan, builtin_plan_specs, load_plan, load_plan_spec, make_plan
+from quatform.planning.plan import PLAN_MAX_ABS, PLAN_MIN_STEP_S
+from quatform.planning.spec import plan_spec_from_dict
+
+TWO_BODIES = "belta-kumar-2002-two-bodies"
+
+
+def _spec_file(tmp_path, duration):
+    """The built-in two-body spec with its duration_s replaced."""
+    src = builtin_plan_specs()[TWO_BODIES].read_text()
+    f = tmp_path / "tiny.toml"
+    f.write_text(re.sub(r"(?m)^duration_s = .*$", f"duration_s = {duration!r}", src))
+    return f
+
+
+def _pair_plan(**change):
+    """A 5-knot plan of two robots in space, some arrays replaced."""
+    t = np.linspace(0.0, 1.0, 5)
+    p = np.stack([np.stack([t, 0 * t, 1 + 0 * t], -1), np.stack([t, 1 + 0 * t, 1 + 0 * t], -1)], 1)
+    v = np.zeros_like(p)
+    v[..., 0] = 1.0
+    arrays = dict(times=t, positions=p, velocities=v, accelerations=np.zeros_like(p), masses=np.ones(2))
+    return {**arrays, **change}
+
+
+def _save(path, arrays):
+    with open(path, "wb") as f:
+        np.savez(f, format=np.array("quatform-plan-1"), info=np.array('{"name": "p"}'), **arrays)
+    return path
+
+
+def _one_line(capsys):
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err and "warning" not in err, err
+    assert len(err.splitlines()) == 1, err
+    return err
+
+
+# ------------------------------------------------------------------ duration_s
+
+
+def test_a_duration_of_1e_300_is_refused_naming_duration_s():
+    """Old: "accelerations contains -inf at index (0, 0, 0)", naming no key."""
+    data = {"kind": "shaped-geodesic", "duration_s": 1e-300, "robots": {
+        "masses": [1.0, 2.0], "start": [[1.0, 0.0], [-0.5, 0.0]], "goal": [[2.3, -0.7], [3.35, 0.35]]},
+        "shaping": {"alpha": 0.99}}
+    with pytest.raises(InvalidInputError, match=r"t\.toml: duration_s = 1e-300 s over knots = 201 .* at least 2e-10 s"):
+        plan_spec_from_dict(data, where="t.toml")
+    # a spec built in code is checked when planned, for both planners
+    for name in (TWO_BODIES, "belta-kumar-2001-airplanes"):
+        spec = dataclasses.replace(load_plan_spec(name), duration_s=1e-300)
+        with pytest.raises(InvalidInputError, match=f"{name}: duration_s = 1e-300 s over knots"):
+            make_plan(spec)
+
+
+@pytest.mark.parametrize("name", [TWO_BODIES, "belta-kumar-2001-airplanes"])
+def test_a_duration_whose_rates_leave_the_bound_names_the_shortest_one(name):
+    """Old: a 1e-9 s plan had accelerations of 5e18 m/s^2 (and 1e-160 s ones overflowed)."""
+    spec = dataclasses.replace(load_plan_spec(name), duration_s=1e-9)
+    with pytest.raises(InvalidInputError, match=rf"{name}: duration_s = 1e-09 s makes the plan's accelerations "
+                       r"reach .* beyond the bound 1e\+12 .* at least ([0-9.e+-]+) s") as info:
+        make_plan(spec)
+    shortest = float(re.search(r"at least ([0-9.e+-]+) s", str(info.value))[1])
+    plan, _ = make_plan(dataclasses.replace(spec, duration_s=shortest))  # the quoted bound passes
+    assert np.abs(plan.accelerations).max() <= PLAN_MAX_ABS
+
+
+def test_cli_plan_with_duration_1e_300_says_one_line(tmp_path, capsys):
+    rc = cli.main(["plan", str(_spec_file(tmp_path, 1e-300)), "--out", str(tmp_path / "p"), "--no-plots"])
+    assert rc == 2
+    assert "duration_s = 1e-300 s" in _one_line(capsys)
+    assert not (tmp_path / "p").exists()
+
+
+# ------------------------------------------------------------------ plan files
+
+
+@pytest.mark.parametrize("change, array, shown", [
+    (lambda a: {"velocities": np.full_like(a["velocities"], 1e308)}, "velocities", r"1e\+308 m/s"),
+    (lambda a: {"positions": a["positions"] * 1e300}, "positions", r"1e\+300 m"),
+    (lambda a: {"accelerations": np.full_like(a["accelerations"], np.inf)}, "accelerations", r"inf m/s\^2"),
+    (lambda a: {"times": a["times"] * 1e13}, "times", r"2.5e\+12 s at index \(1,\)"),
+    (lambda a: {"masses": np.array([1.0, np.nan])}, "masses", "nan kg"),
+])
+def test_a_plan_file_with_an_absurd_array_names_file_array_and_bound(tmp_path, change, array, shown):
+    """Old: velocities of 1e308 were "the plan's robots meet (separation 0 m)", positions times
+    1e300 "c contains inf"."""
+    f = _save(tmp_path / "bad.npz", _pair_plan(**change(_pair_plan())))
+    with pytest.raises(InvalidInputError, match=rf"bad\.npz: plan {array} holds {shown}.* beyond the bound "
+                       r"\|value\| <= 1e\+12"):
+        load_plan(f)
+
+
+def test_a_plan_file_with_knots_closer_than_the_bound_is_refused(tmp_path):
+    arrays = _pair_plan()
+    arrays["times"] = arrays["times"] * 1e-13
+    with pytest.raises(InvalidInputError, match=r"close\.npz: plan times 0 and 1 are 2\.5e-14 s apart, closer than "
+                       r"the bound 1e-12 s"):
+        load_plan(_save(tmp_path / "close.npz", arrays))
+    assert PLAN_MIN_STEP_S == 1.0 / PLAN_MAX_ABS
+
+
+def test_plans_at_the_bound_sample_finite_rates():
+    """The bound's derivation (docs/planning.md): numbers within B = 1e12 and knots at least
+    1/B apart keep every term of Plan.sample finite (here the extremes at once)."""
+    B = PLAN_MAX_ABS
+    for t in (np.array([0.0, 1.0 / B, B]), np.array([-B, B])):
+        p = np.array([[[B, -B]], [[-B, B]], [[B, B]]])[:t.size]
+        plan = Plan(t, p, -p, p, np.array([B]))
+        with np.errstate(all="raise"):
+            pos, vel, acc = plan.sample(np.concatenate([np.linspace(t[0], t[-1], 101), [1.0 / (2 * B)]]))
+        assert np.isfinite(pos).all() and np.isfinite(vel).all() and np.isfinite(acc).all()
+
+
+@pytest.mark.parametrize("scenario, change, array", [
+    ("mas-kitts-helix", lambda a: {"velocities": np.full_like(a["velocities"], 1e308)}, "velocities"),
+    ("mas-kitts-helix", lambda a: {"positions": a["positions"] * 1e300}, "positions"),
+    ("team-three-bodies", lambda a: {"positions": a["positions"] * 1e300}, "positions"),
+])
+def test_cli_run_with_an_absurd_reference_says_one_line(tmp_path, capsys, scenario, change, array):
+    f = _save(tmp_path / "bad.npz", _pair_plan(**change(_pair_plan())))
+    rc = cli.main(["run", scenario, "--controller", "quaternion", "--reference", str(f), "--out",
+                   str(tmp_path / "r"), "--no-plots", "--no-mcap"])
+    assert rc == 2
+    line = _one_line(capsys)
+    assert f"{f}: plan {array} holds" in line and "beyond the bound |value| <= 1e+12" in line
