@@ -121,20 +121,10 @@ def test_every_metrics_key_of_a_replay_is_defined(tmp_path):
     spec = importlib.util.spec_from_file_location("ros2_helpers", helpers)
     H = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(H)
-    from quatform.ros2.bridge import FormationBridge, experiment_for
     from quatform.ros2.replay import replay
-    from quatform.ros2.robots_file import read_robots_file
 
-    sc = H.short_pair(0.3)
-    exp = experiment_for(sc, "quaternion")
-    log = exp.run()
-    robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
-    rf = read_robots_file(robots)
-    pr = FormationBridge(exp, rf).plant_robots
-    msgs = H.pose_messages(H.robot_poses(pr.models, pr.state_slices, log["state"]), log.t)
-    ns = [int(round(t * 1e9)) for t in log.t]
-    bag = H.write_bag(tmp_path / "lab", [(link.pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, m)))
-                                         for link, m in zip(rf.robots, msgs)])
+    b = H.simulated_pair_bag(tmp_path, 0.3)
+    bag, sc, robots = b["bag"], b["sc"], b["robots"]
     replay(bag, sc, robots, tmp_path / "out", controller="quaternion", plots=False)
     keys = set(json.loads((tmp_path / "out" / "metrics.json").read_text()))
     _check(keys, "replay")

@@ -26,19 +26,8 @@ _spec.loader.exec_module(H)
 def pair_bag(tmp_path):
     """The helix (0.5 s) simulated, its poses written to an MCAP bag at the tick times; with
     the scenario file, the robots file and the simulated log."""
-    sc = H.short_pair(0.5)
-    scenario = "mas-kitts-helix"  # the CLI's: the same reference over the bag's 0.5 s
-    exp = experiment_for(sc, "quaternion")
-    log = exp.run()
-    robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
-    rf = read_robots_file(robots)
-    pr = FormationBridge(exp, rf).plant_robots
-    msgs = H.pose_messages(H.robot_poses(pr.models, pr.state_slices, log["state"]), log.t)
-    ns = [int(round(t * 1e9)) for t in log.t]
-    bag = H.write_bag(tmp_path / "lab", [(link.pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, m)))
-                                         for link, m in zip(rf.robots, msgs)])
-    return {"bag": bag, "robots": robots, "rf": rf, "sc": sc, "scenario": scenario, "log": log, "exp": exp,
-            "msgs": msgs, "ns": ns}
+    # the CLI's scenario: the same reference over the bag's 0.5 s
+    return {**H.simulated_pair_bag(tmp_path, 0.5), "scenario": "mas-kitts-helix"}
 
 
 def test_replay_at_pose_times_gives_the_simulations_commands(pair_bag, tmp_path):

@@ -91,3 +91,22 @@ def write_bag(path: Path, streams) -> Path:
         for t, _, c, m, typ in sorted(rows, key=lambda r: r[0]):
             w.write(c, t, store.serialize_cdr(m, typ))
     return path
+
+
+def simulated_pair_bag(folder: Path, duration_s: float) -> dict:
+    """The helix (``duration_s``) simulated with the quaternion controller and its poses written
+    to an MCAP bag at the tick times: ``{"bag", "robots", "rf", "sc", "log", "exp", "msgs", "ns"}``."""
+    from quatform.ros2.bridge import FormationBridge, experiment_for
+    from quatform.ros2.robots_file import read_robots_file
+
+    sc = short_pair(duration_s)
+    exp = experiment_for(sc, "quaternion")
+    log = exp.run()
+    robots = write(folder / "robots.toml", PAIR_ROBOTS)
+    rf = read_robots_file(robots)
+    pr = FormationBridge(exp, rf).plant_robots
+    msgs = pose_messages(robot_poses(pr.models, pr.state_slices, log["state"]), log.t)
+    ns = [int(round(t * 1e9)) for t in log.t]
+    bag = write_bag(folder / "lab", [(link.pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, m)))
+                                     for link, m in zip(rf.robots, msgs)])
+    return {"bag": bag, "robots": robots, "rf": rf, "sc": sc, "log": log, "exp": exp, "msgs": msgs, "ns": ns}
