@@ -131,5 +131,7 @@ def assert_metrics_equal(ma, mb):
     for key, value in ma.items():
         if isinstance(value, float) and np.isfinite(value):
             assert abs(mb[key] - value) <= BACKEND_TOL, key
+        elif isinstance(value, (list, tuple)) and value and all(isinstance(v, float) for v in value):
+            np.testing.assert_allclose(mb[key], value, rtol=0, atol=BACKEND_TOL, err_msg=key)
         else:
             assert mb[key] == value or (isinstance(value, float) and np.isnan(value) and np.isnan(mb[key])), key
