@@ -128,12 +128,15 @@ def assert_metrics_equal(ma, mb, skip=()):
     """Two runs' metrics dicts: the same keys, finite floats within :data:`BACKEND_TOL` of
     their own scale with a floor of one unit (m, rad, s: an error metric near zero is the
     difference of quantities of that size, so two computation orders differ by their rounding,
-    not by its own), the rest (NaN, None, flags, strings) equal; keys in ``skip`` only present."""
+    not by its own), lists of floats the same way, the rest (NaN, None, flags, strings) equal;
+    keys in ``skip`` only present."""
     assert ma.keys() == mb.keys()
     for key, value in ma.items():
         if key in skip:
             continue
         if isinstance(value, float) and np.isfinite(value):
             assert abs(mb[key] - value) <= BACKEND_TOL * max(1.0, abs(value)), (key, value, mb[key])
+        elif isinstance(value, (list, tuple)) and value and all(isinstance(v, float) for v in value):
+            np.testing.assert_allclose(mb[key], value, rtol=BACKEND_TOL, atol=BACKEND_TOL, err_msg=key)
         else:
             assert mb[key] == value or (isinstance(value, float) and np.isnan(value) and np.isnan(mb[key])), key

@@ -41,7 +41,8 @@ def _add_compute_flag(p) -> None:
 
     p.add_argument("--compute", choices=tuple(SIM_BACKENDS), default="numpy",
                    help="compute backend of the closed loop: numpy (the reference, default) or jax (compiled with "
-                   "jax.jit, float64, equal to NumPy within 1e-9; on a GPU when a CUDA JAX sees one; needs: "
+                   "jax.jit, float64, equal to NumPy within 1e-9, a chart's value near its singular set within "
+                   "the digits it carries (docs/derivations.md); on a GPU when a CUDA JAX sees one; needs: "
                    'pip install -e ".[jax]"); not the same as --backend, which says what moves the robots')
 
 

@@ -382,6 +382,48 @@ class Formation(ABC):
         s = np.linalg.svd(self.inverse_jacobian(self.normalised(r), near_c=near_c), compute_uv=False)
         return s[..., -1] / s[..., 0]
 
+    def value_spread(self, r, delta, *, near_c=None) -> np.ndarray:
+        """How far :meth:`forward`'s values at ``r`` can move when every entry of ``r`` moves by at
+        most ``delta``: the first-order bound of the conditioning (``docs/derivations.md``,
+        Formations: how many digits a chart's value carries).
+
+        On the normalised formation (:meth:`normalised`: positions over ``L =``
+        :meth:`length_scale`, angles kept) ``|dc| <= |dr| / sigma_min(J^-1)`` and
+        ``sigma_min(J^-1) = s sigma_max(J^-1) >= s``, ``s`` the :meth:`singularity_measure`
+        (``sigma_max >= 1``: the cluster's position moves every robot's point with it). With
+        ``|dr| <= sqrt(n_r) delta max(1, 1 / L)``, each value moves by at most ``sqrt(n_r) delta
+        max(1, 1 / L) / s``, times ``L`` for those in metres. Near a singular set (``s -> 0``)
+        the bound grows as ``1 / s``: an angle that a singular pose leaves undefined (the
+        spherical ``alpha_c`` over the UGV, ``beta_c`` of a vertical segment) carries fewer
+        digits the closer the robots are to it; on the set itself its value is the
+        description's convention (the reference's, ``near_c`` / ``near_e``). First order:
+        valid while ``delta`` is small against the distance to the set, ``s L``.
+
+        Parameters
+        ----------
+        r : array_like, shape (..., n_r)
+        delta : float or array_like, shape (...)
+            Largest change of an entry of ``r`` (m for positions, rad for angles).
+        near_c : array_like, shape (..., n_c), optional
+            As for :meth:`singularity_measure`.
+
+        Returns
+        -------
+        ndarray, shape (..., n_c)
+            In each variable's unit (m or rad); ``inf`` where ``s = 0``, beyond a turn for an
+            undefined angle on a singular set (``s`` there is rounding).
+        """
+        r = self.check_robot_state(r)
+        delta = np.asarray(delta, dtype=float)
+        if not np.all(np.isfinite(delta)) or np.any(delta < 0):
+            raise InvalidInputError(f"value_spread: delta must be finite and >= 0, got {delta!r}")
+        L = self.length_scale(r)
+        s = self.singularity_measure(r, near_c=near_c)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(s > 0, np.sqrt(self.n_r) * delta * np.maximum(1.0, 1.0 / L) / s, np.inf)
+        metres = np.array([v.unit == "m" for v in self.variables])
+        return step[..., None] * np.where(metres, L[..., None], 1.0)
+
     def normalised(self, r) -> np.ndarray:
         """The robots ``r`` with their centroid at the origin and positions divided by
         :meth:`length_scale` (yaws and orientations kept): the formation on which
