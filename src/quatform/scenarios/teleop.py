@@ -163,7 +163,7 @@ def teleop_metrics(log: Log) -> dict:
       zone the wall maps to in its workspace (through the registration; slave metres). A
       virtual wall is a spring of finite stiffness: the master, and the slave that follows
       it, enter the zone by ``push / stiffness``, and a push above about ``resist_force_n``
-      takes them through its thickness (``docs/derivations.md``, Hardening (issue 12));
+      takes them through its thickness (``docs/derivations.md``, "Teleoperation (seed 003): walls, gains and limits");
     * ``final_hand_force_n``: the hand's force on the master at the end;
     * ``slave_torque_chatter_nm``, ``master_torque_chatter_nm``: the root mean square of the
       torque's change from one cycle to the next, ``sqrt(mean_k |tau[k+1] - tau[k]|^2)``

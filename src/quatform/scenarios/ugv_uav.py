@@ -300,7 +300,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     # the memory order of these arrays sets the summation order of the metrics' dot products,
     # and their arccos near 1 (orientation error, the turned angle of _cluster_jumps) turns a
     # 1-ulp change of a dot product into ~1e-8 rad, beyond the 1e-9 regression tolerance
-    # (docs/derivations.md, Pipeline (issue 13): UGV-UAV runs)
+    # (docs/derivations.md, "UGV-UAV runs (seed 001)")
     r_true = np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))
