@@ -44,7 +44,7 @@ def _dqmul(a, b):
     return dqmul(a, b)
 
 
-# -- the formation contract (items 2-3) --------------------------------------------------------------
+# -- the formation contract -------------------------------------------------------------------------
 @pytest.mark.parametrize("F", [DualQuaternionTeam(2), DualQuaternionTeam(3), DualQuaternionTeam(4),
                                DualQuaternionTeam(10), DualQuaternionTeam(layout=MIXED),
                                DualQuaternionTeam(layout=MIXED2), DualQuaternionTeam(layout=RobotLayout(("xyz",) * 3)),

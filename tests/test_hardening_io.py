@@ -320,7 +320,7 @@ def test_a_huge_vector_where_three_belong_is_one_short_line(tmp_path, capsys):
 
 def test_validator_messages_are_cheap_to_build():
     """A NaN in a 4e6-entry array: the message names the first bad entry without allocating
-    index lists or copies of the bad entries (the old code used argwhere and a[bad]: 3x the array)."""
+    index lists or copies of the bad entries (argwhere and a[bad] would take 3x the array)."""
     a = np.full((1_000_000, 4), np.nan)
     a[0] = 1.0
     tracemalloc.start()

@@ -55,8 +55,8 @@ def fixed_scenario(tmp_path, extra):
 # -- relative-yaw error beyond pi ------------------------------------------------
 
 def test_item1_opposite_yaw_errors_do_not_drive_the_robots_together():
-    """The issue's reproducer: robots in place, yaws +1.6 / -1.6. The shape error was driven
-    to -qhat_s_des (the formation turned half a turn): the robots met at t = 0.4 s. Now they
+    """Robots in place, yaws +1.6 / -1.6: the shape error is not driven to -qhat_s_des (the
+    formation turned half a turn, where the robots would meet at t = 0.4 s); they
     close in by at most 7 cm (the seed's shape carries robot 2's yaw error as a rotated
     translation, corrected along a straight line) and reach the reference."""
     C = DualQuaternionController()
@@ -87,9 +87,9 @@ def test_item1_reference_step_of_the_relative_yaw(tmp_path):
 
 @pytest.mark.parametrize("with_robots", [True, False], ids=["robots", "no-robots"])
 def test_item2_random_yaw_starts_all_reach_the_reference(with_robots):
-    """300 random yaw-only starts (batch): 55 (with Reference.robots) and 156 (without)
-    settled on the formation turned half a turn, with an identity error. Now every one
-    ends at the reference and a final identity error means it is there."""
+    """300 random yaw-only starts (batch): every one ends at the reference (not 55 with
+    Reference.robots and 156 without on the formation turned half a turn, with an identity
+    error, as a law blind to the branch gives) and a final identity error means it is there."""
     rng = np.random.default_rng(12)
     n = 300
     e = np.tile(E_FIXED, (n, 1))

@@ -264,8 +264,8 @@ def _axes_named(fig, label):
 
 @pytest.mark.parametrize("name", ["cluster-space", "robot-space", "quaternion"])
 def test_yaw_step_plot_draws_no_2pi_error(monkeypatch, yaw_step_runs, name):
-    """beta_c steps to pi: wrapped, the desired sat at -pi and the measured at +pi, a 2 pi
-    gap that is no error. Now the drawn gap is the wrapped error (0 once settled)."""
+    """beta_c steps to pi: wrapped, the desired would sit at -pi and the measured at +pi, a 2 pi
+    gap that is no error. The drawn gap is the wrapped error (0 once settled)."""
     from quatform.report import plot_cluster_variables, plot_euclidean
 
     run = yaw_step_runs[name]

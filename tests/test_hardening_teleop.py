@@ -388,7 +388,7 @@ def test_orientation_plot_masks_roll_yaw_and_their_difference_in_gimbal_lock():
     tr = _orientation_traces(r_m, r_s, angle)
     rpy_m, rpy_s = rpy_from_q(r_m), rpy_from_q(r_s)
     raw = np.linalg.norm((rpy_s - rpy_m + np.pi) % (2 * np.pi) - np.pi, axis=1)
-    assert raw.max() > 3.0  # what the old figure drew
+    assert raw.max() > 3.0  # what a plot of raw wrapped differences draws
     near = np.maximum(np.abs(rpy_m[:, 1]), np.abs(rpy_s[:, 1])) >= np.radians(90.0 - GIMBAL_LOCK_DEG - 1e-9)
     np.testing.assert_array_equal(tr.lock, near)
     assert tr.lock.any() and not tr.lock.all()

@@ -28,7 +28,7 @@ def test_ugv_uav_layout_names_are_not_the_generic_ones():
     assert "UGV_UAV_COMMAND_NAMES" in control.__all__ and "COMMAND_NAMES" not in control.__all__
 
 
-# -- items 3 and 5: the scenario loader ------------------------------------------------------------
+# -- the scenario loader -------------------------------------------------------------------------
 
 
 BASE = {"kind": "ugv-uav", "name": "t", "path": "circle", "r_x": 1.0, "r_y": 1.0, "omega": 0.2, "d_c": 1.5,
