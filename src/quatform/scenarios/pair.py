@@ -491,7 +491,7 @@ TABLE_COLUMNS = (
 )
 
 #: Channels of ``timeseries.csv`` in file order; a tuple's channels are interleaved, each value
-#: beside its desired one (``x1, x1_des, y1, ...``: today's header): the robots, the
+#: beside its desired one (``x1, x1_des, y1, ...``: the recorded header): the robots, the
 #: controller's own cluster variables, the Euclidean ones recovered by its description, then
 #: the commands and the singularity measure.
 PAIR_CSV_CHANNELS = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"), "command", "singularity")

@@ -271,7 +271,7 @@ def teleop_metrics(log: Log) -> dict:
     return m
 
 
-#: Channels of ``timeseries.csv``, in order (today's columns: ``t``, the registered master's and
+#: Channels of ``timeseries.csv``, in order (the recorded columns: ``t``, the registered master's and
 #: the slave's tool positions, the task error, the wrist force, the hand's force, the angle
 #: between the tools, each arm's joint angle and torque side by side, ``raw_finite``).
 CSV_CHANNELS = ("p_m", "p_s", "e", "F_s", "F_hand", "angle", "master_joints", "slave_joints", "raw_finite")

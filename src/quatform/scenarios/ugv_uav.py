@@ -65,7 +65,7 @@ UGV_UAV_BACKENDS = ("kinematic", "mujoco")
 #: time-series views ``ts_*`` that give ``timeseries.csv`` its columns.
 DERIVED_CHANNELS = ("r_true", "r_des", "r_measured", "c_des", "c_continuous", "e", "e_des", "singularity",
                     "reachable")
-#: Channels of ``timeseries.csv``, in order (with ``t`` first: the columns of today's files).
+#: Channels of ``timeseries.csv``, in order (with ``t`` first: the recorded columns).
 UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity")
 
 #: Columns of the comparison table: (metrics key, header, format). The errors count only the
