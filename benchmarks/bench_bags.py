@@ -1,4 +1,4 @@
-"""Cost of ``run.mcap`` (issue 16 item 1): the 60 s, 100 Hz, two-robot ``mas-kitts-spiral`` run.
+"""Cost of ``run.mcap``: the 60 s, 100 Hz, two-robot ``mas-kitts-spiral`` run.
 
 Columns, in CPU time of this process (``time.process_time``, best of ``--repeat``):
 

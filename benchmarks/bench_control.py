@@ -35,7 +35,7 @@ Run it from the repository root::
     python benchmarks/bench_control.py                 # N = 10 000, 7 repeats (~30 s)
     python benchmarks/bench_control.py --repeat 3
     python benchmarks/bench_control.py --batch 100000
-    python benchmarks/bench_control.py --before /path/to/old/src   # issue 13's speed check
+    python benchmarks/bench_control.py --before /path/to/old/src   # the speed against another tree
 
 ``--before SRC`` times the issue-13 speed check (one ``QuaternionController().step`` of one
 formation, and of a batch of 1000, as the simulator calls it) for this quatform and for

@@ -1,5 +1,5 @@
 """Simulated seconds per wall-clock second: the two-quadrotor helix on MuJoCo physics
-beside the kinematic backend (issue 7).
+beside the kinematic backend.
 
 Each run is seed 000's helix (``mas-kitts-helix``, 80 s simulated, control every 10 ms)
 with one controller, timed end to end (reference, closed loop, logging; no files, no
@@ -8,7 +8,7 @@ low-level controller and rotor drag in Python between steps. A third row times t
 physics (two hovering quadrotors, no formation controller, no low-level controller: the
 rotor forces held) to show where the time goes.
 
-``--team`` adds the MuJoCo team plant (issue 14): N = 2, 4, 10 IRIS quadrotors
+``--team`` adds the MuJoCo team plant: N = 2, 4, 10 IRIS quadrotors
 (``sim.plants.mujoco_team.team_plant``), their cascades evaluated together on ``(N, ...)``
 arrays (``vectorised``) and one per vehicle on Python floats (``per-vehicle``), flying a formation that translates, climbs and turns about the
 vertical (a pair, a tetrahedron, ten robots on a sphere), each robot on a robot-space

@@ -1,6 +1,6 @@
 """The seed 000 spiral on the one pipeline: one world in process, and a batch of worlds per tick.
 
-Two measurements (issue 13, item 9):
+Two measurements:
 
 single
     ``mas-kitts-spiral`` (60 s simulated, control every 10 ms, 6001 ticks) with each

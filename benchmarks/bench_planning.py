@@ -10,7 +10,7 @@ Times are the median of ``--repeat`` runs (time.perf_counter). The last rows tim
 0.2 on the ends of N = 2 and 3 equal masses: two bodies have no geodesic (seed 002 item 3 of
 docs/derivations.md) and the call raises ConvergenceError at once (the cone bound is checked
 first); for three the continuation stalls near 0.37 and the restart from a path-energy
-minimiser finds a symmetry-breaking geodesic (since issue 12; before, ConvergenceError).
+minimiser finds a symmetry-breaking geodesic.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ For each case the script measures, best of ``--repeat`` runs (:mod:`timeit` styl
 It also prints the checks of ``plan.metrics()``: the largest change of a pairwise
 distance, the lateral speed of the airplanes at the ends and along the path, and the
 ambient energy of the cubic (not the least over all curves with those ends and twists:
-docs/derivations.md, hardening section, item 4).
+docs/derivations.md, "Planning (seeds 002 and 004)", item 4).
 
 Run it from the repository root::
 

@@ -1,4 +1,4 @@
-"""Closed-loop batched rollouts (issue 15 item 6): robot-steps/s on NumPy and JAX, crazyflow beside.
+"""Closed-loop batched rollouts: robot-steps/s on NumPy and JAX, crazyflow beside.
 
 Three measurements, printed as ratios in one run:
 

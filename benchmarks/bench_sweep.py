@@ -1,4 +1,4 @@
-"""Sweep throughput: one CPU-bound sweep on 1 and 2 workers of each executor (issue 15 item 6).
+"""Sweep throughput: one CPU-bound sweep on 1 and 2 workers of each executor.
 
 The sweep: seed 000's helix (``mas-kitts-helix``), its first ``--duration`` s (default 2 s,
 200 control ticks at 100 Hz), the four controllers x ``noise_m`` in (0, 10 mm) x
@@ -13,7 +13,7 @@ metrics. Every executor runs the same chunks:
 
 Columns: wall seconds for the whole sweep (the executor started and warmed up with one
 chunk beforehand, so start-up is not counted), trials/s, and the speed-up of 2 workers over
-1 of the same executor (target >= 1.8 for Dask, issue 15). Every executor's rows are checked
+1 of the same executor (target >= 1.8 for Dask). Every executor's rows are checked
 equal to the in-process ones. The machine is shared: the speed-up of 2 workers needs 2
 idle cores (``os.getloadavg()`` is printed beside it).
 

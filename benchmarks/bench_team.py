@@ -1,4 +1,4 @@
-"""Time of one quaternion-team control step for N = 10, 100, 1000 robots (issue 14 item 5).
+"""Time of one quaternion-team control step for N = 10, 100, 1000 robots.
 
 One ``TeamController(QuaternionTeam(N), Table 1 gains, Team of N holonomic 4-DOF robots)``
 step, ``ctrl.step(t, r, Reference(c, c_dot))`` on one formation: the input checks, the
@@ -13,8 +13,7 @@ seed 000 §3.2 and eq. (20)), the inverse map's directional derivative
 * **saturate**: ``team.saturate(u)`` alone (the team's per-robot Python loop, being
   vectorised in the robots layer on another branch), so ``step - saturate`` is what the
   formation and the laws cost;
-* the ratio of the per-robot cost at the largest N to that at the smallest (target <= 1.5,
-  issue 14 item 5), and the marginal cost per added robot (the slope between two N).
+* the ratio of the per-robot cost at the largest N to that at the smallest (target <= 1.5), and the marginal cost per added robot (the slope between two N).
 
 The reference: N robots on a ring of radius ``0.5 N / pi`` m (about 1 m apart) at 1 m
 altitude, the formation pitched 0.4 rad and yawed 0.3 rad, every robot yawed 0.2 rad,
@@ -44,7 +43,7 @@ from quatform.robots import HolonomicRobot, Team
 
 from _common import fmt, machine_description
 
-#: Targets of issue 14 item 5.
+#: The targets: at most 1 ms a step at N = 1000, a per-robot cost ratio of at most 1.5.
 TARGET_STEP_US_AT_1000 = 1000.0
 TARGET_PER_ROBOT_RATIO = 1.5
 

@@ -1,4 +1,4 @@
-"""One master-plus-slave control step of seed 003's teleoperator (issue 6).
+"""One master-plus-slave control step of seed 003's teleoperator.
 
 The step is ``TeleopController.step``: forward kinematics and force-reflecting Jacobians
 of the Kraft master (6 joints) and the 7-DOF slave, the slave's mass matrix and the

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Robot-steps/s of quatform's JAX rollouts on a GPU, batch sizes 10^3 .. 10^6 (issue 15 item 6).
+# Robot-steps/s of quatform's JAX rollouts on a GPU, batch sizes 10^3 .. 10^6.
 #
 # Run from anywhere on the GPU machine (needs only a package registry): it makes a virtual
 # environment in ${QF_GPU_VENV:-/tmp/quatform-gpu}, installs quatform with its jax extra and

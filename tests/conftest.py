@@ -88,7 +88,7 @@ class Constant(Controller):
         return Step(np.array(self.u, dtype=float), state, {})
 
 
-#: The channels a compute backend's log must equal NumPy's on, and the tolerance (issue 15).
+#: The channels a compute backend's log must equal NumPy's on, and the tolerance.
 BACKEND_CHANNELS = ("state", "measured", "command", "cluster", "error", "raw_finite")
 BACKEND_TOL = 1e-9
 

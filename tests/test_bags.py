@@ -28,7 +28,7 @@ FREE_BODIES = """
 kind = "team"
 name = "free-bodies"
 title = "three free bodies"
-source = "issue 14"
+source = "a test scene"
 duration_s = 0.4
 dt_s = 0.02
 metrics_from_s = 0.0
@@ -434,7 +434,7 @@ def test_the_foxglove_layout_plots_fields_every_formation_run_has(runs, case):
 
 
 def test_cli_run_writes_run_mcap_that_rosbags_reads_one_message_per_sample(tmp_path, capsys):
-    """Issue 16's done-when (plots off)."""
+    """A team run writes its bag, reads it back and logs it to Rerun (plots off)."""
     out = tmp_path / "run"
     assert main(["run", "mas-kitts-helix", "--controller", "quaternion", "--out", str(out), "--no-plots"]) == 0
     from rosbags.rosbag2 import Reader

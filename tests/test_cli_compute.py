@@ -1,5 +1,5 @@
 """``quatform run / compare / teleop --compute jax``: the closed loop compiled with JAX from the
-command line (issue 15 item 3), its files equal to NumPy's within 1e-9."""
+command line, its files equal to NumPy's within 1e-9."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ def test_quaternion_lyapunov_21_decreases(e0, e_des):
 def dq_vdot_formula(c, c_des, k):
     """dV/dt of eq. (29) under eq. (28), derived without the seed's d_0 = 0:
     ``-k |p0| (2 |p_vec|^2 + |d_vec|^2 - d_0^2)`` for qhat_c; for qhat_s, whose rotation is
-    driven to +qhat_s_des (issue 12), ``-k (2 p0 |p_vec|^2 + |p0| |d_vec|^2 - p0 d_0^2)``."""
+    driven to +qhat_s_des, ``-k (2 p0 |p_vec|^2 + |p0| |d_vec|^2 - p0 d_0^2)``."""
     total = 0.0
     for s in (slice(0, 8), slice(8, 16)):
         qd, q = c_des[s], c[s]
@@ -186,8 +186,8 @@ def test_180_degree_formation_error_still_moves(cls):
 
 def test_dual_quaternion_sees_a_half_turn_without_the_desired_robots():
     """The turned formation has the same pair up to the sign of qhat_s, and that sign is read:
-    without Reference.robots the half turn is seen and commanded exactly as with them (it
-    used to be no error at all, issue 12)."""
+    without Reference.robots the half turn is seen and commanded exactly as with them (a
+    nonzero error)."""
     ctrl = DualQuaternionController()
     e_des = np.array([0, 0, 1.0, np.pi, 0, 1.0, 0, 0])
     c = ctrl.formation.from_euclidean(e_des)
@@ -249,7 +249,7 @@ def test_gains_must_be_positive():
 @pytest.mark.parametrize("cls", [QuaternionController, DualQuaternionController], ids=lambda c: c.name)
 def test_reference_quaternion_signs_do_not_matter(cls):
     """q -> -q of any cluster quaternion of the reference, with its rate: same commands. For
-    the dual-quaternion pair the sign of qhat_s is the branch of the half-way yaw (issue 12):
+    the dual-quaternion pair the sign of qhat_s is the branch of the half-way yaw:
     -qhat_c, and (qhat_c k, -qhat_s) (k the half turn about the cluster's z), are the same
     formation; -qhat_s alone is the formation turned half a turn."""
     ctrl = cls()

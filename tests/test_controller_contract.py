@@ -212,7 +212,7 @@ def test_step_gives_init_the_measurement_batch_whatever_the_command_width():
     assert seen[-1] == ()
 
 
-# -- team controllers (issue 14): every registered team description -------------------------
+# -- team controllers: every registered team description --------------------------------------
 
 TEAM_GAINS = {"k_x": (1.0, 1.2, 0.8), "k_d": 2.0, "k_w": (3.0, 3.0, 3.0), "k_dw": (1.5, 1.5, 1.5), "k_p": 1.5,
               "k_theta": 2.0, "k": 1.0}

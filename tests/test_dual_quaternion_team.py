@@ -1,4 +1,4 @@
-"""DualQuaternionTeam (issue 14 items 2-5, 10): seed 000 §3.3 for N robots of any point kinds."""
+"""DualQuaternionTeam: seed 000 §3.3 for N robots of any point kinds."""
 
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ def _dqmul(a, b):
     return dqmul(a, b)
 
 
-# -- the formation contract (items 2-3) --------------------------------------------------------------
+# -- the formation contract -------------------------------------------------------------------------
 @pytest.mark.parametrize("F", [DualQuaternionTeam(2), DualQuaternionTeam(3), DualQuaternionTeam(4),
                                DualQuaternionTeam(10), DualQuaternionTeam(layout=MIXED),
                                DualQuaternionTeam(layout=MIXED2), DualQuaternionTeam(layout=RobotLayout(("xyz",) * 3)),
@@ -98,7 +98,7 @@ def test_yaw_mean_is_the_mean_of_the_real_yaws():
     assert np.allclose(c[:4], [math.cos(th / 2), 0, 0, math.sin(th / 2)], atol=1e-15)
 
 
-# -- N = 2 is the seed (item 4) ----------------------------------------------------------------------
+# -- N = 2 is the seed ----------------------------------------------------------------------
 def _pair_states(rng, n=200):
     r = DualQuaternionPair().sample_robot_state(rng, (n,))
     r[:, [3, 7]] += 2 * math.pi * rng.integers(-3, 4, (n, 2))
@@ -176,7 +176,7 @@ def test_team_controller_commands_equal_the_pair_controllers_along_the_whole_ref
 
 def test_spiral_metrics_equal_the_pair_run():
     """The closed loop of the first 12 s of the spiral (the yaw turn): every metric within 1e-9 of its scale
-    (the full spiral and helix: docs/derivations.md, Teams (issue 14))."""
+    (the full spiral and helix: docs/derivations.md, "The dual-quaternion team")."""
     from quatform.scenarios.pair import PAIR
 
     sc = _pair_reference("mas-kitts-spiral", 12.0)
@@ -194,13 +194,13 @@ def test_spiral_metrics_equal_the_pair_run():
 # -- relative shape for N >= 3: refused (one state would name N formations) -----------------------------
 def test_relative_shape_is_the_pair_only():
     """For N robots eq. (27)'s relative shape names N formations turned by 4 pi j / N (a zero
-    error at a turned twin, the reviewer's finding), so it is refused beyond two robots."""
+    error at a turned twin), so it is refused beyond two robots."""
     for n in (3, 4, 10):
         with pytest.raises(InvalidInputError, match="shape='frame'"):
             DualQuaternionTeam(n, shape="relative")
 
 
-# -- special sets at the point and near it, batch and single (item 3) -----------------------------------
+# -- special sets at the point and near it, batch and single -----------------------------------
 @pytest.mark.parametrize("F", [DualQuaternionTeam(3), DualQuaternionTeam(layout=MIXED2), DualQuaternionTeam(4)],
                          ids=["frame-3", "mixed-pose", "frame-4"])
 def test_special_sets_regular_continuous_batch_equals_single(F):
@@ -240,7 +240,7 @@ def test_q_versus_minus_q_of_every_block_is_the_same_robots():
     assert np.max(cluster_distance(F, F.forward(flipped, near_c=c), c)) < 1e-12
 
 
-# -- zero formation error <=> robots at the reference (item 3) ----------------------------------------
+# -- zero formation error <=> robots at the reference ----------------------------------------
 @pytest.mark.parametrize("layout", [RobotLayout.uniform("xyz_yaw", 4), MIXED], ids=["4", "mixed"])
 def test_zero_formation_error_iff_robots_at_the_reference(layout):
     rng = np.random.default_rng(9)
@@ -277,7 +277,7 @@ def test_zero_formation_error_iff_robots_at_the_reference(layout):
         assert np.min(robot_distance(F, F.inverse(ct), r_des)) > 1e-5
 
 
-# -- the controller (item 5) ----------------------------------------------------------------------------
+# -- the controller ----------------------------------------------------------------------------
 def _closed_loop(N, rng, steps, B=16, k=2.0, dt=2e-3, yaw_spread=3.1):
     F = DualQuaternionTeam(N)
     team = Team(tuple(HolonomicRobot(max_speed=1e6, max_yaw_rate=1e6) for _ in range(N)))
@@ -349,7 +349,7 @@ def test_rate_maps_cost_a_constant_number_of_numpy_calls():
     assert out[1000] / 1000 < out[10] / 10
 
 
-# -- bad input (item 10) ---------------------------------------------------------------------------------
+# -- bad input ---------------------------------------------------------------------------------
 def test_bad_input_one_line_each():
     with pytest.raises(InvalidInputError, match="exactly one"):
         DualQuaternionTeam()
@@ -394,7 +394,7 @@ def test_bad_input_one_line_each():
 def test_lyapunov_29_rises_where_eq_33_drops_its_term_as_for_the_pair():
     """Seed 000 eq. (33) drops the scalar ``d0`` of the error's dual part: for a rotation error
     beyond 90 deg with a translation error along its axis above 2 sqrt 2 m, eq. (29) rises at
-    first (the pair's counterexample, Hardening (issue 12) item 4, on the team's qhat_c: a rigid
+    first (the pair's counterexample, docs/derivations.md, "The two-robot formations and controllers (seed 000)" item 4, on the team's qhat_c: a rigid
     turn of 166 deg about the vertical and 4 m up, Table 1 gains: 2.030 -> 2.264), and the loop
     still converges; 2 m up it falls in every step."""
     F = DualQuaternionTeam(3)
@@ -452,7 +452,7 @@ def test_a_chart_whose_robots_coincide_is_refused():
 def test_another_lift_at_the_reference_is_an_equilibrium_so_forward_winds_onto_the_reference():
     """Robots at the reference with one yaw wound a turn: ``forward`` of those real yaws is another
     state (``q_c`` turned by 2 pi / N), and eq. (28) on it with ``K = k I`` commands robot rates
-    that cancel exactly (docs/derivations.md, Teams (issue 14) item 5); ``forward(r, near_c=c_des)``
+    that cancel exactly (docs/derivations.md, "The dual-quaternion team" item 5); ``forward(r, near_c=c_des)``
     takes the reference's lift, whose error is zero."""
     from quatform.control.laws import dual_quaternion_feedback
 

@@ -1,4 +1,4 @@
-"""EuclideanTeam: the minimal Santa Clara cluster space of N robots (issue 14 item 2's baseline).
+"""EuclideanTeam: the minimal Santa Clara cluster space of N robots (the team baseline).
 
 The formation contract for N = 2, 3, 4, 10, a mixed spatial layout and planar teams; N = 2 is
 seed 000 eqs. (1)-(8) (``EuclideanPair``) and reproduces the pair cluster-space runs; every

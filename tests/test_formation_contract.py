@@ -1,4 +1,4 @@
-"""One contract test for every registered formation (issue 13 item 7).
+"""One contract test for every registered formation.
 
 ``quatform.formations.testing.check_formation`` checks round trips, the rate maps against
 central differences and against each other, dense Jacobians = rate maps, batch = single,

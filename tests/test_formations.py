@@ -209,7 +209,7 @@ def test_dual_quaternion_closed_form_is_eq26_with_decoupled_root():
 def test_dual_quaternion_pair_tells_the_branch_by_the_sign_of_qhat_s():
     """A formation and the same formation turned half a turn about the cluster z axis (yaws
     wound by +-pi) have the same pair up to the sign of qhat_s; that sign tells them apart,
-    so the inverse needs no hint (it used to return the turned one without a hint, issue 12)."""
+    so the inverse needs no hint (without the sign it would return the turned one)."""
     D = DualQuaternionPair()
     r = np.array([1.0, 0.5, 1.0, 0.3, -1.0, -0.5, 1.2, -0.4])
     c = D.forward(r)

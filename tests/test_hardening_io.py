@@ -1,4 +1,4 @@
-"""Issue 12, CLI and run outputs: strict JSON, staged (atomic) run folders, Ctrl-C, one-line
+"""CLI and run outputs: strict JSON, staged (atomic) run folders, Ctrl-C, one-line
 errors, the TOML reader, --no-feedforward, the paper citations, the help texts, pytest-xdist."""
 
 from __future__ import annotations
@@ -320,7 +320,7 @@ def test_a_huge_vector_where_three_belong_is_one_short_line(tmp_path, capsys):
 
 def test_validator_messages_are_cheap_to_build():
     """A NaN in a 4e6-entry array: the message names the first bad entry without allocating
-    index lists or copies of the bad entries (the old code used argwhere and a[bad]: 3x the array)."""
+    index lists or copies of the bad entries (argwhere and a[bad] would take 3x the array)."""
     a = np.full((1_000_000, 4), np.nan)
     a[0] = 1.0
     tracemalloc.start()
@@ -443,8 +443,8 @@ def test_every_command_has_help_and_the_mujoco_hint_is_the_editable_install(caps
     ("plan", "X = 1e300", "X"),
 ])
 def test_huge_finite_numbers_are_refused_at_load_naming_the_key(tmp_path, kind, line, key):
-    """Issue 12 §3 (review): a huge finite number in any file kind was refused late, from an
-    internal array, or overflowed into warnings; now the reader refuses it, naming the key."""
+    """A huge finite number in any file kind is refused by the reader, naming the key (not late,
+    from an internal array, nor by overflowing into warnings)."""
     from quatform.checks import MAX_NUMBER, number
     from quatform.errors import InvalidInputError
 

@@ -1,6 +1,6 @@
-"""Issue 12 (hardening), the two-robot formations and controllers of seed 000.
+"""The two-robot formations and controllers of seed 000.
 
-Each test fails on the code before the fix (see the test's docstring for what it did).
+Each test's docstring says what goes wrong without the behaviour it tests.
 """
 
 from __future__ import annotations
@@ -52,11 +52,11 @@ def fixed_scenario(tmp_path, extra):
     return load_scenario(f)
 
 
-# -- item 1: relative-yaw error beyond pi ------------------------------------------------
+# -- relative-yaw error beyond pi ------------------------------------------------
 
 def test_item1_opposite_yaw_errors_do_not_drive_the_robots_together():
-    """The issue's reproducer: robots in place, yaws +1.6 / -1.6. The shape error was driven
-    to -qhat_s_des (the formation turned half a turn): the robots met at t = 0.4 s. Now they
+    """Robots in place, yaws +1.6 / -1.6: the shape error is not driven to -qhat_s_des (the
+    formation turned half a turn, where the robots would meet at t = 0.4 s); they
     close in by at most 7 cm (the seed's shape carries robot 2's yaw error as a rotated
     translation, corrected along a straight line) and reach the reference."""
     C = DualQuaternionController()
@@ -72,8 +72,8 @@ def test_item1_opposite_yaw_errors_do_not_drive_the_robots_together():
 
 
 def test_item1_reference_step_of_the_relative_yaw(tmp_path):
-    """phi_1 + 1.6, phi_2 - 1.6 at t = 1 s (the issue's CLI case): the dual-quaternion run
-    collided; now all four controllers end at the new formation, none closer than 1.9 m."""
+    """phi_1 + 1.6, phi_2 - 1.6 at t = 1 s (a CLI case that collides when the yaw
+    error is not wrapped): all four controllers end at the new formation, none closer than 1.9 m."""
     sc = fixed_scenario(tmp_path, '[[path.steps]]\nvariable = "phi_1"\ntime_s = 1.0\nchange = 1.6\n'
                                   '[[path.steps]]\nvariable = "phi_2"\ntime_s = 1.0\nchange = -1.6\n')
     for name in ("cluster-space", "robot-space", "quaternion", "dual-quaternion"):
@@ -83,13 +83,13 @@ def test_item1_reference_step_of_the_relative_yaw(tmp_path):
         assert same_robots(run["state"][-1], run["r_des"][-1]) < 1e-3, name
 
 
-# -- item 2: zero error only at the reference formation ---------------------------------
+# -- zero error only at the reference formation ---------------------------------
 
 @pytest.mark.parametrize("with_robots", [True, False], ids=["robots", "no-robots"])
 def test_item2_random_yaw_starts_all_reach_the_reference(with_robots):
-    """300 random yaw-only starts (batch): 55 (with Reference.robots) and 156 (without)
-    settled on the formation turned half a turn, with an identity error. Now every one
-    ends at the reference and a final identity error means it is there."""
+    """300 random yaw-only starts (batch): every one ends at the reference (not 55 with
+    Reference.robots and 156 without on the formation turned half a turn, with an identity
+    error, as a law blind to the branch gives) and a final identity error means it is there."""
     rng = np.random.default_rng(12)
     n = 300
     e = np.tile(E_FIXED, (n, 1))
@@ -140,7 +140,7 @@ def test_item2_initial_offset_does_not_end_swapped(tmp_path):
     assert compute_metrics(run)["min_robot_separation_m"] >= 1.9
 
 
-# -- item 3: inverse(forward(r)) without a hint ------------------------------------------
+# -- inverse(forward(r)) without a hint ------------------------------------------
 
 def random_states(rng, n, wind=40.0):
     r = rng.uniform(-5, 5, (n, 8))
@@ -193,7 +193,7 @@ def test_item3_hint_does_not_change_the_formation():
     assert same_robots(D.inverse(D.forward(r, near_c=hint)), r) < 1e-9
 
 
-# -- item 5: references that are no formation -------------------------------------------
+# -- references that are no formation -------------------------------------------
 
 def _measured():
     return EuclideanPair().inverse(E_FIXED)
@@ -360,10 +360,10 @@ def test_euclidean_inverse_has_a_numpydoc_docstring():
 
 
 def test_law_lyapunov_decreases_on_the_controllers_state_not_on_forward_of_wound_yaws():
-    """Reviewer: r = rd + [0,0,0,2.83,0,0,0,-3.02] under DualQuaternionController() (Table 1
+    """r = rd + [0,0,0,2.83,0,0,0,-3.02] under DualQuaternionController() (Table 1
     gains, the real robots' limits): V(C.formation.forward(r), c) rises in 814 of 1500 steps
-    of 1 ms although the docstring said dV/dt <= 0 everywhere. The function decreases on the
-    argument it now names, the controller's cluster state (StepResult.cluster: the yaws
+    of 1 ms, so dV/dt <= 0 does not hold there. The function decreases on the
+    argument it names, the controller's cluster state (StepResult.cluster: the yaws
     lifted onto c's branch), in every step, to the goal."""
     C = DualQuaternionController()
     rd = EuclideanPair().inverse(E_FIXED)

@@ -1,4 +1,4 @@
-"""Issue 12, two-robot scenarios (seed 000): strict loader, metrics window, resource limits,
+"""Two-robot scenarios (seed 000): strict loader, metrics window, resource limits,
 feed-forward key, plots."""
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _one_line_error(tmp_path, text, exc=InvalidInputError):
     return msg
 
 
-# ----------------------------------------------------------------- item 1: metrics window
+# ----------------------------------------------------------------- metrics window
 
 
 @pytest.mark.parametrize("start", ["2.0", "3.0", "1e6"])
@@ -72,7 +72,7 @@ def test_short_file_without_metrics_from_is_measured_from_the_start(tmp_path):
     assert sc.metrics_from_s == 0.0
 
 
-# ----------------------------------------------------------------- item 2: unknown keys, types
+# ----------------------------------------------------------------- unknown keys, types
 
 
 @pytest.mark.parametrize("text, key, nearest", [
@@ -93,7 +93,7 @@ def test_unknown_key_names_it_and_the_nearest_valid_one(tmp_path, text, key, nea
     assert f"unknown key '{key}'" in msg and f"did you mean '{nearest}'" in msg
 
 
-# ----------------------------------------------------------------- item 3: one line per mistake
+# ----------------------------------------------------------------- one line per mistake
 
 BAD_FILES = [
     ("initial_offset = 5\n" + GOOD, "initial_offset"),
@@ -145,7 +145,7 @@ def test_bad_file_is_one_line_naming_the_key(tmp_path, text, key):
     assert "contains nan at index" not in msg
 
 
-# ----------------------------------------------------------------- item 4: resource limits
+# ----------------------------------------------------------------- resource limits
 
 
 def test_huge_duration_is_refused_up_front(tmp_path):
@@ -186,7 +186,7 @@ def test_api_numbers_must_be_finite():
             bad()
 
 
-# ----------------------------------------------------------------- item 5: feedforward key
+# ----------------------------------------------------------------- feedforward key
 
 
 def _spiral_without_feedforward(tmp_path, duration_s=10.0):
@@ -234,7 +234,7 @@ def test_feedforward_defaults_to_true_and_is_recorded(tmp_path):
     json.dumps(m)
 
 
-# ----------------------------------------------------------------- item 6: plots
+# ----------------------------------------------------------------- plots
 
 
 @pytest.fixture(scope="module")
@@ -264,8 +264,8 @@ def _axes_named(fig, label):
 
 @pytest.mark.parametrize("name", ["cluster-space", "robot-space", "quaternion"])
 def test_yaw_step_plot_draws_no_2pi_error(monkeypatch, yaw_step_runs, name):
-    """beta_c steps to pi: wrapped, the desired sat at -pi and the measured at +pi, a 2 pi
-    gap that is no error. Now the drawn gap is the wrapped error (0 once settled)."""
+    """beta_c steps to pi: wrapped, the desired would sit at -pi and the measured at +pi, a 2 pi
+    gap that is no error. The drawn gap is the wrapped error (0 once settled)."""
     from quatform.report import plot_cluster_variables, plot_euclidean
 
     run = yaw_step_runs[name]
@@ -386,7 +386,7 @@ def test_drawn_angle_gap_is_the_wrapped_error(pairs):
         assert np.all(d < 1e-9)
 
 
-# ------------------------------------------- reviewer findings on the loader (fixa, issue 12)
+# ------------------------------------------------------- the loader's gains, dt and failures
 
 def _with_path(extra, base=GOOD):
     return base.replace("d_c = 1.0", f"{extra}\nd_c = 1.0")

@@ -1,4 +1,4 @@
-"""Issue 12, the MuJoCo backend: the scenario's gains reach the physics run and are recorded,
+"""The MuJoCo backend: the scenario's gains reach the physics run and are recorded,
 physics gains for the Table 1 scenarios, the install hint, annotated pictures."""
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def simulate_ugv_uav_physics(sc, formation="quaternion", **options):
     return log, log.meta["physics_record"]
 
 
-# -- item 1: the scenario's gains reach the UGV-UAV physics run ------------------------------
+# -- the scenario's gains reach the UGV-UAV physics run ------------------------------
 @pytest.fixture(scope="module")
 def circle():
     return dataclasses.replace(load_scenario("marciano-circle"), duration_s=2.0)
@@ -95,7 +95,7 @@ def test_every_scenario_gain_reaches_the_physics_run_and_is_recorded(circle):
     assert m["gains"] == rec.gains and m["gains_source"] == "scenario" and m["gains_source_note"]
 
 
-# -- item 2: physics gains for the Table 1 scenarios ---------------------------------------
+# -- physics gains for the Table 1 scenarios ---------------------------------------
 def test_physics_gains_replace_table1_only():
     yaw = load_scenario("mas-kitts-yaw-step")
     helix = load_scenario("mas-kitts-helix")
@@ -147,7 +147,7 @@ def test_given_gains_and_controller_objects_are_recorded():
         simulate_ugv_uav_physics(load_scenario("marciano-circle"), compensation="no")
 
 
-# -- item 4: annotated pictures ----------------------------------------------------------------
+# -- annotated pictures ----------------------------------------------------------------
 @pytest.fixture(scope="module")
 def short_pair():
     sc = scenario_from_dict({"name": "short-pair", "duration_s": 2.0, "dt_s": 0.01, "gains": "table1",

@@ -1,7 +1,7 @@
-"""Issue 12 (hardening), planning: resource limits, the energy minimiser of seed 002's
+"""Planning: resource limits, the energy minimiser of seed 002's
 geodesics, the scope of seed 004's energy claim, and plot titles naming the papers.
 
-Each test fails on the code before the fix (the reason is in its docstring)."""
+Each test's docstring says what goes wrong without the check it tests."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""Issue 12 hardening of teleoperation (seed 003, Jansen et al. 1990): each test fails on the
-code before the fix. Simulations here are short (teleop runs in about real time)."""
+"""Teleoperation (seed 003, Jansen et al. 1990): inputs, walls, gains, limits and measurements.
+Simulations here are short (teleop runs in about real time)."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def simulate_teleop(sc, **kw):
 BASE = {"kind": "teleop", "duration_s": 1.0}
 
 
-# -- item 1: springs beyond the explicit integrator's stability limit -------------------------
+# -- springs beyond the explicit integrator's stability limit -------------------------
 
 
 @pytest.mark.parametrize("factor, stable", [(0.98, True), (1.02, False)])
@@ -49,7 +49,7 @@ def test_stiffness_limit_is_the_semi_implicit_euler_boundary(m, c, factor, stabl
 
 
 def test_a_stiff_contact_wall_is_refused_not_integrated():
-    """A 1e10 N/m wall used to fling the slave 1.38 m and exit 0."""
+    """A 1e10 N/m wall is refused: integrated explicitly it flings the slave 1.38 m and the run exits 0."""
     wall = {"point": [0.4937, 0.0, 0.5], "normal": [-1.0, 0.0, 0.0], "stiffness": 1e10}
     with pytest.raises(InvalidInputError, match=r"\[wall\] stiffness = 1e\+10 N/m is beyond the stability limit"):
         teleop_scenario_from_dict({**BASE, "wall": wall})
@@ -90,7 +90,7 @@ def test_every_built_in_scenario_is_within_its_stability_limit():
             assert e["stiffness"] <= 0.02 * e["limit"], (name, e["what"])
 
 
-# -- item 2: resource limits up front ---------------------------------------------------------
+# -- resource limits up front ---------------------------------------------------------
 
 
 @pytest.mark.parametrize("extra", [{"duration_s": 1e9}, {"dt_s": 1e-300}])
@@ -105,7 +105,7 @@ def test_the_simulator_refuses_a_run_too_long_itself():
         simulate_teleop(sc)
 
 
-# -- item 3: infinite virtual walls, non-numeric measurements ---------------------------------
+# -- infinite virtual walls, non-numeric measurements ---------------------------------
 
 
 @pytest.mark.parametrize("kw, match", [
@@ -132,7 +132,7 @@ def test_non_numeric_measurements_name_the_field(field):
         ctrl.compute(0.0, TeleopMeasurement(**good))
 
 
-# -- item 4: every loader mistake is one quatform error naming the key -------------------------
+# -- every loader mistake is one quatform error naming the key -------------------------
 
 
 @pytest.mark.parametrize("data, match", [
@@ -179,7 +179,7 @@ def test_loader_mistakes_are_one_quatform_error_naming_the_key(data, match):
     assert str(exc.value).startswith("my.toml: ") and "\n" not in str(exc.value)
 
 
-# -- item 5: held at the lock; torque chatter and the errors after the hold ------------------
+# -- held at the lock; torque chatter and the errors after the hold ------------------
 
 
 @pytest.fixture(scope="module")
@@ -209,7 +209,7 @@ def test_chatter_and_hold_windows_are_what_the_docs_say():
     assert [settled_since(sc, t) for t in (1.0, 3.0, 6.0)] == [1.0, 1.5, 4.5]
 
 
-# -- item 8: the RPY plot draws wrapped differences; titles name the paper --------------------
+# -- the RPY plot draws wrapped differences; titles name the paper --------------------
 
 
 def test_rpy_plot_traces_do_not_draw_the_wrap_at_180_as_an_error():
@@ -232,7 +232,7 @@ def test_plot_titles_name_the_paper(tmp_path):
     assert len(write_teleop_plots(run, tmp_path)) == 3
 
 
-# -- item 7: what the docs now say, measured --------------------------------------------------
+# -- what the docs say, measured --------------------------------------------------
 
 
 def test_euler_parameter_moment_is_k_over_4_sin_theta_zero_at_180_deg():
@@ -286,7 +286,7 @@ def test_docs_no_longer_claim_more_than_the_runs_show():
     assert "The RPY law gets the same small-angle stiffness and damping as the Euler-parameter law," not in der
 
 
-# -- item 6: the virtual wall is a spring; the metrics say how far in and what it holds -------
+# -- the virtual wall is a spring; the metrics say how far in and what it holds -------
 
 
 def test_virtual_wall_metrics_report_the_zone_entered_and_the_force_held():
@@ -321,7 +321,7 @@ def test_the_cli_answers_bad_teleop_files_with_one_line(tmp_path, capsys, body, 
 
 
 def test_peak_orientation_error_is_not_the_shared_lag():
-    """Issue 12 §4: in teleop-pitch-through-90 the whole-run peak is the 0.025 rad lag of the
+    """In teleop-pitch-through-90 the whole-run peak is the 0.025 rad lag of the
     moving hand for both laws; ``peak_orientation_error_rad`` is taken where the motion rests
     (the holds), so it shows the RPY law's error and not the lag."""
     sc = load_scenario("teleop-pitch-through-90")
@@ -331,7 +331,7 @@ def test_peak_orientation_error_is_not_the_shared_lag():
     assert ep["peak_orientation_error_rad"] == pytest.approx(max(ep["hold_peak_orientation_error_rad"]))
 
 
-# -- fixc item 1: physically impossible measurements are refused, naming the field -----------
+# -- physically impossible measurements are refused, naming the field -----------
 
 
 @pytest.mark.parametrize("field, entry, value, match", [
@@ -343,7 +343,7 @@ def test_peak_orientation_error_is_not_the_shared_lag():
     ("F_s", 4, 1e4, r"measurement F_s\[4\] = 10000 N m is beyond \+-870 N m.*MAX_WRIST_MOMENT"),
 ])
 def test_impossible_measurements_are_refused_not_saturated(field, entry, value, match):
-    """q_m = 1e300 used to give saturated torques; now one line naming the field and value."""
+    """q_m = 1e300 gets one line naming the field and value, not saturated torques."""
     sc = load_scenario("teleop-free-motion")
     ctrl = sc.controller()
     good = {"q_m": np.array(sc.q_m0), "qd_m": np.zeros(6), "q_s": np.array(sc.q_s0), "qd_s": np.zeros(7),
@@ -371,7 +371,7 @@ def test_measurements_within_each_bound_are_accepted():
         _measured(np.r_[np.inf, 0.0, 0.0, 0.0, 0.0, 0.0], "qd_m", 6)
 
 
-# -- fixc item 2: near pitch +-90 deg roll and yaw are undefined: shaded, not drawn as errors --
+# -- near pitch +-90 deg roll and yaw are undefined: shaded, not drawn as errors --
 
 
 def test_orientation_plot_masks_roll_yaw_and_their_difference_in_gimbal_lock():
@@ -388,7 +388,7 @@ def test_orientation_plot_masks_roll_yaw_and_their_difference_in_gimbal_lock():
     tr = _orientation_traces(r_m, r_s, angle)
     rpy_m, rpy_s = rpy_from_q(r_m), rpy_from_q(r_s)
     raw = np.linalg.norm((rpy_s - rpy_m + np.pi) % (2 * np.pi) - np.pi, axis=1)
-    assert raw.max() > 3.0  # what the old figure drew
+    assert raw.max() > 3.0  # what a plot of raw wrapped differences draws
     near = np.maximum(np.abs(rpy_m[:, 1]), np.abs(rpy_s[:, 1])) >= np.radians(90.0 - GIMBAL_LOCK_DEG - 1e-9)
     np.testing.assert_array_equal(tr.lock, near)
     assert tr.lock.any() and not tr.lock.all()

@@ -1,5 +1,5 @@
-"""Issue 12, the UGV-UAV formation of Marciano 2021 (seed 001), kinematic side: each item
-of the hardening brief has its own test here."""
+"""The UGV-UAV formation of Marciano 2021 (seed 001), kinematic side: the loader, the
+restricted Jacobian, the law's Lyapunov function, unreachable references and the metrics."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from quatform.scenarios import load_scenario
 from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics, ugv_uav_scenario_from_dict
 
 
-# -- item 7: the UGV-UAV layouts carry their name ------------------------------------------------
+# -- the UGV-UAV layouts carry their name ------------------------------------------------
 
 def test_ugv_uav_layout_names_are_not_the_generic_ones():
     assert control.UGV_UAV_MEASURED_NAMES[:3] == ("x_p", "y_p", "psi_p")
@@ -28,7 +28,7 @@ def test_ugv_uav_layout_names_are_not_the_generic_ones():
     assert "UGV_UAV_COMMAND_NAMES" in control.__all__ and "COMMAND_NAMES" not in control.__all__
 
 
-# -- items 3 and 5: the scenario loader ------------------------------------------------------------
+# -- the scenario loader -------------------------------------------------------------------------
 
 
 BASE = {"kind": "ugv-uav", "name": "t", "path": "circle", "r_x": 1.0, "r_y": 1.0, "omega": 0.2, "d_c": 1.5,
@@ -104,12 +104,12 @@ def test_huge_duration_is_refused_up_front_naming_the_key():
         simulate_ugv_uav(dataclasses.replace(_load(), mocap_noise_m=float("nan")))
 
 
-# -- item 1: the restricted description refuses what it cannot express ------------------------------
+# -- the restricted description refuses what it cannot express ------------------------------
 
 
 def test_restricted_refuses_the_uav_below_the_platform_single_and_batch():
     F = UgvUavRestricted()
-    below = np.array([0.0, 0.0, 0.0, 0.0, 0.3, -0.966])  # the issue's state
+    below = np.array([0.0, 0.0, 0.0, 0.0, 0.3, -0.966])  # 0.966 m below the platform
     with pytest.raises(UnreachableError, match=r"z_b - z_p = -0.966 m: the UAV is below the platform.*quaternion"):
         F.forward(below)
     above = below * np.array([1, 1, 1, 1, 1, -1])
@@ -161,7 +161,7 @@ def test_restricted_run_reports_the_take_off_from_below_the_platform():
     assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
 
 
-# -- item 2: a designed switch of the reference is not a loss ---------------------------------------
+# -- a designed switch of the reference is not a loss ---------------------------------------
 
 def test_front_to_over_switch_is_not_a_lost_reference():
     # the §5.3 scenario with its switch 35 s earlier (at 25 s, after the 20 s take-off)
@@ -173,7 +173,7 @@ def test_front_to_over_switch_is_not_a_lost_reference():
     assert m["max_uav_position_error_m"] <= 0.4
 
 
-# -- item 4: motion-capture dropouts and glitches ---------------------------------------------------
+# -- motion-capture dropouts and glitches ---------------------------------------------------
 
 def _overhead_reference():
     F = UgvUavQuaternion()
@@ -269,7 +269,7 @@ def test_huge_positions_are_refused_not_overflowed(F):
         assert np.all(np.isfinite(F.forward(ok)))
 
 
-# -- item 6: plots ---------------------------------------------------------------------------------
+# -- plots ---------------------------------------------------------------------------------
 
 
 def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():
@@ -298,7 +298,7 @@ def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, t
         assert sum(len(ax.lines) for ax in fig.axes) >= 4  # axes with data, not a text-only figure
 
 
-# -- reviewer findings (brief fixb) ----------------------------------------------------------------
+# -- the loader's metrics window, and what the law's Lyapunov function reads --------------------------
 
 
 @pytest.mark.parametrize("transient", [25.0, 40.0, 24.995])

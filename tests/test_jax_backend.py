@@ -1,4 +1,4 @@
-"""The jax compute backend (issue 15 item 3): the same closed loop as NumPy, within 1e-9.
+"""The jax compute backend: the same closed loop as NumPy, within 1e-9.
 
 Each test runs a short piece of a built-in pair scenario on both backends (one world and
 batches, perfect and TickMeasurement measurement) and compares every channel of the logs;

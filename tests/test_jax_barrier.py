@@ -1,4 +1,4 @@
-"""The separation barrier's programme solved on JAX (issue 15, :mod:`quatform.sim.jax_barrier`).
+"""The separation barrier's programme solved on JAX (:mod:`quatform.sim.jax_barrier`).
 
 Team runs whose barrier binds tick after tick (robots that start in each other's slots and
 cross) give NumPy's channels within 1e-9 on JAX, no world rerun on NumPy; a world whose

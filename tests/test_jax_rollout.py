@@ -1,4 +1,4 @@
-"""Batches on the jax backend (issue 15 items 2-3): TickMeasurement, failed worlds, progress,
+"""Batches on the jax backend: TickMeasurement, failed worlds, progress,
 and the reduced rollout of a Monte Carlo (:func:`quatform.sim.jax_rollout.rollout_metrics`),
 each equal to NumPy within 1e-9.
 """

@@ -1,4 +1,4 @@
-"""The team kind on the jax compute backend (issue 15 item 3 with issue 14's teams).
+"""The team kind on the jax compute backend.
 
 Short pieces of the built-in team scenarios run on NumPy and on JAX (batches with
 TickMeasurement noise, latency and dropped frames; one world) and every logged channel is

@@ -1,4 +1,4 @@
-"""The team kind's Pioneer and free-body robots on the jax backend (issue 15 item 3 with issue 14's teams).
+"""The team kind's Pioneer and free-body robots on the jax backend.
 
 ``team-triangle-over-ugv`` (a Pioneer offering ``xy_yaw``, three quadrotors, each robot
 saturated on its own) under its four controllers, with its shape move (robot 2 over the UGV)

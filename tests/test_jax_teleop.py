@@ -1,4 +1,4 @@
-"""The teleop kind on the jax compute backend (issue 15 item 3 with seed 003's teleoperator).
+"""The teleop kind on the jax compute backend (seed 003's teleoperator).
 
 Each built-in teleop scenario with both orientation errors runs on NumPy and on JAX, cut to
 a length that keeps its event (the hand's motion, the slave's contact with the wall, the

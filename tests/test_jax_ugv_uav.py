@@ -1,4 +1,4 @@
-"""The ugv-uav kind (seed 001 §5) on the JAX backend equals NumPy within 1e-9 (issue 15 item 3)."""
+"""The ugv-uav kind (seed 001 §5) on the JAX backend equals NumPy within 1e-9."""
 
 import dataclasses
 import math

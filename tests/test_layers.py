@@ -1,4 +1,4 @@
-"""Layers one way, no private reach-ins (issue 13 item 8), checked on the source text.
+"""Layers one way, no private reach-ins, checked on the source text.
 
 Every ``from ... import ...`` of quatform (at module level or inside a function) must go to
 the same package or a lower layer, and nothing may import an underscored module or name of

@@ -1,4 +1,4 @@
-"""Issue 7, the physical models: MJCF numbers, the quadrotor's cascade and mixer, the
+"""The physical models: MJCF numbers, the quadrotor's cascade and mixer, the
 differential drive, and the identification of seed 001 eq. (3.11) from the simulation."""
 
 from __future__ import annotations
@@ -116,7 +116,7 @@ def test_yaw_rate_step_from_hover_is_followed():
 
 
 def test_attitude_mode_yaw_reversal():
-    """Bebop-like u_psi +1 then -1: the rate follows to -2 rad/s (it used to stay at +2)."""
+    """Bebop-like u_psi +1 then -1: the rate follows to -2 rad/s (it does not stay at +2)."""
     w = PhysicsWorld(quads=[("q", (0, 0, 2), 0.0)], quad_mode="attitude")
     w.command_quad("q", [0.0, 0.0, 0.0, 1.0])
     w.step(800)
@@ -369,7 +369,7 @@ def test_a_gl_import_failure_is_not_reported_as_mujoco_missing():
 
 
 def _reference_loop(world, n_steps):
-    """The per-vehicle physics loop written plainly (issue 7's): per vehicle and step, its
+    """The per-vehicle physics loop written plainly: per vehicle and step, its
     rotation from ``mju_quat2Mat``, the public ``velocity_mode`` / ``attitude_mode`` and
     ``rotor_drag``, its own motor and drag assignments, then ``mj_step``."""
     m, d = world.model, world.data

@@ -1,4 +1,4 @@
-"""Issue 7: MuJoCo is optional. quatform imports, and every kinematic feature works,
+"""MuJoCo is optional. quatform imports, and every kinematic feature works,
 without it; asking for the physics backend then fails with a message naming the extra.
 (This file needs no MuJoCo: it hides it from a fresh interpreter.)"""
 

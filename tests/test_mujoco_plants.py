@@ -1,4 +1,4 @@
-"""Issue 13: the MuJoCo worlds are plants of the one loop, quatform.sim.simulate."""
+"""The MuJoCo worlds are plants of the one loop, quatform.sim.simulate."""
 
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def test_ugv_uav_plant_starts_on_its_skids_and_carries_the_identified_model():
 
 
 def test_ugv_uav_plant_under_the_seed_001_controller_through_simulate():
-    """The seed 001 controller (on the contract since issue 13) flies the physics plant in the
+    """The seed 001 controller (on the controller contract) flies the physics plant in the
     one loop: the UAV takes off from the floor towards its place over the UGV, nothing collides."""
     import dataclasses
 

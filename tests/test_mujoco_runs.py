@@ -1,4 +1,4 @@
-"""Issue 7, closed loop on physics: seed 000's controllers fly two quadrotors, seed 001's
+"""Closed loop on physics: seed 000's controllers fly two quadrotors, seed 001's
 controller drives a UGV and a quadrotor, collisions are reported, pictures are drawn."""
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ def test_robots_driven_into_each_other_report_the_collision():
 
 def test_ugv_and_quadrotor_hold_the_formation_with_identified_compensation():
     """Seed 001 §5.1 (circle), shortened: the take-off transient (20 s) and a few seconds
-    of the formation; the bounds are issue 4's (UGV 0.1 m, UAV 0.2 m)."""
+    of the formation; the bounds are the kinematic runs' (UGV 0.1 m, UAV 0.2 m)."""
     sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=24.0)
     exp = mujoco_experiment(sc, "quaternion")
     run = exp.run()

@@ -1,4 +1,4 @@
-"""Issue 14 item 8: the MuJoCo backend runs N quadrotors and ground robots, the quadrotors'
+"""The MuJoCo backend runs N quadrotors and ground robots, the quadrotors'
 cascades evaluated together (robots.physics.QuadrotorCascades, sim.plants.mujoco_team)."""
 
 from __future__ import annotations

@@ -83,7 +83,7 @@ def test_metrics_of_a_batch_are_taken_one_world_at_a_time():
     assert compute_metrics(log.world(1))["scenario"] == "mas-kitts-spiral"
 
 
-#: Values of today's main (tools/metrics_regression.py baseline, `quatform run`).
+#: Recorded values (tools/metrics_regression.py baseline, `quatform run`).
 _BASELINE = {
     ("mas-kitts-spiral", "cluster-space", 28.0): {  # the run is causal: its first 28 s are the full run's
         "first_singular_time_s": 27.44, "first_lost_time_s": 27.61},
@@ -115,7 +115,7 @@ _DQ = ",".join(f"qhat_{s}_{p}{c},qhat_{s}_{p}{c}_des" for s in "cs" for p in "rd
 
 
 @pytest.mark.parametrize(("controller", "header"), [
-    ("robot-space", f"{_ROBOTS},{_EUCLID},{_TAIL}"),  # today's yaw-step robot-space timeseries.csv
+    ("robot-space", f"{_ROBOTS},{_EUCLID},{_TAIL}"),  # the recorded yaw-step robot-space timeseries.csv
     ("dual-quaternion", f"{_ROBOTS},{_DQ},{_EUCLID},{_TAIL}"),
 ])
 def test_the_csv_header_is_todays(controller, header):

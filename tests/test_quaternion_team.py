@@ -1,4 +1,4 @@
-"""QuaternionTeam (issue 14 items 2-5, 10): seed 000 §3.2 for N robots of any point kinds.
+"""QuaternionTeam: seed 000 §3.2 for N robots of any point kinds.
 
 The formation contract (``formations.testing.check_formation``) for N = 2, 3, 4, 10 and a
 mixed layout; N = 2 against :class:`QuaternionPair` (maps and the seed's spiral and helix
@@ -48,7 +48,7 @@ def test_contract(key, seed):
 class _GroundSampled(QuaternionTeam):
     """QuaternionTeam whose random states put planar robots on the ground before pushing robots
     apart (Formation.sample_robot_state pushes them apart in 3-D and then drops the planar z, so
-    two ground robots can land within the contract test's 0.1 m; reported to the lead)."""
+    two ground robots can land within the contract test's 0.1 m)."""
 
     def sample_robot_state(self, rng, batch=()):
         batch = (int(batch),) if isinstance(batch, (int, np.integer)) else tuple(batch)
@@ -154,7 +154,7 @@ def test_pair_chart_round_trip_and_rates():
 def test_fit_is_stationary_and_the_shape_residual_has_the_envelope_rate():
     """At c = forward(r, near_c=ref): sum s_des,i x s_i = 0 (the fit's stationarity), so the
     rate of sum |s_i - s_des,i|^2 is 2 sum (s - s_des) . R^T (v_i - mean v), the fit's rate
-    dropping out (docs/derivations.md, "Teams (issue 14): the quaternion team")."""
+    dropping out (docs/derivations.md, "The quaternion team")."""
     T = QuaternionTeam(4, template=TETRAHEDRON)
     rng = np.random.default_rng(8)
     r = T.sample_robot_state(rng, (30,))

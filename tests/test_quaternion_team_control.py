@@ -1,4 +1,4 @@
-"""The quaternion team's controller (issue 14 items 4-5): TeamController(QuaternionTeam).
+"""The quaternion team's controller: TeamController(QuaternionTeam).
 
 Seed 000 eq. (21) summed over the law groups along closed-loop runs from random starts
 (where it falls, and where it need not: yaw-only robots in tilted formations), batch equals
@@ -22,7 +22,7 @@ def _tangent(c, w, blocks):
     return w
 
 
-# -- the team controller (item 5) ---------------------------------------------------------------------
+# -- the team controller ---------------------------------------------------------------------
 
 def _closed_loop(N, gains, seed, steps, dt, batch=24):
     from quatform.control import Reference

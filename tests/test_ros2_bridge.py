@@ -84,7 +84,7 @@ def test_ned_frd_conversions_are_the_same_rotation(q, v, w):
     np.testing.assert_allclose(frames.enu_from_ned(frames.ned_from_enu(w)), w, atol=0)
 
 
-#: Independent constructions (review finding 17): the axes of NED in ENU coordinates (north = ENU y,
+#: Independent constructions: the axes of NED in ENU coordinates (north = ENU y,
 #: east = ENU x, down = -ENU z) and of FRD in FLU ones (forward, right = -left, down = -up), as matrices.
 M_NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 M_FRD_FLU = np.diag([1.0, -1.0, -1.0])

@@ -40,7 +40,7 @@ def test_replay_at_pose_times_gives_the_simulations_commands(pair_bag, tmp_path)
     m = json.loads((out / "metrics.json").read_text())
     assert m["ticks"] == m["ok_ticks"] == len(log.t) and m["stale_ticks"] == 0 and m["nonfinite_commands"] == 0
     assert m["poses"] == {"r1": len(log.t), "r2": len(log.t)} and m["controller"] == "quaternion"
-    # review finding 8: the tracking error leaves out the identity's scalar parts (1 at zero error)
+    # the tracking error leaves out the identity's scalar parts (1 at zero error)
     names = pair_bag["exp"].controller.signal_columns()["error"]
     vec = [j for j, n in enumerate(names) if not n.endswith("_w")]
     want = np.abs(log["error"][:, vec]).max(axis=0)
@@ -117,7 +117,7 @@ def test_bad_bags_are_one_line(pair_bag, tmp_path, capsys):
     assert "/vrpn_client_node/r2/pose" in err and "message 6 (counted from 0)" in err and "--stamps log" in err
     assert len(read_bag_poses(swapped, rf, "log").times_ns[1]) == len(ns)  # by receive time it reads
     _same_refusal_as_read_poses(swapped, rf.robots[1].pose_topic, "message 6 ")
-    # review finding 9: stamps that never change (a publisher that does not stamp) tick once: refused
+    # stamps that never change (a publisher that does not stamp) tick once: refused
     frozen = H.pose_messages([(_positions(msgs[1]), _quaternions(msgs[1]))], np.full(len(ns), 0.25))[0]
     still = H.write_bag(tmp_path / "still", [
         (rf.robots[0].pose_topic, "geometry_msgs/msg/PoseStamped", list(zip(ns, msgs[0]))),
@@ -148,7 +148,7 @@ def _quaternions(msgs):
 
 
 def _same_refusal_as_read_poses(bag, topic, needle):
-    """quatform.bags.read_poses refuses the bag too, naming the same message (review finding 16)."""
+    """quatform.bags.read_poses refuses the bag too, naming the same message."""
     from quatform.bags import read_poses
 
     with pytest.raises(InvalidInputError, match="do not increase") as info:
@@ -246,8 +246,8 @@ def epoch_replay(tmp_path_factory):
 
 
 def test_commands_csv_of_a_wall_clock_bag_keeps_every_stamp(epoch_replay):
-    """commands.csv's t was written with 9 significant digits: 80 s at 1.7e9 s gave 9 distinct
-    values. Each row's t now reads, as a decimal, the pose stamp of its tick to the nanosecond."""
+    """commands.csv's t is not written with 9 significant digits (80 s at 1.7e9 s would give 9
+    distinct values): each row's t reads, as a decimal, the pose stamp of its tick to the nanosecond."""
     lines = (epoch_replay["out"] / "commands.csv").read_text().splitlines()
     head = lines[0].split(",")
     rows = [line.split(",") for line in lines[1:]]

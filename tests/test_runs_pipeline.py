@@ -1,4 +1,4 @@
-"""The generic run / compare / CLI pipeline over a scenario kind (issue 13 items 5, 6): a small
+"""The generic run / compare / CLI pipeline over a scenario kind: a small
 fake kind (one integrator, a proportional law) registered in KINDS and FIGURES drives
 quatform.runs and quatform.cli exactly as the real kinds do."""
 

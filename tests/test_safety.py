@@ -1,4 +1,4 @@
-"""Issue 14 item 6: the separation barrier certificates (Wang, Ames, Egerstedt 2017) and SafeController."""
+"""The separation barrier certificates (Wang, Ames, Egerstedt 2017) and SafeController."""
 
 from __future__ import annotations
 

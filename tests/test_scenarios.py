@@ -1,4 +1,4 @@
-"""Seed 000's experiments, closed loop: what issue 3 says must be true of each controller."""
+"""Seed 000's experiments, closed loop: what must be true of each controller."""
 
 from __future__ import annotations
 
@@ -113,7 +113,7 @@ def test_monitoring_agrees_with_eqs_1_8_below_the_vertical(spiral):
 
 def test_reference_wound_by_2pi_is_not_a_manoeuvre(tmp_path):
     """phi_1 stepped by 2 pi: the same formation. No controller may move (the dual-quaternion
-    one reads the yaws' branch from c_des itself since issue 12)."""
+    one reads the yaws' branch from c_des itself)."""
     f = tmp_path / "wind.toml"
     f.write_text('name = "wind"\nduration_s = 3.0\nmetrics_from_s = 0.0\n[path]\nd_c = 1.0\n'
                  'center = [0, 0, 1]\n[[path.steps]]\nvariable = "phi_1"\ntime_s = 1.0\n'

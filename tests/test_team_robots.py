@@ -1,4 +1,4 @@
-"""Issue 14 robots: the planar holonomic robot, the 6-DOF free body, the Pioneer's planar point
+"""Team robots: the planar holonomic robot, the 6-DOF free body, the Pioneer's planar point
 and the vectorised Team (one model call per group of equal robots)."""
 
 from __future__ import annotations

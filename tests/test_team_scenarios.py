@@ -1,4 +1,4 @@
-"""The team scenario kind (issue 14 items 7, 9, 10): motions, loader, runs, metrics, figures, CLI."""
+"""The team scenario kind: motions, loader, runs, metrics, figures, CLI."""
 
 from __future__ import annotations
 
@@ -405,7 +405,7 @@ def test_the_team_metrics_of_a_pair_run_are_the_pair_metrics():
 
 def test_the_singular_threshold_is_the_pairs_for_two_robots_and_scales_with_the_team():
     """A flat ring of 10 read 0.0135 under the Euclidean team away from any singular pose, below
-    the pair's 0.02, so every run was 'singular from t = 0' (review finding)."""
+    the pair's 0.02, so every run would read 'singular from t = 0' with the pair's threshold."""
     from quatform.sim.metrics import SINGULAR_THRESHOLD
     from quatform.sim.team_metrics import singular_threshold
 

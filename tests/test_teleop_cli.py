@@ -76,7 +76,7 @@ def test_teleop_help_and_errors(tmp_path, capsys):
 
 
 def test_run_runs_a_teleop_scenario_as_the_teleop_alias_does(tmp_path, capsys):
-    """Issue 13: 'quatform run' runs every kind; 'quatform teleop' is the same run."""
+    """'quatform run' runs every kind; 'quatform teleop' is the same run."""
     f = tmp_path / "short.toml"
     f.write_text(SHORT)
     runs = {}

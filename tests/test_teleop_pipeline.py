@@ -1,6 +1,6 @@
-"""Seed 003 through the one pipeline (issue 13): controller contract, arms, plant, teleop kind.
+"""Seed 003 through the one pipeline: controller contract, arms, plant, teleop kind.
 
-The numbers hard-coded here are today's (main before issue 13): the README example's torques
+The numbers hard-coded here are the recorded reference values: the README example's torques
 and metrics of ``/work/baseline_kin.json`` (``teleop-free-motion``, Euler parameters, no
 preload), so a change of the loop, the plant or the metrics that moves them fails.
 """
@@ -35,7 +35,7 @@ from quatform.teleop import (
 Q_M0 = np.array([0.0, 0.3, -0.4, 0.2, 0.3, 0.0])
 Q_S0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
 
-#: Today's header of timeseries.csv (``teleop_timeseries`` before issue 13).
+#: The header of a teleop run's timeseries.csv, as recorded.
 TODAY_CSV_HEADER = (
     ["t"] + [f"{n}_{c}" for n in ("p_m", "p_s") for c in "xyz"] + [f"e_{i}" for i in range(1, 7)]
     + [f"{n}_{c}" for n in ("F_s", "F_hand") for c in "xyz"] + ["angle"]
@@ -154,7 +154,7 @@ def free_motion():
 
 
 def test_a_run_through_simulate_has_todays_metrics(free_motion):
-    """teleop-free-motion/euler-parameters/off of /work/baseline_kin.json (main before issue 13)."""
+    """teleop-free-motion/euler-parameters/off of /work/baseline_kin.json (the recorded reference run)."""
     _, _, m = free_motion
     today = {"final_hand_force_n": 5.066804047457083, "final_position_error_m": 1.3178620379559999e-06,
              "final_orientation_error_rad": 3.4510378943519555e-05, "peak_orientation_error_rad": 0.01630900076235892,

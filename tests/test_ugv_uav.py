@@ -74,7 +74,7 @@ def test_quaternion_opposite_to_the_hint_and_the_seed_convention_near_minus_x():
 def test_restricted_refuses_the_platform_level_front_configuration():
     F = UgvUavRestricted()
     front = np.array([0.0, 0.0, 0.0, 0.0, 0.75, 0.0])  # UAV ahead at platform level
-    with pytest.raises(UnreachableError, match="beta_f = 90.0 deg"):  # issue 12: forward refuses it too
+    with pytest.raises(UnreachableError, match="beta_f = 90.0 deg"):  # forward refuses it too
         F.forward(front)
     c = np.array([0.0, 0.0, 0.0, 0.75, 0.0, math.pi / 2])  # what (4.13)-(4.18) give there
     with pytest.raises(UnreachableError, match="beta_f = 90.0 deg"):

@@ -1,6 +1,6 @@
 """The seed 001 runs through the one pipeline: the ``ugv-uav`` scenario kind builds an
 Experiment that :func:`quatform.sim.simulate` runs (plant, motion capture, controller,
-reference), and the metrics, the time series and the figures read its Log (issue 13)."""
+reference), and the metrics, the time series and the figures read its Log."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from quatform.sim.log import Log
 from quatform.sim.measurement import LatencyHistory, MotionCapture
 from quatform.sim.plants.ugv_uav import PioneerBebopPlant
 
-#: Today's timeseries.csv header of a quaternion run (main before issue 13).
+#: The timeseries.csv header of a quaternion run, as recorded.
 QUATERNION_HEADER = (
     "t,x_p,x_p_des,y_p,y_p_des,z_p,z_p_des,x_b,x_b_des,y_b,y_b_des,z_b,z_b_des,psi_p,psi_b,psi_b_des,x_c,x_c_des,"
     "y_c,y_c_des,z_c,z_c_des,q_c_w,q_c_w_des,q_c_x,q_c_x_des,q_c_y,q_c_y_des,q_c_z,q_c_z_des,d_c_x,d_c_x_des,"

@@ -1,4 +1,4 @@
-"""Seed 001's experiments in closed loop: what issue 4 says must be true (quaternion), and
+"""Seed 001's experiments in closed loop: what must be true (quaternion), and
 what the Euclidean descriptions do at their singular or unreachable configurations."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from quatform.formations import UgvUavQuaternion
 from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 from quatform.scenarios import load_scenario
 
-LIMITS = {  # issue 4: (cluster / UGV, UAV) after the transient
+LIMITS = {  # (cluster / UGV, UAV) after the transient
     "marciano-circle": (0.1, 0.2),
     "marciano-lemniscate": (0.15, 0.2),
     "marciano-front-to-over": (0.05, 0.4),
@@ -75,7 +75,7 @@ def test_restricted_cannot_fly_ahead_at_platform_level():
     m = ugv_uav_metrics(run)
     assert m["unreachable_reference"] and m["first_unreachable_time_s"] == 0.0
     assert "outside the restricted" in m["unreachable_message"]
-    # issue 12: the run goes on; the robots wait (brake) while the reference is outside the
+    # the run goes on; the robots wait (brake) while the reference is outside the
     # description and join the formation once it is inside (the §5.3 switch at 60 s)
     assert len(run.t) == int(sc.duration_s / 0.03) + 1
     assert m["unreachable_reference_s"] == pytest.approx(60.0, abs=1.0)

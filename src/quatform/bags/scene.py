@@ -457,7 +457,7 @@ def _team_edges(p: np.ndarray, origin) -> np.ndarray:
 
 
 def team_scene(log) -> Scene:
-    """Issue 14's team: the robots' points (``points``, ``r_des``) read with the run's layout."""
+    """A team: the robots' points (``points``, ``r_des``) read with the run's layout."""
     layout, team = log.meta.get("layout"), log.meta.get("team")
     if not isinstance(layout, RobotLayout) or team is None:
         raise InvalidInputError("a team log needs meta['layout'] (its RobotLayout) and meta['team'] (its "

@@ -39,7 +39,7 @@ class Reference:
         reported mod 2 pi, or a reference whose yaws are wound by 2 pi, means the same
         formation. No description needs it any more: the dual-quaternion controller reads
         the desired robots from ``c`` itself (the sign of ``qhat_s`` is the branch of the
-        half-way yaw, ``docs/derivations.md``, Hardening (issue 12)) and aligns to those.
+        half-way yaw, ``docs/derivations.md``, "The two-robot formations and controllers (seed 000)") and aligns to those.
     """
 
     c: np.ndarray

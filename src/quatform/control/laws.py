@@ -12,7 +12,7 @@ same numbers.
 * :func:`quaternion_feedback`: seed 000 eq. (20) with the error order corrected (also
   seed 001 eq. (4.45)).
 * :func:`dual_quaternion_feedback`: seed 000 eq. (28) with the error order corrected and
-  the sign rule of issue 12 for the shape's rotation.
+  the sign of the shape's rotation as its branch (``docs/derivations.md``).
 * :class:`BlockLaw`: a per-variable-block feedback (positions, lengths, angles,
   quaternion blocks), each block one of the laws above.
 """
@@ -112,7 +112,7 @@ def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rot
     of 0 read as 0). ``s = sgn(qe_p0)`` (the seed's) where
     the sign of ``qhat`` means nothing (``signed_rotation=True``, the cluster pose); ``s =
     1`` where it is the branch of the half-way yaw (the shape ``qhat_s``: driven to
-    ``+qhat_s_des``; ``docs/derivations.md``, Hardening (issue 12)).
+    ``+qhat_s_des``; ``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
 
     Returns
     -------

@@ -9,7 +9,7 @@ there is no feedback. The rotation of the dual-quaternion shape ``qhat_s`` is th
 exception: its sign is the branch of the half-way yaw (``-qhat_s`` is the formation turned
 half a turn), so it is driven to ``+qhat_s_des`` (``omega_p = -K qe_vec``, no sgn); its
 translation keeps the seed's ``-sgn(qe_p0) K qe_d_vec``, which makes the translation error
-shrink (``docs/derivations.md``, Hardening (issue 12)).
+shrink (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
 
 Both controllers refuse a reference that is no formation of two 4-DOF robots (robots on
 each other, a robot rolled or pitched) before computing anything.
@@ -80,7 +80,7 @@ def dual_quaternion_lyapunov(c, c_des):
 
 def dual_quaternion_law_lyapunov(c, c_des):
     """``sum_k |qhat_e_k - sigma_k|^2 = sum_k (2 (1 - sigma_k p0_k) + |d_k|^2)``, ``k = c, s``: the
-    function the law as implemented decreases (``docs/derivations.md``, Hardening (issue 12)).
+    function the law as implemented decreases (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
 
     ``qhat_e = qhat_des* qhat`` as in eq. (28); ``sigma_c = sgn(p0_c)`` (the sign of ``qhat_c``
     means nothing), ``sigma_s = +1`` (the sign of ``qhat_s`` is the branch). Under the law with
@@ -92,7 +92,7 @@ def dual_quaternion_law_lyapunov(c, c_des):
     ``c`` must be that state: ``DualQuaternionController.compute(t, r, ref).cluster``, eqs.
     (26)-(27) of the robots with their yaws moved by whole turns onto the branch of
     ``c_des`` (each within pi of the desired robot's yaw, the shape's yaw error within
-    3 pi / 2; ``docs/derivations.md``, Hardening (issue 12)). ``DualQuaternionPair.forward(r)``
+    3 pi / 2; ``docs/derivations.md``, "The two-robot formations and controllers (seed 000)"). ``DualQuaternionPair.forward(r)``
     of the robots' own yaws is another lift of the same formation when a yaw has wound a
     turn away, and ``V`` of it need not decrease: from yaw errors of (2.83, -3.02) rad it rises
     in 814 of 1500 steps of 1 ms, while ``V`` of the controller's state falls in every one.

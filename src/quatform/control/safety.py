@@ -35,7 +35,7 @@ so the sampled-time argument below holds for it too. A planar robot's point move
 not such a map (the Bebop with its dynamic compensation) is refused. The maps' ``velocity``
 runs on NumPy and on JAX arrays alike (the jax backend's test whether a pair binds).
 
-Sampled time (``docs/derivations.md``, Teams (issue 14)): for points that move by ``dt v``
+Sampled time (``docs/derivations.md``, "Team robots and the separation barrier"): for points that move by ``dt v``
 over a step, ``h_{k+1} = h_k + 2 dt dp.dv + dt^2 |dv|^2 >= (1 - gamma dt) h_k``, so with
 ``gamma dt <= 1`` every pair that starts at ``h >= 0`` keeps ``h >= 0`` at every sample.
 

@@ -192,7 +192,7 @@ def explicit_stiffness_limit(mass, damping, dt) -> np.ndarray:
     ``2 - dt^2 k/m - dt c/m`` and determinant ``1 - dt c/m``. By the Jury criterion its
     eigenvalues lie inside the unit circle iff ``0 < dt c/m < 2`` and
     ``k dt^2 + 2 c dt < 4 m``, i.e. ``k < (4 m - 2 c dt) / dt^2`` (``docs/derivations.md``,
-    Hardening (issue 12): teleoperation). Rotations likewise, with an inertia (kg m^2), a
+    "Teleoperation (seed 003): walls, gains and limits"). Rotations likewise, with an inertia (kg m^2), a
     stiffness (N m/rad) and a damping (N m s/rad).
 
     Parameters

@@ -14,7 +14,7 @@ itself (``h^2 = +qhat_s``), unique up to sign. So ``(+-qhat_c, qhat_s)`` and
 ``(+-qhat_c k, -qhat_s)`` (``k`` the half turn about the cluster's z axis) are one
 formation, and ``(qhat_c, -qhat_s)`` is that formation turned half a turn about the
 cluster's z axis (the robots swapped): ``inverse(forward(r)) = r`` without a hint
-(``docs/derivations.md``, Hardening (issue 12)).
+(``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
 """
 
 from __future__ import annotations
@@ -263,7 +263,7 @@ class DualQuaternionPair(Formation):
         c = np.concatenate([qc, qs], axis=-1)
         if e_dot is None:
             return c
-        # the dense matrices (not the rate maps) keep the references' rounding of before issue 13
+        # the dense matrices (not the rate maps) keep the rounding the reference runs were recorded with
         r_dot = np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))
         return c, np.einsum("...ij,...j->...i", self.jacobian(r, near_c=c), r_dot)
 

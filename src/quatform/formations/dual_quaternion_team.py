@@ -5,7 +5,7 @@ Formations layer. Robot ``i`` is the unit dual quaternion ``qhat_i = q_i + eps 1
 robots, its own quaternion for ``pose`` robots, 1 for ``xyz`` robots) and its position
 ``p_i`` (a planar robot's ``z`` is 0). The formation's pose is ``qhat_c = pose(q_c, x_c)``:
 the centroid ``x_c`` and a *mean rotation* ``q_c``, the N-robot form of the decoupled root
-of eq. (26) (``docs/derivations.md``, Teams (issue 14): the dual-quaternion team):
+of eq. (26) (``docs/derivations.md``, "The dual-quaternion team"):
 
 * robots with a yaw and no ``pose`` robot: ``q_c = q_yaw(mean of the robots' real yaws)``
   (for two robots the half-way yaw ``(theta_1 + theta_2)/2`` of the pair);
@@ -15,7 +15,7 @@ of eq. (26) (``docs/derivations.md``, Teams (issue 14): the dual-quaternion team
 
 Two shapes:
 
-* ``shape="frame"`` (default, issue 14's definition): ``qhat_ci = qhat_c* qhat_i``, each
+* ``shape="frame"`` (default): ``qhat_ci = qhat_c* qhat_i``, each
   robot's pose in the formation frame; ``c = (qhat_c, qhat_c1, ..., qhat_cN)``. The inverse
   is ``qhat_i = qhat_c qhat_ci``: no root, no branch, so **every block's sign means
   nothing** (all law groups ``pose``) and ``inverse(forward(r)) = r`` always.
@@ -371,7 +371,7 @@ class DualQuaternionTeam(Formation):
             a = _wind(yaws, t)
             # the pair's rule (DualQuaternionPair, pair_kernels.dq_align_yaws) for each k against robot N:
             # a relative-yaw error beyond 3 pi / 2 is taken a turn back (the shape law's unstable
-            # equilibrium at 2 pi stays at least pi / 2 away; docs/derivations.md, Hardening (issue 12))
+            # equilibrium at 2 pi stays at least pi / 2 away; docs/derivations.md, "The two-robot formations and controllers (seed 000)")
             rel = (a[..., :-1] - t[..., :-1]) - (a[..., -1:] - t[..., -1:])
             a = a.copy()
             a[..., :-1] -= _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)

@@ -308,5 +308,5 @@ class RobotSpace(Formation):
         r = E.inverse(e)
         if e_dot is None:
             return r
-        # the dense matrix (not the rate map) keeps the references' rounding of before issue 13
+        # the dense matrix (not the rate map) keeps the rounding the reference runs were recorded with
         return r, np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))

@@ -1,6 +1,6 @@
 """The minimal Euclidean team description: the Santa Clara cluster space for N robots (formations layer).
 
-The baseline whose singular poses the quaternion team descriptions remove (issue 14). It
+The baseline whose singular poses the quaternion team descriptions remove. It
 follows the cluster-space definitions of Kitts & Mas 2009 ("Cluster space specification and
 control of mobile multirobot systems", IEEE/ASME Trans. Mechatronics 14(2): centroid,
 cluster heading, the three-robot shape ``p, q, beta`` measured at robot 1, robot headings
@@ -32,7 +32,7 @@ The chart is minimal (as many variables as the robots' DOF) and therefore singul
 ``gamma_c = +-pi/2`` (``beta_c`` undefined, seed 000 §2), robots 1, 2, 3 collinear (roll
 undefined), a spoke ``k >= 4`` along the formation's z axis (its azimuth undefined) and, as
 a physical limit, coincident robots. Its ``special_sets`` list them;
-``docs/derivations.md`` ("Teams (issue 14): the Euclidean team baseline") derives the maps.
+``docs/derivations.md`` ("The Euclidean team baseline") derives the maps.
 """
 
 from __future__ import annotations

@@ -214,7 +214,7 @@ def dq_forward(r, qch=None, stage=None):
     ``R_z(-th2)(p1 - p2)``. ``qch`` (the rotation part of a hint's ``qhat_c``) sets the sign
     of ``qhat_c``, which means nothing. The sign of ``qhat_s`` is the branch of the
     half-way yaw and is never flipped: ``(qhat_c, -qhat_s)`` is the formation turned half a
-    turn (``docs/derivations.md``, Hardening (issue 12)). ``stage`` (optional, a compiled
+    turn (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)"). ``stage`` (optional, a compiled
     loop's hold, as :func:`quat_forward`'s) maps the yaws' cosines and sines to equal ones
     computed once.
     """
@@ -260,7 +260,7 @@ def dq_align_yaws(r, t1, t2):
     is taken a turn back (the other lift of the same formation): the shape law drives
     ``qhat_s`` to ``+qhat_s_des`` and has its unstable equilibrium at a shape error of
     ``2 pi`` (``qe_s = -1``), which this keeps at least ``pi / 2`` away
-    (``docs/derivations.md``, Hardening (issue 12)).
+    (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
     """
     flt = isinstance(r[3], float) and isinstance(t1, float)
     fl = math.floor if flt else lib(r[3], t1).floor

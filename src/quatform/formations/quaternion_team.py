@@ -13,13 +13,13 @@ The attitude is the rotation of the best-fitting rigid copy of a reference shape
 controller's reference, ``near_c``) or this description's template. For two robots it is
 seed 000's frame, eqs. (10), (14)-(15) with the twist from the hint, exactly
 :class:`~.quaternion_pair.QuaternionPair`'s forward map. The fit makes the shape law
-blind to the attitude's rate (``docs/derivations.md``, "Teams (issue 14): the quaternion
+blind to the attitude's rate (``docs/derivations.md``, "The quaternion
 team"): at a fixed attitude the residual ``sum |s_i - s_des,i|^2`` has the rate ``2 sum (s -
 s_des) . R^T (p_dot - x_c_dot)`` because the fit's stationarity ``sum s_des,i x s_i = 0``
 kills the rotation term.
 
 Rate maps are directional derivatives on ``(..., N, 3)`` and ``(..., M, 4)`` arrays: a
-constant number of NumPy calls whatever N, no dense matrix (issue 14 item 5).
+constant number of NumPy calls whatever N, no dense matrix.
 """
 
 from __future__ import annotations

@@ -230,8 +230,8 @@ def _mul_xp(xp, q, p):
 def _fit_attitude_xp(xp, template, centred, hint):
     """:func:`fit_attitude` on an array namespace whose values cannot be read (JAX under
     ``jax.jit``): every half-turn alternative and the top-eigenvector fallback computed and
-    selected where the projection vanishes (``docs/derivations.md``, Issue 15: the team kind
-    on JAX). ``V w V^T h`` does not depend on the eigenvectors' signs, so another ``eigh``
+    selected where the projection vanishes (``docs/derivations.md``, "The team kind
+    on JAX"). ``V w V^T h`` does not depend on the eigenvectors' signs, so another ``eigh``
     gives the same ``q`` up to rounding."""
     Nm = horn_matrix(template, centred)
     lam, V = xp.linalg.eigh(Nm)

@@ -387,7 +387,7 @@ class UgvUavRestricted(_UgvUav):
         self.check_reachable(c, "reference")
         if e_dot is None:
             return c
-        # the dense matrices (not the rate maps) keep the references' rounding of before issue 13
+        # the dense matrices (not the rate maps) keep the rounding the reference runs were recorded with
         r_dot = np.einsum("...ij,...j->...i", S.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 6))
         return c, np.einsum("...ij,...j->...i", self.jacobian(r), r_dot)
 

@@ -21,7 +21,7 @@ how far it got.
 Between the same ends there may be several geodesics: two robots take the closed-form one
 (:func:`_cone_geodesic`); for three or more the second variation of the discretised path
 energy is checked (:func:`_second_variation`, Morse index theorem) and where it is negative
-the solver restarts and returns the geodesic of lower energy (issue 12: Fig. 4's symmetric
+the solver restarts and returns the geodesic of lower energy (Fig. 4's symmetric
 geodesic is a saddle below alpha ~ 0.425).
 """
 

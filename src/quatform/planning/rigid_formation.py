@@ -20,7 +20,7 @@ and each robot's own rotation, with ``G_i = H_i / 2`` (§3.1).
   with the same ends and end twists, curves of lower energy exist (seed 004 §4 case (b):
   2126.8 J against the cubic's 2409.3 J for a degree-11 polynomial correction; the
   infimum, the straight line's 2105 J, is not attained since the end velocities are
-  prescribed; docs/derivations.md, hardening section).
+  prescribed; docs/derivations.md, "Planning (seeds 002 and 004)").
   The seed leaves an airplane's attitude between the ends to a path-tracking controller;
   quatform gives it the frame that keeps the body x axis on the velocity with no spin
   about it (the rotation-minimising frame, integrated from ``R_i^0``), plus a smooth roll

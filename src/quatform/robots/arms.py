@@ -18,7 +18,7 @@ torques, for :mod:`quatform.sim.plants.teleop`. Each is a
 The arms are torque-commanded by :class:`~quatform.teleop.TeleopController`, which maps a
 task-space error to torques itself (eqs. (14a)/(14b)); a point *rate* does not determine a
 torque, so :meth:`KraftMaster.actuate` / :meth:`PandaSlave.actuate` refuse (see
-``docs/derivations.md``, Pipeline (issue 13): teleoperation).
+``docs/derivations.md``, "Teleoperation runs (seed 003)").
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""6-DOF free body commanded by its world linear and angular velocity (the ``pose`` kind of issue 14).
+"""6-DOF free body commanded by its world linear and angular velocity (the ``pose`` point kind).
 
 Robots layer. State ``(x, y, z, q_w, q_x, q_y, q_z)``: position, m, and the unit quaternion of
 its orientation in the world. Command ``(v_x, v_y, v_z, w_x, w_y, w_z)``: the world-frame

@@ -7,14 +7,14 @@ eq. (3.2); the controller inverts it, eqs. (3.3), (3.5). A step integrates the u
 exactly for a command held over the step. As a robot model (:mod:`quatform.robots.model`)
 it offers a formation its control point at the height ``z`` of its landing platform (point
 kind ``xyz``, the default) or, with ``point_kind = "xy_yaw"``, its control point and heading
-``(x, y, psi)`` as a planar point (issue 14). The heading is then carried in the formation
+``(x, y, psi)`` as a planar point. The heading is then carried in the formation
 but not commanded: the unicycle moves its control point with both of its inputs (eq. (3.5))
 and its heading follows.
 
 For a command held over a step of ``dt`` the control point's mean velocity is
 ``sinc(theta/2) R(psi + theta/2) (v, a omega)``, ``theta = omega dt``, and its inverse is
 closed form (:meth:`Pioneer.mean_point_velocity`, :meth:`Pioneer.commands_from_mean_velocity`;
-``docs/derivations.md``, Teams (issue 14)): what a sampled-time safety filter needs.
+``docs/derivations.md``, "Robot models"): what a sampled-time safety filter needs.
 
 Its actuation, point velocities, limits and step are written once on array components, so
 they run on NumPy and on JAX arrays (under ``jax.jit``, the compute backend's loop) alike
@@ -140,7 +140,7 @@ class Pioneer:
 
         Integrating eq. (3.4) with ``psi(t) = psi + omega t``: the displacement over the step
         is ``dt sinc(theta/2) R(psi + theta/2) (v, a omega)``, ``theta = omega dt``
-        (``docs/derivations.md``, Teams (issue 14)); it tends to :meth:`point_velocity` as
+        (``docs/derivations.md``, "Robot models"); it tends to :meth:`point_velocity` as
         ``dt -> 0``.
 
         Parameters
@@ -168,7 +168,7 @@ class Pioneer:
         The inverse of :meth:`mean_point_velocity`, closed form: with ``(V_f, V_l) =
         R(-psi) mean``, ``tan(theta/2) = V_l / (2 a / dt + V_f)``, ``omega = theta / dt`` and
         ``v = (cos(theta/2) V_f + sin(theta/2) V_l) / sinc(theta/2)``
-        (``docs/derivations.md``, Teams (issue 14)); eq. (3.5) as ``dt -> 0``. Valid while
+        (``docs/derivations.md``, "Robot models"); eq. (3.5) as ``dt -> 0``. Valid while
         ``V_f > -2 a / dt`` (a mean speed far beyond any Pioneer's).
 
         Parameters

@@ -1,4 +1,4 @@
-"""Planar holonomic ground robot (velocity commands in x, y and yaw): the ground kind of issue 14.
+"""Planar holonomic ground robot (velocity commands in x, y and yaw): the team's ground kind.
 
 Robots layer. State ``(x, y, theta)``; command ``(v_x, v_y, omega_z)`` in the world frame,
 held over a step, so the step is exact: the planar analogue of the 4-DOF robot of seed 000

@@ -6,7 +6,7 @@ forward-left-up body frames; PX4's ``/fmu`` topics use north-east-down and forwa
 by pi: ``v_NED = (y, x, -z)`` of ``v_ENU`` (the rotation about ``(1, 1, 0)/sqrt 2``, quaternion
 ``(0, 1/sqrt 2, 1/sqrt 2, 0)``) and ``v_FRD = (x, -y, -z)`` of ``v_FLU`` (about x, quaternion
 ``(0, 1, 0, 0)``), so an orientation ``q`` (body FLU to world ENU) is
-``q_NED_FRD = q_NED_ENU q q_FLU_FRD`` and back (``docs/derivations.md``, Issue 16: ROS 2 bridge).
+``q_NED_FRD = q_NED_ENU q q_FLU_FRD`` and back (``docs/derivations.md``, "The ROS 2 bridge").
 Each converter is its own inverse. Arrays carry leading axes; quaternions ``(w, x, y, z)``.
 """
 

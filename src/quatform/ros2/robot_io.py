@@ -9,7 +9,7 @@ The bridge drives the robots of a scenario's kinematic plant; each robot model h
   the Pioneer's control point a distance ``a`` ahead of the wheel axis (seed 001 §3.1.1,
   Fig. 10), a free body's unit quaternion on the previous one's side;
 * which frame its commands live in (:attr:`RobotIO.natural_frame`): world-frame velocities for
-  the 4-DOF, planar and free-body robots (seed 000 §4.1; issue 14); the Pioneer's ``(v, omega)``
+  the 4-DOF, planar and free-body robots (seed 000 §4.1); the Pioneer's ``(v, omega)``
   (seed 001 eq. (3.1)) and the Bebop's command fractions ``(u_x, u_y, u_z, u_psi)`` (eq. (3.6),
   body frame through eq. (3.10); bebop_autonomy's ``cmd_vel``) in the body frame;
 * how its command becomes a twist ``(linear (3,), angular (3,))`` in the world frame or its
@@ -138,7 +138,7 @@ def _holonomic_body(model, u, state, q):
     return heading_rotate(state[..., 3], u[..., 0:3], inverse=True), _z(u[..., 3])
 
 
-# -- the planar holonomic robot (issue 14): (x, y, theta); commands world (v_x, v_y, omega_z)
+# -- the planar holonomic robot: (x, y, theta); commands world (v_x, v_y, omega_z)
 def _planar_state(model, pose, prev):
     return np.r_[pose.position[0:2], _yaw(pose, None if prev is None else prev[2])]
 
@@ -162,7 +162,7 @@ def _pioneer_body(model, u, state, q):
     return _xy(u[..., 0], 0.0), _z(u[..., 1])
 
 
-# -- the free body (issue 14): (x, y, z, q_w, q_x, q_y, q_z); commands world (v, w)
+# -- the free body: (x, y, z, q_w, q_x, q_y, q_z); commands world (v, w)
 def _free_body_state(model, pose, prev):
     q = np.asarray(pose.quaternion, dtype=float)
     q = q / np.linalg.norm(q)

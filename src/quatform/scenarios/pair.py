@@ -48,7 +48,7 @@ _HINT = "see docs/scenarios.md"
 #: Memory one logged step of a two-robot run may take, bytes: the log's arrays, the loop's
 #: per-step Python lists, the references and the time-series CSV. Measured peak (tracemalloc,
 #: spiral, 2001 steps): 1.4-4.6 kB per step, the quaternion controller the most; 12 kB is
-#: about 2.6 times that (docs/derivations.md, "Hardening (issue 12): two-robot scenarios").
+#: about 2.6 times that (docs/derivations.md, "Two-robot scenarios (seed 000 §4)").
 BYTES_PER_STEP = 12e3
 #: Wall time one step may take, s: measured 0.19-0.46 ms per step of the loop (the
 #: cluster-space controller the slowest) on this project's 2-core machine; 2 ms covers the
@@ -121,8 +121,8 @@ def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
     Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
     (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
     by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
-    largest gain of any controller the scenario can run (``docs/derivations.md``, Hardening
-    (issue 12): two-robot scenario loader)."""
+    largest gain of any controller the scenario can run (``docs/derivations.md``, "The
+    two-robot scenario loader (seed 000)")."""
     k = _largest_gain(where, gains)
     if k * dt_s >= 2.0:
         raise InvalidInputError(
@@ -491,7 +491,7 @@ TABLE_COLUMNS = (
 )
 
 #: Channels of ``timeseries.csv`` in file order; a tuple's channels are interleaved, each value
-#: beside its desired one (``x1, x1_des, y1, ...``: today's header): the robots, the
+#: beside its desired one (``x1, x1_des, y1, ...``: the recorded header): the robots, the
 #: controller's own cluster variables, the Euclidean ones recovered by its description, then
 #: the commands and the singularity measure.
 PAIR_CSV_CHANNELS = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"), "command", "singularity")

@@ -1,4 +1,4 @@
-"""The team scenario kind (issue 14): N robots of any mix in a formation that moves, turns and deforms.
+"""The team scenario kind: N robots of any mix in a formation that moves, turns and deforms.
 
 Scenarios layer (above sim, below report and runs). A file with ``kind = "team"`` states the
 robots (``[[robots]]`` groups: a model, a count, limits), the formation's shape (a template
@@ -636,7 +636,7 @@ def singularity_samples(n_times: int, n_c: int) -> np.ndarray:
 
 
 class TeamKind(ScenarioKind):
-    """N robots of any mix under one of the four team controllers (issue 14)."""
+    """N robots of any mix under one of the four team controllers."""
 
     name = "team"
     scenario_type = TeamScenario
@@ -712,7 +712,7 @@ class TeamKind(ScenarioKind):
             plant = KinematicTeam(team)
         safety = dict(scenario.safety)
         safety["applied"] = bool(safety["enabled"])
-        if safety["applied"]:  # issue 14 item 6: on by default for teams
+        if safety["applied"]:  # the barrier is on by default for teams
             # the barrier's rate gamma at most 1 / dt_s: the sampled-time guarantee h_{k+1} >= (1 - gamma dt) h_k
             gamma = min(SeparationBarrier.gamma, 1.0 / scenario.dt_s)
             ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], gamma=gamma,

@@ -163,7 +163,7 @@ def teleop_metrics(log: Log) -> dict:
       zone the wall maps to in its workspace (through the registration; slave metres). A
       virtual wall is a spring of finite stiffness: the master, and the slave that follows
       it, enter the zone by ``push / stiffness``, and a push above about ``resist_force_n``
-      takes them through its thickness (``docs/derivations.md``, Hardening (issue 12));
+      takes them through its thickness (``docs/derivations.md``, "Teleoperation (seed 003): walls, gains and limits");
     * ``final_hand_force_n``: the hand's force on the master at the end;
     * ``slave_torque_chatter_nm``, ``master_torque_chatter_nm``: the root mean square of the
       torque's change from one cycle to the next, ``sqrt(mean_k |tau[k+1] - tau[k]|^2)``
@@ -271,7 +271,7 @@ def teleop_metrics(log: Log) -> dict:
     return m
 
 
-#: Channels of ``timeseries.csv``, in order (today's columns: ``t``, the registered master's and
+#: Channels of ``timeseries.csv``, in order (the recorded columns: ``t``, the registered master's and
 #: the slave's tool positions, the task error, the wrist force, the hand's force, the angle
 #: between the tools, each arm's joint angle and torque side by side, ``raw_finite``).
 CSV_CHANNELS = ("p_m", "p_s", "e", "F_s", "F_hand", "angle", "master_joints", "slave_joints", "raw_finite")

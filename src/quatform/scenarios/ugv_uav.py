@@ -65,7 +65,7 @@ UGV_UAV_BACKENDS = ("kinematic", "mujoco")
 #: time-series views ``ts_*`` that give ``timeseries.csv`` its columns.
 DERIVED_CHANNELS = ("r_true", "r_des", "r_measured", "c_des", "c_continuous", "e", "e_des", "singularity",
                     "reachable")
-#: Channels of ``timeseries.csv``, in order (with ``t`` first: the columns of today's files).
+#: Channels of ``timeseries.csv``, in order (with ``t`` first: the recorded columns).
 UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity")
 
 #: Columns of the comparison table: (metrics key, header, format). The errors count only the
@@ -300,7 +300,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     # the memory order of these arrays sets the summation order of the metrics' dot products,
     # and their arccos near 1 (orientation error, the turned angle of _cluster_jumps) turns a
     # 1-ulp change of a dot product into ~1e-8 rad, beyond the 1e-9 regression tolerance
-    # (docs/derivations.md, Pipeline (issue 13): UGV-UAV runs)
+    # (docs/derivations.md, "UGV-UAV runs (seed 001)")
     r_true = np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))

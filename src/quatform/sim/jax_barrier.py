@@ -24,7 +24,7 @@ the same velocities to rounding. Here the solver has a fixed size, for a team of
 A world whose check fails (more binding pairs than ``K``, no convergence within the loop's
 bound, an infeasible programme, a limit factor 0) is reported unsolved: the jax loop reruns
 it on NumPy (:mod:`.jax_loop`), so exactness is never traded. ``docs/derivations.md``,
-"Issue 15: the separation barrier on JAX".
+"The separation barrier on JAX".
 """
 
 from __future__ import annotations

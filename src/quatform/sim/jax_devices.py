@@ -17,7 +17,7 @@ arithmetic of each world is that of one device, so the results equal the unshard
 few hundred worlds per device keeps a tick's working set (tens of arrays of the chunk's
 length) in cache and bounds the memory of a large batch; on this project's 2-core machine
 two devices run the helix rollouts 1.4-1.7x the rate of one, and chunks of a few hundred
-worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, issue 15). On an accelerator one call takes the whole batch.
+worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, "JAX"). On an accelerator one call takes the whole batch.
 
 :func:`configure` also keeps JAX's compiled programs on disk (JAX's persistent compilation
 cache) in a folder of this user's (:func:`cache_dir`: ``$QUATFORM_JAX_CACHE``, else

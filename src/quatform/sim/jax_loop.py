@@ -130,7 +130,7 @@ __all__ = [
 
 #: Formation descriptions whose controllers run on JAX (seed 000's pair descriptions).
 JAX_FORMATIONS = (QuaternionPair, DualQuaternionPair, EuclideanPair, RobotSpace)
-#: Team descriptions whose :class:`~quatform.control.team.TeamController` runs on JAX (issue 15).
+#: Team descriptions whose :class:`~quatform.control.team.TeamController` runs on JAX.
 JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotSpaceTeam)
 #: Robot models of a team that runs on JAX (kinematic; a Pioneer offering its state, ``xy_yaw``),
 #: in any mix, with one common limit factor or each robot saturated on its own.

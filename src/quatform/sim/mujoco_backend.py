@@ -157,7 +157,7 @@ def physics_controller_gains(scenario, controller_name: str) -> tuple[dict, str]
     return given, "table2" if _same_gains(given, TABLE2[controller_name]) else "scenario"
 
 
-#: The name issue 7 gave :func:`physics_controller_gains` (callers of the pair kind use it).
+#: Another name of :func:`physics_controller_gains` (callers of the pair kind use it).
 physics_gains = physics_controller_gains
 
 
@@ -276,7 +276,7 @@ CASCADE_MODES = ("auto", "vectorised", "per-vehicle")
 #: costs ~150 us of NumPy calls whatever N, one vehicle on Python floats ~30 us (CPU time
 #: per physics step on this 2-core machine, ``docs/physics.md`` "Teams"): the arrays won
 #: from 6 vehicles on (N = 4: 144 against 175 us; N = 6: 205 against 187 us; N = 10: 320
-#: against 215 us). Since the per-vehicle cascade runs on local floats (session 21) the
+#: against 215 us). With the per-vehicle cascade on local floats the
 #: per-vehicle loop is the faster one up to about 18 vehicles (simulated s per CPU s,
 #: per vehicle / arrays: N = 6: 28.8 / 14.8; N = 10: 18.9 / 13.5; N = 16: 10.5 / 9.8;
 #: N = 20: 8.4 / 8.7); the threshold is kept at 6 so that worlds of 6 or more quadrotors
@@ -626,7 +626,7 @@ class PhysicsWorld:
             self._step_per_vehicle(n)
 
     def _step_per_vehicle(self, n: int):
-        """The quadrotors one after another, on Python floats (issue 7's loop)."""
+        """The quadrotors one after another, on Python floats (the per-vehicle loop)."""
         mj, m, d = self.mj, self.model, self.data
         dt = m.opt.timestep
         quat2mat, mj_step, check = mj.mju_quat2Mat, mj.mj_step, self.contacts.check

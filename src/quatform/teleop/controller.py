@@ -439,7 +439,7 @@ class TeleopController(Controller):
             # Euler-parameter law, whose moment per radian is kp_rot / 4 (delta_eps ~ angle / 2,
             # W ~ R^T / 2); elsewhere the RPY law's is (kp_rot / 4) E^-T E^-1, whose eigenvalues
             # are 1 / (1 + |sin pitch|), 1 and 1 / (1 - |sin pitch|) (x0.53, x1, x9.2 at pitch
-            # -63 deg, unbounded toward +-90 deg; docs/derivations.md, Hardening (issue 12))
+            # -63 deg, unbounded toward +-90 deg; docs/derivations.md, "Teleoperation measurements and the gimbal-lock band")
             kp_m, kv_m, kp_s, kv_s = K["kp_m_rpy"], K["kv_m_rpy"], K["kp_s_rpy"], K["kv_s_rpy"]
         e_dot = J_s @ qd_s - J_m @ qd_m
         tau_m = J_m.T @ (kp_m * e + kv_m * e_dot)  # seed 003 eq. (14a)

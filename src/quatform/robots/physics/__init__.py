@@ -1,4 +1,4 @@
-"""Robots layer, physical models: MJCF descriptions and low-level controllers (issue 7).
+"""Robots layer, physical models: MJCF descriptions and low-level controllers.
 
 Nothing here imports MuJoCo: the models are MJCF text and the low-level controllers are
 NumPy, so they can be read, tested and reused without the optional dependency. The
@@ -7,8 +7,8 @@ physics stepping lives in :mod:`quatform.sim.mujoco_backend` (sim layer).
 * :mod:`.quadrotor` - an IRIS-like quadrotor (PX4 SITL ``iris`` numbers) and its
   cascaded low-level controller (velocity -> acceleration -> attitude and thrust ->
   body rates -> rotor forces), in PX4 velocity mode or Bebop-like attitude mode.
-* :mod:`.cascades` - the cascades of N quadrotors evaluated together on ``(N, ...)`` arrays
-  (issue 14), and the vehicles' rotation matrices from their quaternions.
+* :mod:`.cascades` - the cascades of N quadrotors evaluated together on ``(N, ...)`` arrays,
+  and the vehicles' rotation matrices from their quaternions.
 * :mod:`.ground` - a Pioneer 3-DX-like differential-drive robot driven by ``(v, omega)``.
 * :mod:`.mjcf` - the world: floor, light, robots, integrator options.
 """

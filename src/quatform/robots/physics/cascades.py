@@ -1,4 +1,4 @@
-"""The low-level cascades of N quadrotors evaluated together on ``(N, ...)`` arrays (issue 14).
+"""The low-level cascades of N quadrotors evaluated together on ``(N, ...)`` arrays.
 
 Robots layer (physical models; no MuJoCo import). :class:`QuadrotorCascades` is
 :class:`~quatform.robots.physics.quadrotor.QuadrotorCascade` (PX4-like velocity mode and
@@ -10,8 +10,8 @@ on; :data:`quatform.sim.mujoco_backend.VECTORISED_FROM`). The formulas and their
 are the per-vehicle class's (PX4 ``PositionControl`` and
 ``ControlAllocationSequentialDesaturation``; Lee, Leok & McClamroch 2010 for the attitude
 error): the velocity loop and the mixer operation for operation, the attitude error and the
-rotor drag rewritten in body axes with fewer calls (``docs/derivations.md``, "Teams (issue
-14): MuJoCo teams"); the two agree to rounding (``tests/test_mujoco_team.py``: 1e-12 N on
+rotor drag rewritten in body axes with fewer calls (``docs/derivations.md``, "MuJoCo
+teams"); the two agree to rounding (``tests/test_mujoco_team.py``: 1e-12 N on
 random states).
 
 :func:`rotation_rows` turns the vehicles' unit quaternions ``(w, x, y, z)`` (MuJoCo's

@@ -1,4 +1,4 @@
-"""MuJoCo worlds as plants of :func:`quatform.sim.simulate.simulate` (sim layer, issue 13).
+"""MuJoCo worlds as plants of :func:`quatform.sim.simulate.simulate` (sim layer).
 
 A MuJoCo world is stateful: its ``MjData`` holds positions, velocities, the rotors' filter
 states, contacts and the low-level controllers' integrators, none of which fit in the
@@ -16,8 +16,8 @@ monitor's collisions.
 * :class:`UgvUavPlant` (:func:`ugv_uav_plant`) - a Pioneer-like UGV and an IRIS in
   Bebop-like attitude mode (seed 001 §3): state and output the 11 values the seed 001
   controller reads, commands its 6.
-* :class:`~quatform.sim.plants.mujoco_team.TeamPlant` (:func:`~quatform.sim.plants.mujoco_team.team_plant`,
-  issue 14) - N quadrotors and Pioneers for a ``robots.Team``; the pair plant is its
+* :class:`~quatform.sim.plants.mujoco_team.TeamPlant` (:func:`~quatform.sim.plants.mujoco_team.team_plant`)
+  - N quadrotors and Pioneers for a ``robots.Team``; the pair plant is its
   two-quadrotor case (the same world calls, the same numbers).
 * :func:`physics_metrics` - the keys a physics run adds to ``metrics.json``;
   :func:`physics_record` - the :class:`~quatform.sim.mujoco_backend.PhysicsRecord` of a run

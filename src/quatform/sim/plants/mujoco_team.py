@@ -1,4 +1,4 @@
-"""A MuJoCo world for a team of N robots: a plant of :func:`quatform.sim.simulate.simulate` (sim layer, issue 14).
+"""A MuJoCo world for a team of N robots: a plant of :func:`quatform.sim.simulate.simulate` (sim layer).
 
 :func:`team_plant` makes one physics world for a :class:`~quatform.robots.Team`: each
 :class:`~quatform.robots.HolonomicRobot` (a 4-DOF ``xyz_yaw`` robot) is flown as an
