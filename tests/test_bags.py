@@ -390,7 +390,7 @@ def test_a_quaternion_of_huge_entries_is_refused_without_an_overflow_warning(tmp
     encountered in multiply" on stderr before the one-line refusal."""
     q = np.array([1e200, 0.0, 0.0, 0.0])
     bag = _user_bag(tmp_path / "huge", "mcap", {"/r/pose": ("geometry_msgs/msg/PoseStamped", [(0.0, np.zeros(3), q)])})
-    with pytest.raises(NonUnitError, match="/r/pose message 0 has a quaternion of norm 1e\\+200"):
+    with pytest.raises(NonUnitError, match="/r/pose message 0 has a quaternion of norm inf"):
         read_poses(bag)
 
 

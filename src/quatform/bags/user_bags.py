@@ -196,8 +196,8 @@ def _track(path, topic: str, rows) -> PoseTrack:
         raise InvalidInputError(f"bag {path}: topic {topic} stamps do not increase: message {k} at t = {t[k]:.9f} s "
                                 f"follows t = {t[k - 1]:.9f} s; record with the source's header stamps (a "
                                 "monotonic clock) or sort and de-duplicate the messages")
-    big = np.max(np.abs(q), axis=1)  # the norm taken on q / its largest entry: a damaged 1e200 does not overflow
-    norm = big * np.linalg.norm(q / np.where(big > 0.0, big, 1.0)[:, None], axis=1)
+    with np.errstate(over="ignore"):  # a damaged entry (1e200): an infinite norm, refused below, no warning
+        norm = np.linalg.norm(q, axis=1)
     off = np.flatnonzero(np.abs(norm - 1.0) > UNIT_TOLERANCE)
     if off.size:
         raise NonUnitError(f"bag {path}: topic {topic} message {off[0]} has a quaternion of norm {norm[off[0]]:.6g}; "
