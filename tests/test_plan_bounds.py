@@ -77,6 +77,9 @@ def test_masses_too_far_apart_are_refused_naming_the_key_and_the_ratio(masses):
     with pytest.raises(InvalidInputError, match=r"t\.toml: \[robots\] masses = .* span a factor of .*, beyond "
                                                 r"1e\+06"):
         plan_spec_from_dict(data, where="t.toml")
+    data["robots"]["masses"] = [1.0]  # the file named in the other refusals of the masses too
+    with pytest.raises(InvalidInputError, match=r"t\.toml: \[robots\] masses must be a 1-D array of N >= 2"):
+        plan_spec_from_dict(data, where="t.toml")
     data["robots"]["masses"] = [1e-6, 1.0]  # at the bound (planned in 4 s)
     assert plan_spec_from_dict(data, where="t.toml").masses.tolist() == [1e-6, 1.0]
 

@@ -62,9 +62,9 @@ def check_masses(masses, where: str = "masses") -> np.ndarray:
     :data:`MAX_MASS_RATIO` of each other; ``where`` names them in an error."""
     m = as_array(masses, "masses", None)
     if m.ndim != 1 or m.size < 2:
-        raise ShapeError(f"masses must be a 1-D array of N >= 2 robot masses, got shape {m.shape}")
+        raise ShapeError(f"{where} must be a 1-D array of N >= 2 robot masses, got shape {m.shape}")
     if np.any(m <= 0):
-        raise InvalidInputError(f"masses must be positive, got {m.tolist()}; give each robot's mass in kg")
+        raise InvalidInputError(f"{where} must be positive, got {m.tolist()}; give each robot's mass in kg")
     ratio = float(m.max() / m.min())
     if not ratio <= MAX_MASS_RATIO:
         raise InvalidInputError(f"{where} = {m.tolist()} span a factor of {ratio:.3g}, beyond {MAX_MASS_RATIO:g}: "
