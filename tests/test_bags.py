@@ -384,6 +384,16 @@ def test_read_poses_of_a_users_bag(tmp_path, storage):
         read_poses(bag, ["/chatter"])
 
 
+@pytest.mark.filterwarnings("error")
+def test_a_quaternion_of_huge_entries_is_refused_without_an_overflow_warning(tmp_path):
+    """A damaged pose (a quaternion entry of 1e200) printed numpy's "RuntimeWarning: overflow
+    encountered in multiply" on stderr before the one-line refusal."""
+    q = np.array([1e200, 0.0, 0.0, 0.0])
+    bag = _user_bag(tmp_path / "huge", "mcap", {"/r/pose": ("geometry_msgs/msg/PoseStamped", [(0.0, np.zeros(3), q)])})
+    with pytest.raises(NonUnitError, match="/r/pose message 0 has a quaternion of norm inf"):
+        read_poses(bag)
+
+
 def test_read_poses_refuses_bad_stamps_and_non_unit_quaternions(tmp_path):
     q = np.array([1.0, 0.0, 0.0, 0.0])
     rows = [(0.0, np.zeros(3), q), (0.2, np.zeros(3), q), (0.1, np.zeros(3), q)]

@@ -109,6 +109,21 @@ def test_a_truncated_file_is_one_line(run_mcap):
     check_mcap(run_mcap)  # the file as written passes
 
 
+def test_a_chunk_whose_compressed_bytes_are_damaged_is_one_line(run_mcap):
+    """Bytes of a chunk's zstd data overwritten (the record lengths intact): read_log and
+    read_poses said 'internal error: ZstdError: ... Data corruption detected'."""
+    data = bytearray(run_mcap.read_bytes())
+    chunk, _, n = next(r for r in _records(bytes(data)) if r[1] == 0x06)
+    mid = chunk + 9 + n // 2  # inside the chunk's compressed records
+    data[mid:mid + 64] = bytes(b ^ 0xFF for b in data[mid:mid + 64])
+    bad = run_mcap.with_name("damaged.mcap")
+    bad.write_bytes(bytes(data))
+    for read in (read_log, read_poses):
+        with pytest.raises(InvalidInputError, match=r"bag .*damaged\.mcap is truncated or corrupt \(.*\); copy or "
+                                                    r"record the file again"):
+            read(bad)
+
+
 def test_replay_of_a_corrupt_bag_is_one_line_and_exit_2(run_mcap, tmp_path, capsys):
     bad = _patched(run_mcap, 9, HUGE, "header.mcap")
     robots = tmp_path / "robots.toml"

@@ -134,6 +134,22 @@ def test_cli_min_separation_option(tmp_path, capsys):
     assert len(err) == 1 and "min_separation = -1" in err[0]
 
 
+def test_a_minimum_equal_to_the_robots_separation_is_kept_not_refused(tmp_path):
+    """``min_separation_m = 2 d_c`` (3.77 m, the robots' start and the reference's separation):
+    the scenario's checks pass it, and SafeController refused the start, "robots 1 and 2
+    start 3.77 m apart, closer than min_separation_m = 3.77 m" (their positions, built by
+    trigonometry, are 3.7699999999999996 m apart). The run keeps the distance to rounding."""
+    d = 2 * E[5]
+    sc = load_scenario(scenario_file(tmp_path, f"[safety]\nmin_separation_m = {d}\n"))
+    run = run_pair(sc, "dual-quaternion")
+    assert separation(run["state"]).min() >= d * (1 - 1e-12)
+    C = SafeController(DualQuaternionController(), SeparationBarrier(d + 1e-4))
+    c, cd = C.inner.formation.from_euclidean(E, np.zeros(8))
+    rd = RobotSpace().from_euclidean(E)
+    with pytest.raises(DegenerateInputError, match=r"start 3\.77 m apart, closer than min_separation_m = 3\.7701 m"):
+        C.step(0.0, rd, Reference(c, cd, rd))  # beyond rounding: refused, the two numbers apart in the line
+
+
 @pytest.mark.parametrize("scenario", ["mas-kitts-spiral", "mas-kitts-helix", "mas-kitts-yaw-step"])
 def test_builtin_pair_scenarios_run_without_the_barrier(scenario):
     """The seed's scenarios show the robots' own paths: no barrier unless asked."""

@@ -67,6 +67,23 @@ def test_a_duration_of_1e_300_is_refused_naming_duration_s():
             make_plan(spec)
 
 
+@pytest.mark.parametrize("masses", [[1e-9, 1.0], [1.0, 1e11], [1e-300, 1.0]])
+def test_masses_too_far_apart_are_refused_naming_the_key_and_the_ratio(masses):
+    """Old: masses [1e-9, 1] planned for ever (the geodesic's check integrates a metric that
+    stiff in tiny steps), [1e-300, 1] said "all robots coincide" of robots apart."""
+    data = {"kind": "shaped-geodesic", "duration_s": 20.0, "robots": {
+        "masses": masses, "start": [[1.0, 0.0], [-0.5, 0.0]], "goal": [[2.3, -0.7], [3.35, 0.35]]},
+        "shaping": {"alpha": 0.99}}
+    with pytest.raises(InvalidInputError, match=r"t\.toml: \[robots\] masses = .* span a factor of .*, beyond "
+                                                r"1e\+06"):
+        plan_spec_from_dict(data, where="t.toml")
+    data["robots"]["masses"] = [1.0]  # the file named in the other refusals of the masses too
+    with pytest.raises(InvalidInputError, match=r"t\.toml: \[robots\] masses must be a 1-D array of N >= 2"):
+        plan_spec_from_dict(data, where="t.toml")
+    data["robots"]["masses"] = [1e-6, 1.0]  # at the bound (planned in 4 s)
+    assert plan_spec_from_dict(data, where="t.toml").masses.tolist() == [1e-6, 1.0]
+
+
 @pytest.mark.parametrize("name", [TWO_BODIES, "belta-kumar-2001-airplanes"])
 def test_a_duration_whose_rates_leave_the_bound_names_the_shortest_one(name):
     """Old: a 1e-9 s plan had accelerations of 5e18 m/s^2 (and 1e-160 s ones overflowed)."""

@@ -185,6 +185,15 @@ def test_lost_frames_never_reach_a_command():
     assert nan is type(good)
 
 
+@pytest.mark.filterwarnings("error")
+def test_a_damaged_quaternion_is_a_lost_frame_without_an_overflow_warning():
+    """An entry of 1e200 (a damaged frame) printed numpy's "overflow encountered in multiply"
+    on stderr of the node and of replay before dropping the frame."""
+    huge = messages.pose_stamped(1.0, [1, 2, 3], [1, 0, 0, 0])
+    huge.pose.orientation.w = 1e200
+    assert pose_sample("pose", huge) is None
+
+
 # -- the bridge ----------------------------------------------------------------------------------
 def test_team_with_a_pioneer_matches_the_simulation(tmp_path):
     """team-triangle-over-ugv (a Pioneer under three quadrotors, the separation barrier on):

@@ -77,6 +77,17 @@ def test_the_run_option_sets_the_profiles_keys_over_the_scenarios():
     assert opts["profile"].choices == tuple(PROFILES) and opts["profile"].default is None
 
 
+def test_the_ideal_option_over_a_lab_file_is_the_ideal_world_with_the_files_own_keys():
+    """Old: --profile ideal over a file of profile = "lab" kept the lab's values and said
+    "profile": "ideal" (compare --over profile gave two lab rows)."""
+    lab = ugv_uav_scenario_from_dict(_dict(profile="lab", mocap_latency_s=0.02), "t.toml")
+    ideal = ugv_uav_scenario_from_dict(_dict(mocap_latency_s=0.02), "t.toml")
+    assert with_profile(lab, "ideal") == ideal
+    assert UGV_UAV_KIND.experiment(lab, profile="ideal").scenario == ideal
+    assert with_profile(ugv_uav_scenario_from_dict(_dict(profile="lab"), "t.toml"), "ideal") == \
+        ugv_uav_scenario_from_dict(_dict(), "t.toml")
+
+
 @pytest.mark.parametrize("call", [
     lambda: ugv_uav_scenario_from_dict(_dict(profile="labb"), "t.toml"),
     lambda: UGV_UAV_KIND.experiment(load_scenario("marciano-circle"), profile="labb"),

@@ -15,6 +15,7 @@ that is not unit (a pose stream's quaternions are unit to float precision; one o
 from __future__ import annotations
 
 import contextlib
+import importlib
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,6 +62,18 @@ class PoseTrack:
     quaternion: np.ndarray
 
 
+def _decompression_errors() -> tuple:
+    """The exception a damaged zstd chunk raises in rosbags' readers (``compression.zstd`` on
+    Python 3.14, else ``backports.zstd``, as rosbags imports it); empty where neither is there."""
+    for name in ("compression.zstd", "backports.zstd"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        return (module.ZstdError,)
+    return ()
+
+
 @contextlib.contextmanager
 def open_bag(path):
     """An open ``rosbags.highlevel.AnyReader`` of the bag ``path``: an ``.mcap`` or ``.db3`` file, a
@@ -89,16 +102,17 @@ def open_bag(path):
         if f.suffix == ".mcap":
             check_mcap(f)  # declared record lengths against the file, before the reader allocates them
     reader = AnyReader([p], default_typestore=messages.typestore())
+    damaged = _decompression_errors()
     try:
         reader.open()
-    except (AnyReaderError, OSError, ValueError, KeyError, struct.error) as exc:
+    except (AnyReaderError, OSError, ValueError, KeyError, struct.error, *damaged) as exc:
         raise InvalidInputError(f"bag {path} cannot be read ({' '.join(str(exc).split())[:200]}); give a rosbag2 "
                                 "folder or an .mcap file recorded with ros2 bag record") from None
     try:
         yield reader
     except QuatformError:
         raise
-    except (ReaderError, AnyReaderError, struct.error, EOFError) as exc:  # a chunk found bad while reading it
+    except (ReaderError, AnyReaderError, struct.error, EOFError, *damaged) as exc:  # a chunk found bad while reading it
         raise InvalidInputError(f"bag {path} is truncated or corrupt ({' '.join(str(exc).split())[:200]}); copy or "
                                 "record the file again") from None
     finally:
@@ -182,7 +196,8 @@ def _track(path, topic: str, rows) -> PoseTrack:
         raise InvalidInputError(f"bag {path}: topic {topic} stamps do not increase: message {k} at t = {t[k]:.9f} s "
                                 f"follows t = {t[k - 1]:.9f} s; record with the source's header stamps (a "
                                 "monotonic clock) or sort and de-duplicate the messages")
-    norm = np.linalg.norm(q, axis=1)
+    with np.errstate(over="ignore"):  # a damaged entry (1e200): an infinite norm, refused below, no warning
+        norm = np.linalg.norm(q, axis=1)
     off = np.flatnonzero(np.abs(norm - 1.0) > UNIT_TOLERANCE)
     if off.size:
         raise NonUnitError(f"bag {path}: topic {topic} message {off[0]} has a quaternion of norm {norm[off[0]]:.6g}; "

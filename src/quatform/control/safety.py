@@ -546,6 +546,11 @@ class SafeState:
     started: bool = False
 
 
+#: Relative rounding of the robots' points a start may carry below the barrier's minimum
+#: (a few ulps of the larger of their coordinates and the minimum).
+_START_ROUNDING = 16 * np.finfo(float).eps
+
+
 @dataclass(frozen=True)
 class SafeController(contract.Controller):
     """Any controller whose commands pass through a :class:`SeparationBarrier`.
@@ -627,16 +632,22 @@ class SafeController(contract.Controller):
         return contract.Step(u, SafeState(step.state, True), signals)
 
     def _check_start(self, m):
+        """Refuse robots closer than ``min_separation_m`` beyond the rounding of their points:
+        a start exactly at the minimum (robots ``2 d_c`` apart with ``d = 2 d_c``, their points
+        built by trigonometry) is kept (``h`` a few ulps below 0 asks them only not to close)."""
         layout = self.team.layout
-        sep = layout.separations(self.team.point(m))
+        p = self.team.point(m)
+        sep = layout.separations(p)
         if sep.shape[-1] == 0:
             return
         d = self.barrier.min_separation_m
-        close = sep < d
+        scale = np.max(np.abs(layout.positions(p)), axis=(-2, -1), initial=0.0)[..., None]  # (..., 1), m
+        close = sep < d - _START_ROUNDING * np.maximum(scale, d)
         if np.any(close):
             at = np.argwhere(close)[0]
             a, b = (int(p[at[-1]]) for p in layout.pairs)
             where = f" in world {tuple(int(k) for k in at[:-1])}" if len(at) > 1 else ""
             raise DegenerateInputError(
-                f"SafeController: robots {layout.labels[a]} and {layout.labels[b]} start {float(sep[tuple(at)]):.4g} m "
-                f"apart{where}, closer than min_separation_m = {d:g} m; start them farther apart or lower the minimum")
+                f"SafeController: robots {layout.labels[a]} and {layout.labels[b]} start "
+                f"{float(sep[tuple(at)]):.6g} m apart{where}, closer than min_separation_m = {d:.6g} m; start them "
+                "farther apart or lower the minimum")

@@ -153,7 +153,7 @@ def plan_spec_from_dict(data: dict, where: str = "plan spec") -> PlanSpec:
     masses = rb["masses"]
     if not isinstance(masses, list) or not masses:
         raise InvalidInputError(f"{where}: [robots] masses = {short(masses)} must be a list of N >= 2 numbers")
-    masses = check_masses(vector(rb, "masses", len(masses), where, place="[robots]"))
+    masses = check_masses(vector(rb, "masses", len(masses), where, place="[robots]"), f"{where}: [robots] masses")
     start = _positions(rb, "start", masses.size, where)
     goal = _positions(rb, "goal", masses.size, where)
     if goal.shape != start.shape:

@@ -69,7 +69,8 @@ def pose_sample(pose_type: str, msg) -> PoseSample | None:
     quaternion whose norm is not 1 to :data:`UNIT_SLACK`): a lost frame never reaches a command."""
     t, p, q, twist = POSE_READERS[pose_type].read(msg)
     p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
-    n = float(np.linalg.norm(q))
+    with np.errstate(over="ignore"):  # a damaged entry (1e200): an infinite norm, a lost frame, no warning
+        n = float(np.linalg.norm(q))
     if not (np.all(np.isfinite(p)) and np.isfinite(n) and abs(n - 1.0) <= UNIT_SLACK):
         return None
     if twist is not None:

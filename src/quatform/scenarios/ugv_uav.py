@@ -527,9 +527,17 @@ class UgvUavKind(ScenarioKind):
 
 def with_profile(sc: UgvUavScenario, profile: str) -> UgvUavScenario:
     """``sc`` in the world ``profile``: the profile's keys set over the scenario's (an unknown
-    name is refused in one line naming the valid ones)."""
+    name is refused in one line naming the valid ones).
+
+    The keys ``sc``'s own profile stood in for (those still holding that profile's value)
+    first go back to their defaults, so ``ideal`` over a file of ``profile = "lab"`` is the
+    ideal world with the file's own keys, not the lab's world named ideal. A file key given
+    the very value of its profile's is read as the profile's."""
     chosen = profile_named(profile, f"scenario {sc.name}")
-    out = dataclasses.replace(sc, profile=chosen.name, **chosen.values())
+    fields = UgvUavScenario.__dataclass_fields__
+    own = {key: fields[key].default for key, value in PROFILES[sc.profile].values().items()
+           if getattr(sc, key) == value}
+    out = dataclasses.replace(sc, profile=chosen.name, **(own | chosen.values()))
     check_ugv_uav_scenario(out, f"scenario {sc.name} with profile {chosen.name!r}")
     return out
 
