@@ -125,3 +125,24 @@ def test_kernel_equals_the_exact_programme(name, range_m, seed):
     np.testing.assert_allclose(got, expected, rtol=0, atol=TOL)
     np.testing.assert_array_equal(got[~active], u[~active])  # no pair binds: the commands bitwise
     np.testing.assert_allclose(sep.min(axis=-1), info.min_separation, rtol=0, atol=1e-12)
+
+
+def test_a_start_at_the_minimum_to_rounding_is_kept_on_jax_as_on_numpy():
+    """A barrier's minimum a few ulps above the robots' start separation (the pair's
+    ``d = 2 d_c`` built by trigonometry reads 3.7699999999999996 against 3.77): NumPy's
+    SafeController keeps the start (:func:`~quatform.control.safety.start_floor`), and the
+    compiled tick reads the same floor, so no world is rerun on NumPy."""
+    pytest.importorskip("jax")
+    from quatform.control.safety import start_floor
+
+    exp = KINDS["team"].experiment(short_scenario("team-ring-flip", 0.3), controller="quaternion")
+    C = exp.controller
+    P = C.team.layout.positions(C.team.point(exp.x0))
+    sep = C.team.layout.separations(C.team.point(exp.x0)).min()
+    d = np.nextafter(np.nextafter(sep, np.inf), np.inf)  # two ulps above the start
+    assert sep < d and sep >= start_floor(P, d)[0]
+    exp = dataclasses.replace(exp, controller=dataclasses.replace(C, barrier=dataclasses.replace(C.barrier,
+                                                                                                 min_separation_m=d)))
+    a, b = exp.run(backend="numpy"), exp.run(backend="jax")
+    assert "numpy_worlds" not in b.meta and "failed" not in b.meta
+    _assert_equal(a, b)

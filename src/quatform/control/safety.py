@@ -551,6 +551,17 @@ class SafeState:
 _START_ROUNDING = 16 * np.finfo(float).eps
 
 
+def start_floor(positions, min_separation_m: float):
+    """The smallest separation a start may have under a barrier of ``min_separation_m``: the
+    minimum less the rounding of the robots' points (a start exactly at the minimum, robots
+    ``2 d_c`` apart with ``d = 2 d_c`` and their points built by trigonometry, is kept: ``h`` a
+    few ulps below 0 asks them only not to close). ``positions`` ``(..., N, 3)`` m (NumPy or
+    JAX); returns ``(..., 1)`` m, to compare with the separations ``(..., pairs)``."""
+    xp = array_namespace(positions)
+    scale = xp.max(xp.abs(positions), axis=(-2, -1))[..., None]
+    return min_separation_m - _START_ROUNDING * xp.maximum(scale, min_separation_m)
+
+
 @dataclass(frozen=True)
 class SafeController(contract.Controller):
     """Any controller whose commands pass through a :class:`SeparationBarrier`.
@@ -632,17 +643,14 @@ class SafeController(contract.Controller):
         return contract.Step(u, SafeState(step.state, True), signals)
 
     def _check_start(self, m):
-        """Refuse robots closer than ``min_separation_m`` beyond the rounding of their points:
-        a start exactly at the minimum (robots ``2 d_c`` apart with ``d = 2 d_c``, their points
-        built by trigonometry) is kept (``h`` a few ulps below 0 asks them only not to close)."""
+        """Refuse robots closer than :func:`start_floor` (the minimum less their points' rounding)."""
         layout = self.team.layout
         p = self.team.point(m)
         sep = layout.separations(p)
         if sep.shape[-1] == 0:
             return
         d = self.barrier.min_separation_m
-        scale = np.max(np.abs(layout.positions(p)), axis=(-2, -1), initial=0.0)[..., None]  # (..., 1), m
-        close = sep < d - _START_ROUNDING * np.maximum(scale, d)
+        close = sep < start_floor(layout.positions(p), d)
         if np.any(close):
             at = np.argwhere(close)[0]
             a, b = (int(p[at[-1]]) for p in layout.pairs)

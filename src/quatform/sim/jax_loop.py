@@ -73,7 +73,7 @@ from ..algebra.kernels import array_namespace as namespace
 from ..algebra.validate import as_array
 from ..control.base import Reference
 from ..control.cluster import ClusterController
-from ..control.safety import POINT_MAPS, SafeController
+from ..control.safety import POINT_MAPS, SafeController, start_floor
 from ..control.team import TeamController
 from ..errors import (
     DegenerateInputError,
@@ -631,7 +631,8 @@ def team_tick_function(plant, controller, dt, substeps, delay, noisy, lossy, ali
             _, sep, _, _, _, active = jax_barrier.pair_constraints(barrier, L, P, V)
             solved = ~active
         if barrier is not None:
-            start = (xs["k"] == 0) & jnp.any(sep < barrier.min_separation_m, axis=-1)  # SafeController._check_start
+            floor = start_floor(team_positions(L, m), barrier.min_separation_m)  # SafeController._check_start
+            start = (xs["k"] == 0) & jnp.any(sep < floor, axis=-1)
             code = jnp.where(start, _HOST, jnp.where(code > 0, code, jnp.where(solved, 0, _HOST)))
             signals = (jnp.min(sep, axis=-1, keepdims=True), active[:, None])
         new_carry, u, out = _end_tick(plant, dt, substeps, xs, carry, (x, past, last, fail_tick, reason), code, u,
