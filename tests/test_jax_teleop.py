@@ -79,7 +79,7 @@ def _assert_metrics_equal(m, n, path=""):
         for i, (x, y) in enumerate(zip(m, n)):
             _assert_metrics_equal(x, y, f"{path}{i}.")
     elif isinstance(m, float) and not isinstance(n, bool):
-        assert math.isclose(m, n, rel_tol=TOL, abs_tol=1e-300) or (math.isnan(m) and math.isnan(n)), (path, m, n)
+        assert math.isclose(m, n, rel_tol=TOL, abs_tol=TOL) or (math.isnan(m) and math.isnan(n)), (path, m, n)
     else:
         assert m == n, path
 
