@@ -17,7 +17,7 @@ from .quaternion import (
     quaternion_lyapunov,
 )
 from .safety import BarrierInfo, SafeController, SafeState, SeparationBarrier
-from .team import TEAM_FORMATIONS, TEAM_GAIN_KEYS, TeamController, team_controller, team_lyapunov
+from .team import TEAM_CONTROLLERS, TEAM_GAIN_KEYS, TeamController, team_controller, team_lyapunov
 from .ugv_uav import UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UgvUavController, UgvUavState
 
 #: Controller classes by command-line name.
@@ -54,6 +54,6 @@ __all__ = [
     "BarrierInfo",
     "team_controller",
     "team_lyapunov",
-    "TEAM_FORMATIONS",
+    "TEAM_CONTROLLERS",
     "TEAM_GAIN_KEYS",
 ]

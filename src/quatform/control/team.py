@@ -10,7 +10,7 @@ frozen and stateless, so it drives a simulation or real robots; wrap it in
 :class:`~quatform.control.safety.SafeController` for the separation barrier.
 
 :data:`TEAM_GAIN_KEYS` lists the gains each role reads; :func:`team_controller` builds the
-four seed-000 controllers for a team by name (:data:`TEAM_FORMATIONS`).
+four seed-000 controllers for a team by name (:data:`TEAM_CONTROLLERS`).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from . import contract
 from .base import Reference
 from .laws import dual_quaternion_feedback, proportional, quaternion_feedback
 
-__all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_FORMATIONS", "team_controller", "team_lyapunov"]
+__all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_controller", "team_lyapunov"]
 
 #: Law and gain key of each law-group role (``formations.team_chart.ROLE_WIDTHS``), and how
 #: many gains the key takes (``None``: one per row of the group, or one for all).
@@ -49,7 +49,7 @@ TEAM_GAIN_KEYS = {
 }
 
 #: The team description each seed-000 controller name runs (``formations.TEAM_FORMATIONS`` keys).
-TEAM_FORMATIONS = {
+TEAM_CONTROLLERS = {
     "quaternion": "quaternion-team",
     "dual-quaternion": "dual-quaternion-team",
     "cluster-space": "euclidean-team",
@@ -403,20 +403,20 @@ def team_lyapunov(controller: TeamController, c, c_des) -> np.ndarray:
 
 def team_controller(name: str, team: Team, gains: Mapping, *, template=None, feedforward: bool = True,
                     **options) -> TeamController:
-    """The seed-000 controller ``name`` (a :data:`TEAM_FORMATIONS` key) for ``team``.
+    """The seed-000 controller ``name`` (a :data:`TEAM_CONTROLLERS` key) for ``team``.
 
-    Builds the team description ``formations.TEAM_FORMATIONS[TEAM_FORMATIONS[name]]`` on
+    Builds the team description ``formations.TEAM_FORMATIONS[TEAM_CONTROLLERS[name]]`` on
     the team's layout (with ``template`` and ``options``) and a :class:`TeamController`.
     """
     from ..checks import nearest
     from ..formations import TEAM_FORMATIONS as CLASSES
 
-    if name not in TEAM_FORMATIONS:
-        raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, TEAM_FORMATIONS)}; choose one of "
-                                f"{', '.join(TEAM_FORMATIONS)}")
+    if name not in TEAM_CONTROLLERS:
+        raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, TEAM_CONTROLLERS)}; choose one of "
+                                f"{', '.join(TEAM_CONTROLLERS)}")
     if not isinstance(team, Team):
         raise InvalidInputError(f"team_controller: team must be a robots.Team (e.g. Team.uniform(HolonomicRobot(), 4)), "
                                 f"got {type(team).__name__}")
-    cls = CLASSES[TEAM_FORMATIONS[name]]
+    cls = CLASSES[TEAM_CONTROLLERS[name]]
     F = cls(layout=team.layout, template=template, **options)
     return TeamController(F, gains, team, feedforward, name)

@@ -10,7 +10,7 @@ run's memory and time are estimated up front).
 
 :class:`TeamKind` builds the :class:`~quatform.scenarios.base.Experiment` of a scenario and a
 controller (``quaternion``, ``dual-quaternion``, ``cluster-space``, ``robot-space``: the team
-descriptions of :data:`quatform.control.TEAM_FORMATIONS`): the kinematic plant of the team,
+descriptions of :data:`quatform.control.TEAM_CONTROLLERS`): the kinematic plant of the team,
 the controller (:func:`quatform.control.team_controller`), the reference ``Reference(c_des,
 c_dot_des, r_des)`` with ``c_des, c_dot_des = formation.from_chart(e, e_dot)`` of the
 motion's chart values (:class:`~quatform.references.team_motion.TeamMotion`, or a saved plan:
@@ -42,7 +42,7 @@ from ..checks import (
     text,
     vector,
 )
-from ..control import TEAM_FORMATIONS, TEAM_GAIN_KEYS, Reference, team_controller
+from ..control import TEAM_CONTROLLERS, TEAM_GAIN_KEYS, Reference, team_controller
 from ..control.safety import SafeController, SeparationBarrier
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
@@ -127,10 +127,10 @@ TEAM_BACKENDS = ("kinematic", "mujoco")
 
 def available_controllers() -> tuple[str, ...]:
     """The team controllers whose description is registered (``formations.TEAM_FORMATIONS``),
-    in :data:`quatform.control.TEAM_FORMATIONS` order: what ``--controller`` and ``compare`` offer."""
+    in :data:`quatform.control.TEAM_CONTROLLERS` order: what ``--controller`` and ``compare`` offer."""
     from ..formations import TEAM_FORMATIONS as CLASSES
 
-    return tuple(name for name, key in TEAM_FORMATIONS.items() if key in CLASSES)
+    return tuple(name for name, key in TEAM_CONTROLLERS.items() if key in CLASSES)
 
 
 # --------------------------------------------------------------------------- robot models
@@ -273,7 +273,7 @@ class TeamScenario:
         return e[0, TeamChart(self.team.layout).shape_index]
 
     def controller(self, name: str, feedforward: bool | None = None):
-        """The team controller ``name`` (:data:`quatform.control.TEAM_FORMATIONS`) with this
+        """The team controller ``name`` (:data:`quatform.control.TEAM_CONTROLLERS`) with this
         scenario's gains and robots; ``feedforward`` defaults to the scenario's."""
         from ..checks import nearest
 
@@ -469,13 +469,13 @@ def _gains(data: dict, where: str, dt: float) -> dict:
     if isinstance(g, str):
         base, own = text(data, "gains", where, "table1", choices=tuple(TEAM_TABLES)), {}
     elif isinstance(g, dict):
-        check_keys(g, ("base", *TEAM_FORMATIONS), where, "[gains]", _HINT)
+        check_keys(g, ("base", *TEAM_CONTROLLERS), where, "[gains]", _HINT)
         base = text(g, "base", where, "table1", place="[gains]", choices=tuple(TEAM_TABLES))
         own = g
     else:
         raise InvalidInputError(f"{where}: gains = {short(g)} must be 'table1', 'table2' or a [gains] table")
     gains = {}
-    for name in TEAM_FORMATIONS:
+    for name in TEAM_CONTROLLERS:
         place = f"[gains.{name}]"
         mine = table(own, name, where, "[gains]", default={})
         check_keys(mine, _GAIN_SIZES, where, place, _HINT)
@@ -670,7 +670,7 @@ class TeamKind(ScenarioKind):
 
     def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
                    backend: str = "kinematic", reference=None) -> Experiment:
-        """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_FORMATIONS`
+        """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_CONTROLLERS`
         name or a controller object of the scenario's team; required).
 
         ``reference``: a saved N-robot plan to follow (:func:`with_plan`).
