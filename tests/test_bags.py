@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quatform import messages
-from quatform.bags import INFO_TOPIC, MCAP_FILE, foxglove_layout, read_log, read_poses, write_mcap
+from quatform.bags import INFO_TOPIC, MCAP_FILE, foxglove_layout, read_log, read_poses, scene_of, write_mcap
 from quatform.bags.cdr import Batch, field_offsets
 from quatform.cli import main
 from quatform.errors import InvalidInputError, NonUnitError
@@ -413,10 +413,10 @@ def test_read_poses_refuses_bad_stamps_and_non_unit_quaternions(tmp_path):
         read_log(bag)
 
 
-def _layout_values(topics):
-    """Every plotted ``/topic.field.path`` of the shipped layout read from the last message of its
-    topic in ``topics`` (a KeyError or AttributeError where a run lacks one)."""
-    layout = foxglove_layout()
+def _layout_values(topics, log, kind):
+    """Every plotted ``/topic.field.path`` of the run's Foxglove layout read from the last message
+    of its topic in ``topics`` (a KeyError or AttributeError where a run lacks one)."""
+    layout = foxglove_layout(kind, scene_of(log, kind))
     plotted = [p["value"] for panel in layout["configById"].values() for p in panel.get("paths", [])]
     out = {}
     for value in plotted:
@@ -430,12 +430,12 @@ def _layout_values(topics):
 
 @pytest.mark.parametrize("case", [c for c in CASES if c != "teleop"])
 def test_the_foxglove_layout_plots_fields_every_formation_run_has(runs, case):
-    """Every plotted path of the shipped layout is a numeric field of a topic the run has."""
-    _, _, path = runs[case]
+    """Every plotted path of the run's layout is a numeric field of a topic the run has."""
+    kind, log, path = runs[case]
     topics = _read_all(path)
-    values = _layout_values(topics)
+    values = _layout_values(topics, log, kind)
     assert len(values) >= 10 and all(np.isfinite(v) for v in values.values())
-    layout = foxglove_layout()
+    layout = foxglove_layout(kind, scene_of(log, kind))
     three_d = next(c for k, c in layout["configById"].items() if k.startswith("3D!"))
     assert three_d["followTf"] == "world"
     if case == "pair":
@@ -489,6 +489,8 @@ def test_a_mujoco_run_adds_each_quadrotors_rotors_and_full_attitude(tmp_path):
         yaw = log["state"][-1, 4 * (i - 1) + 3]
         assert abs(np.angle(np.exp(1j * (g.yaw_of(q) - yaw)))) < 1e-6  # its yaw is the state's
     np.testing.assert_array_equal(read_log(tmp_path / "mj.mcap")["state"], log["state"])
+    rotors = foxglove_layout(kind.name, scene_of(log, kind.name))["configById"]["Plot!rotors"]["paths"]
+    assert [s["value"] for s in rotors] == ["/robot_1/rotors.thrust", "/robot_2/rotors.thrust"]
 
 
 @pytest.mark.parametrize("make, match", [
@@ -577,7 +579,7 @@ def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
     err = topics["/formation/error"][1][k][1]
     np.testing.assert_allclose([err.x, err.y, err.z], pd - p, atol=1e-12)
     assert err.angle == pytest.approx(2 * np.arccos(min(1.0, abs(float(np.dot(q, qd))))), abs=1e-9)
-    assert len(_layout_values(topics)) >= 10  # the Foxglove layout's plots have data for every controller
+    assert len(_layout_values(topics, log, kind.name)) >= 10  # the layout's plots have data for every controller
 
 
 def test_a_read_back_team_log_is_refused_with_one_line(runs, tmp_path):

@@ -14,7 +14,7 @@ import struct
 import numpy as np
 import pytest
 
-from quatform.bags import foxglove_layout, read_log, read_poses, write_mcap
+from quatform.bags import foxglove_layout, read_log, read_poses, scene_of, write_mcap
 from quatform.cli import main
 from quatform.errors import InvalidInputError
 from quatform.report.writers import write_columns, write_timeseries
@@ -185,7 +185,8 @@ def test_tf_static_is_offered_transient_local():
 
 
 def test_the_foxglove_layouts_panel_titles_are_under_foxglove_panel_title():
-    configs = foxglove_layout()["configById"]
+    kind, log = _short_run()
+    configs = foxglove_layout(kind, scene_of(log, kind))["configById"]
     plots = {k: c for k, c in configs.items() if k.startswith("Plot!")}
     assert plots and all("title" not in c for c in configs.values())
     assert all(c["foxglovePanelTitle"] for c in plots.values())

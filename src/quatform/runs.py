@@ -112,11 +112,13 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
         FIGURES[kind.name].run(log, folder)
     _picture(log, folder, plots, metrics)
     if mcap:
-        from .bags import MCAP_FILE, SCENES, write_foxglove_layout, write_mcap
+        from .bags import MCAP_FILE, SCENES, scene_of, write_foxglove_layout, write_mcap
 
-        # a kind without a scene builder (quatform.bags.SCENES) still gets its channels
-        write_mcap(log, folder / MCAP_FILE, kind=kind.name, scene=kind.name in SCENES)
-        write_foxglove_layout(folder)
+        # a kind without a scene (quatform.bags.SCENES) still gets its channels, and no layout
+        scene = scene_of(log, kind.name) if kind.name in SCENES else None
+        write_mcap(log, folder / MCAP_FILE, kind=kind.name, scene=False if scene is None else scene)
+        if scene is not None:
+            write_foxglove_layout(folder, kind.name, scene)
     write_metrics(metrics, folder / "metrics.json")
     if not quiet:
         if log.meta.get("unreachable_at") is not None:

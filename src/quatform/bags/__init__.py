@@ -5,12 +5,13 @@
 * :func:`read_log` - that file back into the :class:`~quatform.sim.log.Log`, exactly;
 * :func:`read_poses` - a user's ROS 2 bag of ``PoseStamped`` / ``Odometry`` topics as
   :class:`PoseTrack` arrays (``quatform replay``);
-* :func:`foxglove_layout` / :func:`write_foxglove_layout` - the shipped Foxglove layout;
+* :func:`foxglove_layout` / :func:`write_foxglove_layout` - a run's Foxglove layout (its kind's
+  plots, registered with its scene in :data:`SCENES`, of topics its ``run.mcap`` has);
 * :mod:`quatform.bags.rerun` - the same scene as a Rerun recording (extra ``rerun``; imported
   only when used).
 """
 
-from .layouts import FOXGLOVE_LAYOUT_FILE, foxglove_layout, write_foxglove_layout
+from .foxglove import FOXGLOVE_LAYOUT_FILE, foxglove_layout, write_foxglove_layout
 from .mcap import CHANNEL_PREFIX, INFO_TOPIC, MCAP_FILE, channel_topic, read_log, write_mcap
 from .scene import SCENES, Scene, scene_of
 from .user_bags import POSE_TYPES, PoseTrack, pose_topics, read_poses

@@ -360,7 +360,7 @@ def _fresh_store():
     return get_typestore(Stores.ROS2_HUMBLE)
 
 
-def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bool = True) -> Path:
+def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bool | Scene = True) -> Path:
     """Write ``log`` as one MCAP file of ROS 2 messages (see the module docstring for the topics).
 
     Parameters
@@ -374,8 +374,10 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
         (default ``log.meta["kind"]``).
     world : int or tuple, optional
         Which world of a batched log to write (MCAP holds one world: the others are left out).
-    scene : bool
-        Write the standard messages (poses, commands, TF, markers ...) besides the channels.
+    scene : bool or Scene
+        Write the standard messages (poses, commands, TF, markers ...) besides the channels: of
+        this :class:`~quatform.bags.scene.Scene` (``scene_of(log, kind)``, built once by a caller
+        that also writes the run's Foxglove layout), or of ``scene_of(log, kind)`` when True.
 
     Returns
     -------
@@ -393,7 +395,9 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
     ns = _stamps(log.t)
     topics = _Topics(_fresh_store(), ns)
     kind = kind or log.meta.get("kind")
-    if scene:
+    if isinstance(scene, Scene):
+        _scene_topics(topics, scene, log.t)
+    elif scene:
         if kind is None:
             raise InvalidInputError("write_mcap needs the log's scenario kind for its poses: give kind= "
                                     "(pair, team, teleop, ugv-uav) or scene=False")

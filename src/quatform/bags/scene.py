@@ -1,7 +1,8 @@
 """What a run shows in 3-D: its bodies' poses, commands, formation frame, edges, arms and wrenches (bags layer).
 
 One :class:`Scene` per run, read from its :class:`~quatform.sim.log.Log` by the builder its
-scenario kind registers in :data:`SCENES` (``SCENES[kind name](log) -> Scene``). The MCAP
+scenario kind registers in :data:`SCENES` (``SCENES[kind name](log) -> Scene``), with the plot
+panels of its Foxglove layout (``SCENES[kind name].plots(scene)``, :class:`Plot`). The MCAP
 writer (:mod:`.mcap`) and the Rerun writer (:mod:`.rerun`) draw the same scene. Arrays have a
 time axis first and a body axis next (``(T, N, 3)``, ``(T, N, 4)``), quaternions ``(w, x, y, z)``
 (REP-103: the world frame ENU, a body frame FLU, x forward).
@@ -28,6 +29,7 @@ rotation, but a plot of the components or a player that interpolates them would 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,8 +40,9 @@ from ..formations import geometry as g
 from ..formations.layout import RobotLayout
 from ..robots import Pioneer
 
-__all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "pioneer_base", "scene_of", "COMMAND_TWISTS",
-           "CommandTwist", "sign_continuous", "continuous_states"]
+__all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "SceneKind", "Plot", "pioneer_base", "scene_of",
+           "scene_kind", "COMMAND_TWISTS", "CommandTwist", "sign_continuous", "continuous_states", "formation_plots",
+           "teleop_plots"]
 
 #: Slots of a twist ``(v_x, v_y, v_z, w_x, w_y, w_z)``.
 _TWIST = {"lx": 0, "ly": 1, "lz": 2, "ax": 3, "ay": 4, "az": 5}
@@ -531,19 +534,109 @@ def teleop_scene(log) -> Scene:
                  static=(("world", "master_base"), ("world", "slave_base")))
 
 
-#: Scene builder of each scenario kind (by :attr:`ScenarioKind.name`).
-SCENES = {"pair": pair_scene, "ugv-uav": ugv_uav_scene, "team": team_scene, "teleop": teleop_scene}
+@dataclass(frozen=True)
+class Plot:
+    """One plot panel of a run's Foxglove layout.
+
+    Attributes
+    ----------
+    key : str
+        The panel's id is ``Plot!<key>``.
+    title : str
+        The panel's title, with the units (Foxglove's ``foxglovePanelTitle``).
+    series : tuple of (str, str)
+        ``(message path, label)`` of each line: ``/topic.field.field`` or ``/topic.field[index]``
+        in Foxglove's message-path syntax, of a topic the kind's ``run.mcap`` has.
+    """
+
+    key: str
+    title: str
+    series: tuple
+
+
+def formation_plots(scene: Scene) -> tuple:
+    """The plots of a formation run (pair, UGV-UAV, team): the formation frame's position and
+    attitude against the reference (``/formation/pose``, ``/formation/pose_desired``), their
+    difference (``/formation/error``) and the singularity measure (``/quatform/singularity``),
+    topics every controller's run has; a MuJoCo run's quadrotors' thrust (``/<body>/rotors``);
+    none where the scene has no formation frame."""
+    if scene.formation is None:
+        return ()
+    desired = scene.formation_desired is not None
+    poses = (("/formation/pose", ""),) + ((("/formation/pose_desired", " desired"),) if desired else ())
+    position = tuple((f"{topic}.pose.position.{a}", f"{a}_c{tag}") for topic, tag in poses for a in "xyz")
+    attitude = tuple((f"{topic}.pose.orientation.{a}", f"q_c_{a}{tag}") for topic, tag in poses for a in "wxyz")
+    error = ((tuple((f"/formation/error.{a}", f"error {a} (m)") for a in "xyz")
+              + (("/formation/error.angle", "error angle (rad)"),)) if desired else ())
+    error += (("/quatform/singularity.singularity_measure", "singularity measure"),)
+    plots = (Plot("position", "Formation position (m): actual and desired", position),
+             Plot("attitude", "Formation attitude q_c (w, x, y, z): actual and desired", attitude),
+             Plot("error", "Formation error (desired - actual) and singularity measure", error))
+    if scene.rotors:  # a MuJoCo run: each quadrotor's collective thrust
+        plots += (Plot("rotors", "Rotor thrust (N): the sum of each quadrotor's rotor forces",
+                       tuple((f"/{r.body}/rotors.thrust", f"{r.body} thrust") for r in scene.rotors)),)
+    return plots
+
+
+#: Columns of a teleoperation run's task error channel ``e`` (``/quatform/e``): the position
+#: error (m) and the orientation error (``delta_eps``, or roll-pitch-yaw in rad), seed 003.
+TELEOP_ERROR_FIELDS = tuple(f"e_{i}" for i in range(1, 7))
+
+
+def teleop_plots(scene: Scene) -> tuple:
+    """The plots of a teleoperation run (seed 003): the hands' positions (the master's registered
+    into the slave's base, so the two lines of an axis coincide when the slave follows), the task
+    error ``e`` with the angle between the hands, each arm's joint torque commands and the wrist
+    wrench."""
+    hands = tuple((f"/{body}/pose.pose.position.{a}", f"{body} {a}") for body in scene.bodies for a in "xyz")
+    error = (tuple((f"/quatform/e.{f}", f + (" (m)" if i < 3 else "")) for i, f in enumerate(TELEOP_ERROR_FIELDS))
+             + (("/quatform/angle.angle", "angle between the hands (rad)"),))
+    torques = tuple((f"/{arm.arm}/joint_states.effort[{j}]", name) for arm in scene.joints
+                    for j, name in enumerate(arm.names))
+    plots = [Plot("hands", "Hand positions (m): master (registered) and slave", hands),
+             Plot("error", "Task error e: position e_1..e_3 (m), orientation e_4..e_6; angle between the hands (rad)",
+                  error),
+             Plot("torques", "Joint torque commands (N m)", torques)]
+    for w in scene.wrenches:
+        plots.append(Plot(f"wrench_{w.name}", f"{w.name} wrench: force (N) and torque (N m), in {w.frame}",
+                          tuple((f"/{w.name}/wrench.wrench.{part}.{a}", f"{part} {a}")
+                                for part in ("force", "torque") for a in "xyz")))
+    return tuple(p for p in plots if p.series)
+
+
+@dataclass(frozen=True)
+class SceneKind:
+    """What a scenario kind's run shows: ``build(log) -> Scene`` (its bodies, frames, edges ...)
+    and ``plots(scene) -> tuple of Plot`` (the plot panels of its Foxglove layout, of topics its
+    ``run.mcap`` has). ``SCENES[kind](log)`` builds the scene."""
+
+    build: Callable
+    plots: Callable
+
+    def __call__(self, log) -> Scene:
+        return self.build(log)
+
+
+#: Scene and plots of each scenario kind (by :attr:`ScenarioKind.name`); a new kind adds its
+#: entry here, and its runs get their bag's poses, TF and markers and their Foxglove layout.
+SCENES = {"pair": SceneKind(pair_scene, formation_plots), "ugv-uav": SceneKind(ugv_uav_scene, formation_plots),
+          "team": SceneKind(team_scene, formation_plots), "teleop": SceneKind(teleop_scene, teleop_plots)}
 
 
 def scene_of(log, kind: str | None = None) -> Scene:
     """The :class:`Scene` of one world's ``log`` (``kind``: default ``log.meta["kind"]``)."""
     kind = kind or log.meta.get("kind")
+    return _signs_continuous(scene_kind(kind).build(log))
+
+
+def scene_kind(kind: str) -> SceneKind:
+    """The :class:`SceneKind` of scenario kind ``kind`` (one line naming the kinds where it has none)."""
     if kind not in SCENES:
         from ..checks import nearest
 
         raise InvalidInputError(f"no scene for scenario kind {kind!r}{nearest(str(kind), SCENES)}; kinds: "
                                 f"{', '.join(SCENES)}")
-    return _signs_continuous(SCENES[kind](log))
+    return SCENES[kind]
 
 
 def _signs_continuous(scene: Scene) -> Scene:
