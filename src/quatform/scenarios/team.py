@@ -567,7 +567,7 @@ def _check_start(sc: TeamScenario, where: str) -> None:
         i, j = L.pairs
         a = int(np.argmin(L.separations(r[k])))
         raise InvalidInputError(
-            f"{where}: the reference brings robots {L.labels[i[a]]} and {L.labels[j[a]]} to {sep[k]:.3g} m at t = "
+            f"{where}: the reference brings robots {L.display_names[i[a]]} and {L.display_names[j[a]]} to {sep[k]:.3g} m at t = "
             f"{t[k]:g} s, below [safety] min_separation_m = {d:g} m (the barrier would hold them apart); enlarge "
             "the shape or lower min_separation_m")
 
