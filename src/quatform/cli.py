@@ -113,6 +113,33 @@ class _Parser(argparse.ArgumentParser):
             text = text[:396] + " ..."
         self.exit(EXIT_INPUT, f"{self.prog}: error: {text} (see '{self.prog} --help')\n")
 
+    def _compute_hint(self, value, physics=None) -> str | None:
+        """The line for ``--backend VALUE`` where VALUE is one of this command's ``--compute``
+        choices (``--backend`` chooses the physics, ``physics``; None where the command has none)."""
+        compute = next((a for a in self._actions if a.dest == "compute"), None)
+        if compute is None or value not in (compute.choices or ()):
+            return None
+        name = {"jax": "JAX", "numpy": "NumPy"}.get(value, value)
+        what = (f"--backend chooses the physics ({', '.join(physics)})" if physics
+                else f"{self.prog.split()[-1]} takes no --backend (the physics)")
+        return f"{what}; for {name} use --compute {value}"
+
+    def _check_value(self, action, value):
+        hint = self._compute_hint(value, action.choices) if action.dest == "backend" and action.choices else None
+        if hint is not None and value not in action.choices:
+            raise argparse.ArgumentError(None, hint)
+        super()._check_value(action, value)
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, extras = super().parse_known_args(args, namespace)
+        for k, arg in enumerate(extras):  # --backend where the command has none (teleop)
+            flag, eq, value = arg.partition("=")
+            if flag == "--backend":
+                hint = self._compute_hint(value if eq else (extras[k + 1] if k + 1 < len(extras) else None))
+                if hint is not None:
+                    self.error(hint)
+        return ns, extras
+
 
 #: Every subcommand and its one-line help, in the order ``quatform --help`` lists them. The
 #: top-level parser is built from these names alone; a subcommand's own options (and the
