@@ -100,3 +100,28 @@ def test_sweep_backend_stays_the_compute_backend():
     parser = cli._build_parser(only=("sweep",))
     for flag in ("--backend", "--compute"):
         assert parser.parse_args(["sweep", "s", "--out", "o", flag, "jax"]).backend == "jax"
+
+
+def test_compare_over_takes_the_flags_spelling(tmp_path, capsys, monkeypatch):
+    """``--over orientation-error`` as the run option's flag (``--orientation-error``) spells it;
+    ``orientation_error`` still works; ``--help`` shows the dashes."""
+    from quatform import runs
+    from quatform.errors import InvalidInputError
+
+    seen = []
+
+    def compare(sc, out, *, over=None, **_):
+        seen.append(over)
+        raise InvalidInputError("stop")  # the axis the runner got is all this test needs
+
+    monkeypatch.setattr(runs, "compare", compare)
+    for spelling in ("orientation-error", "orientation_error"):
+        assert cli.main(["compare", "teleop-free-motion", "--out", str(tmp_path / "c"), "--over", spelling]) == 2
+    assert seen == ["orientation_error", "orientation_error"]
+    capsys.readouterr()
+    try:
+        cli.main(["compare", "--help"])
+    except SystemExit as exc:
+        assert exc.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "orientation-error" in text and "orientation_error" not in text

@@ -61,6 +61,11 @@ def _list(items):
             print(f"{'':32s}   {line}")
 
 
+def _dashed(name: str) -> str:
+    """An option's name as its flag spells it (``orientation_error`` -> ``orientation-error``)."""
+    return name.replace("_", "-")
+
+
 def _flag(option) -> str:
     """The command-line flag of a kind's option: ``--name`` (``_`` as ``-``); a switch that is on
     unless given (default True or None = the scenario's): ``--no-name``."""
@@ -220,8 +225,8 @@ def _compare_arguments(cmp_) -> None:
         "options are fixed for every run. " + _MUJOCO_NOTE)
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
-    axes = sorted({o.name for k in kinds for o in k.options if o.choices is not None})
-    cmp_.add_argument("--over", metavar="OPTION", choices=axes,
+    axes = sorted({_dashed(o.name) for k in kinds for o in k.options if o.choices is not None})
+    cmp_.add_argument("--over", metavar="OPTION", choices=axes, type=_dashed,
                       help=f"the option to vary: one of {', '.join(axes)} that the scenario's kind takes "
                       "(default: the kind's compare option)")
     cmp_.add_argument("--no-plots", action="store_true", help="write metrics, time series and the table only")
@@ -423,7 +428,8 @@ def _ros2_cli():
 #: What each command does with its parsed arguments.
 COMMANDS = {
     "demo": lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun),
-    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over,
+    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()),
+                                     args.over and args.over.replace("-", "_"),
                                      not args.no_plots, not args.no_mcap, args.rerun, args.compute),
     "run": lambda args: _run(args, _kinds().values()),
     "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),
