@@ -269,7 +269,8 @@ class EuclideanTeam(Formation):
                 k = int(np.argmin(np.min(rho.reshape(-1, rho.shape[-1]), axis=0)))
                 raise DegenerateInputError(
                     f"{name}: {self.variables[self._i_rho[k]].name} = {float(np.min(rho)):.3g} m puts robot "
-                    f"{self.layout.display_names[self.order[k + 2]]} on robot {self.layout.display_names[self.order[0]]} (at least {MIN_SEPARATION_M:g} m); give it a positive "
+                    f"{self.layout.display_names[self.order[k + 2]]} on robot "
+                    f"{self.layout.display_names[self.order[0]]} (at least {MIN_SEPARATION_M:g} m); give it a positive "
                     "distance from robot 1")
         return c
 

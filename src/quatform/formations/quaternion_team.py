@@ -335,7 +335,8 @@ class QuaternionTeam(Formation):
                 j = int(np.argmax(np.max(tilt.reshape(-1, tilt.shape[-1]), axis=0)))
                 i, lab, _ = self._heads[int(self._yaw_rows[j])]
                 raise UnreachableError(
-                    f"q_c q_c{lab} tilts robot {self.layout.display_names[i]} by {float(np.max(tilt)):.3g} rad (limit {TILT_TOL:g}); it only "
+                    f"q_c q_c{lab} tilts robot {self.layout.display_names[i]} by {float(np.max(tilt)):.3g} rad "
+                    f"(limit {TILT_TOL:g}); it only "
                     f"yaws - give it a q_c{lab} whose product with q_c is a rotation about z (from_chart builds one)")
             yaws = g.yaw_of(qy)
         else:
