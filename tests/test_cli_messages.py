@@ -66,3 +66,62 @@ def test_every_flag_named_in_the_source_exists_with_its_value():
             if refused:
                 wrong.append(f"{flag} {word} (refused: choices {list(refused[0].choices)}): {where}")
     assert not wrong, "\n".join(wrong)
+
+
+def _usage_error(capsys, argv) -> str:
+    """The one stderr line of a usage error (exit 2, no traceback)."""
+    try:
+        cli.main(argv)
+    except SystemExit as exc:
+        assert exc.code == 2
+    else:
+        raise AssertionError(f"{argv} parsed")
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    return err.strip()
+
+
+def test_backend_jax_points_to_compute(tmp_path, capsys):
+    """``--backend`` of run / compare chooses the physics: a compute backend there is one line
+    naming --compute, not argparse's list of physics."""
+    out = str(tmp_path / "x")
+    for argv in (["run", "mas-kitts-spiral", "--out", out, "--backend", "jax"],
+                 ["compare", "mas-kitts-spiral", "--out", out, "--backend=jax"]):
+        err = _usage_error(capsys, argv)
+        assert "--backend chooses the physics (kinematic, mujoco); for JAX use --compute jax" in err, err
+    err = _usage_error(capsys, ["teleop", "teleop-x", "--out", out, "--backend", "jax"])  # no --backend there
+    assert "teleop takes no --backend" in err and "for JAX use --compute jax" in err, err
+    err = _usage_error(capsys, ["run", "mas-kitts-spiral", "--out", out, "--backend", "gpu"])
+    assert "invalid choice: 'gpu'" in err  # any other value: argparse's list
+    assert not (tmp_path / "x").exists()
+
+
+def test_sweep_backend_stays_the_compute_backend():
+    parser = cli._build_parser(only=("sweep",))
+    for flag in ("--backend", "--compute"):
+        assert parser.parse_args(["sweep", "s", "--out", "o", flag, "jax"]).backend == "jax"
+
+
+def test_compare_over_takes_the_flags_spelling(tmp_path, capsys, monkeypatch):
+    """``--over orientation-error`` as the run option's flag (``--orientation-error``) spells it;
+    ``orientation_error`` still works; ``--help`` shows the dashes."""
+    from quatform import runs
+    from quatform.errors import InvalidInputError
+
+    seen = []
+
+    def compare(sc, out, *, over=None, **_):
+        seen.append(over)
+        raise InvalidInputError("stop")  # the axis the runner got is all this test needs
+
+    monkeypatch.setattr(runs, "compare", compare)
+    for spelling in ("orientation-error", "orientation_error"):
+        assert cli.main(["compare", "teleop-free-motion", "--out", str(tmp_path / "c"), "--over", spelling]) == 2
+    assert seen == ["orientation_error", "orientation_error"]
+    capsys.readouterr()
+    try:
+        cli.main(["compare", "--help"])
+    except SystemExit as exc:
+        assert exc.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "orientation-error" in text and "orientation_error" not in text

@@ -4,7 +4,8 @@
   the dual-quaternion law of seed 000 eq. (28) brings robots that start in place with their
   yaws off (by more than about 2 rad each) close together; with the barrier they never come
   within the set distance and still reach the reference.
-* ``singularity_measure`` of coincident robots is a DegenerateInputError naming them.
+* ``singularity_measure`` of coincident robots is a DegenerateInputError naming them; the robot
+  spaces (pair and team: ``J = I``, nothing to divide by) give 1.
 """
 
 from __future__ import annotations
@@ -197,7 +198,21 @@ def test_singularity_measure_of_robot_space_needs_no_separation():
     assert RobotSpace().singularity_measure(np.zeros(8)) == 1.0
 
 
-@pytest.mark.parametrize("name", sorted(TEAM_FORMATIONS))
+@pytest.mark.parametrize("n", [2, 3])
+def test_team_robot_space_measure_agrees_with_the_pair_on_robots_on_each_other(n):
+    """The team's robot space, as the pair's: ``J = I``, no length to divide by, 1 for any robots."""
+    F = TEAM_FORMATIONS["robot-space-team"](n)
+    r = np.zeros((2, F.n_r))
+    r[1, 4:] = np.arange(1.0, F.n_r - 3)  # robot 1 at the origin, the others apart
+    np.testing.assert_array_equal(F.singularity_measure(r), [1.0, 1.0])
+    if n == 2:
+        assert F.singularity_measure(np.zeros(8)) == RobotSpace().singularity_measure(np.zeros(8)) == 1.0
+    np.testing.assert_allclose(F.value_spread(np.zeros(F.n_r), 1e-3), np.sqrt(F.n_r) * 1e-3, rtol=1e-15)
+    with pytest.raises(DegenerateInputError, match="robots 1 and 2 coincide"):
+        F.forward(np.zeros(F.n_r))  # the description itself still needs its robots apart
+
+
+@pytest.mark.parametrize("name", sorted(set(TEAM_FORMATIONS) - {"robot-space-team"}))
 def test_team_singularity_measure_of_coincident_robots_names_them(name):
     F = TEAM_FORMATIONS[name](3)
     with pytest.raises(DegenerateInputError, match=r"^r: robots 1 and 2 coincide"):

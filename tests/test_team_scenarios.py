@@ -312,6 +312,28 @@ def test_cli_run_help_and_a_tiny_run(tmp_path, capsys):
     assert "is a team scenario: --formation does not apply" in capsys.readouterr().err
 
 
+def test_cli_min_separation_overrides_the_files_safety(tmp_path, capsys):
+    """``--min-separation X`` on a team run: X m instead of ``[safety] min_separation_m`` (0.4
+    in the file), 0 turns the barrier off; a bad value or one the reference breaks is one line."""
+    f = tmp_path / "tiny.toml"
+    f.write_text("\n".join(_toml_lines(_data(duration_s=5.5, metrics_from_s=0.0, dt_s=0.05))))
+    base = ["run", str(f), "--controller", "robot-space", "--no-plots", "--no-mcap"]
+    for value, on, d in (("0.45", True, 0.45), ("0", False, 0.4)):
+        out = tmp_path / f"o{value}"
+        assert cli.main([*base, "--out", str(out), "--min-separation", value]) == 0
+        m = json.loads((out / "metrics.json").read_text())
+        assert (m["safety_applied"], m["safety_min_separation_m"]) == (on, d)
+        assert ("safety_active_time_s" in m) == on
+    capsys.readouterr()
+    for value, words in (("-1", "min_separation = -1.0 must be a finite number of m >= 0"),
+                         ("nan", "min_separation = nan must be"),
+                         ("50", "below min_separation = 50 m (the barrier would hold them apart)")):
+        assert cli.main([*base, "--out", str(tmp_path / "bad"), f"--min-separation={value}"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and words in err, err
+    assert not (tmp_path / "bad").exists()
+
+
 def _toml_lines(data, prefix=""):
     """A tiny TOML writer for the test's tables (numbers, strings, booleans, lists, tables)."""
     def val(v):

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from quatform.errors import DegenerateInputError, UnreachableError
-from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+from quatform.errors import DegenerateInputError, InvalidInputError, UnreachableError
+from quatform.formations import RobotLayout, UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
 from quatform.robots import TABLE2_K, Bebop, Pioneer, yaw_matrix
 
 ALL = [UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion()]
@@ -99,6 +99,18 @@ def test_coincident_robots_refused():
     for F in ALL:
         with pytest.raises(DegenerateInputError, match="coincide"):
             F.forward(np.zeros(6))
+
+
+def test_messages_name_the_ugv_and_the_uav_not_the_column_suffixes():
+    for F in ALL:
+        for call in (F.forward, F.singularity_measure):
+            with pytest.raises(DegenerateInputError, match="robots UGV and UAV coincide") as info:
+                call(np.zeros(6))
+            assert "_p" not in str(info.value) and "_b" not in str(info.value)
+    assert UgvUavSpherical().layout.names == ("x_p", "y_p", "z_p", "x_b", "y_b", "z_b")  # the columns keep theirs
+    assert RobotLayout(("xyz", "xyz"), labels=("_p", "_b")).display_names == ("_p", "_b")  # default: the labels
+    with pytest.raises(InvalidInputError, match="1 display names for 2 robots"):
+        RobotLayout(("xyz", "xyz"), display_names=("UGV",))
 
 
 # -- robots ------------------------------------------------------------------------------------

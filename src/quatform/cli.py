@@ -61,6 +61,11 @@ def _list(items):
             print(f"{'':32s}   {line}")
 
 
+def _dashed(name: str) -> str:
+    """An option's name as its flag spells it (``orientation_error`` -> ``orientation-error``)."""
+    return name.replace("_", "-")
+
+
 def _flag(option) -> str:
     """The command-line flag of a kind's option: ``--name`` (``_`` as ``-``); a switch that is on
     unless given (default True or None = the scenario's): ``--no-name``."""
@@ -112,6 +117,33 @@ class _Parser(argparse.ArgumentParser):
         if len(text) > 400:
             text = text[:396] + " ..."
         self.exit(EXIT_INPUT, f"{self.prog}: error: {text} (see '{self.prog} --help')\n")
+
+    def _compute_hint(self, value, physics=None) -> str | None:
+        """The line for ``--backend VALUE`` where VALUE is one of this command's ``--compute``
+        choices (``--backend`` chooses the physics, ``physics``; None where the command has none)."""
+        compute = next((a for a in self._actions if a.dest == "compute"), None)
+        if compute is None or value not in (compute.choices or ()):
+            return None
+        name = {"jax": "JAX", "numpy": "NumPy"}.get(value, value)
+        what = (f"--backend chooses the physics ({', '.join(physics)})" if physics
+                else f"{self.prog.split()[-1]} takes no --backend (the physics)")
+        return f"{what}; for {name} use --compute {value}"
+
+    def _check_value(self, action, value):
+        hint = self._compute_hint(value, action.choices) if action.dest == "backend" and action.choices else None
+        if hint is not None and value not in action.choices:
+            raise argparse.ArgumentError(None, hint)
+        super()._check_value(action, value)
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, extras = super().parse_known_args(args, namespace)
+        for k, arg in enumerate(extras):  # --backend where the command has none (teleop)
+            flag, eq, value = arg.partition("=")
+            if flag == "--backend":
+                hint = self._compute_hint(value if eq else (extras[k + 1] if k + 1 < len(extras) else None))
+                if hint is not None:
+                    self.error(hint)
+        return ns, extras
 
 
 #: Every subcommand and its one-line help, in the order ``quatform --help`` lists them. The
@@ -193,8 +225,8 @@ def _compare_arguments(cmp_) -> None:
         "options are fixed for every run. " + _MUJOCO_NOTE)
     cmp_.add_argument("scenario", metavar="SCENARIO")
     cmp_.add_argument("--out", metavar="DIR", required=True, help="output folder")
-    axes = sorted({o.name for k in kinds for o in k.options if o.choices is not None})
-    cmp_.add_argument("--over", metavar="OPTION", choices=axes,
+    axes = sorted({_dashed(o.name) for k in kinds for o in k.options if o.choices is not None})
+    cmp_.add_argument("--over", metavar="OPTION", choices=axes, type=_dashed,
                       help=f"the option to vary: one of {', '.join(axes)} that the scenario's kind takes "
                       "(default: the kind's compare option)")
     cmp_.add_argument("--no-plots", action="store_true", help="write metrics, time series and the table only")
@@ -396,7 +428,8 @@ def _ros2_cli():
 #: What each command does with its parsed arguments.
 COMMANDS = {
     "demo": lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun),
-    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()), args.over,
+    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()),
+                                     args.over and args.over.replace("-", "_"),
                                      not args.no_plots, not args.no_mcap, args.rerun, args.compute),
     "run": lambda args: _run(args, _kinds().values()),
     "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),

@@ -656,6 +656,6 @@ class SafeController(contract.Controller):
             a, b = (int(p[at[-1]]) for p in layout.pairs)
             where = f" in world {tuple(int(k) for k in at[:-1])}" if len(at) > 1 else ""
             raise DegenerateInputError(
-                f"SafeController: robots {layout.labels[a]} and {layout.labels[b]} start "
+                f"SafeController: robots {layout.display_names[a]} and {layout.display_names[b]} start "
                 f"{float(sep[tuple(at)]):.6g} m apart{where}, closer than min_separation_m = {d:.6g} m; start them "
                 "farther apart or lower the minimum")

@@ -221,7 +221,7 @@ class DualQuaternionTeam(Formation):
         if chart not in CHARTS:
             raise InvalidInputError(f"DualQuaternionTeam: chart {chart!r} unknown; choose one of {', '.join(CHARTS)}")
         if shape == "relative":
-            other = [f"robot {lab} ({k})" for lab, k in zip(L.labels, L.kinds) if POINT_KINDS[k].yaw is None]
+            other = [f"robot {lab} ({k})" for lab, k in zip(L.display_names, L.kinds) if POINT_KINDS[k].yaw is None]
             if other:
                 raise InvalidInputError(
                     f"DualQuaternionTeam(shape='relative') reads real yaws (eq. (27)'s branch) and represents "
@@ -525,7 +525,7 @@ class DualQuaternionTeam(Formation):
             Qi = _dqmul(B[..., :1, :], B[..., 1:, :])  # qhat_i = qhat_c qhat_ci
             rot = Qi[..., :4]
             self._check_yaws(rot[..., self._yaw_robots, :], "c",
-                             [f"robot {self.layout.labels[i]}" for i in self._yaw_robots])
+                             [f"robot {self.layout.display_names[i]}" for i in self._yaw_robots])
             P = _translation(Qi)
             if len(self._planar_robots):
                 z = P[..., self._planar_robots, 2]

@@ -163,7 +163,7 @@ class EuclideanTeam(Formation):
         kinds = set(L.kinds)
         if "pose" in kinds:
             raise InvalidInputError(
-                f"EuclideanTeam: robot {L.labels[L.kinds.index('pose')]} is a 'pose' robot (6 DOF): a minimal "
+                f"EuclideanTeam: robot {L.display_names[L.kinds.index('pose')]} is a 'pose' robot (6 DOF): a minimal "
                 "Euclidean chart would need Euler angles per robot; use QuaternionTeam or DualQuaternionTeam for "
                 "pose robots")
         ground = [i for i, k in enumerate(L.kinds) if k == "xy_yaw"]
@@ -269,7 +269,8 @@ class EuclideanTeam(Formation):
                 k = int(np.argmin(np.min(rho.reshape(-1, rho.shape[-1]), axis=0)))
                 raise DegenerateInputError(
                     f"{name}: {self.variables[self._i_rho[k]].name} = {float(np.min(rho)):.3g} m puts robot "
-                    f"{self.layout.labels[self.order[k + 2]]} on robot {self.layout.labels[self.order[0]]} (at least {MIN_SEPARATION_M:g} m); give it a positive "
+                    f"{self.layout.display_names[self.order[k + 2]]} on robot "
+                    f"{self.layout.display_names[self.order[0]]} (at least {MIN_SEPARATION_M:g} m); give it a positive "
                     "distance from robot 1")
         return c
 

@@ -106,10 +106,14 @@ class RobotLayout:
         One :data:`POINT_KINDS` key per robot.
     labels : tuple of str, optional
         Suffix of each robot's variable names (default ``"1" ... "N"``).
+    display_names : tuple of str, optional
+        Each robot's name in messages (``"robots UGV and UAV coincide"``); default the
+        ``labels``. Column names use the ``labels`` only.
     """
 
     kinds: tuple
     labels: tuple | None = None
+    display_names: tuple | None = None
 
     def __post_init__(self):
         kinds = tuple(self.kinds)
@@ -124,8 +128,12 @@ class RobotLayout:
         labels = tuple(str(i + 1) for i in range(len(kinds))) if self.labels is None else tuple(self.labels)
         if len(labels) != len(kinds):
             raise InvalidInputError(f"robot layout: {len(labels)} labels for {len(kinds)} robots")
+        shown = labels if self.display_names is None else tuple(str(d) for d in self.display_names)
+        if len(shown) != len(kinds):
+            raise InvalidInputError(f"robot layout: {len(shown)} display names for {len(kinds)} robots")
         object.__setattr__(self, "kinds", kinds)
         object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "display_names", shown)
 
     @classmethod
     def uniform(cls, kind: str, n: int) -> RobotLayout:
@@ -258,7 +266,7 @@ class RobotLayout:
             at = np.argwhere(close)[0]
             i, j = (int(a[at[-1]]) for a in self.pairs)
             raise DegenerateInputError(
-                f"{name}: robots {self.labels[i]} and {self.labels[j]} coincide (separation "
+                f"{name}: robots {self.display_names[i]} and {self.display_names[j]} coincide (separation "
                 f"{float(s[tuple(at)]):.3g} m, at least {min_m:g} m needed"
                 + (f", at index {tuple(int(k) for k in at[:-1])}" if len(at) > 1 else "")
                 + "); a formation needs its robots apart")

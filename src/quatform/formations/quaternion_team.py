@@ -333,9 +333,10 @@ class QuaternionTeam(Formation):
             tilt = np.linalg.norm(g.z_axis(qy / np.linalg.norm(qy, axis=-1, keepdims=True)) - g.EZ, axis=-1)
             if np.any(tilt > TILT_TOL):
                 j = int(np.argmax(np.max(tilt.reshape(-1, tilt.shape[-1]), axis=0)))
-                lab = self._heads[int(self._yaw_rows[j])][1]
+                i, lab, _ = self._heads[int(self._yaw_rows[j])]
                 raise UnreachableError(
-                    f"q_c q_c{lab} tilts robot {lab} by {float(np.max(tilt)):.3g} rad (limit {TILT_TOL:g}); it only "
+                    f"q_c q_c{lab} tilts robot {self.layout.display_names[i]} by {float(np.max(tilt)):.3g} rad "
+                    f"(limit {TILT_TOL:g}); it only "
                     f"yaws - give it a q_c{lab} whose product with q_c is a rotation about z (from_chart builds one)")
             yaws = g.yaw_of(qy)
         else:
@@ -345,7 +346,7 @@ class QuaternionTeam(Formation):
             lim = PLANAR_TOL * np.maximum(1.0, np.linalg.norm(p[..., self._planar, :], axis=-1))
             if np.any(np.abs(z) > lim):
                 j = int(np.argmax(np.max((np.abs(z) - lim).reshape(-1, z.shape[-1]), axis=0)))
-                lab = L.labels[int(self._planar[j])]
+                lab = L.display_names[int(self._planar[j])]
                 raise UnreachableError(
                     f"the shape puts planar robot {lab} at z = {float(z.reshape(-1, z.shape[-1])[:, j].flat[0]):.3g} m "
                     "off the ground; give a shape and attitude with x_c + R(q_c) s_i on z = 0 (from_chart projects)")

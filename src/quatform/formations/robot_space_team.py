@@ -148,6 +148,22 @@ class RobotSpaceTeam(Formation):
         c_dot = as_array(c_dot, "c_dot", self.n_c)
         return np.broadcast_to(c_dot, np.broadcast_shapes(c.shape, c_dot.shape)).copy()
 
+    def length_scale(self, r):
+        """1 m for any robots, as for the pair's :class:`~.euclidean_pair.RobotSpace`: the cluster
+        state is the robots' own coordinates (``J = I``, no special set), so nothing is divided
+        by the robots' separation. :meth:`singularity_measure` is 1 (robots on each other
+        included) and :meth:`value_spread` is ``sqrt(n_r) delta``, the bound of ``c = r``."""
+        return np.ones(np.shape(r)[:-1])
+
+    def inverse_jacobian(self, r, *, near_c=None):
+        """The identity ``(..., n_r, n_r)`` at any robots ``r``, robots on each other included
+        (``c = r`` up to the yaws' turns and the quaternions' signs, which ``J`` does not see),
+        as for the pair's robot space; :meth:`forward` still refuses robots on each other."""
+        r = self.check_robot_state(r)
+        if near_c is not None:
+            self.check_cluster_state(near_c, "near_c")
+        return self.inverse_jacobian_at(r, r=r)
+
     def to_chart(self, c, *, near_e=None, r=None):
         """The team chart of the robots ``c`` (:meth:`TeamChart.from_robots` with this
         description's template where no ``near_e`` is given)."""

@@ -36,7 +36,7 @@ __all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_V
            "SPHERICAL_VARIABLES"]
 
 #: The UGV's control point and the UAV's position (yaws are controlled outside the formation).
-UGV_UAV_LAYOUT = RobotLayout(("xyz", "xyz"), labels=("_p", "_b"))
+UGV_UAV_LAYOUT = RobotLayout(("xyz", "xyz"), labels=("_p", "_b"), display_names=("UGV", "UAV"))
 UGV_UAV_VARIABLES = UGV_UAV_LAYOUT.variables
 SPHERICAL_VARIABLES = (
     Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),

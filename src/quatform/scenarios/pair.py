@@ -34,6 +34,7 @@ from ..sim.metrics import compute_metrics
 from ..sim.plants import KinematicTeam
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
+from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table, with_option
 
 __all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "check_barrier_reference",
            "separation_barrier", "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
@@ -58,9 +59,6 @@ SECONDS_PER_STEP = 2e-3
 #: Keys of each table of a two-robot scenario file.
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "gains", "feedforward",
              "robots", "path", "initial_offset", "safety")
-_SAFETY_KEYS = ("enabled", "min_separation_m")
-#: ``[safety] min_separation_m`` when ``enabled = true`` names none, m (the team kind's default).
-DEFAULT_MIN_SEPARATION_M = 0.3
 _ROBOT_KEYS = ("max_speed_m_s", "max_yaw_rate_rad_s")
 _PATH_KEYS = ("centroid", "center", "velocity", "radius", "period_s", "climb_m_s", *_NAMES[3:], "ramps", "steps")
 _RAMP_KEYS = ("variable", "start_s", "duration_s", "change")
@@ -251,13 +249,7 @@ def scenario_from_dict(data: dict, where: str = "scenario") -> Scenario:
         offset = np.array([number(off, n, where, 0.0, place="[initial_offset]") for n in _NAMES])
         gains = _gains(data, where)
         check_step_stable(where, dt, gains)
-        saf = table(data, "safety", where) if "safety" in data else None
-        safety = {"enabled": False, "min_separation_m": DEFAULT_MIN_SEPARATION_M}
-        if saf is not None:  # a [safety] table turns the barrier on unless it says enabled = false
-            check_keys(saf, _SAFETY_KEYS, where, "[safety]", _HINT)
-            safety = {"enabled": flag(saf, "enabled", where, True, place="[safety]"),
-                      "min_separation_m": number(saf, "min_separation_m", where, DEFAULT_MIN_SEPARATION_M,
-                                                 place="[safety]", low=0.0, low_open=True)}
+        safety = safety_table(data, where, _HINT, enabled_without_table=False)  # off without a [safety] table
         sc = Scenario(
             name=text(data, "name", where, Path(where).stem),
             title=text(data, "title", where, ""),
@@ -291,7 +283,7 @@ def _safety(value, where: str) -> dict:
     if not isinstance(value, dict):
         raise InvalidInputError(f"{where}: safety must be a dict with keys enabled and min_separation_m, got "
                                 f"{short(value)}")
-    check_keys(value, _SAFETY_KEYS, where, "safety", _HINT)
+    check_keys(value, SAFETY_KEYS, where, "safety", _HINT)
     enabled = value.get("enabled", False)
     if not isinstance(enabled, (bool, np.bool_)):
         raise InvalidInputError(f"{where}: safety enabled = {short(enabled)} must be True or False")
@@ -597,16 +589,7 @@ class PairKind(ScenarioKind):
                    "see quatform.sim.mujoco_backend.pair_plant")
         if physics and backend != "mujoco":
             raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
-        safety = dict(scenario.safety)
-        label = "[safety] min_separation_m"
-        if min_separation is not None:
-            if isinstance(min_separation, bool) or not isinstance(min_separation, numbers.Real) \
-                    or not math.isfinite(min_separation) or min_separation < 0:
-                raise InvalidInputError(f"scenario {scenario.name!r}: min_separation = {short(min_separation)} must "
-                                        "be a finite number of m >= 0 (0 turns the separation barrier off)")
-            safety = {"enabled": min_separation > 0, "min_separation_m": float(min_separation or
-                                                                               safety["min_separation_m"])}
-            label = "min_separation"
+        safety, label = with_option(scenario.safety, min_separation, f"scenario {scenario.name!r}")
         if reference is not None:
             scenario = with_plan(scenario, reference)
         # up front, before the reference is sampled (a Scenario checks this when built; its

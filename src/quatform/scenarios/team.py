@@ -76,6 +76,7 @@ from ..sim.plants import KinematicTeam
 from ..sim.team_metrics import min_separations, team_metrics
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
+from .separation import FILE_LABEL, safety_table, with_option
 
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict", "ROBOT_MODELS",
            "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_BACKENDS", "TEAM_BYTES_PER_ROBOT_STEP",
@@ -339,7 +340,6 @@ _ATTITUDE_KEYS = ("yaw", "pitch", "roll", "turns")
 _TURN_KEYS = ("axis", "angle", "start_s", "duration_s", "profile")
 _HEADING_KEYS = ("mode", "offsets")
 _OFFSET_KEYS = ("position", "yaw", "scale")
-_SAFETY_KEYS = ("enabled", "min_separation_m")
 _REFERENCE_KEYS = ("time_scale", "altitude_m", "headings")
 
 
@@ -523,11 +523,7 @@ def team_scenario_from_dict(data: dict, where: str = "scenario") -> TeamScenario
         offset = {"position": vector(off, "position", 3, where, (0.0, 0.0, 0.0), place="[initial_offset]"),
                   "yaw": number(off, "yaw", where, 0.0, place="[initial_offset]"),
                   "scale": number(off, "scale", where, 1.0, place="[initial_offset]", low=0.0, low_open=True)}
-        saf = table(data, "safety", where, default={})
-        check_keys(saf, _SAFETY_KEYS, where, "[safety]", _HINT)
-        safety = {"enabled": flag(saf, "enabled", where, True, place="[safety]"),
-                  "min_separation_m": number(saf, "min_separation_m", where, 0.3, place="[safety]", low=0.0,
-                                             low_open=True)}
+        safety = safety_table(data, where, _HINT, enabled_without_table=True)  # on by default for teams
         ref = table(data, "reference", where, default={})
         check_keys(ref, _REFERENCE_KEYS, where, "[reference]", _HINT)
         reference = {"time_scale": number(ref, "time_scale", where, 1.0, place="[reference]", low=0.0,
@@ -555,21 +551,26 @@ def _check_start(sc: TeamScenario, where: str) -> None:
     r0 = _start_points(sc, sc.motion)
     check_template(L.positions(r0)[None], L.n, "the robots at t = 0 (the reference with [initial_offset])",
                    min_separation=1e-6)
-    if not sc.safety["enabled"]:
-        return
+    if sc.safety["enabled"]:
+        _check_barrier_reference(sc, sc.safety["min_separation_m"], where, FILE_LABEL)
+
+
+def _check_barrier_reference(sc: TeamScenario, d: float, where: str, label: str) -> None:
+    """Refuse a barrier of ``d`` m (the setting ``label``) that the reference breaks: two robots
+    closer than ``d`` at some time (sampled at most every 1/2000 of the run)."""
+    L = sc.team.layout
     t = sc.times
     t = t[::max(1, len(t) // 2000)]
     r = TeamChart(L).robots(sc.motion(t)[0])
     sep = min_separations(L, r)
     k = int(np.argmin(sep))
-    d = sc.safety["min_separation_m"]
     if sep[k] < d:
         i, j = L.pairs
         a = int(np.argmin(L.separations(r[k])))
         raise InvalidInputError(
-            f"{where}: the reference brings robots {L.labels[i[a]]} and {L.labels[j[a]]} to {sep[k]:.3g} m at t = "
-            f"{t[k]:g} s, below [safety] min_separation_m = {d:g} m (the barrier would hold them apart); enlarge "
-            "the shape or lower min_separation_m")
+            f"{where}: the reference brings robots {L.display_names[i[a]]} and {L.display_names[j[a]]} to "
+            f"{sep[k]:.3g} m at t = {t[k]:g} s, below {label} = {d:g} m (the barrier would hold them apart); "
+            f"enlarge the shape or lower {label}")
 
 
 def _start_points(sc: TeamScenario, motion) -> np.ndarray:
@@ -645,6 +646,8 @@ class TeamKind(ScenarioKind):
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
         Option("backend", "what moves the robots", TEAM_BACKENDS, "kinematic"),
         Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
+        Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
+               "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
     )
     compare_over = "controller"
     table_columns = TEAM_TABLE_COLUMNS
@@ -669,11 +672,14 @@ class TeamKind(ScenarioKind):
         return tuple(run), skipped
 
     def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
-                   backend: str = "kinematic", reference=None) -> Experiment:
+                   backend: str = "kinematic", reference=None, min_separation: float | None = None) -> Experiment:
         """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_CONTROLLERS`
         name or a controller object of the scenario's team; required).
 
-        ``reference``: a saved N-robot plan to follow (:func:`with_plan`).
+        ``reference``: a saved N-robot plan to follow (:func:`with_plan`). ``min_separation``
+        (m, >= 0): the separation barrier's minimum instead of the scenario's ``[safety]``
+        ``min_separation_m``, 0 turns the barrier off (:func:`.separation.with_option`); a
+        reference that brings two robots closer is refused as the file's value is.
         """
         if not isinstance(scenario, TeamScenario):
             raise InvalidInputError(f"team experiment: scenario must be a TeamScenario, got {type(scenario).__name__}")
@@ -683,8 +689,12 @@ class TeamKind(ScenarioKind):
         if backend not in TEAM_BACKENDS:
             raise InvalidInputError(f"unknown backend {backend!r} for a team scenario; choose one of "
                                     f"{', '.join(TEAM_BACKENDS)}")
+        where = f"scenario {scenario.name!r}"
+        safety, label = with_option(scenario.safety, min_separation, where)
         if reference is not None:
             scenario = with_plan(scenario, reference)
+        if label != FILE_LABEL and safety["enabled"]:  # the file's value was checked when the file was read
+            _check_barrier_reference(scenario, safety["min_separation_m"], where, label)
         check_team_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s, scenario.team.layout.n)
         ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
         team, F, ff = ctrl.team, ctrl.formation, bool(ctrl.feedforward)
@@ -710,7 +720,6 @@ class TeamKind(ScenarioKind):
             plant = physics = team_plant(team, x0, dt=scenario.dt_s)
         else:
             plant = KinematicTeam(team)
-        safety = dict(scenario.safety)
         safety["applied"] = bool(safety["enabled"])
         if safety["applied"]:  # the barrier is on by default for teams
             # the barrier's rate gamma at most 1 / dt_s: the sampled-time guarantee h_{k+1} >= (1 - gamma dt) h_k

@@ -1,0 +1,53 @@
+"""The separation barrier's setting, shared by the scenario kinds that hold robots apart.
+
+Scenarios layer. A scenario file's ``[safety]`` table (``enabled``, ``min_separation_m``)
+and a run's ``min_separation`` option (``--min-separation X``: X m, 0 turns the barrier
+off, the file's table otherwise) read the same way for the pair and the team kinds; each
+kind checks the setting against its own reference (the pair's ``2 d_c``, the team's
+pairwise separations).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+from ..checks import check_keys, flag, number, short, table
+from ..errors import InvalidInputError
+
+__all__ = ["SAFETY_KEYS", "DEFAULT_MIN_SEPARATION_M", "FILE_LABEL", "OPTION_LABEL", "safety_table", "with_option"]
+
+#: The keys of a ``[safety]`` table.
+SAFETY_KEYS = ("enabled", "min_separation_m")
+#: ``[safety] min_separation_m`` when the table names none, m.
+DEFAULT_MIN_SEPARATION_M = 0.3
+#: How a refusal names the file's setting and the run option's.
+FILE_LABEL, OPTION_LABEL = "[safety] min_separation_m", "min_separation"
+
+
+def safety_table(data: dict, where: str, hint: str, *, enabled_without_table: bool) -> dict:
+    """The ``[safety]`` table of the scenario file ``data``: ``{"enabled": bool,
+    "min_separation_m": float > 0}``; a table present turns the barrier on unless it says
+    ``enabled = false``, an absent one leaves it ``enabled_without_table``."""
+    if "safety" not in data:
+        return {"enabled": bool(enabled_without_table), "min_separation_m": DEFAULT_MIN_SEPARATION_M}
+    saf = table(data, "safety", where)
+    check_keys(saf, SAFETY_KEYS, where, "[safety]", hint)
+    return {"enabled": flag(saf, "enabled", where, True, place="[safety]"),
+            "min_separation_m": number(saf, "min_separation_m", where, DEFAULT_MIN_SEPARATION_M, place="[safety]",
+                                       low=0.0, low_open=True)}
+
+
+def with_option(safety: dict, min_separation, where: str) -> tuple[dict, str]:
+    """The run's safety: the scenario's ``safety`` or, where ``min_separation`` is given (m,
+    finite, >= 0; 0 turns the barrier off and keeps the file's minimum for the record), that;
+    and the label that names the setting in a refusal (:data:`FILE_LABEL`, :data:`OPTION_LABEL`)."""
+    safety = dict(safety)
+    if min_separation is None:
+        return safety, FILE_LABEL
+    if isinstance(min_separation, bool) or not isinstance(min_separation, numbers.Real) \
+            or not math.isfinite(min_separation) or min_separation < 0:
+        raise InvalidInputError(f"{where}: min_separation = {short(min_separation)} must be a finite number of "
+                                "m >= 0 (0 turns the separation barrier off)")
+    safety.update(enabled=min_separation > 0, min_separation_m=float(min_separation or safety["min_separation_m"]))
+    return safety, OPTION_LABEL
