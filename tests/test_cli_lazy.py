@@ -51,9 +51,8 @@ def _help(parser, name) -> str:
     return sub.choices[name].format_help()
 
 
-@pytest.mark.parametrize("name", list(cli.COMMAND_HELP))
+@pytest.mark.parametrize("name", list(cli.COMMANDS))
 def test_a_command_built_alone_has_the_options_of_the_full_parser(name):
-    assert set(cli.COMMAND_HELP) == set(cli.ARGUMENTS) == set(cli.COMMANDS)
     assert _help(cli._build_parser(only=(name,)), name) == _help(cli._build_parser(), name)
     assert "options:" in _help(cli._build_parser(only=(name,)), name)
 

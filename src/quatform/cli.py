@@ -11,6 +11,8 @@ import argparse
 import contextlib
 import os
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 
 from . import __version__
 from .errors import QuatformError
@@ -146,23 +148,6 @@ class _Parser(argparse.ArgumentParser):
         return ns, extras
 
 
-#: Every subcommand and its one-line help, in the order ``quatform --help`` lists them. The
-#: top-level parser is built from these names alone; a subcommand's own options (and the
-#: modules they come from: the scenario kinds, the compute backends, the sweeps, the ROS 2
-#: bridge) are built only for the command given (:func:`_build_parser`, :data:`ARGUMENTS`).
-COMMAND_HELP = {
-    "demo": "compare the four seed 000 controllers on the rising spiral",
-    "run": "simulate one scenario of any kind with one choice",
-    "plan": "plan a formation motion (seed 002 shaped geodesics, seed 004 rigid formations on SE(3))",
-    "plans": "list the built-in plan specs",
-    "compare": "run every choice of one option (every controller, every formation description ...) on one scenario",
-    "teleop": "simulate a master-slave teleoperation scenario (seed 003; 'run' for teleop scenarios)",
-    "scenarios": "list the built-in scenarios of every kind",
-    "sweep": "run a Monte Carlo sweep (controllers x noise, latency, gains, starts, team sizes)",
-    "sweeps": "list the built-in sweeps",
-    "ros2": "drive real robots over ROS 2 with a scenario's controller (needs a sourced ROS 2)",
-    "replay": "run a controller offline on a recorded bag's poses and write what it would have commanded",
-}
 
 
 def _demo_arguments(demo) -> None:
@@ -255,26 +240,11 @@ def _scenarios_arguments(p) -> None:
     p.description = "List the built-in scenarios of every kind with their titles and sources."
 
 
-#: What each command's parser holds: a function adding its description and options to it
-#: (the modules it needs imported there, only for that command).
-ARGUMENTS = {
-    "demo": _demo_arguments,
-    "run": _run_arguments,
-    "plan": _plan_arguments,
-    "plans": _plans_arguments,
-    "compare": _compare_arguments,
-    "teleop": _teleop_arguments,
-    "scenarios": _scenarios_arguments,
-    "sweep": lambda p: _sweeps_cli().sweep_arguments(p),
-    "sweeps": lambda p: _sweeps_cli().sweeps_arguments(p),
-    "ros2": lambda p: _ros2_cli().ros2_arguments(p),
-    "replay": lambda p: _ros2_cli().replay_arguments(p),
-}
 
 
 def _build_parser(only=None) -> argparse.ArgumentParser:
-    """The ``quatform`` parser: every subcommand by name (:data:`COMMAND_HELP`), with its own
-    options (:data:`ARGUMENTS`) for the commands in ``only`` (default: all of them). ``quatform
+    """The ``quatform`` parser: every subcommand by name (:data:`COMMANDS`), with its own
+    options for the commands in ``only`` (default: all of them). ``quatform
     --help`` builds none, so it imports none of the layers below."""
     parser = _Parser(
         prog="quatform",
@@ -283,10 +253,10 @@ def _build_parser(only=None) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"quatform {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, text in COMMAND_HELP.items():
-        p = sub.add_parser(name, help=text)
+    for name, command in COMMANDS.items():
+        p = sub.add_parser(name, help=command.help)
         if only is None or name in only:
-            ARGUMENTS[name](p)
+            command.arguments(p)
     return parser
 
 
@@ -425,27 +395,73 @@ def _ros2_cli():
     return cli
 
 
-#: What each command does with its parsed arguments.
+@dataclass(frozen=True)
+class Command:
+    """A subcommand: its one-line help, the function adding its description and options to its
+    parser (importing the modules they come from: the scenario kinds, the compute backends, the
+    sweeps, the ROS 2 bridge), and the function running it on the parsed arguments."""
+
+    help: str
+    arguments: Callable
+    run: Callable
+
+
+#: Every subcommand, in the order ``quatform --help`` lists them. The top-level parser is built
+#: from the names and help lines alone; a command's options only for the command given
+#: (:func:`_build_parser`), so ``quatform --help`` imports none of the layers below.
 COMMANDS = {
-    "demo": lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun),
-    "compare": lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()),
-                                     args.over and args.over.replace("-", "_"),
-                                     not args.no_plots, not args.no_mcap, args.rerun, args.compute),
-    "run": lambda args: _run(args, _kinds().values()),
-    "teleop": lambda args: _run(args, (_kinds()[TELEOP_KIND],)),
-    "plan": _plan,
-    "plans": _plans,
-    "scenarios": _scenarios,
-    "ros2": lambda args: _ros2_cli().run_ros2(args),
-    "replay": lambda args: _ros2_cli().run_replay(args),
-    "sweep": lambda args: _sweeps_cli().sweep_command(args),
-    "sweeps": lambda args: _sweeps_cli().sweeps_command(args),
+    "demo": Command(
+        "compare the four seed 000 controllers on the rising spiral",
+        _demo_arguments,
+        lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun)),
+    "run": Command(
+        "simulate one scenario of any kind with one choice",
+        _run_arguments,
+        lambda args: _run(args, _kinds().values())),
+    "plan": Command(
+        "plan a formation motion (seed 002 shaped geodesics, seed 004 rigid formations on SE(3))",
+        _plan_arguments,
+        _plan),
+    "plans": Command(
+        "list the built-in plan specs",
+        _plans_arguments,
+        _plans),
+    "compare": Command(
+        "run every choice of one option (every controller, every formation description ...) on one scenario",
+        _compare_arguments,
+        lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()),
+                              args.over and args.over.replace("-", "_"),
+                              not args.no_plots, not args.no_mcap, args.rerun, args.compute)),
+    "teleop": Command(
+        "simulate a master-slave teleoperation scenario (seed 003; 'run' for teleop scenarios)",
+        _teleop_arguments,
+        lambda args: _run(args, (_kinds()[TELEOP_KIND],))),
+    "scenarios": Command(
+        "list the built-in scenarios of every kind",
+        _scenarios_arguments,
+        _scenarios),
+    "sweep": Command(
+        "run a Monte Carlo sweep (controllers x noise, latency, gains, starts, team sizes)",
+        lambda p: _sweeps_cli().sweep_arguments(p),
+        lambda args: _sweeps_cli().sweep_command(args)),
+    "sweeps": Command(
+        "list the built-in sweeps",
+        lambda p: _sweeps_cli().sweeps_arguments(p),
+        lambda args: _sweeps_cli().sweeps_command(args)),
+    "ros2": Command(
+        "drive real robots over ROS 2 with a scenario's controller (needs a sourced ROS 2)",
+        lambda p: _ros2_cli().ros2_arguments(p),
+        lambda args: _ros2_cli().run_ros2(args)),
+    "replay": Command(
+        "run a controller offline on a recorded bag's poses and write what it would have commanded",
+        lambda p: _ros2_cli().replay_arguments(p),
+        lambda args: _ros2_cli().run_replay(args)),
 }
 
 
 def _command(args) -> None:
     """Run the parsed command (every error propagates to :func:`main`)."""
-    COMMANDS[args.command](args)
+    COMMANDS[args.command].run(args)
 
 
 def _say(line: str) -> None:
