@@ -140,3 +140,21 @@ def assert_metrics_equal(ma, mb, skip=()):
             np.testing.assert_allclose(mb[key], value, rtol=BACKEND_TOL, atol=BACKEND_TOL, err_msg=key)
         else:
             assert mb[key] == value or (isinstance(value, float) and np.isnan(value) and np.isnan(mb[key])), key
+
+
+def pair_separation(r):
+    """Distance between the two robots of seed 000's pair states ``r`` ``(..., 8)``, m."""
+    from quatform.formations import RobotSpace
+
+    return RobotSpace().layout.separations(np.asarray(r, dtype=float))[..., 0]
+
+
+def pair_robot_error(a, b) -> float:
+    """Largest difference of two pair states, their yaws mod 2 pi."""
+    from quatform.formations import RobotSpace
+    from quatform.formations import geometry as g
+
+    d = np.asarray(a, float) - np.asarray(b, float)
+    yaw = list(RobotSpace().layout.yaw_indices)
+    d[..., yaw] = g.wrap(d[..., yaw])
+    return float(np.abs(d).max())

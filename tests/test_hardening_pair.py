@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import pair_robot_error, pair_separation
 from hypothesis import given, settings, strategies as st
 
 from quatform.control import (
@@ -33,15 +34,6 @@ ALL_CONTROLLERS = [ClusterSpaceController, RobotSpaceController, QuaternionContr
 E_FIXED = np.array([0, 0, 1, 0, 0, 1, 0, 0.0])
 
 
-def separation(r):
-    return np.linalg.norm(r[..., 0:3] - r[..., 4:7], axis=-1)
-
-
-def same_robots(a, b):
-    """Largest difference of two robot states, yaws mod 2 pi."""
-    d = np.asarray(a, float) - np.asarray(b, float)
-    d[..., [3, 7]] = g.wrap(d[..., [3, 7]])
-    return np.abs(d).max()
 
 
 def fixed_scenario(tmp_path, extra):
@@ -66,9 +58,9 @@ def test_item1_opposite_yaw_errors_do_not_drive_the_robots_together():
     seps = []
     for _ in range(400):
         r = r + 0.01 * C.step(0, r, Reference(c, cd, rd))
-        seps.append(separation(r))
+        seps.append(pair_separation(r))
     assert min(seps) >= 1.9
-    assert same_robots(r, rd) < 1e-6
+    assert pair_robot_error(r, rd) < 1e-6
 
 
 def test_item1_reference_step_of_the_relative_yaw(tmp_path):
@@ -80,7 +72,7 @@ def test_item1_reference_step_of_the_relative_yaw(tmp_path):
         run = run_pair(sc, name, feedforward=False)
         m = compute_metrics(run)
         assert m["min_robot_separation_m"] >= 1.9, name
-        assert same_robots(run["state"][-1], run["r_des"][-1]) < 1e-3, name
+        assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-3, name
 
 
 # -- zero error only at the reference formation ---------------------------------
@@ -104,7 +96,7 @@ def test_item2_random_yaw_starts_all_reach_the_reference(with_robots):
     for _ in range(300):
         r = r + 0.01 * C.step(0.0, r, ref)
     res = C.compute(0.0, r, ref)
-    assert same_robots(r, rd) < 1e-6
+    assert pair_robot_error(r, rd) < 1e-6
     identity = np.zeros(16)
     identity[[0, 8]] = 1.0
     np.testing.assert_allclose(res.error, np.tile(identity, (n, 1)), atol=1e-6)
@@ -136,7 +128,7 @@ def test_item2_initial_offset_does_not_end_swapped(tmp_path):
     swapped (3.8 m off) and the error reported zero."""
     sc = fixed_scenario(tmp_path, '[initial_offset]\nphi_1 = 2.0\nphi_2 = -1.2\n')
     run = run_pair(sc, "dual-quaternion")
-    assert same_robots(run["state"][-1], run["r_des"][-1]) < 1e-6
+    assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
     assert compute_metrics(run)["min_robot_separation_m"] >= 1.9
 
 
@@ -161,18 +153,18 @@ def test_item3_round_trip_without_a_hint_10000_states(F):
 def test_item3_the_issues_example():
     r = np.array([0, 1, 0, 2, 0, -1, 0, -2.0])
     D = DualQuaternionPair()
-    assert same_robots(D.inverse(D.forward(r)), r) < 1e-12
+    assert pair_robot_error(D.inverse(D.forward(r)), r) < 1e-12
 
 
 @settings(max_examples=60, deadline=None)
 @given(r=st.tuples(*(st.floats(-1e3, 1e3) for _ in range(3)), st.floats(-1e3, 1e3),
                    *(st.floats(-1e3, 1e3) for _ in range(3)), st.floats(-1e3, 1e3)).map(np.array))
 def test_item3_round_trip_property(r):
-    if separation(r) < 1e-3:
+    if pair_separation(r) < 1e-3:
         r[4] += 1.0
     for F in ALL_FORMATIONS:
         back = F.inverse(F.forward(r))
-        assert same_robots(back, r) < 1e-9 * max(1.0, np.abs(r).max()), F.name
+        assert pair_robot_error(back, r) < 1e-9 * max(1.0, np.abs(r).max()), F.name
 
 
 def test_item3_quaternion_round_trip_beside_the_minus_i_direction():
@@ -180,7 +172,7 @@ def test_item3_quaternion_round_trip_beside_the_minus_i_direction():
     cancelled and the round trip was 6e-8 m off at 46 m (found by the property test)."""
     r = np.array([-46.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.7520607149571205e-06, 0.0])
     Q = QuaternionPair()
-    assert same_robots(Q.inverse(Q.forward(r)), r) < 1e-12 * 46
+    assert pair_robot_error(Q.inverse(Q.forward(r)), r) < 1e-12 * 46
 
 
 def test_item3_hint_does_not_change_the_formation():
@@ -190,7 +182,7 @@ def test_item3_hint_does_not_change_the_formation():
     r = random_states(rng, 500)
     hint = D.forward(random_states(rng, 500))
     hint[::2, 8:] *= -1  # the other branch
-    assert same_robots(D.inverse(D.forward(r, near_c=hint)), r) < 1e-9
+    assert pair_robot_error(D.inverse(D.forward(r, near_c=hint)), r) < 1e-9
 
 
 # -- references that are no formation -------------------------------------------
@@ -335,7 +327,7 @@ def test_eq33_seed_counterexample_decreases_under_the_law_function():
     assert V29[0] == pytest.approx(2.029, abs=1e-3) and V29.max() == pytest.approx(2.264, abs=2e-3)
     VL = dual_quaternion_law_lyapunov(cs, c_des)
     assert np.all(np.diff(VL) <= 1e-12)
-    assert same_robots(r, EuclideanPair().inverse(e_des)) < 1e-3
+    assert pair_robot_error(r, EuclideanPair().inverse(e_des)) < 1e-3
 
 
 def test_eq29_shape_term_rises_past_half_a_turn_but_the_law_function_falls():
@@ -349,7 +341,7 @@ def test_eq29_shape_term_rises_past_half_a_turn_but_the_law_function_falls():
     V29 = dual_quaternion_lyapunov(cs, c_des)
     VL = dual_quaternion_law_lyapunov(cs, c_des)
     assert V29[1] > V29[0] and np.all(np.diff(VL) <= 1e-12)
-    assert same_robots(r, EuclideanPair().inverse(e_des)) < 1e-3
+    assert pair_robot_error(r, EuclideanPair().inverse(e_des)) < 1e-3
 
 
 def test_euclidean_inverse_has_a_numpydoc_docstring():

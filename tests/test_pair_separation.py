@@ -14,6 +14,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import pair_robot_error, pair_separation
 
 from quatform import cli
 from quatform.control import DualQuaternionController, Reference, SafeController, SeparationBarrier
@@ -31,15 +32,6 @@ YAWS = np.array([0, 0, 0, 2.811, 0, 0, 0, -2.849])
 HALF = 0.5 * 2 * E[5]  # half the robots' separation, m
 
 
-def separation(r):
-    return np.linalg.norm(r[..., 0:3] - r[..., 4:7], axis=-1)
-
-
-def robot_error(a, b):
-    """Largest difference of two robot states, yaws mod 2 pi."""
-    d = np.asarray(a, float) - np.asarray(b, float)
-    d[..., [3, 7]] = g.wrap(d[..., [3, 7]])
-    return np.abs(d).max()
 
 
 def scenario_file(tmp_path, safety="", offset=(2.811, -2.849), d_c=E[5], name="s"):
@@ -64,8 +56,8 @@ def test_the_law_alone_brings_yaw_only_starts_together():
     r, seps = rd + YAWS, []
     for _ in range(300):
         r = r + 0.01 * C.step(0, r, Reference(c, cd, rd))
-        seps.append(separation(r))
-    assert separation(rd) == pytest.approx(3.77)
+        seps.append(pair_separation(r))
+    assert pair_separation(rd) == pytest.approx(3.77)
     assert min(seps) == pytest.approx(0.944, abs=1e-3)
 
 
@@ -79,9 +71,9 @@ def test_the_reproducer_with_the_barrier_never_comes_within_the_set_distance(tmp
     r, seps = rd + YAWS, []
     for _ in range(600):
         r = r + 0.01 * C.step(0, r, Reference(c, cd, rd))
-        seps.append(separation(r))
+        seps.append(pair_separation(r))
     assert min(seps) >= HALF
-    assert robot_error(r, rd) < 1e-9
+    assert pair_robot_error(r, rd) < 1e-9
 
 
 def test_scenario_safety_table_holds_the_reproducer_apart(tmp_path):
@@ -96,7 +88,7 @@ def test_scenario_safety_table_holds_the_reproducer_apart(tmp_path):
     m = PAIR.experiment(sc, controller="dual-quaternion").metrics(run)
     assert m["min_robot_separation_m"] >= HALF
     assert m["safety_min_separation_m"] == HALF and 0 < m["safety_active_time_s"] < 5
-    assert robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
+    assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
     off = load_scenario(scenario_file(tmp_path, f"[safety]\nenabled = false\nmin_separation_m = {HALF}\n", name="o"))
     assert compute_metrics(run_pair(off, "dual-quaternion"))["min_robot_separation_m"] < 1.0
 
@@ -111,10 +103,10 @@ def test_random_yaw_only_starts_never_come_within_the_set_distance(tmp_path):
     r0 = np.tile(rd, (50, 1))
     r0[:, [3, 7]] += rng.uniform(-np.pi, np.pi, (50, 2))
     bare = PAIR.experiment(sc, controller="dual-quaternion", r0=r0).run()
-    assert np.count_nonzero(separation(bare["state"]).min(axis=0) < HALF) >= 2
+    assert np.count_nonzero(pair_separation(bare["state"]).min(axis=0) < HALF) >= 2
     run = PAIR.experiment(sc, controller="dual-quaternion", r0=r0, min_separation=HALF).run()
-    assert separation(run["state"]).min() >= HALF
-    assert robot_error(run["state"][-1], np.broadcast_to(rd, r0.shape)) < 1e-6
+    assert pair_separation(run["state"]).min() >= HALF
+    assert pair_robot_error(run["state"][-1], np.broadcast_to(rd, r0.shape)) < 1e-6
 
 
 def test_cli_min_separation_option(tmp_path, capsys):
@@ -143,7 +135,7 @@ def test_a_minimum_equal_to_the_robots_separation_is_kept_not_refused(tmp_path):
     d = 2 * E[5]
     sc = load_scenario(scenario_file(tmp_path, f"[safety]\nmin_separation_m = {d}\n"))
     run = run_pair(sc, "dual-quaternion")
-    assert separation(run["state"]).min() >= d * (1 - 1e-12)
+    assert pair_separation(run["state"]).min() >= d * (1 - 1e-12)
     C = SafeController(DualQuaternionController(), SeparationBarrier(d + 1e-4))
     c, cd = C.inner.formation.from_euclidean(E, np.zeros(8))
     rd = RobotSpace().from_euclidean(E)

@@ -29,6 +29,10 @@ __all__ = ["PioneerBebopPlant", "UGV_UAV_STATE_COLUMNS", "PIONEER_SPEED_COLUMNS"
 UGV_UAV_STATE_COLUMNS = MOTION_CAPTURE_COLUMNS
 #: What a plant with the Pioneer's acceleration limits appends: the speeds it runs (m/s, rad/s).
 PIONEER_SPEED_COLUMNS = ("v_p_run", "omega_p_run")
+#: The parts of the state: the Pioneer's control point, the Bebop's 8 values, the running speeds.
+_PIONEER = slice(0, UGV_UAV_STATE_COLUMNS.index("x_b"))
+_BEBOP = slice(_PIONEER.stop, len(UGV_UAV_STATE_COLUMNS))
+_SPEEDS = slice(_BEBOP.stop, _BEBOP.stop + len(PIONEER_SPEED_COLUMNS))
 
 
 def ramp(running, commanded, max_change):
@@ -95,11 +99,11 @@ class PioneerBebopPlant:
         """The state after ``dt`` s of the commands ``u`` ``(..., 6)`` (held; any namespace)."""
         x, u = as_floats(x), as_floats(u)
         xp = common_namespace(x, u)
-        b = self.bebop.step(x[..., 3:11], u[..., 2:6], dt)
+        b = self.bebop.step(x[..., _BEBOP], u[..., 2:6], dt)
         floor = xp.maximum(b[..., 2:3], self.floor)  # the floor
         u_p, tail = u[..., 0:2], []
         if self.pioneer_accel:  # the firmware's ramp toward the (saturated) command
-            u_p = ramp(x[..., 11:13], self.pioneer.saturate(u_p), np.multiply(self.pioneer_accel, dt))
+            u_p = ramp(x[..., _SPEEDS], self.pioneer.saturate(u_p), np.multiply(self.pioneer_accel, dt))
             tail = [u_p]
-        return xp.concatenate([self.pioneer.step(x[..., 0:3], u_p, dt), b[..., 0:2], floor, b[..., 3:]] + tail,
+        return xp.concatenate([self.pioneer.step(x[..., _PIONEER], u_p, dt), b[..., 0:2], floor, b[..., 3:]] + tail,
                               axis=-1)
