@@ -1,5 +1,5 @@
 """Simulated seconds per wall-clock second: the two-quadrotor helix on MuJoCo physics
-beside the kinematic backend.
+beside the kinematic models.
 
 Each run is seed 000's helix (``mas-kitts-helix``, 80 s simulated, control every 10 ms)
 with one controller, timed end to end (reference, closed loop, logging; no files, no
@@ -163,7 +163,7 @@ def main(argv=None):
         rows.append(("mujoco bare mj_step (2 quads, forces held)", best_of(bare, args.repeat)))
     print(f"\nscenario: mas-kitts-helix, {args.duration:g} s simulated, controller {args.controller}, "
           f"best of {args.repeat}\n")
-    print("| backend | wall s | simulated s per wall s |")
+    print("| physics | wall s | simulated s per wall s |")
     print("|---|---|---|")
     for name, wall in rows:
         print(f"| {name} | {fmt(wall)} | {fmt(args.duration / wall)} |")

@@ -473,7 +473,7 @@ def test_a_mujoco_run_adds_each_quadrotors_rotors_and_full_attitude(tmp_path):
     pytest.importorskip("mujoco")
     sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=0.3, metrics_from_s=0.0)
     kind = kind_of(sc)
-    log = kind.experiment(sc, controller="quaternion", backend="mujoco").run(None)
+    log = kind.experiment(sc, controller="quaternion", physics="mujoco").run(None)
     record = log.meta["physics_record"]
     topics = _read_all(write_mcap(log, tmp_path / "mj.mcap", kind=kind.name))
     n = len(log)

@@ -63,7 +63,7 @@ def test_compare_and_teleop_take_compute(tmp_path, capsys):
 
 def test_compute_refusals_are_one_line(tmp_path, capsys):
     pytest.importorskip("mujoco")
-    code = cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--backend", "mujoco",
+    code = cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--physics", "mujoco",
                      "--compute", "jax", "--out", str(tmp_path / "mj")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and "numpy" in err

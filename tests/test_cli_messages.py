@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import json
 import re
 from pathlib import Path
 
@@ -81,19 +82,33 @@ def _usage_error(capsys, argv) -> str:
     return err.strip()
 
 
-def test_backend_jax_points_to_compute(tmp_path, capsys):
-    """``--backend`` of run / compare chooses the physics: a compute backend there is one line
-    naming --compute, not argparse's list of physics."""
+def test_backend_names_physics_and_compute(tmp_path, capsys):
+    """run / compare / teleop have no ``--backend``: with any value (or none) it is one line
+    naming the physics (``--physics``) and the compute backend (``--compute``)."""
     out = str(tmp_path / "x")
-    for argv in (["run", "mas-kitts-spiral", "--out", out, "--backend", "jax"],
-                 ["compare", "mas-kitts-spiral", "--out", out, "--backend=jax"]):
+    both = "the physics is --physics kinematic|mujoco, the compute backend --compute numpy|jax"
+    for command, argv in (("run", ["run", "mas-kitts-spiral", "--out", out, "--backend", "mujoco"]),
+                          ("run", ["run", "mas-kitts-spiral", "--out", out, "--backend", "jax"]),
+                          ("run", ["run", "mas-kitts-spiral", "--out", out, "--backend", "gpu"]),
+                          ("compare", ["compare", "mas-kitts-spiral", "--out", out, "--backend=kinematic"]),
+                          ("compare", ["compare", "mas-kitts-spiral", "--out", out, "--backend"])):
         err = _usage_error(capsys, argv)
-        assert "--backend chooses the physics (kinematic, mujoco); for JAX use --compute jax" in err, err
-    err = _usage_error(capsys, ["teleop", "teleop-x", "--out", out, "--backend", "jax"])  # no --backend there
-    assert "teleop takes no --backend" in err and "for JAX use --compute jax" in err, err
-    err = _usage_error(capsys, ["run", "mas-kitts-spiral", "--out", out, "--backend", "gpu"])
-    assert "invalid choice: 'gpu'" in err  # any other value: argparse's list
+        assert f"--backend is not an option of {command}: {both}" in err, err
+    err = _usage_error(capsys, ["teleop", "teleop-x", "--out", out, "--backend", "jax"])  # no --physics there
+    assert "--backend is not an option of teleop: the compute backend is --compute numpy|jax" in err, err
     assert not (tmp_path / "x").exists()
+
+
+def test_physics_chooses_what_moves_the_robots(tmp_path, capsys):
+    """``--physics kinematic`` runs the kinematic models and metrics.json names the physics."""
+    out = tmp_path / "run"
+    assert cli.main(["run", "mas-kitts-helix", "--physics", "kinematic", "--controller", "quaternion",
+                     "--out", str(out), "--no-plots", "--no-mcap"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["physics"] == "kinematic" and "backend" not in m
+    capsys.readouterr()
+    err = _usage_error(capsys, ["run", "mas-kitts-helix", "--out", str(tmp_path / "y"), "--physics", "jax"])
+    assert "invalid choice: 'jax'" in err, err
 
 
 def test_sweep_backend_stays_the_compute_backend():

@@ -255,7 +255,7 @@ def test_usage_errors_are_one_line(capsys):
 
 _TOKENS = ["mas-kitts-yaw-step", "marciano-circle", "teleop-preload", "belta-kumar-2002-two-bodies", "nope", "",
            "\x00", "x" * 3000, "--controller", "quaternion", "--formation", "spherical", "--alpha", "nan", "-1",
-           "1e309", "0.5", "--case", "a", "--backend", "mujoco", "--mocap-noise-m", "--mocap-latency-s",
+           "1e309", "0.5", "--case", "a", "--physics", "mujoco", "--mocap-noise-m", "--mocap-latency-s",
            "--no-feedforward", "--no-plots", "--preload", "on", "--reference", "--out", "."]
 
 

@@ -1,4 +1,4 @@
-"""The MuJoCo backend: the scenario's gains reach the physics run and are recorded,
+"""MuJoCo physics: the scenario's gains reach the physics run and are recorded,
 physics gains for the Table 1 scenarios, the install hint, annotated pictures."""
 
 from __future__ import annotations
@@ -191,7 +191,7 @@ def test_projection_is_mujocos_camera():
 
 
 def test_mujoco_picture_is_annotated(short_pair):
-    """Title (backend, scenario, controller), the time of each pose, the 1 m triad's labels
+    """Title (physics, scenario, controller), the time of each pose, the 1 m triad's labels
     and a legend (the picture had none). Drawn over any image: no OpenGL needed here."""
     run, rec = short_pair
     ks = np.array([0, 100, 200])

@@ -54,9 +54,9 @@ def test_metrics_equal_on_the_experiment():
 
 
 
-@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion", "backend": "mujoco"})])
+@pytest.mark.parametrize(("scenario", "choice"), [("marciano-circle", {"formation": "quaternion", "physics": "mujoco"})])
 def test_refuses_what_it_does_not_run(scenario, choice):
-    if choice.get("backend") == "mujoco":
+    if choice.get("physics") == "mujoco":
         pytest.importorskip("mujoco")
     sc = load_scenario(scenario)
     ex = kind_of(sc).experiment(sc, **choice)

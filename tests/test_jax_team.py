@@ -163,7 +163,7 @@ def test_team_sweep_on_jax_equals_numpy(tmp_path):
 def test_what_does_not_run_on_jax_is_refused_in_one_line(scenario, controller, what):
     pytest.importorskip("jax")
     pytest.importorskip("mujoco")
-    exp = TEAM.experiment(short_scenario(scenario, 0.1), controller=controller, backend="mujoco")
+    exp = TEAM.experiment(short_scenario(scenario, 0.1), controller=controller, physics="mujoco")
     with pytest.raises(InvalidInputError) as info:
         exp.run(backend="jax")
     msg = str(info.value)

@@ -102,7 +102,7 @@ def test_every_metrics_key_of_a_run_is_defined(tmp_path, name, kind, options):
 ])
 def test_every_metrics_key_of_a_physics_run_is_defined(tmp_path, name, kind, options):
     pytest.importorskip("mujoco")
-    keys = _written(tmp_path, _short(name, duration_s=0.3), backend="mujoco", **options)
+    keys = _written(tmp_path, _short(name, duration_s=0.3), physics="mujoco", **options)
     assert {"collisions", "physics_timestep_s", "render"} <= keys
     _check(keys, kind)
 

@@ -1,5 +1,5 @@
 """MuJoCo is optional. quatform imports, and every kinematic feature works,
-without it; asking for the physics backend then fails with a message naming the extra.
+without it; asking for MuJoCo physics then fails with a message naming the extra.
 (This file needs no MuJoCo: it hides it from a fresh interpreter.)"""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ SCRIPT = textwrap.dedent("""
     except MissingDependencyError as exc:
         assert isinstance(exc, ImportError)
         print("MESSAGE:", exc)
-    rc = quatform.cli.main(["run", "mas-kitts-helix", "--backend", "mujoco", "--controller", "quaternion",
+    rc = quatform.cli.main(["run", "mas-kitts-helix", "--physics", "mujoco", "--controller", "quaternion",
                             "--out", sys.argv[1]])
     print("RC:", rc)
 """)

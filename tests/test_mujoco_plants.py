@@ -70,7 +70,7 @@ def test_pair_plant_through_simulate_follows_the_velocity_commands():
     assert np.allclose(rec.qpos[:, 7:10], x[:, 4:7], atol=1e-12) and np.array_equal(rec.t, times)
     assert np.array_equal(rec.robots["robot2"], x[:, 4:7]) and rec.title == "test"
     m = physics_metrics(plant)
-    assert m == {"backend": "mujoco", "collisions": {"count": 0, "first_time_s": None, "bodies": []},
+    assert m == {"physics": "mujoco", "collisions": {"count": 0, "first_time_s": None, "bodies": []},
                  "physics_timestep_s": 0.0025}
 
 

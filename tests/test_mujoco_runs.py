@@ -120,19 +120,33 @@ def test_uav_starts_where_uav_start_says_in_the_ugv_frame():
     assert physics.meta["physics_record"].collisions["count"] == 0
 
 
-def test_cli_runs_the_physics_backend_and_writes_collisions_and_picture(tmp_path, capsys):
+def test_cli_runs_the_physics_and_writes_collisions_and_picture(tmp_path, capsys):
     toml = tmp_path / "short.toml"
     toml.write_text('name = "short"\nduration_s = 2.0\ngains = "table2"\n[path]\ncentroid = "line"\n'
                     'center = [0.0, 0.0, 2.0]\nvelocity = [0.0, 0.1, 0.0]\nd_c = 0.5\nbeta_c = -1.5707963267948966\n')
     out = tmp_path / "run"
-    assert main(["run", str(toml), "--backend", "mujoco", "--controller", "dual-quaternion", "--out", str(out)]) == 0
+    assert main(["run", str(toml), "--physics", "mujoco", "--controller", "dual-quaternion", "--out", str(out)]) == 0
     m = json.loads((out / "metrics.json").read_text())
-    assert m["backend"] == "mujoco" and m["collisions"] == {"count": 0, "first_time_s": None, "bodies": []}
+    assert m["physics"] == "mujoco" and m["collisions"] == {"count": 0, "first_time_s": None, "bodies": []}
     assert m["render"] == "time_lapse.png" and (out / m["render"]).stat().st_size > 10_000
-    # a physics run is one run of its plant: no kinematic re-run inside it (compare --over backend)
+    # a physics run is one run of its plant: no kinematic re-run inside it (compare --over physics)
     assert "kinematic" not in m
     text = capsys.readouterr().out
     assert "| dual-quaternion |" in text and "(kinematic)" not in text and "collisions: 0" in text
+
+
+def test_compare_over_physics_tables_the_physics(tmp_path, capsys):
+    """``compare --over physics``: one row per physics, led by a ``physics`` column (the compute
+    backend is another option, ``--compute``)."""
+    toml = tmp_path / "short.toml"
+    toml.write_text('name = "short"\nduration_s = 0.5\n[path]\ncentroid = "line"\ncenter = [0.0, 0.0, 2.0]\n')
+    out = tmp_path / "cmp"
+    assert main(["compare", str(toml), "--over", "physics", "--controller", "quaternion", "--out", str(out),
+                 "--no-plots", "--no-mcap"]) == 0
+    rows = json.loads((out / "comparison.json").read_text())
+    assert [r["physics"] for r in rows] == ["kinematic", "mujoco"] and all("backend" not in r for r in rows)
+    assert (out / "comparison.md").read_text().count("| physics | controller |") == 1
+    assert "| physics | controller |" in capsys.readouterr().out
 
 
 def test_picture_falls_back_to_matplotlib_without_offscreen_gl(tmp_path):
@@ -144,7 +158,7 @@ def test_picture_falls_back_to_matplotlib_without_offscreen_gl(tmp_path):
     toml.write_text('name = "short"\nduration_s = 1.0\n[path]\ncentroid = "line"\ncenter = [0.0, 0.0, 2.0]\n')
     out = tmp_path / "run"
     env = dict(os.environ, MUJOCO_GL="disable")
-    code = ("import sys; from quatform.cli import main; sys.exit(main(['run', sys.argv[1], '--backend', "
+    code = ("import sys; from quatform.cli import main; sys.exit(main(['run', sys.argv[1], '--physics', "
             "'mujoco', '--controller', 'quaternion', '--out', sys.argv[2]]))")
     res = subprocess.run([sys.executable, "-c", code, str(toml), str(out)], env=env, capture_output=True,
                          text=True, check=False, timeout=120)

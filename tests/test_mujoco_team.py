@@ -1,4 +1,4 @@
-"""The MuJoCo backend runs N quadrotors and ground robots, the quadrotors'
+"""MuJoCo physics runs N quadrotors and ground robots, the quadrotors'
 cascades evaluated together (robots.physics.QuadrotorCascades, sim.plants.mujoco_team)."""
 
 from __future__ import annotations

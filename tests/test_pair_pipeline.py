@@ -37,7 +37,8 @@ def test_the_pair_kind_is_registered_with_its_choices():
     assert KINDS["pair"] is PAIR and isinstance(PAIR, PairKind) and PAIR.scenario_type is Scenario
     opts = {o.name: o for o in PAIR.options}
     assert opts["controller"].choices == tuple(CONTROLLERS) and opts["controller"].default is None
-    assert opts["backend"].choices == ("kinematic", "mujoco") and opts["backend"].default == "kinematic"
+    assert opts["physics"].choices == ("kinematic", "mujoco") and opts["physics"].default == "kinematic"
+    assert "backend" not in opts  # the compute backend is Experiment.run(backend=...), --compute
     assert PAIR.compare_over == "controller" and PAIR.table_columns[0][0] == "controller"
 
 
@@ -149,16 +150,16 @@ def test_interleaved_csv_channels_must_have_one_width():
         timeseries_table(log, [("state", "cluster")])
 
 
-def test_the_experiment_refuses_a_bad_backend_and_options():
+def test_the_experiment_refuses_a_bad_physics_and_options():
     sc = _short_spiral(0.05)
     with pytest.raises(InvalidInputError, match="give a controller"):
         PAIR.experiment(sc)
-    with pytest.raises(InvalidInputError, match="unknown backend 'gazebo'"):
-        PAIR.experiment(sc, controller="quaternion", backend="gazebo")
-    with pytest.raises(InvalidInputError, match="backend = 'mujoco' only"):
-        PAIR.experiment(sc, controller="quaternion", physics={"gains": {}})
+    with pytest.raises(InvalidInputError, match="unknown physics 'gazebo'"):
+        PAIR.experiment(sc, controller="quaternion", physics="gazebo")
+    with pytest.raises(InvalidInputError, match="physics = 'mujoco' only"):
+        PAIR.experiment(sc, controller="quaternion", physics_options={"gains": {}})
     with pytest.raises(InvalidInputError, match="timestep"):
-        PAIR.experiment(sc, controller="quaternion", backend="mujoco", physics={"timestep": 1e-3})
+        PAIR.experiment(sc, controller="quaternion", physics="mujoco", physics_options={"timestep": 1e-3})
     with pytest.raises(InvalidInputError, match="two-robot Scenario"):
         PAIR.experiment("mas-kitts-spiral", controller="quaternion")
 

@@ -372,9 +372,9 @@ def test_the_motion_refuses_bad_values():
 
 def test_a_team_flies_on_mujoco_physics(tmp_path):
     pytest.importorskip("mujoco")
-    _, m = run(_short("team-tetrahedron-helix", 0.4), tmp_path / "mj", controller="robot-space", backend="mujoco",
+    _, m = run(_short("team-tetrahedron-helix", 0.4), tmp_path / "mj", controller="robot-space", physics="mujoco",
                  quiet=True, plots=False)
-    assert m["backend"] == "mujoco" and m["collisions"]["count"] == 0
+    assert m["physics"] == "mujoco" and m["collisions"]["count"] == 0
     assert m["max_robot_position_error_m"] < 0.05 and m["nonfinite_commands"] == 0
 
 

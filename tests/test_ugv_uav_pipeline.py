@@ -48,7 +48,7 @@ def test_the_kind_is_registered_with_its_choices_from_the_registries():
     assert KINDS["ugv-uav"] is UGV_UAV_KIND and UGV_UAV_KIND.scenario_type is UgvUavScenario
     opts = {o.name: o for o in UGV_UAV_KIND.options}
     assert opts["formation"].choices == tuple(UGV_UAV_FORMATIONS) and opts["formation"].default == "quaternion"
-    assert opts["backend"].choices == ("kinematic", "mujoco")
+    assert opts["physics"].choices == ("kinematic", "mujoco")
     assert opts["mocap_noise_m"].type is float and opts["mocap_latency_s"].type is float
     assert UGV_UAV_KIND.compare_over == "formation" and UGV_UAV_KIND.table_columns == UGV_UAV_COLUMNS
 
@@ -91,8 +91,8 @@ def test_the_mocap_overrides_run_and_are_checked_with_the_scenarios_bounds():
         UGV_UAV_KIND.experiment(sc, mocap_noise_m=2.0)
     with pytest.raises(InvalidInputError, match="unknown formation 'quaternoin'.*quaternion"):
         UGV_UAV_KIND.experiment(sc, formation="quaternoin")
-    with pytest.raises(InvalidInputError, match="unknown backend 'bullet'"):
-        UGV_UAV_KIND.experiment(sc, backend="bullet")
+    with pytest.raises(InvalidInputError, match="unknown physics 'bullet'"):
+        UGV_UAV_KIND.experiment(sc, physics="bullet")
 
 
 @pytest.mark.parametrize("formation, header", [("quaternion", QUATERNION_HEADER), ("spherical", SPHERICAL_HEADER)])

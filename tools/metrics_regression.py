@@ -36,12 +36,12 @@ def cases(mujoco: bool):
             yield f"{sc}/{c}", ["run", sc, "--controller", c]
             yield f"{sc}/{c}/no-ff", ["run", sc, "--controller", c, "--no-feedforward"]
             if mujoco:
-                yield f"{sc}/{c}/mujoco", ["run", sc, "--controller", c, "--backend", "mujoco"]
+                yield f"{sc}/{c}/mujoco", ["run", sc, "--controller", c, "--physics", "mujoco"]
     for sc in UGV_UAV:
         for f in FORMATIONS:
             yield f"{sc}/{f}", ["run", sc, "--formation", f]
             if mujoco:
-                yield f"{sc}/{f}/mujoco", ["run", sc, "--formation", f, "--backend", "mujoco"]
+                yield f"{sc}/{f}/mujoco", ["run", sc, "--formation", f, "--physics", "mujoco"]
     yield "marciano-circle/quaternion/mocap", ["run", "marciano-circle", "--formation", "quaternion",
                                                "--mocap-noise-m", "0.002", "--mocap-latency-s", "0.005"]
     for sc in TEAM:
@@ -49,7 +49,7 @@ def cases(mujoco: bool):
             yield f"{sc}/{c}", ["run", sc, "--controller", c]
     if mujoco:
         yield "team-tetrahedron-helix/quaternion/mujoco", ["run", "team-tetrahedron-helix", "--controller",
-                                                           "quaternion", "--backend", "mujoco"]
+                                                           "quaternion", "--physics", "mujoco"]
     for sc in TELEOP:
         for oe in ("euler-parameters", "rpy"):
             for pre in ("on", "off"):

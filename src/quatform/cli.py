@@ -23,7 +23,7 @@ EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 2, 3, 130
 #: The scenario kind ``quatform teleop`` runs (an alias of ``run`` for it).
 TELEOP_KIND = "teleop"
 
-_MUJOCO_NOTE = ('--backend mujoco simulates MuJoCo physics (needs: pip install -e ".[mujoco]") and adds '
+_MUJOCO_NOTE = ('--physics mujoco simulates MuJoCo physics (needs: pip install -e ".[mujoco]") and adds '
                 "collisions and a time-lapse picture.")
 
 
@@ -45,7 +45,7 @@ def _add_compute_flag(p) -> None:
                    help="compute backend of the closed loop: numpy (the reference, default) or jax (compiled with "
                    "jax.jit, float64, equal to NumPy within 1e-9, a chart's value near its singular set within "
                    "the digits it carries (docs/derivations.md); on a GPU when a CUDA JAX sees one; needs: "
-                   'pip install -e ".[jax]"); not the same as --backend, which says what moves the robots')
+                   'pip install -e ".[jax]"); not the same as --physics, which says what moves the robots')
 
 
 def _cited(source: str) -> list[str]:
@@ -120,31 +120,25 @@ class _Parser(argparse.ArgumentParser):
             text = text[:396] + " ..."
         self.exit(EXIT_INPUT, f"{self.prog}: error: {text} (see '{self.prog} --help')\n")
 
-    def _compute_hint(self, value, physics=None) -> str | None:
-        """The line for ``--backend VALUE`` where VALUE is one of this command's ``--compute``
-        choices (``--backend`` chooses the physics, ``physics``; None where the command has none)."""
-        compute = next((a for a in self._actions if a.dest == "compute"), None)
-        if compute is None or value not in (compute.choices or ()):
+    def _backend_line(self) -> str | None:
+        """The line for ``--backend`` on a command that has ``--compute`` but no ``--backend``
+        (run, compare, teleop): it names the two flags a backend could mean, ``--physics`` (what
+        moves the robots, where the command has it) and ``--compute`` (the closed loop's compute
+        backend). None for a command without ``--compute``."""
+        choices = {a.dest: a.choices for a in self._actions if a.dest in ("physics", "compute", "backend")}
+        if "compute" not in choices or "backend" in choices:
             return None
-        name = {"jax": "JAX", "numpy": "NumPy"}.get(value, value)
-        what = (f"--backend chooses the physics ({', '.join(physics)})" if physics
-                else f"{self.prog.split()[-1]} takes no --backend (the physics)")
-        return f"{what}; for {name} use --compute {value}"
-
-    def _check_value(self, action, value):
-        hint = self._compute_hint(value, action.choices) if action.dest == "backend" and action.choices else None
-        if hint is not None and value not in action.choices:
-            raise argparse.ArgumentError(None, hint)
-        super()._check_value(action, value)
+        flags = [(name, f"--{dest} {'|'.join(choices[dest])}")
+                 for dest, name in (("physics", "physics"), ("compute", "compute backend")) if choices.get(dest)]
+        what = ", ".join(f"the {name}{' is' if k == 0 else ''} {flag}" for k, (name, flag) in enumerate(flags))
+        return f"--backend is not an option of {self.prog.split()[-1]}: {what}"
 
     def parse_known_args(self, args=None, namespace=None):
         ns, extras = super().parse_known_args(args, namespace)
-        for k, arg in enumerate(extras):  # --backend where the command has none (teleop)
-            flag, eq, value = arg.partition("=")
-            if flag == "--backend":
-                hint = self._compute_hint(value if eq else (extras[k + 1] if k + 1 < len(extras) else None))
-                if hint is not None:
-                    self.error(hint)
+        if any(arg.partition("=")[0] == "--backend" for arg in extras):
+            line = self._backend_line()
+            if line is not None:
+                self.error(line)
         return ns, extras
 
 
@@ -205,7 +199,7 @@ def _compare_arguments(cmp_) -> None:
     cmp_.description = (
         "Run SCENARIO with every value of its kind's compare option (the controllers of a "
         "two-robot scenario, the formation descriptions of a UGV-UAV one, the orientation errors of a "
-        "teleoperation one), or of --over (e.g. --over backend: kinematic models against MuJoCo physics), "
+        "teleoperation one), or of --over (e.g. --over physics: kinematic models against MuJoCo physics), "
         "into DIR/<value>/; draw them side by side (seed 000 Fig. 13) and print a table. The other "
         "options are fixed for every run. " + _MUJOCO_NOTE)
     cmp_.add_argument("scenario", metavar="SCENARIO")

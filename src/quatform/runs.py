@@ -12,7 +12,7 @@ run (a compare: every run, each under ``/<value>/``) as a Rerun recording
 (:func:`quatform.bags.rerun.write_rerun`, extra ``rerun``; its name and folder checked before
 anything runs; written before the output folder is swapped in, so an interrupted run leaves
 neither). A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
-``backend`` compares the kinematic models with MuJoCo physics) into ``out/<value>/``, then draws
+``physics`` compares the kinematic models with MuJoCo physics) into ``out/<value>/``, then draws
 the kind's compare figures and writes ``comparison.md`` / ``comparison.json`` with the kind's
 table columns.
 
@@ -198,7 +198,7 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
         install -e ".[jax]"``); recorded as ``compute_backend`` in the metrics when not NumPy.
     **options
         The kind's options (:attr:`ScenarioKind.options`: ``controller``, ``formation``,
-        ``backend``, ``feedforward``, ``orientation_error`` ...); None means the default.
+        ``physics``, ``feedforward``, ``orientation_error`` ...); None means the default.
 
     Returns
     -------
@@ -237,7 +237,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         As in :func:`run`.
     out : path-like
     over : str, optional
-        The option to vary (default: the kind's ``compare_over``), e.g. ``backend``.
+        The option to vary (default: the kind's ``compare_over``), e.g. ``physics``.
     plots : bool
         Draw each run's figures and the compare figures (False: metrics, time series and
         the table only).

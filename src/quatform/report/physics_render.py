@@ -9,7 +9,7 @@ attitude). Where no offscreen OpenGL works, :func:`render_or_fallback` draws the
 time-lapse with matplotlib from the same physics states (:func:`plot_time_lapse`) and
 says so.
 
-Both pictures are annotated the same way: a title naming the backend (``MuJoCo
+Both pictures are annotated the same way: a title naming the physics (``MuJoCo
 physics``), the scenario and the controller or formation; the time of every pose; a
 legend (robots, formation segment, ghosts); and lengths in metres (a 1 m axis triad in
 the MuJoCo scene, axes in m in matplotlib's).
@@ -59,7 +59,7 @@ def time_lapse_title(record, ks, extra: str = "") -> str:
     t = np.asarray(record.t)
     what = record.title or "physics run"
     step = f", every {t[ks[1]] - t[ks[0]]:.3g} s" if len(ks) > 1 else ""
-    head = f"{record.backend_label} - {what}"
+    head = f"{record.physics_label} - {what}"
     return f"{head}\n{len(ks)} poses at t = {t[ks[0]]:.3g} to {t[ks[-1]]:.3g} s{step}{extra}"
 
 

@@ -110,21 +110,21 @@ def _pi_label(value, _pos=None) -> str:
     return f"{'-' if n < 0 else ''}{'' if abs(n) == 1 else abs(n)}π/2"
 
 
-def _backend(runs) -> str:
+def _physics(runs) -> str:
     """``" on MuJoCo physics"`` where a run's robots were not the kinematic models, else ``""``."""
-    labels = dict.fromkeys(log.meta["backend_label"] for log in runs if log.meta["backend"] != "kinematic")
+    labels = dict.fromkeys(log.meta["physics_label"] for log in runs if log.meta["physics"] != "kinematic")
     return f" on {', '.join(labels)}" if labels else ""
 
 
 def _title(log: Log) -> str:
     source = with_names(log.meta.get("source", ""))
-    return f"{log.meta['scenario']} - {log.meta['controller']}{_backend([log])}" + (f" ({source})" if source else "")
+    return f"{log.meta['scenario']} - {log.meta['controller']}{_physics([log])}" + (f" ({source})" if source else "")
 
 
 def _runs_title(runs) -> str:
     names = ", ".join(dict.fromkeys(log.meta["scenario"] for log in runs))
     sources = ", ".join(dict.fromkeys(with_names(log.meta["source"]) for log in runs if log.meta.get("source")))
-    return names + _backend(runs) + (f" ({sources})" if sources else "")
+    return names + _physics(runs) + (f" ({sources})" if sources else "")
 
 
 def _unit_label(var) -> str:

@@ -85,7 +85,7 @@ class _Run:
 
     scenario: object
     formation: str
-    backend: str
+    physics: str
     t: np.ndarray
     ugv: np.ndarray  # (T, 3): x_p, y_p, psi_p
     uav: np.ndarray  # (T, 8): x_b, y_b, z_b, psi_b, body velocities
@@ -104,7 +104,7 @@ class _Run:
 def _run_of(log: Log) -> _Run:
     """The figures' view of a finished UGV-UAV log."""
     m, x = log.meta, log["state"]
-    return _Run(m["scenario"], m["formation"], m["backend"], log.t, x[:, 0:3], x[:, 3:11], log["r_true"],
+    return _Run(m["scenario"], m["formation"], m["physics"], log.t, x[:, 0:3], x[:, 3:11], log["r_true"],
                 log["r_des"], log["cluster"], log["c_des"], log["e"], log["e_des"], log["singularity"][:, 0],
                 log["reachable"][:, 0] > 0.5, m["unreachable_at"], m["unreachable_message"])
 
@@ -117,7 +117,7 @@ def _title(run: _Run) -> str:
     sc = run.scenario
     source = with_names(sc.source)
     paper = source if _PAPER in source else (f"{_PAPER}, {source}" if source else _PAPER)
-    on = "" if run.backend == "kinematic" else f" on {run.backend}"
+    on = "" if run.physics == "kinematic" else f" on {run.physics}"
     head = f"{sc.name} - ugv-uav-{run.formation}{on} ({paper})"
     return f"{head}\n{sc.title}" if sc.title else head
 

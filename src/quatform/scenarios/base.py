@@ -8,7 +8,7 @@ names its :class:`ScenarioKind` (``pair`` when absent: seed 000's two robots). A
   valid one, non-finite numbers are refused with the key named, the run's memory and time
   are estimated up front);
 * declares the choices a run takes (:attr:`ScenarioKind.options`: the controller, the
-  formation description, the backend, ...), read by the CLI from this registry instead of
+  formation description, the physics, ...), read by the CLI from this registry instead of
   re-typed lists;
 * builds an :class:`Experiment` for a scenario and a choice: the plant, the controller, the
   reference, the measurement model, the initial state and the times that
@@ -39,7 +39,7 @@ class Option:
     Attributes
     ----------
     name : str
-        Keyword (``controller``, ``formation``, ``backend`` ...); the CLI flag is
+        Keyword (``controller``, ``formation``, ``physics`` ...); the CLI flag is
         ``--`` + ``name`` with ``_`` as ``-``.
     help : str
     choices : tuple of str, optional

@@ -38,7 +38,7 @@ from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table, wit
 
 __all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "check_barrier_reference",
            "separation_barrier", "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
-           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "BACKENDS", "run_pair", "simulate_physics",
+           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "PHYSICS", "run_pair", "simulate_physics",
            "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
            "PLAN_RUN_SECONDS_PER_STEP"]
 
@@ -466,7 +466,7 @@ def _gain(d: dict, key: str, n: int, where: str, place: str):
 # --------------------------------------------------------------------------- the kind
 
 #: What moves the robots: their kinematic models, or MuJoCo physics (two quadrotors).
-BACKENDS = ("kinematic", "mujoco")
+PHYSICS = ("kinematic", "mujoco")
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
@@ -530,7 +530,7 @@ class PairKind(ScenarioKind):
     options = (
         Option("controller", "formation controller (seed 000; required)", tuple(CONTROLLERS), None),
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
-        Option("backend", "what moves the robots", BACKENDS, "kinematic"),
+        Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", PHYSICS, "kinematic"),
         Option("reference", "a plan.npz (quatform plan) to follow instead of the scenario's path: two robots for a "
                "pair scenario, N for a team", None, None, str),
         Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
@@ -543,7 +543,7 @@ class PairKind(ScenarioKind):
         return scenario_from_dict(data, where)
 
     def experiment(self, scenario: Scenario, controller=None, feedforward: bool | None = None,
-                   backend: str = "kinematic", reference=None, r0=None, physics: dict | None = None,
+                   physics: str = "kinematic", reference=None, r0=None, physics_options: dict | None = None,
                    min_separation: float | None = None) -> Experiment:
         """The run of ``scenario`` with ``controller`` (a name of :data:`~quatform.control.CONTROLLERS`
         or a controller object; required).
@@ -553,7 +553,7 @@ class PairKind(ScenarioKind):
         feedforward : bool, optional
             For a controller given by name: feed the reference's rate forward; default: the
             scenario's (an object keeps its own).
-        backend : str
+        physics : str
             ``"kinematic"`` (the robots' models, :class:`~quatform.sim.plants.KinematicTeam`)
             or ``"mujoco"`` (two IRIS quadrotors, :func:`quatform.sim.mujoco_backend.pair_plant`;
             a controller given by name gets the physics gains; ``log.meta["physics_record"]``
@@ -562,10 +562,10 @@ class PairKind(ScenarioKind):
             A saved two-robot plan to follow (:func:`with_plan`).
         r0 : array_like, shape (*batch, 8), optional
             Initial robot state of each world (leading axes: a batch of worlds run at once,
-            kinematic backend only); default the reference at ``t = 0`` displaced by
+            kinematic physics only); default the reference at ``t = 0`` displaced by
             ``initial_offset`` (Euclidean variables).
-        physics : dict, optional
-            For ``backend="mujoco"``: ``gains`` (of
+        physics_options : dict, optional
+            For ``physics="mujoco"``: ``gains`` (of
             :func:`~quatform.sim.mujoco_backend.physics_controller`) and ``cascade_options``
             (of :func:`~quatform.sim.mujoco_backend.pair_plant`).
         min_separation : float, optional
@@ -582,13 +582,13 @@ class PairKind(ScenarioKind):
         if controller is None:
             raise InvalidInputError(f"{scenario.name} is a two-robot scenario: give a controller "
                                     f"(--controller {{{','.join(CONTROLLERS)}}})")
-        if backend not in BACKENDS:
-            raise InvalidInputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
-        physics = dict(physics or {})
-        check_keys(physics, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options",
+        if physics not in PHYSICS:
+            raise InvalidInputError(f"unknown physics {physics!r}; choose one of {', '.join(PHYSICS)}")
+        physics_options = dict(physics_options or {})
+        check_keys(physics_options, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options",
                    "see quatform.sim.mujoco_backend.pair_plant")
-        if physics and backend != "mujoco":
-            raise InvalidInputError(f"physics options {sorted(physics)} apply to backend = 'mujoco' only")
+        if physics_options and physics != "mujoco":
+            raise InvalidInputError(f"physics options {sorted(physics_options)} apply to physics = 'mujoco' only")
         safety, label = with_option(scenario.safety, min_separation, f"scenario {scenario.name!r}")
         if reference is not None:
             scenario = with_plan(scenario, reference)
@@ -604,15 +604,15 @@ class PairKind(ScenarioKind):
             r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
         x0 = np.array(r0, dtype=float)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
-                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
-                "backend_label": "kinematic"}
-        if backend == "mujoco":
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "physics": physics,
+                "physics_label": "kinematic"}
+        if physics == "mujoco":
             from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
             from ..sim.plants import mujoco as mjp
 
-            ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics.get("gains"))
-            plant = mjp.pair_plant(scenario, x0, cascade_options=physics.get("cascade_options"))
-            meta["backend_label"] = mj.BACKEND_LABEL
+            ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics_options.get("gains"))
+            plant = mjp.pair_plant(scenario, x0, cascade_options=physics_options.get("cascade_options"))
+            meta["physics_label"] = mj.PHYSICS_LABEL
 
             def record(log: Log) -> dict:
                 rec = mjp.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
@@ -697,11 +697,11 @@ def simulate_physics(scenario: Scenario, controller, feedforward: bool | None = 
                      cascade_options: dict | None = None, gains: dict | None = None):
     """A seed 000 scenario on two simulated IRIS quadrotors (MuJoCo): ``(log, PhysicsRecord)``.
 
-    :meth:`PairKind.experiment` with ``backend="mujoco"``; ``controller`` a name (its gains
+    :meth:`PairKind.experiment` with ``physics="mujoco"``; ``controller`` a name (its gains
     from :func:`~quatform.sim.mujoco_backend.physics_gains`, or ``gains``) or a controller
     object; ``feedforward`` ``None`` keeps the scenario's.
     """
-    physics = {k: v for k, v in (("cascade_options", cascade_options), ("gains", gains)) if v is not None}
-    log = PAIR.experiment(scenario, controller=controller, feedforward=feedforward, backend="mujoco",
-                          physics=physics).run(progress)
+    options = {k: v for k, v in (("cascade_options", cascade_options), ("gains", gains)) if v is not None}
+    log = PAIR.experiment(scenario, controller=controller, feedforward=feedforward, physics="mujoco",
+                          physics_options=options).run(progress)
     return log, log.meta["physics_record"]

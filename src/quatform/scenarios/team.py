@@ -79,7 +79,7 @@ from .base import Experiment, Option, ScenarioKind
 from .separation import FILE_LABEL, safety_table, with_option
 
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict", "ROBOT_MODELS",
-           "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_BACKENDS", "TEAM_BYTES_PER_ROBOT_STEP",
+           "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_PHYSICS", "TEAM_BYTES_PER_ROBOT_STEP",
            "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples", "available_controllers",
            "with_plan"]
 
@@ -123,7 +123,7 @@ assert set(_GAIN_SIZES) == {key for _, key, _ in TEAM_GAIN_KEYS.values()}
 
 #: What moves the robots: their kinematic models, or MuJoCo physics (quadrotors and Pioneers,
 #: :func:`quatform.sim.plants.mujoco_team.team_plant`).
-TEAM_BACKENDS = ("kinematic", "mujoco")
+TEAM_PHYSICS = ("kinematic", "mujoco")
 
 
 def available_controllers() -> tuple[str, ...]:
@@ -644,7 +644,7 @@ class TeamKind(ScenarioKind):
     options = (
         Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
-        Option("backend", "what moves the robots", TEAM_BACKENDS, "kinematic"),
+        Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", TEAM_PHYSICS, "kinematic"),
         Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
         Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
                "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
@@ -672,7 +672,7 @@ class TeamKind(ScenarioKind):
         return tuple(run), skipped
 
     def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
-                   backend: str = "kinematic", reference=None, min_separation: float | None = None) -> Experiment:
+                   physics: str = "kinematic", reference=None, min_separation: float | None = None) -> Experiment:
         """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_CONTROLLERS`
         name or a controller object of the scenario's team; required).
 
@@ -686,9 +686,9 @@ class TeamKind(ScenarioKind):
         if controller is None:
             raise InvalidInputError(f"{scenario.name} is a team scenario: give a controller "
                                     f"(--controller {{{','.join(available_controllers())}}})")
-        if backend not in TEAM_BACKENDS:
-            raise InvalidInputError(f"unknown backend {backend!r} for a team scenario; choose one of "
-                                    f"{', '.join(TEAM_BACKENDS)}")
+        if physics not in TEAM_PHYSICS:
+            raise InvalidInputError(f"unknown physics {physics!r} for a team scenario; choose one of "
+                                    f"{', '.join(TEAM_PHYSICS)}")
         where = f"scenario {scenario.name!r}"
         safety, label = with_option(scenario.safety, min_separation, where)
         if reference is not None:
@@ -711,13 +711,13 @@ class TeamKind(ScenarioKind):
         c_des, cd_des = F.from_chart(e_des, ed_des)
         r_des = chart.robots(e_des)
         x0 = _start_points(scenario, scenario.motion)  # every team model's state is its point
-        physics = None
-        if backend == "mujoco":  # MuJoCo only when asked for
+        physics_plant = None
+        if physics == "mujoco":  # MuJoCo only when asked for
             from ..sim import mujoco_backend as mj
             from ..sim.plants import mujoco as mjp
             from ..sim.plants.mujoco_team import team_plant
 
-            plant = physics = team_plant(team, x0, dt=scenario.dt_s)
+            plant = physics_plant = team_plant(team, x0, dt=scenario.dt_s)
         else:
             plant = KinematicTeam(team)
         safety["applied"] = bool(safety["enabled"])
@@ -727,8 +727,8 @@ class TeamKind(ScenarioKind):
             ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], gamma=gamma,
                                                           dt_s=scenario.dt_s), team)
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
-                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "backend": backend,
-                "backend_label": "kinematic" if physics is None else mj.BACKEND_LABEL, "formation": F.name,
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "physics": physics,
+                "physics_label": "kinematic" if physics_plant is None else mj.PHYSICS_LABEL, "formation": F.name,
                 "feedforward": ff, "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
                 "chart_variables": chart.variables}
 
@@ -761,14 +761,15 @@ class TeamKind(ScenarioKind):
                                   np.where(held[..., None], np.nan, reading) if held.any() else reading),
                           Channel("reading_des", tuple(n + "_des" for n in reader.reading_names), reading_des)]
             extra = {}
-            if physics is not None:
-                extra["physics_record"] = mjp.physics_record(physics, log, f"{scenario.name}: {ctrl.name} controller")
+            if physics_plant is not None:
+                extra["physics_record"] = mjp.physics_record(physics_plant, log,
+                                                             f"{scenario.name}: {ctrl.name} controller")
             return log.with_channels(*chans, singularity_samples=int(idx.size), **extra)
 
         def metrics(log: Log) -> dict:
             out = team_metrics(log)
-            if physics is not None:
-                out.update(mjp.physics_metrics(physics))
+            if physics_plant is not None:
+                out.update(mjp.physics_metrics(physics_plant))
             return out
 
         csv = (("points", "r_des"), ("e", "e_des"), *((("reading", "reading_des"),) if reader is not None else ()),

@@ -36,7 +36,7 @@ from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 from .ugv_uav_profiles import DEFAULT_PROFILE, PROFILES, profile_named
 
-__all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS", "UGV_UAV_BACKENDS",
+__all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS", "UGV_UAV_PHYSICS",
            "UGV_UAV_COLUMNS", "UGV_UAV_CSV_CHANNELS", "DERIVED_CHANNELS", "check_ugv_uav_scenario",
            "ugv_uav_scenario_from_dict", "ugv_uav_metrics", "simulate_ugv_uav", "ugv_uav_experiment",
            "mujoco_experiment"]
@@ -50,8 +50,8 @@ LOST_UAV_M = 0.4
 #: restricted, quaternion).
 UGV_UAV_FORMATIONS = {name.removeprefix("ugv-uav-"): F for name, F in FORMATIONS.items()
                       if name.startswith("ugv-uav-")}
-#: Where a run's robots live (the ``backend`` option): the robots' models or MuJoCo physics.
-UGV_UAV_BACKENDS = ("kinematic", "mujoco")
+#: Where a run's robots live (the ``physics`` option): the robots' models or MuJoCo physics.
+UGV_UAV_PHYSICS = ("kinematic", "mujoco")
 
 #: Channels ``finish`` adds to the simulated log (each ``(T, k)``; column names in brackets):
 #: ``r_true`` (x_p ... z_b: true robot positions, the UGV at the platform height), ``r_des``
@@ -214,7 +214,7 @@ def _ticks(sc: UgvUavScenario):
 
 
 def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, plant=None, bebop: Bebop | None = None,
-                       backend: str = "kinematic", **controller_options) -> Experiment:
+                       physics: str = "kinematic", **controller_options) -> Experiment:
     """The run of Fig. 18 on scenario ``sc`` with the description ``formation``.
 
     Parameters
@@ -223,14 +223,14 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
     formation : str
         A key of :data:`UGV_UAV_FORMATIONS`.
     plant : callable ``(x0, floor) -> plant``, optional
-        Another plant than the Pioneer and Bebop models (a physics backend) made from the
+        Another plant than the Pioneer and Bebop models (MuJoCo physics) made from the
         models' start ``x0`` (11 values) and the floor height ``floor``, m; the run starts
         from its own ``plant.x0``.
     bebop : Bebop, optional
         The UAV model the controller compensates (default: Table 2's, the scenario's
         ``max_fraction``).
-    backend : str
-        Its name in the log's meta and the figures.
+    physics : str
+        What moves the robots, as the log's meta and the figures name it.
     **controller_options
         Override the scenario's ``[gains]``.
     """
@@ -259,7 +259,7 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
         # NaN where the description cannot express the reference: the controller holds (brakes)
         return Reference(c_des[k], cd_des[k])
 
-    meta = {"scenario": sc, "formation": formation, "backend": backend, "profile": sc.profile,
+    meta = {"scenario": sc, "formation": formation, "physics": physics, "profile": sc.profile,
             "uav_model_k": tuple(ctrl.bebop.k),
             "unreachable_at": unreachable_at, "unreachable_message": message}
 
@@ -489,7 +489,7 @@ class UgvUavKind(ScenarioKind):
     scenario_type = UgvUavScenario
     options = (
         Option("formation", "the UGV-UAV description (Marciano 2021 §4)", tuple(UGV_UAV_FORMATIONS), "quaternion"),
-        Option("backend", "the robots' models (kinematic) or MuJoCo physics", UGV_UAV_BACKENDS, "kinematic"),
+        Option("physics", "the robots' models (kinematic) or MuJoCo physics", UGV_UAV_PHYSICS, "kinematic"),
         Option("mocap_noise_m", "motion-capture position noise, m (standard deviation; default: the scenario's)",
                None, None, float),
         Option("mocap_latency_s", "motion-capture latency, s (default: the scenario's)", None, None, float),
@@ -502,13 +502,13 @@ class UgvUavKind(ScenarioKind):
     def from_dict(self, data: dict, where: str) -> UgvUavScenario:
         return ugv_uav_scenario_from_dict(data, where)
 
-    def experiment(self, scenario: UgvUavScenario, formation: str = "quaternion", backend: str = "kinematic",
+    def experiment(self, scenario: UgvUavScenario, formation: str = "quaternion", physics: str = "kinematic",
                    mocap_noise_m: float | None = None, mocap_latency_s: float | None = None,
                    profile: str | None = None) -> Experiment:
-        """The run of ``scenario`` with the description ``formation`` on ``backend``; ``profile``
+        """The run of ``scenario`` with the description ``formation`` on ``physics``; ``profile``
         sets its keys over the scenario's (:func:`with_profile`), then the motion-capture
         overrides, checked with the scenario's own bounds."""
-        for opt, value in (("formation", formation), ("backend", backend)):
+        for opt, value in (("formation", formation), ("physics", physics)):
             choices = next(o.choices for o in self.options if o.name == opt)
             if value not in choices:
                 raise InvalidInputError(f"unknown {opt} {value!r}{checks.nearest(value, choices)}; choose "
@@ -520,7 +520,7 @@ class UgvUavKind(ScenarioKind):
         if changes:
             scenario = dataclasses.replace(scenario, **changes)
             check_ugv_uav_scenario(scenario, f"scenario {scenario.name} with --mocap-noise-m/--mocap-latency-s")
-        if backend == "mujoco":
+        if physics == "mujoco":
             return mujoco_experiment(scenario, formation)
         return ugv_uav_experiment(scenario, formation)
 
@@ -549,13 +549,13 @@ def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion", **contr
 
     The finished log's meta adds ``physics_record`` (for the picture,
     :func:`quatform.report.physics_render.render_or_fallback`) and ``physics_metrics``; the
-    metrics add ``backend``, ``collisions``, ``physics_timestep_s``, ``gains``,
+    metrics add ``physics``, ``collisions``, ``physics_timestep_s``, ``gains``,
     ``gains_source`` and ``gains_source_note``. It does not re-run the kinematic models
-    (comparing backends is a compare over the ``backend`` option). ``controller_options``
+    (comparing them is a compare over the ``physics`` option). ``controller_options``
     override the scenario's ``[gains]`` (``compensation=False``: no (4.47)); the recorded
     ``gains_source`` is then ``"argument"``.
     """
-    from ..sim.mujoco_backend import BACKEND_LABEL, IRIS_IDENTIFIED_K, ugv_uav_controller_gains
+    from ..sim.mujoco_backend import IRIS_IDENTIFIED_K, PHYSICS_LABEL, ugv_uav_controller_gains
     from ..sim.plants.mujoco import physics_metrics, physics_record, ugv_uav_plant
 
     holder = {}
@@ -566,7 +566,7 @@ def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion", **contr
 
     # the model ugv_uav_plant's uav_model is: K1..K8 identified from the simulated IRIS
     bebop = Bebop(k=tuple(IRIS_IDENTIFIED_K), max_fraction=sc.max_fraction)
-    exp = ugv_uav_experiment(sc, formation, plant=plant, bebop=bebop, backend=BACKEND_LABEL, **controller_options)
+    exp = ugv_uav_experiment(sc, formation, plant=plant, bebop=bebop, physics=PHYSICS_LABEL, **controller_options)
     gains, source = ugv_uav_controller_gains(exp.controller, "argument" if controller_options else "scenario")
 
     def finish(log: Log) -> Log:

@@ -59,7 +59,7 @@ class Log:
     channels : Mapping[str, Channel]
         In the order they were added.
     meta : Mapping[str, object]
-        What produced it (scenario, controller, backend, ...).
+        What produced it (scenario, controller, physics, ...).
     """
 
     t: np.ndarray

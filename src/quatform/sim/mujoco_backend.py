@@ -21,7 +21,7 @@ state read from it), in :mod:`quatform.sim.plants.mujoco`:
   controller compensates ``plant.uav_model`` (a ``Bebop`` with ``k`` and the scenario's
   ``max_fraction``); columns ``UGV_UAV_MEASURED_NAMES``; commands ``UGV_UAV_COMMAND_NAMES``.
   Run with ``dt=scenario.dt_s, substeps=round(control_period_s / dt_s)`` and the motion capture.
-* ``physics_metrics(plant) -> {"backend": "mujoco", "collisions": {...}, "physics_timestep_s"}``.
+* ``physics_metrics(plant) -> {"physics": "mujoco", "collisions": {...}, "physics_timestep_s"}``.
 * ``physics_record(plant, log, title="", gains=None, gains_source="") -> PhysicsRecord``:
   ``record.metrics()`` gives ``gains``, ``gains_source``, ``gains_source_note``,
   ``physics_timestep_s``; the picture is
@@ -35,7 +35,7 @@ state read from it), in :mod:`quatform.sim.plants.mujoco`:
   controller's settings as recorded.
 
 A physics run is one run of its plant: it does not re-run the kinematic simulation
-(comparing backends is a compare over the backend axis).
+(comparing them is a compare over the physics option).
 
 This module holds what the plants are made of:
 
@@ -77,13 +77,13 @@ from ..robots.physics import (
     world_mjcf,
 )
 
-__all__ = ["BACKEND_LABEL", "CASCADE_MODES", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS",
+__all__ = ["CASCADE_MODES", "GAINS_SOURCES", "INSTALL_HINT", "IRIS_IDENTIFIED_K", "PHYSICS_GAINS", "PHYSICS_LABEL",
            "UGV_UAV_GAIN_NAMES", "VECTORISED_FROM", "ContactMonitor", "PhysicsRecord", "PhysicsWorld", "identify_k",
            "import_mujoco", "pair_controller_gains", "physics_controller", "physics_controller_gains", "physics_gains", "physics_timestep",
            "ugv_uav_controller_gains"]
 
-#: How figures and tables name this backend (``PhysicsRecord.backend_label``).
-BACKEND_LABEL = "MuJoCo physics"
+#: How figures and tables name this physics (``PhysicsRecord.physics_label``).
+PHYSICS_LABEL = "MuJoCo physics"
 
 #: ``K1..K8`` of seed 001 eq. (3.11) identified from the simulated IRIS in Bebop-like
 #: attitude mode by :func:`identify_k` (steps and chirps, least squares; see
@@ -730,8 +730,8 @@ class PhysicsRecord:
         Where they came from: a key of :data:`GAINS_SOURCES`.
     title : str
         The scenario and controller or formation, for the pictures.
-    backend_label : str
-        How figures name the backend (:data:`BACKEND_LABEL`).
+    physics_label : str
+        How figures name the physics (:data:`PHYSICS_LABEL`).
     quads : tuple of str
         The quadrotors' names (world bodies, the ``robots`` keys), in the order of the arrays below.
     attitude : ndarray, shape (T, N, 4), or None
@@ -749,7 +749,7 @@ class PhysicsRecord:
     gains: dict = field(default_factory=dict)
     gains_source: str = ""
     title: str = ""
-    backend_label: str = BACKEND_LABEL
+    physics_label: str = PHYSICS_LABEL
     quads: tuple = ()
     attitude: np.ndarray | None = None
     rotor_command: np.ndarray | None = None

@@ -1,4 +1,4 @@
-"""A Pioneer 3-DX-like differential-drive robot for the physics backend.
+"""A Pioneer 3-DX-like differential-drive robot for MuJoCo physics.
 
 Robots layer (physical models; no MuJoCo import). Two driven wheels on a common axle and
 a rear caster, as seed 001 §3.1.1 describes the Pioneer 3-DX (Fig. 9). Each wheel is a

@@ -1,4 +1,4 @@
-"""An IRIS-like quadrotor for the physics backend: its numbers, its MJCF, its autopilot.
+"""An IRIS-like quadrotor for MuJoCo physics: its numbers, its MJCF, its autopilot.
 
 Robots layer (physical models; no MuJoCo import). The vehicle is one free rigid body
 with four rotor actuators; each rotor pushes along the body z axis and twists the body

@@ -39,8 +39,8 @@ from ...formations.layout import RobotLayout
 from ...robots import Bebop
 from ...robots.physics import IRIS
 from ..mujoco_backend import (
-    BACKEND_LABEL,
     IRIS_IDENTIFIED_K,
+    PHYSICS_LABEL,
     PhysicsRecord,
     PhysicsWorld,
     physics_timestep,
@@ -248,10 +248,10 @@ def ugv_uav_plant(scenario, x0, floor: float, k=IRIS_IDENTIFIED_K) -> UgvUavPlan
 
 
 def physics_metrics(plant: WorldPlant) -> dict:
-    """``{"backend", "collisions", "physics_timestep_s"}`` of a run of ``plant``, and ``robots``
+    """``{"physics", "collisions", "physics_timestep_s"}`` of a run of ``plant``, and ``robots``
     (each robot's kind, tilt, thrust and collisions) for a
     :class:`~quatform.sim.plants.mujoco_team.TeamPlant`."""
-    return {"backend": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep,
+    return {"physics": "mujoco", "collisions": plant.world.contacts.summary(), "physics_timestep_s": plant.timestep,
             **plant.robot_metrics()}
 
 
@@ -277,5 +277,5 @@ def physics_record(plant: WorldPlant, log, title: str = "", gains: dict | None =
         return np.asarray(rows, dtype=float).reshape(len(times), n_quads, 4)[idx]
 
     return PhysicsRecord(plant.world.xml, t[:n], q[idx], points, plant.world.contacts.summary(), plant.timestep,
-                         dict(gains or {}), gains_source, title, BACKEND_LABEL, tuple(plant.world.quad_names),
+                         dict(gains or {}), gains_source, title, PHYSICS_LABEL, tuple(plant.world.quad_names),
                          at_ticks(plant.attitudes), at_ticks(plant.rotor_commands), at_ticks(plant.rotor_forces))

@@ -89,8 +89,8 @@ class TeamPlant(WorldPlant):
             if kind is None:
                 raise InvalidInputError(
                     f"{what}: robot {i + 1} is a {type(robot).__name__} (point kind {robot.point_kind!r}), which the "
-                    f"MuJoCo backend cannot simulate; use {' or '.join(c.__name__ for c in PHYSICS_KINDS)} models "
-                    "(a quadrotor, a Pioneer 3-DX) or the kinematic backend")
+                    f"MuJoCo physics cannot simulate; use {' or '.join(c.__name__ for c in PHYSICS_KINDS)} models "
+                    "(a quadrotor, a Pioneer 3-DX) or the kinematic physics (--physics kinematic)")
             kinds.append(kind)
         x = start_state(x0, team.n_state, what)
         self.team, self.kinds = team, tuple(kinds)
