@@ -1,7 +1,8 @@
-"""Sweep executors: identical tables in process, on 2 local processes and on Dask; bad schedulers."""
+"""Sweep executors: identical tables in process, on 2 local processes and on Dask; bad schedulers; Ctrl-C."""
 
 import json
 import time
+from concurrent.futures.process import BrokenProcessPool
 
 import pytest
 
@@ -151,3 +152,23 @@ def test_dask_missing_is_one_line_before_any_experiment_is_built(spec, monkeypat
     assert 'pip install -e ".[dask]"' in err
     with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[dask\]"'):  # the library's entry too
         run_sweep(spec, tmp_path / "p", scheduler=scheduler)
+
+
+def test_ctrl_c_stops_the_local_workers():
+    """An interrupt inside the pool stops its workers instead of waiting for their chunks (the
+    exit hung for good when a second Ctrl-C came during that wait)."""
+    with pytest.raises(KeyboardInterrupt):
+        with executor(2) as ex:
+            fut = ex.submit(time.sleep, 20)
+            time.sleep(1.0)  # the worker has started it
+            raise KeyboardInterrupt
+    assert isinstance(fut.exception(timeout=30), BrokenProcessPool)
+
+
+def test_local_workers_leave_ctrl_c_to_the_sweep():
+    """A terminal's Ctrl-C reaches every process of the group: the workers ignore it (no
+    tracebacks from them) and the sweep's process stops them."""
+    import signal
+
+    with executor(2) as ex:
+        assert ex.submit(signal.getsignal, signal.SIGINT).result(timeout=60) == signal.SIG_IGN
