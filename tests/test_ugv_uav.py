@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from quatform.errors import DegenerateInputError, InvalidInputError, UnreachableError
 from quatform.formations import RobotLayout, UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
@@ -153,3 +154,96 @@ def test_bebop_dynamics_table2():
     s = np.array([0, 0, 0, 0.7, 1.0, 0.0, 0.0, 0.0])
     s1 = Bebop(dynamic=False).step(s, np.array([b.k_v[0] / b.k_u[0], 0, 0, 0]), 0.01)
     np.testing.assert_allclose(s1[0:2] / 0.01, (yaw_matrix(0.7) @ [1.0, 0, 0, 0])[0:2], atol=1e-12)
+
+
+# -- the restricted description refuses what it cannot express; huge finite positions ----------------
+
+def test_restricted_refuses_the_uav_below_the_platform_single_and_batch():
+    F = UgvUavRestricted()
+    below = np.array([0.0, 0.0, 0.0, 0.0, 0.3, -0.966])  # 0.966 m below the platform
+    with pytest.raises(UnreachableError, match=r"z_b - z_p = -0.966 m: the UAV is below the platform.*quaternion"):
+        F.forward(below)
+    above = below * np.array([1, 1, 1, 1, 1, -1])
+    batch = np.stack([above, below, above])
+    with pytest.raises(UnreachableError, match=r"-0.966 m at index \(1,\)"):
+        F.forward(batch)
+    np.testing.assert_allclose(F.inverse(F.forward(above)), above, atol=1e-12)
+    np.testing.assert_array_equal(F.outside(batch), [False, True, False])
+    # a cluster state whose (4.24) has no real root is refused, not clipped to platform level
+    wide = UgvUavRestricted(range_deg=(-90.0, 90.0))
+    with pytest.raises(UnreachableError, match="no real root"):
+        wide.inverse(np.array([[0, 0, 0, 1.0, 0.2, 0.2], [0, 0, 0, 1.0, 1.0, 1.0]]))
+    with pytest.raises(UnreachableError, match="below the platform"):
+        F.from_euclidean(np.array([0, 0, 0, 1.0, 0.3, -0.2]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(d=st.tuples(st.floats(-2, 2), st.floats(-2, 2), st.floats(-2, 2)))
+def test_restricted_forward_and_inverse_agree_on_their_domain(d):
+    F = UgvUavRestricted()
+    r = np.r_[0.1, -0.2, 0.0, np.array([0.1, -0.2, 0.0]) + np.array(d)]
+    if np.linalg.norm(d) < 1e-3:
+        return
+    if F.outside(r):
+        with pytest.raises(UnreachableError):
+            F.forward(r)
+    else:  # every state forward accepts comes back from inverse (to rho sqrt(eps) at platform
+        # level, where the root of (4.24) amplifies round-off: 2e-8 m at the 45/45 deg corner)
+        np.testing.assert_allclose(F.inverse(F.forward(r)), r, atol=1e-7)
+
+
+@pytest.mark.parametrize("F", [UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion()], ids=lambda f: f.name)
+def test_huge_positions_are_refused_not_overflowed(F):
+    r = np.array([0, 0, 0, 1e154, 1e154, 1e154])
+    for f in (F.forward, F.jacobian, F.singularity_measure):
+        with pytest.raises(InvalidInputError, match=r"r\[3\] = 1e\+154 is beyond the 1e\+150"):
+            f(r)
+    c = np.zeros(F.n_c)
+    c[3] = 1.0 if F.name == "quaternion" else 1e154
+    c[-3 if F.name == "quaternion" else 0] = 1e154
+    with pytest.raises(InvalidInputError, match="beyond the 1e\\+150"):
+        F.inverse(c)
+    ok = np.array([0, 0, 0, 1e140, 1e140, 1e140]) * (1 if F.name != "restricted" else 1)
+    if F.name != "restricted":
+        assert np.all(np.isfinite(F.forward(ok)))
+
+
+def test_restricted_rate_maps_refuse_what_forward_refuses():
+    """jacobian([0, 0, 0, 0.5, 0.5, -0.966]) returned a 6 x 6 matrix (of the state mirrored
+    above the platform) while forward refused it."""
+    F = UgvUavRestricted()
+    r = np.array([0, 0, 0, 0.5, 0.5, -0.966])
+    for f in (F.forward, F.jacobian, F.inverse_jacobian, F.singularity_measure):
+        with pytest.raises(UnreachableError, match=r"r: z_b - z_p = -0\.966 m: the UAV is below the platform"):
+            f(r)
+    c_up = F.forward(r * [1, 1, 1, 1, 1, -1])
+    with pytest.raises(UnreachableError, match="below the platform"):
+        F.inverse_jacobian_at(c_up, r=r)
+    with pytest.raises(UnreachableError, match="alpha_f = 70.5 deg is outside"):
+        F.inverse_jacobian_at(c_up + [0, 0, 0, 0, 0.8, 0])  # what inverse refuses
+    assert F.inverse_jacobian_at(c_up, r=r * [1, 1, 1, 1, 1, -1]).shape == (6, 6)
+
+
+robot_pair = st.tuples(*(st.floats(-2.0, 2.0) for _ in range(6))).map(np.array)
+
+
+@settings(max_examples=150, deadline=None)
+@given(r=robot_pair)
+def test_restricted_rate_maps_exist_exactly_where_forward_does(r):
+    """One check for all: on random robot pairs (UAV above and below, angles in and out of
+    range), jacobian, inverse_jacobian and singularity_measure raise iff forward raises."""
+    F = UgvUavRestricted()
+    if np.linalg.norm(r[3:6] - r[0:3]) < 0.05:
+        return  # robots on each other: refused by every map alike, not the point here
+
+    def refused(f):
+        try:
+            f(r)
+        except UnreachableError:
+            return True
+        return False
+
+    expected = refused(F.forward)
+    assert expected == bool(F.outside(r))
+    assert refused(F.jacobian) == expected and refused(F.inverse_jacobian) == expected
+    assert refused(F.singularity_measure) == expected

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from quatform.errors import InvalidInputError, ShapeError
+from quatform.errors import InvalidInputError, ResourceLimitError, ShapeError
 from quatform.robots import Bebop, Pioneer
 from quatform.scenarios import KINDS
 from quatform.scenarios.ugv_uav import (
@@ -21,7 +21,10 @@ from quatform.scenarios.ugv_uav import (
     UGV_UAV_KIND,
     UgvUavScenario,
     check_ugv_uav_scenario,
+    simulate_ugv_uav,
     ugv_uav_experiment,
+    ugv_uav_metrics,
+    ugv_uav_scenario_from_dict,
 )
 from quatform.scenarios import load_scenario
 from quatform.sim.log import Log
@@ -194,3 +197,131 @@ def test_the_scenarios_hold_limit_reaches_the_controller():
     assert sc.controller("quaternion").max_hold_s == 0.12
     assert sc.controller("quaternion").mocap.max_hold_s == 0.12
     assert dataclasses.replace(sc, gains={"max_hold_s": 0.3}).controller("quaternion").max_hold_s == 0.3
+
+
+# -- the scenario loader -----------------------------------------------------------------------------
+
+BASE = {"kind": "ugv-uav", "name": "t", "path": "circle", "r_x": 1.0, "r_y": 1.0, "omega": 0.2, "d_c": 1.5,
+        "duration_s": 2.0, "transient_s": 1.0, "gains": {"k_psi": 3.0}}
+
+
+def _load(**changes):
+    data = {**BASE, **changes}
+    return ugv_uav_scenario_from_dict({k: v for k, v in data.items() if v is not None}, "my.toml")
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("floor_below_platform_m", float("nan"), "floor_below_platform_m = nan must be finite"),
+    ("uav_front_until_s", float("nan"), "uav_front_until_s = nan must be finite"),
+    ("gains", 5, "gains must be a table"),
+    ("d_c", {"a": 1}, "d_c = {'a': 1} must be a number"),
+    ("r_x", "1.0", "r_x = '1.0' must be a number"),
+    ("duration_s", -1.0, "duration_s = -1.0 must be > 0"),
+    ("mocap_noise_m", -0.001, "mocap_noise_m = -0.001 must be >= 0"),
+    ("center", [1, 2], "center = [1, 2] must be a list of 3 numbers"),
+    ("seed", "abc", "seed = 'abc' must be an integer"),
+    ("seed", 1.5, "seed = 1.5 must be an integer"),
+    ("duraton_s", 3.0, "unknown key 'duraton_s' at top level (did you mean 'duration_s'?)"),
+    ("path", "cirle", "path = 'cirle' is not one of circle, lemniscate (did you mean 'circle'?)"),
+    ("max_fraction", 1.5, "max_fraction = 1.5 must be <= 1"),
+    ("omega", 0.0, "omega = 0.0 must be nonzero"),
+    ("control_period_s", 0.001, "control_period_s = 0.001 must be >= dt_s"),
+    ("uav_start", [0.0, -0.6, -0.5], "uav_start z = -0.5 m is below the floor"),
+    ("name", None, "missing key name"),
+    ("duration_s", None, "missing key duration_s"),
+    ("title", 3, "title = 3 must be a string"),
+    ("mocap_dropout_rate", 1.0, "mocap_dropout_rate = 1.0 must be < 1"),
+])
+def test_loader_refuses_each_bad_value_naming_the_key(key, value, words):
+    with pytest.raises(InvalidInputError, match=None) as info:
+        _load(**{key: value})
+    msg = str(info.value)
+    assert msg.startswith("my.toml: ") and words in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("gains, words", [
+    ({"k_x": "big"}, "[gains] k_x = 'big' must be a number"),
+    ({"k_x": [1.0, 2.0]}, "[gains] k_x = [1.0, 2.0] must be a list of 3 numbers"),
+    ({"k_w": [1.0, -1.0, 1.0]}, "[gains] k_w = -1.0 must be > 0"),
+    ({"k_psi": float("inf")}, "[gains] k_psi = inf must be finite"),
+    ({"l_d": {"x": 1}}, "[gains] l_d = {'x': 1} must be a number"),
+    ({"compensation": 1}, "[gains] compensation = 1 must be true or false"),
+    ({"k_pis": 3.0}, "unknown key 'k_pis' at [gains] (did you mean 'k_psi'?)"),
+    ({"arena": 1.0}, "unknown key 'arena' at [gains]"),
+])
+def test_loader_refuses_bad_gains(gains, words):
+    with pytest.raises(InvalidInputError) as info:
+        _load(gains=gains)
+    assert words in str(info.value)
+
+
+def test_loader_reads_good_values_and_lists():
+    sc = _load(center=[0.5, -0.5, 0.2], gains={"k_x": [1.0, 2.0, 3.0], "l_d": 2.0, "compensation": False})
+    assert sc.center == (0.5, -0.5, 0.2) and sc.gains["k_x"] == (1.0, 2.0, 3.0)
+    assert sc.gains["l_d"] == (2.0,) * 4 and sc.gains["compensation"] is False
+    for name in ("marciano-circle", "marciano-lemniscate", "marciano-front-to-over"):
+        assert load_scenario(name).name == name
+
+
+def test_huge_duration_is_refused_up_front_naming_the_key():
+    with pytest.raises(ResourceLimitError, match="my.toml: duration_s / dt_s needs 2e"):
+        _load(duration_s=1e9)
+    # a scenario changed after loading (as the CLI does) is checked again when run
+    sc = dataclasses.replace(_load(), duration_s=1e9)
+    with pytest.raises(ResourceLimitError, match="duration_s"):
+        simulate_ugv_uav(sc)
+    with pytest.raises(InvalidInputError, match="mocap_noise_m = nan must be finite"):
+        simulate_ugv_uav(dataclasses.replace(_load(), mocap_noise_m=float("nan")))
+
+
+@pytest.mark.parametrize("transient", [25.0, 40.0, 24.995])
+def test_loader_refuses_a_metrics_window_without_a_sample(transient):
+    """transient_s of 25 or 40 in a 25 s run loaded and ran, every error metric null. The
+    last control sample of a 25 s run at 30 ms is 24.99 s, so 24.995 s leaves none either."""
+    with pytest.raises(InvalidInputError) as info:
+        _load(duration_s=25.0, transient_s=transient)
+    msg = str(info.value)
+    assert msg.startswith(f"my.toml: transient_s = {transient!r} must be < duration_s = 25.0") and "\n" not in msg
+    assert "24.99 s" in msg and "lower transient_s or lengthen duration_s" in msg
+
+
+def test_loader_keeps_a_metrics_window_with_samples_and_it_measures():
+    """The last sample still counts: the window [24.98, 25] s holds one (24.99 s), and the
+    run's errors are numbers, not null."""
+    assert _load(duration_s=25.0, transient_s=24.98).transient_s == 24.98
+    sc = _load(duration_s=0.3, transient_s=0.26)  # only the last of 0, 0.03, ..., 0.27 s (0.3 / 0.03 floors to 9)
+    m = ugv_uav_metrics(simulate_ugv_uav(sc, "quaternion"))
+    assert m["max_ugv_position_error_m"] is not None and m["max_uav_position_error_m"] is not None
+
+
+@pytest.mark.parametrize("until", [100.0, 25.0, 24.995])
+def test_loader_refuses_a_front_to_over_switch_after_the_run(until):
+    """uav_front_until_s = 100 in a 25 s run was accepted and the switch of §5.3 never came."""
+    with pytest.raises(InvalidInputError) as info:
+        _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=until)
+    msg = str(info.value)
+    assert msg.startswith(f"my.toml: uav_front_until_s = {until!r} must be < duration_s = 25.0") and "\n" not in msg
+    assert "never happen" in msg and "set it to 0 for no front phase" in msg
+
+
+def test_loader_keeps_a_switch_within_the_run_and_no_switch():
+    """0 means no front phase (no switch to check); a switch at the last sample happens."""
+    assert _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=0.0).uav_front_until_s == 0.0
+    sc = _load(duration_s=25.0, transient_s=1.0, uav_front_until_s=24.98)
+    e, _ = sc.e_reference(np.array([24.96, 24.99]))
+    assert e[0, 5] == 0.0 and e[1, 5] == pytest.approx(np.pi / 2)  # front, then over at the last sample
+
+
+def test_shipped_ugv_uav_scenarios_still_load():
+    for name in ("marciano-circle", "marciano-lemniscate", "marciano-front-to-over"):
+        assert load_scenario(name).transient_s < load_scenario(name).duration_s
+
+
+def test_control_period_not_a_multiple_of_dt_is_refused_and_tiny_dt_names_dt():
+    """Review: control_period_s = 0.007 with dt_s = 0.005 ran at 0.005 s and said so only in
+    metrics.json; dt_s = 1e-300 was blamed on duration_s / control_period_s ("67.7 steps")."""
+    with pytest.raises(InvalidInputError, match=r"control_period_s = 0.007 is not a whole multiple of dt_s = 0.005"):
+        _load(control_period_s=0.007, dt_s=0.005)
+    assert _load(control_period_s=0.03, dt_s=0.005).control_period_s == 0.03
+    with pytest.raises(ResourceLimitError, match=r"duration_s / dt_s needs 2e\+300 steps"):
+        _load(dt_s=1e-300, control_period_s=0.03)

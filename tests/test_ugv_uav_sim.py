@@ -8,9 +8,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+import quatform.control as control
+import quatform.report.ugv_uav_plots as uplots
 from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError
-from quatform.formations import UgvUavQuaternion
+from quatform.formations import UgvUavQuaternion, UgvUavRestricted
 from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
 from quatform.scenarios import load_scenario
 
@@ -139,3 +141,145 @@ def test_uav_speed_fraction_and_bad_measurements():
         ctrl.step(0.0, m[:10], Reference(c, cd))
     with pytest.raises(InvalidInputError, match="unknown formation"):
         sc.controller("triangle")
+
+
+# -- layouts, motion-capture dropouts and glitches, designed switches, plots -------------------------
+
+def test_ugv_uav_layout_names_are_not_the_generic_ones():
+    assert control.UGV_UAV_MEASURED_NAMES[:3] == ("x_p", "y_p", "psi_p")
+    assert len(control.UGV_UAV_MEASURED_NAMES) == 11
+    assert control.UGV_UAV_COMMAND_NAMES == ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
+    assert not hasattr(control, "COMMAND_NAMES") and not hasattr(control, "MEASURED_NAMES")
+    assert "UGV_UAV_COMMAND_NAMES" in control.__all__ and "COMMAND_NAMES" not in control.__all__
+
+
+def _short(name="marciano-circle", **changes):
+    return dataclasses.replace(load_scenario(name), **{"duration_s": 25.0, "dt_s": 0.01, **changes})
+
+
+def test_restricted_run_reports_the_take_off_from_below_the_platform():
+    """The UAV starts on the floor below the platform: outside the restricted description.
+    The controller drives it in robot space until it is inside, and the run says for how long."""
+    run = simulate_ugv_uav(_short(mocap_noise_m=0.002), "restricted")
+    m = ugv_uav_metrics(run)
+    outside, c = run["outside"][:, 0] == 1, run["cluster"]
+    assert outside[0] and not outside[-1]
+    assert 2.0 <= m["measured_outside_description_s"] <= 8.0
+    assert np.all(np.isnan(c[outside])) and np.all(np.isfinite(c[~outside]))
+    x = run["state"]
+    assert np.all(np.isnan(run["singularity"][:, 0][UgvUavRestricted().outside(
+        np.c_[x[:, 0:2], np.zeros(len(run.t)), x[:, 3:6]])]))
+    assert m["nonfinite_commands"] == 0 and not m["reference_lost"]
+    assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
+
+
+def test_front_to_over_switch_is_not_a_lost_reference():
+    # the §5.3 scenario with its switch 35 s earlier (at 25 s, after the 20 s take-off)
+    sc = dataclasses.replace(load_scenario("marciano-front-to-over"), uav_front_until_s=25.0, duration_s=45.0,
+                             dt_s=0.01)
+    m = ugv_uav_metrics(simulate_ugv_uav(sc, "quaternion"))
+    assert not m["reference_lost"] and m["first_lost_time_s"] is None
+    assert m["max_uav_position_error_m_at_switch"] >= 0.4  # the switch itself moves the reference far
+    assert m["max_uav_position_error_m"] <= 0.4
+
+
+def _overhead_reference():
+    F = UgvUavQuaternion()
+    return Reference(*F.from_euclidean(np.array([0, 0, 0, 1.5, 0, np.pi / 2]), np.zeros(6)))
+
+
+def _stepper(ctrl):
+    """``step(t, m, ref) -> Step``: updates threading the controller's state."""
+    state = [ctrl.init()]
+
+    def step(t, m, ref):
+        s = ctrl.update(t, m, ref, state[0])
+        state[0] = s.state
+        return s
+    return step
+
+
+def test_controller_holds_the_last_good_frame_through_a_dropout_and_a_glitch():
+    ctrl, ref = UgvUavController(), _overhead_reference()
+    step = _stepper(ctrl)
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.1, 0, 0, 0])
+    first = step(0.0, good, ref).signals
+    assert first["frame"][0] == 0 and first["held"][0] == 0  # good, not held
+    dropped = step(0.03, np.full(11, np.nan), ref).signals
+    assert dropped["frame"][0] == 1 and dropped["held"][0] == 1 and dropped["raw_finite"][0] == 1
+    np.testing.assert_array_equal(dropped["used"][:7], good[:7])
+    np.testing.assert_allclose(dropped["cluster"], first["cluster"])
+    glitch = good.copy()
+    glitch[3:6] = [0.0, 0.0, 0.0]  # the UAV's marker read at the UGV
+    res = step(0.06, glitch, ref)
+    assert res.signals["frame"][0] == 2 and res.signals["held"][0] == 1 and np.all(np.isfinite(res.u))
+    jump = good.copy()
+    jump[3] += 1.5  # 1.5 m in 0.09 s: faster than a Bebop flies (K1/K2 = 4.6 m/s, Table 2)
+    assert step(0.09, jump, ref).signals["frame"][0] == 2  # rejected
+    moved = good.copy()
+    moved[3] += 0.1  # 0.1 m in 0.12 s: possible
+    assert step(0.12, moved, ref).signals["frame"][0] == 0  # good
+    no_odometry = moved.copy()
+    no_odometry[7:11] = np.nan  # the Bebop's own odometry, not the motion capture
+    res = step(0.15, no_odometry, ref).signals
+    assert res["frame"][0] == 0 and res["held"][0] == 0
+    np.testing.assert_array_equal(res["used"], moved)  # the pose read now, the last odometry
+
+
+def test_controller_stops_safely_after_too_many_bad_frames():
+    ctrl, ref = UgvUavController(max_hold_s=0.2), _overhead_reference()
+    step = _stepper(ctrl)
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.5, 0, 0, 0])
+    step(0.0, good, ref)
+    res = [step(0.03 * k, np.full(11, np.nan), ref) for k in range(1, 12)]
+    assert [r.signals["stopped"][0] == 1 for r in res].index(True) == 7  # 0.24 s after the last good frame
+    reason = res[-1].state.stop_reason
+    assert "no good frame" in reason and "max_hold_s = 0.2 s" in reason
+    assert res[-1].u[0] == 0 and res[-1].u[1] == 0 and res[-1].u[2] < 0  # braking
+    assert step(0.5, good, ref).signals["stopped"][0] == 1  # a good frame does not restart it
+
+
+def test_run_with_dropped_and_glitched_frames_is_held_through_and_counted():
+    sc = _short(mocap_noise_m=0.002, mocap_latency_s=0.005, mocap_dropout_rate=0.05, mocap_glitch_rate=0.02)
+    run = simulate_ugv_uav(sc, "quaternion")
+    m = ugv_uav_metrics(run)
+    assert m["mocap_dropped_frames"] >= 10 and m["mocap_rejected_frames"] >= 5
+    assert m["mocap_held_frames"] == m["mocap_dropped_frames"] + m["mocap_rejected_frames"]
+    assert not m["run_stopped"] and m["nonfinite_commands"] == 0 and not m["reference_lost"]
+    assert m["max_uav_position_error_m"] <= 0.05 and m["max_ugv_position_error_m"] <= 0.05
+    assert np.all(np.isfinite(run["cluster"])) and np.all(np.isfinite(run["c_continuous"]))
+
+
+def test_run_that_loses_the_motion_capture_stops_and_says_so():
+    run = simulate_ugv_uav(_short(mocap_dropout_rate=0.9, duration_s=6.0), "quaternion")
+    m = ugv_uav_metrics(run)
+    assert m["run_stopped"] and m["run_stopped_at_s"] <= 6.0
+    assert m["run_stopped_reason"].startswith("motion capture: no good frame")
+    after = run.t > m["run_stopped_at_s"]
+    assert np.all(run["command"][after, 0] == 0) and np.all(run["command"][after, 1] == 0)  # the UGV stays stopped
+
+
+def test_noisy_errors_are_drawn_as_a_filtered_line_inside_an_envelope():
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 0.03
+    y = rng.normal(0.0, 0.002, t.size)  # 2 mm motion-capture noise on a zero error
+    mean, lo, hi = uplots._filtered(t, y, stride=2)
+    assert np.std(mean) <= 0.6e-3  # the line shows the error, not the noise (was the raw samples)
+    assert np.all(lo <= y + 1e-15) and np.all(y <= hi + 1e-15)  # the band holds every sample
+    y[100:110] = np.nan
+    mean, lo, hi = uplots._filtered(t, y)
+    assert np.isfinite(mean[105]) and np.isnan(uplots._filtered(t, np.full(10, np.nan))[0]).all()
+
+
+def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, tmp_path):
+    sc = _short("marciano-front-to-over", uav_front_until_s=5.0, duration_s=12.0, transient_s=2.0)
+    run = simulate_ugv_uav(sc, "restricted")
+    assert run.t.size == 401 and run["reachable"][0, 0] == 0 and run["reachable"][-1, 0] == 1
+    figs = []
+    monkeypatch.setattr(uplots, "save", lambda fig, path: figs.append(fig) or path)
+    uplots.write_ugv_uav_run_plots(run, tmp_path)
+    uplots.write_ugv_uav_compare_plots([run], tmp_path)
+    for fig in figs:
+        title = fig._suptitle.get_text() if fig._suptitle is not None else fig.axes[0].get_title()
+        assert "Marciano 2021" in title and "seed 001" not in title
+        assert sum(len(ax.lines) for ax in fig.axes) >= 4  # axes with data, not a text-only figure
