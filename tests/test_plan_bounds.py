@@ -5,16 +5,20 @@ one line naming the key, or the file, the array and the bound."""
 from __future__ import annotations
 
 import dataclasses
+import io
 import re
+import zipfile
 
 import numpy as np
 import pytest
 
 from quatform import cli
-from quatform.errors import InvalidInputError
+from quatform.errors import InvalidInputError, ResourceLimitError
+from quatform.plan_runs import scenario_with_plan
 from quatform.planning import Plan, builtin_plan_specs, load_plan, load_plan_spec, make_plan
 from quatform.planning.plan import PLAN_MAX_ABS, PLAN_MIN_STEP_S
 from quatform.planning.spec import plan_spec_from_dict
+from quatform.scenarios import load_scenario
 
 TWO_BODIES = "belta-kumar-2002-two-bodies"
 
@@ -155,3 +159,132 @@ def test_cli_run_with_an_absurd_reference_says_one_line(tmp_path, capsys, scenar
     assert rc == 2
     line = _one_line(capsys)
     assert f"{f}: plan {array} holds" in line and "beyond the bound |value| <= 1e+12" in line
+
+
+# -- resource limits, plan files and spec keys -------------------------------------------------------
+
+R2 = np.sqrt(2.0)
+
+
+FIG3 = dict(masses=[1.0, 2.0], start=[[1.0, 0.0], [-0.5, 0.0]],
+            goal=[[3 - R2 / 2, -R2 / 2], [3 + R2 / 4, R2 / 4]])
+
+
+def _spec(**top):
+    data = {"kind": "shaped-geodesic", "name": "t", "robots": dict(FIG3), "shaping": {"alpha": 0.7}}
+    data.update(top)
+    return data
+
+
+def test_a_billion_knots_are_refused_up_front():
+    """Old: knots = 10**9 was accepted and the planner tried to sample 1e9 knots."""
+    with pytest.raises(ResourceLimitError, match=r"t\.toml: knots needs 1e\+09 steps"):
+        plan_spec_from_dict(_spec(knots=10**9), where="t.toml")
+    with pytest.raises(InvalidInputError, match="knots = 1000000000.0 must be an integer"):
+        plan_spec_from_dict(_spec(knots=1e9), where="t.toml")
+
+
+def _pair_plan_lasting(T):
+    t = np.array([0.0, T])
+    p = np.array([[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]]] * 2)
+    return Plan(t, p, np.zeros_like(p), np.zeros_like(p), np.ones(2), {"kind": "test", "name": "long"})
+
+
+def test_a_reference_plan_lasting_1e9_s_is_refused_naming_the_file(tmp_path):
+    """Old: the run was built for 1e9 s / dt_s = 1e11 steps (hours of work, terabytes)."""
+    f = _pair_plan_lasting(1e9).save(tmp_path / "long.npz")
+    sc = load_scenario("mas-kitts-yaw-step")
+    with pytest.raises(ResourceLimitError, match=r"long\.npz: the plan's duration \(1e\+09 s\)"):
+        scenario_with_plan(sc, f)
+    ok = scenario_with_plan(sc, _pair_plan_lasting(5.0).save(tmp_path / "short.npz"))
+    assert ok.duration_s == pytest.approx(5.0)
+
+
+def _npz(entries: dict) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for name, raw in entries.items():
+            zf.writestr(name + ".npy", raw)
+    return buf.getvalue()
+
+
+def _npy(arr) -> bytes:
+    b = io.BytesIO()
+    np.save(b, arr, allow_pickle=False)
+    return b.getvalue()
+
+
+def _header_only(shape, dtype="<f8") -> bytes:
+    """A ``.npy`` header claiming ``shape`` with no data after it."""
+    b = io.BytesIO()
+    np.lib.format.write_array_header_1_0(b, {"descr": dtype, "fortran_order": False, "shape": shape})
+    return b.getvalue()
+
+
+def test_a_npy_header_claiming_1e13_elements_is_refused_before_allocating(tmp_path):
+    """Old: np.load allocated the claimed 80 TB array (MemoryError traceback)."""
+    good = {"format": _npy(np.array("quatform-plan-1")), "info": _npy(np.array("{}")),
+            "masses": _npy(np.ones(2)), "times": _npy(np.array([0.0, 1.0]))}
+    f = tmp_path / "huge.npz"
+    f.write_bytes(_npz({**good, "positions": _header_only((10**13,))}))
+    with pytest.raises(ResourceLimitError, match=r"huge\.npz: the array sizes in its \.npy headers"):
+        load_plan(f)
+    f.write_bytes(_npz({**good, "positions": _header_only((3,), "|O")}))
+    with pytest.raises(InvalidInputError, match="entry 'positions' has dtype object"):
+        load_plan(f)
+
+
+@pytest.mark.parametrize("info, why", [("[1, 2]", "must be a JSON object"),
+                                       ('{"a": ' * 50 + "1" + "}" * 50, "nested more than 8"),
+                                       ("[" * 100000 + "]" * 100000, "must be a JSON object|not JSON")])
+def test_a_plan_whose_info_is_a_list_or_nested_deep_is_refused(tmp_path, info, why):
+    """Old: a list gave a TypeError traceback from dict(info); deep nesting a RecursionError."""
+    plan = _pair_plan_lasting(1.0)
+    f = tmp_path / "p.npz"
+    with open(f, "wb") as fh:
+        np.savez(fh, format=np.array("quatform-plan-1"), times=plan.times, positions=plan.positions,
+                 velocities=plan.velocities, accelerations=plan.accelerations, masses=plan.masses,
+                 info=np.array(info))
+    with pytest.raises(InvalidInputError, match=why) as exc:
+        load_plan(f)
+    assert "\n" not in str(exc.value) and len(str(exc.value)) <= 500
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"duratoin_s": 2.0}, "unknown key 'duratoin_s' at top level (did you mean 'duration_s'?)"),
+    ({"duration_s": float("nan")}, "duration_s = nan must be finite"),
+    ({"duration_s": -1.0}, "duration_s = -1.0 must be > 0"),
+    ({"duration_s": "long"}, "duration_s = 'long' must be a number"),
+    ({"min_clearance_m": {"x": 1}}, "min_clearance_m = {'x': 1} must be a number"),
+    ({"shaping": {"alpah": 0.7}}, "unknown key 'alpah' at [shaping] (did you mean 'alpha'?)"),
+    ({"shaping": {"alpha": float("inf")}}, "[shaping] alpha = inf must be finite"),
+    ({"shaping": {"alpha": "0.7"}}, "[shaping] alpha = '0.7' must be a number"),
+    ({"robots": {**FIG3, "mases": [1, 2]}}, "unknown key 'mases' at [robots] (did you mean 'masses'?)"),
+    ({"robots": {**FIG3, "start": [[1.0, float("nan")], [0, 0]]}}, "[robots] start = nan must be finite"),
+    ({"robots": {**FIG3, "start": [[1.0, "x"], [0, 0]]}}, "[robots] start = 'x' must be a number"),
+    ({"robots": {**FIG3, "masses": [1.0, -2.0]}}, "positive"),
+])
+def test_spec_loader_refuses_bad_values_by_key(change, message):
+    """Old: unknown keys were listed without the nearest valid one, a string alpha reached
+    check_alpha, and the [robots] errors did not name the key."""
+    data = _spec(**change)
+    with pytest.raises(InvalidInputError) as exc:
+        make_plan(plan_spec_from_dict(data, where="t.toml"))
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_rigid_spec_keys_name_the_nearest():
+    """Old: [airplanes] unknown keys were listed without a suggestion; case was not a string check."""
+    with pytest.raises(InvalidInputError, match=r"unknown key 'hh' at \[airplanes\] \(did you mean 'h'\?\)"):
+        plan_spec_from_dict({"kind": "rigid-se3", "airplanes": {"hh": 1.0}}, where="a.toml")
+    with pytest.raises(InvalidInputError, match=r"\[airplanes\] a = nan must be finite"):
+        make_plan(plan_spec_from_dict({"kind": "rigid-se3", "airplanes": {"a": float("nan")}}, where="a.toml"))
+    with pytest.raises(ResourceLimitError, match="knots"):
+        plan_spec_from_dict({"kind": "rigid-se3", "knots": 10**10, "airplanes": {}}, where="a.toml")
+
+
+def test_a_plan_with_a_negative_mass_is_refused(tmp_path):
+    """Review: a plan.npz with masses = [-1, 1] was accepted by 'run --reference'."""
+    plan, _ = make_plan(load_plan_spec("belta-kumar-2002-two-bodies"))
+    with pytest.raises(InvalidInputError, match=r"plan masses\[0\] = -1 kg must be > 0"):
+        dataclasses.replace(plan, masses=np.array([-1.0, 1.0]))

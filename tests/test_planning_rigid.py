@@ -35,6 +35,7 @@ from quatform.planning import (
     w_from_g,
 )
 from quatform.planning.rigid_formation import gamma_matrix
+from quatform.planning.se3 import metric_gl
 
 M_, A_, H_, X_, Z_ = 1.0, 5.0, 10.0, 20.0, 20.0
 
@@ -355,3 +356,44 @@ def test_figure4_and_single_plan_plots(plans, tmp_path):
     assert one.stat().st_size > 10_000
     with pytest.raises(InvalidInputError, match="lacks"):
         plot_airplanes_figure4(tmp_path / "x.png", {"a": plans["a"]})
+
+
+# -- the scope of the energy claim of Belta & Kumar 2001 §3.2 ----------------------------------------
+
+def test_cubic_is_not_the_least_energy_curve_with_its_ends_and_twists():
+    """Seed 004 §3.2 minimises E over the cubic's two end-twist coordinates only. A curve with
+    the same ends and end twists (the cubic plus t^2 (1 - t)^2 corrections) costs less, by
+    282.6 J in case (b); the docs said 'minimised' without the qualification (old)."""
+    from quatform.planning import RigidFormationPlan
+
+    plan = rigid_plan_from_spec(airplanes_spec("b"))
+    c = plan.formation
+    Mc, dc, W, w = c.m_coeffs, c.d_coeffs, c.W, c.w
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 1.0, 20001)
+    bump = t**2 * (1 - t) ** 2
+
+    def curve(A, b):
+        M = sum(Mc[k] * t[:, None, None] ** k for k in range(4)) + bump[:, None, None] * A
+        d = sum(dc[k] * t[:, None] ** k for k in range(4)) + bump[:, None] * b
+        return M, d
+
+    def energy(M, d):  # independent of the module: finite differences and the trapezoid rule
+        Md, dd = np.gradient(M, t, axis=0), np.gradient(d, t, axis=0)
+        f = metric_gl(Md, Md, W) + w * np.einsum("ti,ti->t", dd, dd)
+        return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(t)))
+
+    M0, d0 = curve(np.zeros((3, 3)), np.zeros(3))
+    e0 = energy(M0, d0)
+    assert e0 == pytest.approx(plan.metrics()["energy"], rel=1e-6)
+    gaps = []
+    for _ in range(10):  # random admissible directions, each scaled to its best step
+        A, b = rng.normal(size=(3, 3)), rng.normal(size=3) * 20.0
+        ep, em = energy(*curve(A, b)), energy(*curve(-A, -b))
+        g, h = 0.5 * (ep - em), 0.5 * (ep + em) - e0  # E(eps) = e0 + g eps + h eps^2 (quadratic)
+        eps = -g / (2.0 * h)
+        M, d = curve(eps * A, eps * b)
+        assert np.linalg.det(M).min() > 0  # stays in GA(3)+: it projects onto SE(3)
+        gaps.append(e0 - energy(M, d))
+    assert min(gaps) > 0 and max(gaps) > 18.0
+    assert "cubic" in RigidFormationPlan.metrics.__doc__
