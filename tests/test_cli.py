@@ -4,15 +4,25 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import quatform
 from quatform import cli
+from quatform.scenarios import Experiment
 
 PNG = b"\x89PNG\r\n\x1a\n"
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _lines(text):
+    return [ln for ln in text.splitlines() if ln.strip()]
 
 
 def test_version_and_help(capsys):
@@ -136,3 +146,139 @@ def test_compare_no_plots_writes_the_table_and_no_figure(tmp_path, capsys):
     text = capsys.readouterr().out
     assert (out / "comparison.json").exists() and not list(out.rglob("*.png"))
     assert (out / "quaternion" / "metrics.json").exists() and "compare plots" not in text
+
+
+# -- no traceback: every outcome is one line; listings and help name the papers ----------------------
+
+def test_the_test_extra_has_pytest_xdist():
+    text = (ROOT / "pyproject.toml").read_text()
+    test_extra = text.split("test = [", 1)[1].split("]", 1)[0]
+    assert "pytest-xdist" in test_extra
+
+
+@pytest.mark.parametrize("exc, code, needle", [
+    (KeyboardInterrupt(), 130, "interrupted"),
+    (MemoryError(), 2, "out of memory running run mas-kitts-yaw-step"),
+    (RecursionError(), 2, "nested too deeply"),
+    (PermissionError(13, "Permission denied", "/x/y"), 1, "Permission denied: /x/y"),
+    (ZeroDivisionError("float division by zero"), 3, "internal error: ZeroDivisionError"),
+])
+def test_every_exception_is_one_line_with_its_status(tmp_path, monkeypatch, capsys, exc, code, needle):
+    def raises(*a, **k):
+        raise exc
+
+    monkeypatch.setattr(Experiment, "run", raises)
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "o")]) == code
+    err = _lines(capsys.readouterr().err)
+    assert len(err) == 1 and needle in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_usage_errors_are_one_line(capsys):
+    for argv in (["run", "mas-kitts-yaw-step"], ["plan"], ["frobnicate"], ["scenarios", "extra"],
+                 ["plan", "x", "--out", "o", "--alpha", "abc"]):
+        with pytest.raises(SystemExit) as e:
+            cli.main(argv)
+        assert e.value.code == 2
+        err = _lines(capsys.readouterr().err)
+        assert len(err) == 1 and ": error:" in err[0] and "--help" in err[0], argv
+
+
+_TOKENS = ["mas-kitts-yaw-step", "marciano-circle", "teleop-preload", "belta-kumar-2002-two-bodies", "nope", "",
+           "\x00", "x" * 3000, "--controller", "quaternion", "--formation", "spherical", "--alpha", "nan", "-1",
+           "1e309", "0.5", "--case", "a", "--physics", "mujoco", "--mocap-noise-m", "--mocap-latency-s",
+           "--no-feedforward", "--no-plots", "--preload", "on", "--reference", "--out", "."]
+
+
+@settings(max_examples=150, deadline=None)
+@given(command=st.sampled_from(["run", "compare", "plan", "teleop", "demo", "scenarios", "plans"]),
+       rest=st.lists(st.sampled_from(_TOKENS), max_size=7), out=st.sampled_from(["o", ".", "\x00", "x" * 3000, ""]))
+def test_fuzzed_command_lines_never_show_a_traceback(tmp_path_factory, command, rest, out):
+    """Random command lines (the simulators replaced by a stub that raises): every outcome is one
+    line on stderr with status 0, 1, 2 or 130, or the stub's own 'internal error' (status 3)."""
+    import contextlib
+    import io
+
+    import quatform.plan_runs as plan_runs
+
+    class Reached(Exception):
+        pass
+
+    def reached(*a, **k):
+        raise Reached("stub")
+
+    from quatform.scenarios import KINDS
+
+    folder = tmp_path_factory.mktemp("fuzz")
+    # every kind's experiment (its plant built, MuJoCo's included) and every simulation
+    stubbed = [(Experiment, "run"), (plan_runs, "make_plan")] + [(type(k), "experiment") for k in KINDS.values()]
+    saved = [getattr(m, n) for m, n in stubbed]
+    for m, n in stubbed:
+        setattr(m, n, reached)
+    err = io.StringIO()
+    cwd = os.getcwd()
+    try:
+        os.chdir(folder)
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            try:
+                code = cli.main([command, *rest, "--out", out] if command not in ("scenarios", "plans") or rest
+                                else [command])
+            except SystemExit as e:
+                code = e.code
+    finally:
+        os.chdir(cwd)
+        for (m, n), f in zip(stubbed, saved):
+            setattr(m, n, f)
+    lines = _lines(err.getvalue())
+    assert code in (0, 1, 2, 3, 130) and len(lines) <= 1, (code, lines)
+    assert code != 3 or "Reached" in lines[0], lines
+    assert all(len(ln) <= 700 and "Traceback" not in ln for ln in lines)
+    assert [p.name for p in folder.iterdir()] == []  # nothing half-written
+
+
+def test_a_huge_vector_where_three_belong_is_one_short_line(tmp_path, capsys):
+    f = tmp_path / "big.toml"
+    f.write_text('name = "big"\nduration_s = 1.0\n[path]\ncentroid = "fixed"\ncenter = ['
+                 + ", ".join(["1"] * 200_000) + "]\nd_c = 1.0\n")
+    t0 = time.perf_counter()
+    assert cli.main(["run", str(f), "--controller", "quaternion", "--out", str(tmp_path / "o")]) == 2
+    assert time.perf_counter() - t0 < 30.0
+    err = _lines(capsys.readouterr().err)
+    assert len(err) == 1 and len(err[0]) <= 520 and "center" in err[0]
+
+
+def test_bad_toml_through_the_cli_is_one_line(tmp_path, capsys):
+    p = tmp_path / "s.toml"
+    p.write_bytes(b"\x80\x81")
+    assert cli.main(["plan", str(p), "--out", str(tmp_path / "o")]) == 2
+    err = _lines(capsys.readouterr().err)
+    assert len(err) == 1 and "not UTF-8" in err[0]
+
+
+def test_scenarios_and_plans_name_the_papers(capsys):
+    assert cli.main(["scenarios"]) == 0
+    text = capsys.readouterr().out
+    for needle in ('I. Mas, C. Kitts, 2017, "Quaternions and Dual Quaternions: Singularity-Free Multirobot',
+                   'H. N. Marciano, 2021, "Using Quaternions to Avoid Singularities',
+                   'J. F. Jansen, R. L. Kress, S. M. Babcock, W. R. Hamel, 1990, "Controller design'):
+        assert needle in text
+    assert cli.main(["plans"]) == 0
+    text = capsys.readouterr().out
+    assert 'C. Belta, V. Kumar, 2002, "Trajectory design for formations of robots by kinetic energy shaping"' in text
+    assert 'C. Belta, V. Kumar, 2001, "Motion generation for formations of robots: a geometric approach"' in text
+
+
+def test_every_command_has_help_and_the_mujoco_hint_is_the_editable_install(capsys):
+    parser = cli._build_parser()
+    commands = next(a for a in parser._actions if a.dest == "command").choices
+    assert set(commands) == {"demo", "run", "plan", "plans", "compare", "teleop", "scenarios", "sweep", "sweeps",
+                             "ros2", "replay"}
+    for name in commands:
+        with pytest.raises(SystemExit) as e:
+            cli.main([name, "--help"])
+        assert e.value.code == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert text.startswith(f"usage: quatform {name}")
+        if name in ("run", "compare"):
+            assert 'pip install -e ".[mujoco]"' in text and "quatform[mujoco]" not in text
+            assert "--no-feedforward" in text

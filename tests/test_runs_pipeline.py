@@ -6,7 +6,13 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,10 +21,12 @@ from quatform import cli, runs
 from quatform.checks import check_keys, number, text
 from quatform.control.contract import Controller, Step
 from quatform.errors import InvalidInputError
-from quatform.report import FIGURES, FigureSet
+from quatform.report import FIGURES, FigureSet, writers
 from quatform.report.figures import new_figure, save
 from quatform.scenarios import KINDS, Experiment, Option, ScenarioKind, kind_of, load_scenario
-from quatform.sim.output import OUTPUT_MARKER
+from quatform.report.writers import strict_json, write_columns
+from quatform.sim import output
+from quatform.sim.output import OUTPUT_MARKER, atomic_write_text, staged_dir
 
 GAINS = {"slow": 0.5, "fast": 2.0}
 
@@ -227,3 +235,283 @@ def test_the_csv_writer_interleaves_a_value_and_its_desired_one(tmp_path):
     back = np.loadtxt(f, delimiter=",", skiprows=1)
     assert f.read_text().splitlines()[0] == "t,a,a_des,b,b_des,u"
     np.testing.assert_allclose(back, data, rtol=1e-8)
+
+
+# -- run outputs: strict JSON, staged (atomic) folders, Ctrl-C, --no-feedforward ---------------------
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _strict_loads(text):
+    """json.loads that refuses NaN / Infinity (what a strict JSON reader does)."""
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def _lines(text):
+    return [ln for ln in text.splitlines() if ln.strip()]
+
+
+def _leftovers(folder: Path):
+    return sorted(p.name for p in folder.iterdir() if ".partial-" in p.name or ".old-" in p.name
+                  or ".tmp-" in p.name)
+
+
+def test_metrics_json_is_strict_json_with_nonfinite_values_named(tmp_path):
+    m = {"max_shape_error_m": float("inf"), "first_singular_time_s": None, "x": np.float64("nan"),
+         "n": np.int64(3), "flag": np.bool_(True), "sub": {"v": [1.0, -np.inf]}, "arr": np.array([1.0, 2.0])}
+    f = writers.write_metrics(m, tmp_path / "metrics.json")
+    back = _strict_loads(f.read_text())
+    assert back["max_shape_error_m"] is None and back["x"] is None and back["first_singular_time_s"] is None
+    assert back["sub"]["v"] == [1.0, None] and back["n"] == 3 and back["flag"] is True and back["arr"] == [1.0, 2.0]
+    assert back["nonfinite_values"] == {"max_shape_error_m": "inf", "x": "nan", "sub.v[1]": "-inf"}
+    rows = _strict_loads(strict_json([{"a": 1.0}, {"a": float("nan")}]))
+    assert rows == [{"a": 1.0}, {"a": None, "nonfinite_values": {"a": "nan"}}]
+
+
+def test_a_csv_cut_off_while_written_leaves_no_file(tmp_path, monkeypatch):
+    real = np.savetxt
+
+    def half_then_ctrl_c(target, *a, **k):
+        real(target, np.zeros((2, 2)), delimiter=",")  # part of the output, then Ctrl-C
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(writers.np, "savetxt", half_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        write_columns(["t", "x"], np.ones((5, 2)), tmp_path / "timeseries.csv")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_atomic_write_keeps_the_old_file_when_cut_off(tmp_path, monkeypatch):
+    f = tmp_path / "metrics.json"
+    f.write_text("old")
+
+    def ctrl_c(*a):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(output.os, "replace", ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_text(f, "new")
+    assert f.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["metrics.json"]
+
+
+def _interrupt_at(monkeypatch, n_ok: int):
+    """``Experiment.run`` (every kind's simulation) that runs ``n_ok`` times, then raises
+    KeyboardInterrupt; returns the list of the runs' ``feedforward`` (from their meta)."""
+    real, calls = Experiment.run, []
+
+    def sim(self, progress=None):
+        calls.append(self.meta.get("feedforward"))
+        if len(calls) > n_ok:
+            raise KeyboardInterrupt
+        return real(self, progress)
+
+    monkeypatch.setattr(Experiment, "run", sim)
+    return calls
+
+
+def test_ctrl_c_during_compare_leaves_nothing_and_exits_130(tmp_path, monkeypatch, capsys):
+    _interrupt_at(monkeypatch, 1)  # the first controller's folder is complete, the second is cut off
+    out = tmp_path / "new" / "cmp"
+    assert cli.main(["compare", "mas-kitts-yaw-step", "--out", str(out)]) == 130
+    err = [ln for ln in _lines(capsys.readouterr().err) if "quatform:" in ln]  # (and progress lines)
+    assert len(err) == 1 and err[0].startswith("quatform: interrupted") and "Traceback" not in err[0]
+    assert not (tmp_path / "new").exists()  # the parent made for the run is gone too
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_during_a_rerun_keeps_the_previous_run(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "run"
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(out), "--no-plots"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    _interrupt_at(monkeypatch, 0)
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "robot-space", "--out", str(out)]) == 130
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert _leftovers(tmp_path) == []
+
+
+def test_a_failed_run_leaves_no_folder(tmp_path, monkeypatch, capsys):
+    def fails(*a, **k):
+        raise InvalidInputError("bad reference")
+
+    monkeypatch.setattr(Experiment, "run", fails)
+    out = tmp_path / "a" / "b"
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(out)]) == 2
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_rerun_replaces_the_old_plots_and_keeps_user_files_safe(tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(out)]
+    assert cli.main(argv) == 0
+    assert list(out.glob("*.png"))
+    assert cli.main(argv + ["--no-plots"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted([OUTPUT_MARKER, "metrics.json", "timeseries.csv",
+                                                            "run.mcap", "foxglove-layout.json"])
+    # a file the user put there: the folder is no longer quatform's alone, so it is not replaced
+    (out / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    err = _lines(capsys.readouterr().err)
+    assert len(err) == 1 and "notes.txt" in err[0] and "did not write" in err[0]
+    assert (out / "notes.txt").read_text() == "mine"
+    # a folder of the user's (not made by quatform, not empty) is refused before any work
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "data.csv").write_text("1,2\n")
+    assert cli.main(argv[:-1] + [str(user)]) == 2
+    assert [p.name for p in user.iterdir()] == ["data.csv"] and _leftovers(tmp_path) == []
+
+
+def test_out_dot_and_a_file_are_refused(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    for out, needle in ((".", "current folder"), (str(tmp_path), "current folder")):
+        assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", out]) == 2
+        assert needle in capsys.readouterr().err
+    (tmp_path / "f").write_text("x")
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", "f"]) == 2
+    assert "is a file" in capsys.readouterr().err
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", "a\x00b"]) == 2
+    assert "NUL" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]
+
+
+def test_an_empty_folder_is_used_and_stale_partials_of_dead_runs_are_removed(tmp_path):
+    out = tmp_path / "o"
+    out.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    stale = tmp_path / f".o.partial-{int(dead.stdout)}"
+    stale.mkdir()
+    (stale / "timeseries.csv").write_text("cut")
+    with staged_dir(out) as tmp:
+        assert tmp.parent == tmp_path and not stale.exists()
+        (tmp / "a.txt").write_text("a")
+    assert sorted(p.name for p in out.iterdir()) == [OUTPUT_MARKER, "a.txt"]
+    assert json.loads((out / OUTPUT_MARKER).read_text())["entries"] == ["a.txt"]
+
+
+def test_plan_and_teleop_write_through_the_staged_folder(tmp_path, monkeypatch, capsys):
+    import quatform.plan_runs as plan_runs
+
+    def ctrl_c(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plan_runs, "make_plan", ctrl_c)
+    assert cli.main(["plan", "belta-kumar-2002-two-bodies", "--out", str(tmp_path / "p"), "--alpha", "0.5",
+                     "--alpha", "0.9"]) == 130
+    monkeypatch.setattr(Experiment, "run", ctrl_c)
+    assert cli.main(["teleop", "teleop-preload", "--out", str(tmp_path / "t")]) == 130
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sigint_to_a_real_run_exits_130_with_one_line_and_no_files(tmp_path):
+    """Ctrl-C (SIGINT) sent to a real `quatform run` while it works: one line, status 130, no folder."""
+    out = tmp_path / "run"
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    proc = subprocess.Popen([sys.executable, "-m", "quatform.cli", "run", "mas-kitts-spiral", "--controller",
+                             "dual-quaternion", "--out", str(out)], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not any(".partial-" in p.name for p in tmp_path.iterdir()):  # the run has started writing
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    err = _lines(err)
+    assert len(err) == 1 and err[0].startswith("quatform: interrupted") and "left as it was" in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_second_ctrl_c_while_reporting_the_first_is_ignored(tmp_path, monkeypatch):
+    """Review: a second Ctrl-C while the first was being reported ended the process by the
+    signal (exit -2); SIGINT is ignored while the one line is written, restored after."""
+    import signal
+
+    seen = []
+    monkeypatch.setattr(cli, "_say", lambda text: seen.append((text, signal.getsignal(signal.SIGINT))))
+    _interrupt_at(monkeypatch, 0)
+    before = signal.getsignal(signal.SIGINT)
+    assert cli.main(["run", "mas-kitts-yaw-step", "--controller", "quaternion", "--out", str(tmp_path / "r")]) == 130
+    assert seen and seen[-1][0].startswith("interrupted") and seen[-1][1] is signal.SIG_IGN
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_an_out_holding_an_input_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    """Review finding 2: ``--out`` set to the folder of its own input would delete the input."""
+    from quatform.planning import builtin_plan_specs
+    from quatform.scenarios import builtin_scenarios
+
+    def no_work(*a, **k):
+        raise AssertionError("work started")
+
+    monkeypatch.setattr(Experiment, "run", no_work)
+    prev = tmp_path / "prev"
+    prev.mkdir()
+    files = {"plan.npz": b"npz", "run.mcap": b"mcap", "robots.toml": b"",
+             "spec.toml": builtin_plan_specs()["belta-kumar-2002-two-bodies"].read_bytes(),
+             "sc.toml": builtin_scenarios()["mas-kitts-helix"].read_bytes(), "sweep.toml": b""}
+    for name, data in files.items():
+        (prev / name).write_bytes(data)
+    (prev / OUTPUT_MARKER).write_text(json.dumps({"written_by": "quatform", "entries": sorted(files)}))
+    monkeypatch.chdir(tmp_path)
+    commands = [
+        (["run", "team-three-bodies", "--reference", "prev/plan.npz", "--out", "prev"], "prev/plan.npz"),
+        (["compare", "team-three-bodies", "--reference", "prev/plan.npz", "--out", "prev"], "prev/plan.npz"),
+        (["run", "prev/sc.toml", "--controller", "quaternion", "--out", "prev"], "prev/sc.toml"),
+        (["compare", "prev/sc.toml", "--out", "./prev/"], "prev/sc.toml"),
+        (["plan", "prev/spec.toml", "--out", "prev"], "prev/spec.toml"),
+        (["plan", "prev/spec.toml", "--case", "a", "--out", "prev"], "prev/spec.toml"),
+        (["plan", "prev/spec.toml", "--alpha", "0.5", "--alpha", "0.9", "--out", "prev"], "prev/spec.toml"),
+        (["replay", "prev/run.mcap", "--scenario", "mas-kitts-helix", "--controller", "quaternion", "--robots",
+          "prev/robots.toml", "--out", "prev"], "prev/run.mcap"),
+        (["replay", "prev", "--scenario", "mas-kitts-helix", "--controller", "quaternion", "--robots",
+          "prev/robots.toml", "--out", str(prev)], "'prev'"),
+        (["sweep", "prev/sweep.toml", "--out", "prev"], "prev/sweep.toml"),
+    ]
+    for argv, named in commands:
+        assert cli.main(argv) == 2, argv
+        err = _lines(capsys.readouterr().err)
+        assert len(err) == 1 and "inside the output folder" in err[0] and named in err[0], (argv, err)
+        assert "--out" in err[0] and "outside it" in err[0]
+    assert sorted(p.name for p in prev.iterdir()) == sorted([*files, OUTPUT_MARKER])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["prev"]
+
+
+def test_check_inputs_outside_follows_links_and_skips_names(tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "bag.mcap").write_text("x")
+    (tmp_path / "link").symlink_to(tmp_path / "out")
+    with pytest.raises(InvalidInputError, match="bag.mcap"):
+        output.check_inputs_outside(tmp_path / "link", tmp_path / "out" / "bag.mcap")
+    with pytest.raises(InvalidInputError, match="inside the output folder"):
+        with staged_dir(tmp_path / "out", inputs=[str(tmp_path / "link" / "bag.mcap")]):
+            raise AssertionError("entered")
+    output.check_inputs_outside(tmp_path / "out", None, "mas-kitts-helix", tmp_path / "bag.mcap", object())
+    output.check_inputs_outside(tmp_path / "out2", tmp_path / "out" / "bag.mcap")
+    assert (tmp_path / "out" / "bag.mcap").read_text() == "x"
+
+
+def test_no_feedforward_gives_seed_000_fig13_steady_state_errors(tmp_path, capsys):
+    """Seed 000 Fig. 13 (no feedforward): steady-state cluster position errors about 0.236 m
+    (robot space), 0.108 m (quaternion), 0.029 m (dual quaternion)."""
+    fig13 = {"robot-space": 0.236, "quaternion": 0.108, "dual-quaternion": 0.029}
+    for c, expected in fig13.items():
+        out = tmp_path / c
+        assert cli.main(["run", "mas-kitts-spiral", "--controller", c, "--no-feedforward", "--no-plots",
+                         "--out", str(out)]) == 0
+        m = json.loads((out / "metrics.json").read_text())
+        assert m["feedforward"] is False
+        assert m["max_cluster_position_error_m"] == pytest.approx(expected, rel=0.05)
+    assert "feedforward: off" in capsys.readouterr().out
+
+
+def test_compare_passes_no_feedforward_and_ugv_uav_refuses_it(tmp_path, monkeypatch, capsys):
+    calls = _interrupt_at(monkeypatch, 0)
+    assert cli.main(["compare", "mas-kitts-yaw-step", "--no-feedforward", "--out", str(tmp_path / "c")]) == 130
+    assert calls == [False]
+    for argv in (["compare", "marciano-circle"], ["run", "marciano-circle"]):
+        assert cli.main([*argv, "--no-feedforward", "--out", str(tmp_path / "u")]) == 2
+        err = capsys.readouterr().err
+        assert "marciano-circle is a ugv-uav scenario: --no-feedforward does not apply to it" in err

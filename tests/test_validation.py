@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pytest
 
 import quatform.algebra as A
+from quatform.algebra import validate
 from quatform.errors import (
     DegenerateInputError,
+    InvalidInputError,
     NonFiniteError,
     NonUnitError,
     NotARotationError,
     QuatformError,
     ShapeError,
 )
+from quatform.tomlio import read_toml
 
 Q = np.array([0.5, 0.5, 0.5, 0.5])
 V = np.array([1.0, 2.0, 3.0])
@@ -141,3 +146,98 @@ def test_inputs_are_not_modified_and_outputs_are_new():
     out[0] = 9.0
     np.testing.assert_array_equal(q, Q)
     assert A.qconj(q) is not q
+
+
+# -- cheap messages, the TOML reader, number and budget checks ---------------------------------------
+
+def test_validator_messages_are_cheap_to_build():
+    """A NaN in a 4e6-entry array: the message names the first bad entry without allocating
+    index lists or copies of the bad entries (argwhere and a[bad] would take 3x the array)."""
+    a = np.full((1_000_000, 4), np.nan)
+    a[0] = 1.0
+    tracemalloc.start()
+    try:
+        with pytest.raises(NonFiniteError, match=r"contains nan at index \(1, 0\)"):
+            validate.as_array(a, "q", 4)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 0.5 * a.nbytes
+    q = np.ones((3, 5, 4))
+    with pytest.raises(InvalidInputError, match=r"has norm 2 at index \(0, 0\)"):
+        validate.as_unit_quaternion(q)
+    with pytest.raises(InvalidInputError, match=r"primary \. dual = 1 \(tolerance"):
+        validate.as_unit_dual_quaternion(np.r_[1.0, 0, 0, 0, 1.0, 0, 0, 0])
+
+
+@pytest.mark.parametrize("make, needle", [
+    (lambda p: p.write_bytes(b'name = "\xff\xfe"\n'), "not UTF-8 text (byte 0xff on line 1); save the file as UTF-8"),
+    (lambda p: p.write_text("a = " + "[" * 100_000 + "]" * 100_000), "nested too deeply"),
+    (lambda p: p.mkdir(), "is a folder, not a file"),
+    (lambda p: p.write_text("# " + "x" * 1_100_000), "too large for a scenario file"),
+    (lambda p: None, "no such file"),
+])
+def test_unreadable_toml_files_are_one_line_naming_the_file(tmp_path, make, needle):
+    p = tmp_path / "s.toml"
+    make(p)
+    with pytest.raises(InvalidInputError) as e:
+        read_toml(p, {}, "scenario")
+    msg = str(e.value)
+    assert str(p) in msg and needle in msg and "\n" not in msg
+
+
+def test_a_device_and_an_unreadable_file_are_one_line(tmp_path, monkeypatch):
+    with pytest.raises(InvalidInputError, match="not a regular file"):
+        read_toml("/dev/null", {}, "scenario")
+    p = tmp_path / "s.toml"
+    p.write_text("x = 1\n")
+    import quatform.tomlio as toml_module
+
+    def denied(*a, **k):
+        raise PermissionError(13, "Permission denied", str(p))
+
+    monkeypatch.setattr(toml_module, "open", denied, raising=False)
+    with pytest.raises(InvalidInputError, match="cannot read it .Permission denied.; check its permissions"):
+        read_toml(p, {}, "plan spec")
+
+
+def test_a_toml_file_with_a_byte_order_mark_reads(tmp_path):
+    """Some editors start a UTF-8 file with a byte-order mark: the scenario reads as without it."""
+    from quatform.scenarios import builtin_scenarios, load_scenario
+
+    text = builtin_scenarios()["mas-kitts-spiral"].read_text(encoding="utf-8")
+    f = tmp_path / "bom.toml"
+    f.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert repr(load_scenario(f)) == repr(load_scenario("mas-kitts-spiral"))
+
+
+@pytest.mark.parametrize("kind,line,key", [
+    ("pair", "d_c = 1e200", "d_c"),
+    ("ugv-uav", "r_x = 1e160", "r_x"),
+    ("teleop", "duration_s = 1e300", "duration_s"),
+    ("plan", "X = 1e300", "X"),
+])
+def test_huge_finite_numbers_are_refused_at_load_naming_the_key(tmp_path, kind, line, key):
+    """A huge finite number in any file kind is refused by the reader, naming the key (not late,
+    from an internal array, nor by overflowing into warnings)."""
+    from quatform.checks import MAX_NUMBER, number
+    from quatform.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=rf"f.toml: {key} = .* is beyond \+-1e\+12"):
+        number({key: float(line.split("=")[1])}, key, "f.toml")
+    assert number({key: MAX_NUMBER}, key, "f.toml") == MAX_NUMBER
+
+
+@pytest.mark.parametrize("name", ["QUATFORM_MAX_MEMORY_BYTES", "QUATFORM_MAX_WORK_S"])
+@pytest.mark.parametrize("value", ["abc", "-5", "0", "nan", "inf"])
+def test_a_budget_that_is_no_positive_number_is_one_line(monkeypatch, name, value):
+    from quatform.checks import memory_budget_bytes, time_budget_s
+    from quatform.errors import InvalidInputError
+
+    monkeypatch.setenv(name, value)
+    budget = memory_budget_bytes if "MEMORY" in name else time_budget_s
+    with pytest.raises(InvalidInputError, match=name) as exc:
+        budget()
+    assert "\n" not in str(exc.value) and repr(value) in str(exc.value)
+    monkeypatch.setenv(name, " 2.5e3 ")
+    assert budget() == 2500.0
