@@ -331,7 +331,7 @@ def test_figures_3_and_4(fig):
     assert D[0.4].min() < D[0.5].min() < D[0.99].min()
     if fig == 4:  # equal masses: the triangle stays equilateral at 0.99 and 0.5 (the seed's
         # claim); at 0.4 the equilateral geodesic is not the energy minimiser and the returned
-        # one deforms the triangle (test_hardening_planning.py has the energies)
+        # one deforms the triangle (the minimiser tests below have the energies)
         for a, p in plans.items():
             sides = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=-1)
             if a == 0.4:
