@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import pair_robot_error
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -185,3 +186,34 @@ def test_simulate_refuses_ticks_that_are_not_substeps_times_dt_apart():
     assert log.t.size == 11
     with pytest.raises(InvalidInputError, match="no channel"):
         log.table(["nosuch"])
+
+
+# -- relative-yaw steps and offsets beyond pi on a fixed formation ----------------------
+
+def fixed_scenario(tmp_path, extra):
+    f = tmp_path / "s.toml"
+    f.write_text('name = "s"\nduration_s = 8.0\nmetrics_from_s = 7.0\ngains = "table1"\n'
+                 '[robots]\nmax_speed_m_s = 3.0\nmax_yaw_rate_rad_s = 4.0\n'
+                 '[path]\ncentroid = "fixed"\ncenter = [0.0, 0.0, 1.0]\nd_c = 1.0\n' + extra)
+    return load_scenario(f)
+
+
+def test_a_reference_step_of_the_relative_yaw_keeps_the_robots_apart(tmp_path):
+    """phi_1 + 1.6, phi_2 - 1.6 at t = 1 s (a CLI case that collides when the yaw
+    error is not wrapped): all four controllers end at the new formation, none closer than 1.9 m."""
+    sc = fixed_scenario(tmp_path, '[[path.steps]]\nvariable = "phi_1"\ntime_s = 1.0\nchange = 1.6\n'
+                                  '[[path.steps]]\nvariable = "phi_2"\ntime_s = 1.0\nchange = -1.6\n')
+    for name in ("cluster-space", "robot-space", "quaternion", "dual-quaternion"):
+        run = run_pair(sc, name, feedforward=False)
+        m = compute_metrics(run)
+        assert m["min_robot_separation_m"] >= 1.9, name
+        assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-3, name
+
+
+def test_a_yaw_initial_offset_does_not_end_with_the_robots_swapped(tmp_path):
+    """[initial_offset] phi_1 = 2.0, phi_2 = -1.2 on a fixed formation ended with the robots
+    swapped (3.8 m off) and the error reported zero."""
+    sc = fixed_scenario(tmp_path, '[initial_offset]\nphi_1 = 2.0\nphi_2 = -1.2\n')
+    run = run_pair(sc, "dual-quaternion")
+    assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
+    assert compute_metrics(run)["min_robot_separation_m"] >= 1.9
