@@ -217,3 +217,117 @@ def test_a_yaw_initial_offset_does_not_end_with_the_robots_swapped(tmp_path):
     run = run_pair(sc, "dual-quaternion")
     assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
     assert compute_metrics(run)["min_robot_separation_m"] >= 1.9
+
+
+# -- the pair's plots: angles drawn by their wrapped error, euclidean.png where it differs, titles --
+
+@pytest.fixture(scope="module")
+def yaw_step_runs():
+    sc = load_scenario("mas-kitts-yaw-step")
+    return {name: run_pair(sc, name) for name in ("cluster-space", "robot-space", "quaternion")}
+
+
+def _figure_of(monkeypatch, draw, *args):
+    """The matplotlib Figure a plotting function saves (its ``save`` intercepted)."""
+    from quatform.report import plots
+
+    got = []
+
+    def keep(fig, path):
+        got.append(fig)
+        return path
+
+    monkeypatch.setattr(plots, "save", keep)
+    draw(*args, "unused.png")
+    return got[0]
+
+
+def _axes_named(fig, label):
+    return next(ax for ax in fig.axes if ax.get_ylabel().startswith(label))
+
+
+@pytest.mark.parametrize("name", ["cluster-space", "robot-space", "quaternion"])
+def test_yaw_step_plot_draws_no_2pi_error(monkeypatch, yaw_step_runs, name):
+    """beta_c steps to pi: wrapped, the desired would sit at -pi and the measured at +pi, a 2 pi
+    gap that is no error. The drawn gap is the wrapped error (0 once settled)."""
+    from quatform.report import plot_cluster_variables, plot_euclidean
+
+    run = yaw_step_runs[name]
+    draw = plot_euclidean if name == "quaternion" else plot_cluster_variables
+    fig = _figure_of(monkeypatch, draw, run)
+    ax = _axes_named(fig, "beta_c")
+    meas, des = ax.lines[0], ax.lines[1]
+    t = np.asarray(meas.get_xdata())
+    ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
+    settled = t >= 5.0
+    assert np.nanmax(np.abs(ym[settled] - yd[settled])) < 1e-2
+    after = yd[t >= 1.0]  # the desired drawn flat at +pi or -pi (the same formation)
+    assert np.all(np.abs(np.abs(after) - np.pi) < 1e-9) and np.ptp(after) < 1e-9
+    ok = np.isfinite(ym)
+    jumps = np.abs(np.diff(ym))[ok[1:] & ok[:-1]]
+    assert jumps.max() <= np.pi + 1e-9  # no vertical line of a wrap
+    plotted_err = np.abs(ym - yd)[ok]
+    true_err = np.abs((run["e"][:, 3] - run["e_des"][:, 3] + np.pi) % (2 * np.pi) - np.pi)
+    assert plotted_err.max() <= true_err.max() + 1e-9
+
+
+def test_spiral_angle_traces_unwrapped(monkeypatch):
+    """gamma_c runs 0 -> 2 pi: the desired trace is drawn as one continuous ramp."""
+    from quatform.report import plot_euclidean
+
+    sc = dataclasses.replace(load_scenario("mas-kitts-spiral"), duration_s=36.0)
+    fig = _figure_of(monkeypatch, plot_euclidean, run_pair(sc, "dual-quaternion"))
+    meas, des = _axes_named(fig, "gamma_c").lines[:2]
+    t = np.asarray(meas.get_xdata())
+    ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
+    assert np.all(np.isfinite(yd)) and np.abs(np.diff(yd)).max() < 0.1
+    assert yd[-1] == pytest.approx(2 * np.pi, abs=1e-6)
+    assert np.nanmax(np.abs(ym - yd)[t >= 5.0]) < 0.01  # the dual-quaternion run tracks it
+
+
+def test_euclidean_png_only_where_it_differs(tmp_path, monkeypatch, yaw_step_runs):
+    from quatform.report import plots, write_run_plots
+
+    def quick_3d(run, path):  # the 3-D view is the slow one and not in question here
+        path.write_bytes(b"x" * 2000)
+        return path
+
+    monkeypatch.setattr(plots, "plot_paths_3d", quick_3d)
+    for name, run in yaw_step_runs.items():
+        out = tmp_path / name
+        out.mkdir()
+        (out / "euclidean.png").write_bytes(b"stale")
+        files = {p.name for p in write_run_plots(run, out)}
+        dup = name in ("cluster-space", "robot-space")
+        assert files == ({"cluster_variables.png", "paths_3d.png"} if dup
+                         else {"cluster_variables.png", "euclidean.png", "paths_3d.png"}), name
+        assert (out / "euclidean.png").exists() is not dup
+        assert all((out / f).stat().st_size > 1000 for f in files)
+
+
+def test_titles_name_the_paper(monkeypatch, yaw_step_runs):
+    from quatform.report import plot_cluster_variables, plot_compare, plot_paths_3d, plot_separation
+
+    run = yaw_step_runs["quaternion"]
+    titles = [_figure_of(monkeypatch, plot_cluster_variables, run).get_suptitle(),
+              _figure_of(monkeypatch, plot_compare, list(yaw_step_runs.values())).get_suptitle(),
+              _figure_of(monkeypatch, plot_separation, list(yaw_step_runs.values())).axes[0].get_title(),
+              _figure_of(monkeypatch, plot_paths_3d, run).axes[0].get_title()]
+    for title in titles:
+        assert "Mas & Kitts 2017" in title and "seed 000" not in title, title
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=60))
+def test_drawn_angle_gap_is_the_wrapped_error(pairs):
+    from quatform.report.plots import _angle_traces
+
+    meas, des = (np.array(v, dtype=float) for v in zip(*pairs))
+    ym, yd = _angle_traces(meas, des, np.arange(meas.size))
+    true = np.abs((meas - des + np.pi) % (2 * np.pi) - np.pi)
+    ok = np.isfinite(ym) & np.isfinite(yd)
+    assert np.allclose(np.abs(ym - yd)[ok], true[ok], atol=1e-9)
+    # every drawn value is the true angle modulo 2 pi
+    for drawn, raw in ((ym, meas), (yd, des)):
+        d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
+        assert np.all(d < 1e-9)
