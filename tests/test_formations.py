@@ -8,11 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, strategies as st
+from conftest import pair_robot_error, pair_separation
+from hypothesis import assume, given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from quatform.algebra import dq_from_pose, dqconj, dqmul, dqsqrt_decoupled, q_angle_between
-from quatform.errors import DegenerateInputError, NonFiniteError, NonUnitError, ShapeError, UnreachableError
+from quatform.errors import (
+    DegenerateInputError,
+    InvalidInputError,
+    NonFiniteError,
+    NonUnitError,
+    ShapeError,
+    UnreachableError,
+)
 from quatform.formations import (
     DualQuaternionPair,
     EuclideanPair,
@@ -280,3 +288,71 @@ def test_segment_direction_matches_eqs_4_5():
     r = np.r_[u, 0, 0, 0, 0, 0]
     c = EuclideanPair().forward(r)
     assert c[3] == pytest.approx(0.3) and c[4] == pytest.approx(0.2)
+
+
+# -- inverse(forward(r)) without a hint; huge positions --------------------------------
+
+def random_states(rng, n, wind=40.0):
+    r = rng.uniform(-5, 5, (n, 8))
+    r[:, [3, 7]] = rng.uniform(-wind, wind, (n, 2))  # wound yaws
+    return r
+
+
+@pytest.mark.parametrize("F", ALL, ids=lambda f: f.name)
+def test_round_trip_without_a_hint_10000_states(F):
+    """DualQuaternionPair returned another formation for 23 % of random states."""
+    r = random_states(np.random.default_rng(3), 10_000)
+    back = F.inverse(F.forward(r))
+    d = back - r
+    d[:, [3, 7]] = g.wrap(d[:, [3, 7]])
+    assert np.abs(d).max() < 1e-9
+
+
+def test_round_trip_without_a_hint_of_opposite_wound_yaws():
+    r = np.array([0, 1, 0, 2, 0, -1, 0, -2.0])
+    D = DualQuaternionPair()
+    assert pair_robot_error(D.inverse(D.forward(r)), r) < 1e-12
+
+
+@settings(max_examples=60, deadline=None)
+@given(r=st.tuples(*(st.floats(-1e3, 1e3) for _ in range(3)), st.floats(-1e3, 1e3),
+                   *(st.floats(-1e3, 1e3) for _ in range(3)), st.floats(-1e3, 1e3)).map(np.array))
+def test_round_trip_without_a_hint_property(r):
+    if pair_separation(r) < 1e-3:
+        r[4] += 1.0
+    for F in ALL:
+        back = F.inverse(F.forward(r))
+        assert pair_robot_error(back, r) < 1e-9 * max(1.0, np.abs(r).max()), F.name
+
+
+def test_quaternion_round_trip_beside_the_minus_i_direction():
+    """Segment 1.75e-6 rad from -i (the seed's n_12 = 0/0 point, eqs. (14)-(15)): 1 + a.u
+    cancelled and the round trip was 6e-8 m off at 46 m (found by the property test)."""
+    r = np.array([-46.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.7520607149571205e-06, 0.0])
+    Q = QuaternionPair()
+    assert pair_robot_error(Q.inverse(Q.forward(r)), r) < 1e-12 * 46
+
+
+def test_forward_hint_does_not_change_the_formation():
+    """forward with any hint (the formation turned, yaws wound) is an encoding of r itself."""
+    D = DualQuaternionPair()
+    rng = np.random.default_rng(4)
+    r = random_states(rng, 500)
+    hint = D.forward(random_states(rng, 500))
+    hint[::2, 8:] *= -1  # the other branch
+    assert pair_robot_error(D.inverse(D.forward(r, near_c=hint)), r) < 1e-9
+
+
+@pytest.mark.parametrize("F", ALL, ids=lambda f: f.name)
+def test_huge_positions_are_refused_by_name(F):
+    """A separation of 2e154 m gave d_c = inf (a wrong frame) or a bare OverflowError."""
+    r = np.array([0, 0, 0, 0, 2e154, 0, 0, 0.0])
+    with pytest.raises(InvalidInputError, match=r"r\[4\] = 2e\+154"):
+        F.forward(r)
+
+
+def test_euclidean_inverse_has_a_numpydoc_docstring():
+    """EuclideanPair.inverse had none."""
+    doc = EuclideanPair.inverse.__doc__ or ""
+    for section in ("Parameters", "Returns", "Raises", "(..., 8)", "eqs. (1)-(8)"):
+        assert section in doc

@@ -4,9 +4,18 @@ without it; asking for MuJoCo physics then fails with a message naming the extra
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
+
+import pytest
+
+from quatform.errors import MissingDependencyError
+from quatform.sim.mujoco_backend import INSTALL_HINT, import_mujoco
+
+ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = textwrap.dedent("""
     import sys
@@ -41,3 +50,25 @@ def test_importing_quatform_does_not_import_mujoco():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+# -- the install hint names the checkout's form ------------------------------------
+
+def test_missing_mujoco_names_the_checkout_install(monkeypatch):
+    """``pip install quatform[mujoco]`` cannot work from a checkout."""
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # "not installed"
+    with pytest.raises(MissingDependencyError) as info:
+        import_mujoco()
+    msg = str(info.value)
+    assert INSTALL_HINT == 'pip install -e ".[mujoco]"' and INSTALL_HINT in msg
+    assert "quatform[mujoco]" not in msg and "\n" not in msg
+
+
+def test_no_install_hint_names_the_package_index_form():
+    """Every hint in the physics backend's files (cli.py's help is the io engineer's)."""
+    files = [ROOT / "src/quatform/sim/mujoco_backend.py", ROOT / "src/quatform/report/physics_render.py",
+             ROOT / "docs/physics.md", ROOT / "benchmarks/bench_physics.py",
+             *sorted((ROOT / "src/quatform/robots/physics").glob("*.py"))]
+    bad = [f"{f.name}: {line.strip()}" for f in files for line in f.read_text().splitlines()
+           if re.search(r"pip install [\"']?quatform\[mujoco\]", line)]
+    assert not bad, bad

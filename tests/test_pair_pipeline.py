@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import pair_robot_error
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -185,3 +186,148 @@ def test_simulate_refuses_ticks_that_are_not_substeps_times_dt_apart():
     assert log.t.size == 11
     with pytest.raises(InvalidInputError, match="no channel"):
         log.table(["nosuch"])
+
+
+# -- relative-yaw steps and offsets beyond pi on a fixed formation ----------------------
+
+def fixed_scenario(tmp_path, extra):
+    f = tmp_path / "s.toml"
+    f.write_text('name = "s"\nduration_s = 8.0\nmetrics_from_s = 7.0\ngains = "table1"\n'
+                 '[robots]\nmax_speed_m_s = 3.0\nmax_yaw_rate_rad_s = 4.0\n'
+                 '[path]\ncentroid = "fixed"\ncenter = [0.0, 0.0, 1.0]\nd_c = 1.0\n' + extra)
+    return load_scenario(f)
+
+
+def test_a_reference_step_of_the_relative_yaw_keeps_the_robots_apart(tmp_path):
+    """phi_1 + 1.6, phi_2 - 1.6 at t = 1 s (a CLI case that collides when the yaw
+    error is not wrapped): all four controllers end at the new formation, none closer than 1.9 m."""
+    sc = fixed_scenario(tmp_path, '[[path.steps]]\nvariable = "phi_1"\ntime_s = 1.0\nchange = 1.6\n'
+                                  '[[path.steps]]\nvariable = "phi_2"\ntime_s = 1.0\nchange = -1.6\n')
+    for name in ("cluster-space", "robot-space", "quaternion", "dual-quaternion"):
+        run = run_pair(sc, name, feedforward=False)
+        m = compute_metrics(run)
+        assert m["min_robot_separation_m"] >= 1.9, name
+        assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-3, name
+
+
+def test_a_yaw_initial_offset_does_not_end_with_the_robots_swapped(tmp_path):
+    """[initial_offset] phi_1 = 2.0, phi_2 = -1.2 on a fixed formation ended with the robots
+    swapped (3.8 m off) and the error reported zero."""
+    sc = fixed_scenario(tmp_path, '[initial_offset]\nphi_1 = 2.0\nphi_2 = -1.2\n')
+    run = run_pair(sc, "dual-quaternion")
+    assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
+    assert compute_metrics(run)["min_robot_separation_m"] >= 1.9
+
+
+# -- the pair's plots: angles drawn by their wrapped error, euclidean.png where it differs, titles --
+
+@pytest.fixture(scope="module")
+def yaw_step_runs():
+    sc = load_scenario("mas-kitts-yaw-step")
+    return {name: run_pair(sc, name) for name in ("cluster-space", "robot-space", "quaternion")}
+
+
+def _figure_of(monkeypatch, draw, *args):
+    """The matplotlib Figure a plotting function saves (its ``save`` intercepted)."""
+    from quatform.report import plots
+
+    got = []
+
+    def keep(fig, path):
+        got.append(fig)
+        return path
+
+    monkeypatch.setattr(plots, "save", keep)
+    draw(*args, "unused.png")
+    return got[0]
+
+
+def _axes_named(fig, label):
+    return next(ax for ax in fig.axes if ax.get_ylabel().startswith(label))
+
+
+@pytest.mark.parametrize("name", ["cluster-space", "robot-space", "quaternion"])
+def test_yaw_step_plot_draws_no_2pi_error(monkeypatch, yaw_step_runs, name):
+    """beta_c steps to pi: wrapped, the desired would sit at -pi and the measured at +pi, a 2 pi
+    gap that is no error. The drawn gap is the wrapped error (0 once settled)."""
+    from quatform.report import plot_cluster_variables, plot_euclidean
+
+    run = yaw_step_runs[name]
+    draw = plot_euclidean if name == "quaternion" else plot_cluster_variables
+    fig = _figure_of(monkeypatch, draw, run)
+    ax = _axes_named(fig, "beta_c")
+    meas, des = ax.lines[0], ax.lines[1]
+    t = np.asarray(meas.get_xdata())
+    ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
+    settled = t >= 5.0
+    assert np.nanmax(np.abs(ym[settled] - yd[settled])) < 1e-2
+    after = yd[t >= 1.0]  # the desired drawn flat at +pi or -pi (the same formation)
+    assert np.all(np.abs(np.abs(after) - np.pi) < 1e-9) and np.ptp(after) < 1e-9
+    ok = np.isfinite(ym)
+    jumps = np.abs(np.diff(ym))[ok[1:] & ok[:-1]]
+    assert jumps.max() <= np.pi + 1e-9  # no vertical line of a wrap
+    plotted_err = np.abs(ym - yd)[ok]
+    true_err = np.abs((run["e"][:, 3] - run["e_des"][:, 3] + np.pi) % (2 * np.pi) - np.pi)
+    assert plotted_err.max() <= true_err.max() + 1e-9
+
+
+def test_spiral_angle_traces_unwrapped(monkeypatch):
+    """gamma_c runs 0 -> 2 pi: the desired trace is drawn as one continuous ramp."""
+    from quatform.report import plot_euclidean
+
+    sc = dataclasses.replace(load_scenario("mas-kitts-spiral"), duration_s=36.0)
+    fig = _figure_of(monkeypatch, plot_euclidean, run_pair(sc, "dual-quaternion"))
+    meas, des = _axes_named(fig, "gamma_c").lines[:2]
+    t = np.asarray(meas.get_xdata())
+    ym, yd = np.asarray(meas.get_ydata(), float), np.asarray(des.get_ydata(), float)
+    assert np.all(np.isfinite(yd)) and np.abs(np.diff(yd)).max() < 0.1
+    assert yd[-1] == pytest.approx(2 * np.pi, abs=1e-6)
+    assert np.nanmax(np.abs(ym - yd)[t >= 5.0]) < 0.01  # the dual-quaternion run tracks it
+
+
+def test_euclidean_png_only_where_it_differs(tmp_path, monkeypatch, yaw_step_runs):
+    from quatform.report import plots, write_run_plots
+
+    def quick_3d(run, path):  # the 3-D view is the slow one and not in question here
+        path.write_bytes(b"x" * 2000)
+        return path
+
+    monkeypatch.setattr(plots, "plot_paths_3d", quick_3d)
+    for name, run in yaw_step_runs.items():
+        out = tmp_path / name
+        out.mkdir()
+        (out / "euclidean.png").write_bytes(b"stale")
+        files = {p.name for p in write_run_plots(run, out)}
+        dup = name in ("cluster-space", "robot-space")
+        assert files == ({"cluster_variables.png", "paths_3d.png"} if dup
+                         else {"cluster_variables.png", "euclidean.png", "paths_3d.png"}), name
+        assert (out / "euclidean.png").exists() is not dup
+        assert all((out / f).stat().st_size > 1000 for f in files)
+
+
+def test_titles_name_the_paper(monkeypatch, yaw_step_runs):
+    from quatform.report import plot_cluster_variables, plot_compare, plot_paths_3d, plot_separation
+
+    run = yaw_step_runs["quaternion"]
+    titles = [_figure_of(monkeypatch, plot_cluster_variables, run).get_suptitle(),
+              _figure_of(monkeypatch, plot_compare, list(yaw_step_runs.values())).get_suptitle(),
+              _figure_of(monkeypatch, plot_separation, list(yaw_step_runs.values())).axes[0].get_title(),
+              _figure_of(monkeypatch, plot_paths_3d, run).axes[0].get_title()]
+    for title in titles:
+        assert "Mas & Kitts 2017" in title and "seed 000" not in title, title
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=60))
+def test_drawn_angle_gap_is_the_wrapped_error(pairs):
+    from quatform.report.plots import _angle_traces
+
+    meas, des = (np.array(v, dtype=float) for v in zip(*pairs))
+    ym, yd = _angle_traces(meas, des, np.arange(meas.size))
+    true = np.abs((meas - des + np.pi) % (2 * np.pi) - np.pi)
+    ok = np.isfinite(ym) & np.isfinite(yd)
+    assert np.allclose(np.abs(ym - yd)[ok], true[ok], atol=1e-9)
+    # every drawn value is the true angle modulo 2 pi
+    for drawn, raw in ((ym, meas), (yd, des)):
+        d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
+        assert np.all(d < 1e-9)

@@ -91,3 +91,21 @@ def test_run_runs_a_teleop_scenario_as_the_teleop_alias_does(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:  # the alias takes the teleop kind's options only
         main(["teleop", str(f), "--controller", "quaternion", "--out", str(tmp_path / "x")])
     assert exc.value.code == 2 and "unrecognized arguments: --controller" in capsys.readouterr().err
+
+
+# -- bad files: one line ------------------------------------------------------
+
+@pytest.mark.parametrize("body, names", [
+    ("virtual_walls = [5]\n", "virtual_walls"),
+    ("[wall]\npoint = [0.49, 0.0, 0.5]\nnormal = [-1.0, 0.0, 0.0]\nstiffness = 1e10\n", "[wall] stiffness"),
+    ("dt_s = 1e-300\n", "duration_s / dt_s"),
+    ("[controller]\ngains_master = { kp_pos = nan }\n", "kp_pos = nan"),
+])
+def test_the_cli_answers_bad_teleop_files_with_one_line(tmp_path, capsys, body, names):
+    from quatform.cli import main
+
+    f = tmp_path / "bad.toml"
+    f.write_text('kind = "teleop"\nduration_s = 1.0\n' + body)
+    assert main(["teleop", str(f), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and names in err[0] and "Traceback" not in err[0]

@@ -12,6 +12,7 @@ from quatform.teleop import KRAFT_MASTER, PANDA, PANDA_SLAVE
 from quatform.control.stiffness import (
     StiffnessGains,
     deadband,
+    explicit_stiffness_limit,
     force_stability_term,
     master_torque,
     preload,
@@ -96,3 +97,59 @@ def test_virtual_wall_repels_only_inside():
     np.testing.assert_allclose(f, [0, 0, -(k * 0.01 + b * 0.5)])
     f_out = virtual_wall_force([0, 0, 0.21], [0, 0, -0.5], n, off, k, b)
     np.testing.assert_allclose(f_out, [0, 0, -k * 0.01])  # moving out: no damping pull
+
+
+# -- springs beyond the explicit integrator's stability limit; the moments of the two laws --
+
+@pytest.mark.parametrize("factor, stable", [(0.98, True), (1.02, False)])
+@pytest.mark.parametrize("m, c", [(2.9, 0.0), (2.9, 160.0), (0.061, 60.0)])
+def test_stiffness_limit_is_the_semi_implicit_euler_boundary(m, c, factor, stable):
+    """k dt^2 + 2 c dt < 4 m: below it the sampled mass-spring-damper decays, above it grows."""
+    dt = 1e-3
+    k = factor * float(explicit_stiffness_limit(m, c, dt))
+    x, v, peak = 1e-3, 0.0, 0.0
+    for _ in range(4000):  # the simulator's step: force at the start, velocity first
+        v = v + dt * (-k * x - c * v) / m
+        x = x + dt * v
+        peak = max(peak, abs(x))
+    assert (peak < 0.1) == stable  # bounded (undamped: it neither grows nor decays) or blown up
+    if not stable:
+        assert peak > 1e3
+
+
+def test_euler_parameter_moment_is_k_over_4_sin_theta_zero_at_180_deg():
+    """W^T K delta_eps about the error axis is (K/4) sin(theta): largest at 90 deg, 0 at 180."""
+    from quatform.algebra import matrix_from_q, q_from_axis_angle, qmul
+    from quatform.teleop import orientation_error, task_jacobian
+
+    k, axis = 10.0, np.array([0.0, 0.6, 0.8])
+    q_m = q_from_axis_angle(np.array([1.0, 0.0, 0.0]), 0.4)
+    for theta in np.radians([10.0, 60.0, 90.0, 150.0, 179.0, 180.0]):
+        q_s = qmul(q_m, q_from_axis_angle(axis, theta))  # theta from the master, about its axis
+        W = task_jacobian(np.eye(6), q_m, q_s)[3:6, 3:6]
+        moment = W.T @ (k * orientation_error(q_m, q_s))  # base frame
+        along = moment @ (matrix_from_q(q_m) @ axis)
+        assert along == pytest.approx(k / 4 * np.sin(theta), abs=1e-12)
+
+
+@pytest.mark.parametrize("pitch_deg", [0.0, -30.0, -63.0654, -80.0])
+def test_rpy_small_angle_stiffness_equals_euler_parameters_only_at_pitch_0(pitch_deg):
+    """The RPY law's moment per radian is (kp/4) E^-T E^-1: eigenvalues 1/(1 + |sin p|), 1,
+    1/(1 - |sin p|) times the Euler-parameter law's (x0.53, x1, x9.2 at the -63 deg start)."""
+    from quatform.algebra import q_from_axis_angle, qmul
+    from quatform.teleop import rpy_error
+    from quatform.teleop.task import rpy_from_q, rpy_rate_from_angular_velocity
+
+    p = np.radians(pitch_deg)
+    q_m = qmul(q_from_axis_angle(np.array([0.0, 1.0, 0.0]), p), q_from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi))
+    E_inv = rpy_rate_from_angular_velocity(rpy_from_q(q_m))
+    K = np.empty((3, 3))  # moment per radian over kp/4, by small rotations about the base axes
+    h = 1e-6
+    for j in range(3):
+        q_s = qmul(q_from_axis_angle(np.eye(3)[j], h), q_m)
+        K[:, j] = E_inv.T @ rpy_error(q_m, q_s) / h
+    eig = np.linalg.eigvalsh(0.5 * (K + K.T))
+    s = abs(np.sin(p))
+    np.testing.assert_allclose(eig, sorted([1 / (1 + s), 1.0, 1 / (1 - s)]), rtol=1e-4)
+    if pitch_deg == -63.0654:
+        np.testing.assert_allclose(eig, [0.53, 1.0, 9.2], atol=0.02)

@@ -3,6 +3,8 @@ general functions, the RPY baseline and its singularity, registration, limits, b
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -11,6 +13,7 @@ from hypothesis.extra import numpy as hnp
 
 from quatform.algebra import matrix_from_q, q_from_axis_angle, q_from_matrix, qmul
 from quatform.errors import InvalidInputError, NonFiniteError, ShapeError
+from quatform.scenarios import load_scenario
 from quatform.teleop import (
     KRAFT_MASTER,
     PANDA,
@@ -218,3 +221,66 @@ def test_bad_measurements_and_settings_are_refused():
     tau_m, tau_s = c.step(0.0, TeleopMeasurement(Q_M0, np.zeros(6), Q_S0, np.zeros(7)))
     np.testing.assert_allclose(tau_m, 0.0, atol=1e-12)  # at the registered homes: nothing to do
     np.testing.assert_allclose(tau_s, 0.0, atol=1e-12)
+
+
+# -- virtual walls beyond reach, measurements not numbers or physically impossible ---------
+
+@pytest.mark.parametrize("kw, match", [
+    ({"resist_force_n": 1e300, "thickness_m": 1e-300}, "resist_force_n / thickness_m"),
+    ({"resist_force_n": 1e12, "thickness_m": 1.0}, "resist_force_n / thickness_m"),
+    ({"resist_force_n": "8"}, "resist_force_n = '8' must be a number"),
+    ({"thickness_m": math.inf}, "thickness_m = inf must be finite"),
+    ({"damping": math.nan}, "damping = nan must be finite"),
+    ({"normal": ("a", 0, 1)}, "normal must be a nonzero 3-vector"),
+])
+def test_virtual_walls_beyond_reach_or_not_numbers_are_refused_at_construction(kw, match):
+    with pytest.raises(InvalidInputError, match=match):
+        VirtualWall(**{"normal": (0.0, 0.0, -1.0), "offset": -0.2, **kw})
+
+
+@pytest.mark.parametrize("field", ["q_m", "qd_m", "q_s", "qd_s", "F_s"])
+def test_non_numeric_measurements_name_the_field(field):
+    sc = load_scenario("teleop-free-motion")
+    ctrl = sc.controller()
+    good = {"q_m": np.array(sc.q_m0), "qd_m": np.zeros(6), "q_s": np.array(sc.q_s0), "qd_s": np.zeros(7),
+            "F_s": np.zeros(6)}
+    good[field] = ["x"] * len(good[field])
+    with pytest.raises(InvalidInputError, match=f"measurement {field} = "):
+        ctrl.compute(0.0, TeleopMeasurement(**good))
+
+
+@pytest.mark.parametrize("field, entry, value, match", [
+    ("q_m", None, 1e300, r"measurement q_m\[0\] = 1e\+300 rad is beyond \+-1000 rad"),
+    ("q_s", 3, -2e3, r"measurement q_s\[3\] = -2000 rad is beyond \+-1000 rad"),
+    ("qd_m", 1, 1e5, r"measurement qd_m\[1\] = 100000 rad/s is beyond \+-100 rad/s"),
+    ("qd_s", 6, -150.0, r"measurement qd_s\[6\] = -150 rad/s is beyond \+-100 rad/s"),
+    ("F_s", 2, 1e6, r"measurement F_s\[2\] = 1e\+06 N is beyond \+-8700 N.*MAX_WRIST_FORCE"),
+    ("F_s", 4, 1e4, r"measurement F_s\[4\] = 10000 N m is beyond \+-870 N m.*MAX_WRIST_MOMENT"),
+])
+def test_impossible_measurements_are_refused_not_saturated(field, entry, value, match):
+    """q_m = 1e300 gets one line naming the field and value, not saturated torques."""
+    sc = load_scenario("teleop-free-motion")
+    ctrl = sc.controller()
+    good = {"q_m": np.array(sc.q_m0), "qd_m": np.zeros(6), "q_s": np.array(sc.q_s0), "qd_s": np.zeros(7),
+            "F_s": np.zeros(6)}
+    bad = good[field].copy()
+    if entry is None:
+        bad[:] = value
+    else:
+        bad[entry] = value
+    with pytest.raises(InvalidInputError, match=match) as exc:
+        ctrl.step(0.0, TeleopMeasurement(**{**good, field: bad}))
+    assert "\n" not in str(exc.value)
+
+
+def test_measurements_within_each_bound_are_accepted():
+    """Entries each within reach pass, though their norm is beyond the bound (per entry, not norm)."""
+    from quatform.teleop.controller import (MAX_JOINT_ANGLE, MAX_JOINT_RATE, MAX_WRIST_FORCE, MAX_WRIST_MOMENT,
+                                            _measured)
+
+    np.testing.assert_array_equal(_measured(np.full(6, 0.99 * MAX_JOINT_ANGLE), "q_m", 6), 0.99 * MAX_JOINT_ANGLE)
+    np.testing.assert_array_equal(_measured(np.full(7, -0.99 * MAX_JOINT_RATE), "qd_s", 7), -0.99 * MAX_JOINT_RATE)
+    w = np.r_[np.full(3, 0.99 * MAX_WRIST_FORCE), np.full(3, 0.99 * MAX_WRIST_MOMENT)]
+    np.testing.assert_array_equal(_measured(w, "F_s", 6), w)
+    with pytest.raises(InvalidInputError, match="not finite"):
+        _measured(np.r_[np.inf, 0.0, 0.0, 0.0, 0.0, 0.0], "qd_m", 6)

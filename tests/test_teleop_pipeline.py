@@ -217,3 +217,41 @@ def test_figures_read_the_log_and_the_compare_draws_every_run(tmp_path):
     assert names == ["contact.png", "orientation_rpy.png", "torques.png", "tracking.png"]
     (path,) = write_teleop_compare_plots(logs, tmp_path / "cmp")
     assert path.name == "compare_errors.png" and path.stat().st_size > 10_000
+
+
+# -- the plots: RPY differences wrapped, roll and yaw masked in gimbal lock ---------------
+
+def test_rpy_plot_traces_do_not_draw_the_wrap_at_180_as_an_error():
+    from quatform.algebra import q_from_axis_angle
+    from quatform.report.teleop_plots import _rpy_traces
+
+    roll = np.linspace(np.pi - 0.02, np.pi + 0.02, 41)  # both tools roll through +-180 deg
+    r_m = q_from_axis_angle(np.array([1.0, 0.0, 0.0]), roll)
+    r_s = q_from_axis_angle(np.array([1.0, 0.0, 0.0]), roll + 1e-3)  # the slave 1 mrad ahead
+    a_m, a_s = _rpy_traces(r_m, r_s)
+    np.testing.assert_allclose(a_s[:, 0] - a_m[:, 0], 1e-3, atol=1e-9)  # not 2 pi where one has wrapped
+    assert np.all(np.isfinite(a_m[:, 0])) and np.all(np.abs(np.diff(a_m[:, 0])) < 0.01)  # unwrapped
+
+
+def test_orientation_plot_masks_roll_yaw_and_their_difference_in_gimbal_lock():
+    """Both tools pass pitch -90 deg 1e-2 rad apart, the slave lagging: the RPY branches switch at
+    different samples, so roll read -180 against 0 and the wrapped difference ~3 rad there."""
+    from quatform.algebra import q_from_axis_angle
+    from quatform.report.teleop_plots import GIMBAL_LOCK_DEG, _orientation_traces
+    from quatform.teleop import rpy_from_q
+
+    pitch = np.radians(np.linspace(-70.0, -110.0, 401))  # about y: pitch -70 -> -90 -> back to -70 (flipped)
+    r_m = q_from_axis_angle(np.array([0.0, 1.0, 0.0]), pitch)
+    r_s = q_from_axis_angle(np.array([0.0, 1.0, 0.0]), pitch + 1e-2)
+    angle = np.full(pitch.size, 1e-2)
+    tr = _orientation_traces(r_m, r_s, angle)
+    rpy_m, rpy_s = rpy_from_q(r_m), rpy_from_q(r_s)
+    raw = np.linalg.norm((rpy_s - rpy_m + np.pi) % (2 * np.pi) - np.pi, axis=1)
+    assert raw.max() > 3.0  # what a plot of raw wrapped differences draws
+    near = np.maximum(np.abs(rpy_m[:, 1]), np.abs(rpy_s[:, 1])) >= np.radians(90.0 - GIMBAL_LOCK_DEG - 1e-9)
+    np.testing.assert_array_equal(tr.lock, near)
+    assert tr.lock.any() and not tr.lock.all()
+    assert np.all(np.isnan(tr.rpy_difference[tr.lock])) and np.all(np.isnan(tr.master[tr.lock][:, [0, 2]]))
+    assert np.all(np.isnan(tr.slave[tr.lock][:, [0, 2]])) and np.all(np.isfinite(tr.slave[tr.lock][:, 1]))
+    np.testing.assert_allclose(tr.rpy_difference[~tr.lock], 1e-2, rtol=1e-6)  # outside: the true angle
+    np.testing.assert_array_equal(tr.angle, angle)  # the error line, drawn everywhere
