@@ -106,7 +106,7 @@ COMMANDS = {
 
 @pytest.mark.parametrize("command", list(COMMANDS))
 def test_a_full_disk_is_one_line_naming_the_folder_and_the_file(tmp_path, capsys, full_disk, command):
-    """Old: "quatform: error: No space left on device", naming nothing."""
+    """Guards against: "quatform: error: No space left on device", naming nothing."""
     out = tmp_path / "out"
     disk = full_disk("timeseries.csv")
     rc = cli.main([*COMMANDS[command], "--out", str(out), "--no-plots", "--no-mcap"])

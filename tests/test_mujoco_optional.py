@@ -65,7 +65,7 @@ def test_missing_mujoco_names_the_checkout_install(monkeypatch):
 
 
 def test_no_install_hint_names_the_package_index_form():
-    """Every hint in the physics backend's files (cli.py's help is the io engineer's)."""
+    """Every hint in the physics backend's files (cli.py's help is checked by the CLI's tests)."""
     files = [ROOT / "src/quatform/sim/mujoco_backend.py", ROOT / "src/quatform/report/physics_render.py",
              ROOT / "docs/physics.md", ROOT / "benchmarks/bench_physics.py",
              *sorted((ROOT / "src/quatform/robots/physics").glob("*.py"))]

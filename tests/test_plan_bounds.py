@@ -58,7 +58,7 @@ def _one_line(capsys):
 
 
 def test_a_duration_of_1e_300_is_refused_naming_duration_s():
-    """Old: "accelerations contains -inf at index (0, 0, 0)", naming no key."""
+    """Guards against: "accelerations contains -inf at index (0, 0, 0)", naming no key."""
     data = {"kind": "shaped-geodesic", "duration_s": 1e-300, "robots": {
         "masses": [1.0, 2.0], "start": [[1.0, 0.0], [-0.5, 0.0]], "goal": [[2.3, -0.7], [3.35, 0.35]]},
         "shaping": {"alpha": 0.99}}
@@ -73,7 +73,7 @@ def test_a_duration_of_1e_300_is_refused_naming_duration_s():
 
 @pytest.mark.parametrize("masses", [[1e-9, 1.0], [1.0, 1e11], [1e-300, 1.0]])
 def test_masses_too_far_apart_are_refused_naming_the_key_and_the_ratio(masses):
-    """Old: masses [1e-9, 1] planned for ever (the geodesic's check integrates a metric that
+    """Guards against: masses [1e-9, 1] planned for ever (the geodesic's check integrates a metric that
     stiff in tiny steps), [1e-300, 1] said "all robots coincide" of robots apart."""
     data = {"kind": "shaped-geodesic", "duration_s": 20.0, "robots": {
         "masses": masses, "start": [[1.0, 0.0], [-0.5, 0.0]], "goal": [[2.3, -0.7], [3.35, 0.35]]},
@@ -90,7 +90,7 @@ def test_masses_too_far_apart_are_refused_naming_the_key_and_the_ratio(masses):
 
 @pytest.mark.parametrize("name", [TWO_BODIES, "belta-kumar-2001-airplanes"])
 def test_a_duration_whose_rates_leave_the_bound_names_the_shortest_one(name):
-    """Old: a 1e-9 s plan had accelerations of 5e18 m/s^2 (and 1e-160 s ones overflowed)."""
+    """Guards against: a 1e-9 s plan had accelerations of 5e18 m/s^2 (and 1e-160 s ones overflowed)."""
     spec = dataclasses.replace(load_plan_spec(name), duration_s=1e-9)
     with pytest.raises(InvalidInputError, match=rf"{name}: duration_s = 1e-09 s makes the plan's accelerations "
                        r"reach .* beyond the bound 1e\+12 .* at least ([0-9.e+-]+) s") as info:
@@ -118,7 +118,7 @@ def test_cli_plan_with_duration_1e_300_says_one_line(tmp_path, capsys):
     (lambda a: {"masses": np.array([1.0, np.nan])}, "masses", "nan kg"),
 ])
 def test_a_plan_file_with_an_absurd_array_names_file_array_and_bound(tmp_path, change, array, shown):
-    """Old: velocities of 1e308 were "the plan's robots meet (separation 0 m)", positions times
+    """Guards against: velocities of 1e308 were "the plan's robots meet (separation 0 m)", positions times
     1e300 "c contains inf"."""
     f = _save(tmp_path / "bad.npz", _pair_plan(**change(_pair_plan())))
     with pytest.raises(InvalidInputError, match=rf"bad\.npz: plan {array} holds {shown}.* beyond the bound "
@@ -177,7 +177,7 @@ def _spec(**top):
 
 
 def test_a_billion_knots_are_refused_up_front():
-    """Old: knots = 10**9 was accepted and the planner tried to sample 1e9 knots."""
+    """Guards against: knots = 10**9 was accepted and the planner tried to sample 1e9 knots."""
     with pytest.raises(ResourceLimitError, match=r"t\.toml: knots needs 1e\+09 steps"):
         plan_spec_from_dict(_spec(knots=10**9), where="t.toml")
     with pytest.raises(InvalidInputError, match="knots = 1000000000.0 must be an integer"):
@@ -191,7 +191,7 @@ def _pair_plan_lasting(T):
 
 
 def test_a_reference_plan_lasting_1e9_s_is_refused_naming_the_file(tmp_path):
-    """Old: the run was built for 1e9 s / dt_s = 1e11 steps (hours of work, terabytes)."""
+    """Guards against: the run was built for 1e9 s / dt_s = 1e11 steps (hours of work, terabytes)."""
     f = _pair_plan_lasting(1e9).save(tmp_path / "long.npz")
     sc = load_scenario("mas-kitts-yaw-step")
     with pytest.raises(ResourceLimitError, match=r"long\.npz: the plan's duration \(1e\+09 s\)"):
@@ -222,7 +222,7 @@ def _header_only(shape, dtype="<f8") -> bytes:
 
 
 def test_a_npy_header_claiming_1e13_elements_is_refused_before_allocating(tmp_path):
-    """Old: np.load allocated the claimed 80 TB array (MemoryError traceback)."""
+    """Guards against: np.load allocated the claimed 80 TB array (MemoryError traceback)."""
     good = {"format": _npy(np.array("quatform-plan-1")), "info": _npy(np.array("{}")),
             "masses": _npy(np.ones(2)), "times": _npy(np.array([0.0, 1.0]))}
     f = tmp_path / "huge.npz"
@@ -238,7 +238,7 @@ def test_a_npy_header_claiming_1e13_elements_is_refused_before_allocating(tmp_pa
                                        ('{"a": ' * 50 + "1" + "}" * 50, "nested more than 8"),
                                        ("[" * 100000 + "]" * 100000, "must be a JSON object|not JSON")])
 def test_a_plan_whose_info_is_a_list_or_nested_deep_is_refused(tmp_path, info, why):
-    """Old: a list gave a TypeError traceback from dict(info); deep nesting a RecursionError."""
+    """Guards against: a list gave a TypeError traceback from dict(info); deep nesting a RecursionError."""
     plan = _pair_plan_lasting(1.0)
     f = tmp_path / "p.npz"
     with open(f, "wb") as fh:
@@ -265,7 +265,7 @@ def test_a_plan_whose_info_is_a_list_or_nested_deep_is_refused(tmp_path, info, w
     ({"robots": {**FIG3, "masses": [1.0, -2.0]}}, "positive"),
 ])
 def test_spec_loader_refuses_bad_values_by_key(change, message):
-    """Old: unknown keys were listed without the nearest valid one, a string alpha reached
+    """Guards against: unknown keys were listed without the nearest valid one, a string alpha reached
     check_alpha, and the [robots] errors did not name the key."""
     data = _spec(**change)
     with pytest.raises(InvalidInputError) as exc:
@@ -274,7 +274,7 @@ def test_spec_loader_refuses_bad_values_by_key(change, message):
 
 
 def test_rigid_spec_keys_name_the_nearest():
-    """Old: [airplanes] unknown keys were listed without a suggestion; case was not a string check."""
+    """Guards against: [airplanes] unknown keys were listed without a suggestion; case was not a string check."""
     with pytest.raises(InvalidInputError, match=r"unknown key 'hh' at \[airplanes\] \(did you mean 'h'\?\)"):
         plan_spec_from_dict({"kind": "rigid-se3", "airplanes": {"hh": 1.0}}, where="a.toml")
     with pytest.raises(InvalidInputError, match=r"\[airplanes\] a = nan must be finite"):
@@ -284,7 +284,7 @@ def test_rigid_spec_keys_name_the_nearest():
 
 
 def test_a_plan_with_a_negative_mass_is_refused(tmp_path):
-    """Review: a plan.npz with masses = [-1, 1] was accepted by 'run --reference'."""
+    """Guards against: a plan.npz with masses = [-1, 1] was accepted by 'run --reference'."""
     plan, _ = make_plan(load_plan_spec("belta-kumar-2002-two-bodies"))
     with pytest.raises(InvalidInputError, match=r"plan masses\[0\] = -1 kg must be > 0"):
         dataclasses.replace(plan, masses=np.array([-1.0, 1.0]))

@@ -458,7 +458,7 @@ def _fig4_spec_ends():
 
 
 def test_three_bodies_at_alpha_04_return_the_asymmetric_minimiser():
-    """Old: the continuation's symmetric geodesic (relative energy 1.57396) was returned,
+    """Guards against: the continuation's symmetric geodesic (relative energy 1.57396) was returned,
     although a symmetry-breaking geodesic has less (1.56192). Relative energy: E minus the
     centre of mass's (1 - alpha) M |dc|^2 = 0.6 * 3 * 9."""
     q0, q1 = _fig4_spec_ends()
@@ -499,7 +499,7 @@ def _cone(alpha, s):
 
 @pytest.mark.parametrize("alpha", [0.3601, 0.362])
 def test_two_bodies_reach_every_alpha_above_the_cone_bound(alpha):
-    """Old: for alpha in (0.36, 0.367] the continuation stalled ('no geodesic') although the
+    """Guards against: for alpha in (0.36, 0.367] the continuation stalled ('no geodesic') although the
     cone bound 9/25 says one exists."""
     sol = solve_geodesic(FIG3_START, FIG3_GOAL, FIG3_MASSES, alpha)
     s = np.linspace(0, 1, 401)
@@ -508,7 +508,7 @@ def test_two_bodies_reach_every_alpha_above_the_cone_bound(alpha):
 
 
 def test_metrics_report_each_plans_energy():
-    """Old: metrics.json had no energy for shaped-geodesic plans (geodesic or through the meeting)."""
+    """Guards against: metrics.json had no energy for shaped-geodesic plans (geodesic or through the meeting)."""
     spec = load_plan_spec("belta-kumar-2002-two-bodies")
     for alpha, T in ((0.7, 2.0), (0.2, 3.0)):
         import dataclasses
@@ -525,7 +525,7 @@ def test_metrics_report_each_plans_energy():
 
 
 def test_builtin_plan_sources_name_the_papers():
-    """Old: the plot titles quoted 'seed 002 §5, Fig. 3' and 'Seed 004 Fig. 4'."""
+    """Guards against: the plot titles quoted 'seed 002 §5, Fig. 3' and 'Seed 004 Fig. 4'."""
     import inspect
 
     from quatform.report import planning_plots

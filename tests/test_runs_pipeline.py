@@ -425,7 +425,7 @@ def test_sigint_to_a_real_run_exits_130_with_one_line_and_no_files(tmp_path):
 
 
 def test_a_second_ctrl_c_while_reporting_the_first_is_ignored(tmp_path, monkeypatch):
-    """Review: a second Ctrl-C while the first was being reported ended the process by the
+    """Guards against: a second Ctrl-C while the first was being reported ended the process by the
     signal (exit -2); SIGINT is ignored while the one line is written, restored after."""
     import signal
 

@@ -420,7 +420,7 @@ def _with_path(extra, base=GOOD):
     ('centroid = "circle"\nperiod_s = 10.0', "radius"),
 ])
 def test_circle_without_radius_or_period_is_refused_naming_the_missing_key(tmp_path, extra, key):
-    """Old: radius 0 and period_s 1 by default, a 'circle' that is a fixed point, exit 0."""
+    """Guards against: radius 0 and period_s 1 by default, a 'circle' that is a fixed point, exit 0."""
     msg = _one_line_error(tmp_path, _with_path(extra))
     assert f"needs {key}" in msg and "centroid = 'circle'" in msg and "s.toml" in msg
 
@@ -444,7 +444,7 @@ def test_circle_of_radius_zero_is_refused(tmp_path):
     ("circle", "radius = 2.0\nperiod_s = 9.0\nvelocity = [0.1, 0, 0]", "velocity", "line"),
 ])
 def test_keys_the_centroid_kind_does_not_use_are_refused(tmp_path, centroid, extra, key, kind):
-    """Old: silently ignored, the run was not the one the file describes."""
+    """Guards against: silently ignored, the run was not the one the file describes."""
     msg = _one_line_error(tmp_path, _with_path(f'centroid = "{centroid}"\n{extra}'))
     assert f"{key} applies to centroid = '{kind}' only" in msg and "s.toml" in msg
 
@@ -466,7 +466,7 @@ _RAMP = '[[path.ramps]]\nvariable = "{v}"\nstart_s = {t}\nduration_s = {d}\nchan
     (_RAMP.format(v="gamma_c", t=3.0, d=1.0, c=1.0), "start_s = 3.0"),
 ])
 def test_step_or_ramp_outside_the_run_is_refused(tmp_path, extra, key):
-    """Old: a step at 5 s in a 2 s run was accepted and the run read perfect."""
+    """Guards against: a step at 5 s in a 2 s run was accepted and the run read perfect."""
     msg = _one_line_error(tmp_path, GOOD + extra)
     assert key in msg and "outside the run [0, duration_s = 2 s]" in msg and "[[path." in msg
 
@@ -478,7 +478,7 @@ def test_step_and_ramp_at_the_ends_of_the_run_are_kept(tmp_path):
 
 
 def test_d_c_step_to_zero_names_the_file_the_step_and_the_fix(tmp_path, capsys):
-    """Old: 'quatform: error: the path makes d_c <= 0 (min 0 m): the robots would meet'."""
+    """Guards against: 'quatform: error: the path makes d_c <= 0 (min 0 m): the robots would meet'."""
     text = GOOD + _STEP.format(v="beta_c", t=0.5, c=1.0) + _STEP.format(v="d_c", t=1.5, c=-1.0)
     msg = _one_line_error(tmp_path, text)
     assert msg.startswith(str(tmp_path / "s.toml") + ": [[path.steps]] #2 (d_c at 1.5 s")
@@ -522,7 +522,7 @@ def test_an_accepted_path_keeps_d_c_positive_and_a_refused_one_names_its_change(
 
 
 def test_long_dt_is_refused_as_unstable(tmp_path):
-    """Old: dt_s = 0.7 in a 2 s run ran to t = 2.1 s with 20 1/s x 0.7 s = 14 (diverging steps)."""
+    """Guards against: dt_s = 0.7 in a 2 s run ran to t = 2.1 s with 20 1/s x 0.7 s = 14 (diverging steps)."""
     msg = _one_line_error(tmp_path, GOOD.replace("dt_s = 0.01", "dt_s = 0.7"))
     assert "dt_s = 0.7" in msg and "unstable" in msg and "dt_s < 0.1" in msg
     with pytest.raises(InvalidInputError, match="unstable"):

@@ -29,7 +29,7 @@ def _toml(tmp_path, gains: str) -> str:
 
 @pytest.mark.parametrize("table", ["table1", "table2"])
 def test_cli_run_of_a_free_body_team_under_robot_space_is_refused_in_one_line(tmp_path, capsys, table):
-    """Old: "team controller: the orientation law needs gains['k_w']; given ['k_p', 'k_theta']"."""
+    """Guards against: "team controller: the orientation law needs gains['k_w']; given ['k_p', 'k_theta']"."""
     out = tmp_path / "r"
     rc = cli.main(["run", _toml(tmp_path, table), "--controller", "robot-space", "--out", str(out), "--no-plots",
                    "--no-mcap"])

@@ -318,7 +318,7 @@ def test_shipped_ugv_uav_scenarios_still_load():
 
 
 def test_control_period_not_a_multiple_of_dt_is_refused_and_tiny_dt_names_dt():
-    """Review: control_period_s = 0.007 with dt_s = 0.005 ran at 0.005 s and said so only in
+    """Guards against: control_period_s = 0.007 with dt_s = 0.005 ran at 0.005 s and said so only in
     metrics.json; dt_s = 1e-300 was blamed on duration_s / control_period_s ("67.7 steps")."""
     with pytest.raises(InvalidInputError, match=r"control_period_s = 0.007 is not a whole multiple of dt_s = 0.005"):
         _load(control_period_s=0.007, dt_s=0.005)

@@ -78,7 +78,7 @@ def test_the_run_option_sets_the_profiles_keys_over_the_scenarios():
 
 
 def test_the_ideal_option_over_a_lab_file_is_the_ideal_world_with_the_files_own_keys():
-    """Old: --profile ideal over a file of profile = "lab" kept the lab's values and said
+    """Guards against: --profile ideal over a file of profile = "lab" kept the lab's values and said
     "profile": "ideal" (compare --over profile gave two lab rows)."""
     lab = ugv_uav_scenario_from_dict(_dict(profile="lab", mocap_latency_s=0.02), "t.toml")
     ideal = ugv_uav_scenario_from_dict(_dict(mocap_latency_s=0.02), "t.toml")
