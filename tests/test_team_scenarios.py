@@ -453,3 +453,14 @@ def test_the_seed_000_comparison_holds_for_the_tetrahedron():
     for c in ("quaternion", "dual-quaternion"):
         assert not m[c]["singularity_detected"] and not m[c]["reference_lost"]
         assert m[c]["max_reading_error_rad"] < 0.01 and m[c]["reading_folded_time_s"] == 0.0
+
+
+def test_min_separation_at_a_shapes_exact_edge_is_kept():
+    """A barrier minimum equal to the shape's shortest edge (the tetrahedron's 1.5 m, its points
+    built by trigonometry a few ulps short of it) is kept, as the barrier keeps such a start;
+    one a centimetre above the edge is refused in one line naming the robots."""
+    kind = KINDS["team"]
+    sc = load_scenario("team-tetrahedron-helix")
+    assert kind.experiment(sc, "quaternion", min_separation=1.5) is not None
+    with pytest.raises(InvalidInputError, match="below min_separation = 1.51 m"):
+        kind.experiment(sc, "quaternion", min_separation=1.51)

@@ -43,7 +43,7 @@ from ..checks import (
     vector,
 )
 from ..control import TEAM_CONTROLLERS, TEAM_GAIN_KEYS, Reference, team_controller
-from ..control.safety import SafeController, SeparationBarrier
+from ..control.safety import SafeController, SeparationBarrier, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
 from ..formations.team_chart import check_template
@@ -557,14 +557,17 @@ def _check_start(sc: TeamScenario, where: str) -> None:
 
 def _check_barrier_reference(sc: TeamScenario, d: float, where: str, label: str) -> None:
     """Refuse a barrier of ``d`` m (the setting ``label``) that the reference breaks: two robots
-    closer than ``d`` at some time (sampled at most every 1/2000 of the run)."""
+    closer than ``d`` at some time (sampled at most every 1/2000 of the run), beyond the
+    rounding of their points (:func:`~quatform.control.safety.start_floor`: a shape whose edge
+    is exactly ``d`` keeps it)."""
     L = sc.team.layout
     t = sc.times
     t = t[::max(1, len(t) // 2000)]
     r = TeamChart(L).robots(sc.motion(t)[0])
     sep = min_separations(L, r)
-    k = int(np.argmin(sep))
-    if sep[k] < d:
+    floor = start_floor(L.positions(r), d)[..., 0]  # d less the rounding of points built by trigonometry
+    k = int(np.argmin(sep - floor))
+    if sep[k] < floor[k]:
         i, j = L.pairs
         a = int(np.argmin(L.separations(r[k])))
         raise InvalidInputError(
