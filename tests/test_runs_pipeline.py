@@ -188,6 +188,22 @@ def test_compare_runs_every_choice_into_its_folder(fake, tmp_path):
         runs.compare(fake, tmp_path / "c3", quiet=True, gain="fast")
 
 
+def test_cli_compare_names_options_as_its_flags_spell_them(tmp_path, capsys):
+    """``quatform compare``'s refusals name the options as the command line spells them: the
+    values of ``--over`` dashed (``orientation-error``), an option not to give as its flag."""
+    for argv, words in ((["teleop-free-motion", "--over", "physics"],
+                         "teleop-free-motion is a teleop scenario: it has no compare over 'physics'; "
+                         "compare over one of orientation-error, preload"),
+                        (["marciano-circle", "--over", "orientation-error"],
+                         "it has no compare over 'orientation-error'; compare over one of formation, physics, profile"),
+                        (["teleop-free-motion", "--over", "orientation-error", "--orientation-error", "rpy"],
+                         "compare runs every orientation error (euler-parameters, rpy); do not give --orientation-error")):
+        assert cli.main(["compare", *argv, "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and words in err, err
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_compare_cut_off_in_its_second_run_leaves_nothing(fake, tmp_path, monkeypatch):
     real, calls = Experiment.run, []
 

@@ -269,7 +269,8 @@ def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, reru
     sc = load_scenario(scenario)
     kind = kind_of(sc)
     options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
-    rows = compare(sc, out, over=over, plots=plots, mcap=mcap, rerun=rerun, compute=compute, **options)
+    rows = compare(sc, out, over=over, plots=plots, mcap=mcap, rerun=rerun, compute=compute, spell=_flag,
+                   over_spell=_dashed, **options)
     _say_options(kind, options)
     axis = over or kind.compare_over
     print(format_table(rows, compare_columns(kind, axis)))

@@ -225,7 +225,7 @@ def _suffix(options: dict) -> str:
 
 
 def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, mcap: bool = True,
-            rerun=None, compute: str = "numpy", **options) -> list:
+            rerun=None, compute: str = "numpy", spell=None, over_spell=None, **options) -> list:
     """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
     kind's compare figures; write ``comparison.md`` and ``comparison.json``. A value the
     scenario cannot take (:meth:`~quatform.scenarios.base.ScenarioKind.compare_choices`) is
@@ -248,6 +248,10 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         Also write every run into this one Rerun recording, each under ``/<value>/``.
     compute : str
         As in :func:`run`, for every run.
+    spell, over_spell : callable, optional
+        How an error line names an option (``spell(option)``, as in :func:`given_options`;
+        the CLI: its flag) and an option's name as ``over`` takes it (``over_spell(name)``;
+        the CLI: ``orientation-error``); default: the keywords.
     **options
         The other options, fixed for every run.
 
@@ -258,16 +262,19 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
     """
     sc = _scenario(scenario)
     kind = kind_of(sc)
-    given = given_options(kind, options, where=str(sc.name))
+    spell = spell or (lambda option: option.name)
+    over_spell = over_spell or (lambda name: name)
+    given = given_options(kind, options, where=str(sc.name), spell=spell)
     axis = kind.compare_over if over is None else over
     own = {o.name: o for o in kind.options}
     if axis is None or axis not in own or own[axis].choices is None:
-        axes = [o.name for o in kind.options if o.choices is not None]
-        raise InvalidInputError(f"{sc.name} is a {kind.name} scenario: it has no compare over {axis!r}; "
+        axes = [over_spell(o.name) for o in kind.options if o.choices is not None]
+        shown = axis if axis is None else over_spell(axis)
+        raise InvalidInputError(f"{sc.name} is a {kind.name} scenario: it has no compare over {shown!r}; "
                                 f"compare over one of {', '.join(axes) or 'nothing'}")
     if axis in given:
-        raise InvalidInputError(f"{sc.name}: compare runs every {axis} ({', '.join(own[axis].choices)}); "
-                                f"do not give {axis}")
+        raise InvalidInputError(f"{sc.name}: compare runs every {axis.replace('_', ' ')} "
+                                f"({', '.join(own[axis].choices)}); do not give {spell(own[axis])}")
     columns = compare_columns(kind, axis)
     simulator(compute)
     values, skipped = kind.compare_choices(sc, axis)
