@@ -72,3 +72,20 @@ def test_compute_refusals_are_one_line(tmp_path, capsys):
         cli.main(["run", "mas-kitts-yaw-step", "--compute", "gpu", "--out", str(tmp_path / "x")])
     assert exc.value.code == 2
     assert "--compute" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [
+    ["compare", "mas-kitts-yaw-step", "--over", "physics", "--controller", "quaternion"],
+    ["run", "team-tetrahedron-helix", "--controller", "quaternion", "--physics", "mujoco"],
+    ["run", "marciano-circle", "--physics", "mujoco"],
+])
+def test_mujoco_physics_on_jax_is_refused_before_any_run(argv, tmp_path, capsys):
+    """MuJoCo physics runs on NumPy: ``--physics mujoco`` (or a compare over physics) with
+    ``--compute jax`` is one line naming both flags, before any run starts (a compare does not
+    run its kinematic choice first)."""
+    code = cli.main([*argv, "--compute", "jax", "--no-plots", "--no-mcap", "--out", str(tmp_path / "o")])
+    out = capsys.readouterr()
+    err = out.err.strip()
+    assert code == 2 and "\n" not in err, err
+    assert "--physics mujoco runs on NumPy only, not on --compute jax; run it with --compute numpy" in err, err
+    assert "done in" not in out.out + out.err and not (tmp_path / "o").exists()

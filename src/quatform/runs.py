@@ -210,11 +210,32 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
     kind = kind_of(sc)
     given = given_options(kind, options, where=str(sc.name))
     simulator(compute)  # an unknown backend: one line before any work
+    _check_physics_on(kind, sc, given, compute)
     target = _rerun_target(rerun, out)
     with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
         log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap, compute)
         _write_recording(target, {"": log}, kind, sc)
     return log, metrics
+
+
+#: The physics every compute backend runs: the kinematic models (``--physics kinematic``).
+KINEMATIC = "kinematic"
+
+
+def _check_physics_on(kind, sc, given: dict, compute: str, over: str | None = None) -> None:
+    """Refuse, before any run, a physics other than the kinematic models (MuJoCo, which runs
+    on NumPy) on another compute backend: the run's own ``physics`` or, in a compare over
+    ``physics``, each of its choices."""
+    if compute == "numpy":
+        return
+    own = {o.name: o for o in kind.options}
+    if "physics" not in own:
+        return
+    physics = own["physics"].choices if over == "physics" else (given.get("physics", KINEMATIC),)
+    for value in physics:
+        if value != KINEMATIC:
+            raise InvalidInputError(f"{sc.name}: --physics {value} runs on NumPy only, not on --compute {compute}; "
+                                    f"run it with --compute numpy (--compute {compute} runs --physics {KINEMATIC})")
 
 
 def _suffix(options: dict) -> str:
@@ -277,6 +298,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
                                 f"({', '.join(own[axis].choices)}); do not give {spell(own[axis])}")
     columns = compare_columns(kind, axis)
     simulator(compute)
+    _check_physics_on(kind, sc, given, compute, over=axis)
     values, skipped = kind.compare_choices(sc, axis)
     target = _rerun_target(rerun, out)
     if not quiet:
