@@ -99,6 +99,15 @@ def test_backend_names_physics_and_compute(tmp_path, capsys):
     assert not (tmp_path / "x").exists()
 
 
+def test_backend_is_named_before_a_missing_out(capsys):
+    """``--backend`` without ``--out`` on run / compare / teleop: the line names ``--physics``
+    and ``--compute`` first (not the missing ``--out``, which would leave ``--backend`` for
+    the next try)."""
+    for command in ("run", "compare", "teleop"):
+        err = _usage_error(capsys, [command, "mas-kitts-spiral", "--backend", "mujoco"])
+        assert f"--backend is not an option of {command}: " in err and "--compute numpy|jax" in err, err
+
+
 def test_physics_chooses_what_moves_the_robots(tmp_path, capsys):
     """``--physics kinematic`` runs the kinematic models and metrics.json names the physics."""
     out = tmp_path / "run"

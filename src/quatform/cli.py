@@ -134,12 +134,13 @@ class _Parser(argparse.ArgumentParser):
         return f"--backend is not an option of {self.prog.split()[-1]}: {what}"
 
     def parse_known_args(self, args=None, namespace=None):
-        ns, extras = super().parse_known_args(args, namespace)
-        if any(arg.partition("=")[0] == "--backend" for arg in extras):
+        given = sys.argv[1:] if args is None else list(args)
+        given = given[:given.index("--")] if "--" in given else given
+        if any(arg.partition("=")[0] == "--backend" for arg in given):  # before a missing --out is named
             line = self._backend_line()
             if line is not None:
                 self.error(line)
-        return ns, extras
+        return super().parse_known_args(args, namespace)
 
 
 
