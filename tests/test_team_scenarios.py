@@ -464,3 +464,14 @@ def test_min_separation_at_a_shapes_exact_edge_is_kept():
     assert kind.experiment(sc, "quaternion", min_separation=1.5) is not None
     with pytest.raises(InvalidInputError, match="below min_separation = 1.51 m"):
         kind.experiment(sc, "quaternion", min_separation=1.51)
+
+
+def test_compare_over_physics_leaves_out_mujoco_where_it_cannot_fly_the_team():
+    """A compare over physics of a team with robots MuJoCo cannot simulate (team-three-bodies'
+    planar robots) runs the kinematic models and names why MuJoCo is left out, instead of
+    failing after its kinematic run; a team of quadrotors runs both."""
+    kind = KINDS["team"]
+    run, skipped = kind.compare_choices(load_scenario("team-three-bodies"), "physics")
+    assert run == ("kinematic",) and list(skipped) == ["mujoco"]
+    assert "robot 1 is a PlanarHolonomicRobot" in skipped["mujoco"] and "\n" not in skipped["mujoco"]
+    assert kind.compare_choices(load_scenario("team-tetrahedron-helix"), "physics") == (("kinematic", "mujoco"), {})

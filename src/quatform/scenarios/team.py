@@ -661,7 +661,20 @@ class TeamKind(ScenarioKind):
     def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
         """The controllers whose description can represent the scenario's robots (the
         Euclidean team baseline refuses a mix of planar and spatial robots), and the others
-        with the description's one-line refusal."""
+        with the description's one-line refusal; over ``physics``, MuJoCo only where it can
+        simulate every robot (a quadrotor or a Pioneer), else left out with the reason."""
+        if axis == "physics" and isinstance(scenario, TeamScenario):
+            run, skipped = [], {}
+            for name in TEAM_PHYSICS:
+                try:
+                    if name == "mujoco":
+                        from ..sim.plants.mujoco_team import physics_kinds
+                        physics_kinds(scenario.team, f"scenario {scenario.name!r}")
+                except InvalidInputError as exc:
+                    skipped[name] = str(exc)
+                else:
+                    run.append(name)
+            return tuple(run), skipped
         if axis != "controller" or not isinstance(scenario, TeamScenario):
             return super().compare_choices(scenario, axis)
         run, skipped = [], {}

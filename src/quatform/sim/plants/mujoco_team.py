@@ -35,13 +35,30 @@ from ...robots.physics import PIONEER_3DX
 from ..mujoco_backend import PhysicsWorld, physics_timestep
 from .mujoco import WorldPlant, start_state
 
-__all__ = ["PHYSICS_KINDS", "TeamPlant", "team_plant"]
+__all__ = ["PHYSICS_KINDS", "TeamPlant", "physics_kinds", "team_plant"]
 
 #: The physical robot a robot model class is simulated as: ``"quadrotor"`` (an IRIS in
 #: PX4-like velocity mode, state ``(x, y, z, theta)``, commands ``(v_x, v_y, v_z, omega_z)``)
 #: or ``"diff-drive"`` (a Pioneer 3-DX, state its control point and heading, commands
 #: ``(v, omega)``).
 PHYSICS_KINDS = {HolonomicRobot: "quadrotor", Pioneer: "diff-drive"}
+
+
+def physics_kinds(team: Team, what: str = "team_plant") -> list:
+    """Each robot's :data:`PHYSICS_KINDS` value; a robot the MuJoCo physics cannot simulate
+    (or a ``team`` that is not a :class:`~quatform.robots.Team`) is one line naming it."""
+    if not isinstance(team, Team):
+        raise InvalidInputError(f"{what}: team must be a quatform.robots.Team, got {type(team).__name__}")
+    kinds = []
+    for i, robot in enumerate(team.robots):
+        kind = PHYSICS_KINDS.get(type(robot))
+        if kind is None:
+            raise InvalidInputError(
+                f"{what}: robot {i + 1} is a {type(robot).__name__} (point kind {robot.point_kind!r}), which the "
+                f"MuJoCo physics cannot simulate; use {' or '.join(c.__name__ for c in PHYSICS_KINDS)} models "
+                "(a quadrotor, a Pioneer 3-DX) or the kinematic physics (--physics kinematic)")
+        kinds.append(kind)
+    return kinds
 
 
 def _indices(slices, picks, width: int) -> np.ndarray:
@@ -81,17 +98,7 @@ class TeamPlant(WorldPlant):
 
     def __init__(self, team: Team, x0, timestep: float, cascade_options: dict | None = None,
                  floor_z: float | None = None, cascades: str = "auto", what: str = "team_plant"):
-        if not isinstance(team, Team):
-            raise InvalidInputError(f"{what}: team must be a quatform.robots.Team, got {type(team).__name__}")
-        kinds = []
-        for i, robot in enumerate(team.robots):
-            kind = PHYSICS_KINDS.get(type(robot))
-            if kind is None:
-                raise InvalidInputError(
-                    f"{what}: robot {i + 1} is a {type(robot).__name__} (point kind {robot.point_kind!r}), which the "
-                    f"MuJoCo physics cannot simulate; use {' or '.join(c.__name__ for c in PHYSICS_KINDS)} models "
-                    "(a quadrotor, a Pioneer 3-DX) or the kinematic physics (--physics kinematic)")
-            kinds.append(kind)
+        kinds = physics_kinds(team, what)
         x = start_state(x0, team.n_state, what)
         self.team, self.kinds = team, tuple(kinds)
         self.names = tuple(f"robot{i + 1}" for i in range(len(kinds)))
