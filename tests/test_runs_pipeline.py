@@ -197,7 +197,8 @@ def test_cli_compare_names_options_as_its_flags_spell_them(tmp_path, capsys):
                         (["marciano-circle", "--over", "orientation-error"],
                          "it has no compare over 'orientation-error'; compare over one of formation, physics, profile"),
                         (["teleop-free-motion", "--over", "orientation-error", "--orientation-error", "rpy"],
-                         "compare runs every orientation error (euler-parameters, rpy); do not give --orientation-error")):
+                         "compare runs every orientation error (euler-parameters, rpy); "
+                         "do not give --orientation-error")):
         assert cli.main(["compare", *argv, "--out", str(tmp_path / "o")]) == 2
         err = capsys.readouterr().err.strip()
         assert "\n" not in err and words in err, err
