@@ -40,25 +40,27 @@ euclid = st.tuples(
 ).map(np.array)
 
 
-def closed_loop(ctrl, e0, e_des, steps=200, dt=0.004):
-    """Constant reference, no feed-forward: states and cluster states along the run."""
+def closed_loop(ctrl, e0, e_des, steps=200, dt=0.004, robots_in_reference=True):
+    """Constant reference (with the desired robots, or the cluster state alone), no
+    feed-forward: the cluster states along the run, the desired one and the last robots."""
     F = ctrl.formation
     c_des = F.from_euclidean(e_des)
-    ref = Reference(c_des, np.zeros_like(c_des), EuclideanPair().inverse(e_des))
+    rd = EuclideanPair().inverse(e_des) if robots_in_reference else None
+    ref = Reference(c_des, np.zeros_like(c_des), rd)
     r = EuclideanPair().inverse(e0)
     cs = []
     for _ in range(steps):
         res = ctrl.compute(0.0, r, ref)
         cs.append(res.cluster)
         r = r + dt * res.commands
-    return np.array(cs), c_des
+    return np.array(cs), c_des, r
 
 
 @settings(max_examples=40)
 @given(e0=euclid, e_des=euclid)
 def test_quaternion_lyapunov_21_decreases(e0, e_des):
     ctrl = QuaternionController(team=FREE, feedforward=False)
-    cs, c_des = closed_loop(ctrl, e0, e_des)
+    cs, c_des, _ = closed_loop(ctrl, e0, e_des)
     V = quaternion_lyapunov(cs, c_des)
     assert np.all(np.diff(V) <= 1e-9 * max(1.0, V[0]))
     assert V[-1] < V[0] or V[0] < 1e-12
@@ -91,7 +93,7 @@ def dq_max_error_angle(c, c_des):
 def test_dual_quaternion_lyapunov_29_rate_and_region(e0, e_des):
     ctrl = DualQuaternionController(k_dw=[3.0] * 3, team=FREE, feedforward=False)
     dt = 2.5e-4  # Euler steps: the differences match the rate to O(dt)
-    cs, c_des = closed_loop(ctrl, e0, e_des, steps=600, dt=dt)
+    cs, c_des, _ = closed_loop(ctrl, e0, e_des, steps=600, dt=dt)
     V = dual_quaternion_lyapunov(cs, c_des)
     # the derived rate matches the closed loop (central differences) within 2 % of the rate's
     # size along the run (a sample where the rate crosses zero has no relative accuracy: e.g. a
@@ -116,7 +118,7 @@ def test_dual_quaternion_lyapunov_29_can_increase():
     ctrl = DualQuaternionController(k_dw=[1.0] * 3, team=FREE, feedforward=False)
     e_des = np.array([0, 0, 0, 0.0, 0.0, 1.0, 0.0, 0.0])
     e0 = np.array([0, 0, 4.0, 2.9, 0.0, 1.0, 0.0, 0.0])  # formation yawed 166 deg, 4 m up
-    cs, c_des = closed_loop(ctrl, e0, e_des, steps=400, dt=0.01)
+    cs, c_des, _ = closed_loop(ctrl, e0, e_des, steps=400, dt=0.01)
     V = dual_quaternion_lyapunov(cs, c_des)
     assert dq_vdot_formula(cs[0], c_des, 1.0) > 0 and V[1] > V[0]
     assert V[-1] < V[0]
@@ -446,16 +448,10 @@ def test_large_positions_below_the_limit_are_exact():
 
 
 def dq_law_closed_loop(e0, e_des, k=3.0, steps=600, dt=2.5e-4):
+    """:func:`closed_loop` of the dual-quaternion law alone (free bodies, the cluster state as
+    the whole reference)."""
     C = DualQuaternionController(k_dw=[k] * 3, team=FREE, feedforward=False)
-    c_des = C.formation.from_euclidean(e_des)
-    ref = Reference(c_des, np.zeros(16))
-    r = EuclideanPair().inverse(e0)
-    cs = []
-    for _ in range(steps):
-        res = C.compute(0.0, r, ref)
-        cs.append(res.cluster)
-        r = r + dt * res.commands
-    return np.array(cs), c_des, r
+    return closed_loop(C, e0, e_des, steps, dt, robots_in_reference=False)
 
 
 def law_vdot(c, c_des, k):
