@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...algebra.kernels import as_floats, common_namespace, concrete
+from ...control.ugv_uav import UGV_UAV_COMMAND_NAMES
 from ...errors import InvalidInputError
 from ...robots import Bebop, Pioneer
 from ..measurement import MOTION_CAPTURE_COLUMNS
@@ -33,6 +34,9 @@ PIONEER_SPEED_COLUMNS = ("v_p_run", "omega_p_run")
 _PIONEER = slice(0, UGV_UAV_STATE_COLUMNS.index("x_b"))
 _BEBOP = slice(_PIONEER.stop, len(UGV_UAV_STATE_COLUMNS))
 _SPEEDS = slice(_BEBOP.stop, _BEBOP.stop + len(PIONEER_SPEED_COLUMNS))
+#: The parts of the commands: the Pioneer's ``(v, omega)``, the Bebop's four.
+_PIONEER_COMMAND = slice(0, UGV_UAV_COMMAND_NAMES.index("u_x_b"))
+_BEBOP_COMMAND = slice(_PIONEER_COMMAND.stop, len(UGV_UAV_COMMAND_NAMES))
 
 
 def ramp(running, commanded, max_change):
@@ -99,9 +103,9 @@ class PioneerBebopPlant:
         """The state after ``dt`` s of the commands ``u`` ``(..., 6)`` (held; any namespace)."""
         x, u = as_floats(x), as_floats(u)
         xp = common_namespace(x, u)
-        b = self.bebop.step(x[..., _BEBOP], u[..., 2:6], dt)
+        b = self.bebop.step(x[..., _BEBOP], u[..., _BEBOP_COMMAND], dt)
         floor = xp.maximum(b[..., 2:3], self.floor)  # the floor
-        u_p, tail = u[..., 0:2], []
+        u_p, tail = u[..., _PIONEER_COMMAND], []
         if self.pioneer_accel:  # the firmware's ramp toward the (saturated) command
             u_p = ramp(x[..., _SPEEDS], self.pioneer.saturate(u_p), np.multiply(self.pioneer_accel, dt))
             tail = [u_p]
