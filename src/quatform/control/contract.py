@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Step", "Controller", "batch_shape_of"]
+__all__ = ["Step", "Tick", "Controller", "batch_shape_of"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,30 @@ class Step:
     u: np.ndarray
     state: Any = None
     signals: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Tick:
+    """What one pure, branch-free control tick computed (:meth:`Controller.tick`).
+
+    Attributes
+    ----------
+    state : pytree of arrays
+        The controller's next state (``None`` for a stateless controller); batch axes lead.
+    u : array, shape (*batch, n_u)
+        Commands (finite, within the robots' limits, where ``code`` is 0).
+    signals : Mapping[str, array]
+        Named outputs, each ``(*batch, k)`` (:meth:`Controller.signal_columns`).
+    code : int array, shape (*batch,)
+        0 where the tick is valid; ``> 0`` names why the world failed
+        (:attr:`Controller.failure_reasons`): what :meth:`Controller.update` refuses with an
+        exception, decided by selections instead, so the tick runs under ``jax.jit``.
+    """
+
+    state: Any
+    u: Any
+    signals: Mapping[str, Any]
+    code: Any
 
 
 def batch_shape_of(measured) -> tuple:
@@ -84,6 +108,28 @@ class Controller(ABC):
     @abstractmethod
     def update(self, t: float, measured, reference, state) -> Step:
         """One control update (see the module docstring)."""
+
+    #: Whether :meth:`tick` is pure and branch-free on any array namespace (it then runs under
+    #: ``jax.jit``; a controller with only :meth:`update` runs on NumPy).
+    pure: bool = False
+    #: Failure code of :attr:`Tick.code` -> one-line reason (0 is no failure).
+    failure_reasons: Mapping[int, str] = {}
+
+    def reference_arrays(self, reference):
+        """The tick's ``reference`` (what :meth:`update` takes) as a pytree of NumPy arrays,
+        checked on the host (one-line errors, as :meth:`update` raises them); leading axes are
+        the batch's or none (one reference for every world). :meth:`tick` reads it."""
+        return reference
+
+    def tick(self, state, measured, reference, t) -> Tick:
+        """One pure control tick: ``state``, ``measured`` (``(*batch, n_m)``), the tick's
+        :meth:`reference_arrays` and the time ``t`` (s) in; :class:`Tick` out. No Python branch
+        on data: what :meth:`update` refuses is a :attr:`Tick.code`.
+
+        The default serves a controller that implements :meth:`update` only (NumPy, host):
+        its step, code 0."""
+        step = self.update(t, measured, reference, state)
+        return Tick(step.state, step.u, step.signals, np.zeros(batch_shape_of(measured), dtype=np.int64))
 
     def step(self, t: float, measured, reference=None):
         """Commands for ``measured`` from the initial state (a stateless controller's whole job)."""
