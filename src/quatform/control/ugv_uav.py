@@ -17,16 +17,17 @@ velocity (from its own odometry). Commands (6 values): ``(v, omega, u_x, u_y, u_
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..algebra.kernels import common_namespace, concrete
+from ..algebra.kernels import as_floats, common_namespace, concrete
 from ..algebra.validate import as_array
-from ..errors import InvalidInputError, UnreachableError
-from ..formations import UgvUavQuaternion
+from ..errors import InvalidInputError, QuatformError
+from ..formations import UgvUavQuaternion, UgvUavRestricted
 from ..formations import pair_kernels as kern
-from ..formations.base import Formation
+from ..formations.base import MAX_MAGNITUDE, Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
 from . import contract
 from .base import Reference
@@ -35,7 +36,7 @@ from .filters import FRAME_DROPPED, FRAME_GOOD, FRAME_REJECTED, ArenaWalls, Head
 from .laws import Block, BlockLaw
 
 __all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES",
-           "FRAME_CODES", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART"]
+           "FRAME_CODES", "STOP_MOTION_CAPTURE", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART"]
 
 #: Layout of the 11 measured values the UGV-UAV controller reads.
 UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
@@ -49,47 +50,133 @@ BEBOP_PART = slice(PIONEER_PART.stop, len(UGV_UAV_MEASURED_NAMES))
 UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
 
 
-#: The ``frame`` signal's code of each frame class.
+#: The ``frame`` signal's code of each frame class (:meth:`MocapScreen.frame_code`).
 FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
+#: :attr:`UgvUavState.stop_code` of the screen's stop (no good frame for longer than
+#: ``max_hold_s``); 0 is not stopped, ``2 + i`` the ``i``-th reason given to
+#: :meth:`UgvUavController.emergency_stop` (:attr:`UgvUavState.reasons`).
+STOP_MOTION_CAPTURE = 1
+
+
+def motion_capture_stop_reason(t: float, bad_since: float, max_hold_s: float) -> str:
+    """Why the screen stopped both robots at ``t`` after bad frames since ``bad_since``, s."""
+    return (f"motion capture: no good frame for {t - bad_since:.3g} s (more than max_hold_s = "
+            f"{max_hold_s:g} s) from t = {bad_since:.6g} s; both robots stopped")
+
+
+#: The array fields of :class:`UgvUavState` (its pytree children), in order.
+_ARRAY_FIELDS = ("v_r", "mem_t", "v_dot", "stopped", "stop_code", "stop_t", "stop_since", "good", "good_t",
+                 "bad_since")
+_REGISTERED = []
+
+
+def _register_pytree() -> None:
+    """Register :class:`UgvUavState` as a JAX pytree (its arrays the children, ``reasons`` and
+    ``max_hold_s`` static), once, where JAX is imported; JAX is never imported here."""
+    if _REGISTERED or "jax" not in sys.modules:
+        return
+    import jax
+
+    def unflatten(aux, children):
+        out = object.__new__(UgvUavState)
+        for name, v in zip(_ARRAY_FIELDS, children):
+            object.__setattr__(out, name, v)
+        object.__setattr__(out, "reasons", aux[0])
+        object.__setattr__(out, "max_hold_s", aux[1])
+        return out
+
+    jax.tree_util.register_pytree_node(
+        UgvUavState, lambda s: (tuple(getattr(s, k) for k in _ARRAY_FIELDS), (s.reasons, s.max_hold_s)), unflatten)
+    _REGISTERED.append(True)
 
 
 @dataclass(frozen=True)
 class UgvUavState:
-    """The UGV-UAV controller's state between updates (one world).
+    """The UGV-UAV controller's state between ticks: arrays whose leading axes are the batch's
+    (``batch = ()`` for one world), a JAX pytree once JAX is imported.
 
     Attributes
     ----------
-    memory : tuple
-        The team's actuation memory (:meth:`Team.initial_memory`): ``(None, BebopMemory)``,
-        the previous velocity reference of (4.47), its time and the filtered derivative.
-    stopped : bool
-        The emergency stop holds (:meth:`UgvUavController.emergency_stop`).
-    stop_reason : str
-        Why ("" when not stopped).
-    good : ndarray, shape (11,), or None
-        The last good motion-capture frame (with the odometry it used).
-    good_t : float or None
-        Its time, s.
-    bad_since : float or None
-        Time of the first bad frame of the current run of them (None while frames are good).
+    v_r : array, shape (*batch, 4)
+        The Bebop's previous body-frame velocity reference of (4.47) (NaN: none).
+    mem_t : array, shape (*batch)
+        Its time, s (NaN: none).
+    v_dot : array, shape (*batch, 4)
+        The filtered derivative of ``v_r``.
+    stopped : bool array, shape (*batch)
+        The emergency stop holds (:meth:`UgvUavController.emergency_stop`, or the screen's).
+    stop_code : int array, shape (*batch)
+        Why: 0 not stopped, :data:`STOP_MOTION_CAPTURE`, ``2 + i`` for ``reasons[i]``.
+    stop_t, stop_since : arrays, shape (*batch)
+        The time of the screen's stop and the start of the bad frames that caused it, s (NaN).
+    good : array, shape (*batch, 11)
+        The last good motion-capture frame, with the odometry it used (NaN: none yet).
+    good_t : array, shape (*batch)
+        Its time, s (NaN: none yet).
+    bad_since : array, shape (*batch)
+        Time of the first bad frame of the current run of them, s (NaN while frames are good).
+    reasons : tuple of str
+        The reasons given to :meth:`UgvUavController.emergency_stop` (static).
+    max_hold_s : float
+        The screen's ``max_hold_s`` (static: the words of its stop).
     """
 
-    memory: tuple = (None, BebopMemory.start())
-    stopped: bool = False
-    stop_reason: str = ""
-    good: np.ndarray | None = None
-    good_t: float | None = None
-    bad_since: float | None = None
+    v_r: np.ndarray
+    mem_t: np.ndarray
+    v_dot: np.ndarray
+    stopped: np.ndarray
+    stop_code: np.ndarray
+    stop_t: np.ndarray
+    stop_since: np.ndarray
+    good: np.ndarray
+    good_t: np.ndarray
+    bad_since: np.ndarray
+    reasons: tuple = ()
+    max_hold_s: float = 0.5
 
+    def __post_init__(self):
+        _register_pytree()
 
-def _each(state, f):
-    """``f`` applied to one state, or to every world's state of a batched one (object array)."""
-    if isinstance(state, UgvUavState):
-        return f(state)
-    out = np.empty(np.shape(state), dtype=object)
-    for i in np.ndindex(out.shape):
-        out[i] = f(state[i])
-    return out
+    @classmethod
+    def start(cls, batch: tuple = (), max_hold_s: float = 0.5) -> UgvUavState:
+        """No previous reference or frame, not stopped."""
+        batch = tuple(batch)
+        nan = np.full(batch, np.nan)
+        memory = BebopMemory.start(batch)
+        return cls(memory.v_r, memory.t, memory.v_dot, np.zeros(batch, dtype=bool), np.zeros(batch, dtype=np.int64),
+                   nan, nan.copy(), np.full(batch + (11,), np.nan), nan.copy(), nan.copy(), (), float(max_hold_s))
+
+    @property
+    def batch(self) -> tuple:
+        return tuple(np.shape(self.good_t))
+
+    @property
+    def memory(self) -> tuple:
+        """The team's actuation memory (:meth:`Team.initial_memory`): ``(None, BebopMemory)``."""
+        return (None, BebopMemory(self.v_r, self.mem_t, self.v_dot))
+
+    def _reason(self, code, t, since) -> str:
+        code = int(code)
+        if code == 0:
+            return ""
+        if code == STOP_MOTION_CAPTURE:
+            return motion_capture_stop_reason(float(t), float(since), self.max_hold_s)
+        return self.reasons[code - 2]
+
+    @property
+    def stop_reason(self):
+        """Why both robots are stopped ("" when not): a str, or an object array of them for a batch."""
+        code, t, since = (np.asarray(a) for a in (self.stop_code, self.stop_t, self.stop_since))
+        if code.ndim == 0:
+            return self._reason(code, t, since)
+        out = np.empty(code.shape, dtype=object)
+        for i in np.ndindex(code.shape):
+            out[i] = self._reason(code[i], t[i], since[i])
+        return out
+
+    def replace(self, **changes) -> UgvUavState:
+        """This state with ``changes`` (a frozen dataclass' ``replace``)."""
+        return replace(self, **changes)
 
 
 def _positive(values, n, name):
@@ -211,202 +298,294 @@ class UgvUavController(ClusterController):
 
     # -- state: the compensation's derivative, the screening and the emergency stop -----
     def init(self, batch: tuple = ()):
-        """The state before the first update: no previous reference or frame, not stopped.
-
-        With ``batch`` axes: an object array of that shape holding one :class:`UgvUavState`
-        per world."""
-        return _each(np.empty(tuple(batch), dtype=object) if batch else UgvUavState(),
-                     lambda s: UgvUavState(memory=self.team.initial_memory()))
+        """The state before the first tick (:meth:`UgvUavState.start`): no previous reference
+        or frame, not stopped; arrays with ``batch`` leading axes."""
+        _register_pytree()
+        return UgvUavState.start(batch, self.max_hold_s)
 
     def emergency_stop(self, state, reason: str = "emergency stop"):
-        """``state`` with both robots halted until :meth:`release`: the UGV stops, the UAV
-        brakes to a hover (the compensation law with a zero velocity reference, rate ``L_d``)."""
-        return _each(state, lambda s: replace(s, stopped=True, stop_reason=reason))
+        """``state`` with both robots halted until :meth:`release` (every world of a batch): the
+        UGV stops, the UAV brakes to a hover (the compensation law with a zero velocity
+        reference, rate ``L_d``); ``state.stop_reason`` is ``reason``."""
+        reasons = state.reasons if reason in state.reasons else state.reasons + (str(reason),)
+        code = 2 + reasons.index(reason)
+        return replace(state, stopped=np.ones(state.batch, dtype=bool), stop_code=np.full(state.batch, code),
+                       stop_t=np.full(state.batch, np.nan), stop_since=np.full(state.batch, np.nan), reasons=reasons)
 
     def release(self, state):
-        """``state`` with the emergency stop released and the derivative of (4.47) restarted."""
-        return _each(state, lambda s: replace(s, stopped=False, stop_reason="", bad_since=None,
-                                              memory=self.team.initial_memory()))
+        """``state`` with the emergency stop released and the derivative of (4.47) restarted
+        (the last good frame is kept)."""
+        fresh = UgvUavState.start(state.batch, self.max_hold_s)
+        return replace(fresh, good=state.good, good_t=state.good_t, reasons=state.reasons)
+
+    def stop_reason(self, t: float, bad_since: float) -> str:
+        """Why the screen stopped both robots at ``t`` after bad frames since ``bad_since``, s."""
+        return motion_capture_stop_reason(t, bad_since, self.max_hold_s)
 
     # -- the chain of Fig. 18 ---------------------------------------------------------
+    pure = True
+    #: What the tick refuses (:meth:`update` raises the description's own one-line error).
+    failure_reasons = {
+        1: "the restricted description's robot-space fallback cannot invert the reference (INVKIN(c_des))",
+        2: "a measured position is beyond the magnitude quatform accepts",
+    }
+
     def step(self, t: float, measured, reference=None) -> np.ndarray:
         """Commands ``(..., 6)`` for ``measured`` (``(..., 11)``) from the initial state."""
         return self.update(t, measured, reference, self.init(np.shape(measured)[:-1])).u
 
+    def reference_arrays(self, reference):
+        """The tick's reference: ``{"c", "c_dot"}`` of shape ``(..., n_c)`` (NaN rows: hold,
+        the robots brake; ``reference=None`` is one NaN row) and ``"invertible"`` (``(...)``:
+        whether the restricted description's robot-space fallback can invert ``c``; True
+        elsewhere). Checked as :meth:`update` checks a reference it uses (one-line errors):
+        ``c`` and ``c_dot`` finite where ``c`` holds no NaN, and the quaternion description's
+        ``q_c`` a unit quaternion there (every row, whether or not a frame comes).
+
+        Raises
+        ------
+        InvalidInputError, ShapeError, NonFiniteError
+        """
+        F = self.formation
+        n_c = F.n_c
+        if reference is None:
+            nan = np.full(n_c, np.nan)
+            return {"c": nan, "c_dot": nan.copy(), "invertible": np.ones((), dtype=bool)}
+        if not isinstance(reference, Reference):
+            raise InvalidInputError(f"{self.name} controller: reference must be a Reference(c, c_dot), got "
+                                    f"{type(reference).__name__}")
+        try:
+            c, cd = np.asarray(reference.c, dtype=float), np.asarray(reference.c_dot, dtype=float)
+        except (TypeError, ValueError):
+            c, cd = as_array(reference.c, "reference.c", n_c), as_array(reference.c_dot, "reference.c_dot", n_c)
+        if c.shape[-1:] != (n_c,) or cd.shape[-1:] != (n_c,):
+            as_array(reference.c, "reference.c", n_c)
+            as_array(reference.c_dot, "reference.c_dot", n_c)
+        batch = np.broadcast_shapes(c.shape[:-1], cd.shape[:-1])
+        c, cd = np.broadcast_to(c, batch + (n_c,)), np.broadcast_to(cd, batch + (n_c,))
+        hold = np.any(np.isnan(c), axis=-1)
+        used = ~hold
+        if np.any(used & ~(np.all(np.isfinite(c), axis=-1) & np.all(np.isfinite(cd), axis=-1))):
+            for i in zip(*np.nonzero(used)):  # the first world's own words
+                as_array(c[i], "reference.c", n_c)
+                as_array(cd[i], "reference.c_dot", n_c)
+        if isinstance(F, UgvUavQuaternion) and np.any(used):
+            try:
+                F.check_cluster_state(c[used], "near_c")
+            except QuatformError:
+                for i in zip(*np.nonzero(used)):
+                    F.check_cluster_state(c[i], "near_c")
+        invertible = np.ones(batch, dtype=bool)
+        if isinstance(F, UgvUavRestricted):
+            with np.errstate(invalid="ignore", over="ignore"):
+                w2 = 1 - np.sin(c[..., 4]) ** 2 - np.sin(c[..., 5]) ** 2
+                bad = ~(np.max(np.abs(c), axis=-1) <= MAX_MAGNITUDE) | ~(c[..., 3] > 0) | (w2 < -1e-12)
+                for _, out in F._angles_out(c, F.tolerance):
+                    bad = bad | out
+            invertible = used & ~bad | hold  # what F.inverse accepts (hold: not asked)
+        return {"c": np.array(c), "c_dot": np.array(cd), "invertible": invertible}
+
     def update(self, t: float, measured, reference, state) -> contract.Step:
-        """One step of Fig. 18 (:meth:`_update_one` per world).
+        """One step of Fig. 18: the checks, :meth:`reference_arrays` and :meth:`tick`.
 
         Parameters
         ----------
         t : float
             Time, s.
         measured : array_like, shape (..., 11)
-            :data:`UGV_UAV_MEASURED_NAMES`; leading axes are worlds.
+            :data:`UGV_UAV_MEASURED_NAMES`; leading axes are worlds (NaN: a dropped frame).
         reference : Reference
             ``c``, ``c_dot`` of shape ``(..., n_c)`` (or one for every world). A ``c`` with a
             NaN (or ``reference=None``) means no reference the description can express: both
             robots brake (the UGV stops, the UAV brakes to a hover or stays on the floor).
-        state : UgvUavState or object array of them (from :meth:`init`)
+        state : UgvUavState (from :meth:`init`)
 
         Returns
         -------
         Step
             ``u`` of shape ``(..., 6)``, the next state and the signals of :meth:`signal_columns`.
+
+        Raises
+        ------
+        ShapeError
+            ``measured`` not ``(..., 11)``.
+        UnreachableError, InvalidInputError
+            The restricted description's fallback with a reference it cannot invert; a
+            measured position beyond ``MAX_MAGNITUDE``: the description's own words, for the
+            first such world.
         """
-        if isinstance(state, UgvUavState):
-            return self._update_one(t, measured, reference, state)
         m = np.asarray(measured, dtype=float)
-        batch = np.shape(state)
-        m = np.broadcast_to(m, batch + m.shape[-1:])
-        c = None if reference is None else np.broadcast_to(np.asarray(reference.c, float), batch + (self.formation.n_c,))
-        cd = None if reference is None else np.broadcast_to(np.asarray(reference.c_dot, float),
-                                                            batch + (self.formation.n_c,))
-        us, nxt, sig = [], np.empty(batch, dtype=object), {k: [] for k in self.signal_columns()}
-        for i in np.ndindex(batch):
-            ref = None if reference is None else Reference(c[i], cd[i])
-            s = self._update_one(t, m[i], ref, state[i])
-            us.append(s.u)
-            nxt[i] = s.state
-            for k, v in s.signals.items():
-                sig[k].append(v)
-        cols = self.signal_columns()
-        return contract.Step(np.reshape(us, batch + (6,)), nxt,
-                             {k: np.reshape(v, batch + (len(cols[k]),)) for k, v in sig.items()})
+        if m.shape[-1:] != (11,):
+            m = as_array(measured, "measured state", 11)
+        ref = self.reference_arrays(reference)
+        batch = np.broadcast_shapes(m.shape[:-1], state.batch, ref["c"].shape[:-1])
+        tk = self.tick(_broadcast_state(state, batch), np.broadcast_to(m, batch + (11,)), ref, t)
+        if np.any(tk.code):
+            i = tuple(int(k) for k in np.argwhere(np.asarray(tk.code) > 0)[0])
+            if tk.code[i] == 1:
+                self.formation.inverse(np.broadcast_to(ref["c"], batch + (self.formation.n_c,))[i])
+            else:
+                self.formation.forward(self.team.point(tk.signals["used"][i]))
+            raise InvalidInputError(f"{self.name} controller: {self.failure_reasons[int(tk.code[i])]}")
+        return contract.Step(tk.u, tk.state, tk.signals)
+
+    def tick(self, state, measured, ref, t) -> contract.Tick:
+        """One pure, branch-free step of Fig. 18 on the array namespace of its operands (NumPy,
+        or JAX under ``jax.jit``); every branch is computed and selected per world.
+
+        The motion-capture screen (:meth:`MocapScreen.frame_code`): a good frame is used and
+        remembered (a non-finite odometry entry replaced by the last good frame's, or 0); a
+        dropped or rejected one is replaced by the last good frame (the odometry read now where
+        finite) for up to ``max_hold_s``, then both robots stop (``stopped``, code
+        :data:`STOP_MOTION_CAPTURE`); without a good frame yet both robots brake. On the frame
+        used: the cluster state (the reference as hint), the law (4.43)-(4.45), the robot
+        rates (4.42), or, where the restricted description cannot express the robots, the
+        position law of (4.43) in robot space toward ``INVKIN(c_des)`` (seed 000 §3.1); non-finite
+        rates read as 0; :attr:`walls`; the UAV's yaw rate (4.50)-(4.51); the team's actuation
+        (3.5), (3.10), (4.47)-(4.49) and saturation. A reference row with a NaN (hold), no
+        frame or the stop: both robots brake (the UGV stops, the UAV's (4.47) with
+        ``v_r = 0``), and the compensation forgets its reference.
+
+        Parameters
+        ----------
+        state : UgvUavState
+            Arrays with leading axes ``batch``.
+        measured : array, shape (*batch, 11)
+            :data:`UGV_UAV_MEASURED_NAMES` (NaN entries: a dropped frame or odometry sample).
+        ref : dict
+            :meth:`reference_arrays` (leading axes ``batch`` or none).
+        t : float or scalar array
+            Time, s.
+
+        Returns
+        -------
+        Tick
+            ``u (*batch, 6)``, the next state, the signals of :meth:`signal_columns` and the
+            code (:attr:`failure_reasons`).
+        """
+        F, p, b = self.formation, self.pioneer, self.bebop
+        restricted = isinstance(F, UgvUavRestricted)
+        m = as_floats(measured)
+        xp = common_namespace(m, state.good, ref["c"], t)
+        batch = tuple(m.shape[:-1])
+        n_c = F.n_c
+
+        def rows(mask):  # a (*batch) mask against (*batch, k) arrays
+            return mask[..., None]
+
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            # -- the screen (seed 001's lab): good, dropped or rejected
+            good, good_t, bad_since, stopped = state.good, state.good_t, state.bad_since, state.stopped
+            has_good = xp.isfinite(good_t)
+            finite = xp.all(xp.isfinite(m[..., MOCAP_PART]), axis=-1)
+            frame = self.mocap.frame_code(t, self.measured_points(m), finite, self.measured_points(good), good_t)
+            ok = frame == 0
+            odo, odo_good = m[..., ODOMETRY_PART], good[..., ODOMETRY_PART]
+            odo_ok = xp.isfinite(odo)
+            m_good = xp.concatenate([m[..., MOCAP_PART],
+                                     xp.where(odo_ok, odo, xp.where(rows(has_good), odo_good, 0.0))], axis=-1)
+            m_held = xp.concatenate([good[..., MOCAP_PART], xp.where(odo_ok, odo, odo_good)], axis=-1)
+            used = xp.where(rows(ok), m_good, m_held)
+            none = ~ok & ~has_good  # nothing to go on
+            held = ~ok & has_good
+            good = xp.where(rows(ok), m_good, good)
+            good_t = xp.where(ok, t, good_t)
+            bad_since = xp.where(ok, np.nan, xp.where(xp.isnan(bad_since), t, bad_since))
+            expire = ~ok & ~stopped & self.mocap.expired(t, bad_since)
+            stopped = stopped | expire
+            stop_code = xp.where(expire, STOP_MOTION_CAPTURE, state.stop_code)
+            stop_t = xp.where(expire, t, state.stop_t)
+            stop_since = xp.where(expire, bad_since, state.stop_since)
+            # -- the reference: held (a NaN) or tracked
+            c_des = xp.broadcast_to(as_floats(ref["c"]), batch + (n_c,))
+            c_dot = xp.broadcast_to(as_floats(ref["c_dot"]), batch + (n_c,))
+            hold = xp.any(xp.isnan(c_des), axis=-1)
+            # -- the chain on the frame used: (4.43)-(4.45), (4.42)
+            points = self.measured_points(used)
+            r = xp.concatenate(points, axis=-1)
+            c = F.forward_arrays(r, c_des)
+            err, c_rate = self.cluster_rates(c, c_des, c_dot)
+            x_rate = _matvec(xp, F.inverse_jacobian_arrays(c), c_rate)
+            if restricted:  # robot-space control toward INVKIN(c_des) where F cannot express r (seed 000 §3.1)
+                inside = F.reachable(r)
+                r_des = F.inverse_arrays(c_des)
+                ff = 1.0 if self.feedforward else 0.0
+                x_space = ff * _matvec(xp, F.inverse_jacobian_arrays(c_des), c_dot) - \
+                    np.r_[self.k_x, self.k_x] * xp.tanh(r - r_des)
+                x_rate = xp.where(rows(inside), x_rate, x_space)
+                c = xp.where(rows(inside), c, np.nan)
+                err = xp.where(rows(inside), err, np.nan)
+            else:
+                inside = xp.ones(batch, dtype=bool)
+            rates_finite = xp.all(xp.isfinite(x_rate), axis=-1)
+            x_rate = self.walls.limit(points, xp.where(rows(rates_finite), x_rate, 0.0))
+            # -- the commands: the team's actuation, or a brake (no frame, hold, stopped)
+            memory = BebopMemory(state.v_r, state.mem_t, state.v_dot)
+            psi_rate = self.heading.rate(used[..., 2], used[..., 6])  # (4.50)-(4.51), psi_bd = psi_p
+            u_p, _ = p.actuate(used[..., PIONEER_PART], x_rate[..., 0:3], t)
+            u_b, mem = b.actuate(used[..., BEBOP_PART], xp.concatenate([x_rate[..., 3:6], psi_rate[..., None]], axis=-1),
+                                 t, memory)
+            u_b_brake, mem_brake = b.brake(xp.where(rows(none), m, used)[..., BEBOP_PART], memory)
+            brake = none | hold | stopped
+            u = xp.concatenate([xp.where(rows(brake), 0.0, p.saturate(u_p)),
+                                b.saturate(xp.where(rows(brake), u_b_brake, u_b))], axis=-1)
+            v_r = xp.where(rows(brake), mem_brake.v_r, mem.v_r)
+            mem_t = xp.where(brake, mem_brake.t, mem.t)
+            v_dot = xp.where(rows(brake), mem_brake.v_dot, mem.v_dot)
+            # -- the signals; where it holds, the cluster of the robots as they are
+            outside_free = ~F.reachable(r) if restricted else xp.zeros(batch, dtype=bool)
+            braking = none | hold
+            cluster = xp.where(rows(none | (hold & outside_free)), np.nan,
+                               xp.where(rows(hold), F.forward_arrays(r, None), c))
+            one = xp.ones(batch)
+            signals = {
+                "cluster": cluster, "error": xp.where(rows(braking), np.nan, err),
+                "robot_rates": xp.where(rows(braking), 0.0, x_rate),
+                "raw_finite": xp.where(none, 0.0, xp.where(hold, 1.0, rates_finite * one))[..., None],
+                "stopped": (stopped * one)[..., None], "frame": (frame * one)[..., None],
+                "held": (held * one)[..., None],
+                "outside": (xp.where(none, False, xp.where(hold, outside_free, ~inside)) * one)[..., None],
+                "used": xp.where(rows(none), np.nan, used)}
+            # -- what the description refuses (update raises its words)
+            big = ~(xp.max(xp.abs(r), axis=-1) <= MAX_MAGNITUDE)
+            code = xp.where(~none & big & ~(hold & outside_free), 2, 0)
+            if restricted:
+                invertible = xp.broadcast_to(as_floats(ref["invertible"]) > 0, batch)
+                code = xp.where(~none & ~hold & ~inside & ~invertible & (code == 0), 1, code)
+        nxt = UgvUavState(v_r, mem_t, v_dot, stopped, stop_code, stop_t, stop_since, good, good_t, bad_since,
+                          state.reasons, state.max_hold_s)
+        return contract.Tick(nxt, u, signals, code)
 
     def cluster_rates(self, c, c_des, c_dot_des):
-        """Cluster error and rate reference, eqs. (4.43)-(4.45) (:attr:`law`)."""
+        """Cluster error and rate reference, eqs. (4.43)-(4.45) (:attr:`law`), ``(..., n_c)``
+        each (any namespace; one world's on Python floats, as the law is written)."""
         F = self.formation
-        if not concrete(c):  # JAX (traced, (..., n_c)): the law on components
-            e = None if isinstance(F, UgvUavQuaternion) else kern.unpack(F.errors(c, c_des))
-            err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des), e)
-            return kern.pack(err), kern.pack(rate)
-        e = None if isinstance(F, UgvUavQuaternion) else F.errors(c, c_des).tolist()  # angles wrapped
-        err, rate = self.law(c.tolist(), c_des.tolist(), c_dot_des.tolist(), e)
-        return np.array(err), np.array(rate)
-
-    def _brake(self, state, m):
-        """Commands that stop the UGV and brake the UAV to a hover (v_r = 0 in (4.47)), and the
-        state whose compensation memory forgets its reference."""
-        u, memory = self.team.brake(np.asarray(m, dtype=float), state.memory)
-        return self.team.saturate(u), replace(state, memory=memory)
-
-    def screen(self, state: UgvUavState, t: float, m: np.ndarray):
-        """Classify the motion-capture frame ``m`` (11 values) at time ``t``.
-
-        Returns ``(frame, measured, state)``: ``frame`` is ``"good"``, ``"dropped"`` (a NaN or
-        infinity in the poses, the first 7 values) or ``"rejected"`` (the robots within
-        ``min_separation_m`` of each other, or one of them farther from its last good
-        position than its top speed allows in the time since, plus ``jump_margin_m``);
-        ``measured`` is ``m`` if good, else the last good frame, or None if there is none
-        yet; ``state`` remembers the good frame or the start of the run of bad ones.
-        """
-        finite = bool(np.all(np.isfinite(m[MOCAP_PART])))
-        frame = self.mocap.classify(t, self.measured_points(m) if finite else None, finite,
-                                    None if state.good is None else self.measured_points(state.good), state.good_t)
-        if frame == FRAME_GOOD:
-            odo = m[ODOMETRY_PART]
-            if not np.all(np.isfinite(odo)):  # the Bebop's odometry: the last finite one, or rest
-                m = np.r_[m[MOCAP_PART], np.where(np.isfinite(odo), odo,
-                                                  0.0 if state.good is None else state.good[ODOMETRY_PART])]
-            return frame, m, replace(state, good=m.copy(), good_t=t, bad_since=None)
-        if state.bad_since is None:
-            state = replace(state, bad_since=t)
-        return frame, state.good, state
-
-    def _screened(self, state, t, measured):
-        """``(frame, measured to use or None, held, raw measured, state)`` (:meth:`screen`);
-        stops both robots after ``max_hold_s`` without a good frame."""
-        m = np.asarray(measured, dtype=float)
-        if m.shape != (11,):
-            m = as_array(measured, "measured state", 11)
-        frame, used, state = self.screen(state, t, m)
-        if frame != FRAME_GOOD and not state.stopped and self.mocap.expired(t, state.bad_since):
-            state = replace(state, stopped=True, stop_reason=self.stop_reason(t, state.bad_since))
-        if used is None or frame == FRAME_GOOD:
-            return frame, used, False, m, state
-        # the pose is held; the Bebop's own odometry is not from the motion capture
-        odo = m[ODOMETRY_PART]
-        return frame, np.r_[used[MOCAP_PART], np.where(np.isfinite(odo), odo, used[ODOMETRY_PART])], True, m, state
-
-    def stop_reason(self, t: float, bad_since: float) -> str:
-        """Why the screen stopped both robots at ``t`` after bad frames since ``bad_since``, s."""
-        return (f"motion capture: no good frame for {t - bad_since:.3g} s (more than max_hold_s = "
-                f"{self.max_hold_s:g} s) from t = {bad_since:.6g} s; both robots stopped")
-
-    def _step(self, state, u, c, err, x_rate, finite, frame, held, outside, used) -> contract.Step:
-        nan11 = np.full(11, np.nan)
-        return contract.Step(u, state, {
-            "cluster": c, "error": err, "robot_rates": x_rate, "raw_finite": np.array([float(finite)]),
-            "stopped": np.array([float(state.stopped)]), "frame": np.array([float(FRAME_CODES[frame])]),
-            "held": np.array([float(held)]), "outside": np.array([float(outside)]),
-            "used": nan11 if used is None else np.asarray(used, dtype=float)})
-
-    def _braking(self, state, m, c, frame, held=False, outside=False, used=None) -> contract.Step:
-        u, state = self._brake(state, m)
-        return self._step(state, u, c, np.full_like(c, np.nan), np.zeros(6),
-                          used is not None, frame, held, outside, used)
-
-    def _update_one(self, t: float, measured, reference, state: UgvUavState) -> contract.Step:
-        """One step for one world. A dropped (NaN) or implausible motion-capture frame
-        (:meth:`screen`) is replaced by the last good one for up to ``max_hold_s``; without
-        one, or for longer, both robots brake (then stay stopped, :meth:`emergency_stop`).
-        Robots the description cannot express (the restricted one, the UAV below the
-        platform) are driven in robot space toward the reference's robot positions (seed
-        000 §3.1). A reference ``c`` with a NaN: the frame is screened and both robots brake."""
-        F = self.formation
-        nan_c = np.full(F.n_c, np.nan)
-        hold = reference is None
-        if not hold:
-            c_des = np.asarray(reference.c, dtype=float)
-            hold = c_des.shape == (F.n_c,) and bool(np.any(np.isnan(c_des)))
-        if not hold:
-            c_des = as_array(reference.c, "reference.c", F.n_c)
-            c_dot = as_array(reference.c_dot, "reference.c_dot", F.n_c)
-        frame, m, held, raw, state = self._screened(state, t, measured)
-        if m is None:  # nothing to go on: brake (the odometry's velocities where finite)
-            return self._braking(state, raw, nan_c, frame)
-        r = self.team.point(m)  # the Pioneer's control point at z_ugv, the Bebop's position
-        if hold:
-            outside = bool(F.outside(r))
-            return self._braking(state, m, nan_c if outside else F.forward(r), frame, held, outside, m)
-        ff = 1.0 if self.feedforward else 0.0
-        try:
-            c = F.forward(r, near_c=c_des)
-            outside = False
-            err, c_rate = self.cluster_rates(c, c_des, c_dot)
-            x_rate = F.inverse_jacobian_at(c, r=r) @ c_rate  # (4.42)
-        except UnreachableError:
-            # robot-space control (seed 000 §3.1): track INVKIN(c_des) with the position law
-            # of (4.43) on each robot, r_dot = r_dot_des - K_x tanh(r - r_des)
-            c, err, outside = nan_c, nan_c, True
-            r_des = F.inverse(c_des)
-            x_rate = ff * (F.inverse_jacobian_at(c_des, r=r_des) @ c_dot) - np.r_[self.k_x, self.k_x] * np.tanh(r - r_des)
-        finite = bool(np.all(np.isfinite(x_rate)))
-        if not finite:
-            x_rate = np.zeros(6)
-        x_rate = self._keep_inside(m, x_rate)
-        if state.stopped:
-            u, state = self._brake(state, m)
-            return self._step(state, u, c, err, x_rate, finite, frame, held, outside, m)
-        u, state = self._commands(state, t, m, x_rate)
-        return self._step(state, u, c, err, x_rate, finite, frame, held, outside, m)
-
-    def _commands(self, state, t, m, x_rate):
-        """Robot commands for the world rates ``x_rate``: the UAV's yaw rate (4.50)-(4.51) and
-        the team's actuation, (3.5) for the Pioneer, (3.10) and (4.47)-(4.49) for the Bebop."""
-        psi_rate = self.heading.rate(m[2], m[6])  # (4.50)-(4.51), psi_bd = psi_p
-        u, memory = self.team.actuate(m, np.r_[x_rate, psi_rate], t, state.memory)
-        return self.team.saturate(u), replace(state, memory=memory)
+        e = None if isinstance(F, UgvUavQuaternion) else kern.unpack(F.errors(c, c_des))  # angles wrapped
+        err, rate = self.law(kern.unpack(c), kern.unpack(c_des), kern.unpack(c_dot_des), e)
+        return kern.pack(err), kern.pack(rate)
 
     def measured_points(self, m):
         """The robots' positions in the 11 measured values (the Pioneer's at ``z_ugv``), ``(..., 3)``
         each (any namespace)."""
-        if concrete(m):
+        if concrete(m) and np.ndim(m) == 1:
             return (np.array([m[0], m[1], self.z_ugv]), m[3:6])
         xp = common_namespace(m)
         return (xp.concatenate([m[..., 0:2], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
                 m[..., 3:6])
 
-    def _keep_inside(self, m, x_rate):
-        """:attr:`walls` on the robots' world rates."""
-        return self.walls.limit(self.measured_points(m), x_rate)
+
+def _matvec(xp, J, v):
+    """``J v`` per world, ``(..., n, k) (..., k) -> (..., n)``: a stacked ``matmul`` (on NumPy
+    the same sums as one world's ``J @ v`` of a contiguous ``J``)."""
+    if xp is np:
+        J = np.ascontiguousarray(J)
+    return xp.matmul(J, v[..., None])[..., 0]
+
+
+def _broadcast_state(state: UgvUavState, batch: tuple) -> UgvUavState:
+    """``state`` with its arrays broadcast to ``batch`` leading axes (one state for every world)."""
+    if state.batch == tuple(batch):
+        return state
+    tails = {"v_r": (4,), "v_dot": (4,), "good": (11,)}
+    return replace(state, **{k: np.broadcast_to(getattr(state, k), tuple(batch) + tails.get(k, ()))
+                             for k in _ARRAY_FIELDS})
