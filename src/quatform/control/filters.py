@@ -1,7 +1,9 @@
 """Filters around a cluster-space law, as data (control layer).
 
 A filter is a frozen value: its settings are fields, and anything it remembers between
-steps lives in the controller's state, not in the filter.
+steps lives in the controller's state, not in the filter. Each is written once on the array
+namespace of its operands (NumPy, or JAX under ``jax.jit``), branch-free: selections, not
+Python branches on data.
 
 * :class:`MocapScreen`: seed 001's lab — classify a motion-capture frame as good,
   dropped (a NaN or infinity) or rejected (implausible), so the last good frame can stand
@@ -23,7 +25,7 @@ from ..formations import geometry as g
 
 __all__ = ["MocapScreen", "ArenaWalls", "HeadingLaw", "FRAME_GOOD", "FRAME_DROPPED", "FRAME_REJECTED"]
 
-#: What a screen made of a motion-capture frame.
+#: The names of the classes :meth:`MocapScreen.frame_code` gives a motion-capture frame (codes 0, 1, 2).
 FRAME_GOOD, FRAME_DROPPED, FRAME_REJECTED = "good", "dropped", "rejected"
 
 
@@ -54,30 +56,12 @@ class MocapScreen:
             if not (np.isfinite(v) and v > 0):
                 raise InvalidInputError(f"{name} must be a positive number, got {v!r}")
 
-    def classify(self, t: float, points, finite: bool, good_points, good_t):
-        """``FRAME_GOOD``, ``FRAME_DROPPED`` (``finite`` false) or ``FRAME_REJECTED``.
-
-        Parameters
-        ----------
-        t : float
-            Time of the frame, s.
-        points : sequence of ndarray, shape (3,) each
-            The robots' measured positions.
-        finite : bool
-            Whether the frame's poses are all finite.
-        good_points : sequence of ndarray or None
-            The positions of the last good frame (None: none yet).
-        good_t : float or None
-            Its time, s.
-        """
-        if not finite:
-            return FRAME_DROPPED
-        code = self.frame_code(t, points, True, good_points, good_t)
-        return FRAME_GOOD if code == 0 else FRAME_REJECTED
-
     def frame_code(self, t, points, finite, good_points, good_t):
-        """:meth:`classify` as a code, on arrays of any namespace (NumPy, JAX under ``jax.jit``):
-        0 good, 1 dropped, 2 rejected, shape that of ``finite``.
+        """The class of a frame, on arrays of any namespace (NumPy, JAX under ``jax.jit``): 0
+        good (:data:`FRAME_GOOD`), 1 dropped (:data:`FRAME_DROPPED`: a pose not finite), 2
+        rejected (:data:`FRAME_REJECTED`: two robots within ``min_separation_m``, or one
+        farther from its last good position than its top speed allows in the time since, plus
+        ``jump_margin_m``); shape that of ``finite``.
 
         Parameters
         ----------
@@ -107,8 +91,9 @@ class MocapScreen:
                 rejected = rejected | (dist(p, q) > v * dt + self.jump_margin_m)
         return xp.where(finite, xp.where(rejected, 2, 0), 1)
 
-    def expired(self, t: float, bad_since: float) -> bool:
-        """Whether bad frames since ``bad_since`` have lasted longer than ``max_hold_s``."""
+    def expired(self, t, bad_since):
+        """Whether bad frames since ``bad_since`` have lasted longer than ``max_hold_s`` (floats
+        or arrays of any namespace; False where ``bad_since`` is NaN)."""
         return t - bad_since > self.max_hold_s + 1e-9
 
 
@@ -147,8 +132,8 @@ class ArenaWalls:
 
         Parameters
         ----------
-        points : sequence of ndarray, shape (3,) each
-        rates : ndarray, shape (3 N,)
+        points : sequence of arrays, shape (..., 3) each
+        rates : array, shape (..., 3 N)
         """
         xp = common_namespace(rates, *points)
         rates = np.asarray(rates, dtype=float) if xp is np else rates
