@@ -508,11 +508,12 @@ class UgvUavController(ClusterController):
             x_rate = _matvec(xp, F.inverse_jacobian_arrays(c), c_rate)
             if restricted:  # robot-space control toward INVKIN(c_des) where F cannot express r (seed 000 §3.1)
                 inside = F.reachable(r)
-                r_des = F.inverse_arrays(c_des)
-                ff = 1.0 if self.feedforward else 0.0
-                x_space = ff * _matvec(xp, F.inverse_jacobian_arrays(c_des), c_dot) - \
-                    np.r_[self.k_x, self.k_x] * xp.tanh(r - r_des)
-                x_rate = xp.where(rows(inside), x_rate, x_space)
+                if _taken(xp, ~inside):
+                    r_des = F.inverse_arrays(c_des)
+                    ff = 1.0 if self.feedforward else 0.0
+                    x_space = ff * _matvec(xp, F.inverse_jacobian_arrays(c_des), c_dot) - \
+                        np.r_[self.k_x, self.k_x] * xp.tanh(r - r_des)
+                    x_rate = xp.where(rows(inside), x_rate, x_space)
                 c = xp.where(rows(inside), c, np.nan)
                 err = xp.where(rows(inside), err, np.nan)
             else:
@@ -535,8 +536,8 @@ class UgvUavController(ClusterController):
             # -- the signals; where it holds, the cluster of the robots as they are
             outside_free = ~F.reachable(r) if restricted else xp.zeros(batch, dtype=bool)
             braking = none | hold
-            cluster = xp.where(rows(none | (hold & outside_free)), np.nan,
-                               xp.where(rows(hold), F.forward_arrays(r, None), c))
+            c_free = F.forward_arrays(r, None) if _taken(xp, hold) else c  # the robots' cluster where it holds
+            cluster = xp.where(rows(none | (hold & outside_free)), np.nan, xp.where(rows(hold), c_free, c))
             one = xp.ones(batch)
             signals = {
                 "cluster": cluster, "error": xp.where(rows(braking), np.nan, err),
@@ -572,6 +573,13 @@ class UgvUavController(ClusterController):
         xp = common_namespace(m)
         return (xp.concatenate([m[..., 0:2], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
                 m[..., 3:6])
+
+
+def _taken(xp, mask) -> bool:
+    """Whether a branch selected where ``mask`` is computed: always on a traced namespace (JAX:
+    both branches, selected); on NumPy only where some world takes it (the values selected
+    are the same)."""
+    return xp is not np or bool(np.any(mask))
 
 
 def _matvec(xp, J, v):
