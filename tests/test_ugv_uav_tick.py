@@ -1,0 +1,205 @@
+"""The UGV-UAV controller's one pure tick (seed 001 §4.3-4.4, Fig. 18, with the lab's filters).
+
+A scripted run of five worlds, each in other branches at other ticks (good, dropped and
+glitched frames, no frame yet, lost odometry, a hold longer than ``max_hold_s`` and its stop, a
+NaN reference, the restricted description's robot-space fallback, an arena wall, an emergency
+stop and its release): the batched tick equals the per-world ``update``, the run's numbers equal
+the recorded ones (the per-world controller with Python branches it replaces), and ``jax.jit``
+of the tick equals NumPy within 1e-9.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from quatform.control.base import Reference
+from quatform.control.ugv_uav import UgvUavController
+from quatform.formations import UgvUavQuaternion, UgvUavRestricted, UgvUavSpherical
+
+DESCRIPTIONS = {"quaternion": UgvUavQuaternion, "spherical": UgvUavSpherical, "restricted": UgvUavRestricted}
+T, B, DT = 60, 5, 0.03
+STOP_AT, RELEASE_AT = 30, 40
+#: Sums over the scripted run of the per-world controller that branches in Python (the
+#: commands, and the signals with NaN read as 0), recorded from it: ``_sums(_per_world(kind))``.
+RECORDED = {
+    "quaternion": (89.34088143336737, 3970.997374258469),
+    "spherical": (97.93343758941002, 4215.804770778785),
+    "restricted": (94.04958378212689, 3737.4253345302136),
+}
+
+
+def _inputs(F, seed=0):
+    """``(t (T,), measured (T, B, 11), c (T, B, n_c), c_dot (T, B, n_c))``: five worlds."""
+    rng = np.random.default_rng(seed)
+    ts = DT * np.arange(T)
+    ms, cs, cds = np.zeros((T, B, 11)), np.zeros((T, B, F.n_c)), np.zeros((T, B, F.n_c))
+    for k, t in enumerate(ts):
+        t2 = t + 0.5
+        rd = np.array([0.3 * np.cos(0.5 * t2), 0.3 * np.sin(0.5 * t2), 0.0, 0.3 * np.cos(0.5 * t2) + 0.5,
+                       0.3 * np.sin(0.5 * t2) + 0.4, 1.3])
+        c = F.forward(rd)
+        for w in range(B):
+            xp_, yp = 0.3 * np.cos(0.5 * t + w), 0.3 * np.sin(0.5 * t + w)
+            xb, yb, zb = xp_ + 0.4 + 0.1 * np.sin(t), yp + 0.3, 1.2 + 0.2 * np.cos(t)
+            if w == 2:  # at the arena's wall (x_max - margin = 2.7 m)
+                xp_, xb = 2.6 + 0.1 * np.sin(t), 2.75
+            if w == 3 and 20 <= k < 30:  # the UAV below the platform: the restricted fallback
+                zb = -0.3
+            m = np.array([xp_, yp, 0.5 * t + w + np.pi / 2, xb, yb, zb, 0.5 * t, 0.3 * np.sin(t), 0.1, 0.05, 0.2])
+            m[:7] += 0.002 * rng.standard_normal(7)
+            if w == 1 and (k % 7 == 3 or 42 <= k < 56):  # dropped frames, then a loss past max_hold_s
+                m[:7] = np.nan
+            if w == 0 and k % 11 == 5:  # a glitch: rejected
+                m[3] += 2.0
+            if w == 4 and k % 5 == 2:  # the Bebop's odometry lost
+                m[7:9] = np.nan
+            if w == 4 and k < 3:  # no frame yet
+                m[:] = np.nan
+            ms[k, w] = m
+            cs[k, w] = np.nan if (w == 3 and 10 <= k < 15) else c  # w 3: a hold
+            cds[k, w] = 0.05 * np.sin(np.arange(F.n_c) + t) * (0.0 if isinstance(F, UgvUavQuaternion) else 1.0)
+    return ts, ms, cs, cds
+
+
+def _per_world(kind):
+    """Every world alone through ``update`` (batch ``()``): ``(u (T, B, 6), signals {k: (T, B, w)})``."""
+    ctrl = UgvUavController(DESCRIPTIONS[kind](), max_hold_s=0.3)
+    ts, ms, cs, cds = _inputs(ctrl.formation)
+    us, sig = np.zeros((T, B, 6)), {}
+    for w in range(B):
+        st = ctrl.init()
+        for k, t in enumerate(ts):
+            if k == STOP_AT:
+                st = ctrl.emergency_stop(st, "joystick")
+            if k == RELEASE_AT:
+                st = ctrl.release(st)
+            s = ctrl.update(float(t), ms[k, w], Reference(cs[k, w], cds[k, w]), st)
+            st = s.state
+            us[k, w] = s.u
+            for name, v in s.signals.items():
+                sig.setdefault(name, np.zeros((T, B, len(v))))[k, w] = v
+    return us, sig
+
+
+def _sums(run):
+    us, sig = run
+    return float(us.sum()), float(sum(np.nan_to_num(v).sum() for v in sig.values()))
+
+
+def _batched(kind, tick=None):
+    """All worlds in one state through ``update`` (or ``tick`` on ``reference_arrays``)."""
+    ctrl = UgvUavController(DESCRIPTIONS[kind](), max_hold_s=0.3)
+    ts, ms, cs, cds = _inputs(ctrl.formation)
+    st = ctrl.init((B,))
+    us, sig, states = np.zeros((T, B, 6)), {}, []
+    for k, t in enumerate(ts):
+        if k == STOP_AT:
+            st = ctrl.emergency_stop(st, "joystick")
+        if k == RELEASE_AT:
+            st = ctrl.release(st)
+        if tick is None:
+            s = ctrl.update(float(t), ms[k], Reference(cs[k], cds[k]), st)
+        else:
+            s = tick(st, ms[k], ctrl.reference_arrays(Reference(cs[k], cds[k])), t)
+            assert not np.any(np.asarray(s.code))
+        st = s.state
+        states.append(st)
+        us[k] = np.asarray(s.u)
+        for name, v in s.signals.items():
+            sig.setdefault(name, np.zeros((T, B, np.shape(v)[-1])))[k] = np.asarray(v)
+    return (us, sig), states
+
+
+@pytest.mark.parametrize("kind", list(DESCRIPTIONS))
+def test_batched_tick_equals_each_world_alone_and_the_recorded_run(kind):
+    one = _per_world(kind)
+    (us, sig), states = _batched(kind)
+    np.testing.assert_array_equal(us, one[0])
+    for name in sig:
+        np.testing.assert_array_equal(sig[name], one[1][name], err_msg=name)
+    assert _sums(one) == pytest.approx(RECORDED[kind], rel=1e-12)
+    # every branch ran: good, dropped and rejected frames, held frames, no frame yet, a hold
+    frame = sig["frame"][..., 0]
+    assert set(np.unique(frame)) == {0.0, 1.0, 2.0}
+    assert sig["held"][:, 1].sum() > 0 and sig["held"][:, 0].sum() > 0
+    assert np.all(np.isnan(sig["used"][:3, 4])) and np.all(sig["raw_finite"][:3, 4] == 0)
+    assert np.all(np.isnan(sig["error"][10:15, 3])) and np.all(sig["robot_rates"][10:15, 3] == 0)
+    assert np.all(us[10:15, 3, 0:2] == 0)  # the hold brakes the UGV
+    if kind == "restricted":  # the fallback: robot space, no cluster state
+        out = sig["outside"][:, 3, 0] == 1  # once the jump below the platform is plausible
+        assert out.sum() >= 3 and np.all(np.isnan(sig["cluster"][out, 3]))
+        assert np.all(np.isfinite(sig["robot_rates"][out, 3])) and np.any(sig["robot_rates"][out, 3] != 0)
+    # the wall: no rate toward it from the UGV at 2.6 m +- 0.1 (x_max - margin = 2.7 m)
+    assert np.all(sig["robot_rates"][:, 2, 0] <= 1.0 * np.maximum(0.0, 2.7 - sig["used"][:, 2, 0]) + 1e-12)
+    # the emergency stop holds every world until it is released; the screen's stop stays
+    stopped = sig["stopped"][..., 0]
+    assert np.all(stopped[STOP_AT:RELEASE_AT] == 1) and not np.any(stopped[:STOP_AT, [0, 2, 3, 4]])
+    assert np.all(stopped[RELEASE_AT:, [0, 2, 3, 4]] == 0) and stopped[-1, 1] == 1
+    reasons = states[-1].stop_reason
+    assert reasons.shape == (B,) and list(reasons[[0, 2, 3, 4]]) == [""] * 4
+    assert reasons[1].startswith("motion capture: no good frame for 0.33 s (more than max_hold_s = 0.3 s)")
+    assert list(states[STOP_AT].stop_reason) == ["joystick"] * B
+
+
+def test_state_is_arrays_and_its_stop_reason_words():
+    ctrl = UgvUavController(max_hold_s=0.2)
+    st = ctrl.init((2, 3))
+    assert st.good.shape == (2, 3, 11) and st.stopped.shape == (2, 3) and st.memory[1].v_r.shape == (2, 3, 4)
+    one = ctrl.init()
+    assert one.stop_reason == "" and ctrl.emergency_stop(one, "joystick").stop_reason == "joystick"
+    both = ctrl.emergency_stop(ctrl.emergency_stop(one, "a"), "b")
+    assert both.stop_reason == "b" and both.reasons == ("a", "b")
+    assert ctrl.release(both).stop_reason == "" and not ctrl.release(both).stopped
+    assert ctrl.stop_reason(1.0, 0.5) == ("motion capture: no good frame for 0.5 s (more than max_hold_s = 0.2 s) "
+                                          "from t = 0.5 s; both robots stopped")
+
+
+def test_reference_arrays_checks_on_the_host_and_keeps_one_structure():
+    from quatform.errors import InvalidInputError, NonFiniteError, UnreachableError
+
+    ctrl = UgvUavController(UgvUavQuaternion())
+    none = ctrl.reference_arrays(None)
+    c = UgvUavQuaternion().from_chart(np.array([0.0, 0, 0, 1.0, 0.3, 0.5]))
+    some = ctrl.reference_arrays(Reference(c, np.zeros(10)))
+    assert none.keys() == some.keys() and np.all(np.isnan(none["c"]))
+    bad = c.copy()
+    bad[3] = 2.0  # not a unit quaternion: refused as the forward map's hint refuses it
+    with pytest.raises(InvalidInputError, match="near_c"):
+        ctrl.reference_arrays(Reference(bad, np.zeros(10)))
+    with pytest.raises(NonFiniteError, match="reference.c_dot"):
+        ctrl.reference_arrays(Reference(c, np.full(10, np.inf)))
+    ctrl.reference_arrays(Reference(np.full(10, np.nan), np.full(10, np.nan)))  # a hold: nothing to check
+    with pytest.raises(InvalidInputError, match="Reference"):
+        ctrl.reference_arrays(c)
+    # the restricted fallback with a reference it cannot invert: code 1, the description's words
+    R = UgvUavRestricted()
+    ctrl = UgvUavController(R)
+    c_out = np.array([0.0, 0, 0, 1.0, 1.2, 0.1])  # alpha_f = 69 deg: outside the range
+    m = np.array([0.0, 0, 0, 0.3, 0.2, -0.5, 0, 0, 0, 0, 0])  # the UAV below the platform: fallback
+    ref = ctrl.reference_arrays(Reference(c_out, np.zeros(6)))
+    assert not ref["invertible"]
+    assert ctrl.tick(ctrl.init(), m, ref, 0.0).code == 1
+    with pytest.raises(UnreachableError, match="alpha_f = 68.8 deg is outside") as err:
+        ctrl.update(0.0, m, Reference(c_out, np.zeros(6)), ctrl.init())
+    assert "\n" not in str(err.value)
+    m_in = np.array([0.0, 0, 0, 0.3, 0.2, 1.0, 0, 0, 0, 0, 0])  # expressible: the reference is not inverted
+    assert np.all(np.isfinite(ctrl.update(0.0, m_in, Reference(c_out, np.zeros(6)), ctrl.init()).u))
+
+
+@pytest.mark.parametrize("kind", list(DESCRIPTIONS))
+def test_jit_tick_equals_numpy(kind):
+    jax = pytest.importorskip("jax")
+    ctrl = UgvUavController(DESCRIPTIONS[kind](), max_hold_s=0.3)
+    tick = jax.jit(ctrl.tick)
+    with jax.enable_x64(True):
+        (us, sig), states = _batched(kind, tick)
+        leaves = jax.tree_util.tree_leaves(states[-1])
+    (us0, sig0), states0 = _batched(kind)
+    assert len(leaves) == 10
+    np.testing.assert_allclose(us, us0, rtol=0, atol=1e-9)
+    for name in sig:
+        np.testing.assert_array_equal(np.isnan(sig[name]), np.isnan(sig0[name]), err_msg=name)
+        np.testing.assert_allclose(sig[name], sig0[name], rtol=0, atol=1e-9, err_msg=name)
+    assert list(states[-1].stop_reason) == list(states0[-1].stop_reason)
+    np.testing.assert_allclose(np.asarray(states[-1].v_dot), states0[-1].v_dot, rtol=0, atol=1e-9)
