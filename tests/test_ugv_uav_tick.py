@@ -191,7 +191,17 @@ def test_reference_arrays_checks_on_the_host_and_keeps_one_structure():
 def test_jit_tick_equals_numpy(kind):
     jax = pytest.importorskip("jax")
     ctrl = UgvUavController(DESCRIPTIONS[kind](), max_hold_s=0.3)
-    tick = jax.jit(ctrl.tick)
+    from quatform.control.contract import Tick
+
+    def fields(*args):  # a Tick's fields (Tick itself is not a pytree)
+        k = ctrl.tick(*args)
+        return k.state, k.u, dict(k.signals), k.code
+
+    compiled = jax.jit(fields)
+
+    def tick(*args):
+        return Tick(*compiled(*args))
+
     with jax.enable_x64(True):
         (us, sig), states = _batched(kind, tick)
         leaves = jax.tree_util.tree_leaves(states[-1])
