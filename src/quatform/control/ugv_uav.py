@@ -53,9 +53,20 @@ UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
 #: The ``frame`` signal's code of each frame class (:meth:`MocapScreen.frame_code`).
 FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
 #: :attr:`UgvUavState.stop_code` of the screen's stop (no good frame for longer than
-#: ``max_hold_s``); 0 is not stopped, ``2 + i`` the ``i``-th reason given to
-#: :meth:`UgvUavController.emergency_stop` (:attr:`UgvUavState.reasons`).
+#: ``max_hold_s``); 0 is not stopped, ``2 + i`` the ``i``-th distinct reason given to
+#: :meth:`UgvUavController.emergency_stop` in this process (:data:`_STOP_REASONS`).
 STOP_MOTION_CAPTURE = 1
+#: The words of the emergency stops' codes (code ``2 + i`` is ``_STOP_REASONS[i]``): the state
+#: holds arrays only, so an operator's reason is a code.
+_STOP_REASONS: list = []
+
+
+def _stop_code(reason: str) -> int:
+    """The code of an emergency stop's ``reason`` (each distinct reason one code)."""
+    reason = str(reason)
+    if reason not in _STOP_REASONS:
+        _STOP_REASONS.append(reason)
+    return 2 + _STOP_REASONS.index(reason)
 
 
 def motion_capture_stop_reason(t: float, bad_since: float, max_hold_s: float) -> str:
@@ -66,13 +77,13 @@ def motion_capture_stop_reason(t: float, bad_since: float, max_hold_s: float) ->
 
 #: The array fields of :class:`UgvUavState` (its pytree children), in order.
 _ARRAY_FIELDS = ("v_r", "mem_t", "v_dot", "stopped", "stop_code", "stop_t", "stop_since", "good", "good_t",
-                 "bad_since")
+                 "bad_since", "hold_s")
 _REGISTERED = []
 
 
 def _register_pytree() -> None:
-    """Register :class:`UgvUavState` as a JAX pytree (its arrays the children, ``reasons`` and
-    ``max_hold_s`` static), once, where JAX is imported; JAX is never imported here."""
+    """Register :class:`UgvUavState` as a JAX pytree (its arrays the children), once, where JAX
+    is imported; JAX is never imported here."""
     if _REGISTERED or "jax" not in sys.modules:
         return
     import jax
@@ -81,19 +92,17 @@ def _register_pytree() -> None:
         out = object.__new__(UgvUavState)
         for name, v in zip(_ARRAY_FIELDS, children):
             object.__setattr__(out, name, v)
-        object.__setattr__(out, "reasons", aux[0])
-        object.__setattr__(out, "max_hold_s", aux[1])
         return out
 
-    jax.tree_util.register_pytree_node(
-        UgvUavState, lambda s: (tuple(getattr(s, k) for k in _ARRAY_FIELDS), (s.reasons, s.max_hold_s)), unflatten)
+    jax.tree_util.register_pytree_node(UgvUavState, lambda s: (tuple(getattr(s, k) for k in _ARRAY_FIELDS), None),
+                                       unflatten)
     _REGISTERED.append(True)
 
 
 @dataclass(frozen=True)
 class UgvUavState:
-    """The UGV-UAV controller's state between ticks: arrays whose leading axes are the batch's
-    (``batch = ()`` for one world), a JAX pytree once JAX is imported.
+    """The UGV-UAV controller's state between ticks: arrays only, whose leading axes are the
+    batch's (``batch = ()`` for one world); a JAX pytree once JAX is imported.
 
     Attributes
     ----------
@@ -106,7 +115,8 @@ class UgvUavState:
     stopped : bool array, shape (*batch)
         The emergency stop holds (:meth:`UgvUavController.emergency_stop`, or the screen's).
     stop_code : int array, shape (*batch)
-        Why: 0 not stopped, :data:`STOP_MOTION_CAPTURE`, ``2 + i`` for ``reasons[i]``.
+        Why: 0 not stopped, :data:`STOP_MOTION_CAPTURE`, ``>= 2`` a reason given to
+        :meth:`UgvUavController.emergency_stop` (:attr:`stop_reason` has the words).
     stop_t, stop_since : arrays, shape (*batch)
         The time of the screen's stop and the start of the bad frames that caused it, s (NaN).
     good : array, shape (*batch, 11)
@@ -115,10 +125,8 @@ class UgvUavState:
         Its time, s (NaN: none yet).
     bad_since : array, shape (*batch)
         Time of the first bad frame of the current run of them, s (NaN while frames are good).
-    reasons : tuple of str
-        The reasons given to :meth:`UgvUavController.emergency_stop` (static).
-    max_hold_s : float
-        The screen's ``max_hold_s`` (static: the words of its stop).
+    hold_s : array, shape (*batch)
+        The screen's ``max_hold_s``, s (the words of its stop).
     """
 
     v_r: np.ndarray
@@ -131,8 +139,7 @@ class UgvUavState:
     good: np.ndarray
     good_t: np.ndarray
     bad_since: np.ndarray
-    reasons: tuple = ()
-    max_hold_s: float = 0.5
+    hold_s: np.ndarray
 
     def __post_init__(self):
         _register_pytree()
@@ -144,7 +151,8 @@ class UgvUavState:
         nan = np.full(batch, np.nan)
         memory = BebopMemory.start(batch)
         return cls(memory.v_r, memory.t, memory.v_dot, np.zeros(batch, dtype=bool), np.zeros(batch, dtype=np.int64),
-                   nan, nan.copy(), np.full(batch + (11,), np.nan), nan.copy(), nan.copy(), (), float(max_hold_s))
+                   nan, nan.copy(), np.full(batch + (11,), np.nan), nan.copy(), nan.copy(),
+                   np.full(batch, float(max_hold_s)))
 
     @property
     def batch(self) -> tuple:
@@ -155,23 +163,24 @@ class UgvUavState:
         """The team's actuation memory (:meth:`Team.initial_memory`): ``(None, BebopMemory)``."""
         return (None, BebopMemory(self.v_r, self.mem_t, self.v_dot))
 
-    def _reason(self, code, t, since) -> str:
+    @staticmethod
+    def _reason(code, t, since, hold_s) -> str:
         code = int(code)
         if code == 0:
             return ""
         if code == STOP_MOTION_CAPTURE:
-            return motion_capture_stop_reason(float(t), float(since), self.max_hold_s)
-        return self.reasons[code - 2]
+            return motion_capture_stop_reason(float(t), float(since), float(hold_s))
+        return _STOP_REASONS[code - 2]
 
     @property
     def stop_reason(self):
         """Why both robots are stopped ("" when not): a str, or an object array of them for a batch."""
-        code, t, since = (np.asarray(a) for a in (self.stop_code, self.stop_t, self.stop_since))
+        code, t, since, hold = (np.asarray(a) for a in (self.stop_code, self.stop_t, self.stop_since, self.hold_s))
         if code.ndim == 0:
-            return self._reason(code, t, since)
+            return self._reason(code, t, since, hold)
         out = np.empty(code.shape, dtype=object)
         for i in np.ndindex(code.shape):
-            out[i] = self._reason(code[i], t[i], since[i])
+            out[i] = self._reason(code[i], t[i], since[i], hold[i])
         return out
 
     def replace(self, **changes) -> UgvUavState:
@@ -307,16 +316,15 @@ class UgvUavController(ClusterController):
         """``state`` with both robots halted until :meth:`release` (every world of a batch): the
         UGV stops, the UAV brakes to a hover (the compensation law with a zero velocity
         reference, rate ``L_d``); ``state.stop_reason`` is ``reason``."""
-        reasons = state.reasons if reason in state.reasons else state.reasons + (str(reason),)
-        code = 2 + reasons.index(reason)
-        return replace(state, stopped=np.ones(state.batch, dtype=bool), stop_code=np.full(state.batch, code),
-                       stop_t=np.full(state.batch, np.nan), stop_since=np.full(state.batch, np.nan), reasons=reasons)
+        return replace(state, stopped=np.ones(state.batch, dtype=bool),
+                       stop_code=np.full(state.batch, _stop_code(reason), dtype=np.int64),
+                       stop_t=np.full(state.batch, np.nan), stop_since=np.full(state.batch, np.nan))
 
     def release(self, state):
         """``state`` with the emergency stop released and the derivative of (4.47) restarted
         (the last good frame is kept)."""
         fresh = UgvUavState.start(state.batch, self.max_hold_s)
-        return replace(fresh, good=state.good, good_t=state.good_t, reasons=state.reasons)
+        return replace(fresh, good=state.good, good_t=state.good_t)
 
     def stop_reason(self, t: float, bad_since: float) -> str:
         """Why the screen stopped both robots at ``t`` after bad frames since ``bad_since``, s."""
@@ -555,7 +563,7 @@ class UgvUavController(ClusterController):
                 invertible = xp.broadcast_to(as_floats(ref["invertible"]) > 0, batch)
                 code = xp.where(~none & ~hold & ~inside & ~invertible & (code == 0), 1, code)
         nxt = UgvUavState(v_r, mem_t, v_dot, stopped, stop_code, stop_t, stop_since, good, good_t, bad_since,
-                          state.reasons, state.max_hold_s)
+                          state.hold_s)
         return contract.Tick(nxt, u, signals, code)
 
     def cluster_rates(self, c, c_des, c_dot_des):
