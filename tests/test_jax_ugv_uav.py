@@ -36,8 +36,8 @@ def assert_equal_runs(exp):
         np.testing.assert_allclose(y, x, rtol=0, atol=1e-9, equal_nan=True, err_msg=name)
         assert a.columns(name) == b.columns(name)
     sa, sb = a.meta["controller_state"], b.meta["controller_state"]
-    assert (sa.stopped, sa.stop_reason, sa.good_t is None, sa.bad_since is None) == \
-        (sb.stopped, sb.stop_reason, sb.good_t is None, sb.bad_since is None)
+    assert (bool(sa.stopped), sa.stop_reason, bool(np.isnan(sa.good_t)), bool(np.isnan(sa.bad_since))) == \
+        (bool(sb.stopped), sb.stop_reason, bool(np.isnan(sb.good_t)), bool(np.isnan(sb.bad_since)))
     np.testing.assert_allclose(sb.memory[1].v_dot, sa.memory[1].v_dot, rtol=0, atol=1e-9)
     assert a.meta["stop_reason"] == b.meta["stop_reason"] and a.meta["stopped_at"] == b.meta["stopped_at"]
     ma, mb = exp.metrics(a), exp.metrics(b)
