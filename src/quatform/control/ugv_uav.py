@@ -200,7 +200,9 @@ class UgvUavController(ClusterController):
     :class:`~quatform.control.cluster.ClusterController` of a UGV-UAV description, the tanh
     law (4.43)-(4.45), the Pioneer-Bebop team and three filters (``filters``: the
     motion-capture screen, the arena walls, the UAV's heading law), with a state
-    (:class:`UgvUavState`) threaded through :meth:`update`. Frozen, as every controller.
+    (:class:`UgvUavState`, arrays) threaded through one pure, branch-free :meth:`tick` on the
+    array namespace (NumPy, or JAX under ``jax.jit``); :meth:`update` is the host checks and
+    :meth:`tick`. Frozen, as every controller.
 
     Parameters
     ----------
@@ -533,8 +535,8 @@ class UgvUavController(ClusterController):
             memory = BebopMemory(state.v_r, state.mem_t, state.v_dot)
             psi_rate = self.heading.rate(used[..., 2], used[..., 6])  # (4.50)-(4.51), psi_bd = psi_p
             u_p, _ = p.actuate(used[..., PIONEER_PART], x_rate[..., 0:3], t)
-            u_b, mem = b.actuate(used[..., BEBOP_PART], xp.concatenate([x_rate[..., 3:6], psi_rate[..., None]], axis=-1),
-                                 t, memory)
+            rate_b = xp.concatenate([x_rate[..., 3:6], psi_rate[..., None]], axis=-1)
+            u_b, mem = b.actuate(used[..., BEBOP_PART], rate_b, t, memory)
             u_b_brake, mem_brake = b.brake(xp.where(rows(none), m, used)[..., BEBOP_PART], memory)
             brake = none | hold | stopped
             u = xp.concatenate([xp.where(rows(brake), 0.0, p.saturate(u_p)),
