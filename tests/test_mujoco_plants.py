@@ -125,4 +125,4 @@ def test_ugv_uav_plant_under_the_seed_001_controller_through_simulate():
     assert x[0, 5] == pytest.approx(floor + IRIS.leg_height, abs=1e-3)
     assert x[-1, 5] > x[0, 5] + 0.5  # it took off (the reference is 1.5 m above the platform)
     assert physics_metrics(plant)["collisions"]["count"] == 0
-    assert log.meta["controller_state"].stopped is False
+    assert not log.meta["controller_state"].stopped and log.meta["controller_state"].stop_reason == ""
