@@ -83,7 +83,9 @@ _REGISTERED = []
 
 def _register_pytree() -> None:
     """Register :class:`UgvUavState` as a JAX pytree (its arrays the children), once, where JAX
-    is imported; JAX is never imported here."""
+    is imported; JAX is never imported here. Called wherever a state is made and by
+    :meth:`UgvUavController.reference_arrays` (a driver asks for the references before it
+    compiles the tick)."""
     if _REGISTERED or "jax" not in sys.modules:
         return
     import jax
@@ -182,10 +184,6 @@ class UgvUavState:
         for i in np.ndindex(code.shape):
             out[i] = self._reason(code[i], t[i], since[i], hold[i])
         return out
-
-    def replace(self, **changes) -> UgvUavState:
-        """This state with ``changes`` (a frozen dataclass' ``replace``)."""
-        return replace(self, **changes)
 
 
 def _positive(values, n, name):
@@ -311,7 +309,6 @@ class UgvUavController(ClusterController):
     def init(self, batch: tuple = ()):
         """The state before the first tick (:meth:`UgvUavState.start`): no previous reference
         or frame, not stopped; arrays with ``batch`` leading axes."""
-        _register_pytree()
         return UgvUavState.start(batch, self.max_hold_s)
 
     def emergency_stop(self, state, reason: str = "emergency stop"):
@@ -356,6 +353,7 @@ class UgvUavController(ClusterController):
         ------
         InvalidInputError, ShapeError, NonFiniteError
         """
+        _register_pytree()  # a driver asks for the references before it compiles the tick
         F = self.formation
         n_c = F.n_c
         if reference is None:
