@@ -373,16 +373,19 @@ class UgvUavController(ClusterController):
         c, cd = np.broadcast_to(c, batch + (n_c,)), np.broadcast_to(cd, batch + (n_c,))
         hold = np.any(np.isnan(c), axis=-1)
         used = ~hold
-        worlds = [tuple(int(k) for k in i) for i in np.argwhere(used)]  # each world's own words
+
+        def worlds():  # each world's own words, in order
+            return [tuple(int(k) for k in i) for i in np.argwhere(used)]
+
         if np.any(used & ~(np.all(np.isfinite(c), axis=-1) & np.all(np.isfinite(cd), axis=-1))):
-            for i in worlds:
+            for i in worlds():
                 as_array(c[i], "reference.c", n_c)
                 as_array(cd[i], "reference.c_dot", n_c)
-        if isinstance(F, UgvUavQuaternion) and worlds:
+        if isinstance(F, UgvUavQuaternion) and np.any(used):
             try:
-                F.check_cluster_state(c[used], "near_c")
+                F.check_cluster_state(c if used.all() else c[used], "near_c")
             except QuatformError:
-                for i in worlds:
+                for i in worlds():
                     F.check_cluster_state(c[i], "near_c")
         invertible = np.ones(batch, dtype=bool)
         if isinstance(F, UgvUavRestricted):
