@@ -13,7 +13,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "quatform"
 
 #: Layer of each top-level package or module of quatform (higher imports lower, never the reverse).
 LAYERS = {
-    "errors": 0, "checks": 0, "tomlio": 0, "papers": 0,
+    "errors": 0, "checks": 0, "tomlio": 0, "papers": 0, "registry": 0,
     "algebra": 1, "messages": 1,
     "formations": 2, "planning": 2, "teleop": 2,
     "robots": 3,
