@@ -63,12 +63,13 @@ class Registry(dict):
         return decorate
 
 
-def import_package_modules(package: str, path, skip: tuple = ()) -> None:
-    """Import every module of ``package`` (its ``__path__`` ``path``) but ``skip``, so the
-    entries its modules define register themselves (a new module needs no import list)."""
+def import_package_modules(package: str, path, skip: tuple = (), suffix: str = "") -> None:
+    """Import every module of ``package`` (its ``__path__`` ``path``) whose name ends with
+    ``suffix``, but ``skip``, so the entries its modules define register themselves (a new
+    module needs no import list)."""
     import importlib
     import pkgutil
 
     for info in sorted(pkgutil.iter_modules(path), key=lambda i: i.name):
-        if info.name not in skip and not info.name.startswith("_"):
+        if info.name not in skip and not info.name.startswith("_") and info.name.endswith(suffix):
             importlib.import_module(f"{package}.{info.name}")

@@ -36,7 +36,7 @@ from pathlib import Path
 
 from .checks import nearest
 from .errors import InvalidInputError
-from .report import FIGURES
+from .report import figures_of
 from .report.writers import write_json, write_metrics, write_timeseries
 from .scenarios import Option, kind_of, load_scenario
 from .sim.backends import simulator
@@ -109,7 +109,7 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     write_timeseries(log, folder / "timeseries.csv", experiment.csv_channels)
     if plots:
-        FIGURES[kind.name].run(log, folder)
+        figures_of(kind.name).run(log, folder)
     _picture(log, folder, plots, metrics)
     if mcap:
         from .bags import MCAP_FILE, SCENES, scene_of, write_foxglove_layout, write_mcap
@@ -312,7 +312,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
             logs.append(log)
             rows.append({axis: value, **metrics})
         if plots:
-            FIGURES[kind.name].compare(logs, tmp)
+            figures_of(kind.name).compare(logs, tmp)
         table = format_table(rows, columns)
         left = "".join(f"\nNot run: {value} ({why})\n" for value, why in skipped.items())
         atomic_write_text(tmp / "comparison.md",

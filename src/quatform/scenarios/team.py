@@ -766,5 +766,4 @@ def _reading(F, reader, r, c, reading_des):
 
 
 #: The team kind (registered in :data:`quatform.scenarios.KINDS`).
-TEAM = TeamKind()
-KINDS[TEAM.name] = TEAM
+TEAM = KINDS[TeamKind.name]
