@@ -133,6 +133,9 @@ class Bebop(RobotModel):
     point_kind = "xyz"
     state_columns = ("x", "y", "z", "psi", "v_x", "v_y", "z_dot", "psi_dot")
     command_columns = ("u_x", "u_y", "u_z", "u_psi")
+    #: Units of its state and command columns: its commands are fractions of their limits (eq. (3.10)).
+    column_units = {"x": "m", "y": "m", "z": "m", "psi": "rad", "v_x": "m/s", "v_y": "m/s", "z_dot": "m/s",
+                    "psi_dot": "rad/s", "u_x": "-", "u_y": "-", "u_z": "-", "u_psi": "-"}
     #: Entries of the rate :meth:`actuate` takes: the position's world rate and the yaw rate.
     n_rate = 4
     #: Its commands are body-frame fractions through the dynamic compensation, not its rates.

@@ -72,6 +72,8 @@ class FreeBodyRobot(RobotModel):
     point_kind = "pose"
     state_columns = ("x", "y", "z", "q_w", "q_x", "q_y", "q_z")
     command_columns = ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z")
+    column_units = {"x": "m", "y": "m", "z": "m", "q_w": "-", "q_x": "-", "q_y": "-", "q_z": "-", "v_x": "m/s",
+                    "v_y": "m/s", "v_z": "m/s", "w_x": "rad/s", "w_y": "rad/s", "w_z": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the pose point's (position and quaternion rates).
     n_rate = 7
     #: Its commands are not its point's rates (an angular velocity, not a quaternion rate).

@@ -57,6 +57,8 @@ class HolonomicRobot(RobotModel):
     point_kind = "xyz_yaw"
     state_columns = ("x", "y", "z", "theta")
     command_columns = ("v_x", "v_y", "v_z", "omega_z")
+    column_units = {"x": "m", "y": "m", "z": "m", "theta": "rad", "v_x": "m/s", "v_y": "m/s", "v_z": "m/s",
+                    "omega_z": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the point's.
     n_rate = 4
     #: Its commands are its point's rates (a controller may skip :meth:`actuate`).

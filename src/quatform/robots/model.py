@@ -36,7 +36,7 @@ import numpy as np
 
 from ..registry import Registry
 
-__all__ = ["RobotModel", "ROBOT_MODELS", "file_models"]
+__all__ = ["RobotModel", "ROBOT_MODELS", "file_models", "column_unit"]
 
 #: Every robot model class by its :attr:`RobotModel.name` (filled when a subclass is defined).
 ROBOT_MODELS = Registry("robot model")
@@ -65,6 +65,8 @@ class RobotModel:
     limit_keys: ClassVar[tuple] = ()
     #: Its ROS 2 conversions (None: the bridge does not drive it).
     ros_io: ClassVar[Any] = None
+    #: The unit of each of its state and command columns (``"-"``: dimensionless).
+    column_units: ClassVar[dict] = {}
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -92,6 +94,12 @@ class RobotModel:
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` s of the (saturated) command ``u``."""
         raise NotImplementedError
+
+
+def column_unit(model, column: str) -> str:
+    """The unit of ``model``'s state or command ``column`` (its class's :attr:`RobotModel.column_units`;
+    ``"-"``: dimensionless or unknown)."""
+    return getattr(model, "column_units", {}).get(column, "-")
 
 
 def file_models() -> dict:

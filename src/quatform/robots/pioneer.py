@@ -82,6 +82,7 @@ class Pioneer(RobotModel):
     name = "pioneer"
     state_columns = ("x", "y", "psi")
     command_columns = ("v", "omega")
+    column_units = {"x": "m", "y": "m", "psi": "rad", "v": "m/s", "omega": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the point's (its z rate is ignored).
     n_rate = 3
     #: Its commands are not its point's rates (eq. (3.5) maps them).

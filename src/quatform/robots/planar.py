@@ -58,6 +58,7 @@ class PlanarHolonomicRobot(RobotModel):
     point_kind = "xy_yaw"
     state_columns = ("x", "y", "theta")
     command_columns = ("v_x", "v_y", "omega_z")
+    column_units = {"x": "m", "y": "m", "theta": "rad", "v_x": "m/s", "v_y": "m/s", "omega_z": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the point's.
     n_rate = 3
     #: Its commands are its point's rates (a controller may skip :meth:`actuate`).
