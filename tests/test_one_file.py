@@ -23,6 +23,7 @@ from quatform.formations import FORMATION_TYPES, FORMATIONS
 from quatform.formations.testing import check_formation
 from quatform.outputs import WRITERS, add_output_flags, output_choices
 from quatform.robots import ROBOT_MODELS, file_models
+from quatform.robots.testing import check_robot_model
 from quatform.scenarios import KINDS, load_scenario
 from quatform.sweeps import PARAMETERS
 
@@ -319,6 +320,7 @@ def test_a_robot_model_is_one_file(tmp_path, registries):
     assert ROBOT_MODELS["toy-point"] is module.ToyPoint and file_models()["toy-point"] is module.ToyPoint
     # the ROS 2 bridge's conversions and the replay figure's units come with it
     model = module.ToyPoint()
+    check_robot_model(model)  # the contract every registered model passes
     assert robot_io(model).kind == "toy point"
     pose = PoseSample(0.0, np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.0, 0.0, 0.0]))
     assert robot_io(model).state(model, pose, None).tolist() == [1.0, 2.0, 3.0]
