@@ -40,7 +40,8 @@ def column_unit(column: str, model=None) -> str:
     ``model``: the first registered model's that has the column; ``"-"``: dimensionless or unknown)."""
     if model is not None:
         return robot_column_unit(model, column)
-    return next((cls.column_units[column] for cls in ROBOT_MODELS.values() if column in cls.column_units), "-")
+    return next((cls.column_units[column] for cls in ROBOT_MODELS.values()
+                 if isinstance(cls.column_units, dict) and column in cls.column_units), "-")
 
 
 def _groups(model, columns) -> dict:

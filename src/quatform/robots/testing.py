@@ -5,7 +5,8 @@ Robots layer (test support). ``check_robot_model(model)`` checks what every mode
 checked as soon as its module is imported): its point has the size of its ``point_kind``;
 ``actuate`` gives one command per command column and a batch equals a loop; ``saturate``
 turns a non-finite command into a stop; ``step`` keeps the state's shape; ``brake`` stops
-it; a team file's entry builds it (``from_file`` of each of its ``file_names`` with no
+it (the actuation and the batch for a team member, a model with ``n_rate``); a team
+file's entry builds it (``from_file`` of each of its ``file_names`` with no
 limits given); its ROS 2 conversions turn a pose into a state of its columns; every column
 has a unit.
 """
@@ -41,10 +42,14 @@ def check_robot_model(model: RobotModel, rng=None) -> None:
     x = rng.uniform(0.1, 0.9, nx)
     p = model.point(x)
     assert p.shape == (POINT_KINDS[model.point_kind].size,), f"{name}: point shape {p.shape}"
+    assert model.saturate(np.full(nu, np.nan)).tolist() == [0.0] * nu, f"{name}: a NaN command does not stop it"
+    assert model.step(x, np.full(nu, 0.1), 0.01).shape == x.shape, f"{name}: step changes the state's shape"
+    missing = [c for c in (*model.state_columns, *model.command_columns) if c not in model.column_units]
+    assert not missing, f"{name}: column_units lacks {missing}"
+    if not hasattr(model, "n_rate"):  # not a team member (the teleoperation arms: torque-commanded)
+        return
     u, _ = model.actuate(x, np.full(model.n_rate, 0.3), 0.0, model.initial_memory())
     assert u.shape == (nu,), f"{name}: actuate gives {u.shape}, not ({nu},)"
-    assert model.saturate(np.full(nu, np.nan)).tolist() == [0.0] * nu, f"{name}: a NaN command does not stop it"
-    assert model.step(x, u, 0.01).shape == x.shape, f"{name}: step changes the state's shape"
     stop, _ = model.brake(x, model.initial_memory())
     assert np.all(model.saturate(stop) == 0.0) or np.all(np.isfinite(stop)), f"{name}: brake is not finite"
     X = rng.uniform(-1, 1, (4, nx))
@@ -65,5 +70,3 @@ def check_robot_model(model: RobotModel, rng=None) -> None:
         assert np.shape(state) == (nx,), f"{name}: ros_io.state gives {np.shape(state)}, not ({nx},)"
         lin, ang = io.body_twist(model, u, state, pose.quaternion)
         assert np.shape(lin) == np.shape(ang) == (3,), f"{name}: ros_io.body_twist shapes"
-    missing = [c for c in (*model.state_columns, *model.command_columns) if c not in type(model).column_units]
-    assert not missing, f"{name}: column_units lacks {missing}"
