@@ -13,11 +13,11 @@ entry, a module imported again, replaces it).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from .errors import InvalidInputError
 
-__all__ = ["Registry", "import_package_modules"]
+__all__ = ["Registry", "RegistryView", "import_package_modules"]
 
 
 def _origin(value) -> tuple:
@@ -61,6 +61,34 @@ class Registry(dict):
             return self.add(key, value)
 
         return decorate
+
+
+class RegistryView(Mapping):
+    """A read-only mapping derived from registries, computed on each use (so it follows them).
+
+    Parameters
+    ----------
+    build : callable ``() -> dict``
+        The mapping as it is now (e.g. the team classes among the formation types).
+    what : str
+        Its name, for ``repr``.
+    """
+
+    def __init__(self, build: Callable[[], dict], what: str):
+        self._build = build
+        self.what = what
+
+    def __getitem__(self, key):
+        return self._build()[key]
+
+    def __iter__(self):
+        return iter(self._build())
+
+    def __len__(self):
+        return len(self._build())
+
+    def __repr__(self):
+        return f"{self.what}({', '.join(map(str, self._build()))})"
 
 
 def import_package_modules(package: str, path, skip: tuple = (), suffix: str = "") -> None:

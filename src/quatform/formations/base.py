@@ -35,7 +35,7 @@ from ..algebra.angles import wrap_entries
 from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
-from ..registry import Registry
+from ..registry import Registry, RegistryView
 from .layout import POINT_KINDS, RobotLayout, Variable
 from .special_sets import SpecialSet
 
@@ -469,58 +469,25 @@ class Formation(ABC):
         return self.layout.compose((p - centre) / L, self.layout.yaws(r), self.layout.orientations(r))
 
 
-class _Examples(Mapping):
-    """Every registered description's :meth:`Formation.examples` by key, built on first use
-    (and again when a description is registered later)."""
-
-    def __init__(self):
-        self._built: dict[type, dict] = {}
-
-    def _all(self) -> dict:
-        out = {}
-        for cls in list(FORMATION_TYPES.values()):
-            if cls not in self._built:
-                self._built[cls] = cls.examples()
-            out.update(self._built[cls])
-        return out
-
-    def __getitem__(self, key):
-        return self._all()[key]
-
-    def __iter__(self):
-        return iter(self._all())
-
-    def __len__(self):
-        return len(self._all())
-
-    def __repr__(self):
-        return f"FORMATIONS({', '.join(self._all())})"
+_EXAMPLES: dict[type, dict] = {}
 
 
-class _Teams(Mapping):
-    """The registered team description classes (:attr:`Formation.team`) by key."""
-
-    def _all(self) -> dict:
-        return {k: c for k, c in FORMATION_TYPES.items() if c.team}
-
-    def __getitem__(self, key):
-        return self._all()[key]
-
-    def __iter__(self):
-        return iter(self._all())
-
-    def __len__(self):
-        return len(self._all())
-
-    def __repr__(self):
-        return f"TEAM_FORMATIONS({', '.join(self._all())})"
+def _examples() -> dict:
+    """Every registered description's :meth:`Formation.examples` by key (each class's built once)."""
+    out = {}
+    for cls in list(FORMATION_TYPES.values()):
+        if cls not in _EXAMPLES:
+            _EXAMPLES[cls] = cls.examples()
+        out.update(_EXAMPLES[cls])
+    return out
 
 
 #: Every description by a unique key (the examples of :data:`FORMATION_TYPES`): the two-robot
 #: ones of seed 000 by their name (``euclidean``, ``robot``, ``quaternion``,
 #: ``dual-quaternion``), the UGV-UAV ones of seed 001 as ``ugv-uav-<name>``, the team ones
 #: on a mixed layout each.
-FORMATIONS: Mapping = _Examples()
+FORMATIONS: Mapping = RegistryView(_examples, "FORMATIONS")
 #: The team descriptions (N robots of any point kinds) by key, as classes:
 #: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
-TEAM_FORMATIONS: Mapping = _Teams()
+TEAM_FORMATIONS: Mapping = RegistryView(lambda: {k: c for k, c in FORMATION_TYPES.items() if c.team},
+                                          "TEAM_FORMATIONS")

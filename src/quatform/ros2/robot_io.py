@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..registry import RegistryView
 from ..robots import ROBOT_MODELS
 from ..robots.ros_io import RobotIO, heading_rotate
 from ..sim.plants import KinematicTeam
@@ -50,24 +51,9 @@ class PoseSample:
     twist: tuple | None = None
 
 
-class _RobotIOs(Mapping):
-    """The :class:`RobotIO` of every registered robot model class that has one (a live view)."""
-
-    def _all(self) -> dict:
-        return {cls: cls.ros_io for cls in ROBOT_MODELS.values() if cls.ros_io is not None}
-
-    def __getitem__(self, cls):
-        return self._all()[cls]
-
-    def __iter__(self):
-        return iter(self._all())
-
-    def __len__(self):
-        return len(self._all())
-
-
 #: The conversions of each robot model class (its ``ros_io``).
-ROBOT_IO: Mapping = _RobotIOs()
+ROBOT_IO: Mapping = RegistryView(
+    lambda: {cls: cls.ros_io for cls in ROBOT_MODELS.values() if cls.ros_io is not None}, "ROBOT_IO")
 
 
 def robot_io(model) -> RobotIO:

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import InvalidInputError, QuatformError, ResourceLimitError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair
 from ..sim.trial_measurement import TickMeasurement
-from ..registry import Registry
+from ..registry import Registry, RegistryView
 from ..tomlio import read_toml
 from .spec import PARAMETERS
 
@@ -108,25 +108,14 @@ SWEEP_KINDS.add("pair", PairSweep("pair"))
 SWEEP_KINDS.add("team", SweepKind("team"))
 
 
-class _NotSweepable(Mapping):
-    """Why the other kinds cannot be swept yet (one line each): each kind's ``not_sweepable``."""
+def _not_sweepable() -> dict:
+    from ..scenarios import KINDS
 
-    def _all(self) -> dict:
-        from ..scenarios import KINDS
-
-        return {name: k.not_sweepable for name, k in KINDS.items() if k.not_sweepable and name not in SWEEP_KINDS}
-
-    def __getitem__(self, key):
-        return self._all()[key]
-
-    def __iter__(self):
-        return iter(self._all())
-
-    def __len__(self):
-        return len(self._all())
+    return {name: k.not_sweepable for name, k in KINDS.items() if k.not_sweepable and name not in SWEEP_KINDS}
 
 
-NOT_SWEEPABLE: Mapping = _NotSweepable()
+#: Why the other kinds cannot be swept yet (one line each): each kind's ``not_sweepable``.
+NOT_SWEEPABLE: Mapping = RegistryView(_not_sweepable, "NOT_SWEEPABLE")
 
 
 # --------------------------------------------------------------------------- one cell
