@@ -15,9 +15,11 @@ names its :class:`ScenarioKind` (``pair`` when absent: seed 000's two robots). A
   :func:`quatform.sim.simulate` runs, and what to compute from the resulting log (derived
   channels and metrics).
 
-Figures and writers are the report layer's (above this one): :data:`quatform.report.FIGURES`
-maps a kind's name to its figure functions. The generic run and compare of
-:mod:`quatform.runs` know nothing else about a kind.
+A subclass registers one instance of itself in :data:`KINDS` when it is defined, and says
+whether a sweep can batch it (:attr:`ScenarioKind.not_sweepable`). Its figures and its bag
+scene are registered beside their functions (:data:`quatform.report.FIGURES`,
+:data:`quatform.bags.scene.SCENES`; a kind in one file adds both there). The generic run and
+compare of :mod:`quatform.runs` know nothing else about a kind.
 """
 
 from __future__ import annotations
