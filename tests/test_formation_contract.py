@@ -3,8 +3,9 @@
 ``quatform.formations.testing.check_formation`` checks round trips, the rate maps against
 central differences and against each other, dense Jacobians = rate maps, batch = single,
 sign and yaw-wrap invariance and the declared behaviour at and near each special set;
-here it runs over :data:`quatform.formations.FORMATIONS`, so a new description is checked
-by adding it there. The seeds' own numbers and the external oracles stay in
+here it runs over :data:`quatform.formations.FORMATIONS` (the examples of every description
+class registered in ``FORMATION_TYPES`` when it is defined), so a new description is checked
+as soon as its module is imported. The seeds' own numbers and the external oracles stay in
 ``test_formations.py``, ``test_ugv_uav.py`` and ``test_oracles.py``.
 """
 
@@ -18,19 +19,24 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from quatform.errors import InvalidInputError
-from quatform.formations import FORMATIONS, TEAM_FORMATIONS, Formation, RobotLayout, TeamChart
+from quatform.formations import FORMATION_TYPES, FORMATIONS, TEAM_FORMATIONS, Formation, RobotLayout, TeamChart
 from quatform.formations.testing import check_formation, cluster_distance
 
 KEYS = sorted(FORMATIONS)
 
 
+def _subclasses(cls):
+    for sub in cls.__subclasses__():
+        yield sub
+        yield from _subclasses(sub)
+
+
 def test_registry_covers_every_description():
     """Every concrete Formation subclass of the package is registered once, under a unique key."""
-    import quatform.formations as pkg
-
-    classes = {obj for obj in vars(pkg).values()
-               if isinstance(obj, type) and issubclass(obj, Formation) and obj is not Formation}
-    assert classes == {type(F) for F in FORMATIONS.values()}
+    classes = {c for c in _subclasses(Formation) if c.__module__.startswith("quatform.formations.")
+               and not c.__name__.startswith("_")}
+    assert classes == {type(F) for F in FORMATIONS.values() if type(F).__module__.startswith("quatform.")}
+    assert set(FORMATION_TYPES.values()) >= classes
     assert len({type(F) for F in FORMATIONS.values()}) >= 8
     assert {k: type(FORMATIONS[k]) for k in TEAM_FORMATIONS} == TEAM_FORMATIONS  # the team classes, once each
 

@@ -13,7 +13,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "quatform"
 
 #: Layer of each top-level package or module of quatform (higher imports lower, never the reverse).
 LAYERS = {
-    "errors": 0, "checks": 0, "tomlio": 0, "papers": 0,
+    "errors": 0, "checks": 0, "tomlio": 0, "papers": 0, "registry": 0,
     "algebra": 1, "messages": 1,
     "formations": 2, "planning": 2, "teleop": 2,
     "robots": 3,
@@ -21,7 +21,7 @@ LAYERS = {
     "sim": 5,
     "scenarios": 6,
     "report": 7, "bags": 7,
-    "runs": 8, "plan_runs": 8, "sweeps": 8, "ros2": 8, "cli": 8,
+    "runs": 8, "plan_runs": 8, "sweeps": 8, "ros2": 8, "cli": 8, "outputs": 8,
 }
 #: Modules of a package that sit in another layer than the package (the longest dotted prefix
 #: of a module in LAYERS or here decides): the teleoperation package holds the arms'

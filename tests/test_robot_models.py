@@ -9,25 +9,29 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from quatform.errors import InvalidInputError
-from quatform.robots import Bebop, BebopMemory, HolonomicRobot, Pioneer, RobotModel, Team, yaw_matrix
+from quatform.robots import ROBOT_MODELS, Bebop, BebopMemory, HolonomicRobot, Pioneer, RobotModel, Team, yaw_matrix
+from quatform.robots.testing import check_robot_model
 
-MODELS = [HolonomicRobot(), Pioneer(z=0.2), Bebop()]
+#: One default instance of every registered model class (each registers itself when defined).
+MODELS = [cls() for cls in ROBOT_MODELS.values()]
 finite = st.floats(-3.0, 3.0)
 
 
 @pytest.mark.parametrize("robot", MODELS, ids=lambda r: r.name)
 def test_every_model_implements_the_protocol(robot):
-    assert isinstance(robot, RobotModel)
-    x = np.linspace(0.1, 0.9, len(robot.state_columns))
-    p = robot.point(x)
-    assert p.shape == (3 if robot.point_kind == "xyz" else 4,)
-    u, _ = robot.actuate(x, np.full(robot.n_rate, 0.3), 0.0, robot.initial_memory())
-    assert u.shape == (len(robot.command_columns),)
-    assert robot.saturate(np.full(len(robot.command_columns), np.nan)).tolist() == [0.0] * len(robot.command_columns)
-    assert robot.step(x, u, 0.01).shape == x.shape
+    assert isinstance(robot, RobotModel) and ROBOT_MODELS[robot.name] is type(robot)
+    check_robot_model(robot)
 
 
-@pytest.mark.parametrize("robot", MODELS, ids=lambda r: r.name)
+def test_every_model_class_is_registered():
+    import quatform.robots as pkg
+
+    classes = {obj for obj in vars(pkg).values()
+               if isinstance(obj, type) and issubclass(obj, RobotModel) and obj is not RobotModel}
+    assert classes <= set(ROBOT_MODELS.values()) and len(ROBOT_MODELS) >= 5
+
+
+@pytest.mark.parametrize("robot", [m for m in MODELS if hasattr(m, "n_rate")], ids=lambda r: r.name)
 def test_actuate_batch_equals_single(robot):
     rng = np.random.default_rng(3)
     X = rng.uniform(-1, 1, (5, len(robot.state_columns)))

@@ -72,7 +72,7 @@ class Proportional(Controller):
         return Step(self.k * e, state, {"error": e})
 
 
-class FakeKind(ScenarioKind):
+class FakeKind(ScenarioKind, register=False):
     name = "fake"
     scenario_type = FakeScenario
     options = (Option("gain", "the gain", choices=tuple(GAINS), default="slow"),

@@ -28,13 +28,18 @@ _MUJOCO_NOTE = ('--physics mujoco simulates MuJoCo physics (needs: pip install -
 
 
 def _add_output_flags(p) -> None:
-    """``--no-mcap`` and ``--rerun FILE.rrd`` (the ROS 2 bag every run writes; a Rerun recording)."""
-    p.add_argument("--no-mcap", action="store_true",
-                   help="do not write run.mcap (the run as ROS 2 messages: poses, commands, TF, formation edges, "
-                   "every logged channel; opens in Foxglove, PlotJuggler, ros2 bag) nor foxglove-layout.json")
-    p.add_argument("--rerun", metavar="FILE.rrd",
-                   help='also write the run as a Rerun recording (3-D scene and time series; needs: '
-                   'pip install -e ".[rerun]")')
+    """The output flags of the optional writers (:data:`quatform.outputs.WRITERS`): ``--no-mcap``
+    (the ROS 2 bag every run writes), ``--rerun FILE.rrd`` (a Rerun recording) ..."""
+    from .outputs import add_output_flags
+
+    add_output_flags(p)
+
+
+def _writers(args) -> dict:
+    """The optional writers' choices of the parsed output flags."""
+    from .outputs import output_choices
+
+    return output_choices(args)
 
 
 def _add_compute_flag(p) -> None:
@@ -261,7 +266,7 @@ def _given_command(argv) -> str | None:
     return next((a for a in argv if not a.startswith("-")), None)
 
 
-def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, rerun=None, compute="numpy") -> None:
+def _compare(scenario, out, options=None, over=None, plots=True, writers=None, compute="numpy") -> None:
     from .runs import compare, compare_columns, format_table, given_options
     from .scenarios import kind_of, load_scenario
     from .sim.output import check_inputs_outside
@@ -270,15 +275,14 @@ def _compare(scenario, out, options=None, over=None, plots=True, mcap=True, reru
     sc = load_scenario(scenario)
     kind = kind_of(sc)
     options = given_options(kind, options or {}, where=str(sc.name), spell=_flag)
-    rows = compare(sc, out, over=over, plots=plots, mcap=mcap, rerun=rerun, compute=compute, spell=_flag,
+    rows = compare(sc, out, over=over, plots=plots, writers=writers, compute=compute, spell=_flag,
                    over_spell=_dashed, **options)
     _say_options(kind, options)
     axis = over or kind.compare_over
     print(format_table(rows, compare_columns(kind, axis)))
     drawn = ", the compare plots" if plots else ""
     print(f"\nfiles in {out}/ (one folder per {axis.replace('_', ' ')}{drawn}, comparison.md)")
-    if rerun is not None:
-        print(f"rerun recording: {rerun}")
+    _say_recordings(writers)
 
 
 def _say_options(kind, options) -> None:
@@ -351,12 +355,20 @@ def _run(args, kinds) -> None:
         raise InvalidInputError(f"{sc.name} is not a teleoperation scenario (its kind is {kind.name}): run it "
                                 f"with 'quatform run {args.scenario} ...'")
     options = given_options(kind, _options(args, kinds), where=str(sc.name), spell=_flag)
-    _, metrics = run(sc, args.out, plots=not args.no_plots, mcap=not args.no_mcap, rerun=args.rerun,
-                     compute=args.compute, **options)
+    writers = _writers(args)
+    _, metrics = run(sc, args.out, plots=not args.no_plots, writers=writers, compute=args.compute, **options)
     _say_options(kind, options)
     _print_run(metrics, kind.table_columns)
-    if args.rerun is not None:
-        print(f"rerun recording: {args.rerun}")
+    _say_recordings(writers)
+
+
+def _say_recordings(writers) -> None:
+    """One stdout line per recording written (``rerun recording: FILE.rrd``)."""
+    from .outputs import WRITERS
+
+    for name, value in (writers or {}).items():
+        if WRITERS[name].records and value is not None:
+            print(f"{name} recording: {value}")
 
 
 def _plans(args) -> None:
@@ -409,7 +421,7 @@ COMMANDS = {
     "demo": Command(
         "compare the four seed 000 controllers on the rising spiral",
         _demo_arguments,
-        lambda args: _compare("mas-kitts-spiral", args.out, mcap=not args.no_mcap, rerun=args.rerun)),
+        lambda args: _compare("mas-kitts-spiral", args.out, writers=_writers(args))),
     "run": Command(
         "simulate one scenario of any kind with one choice",
         _run_arguments,
@@ -427,7 +439,7 @@ COMMANDS = {
         _compare_arguments,
         lambda args: _compare(args.scenario, args.out, _options(args, _kinds().values()),
                               args.over and args.over.replace("-", "_"),
-                              not args.no_plots, not args.no_mcap, args.rerun, args.compute)),
+                              not args.no_plots, _writers(args), args.compute)),
     "teleop": Command(
         "simulate a master-slave teleoperation scenario (seed 003; 'run' for teleop scenarios)",
         _teleop_arguments,

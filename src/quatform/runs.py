@@ -3,15 +3,15 @@
 One :func:`run` and one :func:`compare` for every scenario kind of
 :data:`quatform.scenarios.KINDS`. A run builds the kind's
 :class:`~quatform.scenarios.base.Experiment` for the chosen options, simulates it
-(``log = experiment.run(progress)``), computes its metrics from the log and writes, in this
-order, ``timeseries.csv`` (:func:`quatform.report.writers.write_timeseries`, the kind's
-``csv_channels``), the kind's figures (:data:`quatform.report.FIGURES`), ``run.mcap`` (the
-log as ROS 2 messages, :func:`quatform.bags.write_mcap`, with ``foxglove-layout.json`` beside
-it; ``mcap=False`` skips both) and ``metrics.json`` last. ``rerun=FILE.rrd`` also writes the
-run (a compare: every run, each under ``/<value>/``) as a Rerun recording
-(:func:`quatform.bags.rerun.write_rerun`, extra ``rerun``; its name and folder checked before
+(``log = experiment.run(progress)``), computes its metrics from the log, draws the kind's
+figures (:func:`quatform.report.figures_of`) and writes every chosen writer's files through
+the registry :data:`quatform.outputs.WRITERS`, in their order: ``timeseries.csv`` (the kind's
+``csv_channels``), ``run.mcap`` (the log as ROS 2 messages, with ``foxglove-layout.json``
+beside it; ``mcap=False`` skips both), any other registered writer, and ``metrics.json``
+last. ``rerun=FILE.rrd`` also writes the run (a compare: every run, each under
+``/<value>/``) as a Rerun recording (extra ``rerun``; its name and folder checked before
 anything runs; written before the output folder is swapped in, so an interrupted run leaves
-neither). A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
+neither); ``writers={name: choice}`` switches any optional writer. A compare runs every value of one option (the kind's ``compare_over``, or ``over``:
 ``physics`` compares the kinematic models with MuJoCo physics) into ``out/<value>/``, then draws
 the kind's compare figures and writes ``comparison.md`` / ``comparison.json`` with the kind's
 table columns.
@@ -36,8 +36,9 @@ from pathlib import Path
 
 from .checks import nearest
 from .errors import InvalidInputError
-from .report import FIGURES
-from .report.writers import write_json, write_metrics, write_timeseries
+from .report import figures_of
+from .outputs import RunFiles, chosen_writers, writer_choices
+from .report.writers import write_json
 from .scenarios import Option, kind_of, load_scenario
 from .sim.backends import simulator
 from .sim.output import atomic_write_text, staged_dir
@@ -92,11 +93,12 @@ def _record_options(kind, experiment, metrics: dict) -> dict:
     return metrics
 
 
-def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict, mcap: bool = True,
+def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: dict, writers=None,
               compute: str = "numpy"):
     """One run of ``sc`` with ``options`` written into ``folder`` (made here; ``shown``: the path
-    printed; ``mcap``: write ``run.mcap`` and the Foxglove layout; ``compute``: the closed loop's
-    backend, :data:`quatform.sim.backends.SIM_BACKENDS`). Returns ``(log, metrics)``."""
+    printed; ``writers``: the folder writers, :func:`quatform.outputs.chosen_writers`, default
+    every one written by default; ``compute``: the closed loop's backend,
+    :data:`quatform.sim.backends.SIM_BACKENDS`). Returns ``(log, metrics)``."""
     folder.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     experiment = kind.experiment(sc, **options)
@@ -107,19 +109,14 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
     if compute != "numpy":  # the reference's files stay as they were
         metrics["compute_backend"] = compute
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
-    write_timeseries(log, folder / "timeseries.csv", experiment.csv_channels)
     if plots:
-        FIGURES[kind.name].run(log, folder)
+        figures_of(kind.name).run(log, folder)
     _picture(log, folder, plots, metrics)
-    if mcap:
-        from .bags import MCAP_FILE, SCENES, scene_of, write_foxglove_layout, write_mcap
-
-        # a kind without a scene (quatform.bags.SCENES) still gets its channels, and no layout
-        scene = scene_of(log, kind.name) if kind.name in SCENES else None
-        write_mcap(log, folder / MCAP_FILE, kind=kind.name, scene=False if scene is None else scene)
-        if scene is not None:
-            write_foxglove_layout(folder, kind.name, scene)
-    write_metrics(metrics, folder / "metrics.json")
+    if writers is None:
+        writers, _ = chosen_writers(writer_choices(), folder)
+    files = RunFiles(log, folder, kind, tuple(experiment.csv_channels), metrics)
+    for writer in writers:  # in their order: metrics.json last
+        writer.write(files)
     if not quiet:
         if log.meta.get("unreachable_at") is not None:
             print(f"\r  {label}: reference unreachable from t = {log.meta['unreachable_at']:.2f} s: "
@@ -142,39 +139,8 @@ def _picture(log, folder: Path, plots: bool, metrics: dict) -> None:
         metrics["render"], metrics["render_backend"] = file.name, how
 
 
-def _rerun_target(rerun, out):
-    """``rerun`` as a path, checked before anything runs (None: no recording): rerun-sdk installed,
-    a ``.rrd`` name, a writable existing folder, not inside the output folder ``out`` (which the
-    run replaces). Each a one-line :class:`~quatform.errors.InvalidInputError`."""
-    if rerun is None:
-        return None
-    from .bags.rerun import require_rerun
-
-    require_rerun()
-    path = Path(rerun)
-    parent = Path(os.path.abspath(path)).parent
-    if path.suffix != ".rrd":
-        raise InvalidInputError(f"--rerun {rerun}: a Rerun recording is a .rrd file; give FILE.rrd")
-    if Path(os.path.abspath(out)) in (parent, *parent.parents):
-        raise InvalidInputError(f"--rerun {rerun} is inside the output folder {out}, which the run replaces; "
-                                "give a .rrd file outside it")
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise InvalidInputError(f"--rerun {rerun}: folder {parent} does not exist or is not writable; "
-                                "give a .rrd file in a writable folder")
-    return path
-
-
-def _write_recording(target, logs: dict, kind, sc) -> None:
-    """The Rerun recording ``target`` of ``logs`` (None: none), written inside the run's staged
-    folder: an interrupted or failed write leaves neither the recording nor the folder."""
-    if target is not None:
-        from .bags.rerun import write_rerun
-
-        write_rerun(logs, target, kind=kind.name, name=str(sc.name))
-
-
 def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = True, rerun=None,
-        compute: str = "numpy", **options):
+        compute: str = "numpy", writers: dict | None = None, **options):
     """Simulate one scenario with one choice; write ``out/timeseries.csv``, the figures and
     ``out/metrics.json`` (last).
 
@@ -196,6 +162,9 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
         The closed loop's compute backend (:data:`quatform.sim.backends.SIM_BACKENDS`):
         ``numpy`` (the reference) or ``jax`` (compiled, equal to NumPy within 1e-9; ``pip
         install -e ".[jax]"``); recorded as ``compute_backend`` in the metrics when not NumPy.
+    writers : dict, optional
+        Any optional writer's choice by name (:data:`quatform.outputs.WRITERS`: ``True`` /
+        ``False``, or a recording's path), over ``mcap`` and ``rerun``.
     **options
         The kind's options (:attr:`ScenarioKind.options`: ``controller``, ``formation``,
         ``physics``, ``feedforward``, ``orientation_error`` ...); None means the default.
@@ -211,11 +180,18 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
     given = given_options(kind, options, where=str(sc.name))
     simulator(compute)  # an unknown backend: one line before any work
     _check_physics_on(kind, sc, given, compute)
-    target = _rerun_target(rerun, out)
+    folder_writers, recordings = chosen_writers(writer_choices(mcap, rerun, writers), out)
     with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
-        log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, mcap, compute)
-        _write_recording(target, {"": log}, kind, sc)
+        log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, folder_writers, compute)
+        _record(recordings, {"": log}, kind, sc)
     return log, metrics
+
+
+def _record(recordings: dict, logs: dict, kind, sc) -> None:
+    """Every recording writer's file of ``logs``, written inside the run's staged folder: an
+    interrupted or failed write leaves neither the recording nor the folder."""
+    for writer, path in recordings.items():
+        writer.record(logs, path, kind.name, str(sc.name))
 
 
 #: The physics every compute backend runs: the kinematic models (``--physics kinematic``).
@@ -246,7 +222,8 @@ def _suffix(options: dict) -> str:
 
 
 def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet: bool = False, mcap: bool = True,
-            rerun=None, compute: str = "numpy", spell=None, over_spell=None, **options) -> list:
+            rerun=None, compute: str = "numpy", spell=None, over_spell=None, writers: dict | None = None,
+            **options) -> list:
     """Run every value of one option of a scenario's kind, each into ``out/<value>/``; draw the
     kind's compare figures; write ``comparison.md`` and ``comparison.json``. A value the
     scenario cannot take (:meth:`~quatform.scenarios.base.ScenarioKind.compare_choices`) is
@@ -269,6 +246,8 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         Also write every run into this one Rerun recording, each under ``/<value>/``.
     compute : str
         As in :func:`run`, for every run.
+    writers : dict, optional
+        As in :func:`run`, for every run (a recording holds them all).
     spell, over_spell : callable, optional
         How an error line names an option (``spell(option)``, as in :func:`given_options`;
         the CLI: its flag) and an option's name as ``over`` takes it (``over_spell(name)``;
@@ -300,7 +279,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
     simulator(compute)
     _check_physics_on(kind, sc, given, compute, over=axis)
     values, skipped = kind.compare_choices(sc, axis)
-    target = _rerun_target(rerun, out)
+    folder_writers, recordings = chosen_writers(writer_choices(mcap, rerun, writers), out)
     if not quiet:
         for value, why in skipped.items():
             print(f"  {sc.name} / {value}: not run: {why}", file=sys.stderr)
@@ -308,17 +287,17 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         logs, rows = [], []
         for value in values:
             log, metrics = _run_into(kind, sc, tmp / value, Path(out) / value, plots, quiet, {**given, axis: value},
-                                     mcap, compute)
+                                     folder_writers, compute)
             logs.append(log)
             rows.append({axis: value, **metrics})
         if plots:
-            FIGURES[kind.name].compare(logs, tmp)
+            figures_of(kind.name).compare(logs, tmp)
         table = format_table(rows, columns)
         left = "".join(f"\nNot run: {value} ({why})\n" for value, why in skipped.items())
         atomic_write_text(tmp / "comparison.md",
                           f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n{left}")
         write_json(rows, tmp / "comparison.json")
-        _write_recording(target, dict(zip(values, logs)), kind, sc)
+        _record(recordings, dict(zip(values, logs)), kind, sc)
     return rows
 
 

@@ -13,9 +13,9 @@
 
 from .foxglove import FOXGLOVE_LAYOUT_FILE, foxglove_layout, write_foxglove_layout
 from .mcap import CHANNEL_PREFIX, INFO_TOPIC, MCAP_FILE, channel_topic, read_log, write_mcap
-from .scene import SCENES, Scene, scene_of
+from .scene import SCENES, Scene, SceneKind, scene_of
 from .user_bags import POSE_TYPES, PoseTrack, pose_topics, read_poses
 
 __all__ = ["write_mcap", "read_log", "read_poses", "pose_topics", "PoseTrack", "POSE_TYPES", "MCAP_FILE",
-           "INFO_TOPIC", "CHANNEL_PREFIX", "channel_topic", "Scene", "SCENES", "scene_of", "foxglove_layout",
+           "INFO_TOPIC", "CHANNEL_PREFIX", "channel_topic", "Scene", "SceneKind", "SCENES", "scene_of", "foxglove_layout",
            "write_foxglove_layout", "FOXGLOVE_LAYOUT_FILE"]

@@ -38,6 +38,7 @@ from ..errors import InvalidInputError
 from ..formations import FORMATIONS
 from ..formations import geometry as g
 from ..formations.layout import RobotLayout
+from ..registry import Registry
 from ..robots import Pioneer
 
 __all__ = ["Scene", "Joints", "Wrench", "Rotors", "Odometry", "SCENES", "SceneKind", "Plot", "pioneer_base", "scene_of",
@@ -617,10 +618,14 @@ class SceneKind:
         return self.build(log)
 
 
-#: Scene and plots of each scenario kind (by :attr:`ScenarioKind.name`); a new kind adds its
-#: entry here, and its runs get their bag's poses, TF and markers and their Foxglove layout.
-SCENES = {"pair": SceneKind(pair_scene, formation_plots), "ugv-uav": SceneKind(ugv_uav_scene, formation_plots),
-          "team": SceneKind(team_scene, formation_plots), "teleop": SceneKind(teleop_scene, teleop_plots)}
+#: Scene and plots of each scenario kind (by :attr:`ScenarioKind.name`); a kind's module (here,
+#: or the file defining a new kind) adds its entry with ``SCENES.add(name, SceneKind(build,
+#: plots))``, and its runs get their bag's poses, TF and markers and their Foxglove layout.
+SCENES = Registry("scene")
+SCENES.add("pair", SceneKind(pair_scene, formation_plots))
+SCENES.add("ugv-uav", SceneKind(ugv_uav_scene, formation_plots))
+SCENES.add("team", SceneKind(team_scene, formation_plots))
+SCENES.add("teleop", SceneKind(teleop_scene, teleop_plots))
 
 
 def scene_of(log, kind: str | None = None) -> Scene:

@@ -24,16 +24,17 @@ import numpy as np
 
 from .. import messages
 from ..errors import InvalidInputError, NonUnitError, QuatformError
+from ..registry import Registry
 from .mcap_check import check_mcap
 
 __all__ = ["PoseTrack", "read_poses", "pose_topics", "open_bag", "POSE_TYPES", "UNIT_TOLERANCE", "STAMP_SOURCES"]
 
 #: Message types :func:`read_poses` reads, with the function giving ``(t, p, q_wxyz, frame_id)`` of a
-#: message (a registry: another pose type, e.g. PX4's ``VehicleOdometry`` converted to ENU, is one entry).
-POSE_TYPES = {
-    "geometry_msgs/msg/PoseStamped": messages.pose_from_msg,
-    "nav_msgs/msg/Odometry": messages.odometry_pose,
-}
+#: message (a registry: another pose type, e.g. PX4's ``VehicleOdometry`` converted to ENU, is one
+#: ``POSE_TYPES.add(type name, function)`` beside its function).
+POSE_TYPES = Registry("bag pose type")
+POSE_TYPES.add("geometry_msgs/msg/PoseStamped", messages.pose_from_msg)
+POSE_TYPES.add("nav_msgs/msg/Odometry", messages.odometry_pose)
 #: Largest ``| |q| - 1 |`` of a recorded quaternion that is renormalised rather than refused.
 UNIT_TOLERANCE = 1e-3
 

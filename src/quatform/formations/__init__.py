@@ -7,11 +7,14 @@ description implements :class:`Formation` over a :class:`RobotLayout`: ``forward
 ``inverse_jacobian`` derive from them), ``singularity_measure``, the operator's chart
 (``to_chart``, ``from_chart``; ``euclidean`` and ``from_euclidean`` are aliases),
 ``reachable``, ``sample_robot_state`` and ``special_sets``. A new description is one
-module here and one entry in :data:`FORMATIONS`; ``tests/test_formation_contract.py``
-then runs :func:`quatform.formations.testing.check_formation` over it.
+module: a :class:`Formation` subclass with a ``key`` registers itself in
+:data:`FORMATION_TYPES` when it is defined, :data:`FORMATIONS` holds its ``examples()``
+(and :data:`TEAM_FORMATIONS` the classes with ``team = True``), and
+``tests/test_formation_contract.py`` runs
+:func:`quatform.formations.testing.check_formation` over every one.
 """
 
-from .base import PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, Formation, Variable
+from .base import FORMATION_TYPES, FORMATIONS, PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, TEAM_FORMATIONS, Formation, Variable
 from .layout import POINT_KINDS, RobotLayout
 from .special_sets import SpecialSet
 from .dual_quaternion_pair import DualQuaternionPair
@@ -36,26 +39,6 @@ from .ugv_uav import (
     UgvUavSpherical,
 )
 
-#: Every description by a unique key: the two-robot ones of seed 000 by their name
-#: (``euclidean``, ``robot``, ``quaternion``, ``dual-quaternion``), the UGV-UAV ones of seed
-#: 001 as ``ugv-uav-<name>`` (``ugv-uav-spherical``, ``ugv-uav-restricted``, ``ugv-uav-quaternion``).
-FORMATIONS = {
-    **{f.name: f for f in (EuclideanPair(), RobotSpace(), QuaternionPair(), DualQuaternionPair())},
-    **{f"ugv-uav-{f.name}": f for f in (UgvUavSpherical(), UgvUavRestricted(), UgvUavQuaternion())},
-    "robot-space-team": RobotSpaceTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw"))),
-    "euclidean-team": EuclideanTeam(layout=RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))),
-    # a ground robot under spatial ones, robots 1-3 of the template on a line (robot 4 plays robot 3)
-    "euclidean-team-ground": EuclideanTeam(layout=RobotLayout(("xy_yaw", "xyz_yaw", "xyz_yaw", "xyz", "xyz_yaw")),
-                                           template=[[0, 0, 0], [1, 0, 1], [2, 0, 2], [0, 1, 1], [1, 1, 1]]),
-    "dual-quaternion-team": DualQuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw", "xyz"))),
-    "quaternion-team": QuaternionTeam(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz"))),
-}
-
-#: The team descriptions (N robots of any point kinds) by key, as classes:
-#: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
-TEAM_FORMATIONS = {"robot-space-team": RobotSpaceTeam, "euclidean-team": EuclideanTeam,
-                   "dual-quaternion-team": DualQuaternionTeam, "quaternion-team": QuaternionTeam}
-
 __all__ = [
     "Formation",
     "Variable",
@@ -71,6 +54,7 @@ __all__ = [
     "QuaternionPair",
     "DualQuaternionPair",
     "FORMATIONS",
+    "FORMATION_TYPES",
     "TEAM_FORMATIONS",
     "RobotSpaceTeam",
     "EuclideanTeam",

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import functools
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -34,10 +35,11 @@ from ..algebra.angles import wrap_entries
 from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
+from ..registry import Registry, RegistryView
 from .layout import POINT_KINDS, RobotLayout, Variable
 from .special_sets import SpecialSet
 
-__all__ = ["Variable", "Formation", "SpecialSet", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
+__all__ = ["Variable", "Formation", "SpecialSet", "FORMATION_TYPES", "FORMATIONS", "TEAM_FORMATIONS", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
            "MAX_MAGNITUDE"]
 
 #: Closest two robots may be (m); below it a two-robot formation is undefined.
@@ -75,16 +77,28 @@ def quaternion_variables(prefix: str):
     return tuple(Variable(f"{prefix}_{c}", "1", "quaternion") for c in "wxyz")
 
 
+#: Every description class by its :attr:`Formation.key` (filled when a subclass with a key is defined).
+FORMATION_TYPES = Registry("formation")
+
+
 class Formation(ABC):
     """Cluster-space representation of a team of robots.
 
     Subclasses set :attr:`name`, :attr:`variables`, :attr:`layout`,
     :attr:`chart_variables` and implement the abstract methods. Every method accepts
-    leading batch axes.
+    leading batch axes. A subclass that sets :attr:`key` registers itself in
+    :data:`FORMATION_TYPES` when it is defined; :data:`FORMATIONS` then holds its
+    :meth:`examples`, over which ``tests/test_formation_contract.py`` runs
+    :func:`~quatform.formations.testing.check_formation`.
     """
 
     #: Short name used on the command line and in files.
     name: str = ""
+    #: Unique key of the class in :data:`FORMATION_TYPES` (None: not registered, e.g. a shared base).
+    key: str | None = None
+    #: An N-robot team description, built as ``cls(n=None, *, layout=None, template=None)``
+    #: (:data:`TEAM_FORMATIONS`).
+    team: bool = False
     #: Layout of the cluster state vector.
     variables: tuple[Variable, ...] = ()
     #: The robots and their points; :attr:`robot_variables` is its variables.
@@ -94,6 +108,16 @@ class Formation(ABC):
     chart_variables: tuple[Variable, ...] = ()
     #: Blocks of the cluster state whose sign means nothing (``q`` and ``-q`` are one state).
     sign_free: tuple[slice, ...] = ()
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.__dict__.get("key"):
+            FORMATION_TYPES.add(cls.key, cls)
+
+    @classmethod
+    def examples(cls) -> dict:
+        """The instances the contract test runs over, by a unique key (default: ``{key: cls()}``)."""
+        return {cls.key: cls()}
 
     @property
     def robot_variables(self) -> tuple[Variable, ...]:
@@ -443,3 +467,27 @@ class Formation(ABC):
         if "xy_yaw" in self.layout.kinds:
             centre[..., 2] = 0.0
         return self.layout.compose((p - centre) / L, self.layout.yaws(r), self.layout.orientations(r))
+
+
+_EXAMPLES: dict[type, dict] = {}
+
+
+def _examples() -> dict:
+    """Every registered description's :meth:`Formation.examples` by key (each class's built once)."""
+    out = {}
+    for cls in list(FORMATION_TYPES.values()):
+        if cls not in _EXAMPLES:
+            _EXAMPLES[cls] = cls.examples()
+        out.update(_EXAMPLES[cls])
+    return out
+
+
+#: Every description by a unique key (the examples of :data:`FORMATION_TYPES`): the two-robot
+#: ones of seed 000 by their name (``euclidean``, ``robot``, ``quaternion``,
+#: ``dual-quaternion``), the UGV-UAV ones of seed 001 as ``ugv-uav-<name>``, the team ones
+#: on a mixed layout each.
+FORMATIONS: Mapping = RegistryView(_examples, "FORMATIONS")
+#: The team descriptions (N robots of any point kinds) by key, as classes:
+#: ``TEAM_FORMATIONS[key](n=None, *, layout=None, template=None)``.
+TEAM_FORMATIONS: Mapping = RegistryView(lambda: {k: c for k, c in FORMATION_TYPES.items() if c.team},
+                                          "TEAM_FORMATIONS")

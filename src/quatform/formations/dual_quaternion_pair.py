@@ -61,6 +61,7 @@ class DualQuaternionPair(Formation):
     """Seed 000 §3.3: cluster frame ``qhat_c`` and shape ``qhat_s``, two unit dual quaternions."""
 
     name = "dual-quaternion"
+    key = "dual-quaternion"
     variables = _dq_variables("qhat_c") + _dq_variables("qhat_s")
     chart_variables = EUCLIDEAN_VARIABLES
     dual_quaternion_slices = (_QC, _QS)

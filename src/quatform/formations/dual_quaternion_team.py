@@ -213,6 +213,13 @@ class DualQuaternionTeam(Formation):
     """
 
     name = "dual-quaternion-team"
+    key = "dual-quaternion-team"
+    team = True
+
+    @classmethod
+    def examples(cls) -> dict:
+        """The contract test's instances: a mix of point kinds."""
+        return {cls.key: cls(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw", "xyz")))}
 
     def __init__(self, n=None, *, layout=None, template=None, shape="frame", chart="team"):
         L = team_layout(n, layout, "DualQuaternionTeam")

@@ -66,6 +66,7 @@ class EuclideanPair(Formation):
     """
 
     name = "euclidean"
+    key = "euclidean"
     variables = EUCLIDEAN_VARIABLES
     chart_variables = EUCLIDEAN_VARIABLES
 
@@ -251,6 +252,7 @@ class RobotSpace(Formation):
     """
 
     name = "robot"
+    key = "robot"
     variables = ROBOT_PAIR_VARIABLES
     chart_variables = EUCLIDEAN_VARIABLES
     _euclidean = EuclideanPair()

@@ -47,6 +47,7 @@ from ..errors import DegenerateInputError, InvalidInputError
 from . import geometry as g
 from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable
+from .layout import RobotLayout
 from .euclidean_pair import EUCLIDEAN_VARIABLES, VERTICAL_TOL, EuclideanPair
 from .robot_space_team import team_layout
 from .special_sets import SpecialSet
@@ -157,6 +158,16 @@ class EuclideanTeam(Formation):
     """
 
     name = "euclidean-team"
+    key = "euclidean-team"
+    team = True
+
+    @classmethod
+    def examples(cls) -> dict:
+        """The contract test's instances: a mix of point kinds."""
+        return {cls.key: cls(layout=RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))),
+                # a ground robot under spatial ones, robots 1-3 of the template on a line (robot 4 plays robot 3)
+                "euclidean-team-ground": cls(layout=RobotLayout(("xy_yaw", "xyz_yaw", "xyz_yaw", "xyz", "xyz_yaw")),
+                                             template=[[0, 0, 0], [1, 0, 1], [2, 0, 2], [0, 1, 1], [1, 1, 1]])}
 
     def __init__(self, n=None, *, layout=None, template=None, chart="team"):
         L = team_layout(n, layout, "EuclideanTeam")

@@ -45,6 +45,7 @@ class QuaternionPair(Formation):
     """Seed 000 §3.2: centroid, cluster quaternion, half-separation, robot quaternions."""
 
     name = "quaternion"
+    key = "quaternion"
     variables = (
         Variable("x_c", "m", "position"),
         Variable("y_c", "m", "position"),

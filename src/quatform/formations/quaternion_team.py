@@ -34,6 +34,7 @@ from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
 from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
+from .layout import RobotLayout
 from .euclidean_pair import EUCLIDEAN_VARIABLES
 from .layout import POINT_KINDS
 from .quaternion_pair import TILT_TOL, QuaternionPair
@@ -122,6 +123,13 @@ class QuaternionTeam(Formation):
     """
 
     name = "quaternion-team"
+    key = "quaternion-team"
+    team = True
+
+    @classmethod
+    def examples(cls) -> dict:
+        """The contract test's instances: a mix of point kinds."""
+        return {cls.key: cls(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz")))}
 
     def __init__(self, n=None, *, layout=None, template=None, chart="team"):
         L = self.layout = team_layout(n, layout, "QuaternionTeam")

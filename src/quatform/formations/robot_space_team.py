@@ -55,6 +55,13 @@ class RobotSpaceTeam(Formation):
     """
 
     name = "robot-space-team"
+    key = "robot-space-team"
+    team = True
+
+    @classmethod
+    def examples(cls) -> dict:
+        """The contract test's instances: a mix of point kinds."""
+        return {cls.key: cls(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw")))}
 
     def __init__(self, n=None, *, layout=None, template=None):
         self.layout = team_layout(n, layout, "RobotSpaceTeam")

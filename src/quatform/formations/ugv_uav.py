@@ -99,6 +99,7 @@ class UgvUavSpherical(_UgvUav):
     the quadrant), ``beta_c = atan2(dz, |d_xy|)``."""
 
     name = "spherical"
+    key = "ugv-uav-spherical"
     variables = SPHERICAL_VARIABLES
 
     def forward(self, r, *, near_c=None):
@@ -201,6 +202,7 @@ class UgvUavRestricted(_UgvUav):
     """
 
     name = "restricted"
+    key = "ugv-uav-restricted"
     variables = (
         Variable("x_f", "m", "position"), Variable("y_f", "m", "position"), Variable("z_f", "m", "position"),
         Variable("rho_f", "m", "length"), Variable("alpha_f", "rad", "angle"), Variable("beta_f", "rad", "angle"),
@@ -396,6 +398,7 @@ class UgvUavQuaternion(_UgvUav):
     """Eqs. (4.25)-(4.41): cluster point at the UGV, ``q_c`` on the segment, ``d_c = (d, 0, 0)``."""
 
     name = "quaternion"
+    key = "ugv-uav-quaternion"
     variables = (
         Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),
         *quaternion_variables("q_c"),

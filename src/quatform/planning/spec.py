@@ -22,6 +22,7 @@ from ..algebra import matrix_from_q
 from ..checks import check_keys, check_work, integer, number, short, text, vector
 from ..checks import table as table_
 from ..errors import InvalidInputError, QuatformError
+from ..registry import Registry
 from .geodesic import meeting_bound, plan_from_geodesic, plan_through_meeting, solve_geodesic
 from .measures import min_separation, rigid_motion, straight_line_motion
 from .plan import PLAN_MAX_ABS, PLAN_MIN_STEP_S, Plan, check_plan_rates
@@ -311,7 +312,9 @@ def _rigid_se3(spec: PlanSpec):
 
 #: Each spec ``kind``: ``(name of its options table, planner)``; the planner is
 #: ``f(spec) -> (Plan, dict of solver metrics)``.
-PLANNERS = {"shaped-geodesic": ("shaping", _shaped_geodesic), "rigid-se3": ("formation", _rigid_se3)}
+PLANNERS = Registry("planner")
+PLANNERS.add("shaped-geodesic", ("shaping", _shaped_geodesic))
+PLANNERS.add("rigid-se3", ("formation", _rigid_se3))
 
 
 def make_plan(spec: PlanSpec):

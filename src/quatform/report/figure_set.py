@@ -1,8 +1,9 @@
 """The figure registry's value type: what figures a scenario kind draws of one run and of a compare.
 
-Report layer. :data:`quatform.report.FIGURES` maps a kind's name (its TOML ``kind``) to a
-:class:`FigureSet`; :mod:`quatform.runs` calls it for every kind alike, so a new kind's
-figures are one module in ``report/`` plus one registry entry.
+Report layer. :data:`FIGURES` maps a kind's name (its TOML ``kind``) to a :class:`FigureSet`,
+added by the module that draws them (``FIGURES.add("team", FigureSet(run, compare))`` beside
+its functions); :mod:`quatform.runs` calls :func:`figures_of` for every kind alike (a kind
+without an entry draws none), so a new kind's figures are one module.
 """
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-__all__ = ["FigureSet", "NO_FIGURES"]
+from ..registry import Registry
+
+__all__ = ["FigureSet", "NO_FIGURES", "FIGURES", "figures_of"]
 
 
 def _none(*args) -> list:
@@ -35,3 +38,12 @@ class FigureSet:
 
 #: A kind without figures.
 NO_FIGURES = FigureSet()
+
+
+#: Figures of each scenario kind, by the kind's name (filled by the figure modules).
+FIGURES = Registry("figure set")
+
+
+def figures_of(kind: str) -> FigureSet:
+    """The :class:`FigureSet` of scenario kind ``kind`` (:data:`NO_FIGURES` where it has none)."""
+    return FIGURES.get(kind, NO_FIGURES)

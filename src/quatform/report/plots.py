@@ -36,6 +36,7 @@ from ..sim.metrics import SINGULAR_THRESHOLD
 from .figures import (DES_STYLE, DPI, MAX_POINTS, MEAS_STYLE, SINGULAR_COLOR,
                       break_wraps, check_runs, decimate, finite, floor_ylim, intervals, new_figure, save,
                       set_equal_3d, shade, time_xlim, unwrap)
+from .figure_set import FIGURES, FigureSet
 
 __all__ = [
     "DPI",
@@ -494,3 +495,6 @@ def write_compare_plots(runs, out_dir) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     return [plot_compare(runs, out / "compare_errors.png"),
             plot_separation(runs, out / "separation.png")]
+
+
+FIGURES.add("pair", FigureSet(write_run_plots, write_compare_plots))

@@ -10,7 +10,7 @@ the command: thin and faint, with its moving mean over :data:`RATE_WINDOW_S` das
 y-range set by the commands and that mean, so the noise cannot hide the commands (drawn on
 top, solid).
 
-* :func:`column_unit` - the unit of a robot's state or command column;
+* :func:`column_unit` - the unit of a robot's state or command column (its model's ``column_units``);
 * :func:`replay_commands_figure` - the figure; :func:`plot_replay_commands` - written to a PNG.
 """
 
@@ -21,6 +21,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..robots import ROBOT_MODELS
+from ..robots.model import column_unit as robot_column_unit
 from .figures import intervals, new_figure, save
 
 __all__ = ["RATE_WINDOW_S", "COMMAND_ZORDER", "RATE_MEAN_ZORDER", "RATE_ZORDER", "RATE_ALPHA", "column_unit",
@@ -33,28 +35,20 @@ COMMAND_ZORDER, RATE_MEAN_ZORDER, RATE_ZORDER = 3.0, 2.0, 1.0
 #: Opacity of the raw measured rate.
 RATE_ALPHA = 0.3
 
-#: Units of the robot models' state and command columns (robots.holonomic, planar, pioneer,
-#: bebop, free_body): the Bebop's commands are fractions of their limits (seed 001 eq. 3.10).
-_UNITS = {
-    "x": "m", "y": "m", "z": "m",
-    "theta": "rad", "psi": "rad", "phi": "rad",
-    "q_w": "-", "q_x": "-", "q_y": "-", "q_z": "-",
-    "v": "m/s", "v_x": "m/s", "v_y": "m/s", "v_z": "m/s", "z_dot": "m/s",
-    "omega": "rad/s", "omega_z": "rad/s", "psi_dot": "rad/s", "w_x": "rad/s", "w_y": "rad/s", "w_z": "rad/s",
-    "u_x": "-", "u_y": "-", "u_z": "-", "u_psi": "-",
-}
+def column_unit(column: str, model=None) -> str:
+    """The unit of a robot model's state or command column (its model's ``column_units``; no
+    ``model``: the first registered model's that has the column; ``"-"``: dimensionless or unknown)."""
+    if model is not None:
+        return robot_column_unit(model, column)
+    return next((cls.column_units[column] for cls in ROBOT_MODELS.values()
+                 if isinstance(cls.column_units, dict) and column in cls.column_units), "-")
 
 
-def column_unit(column: str) -> str:
-    """The unit of a robot model's state or command column (``"-"``: dimensionless or unknown)."""
-    return _UNITS.get(column, "-")
-
-
-def _groups(columns) -> dict:
-    """``{unit: [index, ...]}`` of ``columns``, in order of first appearance."""
+def _groups(model, columns) -> dict:
+    """``{unit: [index, ...]}`` of ``model``'s ``columns``, in order of first appearance."""
     out: dict = {}
     for j, c in enumerate(columns):
-        out.setdefault(column_unit(c), []).append(j)
+        out.setdefault(column_unit(c, model), []).append(j)
     return out
 
 
@@ -124,7 +118,7 @@ def replay_commands_figure(t, states, commands, held, names, models, state_slice
     t = t - t[0]
     rows = []  # (robot, [(unit, state idx)], [(unit, command idx)])
     for i, model in enumerate(models):
-        rows.append((i, list(_groups(model.state_columns).items()), list(_groups(model.command_columns).items())))
+        rows.append((i, list(_groups(model, model.state_columns).items()), list(_groups(model, model.command_columns).items())))
     n_rows = sum(max(len(s), len(c)) for _, s, c in rows)
     fig = new_figure((11, 1.9 * n_rows + 0.6))
     axes = fig.subplots(n_rows, 2, squeeze=False, sharex=True)

@@ -49,6 +49,7 @@ from .figures import (
     shade,
     time_xlim,
 )
+from .figure_set import FIGURES, FigureSet
 
 __all__ = ["plot_team_paths_3d", "plot_team_centroid", "plot_team_attitude", "plot_team_shape", "plot_team_errors",
            "plot_team_separation", "plot_team_singularity", "plot_team_compare", "formation_edges",
@@ -380,3 +381,6 @@ def write_team_compare_plots(runs, out_dir) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     return [plot_team_compare(runs, out / "compare_errors.png"), plot_team_separation(runs, out / "separation.png"),
             plot_team_singularity(runs, out / "singularity.png")]
+
+
+FIGURES.add("team", FigureSet(write_team_run_plots, write_team_compare_plots))

@@ -31,6 +31,7 @@ from ..algebra import wrap_angle
 from ..sim.log import Log
 from ..teleop import rpy_from_q
 from .figures import break_wraps, decimate, new_figure, save
+from .figure_set import FIGURES, FigureSet
 
 __all__ = ["plot_teleop_tracking", "plot_teleop_torques", "plot_teleop_orientation", "plot_teleop_contact",
            "plot_teleop_hysteresis", "plot_teleop_virtual_wall", "write_teleop_plots", "write_teleop_compare_plots"]
@@ -351,3 +352,6 @@ def write_teleop_compare_plots(logs, out_dir) -> list[Path]:
     if logs:
         fig.suptitle(f"Jansen et al. 1990, {logs[0].meta['scenario'].name}: the choices compared", fontsize=10)
     return [save(fig, out / "compare_errors.png")]
+
+
+FIGURES.add("teleop", FigureSet(write_teleop_plots, write_teleop_compare_plots))

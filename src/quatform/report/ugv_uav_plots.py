@@ -58,6 +58,7 @@ from .figures import (
     shade,
     time_xlim,
 )
+from .figure_set import FIGURES, FigureSet
 
 __all__ = [
     "plot_ugv_uav_cluster",
@@ -644,3 +645,6 @@ def write_ugv_uav_compare_plots(logs, out_dir) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return [plot_ugv_uav_compare(logs, out / "compare_formations.png")]
+
+
+FIGURES.add("ugv-uav", FigureSet(write_ugv_uav_run_plots, write_ugv_uav_compare_plots))

@@ -3,8 +3,9 @@
 Report layer (above scenarios, below runs and the CLI). One writer serves every scenario
 kind: :func:`write_timeseries` writes any :class:`~quatform.sim.log.Log` (the channels a
 kind names, in its order, with the log's own column names), :func:`write_metrics` and
-:func:`write_json` any metrics dict or list of rows. A new output format (MCAP, Parquet ...)
-is a new function here reading the same Log.
+:func:`write_json` any metrics dict or list of rows. A run writes them through the writer
+registry (:data:`quatform.outputs.WRITERS`); a new output format (Parquet ...) is one
+:class:`quatform.outputs.Writer` subclass reading the same Log.
 
 Every file is written to a temporary name and renamed into place
 (:func:`quatform.sim.output.atomic_write_text`), so a run cut off by Ctrl-C never leaves a

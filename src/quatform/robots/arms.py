@@ -32,12 +32,18 @@ from ..errors import InvalidInputError
 from ..teleop.arm import SerialArm
 from ..teleop.kraft import KRAFT_DEADBAND, KRAFT_FULL_SCALE, KRAFT_MASTER
 from ..teleop.slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
+from .model import RobotModel
 
 __all__ = ["KraftMaster", "PandaSlave", "friction_step"]
 
 
 def _joint_columns(prefix: str, n: int) -> tuple:
     return tuple(f"q_{prefix}{i + 1}" for i in range(n)) + tuple(f"qd_{prefix}{i + 1}" for i in range(n))
+
+
+def _joint_units(columns) -> dict:
+    """Units of an arm's columns: joint angles rad, joint rates rad/s, torques N m."""
+    return {c: "rad/s" if c.startswith("qd_") else "rad" if c.startswith("q_") else "N m" for c in columns}
 
 
 def _pose(arm: SerialArm, q) -> np.ndarray:
@@ -78,7 +84,7 @@ def friction_step(qd, inertia, tau, static, dt) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class KraftMaster:
+class KraftMaster(RobotModel):
     """The Kraft master as a robot model (see the module docstring).
 
     Parameters
@@ -115,6 +121,11 @@ class KraftMaster:
         return tuple(f"tau_m{i + 1}" for i in range(self.arm.n))
 
     @property
+    def column_units(self) -> dict:
+        """The unit of each state and command column (rad, rad/s, N m)."""
+        return _joint_units((*self.state_columns, *self.command_columns))
+
+    @property
     def static_friction(self) -> np.ndarray:
         """Each joint's static and Coulomb friction torque, N m (``deadband * full_scale``)."""
         return np.asarray(self.deadband, float) * np.asarray(self.full_scale)
@@ -139,7 +150,7 @@ class KraftMaster:
 
 
 @dataclass(frozen=True)
-class PandaSlave:
+class PandaSlave(RobotModel):
     """The 7-DOF slave as a robot model (see the module docstring).
 
     Parameters
@@ -169,6 +180,11 @@ class PandaSlave:
     @property
     def command_columns(self) -> tuple:
         return tuple(f"tau_s{i + 1}" for i in range(self.arm.arm.n))
+
+    @property
+    def column_units(self) -> dict:
+        """The unit of each state and command column (rad, rad/s, N m)."""
+        return _joint_units((*self.state_columns, *self.command_columns))
 
     def point(self, x) -> np.ndarray:
         """Tool position and orientation ``(..., 7)`` of the state ``x = (q, qd)``."""

@@ -28,6 +28,9 @@ from ..algebra.kernels import common_namespace as _xp
 from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
+from ..formations import geometry as g
+from .model import RobotModel
+from .ros_io import RobotIO, heading_rotate, pose_yaw, z_vector
 
 __all__ = ["Bebop", "BebopMemory", "TABLE2_K", "yaw_matrix"]
 
@@ -71,8 +74,33 @@ class BebopMemory:
         return cls(np.full(batch + (4,), np.nan), np.full(batch, np.nan), np.zeros(batch + (4,)))
 
 
+# ROS 2 conversions (seed 001 §3.1.2): (x, y, z, psi, v_x, v_y, z_dot, psi_dot), body (v_x, v_y) by eq. (3.8)
+def _ros_state(model, pose, prev):
+    if pose.twist is None:
+        raise InvalidInputError("a Bebop's measured state holds its velocity: give it pose_type = 'odometry' "
+                                "(nav_msgs/Odometry, e.g. bebop_autonomy's odom) or 'px4'")
+    q = np.asarray(pose.quaternion, dtype=float)
+    psi = pose_yaw(pose, None if prev is None else prev[3])
+    lin, ang = (np.asarray(a, dtype=float) for a in pose.twist)
+    v_world = g.rotate(q, lin)
+    v_heading = heading_rotate(psi, v_world, inverse=True)  # eq. (3.8): world to the Bebop frame
+    w, x, y, z = q
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    # the z-y-x yaw rate of body rates (p, q, r): (q sin(roll) + r cos(roll)) / cos(pitch)
+    # (Beard & McLain 2012, Small Unmanned Aircraft, §3.2); seed 001 §3.1.2 keeps roll and pitch
+    # within 5 deg, where it is r to within 0.4 %
+    psi_dot = (ang[1] * np.sin(roll) + ang[2] * np.cos(roll)) / np.cos(pitch)
+    return np.r_[pose.position, psi, v_heading[0], v_heading[1], v_world[2], psi_dot]
+
+
+def _ros_body(model, u, state, q):
+    # bebop_autonomy's cmd_vel: linear.x forward, linear.y left, linear.z up, angular.z yaw, fractions of [-1, 1]
+    return np.asarray(u[..., 0:3], dtype=float), z_vector(u[..., 3])
+
+
 @dataclass(frozen=True)
-class Bebop:
+class Bebop(RobotModel):
     """The identified high-level model of a Bebop 2.
 
     Parameters
@@ -105,12 +133,16 @@ class Bebop:
     point_kind = "xyz"
     state_columns = ("x", "y", "z", "psi", "v_x", "v_y", "z_dot", "psi_dot")
     command_columns = ("u_x", "u_y", "u_z", "u_psi")
+    #: Units of its state and command columns: its commands are fractions of their limits (eq. (3.10)).
+    column_units = {"x": "m", "y": "m", "z": "m", "psi": "rad", "v_x": "m/s", "v_y": "m/s", "z_dot": "m/s",
+                    "psi_dot": "rad/s", "u_x": "-", "u_y": "-", "u_z": "-", "u_psi": "-"}
     #: Entries of the rate :meth:`actuate` takes: the position's world rate and the yaw rate.
     n_rate = 4
     #: Its commands are body-frame fractions through the dynamic compensation, not its rates.
     passthrough = False
     #: Not holonomic in the team sense: its commands are clipped per axis.
     holonomic = False
+    ros_io = RobotIO("Bebop 2 (command fractions)", "body", _ros_state, _ros_body, needs_twist=True)
 
     def __post_init__(self):
         k = np.asarray(self.k, dtype=float)

@@ -24,15 +24,36 @@ import numpy as np
 from ..algebra.kernels import array_namespace as namespace
 from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
+from ..checks import number
 from ..errors import InvalidInputError
-from . import limits
 from ..formations import geometry as g
+from . import limits
+from .model import RobotModel
+from .ros_io import RobotIO
 
 __all__ = ["FreeBodyRobot"]
 
 
+# ROS 2 conversions: state (x, y, z, q_w, q_x, q_y, q_z); commands world (v, w)
+def _ros_state(model, pose, prev):
+    q = np.asarray(pose.quaternion, dtype=float)
+    q = q / np.linalg.norm(q)
+    if prev is not None:
+        q = g.closest_sign(q, prev[3:7])  # q and -q are one orientation: stay on the previous side
+    return np.r_[pose.position, q]
+
+
+def _ros_world(model, u, state):
+    return np.asarray(u[..., 0:3], dtype=float), np.asarray(u[..., 3:6], dtype=float)
+
+
+def _ros_body(model, u, state, q):
+    qc = g.conj(np.asarray(state[..., 3:7], dtype=float))
+    return g.rotate(qc, np.asarray(u[..., 0:3], dtype=float)), g.rotate(qc, np.asarray(u[..., 3:6], dtype=float))
+
+
 @dataclass(frozen=True)
-class FreeBodyRobot:
+class FreeBodyRobot(RobotModel):
     """A rigid body that takes world linear and angular velocity commands.
 
     Parameters
@@ -51,12 +72,24 @@ class FreeBodyRobot:
     point_kind = "pose"
     state_columns = ("x", "y", "z", "q_w", "q_x", "q_y", "q_z")
     command_columns = ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z")
+    column_units = {"x": "m", "y": "m", "z": "m", "q_w": "-", "q_x": "-", "q_y": "-", "q_z": "-", "v_x": "m/s",
+                    "v_y": "m/s", "v_z": "m/s", "w_x": "rad/s", "w_y": "rad/s", "w_z": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the pose point's (position and quaternion rates).
     n_rate = 7
     #: Its commands are not its point's rates (an angular velocity, not a quaternion rate).
     passthrough = False
     #: Its commands scale as a whole (:meth:`limit_factor`), so a team may share one factor.
     holonomic = True
+    #: Team files: ``free-body`` (a 6-DOF free body under world linear and angular velocity commands).
+    file_names = ("free-body",)
+    limit_keys = ("max_speed_m_s", "max_angular_rate_rad_s")
+    ros_io = RobotIO("free body", "world", _ros_state, _ros_body, _ros_world)
+
+    @classmethod
+    def from_file(cls, table, where, place, file_name="free-body"):
+        return cls(max_speed=number(table, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
+                   max_angular_rate=number(table, "max_angular_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                           low_open=True))
 
     def __post_init__(self):
         for name in ("max_speed", "max_angular_rate"):

@@ -15,14 +15,30 @@ import numpy as np
 
 from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
+from ..checks import number
 from ..errors import InvalidInputError
 from . import limits
+from .model import RobotModel
+from .ros_io import RobotIO, heading_rotate, pose_yaw, z_vector
 
 __all__ = ["HolonomicRobot"]
 
 
+# ROS 2 conversions (seed 000 §4.1): state (x, y, z, theta); commands world (v_x, v_y, v_z, omega_z)
+def _ros_state(model, pose, prev):
+    return np.r_[pose.position, pose_yaw(pose, None if prev is None else prev[3])]
+
+
+def _ros_world(model, u, state):
+    return np.asarray(u[..., 0:3], dtype=float), z_vector(u[..., 3])
+
+
+def _ros_body(model, u, state, q):
+    return heading_rotate(state[..., 3], u[..., 0:3], inverse=True), z_vector(u[..., 3])
+
+
 @dataclass(frozen=True)
-class HolonomicRobot:
+class HolonomicRobot(RobotModel):
     """A holonomic robot that takes velocity commands in x, y, z and yaw.
 
     Parameters
@@ -41,12 +57,34 @@ class HolonomicRobot:
     point_kind = "xyz_yaw"
     state_columns = ("x", "y", "z", "theta")
     command_columns = ("v_x", "v_y", "v_z", "omega_z")
+    column_units = {"x": "m", "y": "m", "z": "m", "theta": "rad", "v_x": "m/s", "v_y": "m/s", "v_z": "m/s",
+                    "omega_z": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the point's.
     n_rate = 4
     #: Its commands are its point's rates (a controller may skip :meth:`actuate`).
     passthrough = True
     #: Its commands scale as a whole (:meth:`limit_factor`), so a team may share one factor.
     holonomic = True
+    #: Team files: ``holonomic`` (seed 000 §4.1's defaults) and ``quadrotor`` (a Bebop-like
+    #: multirotor under velocity commands: the Bebop 2's vertical top speed and yaw rate,
+    #: Marciano 2021 Table 3.1, ``robots.Bebop().max_velocity``: the binding limits of a
+    #: norm-limited command).
+    file_names = ("quadrotor", "holonomic")
+    limit_keys = ("max_speed_m_s", "max_yaw_rate_rad_s")
+    ros_io = RobotIO("4-DOF holonomic robot", "world", _ros_state, _ros_body, _ros_world, setpoint=True)
+
+    @classmethod
+    def from_file(cls, table, where, place, file_name="holonomic"):
+        if file_name == "quadrotor":
+            from .bebop import Bebop
+
+            top = Bebop().max_velocity
+            speed, yaw_rate = round(float(top[2]), 3), round(float(top[3]), 3)
+        else:
+            speed, yaw_rate = 2.5, 3.0
+        return cls(max_speed=number(table, "max_speed_m_s", where, speed, place=place, low=0.0, low_open=True),
+                   max_yaw_rate=number(table, "max_yaw_rate_rad_s", where, yaw_rate, place=place, low=0.0,
+                                       low_open=True))
 
     def __post_init__(self):
         for name in ("max_speed", "max_yaw_rate"):

@@ -30,32 +30,78 @@ of the points they offer. Every method takes leading batch axes.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["RobotModel"]
+from ..registry import Registry
+
+__all__ = ["RobotModel", "ROBOT_MODELS", "file_models", "column_unit"]
+
+#: Every robot model class by its :attr:`RobotModel.name` (filled when a subclass is defined).
+ROBOT_MODELS = Registry("robot model")
 
 
-@runtime_checkable
-class RobotModel(Protocol):
-    """Structural type of a robot model (see the module docstring)."""
+class RobotModel:
+    """Base class of a robot model (see the module docstring).
 
-    name: str
-    point_kind: str
+    A subclass that sets :attr:`name` registers itself in :data:`ROBOT_MODELS` when it is
+    defined, with what it knows besides its motion: the ``model`` values of a team file's
+    ``[[robots]]`` entry it answers to (:attr:`file_names`, its limit keys
+    :attr:`limit_keys`, :meth:`from_file`) and its ROS 2 conversions (:attr:`ros_io`, a
+    :class:`~quatform.robots.ros_io.RobotIO`: a measured pose to its state, its commands to
+    twists).
+    """
+
+    name: ClassVar[str] = ""
+    point_kind: ClassVar[str] = ""
     state_columns: tuple
     command_columns: tuple
-    passthrough: bool
-    holonomic: bool
+    passthrough: ClassVar[bool] = False
+    holonomic: ClassVar[bool] = False
+    #: The ``model`` values of a team file's ``[[robots]]`` entry that build this model.
+    file_names: ClassVar[tuple] = ()
+    #: The limit keys such an entry may hold (read by :meth:`from_file`).
+    limit_keys: ClassVar[tuple] = ()
+    #: Its ROS 2 conversions (None: the bridge does not drive it).
+    ros_io: ClassVar[Any] = None
+    #: The unit of each of its state and command columns (``"-"``: dimensionless).
+    column_units: ClassVar[dict] = {}
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.__dict__.get("name"):
+            ROBOT_MODELS.add(cls.name, cls)
+
+    @classmethod
+    def from_file(cls, table: dict, where: str, place: str, file_name: str):
+        """The model of a team file's ``[[robots]]`` entry ``table`` whose ``model`` is
+        ``file_name`` (one of :attr:`file_names`), its :attr:`limit_keys` read strictly."""
+        raise NotImplementedError(f"{cls.__name__} is not read from team files")
 
     def point(self, x) -> np.ndarray:
         """The point this robot offers a formation, shape ``(..., size of point_kind)``."""
+        raise NotImplementedError
 
     def actuate(self, x, rate, t: float, memory: Any) -> tuple[np.ndarray, Any]:
         """Commands (shape ``(..., len(command_columns))``) that move the point at ``rate``."""
+        raise NotImplementedError
 
     def saturate(self, u) -> np.ndarray:
         """``u`` within the robot's limits; a non-finite command becomes a stop."""
+        raise NotImplementedError
 
     def step(self, x, u, dt: float) -> np.ndarray:
         """State after ``dt`` s of the (saturated) command ``u``."""
+        raise NotImplementedError
+
+
+def column_unit(model, column: str) -> str:
+    """The unit of ``model``'s state or command ``column`` (its class's :attr:`RobotModel.column_units`;
+    ``"-"``: dimensionless or unknown)."""
+    return getattr(model, "column_units", {}).get(column, "-")
+
+
+def file_models() -> dict:
+    """The models a team file's ``[[robots]] model`` names: ``{file name: model class}``."""
+    return {fn: cls for cls in ROBOT_MODELS.values() for fn in cls.file_names}

@@ -32,13 +32,27 @@ from ..algebra.kernels import array_namespace as namespace
 from ..algebra.kernels import as_floats as _floats
 from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
+from ..checks import number
 from ..errors import InvalidInputError
+from .model import RobotModel
+from .ros_io import RobotIO, pose_yaw, xy_vector, z_vector
 
 __all__ = ["Pioneer"]
 
 
+# ROS 2 conversions (seed 001 §3.1.1): the control point (x, y, psi); commands (v, omega), eq. (3.1)
+def _ros_state(model, pose, prev):
+    psi = pose_yaw(pose, None if prev is None else prev[2])
+    # the control point, a ahead of the middle of the wheel axis (the pose's origin), Fig. 10
+    return np.array([pose.position[0] + model.a * np.cos(psi), pose.position[1] + model.a * np.sin(psi), psi])
+
+
+def _ros_body(model, u, state, q):
+    return xy_vector(u[..., 0], 0.0), z_vector(u[..., 1])
+
+
 @dataclass(frozen=True)
-class Pioneer:
+class Pioneer(RobotModel):
     """Unicycle with control point ahead of the axis.
 
     Parameters
@@ -68,12 +82,26 @@ class Pioneer:
     name = "pioneer"
     state_columns = ("x", "y", "psi")
     command_columns = ("v", "omega")
+    column_units = {"x": "m", "y": "m", "psi": "rad", "v": "m/s", "omega": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the point's (its z rate is ignored).
     n_rate = 3
     #: Its commands are not its point's rates (eq. (3.5) maps them).
     passthrough = False
     #: Not holonomic: it saturates on its own in a team (its point velocity turns with it).
     holonomic = False
+    #: Team files: ``pioneer``, offering its control point and heading (``xy_yaw``): a
+    #: unicycle whose heading follows its control point.
+    file_names = ("pioneer",)
+    limit_keys = ("a_m", "max_v_m_s", "max_omega_rad_s")
+    ros_io = RobotIO("Pioneer 3-DX (v, omega)", "body", _ros_state, _ros_body)
+
+    @classmethod
+    def from_file(cls, table, where, place, file_name="pioneer"):
+        return cls(a=number(table, "a_m", where, 0.15, place=place, low=0.0, low_open=True),
+                   max_v=number(table, "max_v_m_s", where, 0.75, place=place, low=0.0, low_open=True),
+                   max_omega=number(table, "max_omega_rad_s", where, 100.0 * math.pi / 180.0, place=place, low=0.0,
+                                    low_open=True),
+                   point_kind="xy_yaw")
 
     def __post_init__(self):
         if self.point_kind not in ("xyz", "xy_yaw"):

@@ -16,14 +16,30 @@ import numpy as np
 
 from ..algebra.kernels import as_floats, concrete
 from ..algebra.validate import as_array
+from ..checks import number
 from ..errors import InvalidInputError
 from . import limits
+from .model import RobotModel
+from .ros_io import RobotIO, heading_rotate, pose_yaw, xy_vector, z_vector
 
 __all__ = ["PlanarHolonomicRobot"]
 
 
+# ROS 2 conversions: state (x, y, theta); commands world (v_x, v_y, omega_z)
+def _ros_state(model, pose, prev):
+    return np.r_[pose.position[0:2], pose_yaw(pose, None if prev is None else prev[2])]
+
+
+def _ros_world(model, u, state):
+    return xy_vector(u[..., 0], u[..., 1]), z_vector(u[..., 2])
+
+
+def _ros_body(model, u, state, q):
+    return heading_rotate(state[..., 2], xy_vector(u[..., 0], u[..., 1]), inverse=True), z_vector(u[..., 2])
+
+
 @dataclass(frozen=True)
-class PlanarHolonomicRobot:
+class PlanarHolonomicRobot(RobotModel):
     """A holonomic ground robot that takes velocity commands in x, y and yaw.
 
     Parameters
@@ -42,12 +58,23 @@ class PlanarHolonomicRobot:
     point_kind = "xy_yaw"
     state_columns = ("x", "y", "theta")
     command_columns = ("v_x", "v_y", "omega_z")
+    column_units = {"x": "m", "y": "m", "theta": "rad", "v_x": "m/s", "v_y": "m/s", "omega_z": "rad/s"}
     #: Entries of the rate :meth:`actuate` takes: the point's.
     n_rate = 3
     #: Its commands are its point's rates (a controller may skip :meth:`actuate`).
     passthrough = True
     #: Its commands scale as a whole (:meth:`limit_factor`), so a team may share one factor.
     holonomic = True
+    #: Team files: ``planar`` (a planar holonomic ground robot under velocity commands).
+    file_names = ("planar",)
+    limit_keys = ("max_speed_m_s", "max_yaw_rate_rad_s")
+    ros_io = RobotIO("planar holonomic robot", "world", _ros_state, _ros_body, _ros_world, setpoint=True)
+
+    @classmethod
+    def from_file(cls, table, where, place, file_name="planar"):
+        return cls(max_speed=number(table, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
+                   max_yaw_rate=number(table, "max_yaw_rate_rad_s", where, 3.0, place=place, low=0.0,
+                                       low_open=True))
 
     def __post_init__(self):
         for name in ("max_speed", "max_yaw_rate"):

@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import messages
 from ..errors import InvalidInputError
+from ..registry import Registry
 from . import px4
 from .robot_io import PoseSample
 
@@ -56,12 +57,12 @@ def _odometry(msg):
     return t, p, q, messages.twist_from_msg(msg.twist)
 
 
-#: Pose message types by ``pose_type``.
-POSE_READERS = {
-    "pose": PoseReader("geometry_msgs/msg/PoseStamped", _pose),
-    "odometry": PoseReader("nav_msgs/msg/Odometry", _odometry),
-    "px4": PoseReader("px4_msgs/msg/VehicleOdometry", px4.vehicle_odometry_pose, qos="px4", stamp_ns=_px4_ns),
-}
+#: Pose message types by ``pose_type`` (``POSE_READERS.add(name, PoseReader(...))`` beside a reader).
+POSE_READERS = Registry("pose type")
+POSE_READERS.add("pose", PoseReader("geometry_msgs/msg/PoseStamped", _pose))
+POSE_READERS.add("odometry", PoseReader("nav_msgs/msg/Odometry", _odometry))
+POSE_READERS.add("px4", PoseReader("px4_msgs/msg/VehicleOdometry", px4.vehicle_odometry_pose, qos="px4",
+                                   stamp_ns=_px4_ns))
 
 
 def pose_sample(pose_type: str, msg) -> PoseSample | None:
@@ -90,11 +91,14 @@ class CommandWriter:
     build : callable ``(link, t, linear, angular, world_frame, frame) -> ((topic, msg), ...)``
     setpoint : bool
         It takes a world velocity and a yaw rate only (PX4, MAVROS).
+    default_topic : str
+        The command topic of a robot whose robots file names none (relative: under its namespace).
     """
 
     topics: Callable
     build: Callable
     setpoint: bool = False
+    default_topic: str = "cmd_vel"
 
 
 def _frame_id(link, world_frame, frame):
@@ -122,13 +126,16 @@ def _px4_build(link, t, lin, ang, world_frame, frame):
             (link.command_topic, px4.trajectory_setpoint(t, lin, float(ang[2]))))
 
 
-#: Command message types by ``command_type``.
-COMMAND_WRITERS = {
-    "twist": CommandWriter(lambda link: ((link.command_topic, "geometry_msgs/msg/Twist", "default"),), _twist_build),
-    "twist-stamped": CommandWriter(lambda link: ((link.command_topic, "geometry_msgs/msg/TwistStamped", "default"),),
-                                   _twist_stamped_build),
-    # MAVROS setpoint_velocity/cmd_vel: a TwistStamped in the local ENU frame (MAVROS converts to NED)
-    "mavros": CommandWriter(lambda link: ((link.command_topic, "geometry_msgs/msg/TwistStamped", "default"),),
-                            _twist_stamped_build, setpoint=True),
-    "px4": CommandWriter(_px4_topics, _px4_build, setpoint=True),
-}
+#: Command message types by ``command_type`` (``COMMAND_WRITERS.add(name, CommandWriter(...))``
+#: beside a writer).
+COMMAND_WRITERS = Registry("command type")
+COMMAND_WRITERS.add("twist", CommandWriter(lambda link: ((link.command_topic, "geometry_msgs/msg/Twist", "default"),),
+                                           _twist_build))
+COMMAND_WRITERS.add("twist-stamped", CommandWriter(
+    lambda link: ((link.command_topic, "geometry_msgs/msg/TwistStamped", "default"),), _twist_stamped_build))
+# MAVROS setpoint_velocity/cmd_vel: a TwistStamped in the local ENU frame (MAVROS converts to NED)
+COMMAND_WRITERS.add("mavros", CommandWriter(
+    lambda link: ((link.command_topic, "geometry_msgs/msg/TwistStamped", "default"),), _twist_stamped_build,
+    setpoint=True, default_topic="mavros/setpoint_velocity/cmd_vel"))
+COMMAND_WRITERS.add("px4", CommandWriter(_px4_topics, _px4_build, setpoint=True,
+                                         default_topic="fmu/in/trajectory_setpoint"))

@@ -33,18 +33,10 @@ from ..errors import InvalidInputError
 from ..tomlio import read_toml
 
 __all__ = ["RobotLink", "BridgeSettings", "RobotsFile", "read_robots_file", "robots_from_dict", "resolve_topic",
-           "POSE_TYPE_NAMES", "COMMAND_TYPE_NAMES", "COMMAND_FRAMES"]
+           "COMMAND_FRAMES"]
 
-#: ``pose_type`` values (:data:`quatform.ros2.endpoints.POSE_READERS` keys).
-POSE_TYPE_NAMES = ("pose", "odometry", "px4")
-#: ``command_type`` values (:data:`quatform.ros2.endpoints.COMMAND_WRITERS` keys).
-COMMAND_TYPE_NAMES = ("twist", "twist-stamped", "mavros", "px4")
 #: ``command_frame`` values: world-frame velocities (ENU), or the robot's own FLU frame.
 COMMAND_FRAMES = ("world", "body")
-
-#: The default command topic of each command type (relative names go under the namespace).
-DEFAULT_COMMAND_TOPICS = {"twist": "cmd_vel", "twist-stamped": "cmd_vel",
-                          "mavros": "mavros/setpoint_velocity/cmd_vel", "px4": "fmu/in/trajectory_setpoint"}
 
 _HINT = "see docs/ros2.md"
 _BRIDGE_KEYS = ("world_frame", "start_timeout_s", "estop_topic", "estop_service")
@@ -160,22 +152,24 @@ def robots_from_dict(data: dict, where: str) -> RobotsFile:
         estop_topic=resolve_topic("", text(b, "estop_topic", where, "/quatform/estop", place="[bridge]")),
         estop_service=resolve_topic("", text(b, "estop_service", where, "/quatform/set_estop", place="[bridge]")))
     robots = []
+    from .endpoints import COMMAND_WRITERS, POSE_READERS  # the message types: registries
+
     for r, w in records(data, "robots", _ROBOT_KEYS, where, "robots", _HINT):
         name = _name_text(r, "name", w)
         ns = text(r, "namespace", w, f"/{name}", place="[[robots]]")
         if ns and (not ns.startswith("/") or any(c.isspace() for c in ns)):
             raise InvalidInputError(f"{w}: [[robots]] namespace = {ns!r} must be absolute (start with /) without "
                                     "spaces, or be left out")
-        pose_type = text(r, "pose_type", w, "pose", place="[[robots]]", choices=POSE_TYPE_NAMES)
-        command_type = text(r, "command_type", w, "twist-stamped", place="[[robots]]", choices=COMMAND_TYPE_NAMES)
+        pose_type = text(r, "pose_type", w, "pose", place="[[robots]]", choices=tuple(POSE_READERS))
+        command_type = text(r, "command_type", w, "twist-stamped", place="[[robots]]", choices=tuple(COMMAND_WRITERS))
         frame = text(r, "command_frame", w, None, place="[[robots]]", choices=COMMAND_FRAMES)
-        if command_type in ("mavros", "px4") and frame not in (None, "world"):
+        if COMMAND_WRITERS[command_type].setpoint and frame not in (None, "world"):
             raise InvalidInputError(f"{w}: [[robots]] command_frame = {frame!r}: {command_type} velocity setpoints "
                                     "are world-frame; leave command_frame out or set it to 'world'")
         robots.append(RobotLink(
             name=name, namespace=ns, pose_topic=_topic(r, "pose_topic", w, ns),
             pose_type=pose_type,
-            command_topic=_topic(r, "command_topic", w, ns, DEFAULT_COMMAND_TOPICS[command_type]),
+            command_topic=_topic(r, "command_topic", w, ns, COMMAND_WRITERS[command_type].default_topic),
             command_type=command_type, command_frame=frame,
             timeout_s=number(r, "timeout_s", w, 0.5, place="[[robots]]", low=0.0, low_open=True),
             frame_id=text(r, "frame_id", w, f"{name}/base_link", place="[[robots]]")))

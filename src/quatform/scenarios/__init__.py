@@ -1,10 +1,10 @@
 """Scenarios layer: the built-in TOML scenarios, one builder per kind, the kind registry, the loader.
 
 Above :mod:`quatform.sim`, below :mod:`quatform.report` and :mod:`quatform.runs`. See
-:mod:`.base` for the contract. Each kind module registers itself in :data:`KINDS`
-(``KINDS[kind.name] = kind`` at import); this package imports the kind modules, so
-``import quatform.scenarios`` fills the registry. A new kind is one module here plus its
-import below.
+:mod:`.base` for the contract. A :class:`ScenarioKind` subclass registers itself in
+:data:`KINDS` when it is defined; this package imports every module in it, so
+``import quatform.scenarios`` fills the registry. A new kind is one module here (or one
+module anywhere, imported before its files are loaded).
 
 * :func:`load_scenario` - the one loader: a built-in name or a ``.toml`` path, dispatched on
   the file's ``kind`` key (``pair`` when absent) to that kind's strict reader;
@@ -19,10 +19,8 @@ from pathlib import Path
 from ..checks import text
 from ..errors import InvalidInputError
 from ..tomlio import builtin_files, read_toml
-from .base import Experiment, Option, ScenarioKind
-
-#: Scenario kinds by their TOML ``kind`` value (filled by the kind modules at import).
-KINDS: dict[str, ScenarioKind] = {}
+from ..registry import import_package_modules
+from .base import KINDS, Experiment, Option, ScenarioKind
 
 #: The kind of a scenario file without a ``kind`` key (seed 000's two robots).
 DEFAULT_KIND = "pair"
@@ -68,5 +66,5 @@ def kind_of(scenario) -> ScenarioKind:
                             f"({', '.join(KINDS) or 'none registered'}); load it with quatform.scenarios.load_scenario")
 
 
-# The kind modules register themselves in KINDS (they import it from here, so after it exists).
-from . import pair, team, teleop, ugv_uav  # noqa: E402,F401
+# The kind modules register their kinds in KINDS when their classes are defined.
+import_package_modules(__name__, __path__, skip=("base",))

@@ -15,19 +15,22 @@ names its :class:`ScenarioKind` (``pair`` when absent: seed 000's two robots). A
   :func:`quatform.sim.simulate` runs, and what to compute from the resulting log (derived
   channels and metrics).
 
-Figures and writers are the report layer's (above this one): :data:`quatform.report.FIGURES`
-maps a kind's name to its figure functions. The generic run and compare of
-:mod:`quatform.runs` know nothing else about a kind.
+A subclass registers one instance of itself in :data:`KINDS` when it is defined, and says
+whether a sweep can batch it (:attr:`ScenarioKind.not_sweepable`). Its figures and its bag
+scene are registered beside their functions (:data:`quatform.report.FIGURES`,
+:data:`quatform.bags.scene.SCENES`; a kind in one file adds both there). The generic run and
+compare of :mod:`quatform.runs` know nothing else about a kind.
 """
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
+from abc import ABC, abstractmethod, update_abstractmethods
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from ..sim.log import Log
 from ..sim.backends import simulator
+from ..registry import Registry
 
 __all__ = ["Option", "Experiment", "ScenarioKind"]
 
@@ -108,11 +111,29 @@ class Experiment:
         return self.finish(log)
 
 
+#: Scenario kinds by their TOML ``kind`` value: one instance of every :class:`ScenarioKind`
+#: subclass that sets a ``name``, registered when the class is defined.
+KINDS = Registry("scenario kind")
+
+
 class ScenarioKind(ABC):
-    """One kind of scenario file (see the module docstring)."""
+    """One kind of scenario file (see the module docstring).
+
+    A subclass that sets :attr:`name` registers one instance of itself in :data:`KINDS`
+    when it is defined (``class MyKind(ScenarioKind, register=False)`` does not: a kind a
+    test registers for its own duration).
+    """
 
     #: Value of the TOML ``kind`` key.
     name: str = ""
+    #: Why a sweep cannot batch this kind's runs (None: ``quatform.sweeps`` says whether it can).
+    not_sweepable: str | None = None
+
+    def __init_subclass__(cls, register: bool = True, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if register and cls.__dict__.get("name"):
+            update_abstractmethods(cls)  # ABCMeta sets them after this hook; instantiating needs them now
+            KINDS.add(cls.name, cls())
     #: The Python type of its scenarios (the registry maps a scenario back to its kind).
     scenario_type: type = object
     #: Choices a run takes.

@@ -682,8 +682,7 @@ def _channels(*specs):
 
 
 #: The pair kind (registered in :data:`quatform.scenarios.KINDS`).
-PAIR = PairKind()
-KINDS[PAIR.name] = PAIR
+PAIR = KINDS[PairKind.name]
 
 
 def run_pair(scenario: Scenario, controller, feedforward: bool | None = None, r0=None,

@@ -63,14 +63,7 @@ from ..references.team_motion import (
     Turn,
     template_positions,
 )
-from ..robots import (
-    Bebop,
-    FreeBodyRobot,
-    HolonomicRobot,
-    Pioneer,
-    PlanarHolonomicRobot,
-    Team,
-)
+from ..robots import Team, file_models
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
 from ..sim.team_metrics import min_separations, team_metrics
@@ -78,7 +71,7 @@ from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 from .separation import FILE_LABEL, safety_table, with_option
 
-__all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict", "ROBOT_MODELS",
+__all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict",
            "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_PHYSICS", "TEAM_BYTES_PER_ROBOT_STEP",
            "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples", "available_controllers",
            "with_plan"]
@@ -143,59 +136,6 @@ class RobotGroupSpec:
     model: str
     count: int
     robot: object
-
-
-def _quadrotor(d, where, place):
-    """A Bebop-like 4-DOF multirotor under velocity commands: a holonomic robot whose speed
-    limit is the Bebop 2's vertical top speed and yaw rate (Marciano 2021 Table 3.1,
-    ``robots.Bebop().max_velocity``: the binding limits of a norm-limited command)."""
-    top = Bebop().max_velocity
-    return HolonomicRobot(max_speed=number(d, "max_speed_m_s", where, round(float(top[2]), 3), place=place,
-                                           low=0.0, low_open=True),
-                          max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, round(float(top[3]), 3), place=place,
-                                              low=0.0, low_open=True))
-
-
-def _holonomic(d, where, place):
-    """Seed 000 §4.1's holonomic 4-DOF kinematic robot (the pair kind's defaults)."""
-    return HolonomicRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
-                          max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, 3.0, place=place, low=0.0,
-                                              low_open=True))
-
-
-def _pioneer(d, where, place):
-    """The Pioneer 3-DX of seed 001 §3.1.1 offering its control point and heading (``xy_yaw``):
-    a unicycle whose heading follows its control point (``robots.Pioneer``)."""
-    return Pioneer(a=number(d, "a_m", where, 0.15, place=place, low=0.0, low_open=True),
-                   max_v=number(d, "max_v_m_s", where, 0.75, place=place, low=0.0, low_open=True),
-                   max_omega=number(d, "max_omega_rad_s", where, 100.0 * math.pi / 180.0, place=place, low=0.0,
-                                    low_open=True),
-                   point_kind="xy_yaw")
-
-
-def _planar(d, where, place):
-    """A planar holonomic ground robot ``(x, y, yaw)`` under velocity commands."""
-    return PlanarHolonomicRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0,
-                                                 low_open=True),
-                                max_yaw_rate=number(d, "max_yaw_rate_rad_s", where, 3.0, place=place, low=0.0,
-                                                    low_open=True))
-
-
-def _free_body(d, where, place):
-    """A 6-DOF free body under world linear and angular velocity commands (``pose``)."""
-    return FreeBodyRobot(max_speed=number(d, "max_speed_m_s", where, 2.5, place=place, low=0.0, low_open=True),
-                         max_angular_rate=number(d, "max_angular_rate_rad_s", where, 3.0, place=place, low=0.0,
-                                                 low_open=True))
-
-
-#: Robot models of a ``[[robots]]`` entry: ``(builder(table, where, place), its limit keys)``.
-ROBOT_MODELS = {
-    "quadrotor": (_quadrotor, ("max_speed_m_s", "max_yaw_rate_rad_s")),
-    "holonomic": (_holonomic, ("max_speed_m_s", "max_yaw_rate_rad_s")),
-    "planar": (_planar, ("max_speed_m_s", "max_yaw_rate_rad_s")),
-    "pioneer": (_pioneer, ("a_m", "max_v_m_s", "max_omega_rad_s")),
-    "free-body": (_free_body, ("max_speed_m_s", "max_angular_rate_rad_s")),
-}
 
 
 # --------------------------------------------------------------------------- the scenario
@@ -349,11 +289,13 @@ def _robots(data: dict, where: str):
         raise InvalidInputError(f"{where}: missing [[robots]] (e.g. [[robots]] model = 'quadrotor', count = 4)")
     groups = []
     for r, w in records(data, "robots", _all_robot_keys(), where, "robots", _HINT):
-        model = text(r, "model", w, choices=tuple(ROBOT_MODELS))
-        build, limits = ROBOT_MODELS[model]
+        models = file_models()
+        model = text(r, "model", w, choices=tuple(models))
+        cls = models[model]
+        limits = tuple(cls.limit_keys)
         check_keys(r, _ROBOT_KEYS + limits, w, "[[robots]]", f"a {model} takes {', '.join(limits)}; {_HINT}")
         count = integer(r, "count", w, 1, low=1, high=100_000)
-        groups.append(RobotGroupSpec(model, count, build(r, w, "[[robots]]")))
+        groups.append(RobotGroupSpec(model, count, cls.from_file(r, w, "[[robots]]", model)))
     n = sum(gr.count for gr in groups)
     if n < 2:
         raise InvalidInputError(f"{where}: [[robots]] give {n} robot; a formation needs at least 2 (raise count)")
@@ -361,7 +303,7 @@ def _robots(data: dict, where: str):
 
 
 def _all_robot_keys():
-    return _ROBOT_KEYS + tuple(k for _, limits in ROBOT_MODELS.values() for k in limits)
+    return _ROBOT_KEYS + tuple(dict.fromkeys(k for cls in file_models().values() for k in cls.limit_keys))
 
 
 def _shape(data: dict, where: str, n: int, duration: float):
@@ -716,7 +658,7 @@ class TeamKind(ScenarioKind):
         team, F, ff = ctrl.team, ctrl.formation, bool(ctrl.feedforward)
         if team.n_state != team.layout.size:
             raise InvalidInputError(f"{scenario.name}: a team robot's state must be its point (the models of "
-                                    f"{', '.join(ROBOT_MODELS)}); this team's state has {team.n_state} entries for "
+                                    f"{', '.join(file_models())}); this team's state has {team.n_state} entries for "
                                     f"points of {team.layout.size}")
         if team.layout != scenario.team.layout:
             raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the "
@@ -824,5 +766,4 @@ def _reading(F, reader, r, c, reading_des):
 
 
 #: The team kind (registered in :data:`quatform.scenarios.KINDS`).
-TEAM = TeamKind()
-KINDS[TEAM.name] = TEAM
+TEAM = KINDS[TeamKind.name]

@@ -342,6 +342,7 @@ class TeleopKind(ScenarioKind):
     """Seed 003's teleoperation scenarios (``kind = "teleop"``)."""
 
     name = "teleop"
+    not_sweepable = "its plant (the arms) runs one world at a time"
     scenario_type = TeleopScenario
     options = (
         Option("orientation_error", "the controllers' orientation error (default: the scenario's)",
@@ -383,8 +384,7 @@ class TeleopKind(ScenarioKind):
 
 
 #: The kind's one instance, registered in :data:`quatform.scenarios.KINDS`.
-TELEOP = TeleopKind()
-KINDS[TELEOP.name] = TELEOP
+TELEOP = KINDS[TeleopKind.name]
 
 # TOML
 

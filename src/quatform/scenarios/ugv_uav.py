@@ -486,6 +486,8 @@ class UgvUavKind(ScenarioKind):
     """``kind = "ugv-uav"``: seed 001's Pioneer + Bebop scenarios."""
 
     name = "ugv-uav"
+    not_sweepable = ("its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches "
+                     "but the measurement does not")
     scenario_type = UgvUavScenario
     options = (
         Option("formation", "the UGV-UAV description (Marciano 2021 §4)", tuple(UGV_UAV_FORMATIONS), "quaternion"),
@@ -582,8 +584,7 @@ def mujoco_experiment(sc: UgvUavScenario, formation: str = "quaternion", **contr
 
 
 #: The registered kind.
-UGV_UAV_KIND = UgvUavKind()
-KINDS[UGV_UAV_KIND.name] = UGV_UAV_KIND
+UGV_UAV_KIND = KINDS[UgvUavKind.name]
 
 
 # --------------------------------------------------------------------------- the reader

@@ -5,7 +5,8 @@ Top layer, beside :mod:`quatform.runs` (it uses scenarios, sim and report). A sw
 to vary; its trials run in batches through the scenario kind's own experiment (B worlds per
 tick, each trial's random numbers from its own seed), on any executor, resumably.
 
-* :mod:`.spec` - the strict reader (:func:`load_sweep`) and the parameters (:data:`PARAMETERS`);
+* :mod:`.spec` - the strict reader (:func:`load_sweep`) and the parameters (:data:`PARAMETERS`,
+  a registry: :func:`sweep_parameter` adds one, with how it changes a cell);
 * :mod:`.trials` - a cell's batch and its rows (:func:`run_chunk`), the kinds a sweep can batch;
 * :mod:`.executors` - in process, local processes, Dask (local, ``tcp://``, SLURM);
 * :mod:`.runner` - planning, the up-front estimate, progress, :func:`run_sweep`;
@@ -14,6 +15,6 @@ tick, each trial's random numbers from its own seed), on any executor, resumably
 """
 
 from .runner import estimate, plan_chunks, run_sweep
-from .spec import PARAMETERS, SweepSpec, builtin_sweeps, load_sweep
+from .spec import PARAMETERS, SweepSpec, builtin_sweeps, load_sweep, sweep_parameter
 
-__all__ = ["PARAMETERS", "SweepSpec", "builtin_sweeps", "load_sweep", "run_sweep", "estimate", "plan_chunks"]
+__all__ = ["PARAMETERS", "sweep_parameter", "SweepSpec", "builtin_sweeps", "load_sweep", "run_sweep", "estimate", "plan_chunks"]

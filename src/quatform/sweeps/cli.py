@@ -17,12 +17,19 @@ _MAX_PRINTED = 60
 
 def sweep_arguments(p) -> None:
     """The description and options of ``quatform sweep`` on its parser ``p``."""
-    from ..sim.backends import SIM_BACKENDS
+    import argparse
 
+    from ..sim.backends import SIM_BACKENDS
+    from .spec import PARAMETERS
+
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.description = (
-        "Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes "
-        "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into "
+        "Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes\n"
+        "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into\n"
         "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
+    p.epilog = "parameters a spec's [vary] may hold:\n" + "\n".join(
+        f"  {name} ({q.unit}){'' if q.kinds is None else ' [' + ', '.join(q.kinds) + ' only]'}: {q.help}"
+        for name, q in PARAMETERS.items())
     p.add_argument("spec", metavar="SPEC", help="built-in sweep name (see 'quatform sweeps') or file.toml")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (resumed when it holds this sweep)")
     p.add_argument("--trials", type=int, metavar="K", help="trials per cell instead of the spec's (a quick look)")

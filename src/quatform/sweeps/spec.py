@@ -17,7 +17,9 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,9 +27,10 @@ import numpy as np
 
 from ..checks import check_keys, integer, nearest, number, short, table, text
 from ..errors import InvalidInputError, ResourceLimitError
+from ..registry import Registry
 from ..tomlio import builtin_files, read_toml
 
-__all__ = ["Parameter", "PARAMETERS", "Axis", "Success", "SweepSpec", "load_sweep", "sweep_from_dict",
+__all__ = ["Parameter", "PARAMETERS", "sweep_parameter", "Axis", "Success", "SweepSpec", "load_sweep", "sweep_from_dict",
            "builtin_sweeps", "DEFAULT_SUCCESS_BELOW", "DEFAULT_SUCCESS_FALSE", "MAX_TRIALS", "SLURM_KEYS",
            "SLURM_COUNTS", "check_slurm"]
 
@@ -50,6 +53,14 @@ class Parameter:
         Whole values only.
     kinds : tuple of str or None
         Scenario kinds that can vary it (None: every sweepable kind).
+    data : callable ``(table, value, where) -> table`` or None
+        How a value changes the scenario file's table before its kind reads it (``team_size``:
+        the robot count).
+    apply : callable ``(scenario, value, spec, choice) -> scenario`` or None
+        How a value changes the scenario of a cell (``gain_scale``: the choice's gains; a new
+        parameter of a scenario field: ``dataclasses.replace``). A parameter with neither is
+        read by the batch itself (:func:`quatform.sweeps.trials.chunk_batch`: the measurement's
+        noise, latency and lost frames, the initial errors, the trials' seed).
     """
 
     name: str
@@ -60,26 +71,80 @@ class Parameter:
     integer: bool = False
     kinds: tuple | None = None
     high_open: bool = False
+    data: Callable | None = None
+    apply: Callable | None = None
+
+    def applies_to(self, kind: str) -> bool:
+        """Whether a scenario of kind ``kind`` can vary it."""
+        return self.kinds is None or kind in self.kinds
 
 
-#: What ``[vary]`` may hold, by name.
-PARAMETERS = {p.name: p for p in (
-    Parameter("noise_m", "m", "standard deviation of the motion capture's position noise, each coordinate"),
-    Parameter("noise_rad", "rad", "standard deviation of the motion capture's noise on every yaw angle"),
-    Parameter("latency_s", "s", "age of the measurement the controller reads (rounded to whole control ticks)"),
-    Parameter("dropout_rate", "1", "probability that a control tick's frame is lost (the last one is held)",
-              high=1.0, high_open=True),
-    Parameter("gain_scale", "1", "factor on every gain of the controller (or on the one named by the axis' "
-              "gain key)", low=1e-9),
-    Parameter("initial_offset_m", "m", "bound of the random initial position error: each trial draws every "
-              "coordinate uniformly in [-a, a]"),
-    Parameter("initial_offset_rad", "rad", "bound of the random initial angle error: each trial draws every "
-              "angle uniformly in [-a, a]"),
-    Parameter("team_size", "robots", "number of robots of the team's one [[robots]] group", low=2, high=10_000,
-              integer=True, kinds=("team",)),
-    Parameter("seed", "1", "the seed the trials' random numbers are derived from (replaces the spec's seed)",
-              low=0, high=2**63 - 1, integer=True),
-)}
+#: What ``[vary]`` may hold, by name (filled by :func:`sweep_parameter`).
+PARAMETERS = Registry("sweep parameter")
+
+
+def sweep_parameter(p: Parameter) -> Parameter:
+    """Register ``p`` in :data:`PARAMETERS` (under ``p.name``) and return it: a new parameter is
+    one call beside its definition, and ``[vary]``, the CLI's help and the rows read it."""
+    return PARAMETERS.add(p.name, p)
+
+
+def _team_size_data(data: dict, value, where: str) -> dict:
+    """The scenario table with its one ``[[robots]]`` group ``value`` robots strong (a grid
+    template's rows: the largest divisor of N up to sqrt(N); a prime N: a line)."""
+    n = int(value)
+    groups = data.get("robots")
+    if not isinstance(groups, list) or len(groups) != 1:
+        raise InvalidInputError(f"{where}: [vary.team_size] needs a scenario with one [[robots]] group (it sets "
+                                "its count); this one has " + str(len(groups) if isinstance(groups, list) else 0))
+    out = {**data, "robots": [{**groups[0], "count": n}]}
+    shape = dict(data.get("shape", {}))
+    if shape.get("template") == "grid":
+        shape["rows"] = max(r for r in range(1, math.isqrt(n) + 1) if n % r == 0)
+        out["shape"] = shape
+    return out
+
+
+def _scaled(gains: dict, factor: float, only: str | None):
+    return {k: (v if only not in (None, k) else
+                [x * factor for x in v] if isinstance(v, list) else
+                np.asarray(v) * factor if isinstance(v, np.ndarray) else v * factor)
+            for k, v in gains.items()}
+
+
+def _gain_scale(sc, scale, spec, choice: str):
+    """``sc`` with the gains of the controller ``choice`` (or the axis' one ``gain``) times ``scale``."""
+    if scale == 1.0:
+        return sc
+    axis = spec.axis("gain_scale")
+    own = sc.gains.get(choice, {})
+    if axis.gain is not None and axis.gain not in own:
+        raise InvalidInputError(f"{spec.where}: [vary.gain_scale] gain = {axis.gain!r} is not a gain of the "
+                                f"{choice} controller{nearest(axis.gain, own)}; it has {', '.join(own) or 'none'}")
+    gains = {**sc.gains, choice: _scaled(own, float(scale), axis.gain)}
+    try:
+        return dataclasses.replace(sc, gains=gains)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{spec.where}: gain_scale = {scale:g}: {exc}") from None
+
+
+sweep_parameter(Parameter("noise_m", "m", "standard deviation of the motion capture's position noise, each "
+                          "coordinate"))
+sweep_parameter(Parameter("noise_rad", "rad", "standard deviation of the motion capture's noise on every yaw angle"))
+sweep_parameter(Parameter("latency_s", "s", "age of the measurement the controller reads (rounded to whole "
+                          "control ticks)"))
+sweep_parameter(Parameter("dropout_rate", "1", "probability that a control tick's frame is lost (the last one is "
+                          "held)", high=1.0, high_open=True))
+sweep_parameter(Parameter("gain_scale", "1", "factor on every gain of the controller (or on the one named by the "
+                          "axis' gain key)", low=1e-9, apply=_gain_scale))
+sweep_parameter(Parameter("initial_offset_m", "m", "bound of the random initial position error: each trial draws "
+                          "every coordinate uniformly in [-a, a]"))
+sweep_parameter(Parameter("initial_offset_rad", "rad", "bound of the random initial angle error: each trial draws "
+                          "every angle uniformly in [-a, a]"))
+sweep_parameter(Parameter("team_size", "robots", "number of robots of the team's one [[robots]] group", low=2,
+                          high=10_000, integer=True, kinds=("team",), data=_team_size_data))
+sweep_parameter(Parameter("seed", "1", "the seed the trials' random numbers are derived from (replaces the spec's "
+                          "seed)", low=0, high=2**63 - 1, integer=True))
 
 #: Default success: after the settling time (the scenario's metrics_from_s), the centroid,
 #: attitude and robot tracking errors stay below 0.1 m / 0.1 rad (seed 000's plots read the

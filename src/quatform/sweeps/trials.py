@@ -17,17 +17,18 @@ scenario and initial states are built (a registry: the spec reader asks it).
 from __future__ import annotations
 
 import dataclasses
-import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-from ..checks import nearest
 from ..errors import InvalidInputError, QuatformError, ResourceLimitError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair
 from ..sim.trial_measurement import TickMeasurement
+from ..registry import Registry, RegistryView
 from ..tomlio import read_toml
+from .spec import PARAMETERS
 
 __all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "chunk_batch", "run_chunk", "trial_stream", "cell_experiment",
            "COINCIDENT_M", "ROW_COLUMNS", "row_metrics"]
@@ -35,8 +36,6 @@ __all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "chunk_batch", 
 #: Robots closer than this (m) at any sample coincide: the trial failed.
 COINCIDENT_M = 1e-6
 
-_COMMON = ("noise_m", "noise_rad", "latency_s", "dropout_rate", "gain_scale", "initial_offset_m",
-           "initial_offset_rad", "seed")
 
 
 def _offset_scales(variables, m: float, rad: float) -> np.ndarray:
@@ -58,28 +57,24 @@ class SweepKind:
     Attributes
     ----------
     kind : str
-    parameters : tuple of str
-        The keys of :data:`~quatform.sweeps.spec.PARAMETERS` it can vary.
+        The scenario kind (:data:`SWEEP_KINDS` key).
     """
 
     kind: str
-    parameters: tuple
+
+    @property
+    def parameters(self) -> tuple:
+        """The keys of :data:`~quatform.sweeps.spec.PARAMETERS` it can vary (each parameter's ``kinds``)."""
+        return tuple(name for name, p in PARAMETERS.items() if p.applies_to(self.kind))
 
     def data(self, data: dict, values: dict, where: str) -> dict:
-        """The scenario file's table for a cell (``team_size`` changes the robot count)."""
-        if "team_size" not in values:
-            return data
-        n = int(values["team_size"])
-        groups = data.get("robots")
-        if not isinstance(groups, list) or len(groups) != 1:
-            raise InvalidInputError(f"{where}: [vary.team_size] needs a scenario with one [[robots]] group (it sets "
-                                    "its count); this one has " + str(len(groups) if isinstance(groups, list) else 0))
-        out = {**data, "robots": [{**groups[0], "count": n}]}
-        shape = dict(data.get("shape", {}))
-        if shape.get("template") == "grid":  # rows: the largest divisor of N up to sqrt(N) (a prime N: a line)
-            shape["rows"] = max(r for r in range(1, math.isqrt(n) + 1) if n % r == 0)
-            out["shape"] = shape
-        return out
+        """The scenario file's table for a cell (each varied parameter's ``data``: ``team_size``
+        changes the robot count)."""
+        for name, value in values.items():
+            hook = PARAMETERS[name].data
+            if hook is not None:
+                data = hook(data, value, where)
+        return data
 
     def variables(self, exp):
         """The entries a trial's initial error is drawn on (:class:`~quatform.formations.layout.Variable`)."""
@@ -106,17 +101,21 @@ class PairSweep(SweepKind):
         return EuclideanPair().inverse(e)  # seed 000 eqs. (1)-(8) solved for the robots
 
 
-#: Sweep adapters by scenario kind.
-SWEEP_KINDS = {
-    "pair": PairSweep("pair", _COMMON),
-    "team": SweepKind("team", (*_COMMON, "team_size")),
-}
-#: Why the other kinds cannot be swept yet (one line each).
-NOT_SWEEPABLE = {
-    "ugv-uav": "its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches but "
-               "the measurement does not",
-    "teleop": "its plant (the arms) runs one world at a time",
-}
+#: Sweep adapters by scenario kind (``SWEEP_KINDS.add(kind, adapter)`` beside the adapter; a
+#: new kind's file adds its own).
+SWEEP_KINDS = Registry("sweep kind")
+SWEEP_KINDS.add("pair", PairSweep("pair"))
+SWEEP_KINDS.add("team", SweepKind("team"))
+
+
+def _not_sweepable() -> dict:
+    from ..scenarios import KINDS
+
+    return {name: k.not_sweepable for name, k in KINDS.items() if k.not_sweepable and name not in SWEEP_KINDS}
+
+
+#: Why the other kinds cannot be swept yet (one line each): each kind's ``not_sweepable``.
+NOT_SWEEPABLE: Mapping = RegistryView(_not_sweepable, "NOT_SWEEPABLE")
 
 
 # --------------------------------------------------------------------------- one cell
@@ -128,13 +127,6 @@ def _scenario_data(ref: str) -> tuple:
 
     data, p = read_toml(ref, builtin_scenarios(), "scenario")
     return data, str(p)
-
-
-def _scaled(gains: dict, factor: float, only: str | None):
-    return {k: (v if only not in (None, k) else
-                [x * factor for x in v] if isinstance(v, list) else
-                np.asarray(v) * factor if isinstance(v, np.ndarray) else v * factor)
-            for k, v in gains.items()}
 
 
 def cell_scenario(spec, values: dict, choice: str):
@@ -168,18 +160,10 @@ def cell_scenario(spec, values: dict, choice: str):
             sc = dataclasses.replace(sc, **short)
         except InvalidInputError as exc:
             raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}") from None
-    scale = values.get("gain_scale")
-    if scale is not None and scale != 1.0:
-        axis = spec.axis("gain_scale")
-        own = sc.gains.get(choice, {})
-        if axis.gain is not None and axis.gain not in own:
-            raise InvalidInputError(f"{spec.where}: [vary.gain_scale] gain = {axis.gain!r} is not a gain of the "
-                                    f"{choice} controller{nearest(axis.gain, own)}; it has {', '.join(own) or 'none'}")
-        gains = {**sc.gains, choice: _scaled(own, float(scale), axis.gain)}
-        try:
-            sc = dataclasses.replace(sc, gains=gains)
-        except InvalidInputError as exc:
-            raise InvalidInputError(f"{spec.where}: gain_scale = {scale:g}: {exc}") from None
+    for name, value in values.items():  # each varied parameter's change of the scenario
+        hook = PARAMETERS[name].apply
+        if hook is not None:
+            sc = hook(sc, value, spec, choice)
     return sc
 
 

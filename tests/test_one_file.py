@@ -1,0 +1,431 @@
+"""A new formation, robot model, law, scenario kind, writer and sweep parameter is one file.
+
+Each toy below is the text of one module, written to a temporary folder and imported as a
+user would import their own file; nothing else changes. The test checks that its registry
+picked it up and that it runs where a user would use it: the formation passes the contract
+test, the robot model is read from a team file and moves in a run, the law steps a block,
+the kind runs and compares through ``quatform.runs``, the writer writes its file in a run
+(and the CLI offers its flag), the sweep parameter is varied in a sweep.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from quatform.formations import FORMATION_TYPES, FORMATIONS
+from quatform.formations.testing import check_formation
+from quatform.outputs import WRITERS, add_output_flags, output_choices
+from quatform.robots import ROBOT_MODELS, file_models
+from quatform.robots.testing import check_robot_model
+from quatform.scenarios import KINDS, load_scenario
+from quatform.sweeps import PARAMETERS
+
+TOY_FORMATION = '''
+"""A toy two-robot description: the midpoint and half the separation of two points."""
+import numpy as np
+
+from quatform.formations import Formation, RobotLayout
+from quatform.formations.layout import Variable
+
+_VARS = tuple(Variable(n, "m", "position") for n in ("m_x", "m_y", "m_z", "h_x", "h_y", "h_z"))
+_T = np.array([[0.5, 0, 0, 0.5, 0, 0], [0, 0.5, 0, 0, 0.5, 0], [0, 0, 0.5, 0, 0, 0.5],
+               [0.5, 0, 0, -0.5, 0, 0], [0, 0.5, 0, 0, -0.5, 0], [0, 0, 0.5, 0, 0, -0.5]])
+_TI = np.linalg.inv(_T)
+
+
+class ToyMidpoint(Formation):
+    name = "toy-midpoint"
+    key = "toy-midpoint"
+    variables = _VARS
+    chart_variables = _VARS
+    layout = RobotLayout.uniform("xyz", 2)
+
+    def forward(self, r, *, near_c=None):
+        return np.asarray(r, dtype=float) @ _T.T
+
+    def inverse(self, c, *, near_r=None):
+        return np.asarray(c, dtype=float) @ _TI.T
+
+    def cluster_rate(self, r, r_dot, *, near_c=None):
+        return np.broadcast_to(np.asarray(r_dot, dtype=float) @ _T.T,
+                               np.broadcast_shapes(np.shape(r)[:-1], np.shape(r_dot)[:-1]) + (6,)).copy()
+
+    def robot_rate(self, c, c_dot, *, r=None):
+        return np.broadcast_to(np.asarray(c_dot, dtype=float) @ _TI.T,
+                               np.broadcast_shapes(np.shape(c)[:-1], np.shape(c_dot)[:-1]) + (6,)).copy()
+
+    def to_chart(self, c, *, near_e=None, r=None):
+        return np.asarray(c, dtype=float)
+
+    def from_chart(self, e, e_dot=None):
+        e = np.asarray(e, dtype=float)
+        return e if e_dot is None else (e, np.asarray(e_dot, dtype=float))
+'''
+
+TOY_ROBOT = '''
+"""A toy robot: a point under world velocity commands, its speed limited."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from quatform.checks import number
+from quatform.robots import RobotModel
+from quatform.robots.ros_io import RobotIO
+
+
+def _ros_state(model, pose, prev):
+    return np.asarray(pose.position, dtype=float)
+
+
+def _ros_world(model, u, state):
+    return np.asarray(u, dtype=float), np.zeros(np.shape(u))
+
+
+@dataclass(frozen=True)
+class ToyPoint(RobotModel):
+    max_speed: float = 1.0
+
+    name = "toy-point"
+    point_kind = "xyz"
+    state_columns = ("x", "y", "z")
+    command_columns = ("v_x", "v_y", "v_z")
+    column_units = {"x": "m", "y": "m", "z": "m", "v_x": "m/s", "v_y": "m/s", "v_z": "m/s"}
+    n_rate = 3
+    passthrough = True
+    holonomic = False
+    file_names = ("toy-point",)
+    limit_keys = ("max_speed_m_s",)
+    ros_io = RobotIO("toy point", "world", _ros_state, lambda m, u, x, q: _ros_world(m, u, x), _ros_world,
+                     setpoint=True)
+
+    @classmethod
+    def from_file(cls, table, where, place, file_name="toy-point"):
+        return cls(max_speed=number(table, "max_speed_m_s", where, 1.0, place=place, low=0.0, low_open=True))
+
+    def point(self, x):
+        return np.asarray(x, dtype=float)
+
+    def initial_memory(self, batch=()):
+        return None
+
+    def actuate(self, x, rate, t, memory=None):
+        return np.asarray(rate, dtype=float), memory
+
+    def brake(self, x, memory=None):
+        return np.zeros(np.shape(x)[:-1] + (3,)), memory
+
+    def saturate(self, u):
+        u = np.asarray(u, dtype=float)
+        u = np.where(np.all(np.isfinite(u), axis=-1, keepdims=True), u, 0.0)
+        speed = np.linalg.norm(u, axis=-1, keepdims=True)
+        return u * np.minimum(1.0, self.max_speed / np.maximum(speed, 1e-300))
+
+    def step(self, x, u, dt):
+        return np.asarray(x, dtype=float) + dt * self.saturate(u)
+'''
+
+TOY_LAW = '''
+"""A toy component law: a proportional law whose rate is clipped at its gain."""
+import numpy as np
+
+from quatform.control.laws import LAWS
+
+
+def clipped(e, c_dot_des, k, feedforward=1.0):
+    return feedforward * c_dot_des - np.clip(k * e, -k, k)
+
+
+LAWS["toy-clipped"] = clipped
+'''
+
+TOY_KIND = '''
+"""A toy scenario kind: one integrator under a proportional law, with figures and a bag scene."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from quatform.bags.scene import SCENES, Scene, SceneKind
+from quatform.checks import check_keys, number, text
+from quatform.control.contract import Controller, Step
+from quatform.report import FIGURES, FigureSet
+from quatform.report.figures import new_figure, save
+from quatform.scenarios import Experiment, Option, ScenarioKind
+
+
+@dataclass(frozen=True)
+class ToyScenario:
+    name: str
+    title: str
+    source: str
+    x0: float
+    duration_s: float
+
+
+class Integrator:
+    state_columns = ("x",)
+    output_columns = ("x",)
+    batchable = True
+
+    def output(self, x):
+        return x
+
+    def step(self, x, u, dt, t):
+        return x + dt * u
+
+
+@dataclass(frozen=True)
+class Proportional(Controller):
+    k: float
+    name: str = "proportional"
+
+    @property
+    def command_names(self):
+        return ("u",)
+
+    def signal_columns(self):
+        return {"error": ("e",)}
+
+    def update(self, t, measured, reference, state):
+        e = -np.asarray(measured, dtype=float)
+        return Step(self.k * e, state, {"error": e})
+
+
+GAINS = {"slow": 0.5, "fast": 2.0}
+
+
+class ToyKind(ScenarioKind):
+    name = "toy-integrator"
+    scenario_type = ToyScenario
+    options = (Option("gain", "the gain", choices=tuple(GAINS), default="slow"),)
+    compare_over = "gain"
+    table_columns = (("gain", "gain", "{}"), ("final_abs_x", "|x(T)|", "{:.4f}"))
+    not_sweepable = "a toy"
+
+    def from_dict(self, data, where):
+        check_keys(data, ("kind", "name", "title", "source", "x0", "duration_s"), where)
+        return ToyScenario(text(data, "name", where, "toy"), text(data, "title", where, "a toy"),
+                           text(data, "source", where, "none"), number(data, "x0", where, 1.0),
+                           number(data, "duration_s", where, 0.5))
+
+    def experiment(self, scenario, gain="slow"):
+        times = np.arange(0.0, scenario.duration_s + 1e-12, 0.01)
+
+        def metrics(log):
+            return {"scenario": scenario.name, "gain": gain, "final_abs_x": float(abs(log["state"][-1, 0]))}
+
+        return Experiment(scenario, gain, Integrator(), Proportional(GAINS[gain]), lambda k: None, times,
+                          np.array([scenario.x0]), 0.01, metrics=metrics, csv_channels=("state", "command"))
+
+
+def _plot(log, out):
+    fig = new_figure((3, 2))
+    fig.add_subplot().plot(log.t, log["state"][:, 0])
+    return [save(fig, out / "toy_x.png")]
+
+
+FIGURES.add("toy-integrator", FigureSet(_plot))
+
+
+def _scene(log):
+    x = np.asarray(log["state"])[:, 0]
+    return Scene(bodies=("body",), parents=("world",), position=np.stack([x, 0 * x, 0 * x], axis=-1)[:, None],
+                 quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (x.size, 1, 1)))
+
+
+SCENES.add("toy-integrator", SceneKind(_scene, lambda scene: ()))
+'''
+
+TOY_WRITER = '''
+"""A toy writer: the final state of a run as a text file, off unless asked for."""
+from quatform.outputs import Writer
+
+
+class FinalStateWriter(Writer):
+    name = "final_state"
+    files = ("final_state.txt",)
+    optional = True
+    default = False
+    help = "also write final_state.txt (the last state)"
+
+    def write(self, run):
+        (run.folder / self.files[0]).write_text(" ".join(f"{v:.17g}" for v in run.log["state"][-1]) + "\\n")
+'''
+
+TOY_PARAMETER = '''
+"""A toy sweep parameter: the settling time after which a trial's metrics are measured."""
+import dataclasses
+
+from quatform.sweeps import sweep_parameter
+from quatform.sweeps.spec import Parameter
+
+
+def _settle(sc, value, spec, choice):
+    return dataclasses.replace(sc, metrics_from_s=float(value))
+
+
+sweep_parameter(Parameter("toy_settle_s", "s", "when the metrics start (replaces the scenario's metrics_from_s)",
+                          kinds=("pair",), apply=_settle))
+'''
+
+
+def _import(tmp_path, name: str, source: str):
+    """Write ``source`` to ``tmp_path/name.py`` and import it as a user's module."""
+    path = tmp_path / f"{name}.py"
+    path.write_text(textwrap.dedent(source))
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def registries():
+    """Every registry as it was before the test (the toys leave them when it ends)."""
+    from quatform.bags.scene import SCENES
+    from quatform.control.laws import LAWS
+    from quatform.report import FIGURES
+
+    saved = [(reg, dict(reg)) for reg in (FORMATION_TYPES, ROBOT_MODELS, KINDS, WRITERS, PARAMETERS, FIGURES,
+                                          SCENES, LAWS)]
+    yield
+    for reg, before in saved:
+        reg.clear()
+        reg.update(before)
+    for name in ("toy_formation", "toy_robot", "toy_law", "toy_kind", "toy_writer", "toy_parameter"):
+        sys.modules.pop(name, None)
+
+
+def test_a_formation_is_one_file(tmp_path, registries):
+    module = _import(tmp_path, "toy_formation", TOY_FORMATION)
+    assert FORMATION_TYPES["toy-midpoint"] is module.ToyMidpoint
+    F = FORMATIONS["toy-midpoint"]  # its examples, built on first use
+    assert isinstance(F, module.ToyMidpoint)
+    check_formation(F, np.random.default_rng(0), n=12)
+
+
+def test_a_robot_model_is_one_file(tmp_path, registries):
+    from quatform import runs
+    from quatform.report.replay_plots import column_unit
+    from quatform.ros2.robot_io import PoseSample, robot_io
+
+    module = _import(tmp_path, "toy_robot", TOY_ROBOT)
+    assert ROBOT_MODELS["toy-point"] is module.ToyPoint and file_models()["toy-point"] is module.ToyPoint
+    # the ROS 2 bridge's conversions and the replay figure's units come with it
+    model = module.ToyPoint()
+    check_robot_model(model)  # the contract every registered model passes
+    assert robot_io(model).kind == "toy point"
+    pose = PoseSample(0.0, np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.0, 0.0, 0.0]))
+    assert robot_io(model).state(model, pose, None).tolist() == [1.0, 2.0, 3.0]
+    assert column_unit("v_z", model) == "m/s"
+    # a team file names it, and a run moves three of them in formation
+    f = tmp_path / "toy-team.toml"
+    f.write_text(textwrap.dedent('''
+        kind = "team"
+        name = "toy-team"
+        duration_s = 1.0
+        dt_s = 0.02
+
+        [[robots]]
+        model = "toy-point"
+        count = 3
+        max_speed_m_s = 2.0
+
+        [shape]
+        template = "triangle"
+        side = 1.0
+
+        [path]
+        kind = "line"
+        center = [0.0, 0.0, 1.0]
+        velocity = [0.2, 0.0, 0.0]
+
+        [safety]
+        enabled = false
+    '''))
+    sc = load_scenario(f)
+    assert [type(r) for r in sc.team.robots] == [module.ToyPoint] * 3 and sc.team.robots[0].max_speed == 2.0
+    log, metrics = runs.run(sc, tmp_path / "out", quiet=True, plots=False, mcap=False, controller="quaternion")
+    assert np.all(np.isfinite(log["state"])) and metrics["max_cluster_position_error_m"] < 0.05
+
+
+def test_a_law_is_one_file(tmp_path, registries):
+    from quatform.control.laws import LAWS, Block, BlockLaw
+
+    module = _import(tmp_path, "toy_law", TOY_LAW)
+    assert LAWS["toy-clipped"] is module.clipped
+    law = BlockLaw((Block("toy-clipped", 0, 2, (1.0, 1.0)),))
+    err, rate = law((3.0, 0.5), (0.0, 0.0), (0.1, 0.0))
+    assert err == (3.0, 0.5) and rate == (pytest.approx(0.1 - 1.0), pytest.approx(-0.5))
+
+
+def test_a_scenario_kind_is_one_file(tmp_path, registries):
+    from quatform import runs
+    from quatform.sweeps.trials import NOT_SWEEPABLE
+
+    module = _import(tmp_path, "toy_kind", TOY_KIND)
+    assert isinstance(KINDS["toy-integrator"], module.ToyKind)
+    assert NOT_SWEEPABLE["toy-integrator"] == "a toy"
+    f = tmp_path / "toy.toml"
+    f.write_text('kind = "toy-integrator"\nname = "t1"\nx0 = 2.0\n')
+    log, m = runs.run(f, tmp_path / "run", quiet=True, gain="fast")
+    names = {p.name for p in (tmp_path / "run").iterdir()}
+    assert {"metrics.json", "timeseries.csv", "toy_x.png", "run.mcap", "foxglove-layout.json"} <= names
+    assert m["final_abs_x"] == pytest.approx(2.0 * (1 - 0.02) ** (log.t.size - 1), rel=1e-12)
+    rows = runs.compare(f, tmp_path / "cmp", quiet=True, mcap=False)
+    assert [r["gain"] for r in rows] == ["slow", "fast"]
+
+
+def test_a_writer_is_one_file(tmp_path, registries):
+    from quatform import runs
+
+    _import(tmp_path, "toy_kind", TOY_KIND)
+    module = _import(tmp_path, "toy_writer", TOY_WRITER)
+    assert isinstance(WRITERS["final_state"], module.FinalStateWriter)
+    # the CLI's output flags come from the registry
+    p = argparse.ArgumentParser()
+    add_output_flags(p)
+    args = p.parse_args(["--final-state", "--no-mcap"])
+    assert output_choices(args) == {"mcap": False, "rerun": None, "final_state": True}
+    f = tmp_path / "toy.toml"
+    f.write_text('kind = "toy-integrator"\nname = "t1"\nx0 = 2.0\n')
+    log, _ = runs.run(f, tmp_path / "off", quiet=True, plots=False)
+    assert not (tmp_path / "off" / "final_state.txt").exists()  # off unless asked for
+    log, _ = runs.run(f, tmp_path / "on", quiet=True, plots=False, writers=output_choices(args))
+    names = {p.name for p in (tmp_path / "on").iterdir()}
+    assert "final_state.txt" in names and "run.mcap" not in names
+    assert float((tmp_path / "on" / "final_state.txt").read_text()) == log["state"][-1, 0]
+
+
+def test_a_sweep_parameter_is_one_file(tmp_path, registries):
+    from quatform.sweeps import load_sweep, run_sweep
+
+    _import(tmp_path, "toy_parameter", TOY_PARAMETER)
+    assert PARAMETERS["toy_settle_s"].kinds == ("pair",)
+    spec = tmp_path / "toy-sweep.toml"
+    spec.write_text(textwrap.dedent('''
+        name = "toy-sweep"
+        scenario = "mas-kitts-helix"
+        controllers = ["robot-space"]
+        trials = 2
+        seed = 3
+        duration_s = 1.0
+        settle_s = 0.0
+
+        [vary.toy_settle_s]
+        values = [0.0, 0.9]
+    '''))
+    out = tmp_path / "out"
+    run_sweep(load_sweep(spec), out, quiet=True, plots=False)
+    rows = json.loads((out / "results.json").read_text())
+    rows = rows["rows"] if isinstance(rows, dict) else rows
+    assert sorted({r["toy_settle_s"] for r in rows}) == [0.0, 0.9] and len(rows) == 4
+    # the parameter reached each cell's scenario: its metrics are measured from it
+    assert all(r["metrics_from_s"] == r["toy_settle_s"] for r in rows)
