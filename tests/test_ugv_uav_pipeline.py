@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from quatform.errors import InvalidInputError, ResourceLimitError, ShapeError
+from quatform.errors import InvalidInputError, ResourceLimitError
 from quatform.robots import Bebop, Pioneer
 from quatform.scenarios import KINDS
 from quatform.scenarios.ugv_uav import (
@@ -154,17 +154,19 @@ def test_plant_batch_equals_single_and_keeps_the_floor(u, z):
 
 def test_motion_capture_latency_and_odometry_period():
     mc = MotionCapture(rate_hz=100.0, latency_s=0.02, odometry_period_s=0.2)
-    mc.start(0.0, np.zeros(11))
-    for k in range(1, 60):  # the plant moves x_p = t, v_x = t every 5 ms
+    times = np.arange(51) * 0.005  # one plant step of 5 ms per tick, to 0.25 s
+    sched = mc.schedule(times, 0.005, 1)
+    state = mc.init(np.zeros(11), (), sched)
+    for k in range(51):  # the plant moves x_p = t, v_x = t every 5 ms
+        state, m = mc.read(state, {key: v[k] for key, v in sched.items()})
         y = np.zeros(11)
-        y[0], y[7] = k * 0.005, k * 0.005
-        mc.observe(k * 0.005, y)
-    m = mc.read(0.25)
+        y[0], y[7] = (k + 1) * 0.005, (k + 1) * 0.005
+        state = mc.observe(state, y, 0)
     assert m.shape == (11,)
     assert m[0] == pytest.approx(0.23, abs=1e-12)  # the frame of 0.25 s shows the pose of 0.23 s
     assert m[7] == pytest.approx(0.2, abs=1e-12)  # the odometry of 0.2 s
-    with pytest.raises(ShapeError, match="one world at a time"):
-        MotionCapture().start(0.0, np.zeros((2, 11)), batch=(2,))
+    two = mc.init(np.zeros((2, 11)), (2,), mc.schedule(times, 0.005, 1, (2,)))  # a batch: each world its own
+    assert two["hist"].shape[0] == 2 and two["pose"].shape == (2, 7)
     with pytest.raises(InvalidInputError, match="motion capture"):
         MotionCapture(rate_hz=0.0)
 
