@@ -47,6 +47,7 @@ from ..errors import InvalidInputError, ShapeError
 from ..formations import UgvUavRestricted
 from ..robots import BebopMemory
 from . import jax_loop
+from .loop import tree_map
 from .log import Channel, Log
 from .measurement import MotionCapture
 
@@ -205,7 +206,7 @@ def _tick_function(plant, ctrl, mocap, dt, substeps):
             ms = mocap.observe(ms, plant.output(x_next), s)
         new = (x_next, ms, good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot)
         if "valid" in xs:  # a padded tick past the run's end (progress chunks) changes nothing
-            new = tuple(jnp.where(xs["valid"], a, a0) for a, a0 in zip(new, carry))
+            new = tree_map(lambda a, a0: jnp.where(xs["valid"], a, a0), new, carry)
         return new, (x, m, u) + signals
 
     return tick
