@@ -327,3 +327,17 @@ def test_control_period_not_a_multiple_of_dt_is_refused_and_tiny_dt_names_dt():
     assert _load(control_period_s=0.03, dt_s=0.005).control_period_s == 0.03
     with pytest.raises(ResourceLimitError, match=r"duration_s / dt_s needs 2e\+300 steps"):
         _load(dt_s=1e-300, control_period_s=0.03)
+
+
+def test_a_batch_runs_each_world_with_its_own_motion_capture_streams():
+    """The ugv-uav kind batched on NumPy: world 0 reads the streams of the model's seed (one
+    world's run, within the rounding of the vectorised yaw), world 1 those of seed + 1."""
+    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=1.0, mocap_noise_m=0.01,
+                             mocap_noise_rad=0.01)
+    raw = dataclasses.replace(ugv_uav_experiment(sc, "quaternion"), finish=lambda log: log)
+    one = raw.run()
+    two = dataclasses.replace(raw, x0=np.stack([raw.x0, raw.x0])).run()
+    for name in one.channels:
+        np.testing.assert_allclose(two[name][:, 0], one[name], rtol=1e-12, atol=1e-12, err_msg=name)
+    assert not np.allclose(two["measured"][:, 1], two["measured"][:, 0])
+    assert "failed" not in two.meta
