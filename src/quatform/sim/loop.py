@@ -140,12 +140,18 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         Freeze failed worlds (a batch). False: one world on NumPy, whose failure the driver
         raises; a tick whose code is not 0 then returns without stepping the plant.
     """
+    # one world of a controller with update only: update itself (it raises), no codes to read
+    code_free = not freeze and not controller.pure and control is None
     control = controller.tick if control is None else control
     names = tuple(controller.signal_columns())
     hold_state = bool(controller.pure)
 
-    def plant_step(x, u, t, w):
-        return _plant_step(plant, x, u, dt, t, w) if step is None else step(x, u, dt, t, w)
+    if step is None:
+        def plant_step(x, u, t, w):
+            return plant.step(x, u, dt, t) if w is None else plant.step(x, u, dt, t, w)
+    else:
+        def plant_step(x, u, t, w):
+            return step(x, u, dt, t, w)
 
     def substep_inputs(xs, j):
         w = xs.get("plant")
@@ -154,15 +160,21 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
     def tick(carry, xs):
         x, cs, ms, fail_tick, reason = carry
         ms, m = measurement.read(ms, xs["meas"])
-        out = control(cs, m, xs["ref"], xs["t"])
+        t = xs["t"]
         if not freeze:  # one world on NumPy: a failure ends the run (the driver raises)
-            if np.any(out.code > 0):
-                return (x, cs, ms, xs["k"], out.code), None
-            x_next = x
+            if code_free:  # update raises it
+                out = controller.update(t, m, xs["ref"], cs)
+            else:
+                out = control(cs, m, xs["ref"], t)
+                if np.any(out.code > 0):
+                    return (x, cs, ms, xs["k"], out.code), None
+            u, x_next = out.u, x
             for j in range(substeps):
-                x_next = plant_step(x_next, out.u, xs["t"] + j * dt, substep_inputs(xs, j))
+                x_next = plant_step(x_next, u, t + j * dt, substep_inputs(xs, j))
                 ms = measurement.observe(ms, plant.output(x_next), j)
-            return (x_next, out.state, ms, fail_tick, reason), (x, m, out.u) + tuple(out.signals[k] for k in names)
+            signals = out.signals
+            return (x_next, out.state, ms, fail_tick, reason), (x, m, u) + tuple([signals[k] for k in names])
+        out = control(cs, m, xs["ref"], t)
         xp = common_namespace(x, m, out.u, reason)
         u = xp.asarray(out.u, dtype=x.dtype)
         code = xp.where((out.code == 0) & ~xp.all(xp.isfinite(u), axis=-1), COMMAND_CODE, out.code)
@@ -382,7 +394,7 @@ def simulate_numpy(plant, controller, reference: Callable, times, x0, *, dt: flo
     ys = []
     for k in range(n):
         ref = reference(k)
-        xs = {"k": k, "t": times[k], "ref": controller.reference_arrays(ref) if pure else ref,
+        xs = {"k": k, "t": float(times[k]), "ref": controller.reference_arrays(ref) if pure else ref,
               "meas": {key: v[k] for key, v in sched.items()},
               "plant": None if inputs is None else {key: v[k] for key, v in inputs.items()}}
         before = carry
