@@ -2,7 +2,8 @@
 
 :func:`quatform.sim.loop.legacy_jax` hands a run here that the one loop's JAX driver
 (:func:`quatform.sim.loop.simulate_jax`) cannot run yet, its controller having no pure
-``tick``; this module goes once they have. :func:`simulate` has :func:`quatform.sim.simulate`'s signature and returns the same
+``tick``; this module goes once they have. :func:`simulate` has
+:func:`quatform.sim.simulate`'s signature and returns the same
 :class:`~quatform.sim.log.Log`; it runs the same kernels (``pip install -e ".[jax]"``):
 
 * the controller's chain without its value checks
@@ -73,7 +74,6 @@ from ..control.team import TeamController
 from ..errors import (
     DegenerateInputError,
     InvalidInputError,
-    MissingDependencyError,
     ShapeError,
 )
 from ..formations import (

@@ -252,7 +252,8 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
            tuple(measurement.init(plant.output(x), (1,), sched)["hist"].shape))
     step = jax_loop.cached(_CACHE, key, build)
     nan = np.full(1, np.nan)
-    carry = (x[None], measurement.init(plant.output(x)[None], (1,), sched), np.full((1, 11), np.nan), nan, nan, np.zeros(1, dtype=bool), nan, nan, np.full((1, 4), np.nan), nan,
+    carry = (x[None], measurement.init(plant.output(x)[None], (1,), sched), np.full((1, 11), np.nan), nan, nan,
+             np.zeros(1, dtype=bool), nan, nan, np.full((1, 4), np.nan), nan,
              np.zeros((1, 4)))
     with jax.enable_x64(True):
         ys, carry = jax_loop.scan_ticks(jax, step, carry, xs, n, progress, _AXES)

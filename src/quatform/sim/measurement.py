@@ -168,7 +168,8 @@ class MotionCapture:
         return math.floor(t / self.odo + 1e-9) * self.odo
 
     def _draw(self, rng, fault_rng):
-        """One frame's random draws from the streams ``rng``, ``fault_rng`` (:meth:`_streams`), in the order of their streams: ``(noise (5,), turns, lost,
+        """One frame's random draws from the streams ``rng``, ``fault_rng`` (:meth:`_streams`), in
+        the order of their streams: ``(noise (5,), turns, lost,
         glitched)``: the position noise, the two orientations' noise rotations (unit
         quaternions ``(2, 4)``, or None without orientation noise), whether the frame is lost
         and whether it reads the UAV's marker at the UGV."""
