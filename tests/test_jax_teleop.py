@@ -1,4 +1,5 @@
-"""The teleop kind on the jax compute backend (seed 003's teleoperator).
+"""The teleop kind on the jax compute backend (seed 003's teleoperator): the one loop's JAX
+driver (:func:`quatform.sim.loop.simulate_jax`) of the pure ``TeleopController.tick``.
 
 Each built-in teleop scenario with both orientation errors runs on NumPy and on JAX, cut to
 a length that keeps its event (the hand's motion, the slave's contact with the wall, the
@@ -32,7 +33,8 @@ from quatform.teleop.controller import MAX_JOINT_ANGLE
 
 pytest.importorskip("jax")
 
-from quatform.sim.jax_loop import simulate as jax_simulate  # noqa: E402
+from quatform.sim.loop import simulate_jax as jax_simulate  # noqa: E402
+from quatform.sim.simulate import simulate as numpy_simulate  # noqa: E402
 
 TELEOP = KINDS["teleop"]
 ERRORS = ("euler-parameters", "rpy")
@@ -139,6 +141,9 @@ def test_batch_equals_each_world_and_a_failed_world_is_frozen():
     assert "t = 0 s: measurement q_m[0] = 2000 rad is beyond" in batch.meta["failure"][(2,)]
     assert np.all(batch["state"][:, 2] == x0[2]) and np.all(batch["command"][:, 2] == 0.0)
     assert np.all(np.isnan(batch["e"][:, 2]))
+    on_numpy = numpy_simulate(exp.plant, exp.controller, exp.reference, exp.times, x0, dt=exp.dt)  # a batch there
+    _assert_channels_equal(on_numpy, batch)
+    assert on_numpy.meta["failure"] == batch.meta["failure"]
     told = []  # in ten chunks, with progress: the same run
     chunked = jax_simulate(exp.plant, exp.controller, exp.reference, exp.times, x0, dt=exp.dt, progress=told.append)
     assert told[-1] == 1.0 and len(told) == 10
@@ -156,13 +161,23 @@ def test_one_world_raises_numpys_error():
     assert str(jax_error.value) == str(numpy_error.value)
 
 
-def test_what_does_not_run_on_jax_is_refused_in_one_line():
+def test_a_delayed_measurement_runs_on_both_drivers():
+    """Any pure measurement model runs on JAX: a TickMeasurement of one tick's latency."""
     exp = _experiment("teleop-free-motion", "euler-parameters", duration_s=0.05)
-    with pytest.raises(InvalidInputError, match="teleop kind") as err:
-        jax_simulate(exp.plant, exp.controller, exp.reference, exp.times, exp.x0, dt=exp.dt,
-                     measurement=TickMeasurement())
-    assert "\n" not in str(err.value) and "TickMeasurement runs on numpy" in str(err.value)
+    x0 = np.stack([exp.x0, exp.x0])
+    runs = [sim(exp.plant, exp.controller, exp.reference, exp.times, x0, dt=exp.dt,
+                measurement=TickMeasurement(delay_ticks=1)) for sim in (numpy_simulate, jax_simulate)]
+    _assert_channels_equal(*runs)
+    np.testing.assert_array_equal(runs[0]["measured"][1], runs[0]["state"][0])
+
+
+def test_a_plant_that_is_not_batchable_is_refused_in_one_line():
+    exp = _experiment("teleop-free-motion", "euler-parameters", duration_s=0.05)
     team = KINDS["team"].experiment(load_scenario("team-three-bodies"), controller="quaternion")
-    with pytest.raises(InvalidInputError, match="TeleopController runs on numpy") as err:
-        jax_simulate(team.plant, exp.controller, exp.reference, exp.times, team.x0, dt=exp.dt)
-    assert isinstance(team.plant, KinematicTeam) and "\n" not in str(err.value)
+
+    class OneAtATime(KinematicTeam):
+        batchable = False
+
+    with pytest.raises(InvalidInputError, match="runs on numpy") as err:
+        jax_simulate(OneAtATime(team.plant.team), exp.controller, exp.reference, exp.times, team.x0, dt=exp.dt)
+    assert "\n" not in str(err.value)

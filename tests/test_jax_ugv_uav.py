@@ -82,17 +82,23 @@ def test_faulty_motion_capture_equals_numpy(formation):
 
 
 def test_schedule_replays_the_streams():
-    """MotionCapture.schedule draws what read() draws, and leaves the model fresh."""
+    """MotionCapture.schedule draws a frame's draws from the world's own streams (world i:
+    seed + i; a batch of one world reads what one world reads)."""
     sc = dataclasses.replace(load_scenario("marciano-circle"), **FAULTS)
     exp = ugv_uav_experiment(sc, "quaternion")
     mocap = exp.measurement
     s = mocap.schedule(exp.times[:20], exp.dt, exp.substeps)
     assert s["new"][0] and s["turns"].shape == (20, 2, 4)
-    mocap.start(0.0, exp.x0)
-    noise, turns, lost, glitched = mocap._draw()
+    noise, turns, lost, glitched = mocap._draw(*mocap._streams(mocap.seed))
     np.testing.assert_array_equal(noise, s["noise"][0])
     np.testing.assert_array_equal(turns, s["turns"][0])
     assert (lost, glitched) == (s["lost"][0], s["glitched"][0])
+    b = mocap.schedule(exp.times[:20], exp.dt, exp.substeps, (1, 2))
+    for key, v in s.items():
+        np.testing.assert_array_equal(b[key][:, 0, 0], v, err_msg=key)
+    assert not np.array_equal(b["noise"][:, 0, 1], s["noise"])
+    np.testing.assert_array_equal(b["noise"][:, 0, 1][s["new"]][0],
+                                  mocap._draw(*mocap._streams(mocap.seed + 1))[0])
 
 
 def test_progress_chunks_change_nothing():

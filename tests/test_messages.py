@@ -61,11 +61,13 @@ def test_tick_measurement_delays_adds_noise_and_holds_dropped_frames():
     dropped[3, 1] = True
     m = TickMeasurement(noise, delay_ticks=1, dropped=dropped)
     y = [np.full((3, k), float(j)) for j in range(T)]
-    m.start(0.0, y[0], (3,))
+    sched = m.schedule(np.arange(T) * 0.1, 0.1, 1, (3,))
+    state = m.init(y[0], (3,), sched)
     out = []
     for j in range(T):
-        out.append(m.read(j * 0.1))
-        m.observe((j + 1) * 0.1, y[j + 1] if j + 1 < T else y[-1])
+        state, read = m.read(state, {key: v[j] for key, v in sched.items()})
+        out.append(read)
+        state = m.observe(state, y[j + 1] if j + 1 < T else y[-1], 0)
     # tick k reads y at tick k - 1 (y0 before), plus its noise
     np.testing.assert_allclose(out[0], y[0] + noise[0])
     np.testing.assert_allclose(out[2], y[1] + noise[2])

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from quatform.errors import InvalidInputError, ResourceLimitError, ShapeError
+from quatform.errors import InvalidInputError, ResourceLimitError
 from quatform.robots import Bebop, Pioneer
 from quatform.scenarios import KINDS
 from quatform.scenarios.ugv_uav import (
@@ -154,17 +154,19 @@ def test_plant_batch_equals_single_and_keeps_the_floor(u, z):
 
 def test_motion_capture_latency_and_odometry_period():
     mc = MotionCapture(rate_hz=100.0, latency_s=0.02, odometry_period_s=0.2)
-    mc.start(0.0, np.zeros(11))
-    for k in range(1, 60):  # the plant moves x_p = t, v_x = t every 5 ms
+    times = np.arange(51) * 0.005  # one plant step of 5 ms per tick, to 0.25 s
+    sched = mc.schedule(times, 0.005, 1)
+    state = mc.init(np.zeros(11), (), sched)
+    for k in range(51):  # the plant moves x_p = t, v_x = t every 5 ms
+        state, m = mc.read(state, {key: v[k] for key, v in sched.items()})
         y = np.zeros(11)
-        y[0], y[7] = k * 0.005, k * 0.005
-        mc.observe(k * 0.005, y)
-    m = mc.read(0.25)
+        y[0], y[7] = (k + 1) * 0.005, (k + 1) * 0.005
+        state = mc.observe(state, y, 0)
     assert m.shape == (11,)
     assert m[0] == pytest.approx(0.23, abs=1e-12)  # the frame of 0.25 s shows the pose of 0.23 s
     assert m[7] == pytest.approx(0.2, abs=1e-12)  # the odometry of 0.2 s
-    with pytest.raises(ShapeError, match="one world at a time"):
-        MotionCapture().start(0.0, np.zeros((2, 11)), batch=(2,))
+    two = mc.init(np.zeros((2, 11)), (2,), mc.schedule(times, 0.005, 1, (2,)))  # a batch: each world its own
+    assert two["hist"].shape[0] == 2 and two["pose"].shape == (2, 7)
     with pytest.raises(InvalidInputError, match="motion capture"):
         MotionCapture(rate_hz=0.0)
 
@@ -325,3 +327,17 @@ def test_control_period_not_a_multiple_of_dt_is_refused_and_tiny_dt_names_dt():
     assert _load(control_period_s=0.03, dt_s=0.005).control_period_s == 0.03
     with pytest.raises(ResourceLimitError, match=r"duration_s / dt_s needs 2e\+300 steps"):
         _load(dt_s=1e-300, control_period_s=0.03)
+
+
+def test_a_batch_runs_each_world_with_its_own_motion_capture_streams():
+    """The ugv-uav kind batched on NumPy: world 0 reads the streams of the model's seed (one
+    world's run, within the rounding of the vectorised yaw), world 1 those of seed + 1."""
+    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=1.0, mocap_noise_m=0.01,
+                             mocap_noise_rad=0.01)
+    raw = dataclasses.replace(ugv_uav_experiment(sc, "quaternion"), finish=lambda log: log)
+    one = raw.run()
+    two = dataclasses.replace(raw, x0=np.stack([raw.x0, raw.x0])).run()
+    for name in one.channels:
+        np.testing.assert_allclose(two[name][:, 0], one[name], rtol=1e-12, atol=1e-12, err_msg=name)
+    assert not np.allclose(two["measured"][:, 1], two["measured"][:, 0])
+    assert "failed" not in two.meta

@@ -1,9 +1,9 @@
 """Compute backends of the closed loop: one registry of functions with ``simulate``'s signature.
 
-Sim layer. NumPy (:func:`quatform.sim.simulate`) is the reference and the default; an
-accelerated backend (JAX: ``pip install -e ".[jax]"``) runs the same plant, controller,
-reference and measurement kernels and returns the same :class:`~quatform.sim.log.Log`, equal
-to NumPy's within 1e-9. A backend is registered by name with the module that defines it, so
+Sim layer. A backend is a driver of the one tick of :mod:`quatform.sim.loop`. NumPy
+(:func:`quatform.sim.simulate`) is the reference and the default; JAX (``pip install -e
+".[jax]"``, :func:`quatform.sim.loop.simulate_jax`) runs the same tick compiled and returns
+the same :class:`~quatform.sim.log.Log`, equal to NumPy's within 1e-9. A backend is registered by name with the module that defines it, so
 its package is imported only when it is used.
 
 Contract of a backend: ``backend(plant, controller, reference, times, x0, *, dt, substeps,
@@ -25,7 +25,7 @@ __all__ = ["SIM_BACKENDS", "simulator"]
 #: Backend name -> ``"module:function"`` (imported on first use).
 SIM_BACKENDS = {
     "numpy": "quatform.sim.simulate:simulate",
-    "jax": "quatform.sim.jax_loop:simulate",
+    "jax": "quatform.sim.loop:simulate_jax",
 }
 
 

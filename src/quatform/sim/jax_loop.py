@@ -1,6 +1,9 @@
-"""The closed loop on JAX: ``jax.jit`` and ``lax.scan`` over the control ticks (sim layer).
+"""The pair and team kinds' closed loop on JAX, kept while their controllers are not ``pure`` (sim layer).
 
-:func:`simulate` has :func:`quatform.sim.simulate`'s signature and returns the same
+:func:`quatform.sim.loop.legacy_jax` hands a run here that the one loop's JAX driver
+(:func:`quatform.sim.loop.simulate_jax`) cannot run yet, its controller having no pure
+``tick``; this module goes once they have. :func:`simulate` has
+:func:`quatform.sim.simulate`'s signature and returns the same
 :class:`~quatform.sim.log.Log`; it runs the same kernels (``pip install -e ".[jax]"``):
 
 * the controller's chain without its value checks
@@ -35,13 +38,8 @@ dual-quaternion of shape ``"frame"``, cluster-space, robot-space:
 :data:`JAX_TEAM_ROBOTS` in any mix: 4-DOF and planar holonomic robots and free bodies (a team
 of them shares one limit factor) and Pioneers offering ``xy_yaw`` points (their state; seed
 001 eq. (3.5) actuation, each robot then saturated on its own, as
-:meth:`~quatform.control.team.TeamController.update` does); the teleop kind (seed 003:
-:class:`~quatform.sim.plants.teleop.TeleopPlant` under a
-:class:`~quatform.teleop.TeleopController`, one world or a vmapped batch) in
-:mod:`.jax_teleop`, and the ugv-uav kind (seed 001 §5:
-:class:`~quatform.control.ugv_uav.UgvUavController` on the Pioneer-Bebop plant with the
-motion capture, one world) in :mod:`.jax_ugv_uav`, both reached through :data:`KIND_LOOPS`;
-anything else is refused in one line naming what runs here.
+:meth:`~quatform.control.team.TeamController.update` does); anything else is refused in one
+line naming what runs here.
 
 The separation barrier: on JAX each tick solves
 :class:`~quatform.control.safety.SeparationBarrier`'s programme in the compiled tick for a
@@ -65,8 +63,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from importlib import import_module
-
 import numpy as np
 
 from ..algebra.kernels import array_namespace as namespace
@@ -78,7 +74,6 @@ from ..control.team import TeamController
 from ..errors import (
     DegenerateInputError,
     InvalidInputError,
-    MissingDependencyError,
     ShapeError,
 )
 from ..formations import (
@@ -95,12 +90,11 @@ from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations.team_chart import team_positions
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot
-from . import jax_barrier, jax_devices
+from . import jax_barrier, loop
 from .log import Channel, Log
+from .loop import WORLD_ERRORS, cached, require_jax
+from .measurement import PerfectMeasurement
 from .plants import KinematicTeam
-from .plants.teleop import TeleopPlant
-from .plants.ugv_uav import PioneerBebopPlant
-from .simulate import WORLD_ERRORS, PerfectMeasurement
 from .trial_measurement import TickMeasurement
 
 __all__ = [
@@ -108,7 +102,6 @@ __all__ = [
     "JAX_FORMATIONS",
     "JAX_TEAM_FORMATIONS",
     "JAX_TEAM_ROBOTS",
-    "KIND_LOOPS",
     "cached",
     "check_supported",
     "check_ticks",
@@ -118,10 +111,8 @@ __all__ = [
     "initial_carry",
     "initial_states",
     "point_velocities",
-    "require_jax",
     "scan_ticks",
     "simulate",
-    "spread",
     "stack_reference",
     "team_parts",
     "team_tick_function",
@@ -135,10 +126,6 @@ JAX_TEAM_FORMATIONS = (QuaternionTeam, DualQuaternionTeam, EuclideanTeam, RobotS
 #: Robot models of a team that runs on JAX (kinematic; a Pioneer offering its state, ``xy_yaw``),
 #: in any mix, with one common limit factor or each robot saturated on its own.
 JAX_TEAM_ROBOTS = (HolonomicRobot, PlanarHolonomicRobot, Pioneer, FreeBodyRobot)
-#: Plant type -> ``"module:function"`` of its kind's JAX loop (imported on first use; the pair and
-#: team kinds' loop is this module's).
-KIND_LOOPS = {TeleopPlant: "quatform.sim.jax_teleop:simulate",
-              PioneerBebopPlant: "quatform.sim.jax_ugv_uav:simulate"}
 #: What the backend runs, for the one-line refusal of anything else.
 _RUNS = ("the jax backend runs the seed-000 pair experiments (its four controllers on kinematic holonomic robots) "
          "and the team kind's four team controllers (quaternion, dual-quaternion of shape 'frame', cluster-space, "
@@ -152,18 +139,6 @@ FAILURE_REASONS = {1: "the measured robot state is not finite (or beyond 1e150)"
                    3: "the separation barrier's programme is not solved on JAX (it runs on the host)"}
 #: Failure code of a world whose separation barrier JAX does not solve (rerun on NumPy).
 _HOST = 3
-
-
-def require_jax():
-    """The ``jax`` module (its CPU devices configured: :func:`.jax_devices.configure`), or one
-    line naming the install command."""
-    try:
-        import jax
-    except ImportError:
-        raise MissingDependencyError('the jax compute backend needs JAX: pip install -e ".[jax]" '
-                                     '(or --compute numpy)') from None
-    jax_devices.configure(jax)  # one CPU device per core, before JAX starts its backends
-    return jax
 
 
 def team_parts(controller):
@@ -217,25 +192,11 @@ def check_supported(plant, controller, measurement) -> None:
 
 
 def check_ticks(times, substeps, dt):
-    """Checked ``(times, dt)`` (the rules of :func:`quatform.sim.simulate`)."""
-    times = np.asarray(times, dtype=float)
-    if times.ndim != 1 or times.size < 1:
+    """Checked ``(times, dt)`` (:func:`quatform.sim.loop.check_ticks`; at least one tick)."""
+    times, dt = loop.check_ticks(times, substeps, dt, "jax simulate")
+    if times.size < 1:
         raise ShapeError(f"jax simulate: times must have shape (T,) with T >= 1, got {times.shape}")
-    if not isinstance(substeps, int) or isinstance(substeps, bool) or substeps < 1:
-        raise InvalidInputError(f"jax simulate: substeps must be a whole number >= 1, got {substeps!r}")
-    if not np.all(np.isfinite(times)):
-        raise InvalidInputError("jax simulate: times must be finite (control ticks in s)")
-    if dt is None:
-        dt = float(times[1] - times[0]) / substeps if times.size > 1 else 0.0
-    elif not (isinstance(dt, (int, float, np.floating)) and not isinstance(dt, bool) and math.isfinite(dt)
-              and dt > 0):
-        raise InvalidInputError(f"jax simulate: dt = {dt!r} must be a positive finite number of seconds")
-    if times.size > 1:
-        gaps, tick = np.diff(times), substeps * dt
-        if not np.all(np.abs(gaps - tick) <= 1e-9 * max(tick, 1e-300) + 1e-12):
-            raise InvalidInputError(f"jax simulate: the control ticks must be evenly spaced by substeps * dt = "
-                                    f"{tick!r} s; give times = t0 + k * substeps * dt")
-    return times, float(dt)
+    return times, dt
 
 
 def stack_reference(controller, reference: Callable, n: int, batch: tuple):
@@ -307,11 +268,6 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
         For a plant, controller or measurement the backend does not run (one line naming
         what it runs), and the errors of :func:`quatform.sim.simulate`.
     """
-    if type(plant) in KIND_LOOPS:  # another kind's loop
-        module, function = KIND_LOOPS[type(plant)].split(":")
-        return getattr(import_module(module), function)(plant, controller, reference, times, x0, dt=dt,
-                                                        substeps=substeps, measurement=measurement,
-                                                        progress=progress, meta=meta)
     jax = require_jax()
     check_supported(plant, controller, measurement)
     times, dt = check_ticks(times, substeps, dt)
@@ -320,10 +276,7 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
     parts = team_parts(controller)
     c_ref, cd_ref, r_ref = stack_reference(controller if parts is None else parts[0], reference, n, batch)
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
-    tick.start(float(times[0]), plant.output(x), batch)  # the shape checks of the measurement
-    if any(arr is not None and arr.shape[0] < n for arr in (tick.noise, tick.dropped)):
-        raise ShapeError(f"TickMeasurement: noise / dropped hold fewer than the run's {n} ticks; give (T, *batch, ...) "
-                         f"with T = {n}")
+    tick.check(plant.output(x), batch, n)  # the shape checks of the measurement
     noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
     dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
     step = _compiled_scan(jax, plant, controller, dt, substeps, tick.delay_ticks, noise is not None,
@@ -392,30 +345,6 @@ def _failure_reason(controller, times, measured, fail_tick, reason, refs, idx):
 #: Batch axis of each slot of the pair and team ticks' carry (:func:`initial_carry`) and of
 #: their per-tick inputs beyond the references (whose axis is 1 when they hold one per world).
 LOOP_AXES = ((0, 1, 0, 0, 0), {"noise": 1, "dropped": 1})
-
-
-def spread(jax, carry, xs, B, axes=LOOP_AXES):
-    """The scan's carry (a tuple of arrays) and per-tick inputs (a dict) spread over the
-    devices (:mod:`.jax_devices`): the batch padded to a multiple of the device count with
-    copies of the last world (cut from the results), its axis sharded. ``axes``: the batch
-    axis of each carry slot and of the named inputs (:data:`LOOP_AXES`); the references
-    ``c``, ``cd``, ``rd`` of shape ``(T, B or 1, k)`` are split when they hold one per world."""
-    size = jax_devices.chunk_size(jax, B, B)
-    pad = size - B
-    carry_axes, xs_axes = axes
-    arrays = {f"carry{q}": a for q, a in enumerate(carry)}
-    arrays.update(xs)
-    where = {f"carry{q}": axis for q, axis in enumerate(carry_axes)}
-    where.update(xs_axes)
-    for key in ("c", "cd", "rd"):  # (T, B or 1, k): one reference for all worlds is replicated
-        if key in xs and xs[key].shape[1] == B and B > 1:
-            where[key] = 1
-    for key, axis in where.items():
-        if pad and key in arrays:
-            a = np.asarray(arrays[key])
-            arrays[key] = np.concatenate([a, np.repeat(np.take(a, [-1], axis=axis), pad, axis=axis)], axis=axis)
-    arrays = jax_devices.place(jax, arrays, where)
-    return tuple(arrays.pop(f"carry{q}") for q in range(len(carry))), arrays
 
 
 def _rerun_on_host(plant, controller, times, x, dt, substeps, tick, noise, dropped, refs, host, data, names, meta):
@@ -679,19 +608,6 @@ def config_key(plant, controller) -> tuple:
 
 #: Compiled scans of recent configurations and steps, newest last (:func:`config_key`).
 _CACHE: dict = {}
-_CACHE_SIZE = 8
-
-
-def cached(cache: dict, key: tuple, build: Callable):
-    """``cache[key]``, built by ``build()`` when missing; the cache keeps its newest
-    :data:`_CACHE_SIZE` entries."""
-    hit = cache.pop(key, None)
-    if hit is None:
-        hit = build()
-    cache[key] = hit
-    while len(cache) > _CACHE_SIZE:
-        cache.pop(next(iter(cache)))
-    return hit
 
 
 def _compiled_scan(jax, plant, controller, *key):
@@ -706,30 +622,13 @@ def _compiled_scan(jax, plant, controller, *key):
 
 
 def scan_ticks(jax, tick, carry, xs, n, progress, axes=LOOP_AXES):
-    """``lax.scan`` of ``tick`` over the ``n`` ticks of ``xs`` (one compiled call, or ten
-    chunks of one shape when ``progress`` is given), the batch spread over the devices
-    (:func:`spread`, ``axes`` as there): ``(ys, carry)``, the batch padded as :func:`spread`
-    pads it. ``tick.compiled`` is the jitted scan of ``tick``; ``carry[0]`` has the batch
-    axis first."""
-    xs = dict(xs, k=np.arange(n, dtype=np.int64))
-    run = tick.compiled
-    B = carry[0].shape[0]
-    if progress is None:
-        carry, xs = spread(jax, carry, xs, B, axes)
-        ys, carry = run(carry, xs)
-        return ys, carry
-    size = -(-n // 10)
-    xs["valid"] = np.ones(n, dtype=bool)
-    pad = {k: np.concatenate([v, np.repeat(v[-1:] if k != "valid" else ~v[-1:], 10 * size - n, axis=0)])
-           for k, v in xs.items()}
-    carry, pad = spread(jax, carry, pad, B, axes)
-    parts = []
-    for chunk in range(10):
-        take = min(size, n - chunk * size)
-        if take <= 0:
-            break
-        ys, carry = run(carry, {k: v[chunk * size:(chunk + 1) * size] for k, v in pad.items()})
-        parts.append([np.asarray(y)[:take] for y in ys])
-        progress((chunk * size + take) / n)
-    ys = [np.concatenate([p[q] for p in parts]) for q in range(len(parts[0]))]
-    return ys, carry
+    """:func:`quatform.sim.loop.scan_ticks` of ``tick.compiled`` (the jitted scan of ``tick``)
+    for a carry whose slots are arrays (or dicts of arrays with the batch axis first) and
+    per-tick inputs named in ``axes`` (:data:`LOOP_AXES`); the references ``c``, ``cd``,
+    ``rd`` of shape ``(T, B or 1, k)`` are split when they hold one per world."""
+    B = jax.tree_util.tree_leaves(carry)[0].shape[0]
+    carry_axes, named = axes
+    leaf_axes = [axis for slot, axis in zip(carry, carry_axes) for _ in jax.tree_util.tree_leaves(slot)]
+    xs_axes = {k: 1 if k in ("c", "cd", "rd") and v.shape[1] == B and B > 1 else named.get(k, -1)
+               for k, v in xs.items()}
+    return loop.scan_ticks(jax, tick.compiled, carry, xs, n, progress, B, leaf_axes, xs_axes)

@@ -35,7 +35,7 @@ from .jax_loop import (
     tick_function,
 )
 from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, robot_errors
-from .simulate import PerfectMeasurement
+from .measurement import PerfectMeasurement
 from .trial_measurement import TickMeasurement
 
 __all__ = ["ROLLOUT_METRICS", "rollout_metrics"]
@@ -99,10 +99,7 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     e_des = np.asarray(experiment.scenario.path(times)[0], dtype=float)
     late = times >= experiment.meta["metrics_from_s"]
     tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
-    tick.start(float(times[0]), plant.output(x), batch)
-    if any(arr is not None and arr.shape[0] < n for arr in (tick.noise, tick.dropped)):
-        raise ShapeError(f"TickMeasurement: noise / dropped hold fewer than the run's {n} ticks; give (T, *batch, ...) "
-                         f"with T = {n}")
+    tick.check(plant.output(x), batch, n)
     noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
     dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
     step = (dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)

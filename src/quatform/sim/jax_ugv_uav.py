@@ -1,10 +1,12 @@
-"""The closed loop of the ``ugv-uav`` kind (seed 001 §5: Pioneer 3-DX + Bebop 2) on JAX (sim layer).
+"""The closed loop of the ``ugv-uav`` kind (seed 001 §5: Pioneer 3-DX + Bebop 2) on JAX (sim layer),
+kept while :class:`~quatform.control.ugv_uav.UgvUavController` is not ``pure``
+(:func:`quatform.sim.loop.legacy_jax` hands its runs here).
 
 :func:`simulate` has :func:`quatform.sim.simulate`'s signature and returns the same
 :class:`~quatform.sim.log.Log` for a :class:`~quatform.sim.plants.ugv_uav.PioneerBebopPlant`,
 a :class:`~quatform.control.ugv_uav.UgvUavController` (any of its three descriptions) and a
-:class:`~quatform.sim.measurement.MotionCapture`; :func:`quatform.sim.jax_loop.simulate`
-hands such runs here (:data:`quatform.sim.jax_loop.KIND_LOOPS`). It runs NumPy's kernels,
+:class:`~quatform.sim.measurement.MotionCapture`; the one loop's JAX driver hands
+such runs here. It runs NumPy's kernels,
 written on any array namespace: the descriptions' ``forward_arrays``,
 ``inverse_jacobian_arrays`` (and the restricted one's ``reachable``, ``inverse_arrays``), the
 law (:meth:`~quatform.control.ugv_uav.UgvUavController.cluster_rates`), the filters
@@ -17,8 +19,9 @@ the reference of every tick (NaN rows where the description cannot express it: t
 controller brakes there), and the motion capture's
 :meth:`~quatform.sim.measurement.MotionCapture.schedule` (which ticks see a new frame, the
 plant step each frame and odometry sample reads, every frame's noise and faults, drawn from
-the same streams in the same order). The plant outputs those reads need are a ring buffer
-of the last plant steps in the scan's carry; the controller's state
+the same streams in the same order). The motion capture's state (the plant outputs of the
+last plant steps, the last frame) is in the scan's carry (its pure
+:meth:`~quatform.sim.measurement.MotionCapture.read` and ``observe``); the controller's state
 (:class:`~quatform.control.ugv_uav.UgvUavState`: the last good frame and its time, the start
 of the current run of bad frames, the emergency stop, the Bebop's compensation memory) is
 arrays in the carry, its branches (no frame yet, a reference the description cannot
@@ -44,6 +47,7 @@ from ..errors import InvalidInputError, ShapeError
 from ..formations import UgvUavRestricted
 from ..robots import BebopMemory
 from . import jax_loop
+from .loop import tree_map
 from .log import Channel, Log
 from .measurement import MotionCapture
 
@@ -53,9 +57,9 @@ _RUNS = ("the jax backend runs the ugv-uav kind with its UgvUavController, the P
          "MotionCapture measurement")
 #: The signals of the controller, in the order of ``signal_columns``.
 _SIGNALS = ("cluster", "error", "robot_rates", "raw_finite", "stopped", "frame", "held", "outside", "used")
-#: Batch axis of each carry slot: ``(x, history, pose, good, good_t, bad_since, stopped, stop_t,
+#: Batch axis of each carry slot: ``(x, mocap state, good, good_t, bad_since, stopped, stop_t,
 #: stop_since, v_r, memory_t, v_dot)``; the per-tick inputs are one world's (no batch axis).
-_AXES = ((0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), {})
+_AXES = ((0,) * 11, {})
 
 
 def _check(plant, controller, measurement):
@@ -110,7 +114,7 @@ def _config_key(plant, controller, mocap) -> tuple:
             plant.pioneer_accel, float(mocap.ugv_z))
 
 
-def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
+def _tick_function(plant, ctrl, mocap, dt, substeps):
     """One control tick on JAX arrays: ``(carry, xs_k) -> (carry, (x, m, u, *signals))``."""
     import jax.numpy as jnp
 
@@ -126,16 +130,10 @@ def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
         return (Ji * rate[..., None, :]).sum(axis=-1)
 
     def tick(carry, xs):
-        x, hist, pose, good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot = carry
+        x, ms, good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot = carry
         B = x.shape[0]
         t = xs["t"]
-        # -- the motion capture: a new frame of the output pose_step, the odometry of odometry_step
-        frame_x = hist[length - 1 - xs["pose_off"]]
-        turns = jnp.broadcast_to(xs["turns"], (B, 2, 4)) if turned else None
-        fresh = mocap.frame_pose(frame_x, jnp.broadcast_to(xs["noise"], (B, 5)), turns,
-                                 jnp.broadcast_to(xs["lost"], (B,)), jnp.broadcast_to(xs["glitched"], (B,)))
-        pose = jnp.where(xs["new"], fresh, pose)
-        m = jnp.concatenate([pose, hist[length - 1 - xs["odo_off"]][:, ODOMETRY_PART]], axis=-1)
+        ms, m = mocap.read(ms, xs["meas"])  # the motion capture (MotionCapture.read)
         # -- the screen (UgvUavController.screen, _screened)
         has_good = jnp.isfinite(good_t)
         finite = jnp.all(jnp.isfinite(m[:, MOCAP_PART]), axis=-1)
@@ -201,15 +199,14 @@ def _tick_function(plant, ctrl, mocap, dt, substeps, length, turned):
         signals = (cluster, error, robot_rates, raw_finite[:, None], stopped.astype(x.dtype)[:, None],
                    code.astype(x.dtype)[:, None], (held & ~none).astype(x.dtype)[:, None],
                    outside.astype(x.dtype)[:, None], jnp.where(none[:, None], jnp.nan, used))
-        # -- the plant, substeps of dt; its outputs into the history
-        x_next, outs = x, []
+        # -- the plant, substeps of dt; the motion capture observing its outputs
+        x_next = x
         for s in range(substeps):
             x_next = plant.step(x_next, u, dt, t + s * dt)
-            outs.append(plant.output(x_next))
-        hist = jnp.concatenate([hist, jnp.stack(outs)], axis=0)[-length:]
-        new = (x_next, hist, pose, good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot)
+            ms = mocap.observe(ms, plant.output(x_next), s)
+        new = (x_next, ms, good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot)
         if "valid" in xs:  # a padded tick past the run's end (progress chunks) changes nothing
-            new = tuple(jnp.where(xs["valid"], a, a0) for a, a0 in zip(new, carry))
+            new = tree_map(lambda a, a0: jnp.where(xs["valid"], a, a0), new, carry)
         return new, (x, m, u) + signals
 
     return tick
@@ -244,32 +241,25 @@ def simulate(plant, controller, reference: Callable, times, x0, *, dt: float | N
                          f"({len(plant.state_columns)},), got {x.shape}")
     c_ref, cd_ref, hold = _references(controller, reference, n)
     sched = measurement.schedule(times, dt, substeps)
-    newest = np.arange(n, dtype=np.int64) * substeps  # the plant step of the last output at each tick
-    pose_off, odo_off = newest - sched["pose_step"], newest - sched["odometry_step"]
-    length = int(max(pose_off.max(), odo_off.max())) + 1
-    turned = sched["turns"] is not None
-    xs = {"t": times, "c": c_ref, "cd": cd_ref, "hold": hold, "new": sched["new"], "pose_off": pose_off,
-          "odo_off": odo_off, "noise": sched["noise"], "lost": sched["lost"], "glitched": sched["glitched"]}
-    if turned:
-        xs["turns"] = sched["turns"]
+    xs = {"t": times, "c": c_ref, "cd": cd_ref, "hold": hold, "meas": sched}
 
     def build():
-        tick = _tick_function(plant, controller, measurement, dt, substeps, length, turned)
+        tick = _tick_function(plant, controller, measurement, dt, substeps)
         tick.compiled = jax.jit(lambda carry, xs: jax.lax.scan(tick, carry, xs)[::-1])
         return tick
 
-    key = (_config_key(plant, controller, measurement), dt, substeps, length, turned)
+    key = (_config_key(plant, controller, measurement), dt, substeps, "turns" in sched,
+           tuple(measurement.init(plant.output(x), (1,), sched)["hist"].shape))
     step = jax_loop.cached(_CACHE, key, build)
-    y0 = plant.output(x)[None]
     nan = np.full(1, np.nan)
-    carry = (x[None], np.broadcast_to(y0, (length, 1, y0.shape[-1])).copy(), np.full((1, 7), np.nan),
-             np.full((1, 11), np.nan), nan, nan, np.zeros(1, dtype=bool), nan, nan, np.full((1, 4), np.nan), nan,
+    carry = (x[None], measurement.init(plant.output(x)[None], (1,), sched), np.full((1, 11), np.nan), nan, nan,
+             np.zeros(1, dtype=bool), nan, nan, np.full((1, 4), np.nan), nan,
              np.zeros((1, 4)))
     with jax.enable_x64(True):
         ys, carry = jax_loop.scan_ticks(jax, step, carry, xs, n, progress, _AXES)
     names = ("state", "measured", "command") + _SIGNALS
     data = {k: np.asarray(v)[:, 0] for k, v in zip(names, ys)}
-    good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot = (np.asarray(a)[0] for a in carry[3:])
+    good, good_t, bad_since, stopped, stop_t, stop_since, v_r, mem_t, v_dot = (np.asarray(a)[0] for a in carry[2:])
     state = UgvUavState(memory=(None, BebopMemory(v_r, np.asarray(float(mem_t)), v_dot)), stopped=bool(stopped),
                         stop_reason=controller.stop_reason(float(stop_t), float(stop_since)) if stopped else "",
                         good=good if np.isfinite(good_t) else None,

@@ -1,14 +1,20 @@
-"""Measurement models for :func:`quatform.sim.simulate`: what a controller reads of the plant.
+"""Measurement models of the closed loop (:mod:`quatform.sim.loop`): what a controller reads of the plant.
 
-Sim layer. A measurement model follows the contract of :mod:`quatform.sim.simulate`:
-``columns`` (names of what ``read`` returns, or None for the plant's outputs),
-``start(t0, y0, batch)`` before the first tick, ``observe(t, y)`` after every plant step
-and ``read(t)`` at every control tick. :class:`PerfectMeasurement` (the plant's output at
-once) lives beside ``simulate``; here are the models with a past:
+Sim layer. A measurement model is pure, as the loop's other parts are: ``columns`` (names of
+what it reads, or None for the plant's outputs); ``schedule(times, dt, substeps, batch)``,
+everything that does not depend on the plant's states (each world's noise, latency, lost
+frames), drawn up front on the host as arrays with a leading tick axis; ``init(y0, batch,
+schedule)``, its state before the first tick; ``observe(state, y, j)`` after plant step ``j``
+of a tick and ``read(state, xs)`` -> ``(state, measured)`` at a tick (``xs`` the tick's
+slice of the schedule), both on any array namespace (NumPy, JAX under ``jax.jit``):
 
-* :class:`LatencyHistory` - the plant outputs by time, for measurements with latency;
+* :class:`PerfectMeasurement` - the plant's output, exactly and at once;
 * :class:`MotionCapture` - seed 001 §3.2: the lab's motion capture of a Pioneer and a
-  Bebop (rate, noise, latency, dropouts, glitches) and the Bebop's own odometry.
+  Bebop (rate, noise, latency, dropouts, glitches) and the Bebop's own odometry;
+* :class:`LatencyHistory` - values by time, with which :meth:`MotionCapture.schedule`
+  finds the plant step a frame reads.
+
+:class:`~quatform.sim.trial_measurement.TickMeasurement` (batched trials) is the third.
 """
 
 from __future__ import annotations
@@ -20,10 +26,28 @@ import numpy as np
 
 from ..algebra import q_from_axis_angle
 from ..algebra.kernels import common_namespace
-from ..errors import InvalidInputError, ShapeError
+from ..errors import InvalidInputError
 from ..formations import geometry as g
 
-__all__ = ["LatencyHistory", "MotionCapture", "MOTION_CAPTURE_COLUMNS"]
+__all__ = ["LatencyHistory", "MotionCapture", "MOTION_CAPTURE_COLUMNS", "PerfectMeasurement"]
+
+
+class PerfectMeasurement:
+    """The plant's output, exactly and at once (its state: the last output)."""
+
+    columns = None
+
+    def schedule(self, times, dt: float, substeps: int, batch: tuple = ()) -> dict:
+        return {}
+
+    def init(self, y0, batch: tuple = (), schedule: dict | None = None):
+        return y0
+
+    def observe(self, state, y, j: int):
+        return y
+
+    def read(self, state, xs: dict):
+        return state, state
 
 #: What :class:`MotionCapture` reads: the Pioneer's control point and heading, the Bebop's
 #: pose (motion capture) and its body-frame velocity (its odometry); the 11 measured values
@@ -73,10 +97,10 @@ class MotionCapture:
     (all NaN) with probability ``dropout_rate``, or else reads the UAV's marker at the UGV
     (at height ``ugv_z``) with ``glitch_rate``.
 
-    One world at a time (``batch`` must be ``()``); the random streams are seeded by
-    ``seed`` (the noise) and ``[seed, 1]`` (the faults), so the noise is the same with and
-    without faults. :meth:`start` begins a run afresh (the same streams again), so one model
-    serves any number of runs, one after the other.
+    The random streams of a world are seeded by ``seed`` (the noise) and ``[seed, 1]`` (the
+    faults), so the noise is the same with and without faults; world ``i`` of a batch reads
+    with ``seed + i`` (:meth:`schedule`). The object holds settings only: one model serves any
+    number of runs.
     """
 
     columns = MOTION_CAPTURE_COLUMNS
@@ -91,34 +115,49 @@ class MotionCapture:
         self.latency, self.odo = latency_s, odometry_period_s
         self.seed = seed
         self.dropout_rate, self.glitch_rate, self.ugv_z = dropout_rate, glitch_rate, ugv_z
-        self._reset()
 
-    def _reset(self) -> None:
-        """Fresh random streams (the noise's and, apart, the faults') and no frames yet."""
-        self.rng = np.random.default_rng(self.seed)
-        self.fault_rng = np.random.default_rng([self.seed, 1])
-        self.history = LatencyHistory(self.latency + self.odo + 1.0)
-        self._frame_t, self._pose = None, None
+    @staticmethod
+    def _streams(seed):
+        """The random streams of a world of ``seed``: the noise's and, apart, the faults'."""
+        return np.random.default_rng(seed), np.random.default_rng([seed, 1])
 
-    # -- the measurement contract -------------------------------------------------------
-    def start(self, t0: float, y0, batch: tuple = ()) -> None:
-        """The plant's output ``y0`` (11 values) at the first tick ``t0``, s."""
-        if batch:
-            raise ShapeError(f"MotionCapture measures one world at a time; got batch shape {batch}")
-        self._reset()
-        self.observe(t0, y0)
+    # -- the measurement contract (quatform.sim.loop) ---------------------------------
+    def init(self, y0, batch: tuple = (), schedule: dict | None = None) -> dict:
+        """The measurement state before the first tick: ``hist`` ``(*batch, L, 11)``, the plant
+        outputs of the last ``L`` plant steps (oldest first, all ``y0``; ``L`` the farthest
+        step back that ``schedule`` reads, plus one) and ``pose`` ``(*batch, 7)``, the last
+        frame's pose (NaN: none yet)."""
+        y0 = np.asarray(y0, dtype=float)
+        offsets = [np.max(schedule[k], initial=0) for k in ("pose_off", "odo_off")] if schedule else [0]
+        length = int(max(offsets)) + 1
+        hist = np.broadcast_to(y0[..., None, :], tuple(batch) + (length, y0.shape[-1])).copy()
+        return {"hist": hist, "pose": np.full(tuple(batch) + (7,), np.nan)}
 
-    def observe(self, t: float, y) -> None:
-        """The plant's output ``y`` (11 values) at time ``t``, s."""
-        self.history.add(t, np.array(y, dtype=float))
+    def observe(self, state: dict, y, j: int) -> dict:
+        """``state`` with the plant output ``y`` (``(*batch, 11)``) after a plant step appended
+        to its ring of the last plant steps (any array namespace)."""
+        xp = common_namespace(state["hist"], y)
+        hist = state["hist"]
+        return {"hist": xp.concatenate([hist[..., 1:, :], y[..., None, :]], axis=-2), "pose": state["pose"]}
 
-    def read(self, t: float) -> np.ndarray:
-        """The 11 measured values available to the controller at ``t``, s."""
-        frame_t = self._frame_time(t)
-        if frame_t != self._frame_t:
-            self._pose = self.frame_pose(self.history.at(frame_t - self.latency), *self._draw())
-            self._frame_t = frame_t
-        return np.r_[self._pose, self.history.at(self._odometry_time(t))[7:11]]
+    def read(self, state: dict, xs: dict):
+        """``(state, measured)`` at a control tick: a new frame (where the tick's ``xs["new"]``)
+        of the plant output ``xs["pose_off"]`` plant steps back with its draws
+        (:meth:`frame_pose`), else the last frame's pose, and the odometry of the output
+        ``xs["odo_off"]`` steps back; ``measured`` ``(*batch, 11)`` (:data:`MOTION_CAPTURE_COLUMNS`).
+        Pure and branch-free (NumPy, JAX under ``jax.jit``)."""
+        hist = state["hist"]
+        xp = common_namespace(hist, xs["noise"])
+        length, width = hist.shape[-2], hist.shape[-1]
+
+        def back(off):  # the output ``off`` steps before the newest, (*batch, 11)
+            idx = xp.broadcast_to(xp.asarray(length - 1 - off)[..., None, None], hist.shape[:-2] + (1, width))
+            return xp.take_along_axis(hist, idx, axis=-2)[..., 0, :]
+
+        fresh = self.frame_pose(back(xs["pose_off"]), xs["noise"], xs.get("turns"), xs["lost"], xs["glitched"])
+        pose = xp.where(xp.asarray(xs["new"])[..., None], fresh, state["pose"])
+        m = xp.concatenate([pose, back(xs["odo_off"])[..., 7:11]], axis=-1)
+        return {"hist": hist, "pose": pose}, m
 
     def _frame_time(self, t: float) -> float:
         """Time of the motion-capture frame available at ``t``, s (frames every ``1 / rate_hz``)."""
@@ -128,21 +167,22 @@ class MotionCapture:
         """Time of the Bebop's odometry sample available at ``t``, s."""
         return math.floor(t / self.odo + 1e-9) * self.odo
 
-    def _draw(self):
-        """One frame's random draws, in the order of their streams: ``(noise (5,), turns, lost,
+    def _draw(self, rng, fault_rng):
+        """One frame's random draws from the streams ``rng``, ``fault_rng`` (:meth:`_streams`), in
+        the order of their streams: ``(noise (5,), turns, lost,
         glitched)``: the position noise, the two orientations' noise rotations (unit
         quaternions ``(2, 4)``, or None without orientation noise), whether the frame is lost
         and whether it reads the UAV's marker at the UGV."""
-        noise = self.rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
+        noise = rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
         turns = None
         if self.noise_rad > 0:
             turns = []
             for _ in range(2):  # the UGV's heading, then the UAV's
-                axis = self.rng.normal(size=3)
-                turns.append(q_from_axis_angle(axis / np.linalg.norm(axis), self.rng.normal(0.0, self.noise_rad)))
+                axis = rng.normal(size=3)
+                turns.append(q_from_axis_angle(axis / np.linalg.norm(axis), rng.normal(0.0, self.noise_rad)))
             turns = np.stack(turns)
-        lost = self.dropout_rate > 0 and self.fault_rng.random() < self.dropout_rate
-        glitched = not lost and self.glitch_rate > 0 and self.fault_rng.random() < self.glitch_rate
+        lost = self.dropout_rate > 0 and fault_rng.random() < self.dropout_rate
+        glitched = not lost and self.glitch_rate > 0 and fault_rng.random() < self.glitch_rate
         return noise, turns, lost, glitched
 
     def frame_pose(self, x, noise, turns, lost, glitched):
@@ -168,29 +208,28 @@ class MotionCapture:
         yaw = g.yaw_of(q)  # the lab receives a quaternion; the controllers need the yaw
         return common_namespace(q).asarray(yaw)[..., None]
 
-    def schedule(self, times, dt: float, substeps: int) -> dict:
-        """What :meth:`read` will do at each control tick of a run of :func:`quatform.sim.simulate`
-        (ticks ``times``, ``substeps`` plant steps of ``dt`` between them), which does not depend
-        on the plant's states: drawn here with the same streams in the same order, for a loop
-        that consumes them (:mod:`quatform.sim.jax_ugv_uav`). The model is left fresh.
+    def schedule(self, times, dt: float, substeps: int, batch: tuple = ()) -> dict:
+        """What :meth:`read` does at each control tick of a run of :mod:`quatform.sim.loop`
+        (ticks ``times``, ``substeps`` plant steps of ``dt`` between them), which does not
+        depend on the plant's states, drawn up front. World ``i`` of the batch (flat index)
+        draws from the streams of ``seed + i`` (:meth:`_draw`'s order), so a batch of one world
+        reads what one world of ``seed`` reads.
 
         Returns
         -------
         dict
-            ``new`` (T,) bool: a new frame at the tick; ``pose_step``, ``odometry_step`` (T,)
-            int: the plant step (0: the start, ``k substeps + j``: after step ``j`` of tick
-            ``k - 1``...) whose output the frame and the odometry read; ``noise`` (T, 5),
-            ``turns`` (T, 2, 4) or None, ``lost``, ``glitched`` (T,) bool: the draws of each
-            new frame (zeros elsewhere).
+            Each ``(T, *batch, ...)``: ``new`` bool, a new frame at the tick; ``pose_off``,
+            ``odo_off`` int, how many plant steps before the tick's newest output (the one at
+            the tick) the frame and the odometry read; ``noise`` ``(T, *batch, 5)``,
+            ``turns`` ``(T, *batch, 2, 4)`` (only with orientation noise), ``lost``,
+            ``glitched`` bool: the draws of each new frame (zeros elsewhere).
         """
         times = np.asarray(times, dtype=float)
         n = times.size
-        self._reset()
-        steps = LatencyHistory(self.history.horizon)  # the plant steps by time, as the outputs are kept
-        new, lost, glitched = (np.zeros(n, dtype=bool) for _ in range(3))
-        pose_step, odo_step = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
-        noise = np.zeros((n, 5))
-        turns = None if self.noise_rad <= 0 else np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (n, 2, 1))
+        batch = tuple(batch)
+        steps = LatencyHistory(self.latency + self.odo + 1.0)  # the plant steps by time, as the outputs are kept
+        new = np.zeros(n, dtype=bool)
+        pose_off, odo_off = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
         frame = None
         if n:
             steps.add(float(times[0]), 0)
@@ -199,13 +238,29 @@ class MotionCapture:
             frame_t = self._frame_time(t)
             if frame_t != frame:
                 new[k], frame = True, frame_t
-                pose_step[k] = steps.at(frame_t - self.latency)
-                noise[k], turn, lost[k], glitched[k] = self._draw()
-                if turns is not None:
-                    turns[k] = turn
-            odo_step[k] = steps.at(self._odometry_time(t))
+                pose_off[k] = k * substeps - steps.at(frame_t - self.latency)
+            odo_off[k] = k * substeps - steps.at(self._odometry_time(t))
             for j in range(substeps):
                 steps.add(t + (j + 1) * dt, k * substeps + j + 1)
-        self._reset()
-        return {"new": new, "pose_step": pose_step, "odometry_step": odo_step, "noise": noise, "turns": turns,
-                "lost": lost, "glitched": glitched}
+        frames = np.flatnonzero(new)
+        worlds = max(1, int(np.prod(batch, dtype=np.int64)))
+        noise = np.zeros((n, worlds, 5))
+        turns = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (n, worlds, 2, 1)) if self.noise_rad > 0 else None
+        lost, glitched = np.zeros((n, worlds), dtype=bool), np.zeros((n, worlds), dtype=bool)
+        for i in range(worlds):
+            rng, fault_rng = self._streams(self.seed + i)
+            for k in frames:
+                noise[k, i], turn, lost[k, i], glitched[k, i] = self._draw(rng, fault_rng)
+                if turns is not None:
+                    turns[k, i] = turn
+
+        def shaped(a, tail=()):
+            return a.reshape((n,) + batch + tail)
+
+        out = {"new": np.broadcast_to(new.reshape((n,) + (1,) * len(batch)), (n,) + batch).copy(),
+               "pose_off": np.broadcast_to(pose_off.reshape((n,) + (1,) * len(batch)), (n,) + batch).copy(),
+               "odo_off": np.broadcast_to(odo_off.reshape((n,) + (1,) * len(batch)), (n,) + batch).copy(),
+               "noise": shaped(noise, (5,)), "lost": shaped(lost), "glitched": shaped(glitched)}
+        if turns is not None:
+            out["turns"] = shaped(turns, (2, 4))
+        return out

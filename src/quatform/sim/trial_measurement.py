@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra.kernels import common_namespace
 from ..errors import InvalidInputError, ShapeError
 
 __all__ = ["TickMeasurement"]
@@ -46,29 +47,52 @@ class TickMeasurement:
         self.delay_ticks = int(delay_ticks)
         self.columns = columns
 
-    def start(self, t0: float, y0, batch: tuple = ()) -> None:
+    def check(self, y0, batch: tuple = (), n: int | None = None) -> None:
+        """Refuse (one line) noise or dropped frames of another batch, output width or (with
+        ``n``) fewer than ``n`` ticks than a run of the plant output ``y0`` for ``batch``."""
         y0 = np.asarray(y0, dtype=float)
         for name, arr, tail in (("noise", self.noise, y0.shape[-1:]), ("dropped", self.dropped, ())):
             if arr is not None and arr.shape[1:] != tuple(batch) + tail:
                 raise ShapeError(f"TickMeasurement: {name} of shape {arr.shape} for batch {tuple(batch)} "
                                  f"and outputs {y0.shape}; give (T, *batch{', k' if tail else ''})")
-        self._past = [y0] * (self.delay_ticks + 1)  # y at the last d + 1 ticks, oldest first
-        self._latest = y0
-        self._last = y0
-        self._k = 0
+            if arr is not None and n is not None and arr.shape[0] < n:
+                raise ShapeError(f"TickMeasurement: {name} holds fewer than the run's {n} ticks; give "
+                                 f"(T, *batch, ...) with T = {n}")
 
-    def observe(self, t: float, y) -> None:
-        self._latest = y
+    # -- the measurement contract (quatform.sim.loop) ---------------------------------
+    def schedule(self, times, dt: float, substeps: int, batch: tuple = ()) -> dict:
+        """The tick's ``noise`` ``(T, *batch, k)`` and ``dropped`` ``(T, *batch)``, where given."""
+        n = np.size(times)
+        out = {}
+        for name, arr in (("noise", self.noise), ("dropped", self.dropped)):
+            if arr is not None:
+                if arr.shape[0] < n or arr.shape[1:1 + len(batch)] != tuple(batch):
+                    raise ShapeError(f"TickMeasurement: {name} of shape {arr.shape} for {n} ticks and batch "
+                                     f"{tuple(batch)}; give (T, *batch, ...) with T = {n}")
+                out[name] = arr[:n]
+        return out
 
-    def read(self, t: float):
-        k = self._k
-        self._k += 1
-        if k:
-            self._past = self._past[1:] + [self._latest]
-        m = self._past[0]
-        if self.noise is not None:
-            m = m + self.noise[k]
-        if self.dropped is not None:
-            m = np.where(self.dropped[k][..., None], self._last, m)
-        self._last = m
-        return m
+    def init(self, y0, batch: tuple = (), schedule: dict | None = None) -> dict:
+        """``past`` ``(*batch, d + 1, k)``: the outputs of the last ``d + 1`` ticks, oldest
+        first (all ``y0``); ``latest`` the newest output; ``last`` the last reading."""
+        self.check(y0, batch)
+        y0 = np.asarray(y0, dtype=float)
+        past = np.broadcast_to(y0[..., None, :], y0.shape[:-1] + (self.delay_ticks + 1, y0.shape[-1])).copy()
+        return {"past": past, "latest": y0, "last": y0}
+
+    def observe(self, state: dict, y, j: int) -> dict:
+        return {"past": state["past"], "latest": y, "last": state["last"]}
+
+    def read(self, state: dict, xs: dict):
+        """``(state, m_k)``: the newest output shifted into ``past`` (at the first tick it is
+        ``y0``, as every entry is), ``m_k = past[0] + noise_k``, the last reading where the
+        frame is dropped (any array namespace)."""
+        past, latest = state["past"], state["latest"]
+        xp = common_namespace(past, latest)
+        past = xp.concatenate([past[..., 1:, :], latest[..., None, :]], axis=-2)
+        m = past[..., 0, :]
+        if "noise" in xs:
+            m = m + xs["noise"]
+        if "dropped" in xs:
+            m = xp.where(xp.asarray(xs["dropped"])[..., None], state["last"], m)
+        return {"past": past, "latest": latest, "last": m}, m

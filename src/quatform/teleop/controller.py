@@ -34,11 +34,11 @@ from ..algebra import matrix_from_q, qconj, qmul
 from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..checks import short
-from ..control.contract import Controller, Step
+from ..control.contract import Controller, Step, Tick
 from ..control.stiffness import StiffnessGains, force_stability_term, virtual_wall_force
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from .arm import SerialArm
-from .kernels import q_from_rotation
+from .kernels import over_worlds, q_from_rotation
 from .kraft import KRAFT_FULL_SCALE, KRAFT_MASTER, KRAFT_PRELOAD
 from .slave import PANDA_SLAVE, PANDA_TORQUE_LIMITS, RigidArm
 from .task import rpy_from_matrix, rpy_rates, wrap_angle
@@ -336,19 +336,61 @@ class TeleopController(Controller):
         i = np.cumsum([n_m, n_m, n_s, n_s])
         return TeleopMeasurement(a[:i[0]], a[i[0]:i[1]], a[i[1]:i[2]], a[i[2]:i[3]], a[i[3]:])
 
+    #: :meth:`tick` is pure and branch-free (it runs under ``jax.jit``).
+    pure = True
+    #: Why a world's cycle failed (:attr:`~quatform.control.contract.Tick.code`).
+    failure_reasons = {1: "the measurement is not finite or beyond what the arms can be"}
+
+    def reference_arrays(self, reference) -> dict:
+        """Nothing: each arm's reference is the other arm."""
+        return {}
+
+    @cached_property
+    def _bounds(self) -> np.ndarray:
+        """Each measured entry's bound (what :func:`_measured` accepts), ``(n_m,)``."""
+        n_m, n_s = self.master.n, self.slave.arm.n
+        return np.concatenate([np.full(n_m, MAX_JOINT_ANGLE), np.full(n_m, MAX_JOINT_RATE),
+                               np.full(n_s, MAX_JOINT_ANGLE), np.full(n_s, MAX_JOINT_RATE), _WRENCH_BOUND])
+
+    def tick(self, state, measured, reference, t) -> Tick:
+        """One pure cycle of every world: ``measured`` ``(*batch, n_m)`` (:attr:`measured_columns`)
+        in, :class:`~quatform.control.contract.Tick` out (state None; code 1 where the
+        measurement is not finite or beyond :func:`_measured`'s bounds). The law of one world
+        (:meth:`law`) on NumPy or JAX arrays, a batch world by world
+        (:func:`~quatform.teleop.kernels.over_worlds`)."""
+        n_m, n_s = self.master.n, self.slave.arm.n
+        i = np.cumsum([n_m, n_m, n_s, n_s])
+        bounds = self._bounds
+
+        def world(m):
+            xp = array_namespace(m)
+            ok = xp.all(xp.isfinite(m) & (xp.abs(m) <= bounds))
+            out = self.law(m[:i[0]], m[i[0]:i[1]], m[i[1]:i[2]], m[i[2]:i[3]], m[i[3]:], True)
+            tau_m, tau_s, e, p_m, r_m, p_s, r_s, wall, finite, saturated, null_ok = out[:11]
+            flags = tuple(xp.where(f, 1.0, 0.0)[None] for f in (finite, saturated, null_ok))
+            signals = (p_m, xp.stack(r_m), p_s, xp.stack(r_s), e, wall) + flags
+            return xp.concatenate([tau_m, tau_s]), signals, xp.where(ok, 0, 1)
+
+        u, signals, code = over_worlds(world, np.ndim(measured) - 1, measured)
+        return Tick(None, u, dict(zip(_SIGNAL_COLUMNS, signals)), code)
+
     def update(self, t: float, measured, reference=None, state=None) -> Step:
         """One cycle: ``Step(u, None, signals)``, ``u`` the torques of :attr:`command_names`.
 
         ``measured``: the stacked vector of :attr:`measured_columns` or a
-        :class:`TeleopMeasurement`; ``reference`` and ``state`` are unused (each arm's
-        reference is the other arm; the controller keeps no state).
+        :class:`TeleopMeasurement`, checked (one-line errors); then :meth:`tick`.
+        ``reference`` and ``state`` are unused (each arm's reference is the other arm; the
+        controller keeps no state).
         """
-        cmd = self._cycle(self.measurement_of(measured), details=True)
-        return Step(np.concatenate([cmd.tau_m, cmd.tau_s]), None, {
-            "p_m": cmd.p_m, "r_m": cmd.r_m, "p_s": cmd.p_s, "r_s": cmd.r_s, "e": cmd.e,
-            "wall_force": cmd.wall_force, "raw_finite": np.array([1.0 if cmd.raw_finite else 0.0]),
-            "saturated": np.array([1.0 if cmd.saturated else 0.0]),
-            "null_space_ok": np.array([1.0 if cmd.null_space_ok else 0.0])})
+        mm = self.measurement_of(measured)
+        M, S = self.master, self.slave.arm
+        m = np.concatenate([_measured(mm.q_m, "q_m", M.n), _measured(mm.qd_m, "qd_m", M.n),
+                            _measured(mm.q_s, "q_s", S.n), _measured(mm.qd_s, "qd_s", S.n),
+                            _measured(mm.F_s, "F_s", 6)])
+        out = self.tick(None, m, {}, t)
+        if out.code > 0:  # the checks above refuse every such measurement first
+            raise InvalidInputError(f"teleop controller: {self.failure_reasons[int(out.code)]}")
+        return Step(out.u, None, dict(out.signals))
 
     def step(self, t: float, measured, reference=None) -> tuple[np.ndarray, np.ndarray]:
         """Master and slave torques ``(tau_m, tau_s)`` (N m) for one measurement.
@@ -403,7 +445,7 @@ class TeleopController(Controller):
     def law(self, q_m, qd_m, q_s, qd_s, F_s, details: bool = True):
         """The control law of one cycle on measurements already checked (:func:`_measured`):
         NumPy or JAX arrays (:func:`quatform.algebra.kernels.array_namespace`; the teleop
-        kind's loop of :mod:`quatform.sim.jax_teleop` runs it compiled). Returns ``(tau_m,
+        :meth:`tick` runs it compiled). Returns ``(tau_m,
         tau_s)``, or with ``details`` the fields of :class:`TeleopCommand` in order (the
         quaternions as component tuples, the flags as booleans of the namespace)."""
         xp = array_namespace(q_m)

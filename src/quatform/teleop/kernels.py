@@ -4,7 +4,8 @@ A control cycle works on one configuration of each arm: a handful of 3-vectors a
 3x3 matrices. NumPy's general routines (``np.cross``, validated conversions) cost more
 in call overhead than in arithmetic there, so these do the same on plain slices or
 Python floats. Each is checked against its general counterpart in the tests. They run on
-JAX arrays too (the teleop kind's loop of :mod:`quatform.sim.jax_teleop`).
+JAX arrays too (the teleop kind's tick under ``jax.jit``, :mod:`quatform.sim.loop`).
+:func:`over_worlds` runs a one-configuration function on every world of a batch.
 """
 
 from __future__ import annotations
@@ -73,3 +74,44 @@ def q_from_rotation(R) -> tuple:
     n = xp.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     s = xp.where(q[0] >= 0, 1.0 / n, -1.0 / n)
     return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
+
+
+def _stack(outs):
+    """The per-world results ``outs`` (equal structures of tuples, lists, dicts and arrays) stacked
+    leaf by leaf along a new first axis."""
+    first = outs[0]
+    if isinstance(first, (tuple, list)):
+        return type(first)(_stack([o[q] for o in outs]) for q in range(len(first)))
+    if isinstance(first, dict):
+        return {k: _stack([o[k] for o in outs]) for k in first}
+    return np.stack([np.asarray(o) for o in outs])
+
+
+def over_worlds(fn, batch_ndim: int, *args):
+    """``fn(*args)`` on every world: ``args`` are arrays whose first ``batch_ndim`` axes are the
+    batch (None passes as it is; ``fn`` closes over what every world shares); the results (tuples, dicts of arrays) get
+    those axes first. ``jax.vmap`` on JAX arrays, a loop over the worlds on NumPy; with no batch
+    axes, ``fn(*args)`` itself."""
+    if batch_ndim == 0:
+        return fn(*args)
+    batched = [a for a in args if a is not None]
+    xp = array_namespace(batched[0])
+    if xp is not np:
+        import jax
+
+        axes = tuple(None if a is None else 0 for a in args)
+        f = fn
+        for _ in range(batch_ndim):
+            f = jax.vmap(f, in_axes=axes)
+        return f(*args)
+    batch = np.shape(batched[0])[:batch_ndim]
+    outs = [fn(*(None if a is None else a[idx] for a in args)) for idx in np.ndindex(*batch)]
+
+    def shaped(tree):
+        if isinstance(tree, (tuple, list)):
+            return type(tree)(shaped(v) for v in tree)
+        if isinstance(tree, dict):
+            return {k: shaped(v) for k, v in tree.items()}
+        return tree.reshape(batch + tree.shape[1:])
+
+    return shaped(_stack(outs))

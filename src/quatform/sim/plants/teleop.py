@@ -35,6 +35,7 @@ from ...algebra import q_from_axis_angle, qmul, qslerp
 from ...algebra.kernels import array_namespace, qmul_components
 from ...robots.arms import KraftMaster, PandaSlave
 from ...teleop import KRAFT_MASTER
+from ...teleop.kernels import over_worlds
 
 __all__ = ["HandKey", "Hand", "SlavePush", "ContactWall", "TeleopPlant", "angle_between"]
 
@@ -209,8 +210,9 @@ class TeleopPlant:
     wall: ContactWall | None = None
     virtual_walls: tuple = ()
 
-    #: The slave's Coriolis torques and the master's friction take one configuration.
-    batchable = False
+    #: A batch steps world by world (the slave's Coriolis torques and the master's friction take
+    #: one configuration).
+    batchable = True
 
     @property
     def state_columns(self) -> tuple:
@@ -248,16 +250,40 @@ class TeleopPlant:
 
     def targets_at(self, t):
         """What moves the plant at ``t`` independently of its state: the hand's target pose
-        ``(p, r)`` and the push's target position (None without a push), for :meth:`step_at`."""
+        ``(p, r)`` and the push's target position (None without a push)."""
         return self.hand.target(t, self.hand_poses), None if self.push is None else self.push.target(t, self.p_s0)
 
-    def step(self, x, u, dt: float, t: float) -> np.ndarray:
-        """The state one control cycle later under the held torques ``u`` (``tau_m``, ``tau_s``)."""
-        return self.step_at(x, u, dt, *self.targets_at(t))
+    def inputs(self, times, dt: float, substeps: int) -> dict:
+        """The exogenous inputs of every plant step of a run (:mod:`quatform.sim.loop`): the
+        hand's target ``p_h`` ``(T, substeps, 3)``, ``r_h`` ``(T, substeps, 4)`` and, with a push,
+        its target ``push`` ``(T, substeps, 3)`` (:meth:`targets_at` at ``t_k + j dt``)."""
+        hand_p, hand_r, push = [], [], []
+        for t in np.asarray(times, dtype=float):
+            for j in range(substeps):
+                (p_h, r_h), target = self.targets_at(float(t) + j * dt)
+                hand_p.append(p_h)
+                hand_r.append(r_h)
+                push.append(target)
+        n = len(times)
+        out = {"p_h": np.asarray(hand_p, float).reshape(n, substeps, 3),
+               "r_h": np.asarray(hand_r, float).reshape(n, substeps, 4)}
+        if self.push is not None:
+            out["push"] = np.asarray(push, float).reshape(n, substeps, 3)
+        return out
 
-    def step_at(self, x, u, dt: float, hand_pose, push_target):
-        """:meth:`step` with the targets of :meth:`targets_at` given (NumPy or JAX arrays: the
-        teleop kind's loop of :mod:`quatform.sim.jax_teleop` samples them on the host)."""
+    def step(self, x, u, dt: float, t: float, w: dict | None = None):
+        """The state one control cycle later under the held torques ``u`` (``tau_m``, ``tau_s``),
+        ``(*batch, n_x)`` and ``(*batch, n_u)``; ``w`` the step's slice of :meth:`inputs`
+        (None: :meth:`targets_at` ``t``). Pure, on NumPy or JAX arrays; a batch runs world by
+        world (:func:`quatform.teleop.kernels.over_worlds`: the arms take one configuration)."""
+        if w is None:
+            (p_h, r_h), target = self.targets_at(t)
+        else:
+            p_h, r_h, target = w["p_h"], w["r_h"], w.get("push")
+        return over_worlds(lambda xi, ui: self._step_one(xi, ui, dt, (p_h, r_h), target), np.ndim(x) - 1, x, u)
+
+    def _step_one(self, x, u, dt: float, hand_pose, push_target):
+        """:meth:`step` of one world with the hand's and the push's targets given."""
         xp = array_namespace(x)
         M, S = self.master, self.slave
         n_m = M.arm.n
