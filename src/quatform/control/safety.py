@@ -51,16 +51,21 @@ from __future__ import annotations
 import math
 import dataclasses
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from ..algebra.kernels import array_namespace
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS, RobotLayout
+from ..formations.team_chart import team_positions
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
+from . import barrier as _barrier
 from . import contract
+from .barrier import HOST, pair_constraints, point_velocities, solves
 
-__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components"]
+__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components", "HOST",
+           "start_floor"]
 
 #: Teams of at most this many robots find their pairs by one dense comparison (cheaper than a tree).
 _DENSE_PAIRS_MAX_ROBOTS = 48
@@ -530,20 +535,20 @@ class SeparationBarrier:
 
 # -- the controller -----------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class SafeState:
-    """State of a :class:`SafeController`: the inner controller's and whether it has started.
+class SafeState(NamedTuple):
+    """State of a :class:`SafeController`: the inner controller's and whether it has started
+    (a tuple, so a pytree of arrays for :meth:`SafeController.tick` under ``jax.jit``).
 
     Attributes
     ----------
     inner : object
         The inner controller's state.
-    started : bool
-        False before the first update (which refuses robots already too close).
+    started : bool or array of bool, shape (*batch)
+        False before a world's first update (which refuses robots already too close).
     """
 
     inner: object = None
-    started: bool = False
+    started: object = False
 
 
 #: Relative rounding of the robots' points a start may carry below the barrier's minimum
@@ -616,15 +621,105 @@ class SafeController(contract.Controller):
         return {**self.inner.signal_columns(), "min_separation": ("min_separation",),
                 "safety_active": ("safety_active",)}
 
+    @property
+    def pure(self) -> bool:
+        """The inner controller's (the barrier's array algorithm is pure)."""
+        return self.inner.pure
+
+    @property
+    def failure_reasons(self):
+        """The inner controller's, and :data:`~quatform.control.barrier.HOST`."""
+        return {**self.inner.failure_reasons,
+                HOST: "the separation barrier's programme is not solved by the array algorithm, or the robots "
+                      "start closer than its minimum (the world runs on the host)"}
+
     def init(self, batch: tuple = ()):
-        """:class:`SafeState` of the inner controller's initial state, not started."""
-        return SafeState(self.inner.init(batch), False)
+        """:class:`SafeState` of the inner controller's initial state, no world started."""
+        return SafeState(self.inner.init(batch), np.zeros(batch, dtype=bool))
+
+    def reference_arrays(self, reference):
+        """The inner controller's."""
+        return self.inner.reference_arrays(reference)
+
+    def tick(self, state, measured, reference, t) -> contract.Tick:
+        """The inner controller's tick with its commands through the barrier's array algorithm
+        (:func:`~quatform.control.barrier.barrier_filter`), on any namespace.
+
+        ``code`` :data:`~quatform.control.barrier.HOST` (a world for the host: rerun there)
+        where a world's robots start closer than the barrier's minimum (:func:`start_floor`),
+        and under ``jax.jit`` where the array algorithm does not solve a binding programme
+        (a team it does not run: :func:`~quatform.control.barrier.solves`; more binding pairs
+        than its candidates, ...). On NumPy those worlds take the exact host solver's
+        commands (:meth:`SeparationBarrier.filter`) in the tick itself, so NumPy's numbers
+        are the host solver's wherever the array algorithm's are not shown exact; a world
+        the host solver refuses gets :data:`~quatform.control.barrier.HOST` (its
+        :meth:`update` raises the one-line error).
+        """
+        inner = self.inner.tick(state.inner, measured, reference, t)
+        u, signals, code = self._filter(measured, inner.u, inner.code, state.started)
+        xp = array_namespace(u)
+        return contract.Tick(SafeState(inner.state, xp.ones(code.shape, dtype=bool)), u,
+                             {**inner.signals, **signals}, code)
+
+    def _filter(self, measured, u, code, started, raise_host=False):
+        """``(u_safe, {"min_separation", "safety_active"}, code)`` of the nominal commands ``u``
+        at the measured team state, for the worlds whose ``code`` is 0 (see :meth:`tick`);
+        ``raise_host``: the host solver's refusal is raised (:meth:`update`), not coded."""
+        xp = array_namespace(u)
+        team, L, barrier = self.team, self.team.layout, self.barrier
+        lead = np.broadcast_shapes(tuple(code.shape), tuple(measured.shape[:-1]), tuple(u.shape[:-1]))
+        B = math.prod(lead)
+        m = xp.reshape(xp.broadcast_to(measured, lead + measured.shape[-1:]), (B, -1))
+        u = xp.reshape(xp.broadcast_to(u, lead + u.shape[-1:]), (B, -1))
+        code = xp.reshape(xp.broadcast_to(code, lead), (B,))
+        started = xp.reshape(xp.broadcast_to(xp.asarray(started, dtype=bool), lead), (B,))
+        live = code == 0
+        points = team.point(m) if xp is np else m  # under jax.jit: teams whose points are their states
+        if solves(team):
+            u_safe, sep, active, solved = _barrier.barrier_filter(barrier, team, m, u, live)
+        else:  # the array algorithm runs no such team: a world where a pair binds is the host's
+            P = team_positions(L, points)
+            V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
+            with np.errstate(invalid="ignore", over="ignore"):
+                _, sep, _, _, _, active = pair_constraints(barrier, L, P, V)
+            u_safe, solved = u, ~active
+        if sep.shape[-1]:
+            min_sep = xp.min(sep, axis=-1)
+            start = ~started & xp.any(sep < start_floor(team_positions(L, points), barrier.min_separation_m), axis=-1)
+        else:  # one robot: no pair
+            min_sep = xp.full((B,), xp.inf)
+            start = xp.zeros((B,), dtype=bool)
+        if xp is np:  # the exact host solver where the array algorithm has not shown its answer exact
+            host = np.flatnonzero(live & ~solved & ~start)
+            if host.size:
+                u_safe, min_sep, active, solved = (np.array(a) for a in (u_safe, min_sep, active, solved))
+                try:  # every such world at once, world by world where the solver refuses one
+                    runs = [(host, *barrier.filter(team, m[host], u[host]))]
+                except DegenerateInputError:
+                    if raise_host:
+                        raise
+                    runs = []
+                    for b in host:
+                        try:
+                            runs.append(([b], *barrier.filter(team, m[[b]], u[[b]])))
+                        except DegenerateInputError:
+                            pass
+                for worlds, ub, info in runs:
+                    u_safe[worlds], min_sep[worlds], active[worlds] = ub, info.min_separation, info.active
+                    solved[worlds] = True
+        code = xp.where(start, HOST, xp.where(code > 0, code, xp.where(solved, 0, HOST)))
+        signals = {"min_separation": xp.reshape(min_sep, lead + (1,)),
+                   "safety_active": xp.reshape(active.astype(u.dtype), lead + (1,))}
+        return xp.reshape(u_safe, lead + u.shape[-1:]), signals, xp.reshape(code, lead)
 
     def update(self, t: float, measured, reference, state) -> contract.Step:
         """The inner controller's update with its commands filtered on ``measured``.
 
-        The first update refuses robots already closer than ``min_separation_m`` (no
-        command can make that safe), naming the pair and the separation.
+        The first update of a world refuses robots already closer than ``min_separation_m``
+        (no command can make that safe), naming the pair and the separation. The filter is
+        :meth:`tick`'s: the barrier's array algorithm, the exact host solver
+        (:meth:`SeparationBarrier.filter`) for the worlds it does not solve (whose refusal,
+        such as robots no velocity keeps apart, is raised).
         """
         if not isinstance(state, SafeState):
             raise InvalidInputError(f"SafeController.update: state must be a SafeState (from init), got "
@@ -633,24 +728,26 @@ class SafeController(contract.Controller):
         if m.shape[-1:] != (self.team.n_state,):
             raise ShapeError(f"SafeController: measured must be the team's state, shape (..., {self.team.n_state}), "
                              f"got {m.shape}")
-        if not state.started:
-            self._check_start(m)
+        started = np.asarray(state.started, dtype=bool)
+        if not np.all(started):
+            self._check_start(m, started)
         step = self.inner.update(t, measured, reference, state.inner)
-        u, info = self.barrier.filter(self.team, m, step.u)
-        signals = dict(step.signals)
-        signals["min_separation"] = info.min_separation[..., None]
-        signals["safety_active"] = info.active.astype(float)[..., None]
-        return contract.Step(u, SafeState(step.state, True), signals)
+        ok = np.zeros(np.broadcast_shapes(m.shape[:-1], np.shape(step.u)[:-1]), dtype=np.int64)
+        u, signals, code = self._filter(m, np.asarray(step.u, dtype=float), ok, True, raise_host=True)
+        if np.any(code > 0):  # not reached: the host solver raises where the array algorithm fails
+            raise DegenerateInputError(f"SafeController: {self.failure_reasons[int(np.max(code))]}")
+        return contract.Step(u, SafeState(step.state, np.ones(code.shape, dtype=bool)), {**step.signals, **signals})
 
-    def _check_start(self, m):
-        """Refuse robots closer than :func:`start_floor` (the minimum less their points' rounding)."""
+    def _check_start(self, m, started=False):
+        """Refuse robots closer than :func:`start_floor` (the minimum less their points' rounding)
+        in the worlds not ``started``."""
         layout = self.team.layout
         p = self.team.point(m)
         sep = layout.separations(p)
         if sep.shape[-1] == 0:
             return
         d = self.barrier.min_separation_m
-        close = sep < start_floor(layout.positions(p), d)
+        close = (sep < start_floor(layout.positions(p), d)) & ~np.asarray(started, dtype=bool)[..., None]
         if np.any(close):
             at = np.argwhere(close)[0]
             a, b = (int(p[at[-1]]) for p in layout.pairs)

@@ -95,7 +95,8 @@ from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations.team_chart import team_positions
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot
-from . import jax_barrier, jax_devices
+from ..control import barrier as jax_barrier
+from . import jax_devices
 from .log import Channel, Log
 from .plants import KinematicTeam
 from .plants.teleop import TeleopPlant
