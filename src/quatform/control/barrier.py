@@ -251,7 +251,8 @@ def barrier_filter(barrier, team, m, u, live):
     K = min(n_pairs, CANDIDATES)
     P = team_positions(L, m)
     V = team_positions(L, u)
-    pij, sep, R, h, g, active = pair_constraints(barrier, L, P, V)
+    with np.errstate(invalid="ignore", over="ignore"):  # NumPy: a refused world's (not live) values
+        pij, sep, R, h, g, active = pair_constraints(barrier, L, P, V)
     d2, gam = barrier.min_separation_m ** 2, barrier.gamma
     if barrier.range_m is None:
         # every pair: the host solver widens its range to that of the solution's speed, beyond

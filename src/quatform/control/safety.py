@@ -685,7 +685,9 @@ class SafeController(contract.Controller):
             u_safe, solved = u, ~active
         if sep.shape[-1]:
             min_sep = xp.min(sep, axis=-1)
-            start = ~started & xp.any(sep < start_floor(team_positions(L, points), barrier.min_separation_m), axis=-1)
+            with np.errstate(invalid="ignore"):
+                floor = start_floor(team_positions(L, points), barrier.min_separation_m)
+            start = ~started & xp.any(sep < floor, axis=-1)
         else:  # one robot: no pair
             min_sep = xp.full((B,), xp.inf)
             start = xp.zeros((B,), dtype=bool)
