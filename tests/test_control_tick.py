@@ -171,15 +171,32 @@ def _binding(scenario, controller, B=6, seed=2):
 
 
 @pytest.mark.parametrize("scenario", ["team-ring-flip", "team-triangle-over-ugv"])
-def test_safe_tick_with_the_barrier_binding_is_update(scenario, monkeypatch):
-    from quatform.control import barrier
-
+def test_safe_tick_with_the_barrier_binding_is_update(scenario):
     safe, x, ref = _binding(scenario, "quaternion")
     _assert_tick_is_update(safe, x, ref, started=True)
     tick = safe.tick(SafeState(None, True), x, safe.reference_arrays(ref), 0.3)
-    assert np.any(tick.signals["safety_active"] > 0)
-    monkeypatch.setattr(barrier, "CANDIDATES", 1)  # the array algorithm solves no world of two binding pairs
-    _assert_tick_is_update(safe, x, ref, started=True)
+    assert np.all(tick.signals["safety_active"][1:] > 0) and np.all(tick.code == 0)
+
+
+def test_the_array_algorithm_on_numpy_is_the_host_solver(monkeypatch):
+    from quatform.control import barrier
+
+    safe, x, ref = _binding("team-ring-flip", "quaternion", B=8)
+    slots, d = safe.team.state_slices, safe.barrier.min_separation_m
+    for b in (3, 5):  # world 1: robots 4 and 6 also come home through robot 1 (three binding pairs)
+        pa, home = x[1, slots[0]][:3], x[0, slots[b]][:3]
+        side = np.cross(pa - home, [0.0, 0.0, 1.0 if b == 3 else -1.0])
+        x[1, slots[b].start:slots[b].start + 3] = pa + 1.05 * d * side / np.linalg.norm(side)
+    u = safe.inner.update(0.3, x, ref).u
+    ok, started = np.zeros(len(x), dtype=np.int64), np.ones(len(x), dtype=bool)
+    host = safe._filter_host(x, u, ok, started, False)
+    arrays = safe._filter_arrays(x, u, ok, started)
+    assert np.all(arrays[3] == 0) and np.all(host[3] == 0) and np.all(host[2][1:])  # every world solved, binding
+    for a, b in zip(arrays[:3], host[:3]):
+        np.testing.assert_allclose(a, b, rtol=0, atol=TOL)
+    monkeypatch.setattr(barrier, "CANDIDATES", 1)  # a world of two binding pairs is the host's
+    code = safe._filter_arrays(x, u, ok, started)[3]
+    assert np.any(code == HOST) and np.any(code == 0)
 
 
 # -- JAX: jax.jit(tick) equals NumPy's tick ------------------------------------------------------------

@@ -181,14 +181,15 @@ def pair_constraints(barrier, L, P, V):
     xp = array_namespace(P)
     i, j = L.pairs
     pij = P[..., i, :] - P[..., j, :]
-    sep = xp.sqrt(xp.sum(pij * pij, axis=-1))  # (..., pairs)
+    sep2 = xp.sum(pij * pij, axis=-1)
+    sep = xp.sqrt(sep2)  # (..., pairs)
     d2, gam = barrier.min_separation_m ** 2, barrier.gamma
     if barrier.range_m is None:  # SeparationBarrier._range of the largest point speed
         speed = xp.sqrt(xp.max(xp.sum(V * V, axis=-1), axis=-1, keepdims=True))
         R = (2.0 * speed + xp.sqrt(4.0 * speed * speed + gam * gam * d2)) / gam
     else:
         R = barrier.range_m
-    h = xp.sum(pij * pij, axis=-1) - d2  # the single-integrator barrier (Robotarium certificate)
+    h = sep2 - d2  # the single-integrator barrier (Robotarium certificate)
     g = 2.0 * xp.sum(pij * (V[..., i, :] - V[..., j, :]), axis=-1) + gam * h  # Wang et al. 2017
     active = xp.any((sep <= R) & (g < 0.0), axis=-1)
     return pij, sep, R, h, g, active

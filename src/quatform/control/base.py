@@ -132,18 +132,55 @@ def measured_codes(layout, m, r, apart=True, inclusive=False):
     are closer than :data:`~quatform.formations.base.MIN_SEPARATION_M` (``inclusive``: at most
     that, the pair kernels' rule ``d^2 <= d_min^2``; else the layout's ``d < d_min``); else 0.
     """
+    if type(m) is np.ndarray and type(r) is np.ndarray and m.ndim == 1 and r.ndim == 1 and layout.n <= 8:
+        return np.asarray(_codes_floats(layout, m.tolist(), r.tolist(), apart, inclusive))  # one world: floats
     xp = array_namespace(r)
     with np.errstate(invalid="ignore", over="ignore"):
         bad_m = ~xp.all(xp.isfinite(m) & (xp.abs(m) <= MAX_MAGNITUDE), axis=-1)
         code = xp.where(bad_m, MEASURED_NOT_FINITE, 0)
         if apart and layout.n > 1:
-            i, j = layout.pairs
             p = team_positions(layout, r)
+            if xp is np and layout.n > _SCREEN_FROM and _screened(p, bad_m):
+                return code  # no two robots within the minimum (RobotLayout.check_apart's screen)
+            i, j = layout.pairs
             d = p[..., i, :] - p[..., j, :]
             d2 = xp.sum(d * d, axis=-1)
             close = (d2 <= MIN_SEPARATION_M * MIN_SEPARATION_M) if inclusive else (xp.sqrt(d2) < MIN_SEPARATION_M)
             code = xp.where(bad_m, code, xp.where(xp.any(close, axis=-1), ROBOTS_COINCIDE, 0))
     return code
+
+
+#: Teams larger than this screen their robots' separations first on NumPy (:func:`_screened`).
+_SCREEN_FROM = 16
+#: The screen's fixed direction (``formations.layout``'s).
+_SCREEN_DIRECTION = np.array([0.5773502691896258, 0.6172133998483676, 0.5345224838248488])
+_SCREEN_DIRECTION = _SCREEN_DIRECTION / np.linalg.norm(_SCREEN_DIRECTION)
+
+
+def _screened(p, skip) -> bool:
+    """Whether every world of the positions ``p`` (``(..., N, 3)``, NumPy) but those ``skip``
+    has no two robots within :data:`~quatform.formations.base.MIN_SEPARATION_M`, by the O(N
+    log N) screen of :meth:`~quatform.formations.layout.RobotLayout.check_apart`: two robots
+    are at least as far apart as their projections on one direction, so sorted neighbouring
+    projections farther apart than the minimum clear every pair (False: measure them)."""
+    proj = np.sort(p @ _SCREEN_DIRECTION, axis=-1)
+    return bool(np.all(np.all(np.diff(proj, axis=-1) > MIN_SEPARATION_M, axis=-1) | skip))
+
+
+def _codes_floats(layout, m, r, apart, inclusive) -> int:
+    """:func:`measured_codes` of one world given as lists of Python floats (the same tests)."""
+    if not all(abs(v) <= MAX_MAGNITUDE for v in m):  # False for NaN
+        return MEASURED_NOT_FINITE
+    if not apart or layout.n < 2:
+        return 0
+    p = [[r[k] if k < layout.size else 0.0 for k in row] for row in layout.position_index.tolist()]
+    lim = MIN_SEPARATION_M * MIN_SEPARATION_M
+    for a, b in zip(*layout.pairs):
+        pa, pb = p[a], p[b]
+        d2 = (pa[0] - pb[0]) ** 2 + (pa[1] - pb[1]) ** 2 + (pa[2] - pb[2]) ** 2
+        if (d2 <= lim) if inclusive else (math.sqrt(d2) < MIN_SEPARATION_M):
+            return ROBOTS_COINCIDE
+    return 0
 
 
 def apart_robots(layout) -> np.ndarray:

@@ -642,18 +642,21 @@ class SafeController(contract.Controller):
         return self.inner.reference_arrays(reference)
 
     def tick(self, state, measured, reference, t) -> contract.Tick:
-        """The inner controller's tick with its commands through the barrier's array algorithm
-        (:func:`~quatform.control.barrier.barrier_filter`), on any namespace.
+        """The inner controller's tick with its commands through the separation barrier.
 
-        ``code`` :data:`~quatform.control.barrier.HOST` (a world for the host: rerun there)
-        where a world's robots start closer than the barrier's minimum (:func:`start_floor`),
-        and under ``jax.jit`` where the array algorithm does not solve a binding programme
-        (a team it does not run: :func:`~quatform.control.barrier.solves`; more binding pairs
-        than its candidates, ...). On NumPy those worlds take the exact host solver's
-        commands (:meth:`SeparationBarrier.filter`) in the tick itself, so NumPy's numbers
-        are the host solver's wherever the array algorithm's are not shown exact; a world
-        the host solver refuses gets :data:`~quatform.control.barrier.HOST` (its
-        :meth:`update` raises the one-line error).
+        One filter per namespace, chosen by the arrays, not by the data: under ``jax.jit``
+        (any namespace but NumPy) the barrier's array algorithm
+        (:func:`~quatform.control.barrier.barrier_filter`, fixed size, branch-free), with code
+        :data:`~quatform.control.barrier.HOST` where it does not solve a binding programme (a
+        team it does not run, :func:`~quatform.control.barrier.solves`; more binding pairs than
+        its candidates; no convergence ...): the driver reruns that world on the host. On
+        NumPy the exact host solver (:meth:`SeparationBarrier.filter`) for every live world:
+        the array algorithm's answer, where it has one, is that solver's to rounding
+        (``docs/derivations.md``, "The separation barrier on JAX"), and on the host the exact
+        solver is the cheaper of the two (its pairs from a k-d tree, nothing solved where no
+        pair binds), so NumPy's numbers are exactly today's. ``HOST`` also marks a world whose
+        robots start closer than the barrier's minimum (:func:`start_floor`; :meth:`update`
+        raises its one-line error), and on NumPy a world the host solver refuses.
         """
         inner = self.inner.tick(state.inner, measured, reference, t)
         u, signals, code = self._filter(measured, inner.u, inner.code, state.started)
@@ -663,22 +666,38 @@ class SafeController(contract.Controller):
 
     def _filter(self, measured, u, code, started, raise_host=False):
         """``(u_safe, {"min_separation", "safety_active"}, code)`` of the nominal commands ``u``
-        at the measured team state, for the worlds whose ``code`` is 0 (see :meth:`tick`);
-        ``raise_host``: the host solver's refusal is raised (:meth:`update`), not coded."""
+        at the measured team state, for the worlds whose ``code`` is 0 (see :meth:`tick`):
+        :meth:`_filter_host` on NumPy, :meth:`_filter_arrays` on another namespace."""
         xp = array_namespace(u)
-        team, L, barrier = self.team, self.team.layout, self.barrier
         lead = np.broadcast_shapes(tuple(code.shape), tuple(measured.shape[:-1]), tuple(u.shape[:-1]))
         B = math.prod(lead)
         m = xp.reshape(xp.broadcast_to(measured, lead + measured.shape[-1:]), (B, -1))
         u = xp.reshape(xp.broadcast_to(u, lead + u.shape[-1:]), (B, -1))
         code = xp.reshape(xp.broadcast_to(code, lead), (B,))
         started = xp.reshape(xp.broadcast_to(xp.asarray(started, dtype=bool), lead), (B,))
+        if xp is np:
+            u_safe, min_sep, active, code = self._filter_host(m, u, code, started, raise_host)
+        else:
+            u_safe, min_sep, active, code = self._filter_arrays(m, u, code, started)
+        signals = {"min_separation": xp.reshape(min_sep, lead + (1,)),
+                   "safety_active": xp.reshape(active.astype(u.dtype), lead + (1,))}
+        return xp.reshape(u_safe, lead + u.shape[-1:]), signals, xp.reshape(code, lead)
+
+    def _filter_arrays(self, m, u, code, started):
+        """The barrier's array algorithm (:func:`~quatform.control.barrier.barrier_filter`) on
+        ``(B, ...)`` arrays of any namespace: ``(u_safe, min_separation, active, code)``, code
+        :data:`~quatform.control.barrier.HOST` where a live world's binding programme is not
+        solved (a team the algorithm does not run: where any pair binds) or its robots start
+        closer than the minimum. The measured states are the robots' points (the teams the
+        jax backend runs)."""
+        xp = array_namespace(u)
+        team, L, barrier = self.team, self.team.layout, self.barrier
+        B = code.shape[0]
         live = code == 0
-        points = team.point(m) if xp is np else m  # under jax.jit: teams whose points are their states
         if solves(team):
             u_safe, sep, active, solved = _barrier.barrier_filter(barrier, team, m, u, live)
         else:  # the array algorithm runs no such team: a world where a pair binds is the host's
-            P = team_positions(L, points)
+            P = team_positions(L, m)
             V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
             with np.errstate(invalid="ignore", over="ignore"):
                 _, sep, _, _, _, active = pair_constraints(barrier, L, P, V)
@@ -686,33 +705,49 @@ class SafeController(contract.Controller):
         if sep.shape[-1]:
             min_sep = xp.min(sep, axis=-1)
             with np.errstate(invalid="ignore"):
-                floor = start_floor(team_positions(L, points), barrier.min_separation_m)
+                floor = start_floor(team_positions(L, m), barrier.min_separation_m)
             start = ~started & xp.any(sep < floor, axis=-1)
         else:  # one robot: no pair
             min_sep = xp.full((B,), xp.inf)
             start = xp.zeros((B,), dtype=bool)
-        if xp is np:  # the exact host solver where the array algorithm has not shown its answer exact
-            host = np.flatnonzero(live & ~solved & ~start)
-            if host.size:
-                u_safe, min_sep, active, solved = (np.array(a) for a in (u_safe, min_sep, active, solved))
-                try:  # every such world at once, world by world where the solver refuses one
-                    runs = [(host, *barrier.filter(team, m[host], u[host]))]
-                except DegenerateInputError:
-                    if raise_host:
-                        raise
-                    runs = []
-                    for b in host:
-                        try:
-                            runs.append(([b], *barrier.filter(team, m[[b]], u[[b]])))
-                        except DegenerateInputError:
-                            pass
-                for worlds, ub, info in runs:
-                    u_safe[worlds], min_sep[worlds], active[worlds] = ub, info.min_separation, info.active
-                    solved[worlds] = True
         code = xp.where(start, HOST, xp.where(code > 0, code, xp.where(solved, 0, HOST)))
-        signals = {"min_separation": xp.reshape(min_sep, lead + (1,)),
-                   "safety_active": xp.reshape(active.astype(u.dtype), lead + (1,))}
-        return xp.reshape(u_safe, lead + u.shape[-1:]), signals, xp.reshape(code, lead)
+        return u_safe, min_sep, active, code
+
+    def _filter_host(self, m, u, code, started, raise_host):
+        """The exact host solver (:meth:`SeparationBarrier.filter`) on ``(B, ...)`` NumPy arrays
+        for every live world: ``(u_safe, min_separation, active, code)``, code
+        :data:`~quatform.control.barrier.HOST` where a world's robots start closer than the
+        minimum or the solver refuses it (``raise_host``: its error is raised)."""
+        team, layout, barrier = self.team, self.team.layout, self.barrier
+        B = code.shape[0]
+        start = np.zeros(B, dtype=bool)
+        if not np.all(started) and layout.n > 1:
+            p = team.point(m[~started])
+            with np.errstate(invalid="ignore", over="ignore"):
+                close = layout.separations(p) < start_floor(layout.positions(p), barrier.min_separation_m)
+            start[~started] = np.any(close, axis=-1)
+        host = (code == 0) & ~start
+        u_safe, min_sep = np.array(u), np.full(B, np.nan)
+        active, solved = np.zeros(B, dtype=bool), np.zeros(B, dtype=bool)
+        every = bool(np.all(host))
+        if not np.any(host):
+            return u_safe, min_sep, active, np.where(start, HOST, code)
+        try:  # every live world at once, world by world where the solver refuses one
+            worlds = slice(None) if every else np.flatnonzero(host)
+            runs = [(worlds, *barrier.filter(team, m if every else m[worlds], u if every else u[worlds]))]
+        except DegenerateInputError:
+            if raise_host:
+                raise
+            runs = []
+            for b in np.flatnonzero(host):
+                try:
+                    runs.append(([b], *barrier.filter(team, m[[b]], u[[b]])))
+                except DegenerateInputError:
+                    pass
+        for worlds, ub, info in runs:
+            u_safe[worlds], min_sep[worlds], active[worlds], solved[worlds] = ub, info.min_separation, info.active, True
+        code = np.where(start, HOST, np.where(code > 0, code, np.where(solved, 0, HOST)))
+        return u_safe, min_sep, active, code
 
     def update(self, t: float, measured, reference, state) -> contract.Step:
         """The inner controller's update with its commands filtered on ``measured``.
