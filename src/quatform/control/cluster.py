@@ -132,7 +132,7 @@ class ClusterController(Controller):
         once) and marks the worlds whose robots coincide or whose state is not finite, which
         :meth:`update` refuses. The team must be passthrough or have no actuation memory.
         ``stage`` (optional) maps the component tuples that the forward kinematics and the law
-        return to equal ones (the jax loop computes them once there, ``sim.jax_loop.hold``).
+        return to equal ones (the jax loop computes them once there, ``algebra.kernels.hold``).
         """
         F = self.formation
         if F.component_kernels:

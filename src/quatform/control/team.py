@@ -245,7 +245,7 @@ class TeamController(contract.Controller):
         As :meth:`quatform.control.cluster.ClusterController.chain`: the caller has run the
         reference checks (:attr:`checks`) and marks the worlds whose robots coincide or whose
         state is not finite, which :meth:`update` refuses. ``stage`` (optional) maps an array
-        to an equal one (the jax loop computes it once there, ``sim.jax_loop.hold``); it is
+        to an equal one (the jax loop computes it once there, ``algebra.kernels.hold``); it is
         applied to the cluster state and to the commanded cluster rate.
         """
         F = self.formation
