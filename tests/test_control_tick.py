@@ -260,3 +260,31 @@ def test_safe_jit_tick_equals_numpy_with_the_barrier_binding(scenario):
         assert np.all(code[:6] == 0)
     else:  # a Pioneer: a binding world is the host's
         assert np.any(code == HOST)
+
+
+# -- free bodies (pose points: a unit quaternion per robot) ----------------------------------------
+
+def _free_bodies(controller, B=5, seed=4):
+    data = {"kind": "team", "name": "free-bodies", "duration_s": 0.6, "dt_s": 0.02,
+            "gains": {"base": "table1", "robot-space": {"k_w": 6.0}},
+            "robots": [{"model": "free-body", "count": 4}],
+            "shape": {"template": "tetrahedron", "edge": 1.2},
+            "path": {"kind": "line", "center": [0.0, 0.0, 1.0], "velocity": [0.3, 0.1, 0.0]},
+            "attitude": {"turns": [{"axis": [0.3, 0.2, 1.0], "angle": 1.0, "start_s": 0.0, "duration_s": 0.6}]},
+            "headings": {"mode": "path"}, "safety": {"min_separation_m": 0.3}}
+    exp = TEAM.experiment(TEAM.from_dict(data, "free-bodies"), controller=controller)
+    rng = np.random.default_rng(seed)
+    x = np.repeat(exp.x0[None], B, axis=0)
+    pos = [s.start + k for s in exp.controller.team.state_slices for k in range(3)]
+    x[:, pos] += 0.05 * rng.standard_normal((B, len(pos)))
+    return exp.controller, x, exp.reference(10)
+
+
+@pytest.mark.parametrize("controller", ["quaternion", "dual-quaternion", "robot-space"])  # no Euclidean chart
+def test_free_body_team_tick_is_update_and_jit_equals_numpy(controller):
+    safe, x, ref = _free_bodies(controller)
+    for ctrl in (safe.inner, safe):
+        _assert_tick_is_update(ctrl, x, ref)
+    x = _broken(x, (slice(0, 3), slice(7, 10)))
+    assert safe.inner.tick(None, x, safe.inner.reference_arrays(ref), 0.0).code.tolist() == [0, 2, 1, 1, 0]
+    _assert_jax_equals_numpy(safe.inner, x, [ref, _flipped(safe.inner, ref)])
