@@ -31,7 +31,7 @@ from ..robots import Team
 from . import contract
 
 __all__ = ["Reference", "StepResult", "Controller", "FAILURE_REASONS", "MEASURED_NOT_FINITE", "ROBOTS_COINCIDE",
-           "measured_codes", "apart_robots"]
+           "measured_codes", "apart_robots", "batch_shape"]
 
 #: :attr:`~quatform.control.contract.Tick.code` of a world whose measured robot state is not
 #: finite or beyond :data:`~quatform.formations.base.MAX_MAGNITUDE` (``update`` refuses it).
@@ -133,7 +133,8 @@ def measured_codes(layout, m, r, apart=True, inclusive=False):
     that, the pair kernels' rule ``d^2 <= d_min^2``; else the layout's ``d < d_min``); else 0.
     """
     if type(m) is np.ndarray and type(r) is np.ndarray and m.ndim == 1 and r.ndim == 1 and layout.n <= 8:
-        return np.asarray(_codes_floats(layout, m.tolist(), r.tolist(), apart, inclusive))  # one world: floats
+        mf = m.tolist()
+        return np.asarray(_codes_floats(layout, mf, mf if r is m else r.tolist(), apart, inclusive))  # floats
     xp = array_namespace(r)
     with np.errstate(invalid="ignore", over="ignore"):
         bad_m = ~xp.all(xp.isfinite(m) & (xp.abs(m) <= MAX_MAGNITUDE), axis=-1)
@@ -165,6 +166,15 @@ def _screened(p, skip) -> bool:
     projections farther apart than the minimum clear every pair (False: measure them)."""
     proj = np.sort(p @ _SCREEN_DIRECTION, axis=-1)
     return bool(np.all(np.all(np.diff(proj, axis=-1) > MIN_SEPARATION_M, axis=-1) | skip))
+
+
+def batch_shape(*arrays) -> tuple:
+    """The broadcast of the arrays' leading axes (all but the last); ValueError where they do
+    not broadcast."""
+    first = arrays[0].shape[:-1]
+    if all(a.shape[:-1] == first for a in arrays[1:]):
+        return first
+    return np.broadcast_shapes(*(a.shape[:-1] for a in arrays))
 
 
 def _codes_floats(layout, m, r, apart, inclusive) -> int:
@@ -274,14 +284,14 @@ class Controller(contract.Controller):
         ref = self.reference_arrays(reference)
         c, c_dot = ref["c"], ref["c_dot"]
         try:
-            np.broadcast_shapes(r.shape[:-1], c.shape[:-1], c_dot.shape[:-1])
+            batch_shape(r, c, c_dot)
         except ValueError:
             raise ShapeError(
                 f"batch shapes differ: measured {r.shape}, reference.c {c.shape}, "
                 f"reference.c_dot {c_dot.shape}; give one reference per formation or one for all"
             ) from None
         out = self.tick(state, r, ref, t)
-        if np.any(out.code > 0):
+        if out.code.any():  # codes are >= 0
             self._control(*self._inputs(measured, reference))  # the checked chain: its one-line error
             raise DegenerateInputError(f"{self.name} controller: {self.failure_reasons[int(np.max(out.code))]}")
         return contract.Step(out.u, None, dict(out.signals))

@@ -28,7 +28,7 @@ from ..formations import pair_kernels as kern
 from ..formations.base import Formation
 from ..robots import Team
 from . import contract
-from .base import Controller, apart_robots, measured_codes
+from .base import Controller, apart_robots, batch_shape, measured_codes
 from .laws import BlockLaw
 
 __all__ = ["ClusterController"]
@@ -93,7 +93,7 @@ class ClusterController(Controller):
         F, team = self.formation, self.team
         xp = array_namespace(measured)
         c_des, c_dot_des = reference["c"], reference["c_dot"]
-        lead = np.broadcast_shapes(measured.shape[:-1], c_des.shape[:-1], c_dot_des.shape[:-1])
+        lead = batch_shape(measured, c_des, c_dot_des)
         r = F.align(measured, reference["robots"]) if "robots" in reference else measured
         code = measured_codes(team.layout, measured, r, apart=not isinstance(F, RobotSpace), inclusive=True)
         code = xp.broadcast_to(code, lead) if code.shape != lead else code

@@ -28,7 +28,7 @@ from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, Shap
 from ..formations.base import Formation, check_magnitude
 from ..robots import Team
 from . import contract
-from .base import FAILURE_REASONS, Reference, apart_robots, measured_codes
+from .base import FAILURE_REASONS, Reference, apart_robots, batch_shape, measured_codes
 from .laws import dual_quaternion_feedback, proportional, quaternion_feedback
 
 __all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_controller", "team_lyapunov"]
@@ -177,12 +177,12 @@ class TeamController(contract.Controller):
         ref = self.reference_arrays(reference)
         c_des, c_dot = ref["c"], ref["c_dot"]
         try:
-            np.broadcast_shapes(r.shape[:-1], c_des.shape[:-1], c_dot.shape[:-1])
+            batch_shape(r, c_des, c_dot)
         except ValueError:
             raise ShapeError(f"batch shapes differ: measured {r.shape}, reference.c {c_des.shape}, reference.c_dot "
                              f"{c_dot.shape}; give one reference per formation or one for all") from None
         out = self.tick(state, r, ref, t)
-        if np.any(out.code > 0):  # the checked forward kinematics name the robots
+        if out.code.any():  # codes are >= 0  # the checked forward kinematics name the robots
             F.forward(F.align(r, ref["robots"]) if "robots" in ref else r, near_c=c_des)
             raise DegenerateInputError(f"{self.name} controller: {self.failure_reasons[int(np.max(out.code))]}")
         return contract.Step(out.u, None, dict(out.signals))
@@ -216,7 +216,7 @@ class TeamController(contract.Controller):
         F, team = self.formation, self.team
         xp = array_namespace(measured)
         c_des, c_dot = reference["c"], reference["c_dot"]
-        lead = np.broadcast_shapes(measured.shape[:-1], c_des.shape[:-1], c_dot.shape[:-1])
+        lead = batch_shape(measured, c_des, c_dot)
         r = F.align(measured, reference["robots"]) if "robots" in reference else measured
         code = measured_codes(team.layout, measured, r)
         code = xp.broadcast_to(code, lead) if code.shape != lead else code
