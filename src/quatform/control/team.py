@@ -258,9 +258,9 @@ class TeamController(contract.Controller):
             err = wrap_entries(err, self._angles)
         ff = 1.0 if self.feedforward else 0.0
         shape = np.broadcast_shapes(c.shape, c_dot_des.shape)
-        idx, errs, rates = [], [], []
+        rate_perm, keep, err_perm = self._chain_index
+        errs, rates = [], []
         for blk, k in self._linear:
-            idx.append(_flat(blk))
             v = proportional(_get(err, blk), _get(c_dot_des, blk), k, ff)
             rates.append(v.reshape(v.shape[:-2] + (-1,)))
         for law, kk, blks in self._blocks:  # eqs. (20), (28) on every row of one law at once
@@ -275,20 +275,27 @@ class TeamController(contract.Controller):
             i = 0
             for b in blks:
                 m = b.shape[0] if isinstance(b, np.ndarray) else b[1]
-                idx.append(_flat(b))
-                errs.append((_flat(b), q_err[..., i:i + m, :].reshape(q_err.shape[:-2] + (-1,))))
+                errs.append(q_err[..., i:i + m, :].reshape(q_err.shape[:-2] + (-1,)))
                 rates.append(q_rate[..., i:i + m, :].reshape(q_rate.shape[:-2] + (-1,)))
                 i += m
-        order = np.concatenate(idx)
-        rate = _scatter(xp, order, rates, shape)
+        rate = _scatter(xp, rate_perm, rates, shape)
         if errs:  # the (dual) quaternion groups' errors replace c - c_des there (qe = q_des* q)
-            e_idx = np.concatenate([i for i, _ in errs])
-            keep = np.setdiff1d(np.arange(F.n_c), e_idx)
-            err = _scatter(xp, np.concatenate([keep, e_idx]), [err[..., keep]] + [v for _, v in errs],
-                           np.broadcast_shapes(err.shape, shape))
+            err = _scatter(xp, err_perm, [err[..., keep]] + errs, np.broadcast_shapes(err.shape, shape))
         if stage is not None:
             rate = stage(rate)
         return c, err, F.robot_rate_arrays(c, rate)
+
+    @functools.cached_property
+    def _chain_index(self):
+        """``(rate_perm, keep, err_perm)`` of :meth:`chain`: the gathers that put the groups'
+        rates (proportional groups first, then each law's groups) and errors (the variables
+        ``keep`` of ``c - c_des``, then the (dual) quaternion groups') in variable order
+        (None: already in order)."""
+        order = [_flat(blk) for blk, _ in self._linear]
+        e_idx = [_flat(b) for _, _, blks in self._blocks for b in blks]
+        keep = np.setdiff1d(np.arange(self.formation.n_c), np.concatenate(e_idx)) if e_idx else None
+        return (_order(np.concatenate(order + e_idx)), keep,
+                _order(np.concatenate([keep] + e_idx)) if e_idx else None)
 
     @property
     def checks(self) -> tuple:
@@ -354,16 +361,19 @@ def _flat(blk) -> np.ndarray:
     return np.arange(start, start + M * k)
 
 
-def _scatter(xp, order, parts, shape):
-    """The ``shape`` array whose variables ``order`` are ``parts`` (each ``(..., m)``,
-    concatenated in order): a gather where ``order`` is no plain ``0 .. n - 1`` (no
-    arithmetic: the same floats)."""
+def _order(order):
+    """The gather that puts entries given in ``order`` (variable indices) in variable order;
+    None where ``order`` is ``0 .. n - 1``."""
+    return None if np.array_equal(order, np.arange(order.size)) else np.argsort(order, kind="stable")
+
+
+def _scatter(xp, perm, parts, shape):
+    """The ``shape`` array of ``parts`` (each ``(..., m)``, concatenated in order) gathered by
+    ``perm`` (:func:`_order`; None: as they are); no arithmetic: the same floats."""
     lead = shape[:-1]
-    flat = [xp.broadcast_to(v, lead + v.shape[-1:]) for v in parts]
+    flat = [v if v.shape[:-1] == lead else xp.broadcast_to(v, lead + v.shape[-1:]) for v in parts]
     a = xp.concatenate(flat, axis=-1) if len(flat) > 1 else flat[0]
-    if np.array_equal(order, np.arange(order.size)):
-        return a
-    return a[..., np.argsort(order, kind="stable")]
+    return a if perm is None else a[..., perm]
 
 
 def _rows(a, blks):
