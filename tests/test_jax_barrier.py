@@ -1,4 +1,4 @@
-"""The separation barrier's programme solved on JAX (:mod:`quatform.sim.jax_barrier`).
+"""The separation barrier's programme solved on JAX (:mod:`quatform.control.barrier`).
 
 Team runs whose barrier binds tick after tick (robots that start in each other's slots and
 cross) give NumPy's channels within 1e-9 on JAX, no world rerun on NumPy; a world whose
@@ -62,7 +62,8 @@ def test_binding_runs_equal_numpy_without_reruns(scenario, controller):
 
 def test_more_binding_pairs_than_candidates_fall_back_to_numpy(monkeypatch):
     pytest.importorskip("jax")
-    from quatform.sim import jax_barrier, jax_loop
+    from quatform.control import barrier as jax_barrier
+    from quatform.sim import jax_loop
 
     monkeypatch.setattr(jax_barrier, "CANDIDATES", 1)  # one candidate: a world where two pairs bind is NumPy's
     run = _crossing("team-ring-flip", "quaternion", 2.0, cycles=(2, 3, 0))  # one pair, three pairs, none
@@ -87,7 +88,7 @@ def _kernel(name, barrier):
     import jax
     import jax.numpy as jnp
 
-    from quatform.sim.jax_barrier import barrier_filter
+    from quatform.control.barrier import barrier_filter
 
     key = (name, barrier)
     if key not in _KERNELS:

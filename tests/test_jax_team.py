@@ -99,7 +99,8 @@ def test_a_world_with_robots_on_each_other_fails_alone():
 
 def test_a_world_whose_barrier_jax_cannot_solve_is_numpys_run(monkeypatch):
     pytest.importorskip("jax")
-    from quatform.sim import jax_barrier, jax_loop
+    from quatform.control import barrier as jax_barrier
+    from quatform.sim import jax_loop
 
     calls = []
     rerun = jax_loop._rerun_on_host

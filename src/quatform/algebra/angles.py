@@ -52,5 +52,12 @@ def map_entries(e, indices, f):
 def wrap_entries(e, angles):
     """``e`` with its entries ``angles`` (indices of the last axis) wrapped by
     :func:`wrap_angle`, the others as they are (:func:`map_entries`): the floats of
-    ``e[..., angles] = wrap_angle(e[..., angles])``."""
+    ``e[..., angles] = wrap_angle(e[..., angles])`` (NumPy: that assignment on a copy, one
+    gather and one scatter whatever the number of runs)."""
+    if concrete(e):
+        out = np.array(e, dtype=float)
+        idx = np.asarray(angles, dtype=np.intp).ravel()
+        if idx.size:
+            out[..., idx] = wrap_angle(out[..., idx])
+        return out
     return map_entries(e, angles, lambda a, b: wrap_angle(e[..., a:b]))

@@ -16,15 +16,19 @@ the reference checks that refuse a reference that is no formation.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..algebra.kernels import array_namespace, hold
 from ..errors import InvalidInputError
+from ..formations import RobotSpace
 from ..formations import pair_kernels as kern
 from ..formations.base import Formation
 from ..robots import Team
-from .base import Controller
+from . import contract
+from .base import Controller, apart_robots, batch_shape, measured_codes
 from .laws import BlockLaw
 
 __all__ = ["ClusterController"]
@@ -72,6 +76,43 @@ class ClusterController(Controller):
         if self.law.feedforward != self.feedforward:
             object.__setattr__(self, "law", replace(self.law, feedforward=self.feedforward))
 
+    def tick(self, state, measured, reference, t) -> contract.Tick:
+        """One pure control tick on any array namespace (seed 000 Fig. 2): the measured robots
+        ``(..., n_r)`` wound onto ``reference["robots"]`` (when given), :meth:`chain`, the
+        team's saturation; ``raw_finite`` 0 where the unsaturated command was not finite.
+
+        ``code`` (:data:`~quatform.control.base.FAILURE_REASONS`): 1 where the measured state
+        is not finite or beyond 1e150, 2 where the robots are within
+        :data:`~quatform.formations.base.MIN_SEPARATION_M` (not for robot space, defined
+        there); such a world's chain runs on :func:`~quatform.control.base.apart_robots`
+        instead (its outputs are discarded). A controller with :attr:`filters` runs its
+        :meth:`update` (NumPy).
+        """
+        if self.filters:
+            return super().tick(state, measured, reference, t)
+        F, team = self.formation, self.team
+        xp = array_namespace(measured)
+        c_des, c_dot_des = reference["c"], reference["c_dot"]
+        lead = batch_shape(measured, c_des, c_dot_des)
+        r = F.align(measured, reference["robots"]) if "robots" in reference else measured
+        code = measured_codes(team.layout, measured, r, apart=not isinstance(F, RobotSpace), inclusive=True)
+        code = xp.broadcast_to(code, lead) if code.shape != lead else code
+        r = hold(xp.where(code[..., None] > 0, self._apart, r))
+        stage = None
+        if xp is not np:  # each stage's components materialised once (hold; NumPy needs none)
+            def stage(comps):
+                a = hold(xp.stack([xp.broadcast_to(v, lead) for v in comps], axis=-1))
+                return tuple(a[..., q] for q in range(a.shape[-1]))
+        c, err, r_dot = (_lead(xp, kern.pack(v), lead) for v in self.chain(r, c_des, c_dot_des, stage=stage))
+        r_dot = hold(r_dot)
+        finite = xp.all(xp.isfinite(r_dot), axis=-1, keepdims=True)
+        u = hold(team.saturate(r_dot))
+        return contract.Tick(None, u, {"cluster": c, "error": err, "raw_finite": finite.astype(u.dtype)}, code)
+
+    @functools.cached_property
+    def _apart(self):
+        return apart_robots(self.team.layout)
+
     def _control(self, r, c_des, c_dot_des, aligned):
         F = self.formation
         if not F.component_kernels:
@@ -91,7 +132,7 @@ class ClusterController(Controller):
         once) and marks the worlds whose robots coincide or whose state is not finite, which
         :meth:`update` refuses. The team must be passthrough or have no actuation memory.
         ``stage`` (optional) maps the component tuples that the forward kinematics and the law
-        return to equal ones (the jax loop computes them once there, ``sim.jax_loop.hold``).
+        return to equal ones (the jax loop computes them once there, ``algebra.kernels.hold``).
         """
         F = self.formation
         if F.component_kernels:
@@ -141,6 +182,11 @@ class ClusterController(Controller):
         r_arr = kern.pack(r)
         u, _ = self.team.actuate(r_arr, kern.pack(r_dot), 0.0, self.team.initial_memory(np.shape(r_arr)[:-1]))
         return u
+
+
+def _lead(xp, a, lead):
+    """``a`` (``(..., k)``) with the leading axes ``lead`` (as it is when it has them)."""
+    return a if a.shape[:-1] == lead else xp.broadcast_to(a, lead + a.shape[-1:])
 
 
 def _comps(a):

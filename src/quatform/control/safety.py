@@ -51,16 +51,21 @@ from __future__ import annotations
 import math
 import dataclasses
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from ..algebra.kernels import array_namespace
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS, RobotLayout
+from ..formations.team_chart import team_positions
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
+from . import barrier as _barrier
 from . import contract
+from .barrier import HOST, pair_constraints, point_velocities, solves
 
-__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components"]
+__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components", "HOST",
+           "start_floor"]
 
 #: Teams of at most this many robots find their pairs by one dense comparison (cheaper than a tree).
 _DENSE_PAIRS_MAX_ROBOTS = 48
@@ -530,20 +535,27 @@ class SeparationBarrier:
 
 # -- the controller -----------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class SafeState:
-    """State of a :class:`SafeController`: the inner controller's and whether it has started.
+def _flat(xp, a, lead, B):
+    """``a`` (``(..., k)``) broadcast to the leading axes ``lead`` and flattened to ``(B, k)``."""
+    if a.shape[:-1] != lead:
+        a = xp.broadcast_to(a, lead + a.shape[-1:])
+    return a if a.ndim == 2 and a.shape[0] == B else xp.reshape(a, (B, a.shape[-1]))
+
+
+class SafeState(NamedTuple):
+    """State of a :class:`SafeController`: the inner controller's and whether it has started
+    (a tuple, so a pytree of arrays for :meth:`SafeController.tick` under ``jax.jit``).
 
     Attributes
     ----------
     inner : object
         The inner controller's state.
-    started : bool
-        False before the first update (which refuses robots already too close).
+    started : bool or array of bool, shape (*batch)
+        False before a world's first update (which refuses robots already too close).
     """
 
     inner: object = None
-    started: bool = False
+    started: object = False
 
 
 #: Relative rounding of the robots' points a start may carry below the barrier's minimum
@@ -616,15 +628,148 @@ class SafeController(contract.Controller):
         return {**self.inner.signal_columns(), "min_separation": ("min_separation",),
                 "safety_active": ("safety_active",)}
 
+    @property
+    def pure(self) -> bool:
+        """The inner controller's (the barrier's array algorithm is pure)."""
+        return self.inner.pure
+
+    @property
+    def failure_reasons(self):
+        """The inner controller's, and :data:`~quatform.control.barrier.HOST`."""
+        return {**self.inner.failure_reasons,
+                HOST: "the separation barrier's programme is not solved by the array algorithm, or the robots "
+                      "start closer than its minimum (the world runs on the host)"}
+
     def init(self, batch: tuple = ()):
-        """:class:`SafeState` of the inner controller's initial state, not started."""
-        return SafeState(self.inner.init(batch), False)
+        """:class:`SafeState` of the inner controller's initial state, no world started."""
+        return SafeState(self.inner.init(batch), np.zeros(batch, dtype=bool))
+
+    def reference_arrays(self, reference):
+        """The inner controller's."""
+        return self.inner.reference_arrays(reference)
+
+    def tick(self, state, measured, reference, t) -> contract.Tick:
+        """The inner controller's tick with its commands through the separation barrier.
+
+        One filter per namespace, chosen by the arrays, not by the data: under ``jax.jit``
+        (any namespace but NumPy) the barrier's array algorithm
+        (:func:`~quatform.control.barrier.barrier_filter`, fixed size, branch-free), with code
+        :data:`~quatform.control.barrier.HOST` where it does not solve a binding programme (a
+        team it does not run, :func:`~quatform.control.barrier.solves`; more binding pairs than
+        its candidates; no convergence ...): the driver reruns that world on the host. On
+        NumPy the exact host solver (:meth:`SeparationBarrier.filter`) for every live world:
+        the array algorithm's answer, where it has one, is that solver's to rounding
+        (``docs/derivations.md``, "The separation barrier on JAX"), and on the host the exact
+        solver is the cheaper of the two (its pairs from a k-d tree, nothing solved where no
+        pair binds), so NumPy's numbers are exactly today's. ``HOST`` also marks a world whose
+        robots start closer than the barrier's minimum (:func:`start_floor`; :meth:`update`
+        raises its one-line error), and on NumPy a world the host solver refuses.
+        """
+        inner = self.inner.tick(state.inner, measured, reference, t)
+        u, signals, code = self._filter(measured, inner.u, inner.code, state.started)
+        xp = array_namespace(u)
+        return contract.Tick(SafeState(inner.state, xp.ones(code.shape, dtype=bool)), u,
+                             {**inner.signals, **signals}, code)
+
+    def _filter(self, measured, u, code, started, raise_host=False):
+        """``(u_safe, {"min_separation", "safety_active"}, code)`` of the nominal commands ``u``
+        at the measured team state, for the worlds whose ``code`` is 0 (see :meth:`tick`):
+        :meth:`_filter_host` on NumPy, :meth:`_filter_arrays` on another namespace."""
+        xp = array_namespace(u)
+        lead = np.broadcast_shapes(tuple(code.shape), tuple(measured.shape[:-1]), tuple(u.shape[:-1]))
+        B = math.prod(lead)
+        m, u = _flat(xp, measured, lead, B), _flat(xp, u, lead, B)
+        code = xp.reshape(xp.broadcast_to(code, lead), (B,))
+        started = xp.reshape(xp.broadcast_to(xp.asarray(started, dtype=bool), lead), (B,))
+        if xp is np:
+            u_safe, min_sep, active, code = self._filter_host(m, u, code, started, raise_host)
+        else:
+            u_safe, min_sep, active, code = self._filter_arrays(m, u, code, started)
+        signals = {"min_separation": xp.reshape(min_sep, lead + (1,)),
+                   "safety_active": xp.reshape(active.astype(u.dtype), lead + (1,))}
+        return xp.reshape(u_safe, lead + u.shape[-1:]), signals, xp.reshape(code, lead)
+
+    def _filter_arrays(self, m, u, code, started):
+        """The barrier's array algorithm (:func:`~quatform.control.barrier.barrier_filter`) on
+        ``(B, ...)`` arrays of any namespace: ``(u_safe, min_separation, active, code)``, code
+        :data:`~quatform.control.barrier.HOST` where a live world's binding programme is not
+        solved (a team the algorithm does not run: where any pair binds) or its robots start
+        closer than the minimum. The measured states are the robots' points (the teams the
+        jax backend runs)."""
+        xp = array_namespace(u)
+        team, L, barrier = self.team, self.team.layout, self.barrier
+        B = code.shape[0]
+        live = code == 0
+        if solves(team):
+            u_safe, sep, active, solved = _barrier.barrier_filter(barrier, team, m, u, live)
+        else:  # the array algorithm runs no such team: a world where a pair binds is the host's
+            P = team_positions(L, m)
+            V = team_positions(L, u) if team.passthrough else point_velocities(barrier, team, m, u)
+            with np.errstate(invalid="ignore", over="ignore"):
+                _, sep, _, _, _, active = pair_constraints(barrier, L, P, V)
+            u_safe, solved = u, ~active
+        if sep.shape[-1]:
+            min_sep = xp.min(sep, axis=-1)
+            with np.errstate(invalid="ignore"):
+                floor = start_floor(team_positions(L, m), barrier.min_separation_m)
+            start = ~started & xp.any(sep < floor, axis=-1)
+        else:  # one robot: no pair
+            min_sep = xp.full((B,), xp.inf)
+            start = xp.zeros((B,), dtype=bool)
+        code = xp.where(start, HOST, xp.where(code > 0, code, xp.where(solved, 0, HOST)))
+        return u_safe, min_sep, active, code
+
+    def _filter_host(self, m, u, code, started, raise_host):
+        """The exact host solver (:meth:`SeparationBarrier.filter`) on ``(B, ...)`` NumPy arrays
+        for every live world: ``(u_safe, min_separation, active, code)``, code
+        :data:`~quatform.control.barrier.HOST` where a world's robots start closer than the
+        minimum or the solver refuses it (``raise_host``: its error is raised)."""
+        team, layout, barrier = self.team, self.team.layout, self.barrier
+        B = code.shape[0]
+        start = np.zeros(B, dtype=bool)
+        if not np.all(started) and layout.n > 1:
+            p = team.point(m[~started])
+            with np.errstate(invalid="ignore", over="ignore"):
+                close = layout.separations(p) < start_floor(layout.positions(p), barrier.min_separation_m)
+            start[~started] = np.any(close, axis=-1)
+        host = (code == 0) & ~start
+        if host.all():  # every world the host's (the common case): the solver's answer as it is
+            try:
+                u_safe, info = barrier.filter(team, m, u)
+                return u_safe, info.min_separation, info.active, code
+            except DegenerateInputError:
+                if raise_host:
+                    raise
+        u_safe, min_sep = np.array(u), np.full(B, np.nan)
+        active, solved = np.zeros(B, dtype=bool), np.zeros(B, dtype=bool)
+        every = bool(np.all(host))
+        if not np.any(host):
+            return u_safe, min_sep, active, np.where(start, HOST, code)
+        try:  # every live world at once, world by world where the solver refuses one
+            worlds = slice(None) if every else np.flatnonzero(host)
+            runs = [(worlds, *barrier.filter(team, m if every else m[worlds], u if every else u[worlds]))]
+        except DegenerateInputError:
+            if raise_host:
+                raise
+            runs = []
+            for b in np.flatnonzero(host):
+                try:
+                    runs.append(([b], *barrier.filter(team, m[[b]], u[[b]])))
+                except DegenerateInputError:
+                    pass
+        for worlds, ub, info in runs:
+            u_safe[worlds], min_sep[worlds], active[worlds], solved[worlds] = ub, info.min_separation, info.active, True
+        code = np.where(start, HOST, np.where(code > 0, code, np.where(solved, 0, HOST)))
+        return u_safe, min_sep, active, code
 
     def update(self, t: float, measured, reference, state) -> contract.Step:
         """The inner controller's update with its commands filtered on ``measured``.
 
-        The first update refuses robots already closer than ``min_separation_m`` (no
-        command can make that safe), naming the pair and the separation.
+        The first update of a world refuses robots already closer than ``min_separation_m``
+        (no command can make that safe), naming the pair and the separation. The filter is
+        :meth:`tick`'s: the barrier's array algorithm, the exact host solver
+        (:meth:`SeparationBarrier.filter`) for the worlds it does not solve (whose refusal,
+        such as robots no velocity keeps apart, is raised).
         """
         if not isinstance(state, SafeState):
             raise InvalidInputError(f"SafeController.update: state must be a SafeState (from init), got "
@@ -633,24 +778,26 @@ class SafeController(contract.Controller):
         if m.shape[-1:] != (self.team.n_state,):
             raise ShapeError(f"SafeController: measured must be the team's state, shape (..., {self.team.n_state}), "
                              f"got {m.shape}")
-        if not state.started:
-            self._check_start(m)
+        started = np.asarray(state.started, dtype=bool)
+        if not np.all(started):
+            self._check_start(m, started)
         step = self.inner.update(t, measured, reference, state.inner)
-        u, info = self.barrier.filter(self.team, m, step.u)
-        signals = dict(step.signals)
-        signals["min_separation"] = info.min_separation[..., None]
-        signals["safety_active"] = info.active.astype(float)[..., None]
-        return contract.Step(u, SafeState(step.state, True), signals)
+        ok = np.zeros(np.broadcast_shapes(m.shape[:-1], np.shape(step.u)[:-1]), dtype=np.int64)
+        u, signals, code = self._filter(m, np.asarray(step.u, dtype=float), ok, True, raise_host=True)
+        if np.any(code > 0):  # not reached: the host solver raises where the array algorithm fails
+            raise DegenerateInputError(f"SafeController: {self.failure_reasons[int(np.max(code))]}")
+        return contract.Step(u, SafeState(step.state, np.ones(code.shape, dtype=bool)), {**step.signals, **signals})
 
-    def _check_start(self, m):
-        """Refuse robots closer than :func:`start_floor` (the minimum less their points' rounding)."""
+    def _check_start(self, m, started=False):
+        """Refuse robots closer than :func:`start_floor` (the minimum less their points' rounding)
+        in the worlds not ``started``."""
         layout = self.team.layout
         p = self.team.point(m)
         sep = layout.separations(p)
         if sep.shape[-1] == 0:
             return
         d = self.barrier.min_separation_m
-        close = sep < start_floor(layout.positions(p), d)
+        close = (sep < start_floor(layout.positions(p), d)) & ~np.asarray(started, dtype=bool)[..., None]
         if np.any(close):
             at = np.argwhere(close)[0]
             a, b = (int(p[at[-1]]) for p in layout.pairs)

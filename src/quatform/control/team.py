@@ -22,13 +22,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algebra.angles import wrap_angle, wrap_entries
-from ..algebra.kernels import array_namespace
+from ..algebra.kernels import array_namespace, hold
 from ..algebra.validate import UNIT_TOLERANCE, as_array
-from ..errors import InvalidInputError, NonUnitError, ShapeError
+from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations.base import Formation, check_magnitude
 from ..robots import Team
 from . import contract
-from .base import Reference
+from .base import FAILURE_REASONS, Reference, apart_robots, batch_shape, measured_codes
 from .laws import dual_quaternion_feedback, proportional, quaternion_feedback
 
 __all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_controller", "team_lyapunov"]
@@ -149,8 +149,15 @@ class TeamController(contract.Controller):
         names = self.formation.names
         return {"cluster": names, "error": names, "raw_finite": ("raw_finite",)}
 
+    pure = True
+    failure_reasons = FAILURE_REASONS
+
     def update(self, t: float, measured, reference: Reference, state=None) -> contract.Step:
         """One control update: ``Step(u, None, {"cluster", "error", "raw_finite"})``.
+
+        The host's checks (one-line errors), :meth:`reference_arrays` and :meth:`tick`; where
+        the tick refuses a world (robots on each other), the checked forward kinematics raise
+        its one-line error.
 
         Parameters
         ----------
@@ -162,53 +169,71 @@ class TeamController(contract.Controller):
             Desired cluster state and rate ``(..., n_c)``; ``robots`` (optional) the desired
             robot state whose yaws the measured ones are wound to.
         """
-        c, err, rate, r = self._chain(measured, reference)
-        r_dot = self.formation.robot_rate(c, rate, r=r)
-        u = r_dot if self.team.passthrough else self.team.actuate(
-            r, r_dot, t, self.team.initial_memory(r.shape[:-1]))[0]
-        finite = np.all(np.isfinite(u), axis=-1, keepdims=True)
-        u = self.team.saturate(u if finite.all() else np.where(finite, u, 0.0))
-        return contract.Step(u, None, {"cluster": c, "error": err, "raw_finite": finite.astype(float)})
-
-    def _chain(self, measured, reference):
-        """Measured cluster state, error, commanded cluster rate and the (wound) robots."""
         F = self.formation
         if not isinstance(reference, Reference):
             raise InvalidInputError(f"{self.name} controller: reference must be a Reference(c, c_dot), got "
                                     f"{type(reference).__name__}")
         r = check_magnitude(as_array(measured, "measured robot state", F.n_r), "measured robot state")
-        c_des = check_magnitude(as_array(reference.c, "reference.c", F.n_c), "reference.c")
-        c_dot = check_magnitude(as_array(reference.c_dot, "reference.c_dot", F.n_c), "reference.c_dot")
+        ref = self.reference_arrays(reference)
+        c_des, c_dot = ref["c"], ref["c_dot"]
         try:
-            shape = np.broadcast_shapes(r.shape[:-1], c_des.shape[:-1], c_dot.shape[:-1])
+            batch_shape(r, c_des, c_dot)
         except ValueError:
             raise ShapeError(f"batch shapes differ: measured {r.shape}, reference.c {c_des.shape}, reference.c_dot "
                              f"{c_dot.shape}; give one reference per formation or one for all") from None
+        out = self.tick(state, r, ref, t)
+        if out.code.any():  # codes are >= 0  # the checked forward kinematics name the robots
+            F.forward(F.align(r, ref["robots"]) if "robots" in ref else r, near_c=c_des)
+            raise DegenerateInputError(f"{self.name} controller: {self.failure_reasons[int(np.max(out.code))]}")
+        return contract.Step(out.u, None, dict(out.signals))
+
+    def reference_arrays(self, reference):
+        """``{"c", "c_dot"[, "robots"]}``: the reference's arrays, checked on the host (finite,
+        within the magnitude limit, its (dual) quaternion groups unit: :attr:`checks`)."""
+        F = self.formation
+        if not isinstance(reference, Reference):
+            raise InvalidInputError(f"{self.name} controller: reference must be a Reference(c, c_dot), got "
+                                    f"{type(reference).__name__}")
+        c_des = check_magnitude(as_array(reference.c, "reference.c", F.n_c), "reference.c")
+        out = {"c": c_des, "c_dot": check_magnitude(as_array(reference.c_dot, "reference.c_dot", F.n_c),
+                                                    "reference.c_dot")}
         if reference.robots is not None:
-            r = F.align(r, as_array(reference.robots, "reference.robots", F.n_r))
-        r = np.broadcast_to(r, shape + r.shape[-1:])
-        des_rows = [_rows(c_des, blks) for _, _, blks in self._blocks]  # each (dual) quaternion group's rows
-        for (law, _, blks), q in zip(self._blocks, des_rows):
-            self._check_units(q, blks, law != "quaternion")
-        c = F.forward(r, near_c=c_des)
-        err = c - c_des
-        if len(self._angles):
-            err[..., self._angles] = wrap_angle(err[..., self._angles])
-        rate = np.empty(np.broadcast_shapes(c.shape, c_dot.shape))  # every variable is in one group
-        ff = 1.0 if self.feedforward else 0.0
-        for blk, k in self._linear:
-            _put(rate, blk, proportional(_get(err, blk), _get(c_dot, blk), k, ff))
-        for (law, kk, blks), g_des in zip(self._blocks, des_rows):  # eqs. (20), (28) on every row at once
-            comps = []
-            for g in (_rows(c, blks), g_des, _rows(c_dot, blks)):
-                comps.append(tuple(g[..., j] for j in range(g.shape[-1])))
-            if law == "quaternion":
-                qe, qd = quaternion_feedback(*comps, kk, ff)
-            else:
-                qe, qd = dual_quaternion_feedback(*comps, kk, ff, signed_rotation=law == "dual-quaternion")
-            _put_rows(err, blks, np.stack(np.broadcast_arrays(*qe), axis=-1))
-            _put_rows(rate, blks, np.stack(np.broadcast_arrays(*qd), axis=-1))
-        return c, err, rate, r
+            out["robots"] = check_magnitude(as_array(reference.robots, "reference.robots", F.n_r), "reference.robots")
+        self._check_reference(c_des)
+        return out
+
+    def tick(self, state, measured, reference, t) -> contract.Tick:
+        """One pure control tick on any array namespace (seed 000 Figs. 2, 6, 8): the measured
+        robots ``(..., n_r)`` wound onto ``reference["robots"]`` (when given), :meth:`chain`,
+        the team's actuation (of a fresh memory), a non-finite command stopping its robot's
+        group (``raw_finite`` 0), the saturation.
+
+        ``code`` (:data:`~quatform.control.base.FAILURE_REASONS`): 1 where the measured state
+        is not finite or beyond 1e150, 2 where two robots are closer than
+        :data:`~quatform.formations.base.MIN_SEPARATION_M`; such a world's chain runs on
+        :func:`~quatform.control.base.apart_robots` instead (its outputs are discarded).
+        """
+        F, team = self.formation, self.team
+        xp = array_namespace(measured)
+        c_des, c_dot = reference["c"], reference["c_dot"]
+        lead = batch_shape(measured, c_des, c_dot)
+        r = F.align(measured, reference["robots"]) if "robots" in reference else measured
+        code = measured_codes(team.layout, measured, r)
+        code = xp.broadcast_to(code, lead) if code.shape != lead else code
+        r = hold(_lead(xp, xp.where(code[..., None] > 0, self._apart, r), lead))
+
+        def stage(a):  # an array materialised once (hold; NumPy: itself)
+            return hold(_lead(xp, a, lead))
+        c, err, r_dot = (_lead(xp, v, lead) for v in self.chain(r, c_des, c_dot, stage=stage))
+        r_dot = hold(r_dot)
+        u = r_dot if team.passthrough else team.actuate(r, r_dot, t, team.initial_memory(lead))[0]
+        finite = xp.all(xp.isfinite(u), axis=-1, keepdims=True)
+        u = hold(team.saturate(xp.where(finite, u, 0.0)))
+        return contract.Tick(None, u, {"cluster": c, "error": err, "raw_finite": finite.astype(u.dtype)}, code)
+
+    @functools.cached_property
+    def _apart(self):
+        return apart_robots(self.formation.layout)
 
     def chain(self, r, c_des, c_dot_des, stage=None):
         """The control chain without its checks, on arrays of any namespace (NumPy; JAX under
@@ -220,7 +245,7 @@ class TeamController(contract.Controller):
         As :meth:`quatform.control.cluster.ClusterController.chain`: the caller has run the
         reference checks (:attr:`checks`) and marks the worlds whose robots coincide or whose
         state is not finite, which :meth:`update` refuses. ``stage`` (optional) maps an array
-        to an equal one (the jax loop computes it once there, ``sim.jax_loop.hold``); it is
+        to an equal one (the jax loop computes it once there, ``algebra.kernels.hold``); it is
         applied to the cluster state and to the commanded cluster rate.
         """
         F = self.formation
@@ -233,9 +258,9 @@ class TeamController(contract.Controller):
             err = wrap_entries(err, self._angles)
         ff = 1.0 if self.feedforward else 0.0
         shape = np.broadcast_shapes(c.shape, c_dot_des.shape)
-        idx, errs, rates = [], [], []
+        rate_perm, keep, err_perm = self._chain_index
+        errs, rates = [], []
         for blk, k in self._linear:
-            idx.append(_flat(blk))
             v = proportional(_get(err, blk), _get(c_dot_des, blk), k, ff)
             rates.append(v.reshape(v.shape[:-2] + (-1,)))
         for law, kk, blks in self._blocks:  # eqs. (20), (28) on every row of one law at once
@@ -250,20 +275,27 @@ class TeamController(contract.Controller):
             i = 0
             for b in blks:
                 m = b.shape[0] if isinstance(b, np.ndarray) else b[1]
-                idx.append(_flat(b))
-                errs.append((_flat(b), q_err[..., i:i + m, :].reshape(q_err.shape[:-2] + (-1,))))
+                errs.append(q_err[..., i:i + m, :].reshape(q_err.shape[:-2] + (-1,)))
                 rates.append(q_rate[..., i:i + m, :].reshape(q_rate.shape[:-2] + (-1,)))
                 i += m
-        order = np.concatenate(idx)
-        rate = _scatter(xp, order, rates, shape)
+        rate = _scatter(xp, rate_perm, rates, shape)
         if errs:  # the (dual) quaternion groups' errors replace c - c_des there (qe = q_des* q)
-            e_idx = np.concatenate([i for i, _ in errs])
-            keep = np.setdiff1d(np.arange(F.n_c), e_idx)
-            err = _scatter(xp, np.concatenate([keep, e_idx]), [err[..., keep]] + [v for _, v in errs],
-                           np.broadcast_shapes(err.shape, shape))
+            err = _scatter(xp, err_perm, [err[..., keep]] + errs, np.broadcast_shapes(err.shape, shape))
         if stage is not None:
             rate = stage(rate)
         return c, err, F.robot_rate_arrays(c, rate)
+
+    @functools.cached_property
+    def _chain_index(self):
+        """``(rate_perm, keep, err_perm)`` of :meth:`chain`: the gathers that put the groups'
+        rates (proportional groups first, then each law's groups) and errors (the variables
+        ``keep`` of ``c - c_des``, then the (dual) quaternion groups') in variable order
+        (None: already in order)."""
+        order = [_flat(blk) for blk, _ in self._linear]
+        e_idx = [_flat(b) for _, _, blks in self._blocks for b in blks]
+        keep = np.setdiff1d(np.arange(self.formation.n_c), np.concatenate(e_idx)) if e_idx else None
+        return (_order(np.concatenate(order + e_idx)), keep,
+                _order(np.concatenate([keep] + e_idx)) if e_idx else None)
 
     @property
     def checks(self) -> tuple:
@@ -300,6 +332,11 @@ class TeamController(contract.Controller):
                                "references with formation.from_chart or normalise them")
 
 
+def _lead(xp, a, lead):
+    """``a`` (``(..., k)``) with the leading axes ``lead`` (as it is when it has them)."""
+    return a if a.shape[:-1] == lead else xp.broadcast_to(a, lead + a.shape[-1:])
+
+
 def _block(idx):
     """A group's index as ``(start, M, k)`` where its variables are contiguous, else the index."""
     M, k = idx.shape
@@ -324,25 +361,19 @@ def _flat(blk) -> np.ndarray:
     return np.arange(start, start + M * k)
 
 
-def _scatter(xp, order, parts, shape):
-    """The ``shape`` array whose variables ``order`` are ``parts`` (each ``(..., m)``,
-    concatenated in order): a gather where ``order`` is no plain ``0 .. n - 1`` (no
-    arithmetic: the same floats)."""
+def _order(order):
+    """The gather that puts entries given in ``order`` (variable indices) in variable order;
+    None where ``order`` is ``0 .. n - 1``."""
+    return None if np.array_equal(order, np.arange(order.size)) else np.argsort(order, kind="stable")
+
+
+def _scatter(xp, perm, parts, shape):
+    """The ``shape`` array of ``parts`` (each ``(..., m)``, concatenated in order) gathered by
+    ``perm`` (:func:`_order`; None: as they are); no arithmetic: the same floats."""
     lead = shape[:-1]
-    flat = [xp.broadcast_to(v, lead + v.shape[-1:]) for v in parts]
+    flat = [v if v.shape[:-1] == lead else xp.broadcast_to(v, lead + v.shape[-1:]) for v in parts]
     a = xp.concatenate(flat, axis=-1) if len(flat) > 1 else flat[0]
-    if np.array_equal(order, np.arange(order.size)):
-        return a
-    return a[..., np.argsort(order, kind="stable")]
-
-
-def _put(a, blk, value):
-    """Write ``value`` (..., M, k) into ``a``'s variables of a group."""
-    if isinstance(blk, np.ndarray):
-        a[..., blk] = value
-        return
-    start, M, k = blk
-    a[..., start:start + M * k] = np.reshape(value, np.shape(value)[:-2] + (M * k,))
+    return a if perm is None else a[..., perm]
 
 
 def _rows(a, blks):
@@ -351,15 +382,6 @@ def _rows(a, blks):
         return _get(a, blks[0])
     parts = [_get(a, b) for b in blks]
     return array_namespace(a).concatenate(parts, axis=-2)
-
-
-def _put_rows(a, blks, value):
-    """Write the stacked rows ``value`` back into each group's variables."""
-    i = 0
-    for b in blks:
-        m = (b.shape[0] if isinstance(b, np.ndarray) else b[1])
-        _put(a, b, value[..., i:i + m, :])
-        i += m
 
 
 def _default_model(kind):

@@ -90,7 +90,8 @@ from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, MIN_SEPARATION_M, check_magnitude
 from ..formations.team_chart import team_positions
 from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot
-from . import jax_barrier, loop
+from ..control import barrier as jax_barrier
+from . import loop
 from .log import Channel, Log
 from .loop import WORLD_ERRORS, cached, require_jax
 from .measurement import PerfectMeasurement
