@@ -187,7 +187,10 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         state = tree_map(lambda a, b: _where(xp, bad, a, b), cs, out.state) if hold_state else out.state
         x_next = x
         for j in range(substeps):
-            x_new = plant_step(x_next, u, xs["t"] + j * dt, substep_inputs(xs, j))
+            # a failed world's state (perhaps not finite) is not the plant's to refuse: it
+            # steps a live world's stand-in, whose result the freeze below discards
+            x_in = _where(xp, reason > 0, _stand_in(xp, x_next, reason), x_next)
+            x_new = plant_step(x_in, u, xs["t"] + j * dt, substep_inputs(xs, j))
             broken = (reason == 0) & ~xp.all(xp.isfinite(x_new), axis=-1)
             fail_tick = xp.where(broken, xs["k"], fail_tick)
             reason = xp.where(broken, PLANT_CODE + j, reason)
@@ -199,6 +202,13 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         return new_carry, (x, m, u) + signals
 
     return tick
+
+
+def _stand_in(xp, x, reason):
+    """The state of the first world that has not failed (the first world when all have),
+    ``(n_x,)``: what a failed world hands the plant in its place."""
+    flat = x.reshape((-1, x.shape[-1]))
+    return flat[xp.argmax(xp.reshape(reason, (-1,)) == 0)]
 
 
 class HostWorlds:
