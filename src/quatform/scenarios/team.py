@@ -572,8 +572,7 @@ class TeamKind(ScenarioKind):
 
     name = "team"
     scenario_type = TeamScenario
-    options = (
-        Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
+    _OTHER_OPTIONS = (
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
         Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", TEAM_PHYSICS, "kinematic"),
         Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
@@ -581,6 +580,12 @@ class TeamKind(ScenarioKind):
                "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
     )
     compare_over = "controller"
+
+    @property
+    def options(self) -> tuple:
+        """The run's options; the controller's choices are the team descriptions registered now."""
+        return (Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
+                *self._OTHER_OPTIONS)
     table_columns = TEAM_TABLE_COLUMNS
 
     def from_dict(self, data: dict, where: str) -> TeamScenario:
