@@ -54,7 +54,6 @@ TEAM_GAIN_KEYS = {
 }
 
 
-
 def team_gain_sizes() -> dict:
     """Every gain key of :data:`TEAM_GAIN_KEYS` and how many numbers a file gives it (3: three
     or one; 1: one), in the schema's order."""
@@ -77,6 +76,7 @@ def team_descriptions() -> dict:
 #: read from the registered descriptions.
 TEAM_CONTROLLERS = RegistryView(lambda: {name: c.key for name, c in team_descriptions().items()},
                                 "TEAM_CONTROLLERS")
+
 
 def _gain(gains: Mapping, key: str, n, rows: int, role: str) -> np.ndarray:
     if key not in gains:

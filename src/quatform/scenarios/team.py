@@ -64,11 +64,11 @@ from ..references.team_motion import (
     Turn,
     template_positions,
 )
+from ..registry import RegistryView
 from ..robots import Team, file_models
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
 from ..sim.team_metrics import min_separations, team_metrics
-from ..registry import RegistryView
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
 from .separation import FILE_LABEL, safety_table, with_option
@@ -90,6 +90,7 @@ TEAM_SECONDS_PER_ROBOT_STEP = 5e-5
 _SECONDS_PER_STEP = 2e-3
 
 def _tables() -> dict:
+    """``{table: {controller: gains}}`` of the registered team descriptions' ``gain_tables``."""
     tables = {}
     for name, cls in team_descriptions().items():
         for table, gains in cls.gain_tables.items():
