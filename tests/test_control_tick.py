@@ -17,7 +17,7 @@ import pytest
 from conftest import BACKEND_TOL as TOL
 from conftest import short_scenario
 
-from quatform.control import CONTROLLERS, Reference, SafeController, SafeState
+from quatform.control import CONTROLLERS, TEAM_CONTROLLERS, Reference, SafeController, SafeState
 from quatform.control.barrier import HOST
 from quatform.control.contract import Tick
 from quatform.errors import QuatformError
@@ -25,7 +25,6 @@ from quatform.formations import EuclideanPair, RobotSpace
 from quatform.scenarios import KINDS
 
 TEAM = KINDS["team"]
-TEAM_CONTROLLERS = ("quaternion", "dual-quaternion", "cluster-space", "robot-space")
 E_PAIR = np.array([0.1, 0.2, 1.0, 0.3, 0.4, 1.0, 0.1, 0.2])
 PAIRS = [cls() for cls in CONTROLLERS.values()]
 

@@ -220,11 +220,10 @@ TEAM_GAINS = {"k_x": (1.0, 1.2, 0.8), "k_d": 2.0, "k_w": (3.0, 3.0, 3.0), "k_dw"
 
 def _team_controllers():
     from quatform.control import TEAM_CONTROLLERS, team_controller
-    from quatform.formations import TEAM_FORMATIONS as CLASSES
     from quatform.robots import HolonomicRobot, Team
 
-    return [team_controller(name, Team((HolonomicRobot(),) * n), TEAM_GAINS)
-            for name, key in TEAM_CONTROLLERS.items() if key in CLASSES for n in (3, 7)]
+    return [team_controller(name, Team((HolonomicRobot(),) * n), TEAM_GAINS) for name in TEAM_CONTROLLERS
+            for n in (3, 7)]
 
 
 TEAMS = _team_controllers()

@@ -26,7 +26,7 @@ from quatform.robots.physics import (
 )
 from quatform.scenarios import load_scenario
 from quatform.sim.plants.mujoco import pair_plant, physics_metrics, physics_record
-from quatform.sim.plants.mujoco_team import PHYSICS_KINDS, TeamPlant, team_plant
+from quatform.sim.plants.mujoco_team import TeamPlant, simulated_models, team_plant
 from quatform.sim.simulate import simulate
 
 DT = 0.01  # control period, s (seed 000's)
@@ -132,7 +132,7 @@ def test_batch_axes_and_bad_input_are_refused_in_one_line():
         team_plant(team, np.r_[x0[:-1], np.nan], dt=DT)
     with pytest.raises(InvalidInputError, match="robot 2 is a Bebop.*HolonomicRobot or Pioneer") as e:
         team_plant(Team((HolonomicRobot(), Bebop())), np.zeros(12), dt=DT)
-    assert "\n" not in str(e.value) and set(PHYSICS_KINDS.values()) == {"quadrotor", "diff-drive"}
+    assert "\n" not in str(e.value) and set(simulated_models().values()) == {"quadrotor", "diff-drive"}
     with pytest.raises(InvalidInputError, match="Team"):
         team_plant((HolonomicRobot(),), np.zeros(4), dt=DT)
     with pytest.raises(InvalidInputError, match="Pioneers' z differ"):
@@ -212,9 +212,9 @@ def test_the_vectorised_cascade_refuses_a_non_finite_state_and_keeps_its_integra
 
 
 def test_team_plant_in_the_plants_registry_of_kinds():
-    """Every kind of PHYSICS_KINDS is a robot model class the plant accepts (a registry, not a
+    """Every registered robot model with a physics kind is one the plant accepts (the models say, not a
     re-typed list); a TeamPlant is made through team_plant with the scenario helper's call."""
-    for cls in PHYSICS_KINDS:
+    for cls in simulated_models():
         x0 = tetrahedron()[:4] if cls is HolonomicRobot else np.zeros(3)
         plant = team_plant(Team((cls(),)), x0, dt=DT)
         assert isinstance(plant, TeamPlant) and plant.names == ("robot1",)

@@ -1,9 +1,9 @@
-"""A new formation, robot model, law, scenario kind, writer and sweep parameter is one file.
+"""A new formation, team description, robot model, law, scenario kind, writer and sweep parameter is one file.
 
 Each toy below is the text of one module, written to a temporary folder and imported as a
 user would import their own file; nothing else changes. The test checks that its registry
 picked it up and that it runs where a user would use it: the formation passes the contract
-test, the robot model is read from a team file and moves in a run, the law steps a block,
+test, the team description is a controller of the team kind with its own gains, the robot model is read from a team file and moves in a run, the law steps a block,
 the kind runs and compares through ``quatform.runs``, the writer writes its file in a run
 (and the CLI offers its flag), the sweep parameter is varied in a sweep.
 """
@@ -69,6 +69,19 @@ class ToyMidpoint(Formation):
         return e if e_dot is None else (e, np.asarray(e_dot, dtype=float))
 '''
 
+TOY_TEAM = '''
+"""A toy team description: seed 000's robot space for N robots, offered as its own controller."""
+from quatform.formations import RobotSpaceTeam
+
+
+class ToyRobotSpace(RobotSpaceTeam):
+    name = "toy-robot-space"
+    key = "toy-robot-space"
+    controller = "toy-robot-space"
+    gain_tables = {"table1": {"k_p": [1.0, 1.0, 1.0], "k_theta": 4.0},
+                   "table2": {"k_p": [0.05, 0.05, 0.05], "k_theta": 0.02}}
+'''
+
 TOY_ROBOT = '''
 """A toy robot: a point under world velocity commands, its speed limited."""
 from dataclasses import dataclass
@@ -77,6 +90,7 @@ import numpy as np
 
 from quatform.checks import number
 from quatform.robots import RobotModel
+from quatform.robots.point_map import VelocityCommands
 from quatform.robots.ros_io import RobotIO
 
 
@@ -104,6 +118,7 @@ class ToyPoint(RobotModel):
     limit_keys = ("max_speed_m_s",)
     ros_io = RobotIO("toy point", "world", _ros_state, lambda m, u, x, q: _ros_world(m, u, x), _ros_world,
                      setpoint=True)
+    point_map = VelocityCommands()  # the separation barrier moves its point through its commands
 
     @classmethod
     def from_file(cls, table, where, place, file_name="toy-point"):
@@ -121,11 +136,14 @@ class ToyPoint(RobotModel):
     def brake(self, x, memory=None):
         return np.zeros(np.shape(x)[:-1] + (3,)), memory
 
+    def limit_factor(self, u):
+        speed = np.linalg.norm(np.asarray(u, dtype=float), axis=-1)
+        return np.minimum(1.0, self.max_speed / np.maximum(speed, 1e-300))
+
     def saturate(self, u):
         u = np.asarray(u, dtype=float)
         u = np.where(np.all(np.isfinite(u), axis=-1, keepdims=True), u, 0.0)
-        speed = np.linalg.norm(u, axis=-1, keepdims=True)
-        return u * np.minimum(1.0, self.max_speed / np.maximum(speed, 1e-300))
+        return u * self.limit_factor(u)[..., None]
 
     def step(self, x, u, dt):
         return np.asarray(x, dtype=float) + dt * self.saturate(u)
@@ -135,14 +153,12 @@ TOY_LAW = '''
 """A toy component law: a proportional law whose rate is clipped at its gain."""
 import numpy as np
 
-from quatform.control.laws import LAWS
+from quatform.control.laws import law
 
 
+@law("toy-clipped")
 def clipped(e, c_dot_des, k, feedforward=1.0):
     return feedforward * c_dot_des - np.clip(k * e, -k, k)
-
-
-LAWS["toy-clipped"] = clipped
 '''
 
 TOY_KIND = '''
@@ -299,7 +315,7 @@ def registries():
     for reg, before in saved:
         reg.clear()
         reg.update(before)
-    for name in ("toy_formation", "toy_robot", "toy_law", "toy_kind", "toy_writer", "toy_parameter"):
+    for name in ("toy_formation", "toy_team", "toy_robot", "toy_law", "toy_kind", "toy_writer", "toy_parameter"):
         sys.modules.pop(name, None)
 
 
@@ -309,6 +325,45 @@ def test_a_formation_is_one_file(tmp_path, registries):
     F = FORMATIONS["toy-midpoint"]  # its examples, built on first use
     assert isinstance(F, module.ToyMidpoint)
     check_formation(F, np.random.default_rng(0), n=12)
+
+
+def test_a_team_description_is_one_file(tmp_path, registries):
+    from quatform import runs
+    from quatform.control import TEAM_CONTROLLERS
+    from quatform.scenarios.team import TEAM_TABLES, available_controllers
+
+    module = _import(tmp_path, "toy_team", TOY_TEAM)
+    assert FORMATION_TYPES["toy-robot-space"] is module.ToyRobotSpace
+    assert TEAM_CONTROLLERS["toy-robot-space"] == "toy-robot-space" and available_controllers()[-1] == "toy-robot-space"
+    assert TEAM_TABLES["table2"]["toy-robot-space"]["k_theta"] == 0.02
+    f = tmp_path / "toy-team.toml"
+    f.write_text(textwrap.dedent('''
+        kind = "team"
+        name = "toy-description"
+        duration_s = 1.0
+        dt_s = 0.02
+
+        [[robots]]
+        model = "holonomic"
+        count = 3
+
+        [shape]
+        template = "triangle"
+        side = 1.0
+
+        [path]
+        kind = "line"
+        center = [0.0, 0.0, 1.0]
+        velocity = [0.2, 0.0, 0.0]
+
+        [gains.toy-robot-space]
+        k_p = 2.0
+    '''))
+    sc = load_scenario(f)
+    assert sc.gains["toy-robot-space"] == {"k_p": 2.0, "k_theta": 4.0}  # the file's gain over the table's
+    log, metrics = runs.run(sc, tmp_path / "out", quiet=True, plots=False, mcap=False, controller="toy-robot-space")
+    assert metrics["controller"] == "toy-robot-space" and np.all(np.isfinite(log["state"]))
+    assert metrics["max_cluster_position_error_m"] < 0.05
 
 
 def test_a_robot_model_is_one_file(tmp_path, registries):
@@ -348,12 +403,22 @@ def test_a_robot_model_is_one_file(tmp_path, registries):
         velocity = [0.2, 0.0, 0.0]
 
         [safety]
-        enabled = false
+        min_separation_m = 0.5
     '''))
     sc = load_scenario(f)
     assert [type(r) for r in sc.team.robots] == [module.ToyPoint] * 3 and sc.team.robots[0].max_speed == 2.0
+    assert sc.safety["enabled"]  # the separation barrier reads the model's point map
     log, metrics = runs.run(sc, tmp_path / "out", quiet=True, plots=False, mcap=False, controller="quaternion")
     assert np.all(np.isfinite(log["state"])) and metrics["max_cluster_position_error_m"] < 0.05
+    # two of them head-on: the barrier slows them so they stay apart
+    from quatform.control.safety import SeparationBarrier
+    from quatform.robots import Team
+
+    team = Team((model, model))
+    x = np.array([0.0, 0.0, 1.0, 0.6, 0.0, 1.0])
+    u_safe, info = SeparationBarrier(0.5, gamma=5.0).filter(team, x, np.array([0.5, 0.0, 0.0, -0.5, 0.0, 0.0]))
+    assert info.active and u_safe[0] - u_safe[3] < 1.0
+    assert 2 * 0.6 * (u_safe[3] - u_safe[0]) >= -5.0 * (0.6 ** 2 - 0.5 ** 2) - 1e-9  # Wang et al. 2017
 
 
 def test_a_law_is_one_file(tmp_path, registries):

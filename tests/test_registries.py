@@ -2,9 +2,10 @@
 
 Each registry fills itself when a type is defined (``quatform.registry``); these tests read
 the registries, never a hand-kept list, so a new scenario kind, writer, sweep parameter, pose
-reader or command writer is checked as soon as its module is imported. Formations
-(``test_formation_contract.py``) and robot models (``test_robot_models.py``) have their own
-contract files, over ``FORMATIONS`` and ``ROBOT_MODELS``.
+reader, command writer, feedback law or team description is checked as soon as its module is
+imported. Formations (``test_formation_contract.py``), robot models (``test_robot_models.py``)
+and controllers (``test_controller_contract.py``, every team controller by name) have their own
+contract files, over ``FORMATIONS``, ``ROBOT_MODELS`` and ``TEAM_CONTROLLERS``.
 """
 
 from __future__ import annotations
@@ -120,3 +121,68 @@ def test_pose_readers_and_command_writers():
         assert r.msg_type.count("/") == 2 and callable(r.read) and callable(r.stamp_ns), name
     for name, w in COMMAND_WRITERS.items():
         assert callable(w.topics) and callable(w.build) and w.default_topic, name
+
+
+# --------------------------------------------------------------------------- feedback laws
+
+def _laws():
+    from quatform.control.laws import LAWS
+
+    return list(LAWS)
+
+
+@pytest.mark.parametrize("name", _laws())
+def test_law_contract(name):
+    """A component law runs on floats and arrays alike and passes the desired rate at zero
+    error; a whole-block law keeps a block at its reference still, through a Block."""
+    from quatform.control.laws import LAWS, Block, BlockLaw
+
+    fn = LAWS[name]
+    size = fn.block_size
+    if size is None:
+        e, cd = np.array([0.3, -0.2, 0.0]), np.array([0.1, 0.0, -0.4])
+        arr = fn(e, cd, 1.5, 1.0)
+        assert [fn(float(a), float(b), 1.5, 1.0) for a, b in zip(e, cd)] == pytest.approx(list(arr), rel=1e-15)
+        assert fn(0.0, 0.25, 1.5, 1.0) == pytest.approx(0.25) and fn(0.0, 0.25, 1.5, 0.0) == 0.0
+        law = BlockLaw((Block(name, 0, 2, (1.0, 2.0)),))
+    else:
+        assert size in (4, 8)
+        law = BlockLaw((Block(name, 0, size, (1.0, 1.0, 1.0)),))
+    c = (1.0,) + (0.0,) * (law.n - 1)
+    err, rate = law(c, c, (0.0,) * law.n)
+    assert len(err) == len(rate) == law.n and all(r == 0.0 for r in rate)
+
+
+# --------------------------------------------------------------------------- team descriptions
+
+def _descriptions():
+    from quatform.control.team import team_descriptions
+
+    return list(team_descriptions())
+
+
+@pytest.mark.parametrize("name", _descriptions())
+def test_team_description_contract(name):
+    """Its controller name and gain tables fit the one gain schema (control.TEAM_GAIN_KEYS),
+    its table-1 gains drive a three-robot team of its default robots, and a scenario file's
+    [gains.<name>] takes it."""
+    from quatform.control import TEAM_CONTROLLERS, TEAM_GAIN_KEYS, Reference, TeamController
+    from quatform.control.team import team_descriptions, team_gain_sizes
+    from quatform.formations import TEAM_FORMATIONS
+
+    cls = team_descriptions()[name]
+    assert TEAM_FORMATIONS[TEAM_CONTROLLERS[name]] is cls and cls.team
+    sizes = team_gain_sizes()
+    assert set(cls.gain_tables) >= {"table1", "table2"}
+    for table, gains in cls.gain_tables.items():
+        assert set(gains) <= set(sizes), (table, set(gains) - set(sizes))
+        for key, v in gains.items():
+            assert np.size(v) in (1, sizes[key]) and np.all(np.asarray(v) > 0), (table, key)
+    F = cls(3)
+    read = {TEAM_GAIN_KEYS[g.role][1] for g in F.law_groups}
+    assert read <= set(cls.gain_tables["table1"]), read - set(cls.gain_tables["table1"])
+    ctrl = TeamController(F, cls.gain_tables["table1"], name=name)
+    r = F.sample_robot_state(np.random.default_rng(0))
+    c = F.forward(r)
+    u = ctrl.step(0.0, r, Reference(c, np.zeros_like(c)))
+    assert np.shape(u) == (ctrl.team.n,) and np.all(np.isfinite(u))

@@ -38,7 +38,6 @@ import numpy as np
 
 from ..algebra.kernels import array_namespace
 from ..formations.team_chart import team_positions
-from ..robots import HolonomicRobot, PlanarHolonomicRobot
 
 __all__ = ["CANDIDATES", "HOST", "barrier_filter", "nnls_gram", "pair_constraints", "point_velocities", "solves"]
 
@@ -51,10 +50,10 @@ HOST = 3
 
 
 def solves(team) -> bool:
-    """Whether :func:`barrier_filter` runs the team: kinematic 4-DOF and planar holonomic
-    robots whose commands are their point rates, with one common limit factor."""
-    return bool(team.common_limit and team.passthrough
-                and all(type(r) in (HolonomicRobot, PlanarHolonomicRobot) for r in team.robots))
+    """Whether :func:`barrier_filter` runs the team: kinematic robots whose commands are their
+    point rates (``team.passthrough``) with a point map (the 4-DOF and planar holonomic
+    robots), with one common limit factor."""
+    return bool(team.common_limit and team.passthrough and all(r.point_map is not None for r in team.robots))
 
 
 def _while_loop(xp, cond, body, state):
@@ -199,14 +198,12 @@ def point_velocities(barrier, team, x, u):
     """The robots' point velocities, m/s, ``(..., N, 3)``, at the measured state ``x`` for the
     team's commands ``u`` (``(..., n_state)`` and ``(..., n)``, any namespace), as
     :meth:`~quatform.control.safety.SeparationBarrier.filter` reads them
-    (:data:`~quatform.control.safety.POINT_MAPS`: a Pioneer's mean control-point velocity over
-    the barrier's ``dt_s``, seed 001 eq. (3.4); a free body's linear velocity)."""
-    from .safety import POINT_MAPS
-
+    (each model's :attr:`~quatform.robots.RobotModel.point_map`: a Pioneer's mean control-point
+    velocity over the barrier's ``dt_s``, seed 001 eq. (3.4); a free body's linear velocity)."""
     xp = array_namespace(u)
     parts, robots = [], []
     for g, xg, ug in zip(team.groups, team.gather(x), team.gather(u, "command")):
-        v = POINT_MAPS[type(g.model)].velocity(g.model, xg, ug, barrier.dt_s)
+        v = g.model.point_map.velocity(g.model, xg, ug, barrier.dt_s)
         parts.append(v if g.axis else v[..., None, :])
         robots.extend(g.robots)
     V = xp.concatenate(parts, axis=-2) if len(parts) > 1 else parts[0]

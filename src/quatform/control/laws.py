@@ -15,6 +15,10 @@ same numbers.
   the sign of the shape's rotation as its branch (``docs/derivations.md``).
 * :class:`BlockLaw`: a per-variable-block feedback (positions, lengths, angles,
   quaternion blocks), each block one of the laws above.
+
+Every law registers itself in :data:`LAWS` where it is defined (``@law(name)``; a law on a
+whole block, with its own error, says its block size: ``@law(name, block=4)``), so a new law
+is one module that a :class:`Block` names.
 """
 
 from __future__ import annotations
@@ -26,9 +30,10 @@ import numpy as np
 from ..algebra.kernels import concrete
 from ..errors import InvalidInputError
 from ..formations import pair_kernels as kern
+from ..registry import Registry
 
 __all__ = ["proportional", "tanh_law", "quaternion_feedback", "dual_quaternion_feedback", "Block",
-           "BlockLaw", "LAWS", "HALF_TURN_TIE"]
+           "BlockLaw", "LAWS", "law", "HALF_TURN_TIE"]
 
 #: An error quaternion's scalar part within this of 0 is a half turn, whose two shortest ways
 #: are a tie that ``sgn(0) = +1`` breaks (seed 000 eq. (20)): a 180 deg step gives ``qe_0 =
@@ -38,6 +43,31 @@ __all__ = ["proportional", "tanh_law", "quaternion_feedback", "dual_quaternion_f
 HALF_TURN_TIE = 1e-12
 
 
+#: The laws a :class:`Block` may name, by name (filled by :func:`law` where each is defined):
+#: component laws (per variable, ``fn(e, c_dot_des, k, feedforward)``) and whole-block laws
+#: (``fn(q, q_des, q_des_dot, k, feedforward) -> (error, rate)``, ``fn.block_size`` variables:
+#: quaternion blocks 4, dual-quaternion blocks 8).
+LAWS = Registry("feedback law")
+
+
+def law(name: str, block: int | None = None):
+    """Register the decorated function as the feedback law ``name`` in :data:`LAWS`.
+
+    Parameters
+    ----------
+    name : str
+        The name a :class:`Block` gives.
+    block : int or None
+        None: a component law, called per variable. A number: a law on a whole block of that
+        many variables with its own error, taking three gains (``K``'s diagonal).
+    """
+    def register(fn):
+        fn.block_size = block
+        return LAWS.add(name, fn)
+
+    return register
+
+@law("proportional")
 def proportional(e, c_dot_des, k, feedforward=1.0):
     """``-k e + ff c_dot_des`` (seed 000 Fig. 2, ``c_dot_cmd = -K e + c_dot_des``).
 
@@ -51,6 +81,7 @@ def proportional(e, c_dot_des, k, feedforward=1.0):
     return -k * e + feedforward * c_dot_des
 
 
+@law("tanh")
 def tanh_law(e, c_dot_des, k, feedforward=1.0):
     """``ff c_dot_des - k tanh(e)``: seed 001 eqs. (4.43)-(4.44) (the rate saturated at ``k``)."""
     tanh = np.tanh if concrete(e) else kern.lib(e).tanh  # NumPy's tanh for floats too (its rounding)
@@ -78,6 +109,7 @@ def _conj_mul(p, q):
             p0 * q3 - p1 * q2 + p2 * q1 - p3 * q0)
 
 
+@law("quaternion", block=4)
 def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     """Seed 000 eq. (20) with its error order corrected and a feed-forward, on components.
 
@@ -104,6 +136,7 @@ def quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0):
     return qe, q_dot
 
 
+@law("dual-quaternion", block=8)
 def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rotation=True):
     """Seed 000 eq. (28) with the error order corrected, on 8 components (floats or arrays).
 
@@ -129,20 +162,13 @@ def dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward=1.0, signed_rot
     return qe, q_dot
 
 
+@law("dual-quaternion-branch", block=8)
 def _dual_quaternion_branch(q, q_des, q_des_dot, k, feedforward=1.0):
     """:func:`dual_quaternion_feedback` of a block whose sign is the branch (seed 000's
     shape ``qhat_s``: driven to ``+qhat_s_des``)."""
     return dual_quaternion_feedback(q, q_des, q_des_dot, k, feedforward, signed_rotation=False)
 
 
-#: The laws a :class:`Block` may name: component laws (per variable), quaternion blocks (4
-#: variables) and dual-quaternion blocks (8): ``dual-quaternion`` where the sign means
-#: nothing (seed 000's ``qhat_c``), ``dual-quaternion-branch`` where it is the branch
-#: (``qhat_s``).
-LAWS = {"proportional": proportional, "tanh": tanh_law, "quaternion": quaternion_feedback,
-        "dual-quaternion": dual_quaternion_feedback, "dual-quaternion-branch": _dual_quaternion_branch}
-#: Laws on a whole block (their own error), and the block's size.
-_BLOCK_SIZES = {"quaternion": 4, "dual-quaternion": 8, "dual-quaternion-branch": 8}
 
 
 @dataclass(frozen=True)
@@ -162,7 +188,7 @@ class Block:
     def __post_init__(self):
         if self.law not in LAWS and self.law != "none":
             raise InvalidInputError(f"block law {self.law!r} unknown; choose {', '.join(LAWS)} or none")
-        size = _BLOCK_SIZES.get(self.law)
+        size = getattr(LAWS.get(self.law), "block_size", None)
         want = 3 if size else (0 if self.law == "none" else self.size)
         if size and self.size != size:
             raise InvalidInputError(f"a {self.law} block has {size} variables, got size {self.size}")
@@ -196,7 +222,7 @@ class BlockLaw:
         # per block: (slice, law or None, gains); quaternion blocks flagged by law
         plan = tuple((slice(b.start, b.start + b.size), LAWS.get(b.law), tuple(b.gains),
                       tuple(zip(range(b.start, b.start + b.size), b.gains or (None,) * b.size)),
-                      b.law in _BLOCK_SIZES)
+                      getattr(LAWS.get(b.law), "block_size", None) is not None)
                      for b in self.blocks)
         object.__setattr__(self, "_plan", plan)
         object.__setattr__(self, "_n", len(covered))

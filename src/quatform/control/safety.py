@@ -24,15 +24,16 @@ graph of the pairs whose constraint binds (found by adding the pairs the last so
 violates until none is), with the neighbours of each robot from a k-d tree. With no pair
 binding the commands come back bitwise unchanged.
 
-Point velocities of each robot model (:data:`POINT_MAPS`): the 4-DOF and planar holonomic
-robots' commands are their velocities (yaw rates untouched), a free body's linear velocity
-(its angular velocity untouched), the Pioneer's control point moves by seed 001 eq. (3.4)
-(``v = A_p (v, omega)``, inverted by eq. (3.5)), as the Robotarium's unicycle certificate
-moves a point ahead of the wheel axis. With ``dt_s`` given the Pioneer's point velocity is its
-exact mean velocity over the held step (:meth:`~quatform.robots.Pioneer.mean_point_velocity`),
-so the sampled-time argument below holds for it too. A planar robot's point moves at ``z =
-0`` (or its platform height): its z velocity is not a variable. A model whose commands are
-not such a map (the Bebop with its dynamic compensation) is refused. The maps' ``velocity``
+Point velocities: each robot model's :attr:`~quatform.robots.RobotModel.point_map`
+(:mod:`quatform.robots.point_map`). The 4-DOF and planar holonomic robots' commands are
+their velocities (yaw rates untouched), a free body's linear velocity (its angular velocity
+untouched), the Pioneer's control point moves by seed 001 eq. (3.4) (``v = A_p (v, omega)``,
+inverted by eq. (3.5)), as the Robotarium's unicycle certificate moves a point ahead of the
+wheel axis. With ``dt_s`` given the Pioneer's point velocity is its exact mean velocity over
+the held step (:meth:`~quatform.robots.Pioneer.mean_point_velocity`), so the sampled-time
+argument below holds for it too. A planar robot's point moves at ``z = 0`` (or its platform
+height): its z velocity is not a variable. A model without a point map (the Bebop with its
+dynamic compensation) is refused. The maps' ``velocity``
 runs on NumPy and on JAX arrays alike (the jax backend's test whether a pair binds).
 
 Sampled time (``docs/derivations.md``, "Team robots and the separation barrier"): for points that move by ``dt v``
@@ -59,7 +60,8 @@ from ..algebra.kernels import array_namespace
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS, RobotLayout
 from ..formations.team_chart import team_positions
-from ..robots import FreeBodyRobot, HolonomicRobot, Pioneer, PlanarHolonomicRobot, Team
+from ..registry import RegistryView
+from ..robots import ROBOT_MODELS, Team
 from . import barrier as _barrier
 from . import contract
 from .barrier import HOST, pair_constraints, point_velocities, solves
@@ -69,8 +71,16 @@ __all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "P
 
 #: Teams of at most this many robots find their pairs by one dense comparison (cheaper than a tree).
 _DENSE_PAIRS_MAX_ROBOTS = 48
-#: Bisection steps of the Pioneer's sampled-time limit factor (relative accuracy 2^-48).
-_BISECTION_STEPS = 48
+
+
+#: Each registered robot model class's point map (derived from the models' ``point_map``, read-only).
+POINT_MAPS = RegistryView(lambda: {cls: cls.point_map for cls in ROBOT_MODELS.values() if cls.point_map is not None},
+                          "POINT_MAPS")
+
+
+def point_mapped() -> tuple[str, ...]:
+    """The registered robot model classes the barrier moves (a :attr:`~quatform.robots.RobotModel.point_map`), by name."""
+    return tuple(cls.__name__ for cls in ROBOT_MODELS.values() if cls.point_map is not None)
 
 
 def components(n: int, i, j) -> np.ndarray:
@@ -91,107 +101,6 @@ def components(n: int, i, j) -> np.ndarray:
         if np.array_equal(new, lab):
             return lab
         lab = new
-
-
-# -- point velocities of the robot models -------------------------------------------------
-
-class _Holonomic4:
-    """4-DOF holonomic robot: the command's first three entries are the point's velocity."""
-
-    planar = False
-
-    def velocity(self, model, x, u, dt):
-        return u[..., 0:3]
-
-    def commands(self, model, x, u, v, dt):
-        return np.concatenate([v, u[..., 3:4]], axis=-1)
-
-    def scaled(self, model, x, u_new, v, s, dt):
-        return s[..., None] * u_new
-
-    def factor(self, model, x, u_new, v, dt):
-        return model.limit_factor(u_new)
-
-
-class _Planar(_Holonomic4):
-    """Planar holonomic robot: ``(v_x, v_y)`` at ``z`` rate 0."""
-
-    planar = True
-
-    def velocity(self, model, x, u, dt):
-        xp = array_namespace(u)
-        return xp.concatenate([u[..., 0:2], xp.zeros(u.shape[:-1] + (1,))], axis=-1)
-
-    def commands(self, model, x, u, v, dt):
-        return np.concatenate([v[..., 0:2], u[..., 2:3]], axis=-1)
-
-
-class _FreeBody(_Holonomic4):
-    """Free body: the world linear velocity (its angular velocity untouched)."""
-
-    def commands(self, model, x, u, v, dt):
-        return np.concatenate([v, u[..., 3:6]], axis=-1)
-
-
-class _Unicycle:
-    """Pioneer: its control point's velocity, seed 001 eqs. (3.4)-(3.5) (mean over the step with ``dt``)."""
-
-    planar = True
-
-    def velocity(self, model, x, u, dt):
-        psi = x[..., 2]
-        v = model.point_velocity(psi, u) if dt is None else model.mean_point_velocity(psi, u, dt)
-        xp = array_namespace(v)
-        return xp.concatenate([v, xp.zeros(v.shape[:-1] + (1,))], axis=-1)
-
-    def commands(self, model, x, u, v, dt):
-        psi = x[..., 2]
-        if dt is None:
-            return model.commands_from_velocity(psi, v[..., 0:2])  # eq. (3.5)
-        return model.commands_from_mean_velocity(psi, v[..., 0:2], dt)
-
-    def scaled(self, model, x, u_new, v, s, dt):
-        if dt is None:  # eq. (3.5) is linear: scaling the commands scales the point velocity
-            return s[..., None] * u_new
-        return model.commands_from_mean_velocity(x[..., 2], s[..., None] * v[..., 0:2], dt)
-
-    def factor(self, model, x, u_new, v, dt):
-        if dt is None:
-            return model.limit_factor(u_new)
-        # sampled time: the largest s with commands_from_mean_velocity(s v) within the limits.
-        # The turn: |tan(theta/2)| = |s V_l| / (2 a / dt + s V_f) <= tan(max_omega dt / 2), closed form;
-        # the speed by bisection below that (|v| grows with s).
-        psi = x[..., 2]
-        c, sn = np.cos(psi), np.sin(psi)
-        vf = c * v[..., 0] + sn * v[..., 1]
-        vl = -sn * v[..., 0] + c * v[..., 1]
-        tan_max = math.tan(min(0.5 * model.max_omega * dt, 0.5 * math.pi - 1e-9))
-        den = np.abs(vl) - tan_max * vf
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s_turn = np.where(den > 0, tan_max * 2.0 * model.a / dt / np.where(den > 0, den, 1.0), np.inf)
-        hi = np.where(s_turn < 1.0, s_turn * (1.0 - 1e-12), 1.0)  # a hair inside a binding turn limit
-
-        def speed_ok(s):
-            u = model.commands_from_mean_velocity(psi, s[..., None] * v[..., 0:2], dt)
-            return np.abs(u[..., 0]) <= model.max_v
-
-        lo = np.where(speed_ok(hi), hi, 0.0)
-        top = hi.copy()
-        if np.any(lo < top):
-            for _ in range(_BISECTION_STEPS):
-                mid = 0.5 * (lo + top)
-                ok = speed_ok(mid)
-                lo, top = np.where(ok, mid, lo), np.where(ok, top, mid)
-        return lo
-
-
-#: How the safety filter reads and writes each robot model's point velocity, by model class.
-POINT_MAPS = {
-    HolonomicRobot: _Holonomic4(),
-    PlanarHolonomicRobot: _Planar(),
-    FreeBodyRobot: _FreeBody(),
-    Pioneer: _Unicycle(),
-}
 
 
 # -- the barrier ----------------------------------------------------------------------------
@@ -275,12 +184,12 @@ class SeparationBarrier:
         if isinstance(team, Team):
             maps = []
             for g in team.groups:
-                m = POINT_MAPS.get(type(g.model))
+                m = g.model.point_map
                 if m is None:
                     raise InvalidInputError(
                         f"SeparationBarrier: a {type(g.model).__name__} robot's commands are not a map of its point "
-                        f"velocity (known: {', '.join(c.__name__ for c in POINT_MAPS)}); filter its point rates "
-                        "through the layout instead")
+                        f"velocity (known: {', '.join(point_mapped())}); filter its point rates through the layout "
+                        "instead")
                 maps.append(m)
             return team.layout, maps
         if isinstance(team, RobotLayout):

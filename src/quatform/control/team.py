@@ -9,8 +9,11 @@ derivative, O(N), no matrix) -> the team's actuation and saturation. The object 
 frozen and stateless, so it drives a simulation or real robots; wrap it in
 :class:`~quatform.control.safety.SafeController` for the separation barrier.
 
-:data:`TEAM_GAIN_KEYS` lists the gains each role reads; :func:`team_controller` builds the
-four seed-000 controllers for a team by name (:data:`TEAM_CONTROLLERS`).
+:data:`TEAM_GAIN_KEYS` is the gain schema: the law and gain key each law-group role reads
+(:func:`team_gain_sizes`: every key and how many numbers it takes). A team description says
+its controller name and default gains (``Formation.controller``, ``Formation.gain_tables``);
+:data:`TEAM_CONTROLLERS` follows the registered descriptions, and :func:`team_controller`
+builds a controller by that name.
 """
 
 from __future__ import annotations
@@ -26,12 +29,14 @@ from ..algebra.kernels import array_namespace, hold
 from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations.base import Formation, check_magnitude
+from ..registry import RegistryView
 from ..robots import Team
 from . import contract
 from .base import FAILURE_REASONS, Reference, apart_robots, batch_shape, measured_codes
 from .laws import dual_quaternion_feedback, proportional, quaternion_feedback
 
-__all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_controller", "team_lyapunov"]
+__all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_controller", "team_descriptions",
+           "team_gain_sizes", "team_lyapunov"]
 
 #: Law and gain key of each law-group role (``formations.team_chart.ROLE_WIDTHS``), and how
 #: many gains the key takes (``None``: one per row of the group, or one for all).
@@ -48,13 +53,29 @@ TEAM_GAIN_KEYS = {
     "variables": ("proportional", "k", None),
 }
 
-#: The team description each seed-000 controller name runs (``formations.TEAM_FORMATIONS`` keys).
-TEAM_CONTROLLERS = {
-    "quaternion": "quaternion-team",
-    "dual-quaternion": "dual-quaternion-team",
-    "cluster-space": "euclidean-team",
-    "robot-space": "robot-space-team",
-}
+
+def team_gain_sizes() -> dict:
+    """Every gain key of :data:`TEAM_GAIN_KEYS` and how many numbers a file gives it (3: three
+    or one; 1: one), in the schema's order."""
+    sizes = {}
+    for _, key, n in TEAM_GAIN_KEYS.values():
+        sizes.setdefault(key, n or 1)
+    return sizes
+
+
+def team_descriptions() -> dict:
+    """The registered team descriptions that name a controller (``Formation.controller``), by
+    that name, in ``controller_order``."""
+    from ..formations import TEAM_FORMATIONS
+
+    classes = sorted((c for c in TEAM_FORMATIONS.values() if c.controller), key=lambda c: c.controller_order)
+    return {c.controller: c for c in classes}
+
+
+#: The team description each controller name runs (``formations.TEAM_FORMATIONS`` keys),
+#: read from the registered descriptions.
+TEAM_CONTROLLERS = RegistryView(lambda: {name: c.key for name, c in team_descriptions().items()},
+                                "TEAM_CONTROLLERS")
 
 
 def _gain(gains: Mapping, key: str, n, rows: int, role: str) -> np.ndarray:
@@ -427,11 +448,10 @@ def team_controller(name: str, team: Team, gains: Mapping, *, template=None, fee
                     **options) -> TeamController:
     """The seed-000 controller ``name`` (a :data:`TEAM_CONTROLLERS` key) for ``team``.
 
-    Builds the team description ``formations.TEAM_FORMATIONS[TEAM_CONTROLLERS[name]]`` on
+    Builds the team description whose ``controller`` is ``name`` (:func:`team_descriptions`) on
     the team's layout (with ``template`` and ``options``) and a :class:`TeamController`.
     """
     from ..checks import nearest
-    from ..formations import TEAM_FORMATIONS as CLASSES
 
     if name not in TEAM_CONTROLLERS:
         raise InvalidInputError(f"unknown team controller {name!r}{nearest(name, TEAM_CONTROLLERS)}; choose one of "
@@ -439,6 +459,6 @@ def team_controller(name: str, team: Team, gains: Mapping, *, template=None, fee
     if not isinstance(team, Team):
         raise InvalidInputError(f"team_controller: team must be a robots.Team (e.g. Team.uniform(HolonomicRobot(), 4)), "
                                 f"got {type(team).__name__}")
-    cls = CLASSES[TEAM_CONTROLLERS[name]]
+    cls = team_descriptions()[name]
     F = cls(layout=team.layout, template=template, **options)
     return TeamController(F, gains, team, feedforward, name)

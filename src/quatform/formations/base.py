@@ -99,6 +99,15 @@ class Formation(ABC):
     #: An N-robot team description, built as ``cls(n=None, *, layout=None, template=None)``
     #: (:data:`TEAM_FORMATIONS`).
     team: bool = False
+    #: A team description's controller: the name the team scenario kind (``--controller``, a
+    #: file's ``[gains.<name>]``) and ``control.team_controller`` know it by (None: none).
+    controller: str | None = None
+    #: Where that controller comes among the team controllers offered (``--controller``,
+    #: ``compare``): seed 000's order, then by the order defined.
+    controller_order: float = float("inf")
+    #: Its default gains by table (``"table1"``, ``"table2"``: seed 000 Tables 1-2 adapted to
+    #: teams), each ``{gain key: number or list}``, the keys of ``control.TEAM_GAIN_KEYS``.
+    gain_tables: Mapping = {}
     #: Layout of the cluster state vector.
     variables: tuple[Variable, ...] = ()
     #: The robots and their points; :attr:`robot_variables` is its variables.

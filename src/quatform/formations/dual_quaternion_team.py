@@ -215,6 +215,14 @@ class DualQuaternionTeam(Formation):
     name = "dual-quaternion-team"
     key = "dual-quaternion-team"
     team = True
+    #: ``--controller dual-quaternion``.
+    controller = "dual-quaternion"
+    controller_order = 1
+    #: Seed 000 Tables 1-2, eq. (28): ``K_dw``, the robots' yaws at its rate.
+    gain_tables = {
+        "table1": {"k_dw": [15.0, 15.0, 15.0], "k_theta": 15.0},
+        "table2": {"k_dw": [0.5, 0.5, 0.5], "k_theta": 0.5},
+    }
 
     @classmethod
     def examples(cls) -> dict:

@@ -160,6 +160,17 @@ class EuclideanTeam(Formation):
     name = "euclidean-team"
     key = "euclidean-team"
     team = True
+    #: ``--controller cluster-space``.
+    controller = "cluster-space"
+    controller_order = 2
+    #: Seed 000 Tables 1-2, ``K_CS``: its position gains on the centroid, its angle gain
+    #: (``beta_c``) on angles and yaws, its ``d_c`` gain on shape variables.
+    gain_tables = {
+        "table1": {"k_x": [1.0, 1.0, 1.0], "k": 10.0, "k_d": 5.0, "k_w": [10.0, 10.0, 10.0], "k_theta": 10.0,
+                   "k_p": [1.0, 1.0, 1.0]},
+        "table2": {"k_x": [0.06, 0.06, 0.03], "k": 0.02, "k_d": 0.03, "k_w": [0.02, 0.02, 0.02], "k_theta": 0.03,
+                   "k_p": [0.06, 0.06, 0.03]},
+    }
 
     @classmethod
     def examples(cls) -> dict:

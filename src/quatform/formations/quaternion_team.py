@@ -125,6 +125,15 @@ class QuaternionTeam(Formation):
     name = "quaternion-team"
     key = "quaternion-team"
     team = True
+    #: ``--controller quaternion``.
+    controller = "quaternion"
+    controller_order = 0
+    #: Seed 000 Tables 1-2, eq. (20): ``K_x, k_d, K_w`` as printed, the robots' yaws at ``K_w``'s
+    #: rate (the pair's ``q_ci`` are eq. (20) blocks with ``K_w``).
+    gain_tables = {
+        "table1": {"k_x": [2.0, 2.0, 2.0], "k_d": 20.0, "k_w": [20.0, 20.0, 20.0], "k_theta": 20.0},
+        "table2": {"k_x": [0.7, 0.7, 0.7], "k_d": 0.4, "k_w": [1.0, 1.0, 1.0], "k_theta": 1.0},
+    }
 
     @classmethod
     def examples(cls) -> dict:

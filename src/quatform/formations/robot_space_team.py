@@ -57,6 +57,14 @@ class RobotSpaceTeam(Formation):
     name = "robot-space-team"
     key = "robot-space-team"
     team = True
+    #: ``--controller robot-space``.
+    controller = "robot-space"
+    controller_order = 3
+    #: Seed 000 Tables 1-2: the printed ``K_RS`` of robot 1 (``x, y, z, theta``) for every robot.
+    gain_tables = {
+        "table1": {"k_p": [1.5, 1.5, 1.5], "k_theta": 6.0},
+        "table2": {"k_p": [0.06, 0.06, 0.03], "k_theta": 0.02},
+    }
 
     @classmethod
     def examples(cls) -> dict:

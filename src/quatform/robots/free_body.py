@@ -29,6 +29,7 @@ from ..errors import InvalidInputError
 from ..formations import geometry as g
 from . import limits
 from .model import RobotModel
+from .point_map import VelocityCommands
 from .ros_io import RobotIO
 
 __all__ = ["FreeBodyRobot"]
@@ -84,6 +85,8 @@ class FreeBodyRobot(RobotModel):
     file_names = ("free-body",)
     limit_keys = ("max_speed_m_s", "max_angular_rate_rad_s")
     ros_io = RobotIO("free body", "world", _ros_state, _ros_body, _ros_world)
+    #: The separation barrier moves its point through its first three commands.
+    point_map = VelocityCommands(planar=False)
 
     @classmethod
     def from_file(cls, table, where, place, file_name="free-body"):

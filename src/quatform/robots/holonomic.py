@@ -19,6 +19,7 @@ from ..checks import number
 from ..errors import InvalidInputError
 from . import limits
 from .model import RobotModel
+from .point_map import VelocityCommands
 from .ros_io import RobotIO, heading_rotate, pose_yaw, z_vector
 
 __all__ = ["HolonomicRobot"]
@@ -72,6 +73,10 @@ class HolonomicRobot(RobotModel):
     file_names = ("quadrotor", "holonomic")
     limit_keys = ("max_speed_m_s", "max_yaw_rate_rad_s")
     ros_io = RobotIO("4-DOF holonomic robot", "world", _ros_state, _ros_body, _ros_world, setpoint=True)
+    #: The separation barrier moves its point through its first three commands.
+    point_map = VelocityCommands(planar=False)
+    #: MuJoCo flies it as an IRIS-like quadrotor in PX4-like velocity mode.
+    physics_kind = "quadrotor"
 
     @classmethod
     def from_file(cls, table, where, place, file_name="holonomic"):

@@ -19,6 +19,8 @@ axes. A robot model says
 * in a :class:`Team` also ``n_rate`` (entries of the rate ``actuate`` takes),
   ``initial_memory(batch)`` and ``brake(x, memory) -> (u, memory)`` (the actuation memory
   before the first step; commands that stop the robot);
+* ``point_map``: how its commands move its point, for the separation barrier
+  (:mod:`.point_map`); ``physics_kind``: the physical robot MuJoCo simulates it as;
 * ``passthrough``: whether its commands are its point's rates (a controller may skip
   ``actuate``); ``holonomic``: whether its commands scale as a whole, with a
   ``limit_factor(u)`` (the largest ``s`` in ``[0, 1]`` with ``s u`` within the limits), so a
@@ -48,9 +50,10 @@ class RobotModel:
     A subclass that sets :attr:`name` registers itself in :data:`ROBOT_MODELS` when it is
     defined, with what it knows besides its motion: the ``model`` values of a team file's
     ``[[robots]]`` entry it answers to (:attr:`file_names`, its limit keys
-    :attr:`limit_keys`, :meth:`from_file`) and its ROS 2 conversions (:attr:`ros_io`, a
+    :attr:`limit_keys`, :meth:`from_file`), its ROS 2 conversions (:attr:`ros_io`, a
     :class:`~quatform.robots.ros_io.RobotIO`: a measured pose to its state, its commands to
-    twists).
+    twists), its point velocity for the separation barrier (:attr:`point_map`) and the
+    physical robot MuJoCo simulates it as (:attr:`physics_kind`).
     """
 
     name: ClassVar[str] = ""
@@ -65,6 +68,12 @@ class RobotModel:
     limit_keys: ClassVar[tuple] = ()
     #: Its ROS 2 conversions (None: the bridge does not drive it).
     ros_io: ClassVar[Any] = None
+    #: How its commands move its point, for the separation barrier (a
+    #: :class:`~quatform.robots.point_map.PointMap`; None: the barrier refuses it).
+    point_map: ClassVar[Any] = None
+    #: The physical robot the MuJoCo team plant simulates it as (``"quadrotor"``,
+    #: ``"diff-drive"``: :mod:`quatform.sim.plants.mujoco_team`; None: MuJoCo cannot).
+    physics_kind: ClassVar[str | None] = None
     #: The unit of each of its state and command columns (``"-"``: dimensionless).
     column_units: ClassVar[dict] = {}
 

@@ -35,9 +35,13 @@ from ..algebra.validate import as_array
 from ..checks import number
 from ..errors import InvalidInputError
 from .model import RobotModel
+from .point_map import PointMap
 from .ros_io import RobotIO, pose_yaw, xy_vector, z_vector
 
-__all__ = ["Pioneer"]
+__all__ = ["Pioneer", "UnicyclePointMap"]
+
+#: Bisection steps of the sampled-time limit factor (relative accuracy 2^-48).
+_BISECTION_STEPS = 48
 
 
 # ROS 2 conversions (seed 001 §3.1.1): the control point (x, y, psi); commands (v, omega), eq. (3.1)
@@ -49,6 +53,63 @@ def _ros_state(model, pose, prev):
 
 def _ros_body(model, u, state, q):
     return xy_vector(u[..., 0], 0.0), z_vector(u[..., 1])
+
+
+
+class UnicyclePointMap(PointMap):
+    """The Pioneer's control point for the separation barrier: its velocity by seed 001 eq.
+    (3.4), the commands of a velocity by eq. (3.5), as the Robotarium's unicycle certificate
+    moves a point ahead of the wheel axis; with ``dt`` the exact mean velocity over the held
+    step (:meth:`Pioneer.mean_point_velocity`) and its inverse, so the barrier's sampled-time
+    argument holds for it too. The point moves at the platform height (planar)."""
+
+    planar = True
+
+    def velocity(self, model, x, u, dt):
+        psi = x[..., 2]
+        v = model.point_velocity(psi, u) if dt is None else model.mean_point_velocity(psi, u, dt)
+        xp = namespace(v)
+        return xp.concatenate([v, xp.zeros(v.shape[:-1] + (1,))], axis=-1)
+
+    def commands(self, model, x, u, v, dt):
+        psi = x[..., 2]
+        if dt is None:
+            return model.commands_from_velocity(psi, v[..., 0:2])  # eq. (3.5)
+        return model.commands_from_mean_velocity(psi, v[..., 0:2], dt)
+
+    def scaled(self, model, x, u_new, v, s, dt):
+        if dt is None:  # eq. (3.5) is linear: scaling the commands scales the point velocity
+            return s[..., None] * u_new
+        return model.commands_from_mean_velocity(x[..., 2], s[..., None] * v[..., 0:2], dt)
+
+    def factor(self, model, x, u_new, v, dt):
+        if dt is None:
+            return model.limit_factor(u_new)
+        # sampled time: the largest s with commands_from_mean_velocity(s v) within the limits.
+        # The turn: |tan(theta/2)| = |s V_l| / (2 a / dt + s V_f) <= tan(max_omega dt / 2), closed form;
+        # the speed by bisection below that (|v| grows with s).
+        psi = x[..., 2]
+        c, sn = np.cos(psi), np.sin(psi)
+        vf = c * v[..., 0] + sn * v[..., 1]
+        vl = -sn * v[..., 0] + c * v[..., 1]
+        tan_max = math.tan(min(0.5 * model.max_omega * dt, 0.5 * math.pi - 1e-9))
+        den = np.abs(vl) - tan_max * vf
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_turn = np.where(den > 0, tan_max * 2.0 * model.a / dt / np.where(den > 0, den, 1.0), np.inf)
+        hi = np.where(s_turn < 1.0, s_turn * (1.0 - 1e-12), 1.0)  # a hair inside a binding turn limit
+
+        def speed_ok(s):
+            u = model.commands_from_mean_velocity(psi, s[..., None] * v[..., 0:2], dt)
+            return np.abs(u[..., 0]) <= model.max_v
+
+        lo = np.where(speed_ok(hi), hi, 0.0)
+        top = hi.copy()
+        if np.any(lo < top):
+            for _ in range(_BISECTION_STEPS):
+                mid = 0.5 * (lo + top)
+                ok = speed_ok(mid)
+                lo, top = np.where(ok, mid, lo), np.where(ok, top, mid)
+        return lo
 
 
 @dataclass(frozen=True)
@@ -94,6 +155,10 @@ class Pioneer(RobotModel):
     file_names = ("pioneer",)
     limit_keys = ("a_m", "max_v_m_s", "max_omega_rad_s")
     ros_io = RobotIO("Pioneer 3-DX (v, omega)", "body", _ros_state, _ros_body)
+    #: The separation barrier moves its control point (eqs. (3.4)-(3.5)).
+    point_map = UnicyclePointMap()
+    #: MuJoCo drives it as the Pioneer 3-DX-like differential-drive robot of the UGV-UAV plant.
+    physics_kind = "diff-drive"
 
     @classmethod
     def from_file(cls, table, where, place, file_name="pioneer"):

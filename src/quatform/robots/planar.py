@@ -20,6 +20,7 @@ from ..checks import number
 from ..errors import InvalidInputError
 from . import limits
 from .model import RobotModel
+from .point_map import VelocityCommands
 from .ros_io import RobotIO, heading_rotate, pose_yaw, xy_vector, z_vector
 
 __all__ = ["PlanarHolonomicRobot"]
@@ -69,6 +70,8 @@ class PlanarHolonomicRobot(RobotModel):
     file_names = ("planar",)
     limit_keys = ("max_speed_m_s", "max_yaw_rate_rad_s")
     ros_io = RobotIO("planar holonomic robot", "world", _ros_state, _ros_body, _ros_world, setpoint=True)
+    #: The separation barrier moves its point through its first two commands.
+    point_map = VelocityCommands(planar=True)
 
     @classmethod
     def from_file(cls, table, where, place, file_name="planar"):

@@ -8,7 +8,9 @@ turns a non-finite command into a stop; ``step`` keeps the state's shape; ``brak
 it (the actuation and the batch for a team member, a model with ``n_rate``); a team
 file's entry builds it (``from_file`` of each of its ``file_names`` with no
 limits given); its ROS 2 conversions turn a pose into a state of its columns; every column
-has a unit.
+has a unit; its point map (:attr:`~.model.RobotModel.point_map`, for the separation barrier)
+gives a velocity of 3 entries (z 0 for a planar point) whose commands are the commands it
+came from, and a limit factor in ``[0, 1]``; its ``physics_kind`` is a name or None.
 """
 
 from __future__ import annotations
@@ -61,6 +63,9 @@ def check_robot_model(model: RobotModel, rng=None) -> None:
     for file_name in type(model).file_names:
         built = type(model).from_file({}, "robots.toml", "[[robots]]", file_name)
         assert isinstance(built, type(model)), f"{name}: from_file({file_name!r}) builds a {type(built).__name__}"
+    _check_point_map(model, name, rng)
+    kind = type(model).physics_kind
+    assert kind is None or isinstance(kind, str) and kind, f"{name}: physics_kind {kind!r}"
     io = type(model).ros_io
     if io is not None:
         assert io.natural_frame in ("world", "body"), f"{name}: ros_io.natural_frame {io.natural_frame!r}"
@@ -70,3 +75,23 @@ def check_robot_model(model: RobotModel, rng=None) -> None:
         assert np.shape(state) == (nx,), f"{name}: ros_io.state gives {np.shape(state)}, not ({nx},)"
         lin, ang = io.body_twist(model, u, state, pose.quaternion)
         assert np.shape(lin) == np.shape(ang) == (3,), f"{name}: ros_io.body_twist shapes"
+
+
+def _check_point_map(model, name: str, rng) -> None:
+    """The point map's velocity and commands invert each other, instantaneous and held 0.05 s."""
+    m = type(model).point_map
+    if m is None:
+        return
+    nx = len(model.state_columns)
+    X = rng.uniform(-1, 1, (4, nx))
+    U = model.saturate(0.5 * rng.uniform(-1, 1, (4, len(model.command_columns))))
+    for dt in (None, 0.05):
+        V = np.asarray(m.velocity(model, X, U, dt))
+        assert V.shape == (4, 3), f"{name}: point_map.velocity gives {V.shape}, not (4, 3)"
+        assert not m.planar or np.all(V[:, 2] == 0.0), f"{name}: a planar point's velocity has a z entry"
+        back = m.commands(model, X, U, V, dt)
+        np.testing.assert_allclose(back, U, rtol=1e-9, atol=1e-12, err_msg=f"{name}: point_map.commands(velocity) != u")
+        s = np.asarray(m.factor(model, X, back, V, dt))
+        assert s.shape == (4,) and np.all((s >= 0.0) & (s <= 1.0)), f"{name}: point_map.factor {s}"
+        np.testing.assert_allclose(m.scaled(model, X, back, V, np.ones(4), dt), back, rtol=1e-9, atol=1e-12,
+                                   err_msg=f"{name}: point_map.scaled by 1 changes the commands")

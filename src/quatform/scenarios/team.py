@@ -42,7 +42,8 @@ from ..checks import (
     text,
     vector,
 )
-from ..control import TEAM_CONTROLLERS, TEAM_GAIN_KEYS, Reference, team_controller
+from ..control import TEAM_CONTROLLERS, Reference, team_controller
+from ..control.team import team_descriptions, team_gain_sizes
 from ..control.safety import SafeController, SeparationBarrier, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
@@ -63,6 +64,7 @@ from ..references.team_motion import (
     Turn,
     template_positions,
 )
+from ..registry import RegistryView
 from ..robots import Team, file_models
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
@@ -87,32 +89,19 @@ TEAM_BYTES_PER_ROBOT_STEP = 2.5e3
 TEAM_SECONDS_PER_ROBOT_STEP = 5e-5
 _SECONDS_PER_STEP = 2e-3
 
-#: Seed 000 Tables 1 and 2 for teams, by controller, with the keys each role reads
-#: (``control.TEAM_GAIN_KEYS``). Quaternion (eq. (20)): ``K_x, k_d, K_w`` as printed, the
-#: robots' yaws at ``K_w``'s rate (the pair's ``q_ci`` are eq. (20) blocks with ``K_w``);
-#: dual quaternion (eq. (28)): ``K_dw``, yaws at its rate; robot space: the printed
-#: ``K_RS`` of robot 1 (``x, y, z, theta``) for every robot; cluster space: ``K_CS``'s
-#: position gains on the centroid, its angle gain (``beta_c``) on angles and yaws, its
-#: ``d_c`` gain on shape variables.
-TEAM_TABLES = {
-    "table1": {
-        "quaternion": {"k_x": [2.0, 2.0, 2.0], "k_d": 20.0, "k_w": [20.0, 20.0, 20.0], "k_theta": 20.0},
-        "dual-quaternion": {"k_dw": [15.0, 15.0, 15.0], "k_theta": 15.0},
-        "cluster-space": {"k_x": [1.0, 1.0, 1.0], "k": 10.0, "k_d": 5.0, "k_w": [10.0, 10.0, 10.0],
-                          "k_theta": 10.0, "k_p": [1.0, 1.0, 1.0]},
-        "robot-space": {"k_p": [1.5, 1.5, 1.5], "k_theta": 6.0},
-    },
-    "table2": {
-        "quaternion": {"k_x": [0.7, 0.7, 0.7], "k_d": 0.4, "k_w": [1.0, 1.0, 1.0], "k_theta": 1.0},
-        "dual-quaternion": {"k_dw": [0.5, 0.5, 0.5], "k_theta": 0.5},
-        "cluster-space": {"k_x": [0.06, 0.06, 0.03], "k": 0.02, "k_d": 0.03, "k_w": [0.02, 0.02, 0.02],
-                          "k_theta": 0.03, "k_p": [0.06, 0.06, 0.03]},
-        "robot-space": {"k_p": [0.06, 0.06, 0.03], "k_theta": 0.02},
-    },
-}
-#: Every gain key a team law reads, and how many numbers it takes (1: a scalar; 3: 3 or 1).
-_GAIN_SIZES = {"k_x": 3, "k_d": 1, "k_w": 3, "k_dw": 3, "k_p": 3, "k_theta": 1, "k": 1}
-assert set(_GAIN_SIZES) == {key for _, key, _ in TEAM_GAIN_KEYS.values()}
+def _tables() -> dict:
+    """``{table: {controller: gains}}`` of the registered team descriptions' ``gain_tables``."""
+    tables = {}
+    for name, cls in team_descriptions().items():
+        for table, gains in cls.gain_tables.items():
+            tables.setdefault(table, {})[name] = gains
+    return tables
+
+
+#: Seed 000 Tables 1 and 2 for teams, by table and controller: each registered team
+#: description's ``gain_tables`` (read-only; the keys each role reads are
+#: ``control.TEAM_GAIN_KEYS``).
+TEAM_TABLES = RegistryView(_tables, "TEAM_TABLES")
 
 #: What moves the robots: their kinematic models, or MuJoCo physics (quadrotors and Pioneers,
 #: :func:`quatform.sim.plants.mujoco_team.team_plant`).
@@ -122,9 +111,7 @@ TEAM_PHYSICS = ("kinematic", "mujoco")
 def available_controllers() -> tuple[str, ...]:
     """The team controllers whose description is registered (``formations.TEAM_FORMATIONS``),
     in :data:`quatform.control.TEAM_CONTROLLERS` order: what ``--controller`` and ``compare`` offer."""
-    from ..formations import TEAM_FORMATIONS as CLASSES
-
-    return tuple(name for name, key in TEAM_CONTROLLERS.items() if key in CLASSES)
+    return tuple(TEAM_CONTROLLERS)
 
 
 # --------------------------------------------------------------------------- robot models
@@ -416,13 +403,13 @@ def _gains(data: dict, where: str, dt: float) -> dict:
         own = g
     else:
         raise InvalidInputError(f"{where}: gains = {short(g)} must be 'table1', 'table2' or a [gains] table")
-    gains = {}
+    gains, sizes, tables = {}, team_gain_sizes(), TEAM_TABLES[base]
     for name in TEAM_CONTROLLERS:
         place = f"[gains.{name}]"
         mine = table(own, name, where, "[gains]", default={})
-        check_keys(mine, _GAIN_SIZES, where, place, _HINT)
-        gains[name] = dict(TEAM_TABLES[base][name])
-        for key, size in _GAIN_SIZES.items():
+        check_keys(mine, sizes, where, place, _HINT)
+        gains[name] = dict(tables.get(name, {}))
+        for key, size in sizes.items():
             if key in mine:
                 gains[name][key] = _gain(mine, key, size, where, place)
     k = max(float(x) for gg in gains.values() for v in gg.values() for x in np.ravel(v))
@@ -586,8 +573,7 @@ class TeamKind(ScenarioKind):
 
     name = "team"
     scenario_type = TeamScenario
-    options = (
-        Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
+    _OTHER_OPTIONS = (
         Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
         Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", TEAM_PHYSICS, "kinematic"),
         Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
@@ -595,6 +581,12 @@ class TeamKind(ScenarioKind):
                "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
     )
     compare_over = "controller"
+
+    @property
+    def options(self) -> tuple:
+        """The run's options; the controller's choices are the team descriptions registered now."""
+        return (Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
+                *self._OTHER_OPTIONS)
     table_columns = TEAM_TABLE_COLUMNS
 
     def from_dict(self, data: dict, where: str) -> TeamScenario:

@@ -4,7 +4,7 @@
 :class:`~quatform.robots.HolonomicRobot` (a 4-DOF ``xyz_yaw`` robot) is flown as an
 IRIS-like quadrotor in PX4-like velocity mode (the pair plant's model and cascade), each
 :class:`~quatform.robots.Pioneer` is driven as the Pioneer 3-DX-like differential-drive
-robot of the UGV-UAV plant (:data:`PHYSICS_KINDS`). The plant has the interface of
+robot of the UGV-UAV plant (each model's :attr:`~quatform.robots.RobotModel.physics_kind`). The plant has the interface of
 :class:`~quatform.sim.plants.KinematicTeam`: state and output the team's stacked robot
 state (``team.state_columns``: a quadrotor's ``(x, y, z, theta)`` with its yaw continued,
 a Pioneer's control point and heading ``(x, y, psi)``), commands the team's commands
@@ -30,32 +30,34 @@ import math
 import numpy as np
 
 from ...errors import InvalidInputError
-from ...robots import HolonomicRobot, Pioneer, Team
+from ...robots import ROBOT_MODELS, Team
 from ...robots.physics import PIONEER_3DX
 from ..mujoco_backend import PhysicsWorld, physics_timestep
 from .mujoco import WorldPlant, start_state
 
-__all__ = ["PHYSICS_KINDS", "TeamPlant", "physics_kinds", "team_plant"]
+__all__ = ["TeamPlant", "physics_kinds", "simulated_models", "team_plant"]
 
-#: The physical robot a robot model class is simulated as: ``"quadrotor"`` (an IRIS in
-#: PX4-like velocity mode, state ``(x, y, z, theta)``, commands ``(v_x, v_y, v_z, omega_z)``)
-#: or ``"diff-drive"`` (a Pioneer 3-DX, state its control point and heading, commands
-#: ``(v, omega)``).
-PHYSICS_KINDS = {HolonomicRobot: "quadrotor", Pioneer: "diff-drive"}
+def simulated_models() -> dict:
+    """The registered robot model classes the MuJoCo physics simulates, each with its
+    :attr:`~quatform.robots.RobotModel.physics_kind`: ``"quadrotor"`` (an IRIS in PX4-like
+    velocity mode, state ``(x, y, z, theta)``, commands ``(v_x, v_y, v_z, omega_z)``) or
+    ``"diff-drive"`` (a Pioneer 3-DX, state its control point and heading, commands ``(v,
+    omega)``)."""
+    return {cls: cls.physics_kind for cls in ROBOT_MODELS.values() if cls.physics_kind is not None}
 
 
 def physics_kinds(team: Team, what: str = "team_plant") -> list:
-    """Each robot's :data:`PHYSICS_KINDS` value; a robot the MuJoCo physics cannot simulate
+    """Each robot's :attr:`~quatform.robots.RobotModel.physics_kind`; a robot the MuJoCo physics cannot simulate
     (or a ``team`` that is not a :class:`~quatform.robots.Team`) is one line naming it."""
     if not isinstance(team, Team):
         raise InvalidInputError(f"{what}: team must be a quatform.robots.Team, got {type(team).__name__}")
     kinds = []
     for i, robot in enumerate(team.robots):
-        kind = PHYSICS_KINDS.get(type(robot))
+        kind = robot.physics_kind
         if kind is None:
             raise InvalidInputError(
                 f"{what}: robot {i + 1} is a {type(robot).__name__} (point kind {robot.point_kind!r}), which the "
-                f"MuJoCo physics cannot simulate; use {' or '.join(c.__name__ for c in PHYSICS_KINDS)} models "
+                f"MuJoCo physics cannot simulate; use {' or '.join(c.__name__ for c in simulated_models())} models "
                 "(a quadrotor, a Pioneer 3-DX) or the kinematic physics (--physics kinematic)")
         kinds.append(kind)
     return kinds
@@ -72,7 +74,7 @@ class TeamPlant(WorldPlant):
     Parameters
     ----------
     team : Team
-        Its robots' models, each a key of :data:`PHYSICS_KINDS`.
+        Its robots' models, each with a ``physics_kind``.
     x0 : array_like, shape (team.n_state,)
         The start: every quadrotor's ``(x, y, z, theta)`` (m, rad), every Pioneer's
         control point and heading.
@@ -91,7 +93,7 @@ class TeamPlant(WorldPlant):
     ----------
     team : Team
     kinds : tuple of str
-        Each robot's :data:`PHYSICS_KINDS` value.
+        Each robot's ``physics_kind``.
     names : tuple of str
         ``robot1 ... robotN`` (the world's body names, the record's robots).
     """
