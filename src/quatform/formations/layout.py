@@ -276,7 +276,7 @@ class RobotLayout:
         difference within :data:`~quatform.algebra.angles.TIE_TURNS` turns short of half a turn
         is half a turn)."""
         idx = self.yaw_indices
-        if r.ndim == 1 and r_ref.ndim == 1:  # one state: Python floats
+        if r.ndim == 1 and r_ref.ndim == 1 and concrete(r) and concrete(r_ref):  # one state: Python floats
             out = r.tolist()
             ref = r_ref.tolist()
             for i in idx:
