@@ -706,10 +706,11 @@ def simulate_jax(plant, controller, reference: Callable, times, x0, *, dt: float
 
 
 def compiled_run(jax, plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms,
-                 reduce=None):
+                 reduce=None, extra=None):
     """The compiled scan of the loop's tick and its inputs: ``(run, carry, xs, (carry_axes,
     xs_axes))`` for :func:`scan_ticks` over the ``B`` worlds of ``batch`` (flattened), the
     controller's :meth:`reference_arrays` of every tick stacked with a leading T axis.
+    ``extra``: more per-tick inputs (name -> ``(T, ...)``, the same for every world) for
     ``reduce``: ``(init(carry) -> acc, step(acc, ys, xs) -> acc)``, a reduction of each tick's
     outputs carried beside the loop's carry instead of the outputs (a rollout that keeps no
     log, :mod:`.jax_rollout`); the compiled entry is cached by :func:`config_key` (and
@@ -728,7 +729,7 @@ def compiled_run(jax, plant, controller, measurement, reference, times, dt, subs
     carry = (xb, map_worlds(tree_map(np.asarray, controller.init(batch)), batch, flat),
              map_worlds(tree_map(np.asarray, ms), batch, flat),
              np.full(B, -1, dtype=np.int64), np.zeros(B, dtype=np.int64))
-    xs = {"t": times, "ref": refs, "meas": sched, "plant": inputs}
+    xs = {"t": times, "ref": refs, "meas": sched, "plant": inputs, **(extra or {})}
 
     def build():
         tick = make_tick(plant, controller, measurement, dt, substeps)
