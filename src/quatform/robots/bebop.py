@@ -161,7 +161,7 @@ class Bebop(RobotModel):
 
     def point(self, x) -> np.ndarray:
         """The position ``(x, y, z)`` of the state, shape ``(..., 3)``."""
-        return np.asarray(x, dtype=float)[..., 0:3]
+        return _float(x)[..., 0:3]
 
     def initial_memory(self, batch: tuple = ()) -> BebopMemory:
         """The compensation's memory before the first step (:meth:`BebopMemory.start`)."""

@@ -99,7 +99,7 @@ class FreeBodyRobot(RobotModel):
 
     def point(self, x) -> np.ndarray:
         """The pose point: the state itself, shape ``(..., 7)``."""
-        return np.asarray(x, dtype=float)
+        return as_floats(x)
 
     def initial_memory(self, batch: tuple = ()):
         """None: its actuation remembers nothing."""

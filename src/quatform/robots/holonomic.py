@@ -94,7 +94,7 @@ class HolonomicRobot(RobotModel):
 
     def point(self, x) -> np.ndarray:
         """The 4-DOF point: the state itself, shape ``(..., 4)``."""
-        return np.asarray(x, dtype=float)
+        return as_floats(x)
 
     def initial_memory(self, batch: tuple = ()):
         """None: its actuation remembers nothing."""

@@ -84,7 +84,7 @@ class PlanarHolonomicRobot(RobotModel):
 
     def point(self, x) -> np.ndarray:
         """The planar point: the state itself, shape ``(..., 3)``."""
-        return np.asarray(x, dtype=float)
+        return as_floats(x)
 
     def initial_memory(self, batch: tuple = ()):
         """None: its actuation remembers nothing."""

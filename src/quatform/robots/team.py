@@ -321,8 +321,9 @@ class Team:
 
     # -- the robots together --------------------------------------------------------------
     def point(self, x) -> np.ndarray:
-        """The robot state of the formation: every robot's point, shape ``(..., layout.size)``."""
-        x = np.asarray(x, dtype=float)
+        """The robot state of the formation: every robot's point, shape ``(..., layout.size)``
+        (any array namespace)."""
+        x = as_floats(x)
         return self.scatter([g.model.point(xg) for g, xg in zip(self.groups, self.gather(x))], "point", x.shape[:-1])
 
     def initial_memory(self, batch: tuple = ()) -> tuple:
