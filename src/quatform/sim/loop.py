@@ -45,6 +45,7 @@ initial state, measurement schedule and reference; its channels replace the JAX 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 
@@ -157,8 +158,8 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         def plant_step(x, u, t, w):
             return plant.step(x, u, dt, t) if w is None else plant.step(x, u, dt, t, w)
     else:
-        def plant_step(x, u, t, w):
-            return step(x, u, dt, t, w)
+        def plant_step(x, u, t, w, failed=None):
+            return step(x, u, dt, t, w, failed)
 
     def substep_inputs(xs, j):
         w = xs.get("plant")
@@ -194,7 +195,8 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         state = tree_map(lambda a, b: _where(xp, bad, a, b), cs, out.state) if hold_state else out.state
         x_next = x
         for j in range(substeps):
-            x_new = plant_step(x_next, u, xs["t"] + j * dt, substep_inputs(xs, j))
+            x_new = (plant_step(x_next, u, xs["t"] + j * dt, substep_inputs(xs, j)) if step is None else
+                     plant_step(x_next, u, xs["t"] + j * dt, substep_inputs(xs, j), reason > 0))
             broken = (reason == 0) & ~xp.all(xp.isfinite(x_new), axis=-1)
             fail_tick = xp.where(broken, xs["k"], fail_tick)
             reason = xp.where(broken, PLANT_CODE + j, reason)
@@ -279,9 +281,12 @@ class HostWorlds:
                 continue
             return Tick(step.state, np.asarray(step.u, dtype=float), step.signals, code)
 
-    def step(self, x, u, dt: float, t: float, w=None):
-        """``plant.step`` on the batch: a failed world steps a healthy world's state; a world
-        the plant refuses is marked failed with its message and returned NaN."""
+    def step(self, x, u, dt: float, t: float, w=None, failed=None):
+        """``plant.step`` on the batch: a failed world (``failed``, bool of the batch shape:
+        the loop's failures up to this substep) steps a healthy world's state; a world the
+        plant refuses is marked failed with its message and returned NaN."""
+        if failed is not None:
+            self.failed = np.asarray(failed, dtype=bool)
         healthy = self._healthy()
         if healthy is None:
             return x
@@ -294,7 +299,7 @@ class HostWorlds:
         except WORLD_ERRORS as exc:
             new = self._find(lambda idx: _plant_step(self.plant, x_in[idx], np.asarray(u)[idx], dt, t, w),
                              f"t = {t:g} s: the plant refused the world's state: ", exc)
-            return np.where(new[..., None], np.nan, self.step(x, u, dt, t, w))
+            return np.where(new[..., None], np.nan, self.step(x, u, dt, t, w))  # the others, as they are
 
 
 def check_ticks(times, substeps, dt, who: str = "simulate"):
@@ -407,8 +412,11 @@ def _iterate(plant, controller, measurement, reference, times, dt, substeps, x, 
     one-line reason (a run of one world raises it)."""
     n = times.size
     inputs = plant_inputs(plant, times, dt, substeps)
-    host = HostWorlds(batch, controller, plant) if batch and not controller.pure else None
-    tick = make_tick(plant, controller, measurement, dt, substeps, control=None if host is None else host.tick,
+    # a batch's worlds on the host: a failed world steps a healthy world's state (the plant
+    # refuses a state that is not finite), and update's failures are found world by world
+    host = HostWorlds(batch, controller, plant) if batch else None
+    tick = make_tick(plant, controller, measurement, dt, substeps,
+                     control=None if host is None or controller.pure else host.tick,
                      step=None if host is None else host.step, freeze=bool(batch))
     carry = (x, controller.init(batch), ms, np.full(batch, -1, dtype=np.int64), np.zeros(batch, dtype=np.int64))
     pure = controller.pure
@@ -595,9 +603,11 @@ def _fingerprint(value, depth: int = 0):
             return (type(value), hash(value), value)
         except TypeError:
             pass
-    if hasattr(value, "__dict__"):
-        return (type(value),) + _fingerprint({k: v for k, v in vars(value).items() if not k.startswith("_")},
-                                             depth + 1)
+    if hasattr(value, "__dict__"):  # its public attributes, not what it caches (cached_property)
+        cls = type(value)
+        return (cls,) + _fingerprint({k: v for k, v in vars(value).items() if not k.startswith("_")
+                                      and not isinstance(getattr(cls, k, None), functools.cached_property)},
+                                     depth + 1)
     return ("id", id(value))
 
 
