@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from ..algebra.kernels import hold
 from ..errors import InvalidInputError, ShapeError
 from ..formations.base import PAIR_LAYOUT
 from . import jax_devices
@@ -154,19 +155,6 @@ def _reason(ctrl, reference, times, measurement, sched, ms, plant, x, dt, subste
     if (0,) in failure:
         return failure[(0,)]
     return f"t = {times[k]:g} s: {ctrl.failure_reasons.get(int(reason[idx]), 'failure code ' + str(int(reason[idx])))}"
-
-
-def hold(a):
-    """``a`` (``(B, k)``) computed once: ``a @ I``.
-
-    XLA's CPU fusion recomputes a chain of cheap operations inside every fused loop that
-    consumes it (each error signal would recompute the robots' geometry); a ``dot`` is not
-    fused, so its operand is computed once. The product is exact for finite values
-    (``a_ik 1 + sum of +-0``), except that ``-0.0`` becomes ``+0.0``.
-    """
-    import jax.numpy as jnp
-
-    return a @ jnp.eye(a.shape[-1], dtype=a.dtype)
 
 
 @functools.lru_cache(maxsize=None)
