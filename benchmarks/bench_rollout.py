@@ -7,7 +7,7 @@ Three measurements, printed as ratios in one run:
    measurement), ``--ticks`` control ticks: the controller, the team's saturation and the
    plant every tick. Robot-steps = worlds x robots (2) x ticks. NumPy:
    :func:`quatform.sim.simulate` (the reference, one Python iteration per tick, every channel
-   logged); JAX: :func:`quatform.sim.jax_rollout.rollout_metrics` (the same compiled tick as
+   logged); JAX: :func:`quatform.sim.jax_rollout.rollout_metrics` (the loop's compiled tick, as
    the ``jax`` backend, the metrics reduced as it runs; compile time excluded: the best of
    ``--repeat`` runs after one warm-up; the batch in chunks split over JAX's devices, one
    CPU device per core: :mod:`quatform.sim.jax_devices`).
@@ -163,7 +163,7 @@ def main(argv=None):
     out = {"rollouts": {}}
     if jax is not None:
         from quatform.sim import jax_devices
-        from quatform.sim.jax_loop import require_jax
+        from quatform.sim.loop import require_jax
 
         devices = require_jax().devices()
         size = jax_devices.chunk_size(jax, args.worlds)

@@ -287,3 +287,25 @@ def test_free_body_team_tick_is_update_and_jit_equals_numpy(controller):
     x = _broken(x, (slice(0, 3), slice(7, 10)))
     assert safe.inner.tick(None, x, safe.inner.reference_arrays(ref), 0.0).code.tolist() == [0, 2, 1, 1, 0]
     _assert_jax_equals_numpy(safe.inner, x, [ref, _flipped(safe.inner, ref)])
+
+
+# -- the team chain on NumPy: the same floats as update() ------------------------------------------
+
+TEAM_CONTROLLERS = ("quaternion", "dual-quaternion", "cluster-space", "robot-space")
+
+
+@pytest.mark.parametrize("scenario", ["team-tetrahedron-helix", "team-three-bodies", "team-triangle-over-ugv"])
+@pytest.mark.parametrize("controller", TEAM_CONTROLLERS)
+def test_chain_on_numpy_is_update_bitwise(scenario, controller):
+    exp = KINDS["team"].experiment(short_scenario(scenario), controller=controller)
+    ctrl = exp.controller.inner
+    rng = np.random.default_rng(0)
+    x = exp.x0[None] + 0.05 * rng.standard_normal((3, exp.x0.size))
+    ref = exp.reference(10)
+    step = ctrl.update(0.0, x, ref)
+    c, err, r_dot = ctrl.chain(ctrl.formation.align(x, ref.robots), ref.c, ref.c_dot)
+    assert np.array_equal(c, step.signals["cluster"])
+    assert np.array_equal(err, step.signals["error"])
+    team, r = ctrl.team, ctrl.formation.align(x, ref.robots)
+    u = r_dot if team.passthrough else team.actuate(r, r_dot, 0.0, team.initial_memory((3,)))[0]
+    assert np.array_equal(team.saturate(u), step.u)

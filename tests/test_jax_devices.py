@@ -47,7 +47,7 @@ import dataclasses, json, sys
 import numpy as np
 from conftest import assert_logs_equal, short_scenario
 from quatform.scenarios.pair import PAIR
-from quatform.sim.jax_loop import require_jax
+from quatform.sim.loop import require_jax
 from quatform.sim.jax_rollout import rollout_metrics
 from quatform.sim.metrics import compute_metrics
 from quatform.sim.trial_measurement import TickMeasurement
@@ -98,7 +98,7 @@ if sys.argv[1].startswith("share"):
     share_cores(int(sys.argv[1][5:]))  # a sweep's worker among others
 elif sys.argv[1] != "0":
     jax.config.update("jax_num_cpu_devices", int(sys.argv[1]))  # the user's choice
-from quatform.sim.jax_loop import require_jax
+from quatform.sim.loop import require_jax
 print(json.dumps({"devices": len(require_jax().devices())}))
 """
 
@@ -125,7 +125,7 @@ from quatform.scenarios.pair import PAIR
 ex = PAIR.experiment(load_scenario("mas-kitts-spiral"), controller="quaternion")
 ex = dataclasses.replace(ex, times=ex.times[:40], x0=ex.x0 + np.linspace(0.0, 0.02, 3)[:, None],
                          finish=lambda log: log)
-from quatform.sim.jax_loop import require_jax
+from quatform.sim.loop import require_jax
 jax = require_jax()
 jax.config.update("jax_log_compiles", True)  # JAX logs its persistent cache's hits and misses
 import logging

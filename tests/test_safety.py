@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import BACKEND_TOL as TOL
+from hypothesis import given, settings, strategies as st
 from scipy.optimize import minimize, nnls
 
 from quatform.control import DualQuaternionController, Reference
@@ -373,3 +375,55 @@ def test_a_lost_robot_does_not_switch_the_barrier_off_for_the_others():
     one[0] = np.nan
     _, info1 = barrier.filter(team, one, u)  # two robots lost: no pair left
     assert np.isnan(info1.min_separation)
+
+
+# -- the barrier's array algorithm (control.barrier) against SeparationBarrier.filter ------------------------------------------------------
+
+TEAMS = {"two 4-DOF": (HolonomicRobot(), HolonomicRobot()),
+         "four mixed": (HolonomicRobot(), PlanarHolonomicRobot(), HolonomicRobot(), PlanarHolonomicRobot()),
+         "six planar": (PlanarHolonomicRobot(),) * 6}
+_KERNELS = {}
+
+
+def _kernel(name, barrier):
+    import jax
+    import jax.numpy as jnp
+
+    from quatform.control.barrier import barrier_filter
+
+    key = (name, barrier)
+    if key not in _KERNELS:
+        team = Team(TEAMS[name])
+        _KERNELS[key] = team, jax.jit(lambda m, u: barrier_filter(barrier, team, m, u, jnp.ones(m.shape[0], dtype=bool)))
+    return _KERNELS[key]
+
+
+@pytest.mark.parametrize("name", list(TEAMS))
+@pytest.mark.parametrize("range_m", [None, 0.8])
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_kernel_equals_the_exact_programme(name, range_m, seed):
+    jax = pytest.importorskip("jax")
+    barrier = SeparationBarrier(0.3, gamma=5.0, range_m=range_m)
+    team, kernel = _kernel(name, barrier)
+    rng = np.random.default_rng(seed)
+    B = 4
+    x = np.empty((B, team.n_state))
+    for w in range(B):  # robots within 1.2 m of each other, at least the barrier's 0.3 m apart
+        while True:
+            p = rng.uniform(-0.6, 0.6, (len(team.robots), 3))
+            p[:, 2] = np.where([isinstance(r, PlanarHolonomicRobot) for r in team.robots], 0.0, p[:, 2])
+            d = np.linalg.norm(p[:, None] - p[None], axis=-1) + 9.0 * np.eye(len(p))
+            if d.min() >= 0.31:
+                break
+        x[w] = np.concatenate([np.append(pk[:2 if isinstance(r, PlanarHolonomicRobot) else 3], rng.uniform(-3, 3))
+                               for pk, r in zip(p, team.robots)])
+    u = team.saturate(rng.uniform(-2.0, 2.0, (B, team.n)))
+    expected, info = barrier.filter(team, x, u)
+    with jax.enable_x64(True):
+        got, sep, active, solved = (np.asarray(v) for v in kernel(x, u))
+    assert np.all(solved)
+    np.testing.assert_array_equal(active, info.active)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=TOL)
+    np.testing.assert_array_equal(got[~active], u[~active])  # no pair binds: the commands bitwise
+    np.testing.assert_allclose(sep.min(axis=-1), info.min_separation, rtol=0, atol=1e-12)

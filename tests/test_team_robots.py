@@ -249,3 +249,46 @@ def test_seed000_pair_team_is_unchanged():
     u = np.array([10.0, 0, 0, 0, 1.0, 0, 0, 0])
     np.testing.assert_array_equal(t.saturate(u), np.array([x * 0.25 for x in u]))
     assert t.passthrough and t.common_limit and len(t.groups) == 1
+
+
+# -- the team's kernels under jax.jit -----------------------------------------------------------------
+
+def test_team_kernels_under_jit_equal_numpy():
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    from quatform.control.safety import POINT_MAPS, SeparationBarrier
+    from quatform.control.barrier import point_velocities
+
+    barrier = SeparationBarrier(0.3, gamma=5.0, dt_s=0.02)
+    robots = (Pioneer(point_kind="xy_yaw"), FreeBodyRobot(max_speed=1.0), HolonomicRobot(max_speed=0.9),
+              PlanarHolonomicRobot(), FreeBodyRobot(max_speed=1.0), Pioneer(point_kind="xy_yaw"))
+    rng = np.random.default_rng(3)
+    B = 64
+    for team in (Team(robots), Team(robots[1:5])):
+        x = rng.standard_normal((B, team.n_state))
+        for g in team.groups:  # unit quaternions for the free bodies
+            if type(g.model) is FreeBodyRobot:
+                for sl in (team.state_slices[i] for i in g.robots):
+                    q = x[:, sl][:, 3:7]
+                    x[:, sl.start + 3:sl.stop] = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        rate = 2.0 * rng.standard_normal((B, team.n_rate))
+        u = 2.0 * rng.standard_normal((B, team.n))
+        u[0] = 0.0  # the Pioneer's straight step (omega dt below 1e-9), a free body's zero turn
+        u[1, 1] = 1e-12
+        u[2, 3] = np.nan  # a non-finite command
+        u[3] *= 1e-3  # within the limits
+        us = team.saturate(u)
+        with jax.enable_x64(True):
+            f = jax.jit(lambda x, r, u, us: (team.actuate(x, r, 0.0, team.initial_memory((B,)))[0], team.saturate(u),
+                                             team.step(x, u, 0.02), team.scatter(team.gather(x), "state"),
+                                             point_velocities(barrier, team, x, us)))
+            out = [np.asarray(v) for v in f(*(jnp.asarray(a) for a in (x, rate, u, us)))]
+        # each robot's point velocity on its own (SeparationBarrier.filter's map of its model)
+        V = np.stack([POINT_MAPS[type(rb)].velocity(rb, x[:, ss], us[:, cs], barrier.dt_s) for rb, ss, cs in
+                      zip(team.robots, team.state_slices, team.command_slices)], axis=1)
+        want = (team.actuate(x, rate, 0.0, team.initial_memory((B,)))[0], us, team.step(x, u, 0.02), x, V)
+        for name, got, ref in zip(("actuate", "saturate", "step", "scatter", "point_velocities"), out, want):
+            assert got.shape == ref.shape, name
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12, err_msg=name)
+        assert np.all(want[1][2] == 0.0) == team.common_limit  # a common-limit team stops as a whole

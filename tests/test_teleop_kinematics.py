@@ -168,3 +168,23 @@ def test_generalized_inverse_eq_13_minimises_kinetic_energy(q, xd):
         other = best + s * null
         np.testing.assert_allclose(J @ other, J @ best, atol=1e-9)
         assert other @ M @ other >= best @ M @ best - 1e-12
+
+
+def test_shepperd_selection_on_jax_is_the_float_branch():
+    """``q_from_rotation`` on JAX computes all four branches and selects: each of them taken
+    (turns of pi about x, y, z take branches 1-3) gives the float path's quaternion."""
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    from quatform.algebra import matrix_from_q
+    from quatform.teleop.kernels import q_from_rotation
+
+    rng = np.random.default_rng(5)
+    q = rng.standard_normal((40, 4))
+    q = np.vstack([q / np.linalg.norm(q, axis=1, keepdims=True), np.eye(4), [[0.0, 1.0, 1e-9, 0.0]]])
+    R = matrix_from_q(q)
+    with jax.enable_x64(True):
+        got = np.stack(jax.jit(q_from_rotation)(jnp.asarray(R)), axis=-1)
+    want = np.array([q_from_rotation(r) for r in R])
+    assert {int(np.argmax(np.abs(w))) for w in want} == {0, 1, 2, 3}
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)

@@ -13,7 +13,7 @@ import quatform.report.ugv_uav_plots as uplots
 from quatform.control import Reference, UgvUavController
 from quatform.errors import InvalidInputError
 from quatform.formations import UgvUavQuaternion, UgvUavRestricted
-from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_metrics
+from quatform.scenarios.ugv_uav import simulate_ugv_uav, ugv_uav_experiment, ugv_uav_metrics
 from quatform.scenarios import load_scenario
 
 LIMITS = {  # (cluster / UGV, UAV) after the transient
@@ -283,3 +283,28 @@ def test_restricted_run_with_an_unreachable_start_gets_real_plots(monkeypatch, t
         title = fig._suptitle.get_text() if fig._suptitle is not None else fig.axes[0].get_title()
         assert "Marciano 2021" in title and "seed 001" not in title
         assert sum(len(ax.lines) for ax in fig.axes) >= 4  # axes with data, not a text-only figure
+
+
+#: A lossy lab: noise on positions and orientations, latency, lost and glitched frames.
+MOCAP_FAULTS = dict(duration_s=6.0, mocap_noise_m=0.003, mocap_noise_rad=0.01, mocap_latency_s=0.013,
+                    mocap_dropout_rate=0.5, mocap_glitch_rate=0.2, transient_s=1.0)
+
+
+def test_schedule_replays_the_streams():
+    """MotionCapture.schedule draws a frame's draws from the world's own streams (world i:
+    seed + i; a batch of one world reads what one world reads)."""
+    sc = dataclasses.replace(load_scenario("marciano-circle"), **MOCAP_FAULTS)
+    exp = ugv_uav_experiment(sc, "quaternion")
+    mocap = exp.measurement
+    s = mocap.schedule(exp.times[:20], exp.dt, exp.substeps)
+    assert s["new"][0] and s["turns"].shape == (20, 2, 4)
+    noise, turns, lost, glitched = mocap._draw(*mocap._streams(mocap.seed))
+    np.testing.assert_array_equal(noise, s["noise"][0])
+    np.testing.assert_array_equal(turns, s["turns"][0])
+    assert (lost, glitched) == (s["lost"][0], s["glitched"][0])
+    b = mocap.schedule(exp.times[:20], exp.dt, exp.substeps, (1, 2))
+    for key, v in s.items():
+        np.testing.assert_array_equal(b[key][:, 0, 0], v, err_msg=key)
+    assert not np.array_equal(b["noise"][:, 0, 1], s["noise"])
+    np.testing.assert_array_equal(b["noise"][:, 0, 1][s["new"]][0],
+                                  mocap._draw(*mocap._streams(mocap.seed + 1))[0])

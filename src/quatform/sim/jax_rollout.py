@@ -1,39 +1,32 @@
 """Batched rollouts on JAX reduced to every trial's metrics as they run (sim layer).
 
 A Monte Carlo of 10^4 trials of 6000 ticks would log 6 * 10^7 world-ticks of every channel
-(tens of GB). :func:`rollout_metrics` runs the same compiled tick as
-:func:`quatform.sim.jax_loop.simulate` (``pip install -e ".[jax]"``) and keeps only running
-reductions of the error signals of :func:`quatform.sim.metrics.robot_errors` (the
-representation-independent errors of seed 000's pair, from the robots' poses): each
-trial's metrics come back as arrays over the batch, with the keys and the values of
-:func:`quatform.sim.metrics.compute_metrics` (equal within 1e-9 in tests). Two metrics need
-more than the robots' poses and are left out: the singularity measure (an SVD of the
-description's Jacobian per tick) and the recovered Euclidean error (the description's
-chart); a sweep that needs them runs :func:`~quatform.sim.jax_loop.simulate` and
-``Experiment.metrics`` on a logged batch.
+(tens of GB). :func:`rollout_metrics` runs the loop's one compiled tick
+(:func:`quatform.sim.loop.compiled_run`, the scan of :func:`quatform.sim.loop.simulate_jax`;
+``pip install -e ".[jax]"``) and carries, beside the loop's carry, running reductions of the
+error signals of :func:`quatform.sim.metrics.robot_errors` (the representation-independent
+errors of a two-robot formation, from the robots' poses against the reference's
+``robots``): each trial's metrics come back as arrays over the batch, with the keys and the
+values of :func:`quatform.sim.metrics.compute_metrics` (equal within 1e-9 in tests). It
+reduces any experiment of two kinematic robots whose reference gives the robots (the pair
+kind, with or without the separation barrier). Two metrics need the description's chart,
+whose formulas run on NumPy only, and are left out: the singularity measure and the
+recovered Euclidean error; a sweep that needs them runs
+:func:`~quatform.sim.loop.simulate_jax` and ``Experiment.metrics`` on a logged batch.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from ..algebra.kernels import hold
 from ..errors import InvalidInputError, ShapeError
+from ..formations.base import PAIR_LAYOUT
 from . import jax_devices
-from .jax_loop import (
-    FAILURE_REASONS,
-    cached,
-    check_supported,
-    check_ticks,
-    config_key,
-    hold,
-    initial_carry,
-    require_jax,
-    stack_reference,
-    team_parts,
-    tick_function,
-)
+from .loop import check_ticks, compiled_run, require_jax, scan_ticks, tree_map
 from .metrics import LOST_ANGLE_RAD, LOST_POSITION_M, robot_errors
 from .measurement import PerfectMeasurement
 from .trial_measurement import TickMeasurement
@@ -80,11 +73,12 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     jax = require_jax()
     plant, ctrl = experiment.plant, experiment.controller
     measurement = experiment.measurement if measurement is None else measurement
-    check_supported(plant, ctrl, measurement)
-    if team_parts(ctrl) is not None:
-        raise InvalidInputError("rollout_metrics rolls out the pair kind's experiments; a team experiment runs on jax "
-                                "through its log (Experiment.run(backend='jax'), quatform sweep --compute jax)")
-    times, dt = check_ticks(experiment.times, experiment.substeps, experiment.dt)
+    team = getattr(getattr(ctrl, "inner", ctrl), "team", None)
+    if team is None or team.layout != PAIR_LAYOUT or not ctrl.pure or not plant.batchable:
+        raise InvalidInputError("rollout_metrics reduces experiments of two kinematic robots with a pure controller "
+                                "(the pair kind's); another experiment runs on jax through its log "
+                                "(Experiment.run(backend='jax'), quatform sweep --compute jax)")
+    times, dt = check_ticks(experiment.times, experiment.substeps, experiment.dt, "rollout_metrics")
     n = times.size
     x = np.array(experiment.x0 if x0 is None else x0, dtype=float)
     if x.shape[-1:] != (len(plant.state_columns),) or x.size == 0:
@@ -92,48 +86,41 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
                          f"one world, got {x.shape}")
     batch = x.shape[:-1]
     B = math.prod(batch)
-    c_ref, cd_ref, r_ref = stack_reference(ctrl, experiment.reference, n, batch)
-    if r_ref is None or r_ref.shape[1] != 1:
+    ref0 = experiment.reference(0)
+    if getattr(ref0, "robots", None) is None or np.shape(ref0.robots) != (len(plant.state_columns),):
         raise InvalidInputError("rollout_metrics: the experiment's reference must give the desired robots, one "
                                 "reference for every trial (the pair kind's)")
-    e_des = np.asarray(experiment.scenario.path(times)[0], dtype=float)
-    late = times >= experiment.meta["metrics_from_s"]
-    tick = TickMeasurement() if measurement is None or isinstance(measurement, PerfectMeasurement) else measurement
-    tick.check(plant.output(x), batch, n)
-    noise = None if tick.noise is None else tick.noise[:n].reshape(n, B, -1)
-    dropped = None if tick.dropped is None else tick.dropped[:n].reshape(n, B)
-    step = (dt, experiment.substeps, tick.delay_ticks, noise is not None, dropped is not None)
-    compiled = cached(_CACHE, (config_key(plant, ctrl), *step), lambda: _compile(
-        jax, tick_function(plant, ctrl, *step, True), ctrl.team.layout, tick.delay_ticks))
     if trials_per_call is not None and (not isinstance(trials_per_call, (int, np.integer))
                                         or isinstance(trials_per_call, bool) or trials_per_call < 1):
         raise InvalidInputError(f"rollout_metrics: trials_per_call = {trials_per_call!r} must be a whole number >= 1 "
                                 "(trials per compiled call), or None for the default")
-    size = jax_devices.chunk_size(jax, B, trials_per_call)
-    shared = {"t": times, "c": c_ref, "cd": cd_ref, "rd": r_ref, "ed": e_des[:, None, :], "late": late,
-              "k": np.arange(n, dtype=np.int64)}
-    xb = x.reshape(B, -1)
+    measurement = PerfectMeasurement() if measurement is None else measurement
+    if isinstance(measurement, TickMeasurement):
+        measurement.check(plant.output(x), batch, n)
+    sched = measurement.schedule(times, dt, experiment.substeps, batch)
+    ms = measurement.init(plant.output(x), batch, sched)
+    signals = tuple(ctrl.signal_columns())
+    reduce = _reducer(signals.index("raw_finite"))
+    extra = {"ed": np.asarray(experiment.scenario.path(times)[0], dtype=float),
+             "late": times >= experiment.meta["metrics_from_s"]}
+    run, carry, xs, (carry_axes, xs_axes) = compiled_run(jax, plant, ctrl, measurement, experiment.reference, times,
+                                                         dt, experiment.substeps, x, batch, sched, ms, reduce, extra)
+    size = min(jax_devices.chunk_size(jax, B, trials_per_call), B)
+    xs = dict(xs, k=np.arange(n, dtype=np.int64))
+    leaves, tree = jax.tree_util.tree_flatten(xs)
+    axes = jax.tree_util.tree_leaves({k: jax.tree_util.tree_map(lambda _: xs_axes.get(k, -1), v) if
+                                      isinstance(xs_axes.get(k, -1), int) else xs_axes[k] for k, v in xs.items()})
     outs = []
     with jax.enable_x64(True):
         for start in range(0, B, size):
             stop = min(start + size, B)
-            sl = slice(start, stop)
-            xs = dict(shared)
-            if noise is not None:
-                xs["noise"] = noise[:, sl]
-            if dropped is not None:
-                xs["dropped"] = dropped[:, sl]
-            xs["x0"] = xb[sl]
-            if stop - start < size:  # the last chunk padded to the compiled shape
-                pad = size - (stop - start)
-                xs["x0"] = np.concatenate([xs["x0"], np.repeat(xs["x0"][-1:], pad, axis=0)])
-                for key in ("noise", "dropped"):
-                    if key in xs:
-                        xs[key] = np.concatenate([xs[key], np.repeat(xs[key][:, -1:], pad, axis=1)], axis=1)
-            xs = jax_devices.place(jax, xs, {"x0": 0, "noise": 1, "dropped": 1})  # the chunk split over devices
-            acc, fail_tick, reason = compiled(xs.pop("x0"), xs)
+            take = np.minimum(np.arange(start, start + size), stop - 1)  # the last chunk padded to the compiled shape
+            chunk_carry = jax.tree_util.tree_map(lambda a: np.asarray(a)[take], carry)
+            chunk_xs = jax.tree_util.tree_unflatten(tree, [np.take(np.asarray(a), take, axis=ax) if ax >= 0 else a
+                                                           for a, ax in zip(leaves, axes)])
+            inner, acc = scan_ticks(jax, run, chunk_carry, chunk_xs, n, None, size, carry_axes, xs_axes)
             outs.append(({k: np.asarray(v)[:stop - start] for k, v in acc.items()},
-                         np.asarray(fail_tick)[:stop - start], np.asarray(reason)[:stop - start]))
+                         np.asarray(inner[3])[:stop - start], np.asarray(inner[4])[:stop - start]))
     acc = {k: np.concatenate([o[0][k] for o in outs]).reshape(batch) for k in outs[0][0]}
     fail_tick = np.concatenate([o[1] for o in outs]).reshape(batch)
     reason = np.concatenate([o[2] for o in outs]).reshape(batch)
@@ -141,44 +128,65 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     res = {"reference_lost": first >= 0,
            "first_lost_time_s": np.where(first >= 0, times[np.maximum(first, 0)], np.nan), **acc}
     res["failed"] = reason > 0
-    res["failure"] = {tuple(int(i) for i in idx): f"t = {times[fail_tick[idx]]:g} s: "
-                      f"{FAILURE_REASONS[int(reason[idx])]}" for idx in zip(*np.nonzero(reason))}
+    res["failure"] = {}
+    for idx in zip(*np.nonzero(reason)):
+        idx = tuple(int(i) for i in idx)
+        res["failure"][idx] = _reason(ctrl, experiment.reference, times, measurement, sched, ms, plant, x, dt,
+                                      experiment.substeps, fail_tick, reason, batch, idx)
     return res
 
 
-#: Compiled rollouts of recent configurations and steps (:func:`~quatform.sim.jax_loop.config_key`).
-_CACHE: dict = {}
+def _reason(ctrl, reference, times, measurement, sched, ms, plant, x, dt, substeps, fail_tick, reason, batch, idx):
+    """World ``idx``'s one-line failure: the loop's (:func:`quatform.sim.loop._failure`) at its
+    failing tick, its measurement and controller state from its own rerun on NumPy up to that
+    tick (a rollout keeps neither)."""
+    from .loop import _iterate, map_worlds
+
+    k = int(fail_tick[idx])
+    flat = int(np.ravel_multi_index(idx, batch)) if batch else 0
+    B = math.prod(batch)
+    one = (lambda a: np.asarray(a).reshape((B,) + np.shape(a)[len(batch):])[[flat]])
+    n_sub = k + 1
+    sub_sched = {key: np.asarray(v).reshape((times.size, B) + np.shape(v)[1 + len(batch):])[:n_sub, [flat]]
+                 for key, v in sched.items()}
+    data, state, failure = _iterate(plant, ctrl, measurement, lambda j: map_worlds(reference(j), batch, one, 1),
+                                    times[:n_sub], dt, substeps, one(x), (1,), sub_sched,
+                                    map_worlds(tree_map(np.asarray, ms), batch, one), None)
+    if (0,) in failure:
+        return failure[(0,)]
+    return f"t = {times[k]:g} s: {ctrl.failure_reasons.get(int(reason[idx]), 'failure code ' + str(int(reason[idx])))}"
 
 
-def _compile(jax, step, L, delay):
-    """``jax.jit`` of the scan of ``step`` with the metrics reduced tick by tick."""
+@functools.lru_cache(maxsize=None)
+def _reducer(finite: int):
+    """``(start, step)`` of :func:`quatform.sim.loop.compiled_run`: the metrics reduced tick by
+    tick from the loop's outputs ``ys = (x, measured, u, *signals)`` (``signals[finite]`` is
+    ``raw_finite``) and the tick's ``xs`` (``ref["robots"]``, ``ed``, ``late``, ``k``); one
+    pair of functions per index, so a compiled rollout is cached."""
     import jax.numpy as jnp
 
-    def body(carry, xs):
-        inner, acc = carry
-        inner, (xk, _, u, _, _, finite) = step(inner, xs)
-        err = robot_errors(xk, xs["rd"], xs["ed"])
+    def start(carry):
+        B = carry[0].shape[0]
+        acc = {name: jnp.zeros(B) for name in _MAXED.values()}
+        acc.update(min_robot_separation_m=jnp.full(B, jnp.inf), max_command_speed_m_s=jnp.zeros(B),
+                   nonfinite_commands=jnp.zeros(B, dtype=jnp.int64), first_lost=jnp.full(B, -1, dtype=jnp.int64))
+        return acc
+
+    def step(acc, ys, xs):
+        xk, u, raw_finite = ys[0], ys[2], ys[3 + finite]
+        err = robot_errors(xk, xs["ref"]["robots"], xs["ed"])
         held = hold(jnp.stack([err[k] for k in _ERRORS], axis=-1))  # each signal computed once
         err = {k: held[:, q] for q, k in enumerate(_ERRORS)}
         lost = xs["late"] & ((err["cluster_position"] > LOST_POSITION_M) | (err["orientation"] > LOST_ANGLE_RAD)
                              | (err["robot_position"] > LOST_POSITION_M))
-        speed = jnp.max(jnp.linalg.norm(L.positions(u), axis=-1), axis=-1)
+        speed = jnp.max(jnp.linalg.norm(PAIR_LAYOUT.positions(u), axis=-1), axis=-1)
         acc = dict(acc)
         for key, name in _MAXED.items():
             acc[name] = jnp.where(xs["late"], jnp.maximum(acc[name], err[key]), acc[name])
         acc["min_robot_separation_m"] = jnp.minimum(acc["min_robot_separation_m"], err["separation"])
-        acc["nonfinite_commands"] = acc["nonfinite_commands"] + (finite[:, 0] < 0.5)
+        acc["nonfinite_commands"] = acc["nonfinite_commands"] + (raw_finite[:, 0] < 0.5)
         acc["max_command_speed_m_s"] = jnp.maximum(acc["max_command_speed_m_s"], speed)
         acc["first_lost"] = jnp.where((acc["first_lost"] < 0) & lost, xs["k"], acc["first_lost"])
-        return (inner, acc), None
+        return acc
 
-    def run(x_b, xs_b):
-        acc = {name: jnp.zeros(x_b.shape[0]) for name in _MAXED.values()}
-        acc.update(min_robot_separation_m=jnp.full(x_b.shape[0], jnp.inf),
-                   max_command_speed_m_s=jnp.zeros(x_b.shape[0]),
-                   nonfinite_commands=jnp.zeros(x_b.shape[0], dtype=jnp.int64),
-                   first_lost=jnp.full(x_b.shape[0], -1, dtype=jnp.int64))
-        (inner, acc), _ = jax.lax.scan(body, (initial_carry(x_b, delay), acc), xs_b)
-        return acc, inner[3], inner[4]
-
-    return jax.jit(run)
+    return start, step

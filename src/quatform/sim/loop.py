@@ -29,16 +29,23 @@ Two drivers run the same tick and build the same :class:`~quatform.sim.log.Log`
   with its own message and hands the others on. Stateful plants (MuJoCo) run here.
 * :func:`simulate_jax` runs ``jax.jit(lax.scan(tick))`` with the batch spread over JAX's
   devices (:mod:`.jax_devices`), float64 in ``jax.enable_x64``, in ten chunks when
-  ``progress`` is given. It runs ``pure`` controllers; :func:`legacy_jax` hands the others
-  to the loops of :mod:`.jax_loop` and :mod:`.jax_ugv_uav`.
+  ``progress`` is given. It runs what declares a pure step: a ``pure`` controller, a
+  ``batchable`` plant, a measurement model with the four methods of the contract; anything
+  else is refused in one line (:func:`jax_refusal`).
 
 A failed world's one-line message is ``controller.update``'s, rerun on the host at its
-failing tick on that world alone; a run of one world (no batch axes) raises it.
+failing tick on that world alone; a run of one world (no batch axes) raises it. On JAX, a
+world whose failing code the host's ``update`` does not confirm (it does not raise there:
+the separation barrier's array algorithm did not solve a programme the exact host solver
+solves, :mod:`quatform.control.barrier`) is rerun on NumPy from its start, with its own
+initial state, measurement schedule and reference; its channels replace the JAX run's and
+``log.meta["numpy_worlds"]`` (bool, the batch shape) says which.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 
@@ -51,8 +58,9 @@ from . import jax_devices
 from .log import Channel, Log
 from .measurement import PerfectMeasurement
 
-__all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "WORLD_ERRORS", "HostWorlds", "check_ticks", "legacy_jax",
-           "make_tick", "map_worlds", "require_jax", "scan_ticks", "simulate_jax", "simulate_numpy", "cached"]
+__all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
+           "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "simulate_jax", "simulate_numpy",
+           "cached"]
 
 #: What a controller may raise because of some worlds of a batch (their measurement left the
 #: description's domain, two robots coincide ...); anything else (a TypeError: a bug) propagates.
@@ -150,8 +158,8 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         def plant_step(x, u, t, w):
             return plant.step(x, u, dt, t) if w is None else plant.step(x, u, dt, t, w)
     else:
-        def plant_step(x, u, t, w):
-            return step(x, u, dt, t, w)
+        def plant_step(x, u, t, w, failed=None):
+            return step(x, u, dt, t, w, failed)
 
     def substep_inputs(xs, j):
         w = xs.get("plant")
@@ -187,10 +195,8 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         state = tree_map(lambda a, b: _where(xp, bad, a, b), cs, out.state) if hold_state else out.state
         x_next = x
         for j in range(substeps):
-            # a failed world's state (perhaps not finite) is not the plant's to refuse: it
-            # steps a live world's stand-in, whose result the freeze below discards
-            x_in = _where(xp, reason > 0, _stand_in(xp, x_next, reason), x_next)
-            x_new = plant_step(x_in, u, xs["t"] + j * dt, substep_inputs(xs, j))
+            x_new = (plant_step(x_next, u, xs["t"] + j * dt, substep_inputs(xs, j)) if step is None else
+                     plant_step(x_next, u, xs["t"] + j * dt, substep_inputs(xs, j), reason > 0))
             broken = (reason == 0) & ~xp.all(xp.isfinite(x_new), axis=-1)
             fail_tick = xp.where(broken, xs["k"], fail_tick)
             reason = xp.where(broken, PLANT_CODE + j, reason)
@@ -202,13 +208,6 @@ def make_tick(plant, controller, measurement, dt: float, substeps: int, *, contr
         return new_carry, (x, m, u) + signals
 
     return tick
-
-
-def _stand_in(xp, x, reason):
-    """The state of the first world that has not failed (the first world when all have),
-    ``(n_x,)``: what a failed world hands the plant in its place."""
-    flat = x.reshape((-1, x.shape[-1]))
-    return flat[xp.argmax(xp.reshape(reason, (-1,)) == 0)]
 
 
 class HostWorlds:
@@ -282,9 +281,12 @@ class HostWorlds:
                 continue
             return Tick(step.state, np.asarray(step.u, dtype=float), step.signals, code)
 
-    def step(self, x, u, dt: float, t: float, w=None):
-        """``plant.step`` on the batch: a failed world steps a healthy world's state; a world
-        the plant refuses is marked failed with its message and returned NaN."""
+    def step(self, x, u, dt: float, t: float, w=None, failed=None):
+        """``plant.step`` on the batch: a failed world (``failed``, bool of the batch shape:
+        the loop's failures up to this substep) steps a healthy world's state; a world the
+        plant refuses is marked failed with its message and returned NaN."""
+        if failed is not None:
+            self.failed = np.asarray(failed, dtype=bool)
         healthy = self._healthy()
         if healthy is None:
             return x
@@ -297,7 +299,7 @@ class HostWorlds:
         except WORLD_ERRORS as exc:
             new = self._find(lambda idx: _plant_step(self.plant, x_in[idx], np.asarray(u)[idx], dt, t, w),
                              f"t = {t:g} s: the plant refused the world's state: ", exc)
-            return np.where(new[..., None], np.nan, self.step(x, u, dt, t, w))
+            return np.where(new[..., None], np.nan, self.step(x, u, dt, t, w))  # the others, as they are
 
 
 def check_ticks(times, substeps, dt, who: str = "simulate"):
@@ -342,11 +344,14 @@ def _initial(plant, x0, who: str):
     return x, batch
 
 
-def _failure(controller, reference, times, dt, measured, state, fail_tick, reason, batch, idx, host=None):
+def _failure(controller, reference, times, dt, measured, state, fail_tick, reason, batch, idx, host=None,
+             confirm=False):
     """World ``idx``'s one-line failure (``"t = ... s: reason"``): :class:`HostWorlds`' message,
     the loop's own, or ``controller.update`` rerun on that world alone at its failing tick
     (``measured`` ``(T, *batch, n_m)``, ``state`` the final controller state: a failed world's
-    is held from its failing tick); a run of one world (``idx == ()``) raises it."""
+    is held from its failing tick); a run of one world (``idx == ()``) raises it. ``confirm``:
+    None where that ``update`` does not raise (the host runs what the tick did not: the
+    world is the host's to rerun)."""
     if host is not None and idx in host.failure:
         return host.failure[idx]
     k, code = int(fail_tick[idx]), int(reason[idx])
@@ -363,6 +368,8 @@ def _failure(controller, reference, times, dt, measured, state, fail_tick, reaso
         if not idx:
             raise
         return f"t = {t:g} s: " + " ".join(str(own).split())
+    if confirm:
+        return None
     text = controller.failure_reasons.get(code, f"failure code {code}")
     if not idx:
         raise InvalidInputError(f"simulate: at t = {t:g} s {text}")
@@ -391,14 +398,27 @@ def simulate_numpy(plant, controller, reference: Callable, times, x0, *, dt: flo
     times, dt = check_ticks(times, substeps, dt)
     x, batch = _initial(plant, x0, "simulate")
     measurement = PerfectMeasurement() if measurement is None else measurement
-    n = times.size
     sched = measurement.schedule(times, dt, substeps, batch)
+    ms = measurement.init(plant.output(x), batch, sched)
+    data, state, failure = _iterate(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
+                                    ms, progress)
+    return _log(plant, controller, measurement, times, batch, data, state, failure, meta)
+
+
+def _iterate(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms, progress):
+    """The NumPy iteration of :func:`make_tick` from the plant states ``x`` ``(*batch, n_x)``,
+    the measurement's ``schedule`` and initial state ``ms``: ``(data, state, failure)``, the
+    channels (name -> ``(T, *batch, k)``), the final controller state and each failed world's
+    one-line reason (a run of one world raises it)."""
+    n = times.size
     inputs = plant_inputs(plant, times, dt, substeps)
-    host = HostWorlds(batch, controller, plant) if batch and not controller.pure else None
-    tick = make_tick(plant, controller, measurement, dt, substeps, control=None if host is None else host.tick,
+    # a batch's worlds on the host: a failed world steps a healthy world's state (the plant
+    # refuses a state that is not finite), and update's failures are found world by world
+    host = HostWorlds(batch, controller, plant) if batch else None
+    tick = make_tick(plant, controller, measurement, dt, substeps,
+                     control=None if host is None or controller.pure else host.tick,
                      step=None if host is None else host.step, freeze=bool(batch))
-    carry = (x, controller.init(batch), measurement.init(plant.output(x), batch, sched),
-             np.full(batch, -1, dtype=np.int64), np.zeros(batch, dtype=np.int64))
+    carry = (x, controller.init(batch), ms, np.full(batch, -1, dtype=np.int64), np.zeros(batch, dtype=np.int64))
     pure = controller.pure
     every = max(1, n // 10)
     ys = []
@@ -432,7 +452,7 @@ def simulate_numpy(plant, controller, reference: Callable, times, x0, *, dt: flo
             idx = tuple(int(i) for i in idx)
             failure[idx] = _failure(controller, reference, times, dt, data["measured"], carry[1], fail_tick, reason,
                                     batch, idx, host)
-    return _log(plant, controller, measurement, times, batch, data, carry[1], failure, meta)
+    return data, carry[1], failure
 
 
 # -- the JAX driver -----------------------------------------------------------------------
@@ -522,23 +542,110 @@ def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axe
     return [np.concatenate([p[q] for p in parts]) for q in range(len(parts[0]))], carry
 
 
-def legacy_jax(plant, controller, reference, times, x0, **kwargs) -> Log:
-    """The JAX loops of controllers that are not ``pure`` yet: the ugv-uav kind
-    (:mod:`.jax_ugv_uav`), the pair and team kinds (:mod:`.jax_loop`, which refuses the rest in
-    one line). Deleted with those modules once every built-in controller is ``pure``."""
-    from .plants.ugv_uav import PioneerBebopPlant
-
-    if isinstance(plant, PioneerBebopPlant):
-        from .jax_ugv_uav import simulate
-    else:
-        from .jax_loop import simulate
-    return simulate(plant, controller, reference, times, x0, **kwargs)
-
-
 def _batched(leaf, batch: tuple) -> bool:
     """Whether a reference leaf ``(T, ...)`` holds one entry per world: its axes after ``T``
     begin with ``batch`` and one more axis follows (a reference array has one per world)."""
     return leaf.ndim >= len(batch) + 2 and leaf.shape[1:1 + len(batch)] == batch
+
+
+#: What the JAX driver asks of a measurement model (:mod:`.measurement`).
+MEASUREMENT_CONTRACT = ("schedule", "init", "observe", "read")
+
+
+def jax_refusal(plant, controller, measurement) -> str | None:
+    """Why the JAX driver cannot run these parts, in one line, or None: it runs a controller
+    whose ``pure`` is True, a ``batchable`` plant (its ``step`` pure: a stateful MuJoCo plant
+    is not) and a measurement model with :data:`MEASUREMENT_CONTRACT`, decided from what the
+    objects declare."""
+    why = []
+    if not getattr(controller, "pure", False):
+        why.append(f"the controller {type(controller).__name__} has no pure tick (pure = False)")
+    if not getattr(plant, "batchable", False):
+        why.append(f"the plant {type(plant).__name__} has no pure step (batchable = False)")
+    if measurement is not None and not all(callable(getattr(measurement, a, None)) for a in MEASUREMENT_CONTRACT):
+        why.append(f"the measurement model {type(measurement).__name__} lacks "
+                   f"{'/'.join(a for a in MEASUREMENT_CONTRACT if not callable(getattr(measurement, a, None)))}")
+    if not why:
+        return None
+    return ("the jax compute backend runs pure controllers (controller.pure), plants with a pure step "
+            "(plant.batchable) and measurement models with schedule/init/observe/read; " + "; ".join(why)
+            + " (use --compute numpy)")
+
+
+def _fingerprint(value, depth: int = 0):
+    """A hashable value equal for two configurations that trace to one program: dataclass
+    fields, public attributes, containers and small arrays by value (types included); a
+    large array (more than 4096 entries: data a run feeds in, such as a measurement's draws)
+    by its shape and 257 probed entries; a function by identity."""
+    if depth > 12:
+        return ("id", id(value))
+    if value is None or isinstance(value, (bool, int, float, complex, str, bytes, type)):
+        return (type(value), value)
+    if isinstance(value, np.ndarray):
+        if value.size <= 4096:
+            return ("array", value.shape, value.dtype.str, value.tobytes())
+        probe = np.linspace(0, value.size - 1, 257).astype(np.intp)  # a large array is data: its shape and a probe
+        return ("large", value.shape, value.dtype.str, value.flat[probe].tobytes())
+    if isinstance(value, np.generic):
+        return (type(value), value.item())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return (type(value),) + tuple(_fingerprint(getattr(value, f.name), depth + 1)
+                                      for f in dataclasses.fields(value) if f.compare)
+    if isinstance(value, (tuple, list)):
+        return (type(value),) + tuple(_fingerprint(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return (dict,) + tuple(sorted(((repr(k), _fingerprint(v, depth + 1)) for k, v in value.items()),
+                                      key=lambda kv: kv[0]))
+    if callable(value) and not hasattr(value, "__dict__"):
+        return ("id", id(value))
+    if type(value).__eq__ is not object.__eq__:
+        try:
+            return (type(value), hash(value), value)
+        except TypeError:
+            pass
+    if hasattr(value, "__dict__"):  # its public attributes, not what it caches (cached_property)
+        cls = type(value)
+        return (cls,) + _fingerprint({k: v for k, v in vars(value).items() if not k.startswith("_")
+                                      and not isinstance(getattr(cls, k, None), functools.cached_property)},
+                                     depth + 1)
+    return ("id", id(value))
+
+
+def config_key(*parts) -> tuple:
+    """What a compiled scan of ``parts`` (plant, controller, measurement, ...) depends on, as
+    a hashable value (:func:`_fingerprint`): two experiments with equal configurations (a
+    sweep's chunks, a benchmark's repeats) share one compilation. The compiled entry keeps
+    the objects it was traced with, so an identity in the key is never reused."""
+    return tuple(_fingerprint(p) for p in parts)
+
+
+def _numpy_worlds(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms, sel, data):
+    """Rerun the worlds ``sel`` (flat indices, or None: the one world) on NumPy
+    (:func:`_iterate`) with their own initial states, schedule, measurement state and
+    reference; their channels replace ``data``'s (name -> ``(T, *batch, k)``, in place).
+    Returns ``(state_of, failure)``: the rerun's final controller state and each of their
+    failures by the batch's world index tuples."""
+    if not batch:
+        sub, st, failure = _iterate(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
+                                    ms, None)
+        data.update(sub)
+        return st, failure
+    B, n = math.prod(batch), times.size
+    flat = (lambda a: np.asarray(a).reshape((B,) + np.shape(a)[len(batch):])[sel])
+    sub_sched = {k: np.asarray(v).reshape((n, B) + np.shape(v)[1 + len(batch):])[:, sel] for k, v in sched.items()}
+    sub_ms = map_worlds(tree_map(np.asarray, ms), batch, flat)
+
+    def sub_reference(k):
+        return map_worlds(reference(k), batch, flat, 1)
+
+    sub, st, failure = _iterate(plant, controller, measurement, sub_reference, times, dt, substeps, flat(x),
+                                (len(sel),), sub_sched, sub_ms, None)
+    for k, v in sub.items():
+        full = np.array(data[k]).reshape((n, B) + data[k].shape[1 + len(batch):])
+        full[:, sel] = v
+        data[k] = full.reshape(data[k].shape)
+    return st, {tuple(int(i) for i in np.unravel_index(int(sel[local[0]]), batch)): why
+                for local, why in failure.items()}
 
 
 def simulate_jax(plant, controller, reference: Callable, times, x0, *, dt: float | None = None,
@@ -552,23 +659,73 @@ def simulate_jax(plant, controller, reference: Callable, times, x0, *, dt: float
     MissingDependencyError
         Without JAX (``pip install -e ".[jax]"``).
     InvalidInputError
-        For a plant that is not ``batchable`` (a stateful plant runs on NumPy) and the errors
-        of :func:`quatform.sim.simulate`.
+        For parts without a pure step (:func:`jax_refusal`, one line) and the errors of
+        :func:`quatform.sim.simulate`.
     """
-    if not controller.pure:
-        return legacy_jax(plant, controller, reference, times, x0, dt=dt, substeps=substeps,
-                          measurement=measurement, progress=progress, meta=meta)
     jax = require_jax()
+    why = jax_refusal(plant, controller, measurement)
+    if why is not None:
+        raise InvalidInputError(f"jax simulate: {why}")
     times, dt = check_ticks(times, substeps, dt, "jax simulate")
     if times.size < 1:
         raise ShapeError("jax simulate: times must hold at least one tick")
-    if not plant.batchable:
-        raise InvalidInputError(f"jax simulate: the plant {type(plant).__name__} runs on numpy (--compute numpy)")
     x, batch = _initial(plant, x0, "jax simulate")
     B = math.prod(batch)
     n = times.size
     measurement = PerfectMeasurement() if measurement is None else measurement
     sched = measurement.schedule(times, dt, substeps, batch)
+    ms = measurement.init(plant.output(x), batch, sched)
+    run, carry, xs, axes = compiled_run(jax, plant, controller, measurement, reference, times, dt, substeps, x, batch,
+                                        sched, ms)
+    with jax.enable_x64(True):
+        ys, carry = scan_ticks(jax, run, carry, xs, n, None if progress is None else
+                               (lambda f: progress(f) if f < 1.0 else None), B, *axes)
+    names = ("state", "measured", "command") + tuple(controller.signal_columns())
+    data = {k: np.asarray(v)[:, :B].reshape((n,) + batch + np.shape(v)[2:]) for k, v in zip(names, ys)}
+    state = jax.tree_util.tree_map(lambda a: np.asarray(a)[:B].reshape(batch + np.shape(a)[1:]), carry[1])
+    fail_tick, reason = (np.asarray(a)[:B].reshape(batch) for a in carry[3:5])
+    failure, rerun = {}, []
+    for idx in (list(zip(*np.nonzero(reason))) if batch else [()] if reason > 0 else []):
+        idx = tuple(int(i) for i in idx)
+        why = _failure(controller, reference, times, dt, data["measured"], state, fail_tick, reason, batch, idx,
+                       confirm=True)
+        if why is None:
+            rerun.append(idx)
+        else:
+            failure[idx] = why
+    extra = {}
+    if rerun:  # worlds the host runs where the compiled tick did not (module docstring)
+        sel = np.array([np.ravel_multi_index(i, batch) for i in rerun], dtype=np.intp) if batch else None
+        st, more = _numpy_worlds(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
+                                 ms, sel, data)
+        if batch:
+            def put(a, b):
+                a = np.array(a)
+                a.reshape((B,) + a.shape[len(batch):])[sel] = b
+                return a
+            state = tree_map(put, state, st)
+        else:
+            state = st
+        failure.update(more)
+        extra["numpy_worlds"] = np.zeros(batch, dtype=bool)
+        for idx in rerun:
+            extra["numpy_worlds"][idx] = True
+    if progress is not None:
+        progress(1.0)
+    return _log(plant, controller, measurement, times, batch, data, state, failure, meta, extra)
+
+
+def compiled_run(jax, plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms,
+                 reduce=None, extra=None):
+    """The compiled scan of the loop's tick and its inputs: ``(run, carry, xs, (carry_axes,
+    xs_axes))`` for :func:`scan_ticks` over the ``B`` worlds of ``batch`` (flattened), the
+    controller's :meth:`reference_arrays` of every tick stacked with a leading T axis.
+    ``extra``: more per-tick inputs (name -> ``(T, ...)``, the same for every world) for
+    ``reduce``: ``(init(carry) -> acc, step(acc, ys, xs) -> acc)``, a reduction of each tick's
+    outputs carried beside the loop's carry instead of the outputs (a rollout that keeps no
+    log, :mod:`.jax_rollout`); the compiled entry is cached by :func:`config_key` (and
+    ``reduce``'s identity)."""
+    n, B = times.size, math.prod(batch)
     sched = {key: np.asarray(v).reshape((n, B) + np.shape(v)[1 + len(batch):]) for key, v in sched.items()}
     inputs = plant_inputs(plant, times, dt, substeps)
     refs = [controller.reference_arrays(reference(k)) for k in range(n)]
@@ -577,27 +734,27 @@ def simulate_jax(plant, controller, reference: Callable, times, x0, *, dt: float
     ref_axes = jax.tree_util.tree_map(lambda a: 1 if _batched(a, batch) else -1, refs)
     refs = jax.tree_util.tree_map(lambda a: a.reshape((n, B) + a.shape[1 + len(batch):]) if _batched(a, batch)
                                   else a, refs)
-    xb = x.reshape(B, -1)
-    carry = (xb, controller.init((B,)), measurement.init(plant.output(xb), (B,), sched),
+    flat = (lambda a: np.asarray(a).reshape((B,) + np.shape(a)[len(batch):]))
+    xb = flat(x)
+    carry = (xb, map_worlds(tree_map(np.asarray, controller.init(batch)), batch, flat),
+             map_worlds(tree_map(np.asarray, ms), batch, flat),
              np.full(B, -1, dtype=np.int64), np.zeros(B, dtype=np.int64))
-    xs = {"t": times, "ref": refs, "meas": sched, "plant": inputs}
+    xs = {"t": times, "ref": refs, "meas": sched, "plant": inputs, **(extra or {})}
+
     def build():
         tick = make_tick(plant, controller, measurement, dt, substeps)
-        return jax.jit(lambda c, s: jax.lax.scan(tick, c, s)[::-1]), (plant, controller, measurement)
+        if reduce is None:
+            return jax.jit(lambda c, s: jax.lax.scan(tick, c, s)[::-1]), (plant, controller, measurement)
+        start, step = reduce
 
-    run, _ = cached(_CACHE, (id(plant), id(controller), id(measurement), dt, substeps,
-                             jax.tree_util.tree_structure(xs)), build)
-    with jax.enable_x64(True):
-        carry_axes = [0] * len(jax.tree_util.tree_leaves(carry))
-        ys, carry = scan_ticks(jax, run, carry, xs, n, progress, B, carry_axes, {"ref": ref_axes, "meas": 1})
-    names = ("state", "measured", "command") + tuple(controller.signal_columns())
-    data = {k: np.asarray(v)[:, :B].reshape((n,) + batch + np.shape(v)[2:]) for k, v in zip(names, ys)}
-    state = jax.tree_util.tree_map(lambda a: np.asarray(a)[:B].reshape(batch + np.shape(a)[1:]), carry[1])
-    fail_tick, reason = (np.asarray(a)[:B].reshape(batch) for a in carry[3:5])
-    failure = {}
-    if np.any(reason > 0):
-        for idx in (list(zip(*np.nonzero(reason))) if batch else [()]):
-            idx = tuple(int(i) for i in idx)
-            failure[idx] = _failure(controller, reference, times, dt, data["measured"], state, fail_tick, reason,
-                                    batch, idx)
-    return _log(plant, controller, measurement, times, batch, data, state, failure, meta)
+        def body(c, s):
+            inner, acc = c
+            inner, ys = tick(inner, s)
+            return (inner, step(acc, ys, s)), None
+
+        return jax.jit(lambda c, s: jax.lax.scan(body, (c, start(c)), s)[0]), (plant, controller, measurement)
+
+    key = (config_key(plant, controller, measurement), dt, substeps, reduce, jax.tree_util.tree_structure(xs))
+    run, _ = cached(_CACHE, key, build)
+    carry_axes = [0] * len(jax.tree_util.tree_leaves(carry))
+    return run, carry, xs, (carry_axes, {"ref": ref_axes, "meas": 1})
