@@ -257,7 +257,7 @@ def test_team_kernels_under_jit_equal_numpy():
     jax = pytest.importorskip("jax")
     import jax.numpy as jnp
 
-    from quatform.control.safety import POINT_MAPS, SeparationBarrier
+    from quatform.control.safety import SeparationBarrier
     from quatform.control.barrier import point_velocities
 
     barrier = SeparationBarrier(0.3, gamma=5.0, dt_s=0.02)
@@ -285,7 +285,7 @@ def test_team_kernels_under_jit_equal_numpy():
                                              point_velocities(barrier, team, x, us)))
             out = [np.asarray(v) for v in f(*(jnp.asarray(a) for a in (x, rate, u, us)))]
         # each robot's point velocity on its own (SeparationBarrier.filter's map of its model)
-        V = np.stack([POINT_MAPS[type(rb)].velocity(rb, x[:, ss], us[:, cs], barrier.dt_s) for rb, ss, cs in
+        V = np.stack([rb.point_map.velocity(rb, x[:, ss], us[:, cs], barrier.dt_s) for rb, ss, cs in
                       zip(team.robots, team.state_slices, team.command_slices)], axis=1)
         want = (team.actuate(x, rate, 0.0, team.initial_memory((B,)))[0], us, team.step(x, u, 0.02), x, V)
         for name, got, ref in zip(("actuate", "saturate", "step", "scatter", "point_velocities"), out, want):

@@ -60,22 +60,16 @@ from ..algebra.kernels import array_namespace
 from ..errors import DegenerateInputError, InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS, RobotLayout
 from ..formations.team_chart import team_positions
-from ..registry import RegistryView
 from ..robots import ROBOT_MODELS, Team
 from . import barrier as _barrier
 from . import contract
 from .barrier import HOST, pair_constraints, point_velocities, solves
 
-__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "POINT_MAPS", "components", "HOST",
+__all__ = ["SeparationBarrier", "BarrierInfo", "SafeController", "SafeState", "components", "HOST",
            "start_floor"]
 
 #: Teams of at most this many robots find their pairs by one dense comparison (cheaper than a tree).
 _DENSE_PAIRS_MAX_ROBOTS = 48
-
-
-#: Each registered robot model class's point map (derived from the models' ``point_map``, read-only).
-POINT_MAPS = RegistryView(lambda: {cls: cls.point_map for cls in ROBOT_MODELS.values() if cls.point_map is not None},
-                          "POINT_MAPS")
 
 
 def point_mapped() -> tuple[str, ...]:

@@ -140,7 +140,7 @@ def _reason(ctrl, reference, times, measurement, sched, ms, plant, x, dt, subste
     """World ``idx``'s one-line failure: the loop's (:func:`quatform.sim.loop._failure`) at its
     failing tick, its measurement and controller state from its own rerun on NumPy up to that
     tick (a rollout keeps neither)."""
-    from .loop import _iterate, map_worlds
+    from .loop import iterate_numpy, map_worlds
 
     k = int(fail_tick[idx])
     flat = int(np.ravel_multi_index(idx, batch)) if batch else 0
@@ -149,7 +149,7 @@ def _reason(ctrl, reference, times, measurement, sched, ms, plant, x, dt, subste
     n_sub = k + 1
     sub_sched = {key: np.asarray(v).reshape((times.size, B) + np.shape(v)[1 + len(batch):])[:n_sub, [flat]]
                  for key, v in sched.items()}
-    data, state, failure = _iterate(plant, ctrl, measurement, lambda j: map_worlds(reference(j), batch, one, 1),
+    data, state, failure = iterate_numpy(plant, ctrl, measurement, lambda j: map_worlds(reference(j), batch, one, 1),
                                     times[:n_sub], dt, substeps, one(x), (1,), sub_sched,
                                     map_worlds(tree_map(np.asarray, ms), batch, one), None)
     if (0,) in failure:

@@ -59,7 +59,7 @@ from .log import Channel, Log
 from .measurement import PerfectMeasurement
 
 __all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
-           "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "simulate_jax", "simulate_numpy",
+           "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "simulate_jax", "simulate_numpy",
            "cached"]
 
 #: What a controller may raise because of some worlds of a batch (their measurement left the
@@ -400,12 +400,12 @@ def simulate_numpy(plant, controller, reference: Callable, times, x0, *, dt: flo
     measurement = PerfectMeasurement() if measurement is None else measurement
     sched = measurement.schedule(times, dt, substeps, batch)
     ms = measurement.init(plant.output(x), batch, sched)
-    data, state, failure = _iterate(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
+    data, state, failure = iterate_numpy(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
                                     ms, progress)
     return _log(plant, controller, measurement, times, batch, data, state, failure, meta)
 
 
-def _iterate(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms, progress):
+def iterate_numpy(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms, progress):
     """The NumPy iteration of :func:`make_tick` from the plant states ``x`` ``(*batch, n_x)``,
     the measurement's ``schedule`` and initial state ``ms``: ``(data, state, failure)``, the
     channels (name -> ``(T, *batch, k)``), the final controller state and each failed world's
@@ -621,12 +621,12 @@ def config_key(*parts) -> tuple:
 
 def _numpy_worlds(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched, ms, sel, data):
     """Rerun the worlds ``sel`` (flat indices, or None: the one world) on NumPy
-    (:func:`_iterate`) with their own initial states, schedule, measurement state and
+    (:func:`iterate_numpy`) with their own initial states, schedule, measurement state and
     reference; their channels replace ``data``'s (name -> ``(T, *batch, k)``, in place).
     Returns ``(state_of, failure)``: the rerun's final controller state and each of their
     failures by the batch's world index tuples."""
     if not batch:
-        sub, st, failure = _iterate(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
+        sub, st, failure = iterate_numpy(plant, controller, measurement, reference, times, dt, substeps, x, batch, sched,
                                     ms, None)
         data.update(sub)
         return st, failure
@@ -638,7 +638,7 @@ def _numpy_worlds(plant, controller, measurement, reference, times, dt, substeps
     def sub_reference(k):
         return map_worlds(reference(k), batch, flat, 1)
 
-    sub, st, failure = _iterate(plant, controller, measurement, sub_reference, times, dt, substeps, flat(x),
+    sub, st, failure = iterate_numpy(plant, controller, measurement, sub_reference, times, dt, substeps, flat(x),
                                 (len(sel),), sub_sched, sub_ms, None)
     for k, v in sub.items():
         full = np.array(data[k]).reshape((n, B) + data[k].shape[1 + len(batch):])
