@@ -282,3 +282,12 @@ def test_every_command_has_help_and_the_mujoco_hint_is_the_editable_install(caps
         if name in ("run", "compare"):
             assert 'pip install -e ".[mujoco]"' in text and "quatform[mujoco]" not in text
             assert "--no-feedforward" in text
+
+
+def test_python_dash_m_runs_the_command_line():
+    """Guards against: ``python -m quatform`` failing for want of a ``__main__`` module."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "quatform", "--help"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "COMMAND" in out.stdout
