@@ -8,6 +8,8 @@ NaN) and the same one-line message (``update`` rerun on that world at its failin
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -116,3 +118,23 @@ def test_the_numpy_driver_is_its_tick_iterated():
                                 "meas": {}, "plant": {"push": w["push"][k]}})
         np.testing.assert_array_equal(y[0], log["state"][k])
         np.testing.assert_array_equal(y[2], log["command"][k])
+
+
+@pytest.mark.parametrize("backend", ["numpy", "jax"])
+def test_a_world_that_starts_not_finite_fails_at_the_start_alone(backend):
+    """Guards against: a batch world whose x0 holds a NaN reaching a plant that refuses it (the
+    whole NumPy batch lost) or failing a step later with a reason that names neither."""
+    if backend == "jax":
+        pytest.importorskip("jax")
+    from quatform.scenarios import KINDS, load_scenario
+    from quatform.sim.backends import simulator
+
+    exp = KINDS["ugv-uav"].experiment(dataclasses.replace(load_scenario("marciano-circle"), duration_s=0.5),
+                                      formation="quaternion")
+    x0 = np.stack([exp.x0, exp.x0])
+    x0[1, 0] = np.nan
+    log = simulator(backend)(exp.plant, exp.controller, exp.reference, exp.times, x0, dt=exp.dt,
+                             substeps=exp.substeps, measurement=exp.measurement)
+    assert log.meta["failed"].tolist() == [False, True]
+    assert log.meta["failure"][(1,)].startswith("t = 0 s: the initial state holds a nan")
+    assert np.all(np.isfinite(log["command"])) and np.all(log["command"][:, 1] == 0.0)

@@ -58,7 +58,7 @@ from . import jax_devices
 from .log import Channel, Log
 from .measurement import PerfectMeasurement
 
-__all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
+__all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "START_CODE", "start_failures", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
            "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "simulate_jax", "simulate_numpy",
            "cached"]
 
@@ -67,10 +67,19 @@ __all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "WORLD_ERRORS", "HostWorld
 WORLD_ERRORS = (QuatformError, ArithmeticError, ValueError)
 #: Reason codes of the loop itself (a controller's are small positive numbers): a world's
 #: command not finite; its plant state not finite after plant step ``j`` (``PLANT_CODE + j``);
-#: a failure :class:`HostWorlds` found and worded on the host.
+#: a failure :class:`HostWorlds` found and worded on the host; an initial state not finite.
 COMMAND_CODE = 1 << 40
 PLANT_CODE = 2 << 40
 HOST_CODE = 3 << 40
+START_CODE = 4 << 40
+
+
+def start_failures(x):
+    """``(fail_tick, reason)`` before the first tick for the initial states ``x``
+    (``(*batch, n_x)``): a world whose initial state is not finite has failed at tick 0
+    (:data:`START_CODE`), so no plant or controller meets its values."""
+    bad = ~np.all(np.isfinite(x), axis=-1)
+    return np.where(bad, 0, -1).astype(np.int64), np.where(bad, START_CODE, 0).astype(np.int64)
 
 
 def _where(xp, mask, a, b):
@@ -360,6 +369,8 @@ def _failure(controller, reference, times, dt, measured, state, fail_tick, reaso
         return f"t = {t:g} s: non-finite command"
     if PLANT_CODE <= code < HOST_CODE:
         return f"t = {t + (code - PLANT_CODE) * dt + dt:g} s: non-finite plant state"
+    if code == START_CODE:
+        return f"t = {t:g} s: the initial state holds a nan or inf; give every world a finite x0"
     take = (lambda a: a[idx])
     try:
         controller.update(t, measured[(k, *idx)], map_worlds(reference(k), batch, take, 1),
@@ -418,7 +429,9 @@ def iterate_numpy(plant, controller, measurement, reference, times, dt, substeps
     tick = make_tick(plant, controller, measurement, dt, substeps,
                      control=None if host is None or controller.pure else host.tick,
                      step=None if host is None else host.step, freeze=bool(batch))
-    carry = (x, controller.init(batch), ms, np.full(batch, -1, dtype=np.int64), np.zeros(batch, dtype=np.int64))
+    carry = (x, controller.init(batch), ms) + (start_failures(x) if batch else (np.int64(-1), np.int64(0)))
+    if host is not None:
+        host.failed = carry[4] > 0
     pure = controller.pure
     every = max(1, n // 10)
     ys = []
@@ -738,7 +751,7 @@ def compiled_run(jax, plant, controller, measurement, reference, times, dt, subs
     xb = flat(x)
     carry = (xb, map_worlds(tree_map(np.asarray, controller.init(batch)), batch, flat),
              map_worlds(tree_map(np.asarray, ms), batch, flat),
-             np.full(B, -1, dtype=np.int64), np.zeros(B, dtype=np.int64))
+             *(start_failures(xb) if batch else (np.full(B, -1, dtype=np.int64), np.zeros(B, dtype=np.int64))))
     xs = {"t": times, "ref": refs, "meas": sched, "plant": inputs, **(extra or {})}
 
     def build():
