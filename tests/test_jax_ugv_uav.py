@@ -6,10 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from quatform.errors import InvalidInputError, ShapeError
 from quatform.scenarios import load_scenario
 from quatform.scenarios.ugv_uav import UGV_UAV_FORMATIONS, ugv_uav_experiment, with_profile
-from quatform.sim.measurement import MotionCapture
 
 jax = pytest.importorskip("jax")
 
@@ -111,13 +109,36 @@ def test_progress_chunks_change_nothing():
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
 
 
-def test_refusals_are_one_line():
-    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=1.0)
+def test_a_batch_equals_its_worlds_run_alone():
+    """A batch of worlds (own starts; world i reads the motion capture's streams of seed + i)
+    on JAX: each world's finished channels and metrics equal that world's run alone (the
+    scenario's seed + i, its start) within 1e-9."""
+    sc = dataclasses.replace(load_scenario("marciano-circle"), **FAULTS, seed=3)
     exp = ugv_uav_experiment(sc, "quaternion")
-    with pytest.raises(ShapeError, match="one world at a time"):
-        dataclasses.replace(exp, x0=np.stack([exp.x0, exp.x0])).run(backend="jax")
-    with pytest.raises(InvalidInputError, match="MotionCapture") as err:
-        dataclasses.replace(exp, measurement=None).run(backend="jax")
-    assert "\n" not in str(err.value)
-    assert isinstance(exp.measurement, MotionCapture)
+    x0 = np.stack([exp.x0, exp.x0 + np.r_[0.05, -0.05, 0.1, np.zeros(8)]])
+    batch = dataclasses.replace(exp, x0=x0).run(backend="jax")
+    assert batch["r_true"].shape == (len(batch.t), 2, 6) and batch.meta["stopped_at"].shape == (2,)
+    for b in range(2):
+        one = dataclasses.replace(ugv_uav_experiment(dataclasses.replace(sc, seed=3 + b), "quaternion"), x0=x0[b])
+        alone, world = one.run(backend="jax"), batch.world(b)
+        for name in alone.channels:
+            np.testing.assert_allclose(np.asarray(world[name], float), np.asarray(alone[name], float), rtol=0,
+                                       atol=1e-9, equal_nan=True, err_msg=name)
+        ma, mb = one.metrics(alone), exp.metrics(world)
+        assert ma.keys() == mb.keys()
+        for k, v in ma.items():
+            if isinstance(v, float):
+                assert mb[k] == pytest.approx(v, rel=1e-9, abs=1e-9), k
+            else:
+                assert mb[k] == v, k
 
+
+def test_without_a_motion_capture_the_outputs_are_read_exactly():
+    """measurement=None: the controller reads the plant's outputs as they are, on both drivers."""
+    sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=1.0)
+    exp = dataclasses.replace(ugv_uav_experiment(sc, "quaternion"), measurement=None)
+    a, b = exp.run(), exp.run(backend="jax")
+    np.testing.assert_array_equal(a["measured"], a["state"][:, :11])
+    for name in a.channels:
+        np.testing.assert_allclose(np.asarray(b[name], float), np.asarray(a[name], float), rtol=0, atol=1e-9,
+                                   equal_nan=True, err_msg=name)

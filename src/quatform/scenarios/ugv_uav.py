@@ -33,7 +33,7 @@ from ..sim.measurement import MotionCapture
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.plants.ugv_uav import PioneerBebopPlant
 from . import KINDS
-from .base import Experiment, Option, ScenarioKind
+from .base import Experiment, Option, ScenarioKind, finish_worlds, world_meta
 from .ugv_uav_profiles import DEFAULT_PROFILE, PROFILES, profile_named
 
 __all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS", "UGV_UAV_PHYSICS",
@@ -263,8 +263,8 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
             "uav_model_k": tuple(ctrl.bebop.k),
             "unreachable_at": unreachable_at, "unreachable_message": message}
 
-    def finish(log: Log) -> Log:
-        return _finish(log, F, sc, e_des, c_des, reachable)
+    def finish(log: Log) -> Log:  # a batch: world by world (finish_worlds), each as its run alone
+        return finish_worlds(log, lambda world: _finish(world, F, sc, e_des, c_des, reachable))
 
     return Experiment(sc, formation, plant_, ctrl, reference, times, x0, sc.dt_s, substeps, mocap, finish,
                       ugv_uav_metrics, UGV_UAV_CSV_CHANNELS, meta)
@@ -342,9 +342,15 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
         _paired("ts_chart", SPHERICAL_VARIABLES, e_rec, e_des, prefix="euclid_"),
         Channel("ts_command", ["u_" + c for c in log.columns("command")], log["command"]),
     ]
-    # why it stopped: the controller's final state (UgvUavState) says
+    # why it stopped: the controller's final state (UgvUavState) says (a batch's: this world's)
+    reason = ""
+    if stopped.size:
+        reason = log.meta["controller_state"].stop_reason
+        world = log.meta.get("world")
+        if world is not None and isinstance(reason, np.ndarray):
+            reason = str(reason[world])
     return log.with_channels(*chans, stopped_at=float(log.t[stopped[0]]) if stopped.size else None,
-                             stop_reason=log.meta["controller_state"].stop_reason if stopped.size else "")
+                             stop_reason=reason)
 
 
 # --------------------------------------------------------------------------- metrics
@@ -372,7 +378,7 @@ def ugv_uav_metrics(log: Log) -> dict:
     # change is not a loss), and while the controller still runs (not after a safe stop)
     settle = _settle_window(t, sc, reachable)
     late = (t >= sc.transient_s) & ~settle & reachable
-    stopped_at = log.meta["stopped_at"]
+    stopped_at = world_meta(log, "stopped_at")
     if stopped_at is not None:
         late &= t < stopped_at
     lost = late & ((ugv_err > LOST_UGV_M) | (uav_err > LOST_UAV_M))
@@ -428,7 +434,7 @@ def ugv_uav_metrics(log: Log) -> dict:
         "mocap_held_frames": int((log["held"][:, 0] > 0.5).sum()),
         "run_stopped": stopped_at is not None,
         "run_stopped_at_s": stopped_at,
-        "run_stopped_reason": log.meta["stop_reason"] or None,
+        "run_stopped_reason": world_meta(log, "stop_reason") or None,
         "nonfinite_commands": int((log["raw_finite"][:, 0] < 0.5).sum()),
         "uav_model_k": list(log.meta["uav_model_k"]),
         "max_uav_command_fraction": float(np.abs(u[:, 2:6]).max()) if n else 0.0,
@@ -486,8 +492,6 @@ class UgvUavKind(ScenarioKind):
     """``kind = "ugv-uav"``: seed 001's Pioneer + Bebop scenarios."""
 
     name = "ugv-uav"
-    not_sweepable = ("its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches "
-                     "but the measurement does not")
     scenario_type = UgvUavScenario
     options = (
         Option("formation", "the UGV-UAV description (Marciano 2021 §4)", tuple(UGV_UAV_FORMATIONS), "quaternion"),
