@@ -156,3 +156,14 @@ def test_the_builtin_sweeps_through_the_cli(name, tmp_path, capsys):
     rows = rows if isinstance(rows, list) else rows["rows"]
     assert len(rows) == len(spec.cells()) and not any(r["failed"] for r in rows)
     assert list((out / "figures").glob("*.png"))
+
+
+def test_a_batch_of_one_ugv_uav_world_is_the_run_alone():
+    """x0 of shape (1, 11): the finished world's metrics are the one-world run's, exactly."""
+    sc = dataclasses.replace(KINDS["ugv-uav"].from_dict({"kind": "ugv-uav", "name": "c", "duration_s": 3.0,
+                                                         "transient_s": 1.0, "mocap_noise_m": 0.01,
+                                                         "mocap_dropout_rate": 0.2}, "c"))
+    exp = KINDS["ugv-uav"].experiment(sc, formation="quaternion")
+    one, batch = exp.run(), dataclasses.replace(exp, x0=np.asarray(exp.x0)[None]).run()
+    assert batch["r_true"].shape[1] == 1
+    assert exp.metrics(batch.world(0)) == exp.metrics(one)
