@@ -25,7 +25,7 @@ import numpy as np
 from .. import checks
 from ..algebra import q_angle_between, wrap_angle
 from ..control import Reference, UgvUavController
-from ..errors import InvalidInputError, UnreachableError
+from ..errors import InvalidInputError, NonFiniteError, UnreachableError
 from ..formations import FORMATIONS, SPHERICAL_VARIABLES, UGV_UAV_LAYOUT, UGV_UAV_VARIABLES, UgvUavSpherical
 from ..robots import Bebop
 from ..sim.log import Channel, Log
@@ -263,8 +263,14 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
             "uav_model_k": tuple(ctrl.bebop.k),
             "unreachable_at": unreachable_at, "unreachable_message": message}
 
-    def finish(log: Log) -> Log:  # a batch: world by world (finish_worlds), each as its run alone
-        return finish_worlds(log, lambda world: _finish(world, F, sc, e_des, c_des, reachable))
+    def finish(log: Log) -> Log:
+        # a batch: world by world (finish_worlds), each as its run alone, the sample-by-sample
+        # continuation of the recovered formation computed for every world at once
+        if not log.batch_shape:
+            return _finish(log, F, sc, e_des, c_des, reachable)
+        c_cont = _continued(F, _measured_robots(log["used"], sc), c_des, reachable)
+        return finish_worlds(log, lambda world: _finish(world, F, sc, e_des, c_des, reachable,
+                                                        c_cont[(slice(None),) + world.meta["world"]]))
 
     return Experiment(sc, formation, plant_, ctrl, reference, times, x0, sc.dt_s, substeps, mocap, finish,
                       ugv_uav_metrics, UGV_UAV_CSV_CHANNELS, meta)
@@ -289,9 +295,39 @@ def _paired(name, variables, meas, des, prefix="") -> Channel:
     return _interleaved(name, pairs, len(meas))
 
 
-def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
+def _measured_robots(used, sc: UgvUavScenario):
+    """The robots' points as the controller used them (``used`` ``(T, *batch, 11)``; the UGV
+    at the platform height): ``(T, *batch, 6)``, NaN where it had none."""
+    z = np.full(used.shape[:-1], float(sc.center[2]))
+    return np.concatenate([used[..., [0, 1]], z[..., None], used[..., [3, 4, 5]]], axis=-1)
+
+
+def _continued(F, r_meas, c_des, reachable):
+    """The formation recovered from ``r_meas`` (``(T, *batch, 6)``), each sample continued from
+    the world's previous one (from the reference ``c_des`` where the previous has none and the
+    reference is reachable; NaN where the controller had no measurement or the description
+    cannot express it): ``(T, *batch, n_c)``, every world of a sample in one call of
+    ``F.forward`` per kind of hint."""
+    n = r_meas.shape[0]
+    c = np.full(r_meas.shape[:-1] + (F.n_c,), np.nan)
+    finite = np.all(np.isfinite(r_meas), axis=-1)
+    ok = finite & ~F.outside(np.where(finite[..., None], r_meas, 0.0))
+    for k in range(n):
+        if not ok[k].any():
+            continue
+        after = ok[k] & ok[k - 1] if k else np.zeros_like(ok[k])  # continued from the previous sample
+        fresh = ok[k] & ~after
+        if after.any():
+            c[k][after] = F.forward(r_meas[k][after], near_c=c[k - 1][after])
+        if fresh.any():
+            c[k][fresh] = F.forward(r_meas[k][fresh], near_c=c_des[k] if reachable[k] else None)
+    return c
+
+
+def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable, c_cont=None) -> Log:
     """The simulated ``log`` with :data:`DERIVED_CHANNELS`, the time-series views and the
-    meta ``stopped_at`` / ``stop_reason`` (from the controller's final state)."""
+    meta ``stopped_at`` / ``stop_reason`` (from the controller's final state); ``c_cont``: the
+    continued formation (:func:`_continued`) when computed already."""
     n = len(log.t)
     x = log["state"]
     ugv, uav = x[:, 0:3], x[:, 3:11]
@@ -305,7 +341,13 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))
     cluster = log["cluster"]
-    e_rec = F.to_chart(cluster, near_e=e_des, r=r_true) if n else np.zeros((0, 6))
+    try:
+        e_rec = F.to_chart(cluster, near_e=e_des, r=r_true) if n else np.zeros((0, 6))
+    except NonFiniteError:  # samples before the controller's first good frame: NaN there
+        e_rec = np.full((n, 6), np.nan)
+        have = np.all(np.isfinite(cluster), axis=1)
+        if have.any():
+            e_rec[have] = F.to_chart(cluster[have], near_e=e_des[have], r=r_true[have])
     # the singularity measure where the description exists (NaN where it cannot express the robots)
     sing = np.full(n, np.nan)
     inside = ~F.outside(r_true)
@@ -316,12 +358,13 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     # last (NaN where the controller had none or the description cannot express them)
     used = log["used"]
     r_meas = np.c_[used[:, [0, 1]], z, used[:, [3, 4, 5]]]
-    c_cont = np.full((n, F.n_c), np.nan)
-    ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
-    for k in range(n):
-        if ok[k]:
-            hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
-            c_cont[k] = F.forward(r_meas[k], near_c=hint)
+    if c_cont is None:
+        c_cont = np.full((n, F.n_c), np.nan)
+        ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
+        for k in range(n):
+            if ok[k]:
+                hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
+                c_cont[k] = F.forward(r_meas[k], near_c=hint)
     stopped = np.flatnonzero(log["stopped"][:, 0] > 0.5)
     rvars, cvars = UGV_UAV_VARIABLES, F.variables
     chans = [
@@ -361,6 +404,13 @@ def ugv_uav_metrics(log: Log) -> dict:
     sc, formation = log.meta["scenario"], log.meta["formation"]
     t = log.t
     n = len(t)
+    # each channel in the memory order one world's run has it (r_measured: Fortran, built by
+    # np.c_ of its columns; the rest C): a world of a batch (Log.world) is a strided view,
+    # whose reductions (einsum, norm) may round differently, and the arccos of a dot product
+    # near 1 turns one ulp into ~1e-8 rad (see _finish)
+    log = log.with_channels(*(Channel(c.name, c.columns, (np.asfortranarray if c.name == "r_measured" else
+                                                          np.ascontiguousarray)(c.data))
+                              for c in log.channels.values()))
     x = log["state"]
     ugv, uav = x[:, 0:3], x[:, 3:11]
     r_true, r_des = log["r_true"], log["r_des"]
