@@ -78,6 +78,6 @@ class TeleopSweep(SweepKind):
         return dataclasses.replace(exp, x0=x0, finish=lambda log: log), 0
 
 
-sweep_parameter(Parameter("preload", "1", "the teleop master's preload function off (0) or on (1) (teleop)", low=0,
+sweep_parameter(Parameter("preload", "1", "the teleop master's preload function off (0) or on (1)", low=0,
                           high=1, integer=True, kinds=("teleop",), apply=_preload))
 SWEEP_KINDS.add("teleop", TeleopSweep("teleop"))

@@ -91,5 +91,5 @@ class UgvUavSweep(SweepKind):
 
 
 sweep_parameter(Parameter("glitch_rate", "1", "probability that a motion-capture frame reads the UAV's marker at the "
-                          "UGV (ugv-uav)", high=1.0, high_open=True, kinds=("ugv-uav",)))
+                          "UGV", high=1.0, high_open=True, kinds=("ugv-uav",)))
 SWEEP_KINDS.add("ugv-uav", UgvUavSweep("ugv-uav"))
