@@ -67,7 +67,7 @@ def estimate(spec, workers: int = 1) -> Estimate:
     size = spec.chunk_trials or spec.trials
     checked = set()
     for _, choice, values in cells:
-        variant = (choice, *((k, v) for k, v in values.items() if k != "seed"))
+        variant = SWEEP_KINDS[spec.data["kind"]].variant(choice, values)
         if variant not in checked:  # every scenario variant built once: a bad one is refused before any run
             checked.add(variant)
             cell_scenario(spec, values, choice)

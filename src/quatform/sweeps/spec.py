@@ -17,7 +17,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field

@@ -78,12 +78,22 @@ class SweepKind:
     success : Success or None
         What a successful trial is when the spec has no ``[success]`` (None: the default of
         :mod:`~quatform.sweeps.spec`, errors below 0.1 m / 0.1 rad, the reference not lost).
+    scenario_keys : tuple of str
+        Parameters without a ``data`` or ``apply`` hook that :meth:`scenario` reads into the
+        cell's scenario (the ugv-uav kind's motion-capture settings).
     """
 
     kind: str
     cannot: tuple = ()
     settle_key: str | None = "metrics_from_s"
     success: object = None
+    scenario_keys: tuple = ()
+
+    def variant(self, choice: str, values: dict) -> tuple:
+        """What makes a cell's scenario differ from another's: the choice and the values of the
+        parameters that change the scenario (their ``data``/``apply`` hooks, :attr:`scenario_keys`)."""
+        return (choice, *((k, v) for k, v in values.items()
+                          if k in self.scenario_keys or PARAMETERS[k].data is not None or PARAMETERS[k].apply is not None))
 
     @property
     def parameters(self) -> tuple:

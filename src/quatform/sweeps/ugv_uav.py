@@ -56,11 +56,13 @@ class UgvUavSweep(SweepKind):
     success: object = Success({"max_ugv_position_error_m": LOST_UGV_M, "max_uav_position_error_m": LOST_UAV_M},
                               ("reference_lost", "run_stopped"))
 
+    scenario_keys: tuple = tuple(MOCAP_KEYS)
+
     def robots(self, exp) -> int:
         return 2
 
     def scenario(self, sc, values: dict):
-        own = {MOCAP_KEYS[k]: float(v) for k, v in values.items() if k in MOCAP_KEYS}
+        own = {MOCAP_KEYS[k]: float(v) for k, v in values.items() if k in self.scenario_keys}
         if not own:
             return sc
         sc = dataclasses.replace(sc, **own)
@@ -86,7 +88,7 @@ class UgvUavSweep(SweepKind):
             x0[:, col] += a * off[:, j]
         mocap = copy.copy(exp.measurement)  # settings only: world b reads the streams of seed + b
         mocap.seed = int(seed) + int(trials[0])
-        delay = int(round(values.get("latency_s", exp.scenario.mocap_latency_s) / (exp.substeps * exp.dt)))
+        delay = int(round(exp.scenario.mocap_latency_s / (exp.substeps * exp.dt)))  # the cell's, in control ticks
         return dataclasses.replace(exp, x0=x0, measurement=mocap, finish=lambda log: log), delay
 
 
