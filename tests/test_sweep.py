@@ -62,7 +62,8 @@ def swept(small, tmp_path_factory):
 
 def test_builtins_load_and_fit():
     names = set(builtin_sweeps())
-    assert {"helix-noise-sweep", "spiral-start-sweep", "team-size-sweep"} <= names
+    assert {"helix-noise-sweep", "spiral-start-sweep", "team-size-sweep", "ugv-uav-mocap-sweep",
+            "teleop-preload-sweep"} <= names
     for name in names:
         spec = load_sweep(name)
         assert spec.choices and spec.trials >= 1
@@ -343,11 +344,6 @@ def test_ctrl_c_says_the_chunks_are_kept(tmp_path, capsys, monkeypatch):
 
 def test_every_kind_is_sweepable_or_says_why():
     assert set(KINDS) <= set(SWEEP_KINDS) | set(NOT_SWEEPABLE), set(KINDS) - set(SWEEP_KINDS) - set(NOT_SWEEPABLE)
-
-
-def test_a_ugv_uav_sweep_says_why_not(tmp_path):
-    with pytest.raises(InvalidInputError, match="ugv-uav.*motion capture one world at a time"):
-        load_sweep(_tiny(tmp_path, 'scenario = "marciano-circle"\ntrials = 1\n'))
 
 
 @pytest.mark.parametrize("success, match", [

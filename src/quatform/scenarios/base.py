@@ -28,11 +28,13 @@ from abc import ABC, abstractmethod, update_abstractmethods
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from ..sim.log import Log
+import numpy as np
+
+from ..sim.log import Channel, Log
 from ..sim.backends import simulator
 from ..registry import Registry
 
-__all__ = ["Option", "Experiment", "ScenarioKind"]
+__all__ = ["Option", "Experiment", "ScenarioKind", "finish_worlds", "world_meta"]
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,48 @@ class Experiment:
                                  substeps=self.substeps, measurement=self.measurement, progress=progress,
                                  meta={"label": self.label, **self.meta})
         return self.finish(log)
+
+
+def finish_worlds(log: Log, finish: Callable[[Log], Log]) -> Log:
+    """``finish`` of a one-world log applied to every world of a batched ``log``
+    (:meth:`Log.world`), its added channels stacked back on the batch axes ``(T, *batch, k)``
+    and each meta entry it adds or changes kept per world: an object array of the batch shape
+    (read one world's with :func:`world_meta`). A one-world ``log`` is ``finish(log)``.
+
+    Each world's channels are the one-world finish's own numbers, so a world of a finished
+    batch equals the finished run of that world alone wherever the simulated worlds do."""
+    batch = log.batch_shape
+    if not batch:
+        return finish(log)
+    worlds = {idx: finish(log.world(idx)) for idx in np.ndindex(*batch)}
+    first = worlds[next(iter(worlds))]
+    added = [name for name in first.channels if name not in log.channels]
+    chans = []
+    for name in added:
+        ch = first.channels[name]
+        data = np.empty((len(log.t),) + batch + ch.data.shape[1:], dtype=ch.data.dtype)
+        for idx, w in worlds.items():
+            data[(slice(None),) + idx] = w[name]
+        chans.append(Channel(name, ch.columns, data))
+    meta = {}
+    for key, value in first.meta.items():
+        if key == "world" or (key in log.meta and log.meta[key] is value):
+            continue
+        per = np.empty(batch, dtype=object)
+        for idx, w in worlds.items():
+            per[idx] = w.meta[key]
+        meta[key] = per
+    return log.with_channels(*chans, **meta)
+
+
+def world_meta(log: Log, key: str, default=None):
+    """``log.meta[key]`` of a one-world log: of a world of a batch finished by
+    :func:`finish_worlds` (its ``meta["world"]``), that world's entry."""
+    value = log.meta.get(key, default)
+    world = log.meta.get("world")
+    if world is not None and isinstance(value, np.ndarray) and value.dtype == object and value.ndim == len(world):
+        return value[world]
+    return value
 
 
 #: Scenario kinds by their TOML ``kind`` value: one instance of every :class:`ScenarioKind`

@@ -46,7 +46,7 @@ from ..teleop import (
     VirtualWall,
 )
 from . import KINDS
-from .base import Experiment, Option, ScenarioKind
+from .base import Experiment, Option, ScenarioKind, finish_worlds
 
 __all__ = ["TeleopScenario", "TeleopKind", "TELEOP", "TELEOP_COLUMNS", "CSV_CHANNELS", "teleop_finish",
            "teleop_metrics", "teleop_scenario_from_dict", "check_teleop_work", "check_teleop_stiffness",
@@ -286,8 +286,11 @@ def teleop_finish(log: Log) -> Log:
     ``F_reflected``, ``wall_depth``: the environment's side of each tick
     (:meth:`~quatform.sim.plants.teleop.TeleopPlant.forces`, recomputed from the logged states
     and commands); ``master_joints``, ``slave_joints``: each joint's angle and torque side by
-    side (``q_m1, tau_m1, q_m2, ...``) for the CSV.
+    side (``q_m1, tau_m1, q_m2, ...``) for the CSV. A batch of worlds is finished world by
+    world (:func:`~quatform.scenarios.base.finish_worlds`).
     """
+    if log.batch_shape:
+        return finish_worlds(log, teleop_finish)
     sc, ctrl = log.meta["scenario"], log.meta["teleop_controller"]
     plant = log.meta["plant"]
     x, u, measured = log["state"], log["command"], log["measured"]
@@ -342,7 +345,6 @@ class TeleopKind(ScenarioKind):
     """Seed 003's teleoperation scenarios (``kind = "teleop"``)."""
 
     name = "teleop"
-    not_sweepable = "its plant (the arms) runs one world at a time"
     scenario_type = TeleopScenario
     options = (
         Option("orientation_error", "the controllers' orientation error (default: the scenario's)",

@@ -25,7 +25,7 @@ import numpy as np
 from .. import checks
 from ..algebra import q_angle_between, wrap_angle
 from ..control import Reference, UgvUavController
-from ..errors import InvalidInputError, UnreachableError
+from ..errors import InvalidInputError, NonFiniteError, UnreachableError
 from ..formations import FORMATIONS, SPHERICAL_VARIABLES, UGV_UAV_LAYOUT, UGV_UAV_VARIABLES, UgvUavSpherical
 from ..robots import Bebop
 from ..sim.log import Channel, Log
@@ -33,7 +33,7 @@ from ..sim.measurement import MotionCapture
 from ..sim.metrics import SINGULAR_THRESHOLD
 from ..sim.plants.ugv_uav import PioneerBebopPlant
 from . import KINDS
-from .base import Experiment, Option, ScenarioKind
+from .base import Experiment, Option, ScenarioKind, finish_worlds, world_meta
 from .ugv_uav_profiles import DEFAULT_PROFILE, PROFILES, profile_named
 
 __all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS", "UGV_UAV_PHYSICS",
@@ -264,7 +264,13 @@ def ugv_uav_experiment(sc: UgvUavScenario, formation: str = "quaternion", *, pla
             "unreachable_at": unreachable_at, "unreachable_message": message}
 
     def finish(log: Log) -> Log:
-        return _finish(log, F, sc, e_des, c_des, reachable)
+        # a batch: world by world (finish_worlds), each as its run alone, the sample-by-sample
+        # continuation of the recovered formation computed for every world at once
+        if not log.batch_shape:
+            return _finish(log, F, sc, e_des, c_des, reachable)
+        c_cont = _continued(F, _measured_robots(log["used"], sc), c_des, reachable)
+        return finish_worlds(log, lambda world: _finish(world, F, sc, e_des, c_des, reachable,
+                                                        c_cont[(slice(None),) + world.meta["world"]]))
 
     return Experiment(sc, formation, plant_, ctrl, reference, times, x0, sc.dt_s, substeps, mocap, finish,
                       ugv_uav_metrics, UGV_UAV_CSV_CHANNELS, meta)
@@ -289,9 +295,39 @@ def _paired(name, variables, meas, des, prefix="") -> Channel:
     return _interleaved(name, pairs, len(meas))
 
 
-def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
+def _measured_robots(used, sc: UgvUavScenario):
+    """The robots' points as the controller used them (``used`` ``(T, *batch, 11)``; the UGV
+    at the platform height): ``(T, *batch, 6)``, NaN where it had none."""
+    z = np.full(used.shape[:-1], float(sc.center[2]))
+    return np.concatenate([used[..., [0, 1]], z[..., None], used[..., [3, 4, 5]]], axis=-1)
+
+
+def _continued(F, r_meas, c_des, reachable):
+    """The formation recovered from ``r_meas`` (``(T, *batch, 6)``), each sample continued from
+    the world's previous one (from the reference ``c_des`` where the previous has none and the
+    reference is reachable; NaN where the controller had no measurement or the description
+    cannot express it): ``(T, *batch, n_c)``, every world of a sample in one call of
+    ``F.forward`` per kind of hint."""
+    n = r_meas.shape[0]
+    c = np.full(r_meas.shape[:-1] + (F.n_c,), np.nan)
+    finite = np.all(np.isfinite(r_meas), axis=-1)
+    ok = finite & ~F.outside(np.where(finite[..., None], r_meas, 0.0))
+    for k in range(n):
+        if not ok[k].any():
+            continue
+        after = ok[k] & ok[k - 1] if k else np.zeros_like(ok[k])  # continued from the previous sample
+        fresh = ok[k] & ~after
+        if after.any():
+            c[k][after] = F.forward(r_meas[k][after], near_c=c[k - 1][after])
+        if fresh.any():
+            c[k][fresh] = F.forward(r_meas[k][fresh], near_c=c_des[k] if reachable[k] else None)
+    return c
+
+
+def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable, c_cont=None) -> Log:
     """The simulated ``log`` with :data:`DERIVED_CHANNELS`, the time-series views and the
-    meta ``stopped_at`` / ``stop_reason`` (from the controller's final state)."""
+    meta ``stopped_at`` / ``stop_reason`` (from the controller's final state); ``c_cont``: the
+    continued formation (:func:`_continued`) when computed already."""
     n = len(log.t)
     x = log["state"]
     ugv, uav = x[:, 0:3], x[:, 3:11]
@@ -305,7 +341,13 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))
     cluster = log["cluster"]
-    e_rec = F.to_chart(cluster, near_e=e_des, r=r_true) if n else np.zeros((0, 6))
+    try:
+        e_rec = F.to_chart(cluster, near_e=e_des, r=r_true) if n else np.zeros((0, 6))
+    except NonFiniteError:  # samples before the controller's first good frame: NaN there
+        e_rec = np.full((n, 6), np.nan)
+        have = np.all(np.isfinite(cluster), axis=1)
+        if have.any():
+            e_rec[have] = F.to_chart(cluster[have], near_e=e_des[have], r=r_true[have])
     # the singularity measure where the description exists (NaN where it cannot express the robots)
     sing = np.full(n, np.nan)
     inside = ~F.outside(r_true)
@@ -316,12 +358,13 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
     # last (NaN where the controller had none or the description cannot express them)
     used = log["used"]
     r_meas = np.c_[used[:, [0, 1]], z, used[:, [3, 4, 5]]]
-    c_cont = np.full((n, F.n_c), np.nan)
-    ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
-    for k in range(n):
-        if ok[k]:
-            hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
-            c_cont[k] = F.forward(r_meas[k], near_c=hint)
+    if c_cont is None:
+        c_cont = np.full((n, F.n_c), np.nan)
+        ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
+        for k in range(n):
+            if ok[k]:
+                hint = c_cont[k - 1] if k and ok[k - 1] else (c_des[k] if reachable[k] else None)
+                c_cont[k] = F.forward(r_meas[k], near_c=hint)
     stopped = np.flatnonzero(log["stopped"][:, 0] > 0.5)
     rvars, cvars = UGV_UAV_VARIABLES, F.variables
     chans = [
@@ -342,9 +385,15 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable) -> Log:
         _paired("ts_chart", SPHERICAL_VARIABLES, e_rec, e_des, prefix="euclid_"),
         Channel("ts_command", ["u_" + c for c in log.columns("command")], log["command"]),
     ]
-    # why it stopped: the controller's final state (UgvUavState) says
+    # why it stopped: the controller's final state (UgvUavState) says (a batch's: this world's)
+    reason = ""
+    if stopped.size:
+        reason = log.meta["controller_state"].stop_reason
+        world = log.meta.get("world")
+        if world is not None and isinstance(reason, np.ndarray):
+            reason = str(reason[world])
     return log.with_channels(*chans, stopped_at=float(log.t[stopped[0]]) if stopped.size else None,
-                             stop_reason=log.meta["controller_state"].stop_reason if stopped.size else "")
+                             stop_reason=reason)
 
 
 # --------------------------------------------------------------------------- metrics
@@ -355,6 +404,13 @@ def ugv_uav_metrics(log: Log) -> dict:
     sc, formation = log.meta["scenario"], log.meta["formation"]
     t = log.t
     n = len(t)
+    # each channel in the memory order one world's run has it (r_measured: Fortran, built by
+    # np.c_ of its columns; the rest C): a world of a batch (Log.world) is a strided view,
+    # whose reductions (einsum, norm) may round differently, and the arccos of a dot product
+    # near 1 turns one ulp into ~1e-8 rad (see _finish)
+    log = log.with_channels(*(Channel(c.name, c.columns, (np.asfortranarray if c.name == "r_measured" else
+                                                          np.ascontiguousarray)(c.data))
+                              for c in log.channels.values()))
     x = log["state"]
     ugv, uav = x[:, 0:3], x[:, 3:11]
     r_true, r_des = log["r_true"], log["r_des"]
@@ -372,7 +428,7 @@ def ugv_uav_metrics(log: Log) -> dict:
     # change is not a loss), and while the controller still runs (not after a safe stop)
     settle = _settle_window(t, sc, reachable)
     late = (t >= sc.transient_s) & ~settle & reachable
-    stopped_at = log.meta["stopped_at"]
+    stopped_at = world_meta(log, "stopped_at")
     if stopped_at is not None:
         late &= t < stopped_at
     lost = late & ((ugv_err > LOST_UGV_M) | (uav_err > LOST_UAV_M))
@@ -428,7 +484,7 @@ def ugv_uav_metrics(log: Log) -> dict:
         "mocap_held_frames": int((log["held"][:, 0] > 0.5).sum()),
         "run_stopped": stopped_at is not None,
         "run_stopped_at_s": stopped_at,
-        "run_stopped_reason": log.meta["stop_reason"] or None,
+        "run_stopped_reason": world_meta(log, "stop_reason") or None,
         "nonfinite_commands": int((log["raw_finite"][:, 0] < 0.5).sum()),
         "uav_model_k": list(log.meta["uav_model_k"]),
         "max_uav_command_fraction": float(np.abs(u[:, 2:6]).max()) if n else 0.0,
@@ -486,8 +542,6 @@ class UgvUavKind(ScenarioKind):
     """``kind = "ugv-uav"``: seed 001's Pioneer + Bebop scenarios."""
 
     name = "ugv-uav"
-    not_sweepable = ("its runs read seed 001's motion capture one world at a time (MotionCapture); its plant batches "
-                     "but the measurement does not")
     scenario_type = UgvUavScenario
     options = (
         Option("formation", "the UGV-UAV description (Marciano 2021 §4)", tuple(UGV_UAV_FORMATIONS), "quaternion"),

@@ -23,7 +23,7 @@ from ..errors import ResourceLimitError
 from ..sim.output import write_failures
 from .executors import check_scheduler, executor, parallel_workers
 from .results import ChunkStore, ordered_rows, summarize, write_table
-from .trials import Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
+from .trials import SWEEP_KINDS, Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
 
 __all__ = ["plan_chunks", "estimate", "Estimate", "run_sweep", "SECONDS_PER_TICK", "SECONDS_PER_ROBOT_STEP",
            "BYTES_PER_VALUE", "MEMORY_FACTOR"]
@@ -67,7 +67,7 @@ def estimate(spec, workers: int = 1) -> Estimate:
     size = spec.chunk_trials or spec.trials
     checked = set()
     for _, choice, values in cells:
-        variant = (choice, values.get("team_size"), values.get("gain_scale"))
+        variant = SWEEP_KINDS[spec.data["kind"]].variant(choice, values)
         if variant not in checked:  # every scenario variant built once: a bad one is refused before any run
             checked.add(variant)
             cell_scenario(spec, values, choice)
@@ -78,7 +78,7 @@ def estimate(spec, workers: int = 1) -> Estimate:
             n_y = len(exp.plant.output_columns)
             width = (len(exp.plant.state_columns) + 2 * n_y + len(ctrl.command_names)
                      + sum(len(c) for c in ctrl.signal_columns().values()))
-            shapes[key] = (len(exp.times), exp.substeps, exp.controller.team.layout.n, width)
+            shapes[key] = (len(exp.times), exp.substeps, SWEEP_KINDS[spec.data["kind"]].robots(exp), width)
     steps = 0.0
     seconds = 0.0
     chunk_bytes = 0.0

@@ -17,7 +17,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -105,25 +104,22 @@ def _team_size_data(data: dict, value, where: str) -> dict:
     return out
 
 
-def _scaled(gains: dict, factor: float, only: str | None):
-    return {k: (v if only not in (None, k) else
-                [x * factor for x in v] if isinstance(v, list) else
-                np.asarray(v) * factor if isinstance(v, np.ndarray) else v * factor)
-            for k, v in gains.items()}
-
-
 def _gain_scale(sc, scale, spec, choice: str):
-    """``sc`` with the gains of the controller ``choice`` (or the axis' one ``gain``) times ``scale``."""
+    """``sc`` with the gains of the choice ``choice`` (or the axis' one ``gain``) times
+    ``scale``; the kind's sweep adapter says where its gains live
+    (:meth:`~quatform.sweeps.trials.SweepKind.gains`, ``with_gains``)."""
+    from .trials import SWEEP_KINDS, scaled_gains
+
     if scale == 1.0:
         return sc
     axis = spec.axis("gain_scale")
-    own = sc.gains.get(choice, {})
+    adapter = SWEEP_KINDS[spec.data["kind"]]
+    own = adapter.gains(sc, choice)
     if axis.gain is not None and axis.gain not in own:
         raise InvalidInputError(f"{spec.where}: [vary.gain_scale] gain = {axis.gain!r} is not a gain of the "
                                 f"{choice} controller{nearest(axis.gain, own)}; it has {', '.join(own) or 'none'}")
-    gains = {**sc.gains, choice: _scaled(own, float(scale), axis.gain)}
     try:
-        return dataclasses.replace(sc, gains=gains)
+        return adapter.with_gains(sc, choice, scaled_gains(own, float(scale), axis.gain))
     except InvalidInputError as exc:
         raise InvalidInputError(f"{spec.where}: gain_scale = {scale:g}: {exc}") from None
 
@@ -399,14 +395,17 @@ def _axis(name: str, d, where: str, seed: int, index: int) -> Axis:
     return Axis(name, values, gain, how)
 
 
-def _success(data: dict, where: str) -> Success:
+def _success(data: dict, where: str, default: Success | None = None) -> Success:
+    """``[success]``; what it leaves out is ``default``'s (None: :data:`DEFAULT_SUCCESS_BELOW`
+    and :data:`DEFAULT_SUCCESS_FALSE`)."""
     s = table(data, "success", where, default={})
     check_keys(s, _SUCCESS_KEYS, where, "[success]", _HINT)
-    below = dict(DEFAULT_SUCCESS_BELOW)
+    default = default or Success()
+    below = dict(default.below)
     if "below" in s:
         b = table(s, "below", where, "[success]")
         below = {k: number(b, k, where, place="[success.below]") for k in b}
-    false = DEFAULT_SUCCESS_FALSE
+    false = tuple(default.false)
     if "false" in s:
         f = s["false"]
         if not isinstance(f, list) or not all(isinstance(x, str) for x in f):
@@ -468,14 +467,15 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
         raise ResourceLimitError(f"{where}: {len(choices)} {plural} x [vary] grid of "
                                  f"{' x '.join(str(len(a.values)) for a in axes)} = {n_cells:,} cells, more than "
                                  f"{MAX_CELLS:,}; coarsen [vary] (fewer values or draws)")
-    can = SWEEP_KINDS[kind_name].parameters
+    adapter = SWEEP_KINDS[kind_name]
+    can = adapter.parameters
     for a in axes:
         if a.name not in can:
             raise InvalidInputError(f"{where}: [vary.{a.name}]: a {kind_name} scenario cannot vary {a.name}; it can "
                                     f"vary {', '.join(p for p in PARAMETERS if p in can)}")
     duration = number(data, "duration_s", where, None, low=0.0, low_open=True)
     settle = number(data, "settle_s", where, None, low=0.0)
-    _check_times(sc, duration, settle, axes, where)
+    _check_times(sc, duration, settle, axes, where, adapter.settle_key)
     chunk = integer(data, "chunk_trials", where, None, low=1, high=MAX_TRIALS)
     slurm = table(data, "slurm", where, default={})
     check_keys(slurm, SLURM_KEYS, where, "[slurm]", _HINT)
@@ -483,7 +483,7 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     return SweepSpec(name=text(data, "name", where, Path(where).stem), title=text(data, "title", where, ""),
                      source=text(data, "source", where, ""), scenario=scenario, compare_key=key, choices=choices,
                      axes=axes, trials=trials, seed=seed, duration_s=duration, settle_s=settle, chunk_trials=chunk,
-                     success=_success(data, where), slurm=slurm, where=where,
+                     success=_success(data, where, adapter.success), slurm=slurm, where=where,
                      data={**data, "scenario": scenario, "kind": kind_name,
                            "scenario_sha256": _file_hash(scenario)})
 
@@ -500,8 +500,9 @@ def check_slurm(options: dict, where: str) -> None:
             raise InvalidInputError(f"{where}: {key} = {short(v)} must be a whole number >= 1 (e.g. {key} = 4)")
 
 
-def _check_times(sc, duration, settle, axes, where: str) -> None:
-    """The run's length against the scenario's and the varied latency (one line each)."""
+def _check_times(sc, duration, settle, axes, where: str, settle_key: str | None = "metrics_from_s") -> None:
+    """The run's length against the scenario's and the varied latency (one line each);
+    ``settle_key``: the scenario field ``settle_s`` replaces (None: the kind has none)."""
     own = float(sc.duration_s)
     if duration is not None and duration > own:
         raise InvalidInputError(f"{where}: duration_s = {duration:g} s is longer than the scenario's own {own:g} s; a "
@@ -511,10 +512,16 @@ def _check_times(sc, duration, settle, axes, where: str) -> None:
     if run < 2 * float(sc.dt_s):
         raise InvalidInputError(f"{where}: duration_s = {run:g} s is shorter than two of the scenario's control "
                                 f"ticks (dt_s = {sc.dt_s:g} s); give a longer duration_s")
-    start = float(sc.metrics_from_s) if settle is None else settle
+    if settle_key is None:
+        if settle is not None:
+            raise InvalidInputError(f"{where}: settle_s: a {type(sc).__name__} has no settling time (its metrics "
+                                    "read the whole run and its holds); remove settle_s")
+        start = 0.0
+    else:
+        start = float(getattr(sc, settle_key)) if settle is None else settle
     if start >= run:
         what = f"settle_s = {settle:g}" if settle is not None else \
-            f"the scenario's metrics_from_s = {start:g} s (settle_s not given)"
+            f"the scenario's {settle_key} = {start:g} s (settle_s not given)"
         raise InvalidInputError(f"{where}: {what} is not before the end of the run (duration_s = {run:g} s): no "
                                 "sample would be measured; set settle_s below duration_s")
     lat = next((a for a in axes if a.name == "latency_s"), None)

@@ -31,11 +31,20 @@ from ..tomlio import read_toml
 from .spec import PARAMETERS
 
 __all__ = ["SweepKind", "SWEEP_KINDS", "NOT_SWEEPABLE", "Chunk", "chunk_batch", "run_chunk", "trial_stream", "cell_experiment",
+           "trial_offsets", "scaled_gains",
            "COINCIDENT_M", "ROW_COLUMNS", "row_metrics"]
 
 #: Robots closer than this (m) at any sample coincide: the trial failed.
 COINCIDENT_M = 1e-6
 
+
+
+def scaled_gains(gains: dict, factor: float, only: str | None) -> dict:
+    """``gains`` with each (or only the one named ``only``) times ``factor`` (numbers, lists, arrays, tuples)."""
+    return {k: (v if only not in (None, k) else
+                type(v)(x * factor for x in v) if isinstance(v, (list, tuple)) else
+                np.asarray(v) * factor if isinstance(v, np.ndarray) else v * factor)
+            for k, v in gains.items()}
 
 
 def _offset_scales(variables, m: float, rad: float) -> np.ndarray:
@@ -52,20 +61,89 @@ def _noise_scales(variables, m: float, rad: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SweepKind:
-    """How a sweep varies the scenarios of one kind.
+    """How a sweep varies the scenarios of one kind (the pair's and the team's: the robots'
+    points measured by a :class:`TickMeasurement`; a kind with its own measurement or plant
+    subclasses it and overrides :meth:`batch` and what else differs).
 
     Attributes
     ----------
     kind : str
         The scenario kind (:data:`SWEEP_KINDS` key).
+    cannot : tuple of str
+        Parameters that apply to every kind (``kinds`` None) which this kind's batch cannot
+        read (the teleop kind has no measurement model to make noisy).
+    settle_key : str or None
+        The scenario field ``settle_s`` sets: where its errors are measured from (None: the
+        kind's metrics have no settling time; ``settle_s`` is refused).
+    success : Success or None
+        What a successful trial is when the spec has no ``[success]`` (None: the default of
+        :mod:`~quatform.sweeps.spec`, errors below 0.1 m / 0.1 rad, the reference not lost).
+    scenario_keys : tuple of str
+        Parameters without a ``data`` or ``apply`` hook that :meth:`scenario` reads into the
+        cell's scenario (the ugv-uav kind's motion-capture settings).
     """
 
     kind: str
+    cannot: tuple = ()
+    settle_key: str | None = "metrics_from_s"
+    success: object = None
+    scenario_keys: tuple = ()
+
+    def variant(self, choice: str, values: dict) -> tuple:
+        """What makes a cell's scenario differ from another's: the choice and the values of the
+        parameters that change the scenario (their ``data``/``apply`` hooks, :attr:`scenario_keys`)."""
+        return (choice, *((k, v) for k, v in values.items()
+                          if k in self.scenario_keys or PARAMETERS[k].data is not None or PARAMETERS[k].apply is not None))
 
     @property
     def parameters(self) -> tuple:
-        """The keys of :data:`~quatform.sweeps.spec.PARAMETERS` it can vary (each parameter's ``kinds``)."""
-        return tuple(name for name, p in PARAMETERS.items() if p.applies_to(self.kind))
+        """The keys of :data:`~quatform.sweeps.spec.PARAMETERS` it can vary (each parameter's
+        ``kinds``, less :attr:`cannot`)."""
+        return tuple(name for name, p in PARAMETERS.items() if p.applies_to(self.kind) and name not in self.cannot)
+
+    def robots(self, exp) -> int:
+        """How many robots one world moves (for the wall-time estimate)."""
+        return exp.controller.team.layout.n
+
+    def shorten(self, sc, duration_s: float | None, settle_s: float | None):
+        """``sc`` run for its first ``duration_s`` with its errors measured from ``settle_s``
+        (None: the scenario's own)."""
+        short = {}
+        if duration_s is not None:
+            short["duration_s"] = duration_s
+        if settle_s is not None:
+            short[self.settle_key] = settle_s
+        return dataclasses.replace(sc, **short) if short else sc
+
+    def scenario(self, sc, values: dict):
+        """The cell's scenario with the point's ``values`` of the parameters the kind reads
+        into its scenario (here none: the batch reads them, :meth:`batch`)."""
+        return sc
+
+    def gains(self, sc, choice: str) -> dict:
+        """The gains of the choice ``choice`` by name (what ``gain_scale`` multiplies)."""
+        return dict(sc.gains.get(choice, {}))
+
+    def with_gains(self, sc, choice: str, gains: dict):
+        """``sc`` with ``gains`` (:meth:`gains`' names) for the choice ``choice``."""
+        return dataclasses.replace(sc, gains={**sc.gains, choice: gains})
+
+    def batch(self, exp, values: dict, seed: int, point: int, trials: list):
+        """``(batch, delay)``: the experiment of the trials ``trials`` of one cell (its worlds'
+        initial states and their :class:`TickMeasurement`, drawn from each trial's
+        :func:`trial_stream`; ``finish`` the identity: each world is finished on its own) and
+        the latency in control ticks."""
+        T = len(exp.times)
+        tick = exp.substeps * exp.dt
+        out_vars = _output_variables(exp)
+        off_vars = self.variables(exp)
+        z, u, off = _draws(seed, point, trials, T, len(out_vars), len(off_vars))
+        noise = z * _noise_scales(out_vars, values.get("noise_m", 0.0), values.get("noise_rad", 0.0))
+        delay = int(round(values.get("latency_s", 0.0) / tick))
+        dropped = u < values.get("dropout_rate", 0.0)
+        x0 = self.initial(exp, off, values.get("initial_offset_m", 0.0), values.get("initial_offset_rad", 0.0))
+        return dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, delay, dropped),
+                                   finish=lambda log: log), delay
 
     def data(self, data: dict, values: dict, where: str) -> dict:
         """The scenario file's table for a cell (each varied parameter's ``data``: ``team_size``
@@ -150,16 +228,15 @@ def cell_scenario(spec, values: dict, choice: str):
             raise
         raise InvalidInputError(f"{spec.where}: [vary.team_size] value {values['team_size']}: {exc}") from None
     # the first duration_s of the scenario (its changes past the end do not happen), measured from settle_s
-    short = {}
-    if spec.duration_s is not None:
-        short["duration_s"] = spec.duration_s
-    if spec.settle_s is not None:
-        short["metrics_from_s"] = spec.settle_s
-    if short:
-        try:
-            sc = dataclasses.replace(sc, **short)
-        except InvalidInputError as exc:
-            raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}") from None
+    try:
+        sc = adapter.shorten(sc, spec.duration_s, spec.settle_s)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{spec.where}: duration_s / settle_s: {exc}") from None
+    try:
+        sc = adapter.scenario(sc, values)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{spec.where}: {', '.join(f'{k} = {v:g}' for k, v in values.items())}: {exc}") \
+            from None
     for name, value in values.items():  # each varied parameter's change of the scenario
         hook = PARAMETERS[name].apply
         if hook is not None:
@@ -178,6 +255,12 @@ def cell_experiment(spec, values: dict, choice: str):
 def trial_stream(seed: int, point: int, trial: int) -> np.random.Generator:
     """The random stream of one trial: ``SeedSequence([seed, point, trial])``."""
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(point), int(trial)]))
+
+
+def trial_offsets(seed: int, point: int, trials, n: int) -> np.ndarray:
+    """Each trial's ``n`` uniforms in [-1, 1] (its initial error), the first draws of its own
+    :func:`trial_stream`: ``(B, n)`` (for a kind whose measurement draws from its own streams)."""
+    return np.array([trial_stream(seed, point, i).uniform(-1.0, 1.0, n) for i in trials]).reshape(len(trials), n)
 
 
 def _draws(seed, point, trials, T, k, n_off):
@@ -223,25 +306,13 @@ class Chunk:
 
 def chunk_batch(chunk: Chunk):
     """``(exp, batch, delay)``: the cell's single-world experiment, the batched one of the
-    chunk's trials (their initial states and their :class:`TickMeasurement`; its ``finish`` is
-    the identity: each world is finished on its own) and the latency in control ticks."""
+    chunk's trials (:meth:`SweepKind.batch`; its ``finish`` is the identity: each world is
+    finished on its own) and the latency in control ticks."""
     spec = chunk.spec
     point, choice, values = spec.cells()[chunk.cell]
     seed = int(values.get("seed", spec.seed))
     exp = cell_experiment(spec, values, choice)
-    adapter = SWEEP_KINDS[spec.data["kind"]]
-    trials = list(range(chunk.start, chunk.stop))
-    T = len(exp.times)
-    tick = exp.substeps * exp.dt
-    out_vars = _output_variables(exp)
-    off_vars = adapter.variables(exp)
-    z, u, off = _draws(seed, point, trials, T, len(out_vars), len(off_vars))
-    noise = z * _noise_scales(out_vars, values.get("noise_m", 0.0), values.get("noise_rad", 0.0))
-    delay = int(round(values.get("latency_s", 0.0) / tick))
-    dropped = u < values.get("dropout_rate", 0.0)
-    x0 = adapter.initial(exp, off, values.get("initial_offset_m", 0.0), values.get("initial_offset_rad", 0.0))
-    batch = dataclasses.replace(exp, x0=x0, measurement=TickMeasurement(noise, delay, dropped),
-                                finish=lambda log: log)
+    batch, delay = SWEEP_KINDS[spec.data["kind"]].batch(exp, values, seed, point, list(range(chunk.start, chunk.stop)))
     return exp, batch, delay
 
 
@@ -272,6 +343,7 @@ def run_chunk(chunk: Chunk) -> list[dict]:
         metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()
                    if isinstance(v, (bool, int, float, str, np.generic)) or v is None}
         row.update(metrics)
+        row.update(values)  # the cell's own values (a metric of the same name, teleop's preload, says the same)
         row["failed"] = reason is not None
         row["failure"] = reason or ""
         row["lost"] = bool(metrics.get("reference_lost", False))
