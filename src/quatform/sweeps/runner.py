@@ -138,7 +138,7 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
 
     if backend == "jax" and backend not in SIM_BACKENDS:
         raise InvalidInputError('--compute jax: the JAX backend is not registered in this install (it needs '
-                                'quatform.sim.jax_loop and pip install -e ".[jax]"); use --compute numpy')
+                                'quatform.sim.loop and pip install -e ".[jax]"); use --compute numpy')
     try:
         simulator(backend)  # an unknown or uninstallable backend: one line before anything runs
     except MissingDependencyError:
