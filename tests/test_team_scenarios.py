@@ -475,3 +475,16 @@ def test_compare_over_physics_leaves_out_mujoco_where_it_cannot_fly_the_team():
     assert run == ("kinematic",) and list(skipped) == ["mujoco"]
     assert "robot 1 is a PlanarHolonomicRobot" in skipped["mujoco"] and "\n" not in skipped["mujoco"]
     assert kind.compare_choices(load_scenario("team-tetrahedron-helix"), "physics") == (("kinematic", "mujoco"), {})
+
+
+def test_a_batch_of_worlds_finishes_each_as_its_own_run():
+    """Guards against: ``Experiment.run`` of a batch of team worlds failing in the finish (the
+    chart read on one world's shapes): each world's finished channels are its run alone's."""
+    sc = dataclasses.replace(load_scenario("team-three-bodies"), duration_s=2.0)
+    exp = KINDS["team"].experiment(sc, controller="quaternion")
+    x0 = np.stack([exp.x0, exp.x0 + 1e-3])
+    batch = dataclasses.replace(exp, x0=x0).run()
+    for i in range(2):
+        one = dataclasses.replace(exp, x0=x0[i]).run()
+        for name in ("e", "points", "singularity"):
+            assert np.allclose(batch[name][:, i], one[name], rtol=0, atol=1e-9, equal_nan=True), name

@@ -70,7 +70,7 @@ from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
 from ..sim.team_metrics import min_separations, team_metrics
 from . import KINDS
-from .base import Experiment, Option, ScenarioKind
+from .base import Experiment, Option, ScenarioKind, finish_worlds
 from .separation import FILE_LABEL, safety_table, with_option
 
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict",
@@ -688,7 +688,7 @@ class TeamKind(ScenarioKind):
         reader = _euclidean_reader(F, team.layout, scenario.template)
         reading_des = None if reader is None else reader.follow_reading(r_des)
 
-        def finish(log: Log) -> Log:
+        def finish_one(log: Log) -> Log:
             r = team.point(log["state"])
             c = log["cluster"]
             held = ~np.all(np.isfinite(c), axis=-1)  # a failed world's samples (sim.simulate: signals NaN)
@@ -715,6 +715,9 @@ class TeamKind(ScenarioKind):
                 extra["physics_record"] = mjp.physics_record(physics_plant, log,
                                                              f"{scenario.name}: {ctrl.name} controller")
             return log.with_channels(*chans, singularity_samples=int(idx.size), **extra)
+
+        def finish(log: Log) -> Log:  # a batch of worlds: each world's own finish
+            return finish_worlds(log, finish_one)
 
         def metrics(log: Log) -> dict:
             out = team_metrics(log)
