@@ -164,12 +164,13 @@ def clipped(e, c_dot_des, k, feedforward=1.0):
 TOY_KIND = '''
 """A toy scenario kind: one integrator under a proportional law, with figures and a bag scene."""
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from quatform.bags.scene import SCENES, Scene, SceneKind
 from quatform.checks import check_keys, number, text
-from quatform.control.contract import Controller, Step
+from quatform.control.contract import Controller, Step, Tick
 from quatform.report import FIGURES, FigureSet
 from quatform.report.figures import new_figure, save
 from quatform.scenarios import Experiment, Option, ScenarioKind
@@ -200,6 +201,7 @@ class Integrator:
 class Proportional(Controller):
     k: float
     name: str = "proportional"
+    pure: ClassVar[bool] = True
 
     @property
     def command_names(self):
@@ -208,9 +210,13 @@ class Proportional(Controller):
     def signal_columns(self):
         return {"error": ("e",)}
 
+    def tick(self, state, measured, reference, t):
+        e = -measured
+        return Tick(state, self.k * e, {"error": e}, 0 * e[..., 0].astype(int))
+
     def update(self, t, measured, reference, state):
-        e = -np.asarray(measured, dtype=float)
-        return Step(self.k * e, state, {"error": e})
+        out = self.tick(state, np.asarray(measured, dtype=float), reference, t)
+        return Step(out.u, out.state, out.signals)
 
 
 GAINS = {"slow": 0.5, "fast": 2.0}
@@ -446,6 +452,9 @@ def test_a_scenario_kind_is_one_file(tmp_path, registries):
     assert m["final_abs_x"] == pytest.approx(2.0 * (1 - 0.02) ** (log.t.size - 1), rel=1e-12)
     rows = runs.compare(f, tmp_path / "cmp", quiet=True, mcap=False)
     assert [r["gain"] for r in rows] == ["slow", "fast"]
+    pytest.importorskip("jax")  # its plant and pure controller, one file, run on every compute backend
+    _, mj = runs.run(f, tmp_path / "run-jax", quiet=True, mcap=False, plots=False, compute="jax", gain="fast")
+    assert mj["final_abs_x"] == pytest.approx(m["final_abs_x"], rel=1e-12)
 
 
 def test_a_writer_is_one_file(tmp_path, registries):
