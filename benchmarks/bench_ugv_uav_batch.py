@@ -23,10 +23,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import time
 
 import numpy as np
-from _common import machine_description, optional_import
+from _common import best_of, machine_description, optional_import
 
 from quatform.scenarios import load_scenario
 from quatform.scenarios.ugv_uav import ugv_uav_experiment
@@ -36,15 +35,6 @@ def _experiment(duration: float):
     sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=duration, transient_s=min(20.0, duration / 2),
                              mocap_noise_m=0.005, mocap_noise_rad=0.01)
     return ugv_uav_experiment(sc, "quaternion")
-
-
-def _best(fn, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:
@@ -69,8 +59,8 @@ def main() -> None:
     numpy_separate = None
     for backend in backends:
         raw.run(backend=backend)  # a warm-up (JAX: the one-world compilation)
-        separate = T / _best(lambda: raw.run(backend=backend), args.repeat)
-        separate_full = T / _best(lambda: exp.metrics(exp.run(backend=backend)), args.repeat)
+        separate = T / best_of(lambda: raw.run(backend=backend), args.repeat)
+        separate_full = T / best_of(lambda: exp.metrics(exp.run(backend=backend)), args.repeat)
         if backend == "numpy":
             numpy_separate = separate
         print(f"{backend:<8}{'sep.':>6}{separate:>24.4g}{1.0:>12.3g}"
@@ -80,14 +70,14 @@ def main() -> None:
             x0 = np.repeat(np.asarray(exp.x0)[None], B, axis=0)
             batch = dataclasses.replace(raw, x0=x0)
             batch.run(backend=backend)  # JAX: compiled for this batch shape before the timing
-            loop = B * T / _best(lambda: batch.run(backend=backend), 1 if B >= 64 else args.repeat)
+            loop = B * T / best_of(lambda: batch.run(backend=backend), 1 if B >= 64 else args.repeat)
             full_exp = dataclasses.replace(exp, x0=x0)
 
             def full():
                 log = full_exp.run(backend=backend)
                 return [exp.metrics(log.world(b)) for b in range(B)]
 
-            whole = B * T / _best(full, 1)
+            whole = B * T / best_of(full, 1)
             print(f"{backend:<8}{B:>6}{loop:>24.4g}{loop / separate:>12.3g}"
                   f"{loop / numpy_separate if numpy_separate else float('nan'):>14.3g}{whole:>18.4g}"
                   f"{whole / separate_full:>12.3g}")
