@@ -10,6 +10,7 @@ from __future__ import annotations
 import builtins
 import errno
 import io
+import os
 import re
 
 import pytest
@@ -188,3 +189,14 @@ def test_a_plan_on_a_full_disk_names_its_file(tmp_path, capsys, full_disk):
     assert cli.main(["plan", "vertical-pass-two-bodies", "--out", str(out), "--no-plots"]) == 1
     assert _refused(capsys, out) == f"{out}/plan.npz"
     assert _entries(tmp_path) == []
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc (no folder can be made in it)")
+def test_an_out_where_no_folder_can_be_made_is_one_line_naming_it(tmp_path):
+    """Guards against: ``--out /proc/x`` reporting the hidden staging folder's name
+    (``/proc/.x.partial-<pid>``) instead of the user's folder and the fix."""
+    from quatform import runs
+
+    with pytest.raises(OutputWriteError) as err:
+        runs.run("mas-kitts-helix", "/proc/quatform-out", quiet=True, plots=False, mcap=False, controller="quaternion")
+    assert "/proc/quatform-out" in str(err.value) and "--out" in str(err.value) and ".partial" not in str(err.value)

@@ -36,6 +36,8 @@ WRITE_FAILURES = {
     errno.EROFS: ("read-only file system", "choose a writable --out"),
     errno.EACCES: ("permission denied", "choose a folder you may write to as --out"),
     errno.EPERM: ("operation not permitted", "choose a folder you may write to as --out"),
+    errno.ENOENT: ("no folder can be made there (a file system such as /proc)",
+                   "choose a folder you may write to as --out"),
 }
 
 
@@ -55,7 +57,7 @@ def writing(path):
 _outer = threading.local()
 #: The errors of :data:`WRITE_FAILURES` that a file read raises too: converted only for files
 #: in the output folder.
-_RIGHTS = {errno.EROFS, errno.EACCES, errno.EPERM}
+_RIGHTS = {errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOENT}  # also what a read outside out raises
 
 
 def _within(name, folder) -> bool:
