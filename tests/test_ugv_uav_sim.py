@@ -308,3 +308,11 @@ def test_schedule_replays_the_streams():
     assert not np.array_equal(b["noise"][:, 0, 1], s["noise"])
     np.testing.assert_array_equal(b["noise"][:, 0, 1][s["new"]][0],
                                   mocap._draw(*mocap._streams(mocap.seed + 1))[0])
+
+
+def test_emergency_stop_and_release_refuse_what_is_not_the_state_in_one_line():
+    """Guards against: ``emergency_stop(None)`` failing deep inside with an AttributeError."""
+    ctrl = UgvUavController()
+    for call in (ctrl.emergency_stop, ctrl.release):
+        with pytest.raises(InvalidInputError, match="state must be the controller's UgvUavState"):
+            call(None)

@@ -193,6 +193,13 @@ def _positive(values, n, name):
     return v
 
 
+def _check_state(state, what: str) -> None:
+    """One line when ``state`` is not a :class:`UgvUavState` (the controller's ``init``)."""
+    if not isinstance(state, UgvUavState):
+        raise InvalidInputError(f"UgvUavController.{what}: state must be the controller's UgvUavState "
+                                f"(from init(batch) or the last update), got {type(state).__name__}")
+
+
 class UgvUavController(ClusterController):
     """Seed 001's formation controller for a Pioneer 3-DX and a Bebop 2: a
     :class:`~quatform.control.cluster.ClusterController` of a UGV-UAV description, the tanh
@@ -315,6 +322,7 @@ class UgvUavController(ClusterController):
         """``state`` with both robots halted until :meth:`release` (every world of a batch): the
         UGV stops, the UAV brakes to a hover (the compensation law with a zero velocity
         reference, rate ``L_d``); ``state.stop_reason`` is ``reason``."""
+        _check_state(state, "emergency_stop")
         return replace(state, stopped=np.ones(state.batch, dtype=bool),
                        stop_code=np.full(state.batch, _stop_code(reason), dtype=np.int64),
                        stop_t=np.full(state.batch, np.nan), stop_since=np.full(state.batch, np.nan))
@@ -322,6 +330,7 @@ class UgvUavController(ClusterController):
     def release(self, state):
         """``state`` with the emergency stop released and the derivative of (4.47) restarted
         (the last good frame is kept)."""
+        _check_state(state, "release")
         fresh = UgvUavState.start(state.batch, self.max_hold_s)
         return replace(fresh, good=state.good, good_t=state.good_t)
 
