@@ -93,8 +93,8 @@ def _tables() -> dict:
     """``{table: {controller: gains}}`` of the registered team descriptions' ``gain_tables``."""
     tables = {}
     for name, cls in team_descriptions().items():
-        for table, gains in cls.gain_tables.items():
-            tables.setdefault(table, {})[name] = gains
+        for key, gains in cls.gain_tables.items():
+            tables.setdefault(key, {})[name] = gains
     return tables
 
 
