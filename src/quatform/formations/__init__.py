@@ -19,16 +19,10 @@ from .layout import POINT_KINDS, RobotLayout
 from .special_sets import SpecialSet
 from .dual_quaternion_pair import DualQuaternionPair
 from .dual_quaternion_team import DualQuaternionTeam
-from .euclidean_team import EuclideanTeam
-from .euclidean_pair import (
-    EUCLIDEAN_VARIABLES,
-    EuclideanPair,
-    RobotSpace,
-    segment_direction,
-)
+from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair, EuclideanTeam, segment_direction
 from .quaternion_pair import QuaternionPair
 from .quaternion_team import QuaternionTeam
-from .robot_space_team import RobotSpaceTeam
+from .robot_space_team import RobotSpace, RobotSpaceTeam
 from .team_chart import LawGroup, TeamChart, default_template, fit_attitude
 from .ugv_uav import (
     SPHERICAL_VARIABLES,

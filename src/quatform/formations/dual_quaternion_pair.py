@@ -27,7 +27,7 @@ from . import geometry as g
 from . import pair_kernels as kern
 from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable
-from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair
+from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair
 from .quaternion_pair import TILT_TOL, QuaternionPair
 
 __all__ = ["DualQuaternionPair"]

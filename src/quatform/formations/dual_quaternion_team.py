@@ -44,10 +44,9 @@ from . import geometry as g
 from . import pair_kernels as kern
 from .base import Formation, Variable
 from .dual_quaternion_pair import DualQuaternionPair
-from .euclidean_pair import EUCLIDEAN_VARIABLES
+from .euclidean_team import EUCLIDEAN_VARIABLES
 from .layout import POINT_KINDS, RobotLayout
 from .quaternion_pair import TILT_TOL
-from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from .team_chart import (
     LawGroup,
@@ -55,6 +54,7 @@ from .team_chart import (
     check_template,
     default_template,
     team_compose,
+    team_layout,
     team_positions,
 )
 

@@ -26,7 +26,8 @@ space, yaw and pitch of the robot-2-to-robot-1 segment), for N robots:
 
 A planar team (every robot ``xy_yaw``) keeps the planar subset (Kitts & Mas's planar
 clusters): ``x_c, y_c, beta_c, d_c``, ``rho_k, psi_k`` (``k >= 3``) and the ``phi_i``. With
-two 4-DOF robots the variables are seed 000's, in its order (``EuclideanPair``).
+two 4-DOF robots the variables are seed 000's, in its order; :class:`EuclideanPair`, seed
+000's minimal baseline, is that team with the pair chart.
 
 The chart is minimal (as many variables as the robots' DOF) and therefore singular:
 ``gamma_c = +-pi/2`` (``beta_c`` undefined, seed 000 §2), robots 1, 2, 3 collinear (roll
@@ -41,25 +42,43 @@ import functools
 
 import numpy as np
 
-from ..algebra.kernels import array_namespace, dot_last
+from ..algebra.kernels import array_namespace, as_floats, dot_last
 from ..algebra.validate import as_array
 from ..errors import DegenerateInputError, InvalidInputError
 from . import geometry as g
 from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable
 from .layout import RobotLayout
-from .euclidean_pair import EUCLIDEAN_VARIABLES, VERTICAL_TOL, EuclideanPair
-from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from .team_chart import (
     LawGroup,
     TeamChart,
     check_template,
+    pair_chart,
     team_compose,
+    team_layout,
     team_positions,
 )
 
-__all__ = ["COLLINEAR_TOL", "POLE_TOL", "EuclideanTeam"]
+__all__ = ["COLLINEAR_TOL", "POLE_TOL", "VERTICAL_TOL", "EUCLIDEAN_VARIABLES", "EuclideanTeam", "EuclideanPair",
+           "segment_direction"]
+
+#: Seed 000's Euclidean variables of a pair (§2, eqs. (1)-(8)): the cluster state of two
+#: ``xyz_yaw`` robots and the pair chart of every description of them.
+EUCLIDEAN_VARIABLES = (
+    Variable("x_c", "m", "position"),
+    Variable("y_c", "m", "position"),
+    Variable("z_c", "m", "position"),
+    Variable("beta_c", "rad", "angle"),
+    Variable("gamma_c", "rad", "angle"),
+    Variable("d_c", "m", "length"),
+    Variable("phi_1", "rad", "angle"),
+    Variable("phi_2", "rad", "angle"),
+)
+
+#: Below this ratio of the horizontal to the full robot 1-2 distance ``beta_c`` is taken as
+#: undefined (the segment vertical).
+VERTICAL_TOL = 1e-12
 
 #: Below this ratio of robot 3's distance from the 1-2 line to its distance from robot 1 the
 #: roll ``alpha_c`` is taken as undefined (robots 1, 2, 3 collinear).
@@ -83,6 +102,41 @@ def _set(a, idx, v):
         a[idx] = v
         return a
     return a.at[idx].set(v)
+
+
+def segment_direction(beta, gamma):
+    """Unit vector from robot 2 to robot 1 for cluster yaw ``beta`` and pitch ``gamma``.
+
+    Inverse of seed 000 eqs. (4)-(5): ``(-sin b cos g, cos b cos g, sin g)``. Shape ``(..., 3)``.
+    """
+    xp = array_namespace(beta)
+    cb, sb, cg, sg = xp.cos(beta), xp.sin(beta), xp.cos(gamma), xp.sin(gamma)
+    return xp.stack([-sb * cg, cb * cg, sg], axis=-1)
+
+
+def _pair_inverse_jacobian(c):
+    """The dense derivative of the inverse of seed 000 eqs. (1)-(8) at the pair's cluster
+    states ``c`` (``(..., 8)``, any array namespace), ``(..., 8, 8)``, in closed form:
+    ``p1,2 = x_c +- d_c u`` with ``u`` the unit segment of eqs. (4)-(5) and ``u_beta``,
+    ``u_gamma`` its partials, ``theta_i = beta_c + phi_i`` (eqs. (7)-(8)). The cluster-space
+    controller of seed 000 Fig. 2 applies this matrix every step. Rank 7 at a vertical
+    segment."""
+    xp = array_namespace(c)
+    cb, sb, cg, sg = xp.cos(c[..., 3]), xp.sin(c[..., 3]), xp.cos(c[..., 4]), xp.sin(c[..., 4])
+    u = (-sb * cg, cb * cg, sg)
+    d = c[..., 5]
+    zero = xp.zeros_like(d)
+    one = zero + 1.0
+    u_b = (-cb * cg, -sb * cg, zero)
+    u_g = (sb * sg, -cb * sg, cg)
+    entries = []
+    for s in (1.0, -1.0):  # p1, p2 = x_c +- d_c u
+        sd = s * d
+        for i in range(3):
+            entries += [one if i == j else zero for j in range(3)] + [sd * u_b[i], sd * u_g[i], s * u[i], zero, zero]
+        # theta_1 = beta_c + phi_1, theta_2 = beta_c + phi_2
+        entries += [zero, zero, zero, one, zero, zero] + ([one, zero] if s > 0 else [zero, one])
+    return xp.reshape(xp.stack(entries, axis=-1), d.shape + (8, 8))
 
 
 def _spoke_direction(psi, chi):
@@ -147,8 +201,8 @@ class EuclideanTeam(Formation):
         robot off that line plays the chart's robot 3 (:attr:`order`).
     chart : {"team", "pair"}
         The operator's chart: the team chart (:class:`~.team_chart.TeamChart`) or, for two
-        ``xyz_yaw`` robots, seed 000's Euclidean variables (``EUCLIDEAN_VARIABLES``,
-        through :class:`~.euclidean_pair.EuclideanPair`).
+        ``xyz_yaw`` robots, seed 000's Euclidean variables (:data:`EUCLIDEAN_VARIABLES`:
+        the cluster state itself; :class:`EuclideanPair`).
 
     Raises
     ------
@@ -195,11 +249,7 @@ class EuclideanTeam(Formation):
                 "the minimal chart of a mix drops z_c for one ground robot only (each further one would need "
                 "another variable solved from its z = 0); give one ground robot, or use QuaternionTeam or "
                 "RobotSpaceTeam for this mix")
-        if chart not in ("team", "pair"):
-            raise InvalidInputError(f"EuclideanTeam: chart must be 'team' or 'pair', got {chart!r}")
-        if chart == "pair" and L.kinds != ("xyz_yaw", "xyz_yaw"):
-            raise InvalidInputError(f"EuclideanTeam: chart='pair' (seed 000's variables) needs two xyz_yaw robots, "
-                                    f"the layout has {L.kinds}; use chart='team'")
+        self._pair_chart = pair_chart(chart, L, "EuclideanTeam")
         self.layout = L
         self.planar = kinds == {"xy_yaw"}
         self.template = None if template is None else check_template(template, L.n)
@@ -211,10 +261,9 @@ class EuclideanTeam(Formation):
         self._nxc = 2 if self.planar or self._ground is not None else 3
         self.chart_kind = chart
         self.chart = TeamChart(L)
-        #: seed 000's pair (two xyz_yaw robots): its closed-form inverse Jacobian is this one's
-        self._seed = EuclideanPair() if L.kinds == ("xyz_yaw", "xyz_yaw") else None
-        self._pair = self._seed if chart == "pair" else None
-        self.chart_variables = EUCLIDEAN_VARIABLES if chart == "pair" else self.chart.variables
+        #: seed 000's pair (two xyz_yaw robots): the inverse Jacobian in closed form
+        self._seed = L.kinds == ("xyz_yaw", "xyz_yaw")
+        self.chart_variables = EUCLIDEAN_VARIABLES if self._pair_chart else self.chart.variables
         self._build_index()
 
     def __repr__(self):
@@ -320,9 +369,7 @@ class EuclideanTeam(Formation):
             nb = near_c[..., self._i_beta]
             beta = xp.where(vertical, nb, g.unwrap_near(beta, nb))
         G = {"p": p, "delta": delta, "D": D, "rho_h": rho_h, "beta": beta, "gamma": gamma, "vertical": vertical}
-        if L.n < 3:
-            x0, u, z0, xf, zf = _frame(beta, gamma, xp.zeros_like(beta))
-            G.update(x0=x0, u=u, z0=z0, xf=xf, zf=zf, alpha=xp.zeros_like(beta))
+        if L.n < 3:  # no spokes: the frame is not read
             return G
         W = p[..., 2:, :] - p[..., :1, :]  # spokes from robot 1 (Kitts & Mas: p, q, beta at robot 1)
         x0, u, z0, _, _ = _frame(beta, gamma, xp.zeros_like(beta))
@@ -463,16 +510,22 @@ class EuclideanTeam(Formation):
         mean_j s_j)`` with ``s_i`` robot ``i``'s spoke from robot 1, ``theta_i = phi_i + beta_c``
         (eqs. (7)-(8)). Single-valued; at a singular set the positions do not depend on the
         undefined angle (``beta_c`` at ``gamma_c = +-pi/2`` only through ``beta_c + alpha_c``).
+        Two robots: seed 000 eqs. (1)-(8) solved for them, ``x1,2 = x_c +- d_c u(beta_c,
+        gamma_c)``; a pitch beyond ``[-pi/2, pi/2]`` gives the positions of ``(beta_c + pi,
+        pi - gamma_c)`` (the fold of seed 000 §4.1), the yaws ``phi_i + beta_c`` as given.
 
         Parameters
         ----------
         c : array_like, shape (..., n_c)
+            Two ``xyz_yaw`` robots: ``(..., 8)``, ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1,
+            phi_2)`` (m, rad).
         near_r : array_like, shape (..., n_r), optional
             Robot state whose yaws the result's are unwrapped near (within pi).
 
         Returns
         -------
         ndarray, shape (..., n_r)
+            Two ``xyz_yaw`` robots: ``(..., 8)``, ``(x1, y1, z1, theta1, x2, y2, z2, theta2)``.
 
         Raises
         ------
@@ -502,8 +555,8 @@ class EuclideanTeam(Formation):
     def robot_rate_arrays(self, c, cd):
         """:meth:`robot_rate` without its checks, on arrays of any namespace (NumPy; JAX under
         ``jax.jit``)."""
-        if self._seed is not None:
-            Ji = self._seed.inverse_jacobian_at(c)
+        if self._seed:
+            Ji = _pair_inverse_jacobian(c)
             if isinstance(Ji, np.ndarray) and isinstance(cd, np.ndarray):
                 return np.einsum("...ij,...j->...i", Ji, cd)
             return (Ji * cd[..., None, :]).sum(axis=-1)  # the products' sums (as ClusterController on JAX)
@@ -544,11 +597,11 @@ class EuclideanTeam(Formation):
         return self.layout.compose(v, cd[..., self._i_phi] + bd[..., None])
 
     def inverse_jacobian_at(self, c, *, r=None):
-        """The dense derivative of :meth:`inverse` at ``c``, ``(..., n_r, n_c)``: for two
-        ``xyz_yaw`` robots seed 000's closed form (:meth:`EuclideanPair.inverse_jacobian_at`),
-        otherwise :meth:`robot_rate` on the unit vectors."""
-        if self._seed is not None:
-            return self._seed.inverse_jacobian_at(np.asarray(c, dtype=float))
+        """The dense derivative of :meth:`inverse` at ``c``, ``(..., n_r, n_c)`` (NumPy, or another
+        array namespace for two robots): for two ``xyz_yaw`` robots seed 000's closed form
+        (rank 7 at a vertical segment), otherwise :meth:`robot_rate` on the unit vectors."""
+        if self._seed:
+            return _pair_inverse_jacobian(as_floats(c))
         return super().inverse_jacobian_at(c, r=r)
 
     def _rates(self, r, r_dot, near_c=None, strict=True):
@@ -708,8 +761,13 @@ class EuclideanTeam(Formation):
         ``theta_i = phi_i + beta_c``).
         """
         c = self.check_cluster_state(c)
-        if self._pair is not None:
-            return self._pair.to_chart(c, near_e=near_e)
+        if self._pair_chart:
+            e = c.copy()
+            if near_e is not None:  # beta_c, phi_1, phi_2 wound to near_e's (gamma_c in [-pi/2, pi/2])
+                near_e = np.asarray(near_e, dtype=float)
+                for i in (3, 6, 7):
+                    e[..., i] = g.unwrap_near(c[..., i], near_e[..., i])
+            return e
         if near_e is not None or self.template is not None:
             return self.chart.from_robots(self.inverse(c), near_e=near_e, template=self.template)
         beta, gamma, alpha = self._angles_of(c)
@@ -741,8 +799,9 @@ class EuclideanTeam(Formation):
         DegenerateInputError
             The chart puts robots on each other (robot 1 and 2 at one point: no ``beta_c``).
         """
-        if self._pair is not None:
-            return self._pair.from_chart(e, e_dot)
+        if self._pair_chart:
+            e = self.check_cluster_state(e, "e")
+            return e.copy() if e_dot is None else (e.copy(), as_array(e_dot, "e_dot", 8).copy())
         e = self.chart.check(e)
         r = self.chart.robots(e)
         c = self.forward(r)
@@ -868,3 +927,31 @@ class EuclideanTeam(Formation):
             out.append(SpecialSet("wound-yaws", "yaws wound by up to 50 turns: phi_i = theta_i - beta_c unwrapped "
                                   "near near_c's, regular", self._set(wound)))
         return tuple(out)
+
+
+class EuclideanPair(EuclideanTeam):
+    """Seed 000 eqs. (1)-(8): ``EuclideanTeam(2, chart="pair")``, two 4-DOF robots in the
+    variables ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2)`` (:data:`EUCLIDEAN_VARIABLES`).
+
+    The minimal baseline of Mas & Kitts: singular where the segment between the robots is
+    vertical (``|gamma_c| = pi/2``: ``beta_c`` undefined) and where the robots coincide. Eq. (6)
+    is printed ``sqrt(dx^2 + dy^2 + dz^2/2)``; ``d_c`` is *half the distance* (text and Fig. 1),
+    ``sqrt(dx^2 + dy^2 + dz^2) / 2`` (``docs/derivations.md``). ``gamma_c`` lies in ``[-pi/2,
+    pi/2]`` (the range of eq. (5)); a pitch beyond it is read as ``beta_c + pi`` and ``pi -
+    gamma_c``, the ambiguity of seed 000 §4.1. A preset: registered under its own key (the
+    contract test runs it), no second team description or team controller.
+    """
+
+    name = "euclidean"
+    key = "euclidean"
+    team = False
+
+    def __init__(self):
+        super().__init__(2, chart="pair")
+
+    @classmethod
+    def examples(cls) -> dict:
+        return {cls.key: cls()}
+
+    def __repr__(self):
+        return "EuclideanPair()"

@@ -24,7 +24,7 @@ from . import geometry as g
 from . import pair_kernels as kern
 from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
-from .euclidean_pair import EUCLIDEAN_VARIABLES, EuclideanPair
+from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair
 
 __all__ = ["QuaternionPair"]
 

@@ -35,14 +35,13 @@ from . import geometry as g
 from . import pair_kernels as kern
 from .base import MIN_SEPARATION_M, Formation, Variable, quaternion_variables
 from .layout import RobotLayout
-from .euclidean_pair import EUCLIDEAN_VARIABLES
+from .euclidean_team import EUCLIDEAN_VARIABLES
 from .layout import POINT_KINDS
 from .quaternion_pair import TILT_TOL, QuaternionPair
-from .robot_space_team import team_layout
 from .special_sets import SpecialSet
 from . import team_special_sets as tss
 from .team_chart import (TIE, TIE_DECAY, LawGroup, TeamChart, check_template, default_template, fit_attitude, horn_matrix,
-                         team_compose, team_positions)
+                         team_compose, team_layout, team_positions)
 
 __all__ = ["QuaternionTeam", "CHARTS", "PLANAR_TOL"]
 

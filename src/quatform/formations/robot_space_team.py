@@ -5,6 +5,8 @@ point (from the chart's inverse, :meth:`TeamChart.robots`) and never meets a sin
 Jacobian, but its motions are the robots' shortest paths, not the formation's (Fig. 4b),
 and the formation it reports is read back from the robots through the chart, with a fixed
 template and no memory of the reference's attitude beyond the hint (the ambiguity of §4.1).
+:class:`RobotSpace`, the description of seed 000's robot-space controller, is the team of
+two 4-DOF robots with the pair chart (seed 000's Euclidean variables).
 """
 
 from __future__ import annotations
@@ -13,31 +15,16 @@ import functools
 
 import numpy as np
 
-from ..algebra.kernels import array_namespace
+from ..algebra.kernels import array_namespace, as_floats
 from ..algebra.validate import as_array
-from ..errors import InvalidInputError
 from . import geometry as g
+from . import special_sets as sp
 from .base import Formation
+from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair
 from .layout import POINT_KINDS, RobotLayout
-from .team_chart import LawGroup, TeamChart, check_template, default_template
+from .team_chart import LawGroup, TeamChart, check_template, default_template, pair_chart, team_layout
 
-__all__ = ["RobotSpaceTeam", "team_layout"]
-
-
-def team_layout(n=None, layout=None, owner: str = "team") -> RobotLayout:
-    """The layout of a team description: ``n`` 4-DOF robots or ``layout``, exactly one of them."""
-    if (n is None) == (layout is None):
-        raise InvalidInputError(f"{owner}: give the number of robots n (4-DOF robots) or a RobotLayout, "
-                                f"exactly one of them; got n={n!r}, layout={layout!r}")
-    if layout is None:
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 2:
-            raise InvalidInputError(f"{owner}: a formation needs a whole number of robots n >= 2, got {n!r}")
-        return RobotLayout.uniform("xyz_yaw", int(n))
-    if not isinstance(layout, RobotLayout):
-        raise InvalidInputError(f"{owner}: layout must be a RobotLayout, got {type(layout).__name__}")
-    if layout.n < 2:
-        raise InvalidInputError(f"{owner}: a formation needs at least 2 robots, the layout has {layout.n}")
-    return layout
+__all__ = ["RobotSpaceTeam", "RobotSpace"]
 
 
 class RobotSpaceTeam(Formation):
@@ -52,6 +39,15 @@ class RobotSpaceTeam(Formation):
     template : array_like, shape (N, 3), optional
         The shape the chart fits the formation's attitude to when no reference is given
         (:func:`~.team_chart.default_template` by default).
+    chart : {"team", "pair"}
+        The operator's chart: the team chart (:class:`~.team_chart.TeamChart`) or, for two
+        ``xyz_yaw`` robots, seed 000's Euclidean variables (eqs. (1)-(8) of the robots,
+        :class:`~.euclidean_team.EuclideanPair`).
+
+    Raises
+    ------
+    InvalidInputError
+        ``chart="pair"`` for a team that is not two ``xyz_yaw`` robots.
     """
 
     name = "robot-space-team"
@@ -65,22 +61,28 @@ class RobotSpaceTeam(Formation):
         "table1": {"k_p": [1.5, 1.5, 1.5], "k_theta": 6.0},
         "table2": {"k_p": [0.06, 0.06, 0.03], "k_theta": 0.02},
     }
+    #: :meth:`forward` refuses robots on each other (the formation they form has no shape);
+    #: seed 000's robot space (:class:`RobotSpace`) takes them, ``c = r`` being defined there.
+    robots_apart = True
 
     @classmethod
     def examples(cls) -> dict:
         """The contract test's instances: a mix of point kinds."""
         return {cls.key: cls(layout=RobotLayout(("xyz_yaw", "xy_yaw", "pose", "xyz_yaw")))}
 
-    def __init__(self, n=None, *, layout=None, template=None):
+    def __init__(self, n=None, *, layout=None, template=None, chart="team"):
         self.layout = team_layout(n, layout, "RobotSpaceTeam")
+        #: the pair chart's conversions: seed 000 eqs. (1)-(8) (None: the team chart)
+        self._pair = EuclideanPair() if pair_chart(chart, self.layout, "RobotSpaceTeam") else None
+        self.chart_kind = chart
         self.chart = TeamChart(self.layout)
         self.template = (default_template(self.layout) if template is None
                          else check_template(template, self.layout.n))
         self.variables = self.layout.variables
-        self.chart_variables = self.chart.variables
+        self.chart_variables = self.chart.variables if self._pair is None else EUCLIDEAN_VARIABLES
 
     def __repr__(self):
-        return f"RobotSpaceTeam(layout={self.layout!r})"
+        return f"RobotSpaceTeam(layout={self.layout!r}, chart={self.chart_kind!r})"
 
     @functools.cached_property
     def sign_free(self) -> tuple:
@@ -105,7 +107,8 @@ class RobotSpaceTeam(Formation):
 
     def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
-        self.check_apart(r)
+        if self.robots_apart:
+            self.check_apart(r)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
         return self.forward_arrays(r, near_c)
@@ -164,29 +167,78 @@ class RobotSpaceTeam(Formation):
         return np.broadcast_to(c_dot, np.broadcast_shapes(c.shape, c_dot.shape)).copy()
 
     def length_scale(self, r):
-        """1 m for any robots, as for the pair's :class:`~.euclidean_pair.RobotSpace`: the cluster
-        state is the robots' own coordinates (``J = I``, no special set), so nothing is divided
-        by the robots' separation. :meth:`singularity_measure` is 1 (robots on each other
-        included) and :meth:`value_spread` is ``sqrt(n_r) delta``, the bound of ``c = r``."""
+        """1 m for any robots: the cluster state is the robots' own coordinates (``J = I``, no
+        special set), so nothing is divided by the robots' separation. :meth:`singularity_measure`
+        is 1 (robots on each other included) and :meth:`value_spread` is ``sqrt(n_r) delta``, the
+        bound of ``c = r``."""
         return np.ones(np.shape(r)[:-1])
+
+    def inverse_jacobian_at(self, c, *, r=None):
+        """The identity ``(..., n_r, n_r)`` (robot space is its own cluster space), on NumPy or
+        another array namespace."""
+        c = as_floats(c)
+        xp = array_namespace(c)
+        return xp.broadcast_to(xp.eye(self.n_r), c.shape[:-1] + (self.n_r, self.n_r)).copy()
 
     def inverse_jacobian(self, r, *, near_c=None):
         """The identity ``(..., n_r, n_r)`` at any robots ``r``, robots on each other included
-        (``c = r`` up to the yaws' turns and the quaternions' signs, which ``J`` does not see),
-        as for the pair's robot space; :meth:`forward` still refuses robots on each other."""
+        (``c = r`` up to the yaws' turns and the quaternions' signs, which ``J`` does not see);
+        :meth:`forward` still refuses robots on each other where :attr:`robots_apart`."""
         r = self.check_robot_state(r)
         if near_c is not None:
             self.check_cluster_state(near_c, "near_c")
         return self.inverse_jacobian_at(r, r=r)
 
+    def special_sets(self):
+        """None of its own; two ``xyz_yaw`` robots are checked on the pair's sets (seed 000), where
+        the Euclidean chart is singular and the robot space is not."""
+        if self.layout.kinds != ("xyz_yaw", "xyz_yaw"):
+            return ()
+        return sp.pair_sets("the Euclidean chart of eqs. (1)-(8) is singular here; the robot space is not")
+
     def to_chart(self, c, *, near_e=None, r=None):
         """The team chart of the robots ``c`` (:meth:`TeamChart.from_robots` with this
-        description's template where no ``near_e`` is given)."""
+        description's template where no ``near_e`` is given); ``chart="pair"``: seed 000's
+        Euclidean variables of the robots, eqs. (1)-(8) (past ``|gamma_c| = pi/2`` they read
+        ``beta_c + pi``, ``pi - gamma_c``, the ambiguity of §4.1), wound to ``near_e``'s."""
         c = self.check_cluster_state(c)
+        if self._pair is not None:
+            return self._pair.to_chart(self._pair.forward(c), near_e=near_e)
         return self.chart.from_robots(c, near_e=near_e, template=self.template)
 
     def from_chart(self, e, e_dot=None):
+        """The robots (and their rates) of the chart values ``e`` (and ``e_dot``); ``chart="pair"``:
+        the inverse of seed 000 eqs. (1)-(8) and its closed-form derivative."""
+        if self._pair is not None:
+            e = self._pair.check_cluster_state(e, "e")
+            r = self._pair.inverse(e)
+            return r if e_dot is None else (r, self._pair.robot_rate(e, e_dot))
         e = self.chart.check(e)
         if e_dot is None:
             return self.chart.robots(e)
         return self.chart.robots(e), self.chart.robot_rates(e, e_dot)
+
+
+class RobotSpace(RobotSpaceTeam):
+    """Robot space of two 4-DOF robots, ``c = r``: the description of seed 000 §3.1,
+    ``RobotSpaceTeam(2, chart="pair")`` taking robots on each other (:attr:`robots_apart`).
+
+    Its chart is the Euclidean forward kinematics, eqs. (1)-(8), as the seed's robot-space
+    controller reports the formation. A preset: registered under its own key (the contract
+    test runs it), no second team description or team controller.
+    """
+
+    name = "robot"
+    key = "robot"
+    team = False
+    robots_apart = False
+
+    def __init__(self):
+        super().__init__(2, chart="pair")
+
+    @classmethod
+    def examples(cls) -> dict:
+        return {cls.key: cls()}
+
+    def __repr__(self):
+        return "RobotSpace()"

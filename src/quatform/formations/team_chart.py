@@ -37,7 +37,7 @@ from . import geometry as g
 from .layout import POINT_KINDS, RobotLayout, Variable
 
 __all__ = ["TeamChart", "LawGroup", "ROLE_WIDTHS", "fit_attitude", "default_template", "check_template",
-           "horn_matrix", "team_compose", "team_positions", "TIE", "TIE_DECAY"]
+           "horn_matrix", "team_compose", "team_positions", "team_layout", "pair_chart", "TIE", "TIE_DECAY"]
 
 #: Width of each block role (the last axis of :attr:`LawGroup.index`); ``control.team`` maps
 #: a role to its law and gain key.
@@ -78,6 +78,33 @@ class LawGroup:
                              f"got {idx.shape}")
         idx.setflags(write=False)
         object.__setattr__(self, "index", idx)
+
+
+def team_layout(n=None, layout=None, owner: str = "team") -> RobotLayout:
+    """The layout of a team description: ``n`` 4-DOF robots or ``layout``, exactly one of them."""
+    if (n is None) == (layout is None):
+        raise InvalidInputError(f"{owner}: give the number of robots n (4-DOF robots) or a RobotLayout, "
+                                f"exactly one of them; got n={n!r}, layout={layout!r}")
+    if layout is None:
+        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 2:
+            raise InvalidInputError(f"{owner}: a formation needs a whole number of robots n >= 2, got {n!r}")
+        return RobotLayout.uniform("xyz_yaw", int(n))
+    if not isinstance(layout, RobotLayout):
+        raise InvalidInputError(f"{owner}: layout must be a RobotLayout, got {type(layout).__name__}")
+    if layout.n < 2:
+        raise InvalidInputError(f"{owner}: a formation needs at least 2 robots, the layout has {layout.n}")
+    return layout
+
+
+def pair_chart(chart, layout: RobotLayout, owner: str) -> bool:
+    """Whether a description's ``chart`` (``"team"`` or ``"pair"``) is seed 000's Euclidean
+    variables (``"pair"``, for two ``xyz_yaw`` robots only) rather than the team chart."""
+    if chart not in ("team", "pair"):
+        raise InvalidInputError(f"{owner}: chart must be 'team' or 'pair', got {chart!r}")
+    if chart == "pair" and layout.kinds != ("xyz_yaw", "xyz_yaw"):
+        raise InvalidInputError(f"{owner}: chart='pair' (seed 000's variables) needs two xyz_yaw robots, the layout "
+                                f"has {layout.kinds}; use chart='team'")
+    return chart == "pair"
 
 
 def default_template(layout: RobotLayout) -> np.ndarray:
