@@ -41,6 +41,31 @@ def test_registry_covers_every_description():
     assert {k: type(FORMATIONS[k]) for k in TEAM_FORMATIONS} == TEAM_FORMATIONS  # the team classes, once each
 
 
+def test_a_preset_is_a_formation_of_its_own_key_not_a_second_team_description():
+    """EuclideanPair and RobotSpace (two robots, the pair chart) run the contract under their
+    own keys; the team controllers stay one per team description, and a subclass that keeps
+    its parent's team flag and controller name is one line naming both."""
+    from quatform.control.team import team_descriptions
+    from quatform.formations import EuclideanPair, EuclideanTeam, RobotSpace, RobotSpaceTeam
+
+    for preset, team, key in ((EuclideanPair, EuclideanTeam, "euclidean"), (RobotSpace, RobotSpaceTeam, "robot")):
+        assert issubclass(preset, team) and preset.key == preset.name == key
+        assert FORMATION_TYPES[key] is preset and type(FORMATIONS[key]) is preset
+        assert preset not in TEAM_FORMATIONS.values()
+        assert preset().chart_variables == team(2, chart="pair").chart_variables
+    names = team_descriptions()
+    assert names["cluster-space"] is EuclideanTeam and names["robot-space"] is RobotSpaceTeam
+    try:
+        class _Forgotten(EuclideanTeam):  # registers itself: removed below
+            key = "forgotten-preset"
+
+        with pytest.raises(InvalidInputError, match="team controller 'cluster-space' is registered twice"):
+            team_descriptions()
+    finally:
+        FORMATION_TYPES.pop("forgotten-preset", None)
+    assert team_descriptions() == names
+
+
 @pytest.mark.parametrize("key", KEYS)
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1))

@@ -29,7 +29,7 @@ from ..algebra.kernels import array_namespace, hold
 from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations.base import Formation, check_magnitude
-from ..registry import RegistryView
+from ..registry import Registry, RegistryView
 from ..robots import Team
 from . import contract
 from .base import FAILURE_REASONS, Reference, apart_robots, batch_shape, measured_codes
@@ -65,11 +65,20 @@ def team_gain_sizes() -> dict:
 
 def team_descriptions() -> dict:
     """The registered team descriptions that name a controller (``Formation.controller``), by
-    that name, in ``controller_order``."""
+    that name, in ``controller_order``.
+
+    Raises
+    ------
+    InvalidInputError
+        Two descriptions name one controller (a subclass that inherits ``team = True`` and
+        its parent's ``controller``: a preset sets ``team = False``).
+    """
     from ..formations import TEAM_FORMATIONS
 
-    classes = sorted((c for c in TEAM_FORMATIONS.values() if c.controller), key=lambda c: c.controller_order)
-    return {c.controller: c for c in classes}
+    out = Registry("team controller")
+    for c in sorted((c for c in TEAM_FORMATIONS.values() if c.controller), key=lambda c: c.controller_order):
+        out.add(c.controller, c)
+    return dict(out)
 
 
 #: The team description each controller name runs (``formations.TEAM_FORMATIONS`` keys),

@@ -97,7 +97,8 @@ class Formation(ABC):
     #: Unique key of the class in :data:`FORMATION_TYPES` (None: not registered, e.g. a shared base).
     key: str | None = None
     #: An N-robot team description, built as ``cls(n=None, *, layout=None, template=None)``
-    #: (:data:`TEAM_FORMATIONS`).
+    #: (:data:`TEAM_FORMATIONS`). A preset of one (a subclass with a fixed constructor, e.g.
+    #: ``EuclideanPair``) sets it False: a formation of its own key, no second team description.
     team: bool = False
     #: A team description's controller: the name the team scenario kind (``--controller``, a
     #: file's ``[gains.<name>]``) and ``control.team_controller`` know it by (None: none).
