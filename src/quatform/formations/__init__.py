@@ -9,12 +9,14 @@ description implements :class:`Formation` over a :class:`RobotLayout`: ``forward
 ``reachable``, ``sample_robot_state`` and ``special_sets``. A new description is one
 module: a :class:`Formation` subclass with a ``key`` registers itself in
 :data:`FORMATION_TYPES` when it is defined, :data:`FORMATIONS` holds its ``examples()``
-(and :data:`TEAM_FORMATIONS` the classes with ``team = True``), and
+(and :data:`TEAM_FORMATIONS` the classes with ``team = True``; a :class:`Preset` of a team
+description, e.g. ``EuclideanPair``, is a formation of its own key only), and
 ``tests/test_formation_contract.py`` runs
 :func:`quatform.formations.testing.check_formation` over every one.
 """
 
-from .base import FORMATION_TYPES, FORMATIONS, PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, TEAM_FORMATIONS, Formation, Variable
+from .base import (FORMATION_TYPES, FORMATIONS, PAIR_LAYOUT, ROBOT_PAIR_VARIABLES, TEAM_FORMATIONS, Formation, Preset,
+                   Variable)
 from .layout import POINT_KINDS, RobotLayout
 from .special_sets import SpecialSet
 from .dual_quaternion_pair import DualQuaternionPair
@@ -35,6 +37,7 @@ from .ugv_uav import (
 
 __all__ = [
     "Formation",
+    "Preset",
     "Variable",
     "RobotLayout",
     "POINT_KINDS",

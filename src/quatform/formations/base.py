@@ -39,7 +39,7 @@ from ..registry import Registry, RegistryView
 from .layout import POINT_KINDS, RobotLayout, Variable
 from .special_sets import SpecialSet
 
-__all__ = ["Variable", "Formation", "SpecialSet", "FORMATION_TYPES", "FORMATIONS", "TEAM_FORMATIONS", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
+__all__ = ["Variable", "Formation", "Preset", "SpecialSet", "FORMATION_TYPES", "FORMATIONS", "TEAM_FORMATIONS", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
            "MAX_MAGNITUDE"]
 
 #: Closest two robots may be (m); below it a two-robot formation is undefined.
@@ -97,8 +97,7 @@ class Formation(ABC):
     #: Unique key of the class in :data:`FORMATION_TYPES` (None: not registered, e.g. a shared base).
     key: str | None = None
     #: An N-robot team description, built as ``cls(n=None, *, layout=None, template=None)``
-    #: (:data:`TEAM_FORMATIONS`). A preset of one (a subclass with a fixed constructor, e.g.
-    #: ``EuclideanPair``) sets it False: a formation of its own key, no second team description.
+    #: (:data:`TEAM_FORMATIONS`); False for a :class:`Preset` of one.
     team: bool = False
     #: A team description's controller: the name the team scenario kind (``--controller``, a
     #: file's ``[gains.<name>]``) and ``control.team_controller`` know it by (None: none).
@@ -477,6 +476,29 @@ class Formation(ABC):
         if "xy_yaw" in self.layout.kinds:
             centre[..., 2] = 0.0
         return self.layout.compose((p - centre) / L, self.layout.yaws(r), self.layout.orientations(r))
+
+
+class Preset:
+    """A team description with fixed constructor arguments, e.g. ``class EuclideanPair(Preset,
+    EuclideanTeam)`` with ``arguments = {"n": 2, "chart": "pair"}``: built without arguments,
+    its one example that instance, a formation of its own :attr:`~Formation.key` in
+    :data:`FORMATION_TYPES` (so the contract test runs it) but no team description of
+    :data:`TEAM_FORMATIONS` (``team = False``) and so no second team controller. Put it first
+    among the bases."""
+
+    team = False
+    #: The keyword arguments of the team description's constructor.
+    arguments: Mapping = {}
+
+    def __init__(self):
+        super().__init__(**self.arguments)
+
+    @classmethod
+    def examples(cls) -> dict:
+        return {cls.key: cls()}
+
+    def __repr__(self):
+        return f"{type(self).__name__}()"
 
 
 _EXAMPLES: dict[type, dict] = {}

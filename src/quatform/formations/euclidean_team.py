@@ -47,7 +47,7 @@ from ..algebra.validate import as_array
 from ..errors import DegenerateInputError, InvalidInputError
 from . import geometry as g
 from . import special_sets as sp
-from .base import MIN_SEPARATION_M, Formation, Variable
+from .base import MIN_SEPARATION_M, Formation, Preset, Variable
 from .layout import RobotLayout
 from .special_sets import SpecialSet
 from .team_chart import (
@@ -929,7 +929,7 @@ class EuclideanTeam(Formation):
         return tuple(out)
 
 
-class EuclideanPair(EuclideanTeam):
+class EuclideanPair(Preset, EuclideanTeam):
     """Seed 000 eqs. (1)-(8): ``EuclideanTeam(2, chart="pair")``, two 4-DOF robots in the
     variables ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2)`` (:data:`EUCLIDEAN_VARIABLES`).
 
@@ -938,20 +938,9 @@ class EuclideanPair(EuclideanTeam):
     is printed ``sqrt(dx^2 + dy^2 + dz^2/2)``; ``d_c`` is *half the distance* (text and Fig. 1),
     ``sqrt(dx^2 + dy^2 + dz^2) / 2`` (``docs/derivations.md``). ``gamma_c`` lies in ``[-pi/2,
     pi/2]`` (the range of eq. (5)); a pitch beyond it is read as ``beta_c + pi`` and ``pi -
-    gamma_c``, the ambiguity of seed 000 §4.1. A preset: registered under its own key (the
-    contract test runs it), no second team description or team controller.
+    gamma_c``, the ambiguity of seed 000 §4.1.
     """
 
     name = "euclidean"
     key = "euclidean"
-    team = False
-
-    def __init__(self):
-        super().__init__(2, chart="pair")
-
-    @classmethod
-    def examples(cls) -> dict:
-        return {cls.key: cls()}
-
-    def __repr__(self):
-        return "EuclideanPair()"
+    arguments = {"n": 2, "chart": "pair"}

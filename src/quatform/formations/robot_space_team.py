@@ -19,7 +19,7 @@ from ..algebra.kernels import array_namespace, as_floats
 from ..algebra.validate import as_array
 from . import geometry as g
 from . import special_sets as sp
-from .base import Formation
+from .base import Formation, Preset
 from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair
 from .layout import POINT_KINDS, RobotLayout
 from .team_chart import LawGroup, TeamChart, check_template, default_template, pair_chart, team_layout
@@ -219,26 +219,15 @@ class RobotSpaceTeam(Formation):
         return self.chart.robots(e), self.chart.robot_rates(e, e_dot)
 
 
-class RobotSpace(RobotSpaceTeam):
+class RobotSpace(Preset, RobotSpaceTeam):
     """Robot space of two 4-DOF robots, ``c = r``: the description of seed 000 §3.1,
     ``RobotSpaceTeam(2, chart="pair")`` taking robots on each other (:attr:`robots_apart`).
 
     Its chart is the Euclidean forward kinematics, eqs. (1)-(8), as the seed's robot-space
-    controller reports the formation. A preset: registered under its own key (the contract
-    test runs it), no second team description or team controller.
+    controller reports the formation.
     """
 
     name = "robot"
     key = "robot"
-    team = False
+    arguments = {"n": 2, "chart": "pair"}
     robots_apart = False
-
-    def __init__(self):
-        super().__init__(2, chart="pair")
-
-    @classmethod
-    def examples(cls) -> dict:
-        return {cls.key: cls()}
-
-    def __repr__(self):
-        return "RobotSpace()"
