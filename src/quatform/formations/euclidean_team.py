@@ -79,6 +79,8 @@ EUCLIDEAN_VARIABLES = (
 #: Below this ratio of the horizontal to the full robot 1-2 distance ``beta_c`` is taken as
 #: undefined (the segment vertical).
 VERTICAL_TOL = 1e-12
+#: The pair chart's angles that wind by turns (``beta_c``, ``phi_1``, ``phi_2``).
+_PAIR_WOUND = np.array([3, 6, 7])
 
 #: Below this ratio of robot 3's distance from the 1-2 line to its distance from robot 1 the
 #: roll ``alpha_c`` is taken as undefined (robots 1, 2, 3 collinear).
@@ -764,9 +766,8 @@ class EuclideanTeam(Formation):
         if self._pair_chart:
             e = c.copy()
             if near_e is not None:  # beta_c, phi_1, phi_2 wound to near_e's (gamma_c in [-pi/2, pi/2])
-                near_e = np.asarray(near_e, dtype=float)
-                for i in (3, 6, 7):
-                    e[..., i] = g.unwrap_near(c[..., i], near_e[..., i])
+                w = _PAIR_WOUND
+                e[..., w] = g.unwrap_near(c[..., w], np.asarray(near_e, dtype=float)[..., w])
             return e
         if near_e is not None or self.template is not None:
             return self.chart.from_robots(self.inverse(c), near_e=near_e, template=self.template)
