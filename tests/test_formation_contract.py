@@ -53,6 +53,9 @@ def test_a_preset_is_a_formation_of_its_own_key_not_a_second_team_description():
         assert FORMATION_TYPES[key] is preset and type(FORMATIONS[key]) is preset
         assert preset not in TEAM_FORMATIONS.values()
         assert preset().chart_variables == team(2, chart="pair").chart_variables
+    np.testing.assert_array_equal(RobotSpace().forward(np.zeros(8)), np.zeros(8))  # c = r, robots on each other
+    with pytest.raises(InvalidInputError, match="needs two xyz_yaw robots"):
+        RobotSpaceTeam(3, chart="pair")
     names = team_descriptions()
     assert names["cluster-space"] is EuclideanTeam and names["robot-space"] is RobotSpaceTeam
     try:
