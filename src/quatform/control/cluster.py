@@ -23,7 +23,6 @@ import numpy as np
 
 from ..algebra.kernels import array_namespace, hold
 from ..errors import InvalidInputError
-from ..formations import RobotSpace
 from ..formations import pair_kernels as kern
 from ..formations.base import Formation
 from ..robots import Team
@@ -83,10 +82,10 @@ class ClusterController(Controller):
 
         ``code`` (:data:`~quatform.control.base.FAILURE_REASONS`): 1 where the measured state
         is not finite or beyond 1e150, 2 where the robots are within
-        :data:`~quatform.formations.base.MIN_SEPARATION_M` (not for robot space, defined
-        there); such a world's chain runs on :func:`~quatform.control.base.apart_robots`
-        instead (its outputs are discarded). A controller with :attr:`filters` runs its
-        :meth:`update` (NumPy).
+        :data:`~quatform.formations.base.MIN_SEPARATION_M` and the formation's
+        ``robots_apart`` (not seed 000's robot space, defined there); such a world's chain runs
+        on :func:`~quatform.control.base.apart_robots` instead (its outputs are discarded). A
+        controller with :attr:`filters` runs its :meth:`update` (NumPy).
         """
         if self.filters:
             return super().tick(state, measured, reference, t)
@@ -95,7 +94,7 @@ class ClusterController(Controller):
         c_des, c_dot_des = reference["c"], reference["c_dot"]
         lead = batch_shape(measured, c_des, c_dot_des)
         r = F.align(measured, reference["robots"]) if "robots" in reference else measured
-        code = measured_codes(team.layout, measured, r, apart=not isinstance(F, RobotSpace), inclusive=True)
+        code = measured_codes(team.layout, measured, r, apart=F.robots_apart, inclusive=True)
         code = xp.broadcast_to(code, lead) if code.shape != lead else code
         r = hold(xp.where(code[..., None] > 0, self._apart, r))
         stage = None

@@ -117,6 +117,9 @@ class Formation(ABC):
     chart_variables: tuple[Variable, ...] = ()
     #: Blocks of the cluster state whose sign means nothing (``q`` and ``-q`` are one state).
     sign_free: tuple[slice, ...] = ()
+    #: Whether :meth:`forward` refuses robots on each other (closer than
+    #: :data:`MIN_SEPARATION_M`); a controller marks such a measurement refused (code 2).
+    robots_apart: bool = True
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

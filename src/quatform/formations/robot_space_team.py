@@ -61,9 +61,6 @@ class RobotSpaceTeam(Formation):
         "table1": {"k_p": [1.5, 1.5, 1.5], "k_theta": 6.0},
         "table2": {"k_p": [0.06, 0.06, 0.03], "k_theta": 0.02},
     }
-    #: :meth:`forward` refuses robots on each other (the formation they form has no shape);
-    #: seed 000's robot space (:class:`RobotSpace`) takes them, ``c = r`` being defined there.
-    robots_apart = True
 
     @classmethod
     def examples(cls) -> dict:
@@ -107,7 +104,7 @@ class RobotSpaceTeam(Formation):
 
     def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
-        if self.robots_apart:
+        if self.robots_apart:  # the formation robots on each other form has no shape; c = r is defined
             self.check_apart(r)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
