@@ -104,7 +104,7 @@ class RobotSpaceTeam(Formation):
 
     def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
-        if self.robots_apart:  # the formation robots on each other form has no shape; c = r is defined
+        if self.robots_apart:  # robots on each other form no formation (c = r itself is defined there)
             self.check_apart(r)
         if near_c is not None:
             near_c = self.check_cluster_state(near_c, "near_c")
