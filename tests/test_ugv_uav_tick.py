@@ -213,3 +213,45 @@ def test_jit_tick_equals_numpy(kind):
         np.testing.assert_allclose(sig[name], sig0[name], rtol=0, atol=1e-9, err_msg=name)
     assert list(states[-1].stop_reason) == list(states0[-1].stop_reason)
     np.testing.assert_allclose(np.asarray(states[-1].v_dot), states0[-1].v_dot, rtol=0, atol=1e-9)
+
+
+def _literal_entries(fn) -> list:
+    """The subscripts of ``fn``'s source that pick entries after the leading axes with
+    hand-written numbers (``x[..., 3:6]``, ``u[:, 2]``, ``m[:, [0, 1]]``); ``[:, 0]`` of a
+    one-column channel and ``None`` (a new axis) are not entries."""
+    import ast
+    import inspect
+    import textwrap
+
+    def literal(e):
+        if isinstance(e, ast.Slice):
+            return any(isinstance(b, ast.Constant) and isinstance(b.value, int) for b in (e.lower, e.upper))
+        if isinstance(e, ast.List):
+            return any(isinstance(v, ast.Constant) for v in e.elts)
+        return isinstance(e, ast.Constant) and isinstance(e.value, int) and e.value != 0
+
+    out = []
+    for node in ast.walk(ast.parse(textwrap.dedent(inspect.getsource(fn)))):
+        if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Tuple):
+            if any(literal(e) for e in node.slice.elts[1:]):
+                out.append(ast.unparse(node))
+    return out
+
+
+def test_pioneer_bebop_entries_are_named():
+    """The tick, the finish and the metrics read the Pioneer-Bebop state, commands and the
+    descriptions' variables through named entries derived from the robot models' columns, the
+    team's slices and the layout, never hand-written numbers."""
+    from quatform.control import ugv_uav as ctrl
+    from quatform.robots import Bebop, Pioneer
+    from quatform.scenarios import ugv_uav as scen
+
+    fns = (UgvUavController.tick, UgvUavController.measured_points, UgvUavController.reference_arrays,
+           scen._measured_robots, scen._finish, scen.ugv_uav_metrics, scen._cluster_jumps)
+    assert {fn.__name__: _literal_entries(fn) for fn in fns} == {fn.__name__: [] for fn in fns}
+    names = ctrl.UGV_UAV_MEASURED_NAMES
+    assert names[ctrl.PSI_P] == "psi_p" and names[ctrl.PSI_B] == "psi_b"
+    assert names[ctrl.UGV_XY] == ("x_p", "y_p") and names[ctrl.UAV_XYZ] == ("x_b", "y_b", "z_b")
+    assert names[ctrl.ODOMETRY_PART] == tuple(c + "_b" for c in Bebop.state_columns[4:])
+    assert ctrl.UGV_UAV_COMMAND_NAMES[ctrl.BEBOP_COMMAND] == tuple(c + "_b" for c in Bebop.command_columns)
+    assert ctrl.UGV_UAV_COMMAND_NAMES[ctrl.V_P] == Pioneer.command_columns[0] + "_p"

@@ -25,7 +25,7 @@ import numpy as np
 from ..algebra.kernels import as_floats, common_namespace, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, QuatformError
-from ..formations import UgvUavQuaternion, UgvUavRestricted
+from ..formations import UGV_UAV_LAYOUT, UgvUavQuaternion, UgvUavRestricted
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
@@ -36,19 +36,51 @@ from .filters import FRAME_DROPPED, FRAME_GOOD, FRAME_REJECTED, ArenaWalls, Head
 from .laws import Block, BlockLaw
 
 __all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES",
-           "FRAME_CODES", "STOP_MOTION_CAPTURE", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART"]
+           "FRAME_CODES", "STOP_MOTION_CAPTURE", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART",
+           "PIONEER_COMMAND", "BEBOP_COMMAND", "UGV_XY", "PSI_P", "UAV_XYZ", "PSI_B", "V_P", "UAV_XY_COMMAND",
+           "UGV_POINT", "UAV_POINT", "N_MEASURED"]
 
-#: Layout of the 11 measured values the UGV-UAV controller reads.
-UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
-#: Parts of the measured values: the motion capture's (both robots' poses) and the Bebop's
-#: odometry; the Pioneer's and the Bebop's (what each robot's actuation reads).
-MOCAP_PART = slice(0, UGV_UAV_MEASURED_NAMES.index("v_x_b"))
-ODOMETRY_PART = slice(MOCAP_PART.stop, len(UGV_UAV_MEASURED_NAMES))
-PIONEER_PART = slice(0, UGV_UAV_MEASURED_NAMES.index("x_b"))
-BEBOP_PART = slice(PIONEER_PART.stop, len(UGV_UAV_MEASURED_NAMES))
+
+def _entries(part: slice, columns: tuple, *names: str):
+    """Where a robot's ``names`` (of its ``columns``) sit in a stacked array whose entries
+    ``part`` are that robot's: an int for one name, a slice for consecutive ones."""
+    idx = [part.start + columns.index(n) for n in names]
+    if len(idx) == 1:
+        return idx[0]
+    if idx != list(range(idx[0], idx[0] + len(idx))):
+        raise InvalidInputError(f"columns {names} are not consecutive in {columns}")
+    return slice(idx[0], idx[-1] + 1)
+
+
+#: The Pioneer-Bebop team whose models' columns lay out the measured values (the team's
+#: stacked state) and the commands (its stacked commands); only its layout is read here.
+_LAYOUT_TEAM = Team((Pioneer(), Bebop()))
+#: The Pioneer's and the Bebop's entries of the measured values (what each robot's actuation
+#: reads) and of the commands.
+PIONEER_PART, BEBOP_PART = _LAYOUT_TEAM.state_slices
+PIONEER_COMMAND, BEBOP_COMMAND = _LAYOUT_TEAM.command_slices
+#: Layout of the 11 measured values the UGV-UAV controller reads: each robot's state columns
+#: with its label of the formation's layout (``x_p ... psi_p, x_b ... psi_dot_b``).
+UGV_UAV_MEASURED_NAMES = tuple(c + lab for r, lab in zip(_LAYOUT_TEAM.robots, UGV_UAV_LAYOUT.labels)
+                               for c in r.state_columns)
 #: Layout of the 6 commands it sends (the Pioneer's, then the Bebop's).
-UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
-
+UGV_UAV_COMMAND_NAMES = tuple(c + lab for r, lab in zip(_LAYOUT_TEAM.robots, UGV_UAV_LAYOUT.labels)
+                              for c in r.command_columns)
+#: Named entries of the measured values: the Pioneer's control point ``(x, y)`` and heading,
+#: the Bebop's position, yaw and body-frame velocity (its odometry).
+UGV_XY = _entries(PIONEER_PART, Pioneer.state_columns, "x", "y")
+PSI_P = _entries(PIONEER_PART, Pioneer.state_columns, "psi")
+UAV_XYZ = _entries(BEBOP_PART, Bebop.state_columns, "x", "y", "z")
+PSI_B = _entries(BEBOP_PART, Bebop.state_columns, "psi")
+ODOMETRY_PART = _entries(BEBOP_PART, Bebop.state_columns, "v_x", "v_y", "z_dot", "psi_dot")
+#: The motion capture's part of the measured values (both robots' poses) and the odometry's.
+MOCAP_PART = slice(0, ODOMETRY_PART.start)
+#: Named entries of the commands: the Pioneer's forward speed, the Bebop's horizontal commands.
+V_P = _entries(PIONEER_COMMAND, Pioneer.command_columns, "v")
+UAV_XY_COMMAND = _entries(BEBOP_COMMAND, Bebop.command_columns, "u_x", "u_y")
+#: The UGV's and the UAV's points in the formation's robot state (and rates).
+UGV_POINT, UAV_POINT = (UGV_UAV_LAYOUT.slice(i) for i in range(UGV_UAV_LAYOUT.n))
+N_MEASURED = len(UGV_UAV_MEASURED_NAMES)
 
 #: The ``frame`` signal's code of each frame class (:meth:`MocapScreen.frame_code`).
 FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
@@ -153,7 +185,7 @@ class UgvUavState:
         nan = np.full(batch, np.nan)
         memory = BebopMemory.start(batch)
         return cls(memory.v_r, memory.t, memory.v_dot, np.zeros(batch, dtype=bool), np.zeros(batch, dtype=np.int64),
-                   nan, nan.copy(), np.full(batch + (11,), np.nan), nan.copy(), nan.copy(),
+                   nan, nan.copy(), np.full(batch + (N_MEASURED,), np.nan), nan.copy(), nan.copy(),
                    np.full(batch, float(max_hold_s)))
 
     @property
@@ -398,12 +430,7 @@ class UgvUavController(ClusterController):
                     F.check_cluster_state(c[i], "near_c")
         invertible = np.ones(batch, dtype=bool)
         if isinstance(F, UgvUavRestricted):
-            with np.errstate(invalid="ignore", over="ignore"):
-                w2 = 1 - np.sin(c[..., 4]) ** 2 - np.sin(c[..., 5]) ** 2
-                bad = ~(np.max(np.abs(c), axis=-1) <= MAX_MAGNITUDE) | ~(c[..., 3] > 0) | (w2 < -1e-12)
-                for _, out in F._angles_out(c, F.tolerance):
-                    bad = bad | out
-            invertible = used & ~bad | hold  # what F.inverse accepts (hold: not asked)
+            invertible = used & F.invertible(c) | hold  # what F.inverse accepts (hold: not asked)
         return {"c": np.array(c), "c_dot": np.array(cd), "invertible": invertible}
 
     def update(self, t: float, measured, reference, state) -> contract.Step:
@@ -436,11 +463,11 @@ class UgvUavController(ClusterController):
             first such world.
         """
         m = np.asarray(measured, dtype=float)
-        if m.shape[-1:] != (11,):
-            m = as_array(measured, "measured state", 11)
+        if m.shape[-1:] != (N_MEASURED,):
+            m = as_array(measured, "measured state", N_MEASURED)
         ref = self.reference_arrays(reference)
         batch = np.broadcast_shapes(m.shape[:-1], state.batch, ref["c"].shape[:-1])
-        tk = self.tick(_broadcast_state(state, batch), np.broadcast_to(m, batch + (11,)), ref, t)
+        tk = self.tick(_broadcast_state(state, batch), np.broadcast_to(m, batch + (N_MEASURED,)), ref, t)
         if np.any(tk.code):
             i = tuple(int(k) for k in np.argwhere(np.asarray(tk.code) > 0)[0])
             if tk.code[i] == 1:
@@ -543,9 +570,9 @@ class UgvUavController(ClusterController):
             x_rate = self.walls.limit(points, xp.where(rows(rates_finite), x_rate, 0.0))
             # -- the commands: the team's actuation, or a brake (no frame, hold, stopped)
             memory = BebopMemory(state.v_r, state.mem_t, state.v_dot)
-            psi_rate = self.heading.rate(used[..., 2], used[..., 6])  # (4.50)-(4.51), psi_bd = psi_p
-            u_p, _ = p.actuate(used[..., PIONEER_PART], x_rate[..., 0:3], t)
-            rate_b = xp.concatenate([x_rate[..., 3:6], psi_rate[..., None]], axis=-1)
+            psi_rate = self.heading.rate(used[..., PSI_P], used[..., PSI_B])  # (4.50)-(4.51), psi_bd = psi_p
+            u_p, _ = p.actuate(used[..., PIONEER_PART], x_rate[..., UGV_POINT], t)
+            rate_b = xp.concatenate([x_rate[..., UAV_POINT], psi_rate[..., None]], axis=-1)
             u_b, mem = b.actuate(used[..., BEBOP_PART], rate_b, t, memory)
             u_b_brake, mem_brake = b.brake(xp.where(rows(none), m, used)[..., BEBOP_PART], memory)
             brake = none | hold | stopped
@@ -590,10 +617,10 @@ class UgvUavController(ClusterController):
         """The robots' positions in the 11 measured values (the Pioneer's at ``z_ugv``), ``(..., 3)``
         each (any namespace)."""
         if concrete(m) and np.ndim(m) == 1:
-            return (np.array([m[0], m[1], self.z_ugv]), m[3:6])
+            return (np.array([*m[UGV_XY], self.z_ugv]), m[UAV_XYZ])
         xp = common_namespace(m)
-        return (xp.concatenate([m[..., 0:2], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
-                m[..., 3:6])
+        return (xp.concatenate([m[..., UGV_XY], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
+                m[..., UAV_XYZ])
 
 
 def _taken(xp, mask) -> bool:
@@ -615,6 +642,6 @@ def _broadcast_state(state: UgvUavState, batch: tuple) -> UgvUavState:
     """``state`` with its arrays broadcast to ``batch`` leading axes (one state for every world)."""
     if state.batch == tuple(batch):
         return state
-    tails = {"v_r": (4,), "v_dot": (4,), "good": (11,)}
-    return replace(state, **{k: np.broadcast_to(getattr(state, k), tuple(batch) + tails.get(k, ()))
+    n = len(state.batch)  # each field's entries after the batch axes
+    return replace(state, **{k: np.broadcast_to(getattr(state, k), tuple(batch) + np.shape(getattr(state, k))[n:])
                              for k in _ARRAY_FIELDS})
