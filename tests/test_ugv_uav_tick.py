@@ -255,3 +255,21 @@ def test_pioneer_bebop_entries_are_named():
     assert names[ctrl.ODOMETRY_PART] == tuple(c + "_b" for c in Bebop.state_columns[4:])
     assert ctrl.UGV_UAV_COMMAND_NAMES[ctrl.BEBOP_COMMAND] == tuple(c + "_b" for c in Bebop.command_columns)
     assert ctrl.UGV_UAV_COMMAND_NAMES[ctrl.V_P] == Pioneer.command_columns[0] + "_p"
+
+
+@pytest.mark.parametrize("kind", sorted(DESCRIPTIONS))
+def test_a_measured_position_beyond_the_magnitude_limit_names_its_robot_and_column(kind):
+    """One world and a batch: the error names the robot, its state column, the value and unit,
+    the world of a batch, and the fix."""
+    from quatform.errors import InvalidInputError
+
+    ctrl = UgvUavController(DESCRIPTIONS[kind]())
+    good = np.array([0.0, 0.0, 0.0, 0.5, 0.4, 1.3, 0.0, 0.0, 0.0, 0.0, 0.0])
+    for entry, words in ((5, r"measured bebop z = 1e\+200 m"), (0, r"measured pioneer x = -3e\+160 m")):
+        bad = good.copy()
+        bad[entry] = 1e200 if entry == 5 else -3e160
+        fix = r"is beyond the 1e\+150 quatform accepts .*; express the state in larger units or nearer the origin"
+        with pytest.raises(InvalidInputError, match=rf"^{kind} controller: {words} {fix}$"):
+            ctrl.step(0.0, bad)
+        with pytest.raises(InvalidInputError, match=rf"^{kind} controller: {words} in world \(1,\) {fix}$"):
+            ctrl.step(0.0, np.stack([good, bad, bad]))

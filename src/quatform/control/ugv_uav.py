@@ -29,6 +29,7 @@ from ..formations import UGV_UAV_LAYOUT, UgvUavQuaternion, UgvUavRestricted
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
+from ..robots.model import column_unit
 from . import contract
 from .base import Reference
 from .cluster import ClusterController
@@ -81,6 +82,11 @@ UAV_XY_COMMAND = _entries(BEBOP_COMMAND, Bebop.command_columns, "u_x", "u_y")
 #: The UGV's and the UAV's points in the formation's robot state (and rates).
 UGV_POINT, UAV_POINT = (UGV_UAV_LAYOUT.slice(i) for i in range(UGV_UAV_LAYOUT.n))
 N_MEASURED = len(UGV_UAV_MEASURED_NAMES)
+#: The measured entries the robots' points are made of: ``(robot number, its state column, entry)``.
+_POINT_ENTRIES = tuple((k, robot.state_columns[j - part.start], j)
+                       for k, (robot, part, point) in enumerate(zip(_LAYOUT_TEAM.robots, _LAYOUT_TEAM.state_slices,
+                                                                    (UGV_XY, UAV_XYZ)))
+                       for j in range(point.start, point.stop))
 
 #: The ``frame`` signal's code of each frame class (:meth:`MocapScreen.frame_code`).
 FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
@@ -297,6 +303,9 @@ class UgvUavController(ClusterController):
         _set(self, "derivative_filter_s", float(derivative_filter_s))
         if not (self.derivative_filter_s >= 0 and self.wall_margin >= 0):
             raise InvalidInputError("derivative_filter_s and wall_margin must be >= 0")
+        if not abs(self.z_ugv) <= MAX_MAGNITUDE:
+            raise InvalidInputError(f"z_ugv = {self.z_ugv!r} m must be finite within {MAX_MAGNITUDE:g} (the UGV's "
+                                    "platform height)")
         # the robots' actuation (seed 001 eqs. (3.5), (3.10), (4.47)) is the team's
         _set(self, "team", Team((replace(pioneer, z=self.z_ugv),
                                  replace(bebop, l_d=tuple(self.l_d.tolist()), compensation=self.compensation,
@@ -458,9 +467,9 @@ class UgvUavController(ClusterController):
         ShapeError
             ``measured`` not ``(..., 11)``.
         UnreachableError, InvalidInputError
-            The restricted description's fallback with a reference it cannot invert; a
-            measured position beyond ``MAX_MAGNITUDE``: the description's own words, for the
-            first such world.
+            The restricted description's fallback with a reference it cannot invert (the
+            description's own words); a measured position beyond ``MAX_MAGNITUDE`` (the robot,
+            its state column and value, and the world of a batch); for the first such world.
         """
         m = np.asarray(measured, dtype=float)
         if m.shape[-1:] != (N_MEASURED,):
@@ -472,10 +481,19 @@ class UgvUavController(ClusterController):
             i = tuple(int(k) for k in np.argwhere(np.asarray(tk.code) > 0)[0])
             if tk.code[i] == 1:
                 self.formation.inverse(np.broadcast_to(ref["c"], batch + (self.formation.n_c,))[i])
-            else:
-                self.formation.forward(self.team.point(tk.signals["used"][i]))
-            raise InvalidInputError(f"{self.name} controller: {self.failure_reasons[int(tk.code[i])]}")
+                raise InvalidInputError(f"{self.name} controller: {self.failure_reasons[1]}")
+            raise InvalidInputError(f"{self.name} controller: {self._beyond_magnitude(tk.signals['used'][i], i)}")
         return contract.Step(tk.u, tk.state, tk.signals)
+
+    def _beyond_magnitude(self, used, world: tuple) -> str:
+        """The words of a measured position beyond ``MAX_MAGNITUDE`` (code 2): the robot, its
+        state column and value in the frame used (``used``, 11 values) of ``world``, and the fix."""
+        k, column, j = max(_POINT_ENTRIES, key=lambda e: abs(float(used[e[2]])))
+        robot = self.team.robots[k]
+        at = f" in world {world}" if world else ""
+        return (f"measured {robot.name} {column} = {float(used[j]):.6g} {column_unit(robot, column)}{at} is beyond "
+                f"the {MAX_MAGNITUDE:g} quatform accepts (squared lengths would overflow); express the state in "
+                "larger units or nearer the origin")
 
     def tick(self, state, measured, ref, t) -> contract.Tick:
         """One pure, branch-free step of Fig. 18 on the array namespace of its operands (NumPy,
