@@ -346,12 +346,14 @@ class UgvUavController(ClusterController):
     def signal_columns(self) -> dict[str, tuple[str, ...]]:
         """``cluster``, ``error`` (the formation's variables), ``robot_rates`` (the 6 world rates
         of eq. (4.42)), ``raw_finite``, ``stopped``, ``frame`` (0 good, 1 dropped, 2 rejected),
-        ``held``, ``outside`` and ``used`` (the 11 measured values the step used)."""
+        ``held``, ``no_frame`` (1 where no good frame has come yet: both robots brake),
+        ``outside`` and ``used`` (the 11 measured values the step used)."""
         names = self.formation.names
         return {"cluster": names, "error": names,
                 "robot_rates": ("x_dot_p", "y_dot_p", "z_dot_p", "x_dot_b", "y_dot_b", "z_dot_b"),
                 "raw_finite": ("raw_finite",), "stopped": ("stopped",), "frame": ("frame",),
-                "held": ("held",), "outside": ("outside",), "used": UGV_UAV_MEASURED_NAMES}
+                "held": ("held",), "no_frame": ("no_frame",), "outside": ("outside",),
+                "used": UGV_UAV_MEASURED_NAMES}
 
     # -- state: the compensation's derivative, the screening and the emergency stop -----
     def init(self, batch: tuple = ()):
@@ -610,7 +612,7 @@ class UgvUavController(ClusterController):
                 "robot_rates": xp.where(rows(braking), 0.0, x_rate),
                 "raw_finite": xp.where(none, 0.0, xp.where(hold, 1.0, rates_finite * one))[..., None],
                 "stopped": (stopped * one)[..., None], "frame": (frame * one)[..., None],
-                "held": (held * one)[..., None],
+                "held": (held * one)[..., None], "no_frame": (none * one)[..., None],
                 "outside": (xp.where(none, False, xp.where(hold, outside_free, ~inside)) * one)[..., None],
                 "used": xp.where(rows(none), np.nan, used)}
             # -- what the description refuses (update raises its words)

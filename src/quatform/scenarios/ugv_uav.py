@@ -84,7 +84,7 @@ UGV_UAV_PHYSICS = ("kinematic", "mujoco")
 DERIVED_CHANNELS = ("r_true", "r_des", "r_measured", "c_des", "c_continuous", "e", "e_des", "singularity",
                     "reachable")
 #: Channels of ``timeseries.csv``, in order (with ``t`` first: the recorded columns).
-UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity")
+UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity", "no_frame")
 
 #: Columns of the comparison table: (metrics key, header, format). The errors count only the
 #: samples whose reference the description can express (:func:`ugv_uav_metrics`); the time it
@@ -498,6 +498,7 @@ def ugv_uav_metrics(log: Log) -> dict:
         "mocap_dropped_frames": int((frames == 1).sum()),
         "mocap_rejected_frames": int((frames == 2).sum()),
         "mocap_held_frames": int((log["held"][:, 0] > 0.5).sum()),
+        "no_frame_time_s": float((log["no_frame"][:, 0] > 0.5).sum() * dt_ctrl) if dt_ctrl is not None else 0.0,
         "run_stopped": stopped_at is not None,
         "run_stopped_at_s": stopped_at,
         "run_stopped_reason": world_meta(log, "stop_reason") or None,
