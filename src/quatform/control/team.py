@@ -166,6 +166,7 @@ class TeamController(contract.Controller):
             raise InvalidInputError(f"TeamController: gains must be a mapping of gain names to values (e.g. "
                                     f"{{'k_x': 2.0, 'k_d': 20.0, 'k_w': 20.0}}), got {type(self.gains).__name__}")
         object.__setattr__(self, "gains", dict(self.gains))
+        F.check_gains(self.gains)
         covered = np.sort(np.concatenate([gr.index.ravel() for gr in F.law_groups]))
         if not np.array_equal(covered, np.arange(F.n_c)):
             raise InvalidInputError(f"{type(F).__name__}.law_groups must cover its {F.n_c} variables once each")

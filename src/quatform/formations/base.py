@@ -123,6 +123,11 @@ class Formation(ABC):
         if cls.__dict__.get("key"):
             FORMATION_TYPES.add(cls.key, cls)
 
+    def check_gains(self, gains: Mapping) -> None:
+        """Refuse ``gains`` (``{gain key: value}``, :attr:`gain_tables`' keys) its controller
+        cannot drive these robots with, in the description's own words (one line). Default:
+        nothing; the team controller checks each law group's gain itself."""
+
     @classmethod
     def examples(cls) -> dict:
         """The instances the contract test runs over, by a unique key (default: ``{key: cls()}``)."""

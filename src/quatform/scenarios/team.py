@@ -211,26 +211,11 @@ class TeamScenario:
                                     f"{', '.join(names)} (the team descriptions registered in "
                                     "quatform.formations.TEAM_FORMATIONS)")
         gains = self.gains.get(name, {})
-        free = [i + 1 for i, kind in enumerate(self.team.layout.kinds) if kind == "pose"]
-        if name == "robot-space" and free and "k_w" not in gains:
-            raise InvalidInputError(
-                f"scenario {self.name!r}: --controller robot-space cannot drive robot{'s' if len(free) > 1 else ''} "
-                f"{_numbers(free)} (free bodies): seed 000's robot-space law and its gains (K_RS of Tables 1 and 2) "
-                "command a robot's x, y, z and yaw, and give no gain for a free body's 3-D orientation; choose "
-                "--controller quaternion or dual-quaternion, or give the orientation gain k_w (1/s, the "
-                "quaternion law of seed 000 eq. (20)) in [gains.robot-space]")
         ff = self.feedforward if feedforward is None else feedforward
-        return team_controller(name, self.team, gains, template=self.template, feedforward=bool(ff))
-
-
-def _numbers(robots: list) -> str:
-    """Robot numbers ``[1, 2, 3, 5]`` as ``"1-3, 5"``."""
-    runs, start = [], robots[0]
-    for a, b in zip(robots, robots[1:] + [None]):
-        if b != a + 1:
-            runs.append(str(start) if start == a else f"{start}-{a}")
-            start = b
-    return ", ".join(runs)
+        try:  # the description refuses what it cannot drive, in its own words
+            return team_controller(name, self.team, gains, template=self.template, feedforward=bool(ff))
+        except InvalidInputError as exc:
+            raise type(exc)(f"scenario {self.name!r}: {exc}") from None
 
 
 _STEP_SLACK = 1e-9
