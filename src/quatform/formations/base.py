@@ -117,6 +117,9 @@ class Formation(ABC):
     chart_variables: tuple[Variable, ...] = ()
     #: Blocks of the cluster state whose sign means nothing (``q`` and ``-q`` are one state).
     sign_free: tuple[slice, ...] = ()
+    #: Its cluster state is the robot state itself (robot space, ``c = r``): a file that
+    #: writes the robots leaves its cluster variables out.
+    cluster_is_robot_state: bool = False
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -253,6 +253,7 @@ class RobotSpace(Formation):
 
     name = "robot"
     key = "robot"
+    cluster_is_robot_state = True
     variables = ROBOT_PAIR_VARIABLES
     chart_variables = EUCLIDEAN_VARIABLES
     _euclidean = EuclideanPair()

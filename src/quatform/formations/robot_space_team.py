@@ -67,6 +67,7 @@ class RobotSpaceTeam(Formation):
     name = "robot-space-team"
     key = "robot-space-team"
     team = True
+    cluster_is_robot_state = True
     #: ``--controller robot-space``.
     controller = "robot-space"
     controller_order = 3
