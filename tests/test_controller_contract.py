@@ -303,6 +303,6 @@ def test_team_controller_bad_arguments_are_one_line():
                         (("quaternion", "team", TEAM_GAINS), "must be a robots.Team"),
                         (("quaternon", team, TEAM_GAINS), "did you mean 'quaternion'"),
                         (("quaternion", team, {"k_x": 1.0}), "law needs gains"),
-                        (("quaternion", team, {**TEAM_GAINS, "k_w": -1.0}), "positive finite")):
+                        (("quaternion", team, {**TEAM_GAINS, "k_w": -1.0}), "must be positive")):
         with pytest.raises(InvalidInputError, match=match):
             team_controller(*args)

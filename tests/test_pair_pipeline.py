@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from quatform.control import CONTROLLERS
 from quatform.errors import InvalidInputError, ShapeError
-from quatform.formations import EuclideanPair
+from quatform.formations import EuclideanPair, QuaternionPair, RobotSpace, RobotSpaceTeam
 from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import KINDS
 from quatform.scenarios.pair import PAIR, PairKind, Scenario, pair_csv_channels, run_pair
@@ -122,14 +122,14 @@ _DQ = ",".join(f"qhat_{s}_{p}{c},qhat_{s}_{p}{c}_des" for s in "cs" for p in "rd
 ])
 def test_the_csv_header_is_todays(controller, header):
     exp = PAIR.experiment(_short_spiral(0.05), controller=controller)
-    assert exp.csv_channels == pair_csv_channels(exp.controller.formation.name)
+    assert exp.csv_channels == pair_csv_channels(exp.controller.formation)
     names, data = timeseries_table(exp.run(), exp.csv_channels)
     assert ",".join(names) == header and data.shape == (6, len(names))
 
 
 def test_the_csv_columns_hold_the_log_channels():
     log = run_pair(_short_spiral(0.05), "quaternion")
-    names, data = timeseries_table(log, pair_csv_channels("quaternion"))
+    names, data = timeseries_table(log, pair_csv_channels(QuaternionPair()))
     np.testing.assert_array_equal(data[:, names.index("x2_des")], log["r_des"][:, 4])
     np.testing.assert_array_equal(data[:, names.index("q_c_z")], log["cluster"][:, 6])
     np.testing.assert_array_equal(data[:, names.index("singularity_measure")], log["singularity"][:, 0])
@@ -331,3 +331,10 @@ def test_drawn_angle_gap_is_the_wrapped_error(pairs):
     for drawn, raw in ((ym, meas), (yd, des)):
         d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
         assert np.all(d < 1e-9)
+
+
+def test_a_description_whose_cluster_is_the_robots_leaves_it_out_of_the_csv():
+    """The description says so (``cluster_is_robot_state``), not its name."""
+    for F in (RobotSpace(), RobotSpaceTeam(n=2)):
+        assert F.cluster_is_robot_state and ("cluster", "c_des") not in pair_csv_channels(F)
+    assert ("cluster", "c_des") in pair_csv_channels(QuaternionPair())

@@ -47,3 +47,22 @@ def test_the_refusal_lifts_when_the_orientation_gain_is_given():
     sc.controller("quaternion")  # the other team controllers keep their gains
     given = team_scenario_from_dict({**_free_team("table1"), "gains": {"robot-space": {"k_w": 6.0}}}, "t.toml")
     assert given.controller("robot-space").gains["k_w"] == 6.0
+
+
+def test_the_robot_space_description_refuses_free_bodies_without_k_w_itself():
+    """The refusal is the description's (RobotSpaceTeam.check_gains, called by the team
+    controller), not the scenario layer's: team_controller gives the same words."""
+    from quatform.control import team_controller
+    from quatform.formations import TEAM_FORMATIONS
+
+    sc = team_scenario_from_dict(_free_team("table1"), "t.toml")
+    gains = TEAM_FORMATIONS["robot-space-team"].gain_tables["table1"]
+    with pytest.raises(InvalidInputError) as info:
+        team_controller("robot-space", sc.team, gains)
+    msg = str(info.value)
+    assert msg.startswith("--controller robot-space cannot drive robots 2-3 (free bodies): seed 000's robot-space")
+    assert msg.endswith("in [gains.robot-space]") and "\n" not in msg
+    with pytest.raises(InvalidInputError) as scenario_info:
+        sc.controller("robot-space")
+    assert str(scenario_info.value) == f"scenario 'free-team': {msg}"
+    assert team_controller("robot-space", sc.team, {**gains, "k_w": 6.0}).gains["k_w"] == 6.0

@@ -488,3 +488,27 @@ def test_a_batch_of_worlds_finishes_each_as_its_own_run():
         one = dataclasses.replace(exp, x0=x0[i]).run()
         for name in ("e", "points", "singularity"):
             assert np.allclose(batch[name][:, i], one[name], rtol=0, atol=1e-9, equal_nan=True), name
+
+
+@pytest.mark.parametrize("value, words", [
+    ([1.0, 2.0], "must be one number or a list of 3"),
+    (-2.0, "must be positive (seed 000 Tables 1-2)"),
+    ([1.0, "a", 1.0], "must be numbers"),
+    ([1.0, math.nan, 1.0], "must be finite"),
+    (1e13, "is beyond +-1e+12; give a physical gain (1/s)"),
+])
+def test_a_gain_has_one_check_in_the_file_and_the_controller(value, words):
+    """The gain schema (control.TEAM_GAIN_KEYS) is checked once, by control.team.check_gain:
+    a file's error names the file, the table and the key, the controller's its gain; the
+    same words follow."""
+    from quatform.checks import short
+    from quatform.control import team_controller
+    from quatform.robots import HolonomicRobot, Team
+
+    with pytest.raises(InvalidInputError) as in_file:
+        team_scenario_from_dict(_data(**{"gains": {"quaternion": {"k_x": value}}}), "bad.toml")
+    assert str(in_file.value) == f"bad.toml: [gains.quaternion] k_x = {short(value)} {words}"
+    gains = {"k_x": value, "k_d": 1.0, "k_w": 1.0}
+    with pytest.raises(InvalidInputError) as in_code:
+        team_controller("quaternion", Team.uniform(HolonomicRobot(), 3), gains)
+    assert str(in_code.value) == f"team controller: gains['k_x'] = {short(value)} {words}"

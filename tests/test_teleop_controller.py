@@ -284,3 +284,33 @@ def test_measurements_within_each_bound_are_accepted():
     np.testing.assert_array_equal(_measured(w, "F_s", 6), w)
     with pytest.raises(InvalidInputError, match="not finite"):
         _measured(np.r_[np.inf, 0.0, 0.0, 0.0, 0.0, 0.0], "qd_m", 6)
+
+
+@pytest.mark.parametrize("orientation_error", ["euler-parameters", "rpy"])
+def test_update_and_step_take_leading_batch_axes(orientation_error):
+    """A batch of three worlds equals three single calls bitwise (commands and signals, update
+    and step); a bad world's error names its index."""
+    c = TeleopController(REG, Q_S0, orientation_error=orientation_error, walls=(VirtualWall((0.0, 0.0, 1.0), -0.2),))
+    rng = np.random.default_rng(3)
+    worlds = [np.r_[Q_M0 + rng.uniform(-0.3, 0.3, 6), rng.uniform(-1, 1, 6), Q_S0 + rng.uniform(-0.3, 0.3, 7),
+                    rng.uniform(-1, 1, 7), rng.uniform(-5, 5, 6)] for _ in range(3)]
+    batch = np.stack(worlds)
+    out = c.update(0.1, batch)
+    singles = [c.update(0.1, w) for w in worlds]
+    assert out.u.shape == (3, 13)
+    np.testing.assert_array_equal(out.u, np.stack([s.u for s in singles]))
+    for name, v in out.signals.items():
+        np.testing.assert_array_equal(v, np.stack([s.signals[name] for s in singles]), err_msg=name)
+    tau_m, tau_s = c.step(0.1, batch)
+    for k, w in enumerate(worlds):
+        one_m, one_s = c.step(0.1, w)
+        np.testing.assert_array_equal(tau_m[k], one_m)
+        np.testing.assert_array_equal(tau_s[k], one_s)
+    np.testing.assert_array_equal(c.update(0.1, batch.reshape(3, 1, 32)).u[:, 0], out.u)
+    bad = batch.copy()
+    bad[2, 12 + 3] = np.nan  # q_s4 of the third world
+    with pytest.raises(NonFiniteError, match=r"^measurement q_s in world \(2,\) = .* is not finite"):
+        c.update(0.1, bad)
+    bad[2, 12 + 3] = 1e6
+    with pytest.raises(InvalidInputError, match=r"^measurement q_s\[3\] in world \(2,\) = 1e\+06 rad is beyond"):
+        c.step(0.1, bad)

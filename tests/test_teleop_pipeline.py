@@ -89,7 +89,7 @@ def test_the_teleop_controller_follows_the_contract():
 
 def test_a_stacked_measurement_of_the_wrong_size_is_one_error_naming_the_columns():
     ctrl = readme_controller()
-    with pytest.raises(ShapeError, match=r"shape \(32,\) \(q_m1 \.\.\. M_s_z"):
+    with pytest.raises(ShapeError, match=r"shape \(\.\.\., 32\) \(q_m1 \.\.\. M_s_z"):
         ctrl.update(0.0, np.zeros(31), None, None)
     with pytest.raises(InvalidInputError, match="TeleopMeasurement or 32 numbers"):
         ctrl.step(0.0, ["a"] * 32)

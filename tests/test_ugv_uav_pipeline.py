@@ -37,7 +37,7 @@ QUATERNION_HEADER = (
     "y_c,y_c_des,z_c,z_c_des,q_c_w,q_c_w_des,q_c_x,q_c_x_des,q_c_y,q_c_y_des,q_c_z,q_c_z_des,d_c_x,d_c_x_des,"
     "d_c_y,d_c_y_des,d_c_z,d_c_z_des,euclid_x_c,euclid_x_c_des,euclid_y_c,euclid_y_c_des,euclid_z_c,euclid_z_c_des,"
     "euclid_rho_c,euclid_rho_c_des,euclid_alpha_c,euclid_alpha_c_des,euclid_beta_c,euclid_beta_c_des,u_v_p,"
-    "u_omega_p,u_u_x_b,u_u_y_b,u_u_z_b,u_u_psi_b,singularity_measure").split(",")
+    "u_omega_p,u_u_x_b,u_u_y_b,u_u_z_b,u_u_psi_b,singularity_measure,no_frame").split(",")
 #: ... and of a spherical one (its cluster variables are the chart's: written once).
 SPHERICAL_HEADER = QUATERNION_HEADER[:16] + QUATERNION_HEADER[36:]
 

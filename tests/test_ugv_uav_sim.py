@@ -316,3 +316,26 @@ def test_emergency_stop_and_release_refuse_what_is_not_the_state_in_one_line():
     for call in (ctrl.emergency_stop, ctrl.release):
         with pytest.raises(InvalidInputError, match="state must be the controller's UgvUavState"):
             call(None)
+
+
+def test_a_run_whose_first_frames_are_bad_brakes_and_says_so():
+    """Before the first good frame there is nothing to hold: both robots brake, the
+    ``no_frame`` signal (a column of timeseries.csv) is 1 and ``no_frame_time_s`` says how long."""
+    from quatform.scenarios.ugv_uav import UGV_UAV_CSV_CHANNELS
+
+    ctrl, ref = UgvUavController(), _overhead_reference()
+    step = _stepper(ctrl)
+    good = np.array([0.0, 0, 0, 0.05, 0, 1.4, 0, 0.1, 0, 0, 0])
+    none = step(0.0, np.full(11, np.nan), ref)
+    assert none.signals["no_frame"][0] == 1 and none.u[0] == 0 and none.u[1] == 0
+    assert step(0.03, good, ref).signals["no_frame"][0] == 0
+    assert step(0.06, np.full(11, np.nan), ref).signals["no_frame"][0] == 0  # held: a frame to go on
+    sc = _short(mocap_dropout_rate=0.9, duration_s=3.0)
+    run = simulate_ugv_uav(sc, "quaternion")
+    m = ugv_uav_metrics(run)
+    no_frame = run["no_frame"][:, 0] > 0.5
+    first_good = int(np.argmax(run["frame"][:, 0] == 0))
+    assert first_good > 0 and no_frame[:first_good].all() and not no_frame[first_good:].any()
+    assert m["no_frame_time_s"] == pytest.approx(first_good * sc.control_period_s, rel=1e-12)
+    assert np.all(run["command"][:first_good, 0:2] == 0)
+    assert "no_frame" in UGV_UAV_CSV_CHANNELS

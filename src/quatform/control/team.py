@@ -10,7 +10,8 @@ frozen and stateless, so it drives a simulation or real robots; wrap it in
 :class:`~quatform.control.safety.SafeController` for the separation barrier.
 
 :data:`TEAM_GAIN_KEYS` is the gain schema: the law and gain key each law-group role reads
-(:func:`team_gain_sizes`: every key and how many numbers it takes). A team description says
+(:func:`team_gain_sizes`: every key and how many numbers it takes); :func:`check_gain` is its
+one check, which the controller and the team file reader both call. A team description says
 its controller name and default gains (``Formation.controller``, ``Formation.gain_tables``);
 :data:`TEAM_CONTROLLERS` follows the registered descriptions, and :func:`team_controller`
 builds a controller by that name.
@@ -27,6 +28,7 @@ import numpy as np
 from ..algebra.angles import wrap_angle, wrap_entries
 from ..algebra.kernels import array_namespace, hold
 from ..algebra.validate import UNIT_TOLERANCE, as_array
+from ..checks import MAX_NUMBER, short
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations.base import Formation, check_magnitude
 from ..registry import Registry, RegistryView
@@ -36,7 +38,7 @@ from .base import FAILURE_REASONS, Reference, apart_robots, batch_shape, measure
 from .laws import dual_quaternion_feedback, proportional, quaternion_feedback
 
 __all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_controller", "team_descriptions",
-           "team_gain_sizes", "team_lyapunov"]
+           "team_gain_sizes", "check_gain", "team_lyapunov"]
 
 #: Law and gain key of each law-group role (``formations.team_chart.ROLE_WIDTHS``), and how
 #: many gains the key takes (``None``: one per row of the group, or one for all).
@@ -87,18 +89,45 @@ TEAM_CONTROLLERS = RegistryView(lambda: {name: c.key for name, c in team_descrip
                                 "TEAM_CONTROLLERS")
 
 
+def check_gain(value, key: str, n, rows: int | None = None, *, where: str | None = None,
+               place: str | None = None) -> np.ndarray:
+    """The gain ``key`` of :data:`TEAM_GAIN_KEYS` checked, as a flat float array: one number,
+    or a list of ``n`` (``n`` None: of ``rows``, one per row of the law group), each a finite
+    positive number within :data:`quatform.checks.MAX_NUMBER` (seed 000 Tables 1-2). The one
+    check of a gain: the controller's (``gains['k_x']`` in its errors) and a team file's
+    (``where`` the file, ``place`` its table, e.g. ``[gains.quaternion]``, in its errors).
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming the file, the table and the key (or the controller's gain), the value
+        and what it must be.
+    """
+    said = (f"{where}: {place} {key}" if where is not None else f"team controller: gains[{key!r}]") + \
+        f" = {short(value)}"
+    count = n if n is not None else (rows or 1)
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    many = isinstance(value, (list, tuple, np.ndarray))
+    vals = list(np.ravel(value)) if many else [value]
+    if many and (np.ndim(value) != 1 or len(vals) not in (1, count)):
+        raise InvalidInputError(f"{said} must be one number" + (f" or a list of {count}" if count > 1 else ""))
+    if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) for v in vals):
+        raise InvalidInputError(f"{said} must be {'numbers' if many else 'a number'}")
+    k = np.array(vals, dtype=float)
+    if not np.all(np.isfinite(k)):
+        raise InvalidInputError(f"{said} must be finite")
+    if np.any(np.abs(k) > MAX_NUMBER):
+        raise InvalidInputError(f"{said} is beyond +-{MAX_NUMBER:g}; give a physical gain (1/s)")
+    if not np.all(k > 0):
+        raise InvalidInputError(f"{said} must be positive (seed 000 Tables 1-2)")
+    return k
+
+
 def _gain(gains: Mapping, key: str, n, rows: int, role: str) -> np.ndarray:
     if key not in gains:
         raise InvalidInputError(f"team controller: the {role} law needs gains[{key!r}]; given {sorted(gains)}")
-    try:
-        k = np.asarray(gains[key], dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"team controller: gains[{key!r}] must be numbers, got {gains[key]!r}") from None
-    sizes = (1, n) if n is not None else (1, rows)
-    if k.ndim > 1 or k.size not in sizes or not np.all(np.isfinite(k)) or np.any(k <= 0):
-        raise InvalidInputError(f"team controller: gains[{key!r}] must be {' or '.join(map(str, sorted(set(sizes))))} "
-                                f"positive finite numbers, got {gains[key]!r}")
-    return k.reshape(-1)
+    return check_gain(gains[key], key, n, rows)
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +175,7 @@ class TeamController(contract.Controller):
             raise InvalidInputError(f"TeamController: gains must be a mapping of gain names to values (e.g. "
                                     f"{{'k_x': 2.0, 'k_d': 20.0, 'k_w': 20.0}}), got {type(self.gains).__name__}")
         object.__setattr__(self, "gains", dict(self.gains))
+        F.check_gains(self.gains)
         covered = np.sort(np.concatenate([gr.index.ravel() for gr in F.law_groups]))
         if not np.array_equal(covered, np.arange(F.n_c)):
             raise InvalidInputError(f"{type(F).__name__}.law_groups must cover its {F.n_c} variables once each")

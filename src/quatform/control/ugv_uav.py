@@ -25,10 +25,11 @@ import numpy as np
 from ..algebra.kernels import as_floats, common_namespace, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, QuatformError
-from ..formations import UgvUavQuaternion, UgvUavRestricted
+from ..formations import UGV_UAV_LAYOUT, UgvUavQuaternion, UgvUavRestricted
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, Formation
 from ..robots import Bebop, BebopMemory, Pioneer, Team
+from ..robots.model import column_unit
 from . import contract
 from .base import Reference
 from .cluster import ClusterController
@@ -36,19 +37,56 @@ from .filters import FRAME_DROPPED, FRAME_GOOD, FRAME_REJECTED, ArenaWalls, Head
 from .laws import Block, BlockLaw
 
 __all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV_COMMAND_NAMES",
-           "FRAME_CODES", "STOP_MOTION_CAPTURE", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART"]
+           "FRAME_CODES", "STOP_MOTION_CAPTURE", "MOCAP_PART", "ODOMETRY_PART", "PIONEER_PART", "BEBOP_PART",
+           "PIONEER_COMMAND", "BEBOP_COMMAND", "UGV_XY", "PSI_P", "UAV_XYZ", "PSI_B", "V_P", "UAV_XY_COMMAND",
+           "UGV_POINT", "UAV_POINT", "N_MEASURED"]
 
-#: Layout of the 11 measured values the UGV-UAV controller reads.
-UGV_UAV_MEASURED_NAMES = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b", "psi_dot_b")
-#: Parts of the measured values: the motion capture's (both robots' poses) and the Bebop's
-#: odometry; the Pioneer's and the Bebop's (what each robot's actuation reads).
-MOCAP_PART = slice(0, UGV_UAV_MEASURED_NAMES.index("v_x_b"))
-ODOMETRY_PART = slice(MOCAP_PART.stop, len(UGV_UAV_MEASURED_NAMES))
-PIONEER_PART = slice(0, UGV_UAV_MEASURED_NAMES.index("x_b"))
-BEBOP_PART = slice(PIONEER_PART.stop, len(UGV_UAV_MEASURED_NAMES))
+
+def _entries(part: slice, columns: tuple, *names: str):
+    """Where a robot's ``names`` (of its ``columns``) sit in a stacked array whose entries
+    ``part`` are that robot's: an int for one name, a slice for consecutive ones."""
+    idx = [part.start + columns.index(n) for n in names]
+    if len(idx) == 1:
+        return idx[0]
+    if idx != list(range(idx[0], idx[0] + len(idx))):
+        raise InvalidInputError(f"columns {names} are not consecutive in {columns}")
+    return slice(idx[0], idx[-1] + 1)
+
+
+#: The Pioneer-Bebop team whose models' columns lay out the measured values (the team's
+#: stacked state) and the commands (its stacked commands); only its layout is read here.
+_LAYOUT_TEAM = Team((Pioneer(), Bebop()))
+#: The Pioneer's and the Bebop's entries of the measured values (what each robot's actuation
+#: reads) and of the commands.
+PIONEER_PART, BEBOP_PART = _LAYOUT_TEAM.state_slices
+PIONEER_COMMAND, BEBOP_COMMAND = _LAYOUT_TEAM.command_slices
+#: Layout of the 11 measured values the UGV-UAV controller reads: each robot's state columns
+#: with its label of the formation's layout (``x_p ... psi_p, x_b ... psi_dot_b``).
+UGV_UAV_MEASURED_NAMES = tuple(c + lab for r, lab in zip(_LAYOUT_TEAM.robots, UGV_UAV_LAYOUT.labels)
+                               for c in r.state_columns)
 #: Layout of the 6 commands it sends (the Pioneer's, then the Bebop's).
-UGV_UAV_COMMAND_NAMES = ("v_p", "omega_p", "u_x_b", "u_y_b", "u_z_b", "u_psi_b")
-
+UGV_UAV_COMMAND_NAMES = tuple(c + lab for r, lab in zip(_LAYOUT_TEAM.robots, UGV_UAV_LAYOUT.labels)
+                              for c in r.command_columns)
+#: Named entries of the measured values: the Pioneer's control point ``(x, y)`` and heading,
+#: the Bebop's position, yaw and body-frame velocity (its odometry).
+UGV_XY = _entries(PIONEER_PART, Pioneer.state_columns, "x", "y")
+PSI_P = _entries(PIONEER_PART, Pioneer.state_columns, "psi")
+UAV_XYZ = _entries(BEBOP_PART, Bebop.state_columns, "x", "y", "z")
+PSI_B = _entries(BEBOP_PART, Bebop.state_columns, "psi")
+ODOMETRY_PART = _entries(BEBOP_PART, Bebop.state_columns, "v_x", "v_y", "z_dot", "psi_dot")
+#: The motion capture's part of the measured values (both robots' poses) and the odometry's.
+MOCAP_PART = slice(0, ODOMETRY_PART.start)
+#: Named entries of the commands: the Pioneer's forward speed, the Bebop's horizontal commands.
+V_P = _entries(PIONEER_COMMAND, Pioneer.command_columns, "v")
+UAV_XY_COMMAND = _entries(BEBOP_COMMAND, Bebop.command_columns, "u_x", "u_y")
+#: The UGV's and the UAV's points in the formation's robot state (and rates).
+UGV_POINT, UAV_POINT = (UGV_UAV_LAYOUT.slice(i) for i in range(UGV_UAV_LAYOUT.n))
+N_MEASURED = len(UGV_UAV_MEASURED_NAMES)
+#: The measured entries the robots' points are made of: ``(robot number, its state column, entry)``.
+_POINT_ENTRIES = tuple((k, robot.state_columns[j - part.start], j)
+                       for k, (robot, part, point) in enumerate(zip(_LAYOUT_TEAM.robots, _LAYOUT_TEAM.state_slices,
+                                                                    (UGV_XY, UAV_XYZ)))
+                       for j in range(point.start, point.stop))
 
 #: The ``frame`` signal's code of each frame class (:meth:`MocapScreen.frame_code`).
 FRAME_CODES = {FRAME_GOOD: 0, FRAME_DROPPED: 1, FRAME_REJECTED: 2}
@@ -153,7 +191,7 @@ class UgvUavState:
         nan = np.full(batch, np.nan)
         memory = BebopMemory.start(batch)
         return cls(memory.v_r, memory.t, memory.v_dot, np.zeros(batch, dtype=bool), np.zeros(batch, dtype=np.int64),
-                   nan, nan.copy(), np.full(batch + (11,), np.nan), nan.copy(), nan.copy(),
+                   nan, nan.copy(), np.full(batch + (N_MEASURED,), np.nan), nan.copy(), nan.copy(),
                    np.full(batch, float(max_hold_s)))
 
     @property
@@ -265,6 +303,9 @@ class UgvUavController(ClusterController):
         _set(self, "derivative_filter_s", float(derivative_filter_s))
         if not (self.derivative_filter_s >= 0 and self.wall_margin >= 0):
             raise InvalidInputError("derivative_filter_s and wall_margin must be >= 0")
+        if not abs(self.z_ugv) <= MAX_MAGNITUDE:
+            raise InvalidInputError(f"z_ugv = {self.z_ugv!r} m must be finite within {MAX_MAGNITUDE:g} (the UGV's "
+                                    "platform height)")
         # the robots' actuation (seed 001 eqs. (3.5), (3.10), (4.47)) is the team's
         _set(self, "team", Team((replace(pioneer, z=self.z_ugv),
                                  replace(bebop, l_d=tuple(self.l_d.tolist()), compensation=self.compensation,
@@ -305,12 +346,14 @@ class UgvUavController(ClusterController):
     def signal_columns(self) -> dict[str, tuple[str, ...]]:
         """``cluster``, ``error`` (the formation's variables), ``robot_rates`` (the 6 world rates
         of eq. (4.42)), ``raw_finite``, ``stopped``, ``frame`` (0 good, 1 dropped, 2 rejected),
-        ``held``, ``outside`` and ``used`` (the 11 measured values the step used)."""
+        ``held``, ``no_frame`` (1 where no good frame has come yet: both robots brake),
+        ``outside`` and ``used`` (the 11 measured values the step used)."""
         names = self.formation.names
         return {"cluster": names, "error": names,
                 "robot_rates": ("x_dot_p", "y_dot_p", "z_dot_p", "x_dot_b", "y_dot_b", "z_dot_b"),
                 "raw_finite": ("raw_finite",), "stopped": ("stopped",), "frame": ("frame",),
-                "held": ("held",), "outside": ("outside",), "used": UGV_UAV_MEASURED_NAMES}
+                "held": ("held",), "no_frame": ("no_frame",), "outside": ("outside",),
+                "used": UGV_UAV_MEASURED_NAMES}
 
     # -- state: the compensation's derivative, the screening and the emergency stop -----
     def init(self, batch: tuple = ()):
@@ -398,12 +441,7 @@ class UgvUavController(ClusterController):
                     F.check_cluster_state(c[i], "near_c")
         invertible = np.ones(batch, dtype=bool)
         if isinstance(F, UgvUavRestricted):
-            with np.errstate(invalid="ignore", over="ignore"):
-                w2 = 1 - np.sin(c[..., 4]) ** 2 - np.sin(c[..., 5]) ** 2
-                bad = ~(np.max(np.abs(c), axis=-1) <= MAX_MAGNITUDE) | ~(c[..., 3] > 0) | (w2 < -1e-12)
-                for _, out in F._angles_out(c, F.tolerance):
-                    bad = bad | out
-            invertible = used & ~bad | hold  # what F.inverse accepts (hold: not asked)
+            invertible = used & F.invertible(c) | hold  # what F.inverse accepts (hold: not asked)
         return {"c": np.array(c), "c_dot": np.array(cd), "invertible": invertible}
 
     def update(self, t: float, measured, reference, state) -> contract.Step:
@@ -431,24 +469,33 @@ class UgvUavController(ClusterController):
         ShapeError
             ``measured`` not ``(..., 11)``.
         UnreachableError, InvalidInputError
-            The restricted description's fallback with a reference it cannot invert; a
-            measured position beyond ``MAX_MAGNITUDE``: the description's own words, for the
-            first such world.
+            The restricted description's fallback with a reference it cannot invert (the
+            description's own words); a measured position beyond ``MAX_MAGNITUDE`` (the robot,
+            its state column and value, and the world of a batch); for the first such world.
         """
         m = np.asarray(measured, dtype=float)
-        if m.shape[-1:] != (11,):
-            m = as_array(measured, "measured state", 11)
+        if m.shape[-1:] != (N_MEASURED,):
+            m = as_array(measured, "measured state", N_MEASURED)
         ref = self.reference_arrays(reference)
         batch = np.broadcast_shapes(m.shape[:-1], state.batch, ref["c"].shape[:-1])
-        tk = self.tick(_broadcast_state(state, batch), np.broadcast_to(m, batch + (11,)), ref, t)
+        tk = self.tick(_broadcast_state(state, batch), np.broadcast_to(m, batch + (N_MEASURED,)), ref, t)
         if np.any(tk.code):
             i = tuple(int(k) for k in np.argwhere(np.asarray(tk.code) > 0)[0])
             if tk.code[i] == 1:
                 self.formation.inverse(np.broadcast_to(ref["c"], batch + (self.formation.n_c,))[i])
-            else:
-                self.formation.forward(self.team.point(tk.signals["used"][i]))
-            raise InvalidInputError(f"{self.name} controller: {self.failure_reasons[int(tk.code[i])]}")
+                raise InvalidInputError(f"{self.name} controller: {self.failure_reasons[1]}")
+            raise InvalidInputError(f"{self.name} controller: {self._beyond_magnitude(tk.signals['used'][i], i)}")
         return contract.Step(tk.u, tk.state, tk.signals)
+
+    def _beyond_magnitude(self, used, world: tuple) -> str:
+        """The words of a measured position beyond ``MAX_MAGNITUDE`` (code 2): the robot, its
+        state column and value in the frame used (``used``, 11 values) of ``world``, and the fix."""
+        k, column, j = max(_POINT_ENTRIES, key=lambda e: abs(float(used[e[2]])))
+        robot = self.team.robots[k]
+        at = f" in world {world}" if world else ""
+        return (f"measured {robot.name} {column} = {float(used[j]):.6g} {column_unit(robot, column)}{at} is beyond "
+                f"the {MAX_MAGNITUDE:g} quatform accepts (squared lengths would overflow); express the state in "
+                "larger units or nearer the origin")
 
     def tick(self, state, measured, ref, t) -> contract.Tick:
         """One pure, branch-free step of Fig. 18 on the array namespace of its operands (NumPy,
@@ -543,9 +590,9 @@ class UgvUavController(ClusterController):
             x_rate = self.walls.limit(points, xp.where(rows(rates_finite), x_rate, 0.0))
             # -- the commands: the team's actuation, or a brake (no frame, hold, stopped)
             memory = BebopMemory(state.v_r, state.mem_t, state.v_dot)
-            psi_rate = self.heading.rate(used[..., 2], used[..., 6])  # (4.50)-(4.51), psi_bd = psi_p
-            u_p, _ = p.actuate(used[..., PIONEER_PART], x_rate[..., 0:3], t)
-            rate_b = xp.concatenate([x_rate[..., 3:6], psi_rate[..., None]], axis=-1)
+            psi_rate = self.heading.rate(used[..., PSI_P], used[..., PSI_B])  # (4.50)-(4.51), psi_bd = psi_p
+            u_p, _ = p.actuate(used[..., PIONEER_PART], x_rate[..., UGV_POINT], t)
+            rate_b = xp.concatenate([x_rate[..., UAV_POINT], psi_rate[..., None]], axis=-1)
             u_b, mem = b.actuate(used[..., BEBOP_PART], rate_b, t, memory)
             u_b_brake, mem_brake = b.brake(xp.where(rows(none), m, used)[..., BEBOP_PART], memory)
             brake = none | hold | stopped
@@ -565,7 +612,7 @@ class UgvUavController(ClusterController):
                 "robot_rates": xp.where(rows(braking), 0.0, x_rate),
                 "raw_finite": xp.where(none, 0.0, xp.where(hold, 1.0, rates_finite * one))[..., None],
                 "stopped": (stopped * one)[..., None], "frame": (frame * one)[..., None],
-                "held": (held * one)[..., None],
+                "held": (held * one)[..., None], "no_frame": (none * one)[..., None],
                 "outside": (xp.where(none, False, xp.where(hold, outside_free, ~inside)) * one)[..., None],
                 "used": xp.where(rows(none), np.nan, used)}
             # -- what the description refuses (update raises its words)
@@ -590,10 +637,10 @@ class UgvUavController(ClusterController):
         """The robots' positions in the 11 measured values (the Pioneer's at ``z_ugv``), ``(..., 3)``
         each (any namespace)."""
         if concrete(m) and np.ndim(m) == 1:
-            return (np.array([m[0], m[1], self.z_ugv]), m[3:6])
+            return (np.array([*m[UGV_XY], self.z_ugv]), m[UAV_XYZ])
         xp = common_namespace(m)
-        return (xp.concatenate([m[..., 0:2], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
-                m[..., 3:6])
+        return (xp.concatenate([m[..., UGV_XY], xp.full(m.shape[:-1] + (1,), self.z_ugv, dtype=m.dtype)], axis=-1),
+                m[..., UAV_XYZ])
 
 
 def _taken(xp, mask) -> bool:
@@ -615,6 +662,6 @@ def _broadcast_state(state: UgvUavState, batch: tuple) -> UgvUavState:
     """``state`` with its arrays broadcast to ``batch`` leading axes (one state for every world)."""
     if state.batch == tuple(batch):
         return state
-    tails = {"v_r": (4,), "v_dot": (4,), "good": (11,)}
-    return replace(state, **{k: np.broadcast_to(getattr(state, k), tuple(batch) + tails.get(k, ()))
+    n = len(state.batch)  # each field's entries after the batch axes
+    return replace(state, **{k: np.broadcast_to(getattr(state, k), tuple(batch) + np.shape(getattr(state, k))[n:])
                              for k in _ARRAY_FIELDS})

@@ -120,11 +120,19 @@ class Formation(ABC):
     #: Whether :meth:`forward` refuses robots on each other (closer than
     #: :data:`MIN_SEPARATION_M`); a controller marks such a measurement refused (code 2).
     robots_apart: bool = True
+    #: Its cluster state is the robot state itself (robot space, ``c = r``): a file that
+    #: writes the robots leaves its cluster variables out.
+    cluster_is_robot_state: bool = False
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         if cls.__dict__.get("key"):
             FORMATION_TYPES.add(cls.key, cls)
+
+    def check_gains(self, gains: Mapping) -> None:
+        """Refuse ``gains`` (``{gain key: value}``, :attr:`gain_tables`' keys) its controller
+        cannot drive these robots with, in the description's own words (one line). Default:
+        nothing; the team controller checks each law group's gain itself."""
 
     @classmethod
     def examples(cls) -> dict:

@@ -27,6 +27,16 @@ from .team_chart import LawGroup, TeamChart, check_template, default_template, p
 __all__ = ["RobotSpaceTeam", "RobotSpace"]
 
 
+def _numbers(robots: list) -> str:
+    """Robot numbers ``[1, 2, 3, 5]`` as ``"1-3, 5"``."""
+    runs, start = [], robots[0]
+    for a, b in zip(robots, robots[1:] + [None]):
+        if b != a + 1:
+            runs.append(str(start) if start == a else f"{start}-{a}")
+            start = b
+    return ", ".join(runs)
+
+
 class RobotSpaceTeam(Formation):
     """Seed 000 §3.1 for N robots of any point kinds: the cluster state is the robot state.
 
@@ -53,6 +63,7 @@ class RobotSpaceTeam(Formation):
     name = "robot-space-team"
     key = "robot-space-team"
     team = True
+    cluster_is_robot_state = True
     #: ``--controller robot-space``.
     controller = "robot-space"
     controller_order = 3
@@ -61,6 +72,19 @@ class RobotSpaceTeam(Formation):
         "table1": {"k_p": [1.5, 1.5, 1.5], "k_theta": 6.0},
         "table2": {"k_p": [0.06, 0.06, 0.03], "k_theta": 0.02},
     }
+
+    def check_gains(self, gains) -> None:
+        """Refuse free bodies (``pose`` points) without the orientation gain ``k_w``: seed
+        000's robot-space gains (``K_RS`` of Tables 1 and 2) command a robot's x, y, z and yaw
+        and give none for a 3-D orientation."""
+        free = [i + 1 for i, kind in enumerate(self.layout.kinds) if kind == "pose"]
+        if free and "k_w" not in gains:
+            raise InvalidInputError(
+                f"--controller {self.controller} cannot drive robot{'s' if len(free) > 1 else ''} {_numbers(free)} "
+                f"(free bodies): seed 000's robot-space law and its gains (K_RS of Tables 1 and 2) command a robot's "
+                "x, y, z and yaw, and give no gain for a free body's 3-D orientation; choose --controller quaternion "
+                "or dual-quaternion, or give the orientation gain k_w (1/s, the quaternion law of seed 000 eq. (20)) "
+                f"in [gains.{self.controller}]")
 
     @classmethod
     def examples(cls) -> dict:

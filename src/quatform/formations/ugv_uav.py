@@ -29,7 +29,7 @@ from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
 from . import special_sets as sp
-from .base import Formation, Variable, quaternion_variables
+from .base import MAX_MAGNITUDE, Formation, Variable, quaternion_variables
 from .layout import RobotLayout
 
 __all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_VARIABLES", "UGV_UAV_LAYOUT",
@@ -282,6 +282,17 @@ class UgvUavRestricted(_UgvUav):
                 f"restricted description cannot express (eq. (4.24) would put it {-h:.6g} m above; Marciano 2021 "
                 f"§4.1.2); {fix}"
             )
+
+    def invertible(self, c):
+        """Where :meth:`inverse` accepts the cluster state ``c`` (``(..., 6)``): finite within
+        ``MAX_MAGNITUDE``, ``rho_f > 0``, eq. (4.24) with a real root and the angles within
+        ``tolerance_deg`` of the range; a bool array (...). Raises nothing (NumPy)."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            w2 = 1 - np.sin(c[..., 4]) ** 2 - np.sin(c[..., 5]) ** 2
+            bad = ~(np.max(np.abs(c), axis=-1) <= MAX_MAGNITUDE) | ~(c[..., 3] > 0) | (w2 < -1e-12)
+            for _, out in self._angles_out(c, self.tolerance):
+                bad = bad | out
+        return ~bad
 
     def check_reachable(self, c, what="state", tol=1e-9):
         """Raise UnreachableError if ``alpha_f`` or ``beta_f`` leaves the operating range by

@@ -489,10 +489,12 @@ TABLE_COLUMNS = (
 PAIR_CSV_CHANNELS = (("state", "r_des"), ("cluster", "c_des"), ("e", "e_des"), "command", "singularity")
 
 
-def pair_csv_channels(formation: str) -> tuple:
-    """:data:`PAIR_CSV_CHANNELS` of a run of ``formation`` (a formation's name): the robot-space
-    description's cluster variables are the robots, so its file leaves them out."""
-    return tuple(c for c in PAIR_CSV_CHANNELS if not (formation == "robot" and c == ("cluster", "c_des")))
+def pair_csv_channels(formation) -> tuple:
+    """:data:`PAIR_CSV_CHANNELS` of a run of ``formation`` (a description): one whose cluster
+    state is the robot state (:attr:`~quatform.formations.Formation.cluster_is_robot_state`,
+    robot space) leaves its cluster variables out."""
+    return tuple(c for c in PAIR_CSV_CHANNELS
+                 if not (formation.cluster_is_robot_state and c == ("cluster", "c_des")))
 
 
 #: Generous cost of one step of a run that follows a plan (time series kept, controller and
@@ -671,7 +673,7 @@ class PairKind(ScenarioKind):
                            safety_active_time_s=ticks * scenario.dt_s)
             return out
 
-        csv = pair_csv_channels(F.name) + (("min_separation", "safety_active") if safety["enabled"] else ())
+        csv = pair_csv_channels(F) + (("min_separation", "safety_active") if safety["enabled"] else ())
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
                           reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
                           metrics=metrics, csv_channels=csv, meta=meta)

@@ -43,7 +43,7 @@ from ..checks import (
     vector,
 )
 from ..control import TEAM_CONTROLLERS, Reference, team_controller
-from ..control.team import team_descriptions, team_gain_sizes
+from ..control.team import check_gain, team_descriptions, team_gain_sizes
 from ..control.safety import SafeController, SeparationBarrier, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
@@ -211,26 +211,11 @@ class TeamScenario:
                                     f"{', '.join(names)} (the team descriptions registered in "
                                     "quatform.formations.TEAM_FORMATIONS)")
         gains = self.gains.get(name, {})
-        free = [i + 1 for i, kind in enumerate(self.team.layout.kinds) if kind == "pose"]
-        if name == "robot-space" and free and "k_w" not in gains:
-            raise InvalidInputError(
-                f"scenario {self.name!r}: --controller robot-space cannot drive robot{'s' if len(free) > 1 else ''} "
-                f"{_numbers(free)} (free bodies): seed 000's robot-space law and its gains (K_RS of Tables 1 and 2) "
-                "command a robot's x, y, z and yaw, and give no gain for a free body's 3-D orientation; choose "
-                "--controller quaternion or dual-quaternion, or give the orientation gain k_w (1/s, the "
-                "quaternion law of seed 000 eq. (20)) in [gains.robot-space]")
         ff = self.feedforward if feedforward is None else feedforward
-        return team_controller(name, self.team, gains, template=self.template, feedforward=bool(ff))
-
-
-def _numbers(robots: list) -> str:
-    """Robot numbers ``[1, 2, 3, 5]`` as ``"1-3, 5"``."""
-    runs, start = [], robots[0]
-    for a, b in zip(robots, robots[1:] + [None]):
-        if b != a + 1:
-            runs.append(str(start) if start == a else f"{start}-{a}")
-            start = b
-    return ", ".join(runs)
+        try:  # the description refuses what it cannot drive, in its own words
+            return team_controller(name, self.team, gains, template=self.template, feedforward=bool(ff))
+        except InvalidInputError as exc:
+            raise type(exc)(f"scenario {self.name!r}: {exc}") from None
 
 
 _STEP_SLACK = 1e-9
@@ -411,26 +396,14 @@ def _gains(data: dict, where: str, dt: float) -> dict:
         gains[name] = dict(tables.get(name, {}))
         for key, size in sizes.items():
             if key in mine:
-                gains[name][key] = _gain(mine, key, size, where, place)
+                k = check_gain(mine[key], key, size, where=where, place=place)
+                gains[name][key] = k.tolist() if isinstance(mine[key], list) else float(k[0])
     k = max(float(x) for gg in gains.values() for v in gg.values() for x in np.ravel(v))
     if k * dt >= 2.0:  # one Euler step multiplies an error by 1 - k dt (pair kind: check_step_stable)
         raise InvalidInputError(f"{where}: dt_s = {dt:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = "
                                 f"{k * dt:.3g} >= 2: the discrete control loop would be unstable; use dt_s < "
                                 f"{2.0 / k:.3g} s (smaller gains allow a larger step)")
     return gains
-
-
-def _gain(d: dict, key: str, size: int, where: str, place: str):
-    v = d[key]
-    if size > 1 and isinstance(v, list):
-        vals = list(vector(d, key, size, where, place=place))
-    elif isinstance(v, list):
-        raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be one number")
-    else:
-        vals = [number(d, key, where, place=place)]
-    if not all(x > 0 for x in vals):
-        raise InvalidInputError(f"{where}: {place} {key} = {short(v)} must be positive (seed 000 Tables 1-2)")
-    return vals if size > 1 and isinstance(v, list) else vals[0]
 
 
 def team_scenario_from_dict(data: dict, where: str = "scenario") -> TeamScenario:

@@ -25,6 +25,7 @@ import numpy as np
 from .. import checks
 from ..algebra import q_angle_between, wrap_angle
 from ..control import Reference, UgvUavController
+from ..control.ugv_uav import BEBOP_COMMAND, PSI_B, PSI_P, UAV_XY_COMMAND, UAV_XYZ, UGV_XY, V_P
 from ..errors import InvalidInputError, NonFiniteError, UnreachableError
 from ..formations import FORMATIONS, SPHERICAL_VARIABLES, UGV_UAV_LAYOUT, UGV_UAV_VARIABLES, UgvUavSpherical
 from ..robots import Bebop
@@ -40,6 +41,23 @@ __all__ = ["UgvUavScenario", "UgvUavKind", "UGV_UAV_KIND", "UGV_UAV_FORMATIONS",
            "UGV_UAV_COLUMNS", "UGV_UAV_CSV_CHANNELS", "DERIVED_CHANNELS", "check_ugv_uav_scenario",
            "ugv_uav_scenario_from_dict", "ugv_uav_metrics", "simulate_ugv_uav", "ugv_uav_experiment",
            "mujoco_experiment"]
+
+#: Named entries, computed once from the controller's measured layout and the descriptions'
+#: variables: the UGV's control point (x, y) and the UAV's position among the measured values
+#: (index arrays: the gathered copies keep the memory order the metrics' reductions round in,
+#: see :func:`_finish`), the UGV's (x, y) in the robot state, the robots on the layout's robot
+#: axis, and the chart's beta_c.
+_UGV_XY_AT, _UAV_XYZ_AT = (np.arange(s.start, s.stop) for s in (UGV_XY, UAV_XYZ))
+_UGV_R_XY = slice(UGV_UAV_LAYOUT.names.index("x_p"), UGV_UAV_LAYOUT.names.index("y_p") + 1)
+_UGV, _UAV = range(UGV_UAV_LAYOUT.n)
+_BETA_C = [v.name for v in SPHERICAL_VARIABLES].index("beta_c")
+
+
+def _of_kind(variables, kind: str):
+    """The entries of ``variables`` of ``kind`` (consecutive): a slice, or None when none is."""
+    idx = [i for i, v in enumerate(variables) if v.kind == kind]
+    return slice(idx[0], idx[-1] + 1) if idx else None
+
 
 #: Errors after the transient beyond these mean the formation lost the reference.
 LOST_UGV_M = 0.1
@@ -66,7 +84,7 @@ UGV_UAV_PHYSICS = ("kinematic", "mujoco")
 DERIVED_CHANNELS = ("r_true", "r_des", "r_measured", "c_des", "c_continuous", "e", "e_des", "singularity",
                     "reachable")
 #: Channels of ``timeseries.csv``, in order (with ``t`` first: the recorded columns).
-UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity")
+UGV_UAV_CSV_CHANNELS = ("ts_robots", "ts_headings", "ts_cluster", "ts_chart", "ts_command", "singularity", "no_frame")
 
 #: Columns of the comparison table: (metrics key, header, format). The errors count only the
 #: samples whose reference the description can express (:func:`ugv_uav_metrics`); the time it
@@ -299,7 +317,7 @@ def _measured_robots(used, sc: UgvUavScenario):
     """The robots' points as the controller used them (``used`` ``(T, *batch, 11)``; the UGV
     at the platform height): ``(T, *batch, 6)``, NaN where it had none."""
     z = np.full(used.shape[:-1], float(sc.center[2]))
-    return np.concatenate([used[..., [0, 1]], z[..., None], used[..., [3, 4, 5]]], axis=-1)
+    return np.concatenate([used[..., _UGV_XY_AT], z[..., None], used[..., _UAV_XYZ_AT]], axis=-1)
 
 
 def _continued(F, r_meas, c_des, reachable):
@@ -330,14 +348,13 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable, c_cont=Non
     continued formation (:func:`_continued`) when computed already."""
     n = len(log.t)
     x = log["state"]
-    ugv, uav = x[:, 0:3], x[:, 3:11]
     z = np.full(n, float(sc.center[2]))
     # the robots' points (the UGV at the platform height), built exactly as main built them:
     # the memory order of these arrays sets the summation order of the metrics' dot products,
     # and their arccos near 1 (orientation error, the turned angle of _cluster_jumps) turns a
     # 1-ulp change of a dot product into ~1e-8 rad, beyond the 1e-9 regression tolerance
     # (docs/derivations.md, "UGV-UAV runs (seed 001)")
-    r_true = np.c_[ugv[:, 0:2], z, uav[:, 0:3]]
+    r_true = np.c_[x[:, UGV_XY], z, x[:, UAV_XYZ]]
     e_des, c_des, reachable = e_des[:n], c_des[:n], reachable[:n]
     r_des = UgvUavSpherical().inverse(e_des) if n else np.zeros((0, 6))
     cluster = log["cluster"]
@@ -357,7 +374,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable, c_cont=Non
     # the formation as recovered from the measurements used, each sample continued from the
     # last (NaN where the controller had none or the description cannot express them)
     used = log["used"]
-    r_meas = np.c_[used[:, [0, 1]], z, used[:, [3, 4, 5]]]
+    r_meas = np.c_[used[:, _UGV_XY_AT], z, used[:, _UAV_XYZ_AT]]
     if c_cont is None:
         c_cont = np.full((n, F.n_c), np.nan)
         ok = np.all(np.isfinite(r_meas), axis=1) & ~F.outside(np.where(np.isfinite(r_meas), r_meas, 0.0))
@@ -379,7 +396,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable, c_cont=Non
         Channel("reachable", ["reachable"], reachable[:, None].astype(float)),
         # the views of timeseries.csv (its columns since seed 001 runs were first written)
         _paired("ts_robots", rvars, r_true, r_des),
-        _interleaved("ts_headings", [("psi_p", ugv[:, 2]), ("psi_b", uav[:, 3]), ("psi_b_des", ugv[:, 2])], n),
+        _interleaved("ts_headings", [("psi_p", x[:, PSI_P]), ("psi_b", x[:, PSI_B]), ("psi_b_des", x[:, PSI_P])], n),
         # the spherical description's variables are the chart's: written once, as euclid_*
         _paired("ts_cluster", () if isinstance(F, UgvUavSpherical) else cvars, cluster, c_des),
         _paired("ts_chart", SPHERICAL_VARIABLES, e_rec, e_des, prefix="euclid_"),
@@ -412,17 +429,16 @@ def ugv_uav_metrics(log: Log) -> dict:
                                                           np.ascontiguousarray)(c.data))
                               for c in log.channels.values()))
     x = log["state"]
-    ugv, uav = x[:, 0:3], x[:, 3:11]
     r_true, r_des = log["r_true"], log["r_des"]
     reachable = log["reachable"][:, 0] > 0.5
     p_true, p_des = UGV_UAV_LAYOUT.positions(r_true), UGV_UAV_LAYOUT.positions(r_des)  # (T, 2, 3): UGV, UAV
-    ugv_err = np.linalg.norm(p_true[:, 0, 0:2] - p_des[:, 0, 0:2], axis=1)
-    uav_err = np.linalg.norm(p_true[:, 1] - p_des[:, 1], axis=1)
-    d_true, d_des = p_true[:, 1] - p_true[:, 0], p_des[:, 1] - p_des[:, 0]
+    ugv_err = np.linalg.norm(r_true[:, _UGV_R_XY] - r_des[:, _UGV_R_XY], axis=1)
+    uav_err = np.linalg.norm(p_true[:, _UAV] - p_des[:, _UAV], axis=1)
+    d_true, d_des = p_true[:, _UAV] - p_true[:, _UGV], p_des[:, _UAV] - p_des[:, _UGV]
     sep = np.linalg.norm(d_true, axis=1)
     cosang = np.einsum("ij,ij->i", d_true, d_des) / np.maximum(sep * np.linalg.norm(d_des, axis=1), 1e-300)
     orient = np.arccos(np.clip(cosang, -1, 1))
-    yaw_err = np.abs(wrap_angle(ugv[:, 2] - uav[:, 3]))
+    yaw_err = np.abs(wrap_angle(x[:, PSI_P] - x[:, PSI_B]))
     # errors count after the take-off transient, outside the settle window after each
     # designed switch of the reference (§5.3: front -> over at uav_front_until_s; a planned
     # change is not a loss), and while the controller still runs (not after a safe stop)
@@ -471,24 +487,25 @@ def ugv_uav_metrics(log: Log) -> dict:
         "max_uav_position_error_m": mx(uav_err),
         "max_uav_yaw_error_rad": mx(yaw_err),
         "max_robot_yaw_error_rad": mx(yaw_err),
-        "max_command_speed_m_s": float(np.abs(u[:, 0]).max()) if n else 0.0,
+        "max_command_speed_m_s": float(np.abs(u[:, V_P]).max()) if n else 0.0,
         "measured_outside_description_s": float((log["outside"][:, 0] > 0.5).sum() * dt_ctrl)
         if dt_ctrl is not None else 0.0,
         "min_robot_separation_m": float(sep.min()) if len(sep) else None,
-        "max_recovered_euclidean_error_rad": mx(np.abs(wrap_angle(e[:, 5] - e_des[:, 5]))),
+        "max_recovered_euclidean_error_rad": mx(np.abs(wrap_angle(e[:, _BETA_C] - e_des[:, _BETA_C]))),
         "max_cluster_state_jump": float(jumps.max()) if len(jumps) else 0.0,
         "max_unexplained_cluster_jump": float(np.maximum(jumps - explained, 0.0).max()) if len(jumps) else 0.0,
         "max_uav_position_error_m_at_switch": mx(uav_err, settle) if sc.uav_front_until_s > 0 else None,
         "mocap_dropped_frames": int((frames == 1).sum()),
         "mocap_rejected_frames": int((frames == 2).sum()),
         "mocap_held_frames": int((log["held"][:, 0] > 0.5).sum()),
+        "no_frame_time_s": float((log["no_frame"][:, 0] > 0.5).sum() * dt_ctrl) if dt_ctrl is not None else 0.0,
         "run_stopped": stopped_at is not None,
         "run_stopped_at_s": stopped_at,
         "run_stopped_reason": world_meta(log, "stop_reason") or None,
         "nonfinite_commands": int((log["raw_finite"][:, 0] < 0.5).sum()),
         "uav_model_k": list(log.meta["uav_model_k"]),
-        "max_uav_command_fraction": float(np.abs(u[:, 2:6]).max()) if n else 0.0,
-        "uav_command_chatter": float(np.sqrt(np.mean(np.diff(u[late][:, 2:4], axis=0) ** 2)))
+        "max_uav_command_fraction": float(np.abs(u[:, BEBOP_COMMAND]).max()) if n else 0.0,
+        "uav_command_chatter": float(np.sqrt(np.mean(np.diff(u[late][:, UAV_XY_COMMAND], axis=0) ** 2)))
         if late.sum() > 1 else 0.0,
     }
 
@@ -523,15 +540,18 @@ def _cluster_jumps(c, r_measured, formation: str):
     if len(c) < 2:
         return np.zeros(0), np.zeros(0)
     p = UGV_UAV_LAYOUT.positions(r_measured)
-    d = p[:, 1] - p[:, 0]
+    d = p[:, _UAV] - p[:, _UGV]
     u = d / np.linalg.norm(d, axis=1)[:, None]
     turned = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))
     ok = np.all(np.isfinite(c[1:]), axis=1) & np.all(np.isfinite(c[:-1]), axis=1) & np.isfinite(turned)
     c1, c0 = c[1:][ok], c[:-1][ok]
-    if formation == "quaternion":
-        jump = q_angle_between(c1[:, 3:7], c0[:, 3:7])
+    variables = UGV_UAV_FORMATIONS[formation].variables
+    q = _of_kind(variables, "quaternion")
+    if q is not None:
+        jump = q_angle_between(c1[:, q], c0[:, q])
     else:
-        jump = np.abs(wrap_angle(c1[:, 4:6] - c0[:, 4:6])).max(axis=1, initial=0.0)
+        angles = _of_kind(variables, "angle")
+        jump = np.abs(wrap_angle(c1[:, angles] - c0[:, angles])).max(axis=1, initial=0.0)
     return jump, turned[ok] + 1e-9
 
 

@@ -166,7 +166,8 @@ class TeleopMeasurement:
 
     ``q_m``, ``qd_m``: master joints ``(n_m,)``; ``q_s``, ``qd_s``: slave joints ``(n_s,)``;
     ``F_s``: the wrench the slave exerts on its environment (wrist sensor, base axes),
-    ``(6,)`` ``[force; moment]``. The controller refuses a measurement that is not finite or
+    ``(6,)`` ``[force; moment]``; :meth:`TeleopController.update` also takes fields with
+    leading batch axes (worlds; the batch is ``q_m``'s). The controller refuses a measurement that is not finite or
     is beyond what the arms can do: an angle beyond :data:`MAX_JOINT_ANGLE`, a rate beyond
     :data:`MAX_JOINT_RATE`, a force or moment beyond :data:`MAX_WRIST_FORCE` /
     :data:`MAX_WRIST_MOMENT`.
@@ -319,8 +320,9 @@ class TeleopController(Controller):
         return dict(_SIGNAL_COLUMNS)
 
     def measurement_of(self, measured) -> TeleopMeasurement:
-        """``measured`` as a :class:`TeleopMeasurement`: one already, or the stacked vector
-        of :attr:`measured_columns` (shape ``(32,)`` for the Kraft master and the Panda)."""
+        """``measured`` as a :class:`TeleopMeasurement`: one already, or the stacked vectors
+        of :attr:`measured_columns` (shape ``(..., 32)`` for the Kraft master and the Panda;
+        leading axes are worlds), its fields ``(..., k)``."""
         if isinstance(measured, TeleopMeasurement):
             return measured
         cols = self.measured_columns
@@ -329,12 +331,13 @@ class TeleopController(Controller):
         except (TypeError, ValueError):
             raise InvalidInputError(f"measurement {short(measured)} must be a TeleopMeasurement or {len(cols)} "
                                     f"numbers ({cols[0]} ... {cols[-1]}, SI units)") from None
-        if a.shape != (len(cols),):
-            raise ShapeError(f"a stacked teleop measurement must have shape ({len(cols)},) "
-                             f"({cols[0]} ... {cols[-1]}; one cycle, no batch axes), got {a.shape}")
+        if a.shape[-1:] != (len(cols),):
+            raise ShapeError(f"a stacked teleop measurement must have shape (..., {len(cols)}) "
+                             f"({cols[0]} ... {cols[-1]}; leading axes are worlds), got {a.shape}")
         n_m, n_s = self.master.n, self.slave.arm.n
         i = np.cumsum([n_m, n_m, n_s, n_s])
-        return TeleopMeasurement(a[:i[0]], a[i[0]:i[1]], a[i[1]:i[2]], a[i[2]:i[3]], a[i[3]:])
+        return TeleopMeasurement(a[..., :i[0]], a[..., i[0]:i[1]], a[..., i[1]:i[2]], a[..., i[2]:i[3]],
+                                 a[..., i[3]:])
 
     #: :meth:`tick` is pure and branch-free (it runs under ``jax.jit``).
     pure = True
@@ -374,32 +377,60 @@ class TeleopController(Controller):
         u, signals, code = over_worlds(world, np.ndim(measured) - 1, measured)
         return Tick(None, u, dict(zip(_SIGNAL_COLUMNS, signals)), code)
 
-    def update(self, t: float, measured, reference=None, state=None) -> Step:
-        """One cycle: ``Step(u, None, signals)``, ``u`` the torques of :attr:`command_names`.
+    def _checked(self, measured) -> np.ndarray:
+        """The stacked measurement ``(*batch, n)`` of :attr:`measured_columns`, every world's
+        fields checked by :func:`_measured` (one-line errors; a batch's name the world)."""
+        mm = self.measurement_of(measured)
+        M, S = self.master, self.slave.arm
+        fields = (("q_m", M.n), ("qd_m", M.n), ("q_s", S.n), ("qd_s", S.n), ("F_s", 6))
+        batch = np.shape(mm.q_m)[:-1]
+        if not batch:
+            return np.concatenate([_measured(getattr(mm, name), name, n) for name, n in fields])
+        parts = []
+        for name, n in fields:
+            try:
+                a = np.asarray(getattr(mm, name), dtype=float)
+            except (TypeError, ValueError):
+                raise InvalidInputError(f"measurement {name} = {short(getattr(mm, name))} must be {n} numbers per "
+                                        "world (SI units); check the sensor reading") from None
+            try:
+                a = np.broadcast_to(a, batch + (n,))
+            except ValueError:
+                raise ShapeError(f"measurement {name} must have shape {batch + (n,)} (q_m's worlds) or one for "
+                                 f"every world ({n},), got {a.shape}") from None
+            for world in np.ndindex(*batch):
+                _measured(a[world], name, n, world)
+            parts.append(a)
+        return np.concatenate(parts, axis=-1)
 
-        ``measured``: the stacked vector of :attr:`measured_columns` or a
-        :class:`TeleopMeasurement`, checked (one-line errors); then :meth:`tick`.
+    def update(self, t: float, measured, reference=None, state=None) -> Step:
+        """One cycle of every world: ``Step(u, None, signals)``, ``u`` the torques of
+        :attr:`command_names`, ``(..., n_m + n_s)``.
+
+        ``measured``: the stacked vectors of :attr:`measured_columns` (``(..., 32)``, leading
+        axes are worlds) or a :class:`TeleopMeasurement` (fields ``(..., k)``), each world
+        checked (one-line errors naming the world of a batch); then :meth:`tick`.
         ``reference`` and ``state`` are unused (each arm's reference is the other arm; the
         controller keeps no state).
         """
-        mm = self.measurement_of(measured)
-        M, S = self.master, self.slave.arm
-        m = np.concatenate([_measured(mm.q_m, "q_m", M.n), _measured(mm.qd_m, "qd_m", M.n),
-                            _measured(mm.q_s, "q_s", S.n), _measured(mm.qd_s, "qd_s", S.n),
-                            _measured(mm.F_s, "F_s", 6)])
-        out = self.tick(None, m, {}, t)
-        if out.code > 0:  # the checks above refuse every such measurement first
-            raise InvalidInputError(f"teleop controller: {self.failure_reasons[int(out.code)]}")
+        out = self.tick(None, self._checked(measured), {}, t)
+        if np.any(out.code > 0):  # the checks above refuse every such measurement first
+            raise InvalidInputError(f"teleop controller: {self.failure_reasons[int(np.max(out.code))]}")
         return Step(out.u, None, dict(out.signals))
 
     def step(self, t: float, measured, reference=None) -> tuple[np.ndarray, np.ndarray]:
-        """Master and slave torques ``(tau_m, tau_s)`` (N m) for one measurement.
+        """Master and slave torques ``(tau_m, tau_s)`` (N m, ``(..., n_m)`` and ``(..., n_s)``).
 
-        ``measured``: a :class:`TeleopMeasurement` (or the stacked vector :meth:`update`
-        takes). In bilateral teleoperation each arm's reference is the other arm, so
-        ``reference`` is unused (accepted for the common controller signature).
+        ``measured``: a :class:`TeleopMeasurement` (or the stacked vectors :meth:`update`
+        takes); one world runs the law directly, a batch through :meth:`update`. In bilateral
+        teleoperation each arm's reference is the other arm, so ``reference`` is unused
+        (accepted for the common controller signature).
         """
-        return self._cycle(self.measurement_of(measured), details=False)
+        mm = self.measurement_of(measured)
+        if np.ndim(mm.q_m) <= 1:
+            return self._cycle(mm, details=False)
+        u = self.update(t, mm).u
+        return u[..., :self.master.n], u[..., self.master.n:]
 
     @cached_property
     def _fixed(self):
@@ -550,20 +581,22 @@ _MOMENT = (MAX_WRIST_MOMENT, "N m", "a wrist moment", "MAX_WRIST_MOMENT")
 _WRENCH_BOUND = np.r_[np.full(3, MAX_WRIST_FORCE), np.full(3, MAX_WRIST_MOMENT)]
 
 
-def _measured(x, name, n):
+def _measured(x, name, n, world: tuple = ()):
     """A measured vector as a float array of shape ``(n,)``, finite and physically possible.
 
     Each entry within :data:`MAX_JOINT_ANGLE`, :data:`MAX_JOINT_RATE` or (``F_s``)
     :data:`MAX_WRIST_FORCE` / :data:`MAX_WRIST_MOMENT`. One reduction per field in the usual
     case (the largest magnitude); only a field that fails it is searched entry by entry.
+    ``world``: the index of the world of a batch it is, named in the errors.
     """
+    at = f" in world {world}" if world else ""
     try:
         a = np.asarray(x, dtype=float)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"measurement {name} = {short(x)} must be {n} numbers (SI units); "
+        raise InvalidInputError(f"measurement {name}{at} = {short(x)} must be {n} numbers (SI units); "
                                 "check the sensor reading") from None
     if a.shape != (n,):
-        raise ShapeError(f"measurement {name} must have shape ({n},), got {a.shape}")
+        raise ShapeError(f"measurement {name}{at} must have shape ({n},), got {a.shape}")
     # the one cheap reduction: the largest magnitude (NaN propagates, no overflow) within the
     # field's bound (for F_s the smaller, the moments') means every entry is finite and within
     # its own; anything else falls through to the exact, per-entry test
@@ -572,7 +605,7 @@ def _measured(x, name, n):
     if float(np.abs(a).max()) <= bound:
         return a
     if not np.isfinite(a).all():
-        raise NonFiniteError(f"measurement {name} = {short(a.tolist())} is not finite; a controller cannot act "
+        raise NonFiniteError(f"measurement {name}{at} = {short(a.tolist())} is not finite; a controller cannot act "
                              "on NaN or inf measurements - check the sensor reading")
     over = np.abs(a) / (_WRENCH_BOUND if wrench else bound)
     i = int(np.argmax(over))
@@ -580,6 +613,6 @@ def _measured(x, name, n):
         if wrench and i < 3:
             bound, unit, what, const = _FORCE
         raise InvalidInputError(
-            f"measurement {name}[{i}] = {a[i]:g} {unit} is beyond +-{bound:g} {unit}, more than {what} of these "
+            f"measurement {name}[{i}]{at} = {a[i]:g} {unit} is beyond +-{bound:g} {unit}, more than {what} of these "
             f"arms can be (teleop.controller.{const}); check the sensor reading and its units")
     return a
