@@ -111,3 +111,25 @@ def test_ugv_uav_team_saturates_each_robot_and_stacks_points():
     with pytest.raises(InvalidInputError, match="common_limit"):
         Team((p, b), common_limit=True)
     assert math.isclose(t.actuate(x, np.zeros(7), 0.0, t.initial_memory())[0][0], 0.0)
+
+
+def test_a_team_names_where_each_robots_columns_sit():
+    """``Team.state_entries`` / ``command_entries``: an int for one column, a slice for
+    consecutive ones, offset by the robot's part; one-line errors for an unknown column or
+    columns that are not consecutive."""
+    t = Team((Pioneer(), Bebop()))
+    x = np.arange(float(t.n_state))
+    assert t.state_entries(1, "z") == 5 and x[t.state_entries(1, "z")] == x[t.state_slices[1]][2]
+    assert t.state_entries(0, "x", "y") == slice(0, 2) and t.command_entries(1, "u_x", "u_y") == slice(2, 4)
+    with pytest.raises(InvalidInputError, match=r"^column 'theta' is not among \('x', 'y', 'psi'\)$"):
+        t.state_entries(0, "theta")
+    with pytest.raises(InvalidInputError, match=r"^columns \('x', 'z'\) are not consecutive in"):
+        t.state_entries(1, "x", "z")
+    with pytest.raises(InvalidInputError, match=r"^no column named; choose from"):
+        Bebop().state_entries()
+
+
+@given(st.floats(0.05, 1.0))
+def test_bebop_max_speed_is_the_norm_of_its_linear_top_velocities(fraction):
+    b = Bebop(max_fraction=fraction)
+    assert b.max_speed == float(np.linalg.norm((b.k_u / b.k_v * fraction)[:3]))

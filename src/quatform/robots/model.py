@@ -36,9 +36,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from ..registry import Registry
 
-__all__ = ["RobotModel", "ROBOT_MODELS", "file_models", "column_unit"]
+__all__ = ["RobotModel", "ROBOT_MODELS", "file_models", "column_unit", "column_entries"]
 
 #: Every robot model class by its :attr:`RobotModel.name` (filled when a subclass is defined).
 ROBOT_MODELS = Registry("robot model")
@@ -88,6 +89,17 @@ class RobotModel:
         ``file_name`` (one of :attr:`file_names`), its :attr:`limit_keys` read strictly."""
         raise NotImplementedError(f"{cls.__name__} is not read from team files")
 
+    def state_entries(self, *names: str, start: int = 0):
+        """Where its state columns ``names`` sit in an array whose entries from ``start`` on are
+        its state (a team's stacked state: :meth:`~quatform.robots.Team.state_entries`):
+        :func:`column_entries`."""
+        return column_entries(self.state_columns, names, start)
+
+    def command_entries(self, *names: str, start: int = 0):
+        """Where its command columns ``names`` sit in an array whose entries from ``start`` on
+        are its commands: :func:`column_entries`."""
+        return column_entries(self.command_columns, names, start)
+
     def point(self, x) -> np.ndarray:
         """The point this robot offers a formation, shape ``(..., size of point_kind)``."""
         raise NotImplementedError
@@ -109,6 +121,27 @@ def column_unit(model, column: str) -> str:
     """The unit of ``model``'s state or command ``column`` (its class's :attr:`RobotModel.column_units`;
     ``"-"``: dimensionless or unknown)."""
     return getattr(model, "column_units", {}).get(column, "-")
+
+
+def column_entries(columns: tuple, names: tuple, start: int = 0):
+    """Where ``names`` (of ``columns``) sit in an array whose entries from ``start`` on are
+    ``columns``: an int for one name, a slice for consecutive ones (in their order).
+
+    Raises
+    ------
+    InvalidInputError
+        A name not among ``columns``, or names that are not consecutive there.
+    """
+    missing = [n for n in names if n not in columns]
+    if missing or not names:
+        raise InvalidInputError(f"column {missing[0]!r} is not among {columns}" if missing else
+                                f"no column named; choose from {columns}")
+    idx = [start + columns.index(n) for n in names]
+    if len(idx) == 1:
+        return idx[0]
+    if idx != list(range(idx[0], idx[0] + len(idx))):
+        raise InvalidInputError(f"columns {names} are not consecutive in {columns}")
+    return slice(idx[0], idx[-1] + 1)
 
 
 def file_models() -> dict:

@@ -211,6 +211,15 @@ class Team:
     def point_slices(self) -> tuple:
         return tuple(self.layout.slice(i) for i in range(len(self.robots)))
 
+    def state_entries(self, robot: int, *names: str):
+        """Where robot ``robot``'s state columns ``names`` sit in the team's stacked state: an int
+        for one name, a slice for consecutive ones (:meth:`RobotModel.state_entries`)."""
+        return self.robots[robot].state_entries(*names, start=self.state_slices[robot].start)
+
+    def command_entries(self, robot: int, *names: str):
+        """Where robot ``robot``'s command columns ``names`` sit in the team's stacked commands."""
+        return self.robots[robot].command_entries(*names, start=self.command_slices[robot].start)
+
     @cached_property
     def groups(self) -> tuple[RobotGroup, ...]:
         """The robots grouped by model, in order of first appearance (:class:`RobotGroup`)."""
