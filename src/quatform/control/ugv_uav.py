@@ -13,6 +13,8 @@ robots' limits, and an emergency stop (the thesis's joystick override) that halt
 Measured state (11 values): ``(x_p, y_p, psi_p, x_b, y_b, z_b, psi_b, v_x, v_y, z_dot,
 psi_dot)``: the Pioneer's control point and heading, the Bebop's pose and its body-frame
 velocity (from its own odometry). Commands (6 values): ``(v, omega, u_x, u_y, u_z, u_psi)``.
+Their named entries (:mod:`quatform.robots.pioneer_bebop`) and the robots' points in the
+formation's robot state (:mod:`quatform.formations.ugv_uav`) are importable from here too.
 """
 
 from __future__ import annotations
@@ -25,11 +27,15 @@ import numpy as np
 from ..algebra.kernels import as_floats, common_namespace, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, QuatformError
-from ..formations import UGV_UAV_LAYOUT, UgvUavQuaternion, UgvUavRestricted
+from ..formations import UgvUavQuaternion, UgvUavRestricted
 from ..formations import pair_kernels as kern
 from ..formations.base import MAX_MAGNITUDE, Formation
+from ..formations.ugv_uav import UAV_POINT, UGV_POINT
 from ..robots import Bebop, BebopMemory, Pioneer, Team
 from ..robots.model import column_unit
+from ..robots.pioneer_bebop import (BEBOP_COMMAND, BEBOP_PART, MOCAP_PART, N_MEASURED, ODOMETRY_PART, PIONEER_BEBOP,
+                                    PIONEER_COMMAND, PIONEER_PART, PSI_B, PSI_P, UAV_XY_COMMAND, UAV_XYZ,
+                                    UGV_UAV_COMMAND_NAMES, UGV_UAV_MEASURED_NAMES, UGV_XY, V_P)
 from . import contract
 from .base import Reference
 from .cluster import ClusterController
@@ -42,49 +48,9 @@ __all__ = ["UgvUavController", "UgvUavState", "UGV_UAV_MEASURED_NAMES", "UGV_UAV
            "UGV_POINT", "UAV_POINT", "N_MEASURED"]
 
 
-def _entries(part: slice, columns: tuple, *names: str):
-    """Where a robot's ``names`` (of its ``columns``) sit in a stacked array whose entries
-    ``part`` are that robot's: an int for one name, a slice for consecutive ones."""
-    idx = [part.start + columns.index(n) for n in names]
-    if len(idx) == 1:
-        return idx[0]
-    if idx != list(range(idx[0], idx[0] + len(idx))):
-        raise InvalidInputError(f"columns {names} are not consecutive in {columns}")
-    return slice(idx[0], idx[-1] + 1)
-
-
-#: The Pioneer-Bebop team whose models' columns lay out the measured values (the team's
-#: stacked state) and the commands (its stacked commands); only its layout is read here.
-_LAYOUT_TEAM = Team((Pioneer(), Bebop()))
-#: The Pioneer's and the Bebop's entries of the measured values (what each robot's actuation
-#: reads) and of the commands.
-PIONEER_PART, BEBOP_PART = _LAYOUT_TEAM.state_slices
-PIONEER_COMMAND, BEBOP_COMMAND = _LAYOUT_TEAM.command_slices
-#: Layout of the 11 measured values the UGV-UAV controller reads: each robot's state columns
-#: with its label of the formation's layout (``x_p ... psi_p, x_b ... psi_dot_b``).
-UGV_UAV_MEASURED_NAMES = tuple(c + lab for r, lab in zip(_LAYOUT_TEAM.robots, UGV_UAV_LAYOUT.labels)
-                               for c in r.state_columns)
-#: Layout of the 6 commands it sends (the Pioneer's, then the Bebop's).
-UGV_UAV_COMMAND_NAMES = tuple(c + lab for r, lab in zip(_LAYOUT_TEAM.robots, UGV_UAV_LAYOUT.labels)
-                              for c in r.command_columns)
-#: Named entries of the measured values: the Pioneer's control point ``(x, y)`` and heading,
-#: the Bebop's position, yaw and body-frame velocity (its odometry).
-UGV_XY = _entries(PIONEER_PART, Pioneer.state_columns, "x", "y")
-PSI_P = _entries(PIONEER_PART, Pioneer.state_columns, "psi")
-UAV_XYZ = _entries(BEBOP_PART, Bebop.state_columns, "x", "y", "z")
-PSI_B = _entries(BEBOP_PART, Bebop.state_columns, "psi")
-ODOMETRY_PART = _entries(BEBOP_PART, Bebop.state_columns, "v_x", "v_y", "z_dot", "psi_dot")
-#: The motion capture's part of the measured values (both robots' poses) and the odometry's.
-MOCAP_PART = slice(0, ODOMETRY_PART.start)
-#: Named entries of the commands: the Pioneer's forward speed, the Bebop's horizontal commands.
-V_P = _entries(PIONEER_COMMAND, Pioneer.command_columns, "v")
-UAV_XY_COMMAND = _entries(BEBOP_COMMAND, Bebop.command_columns, "u_x", "u_y")
-#: The UGV's and the UAV's points in the formation's robot state (and rates).
-UGV_POINT, UAV_POINT = (UGV_UAV_LAYOUT.slice(i) for i in range(UGV_UAV_LAYOUT.n))
-N_MEASURED = len(UGV_UAV_MEASURED_NAMES)
 #: The measured entries the robots' points are made of: ``(robot number, its state column, entry)``.
 _POINT_ENTRIES = tuple((k, robot.state_columns[j - part.start], j)
-                       for k, (robot, part, point) in enumerate(zip(_LAYOUT_TEAM.robots, _LAYOUT_TEAM.state_slices,
+                       for k, (robot, part, point) in enumerate(zip(PIONEER_BEBOP.robots, PIONEER_BEBOP.state_slices,
                                                                     (UGV_XY, UAV_XYZ)))
                        for j in range(point.start, point.stop))
 
@@ -329,7 +295,7 @@ class UgvUavController(ClusterController):
         p = self.pioneer
         # the filters (control.filters): frame screening, arena walls, the UAV's yaw law
         top_speed = (self.speed_margin * float(np.hypot(p.max_v, p.a * p.max_omega)),
-                     self.speed_margin * float(np.linalg.norm(self.bebop.max_velocity[0:3])))
+                     self.speed_margin * self.bebop.max_speed)
         _set(self, "mocap", MocapScreen(top_speed, self.jump_margin_m, self.min_separation_m, self.max_hold_s))
         _set(self, "walls", ArenaWalls(arena, self.wall_margin, self.wall_gain, free=((0, 2),)))  # UGV's height fixed
         _set(self, "arena", self.walls.box)

@@ -33,11 +33,13 @@ from .base import MAX_MAGNITUDE, Formation, Variable, quaternion_variables
 from .layout import RobotLayout
 
 __all__ = ["UgvUavSpherical", "UgvUavRestricted", "UgvUavQuaternion", "UGV_UAV_VARIABLES", "UGV_UAV_LAYOUT",
-           "SPHERICAL_VARIABLES"]
+           "UGV_POINT", "UAV_POINT", "SPHERICAL_VARIABLES"]
 
 #: The UGV's control point and the UAV's position (yaws are controlled outside the formation).
 UGV_UAV_LAYOUT = RobotLayout(("xyz", "xyz"), labels=("_p", "_b"), display_names=("UGV", "UAV"))
 UGV_UAV_VARIABLES = UGV_UAV_LAYOUT.variables
+#: The UGV's and the UAV's points in the robot state ``r`` (and its rates).
+UGV_POINT, UAV_POINT = (UGV_UAV_LAYOUT.slice(i) for i in range(UGV_UAV_LAYOUT.n))
 SPHERICAL_VARIABLES = (
     Variable("x_c", "m", "position"), Variable("y_c", "m", "position"), Variable("z_c", "m", "position"),
     Variable("rho_c", "m", "length"), Variable("alpha_c", "rad", "angle"), Variable("beta_c", "rad", "angle"),

@@ -29,7 +29,7 @@ from ..algebra.kernels import concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from ..formations import geometry as g
-from .model import RobotModel
+from .model import RobotModel, column_entries
 from .ros_io import RobotIO, heading_rotate, pose_yaw, z_vector
 
 __all__ = ["Bebop", "BebopMemory", "TABLE2_K", "yaw_matrix"]
@@ -235,6 +235,14 @@ class Bebop(RobotModel):
     def max_velocity(self) -> np.ndarray:
         """Steady body velocities at ``max_fraction``: ``(K_u/K_v) max_fraction``, (m/s, m/s, m/s, rad/s)."""
         return self.k_u / self.k_v * self.max_fraction
+
+    @property
+    def max_speed(self) -> float:
+        """Steady speed of its position at ``max_fraction`` on every axis: the norm of the
+        linear entries ``(v_x, v_y, z_dot)`` of :attr:`max_velocity` (ordered as its state's
+        velocity columns), m/s."""
+        velocity = self.state_columns[self.state_entries("v_x"):]
+        return float(np.linalg.norm(self.max_velocity[column_entries(velocity, ("v_x", "v_y", "z_dot"))]))
 
     def saturate(self, u) -> np.ndarray:
         """Commands clipped to ``+-max_fraction``; non-finite commands become zero (any namespace)."""
