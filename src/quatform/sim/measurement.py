@@ -28,8 +28,9 @@ from ..algebra import q_from_axis_angle
 from ..algebra.kernels import common_namespace
 from ..errors import InvalidInputError
 from ..formations import geometry as g
+from ..robots.pioneer_bebop import MOCAP_PART, ODOMETRY_PART, PSI_B, PSI_P, UAV_XYZ, UGV_UAV_MEASURED_NAMES, UGV_XY
 
-__all__ = ["LatencyHistory", "MotionCapture", "MOTION_CAPTURE_COLUMNS", "PerfectMeasurement"]
+__all__ = ["LatencyHistory", "MotionCapture", "PerfectMeasurement"]
 
 
 class PerfectMeasurement:
@@ -49,11 +50,18 @@ class PerfectMeasurement:
     def read(self, state, xs: dict):
         return state, state
 
-#: What :class:`MotionCapture` reads: the Pioneer's control point and heading, the Bebop's
-#: pose (motion capture) and its body-frame velocity (its odometry); the 11 measured values
-#: of :class:`quatform.control.UgvUavController`.
-MOTION_CAPTURE_COLUMNS = ("x_p", "y_p", "psi_p", "x_b", "y_b", "z_b", "psi_b", "v_x_b", "v_y_b", "z_dot_b",
-                          "psi_dot_b")
+
+def _width(entries: slice) -> int:
+    return entries.stop - entries.start
+
+
+#: A frame's pose: the motion capture's part of the Pioneer-Bebop state (its first entries, so
+#: a pose's entries are the state's: ``UGV_XY``, ``PSI_P``, ``UAV_XYZ``, ``PSI_B``).
+_N_POSE = _width(MOCAP_PART)
+#: A frame's position noise: the UGV's ``(x, y)``, then the UAV's ``(x, y, z)``, m.
+_NOISE_UGV = slice(0, _width(UGV_XY))
+_NOISE_UAV = slice(_NOISE_UGV.stop, _NOISE_UGV.stop + _width(UAV_XYZ))
+_N_NOISE = _NOISE_UAV.stop
 
 
 class LatencyHistory:
@@ -91,9 +99,9 @@ class MotionCapture:
     position coordinate with Gaussian noise of ``noise_m``, the orientation as a quaternion
     (rotated by a random angle of standard deviation ``noise_rad``) from which the yaw is
     read; the Bebop's body velocity comes from its own odometry every ``odometry_period_s``
-    (200 ms). :meth:`read` returns the controller's 11 values (:data:`MOTION_CAPTURE_COLUMNS`)
-    from the plant's output, the 11-value state of
-    :class:`quatform.sim.plants.ugv_uav.UgvUavPlant`. Faults for testing: each frame is lost
+    (200 ms). :meth:`read` returns the controller's 11 values
+    (:data:`~quatform.robots.pioneer_bebop.UGV_UAV_MEASURED_NAMES`) from the plant's output, the
+    same 11 values of :class:`quatform.sim.plants.ugv_uav.PioneerBebopPlant`. Faults for testing: each frame is lost
     (all NaN) with probability ``dropout_rate``, or else reads the UAV's marker at the UGV
     (at height ``ugv_z``) with ``glitch_rate``.
 
@@ -103,7 +111,7 @@ class MotionCapture:
     number of runs.
     """
 
-    columns = MOTION_CAPTURE_COLUMNS
+    columns = UGV_UAV_MEASURED_NAMES
 
     def __init__(self, rate_hz=100.0, noise_m=0.0, noise_rad=0.0, latency_s=0.0, odometry_period_s=0.2,
                  seed=0, dropout_rate=0.0, glitch_rate=0.0, ugv_z=0.0):
@@ -131,7 +139,7 @@ class MotionCapture:
         offsets = [np.max(schedule[k], initial=0) for k in ("pose_off", "odo_off")] if schedule else [0]
         length = int(max(offsets)) + 1
         hist = np.broadcast_to(y0[..., None, :], tuple(batch) + (length, y0.shape[-1])).copy()
-        return {"hist": hist, "pose": np.full(tuple(batch) + (7,), np.nan)}
+        return {"hist": hist, "pose": np.full(tuple(batch) + (_N_POSE,), np.nan)}
 
     def observe(self, state: dict, y, j: int) -> dict:
         """``state`` with the plant output ``y`` (``(*batch, 11)``) after a plant step appended
@@ -144,7 +152,7 @@ class MotionCapture:
         """``(state, measured)`` at a control tick: a new frame (where the tick's ``xs["new"]``)
         of the plant output ``xs["pose_off"]`` plant steps back with its draws
         (:meth:`frame_pose`), else the last frame's pose, and the odometry of the output
-        ``xs["odo_off"]`` steps back; ``measured`` ``(*batch, 11)`` (:data:`MOTION_CAPTURE_COLUMNS`).
+        ``xs["odo_off"]`` steps back; ``measured`` ``(*batch, 11)`` (:data:`UGV_UAV_MEASURED_NAMES`).
         Pure and branch-free (NumPy, JAX under ``jax.jit``)."""
         hist = state["hist"]
         xp = common_namespace(hist, xs["noise"])
@@ -156,7 +164,7 @@ class MotionCapture:
 
         fresh = self.frame_pose(back(xs["pose_off"]), xs["noise"], xs.get("turns"), xs["lost"], xs["glitched"])
         pose = xp.where(xp.asarray(xs["new"])[..., None], fresh, state["pose"])
-        m = xp.concatenate([pose, back(xs["odo_off"])[..., 7:11]], axis=-1)
+        m = xp.concatenate([pose, back(xs["odo_off"])[..., ODOMETRY_PART]], axis=-1)
         return {"hist": hist, "pose": pose}, m
 
     def _frame_time(self, t: float) -> float:
@@ -173,7 +181,7 @@ class MotionCapture:
         glitched)``: the position noise, the two orientations' noise rotations (unit
         quaternions ``(2, 4)``, or None without orientation noise), whether the frame is lost
         and whether it reads the UAV's marker at the UGV."""
-        noise = rng.normal(0.0, self.noise_m, 5) if self.noise_m > 0 else np.zeros(5)
+        noise = rng.normal(0.0, self.noise_m, _N_NOISE) if self.noise_m > 0 else np.zeros(_N_NOISE)
         turns = None
         if self.noise_rad > 0:
             turns = []
@@ -186,23 +194,26 @@ class MotionCapture:
         return noise, turns, lost, glitched
 
     def frame_pose(self, x, noise, turns, lost, glitched):
-        """The 7 pose values of a frame of the plant output ``x`` (``(..., 11)``) with its draws
+        """The 7 pose values (``MOCAP_PART``) of a frame of the plant output ``x`` (``(..., 11)``) with its draws
         (:meth:`_draw`; leading axes as ``x``'s, ``turns`` ``(..., 2, 4)`` or None), on any
         array namespace (NumPy, JAX under ``jax.jit``): the positions plus the noise, the yaws
         read from the noise-rotated quaternions; all NaN where the frame is lost, the UAV's
         position read at the UGV (at ``ugv_z``) where it is glitched."""
         xp = common_namespace(x, noise, lost, glitched, turns)
-        pose = xp.concatenate([x[..., 0:2] + noise[..., 0:2], self._orientation(x[..., 2:3], turns, 0),
-                               x[..., 3:6] + noise[..., 2:5], self._orientation(x[..., 6:7], turns, 1)], axis=-1)
-        at_ugv = xp.concatenate([pose[..., 0:3], pose[..., 0:2], xp.full(np.shape(pose[..., :1]), float(self.ugv_z)),
-                                 pose[..., 6:7]], axis=-1)  # the UAV's marker read at the UGV
+        pose = xp.concatenate([x[..., UGV_XY] + noise[..., _NOISE_UGV], self._orientation(x[..., PSI_P], turns, 0),
+                               x[..., UAV_XYZ] + noise[..., _NOISE_UAV], self._orientation(x[..., PSI_B], turns, 1)],
+                              axis=-1)
+        ugv_point = xp.concatenate([pose[..., UGV_XY], xp.full(np.shape(pose)[:-1] + (1,), float(self.ugv_z))],
+                                   axis=-1)
+        at_ugv = xp.concatenate([pose[..., :UAV_XYZ.start], ugv_point, pose[..., UAV_XYZ.stop:]],
+                                axis=-1)  # the UAV's marker read at the UGV
         pose = xp.where(xp.asarray(glitched)[..., None], at_ugv, pose)
         return xp.where(xp.asarray(lost)[..., None], np.nan, pose)  # a lost frame
 
     @staticmethod
     def _orientation(psi, turns, i):
-        """The yaw ``(..., 1)`` read from the quaternion of ``psi`` (``(..., 1)``) turned by ``turns[..., i, :]``."""
-        q = g.q_yaw(psi[..., 0])
+        """The yaw ``(..., 1)`` read from the quaternion of ``psi`` (``(...)``) turned by ``turns[..., i, :]``."""
+        q = g.q_yaw(psi)
         if turns is not None:
             q = g.mul(turns[..., i, :], q)
         yaw = g.yaw_of(q)  # the lab receives a quaternion; the controllers need the yaw
@@ -244,7 +255,7 @@ class MotionCapture:
                 steps.add(t + (j + 1) * dt, k * substeps + j + 1)
         frames = np.flatnonzero(new)
         worlds = max(1, int(np.prod(batch, dtype=np.int64)))
-        noise = np.zeros((n, worlds, 5))
+        noise = np.zeros((n, worlds, _N_NOISE))
         turns = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (n, worlds, 2, 1)) if self.noise_rad > 0 else None
         lost, glitched = np.zeros((n, worlds), dtype=bool), np.zeros((n, worlds), dtype=bool)
         for i in range(worlds):
@@ -260,7 +271,7 @@ class MotionCapture:
         out = {"new": np.broadcast_to(new.reshape((n,) + (1,) * len(batch)), (n,) + batch).copy(),
                "pose_off": np.broadcast_to(pose_off.reshape((n,) + (1,) * len(batch)), (n,) + batch).copy(),
                "odo_off": np.broadcast_to(odo_off.reshape((n,) + (1,) * len(batch)), (n,) + batch).copy(),
-               "noise": shaped(noise, (5,)), "lost": shaped(lost), "glitched": shaped(glitched)}
+               "noise": shaped(noise, (_N_NOISE,)), "lost": shaped(lost), "glitched": shaped(glitched)}
         if turns is not None:
             out["turns"] = shaped(turns, (2, 4))
         return out

@@ -4,7 +4,7 @@ The models are those of :mod:`quatform.robots`: the Pioneer's control point movi
 exact arcs under ``(v, omega)`` (seed 001 eqs. (3.1)-(3.2)) and the Bebop's first-order
 body-velocity response to its commands (eq. (3.10)-(3.11)). The floor, ``floor`` metres
 high, stops the Bebop's descent (it rests on it). Output: the 11 values
-(:data:`UGV_UAV_STATE_COLUMNS`); commands are the controller's 6.
+(:data:`~quatform.robots.pioneer_bebop.UGV_UAV_MEASURED_NAMES`); commands are the controller's 6.
 
 With ``pioneer_accel = (a_v, a_omega)`` the Pioneer ramps its speeds as its firmware does
 (the lab profile's rates are the MobileRobots simulator's P3-DX model's,
@@ -18,25 +18,19 @@ from __future__ import annotations
 import numpy as np
 
 from ...algebra.kernels import as_floats, common_namespace, concrete
-from ...control.ugv_uav import UGV_UAV_COMMAND_NAMES
 from ...errors import InvalidInputError
 from ...robots import Bebop, Pioneer
-from ..measurement import MOTION_CAPTURE_COLUMNS
+from ...robots.pioneer_bebop import (BEBOP_COMMAND, BEBOP_PART, N_MEASURED, PIONEER_COMMAND, PIONEER_PART,
+                                     UGV_UAV_MEASURED_NAMES)
 
-__all__ = ["PioneerBebopPlant", "UGV_UAV_STATE_COLUMNS", "PIONEER_SPEED_COLUMNS", "ramp"]
+__all__ = ["PioneerBebopPlant", "PIONEER_SPEED_COLUMNS", "ramp"]
 
-#: The plant state: the Pioneer's control point ``(x_p, y_p, psi_p)`` (m, m, rad) and the
-#: Bebop's pose and body-frame velocity ``(x_b, y_b, z_b, psi_b, v_x, v_y, z_dot, psi_dot)``.
-UGV_UAV_STATE_COLUMNS = MOTION_CAPTURE_COLUMNS
 #: What a plant with the Pioneer's acceleration limits appends: the speeds it runs (m/s, rad/s).
 PIONEER_SPEED_COLUMNS = ("v_p_run", "omega_p_run")
-#: The parts of the state: the Pioneer's control point, the Bebop's 8 values, the running speeds.
-_PIONEER = slice(0, UGV_UAV_STATE_COLUMNS.index("x_b"))
-_BEBOP = slice(_PIONEER.stop, len(UGV_UAV_STATE_COLUMNS))
-_SPEEDS = slice(_BEBOP.stop, _BEBOP.stop + len(PIONEER_SPEED_COLUMNS))
-#: The parts of the commands: the Pioneer's ``(v, omega)``, the Bebop's four.
-_PIONEER_COMMAND = slice(0, UGV_UAV_COMMAND_NAMES.index("u_x_b"))
-_BEBOP_COMMAND = slice(_PIONEER_COMMAND.stop, len(UGV_UAV_COMMAND_NAMES))
+#: The running speeds' entries of such a state (after the 11 output values).
+_SPEEDS = slice(N_MEASURED, N_MEASURED + len(PIONEER_SPEED_COLUMNS))
+#: The Bebop's height among its state's entries (the floor stops it).
+_BEBOP_Z = np.arange(len(Bebop.state_columns)) == Bebop().state_entries("z")
 
 
 def ramp(running, commanded, max_change):
@@ -72,7 +66,7 @@ class PioneerBebopPlant:
         follows its commands at once (the state is then the 11 output values).
     """
 
-    output_columns = UGV_UAV_STATE_COLUMNS
+    output_columns = UGV_UAV_MEASURED_NAMES
     batchable = True
 
     def __init__(self, pioneer: Pioneer, bebop: Bebop, floor: float, pioneer_accel=None):
@@ -84,30 +78,29 @@ class PioneerBebopPlant:
                                         f"{pioneer_accel!r}")
             pioneer_accel = (float(a[0]), float(a[1]))
         self.pioneer_accel = pioneer_accel
-        self.state_columns = UGV_UAV_STATE_COLUMNS + (PIONEER_SPEED_COLUMNS if pioneer_accel else ())
+        self.state_columns = UGV_UAV_MEASURED_NAMES + (PIONEER_SPEED_COLUMNS if pioneer_accel else ())
 
     def initial_state(self, y0) -> np.ndarray:
         """The state of the output ``y0`` (11 values) with the Pioneer at rest."""
         y0 = np.asarray(y0, dtype=float)
-        return np.concatenate([y0, np.zeros(y0.shape[:-1] + (2,))], axis=-1) if self.pioneer_accel else y0
+        speeds = np.zeros(y0.shape[:-1] + (len(PIONEER_SPEED_COLUMNS),))
+        return np.concatenate([y0, speeds], axis=-1) if self.pioneer_accel else y0
 
     def output(self, x) -> np.ndarray:
         """What the sensors see: the 11 output values of the state, shape ``(..., 11)`` (a copy;
         a JAX array as it is)."""
-        n = len(UGV_UAV_STATE_COLUMNS)
         if concrete(x) or isinstance(x, (list, tuple)):
-            return np.array(np.asarray(x, dtype=float)[..., :n])
-        return x[..., :n]
+            return np.array(np.asarray(x, dtype=float)[..., :N_MEASURED])
+        return x[..., :N_MEASURED]
 
     def step(self, x, u, dt: float, t: float = 0.0) -> np.ndarray:
         """The state after ``dt`` s of the commands ``u`` ``(..., 6)`` (held; any namespace)."""
         x, u = as_floats(x), as_floats(u)
         xp = common_namespace(x, u)
-        b = self.bebop.step(x[..., _BEBOP], u[..., _BEBOP_COMMAND], dt)
-        floor = xp.maximum(b[..., 2:3], self.floor)  # the floor
-        u_p, tail = u[..., _PIONEER_COMMAND], []
+        b = self.bebop.step(x[..., BEBOP_PART], u[..., BEBOP_COMMAND], dt)
+        b = xp.where(_BEBOP_Z, xp.maximum(b, self.floor), b)  # the floor
+        u_p, tail = u[..., PIONEER_COMMAND], []
         if self.pioneer_accel:  # the firmware's ramp toward the (saturated) command
             u_p = ramp(x[..., _SPEEDS], self.pioneer.saturate(u_p), np.multiply(self.pioneer_accel, dt))
             tail = [u_p]
-        return xp.concatenate([self.pioneer.step(x[..., _PIONEER], u_p, dt), b[..., 0:2], floor, b[..., 3:]] + tail,
-                              axis=-1)
+        return xp.concatenate([self.pioneer.step(x[..., PIONEER_PART], u_p, dt), b] + tail, axis=-1)
