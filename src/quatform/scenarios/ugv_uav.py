@@ -103,6 +103,13 @@ UGV_UAV_COLUMNS = (
 )
 
 
+def _chart_rows(values: dict, shape: tuple) -> np.ndarray:
+    """The chart's variables (:data:`SPHERICAL_VARIABLES`) from ``{name: value}`` (arrays of
+    ``shape`` or numbers; a variable not named is 0), shape ``(*shape, 6)``."""
+    return np.stack([np.broadcast_to(np.asarray(values.get(v.name, 0.0), dtype=float), shape)
+                     for v in SPHERICAL_VARIABLES], axis=-1)
+
+
 @dataclass(frozen=True)
 class UgvUavScenario:
     """A seed 001 experiment (see ``docs/scenarios.md``)."""
@@ -163,16 +170,13 @@ class UgvUavScenario:
             xdd, ydd = -w * w * self.r_x * np.sin(w * t), -4 * w * w * self.r_y * np.sin(2 * w * t)
         else:
             raise InvalidInputError(f"path must be 'circle' or 'lemniscate', got {self.path!r}")
-        e = np.zeros(t.shape + (6,))
-        ed = np.zeros_like(e)
-        e[..., 0], e[..., 1], e[..., 2], e[..., 3] = x, y, cz, self.d_c
-        ed[..., 0], ed[..., 1] = xd, yd
         front = t < self.uav_front_until_s
         heading = np.unwrap(np.arctan2(yd, xd)) if t.ndim else np.arctan2(yd, xd)
-        e[..., 4] = np.where(front, heading, 0.0)  # §5.3: alpha_c = atan2(y_dot, x_dot), beta_c = 0
-        ed[..., 4] = np.where(front, (xd * ydd - yd * xdd) / (xd * xd + yd * yd), 0.0)
-        e[..., 5] = np.where(front, 0.0, 0.5 * np.pi)  # over the UGV: beta_c = 90 deg, (5.3)
-        return e, ed
+        e = {"x_c": x, "y_c": y, "z_c": cz, "rho_c": self.d_c,
+             "alpha_c": np.where(front, heading, 0.0),  # §5.3: alpha_c = atan2(y_dot, x_dot), beta_c = 0
+             "beta_c": np.where(front, 0.0, 0.5 * np.pi)}  # over the UGV: beta_c = 90 deg, (5.3)
+        ed = {"x_c": xd, "y_c": yd, "alpha_c": np.where(front, (xd * ydd - yd * xdd) / (xd * xd + yd * yd), 0.0)}
+        return _chart_rows(e, t.shape), _chart_rows(ed, t.shape)
 
     def controller(self, formation: str, bebop: Bebop | None = None, **options) -> UgvUavController:
         """The seed 001 controller for ``formation``; ``bebop``: the UAV model it compensates
