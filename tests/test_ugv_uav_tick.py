@@ -216,10 +216,17 @@ def test_jit_tick_equals_numpy(kind):
     np.testing.assert_allclose(np.asarray(states[-1].v_dot), states0[-1].v_dot, rtol=0, atol=1e-9)
 
 
+#: A robot model's arrays ordered by its columns: a subscript of one with a hand-written
+#: number is a hand-written entry however it is written.
+_COLUMN_ARRAYS = ("max_velocity", "k_u", "k_v", "l_d")
+
+
 def _literal_entries(fn) -> list:
     """The subscripts of ``fn``'s source that pick entries after the leading axes with
-    hand-written numbers (``x[..., 3:6]``, ``u[:, 2]``, ``m[:, [0, 1]]``); ``[:, 0]`` of a
-    one-column channel and ``None`` (a new axis) are not entries."""
+    hand-written numbers (``x[..., 3:6]``, ``u[:, 2]``, ``m[:, [0, 1]]``), and any subscript
+    with a number of a robot model's column-ordered array (``bebop.max_velocity[0:3]``,
+    :data:`_COLUMN_ARRAYS`); ``[:, 0]`` of a one-column channel and ``None`` (a new axis)
+    are not entries."""
     import ast
     import inspect
     import textwrap
@@ -233,10 +240,30 @@ def _literal_entries(fn) -> list:
 
     out = []
     for node in ast.walk(ast.parse(textwrap.dedent(inspect.getsource(fn)))):
-        if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Tuple):
+        if not isinstance(node, ast.Subscript):
+            continue
+        if isinstance(node.slice, ast.Tuple):
             if any(literal(e) for e in node.slice.elts[1:]):
                 out.append(ast.unparse(node))
+        elif isinstance(node.value, ast.Attribute) and node.value.attr in _COLUMN_ARRAYS and (
+                literal(node.slice) or isinstance(node.slice, ast.Constant)):
+            out.append(ast.unparse(node))
     return out
+
+
+def test_the_literal_entry_check_sees_what_it_forbids():
+    """The source check finds hand-written entries, and lets a channel's one column, a new
+    axis and named entries through."""
+
+    def bad(x, m, u, bebop):
+        return x[..., 3:6], u[:, 2], m[:, [0, 1]], bebop.max_velocity[0:3], bebop.k_u[0]
+
+    def fine(x, log, bebop, UGV_XY, PSI_P):
+        return x[..., UGV_XY], x[..., PSI_P, None], log["frame"][:, 0], x[..., :UGV_XY.stop], bebop.max_speed
+
+    assert _literal_entries(bad) == ["x[..., 3:6]", "u[:, 2]", "m[:, [0, 1]]", "bebop.max_velocity[0:3]",
+                                     "bebop.k_u[0]"]
+    assert _literal_entries(fine) == []
 
 
 def test_pioneer_bebop_entries_are_named():
@@ -246,11 +273,21 @@ def test_pioneer_bebop_entries_are_named():
     from quatform.control import ugv_uav as ctrl
     from quatform.robots import Bebop, Pioneer
     from quatform.scenarios import ugv_uav as scen
+    from quatform.sim.measurement import MotionCapture
+    from quatform.sim.plants.ugv_uav import PioneerBebopPlant
 
-    fns = (UgvUavController.tick, UgvUavController.measured_points, UgvUavController.reference_arrays,
-           scen._measured_robots, scen._finish, scen.ugv_uav_metrics, scen._cluster_jumps)
-    assert {fn.__name__: _literal_entries(fn) for fn in fns} == {fn.__name__: [] for fn in fns}
+    fns = (UgvUavController.__init__, UgvUavController.tick, UgvUavController.measured_points,
+           UgvUavController.reference_arrays, scen._measured_robots, scen._finish, scen.ugv_uav_metrics,
+           scen._cluster_jumps, scen.UgvUavScenario.e_reference, MotionCapture.init, MotionCapture.read,
+           MotionCapture.frame_pose, MotionCapture._orientation, PioneerBebopPlant.initial_state,
+           PioneerBebopPlant.output, PioneerBebopPlant.step)
+    found = {f"{fn.__module__}.{fn.__qualname__}": _literal_entries(fn) for fn in fns}
+    assert found == {name: [] for name in found}
     names = ctrl.UGV_UAV_MEASURED_NAMES
+    assert MotionCapture.columns is names and PioneerBebopPlant.output_columns is names
+    # a frame's pose is the measured values' first entries, in the order MotionCapture.frame_pose writes them
+    assert ctrl.MOCAP_PART.start == 0
+    assert names[ctrl.MOCAP_PART] == (*names[ctrl.UGV_XY], names[ctrl.PSI_P], *names[ctrl.UAV_XYZ], names[ctrl.PSI_B])
     assert names[ctrl.PSI_P] == "psi_p" and names[ctrl.PSI_B] == "psi_b"
     assert names[ctrl.UGV_XY] == ("x_p", "y_p") and names[ctrl.UAV_XYZ] == ("x_b", "y_b", "z_b")
     assert names[ctrl.ODOMETRY_PART] == tuple(c + "_b" for c in Bebop.state_columns[4:])
