@@ -8,7 +8,8 @@ A :class:`Team` is a tuple of models, vectorised over groups of equal models. Mo
 :class:`FreeBodyRobot`, the unicycle :class:`Pioneer` and the :class:`Bebop` (seed 001), the
 teleoperation arms (:mod:`.arms`). A :class:`RobotModel` subclass registers itself in
 :data:`ROBOT_MODELS` when it is defined, with its team-file keys and its ROS 2 conversions
-(:mod:`.ros_io`): a new model is one module here.
+(:mod:`.ros_io`): a new model is one module here. :mod:`.pioneer_bebop` names where each value
+of seed 001's Pioneer-Bebop team sits in its stacked state and commands.
 """
 
 from .bebop import TABLE2_K, Bebop, BebopMemory, yaw_matrix

@@ -52,6 +52,7 @@ class PerfectMeasurement:
 
 
 def _width(entries: slice) -> int:
+    """How many entries a slice of consecutive ones picks."""
     return entries.stop - entries.start
 
 
@@ -101,9 +102,9 @@ class MotionCapture:
     read; the Bebop's body velocity comes from its own odometry every ``odometry_period_s``
     (200 ms). :meth:`read` returns the controller's 11 values
     (:data:`~quatform.robots.pioneer_bebop.UGV_UAV_MEASURED_NAMES`) from the plant's output, the
-    same 11 values of :class:`quatform.sim.plants.ugv_uav.PioneerBebopPlant`. Faults for testing: each frame is lost
-    (all NaN) with probability ``dropout_rate``, or else reads the UAV's marker at the UGV
-    (at height ``ugv_z``) with ``glitch_rate``.
+    same 11 values of :class:`quatform.sim.plants.ugv_uav.PioneerBebopPlant`. Faults for
+    testing: each frame is lost (all NaN) with probability ``dropout_rate``, or else reads the
+    UAV's marker at the UGV (at height ``ugv_z``) with ``glitch_rate``.
 
     The random streams of a world are seeded by ``seed`` (the noise) and ``[seed, 1]`` (the
     faults), so the noise is the same with and without faults; world ``i`` of a batch reads
@@ -194,8 +195,8 @@ class MotionCapture:
         return noise, turns, lost, glitched
 
     def frame_pose(self, x, noise, turns, lost, glitched):
-        """The 7 pose values (``MOCAP_PART``) of a frame of the plant output ``x`` (``(..., 11)``) with its draws
-        (:meth:`_draw`; leading axes as ``x``'s, ``turns`` ``(..., 2, 4)`` or None), on any
+        """The 7 pose values (``MOCAP_PART``) of a frame of the plant output ``x`` (``(..., 11)``)
+        with its draws (:meth:`_draw`; leading axes as ``x``'s, ``turns`` ``(..., 2, 4)`` or None), on any
         array namespace (NumPy, JAX under ``jax.jit``): the positions plus the noise, the yaws
         read from the noise-rotated quaternions; all NaN where the frame is lost, the UAV's
         position read at the UGV (at ``ugv_z``) where it is glitched."""
