@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from quatform.errors import InvalidInputError
+from quatform.errors import InvalidInputError, NonFiniteError, ShapeError
 from quatform.formations import FORMATION_TYPES, FORMATIONS, TEAM_FORMATIONS, Formation, RobotLayout, TeamChart
 from quatform.formations.testing import check_formation, cluster_distance
 
@@ -43,8 +43,9 @@ def test_registry_covers_every_description():
 
 def test_a_preset_is_a_formation_of_its_own_key_not_a_second_team_description():
     """EuclideanPair and RobotSpace (two robots, the pair chart) run the contract under their
-    own keys; the team controllers stay one per team description, and a subclass that keeps
-    its parent's team flag and controller name is one line naming both."""
+    own keys; the team controllers stay one per team description: a subclass that inherits its
+    parent's controller name runs under it and claims none, one that sets a taken name in its
+    own body is one line naming both."""
     from quatform.control.team import team_descriptions
     from quatform.formations import EuclideanPair, EuclideanTeam, RobotSpace, RobotSpaceTeam
 
@@ -54,18 +55,30 @@ def test_a_preset_is_a_formation_of_its_own_key_not_a_second_team_description():
         assert preset not in TEAM_FORMATIONS.values()
         assert preset().chart_variables == team(2, chart="pair").chart_variables
     np.testing.assert_array_equal(RobotSpace().forward(np.zeros(8)), np.zeros(8))  # c = r, robots on each other
+    for bad, err in ((np.zeros(7), ShapeError), (np.full(8, np.nan), NonFiniteError)):
+        with pytest.raises(err, match="^c "):  # the identity of robot space still checks what it is given
+            RobotSpace().inverse_jacobian_at(bad)
+    with pytest.raises(ShapeError, match=r"^e_dot must have shape \(\.\.\., 8\)"):
+        RobotSpace().from_chart(np.array([0, 0, 1.5, 0.3, 0.5, 1.0, 0, 0]), np.zeros(3))
     with pytest.raises(InvalidInputError, match="needs two xyz_yaw robots"):
         RobotSpaceTeam(3, chart="pair")
     names = team_descriptions()
     assert names["cluster-space"] is EuclideanTeam and names["robot-space"] is RobotSpaceTeam
     try:
-        class _Forgotten(EuclideanTeam):  # registers itself: removed below
-            key = "forgotten-preset"
+        class _Variant(EuclideanTeam):  # registers itself: removed below
+            key = "variant-team"
 
-        with pytest.raises(InvalidInputError, match="team controller 'cluster-space' is registered twice"):
+        assert team_descriptions() == names
+
+        class _Clash(EuclideanTeam):
+            key = "clash-team"
+            controller = "cluster-space"
+
+        with pytest.raises(InvalidInputError, match="EuclideanTeam and _Clash both set controller = 'cluster-space'"):
             team_descriptions()
     finally:
-        FORMATION_TYPES.pop("forgotten-preset", None)
+        FORMATION_TYPES.pop("variant-team", None)
+        FORMATION_TYPES.pop("clash-team", None)
     assert team_descriptions() == names
 
 

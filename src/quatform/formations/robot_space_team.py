@@ -15,8 +15,9 @@ import functools
 
 import numpy as np
 
-from ..algebra.kernels import array_namespace, as_floats
+from ..algebra.kernels import array_namespace, as_floats, concrete
 from ..algebra.validate import as_array
+from ..errors import InvalidInputError
 from . import geometry as g
 from . import special_sets as sp
 from .base import Formation, Preset
@@ -197,6 +198,8 @@ class RobotSpaceTeam(Formation):
     def inverse_jacobian_at(self, c, *, r=None):
         """The identity ``(..., n_r, n_r)`` (robot space is its own cluster space), on NumPy or
         another array namespace."""
+        if concrete(c) or isinstance(c, (list, tuple)):  # a host value: checked (shape, finite)
+            c = self.check_robot_state(c, "c")
         c = as_floats(c)
         xp = array_namespace(c)
         return xp.broadcast_to(xp.eye(self.n_r), c.shape[:-1] + (self.n_r, self.n_r)).copy()
@@ -233,7 +236,7 @@ class RobotSpaceTeam(Formation):
         if self._pair is not None:
             e = self._pair.check_cluster_state(e, "e")
             r = self._pair.inverse(e)
-            return r if e_dot is None else (r, self._pair.robot_rate(e, e_dot))
+            return r if e_dot is None else (r, self._pair.robot_rate(e, as_array(e_dot, "e_dot", self.n_r)))
         e = self.chart.check(e)
         if e_dot is None:
             return self.chart.robots(e)
