@@ -31,7 +31,7 @@ from ..algebra.validate import UNIT_TOLERANCE, as_array
 from ..checks import MAX_NUMBER, short
 from ..errors import DegenerateInputError, InvalidInputError, NonUnitError, ShapeError
 from ..formations.base import Formation, check_magnitude
-from ..registry import Registry, RegistryView
+from ..registry import RegistryView
 from ..robots import Team
 from . import contract
 from .base import FAILURE_REASONS, Reference, apart_robots, batch_shape, measured_codes
@@ -69,18 +69,26 @@ def team_descriptions() -> dict:
     """The registered team descriptions that name a controller (``Formation.controller``), by
     that name, in ``controller_order``.
 
+    A description names a controller in its own class body: a subclass that inherits its
+    parent's ``controller`` (a preset, a user's variant) runs under the parent's controller,
+    and names none of its own.
+
     Raises
     ------
     InvalidInputError
-        Two descriptions name one controller (a subclass that inherits ``team = True`` and
-        its parent's ``controller``: a preset sets ``team = False``).
+        Two descriptions set one controller name in their class bodies.
     """
     from ..formations import TEAM_FORMATIONS
 
-    out = Registry("team controller")
-    for c in sorted((c for c in TEAM_FORMATIONS.values() if c.controller), key=lambda c: c.controller_order):
-        out.add(c.controller, c)
-    return dict(out)
+    out = {}
+    for c in sorted((c for c in TEAM_FORMATIONS.values() if vars(c).get("controller")),
+                    key=lambda c: c.controller_order):
+        if c.controller in out:
+            raise InvalidInputError(
+                f"team descriptions {out[c.controller].__name__} and {c.__name__} both set controller = "
+                f"{c.controller!r}; give {c.__name__} its own controller name (or none, to run under its parent's)")
+        out[c.controller] = c
+    return out
 
 
 #: The team description each controller name runs (``formations.TEAM_FORMATIONS`` keys),
@@ -109,8 +117,8 @@ def check_gain(value, key: str, n, rows: int | None = None, *, where: str | None
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
     many = isinstance(value, (list, tuple, np.ndarray))
-    vals = list(np.ravel(value)) if many else [value]
-    if many and (np.ndim(value) != 1 or len(vals) not in (1, count)):
+    vals = (value.tolist() if isinstance(value, np.ndarray) else list(value)) if many else [value]
+    if many and (count == 1 or np.ndim(value) != 1 or len(vals) != count):
         raise InvalidInputError(f"{said} must be one number" + (f" or a list of {count}" if count > 1 else ""))
     if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) for v in vals):
         raise InvalidInputError(f"{said} must be {'numbers' if many else 'a number'}")
