@@ -495,6 +495,8 @@ def test_a_batch_of_worlds_finishes_each_as_its_own_run():
     (-2.0, "must be positive (seed 000 Tables 1-2)"),
     ([1.0, "a", 1.0], "must be numbers"),
     ([1.0, math.nan, 1.0], "must be finite"),
+    ([1.0], "must be one number or a list of 3"),
+    ([1.0, True, 1.0], "must be numbers"),
     (1e13, "is beyond +-1e+12; give a physical gain (1/s)"),
 ])
 def test_a_gain_has_one_check_in_the_file_and_the_controller(value, words):
@@ -512,3 +514,9 @@ def test_a_gain_has_one_check_in_the_file_and_the_controller(value, words):
     with pytest.raises(InvalidInputError) as in_code:
         team_controller("quaternion", Team.uniform(HolonomicRobot(), 3), gains)
     assert str(in_code.value) == f"team controller: gains['k_x'] = {short(value)} {words}"
+
+
+def test_a_one_number_gain_is_no_list():
+    """``k_d`` (the shape law's one gain, seed 000 Table 1) is one number: a list is refused."""
+    with pytest.raises(InvalidInputError, match=r"^bad.toml: \[gains.quaternion\] k_d = \[20.0\] must be one number$"):
+        team_scenario_from_dict(_data(**{"gains": {"quaternion": {"k_d": [20.0]}}}), "bad.toml")
