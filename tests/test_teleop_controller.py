@@ -314,3 +314,12 @@ def test_update_and_step_take_leading_batch_axes(orientation_error):
     bad[2, 12 + 3] = 1e6
     with pytest.raises(InvalidInputError, match=r"^measurement q_s\[3\] in world \(2,\) = 1e\+06 rad is beyond"):
         c.step(0.1, bad)
+
+
+def test_a_batch_of_no_worlds_gives_no_torques():
+    """Zero worlds: every output has its leading axis of 0 (no traceback)."""
+    c = TeleopController(REG, Q_S0)
+    out = c.update(0.0, np.zeros((0, 32)))
+    assert out.u.shape == (0, 13) and all(v.shape[0] == 0 for v in out.signals.values())
+    tau_m, tau_s = c.step(0.0, np.zeros((0, 32)))
+    assert tau_m.shape == (0, 6) and tau_s.shape == (0, 7)

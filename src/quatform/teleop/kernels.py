@@ -105,13 +105,18 @@ def over_worlds(fn, batch_ndim: int, *args):
             f = jax.vmap(f, in_axes=axes)
         return f(*args)
     batch = np.shape(batched[0])[:batch_ndim]
-    outs = [fn(*(None if a is None else a[idx] for a in args)) for idx in np.ndindex(*batch)]
 
-    def shaped(tree):
+    def shaped(tree, fill=None):
         if isinstance(tree, (tuple, list)):
-            return type(tree)(shaped(v) for v in tree)
+            return type(tree)(shaped(v, fill) for v in tree)
         if isinstance(tree, dict):
-            return {k: shaped(v) for k, v in tree.items()}
-        return tree.reshape(batch + tree.shape[1:])
+            return {k: shaped(v, fill) for k, v in tree.items()}
+        tree = np.asarray(tree)
+        return np.zeros(batch + tree.shape, tree.dtype) if fill else tree.reshape(batch + tree.shape[1:])
 
+    if 0 in batch:  # no world: one world of zeros gives every output's shape and type
+        with np.errstate(all="ignore"):
+            return shaped(fn(*(None if a is None else np.zeros(np.shape(a)[batch_ndim:], np.asarray(a).dtype)
+                               for a in args)), fill=True)
+    outs = [fn(*(None if a is None else a[idx] for a in args)) for idx in np.ndindex(*batch)]
     return shaped(_stack(outs))
