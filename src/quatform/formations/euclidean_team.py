@@ -80,7 +80,7 @@ EUCLIDEAN_VARIABLES = (
 #: undefined (the segment vertical).
 VERTICAL_TOL = 1e-12
 #: The pair chart's angles that wind by turns (``beta_c``, ``phi_1``, ``phi_2``).
-_PAIR_WOUND = np.array([3, 6, 7])
+_PAIR_WOUND = np.array([i for i, v in enumerate(EUCLIDEAN_VARIABLES) if v.name in ("beta_c", "phi_1", "phi_2")])
 
 #: Below this ratio of robot 3's distance from the 1-2 line to its distance from robot 1 the
 #: roll ``alpha_c`` is taken as undefined (robots 1, 2, 3 collinear).
@@ -622,7 +622,7 @@ class EuclideanTeam(Formation):
         delta, D, rho_h = G["delta"], G["D"], G["rho_h"]
         dx, dy, dz = np.moveaxis(delta, -1, 0)
         vert = G["vertical"]
-        bad = {"gamma_c = +-pi/2 (one robot straight above robot 2's partner: beta_c undefined)": vert}
+        bad = {"gamma_c = +-pi/2 (robot 1 straight above or below robot 2: beta_c undefined)": vert}
         if L.n >= 3 and self._roll:
             bad["robots 1, 2, 3 collinear (alpha_c undefined)"] = G["collinear"]
         if L.n >= 4 and not self.planar:
@@ -631,8 +631,9 @@ class EuclideanTeam(Formation):
             for what, mask in bad.items():
                 if np.any(mask):
                     raise DegenerateInputError(
-                        f"the Euclidean team Jacobian is undefined at {what}; the minimal chart is singular there: "
-                        "use QuaternionTeam or DualQuaternionTeam")
+                        f"the Euclidean {'pair' if L.n == 2 else 'team'} Jacobian is undefined at {what}; the minimal "
+                        "chart is singular there: use " + ("QuaternionPair or DualQuaternionPair" if self._pair_chart
+                                                           else "QuaternionTeam or DualQuaternionTeam"))
         rho2 = np.where(vert, 1.0, rho_h * rho_h)
         bd = np.where(vert, 0.0, (-dy * dd[..., 0] + dx * dd[..., 1]) / rho2)  # grad of eq. (4)
         if self.planar:
