@@ -37,6 +37,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the '3d' proje
 from ..algebra import wrap_angle
 from ..formations import UGV_UAV_LAYOUT
 from ..papers import PAPERS, with_names
+from ..robots.pioneer_bebop import BEBOP_PART, PIONEER_PART
 from ..scenarios.ugv_uav import UGV_UAV_FORMATIONS
 from ..sim.log import Log
 from ..sim.metrics import SINGULAR_THRESHOLD
@@ -105,7 +106,7 @@ class _Run:
 def _run_of(log: Log) -> _Run:
     """The figures' view of a finished UGV-UAV log."""
     m, x = log.meta, log["state"]
-    return _Run(m["scenario"], m["formation"], m["physics"], log.t, x[:, 0:3], x[:, 3:11], log["r_true"],
+    return _Run(m["scenario"], m["formation"], m["physics"], log.t, x[:, PIONEER_PART], x[:, BEBOP_PART], log["r_true"],
                 log["r_des"], log["cluster"], log["c_des"], log["e"], log["e_des"], log["singularity"][:, 0],
                 log["reachable"][:, 0] > 0.5, m["unreachable_at"], m["unreachable_message"])
 
@@ -292,15 +293,16 @@ def plot_ugv_uav_paths_3d(log: Log, path, n_segments: int = 10) -> Path:
     if run.t.size == 0:
         return _empty_figure(run, path, (8.0, 6.8))
     r, rd = finite(_actual_robots(run)), finite(_desired_robots(run))
+    P, Pd = UGV_UAV_LAYOUT.positions(r), UGV_UAV_LAYOUT.positions(rd)  # (T, 2, 3): the UGV, the UAV
     fig = new_figure((8.0, 6.8))
     ax = fig.add_subplot(projection="3d")
     idx = decimate(r.shape[0])
     ks = np.unique(np.linspace(0, r.shape[0] - 1, max(1, int(n_segments)) + 1).round().astype(int))
     for k in ks:  # first, so the paths are drawn over them
-        seg = np.stack([r[k, 0:3], r[k, 3:6]])
+        seg = P[k]
         ax.plot(*seg.T, color="0.6", lw=0.8, alpha=0.8)
-    for sl, color, name in ((slice(0, 3), "C0", "UGV"), (slice(3, 6), "C1", "UAV")):
-        p, pd = r[:, sl], rd[:, sl]
+    for i, color, name in ((0, "C0", "UGV"), (1, "C1", "UAV")):
+        p, pd = P[:, i], Pd[:, i]
         ax.plot(*p[idx].T, color=color, lw=1.4, ls="-", label=f"{name} measured")
         ax.plot(*pd[idx].T, color=color, lw=1.0, ls="--", alpha=0.8, label=f"{name} desired")
         ax.scatter(*p[0], color=color, marker="o", s=40, depthshade=False)
@@ -310,7 +312,7 @@ def plot_ugv_uav_paths_3d(log: Log, path, n_segments: int = 10) -> Path:
                 Line2D([], [], color="k", marker="o", ls="none", label="start (measured)"),
                 Line2D([], [], color="k", marker="s", mfc="none", ls="none", label="start (desired)")]
     ax.legend(handles=handles, fontsize=8, loc="upper left")
-    set_equal_3d(ax, np.concatenate([r[:, 0:3], r[:, 3:6], rd[:, 0:3], rd[:, 3:6]]))
+    set_equal_3d(ax, np.concatenate([P.reshape(-1, 3), Pd.reshape(-1, 3)]))
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
         axis.set_major_locator(MaxNLocator(5))
         axis.set_tick_params(labelsize=8)
@@ -328,12 +330,15 @@ def _cluster_rows(run: _Run):
     """
     c, cd = finite(run.c), finite(run.c_des)
     variables = UGV_UAV_FORMATIONS[run.formation].variables
-    if run.formation == "quaternion":
-        q_err = _quaternion_angle(c[:, 3:7], cd[:, 3:7])
-        rows = [(f"{variables[k].name} [m]", c[:, k], cd[:, k], c[:, k] - cd[:, k], "linear")
-                for k in range(3)]
-        rows.append(("q_c [-]", c[:, 3:7], cd[:, 3:7], q_err, "quaternion"))
-        rows.append(("d_c [m]", c[:, 7], cd[:, 7], c[:, 7] - cd[:, 7], "linear"))
+    quat = [k for k, v in enumerate(variables) if v.kind == "quaternion"]
+    if quat:  # the centroid, q_c as one row (its rotation angle), d_c's first entry (seed 001 §4.3)
+        q = slice(quat[0], quat[-1] + 1)
+        rows = [(f"{v.name} [m]", c[:, k], cd[:, k], c[:, k] - cd[:, k], "linear")
+                for k, v in enumerate(variables) if v.kind == "position"]
+        rows.append((f"{variables[q.start].name.rsplit('_', 1)[0]} [-]", c[:, q], cd[:, q],
+                     _quaternion_angle(c[:, q], cd[:, q]), "quaternion"))
+        d = next(k for k, v in enumerate(variables) if v.kind == "length")
+        rows.append((f"{variables[d].name.rsplit('_', 1)[0]} [m]", c[:, d], cd[:, d], c[:, d] - cd[:, d], "linear"))
         return rows
     rows = []
     for k, var in enumerate(variables):

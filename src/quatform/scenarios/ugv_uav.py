@@ -353,7 +353,7 @@ def _finish(log: Log, F, sc: UgvUavScenario, e_des, c_des, reachable, c_cont=Non
     n = len(log.t)
     x = log["state"]
     z = np.full(n, float(sc.center[2]))
-    # the robots' points (the UGV at the platform height), built exactly as main built them:
+    # the robots' points (the UGV at the platform height), built column by column as here:
     # the memory order of these arrays sets the summation order of the metrics' dot products,
     # and their arccos near 1 (orientation error, the turned angle of _cluster_jumps) turns a
     # 1-ulp change of a dot product into ~1e-8 rad, beyond the 1e-9 regression tolerance
