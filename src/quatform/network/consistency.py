@@ -8,7 +8,8 @@ Qi & Cui (arXiv 2401.05132, Thm. 3.2): such a scheme is consistent (some absolut
 realise it) iff the product of the relative configurations around every cycle of the graph
 is the identity; on the double cover, ``+1`` or ``-1`` (``q`` and ``-q`` are one pose). An
 edge used against its direction contributes the inverse (the conjugate of a unit dual
-quaternion); both directions of a pair given must be mutual inverses (their 2-cycle). A
+quaternion); both directions of a pair given must be mutual inverses (their 2-cycle; the
+longer cycles use the pose given from the lower-indexed robot). A
 cycle basis suffices: the fundamental cycles of a breadth-first spanning forest of the
 undirected graph.
 """
@@ -153,12 +154,15 @@ def check_relative_poses(graph: Graph, relative, tol_rad: float = TOL_RAD, tol_m
     pairs, pred, depth, tree = _forest(graph)
 
     def pose(a, b):
-        """``T_ab`` (robot b in robot a's frame) of each pair: given, or the inverse of ``T_ba``."""
+        """``T_ab`` (robot b in robot a's frame) of each pair, from the pose given for (lower
+        index, higher index), or the inverse of the other one; the inverse for ``a > b``."""
         if not len(a):
             return np.zeros((0, 8))
-        fwd = np.array([row.get((i, j), -1) for i, j in zip(a.tolist(), b.tolist())], dtype=np.int64)
-        back = np.array([row.get((j, i), -1) for i, j in zip(a.tolist(), b.tolist())], dtype=np.int64)
-        return np.where((fwd >= 0)[:, None], T[fwd], dqconj(T[back]))
+        lo, hi = np.minimum(a, b).tolist(), np.maximum(a, b).tolist()
+        fwd = np.array([row.get((i, j), -1) for i, j in zip(lo, hi)], dtype=np.int64)
+        back = np.array([row.get((j, i), -1) for i, j in zip(lo, hi)], dtype=np.int64)
+        up = np.where((fwd >= 0)[:, None], T[fwd], dqconj(T[back]))
+        return np.where((a < b)[:, None], up, dqconj(up))
 
     P = np.tile(DQ_IDENTITY, (graph.n, 1))  # pose of each robot in its tree root's frame
     for d in range(1, int(depth.max()) + 1):
