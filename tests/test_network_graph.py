@@ -214,6 +214,7 @@ def test_builders_and_value():
     with pytest.raises(AttributeError):
         g.n = 4
     assert Graph.from_edges(3, []).edges.shape == (0, 2)
+    assert Graph(3, [(0, 1)]).weights.tolist() == [1.0]
 
 
 @pytest.mark.parametrize("call, error, text", [

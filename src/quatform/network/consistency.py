@@ -4,7 +4,7 @@ Formations and planning layer (imports algebra, errors and checks).
 
 ``relative[(i, j)]`` is the desired pose of robot ``j`` in robot ``i``'s frame, a unit dual
 quaternion ``(8,)``, for each edge ``(i, j)`` of a :class:`~quatform.network.graph.Graph`.
-Qi & Cui (arXiv 2401.05132, Thm. 3.2): such a scheme is consistent (some absolute poses
+Qi & Cui (arXiv 2401.05132): such a scheme is consistent (some absolute poses
 realise it) iff the product of the relative configurations around every cycle of the graph
 is the identity; on the double cover, ``+1`` or ``-1`` (``q`` and ``-q`` are one pose). An
 edge used against its direction contributes the inverse (the conjugate of a unit dual
@@ -143,7 +143,7 @@ def check_relative_poses(graph: Graph, relative, tol_rad: float = TOL_RAD, tol_m
     UnreachableError
         A cycle (a fundamental cycle, or an edge given in both directions) multiplies to a
         pose beyond the tolerances: no absolute poses realise the scheme (Qi & Cui,
-        arXiv 2401.05132, Thm. 3.2). The worst cycle (largest ratio to its tolerance) is named
+        arXiv 2401.05132). The worst cycle (largest ratio to its tolerance) is named
         by its robots, starting where its product is measured.
     InvalidInputError
         A missing edge, a key that is not an edge, a pose that is not a unit dual quaternion.

@@ -2,7 +2,7 @@
 
 Formations and planning layer (imports errors and checks only).
 
-Convention (Olfati-Saber & Murray 2004 §II; Ren & Beard 2005 §II): an edge ``(i, j)`` with
+Convention (Olfati-Saber & Murray 2004; Ren & Beard 2005): an edge ``(i, j)`` with
 weight ``a_ij > 0`` means robot ``i`` receives robot ``j``'s messages (``j`` is an
 in-neighbour of ``i``); information flows from ``j`` to ``i``. The Laplacian is
 ``L = D - A`` with ``A[i, j] = a_ij`` and ``D = diag(sum_j a_ij)``, so the consensus law
@@ -120,13 +120,13 @@ class Graph:
     edges : array_like of int, shape (E, 2)
         Edge ``(i, j)``: robot ``i`` receives robot ``j``'s messages (0-based). Stored sorted;
         no self-loops, no edge twice.
-    weights : array_like, shape (E,)
-        ``a_ij > 0`` of each edge (the edge order given).
+    weights : array_like, shape (E,), optional
+        ``a_ij > 0`` of each edge (the edge order given); default 1.
     """
 
     n: int
     edges: np.ndarray
-    weights: np.ndarray
+    weights: np.ndarray | None = None
 
     def __post_init__(self):
         n = _count(self.n)
@@ -262,7 +262,7 @@ class Graph:
     def spanning_tree_roots(self) -> np.ndarray:
         """Indices of the robots every robot hears, directly or through others.
 
-        A directed spanning tree exists iff this is non-empty (Ren & Beard 2005 Lemma 3.1: then
+        A directed spanning tree exists iff this is non-empty (Ren & Beard 2005: then
         zero is a simple eigenvalue of ``L`` and consensus is reached); the roots are the
         strongly connected component that no edge enters, when it is the only one.
         """
@@ -303,9 +303,9 @@ class Graph:
         """λ₂: the smallest real part among the eigenvalues of ``L`` other than the simple zero.
 
         Undirected, it is the algebraic connectivity (Fiedler 1973); directed, the real part
-        that sets the rate of ``x_dot = -L x`` (Olfati-Saber & Murray 2004 Thm. 8; Cui, Qi,
+        that sets the rate of ``x_dot = -L x`` (Olfati-Saber & Murray 2004; Cui, Qi,
         Chen & Wang 2025, arXiv 2508.10519, the R-linear rate). 0 when no spanning tree
-        exists (zero is then a repeated eigenvalue, Ren & Beard 2005 Lemma 3.1). Dense
+        exists (zero is then a repeated eigenvalue, Ren & Beard 2005). Dense
         eigenvalues: O(n³).
         """
         if not len(self._roots):
