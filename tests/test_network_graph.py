@@ -235,7 +235,7 @@ def test_builders_and_value():
     (lambda: Graph.k_nearest([[0, 0, 0], [1, 0, np.inf]], 1), NonFiniteError, "robot 2"),
     (lambda: Graph.k_nearest(np.eye(3), 3), InvalidInputError, "k = 3 nearest neighbours must be an integer in 1 .. 2"),
     (lambda: Graph.k_nearest(np.eye(3), 0), InvalidInputError, "1 .. 2"),
-    (lambda: Graph.disk(np.eye(3), 0.0), InvalidInputError, "radius_m = 0.0 must be a finite distance > 0"),
+    (lambda: Graph.disk(np.eye(3), 0.0), InvalidInputError, "radius_m = 0.0 must be a finite number > 0 m"),
     (lambda: Graph.disk(np.eye(3), -1.0), InvalidInputError, "radius_m"),
     (lambda: Graph.ring(3).in_neighbours(3), InvalidInputError, "robot index 3"),
     (lambda: Graph.ring(3).predicted_rate(0.0), InvalidInputError, "gain = 0.0"),

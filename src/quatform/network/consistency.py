@@ -16,7 +16,6 @@ undirected graph.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -27,7 +26,7 @@ from ..algebra.quaternion import q_angle
 from ..algebra.validate import as_unit_dual_quaternion
 from ..checks import short
 from ..errors import InvalidInputError, ShapeError, UnreachableError
-from .graph import Graph
+from .graph import Graph, positive
 
 __all__ = ["check_relative_poses", "consistent_poses", "cycle_basis"]
 
@@ -116,13 +115,6 @@ def _cycle_text(cycle: list[int], limit: int = 12) -> str:
     return " -> ".join(names) + ("" if len(cycle) <= limit else f" ({len(cycle)} robots)")
 
 
-def _tolerance(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not (
-            math.isfinite(value) and value > 0.0):
-        raise InvalidInputError(f"relative poses: {name} = {short(value)} must be a finite number > 0")
-    return float(value)
-
-
 def check_relative_poses(graph: Graph, relative, tol_rad: float = TOL_RAD, tol_m: float | None = None) -> None:
     """Raise one line naming the worst cycle whose product of desired relative poses is not 1.
 
@@ -148,7 +140,7 @@ def check_relative_poses(graph: Graph, relative, tol_rad: float = TOL_RAD, tol_m
     InvalidInputError
         A missing edge, a key that is not an edge, a pose that is not a unit dual quaternion.
     """
-    tol_rad = _tolerance(tol_rad, "tol_rad")
+    tol_rad = positive(tol_rad, "tol_rad", " rad", "relative poses")
     T = _relative(graph, relative)
     row = {(int(i), int(j)): k for k, (i, j) in enumerate(graph.edges.tolist())}
     pairs, pred, depth, tree = _forest(graph)
@@ -170,7 +162,7 @@ def check_relative_poses(graph: Graph, relative, tol_rad: float = TOL_RAD, tol_m
         P[v] = dqmul(P[pred[v]], pose(pred[v], v))
     if tol_m is None:
         tol_m = TOL_M_PER_M * max(1.0, float(np.max(np.linalg.norm(pose_from_dq(P)[1], axis=-1))))
-    tol_m = _tolerance(tol_m, "tol_m")
+    tol_m = positive(tol_m, "tol_m", " m", "relative poses")
 
     a, b = pairs[~tree, 0], pairs[~tree, 1]
     both = np.array([(j, i) in row for i, j in graph.edges.tolist()], dtype=bool) & (graph.edges[:, 0]

@@ -23,7 +23,7 @@ from scipy.sparse import csgraph
 from ..checks import short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError, UnreachableError
 
-__all__ = ["Graph", "robots_text"]
+__all__ = ["Graph", "positive", "robots_text"]
 
 #: Rows of the distance matrix that ``Graph.k_nearest`` and ``Graph.disk`` hold at once
 #: (a block of ``ROWS x N`` distances: 2 MB at N = 1000).
@@ -37,6 +37,15 @@ def robots_text(indices, limit: int = 12) -> str:
     if len(names) <= limit:
         return ", ".join(names)
     return ", ".join(names[:limit]) + f", ... ({len(names)} robots)"
+
+
+def positive(value, name: str, unit: str, where: str = "graph") -> float:
+    """``value`` as a float, refused in one line (``where: name = value must be ...``) unless it
+    is a finite number > 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not (
+            math.isfinite(value) and value > 0.0):
+        raise InvalidInputError(f"{where}: {name} = {short(value)} must be a finite number > 0{unit}")
+    return float(value)
 
 
 def _count(n) -> int:
@@ -101,7 +110,7 @@ def _positions(positions) -> np.ndarray:
 
 def _distance_blocks(p: np.ndarray):
     """``(rows, d)``: blocks of robot indices and their distances ``(len(rows), N)`` to every robot
-    (differences, not the Gram identity: exact at a radius), the robot's own entry ``inf``."""
+    (from coordinate differences, as a user measures a separation), the robot's own entry ``inf``."""
     for start in range(0, len(p), ROWS):
         rows = np.arange(start, min(start + ROWS, len(p)))
         d = np.linalg.norm(p[rows, None, :] - p[None, :, :], axis=-1)
@@ -204,9 +213,7 @@ class Graph:
             Communication range, m, > 0; a pair exactly ``radius_m`` apart is linked.
         """
         p = _positions(positions)
-        if isinstance(radius_m, bool) or not isinstance(radius_m, (int, float, np.number)) or not (
-                math.isfinite(radius_m) and radius_m > 0.0):
-            raise InvalidInputError(f"graph: radius_m = {short(radius_m)} must be a finite distance > 0 m")
+        radius_m = positive(radius_m, "radius_m", " m")
         parts = [np.argwhere(d <= radius_m) + np.array([rows[0], 0]) for rows, d in _distance_blocks(p)]
         e = np.concatenate(parts)
         return cls(len(p), e, np.ones(len(e)))
@@ -315,7 +322,7 @@ class Graph:
     def largest_stable_gain(self, dt_s: float) -> float:
         """Largest ``k`` below which ``x <- (I - k dt L) x`` contracts: the least
         ``2 Re λ / (dt |λ|²)`` over the eigenvalues other than the simple zero (|1 - k dt λ| < 1)."""
-        dt = _positive(dt_s, "dt_s", "s")
+        dt = positive(dt_s, "dt_s", " s")
         self.check_spanning_tree()
         lam = self._spectrum
         return float(np.min(2.0 * lam.real / (dt * np.abs(lam) ** 2)))
@@ -334,10 +341,10 @@ class Graph:
             A gain or step that is not finite and > 0, or a discrete loop that does not
             contract (``max |1 - k dt λ| >= 1``; the message names the largest stable gain).
         """
-        k = _positive(gain, "gain", "1/s")
+        k = positive(gain, "gain", " 1/s")
         if dt_s is None:
             return k * self.lambda2()
-        dt = _positive(dt_s, "dt_s", "s")
+        dt = positive(dt_s, "dt_s", " s")
         if not len(self._roots):
             return 0.0
         rho = float(np.max(np.abs(1.0 - k * dt * self._spectrum)))
@@ -348,9 +355,3 @@ class Graph:
                 f"or a shorter step")
         return -math.log(rho) / dt if rho > 0.0 else math.inf
 
-
-def _positive(value, name: str, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not (
-            math.isfinite(value) and value > 0.0):
-        raise InvalidInputError(f"graph: {name} = {short(value)} must be a finite number > 0 {unit}")
-    return float(value)
