@@ -75,6 +75,14 @@ def test_no_spanning_tree_names_the_robots_robot_1_does_not_reach():
     with pytest.raises(UnreachableError, match=r"robot 1's reach .* not robots 4, 5, 6, 7, 8 \(directed"):
         g.check_spanning_tree()
     assert g.lambda2() == 0.0 and g.predicted_rate(2.0) == 0.0 and g.predicted_rate(2.0, 0.01) == 0.0
+    np.testing.assert_allclose(g.largest_stable_gain(0.01), 200.0, rtol=1e-9)  # 2 / (dt λ), every λ 0 or 1
+    with pytest.raises(InvalidInputError, match="diverge"):  # a mode that moves still diverges
+        g.predicted_rate(201.0, 0.01)
+    assert Graph(3, []).largest_stable_gain(0.1) == math.inf and Graph(3, []).predicted_rate(1.0, 0.1) == 0.0
+    # two robots that hear nobody and a chain behind each: the best-connected is named
+    two = Graph.from_edges(5, [(1, 0), (2, 1), (4, 3)])
+    with pytest.raises(UnreachableError, match=r"robot 1's reach the most robots, yet not robots 4, 5 "):
+        two.check_spanning_tree()
 
 
 @pytest.mark.parametrize("n", [3, 5, 8, 13])

@@ -92,7 +92,9 @@ def _relative(graph: Graph, relative) -> np.ndarray:
                                 f"robot j in robot i's frame (a unit dual quaternion, shape (8,))")
     given = {_key(k, graph.n): v for k, v in relative.items()}
     edges = {(int(i), int(j)) for i, j in graph.edges}
-    for i, j in sorted(set(given) - edges):
+    extra = sorted(set(given) - edges)
+    if extra:
+        i, j = extra[0]
         raise InvalidInputError(f"relative poses: ({i}, {j}) is not an edge of the graph (robot {i + 1} does not "
                                 f"hear robot {j + 1}); add the edge to the graph or remove the pose")
     out = np.empty((len(graph.edges), 8))

@@ -256,15 +256,18 @@ class Graph:
                                                    return_predecessors=False))
 
     @functools.cached_property
-    def _roots(self) -> np.ndarray:
+    def _sources(self) -> list[np.ndarray]:
+        """The robots of each strongly connected component of the information flow that no edge
+        enters, in order of their lowest index."""
         count, label = csgraph.connected_components(self._flow(), directed=True, connection="strong")
         e = self.edges
         entered = np.zeros(count, dtype=bool)
         entered[label[e[:, 0]][label[e[:, 0]] != label[e[:, 1]]]] = True
-        sources = np.flatnonzero(~entered)
-        roots = np.flatnonzero(label == sources[0]) if len(sources) == 1 else np.zeros(0, dtype=np.int64)
-        roots.setflags(write=False)
-        return roots
+        return sorted((np.flatnonzero(label == c) for c in np.flatnonzero(~entered)), key=lambda m: m[0])
+
+    @property
+    def _roots(self) -> np.ndarray:
+        return self._sources[0] if len(self._sources) == 1 else np.zeros(0, dtype=np.int64)
 
     def spanning_tree_roots(self) -> np.ndarray:
         """Indices of the robots every robot hears, directly or through others.
@@ -279,7 +282,8 @@ class Graph:
         """Raise one line naming the robots that no root reaches, if no spanning tree exists.
 
         The best-connected robot (the one reaching most robots; lowest index on a tie) is named
-        with what it does not reach.
+        with what it does not reach. It is in a component no edge enters (every robot is reached
+        from one, and reaches no more than it), so one search from each such component finds it.
 
         Raises
         ------
@@ -287,9 +291,10 @@ class Graph:
         """
         if len(self._roots):
             return
-        reach = [self.reaches(i) for i in range(self.n)]
-        best = int(np.argmax([len(r) for r in reach]))
-        missing = np.setdiff1d(np.arange(self.n), reach[best])
+        reach = [self.reaches(int(members[0])) for members in self._sources]
+        k = int(np.argmax([len(r) for r in reach]))
+        best = int(self._sources[k][0])
+        missing = np.setdiff1d(np.arange(self.n), reach[k])
         raise UnreachableError(
             f"graph: no robot's messages reach every robot: robot {best + 1}'s reach the most robots, yet not "
             f"robots {robots_text(missing)} (directed: a spanning tree needs one robot every other robot "
@@ -299,10 +304,14 @@ class Graph:
     # ------------------------------------------------------------------ spectrum
     @functools.cached_property
     def _spectrum(self) -> np.ndarray:
-        """Eigenvalues of ``L`` other than one zero (the simple zero when a spanning tree exists)."""
+        """Eigenvalues of ``L`` other than zero: all but the simple zero when a spanning tree
+        exists, else all but those within rounding of zero (``1e-9`` of the largest)."""
         L = self.laplacian()
         lam = np.linalg.eigvalsh(L).astype(complex) if self.undirected else np.linalg.eigvals(L)
-        lam = np.delete(lam, int(np.argmin(np.abs(lam))))
+        if len(self._roots):
+            lam = np.delete(lam, int(np.argmin(np.abs(lam))))
+        else:
+            lam = lam[np.abs(lam) > 1e-9 * max(1.0, float(np.max(np.abs(lam))))]
         lam.setflags(write=False)
         return lam
 
@@ -320,12 +329,12 @@ class Graph:
         return float(np.min(self._spectrum.real))
 
     def largest_stable_gain(self, dt_s: float) -> float:
-        """Largest ``k`` below which ``x <- (I - k dt L) x`` contracts: the least
-        ``2 Re λ / (dt |λ|²)`` over the eigenvalues other than the simple zero (|1 - k dt λ| < 1)."""
+        """Largest ``k`` below which ``x <- (I - k dt L) x`` contracts on every mode that moves: the
+        least ``2 Re λ / (dt |λ|²)`` over the nonzero eigenvalues (``|1 - k dt λ| < 1``); ``inf``
+        without edges."""
         dt = positive(dt_s, "dt_s", " s")
-        self.check_spanning_tree()
         lam = self._spectrum
-        return float(np.min(2.0 * lam.real / (dt * np.abs(lam) ** 2)))
+        return float(np.min(2.0 * lam.real / (dt * np.abs(lam) ** 2))) if len(lam) else math.inf
 
     def predicted_rate(self, gain: float, dt_s: float | None = None) -> float:
         """Rate (1/s) at which the consensus error of ``x_dot = -k L x`` decays.
@@ -333,25 +342,28 @@ class Graph:
         Continuous: ``k Re λ₂`` (the error decays like ``exp(-k Re λ₂ t)``). With a step
         ``dt_s``, the map ``x <- (I - k dt L) x``: ``-log(max |1 - k dt λ|) / dt`` over the
         eigenvalues other than the simple zero (``inf`` where every ``k dt λ`` is 1: the error
-        vanishes in finitely many steps). 0 when no spanning tree exists.
+        vanishes in finitely many steps). 0 when no spanning tree exists (the loop is still
+        refused where a mode diverges).
 
         Raises
         ------
         InvalidInputError
             A gain or step that is not finite and > 0, or a discrete loop that does not
-            contract (``max |1 - k dt λ| >= 1``; the message names the largest stable gain).
+            contract (``max |1 - k dt λ| >= 1`` over the nonzero eigenvalues; the message names
+            the largest stable gain).
         """
         k = positive(gain, "gain", " 1/s")
         if dt_s is None:
             return k * self.lambda2()
         dt = positive(dt_s, "dt_s", " s")
-        if not len(self._roots):
-            return 0.0
-        rho = float(np.max(np.abs(1.0 - k * dt * self._spectrum)))
+        lam = self._spectrum
+        rho = float(np.max(np.abs(1.0 - k * dt * lam))) if len(lam) else 0.0
         if rho >= 1.0:
             raise InvalidInputError(
                 f"graph: gain {k:.6g} 1/s with dt_s = {dt:.6g} s makes x <- (I - k dt L) x diverge "
                 f"(max |1 - k dt λ| = {rho:.6g} >= 1); use a gain below {self.largest_stable_gain(dt):.6g} 1/s "
                 f"or a shorter step")
+        if not len(self._roots):
+            return 0.0
         return -math.log(rho) / dt if rho > 0.0 else math.inf
 
