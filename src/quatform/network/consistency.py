@@ -9,9 +9,8 @@ realise it) iff the product of the relative configurations around every cycle of
 is the identity; on the double cover, ``+1`` or ``-1`` (``q`` and ``-q`` are one pose). An
 edge used against its direction contributes the inverse (the conjugate of a unit dual
 quaternion); both directions of a pair given must be mutual inverses (their 2-cycle; the
-longer cycles use the pose given from the lower-indexed robot). A
-cycle basis suffices: the fundamental cycles of a breadth-first spanning forest of the
-undirected graph.
+longer cycles use the pose given from the lower-indexed robot). A cycle basis suffices: the
+fundamental cycles of a breadth-first spanning forest of the undirected graph.
 """
 
 from __future__ import annotations
@@ -167,11 +166,12 @@ def check_relative_poses(graph: Graph, relative, tol_rad: float = TOL_RAD, tol_m
     tol_m = positive(tol_m, "tol_m", " m", "relative poses")
 
     a, b = pairs[~tree, 0], pairs[~tree, 1]
-    both = np.array([(j, i) in row for i, j in graph.edges.tolist()], dtype=bool) & (graph.edges[:, 0]
-                                                                                     < graph.edges[:, 1])
-    i2, j2 = graph.edges[both, 0], graph.edges[both, 1]
+    e = graph.edges
+    both = (e[:, 0] < e[:, 1]) & np.array([(j, i) in row for i, j in e.tolist()], dtype=bool)
+    i2, j2 = e[both, 0], e[both, 1]
+    back = [row[(j, i)] for i, j in zip(i2.tolist(), j2.tolist())]
     products = np.concatenate([dqmul(pose(a, b), dqmul(dqconj(P[b]), P[a])),  # a -> b -> tree path -> a
-                               dqmul(pose(i2, j2), T[[row[(j, i)] for i, j in zip(i2.tolist(), j2.tolist())]])])
+                               dqmul(T[both], T[back])])  # i -> j -> i, both poses as given
     if not len(products):
         return
     q, t = pose_from_dq(products)
