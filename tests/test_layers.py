@@ -15,7 +15,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "quatform"
 LAYERS = {
     "errors": 0, "checks": 0, "tomlio": 0, "papers": 0, "registry": 0,
     "algebra": 1, "messages": 1,
-    "formations": 2, "planning": 2, "teleop": 2,
+    "formations": 2, "planning": 2, "network": 2, "teleop": 2,
     "robots": 3,
     "control": 4, "references": 4,
     "sim": 5,
