@@ -295,11 +295,11 @@ def test_memory_lags_are_int16_and_the_ring_holds_the_longest_lag():
 @pytest.mark.parametrize("kwargs, error, match", [
     ({"delay_s": -0.01}, InvalidInputError, r"delay_s = -0.01 must be a finite number >= 0 s"),
     ({"delay_s": [0.0, 0.1]}, ShapeError, r"delay_s must be a number or one per candidate edge, shape \(3,\)"),
-    ({"jitter_s": [0.0, -1.0, 0.0]}, InvalidInputError, r"jitter_s of edge #2 = -1.0 must be"),
+    ({"jitter_s": [0.0, -1.0, 0.0]}, InvalidInputError, r"jitter_s of candidate edge #2 = -1.0 must be"),
     ({"drop": 1.5}, InvalidInputError, r"drop = 1.5 must be a finite number in \[0, 1\] \(a probability\)"),
     ({"drop": math.nan}, InvalidInputError, r"drop = nan must be a finite number"),
-    ({"rate_hz": 0.0}, InvalidInputError, r"rate_hz = 0.0 must be a finite number > 0 Hz"),
-    ({"rate_hz": [10.0, -1.0, 10.0]}, InvalidInputError, r"rate_hz of robot 2 = -1.0"),
+    ({"rate_hz": 0.0}, InvalidInputError, r"rate_hz = 0.0 must be a finite number > 0 Hz \(None: every tick\)"),
+    ({"rate_hz": [10.0, -1.0, 10.0]}, InvalidInputError, r"rate_hz of robot #2 = -1.0"),
     ({"rate_hz": [10.0, 10.0]}, ShapeError, r"rate_hz must be a number or one per robot, shape \(3,\)"),
     ({"max_age_s": 0.0}, InvalidInputError, r"max_age_s = 0.0 must be a number > 0 s"),
     ({"seed": -1}, InvalidInputError, r"seed = -1 must be an integer >= 0"),
@@ -325,8 +325,7 @@ def test_bad_switching_schedules_batches_and_runs_are_one_line():
                                                 r"\(a robot cannot send faster than the loop ticks\)"):
         links.schedule(_times(5), DT)
     with pytest.raises(ShapeError, match=r"batch \(0,\) must be a tuple of positive integers"):
-        ring_links = Links(ring3)
-        ring_links.schedule(_times(5), DT, (0,))
+        Links(ring3).schedule(_times(5), DT, (0,))
     with pytest.raises(InvalidInputError, match=r"ticks \(3, 9\) must be a range"):
         Links(ring3).schedule(_times(5), DT, ticks=(3, 9))
     with pytest.raises(InvalidInputError, match=r"dt = 0 must be a finite number > 0 s"):

@@ -72,48 +72,27 @@ def _graphs(graph):
     return starts, tuple(p[1] for p in pairs)
 
 
-def _per_edge(value, name: str, unit: str, count: int, upper: float = math.inf) -> np.ndarray:
-    """``value`` (a number or ``(count,)``) as a read-only ``(count,)`` float array, refused in one
-    line unless every entry is finite and in ``[0, upper]``."""
+def _per_item(value, name: str, unit: str, count: int, item: str, strict: bool = False,
+              upper: float = math.inf) -> np.ndarray:
+    """``value`` (a number or one per ``item``, ``(count,)``) as a read-only ``(count,)`` float
+    array, refused in one line unless every entry is finite, ``>= 0`` (``> 0`` where ``strict``)
+    and at most ``upper``."""
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"links: {name} = {short(value)} must be a number or one per candidate edge, "
-                                f"shape ({count},){unit}") from None
+        raise InvalidInputError(f"links: {name} = {short(value)} must be a number or one per {item}, shape "
+                                f"({count},){unit}") from None
     if a.ndim and a.shape != (count,):
-        raise ShapeError(f"links: {name} must be a number or one per candidate edge, shape ({count},), got "
-                         f"shape {a.shape}")
+        raise ShapeError(f"links: {name} must be a number or one per {item}, shape ({count},), got shape {a.shape}")
     a = np.broadcast_to(a, (count,)).copy()
-    bad = ~np.isfinite(a) | (a < 0.0) | (a > upper)
+    bad = ~np.isfinite(a) | (a <= 0.0 if strict else a < 0.0) | (a > upper)
     if np.any(bad):
         k = int(np.argmax(bad))
-        where = f" of edge #{k + 1}" if np.ndim(value) else ""
-        span = f"in [0, {upper:g}]" if math.isfinite(upper) else ">= 0"
+        where = f" of {item} #{k + 1}" if np.ndim(value) else ""
+        span = f"in [0, {upper:g}]" if math.isfinite(upper) else ("> 0" if strict else ">= 0")
         raise InvalidInputError(f"links: {name}{where} = {short(float(a[k]))} must be a finite number {span}{unit}")
     a.setflags(write=False)
     return a
-
-
-def _rates(rate_hz, n: int):
-    """None (every robot sends every tick) or a read-only ``(n,)`` array of rates > 0, Hz."""
-    if rate_hz is None:
-        return None
-    try:
-        r = np.asarray(rate_hz, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"links: rate_hz = {short(rate_hz)} must be a number or one per robot, shape "
-                                f"({n},), Hz") from None
-    if r.ndim and r.shape != (n,):
-        raise ShapeError(f"links: rate_hz must be a number or one per robot, shape ({n},), got shape {r.shape}")
-    r = np.broadcast_to(r, (n,)).copy()
-    bad = ~np.isfinite(r) | (r <= 0.0)
-    if np.any(bad):
-        k = int(np.argmax(bad))
-        who = f" of robot {k + 1}" if np.ndim(rate_hz) else ""
-        raise InvalidInputError(f"links: rate_hz{who} = {short(float(r[k]))} must be a finite number > 0 Hz "
-                                f"(None: every robot sends every tick)")
-    r.setflags(write=False)
-    return r
 
 
 def _batch(batch) -> tuple:
@@ -199,10 +178,12 @@ class Links:
         if not isinstance(self.graph, Graph):
             object.__setattr__(self, "graph", tuple(zip(starts.tolist(), graphs)))
         for name, value in (("n", n), ("edges", edges), ("starts", starts), ("active", active),
-                            ("delay_s", _per_edge(self.delay_s, "delay_s", " s", count)),
-                            ("jitter_s", _per_edge(self.jitter_s, "jitter_s", " s", count)),
-                            ("drop", _per_edge(self.drop, "drop", " (a probability)", count, upper=1.0)),
-                            ("rate_hz", _rates(self.rate_hz, n)), ("max_age_s", float(age)), ("seed", int(seed))):
+                            ("delay_s", _per_item(self.delay_s, "delay_s", " s", count, "candidate edge")),
+                            ("jitter_s", _per_item(self.jitter_s, "jitter_s", " s", count, "candidate edge")),
+                            ("drop", _per_item(self.drop, "drop", " (a probability)", count, "candidate edge",
+                                               upper=1.0)),
+                            ("rate_hz", None if self.rate_hz is None else
+                             _per_item(self.rate_hz, "rate_hz", " Hz (None: every tick)", n, "robot", strict=True)), ("max_age_s", float(age)), ("seed", int(seed))):
             object.__setattr__(self, name, value)
 
     # ------------------------------------------------------------------ host: the schedule
