@@ -334,3 +334,27 @@ def test_bad_switching_schedules_batches_and_runs_are_one_line():
         Links(ring3).init(np.zeros((4, 2)))
     with pytest.raises(ShapeError, match=r"schedule lags of shape \(5, 2, 3\) for batch \(3,\)"):
         Links(ring3).init(np.zeros((3, 2)), (3,), Links(ring3).schedule(_times(5), DT, (2,)))
+
+
+def test_a_loop_drawing_chunk_by_chunk_reads_what_one_schedule_reads():
+    links = Links(Graph.complete(3), delay_s=0.02, jitter_s=0.05, drop=0.3, rate_hz=50.0, max_age_s=0.09, seed=4)
+    T, times = 90, _times(90)
+    out = np.random.default_rng(3).normal(size=(T, 2, 3, 4))
+    expected = _run(links, links.schedule(times, DT, (2,)), times, out)
+    state = links.init(out[0], (2,), length=links.horizon_ticks(DT, T) + 1)
+    got = []
+    for k0 in range(0, T, 25):
+        chunk = links.schedule(times, DT, (2,), ticks=(k0, min(k0 + 25, T)))
+        for k in range(k0, min(k0 + 25, T)):
+            state = links.write(state, out[k], times[k])
+            got.append(links.read(state, _tick(chunk, k - k0)))
+    for a, b in zip(zip(*got), expected):
+        np.testing.assert_array_equal(np.stack(a), b)
+
+
+def test_a_lag_the_ring_does_not_hold_reads_as_not_valid():
+    links = Links(Graph.ring(3), delay_s=0.05)
+    state = links.write(links.init(np.ones((3, 2)), length=3), np.ones((3, 2)), 0.0)
+    messages, stamps, valid = links.read(state, {"lag": np.array([5, 2, -1], dtype=np.int16)})
+    np.testing.assert_array_equal(valid, [False, True, False])
+    assert np.all(messages[[0, 2]] == 0.0) and np.all(stamps[[0, 2]] == -np.inf)

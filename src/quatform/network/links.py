@@ -183,7 +183,8 @@ class Links:
                             ("drop", _per_item(self.drop, "drop", " (a probability)", count, "candidate edge",
                                                upper=1.0)),
                             ("rate_hz", None if self.rate_hz is None else
-                             _per_item(self.rate_hz, "rate_hz", " Hz (None: every tick)", n, "robot", strict=True)), ("max_age_s", float(age)), ("seed", int(seed))):
+                             _per_item(self.rate_hz, "rate_hz", " Hz (None: every tick)", n, "robot", strict=True)),
+                            ("max_age_s", float(age)), ("seed", int(seed))):
             object.__setattr__(self, name, value)
 
     # ------------------------------------------------------------------ host: the schedule
