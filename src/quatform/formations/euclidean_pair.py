@@ -226,15 +226,23 @@ class EuclideanPair(Formation):
                             "other: held at near_c's; its rate is undefined", jacobian="raises",
                             inverse_jacobian="rank-deficient")
 
+    singularity_on_arrays = True
+    #: :meth:`to_chart_arrays` runs on any array namespace.
+    chart_on_arrays = True
+
+    def inverse_jacobian_arrays(self, c, r):
+        return self.inverse_jacobian_at(c, r=r)
+
     def to_chart(self, c, *, near_e=None, r=None):
         c = self.check_cluster_state(c)
+        return self.to_chart_arrays(c, None if near_e is None else np.asarray(near_e, dtype=float))
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of checked arrays of any namespace: ``c`` with ``beta_c``, ``phi_1``,
+        ``phi_2`` unwrapped near ``near_e``'s (a new array)."""
         if near_e is None:
-            return c.copy()
-        near_e = np.asarray(near_e, dtype=float)
-        e = c.copy()
-        for i in (3, 6, 7):
-            e[..., i] = g.unwrap_near(c[..., i], near_e[..., i])
-        return e
+            return c.copy() if isinstance(c, np.ndarray) else c
+        return map_entries(c, (3, 6, 7), lambda a, b: g.unwrap_near(c[..., a:b], near_e[..., a:b]))
 
     def from_chart(self, e, e_dot=None):
         e = self.check_cluster_state(e, "e")
@@ -296,13 +304,24 @@ class RobotSpace(Formation):
         return xp.broadcast_to(xp.eye(8), c.shape[:-1] + (8, 8))
 
     def length_scale(self, r):
-        return np.ones(np.shape(r)[:-1])
+        return namespace(r).ones(np.shape(r)[:-1])
+
+    singularity_on_arrays = True
+    chart_on_arrays = True
+
+    def inverse_jacobian_arrays(self, c, r):
+        return self.inverse_jacobian_at(c, r=r)
 
     def special_sets(self):
         return sp.pair_sets("the Euclidean chart of eqs. (1)-(8) is singular here; the robot space is not")
 
     def to_chart(self, c, *, near_e=None, r=None):
         return self._euclidean.to_chart(self._euclidean.forward(c), near_e=near_e)
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of checked arrays of any namespace (robots apart)."""
+        E = self._euclidean
+        return E.to_chart_arrays(E.forward_arrays(c), near_e)
 
     def from_chart(self, e, e_dot=None):
         E = self._euclidean
