@@ -331,3 +331,17 @@ def test_drawn_angle_gap_is_the_wrapped_error(pairs):
     for drawn, raw in ((ym, meas), (yd, des)):
         d = np.abs((drawn - raw + np.pi) % (2 * np.pi) - np.pi)[np.isfinite(drawn)]
         assert np.all(d < 1e-9)
+
+
+def test_a_shortened_experiment_is_finished_on_its_own_ticks():
+    """``Experiment.times`` cut short (6 s, past metrics_from_s = 5 s): the finish reads the log's
+    own ticks of the scenario's."""
+    ex = PAIR.experiment(load_scenario("mas-kitts-helix"), controller="quaternion")
+    short = dataclasses.replace(ex, times=ex.times[:600])
+    log = short.run()
+    assert log["e_des"].shape == (600, 8) and log["singularity"].shape == (600, 1)
+    np.testing.assert_array_equal(log["r_des"], np.stack([ex.reference(k).robots for k in range(600)]))
+    m = short.metrics(log)
+    assert m["duration_s"] == pytest.approx(ex.times[599]) and m["singularity_samples"] == 600
+    with pytest.raises(InvalidInputError, match="not the scenario's ticks"):
+        dataclasses.replace(ex, times=ex.times[:600] + 0.003).run()

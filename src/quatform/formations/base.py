@@ -444,11 +444,22 @@ class Formation(ABC):
         s = array_namespace(J).linalg.svd(J, compute_uv=False)
         return s[..., -1] / s[..., 0]
 
-    def inverse_jacobian_arrays(self, c, r):
-        """:meth:`inverse_jacobian_at` (``(..., n_r, n_c)``) of checked arrays of any namespace,
-        for a description with :attr:`singularity_on_arrays`."""
-        raise NotImplementedError(f"{type(self).__name__} has no inverse_jacobian_arrays: its singularity measure "
-                                  "runs on NumPy arrays only")
+    def inverse_jacobian_arrays(self, c, r=None):
+        """:meth:`inverse_jacobian_at` (``(..., n_r, n_c)``) of checked arrays of any namespace
+        (``r``: the robots of ``c``, for a description whose rates read them): its
+        ``robot_rate_arrays`` (:meth:`robot_rate` without its checks, on NumPy or JAX arrays)
+        on the unit vectors."""
+        rate = getattr(self, "robot_rate_arrays", None)
+        if rate is None:
+            raise NotImplementedError(f"{type(self).__name__} has no inverse_jacobian_arrays: its singularity measure "
+                                      "runs on NumPy arrays only")
+        xp = array_namespace(c)
+        basis = xp.asarray(self._basis(self.n_c, c.ndim - 1))
+        cols = rate(c, basis, r=r) if self.rates_read_robots else rate(c, basis)
+        return xp.moveaxis(cols, 0, -1)
+
+    #: Whether ``robot_rate_arrays`` takes the robots ``r`` of ``c`` (``r=``).
+    rates_read_robots = False
 
     def value_spread(self, r, delta, *, near_c=None) -> np.ndarray:
         """How far :meth:`forward`'s values at ``r`` can move when every entry of ``r`` moves by at

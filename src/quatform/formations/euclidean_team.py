@@ -159,6 +159,7 @@ class EuclideanTeam(Formation):
 
     name = "euclidean-team"
     key = "euclidean-team"
+    singularity_on_arrays = True  # Formation.singularity_measure_arrays: robot_rate_arrays of the unit vectors
     team = True
     #: ``--controller cluster-space``.
     controller = "cluster-space"

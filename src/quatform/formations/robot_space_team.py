@@ -56,6 +56,7 @@ class RobotSpaceTeam(Formation):
 
     name = "robot-space-team"
     key = "robot-space-team"
+    singularity_on_arrays = True  # Formation.singularity_measure_arrays: robot_rate_arrays of the unit vectors
     team = True
     #: ``--controller robot-space``.
     controller = "robot-space"
@@ -168,7 +169,7 @@ class RobotSpaceTeam(Formation):
         state is the robots' own coordinates (``J = I``, no special set), so nothing is divided
         by the robots' separation. :meth:`singularity_measure` is 1 (robots on each other
         included) and :meth:`value_spread` is ``sqrt(n_r) delta``, the bound of ``c = r``."""
-        return np.ones(np.shape(r)[:-1])
+        return array_namespace(r).ones(np.shape(r)[:-1])
 
     def inverse_jacobian(self, r, *, near_c=None):
         """The identity ``(..., n_r, n_r)`` at any robots ``r``, robots on each other included

@@ -15,9 +15,10 @@ The desired chart and the ticks whose singularity measure a run computes are the
 own: its ``finish`` applied to a log of the reference (:func:`_desired`). The singularity
 metrics need the description's :meth:`~quatform.formations.base.Formation.singularity_measure_arrays`
 and the recovered chart error its :meth:`~quatform.formations.base.Formation.to_chart_arrays`
-on JAX; a description that offers neither on the array namespace (its
-``singularity_on_arrays`` / ``chart_on_arrays`` False) has those keys absent from the result,
-as has a run with ``singularity=False``; its sweep runs :func:`~quatform.sim.loop.simulate_jax`
+on JAX; a description that does not offer them on the array namespace (its
+``singularity_on_arrays`` / ``chart_on_arrays`` False: the dual-quaternion pair's chart, the
+team descriptions' charts) has those keys absent from the result, as has a run with
+``formation_metrics=False``; its sweep runs :func:`~quatform.sim.loop.simulate_jax`
 and ``Experiment.metrics`` on a logged batch.
 """
 
@@ -57,7 +58,7 @@ _REDUCERS: dict = {}
 
 
 def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: int | None = None,
-                    singularity: bool = True) -> dict:
+                    formation_metrics: bool = True) -> dict:
     """Every trial's metrics of a batched experiment, rolled out on JAX without a log.
 
     Parameters
@@ -77,9 +78,11 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
         up to a multiple of the device count. Default: :func:`.jax_devices.chunk_size` (a
         cache-sized chunk per CPU core, the whole batch on a GPU). Each call's trials are
         spread over JAX's devices (:mod:`.jax_devices`).
-    singularity : bool
-        Reduce the description's singularity measure (the singular values of its inverse
-        Jacobian at every tick the kind measures; default True).
+    formation_metrics : bool
+        Reduce the metrics that need the controller's description at every tick: its
+        singularity measure (the singular values of its inverse Jacobian, at the ticks the kind
+        measures) and the recovered chart's error (default True; off, a rollout runs at the
+        speed of the errors from the robots alone: ``docs/performance.md``).
 
     Returns
     -------
@@ -123,8 +126,8 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     F = getattr(ctrl, "formation", None) or ctrl.inner.formation
     chart = meta.get("chart", TEAM_CHART)
     spec = {"layout": meta["layout"], "team": meta["team"], "chart": chart, "n_chart": desired["e_des"].shape[-1],
-            "chart_of": F if F.chart_on_arrays else None,
-            "measure": F if singularity and F.singularity_on_arrays else None,
+            "chart_of": F if formation_metrics and F.chart_on_arrays else None,
+            "measure": F if formation_metrics and F.singularity_on_arrays else None,
             "threshold": singular_threshold(meta["layout"].n), "finite": signals.index("raw_finite"),
             "cluster": signals.index("cluster"),
             "safety": signals.index("safety_active") if "safety_active" in signals else None}
@@ -265,9 +268,8 @@ def _reducer(layout, team, chart, n_chart, chart_of, measure, threshold, finite,
         acc["first_lost"] = jnp.where((acc["first_lost"] < 0) & lost, xs["k"], acc["first_lost"])
         if safety is not None:
             acc["safety_ticks"] = acc["safety_ticks"] + (ys[3 + safety][:, 0] > 0.5)
-        if measure is not None:  # only at the ticks the kind measures (a schedule, not data)
-            s = jax.lax.cond(xs["sing_at"], lambda: measure.singularity_measure_arrays(xk, xs["ref"]["c"]),
-                             lambda: jnp.full(xk.shape[:1], jnp.inf))
+        if measure is not None:  # counted at the ticks the kind measures
+            s = jnp.where(xs["sing_at"], measure.singularity_measure_arrays(xk, xs["ref"]["c"]), jnp.inf)
             acc["min_singularity_measure"] = jnp.minimum(acc["min_singularity_measure"], s)
             acc["first_singular"] = jnp.where((acc["first_singular"] < 0) & (s < threshold), xs["k"],
                                               acc["first_singular"])

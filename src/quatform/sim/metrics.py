@@ -109,6 +109,18 @@ def _heading_entries(layout) -> np.ndarray:
     return 7 + 3 * layout.n + np.flatnonzero(kinds)
 
 
+def _pair_fit_errors(xp, delta, delta_des):
+    """``(shape, orientation)`` of the best fit for two robots, whose segments are ``delta``
+    and ``delta_des`` (``(..., 3)``, robot 2 to robot 1): :func:`fit_attitude` breaks the tie
+    (the twist about the segment) toward the minimal rotation between the segments (seed 000
+    eqs. (14)-(15)), so ``Q^T c_i`` lies along ``d_i`` and the shape error is ``| |delta| -
+    |delta_des| | / 2``, the orientation error the angle between the segments,
+    ``atan2(|delta x delta_des|, delta . delta_des)`` (accurate near 0 and pi)."""
+    n, n_des = xp.linalg.norm(delta, axis=-1), xp.linalg.norm(delta_des, axis=-1)
+    cross = xp.linalg.norm(xp.cross(delta, delta_des), axis=-1)
+    return 0.5 * xp.abs(n - n_des), xp.arctan2(cross, xp.sum(delta * delta_des, axis=-1))
+
+
 def error_signals(layout, r, r_des, e=None, e_des=None, *, chart: str = TEAM_CHART) -> dict:
     """The error signals of robots ``r`` against ``r_des`` (module docstring), on any leading
     axes (a time series, a batch of worlds at one tick ...) and any array namespace (NumPy,
@@ -137,15 +149,19 @@ def error_signals(layout, r, r_des, e=None, e_des=None, *, chart: str = TEAM_CHA
     xp = namespace(r)
     p, pd = team_positions(layout, r), team_positions(layout, r_des)  # (..., N, 3)
     xc, xcd = xp.mean(p, axis=-2), xp.mean(pd, axis=-2)
-    c, d = p - xc[..., None, :], pd - xcd[..., None, :]
-    Q = fit_attitude(d, c)
-    back = g.rotate(g.conj(Q)[..., None, :], c)
     each = xp.linalg.norm(p - pd, axis=-1)
     i, j = layout.pairs
+    if layout.n == 2:  # the fit's closed form (a static choice of the layout, no eigensolver per sample)
+        shape, orientation = _pair_fit_errors(xp, p[..., 0, :] - p[..., 1, :], pd[..., 0, :] - pd[..., 1, :])
+    else:
+        c, d = p - xc[..., None, :], pd - xcd[..., None, :]
+        Q = fit_attitude(d, c)
+        shape = xp.max(xp.linalg.norm(g.rotate(g.conj(Q)[..., None, :], c) - d, axis=-1), axis=-1)
+        orientation = rotation_angle(Q)
     out = {
         "cluster_position": xp.linalg.norm(xc - xcd, axis=-1),
-        "shape": xp.max(xp.linalg.norm(back - d, axis=-1), axis=-1),
-        "orientation": rotation_angle(Q),
+        "shape": shape,
+        "orientation": orientation,
         "robot_position": xp.max(each, axis=-1),
         "robot_position_each": each,
         "separation": (xp.min(xp.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1), axis=-1) if layout.n > 1
