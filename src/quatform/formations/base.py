@@ -420,18 +420,13 @@ class Formation(ABC):
         Taken on the normalised formation: robot positions moved so that their centroid is
         at the origin and divided by :meth:`length_scale`, so the value depends on the
         formation's shape and attitude only, not on where it is, how big, or the unit
-        (:meth:`normalised`). :meth:`singularity_measure_arrays` after the checks where the
-        description offers it.
+        (:meth:`normalised`). :meth:`singularity_measure_arrays` is the same measure on any
+        array namespace (equal within rounding).
 
         Returns
         -------
         ndarray, shape (...)
         """
-        if self.singularity_on_arrays:
-            r = self._checked_apart(r)
-            if near_c is not None:
-                near_c = self.check_cluster_state(near_c, "near_c")
-            return self.singularity_measure_arrays(r, near_c)
         s = np.linalg.svd(self.inverse_jacobian(self.normalised(r), near_c=near_c), compute_uv=False)
         return s[..., -1] / s[..., 0]
 
@@ -528,8 +523,9 @@ class Formation(ABC):
         centre = xp.mean(p, axis=-2, keepdims=True)
         if "xy_yaw" in L.kinds:  # planar robots stay on the ground
             centre = centre * np.array([1.0, 1.0, 0.0])
-        return team_compose(L, (p - centre) / self.length_scale(r)[..., None, None], r[..., list(L.yaw_indices)],
-                            r[..., L.orientation_index])
+        compose = L.compose if xp is np else functools.partial(team_compose, L)  # NumPy's in C order
+        return compose((p - centre) / self.length_scale(r)[..., None, None], r[..., list(L.yaw_indices)],
+                       r[..., L.orientation_index])
 
 
 _EXAMPLES: dict[type, dict] = {}
