@@ -82,7 +82,10 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
         Reduce the metrics that need the controller's description at every tick: its
         singularity measure (the singular values of its inverse Jacobian, at the ticks the kind
         measures) and the recovered chart's error (default True; off, a rollout runs at the
-        speed of the errors from the robots alone: ``docs/performance.md``).
+        speed of the errors from the robots alone). On the CPU they cost about ten times the
+        tick (the pair, one device), and with the batch sharded over several CPU devices
+        (:mod:`.jax_devices`) the sharded singular value decomposition of a batch of 256
+        stalls in XLA: there pass ``formation_metrics=False`` or run on one device.
 
     Returns
     -------
