@@ -73,7 +73,6 @@ from quatform.scenarios.ugv_uav import ugv_uav_experiment, with_profile  # noqa:
 from quatform.sim import loop  # noqa: E402
 from quatform.sim.backends import SIM_BACKENDS, simulator  # noqa: E402
 from quatform.sim.jax_rollout import ROLLOUT_METRICS, rollout_metrics  # noqa: E402
-from quatform.sim.metrics import compute_metrics  # noqa: E402
 from quatform.sim.trial_measurement import TickMeasurement  # noqa: E402
 from quatform.teleop.controller import MAX_JOINT_ANGLE  # noqa: E402
 from quatform.tomlio import read_toml  # noqa: E402
@@ -731,9 +730,25 @@ def test_team_sweep_equals_numpy(tmp_path, backend):
 
 # -- the batched rollout reduced as it runs ----------------------------------------------------------
 
+def _assert_rollout_is_compute_metrics(res, ex, logged, worlds):
+    """Every key the rollout returns equals ``ex.metrics`` of each healthy logged world."""
+    assert {"reference_lost", "max_orientation_error_rad", "robot_position_error_median_m"} <= set(res)
+    for i in worlds:
+        want = ex.metrics(logged.world(i))
+        for key in set(ROLLOUT_METRICS) & set(res):
+            got, exp = res[key][i], want[key]
+            if exp is None:
+                assert np.isnan(got), key
+            elif isinstance(exp, bool):
+                assert bool(got) == exp, key
+            else:
+                assert float(got) == pytest.approx(float(exp), rel=1e-9, abs=TOL), key
+
+
 @pytest.mark.parametrize("controller", ["quaternion", "robot-space"])
 def test_rollout_metrics_equal_compute_metrics(controller):
-    """The reduced rollout's metrics equal compute_metrics of each world of a logged NumPy batch."""
+    """The reduced rollout's metrics equal compute_metrics of each world of a logged NumPy batch,
+    the singularity measure and the recovered Euclidean error included."""
     ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.8), controller=controller)
     ex = dataclasses.replace(ex, meta={**ex.meta, "metrics_from_s": 0.3})
     T = ex.times.size
@@ -742,6 +757,7 @@ def test_rollout_metrics_equal_compute_metrics(controller):
     x0[4, 0] = np.nan  # world 4 starts with a NaN
     meas = TickMeasurement(rng.normal(0.0, 0.004, (T, 5, 8)), 1, rng.random((T, 5)) < 0.05)
     res = rollout_metrics(ex, x0, meas, trials_per_call=2)  # chunks of 2, the last one padded
+    assert {"min_singularity_measure", "max_recovered_euclidean_error_rad"} <= set(res)
     log = PAIR.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8), metrics_from_s=0.3),
                           controller=controller)
     log = dataclasses.replace(log, x0=x0, measurement=meas, finish=lambda log: log)
@@ -749,19 +765,31 @@ def test_rollout_metrics_equal_compute_metrics(controller):
     assert res["failed"].tolist() == raw.meta["failed"].tolist() == [False] * 4 + [True]
     assert res["failure"] == raw.meta["failure"]
     healthy = TickMeasurement(meas.noise[:, :4], 1, meas.dropped[:, :4])
-    full = dataclasses.replace(PAIR.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8),
-                                                                   metrics_from_s=0.3), controller=controller),
-                               x0=x0[:4], measurement=healthy).run(backend="numpy")
-    for i in range(4):
-        want = compute_metrics(full.world(i))
-        for key in ROLLOUT_METRICS:
-            got, exp = res[key][i], want[key]
-            if exp is None:
-                assert np.isnan(got), key
-            elif isinstance(exp, bool):
-                assert bool(got) == exp, key
-            else:
-                assert float(got) == pytest.approx(float(exp), abs=TOL), key
+    ex = dataclasses.replace(PAIR.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8),
+                                                                 metrics_from_s=0.3), controller=controller),
+                             x0=x0[:4], measurement=healthy)
+    _assert_rollout_is_compute_metrics(res, ex, ex.run(backend="numpy"), range(4))
+
+
+@pytest.mark.parametrize("scenario, controller, barrier", [
+    ("team-tetrahedron-helix", "cluster-space", False),  # four robots, the barrier off
+    ("team-ring-flip", "quaternion", True),  # ten robots under the separation barrier
+])
+def test_rollout_metrics_of_a_team_equal_compute_metrics(scenario, controller, barrier):
+    """Any N, with or without the barrier: the same keys and values as compute_metrics of the
+    logged NumPy run; without the description's metrics only the errors from the robots."""
+    ex = TEAM.experiment(dataclasses.replace(short_scenario(scenario, 0.5), metrics_from_s=0.2), controller=controller,
+                         min_separation=None if barrier else 0.0)
+    assert ex.meta["safety"]["applied"] == barrier
+    x0 = ex.x0 + np.random.default_rng(5).normal(0.0, 0.01, (3,) + ex.x0.shape)
+    ex = dataclasses.replace(ex, x0=x0)
+    res = rollout_metrics(ex, x0, trials_per_call=2)
+    assert ("safety_active_time_s" in res) == barrier and "min_singularity_measure" in res
+    logged = ex.run(backend="numpy")
+    _assert_rollout_is_compute_metrics(res, ex, logged, range(3))
+    bare = rollout_metrics(ex, x0, formation_metrics=False)
+    assert "min_singularity_measure" not in bare and "max_recovered_attitude_error_rad" not in bare
+    _assert_rollout_is_compute_metrics(bare, ex, logged, range(3))
 
 
 @pytest.mark.parametrize("bad", [0, -1, 0.5, "3", True, float("nan")])
@@ -771,7 +799,7 @@ def test_rollout_refusals_are_one_line(bad):
         rollout_metrics(ex, np.broadcast_to(ex.x0, (2, 8)), trials_per_call=bad)
     with pytest.raises(ShapeError, match="at least one world"):
         rollout_metrics(ex, np.zeros((0, 8)))
-    team = TEAM.experiment(short_scenario("team-tetrahedron-helix", 0.1), controller="quaternion")
-    with pytest.raises(InvalidInputError, match="rollout_metrics reduces experiments of two kinematic robots") as e:
-        rollout_metrics(team)
+    user = dataclasses.replace(ex, controller=UpdateOnly(ex.controller))
+    with pytest.raises(InvalidInputError, match="rollout_metrics reduces batched experiments of kinematic robots") as e:
+        rollout_metrics(user)
     assert "\n" not in str(e.value)

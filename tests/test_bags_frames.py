@@ -5,7 +5,7 @@ Oracles: the motion's own angular steps, computed from the robots' positions and
 reference's Euclidean variables without any quaternion frame (a pair: the angle between
 consecutive segment directions and the steps of the desired yaw and pitch ``beta_c``,
 ``gamma_c``; a team: the rotation best fitting consecutive point sets), and the metrics'
-error signals (``sim.metrics.errors_from_robots``, ``sim.team_metrics.team_errors``).
+error signals (``sim.metrics.errors_from_robots``).
 """
 
 import dataclasses
@@ -23,7 +23,6 @@ from quatform.formations import geometry as g
 from quatform.scenarios import kind_of, load_scenario
 from quatform.sim.metrics import errors_from_robots
 from quatform.formations.team_chart import fit_attitude
-from quatform.sim.team_metrics import team_errors
 
 #: The scenarios whose motion is smooth (no designed step of the reference), each run whole.
 SMOOTH = ("mas-kitts-helix", "mas-kitts-spiral", "team-three-bodies", "team-ring-flip", "team-tetrahedron-helix")
@@ -124,7 +123,7 @@ def test_the_plotted_error_angle_is_the_metrics_orientation_error(name):
     scene = scene_of(log, kind)
     angle = _angle(scene.formation[1], scene.formation_desired[1])
     # the pair: the angle between the segments; a team: its chart's attitude error
-    want = errors_from_robots(log)["orientation"] if kind == "pair" else team_errors(log)["recovered_attitude"]
+    want = errors_from_robots(log)["orientation" if kind == "pair" else "recovered_attitude"]
     np.testing.assert_allclose(angle, want, rtol=0, atol=ANGLE_ATOL)
     late = log.t >= log.meta["metrics_from_s"]
     # a team's metric is the attitude of the best fit of the points (Horn), its chart's the

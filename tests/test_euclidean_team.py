@@ -23,7 +23,7 @@ from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import load_scenario
 from quatform.scenarios.pair import PAIR
 from quatform.sim import simulate
-from quatform.sim.team_metrics import singular_threshold
+from quatform.sim.metrics import singular_threshold
 from quatform.sim.plants.kinematic import KinematicTeam
 
 SPATIAL_MIX = RobotLayout(("xyz_yaw", "xyz", "xyz_yaw", "xyz_yaw", "xyz"))

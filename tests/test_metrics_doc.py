@@ -39,7 +39,14 @@ def _keys(section: str) -> dict:
 
 
 def _defined(kind: str) -> dict:
-    return {**_keys("metrics.json: every run"), **_keys(f"metrics.json: {kind}")}
+    """The keys defined for ``kind``: every run's and its own section's (the pair and the team
+    kind share one, whose last column names the kinds of each key)."""
+    if kind in ("pair", "team"):
+        rows = _sections()["metrics.json: pair and team"][1:]
+        own = {r[0].strip("`"): (r[1], r[2]) for r in rows if r[3] in ("both", kind)}
+    else:
+        own = _keys(f"metrics.json: {kind}")
+    return {**_keys("metrics.json: every run"), **own}
 
 
 def _short(name, **changes):

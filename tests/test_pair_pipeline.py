@@ -338,3 +338,41 @@ def test_a_description_whose_cluster_is_the_robots_leaves_it_out_of_the_csv():
     for F in (RobotSpace(), RobotSpaceTeam(n=2)):
         assert F.cluster_is_robot_state and ("cluster", "c_des") not in pair_csv_channels(F)
     assert ("cluster", "c_des") in pair_csv_channels(QuaternionPair())
+
+
+def test_a_shortened_experiment_is_finished_on_its_own_ticks():
+    """``Experiment.times`` cut short (6 s, past metrics_from_s = 5 s): the finish reads the log's
+    own ticks of the scenario's."""
+    ex = PAIR.experiment(load_scenario("mas-kitts-helix"), controller="quaternion")
+    short = dataclasses.replace(ex, times=ex.times[:600])
+    log = short.run()
+    assert log["e_des"].shape == (600, 8) and log["singularity"].shape == (600, 1)
+    np.testing.assert_array_equal(log["r_des"], np.stack([ex.reference(k).robots for k in range(600)]))
+    m = short.metrics(log)
+    assert m["duration_s"] == pytest.approx(ex.times[599]) and m["singularity_samples"] == 600
+    with pytest.raises(InvalidInputError, match="not the scenario's ticks"):
+        dataclasses.replace(ex, times=ex.times[:600] + 0.003).run()
+
+
+#: metrics.json of mas-kitts-spiral under the robot-space controller as the pair's own metrics
+#: function wrote it (arccos of the segments' dot product for the orientation error).
+SPIRAL_ROBOT_SPACE = {
+    "duration_s": 60.0, "max_cluster_position_error_m": 0.0005117428516231187,
+    "max_command_speed_m_s": 3.0000000000000004, "max_orientation_error_rad": 0.0006037117798673698,
+    "max_recovered_euclidean_error_rad": 3.141570883344336, "max_robot_position_error_m": 0.0015935204040797804,
+    "max_robot_yaw_error_rad": 5.231375166614427e-05, "max_shape_error_m": 0.0014320223180099845,
+    "min_robot_separation_m": 2.0395553852503214, "min_singularity_measure": 1.0, "nonfinite_commands": 0,
+    "reference_lost": False, "singularity_detected": False, "first_lost_time_s": None, "first_singular_time_s": None,
+}
+
+
+def test_the_one_metrics_function_keeps_the_pairs_values():
+    """compute_metrics (the team definitions, N = 2) on a pair log: the values the pair's own
+    definitions gave, within 1e-9 relative (an absolute floor of 1e-9 near zero)."""
+    m = compute_metrics(run_pair(load_scenario("mas-kitts-spiral"), "robot-space"))
+    for key, want in SPIRAL_ROBOT_SPACE.items():
+        if isinstance(want, float):
+            assert m[key] == pytest.approx(want, rel=1e-9, abs=1e-9), key
+        else:
+            assert m[key] == want, key
+    assert m["n_robots"] == 2 and m["singularity_samples"] == 6001 and m["max_reading_error_rad"] is None

@@ -394,42 +394,10 @@ def test_compare_leaves_out_a_description_that_cannot_take_the_team(tmp_path):
     assert "Not run: cluster-space" in (tmp_path / "cmp" / "comparison.md").read_text()
 
 
-def test_the_team_metrics_of_a_pair_run_are_the_pair_metrics():
-    """The definitions on seed 000's spiral (through the vertical at 27.5 s, off the reference
-    at the start) under the quaternion pair controller: the same robots give the same values."""
-    from quatform.formations.base import PAIR_LAYOUT
-    from quatform.robots import Team
-    from quatform.sim.log import Channel, Log
-    from quatform.sim.team_metrics import team_metrics
-
-    # the transient too: metrics from t = 0
-    sc = dataclasses.replace(load_scenario("mas-kitts-spiral"), duration_s=30.0, metrics_from_s=0.0)
-    log = run_pair(sc, "quaternion")
-    pair = compute_metrics(log)
-    chart = TeamChart(PAIR_LAYOUT)
-    r, rd = np.asarray(log["state"]), np.asarray(log["r_des"])
-    e_des = chart.from_robots(rd)
-    team_log = Log(log.t, [Channel("points", PAIR_LAYOUT.names, r), Channel("r_des", PAIR_LAYOUT.names, rd),
-                           Channel("e", chart.names, chart.from_robots(r, near_e=e_des)),
-                           Channel("e_des", chart.names, e_des), log.channels["command"], log.channels["raw_finite"],
-                           log.channels["singularity"]],
-                   {**log.meta, "layout": PAIR_LAYOUT, "team": Team(), "n_robots": 2})
-    team = team_metrics(team_log)
-    for key in ("max_cluster_position_error_m", "max_shape_error_m", "max_orientation_error_rad",
-                "max_robot_position_error_m", "max_robot_yaw_error_rad", "min_robot_separation_m",
-                "max_command_speed_m_s", "min_singularity_measure"):
-        assert team[key] == pytest.approx(pair[key], abs=1e-9), key
-    for key in ("reference_lost", "first_lost_time_s", "nonfinite_commands", "singularity_detected"):
-        assert team[key] == pair[key], key
-    assert pair["max_shape_error_m"] > 0.05 and pair["max_orientation_error_rad"] > 0.05
-    assert pair["max_robot_yaw_error_rad"] > 0.1
-
-
 def test_the_singular_threshold_is_the_pairs_for_two_robots_and_scales_with_the_team():
     """A flat ring of 10 read 0.0135 under the Euclidean team away from any singular pose, below
     the pair's 0.02, so every run would read 'singular from t = 0' with the pair's threshold."""
-    from quatform.sim.metrics import SINGULAR_THRESHOLD
-    from quatform.sim.team_metrics import singular_threshold
+    from quatform.sim.metrics import SINGULAR_THRESHOLD, singular_threshold
 
     assert singular_threshold(2) == SINGULAR_THRESHOLD
     assert singular_threshold(10) < 0.0135 and singular_threshold(100) < singular_threshold(10)

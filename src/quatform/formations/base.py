@@ -32,12 +32,13 @@ import numpy as np
 
 from ..algebra import wrap_angle
 from ..algebra.angles import wrap_entries
-from ..algebra.kernels import concrete
+from ..algebra.kernels import array_namespace, concrete
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError
 from ..registry import Registry, RegistryView
 from .layout import POINT_KINDS, RobotLayout, Variable
 from .special_sets import SpecialSet
+from .team_chart import team_compose, team_positions
 
 __all__ = ["Variable", "Formation", "Preset", "SpecialSet", "FORMATION_TYPES", "FORMATIONS", "TEAM_FORMATIONS", "ROBOT_PAIR_VARIABLES", "PAIR_LAYOUT", "MIN_SEPARATION_M",
            "MAX_MAGNITUDE"]
@@ -404,12 +405,25 @@ class Formation(ABC):
         """Size of the formation (m), used to make Jacobians dimensionless: half the largest
         separation of two robots (``d_c`` of a pair); for more than :data:`_ALL_PAIRS_UP_TO`
         robots the largest distance from the centroid (O(N), within a factor 2 of it).
-        Shape ``(...)``."""
-        p = self.layout.positions(r)
+        Shape ``(...)``; any array namespace."""
+        xp = array_namespace(r)
+        p = team_positions(self.layout, r)
         if self.layout.n > _ALL_PAIRS_UP_TO:  # O(N): the largest distance from the centroid
-            return np.max(np.linalg.norm(p - p.mean(axis=-2, keepdims=True), axis=-1), axis=-1)
+            return xp.max(xp.linalg.norm(p - xp.mean(p, axis=-2, keepdims=True), axis=-1), axis=-1)
         i, j = self.layout.pairs
-        return 0.5 * np.max(np.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1), axis=-1)
+        return 0.5 * xp.max(xp.linalg.norm(p[..., i, :] - p[..., j, :], axis=-1), axis=-1)
+
+    #: Whether :meth:`to_chart_arrays` runs on any array namespace (NumPy, JAX under ``jax.jit``).
+    chart_on_arrays = False
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of checked arrays of any namespace, for a description with
+        :attr:`chart_on_arrays`."""
+        raise NotImplementedError(f"{type(self).__name__} has no to_chart_arrays: its chart runs on NumPy arrays only")
+
+    #: Whether :meth:`singularity_measure_arrays` runs on any array namespace (NumPy, JAX under
+    #: ``jax.jit``): the description's :meth:`forward_arrays` and :meth:`inverse_jacobian_arrays` do.
+    singularity_on_arrays = False
 
     def singularity_measure(self, r, *, near_c=None) -> np.ndarray:
         """Reciprocal condition number of the inverse Jacobian, in ``[0, 1]``; 0 at a singular pose.
@@ -417,7 +431,8 @@ class Formation(ABC):
         Taken on the normalised formation: robot positions moved so that their centroid is
         at the origin and divided by :meth:`length_scale`, so the value depends on the
         formation's shape and attitude only, not on where it is, how big, or the unit
-        (:meth:`normalised`).
+        (:meth:`normalised`). :meth:`singularity_measure_arrays` is the same measure on any
+        array namespace (equal within rounding).
 
         Returns
         -------
@@ -425,6 +440,32 @@ class Formation(ABC):
         """
         s = np.linalg.svd(self.inverse_jacobian(self.normalised(r), near_c=near_c), compute_uv=False)
         return s[..., -1] / s[..., 0]
+
+    def singularity_measure_arrays(self, r, near_c=None):
+        """:meth:`singularity_measure` of checked robots ``r`` on any array namespace, for a
+        description with :attr:`singularity_on_arrays`: the singular values of
+        :meth:`inverse_jacobian_arrays` at ``forward_arrays(normalised_arrays(r), near_c)``."""
+        rn = self.normalised_arrays(r)
+        J = self.inverse_jacobian_arrays(self.forward_arrays(rn, near_c), rn)
+        s = array_namespace(J).linalg.svd(J, compute_uv=False)
+        return s[..., -1] / s[..., 0]
+
+    def inverse_jacobian_arrays(self, c, r=None):
+        """:meth:`inverse_jacobian_at` (``(..., n_r, n_c)``) of checked arrays of any namespace
+        (``r``: the robots of ``c``, for a description whose rates read them): its
+        ``robot_rate_arrays`` (:meth:`robot_rate` without its checks, on NumPy or JAX arrays)
+        on the unit vectors."""
+        rate = getattr(self, "robot_rate_arrays", None)
+        if rate is None:
+            raise NotImplementedError(f"{type(self).__name__} has no inverse_jacobian_arrays: its singularity measure "
+                                      "runs on NumPy arrays only")
+        xp = array_namespace(c)
+        basis = xp.asarray(self._basis(self.n_c, c.ndim - 1))
+        cols = rate(c, basis, r=r) if self.rates_read_robots else rate(c, basis)
+        return xp.moveaxis(cols, 0, -1)
+
+    #: Whether ``robot_rate_arrays`` takes the robots ``r`` of ``c`` (``r=``).
+    rates_read_robots = False
 
     def value_spread(self, r, delta, *, near_c=None) -> np.ndarray:
         """How far :meth:`forward`'s values at ``r`` can move when every entry of ``r`` moves by at
@@ -477,16 +518,25 @@ class Formation(ABC):
         Robots on each other (a length scale below :data:`MIN_SEPARATION_M`, nothing to divide
         by) are refused as :meth:`forward` refuses them: :meth:`check_apart` names them.
         """
+        return self.normalised_arrays(self._checked_apart(r))
+
+    def _checked_apart(self, r) -> np.ndarray:
+        """``r`` checked, robots on each other refused (a length scale below :data:`MIN_SEPARATION_M`)."""
         r = self.check_robot_state(r)
-        L = self.length_scale(r)
-        if np.any(L < MIN_SEPARATION_M):
+        if np.any(self.length_scale(r) < MIN_SEPARATION_M):
             self.check_apart(r)
-        L = L[..., None, None]
-        p = self.layout.positions(r)
-        centre = p.mean(axis=-2, keepdims=True)
-        if "xy_yaw" in self.layout.kinds:
-            centre[..., 2] = 0.0
-        return self.layout.compose((p - centre) / L, self.layout.yaws(r), self.layout.orientations(r))
+        return r
+
+    def normalised_arrays(self, r):
+        """:meth:`normalised` of checked robots on any array namespace (no check)."""
+        xp, L = array_namespace(r), self.layout
+        p = team_positions(L, r)
+        centre = xp.mean(p, axis=-2, keepdims=True)
+        if "xy_yaw" in L.kinds:  # planar robots stay on the ground
+            centre = centre * np.array([1.0, 1.0, 0.0])
+        compose = L.compose if xp is np else functools.partial(team_compose, L)  # NumPy's in C order
+        return compose((p - centre) / self.length_scale(r)[..., None, None], r[..., list(L.yaw_indices)],
+                       r[..., L.orientation_index])
 
 
 class Preset:

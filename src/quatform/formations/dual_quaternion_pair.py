@@ -110,11 +110,20 @@ class DualQuaternionPair(Formation):
         """
         r = self.check_robot_state(r)
         self.check_apart(r)
+        return self.forward_arrays(r, None if near_c is None else self.check_cluster_state(near_c, "near_c"))
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` of checked arrays of any namespace (NumPy, JAX), no check."""
         if near_c is None:
             return kern.pack(kern.dq_forward(kern.unpack(r)))
-        h = kern.unpack(self.check_cluster_state(near_c, "near_c"))
+        h = kern.unpack(near_c)
         rr = kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h))
         return kern.pack(kern.dq_forward(rr, h[0:4]))
+
+    #: The singularity measure on any array namespace (Formation.singularity_measure_arrays);
+    #: the chart (through :meth:`inverse` and the quaternion pair's) on NumPy only.
+    singularity_on_arrays = True
+    rates_read_robots = True
 
     component_kernels = True
 
@@ -229,10 +238,12 @@ class DualQuaternionPair(Formation):
         :func:`~quatform.formations.pair_kernels.dq_inverse_jvp`.
         """
         c = np.asarray(c, dtype=float)
-        if r is None:
-            r = self.inverse(c)
-        cd = as_array(c_dot, "c_dot", 16)
-        return kern.pack(kern.dq_inverse_jvp(kern.unpack(c), kern.unpack(cd), kern.unpack(np.asarray(r, dtype=float))))
+        return self.robot_rate_arrays(c, as_array(c_dot, "c_dot", 16), r=np.asarray(self.inverse(c) if r is None else r,
+                                                                                  dtype=float))
+
+    def robot_rate_arrays(self, c, cd, r):
+        """:meth:`robot_rate` of arrays of any namespace, ``r`` the robots of ``c``; no check."""
+        return kern.pack(kern.dq_inverse_jvp(kern.unpack(c), kern.unpack(cd), kern.unpack(r)))
 
     def to_chart(self, c, *, near_e=None, r=None):
         """Euclidean variables of the robots of ``c``, read through the quaternion cluster frame.

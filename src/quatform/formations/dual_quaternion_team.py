@@ -214,6 +214,13 @@ class DualQuaternionTeam(Formation):
 
     name = "dual-quaternion-team"
     key = "dual-quaternion-team"
+    rates_read_robots = True
+
+    @property
+    def singularity_on_arrays(self) -> bool:
+        """Formation.singularity_measure_arrays (robot_rate_arrays of the unit vectors) on any
+        namespace for ``shape="frame"``; the ``relative`` shape's rates run on NumPy only."""
+        return self.shape == "frame"
     team = True
     #: ``--controller dual-quaternion``.
     controller = "dual-quaternion"

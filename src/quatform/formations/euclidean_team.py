@@ -215,6 +215,7 @@ class EuclideanTeam(Formation):
 
     name = "euclidean-team"
     key = "euclidean-team"
+    singularity_on_arrays = True  # Formation.singularity_measure_arrays: robot_rate_arrays of the unit vectors
     team = True
     #: ``--controller cluster-space``.
     controller = "cluster-space"
@@ -753,6 +754,20 @@ class EuclideanTeam(Formation):
         return np.where(closer[..., None], flip, a)
 
     # -- the operator's chart ---------------------------------------------------------------
+    @property
+    def chart_on_arrays(self) -> bool:
+        """The pair chart runs on any array namespace (:meth:`to_chart_arrays`); the team chart on NumPy."""
+        return self._pair_chart
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of the pair chart on checked arrays of any namespace: ``c`` with
+        ``beta_c``, ``phi_1``, ``phi_2`` wound to ``near_e``'s (a selection, no assignment)."""
+        if near_e is None:
+            return c.copy() if isinstance(c, np.ndarray) else c
+        xp = array_namespace(c)
+        wound = np.isin(np.arange(self.n_c), _PAIR_WOUND)
+        return xp.where(wound, g.unwrap_near(c, near_e), c)
+
     def to_chart(self, c, *, near_e=None, r=None):
         """The operator's chart of ``c``.
 

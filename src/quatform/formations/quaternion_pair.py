@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..algebra.angles import map_entries
+from ..algebra.kernels import array_namespace as namespace
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import DegenerateInputError, UnreachableError
 from . import geometry as g
@@ -73,13 +75,19 @@ class QuaternionPair(Formation):
     def forward(self, r, *, near_c=None):
         r = self.check_robot_state(r)
         self.check_apart(r)
+        return self.forward_arrays(r, None if near_c is None else self.check_cluster_state(near_c, "near_c"))
+
+    def forward_arrays(self, r, near_c=None):
+        """:meth:`forward` of checked arrays of any namespace (NumPy, JAX), no check."""
         if near_c is None:
             # eqs. (10), (14), (15): the minimal rotation from i (near q_c = 1)
-            out = kern.quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0))
-        else:
-            h = kern.unpack(self.check_cluster_state(near_c, "near_c"))
-            out = kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16])
-        return kern.pack(out)
+            return kern.pack(kern.quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0)))
+        h = kern.unpack(near_c)
+        return kern.pack(kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16]))
+
+    #: The singularity measure and the chart on any array namespace (Formation.singularity_measure_arrays).
+    singularity_on_arrays = True
+    chart_on_arrays = True
 
     component_kernels = True
 
@@ -148,8 +156,10 @@ class QuaternionPair(Formation):
     def robot_rate(self, c, c_dot, *, r=None):
         """Derivative of eqs. (16)-(19) at ``c`` along ``c_dot``: the 8 x 16 matrix of seed 000
         Fig. 6 applied to ``c_dot`` (:func:`~.pair_kernels.quat_inverse_jvp`)."""
-        c = np.asarray(c, dtype=float)
-        cd = as_array(c_dot, "c_dot", 16)
+        return self.robot_rate_arrays(np.asarray(c, dtype=float), as_array(c_dot, "c_dot", 16))
+
+    def robot_rate_arrays(self, c, cd):
+        """:meth:`robot_rate` of arrays of any namespace, no check."""
         return kern.pack(kern.quat_inverse_jvp(kern.unpack(c), kern.unpack(cd)))
 
     # -- monitoring and references ----------------------------------------------------
@@ -166,35 +176,33 @@ class QuaternionPair(Formation):
         ``y`` are orthogonal unit vectors, so ``y`` is far from vertical where ``u`` is near it.
         """
         c = self.check_cluster_state(c)
+        return self.to_chart_arrays(c, None if near_e is None else np.asarray(near_e, dtype=float))
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of checked arrays of any namespace (NumPy, JAX), the branches selected."""
+        xp = namespace(c)
         qc = c[..., _QC]
         y = g.rotate(qc, np.array([0.0, 1.0, 0.0]))
         u = g.x_axis(qc)
-        rho_u, rho_y = np.hypot(u[..., 0], u[..., 1]), np.hypot(y[..., 0], y[..., 1])
+        rho_u, rho_y = xp.hypot(u[..., 0], u[..., 1]), xp.hypot(y[..., 0], y[..., 1])
         # near the vertical: beta from the y axis
-        beta_y = np.arctan2(-y[..., 1], -y[..., 0])
+        beta_y = xp.arctan2(-y[..., 1], -y[..., 0])
         psi = beta_y + 0.5 * np.pi
-        gamma_y = np.arctan2(u[..., 2], np.cos(psi) * u[..., 0] + np.sin(psi) * u[..., 1])
+        gamma_y = xp.arctan2(u[..., 2], xp.cos(psi) * u[..., 0] + xp.sin(psi) * u[..., 1])
         # elsewhere: eqs. (4)-(5), branch from the y axis
-        beta_u = np.arctan2(-u[..., 0], u[..., 1])
-        gamma_u = np.arctan2(u[..., 2], rho_u)
-        other = -(np.cos(beta_u) * y[..., 0] + np.sin(beta_u) * y[..., 1]) < 0.0
-        beta_u = np.where(other, beta_u + np.pi, beta_u)
-        gamma_u = np.where(other, np.pi - gamma_u, gamma_u)
+        beta_u = xp.arctan2(-u[..., 0], u[..., 1])
+        gamma_u = xp.arctan2(u[..., 2], rho_u)
+        other = -(xp.cos(beta_u) * y[..., 0] + xp.sin(beta_u) * y[..., 1]) < 0.0
+        beta_u = xp.where(other, beta_u + np.pi, beta_u)
+        gamma_u = xp.where(other, np.pi - gamma_u, gamma_u)
         use_y = rho_u < NEAR_VERTICAL * rho_y
-        beta = g.wrap(np.where(use_y, beta_y, beta_u))
-        gamma = g.wrap(np.where(use_y, gamma_y, gamma_u))
-        e = np.empty(c.shape[:-1] + (8,))
-        e[..., 0:3] = c[..., _XC]
-        e[..., 3] = beta
-        e[..., 4] = gamma
-        e[..., 5] = c[..., _D]
-        e[..., 6] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q1])) - beta)
-        e[..., 7] = g.wrap(g.yaw_of(g.mul(qc, c[..., _Q2])) - beta)
-        if near_e is not None:
-            near_e = np.asarray(near_e, dtype=float)
-            for i in (3, 4, 6, 7):
-                e[..., i] = g.unwrap_near(e[..., i], near_e[..., i])
-        return e
+        beta = g.wrap(xp.where(use_y, beta_y, beta_u))
+        gamma = g.wrap(xp.where(use_y, gamma_y, gamma_u))
+        phi = [g.wrap(g.yaw_of(g.mul(qc, c[..., s])) - beta) for s in (_Q1, _Q2)]
+        e = xp.stack([c[..., 0], c[..., 1], c[..., 2], beta, gamma, c[..., 7], *phi], axis=-1)
+        if near_e is None:
+            return e
+        return map_entries(e, (3, 4, 6, 7), lambda a, b: g.unwrap_near(e[..., a:b], near_e[..., a:b]))
 
     def from_chart(self, e, e_dot=None):
         """``q_c = q_z(beta + pi/2) q_y(-gamma)``, ``q_ci = q_c* q_z(phi_i + beta)``: continuous in ``e``."""

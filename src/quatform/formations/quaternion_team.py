@@ -123,6 +123,9 @@ class QuaternionTeam(Formation):
 
     name = "quaternion-team"
     key = "quaternion-team"
+    #: On another namespace the dense Formation.singularity_measure_arrays (the O(N)
+    #: singularity_measure below is NumPy's: the same value within rounding, 1e-14 in tests).
+    singularity_on_arrays = True
     team = True
     #: ``--controller quaternion``.
     controller = "quaternion"

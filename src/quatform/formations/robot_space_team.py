@@ -63,6 +63,7 @@ class RobotSpaceTeam(Formation):
 
     name = "robot-space-team"
     key = "robot-space-team"
+    singularity_on_arrays = True  # Formation.singularity_measure_arrays: robot_rate_arrays of the unit vectors
     team = True
     cluster_is_robot_state = True
     #: ``--controller robot-space``.
@@ -193,7 +194,7 @@ class RobotSpaceTeam(Formation):
         special set), so nothing is divided by the robots' separation. :meth:`singularity_measure`
         is 1 (robots on each other included) and :meth:`value_spread` is ``sqrt(n_r) delta``, the
         bound of ``c = r``."""
-        return np.ones(np.shape(r)[:-1])
+        return array_namespace(r).ones(np.shape(r)[:-1])
 
     def inverse_jacobian_at(self, c, *, r=None):
         """The identity ``(..., n_r, n_r)`` (robot space is its own cluster space), on NumPy or
@@ -219,6 +220,16 @@ class RobotSpaceTeam(Formation):
         if self.layout.kinds != ("xyz_yaw", "xyz_yaw"):
             return ()
         return sp.pair_sets("the Euclidean chart of eqs. (1)-(8) is singular here; the robot space is not")
+
+    @property
+    def chart_on_arrays(self) -> bool:
+        """The pair chart runs on any array namespace (:meth:`to_chart_arrays`); the team chart on NumPy."""
+        return self._pair is not None
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of the pair chart on checked arrays of any namespace (robots apart):
+        seed 000's variables of the robots ``c``, wound to ``near_e``'s."""
+        return self._pair.to_chart_arrays(self._pair.forward_arrays(c), near_e)
 
     def to_chart(self, c, *, near_e=None, r=None):
         """The team chart of the robots ``c`` (:meth:`TeamChart.from_robots` with this

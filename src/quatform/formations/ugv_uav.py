@@ -84,14 +84,6 @@ class _UgvUav(Formation):
         xp = common_namespace(x_p, x_b)
         return xp.concatenate(xp.broadcast_arrays(x_p, x_b), axis=-1)  # the layout (xyz, xyz): x_p then x_b
 
-    def inverse_jacobian_arrays(self, c):
-        """:meth:`inverse_jacobian_at` of checked arrays of any namespace (``(..., 6, n_c)``):
-        ``robot_rate_arrays`` (each description's :meth:`robot_rate` without its checks, on
-        NumPy or JAX arrays) on the unit vectors. ``forward_arrays`` is :meth:`forward`
-        without its checks (robots apart, the state inside the description: the caller's)."""
-        cols = self.robot_rate_arrays(c, self._basis(self.n_c, c.ndim - 1))
-        return namespace(c).moveaxis(cols, 0, -1)
-
     def to_chart(self, c, *, near_e=None, r=None):
         return UgvUavSpherical().forward(self.inverse(c) if r is None else r, near_c=near_e)
 

@@ -32,8 +32,7 @@ from ..formations import TeamChart
 from ..formations.geometry import unwrap_near
 from ..papers import with_names
 from ..sim.log import Log
-from ..sim.team_metrics import singular_threshold
-from ..sim.team_metrics import team_errors
+from ..sim.metrics import errors_from_robots, min_separations, singular_threshold
 from .figures import (
     DES_STYLE,
     MEAS_STYLE,
@@ -239,7 +238,7 @@ def plot_team_errors(run: Log, path) -> Path:
     from ..algebra import wrap_angle
 
     L = run.meta["layout"]
-    err = team_errors(run)
+    err = errors_from_robots(run)
     idx = decimate(run.t.size)
     yaw = None
     if L.yaw_indices:
@@ -275,7 +274,7 @@ def plot_team_separation(runs, path) -> Path:
     ax = fig.add_subplot()
     for k, run in enumerate(runs):
         idx = decimate(run.t.size)
-        sep = team_errors(run)["separation"]
+        sep = errors_from_robots(run)["separation"]
         ax.plot(run.t[idx], finite(sep)[idx], color=f"C{k}", lw=1.2, label=run.meta["controller"])
     idx = decimate(runs[0].t.size)
     ax.plot(runs[0].t[idx], team_errors_desired(runs[0])[idx], color="k", lw=0.9, ls="--", label="desired")
@@ -295,8 +294,6 @@ def plot_team_separation(runs, path) -> Path:
 
 def team_errors_desired(run: Log) -> np.ndarray:
     """The desired robots' closest-pair distance at each sample, m, shape ``(T,)``."""
-    from ..sim.team_metrics import min_separations
-
     return min_separations(run.meta["layout"], np.asarray(run["r_des"]))
 
 
@@ -337,7 +334,7 @@ def plot_team_compare(runs, path, linthresh: float = 1e-3) -> Path:
     worst robot's error and the attitude each description recovers from the robots, one
     line per run, symmetric-log axes (linear within ``linthresh``)."""
     runs = check_runs(runs)
-    errs = [team_errors(run) for run in runs]
+    errs = [errors_from_robots(run) for run in runs]
     fig = new_figure((9.0, 10.0))
     axes = fig.subplots(len(_COMPARE_ROWS), 1, sharex=True)
     for ax, (key, label) in zip(axes, _COMPARE_ROWS):

@@ -30,7 +30,7 @@ from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
 from ..references import EuclideanPath, Ramp, Step as StepChange
 from ..robots import HolonomicRobot, Team
 from ..sim.log import Channel, Log
-from ..sim.metrics import compute_metrics
+from ..sim.metrics import EUCLIDEAN_CHART, compute_metrics
 from ..sim.plants import KinematicTeam
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind
@@ -646,7 +646,11 @@ class PairKind(ScenarioKind):
         def finish(log: Log) -> Log:
             r, c = log["state"], log["cluster"]
             shape = r.shape[:-1]
-            ed, cd, rd = (np.broadcast_to(a.reshape((a.shape[0],) + (1,) * (r.ndim - 2) + a.shape[1:]),
+            k = np.minimum(np.searchsorted(t, log.t), t.size - 1)  # the log's own ticks of the scenario's
+            if not np.array_equal(t[k], log.t):
+                raise InvalidInputError(f"scenario {scenario.name!r}: the log's times are not the scenario's "
+                                        f"ticks (dt_s = {scenario.dt_s:g} s from 0 to {t[-1]:g} s)")
+            ed, cd, rd = (np.broadcast_to(a[k].reshape((k.size,) + (1,) * (r.ndim - 2) + a.shape[1:]),
                                           shape + a.shape[1:]) for a in (e_des, c_des, r_des))
             held = ~np.all(np.isfinite(c), axis=-1)  # a failed world's samples (sim.simulate: signals NaN)
             if np.any(held):  # its held robots may coincide: read the reference there, then NaN
@@ -662,16 +666,10 @@ class PairKind(ScenarioKind):
                            ("c_des", [n + "_des" for n in names], cd),
                            ("e", euclid, e), ("e_des", [n + "_des" for n in euclid], ed),
                            ("singularity", ["singularity_measure"], np.asarray(sing)[..., None])))
-            return log.with_channels(**record(log))
+            return log.with_channels(**record(log), layout=ctrl.team.layout, team=ctrl.team, chart=EUCLIDEAN_CHART)
 
         def metrics(log: Log) -> dict:
-            out = {**compute_metrics(log), **physics_metrics(log)}
-            if safety["enabled"]:  # as the team kind's metrics (sim.team_metrics)
-                active = np.asarray(log["safety_active"]) > 0.5  # (T, *batch, 1): NaN (a failed world) is not
-                ticks = int(np.count_nonzero(np.any(active.reshape(active.shape[0], -1), axis=-1)))
-                out.update(safety_min_separation_m=safety["min_separation_m"],
-                           safety_active_time_s=ticks * scenario.dt_s)
-            return out
+            return {**compute_metrics(log), **physics_metrics(log)}
 
         csv = pair_csv_channels(F) + (("min_separation", "safety_active") if safety["enabled"] else ())
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,

@@ -16,7 +16,7 @@ c_dot_des, r_des)`` with ``c_des, c_dot_des = formation.from_chart(e, e_dot)`` o
 motion's chart values (:class:`~quatform.references.team_motion.TeamMotion`, or a saved plan:
 :class:`~quatform.references.team_motion.PlanMotion`), and ``finish`` adding the desired
 robots, the chart recovered by the controller's description, the desired chart and the
-singularity measure; the metrics are :func:`quatform.sim.team_metrics.team_metrics`.
+singularity measure; the metrics are :func:`quatform.sim.metrics.compute_metrics`.
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ from ..registry import RegistryView
 from ..robots import Team, file_models
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
-from ..sim.team_metrics import min_separations, team_metrics
+from ..sim.metrics import TEAM_CHART, compute_metrics, min_separations
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind, finish_worlds
 from .separation import FILE_LABEL, safety_table, with_option
@@ -653,7 +653,7 @@ class TeamKind(ScenarioKind):
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "physics": physics,
                 "physics_label": "kinematic" if physics_plant is None else mj.PHYSICS_LABEL, "formation": F.name,
                 "feedforward": ff, "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
-                "chart_variables": chart.variables}
+                "chart_variables": chart.variables, "chart": TEAM_CHART}
 
         def reference_at(k):
             return Reference(c_des[k], cd_des[k], r_des[k])
@@ -693,7 +693,7 @@ class TeamKind(ScenarioKind):
             return finish_worlds(log, finish_one)
 
         def metrics(log: Log) -> dict:
-            out = team_metrics(log)
+            out = compute_metrics(log)
             if physics_plant is not None:
                 out.update(mjp.physics_metrics(physics_plant))
             return out

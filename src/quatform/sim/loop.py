@@ -522,14 +522,16 @@ def spread(jax, carry, xs, B: int, carry_axes, xs_axes):
             jax.tree_util.tree_unflatten(tree_x, [arrays[f"x{q}"] for q in range(len(leaves_x))]))
 
 
-def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axes: dict):
+def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axes: dict, one_device: bool = False):
     """``run`` (the jitted ``lax.scan`` of a tick: ``(carry, xs) -> (ys, carry)``) over the
     ``n`` ticks of ``xs`` (a dict, each leaf ``(T, ...)``), in one call or in ten chunks of
     one shape when ``progress`` is given (``xs["valid"]`` marks the padded ticks), the batch
     spread over the devices (:func:`spread`): ``(ys, carry)``, the batch padded as
     :func:`spread` pads it. ``carry_axes``: the batch axis of each leaf of ``carry``;
     ``xs_axes``: key of ``xs`` -> the batch axis of its every leaf (an int) or a pytree of
-    them (-1 or a missing key: none)."""
+    them (-1 or a missing key: none). ``one_device``: the batch stays on JAX's default device
+    (a scan whose tick batches LAPACK decompositions, an SVD or an eigensolve, can wait forever
+    with its batch sharded over several CPU devices)."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     if progress is not None:
         size = -(-n // 10)
@@ -541,7 +543,8 @@ def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axe
         return jax.tree_util.tree_map(lambda _: axis, value) if isinstance(axis, int) else axis
 
     leaf_axes = jax.tree_util.tree_leaves({key: axes_of(key, v) for key, v in xs.items()})
-    carry, xs = spread(jax, carry, xs, B, carry_axes, leaf_axes)
+    if not one_device:
+        carry, xs = spread(jax, carry, xs, B, carry_axes, leaf_axes)
     if progress is None:
         return run(carry, xs)
     parts = []
