@@ -461,10 +461,10 @@ def test_a_batch_of_worlds_finishes_each_as_its_own_run():
 @pytest.mark.parametrize("value, words", [
     ([1.0, 2.0], "must be one number or a list of 3"),
     (-2.0, "must be positive (seed 000 Tables 1-2)"),
-    ([1.0, "a", 1.0], "must be numbers"),
-    ([1.0, math.nan, 1.0], "must be finite"),
+    ([1.0, "a", 1.0], "must be numbers: a positive gain in 1/s, e.g. 2.0 (seed 000 Tables 1-2)"),
+    ([1.0, math.nan, 1.0], "must be finite: a positive gain in 1/s, e.g. 2.0 (seed 000 Tables 1-2)"),
     ([1.0], "must be one number or a list of 3"),
-    ([1.0, True, 1.0], "must be numbers"),
+    ([1.0, True, 1.0], "must be numbers: a positive gain in 1/s, e.g. 2.0 (seed 000 Tables 1-2)"),
     (1e13, "is beyond +-1e+12; give a physical gain (1/s)"),
 ])
 def test_a_gain_has_one_check_in_the_file_and_the_controller(value, words):

@@ -121,10 +121,11 @@ def check_gain(value, key: str, n, rows: int | None = None, *, where: str | None
     if many and (count == 1 or np.ndim(value) != 1 or len(vals) != count):
         raise InvalidInputError(f"{said} must be one number" + (f" or a list of {count}" if count > 1 else ""))
     if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) for v in vals):
-        raise InvalidInputError(f"{said} must be {'numbers' if many else 'a number'}")
+        raise InvalidInputError(f"{said} must be {'numbers' if many else 'a number'}: a positive gain in 1/s, "
+                                "e.g. 2.0 (seed 000 Tables 1-2)")
     k = np.array(vals, dtype=float)
     if not np.all(np.isfinite(k)):
-        raise InvalidInputError(f"{said} must be finite")
+        raise InvalidInputError(f"{said} must be finite: a positive gain in 1/s, e.g. 2.0 (seed 000 Tables 1-2)")
     if np.any(np.abs(k) > MAX_NUMBER):
         raise InvalidInputError(f"{said} is beyond +-{MAX_NUMBER:g}; give a physical gain (1/s)")
     if not np.all(k > 0):
