@@ -779,12 +779,8 @@ class EuclideanTeam(Formation):
         ``theta_i = phi_i + beta_c``).
         """
         c = self.check_cluster_state(c)
-        if self._pair_chart:
-            e = c.copy()
-            if near_e is not None:  # beta_c, phi_1, phi_2 wound to near_e's (gamma_c in [-pi/2, pi/2])
-                w = _PAIR_WOUND
-                e[..., w] = g.unwrap_near(c[..., w], np.asarray(near_e, dtype=float)[..., w])
-            return e
+        if self._pair_chart:  # beta_c, phi_1, phi_2 wound to near_e's (gamma_c in [-pi/2, pi/2])
+            return self.to_chart_arrays(c, None if near_e is None else np.asarray(near_e, dtype=float))
         if near_e is not None or self.template is not None:
             return self.chart.from_robots(self.inverse(c), near_e=near_e, template=self.template)
         beta, gamma, alpha = self._angles_of(c)
