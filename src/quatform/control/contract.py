@@ -14,6 +14,11 @@ publishes, instead of reading the controller's internals.
   batch axes (B formations at once); the state carries the same axes.
 * ``step(t, measured, reference)`` -> commands only, from the initial state: the one call a
   stateless controller needs on a real robot (and the README's example).
+* optionally ``schedule(times, batch)`` -> a dict of arrays ``(T, *batch, ...)``: inputs the
+  controller draws up front per world, independent of the robots' states (a network's
+  delivery lags, :class:`~quatform.control.networked.NetworkedController`); the loop then
+  hands it ``(reference, the tick's slice)`` as the reference
+  (:func:`quatform.sim.loop.scheduled_reference`).
 
 The object itself holds configuration only (formation, law, gains, team, limits) and is
 frozen, so one controller may drive any number of simulations or robots at once.

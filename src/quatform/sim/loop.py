@@ -9,9 +9,10 @@ from three pure parts (:mod:`quatform.control.contract`, :mod:`.measurement`,
   leading axes are the batch), each world's failing tick (-1: none) and its reason code
   (0: none);
 * ``xs = {k, t, ref, meas, plant[, valid]}``: the tick's index and time, the controller's
-  :meth:`~quatform.control.contract.Controller.reference_arrays`, the tick's slice of the
-  measurement's ``schedule`` and of the plant's ``inputs`` (``(substeps, ...)``), and in a
-  padded progress chunk whether the tick is real;
+  :meth:`~quatform.control.contract.Controller.reference_arrays` (of ``(reference, slice)``
+  for a controller that draws its own inputs up front, :func:`scheduled_reference`), the
+  tick's slice of the measurement's ``schedule`` and of the plant's ``inputs``
+  (``(substeps, ...)``), and in a padded progress chunk whether the tick is real;
 * ``ys = (x, measured, u, *signals)``, the signals in ``signal_columns`` order.
 
 A tick reads the measurement, runs ``controller.tick``, steps the plant ``substeps`` times
@@ -59,7 +60,7 @@ from .log import Channel, Log
 from .measurement import PerfectMeasurement
 
 __all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "START_CODE", "start_failures", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
-           "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "simulate_jax", "simulate_numpy",
+           "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "scheduled_reference", "simulate_jax", "simulate_numpy",
            "cached"]
 
 #: What a controller may raise because of some worlds of a batch (their measurement left the
@@ -402,12 +403,24 @@ def _log(plant, controller, measurement, times, batch, data, state, failure, met
     return Log(times, chans, info)
 
 
+def scheduled_reference(controller, reference: Callable, times, batch: tuple) -> Callable:
+    """The reference the loop hands a controller that draws its own inputs up front
+    (``controller.schedule(times, batch)``: a network's deliveries, per world): each tick's
+    ``(reference(k), the schedule's slice k)``; for any other controller ``reference`` itself."""
+    draw = getattr(controller, "schedule", None)
+    if draw is None:
+        return reference
+    sched = draw(times, batch)
+    return lambda k: (reference(k), {key: v[k] for key, v in sched.items()})
+
+
 def simulate_numpy(plant, controller, reference: Callable, times, x0, *, dt: float | None = None,
                    substeps: int = 1, measurement=None, progress: Callable | None = None,
                    meta: dict | None = None) -> Log:
     """The NumPy driver: :func:`make_tick` iterated over the ticks (:func:`quatform.sim.simulate`)."""
     times, dt = check_ticks(times, substeps, dt)
     x, batch = _initial(plant, x0, "simulate")
+    reference = scheduled_reference(controller, reference, times, batch)
     measurement = PerfectMeasurement() if measurement is None else measurement
     sched = measurement.schedule(times, dt, substeps, batch)
     ms = measurement.init(plant.output(x), batch, sched)
@@ -686,6 +699,7 @@ def simulate_jax(plant, controller, reference: Callable, times, x0, *, dt: float
     if times.size < 1:
         raise ShapeError("jax simulate: times must hold at least one tick")
     x, batch = _initial(plant, x0, "jax simulate")
+    reference = scheduled_reference(controller, reference, times, batch)
     B = math.prod(batch)
     n = times.size
     measurement = PerfectMeasurement() if measurement is None else measurement

@@ -1,0 +1,235 @@
+"""A team whose robots each run a local controller on what the links deliver, as one controller of the loop.
+
+Control layer. :class:`NetworkedController` joins a
+:class:`~quatform.control.local.LocalController`, the team's robots and their
+:class:`~quatform.network.Links` into a :class:`~quatform.control.contract.Controller` with a
+pure tick, so the simulator's one loop (:mod:`quatform.sim.loop`) runs a decentralised team
+on NumPy and JAX, batched and swept, as it runs any other controller. One tick:
+
+1. each robot's own row of the measurement (its point's columns, by name);
+2. the messages every robot sends (:meth:`LocalController.message`), written to the links'
+   ring (:meth:`Links.write`);
+3. what each robot holds of its in-neighbours, by the tick's slice of the links' schedule
+   (:meth:`Links.read`), grouped per robot (:func:`~quatform.network.links.inbox`, with each
+   slot's edge weight);
+4. the local controllers' tick, each robot's command mapped by name onto its model's
+   command columns (a column the law does not set is 0) and saturated by its own model
+   (each robot limits itself: no common factor, which would need the whole team).
+
+The links' delivery lags are drawn up front per world (:meth:`schedule`, the contract's
+hook): the loop hands each tick's slice beside the reference, so the tick's reference is
+``(reference, links slice)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..algebra.kernels import common_namespace
+from ..errors import InvalidInputError
+from ..formations.layout import POINT_KINDS
+from ..network.links import Links, inbox
+from ..robots import Team
+from . import contract
+from .local import LocalController
+
+__all__ = ["NetworkedController", "NETWORK_SIGNALS"]
+
+#: The per-world signal of the links at each tick (columns of the ``network`` signal).
+NETWORK_SIGNALS = ("messages_sent", "messages_dropped", "messages_delivered", "max_age_s")
+
+
+def _edge_weights(links: Links) -> np.ndarray:
+    """Each candidate edge's weight ``(E,)``: its weight in the first graph that has it."""
+    graphs = [links.graph] if not isinstance(links.graph, tuple) else [g for _, g in links.graph]
+    n = links.n
+    code = links.edges[:, 0] * n + links.edges[:, 1]
+    out = np.full(len(code), np.nan)
+    for g in reversed(graphs):
+        gc = g.edges[:, 0] * n + g.edges[:, 1]
+        idx = np.searchsorted(code, gc)
+        out[idx] = g.weights
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class NetworkedController(contract.Controller):
+    """Every robot of ``team`` runs ``local`` on its own measurement and what ``links`` deliver.
+
+    Parameters
+    ----------
+    local : LocalController
+        The law each robot runs.
+    team : Team
+        The robots, one model for all (a homogeneous team), ``links.n`` of them.
+    links : Links
+        Who hears whom, with delay, jitter, loss, rates and staleness; its ``max_age_s`` must be
+        finite (the ring holds that long a history).
+    period_s : float
+        The control tick, s: the links' tick (the loop's ticks must be this far apart).
+    """
+
+    local: LocalController
+    team: Team
+    links: Links
+    period_s: float
+
+    pure = True
+
+    def __post_init__(self):
+        if not isinstance(self.local, LocalController):
+            raise InvalidInputError(f"networked controller: local must be a LocalController, got "
+                                    f"{type(self.local).__name__}")
+        if not isinstance(self.links, Links):
+            raise InvalidInputError(f"networked controller: links must be a quatform.network.Links, got "
+                                    f"{type(self.links).__name__}")
+        models = {type(m) for m in self.team.robots}
+        if len(models) != 1 or len(set(self.team.robots)) != 1:
+            raise InvalidInputError(f"networked controller: the team mixes robot models "
+                                    f"({', '.join(sorted({m.name for m in self.team.robots}))}); a networked team "
+                                    f"is one model for every robot, e.g. Team.uniform(model, n)")
+        if self.team.layout.n != self.links.n:
+            raise InvalidInputError(f"networked controller: the team has {self.team.layout.n} robots and the links "
+                                    f"{self.links.n}; build the graph over the team's robots")
+        p = self.period_s
+        if isinstance(p, bool) or not isinstance(p, (int, float, np.number)) or not math.isfinite(p) or p <= 0:
+            raise InvalidInputError(f"networked controller: period_s = {p!r} must be a positive number of seconds "
+                                    f"(the control tick)")
+        if not math.isfinite(self.links.max_age_s):
+            raise InvalidInputError("networked controller: links.max_age_s = inf; give a finite age beyond which a "
+                                    "message is stale (e.g. max_age_s=1.0 s): a robot keeps that long a history")
+        model = self.team.robots[0]
+        unknown = [c for c in self.local.command_columns if c not in model.command_columns]
+        if unknown:
+            raise InvalidInputError(f"networked controller: {self.local.name} commands {', '.join(unknown)}, which "
+                                    f"the {model.name} robot has not (its commands: "
+                                    f"{', '.join(model.command_columns)}); choose a robot model it can drive")
+        own = self.own_index()  # raises where a robot lacks a column
+        object.__setattr__(self, "_own", own)
+        object.__setattr__(self, "_weights", _edge_weights(self.links))
+        object.__setattr__(self, "_ring", int(math.floor(self.links.max_age_s / float(p) + 1e-9)) + 1)
+
+    # ------------------------------------------------------------------ names
+    @property
+    def name(self) -> str:
+        return self.local.name
+
+    @property
+    def model(self):
+        """The robots' one model."""
+        return self.team.robots[0]
+
+    @property
+    def n(self) -> int:
+        """Number of robots."""
+        return self.links.n
+
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        return tuple(f"{c}{label}" for label in self.team.layout.labels for c in self.model.command_columns)
+
+    def signal_columns(self) -> dict[str, tuple[str, ...]]:
+        """The local controller's signals, robot after robot (``<column><label>``), and ``network``
+        (:data:`NETWORK_SIGNALS`, per world)."""
+        labels = self.team.layout.labels
+        out = {k: tuple(f"{c}{label}" for label in labels for c in cols)
+               for k, cols in self.local.signal_columns().items()}
+        out["network"] = NETWORK_SIGNALS
+        return out
+
+    def own_index(self) -> np.ndarray:
+        """``(N, n_own)`` indices of each robot's :attr:`LocalController.own_columns` in the
+        measurement (the team layout's point names ``<column><label>``)."""
+        names = self.team.layout.names
+        labels = self.team.layout.labels
+        out = np.empty((self.n, len(self.local.own_columns)), dtype=np.int64)
+        for i, label in enumerate(labels):
+            for c, col in enumerate(self.local.own_columns):
+                key = f"{col}{label}"
+                if key not in names:
+                    raise InvalidInputError(f"networked controller: {self.local.name} reads {col!r} of each robot, "
+                                            f"which the {self.model.name} robots do not offer (robot {label}'s "
+                                            f"point: {', '.join(c[0] for c in POINT_KINDS[self.team.layout.kinds[i]].components)}); choose a "
+                                            f"robot model whose point has it")
+                out[i, c] = names.index(key)
+        return out
+
+    # ------------------------------------------------------------------ the contract
+    def init(self, batch: tuple = ()):
+        d = len(self.local.message_columns)
+        return {"local": self.local.init(self.n, tuple(batch)),
+                "links": self.links.init(np.zeros((self.n, d)), tuple(batch), length=self._ring)}
+
+    def schedule(self, times, batch: tuple = ()) -> dict:
+        """The links' delivery schedule of the run's ticks ``times`` (``(T,)``, ``period_s`` apart),
+        drawn per world (:meth:`Links.schedule`)."""
+        times = np.asarray(times, dtype=float)
+        if times.size > 1 and abs(float(times[1] - times[0]) - self.period_s) > 1e-9 * self.period_s:
+            raise InvalidInputError(f"networked controller: the loop ticks every {float(times[1] - times[0]):g} s, "
+                                    f"the controller's period_s is {self.period_s:g} s; give the run's control "
+                                    f"period")
+        return self.links.schedule(times, self.period_s, batch)
+
+    def reference_arrays(self, reference):
+        ref, links = reference
+        return self.local.reference_arrays(ref, self.n), links
+
+    def tick(self, state, measured, reference, t) -> contract.Tick:
+        ref, xs = reference
+        xp = common_namespace(measured)
+        own = xp.take(measured, xp.asarray(self._own.reshape(-1)), axis=-1)
+        own = xp.reshape(own, own.shape[:-1] + self._own.shape)
+        outgoing = self.local.message(state["local"], own, ref, t)
+        ring = self.links.write(state["links"], outgoing, t)
+        box = inbox(self.links.read(ring, xs), self.links)
+        box["weights"] = self._slot_weights(box["senders"])
+        out = self.local.tick(state["local"], own, box, ref, t)
+        u = self._commands(out.u)
+        batch = measured.shape[:-1]
+        signals = {k: xp.reshape(v, batch + (-1,)) for k, v in out.signals.items()}
+        age = xp.where(box["valid"], t - box["stamps"], 0.0)
+        columns = (xs["messages_sent"], xs["messages_dropped"], xp.sum(xp.asarray(xs["new"], dtype=xp.int32), axis=-1),
+                   xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
+        signals["network"] = xp.stack([xp.broadcast_to(xp.asarray(c, dtype=measured.dtype), batch) for c in columns],
+                                      axis=-1)
+        code = xp.max(out.code, axis=-1) if out.code.shape[-1:] else xp.zeros(batch, dtype=xp.int64)
+        return contract.Tick({"local": out.state, "links": ring}, u, signals, code)
+
+    @property
+    def failure_reasons(self):
+        return self.local.failure_reasons
+
+    def update(self, t, measured, reference, state=None) -> contract.Step:
+        """:meth:`tick` on the host, raising the local controller's reason where a robot's code is set.
+        ``reference`` is ``(reference, links slice)`` as the loop gives it."""
+        measured = np.asarray(measured, dtype=float)
+        if state is None:
+            state = self.init(measured.shape[:-1])
+        out = self.tick(state, measured, self.reference_arrays(reference), t)
+        code = np.asarray(out.code)
+        if np.any(code > 0):
+            raise InvalidInputError(f"{self.name}: {self.failure_reasons.get(int(np.max(code)), 'failure')}")
+        return contract.Step(out.u, out.state, dict(out.signals))
+
+    # ------------------------------------------------------------------ helpers
+    def _slot_weights(self, senders: np.ndarray) -> np.ndarray:
+        """``(N, W)`` the weight of each inbox slot's edge (0 at padding)."""
+        n = self.n
+        code = self.links.edges[:, 0] * n + self.links.edges[:, 1]
+        rows = np.repeat(np.arange(n)[:, None], senders.shape[1], axis=1)
+        idx = np.searchsorted(code, rows * n + np.maximum(senders, 0))
+        return np.where(senders >= 0, self._weights[np.minimum(idx, len(code) - 1)] if len(code) else 0.0, 0.0)
+
+    def _commands(self, u):
+        """The local commands ``(*batch, N, n_local)`` as the team's ``(*batch, N n_u)``, each robot
+        saturated by its model."""
+        xp = common_namespace(u)
+        cols = self.model.command_columns
+        local = self.local.command_columns
+        zero = xp.zeros(u.shape[:-1], dtype=u.dtype)
+        full = xp.stack([u[..., local.index(c)] if c in local else zero for c in cols], axis=-1)
+        full = self.model.saturate(full)
+        return xp.reshape(full, full.shape[:-2] + (-1,))
