@@ -113,6 +113,12 @@ class LocalController(ABC):
         """Instances the contract test runs: ``{label: (controller, n_robots)}``."""
         return {cls.name: (cls(), 4)}
 
+    def example(self, n: int, rng: np.random.Generator) -> tuple:
+        """``(own, reference)`` of ``n`` robots in general position, drawn from ``rng``: what the
+        contract test feeds every registered local controller (``own`` ``(n, len(own_columns))``,
+        ``reference`` as :meth:`reference_arrays` returns it)."""
+        raise NotImplementedError(f"{type(self).__name__}.example")
+
     def init(self, n: int, batch: tuple = ()):
         """The state before the first tick of ``n`` robots and ``batch`` worlds (None: stateless)."""
         return None

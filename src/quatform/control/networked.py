@@ -165,13 +165,16 @@ class NetworkedController(contract.Controller):
 
     def schedule(self, times, batch: tuple = ()) -> dict:
         """The links' delivery schedule of the run's ticks ``times`` (``(T,)``, ``period_s`` apart),
-        drawn per world (:meth:`Links.schedule`)."""
+        drawn per world (:meth:`Links.schedule`; the message counts ``(T, *batch, 1)``)."""
         times = np.asarray(times, dtype=float)
         if times.size > 1 and abs(float(times[1] - times[0]) - self.period_s) > 1e-9 * self.period_s:
             raise InvalidInputError(f"networked controller: the loop ticks every {float(times[1] - times[0]):g} s, "
                                     f"the controller's period_s is {self.period_s:g} s; give the run's control "
                                     f"period")
-        return self.links.schedule(times, self.period_s, batch)
+        out = self.links.schedule(times, self.period_s, batch)
+        for key in ("messages_sent", "messages_dropped"):  # a trailing axis: a per-world value of the loop
+            out[key] = out[key][..., None]
+        return out
 
     def reference_arrays(self, reference):
         ref, links = reference
@@ -191,7 +194,7 @@ class NetworkedController(contract.Controller):
         batch = measured.shape[:-1]
         signals = {k: xp.reshape(v, batch + (-1,)) for k, v in out.signals.items()}
         age = xp.where(box["valid"], t - box["stamps"], 0.0)
-        columns = (xs["messages_sent"], xs["messages_dropped"], xp.sum(xp.asarray(xs["new"], dtype=xp.int32), axis=-1),
+        columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], xp.sum(xp.asarray(xs["new"], dtype=xp.int32), axis=-1),
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
         signals["network"] = xp.stack([xp.broadcast_to(xp.asarray(c, dtype=measured.dtype), batch) for c in columns],
                                       axis=-1)

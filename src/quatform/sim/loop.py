@@ -60,7 +60,8 @@ from .log import Channel, Log
 from .measurement import PerfectMeasurement
 
 __all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "START_CODE", "start_failures", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
-           "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks", "scheduled_reference", "simulate_jax", "simulate_numpy",
+           "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks",
+           "scheduled_reference", "simulate_jax", "simulate_numpy",
            "cached"]
 
 #: What a controller may raise because of some worlds of a batch (their measurement left the

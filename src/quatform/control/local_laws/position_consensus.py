@@ -71,6 +71,10 @@ class PositionConsensus(LocalController):
             out[key] = a
         return out
 
+    def example(self, n, rng):
+        offset = rng.normal(size=(n, 3))
+        return rng.normal(size=(n, 3)), {"offset": offset, "offset_rate": rng.normal(size=(n, 3))}
+
     def message(self, state, own, reference, t):
         return own - reference["offset"]
 

@@ -1,0 +1,129 @@
+"""A local law and the links as one controller of the loop (NetworkedController).
+
+Oracles: the linear consensus's closed-form rate (the discrete loop ``x <- (I - k dt L) x``
+of perfect links: ``Graph.predicted_rate(k, dt)``), the centralised Laplacian step on the
+complete graph, NumPy against JAX (batched, delayed, lossy), and the links' own counts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quatform.control.local_laws.position_consensus import PositionConsensus
+from quatform.control.networked import NETWORK_SIGNALS, NetworkedController
+from quatform.errors import InvalidInputError
+from quatform.network import Graph, Links
+from quatform.robots import FreeBodyRobot, HolonomicRobot, Team
+from quatform.sim import simulate
+from quatform.sim.plants.kinematic import KinematicTeam
+
+DT = 0.01
+
+
+def _setup(graph, links=None, gain=1.0, robot=None):
+    n = graph.n
+    team = Team.uniform(robot or HolonomicRobot(max_speed=1e3, max_yaw_rate=1e3), n, common_limit=False)
+    links = links or Links(graph, max_age_s=0.5)
+    ctrl = NetworkedController(PositionConsensus(gain), team, links, DT)
+    a = 2 * np.pi * np.arange(n) / n
+    off = np.c_[np.cos(a), np.sin(a), np.zeros(n)]
+    ref = (lambda k: {"offset": off, "offset_rate": np.zeros((n, 3))})
+    return team, ctrl, off, ref
+
+
+def _x0(n, seed=0, batch=()):
+    rng = np.random.default_rng(seed)
+    x = np.zeros(batch + (n, 4))
+    x[..., :3] = rng.normal(size=batch + (n, 3))
+    return x.reshape(batch + (4 * n,))
+
+
+def _disagreement(log, n, off):
+    p = log["state"].reshape(log["state"].shape[:-1] + (n, 4))[..., :3] - off
+    return np.linalg.norm(p - p.mean(axis=-2, keepdims=True), axis=(-2, -1))
+
+
+@pytest.mark.parametrize("graph", [Graph.ring(8), Graph.ring(8, directed=False), Graph.complete(5),
+                                   Graph(5, [(0, 1), (1, 2), (2, 3), (3, 4), (4, 0), (2, 0)],
+                                         weights=[1.0, 2.0, 0.5, 1.5, 1.0, 0.7])],
+                         ids=["directed-ring", "undirected-ring", "complete", "weighted-directed"])
+def test_rate_is_lambda2s(graph):
+    """Perfect links: the measured decay of the disagreement equals the discrete loop's predicted rate."""
+    n = graph.n
+    team, ctrl, off, ref = _setup(graph)
+    times = np.arange(1500) * DT
+    log = simulate(KinematicTeam(team), ctrl, ref, times, _x0(n))
+    err = _disagreement(log, n, off)
+    predicted = graph.predicted_rate(1.0, dt_s=DT)
+    k0 = 200
+    k1 = int(np.argmax(err < 1e-10 * err[0])) if np.any(err < 1e-10 * err[0]) else len(err) - 1
+    slope = np.polyfit(times[k0:k1], np.log(err[k0:k1]), 1)[0]
+    assert abs(-slope - predicted) <= 0.03 * predicted
+
+
+def test_complete_graph_is_the_centralised_laplacian_step():
+    """On the complete graph with perfect links every robot's command is the centralised
+    ``-k L xi`` of the whole team (to rounding)."""
+    g = Graph.complete(6)
+    team, ctrl, off, ref = _setup(g, gain=0.8)
+    times = np.arange(50) * DT
+    log = simulate(KinematicTeam(team), ctrl, ref, times, _x0(6, 3))
+    xi = log["state"].reshape(50, 6, 4)[..., :3] - off
+    central = -0.8 * np.einsum("ij,tjk->tik", g.laplacian(), xi)
+    u = log["command"].reshape(50, 6, 4)
+    np.testing.assert_allclose(u[..., :3], central, rtol=0, atol=1e-12 * np.max(np.abs(central)))
+    assert np.all(u[..., 3] == 0.0)
+
+
+def test_network_signal_counts_the_links():
+    g = Graph.ring(6, directed=False)
+    links = Links(g, delay_s=0.03, jitter_s=0.02, drop=0.25, max_age_s=0.2, seed=4)
+    team, ctrl, off, ref = _setup(g, links)
+    times = np.arange(300) * DT
+    log = simulate(KinematicTeam(team), ctrl, ref, times, _x0(6, 1, (3,)))
+    net = log["network"]
+    assert log.channels["network"].columns == NETWORK_SIGNALS
+    sched = links.schedule(times, DT, (3,))
+    assert ctrl.schedule(times, (3,))["messages_sent"].shape == (300, 3, 1)
+    np.testing.assert_array_equal(net[..., 0], sched["messages_sent"])
+    np.testing.assert_array_equal(net[..., 1], sched["messages_dropped"])
+    np.testing.assert_array_equal(net[..., 2], sched["new"].sum(axis=-1))
+    assert np.all(net[..., 3] <= 0.2 + 1e-12) and np.all(net[..., 3] >= 0.0)
+    assert np.all(np.isfinite(log["command"]))
+
+
+def test_jax_equals_numpy_batched_lossy():
+    pytest.importorskip("jax")
+    from quatform.sim.loop import simulate_jax
+    g = Graph.ring(5)
+    links = Links(g, delay_s=0.05, jitter_s=0.02, drop=0.2, max_age_s=0.3, seed=1)
+    team, ctrl, off, ref = _setup(g, links)
+    times = np.arange(120) * DT
+    x0 = _x0(5, 2, (3,))
+    a = simulate(KinematicTeam(team), ctrl, ref, times, x0)
+    b = simulate_jax(KinematicTeam(team), ctrl, ref, times, x0)
+    for name in a.channels:
+        np.testing.assert_allclose(b[name], a[name], rtol=1e-9, atol=1e-12, err_msg=name)
+
+
+def test_refusals_are_one_line():
+    g = Graph.ring(3)
+    holo = Team.uniform(HolonomicRobot(), 3, common_limit=False)
+    with pytest.raises(InvalidInputError, match="max_age_s = inf"):
+        NetworkedController(PositionConsensus(), holo, Links(g), DT)
+    with pytest.raises(InvalidInputError, match="period_s"):
+        NetworkedController(PositionConsensus(), holo, Links(g, max_age_s=1.0), -1.0)
+    with pytest.raises(InvalidInputError, match="robots"):
+        NetworkedController(PositionConsensus(), Team.uniform(HolonomicRobot(), 4, common_limit=False),
+                            Links(g, max_age_s=1.0), DT)
+    with pytest.raises(InvalidInputError, match="mixes robot models"):
+        NetworkedController(PositionConsensus(), Team((HolonomicRobot(), HolonomicRobot(), FreeBodyRobot())),
+                            Links(g, max_age_s=1.0), DT)
+    ctrl = NetworkedController(PositionConsensus(), holo, Links(g, max_age_s=1.0), DT)
+    with pytest.raises(InvalidInputError, match="period_s"):
+        ctrl.schedule(np.arange(10) * 0.02)
+    with pytest.raises(InvalidInputError, match="gain"):
+        PositionConsensus(gain=math.nan)
