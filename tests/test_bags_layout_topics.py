@@ -26,6 +26,7 @@ SHORT = {
     "ugv-uav": ("marciano-circle", {"duration_s": 0.3, "transient_s": 0.1}, {}),
     "team": ("team-triangle-over-ugv", {"duration_s": 0.2, "metrics_from_s": 0.0}, {"controller": "quaternion"}),
     "teleop": ("teleop-wall-contact", {"duration_s": 0.05}, {}),
+    "network": ("net-switching", {"duration_s": 0.2}, {}),
 }
 #: A team too large for topics per body (its robots drawn as pose arrays).
 LARGE_TEAM = ("team-grid-100", {"duration_s": 0.1, "metrics_from_s": 0.0}, {"controller": "quaternion"})
@@ -97,6 +98,10 @@ def test_a_runs_foxglove_layout_references_only_topics_its_bag_has(tmp_path, kin
         assert {"/master_hand/pose", "/slave_hand/pose", "/quatform/e", "/master/joint_states",
                 "/slave/joint_states", "/slave_wrist/wrench"} <= topics
         assert {"/master_hand/path", "/slave_hand/path"} <= set(layout["configById"]["3D!quatform"]["topics"])
+    elif kind == "network":  # the consensus error, the links' counts, the delivered edges
+        assert {"/quatform/consensus_error", "/quatform/network"} <= topics
+        shown = set(layout["configById"]["3D!quatform"]["topics"])
+        assert {"/robot_1/path", "/robot_1/path_desired", "/formation/edges"} <= shown
     else:  # the formation frame against the reference, its error, the singularity measure
         assert {"/formation/pose", "/formation/pose_desired", "/formation/error", "/quatform/singularity"} <= topics
         shown = set(layout["configById"]["3D!quatform"]["topics"])

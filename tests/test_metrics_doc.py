@@ -81,6 +81,7 @@ def test_every_section_row_has_a_unit_and_a_definition():
 
 #: A short run of each kind (and of the options that add keys).
 RUNS = [
+    ("net-switching", "network", {}),
     ("mas-kitts-helix", "pair", {"controller": "quaternion"}),
     ("mas-kitts-helix", "pair", {"controller": "cluster-space"}),
     ("mas-kitts-helix", "pair", {"controller": "dual-quaternion", "min_separation": 0.5}),

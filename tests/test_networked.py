@@ -30,7 +30,7 @@ def _setup(graph, links=None, gain=1.0, robot=None):
     ctrl = NetworkedController(PositionConsensus(gain), team, links, DT)
     a = 2 * np.pi * np.arange(n) / n
     off = np.c_[np.cos(a), np.sin(a), np.zeros(n)]
-    ref = (lambda k: {"offset": off, "offset_rate": np.zeros((n, 3))})
+    ref = (lambda k: {"desired": off, "desired_rate": np.zeros((n, 3))})
     return team, ctrl, off, ref
 
 

@@ -80,8 +80,9 @@ def test_writer_contract(name, tmp_path):
     if not w.optional:
         with pytest.raises(InvalidInputError, match="always written"):
             writer_choices(writers={name: False})
-    w.write(RunFiles(_log(), tmp_path, _Kind(), ("state", "command"), {"final": 1.0}))
-    assert (tmp_path / w.files[0]).is_file()
+    run = RunFiles(_log(), tmp_path, _Kind(), ("state", "command"), {"final": 1.0})
+    w.write(run)
+    assert (tmp_path / w.files[0]).is_file() == w.applies(run)  # a writer writes what a run has
 
 
 def test_the_output_flags_are_the_optional_writers():

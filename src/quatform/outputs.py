@@ -12,7 +12,8 @@ says
 * ``optional``: whether a user can switch it (``default``: on unless switched off);
 * ``extra``: the ``pip install -e ".[extra]"`` it needs, or None;
 * ``order``: when it writes among a run's writers (``metrics.json`` last: its presence says
-  the run completed).
+  the run completed);
+* ``applies(run)``: whether a run has what it writes (``graph.json``: a run over a graph).
 
 The built-in ones: ``csv`` (``timeseries.csv``, the kind's channels), ``mcap`` (``run.mcap``
 and ``foxglove-layout.json``, :mod:`quatform.bags`), ``rerun`` (a Rerun recording of every run
@@ -31,7 +32,7 @@ from typing import Any, ClassVar
 from .errors import InvalidInputError
 from .registry import Registry
 
-__all__ = ["Writer", "WRITERS", "RunFiles", "CsvWriter", "McapWriter", "RerunWriter", "MetricsWriter",
+__all__ = ["Writer", "WRITERS", "RunFiles", "CsvWriter", "McapWriter", "RerunWriter", "GraphWriter", "MetricsWriter",
            "chosen_writers", "add_output_flags", "writer_choices"]
 
 #: Every writer by name, in the order its class was defined.
@@ -81,6 +82,10 @@ class Writer:
         super().__init_subclass__(**kwargs)
         if register and cls.__dict__.get("name"):
             WRITERS.add(cls.name, cls())
+
+    def applies(self, run: RunFiles) -> bool:
+        """Whether the run has what this writer writes (every run, unless the writer says)."""
+        return True
 
     def write(self, run: RunFiles) -> None:
         """Write this format's files of one run into ``run.folder``."""
@@ -227,6 +232,25 @@ class RerunWriter(Writer):
         from .bags.rerun import write_rerun
 
         write_rerun(logs, path, kind=kind, name=name)
+
+
+class GraphWriter(Writer):
+    """``graph.json`` of a run whose robots talk over a graph (its log's ``meta["graph"]``,
+    :func:`quatform.scenarios.network.graph_record`): the robots, each graph's edges with
+    their weights and the switching schedule. Other runs write nothing."""
+
+    name = "graph"
+    files = ("graph.json",)
+    order = 30
+
+    def applies(self, run: RunFiles) -> bool:
+        return isinstance(run.log.meta.get("graph"), dict)
+
+    def write(self, run: RunFiles) -> None:
+        if self.applies(run):
+            from .report.writers import write_json
+
+            write_json(run.log.meta["graph"], run.folder / self.files[0])
 
 
 class MetricsWriter(Writer):

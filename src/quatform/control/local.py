@@ -119,6 +119,25 @@ class LocalController(ABC):
         ``reference`` as :meth:`reference_arrays` returns it)."""
         raise NotImplementedError(f"{type(self).__name__}.example")
 
+    def consensus_error(self, own, desired):
+        """The team's disagreement at each sample, ``(...)``, from every robot's own columns
+        ``own`` and its desired ones ``desired`` (both ``(..., N, n_own)``, NumPy): by default
+        the root mean square over the robots of ``|xi_i - mean(xi)|``, ``xi = p_i - p_des_i`` of
+        the first three own columns (``x, y, z``), m: zero where the robots hold the desired
+        shape about some common point. A law with another invariant overrides it."""
+        if tuple(self.own_columns[:3]) != ("x", "y", "z"):
+            raise NotImplementedError(f"{type(self).__name__}.consensus_error")
+        xi = np.asarray(own, dtype=float)[..., :3] - np.asarray(desired, dtype=float)[..., :3]
+        dev = xi - xi.mean(axis=-2, keepdims=True)
+        return np.sqrt(np.mean(np.sum(dev * dev, axis=-1), axis=-1))
+
+    def predicted_rate(self, graph, period_s: float, switching_period_s: float | None = None):
+        """The decay rate of :meth:`consensus_error` the law's theory predicts on ``graph`` with
+        perfect links at the control period ``period_s`` (1/s), or None where it gives none;
+        with ``switching_period_s``, ``graph`` is one period's ``[(start_s, Graph), ...]`` of a
+        schedule repeated every ``switching_period_s``."""
+        return None
+
     def init(self, n: int, batch: tuple = ()):
         """The state before the first tick of ``n`` robots and ``batch`` worlds (None: stateless)."""
         return None

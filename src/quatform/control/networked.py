@@ -177,7 +177,16 @@ class NetworkedController(contract.Controller):
         return out
 
     def reference_arrays(self, reference):
+        """``(the law's reference, links slice)``. A reference with ``robots`` (the team's desired
+        points ``(*batch?, layout.size)``) and ``robots_rate`` (their rates) gives the law each
+        robot's rows of its own columns as ``desired`` and ``desired_rate`` ``(*batch?, N,
+        n_own)``; its other keys pass as they are."""
         ref, links = reference
+        if isinstance(ref, dict) and "robots" in ref:
+            ref = dict(ref)
+            for key, out in (("robots", "desired"), ("robots_rate", "desired_rate")):
+                if key in ref:
+                    ref[out] = np.asarray(ref.pop(key), dtype=float)[..., self._own]
         return self.local.reference_arrays(ref, self.n), links
 
     def tick(self, state, measured, reference, t) -> contract.Tick:

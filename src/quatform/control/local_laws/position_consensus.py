@@ -17,6 +17,7 @@ around a common point.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,7 +38,8 @@ class PositionConsensus(LocalController):
     gain : float
         ``k``, 1/s, > 0.
 
-    Reference (per tick): ``{"offset": (*batch?, N, 3) m, "offset_rate": (*batch?, N, 3) m/s}``.
+    Reference (per tick): ``{"desired": (*batch?, N, 3) m, "desired_rate": (*batch?, N, 3) m/s}``,
+    each robot's desired position ``r_i`` and its rate.
     """
 
     gain: float = 1.0
@@ -57,7 +59,7 @@ class PositionConsensus(LocalController):
 
     def reference_arrays(self, reference, n: int):
         out = {}
-        for key in ("offset", "offset_rate"):
+        for key in ("desired", "desired_rate"):
             try:
                 a = np.asarray(reference[key], dtype=float)
             except (KeyError, TypeError, ValueError):
@@ -73,18 +75,45 @@ class PositionConsensus(LocalController):
 
     def example(self, n, rng):
         offset = rng.normal(size=(n, 3))
-        return rng.normal(size=(n, 3)), {"offset": offset, "offset_rate": rng.normal(size=(n, 3))}
+        return rng.normal(size=(n, 3)), {"desired": offset, "desired_rate": rng.normal(size=(n, 3))}
+
+    def predicted_rate(self, graph, period_s, switching_period_s=None):
+        """The decay rate of the disagreement with perfect links, 1/s.
+
+        One graph: the discrete loop's ``-log(max |1 - k dt lambda|) / dt``
+        (:meth:`Graph.predicted_rate`). A schedule ``[(start_s, Graph), ...]`` repeated every
+        ``switching_period_s``: ``-log rho / T`` of the transition matrix of one period,
+        ``Phi = prod_s (I - k dt L_s)^(n_s)`` (``n_s`` ticks of graph ``s``), ``rho`` its largest
+        eigenvalue modulus after the consensus mode (the eigenvalue 1 of ``Phi 1 = 1``): the
+        disagreement shrinks by ``rho`` per period (Jadbabaie, Lin & Morse 2003, IEEE TAC 48(6);
+        Ren & Beard 2005: consensus iff the union over a period has a spanning tree, rate 0
+        where it has none).
+        """
+        if switching_period_s is None:
+            return graph.predicted_rate(self.gain, dt_s=period_s)
+        n = graph[0][1].n
+        starts = [s for s, _ in graph] + [switching_period_s]
+        phi = np.eye(n)
+        for (start, g), end in zip(graph, starts[1:]):
+            ticks = int(round((end - start) / period_s))
+            phi = np.linalg.matrix_power(np.eye(n) - self.gain * period_s * g.laplacian(), ticks) @ phi
+        lam = np.linalg.eigvals(phi)
+        lam = np.delete(lam, int(np.argmin(np.abs(lam - 1.0))))
+        rho = float(np.max(np.abs(lam), initial=0.0))
+        if rho >= 1.0 - 1e-12:
+            return 0.0
+        return -math.log(rho) / switching_period_s if rho > 0.0 else math.inf
 
     def message(self, state, own, reference, t):
-        return own - reference["offset"]
+        return own - reference["desired"]
 
     def tick(self, state, own, inbox, reference, t) -> LocalTick:
         xp = common_namespace(own, inbox["messages"])
-        xi = own - reference["offset"]
+        xi = own - reference["desired"]
         w = xp.where(inbox["valid"], xp.asarray(inbox["weights"], dtype=own.dtype), 0.0)  # (*b, N, W)
         diff = inbox["messages"] - xi[..., None, :]                                      # (*b, N, W, 3)
         pull = xp.sum(w[..., None] * diff, axis=-2)
-        u = reference["offset_rate"] + self.gain * pull
+        u = reference["desired_rate"] + self.gain * pull
         dis = xp.sum(w * xp.sqrt(xp.sum(diff * diff, axis=-1)), axis=-1)
         count = xp.sum(xp.asarray(inbox["valid"], dtype=own.dtype), axis=-1)
         code = xp.zeros(own.shape[:-1], dtype=xp.int64)

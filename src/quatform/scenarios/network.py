@@ -1,0 +1,477 @@
+"""Decentralised formations: every robot runs a local law on what its neighbours' radios deliver.
+
+Scenarios layer. A ``kind = "network"`` file names a local law
+(:data:`quatform.control.local.LOCAL_CONTROLLERS`) and its gains, the robots (a
+``[[robots]]`` entry of one model), the formation's motion (the team kind's ``[shape]``,
+``[path]``, ``[attitude]``, ``[headings]``: each robot's desired point over time), the
+communication graph (``[graph]``, or a switching schedule ``[[switching]]``), the links'
+delay, jitter, loss, rates and staleness (``[links]``) and the robots' start (``[initial]``:
+random offsets, turns and antipodal signs about the desired points at ``t = 0``). The run is
+:class:`~quatform.control.networked.NetworkedController` in the one loop (NumPy or JAX,
+batched), and writes the consensus error against the rate λ₂ predicts, what the links
+carried, and ``graph.json`` (``docs/networks.md``, "Scenarios").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..bags.scene import SCENES, Plot, SceneKind, team_scene
+from ..checks import MISSING, check_keys, flag, integer, number, records, short, table, text, vector
+from ..control.local import LOCAL_CONTROLLERS
+from ..control.networked import NETWORK_SIGNALS, NetworkedController
+from ..errors import InvalidInputError
+from ..formations import TeamChart
+from ..formations.geometry import mul
+from ..formations.layout import POINT_KINDS
+from ..network import Graph, Links
+from ..references.team_motion import TeamMotion
+from ..robots import Team
+from ..sim.log import Channel, Log
+from ..sim.plants import KinematicTeam
+from . import KINDS
+from .base import Experiment, Option, ScenarioKind, finish_worlds
+from .team import _attitude, _headings, _path, _robots, _shape, check_team_work
+
+__all__ = ["NetworkScenario", "NetworkKind", "GRAPH_KINDS", "network_scenario_from_dict", "graph_record",
+           "averaged_graph", "measured_rate", "start_points", "network_metrics", "network_scene"]
+
+_HINT = "see docs/networks.md, scenarios"
+_TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "law", "gains", "robots",
+             "shape", "path", "attitude", "headings", "graph", "switching", "switching_period_s", "links", "initial", "converged_below")
+_GRAPH_KEYS = ("kind", "directed", "k", "radius_m", "edges", "weights")
+_SWITCH_KEYS = ("start_s",) + _GRAPH_KEYS
+_LINK_KEYS = ("delay_s", "jitter_s", "drop", "rate_hz", "max_age_s", "seed")
+_INITIAL_KEYS = ("position_m", "angle_rad", "antipodal", "seed")
+#: The ``[graph]`` kinds: what each builds over the robots (numbered from 1 in files).
+GRAPH_KINDS = ("ring", "complete", "k-nearest", "disk", "edges")
+
+
+def _law(name: str, gains: dict, where: str):
+    """The local law ``name`` with the file's ``gains`` (its dataclass fields, numbers)."""
+    from ..checks import nearest
+    import quatform.control.local_laws  # noqa: F401  (registers the laws)
+
+    if name not in LOCAL_CONTROLLERS:
+        raise InvalidInputError(f"{where}: unknown law {name!r}{nearest(name, LOCAL_CONTROLLERS)}; choose one of "
+                                f"{', '.join(sorted(LOCAL_CONTROLLERS))}")
+    cls = LOCAL_CONTROLLERS[name]
+    fields = tuple(f.name for f in dataclasses.fields(cls)) if dataclasses.is_dataclass(cls) else ()
+    check_keys(gains, fields, where, "[gains]", f"the {name} law takes {', '.join(fields) or 'no gains'}")
+    values = {k: number(gains, k, where, place="[gains]") for k in gains}
+    return cls(**values)
+
+
+def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -> Graph:
+    kind = text(g, "kind", where, "ring", place=place, choices=GRAPH_KINDS)
+    only = {"directed": "ring", "k": "k-nearest", "radius_m": "disk", "edges": "edges", "weights": "edges"}
+    for key, owner in only.items():
+        if key in g and kind != owner:
+            raise InvalidInputError(f"{where}: {place} {key} is for kind = {owner!r}, not {kind!r}; remove it")
+    if kind == "ring":
+        return Graph.ring(n, directed=flag(g, "directed", where, True, place=place))
+    if kind == "complete":
+        return Graph.complete(n)
+    if kind == "k-nearest":
+        return Graph.k_nearest(positions, integer(g, "k", where, place=place, low=1, high=n - 1))
+    if kind == "disk":
+        return Graph.disk(positions, number(g, "radius_m", where, place=place, low=0.0, low_open=True))
+    edges = g.get("edges", MISSING)
+    if not isinstance(edges, list) or not edges or not all(isinstance(e, list) and len(e) == 2 for e in edges):
+        raise InvalidInputError(f"{where}: {place} edges must be a list of [receiver, sender] robot numbers "
+                                f"(1..{n}), e.g. [[1, 2], [2, 3]]; got {short(edges)}")
+    pairs = []
+    for e in edges:
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= n for v in e):
+            raise InvalidInputError(f"{where}: {place} edge {short(e)} must be two robot numbers in 1..{n} "
+                                    f"([receiver, sender])")
+        pairs.append((e[0] - 1, e[1] - 1))
+    weights = None
+    if "weights" in g:
+        weights = vector(g, "weights", len(pairs), where, place=place)
+    return Graph(n, pairs, weights=weights)
+
+
+def _positions(layout, r) -> np.ndarray:
+    """The robots' positions ``(..., N, 3)`` of points ``r`` ``(..., layout.size)`` (z = 0 for a planar robot)."""
+    r = np.asarray(r, dtype=float)
+    ext = np.concatenate([r, np.zeros(r.shape[:-1] + (1,))], axis=-1)
+    return ext[..., np.minimum(layout.position_index, layout.size)]
+
+
+def averaged_graph(pattern, period: float) -> Graph:
+    """The time average over one period of a repeated switching schedule ``[(start_s, Graph),
+    ...]``: the union of the edges, each weighted by its weight times the fraction of the
+    period its graph holds (its Laplacian is the average of the intervals' Laplacians)."""
+    n = pattern[0][1].n
+    ends = [s for s, _ in pattern[1:]] + [period]
+    acc: dict = {}
+    for (start, g), end in zip(pattern, ends):
+        for (i, j), w in zip(g.edges.tolist(), g.weights.tolist()):
+            acc[(i, j)] = acc.get((i, j), 0.0) + w * (end - start) / period
+    return Graph(n, list(acc), weights=list(acc.values()))
+
+
+def graph_record(links: Links) -> dict:
+    """``graph.json``'s content: the robots (numbered from 1), every graph's edges ``[receiver,
+    sender]`` with their weights, and the switching schedule (``start_s`` of each graph)."""
+    graphs = [(None, links.graph)] if isinstance(links.graph, Graph) else list(links.graph)
+    return {"robots": list(range(1, links.n + 1)),
+            "convention": "edge [i, j]: robot i receives robot j's messages (robots numbered from 1)",
+            "graphs": [{"start_s": None if s is None else float(s),
+                        "edges": (g.edges + 1).tolist(), "weights": g.weights.tolist(),
+                        "lambda2": float(g.lambda2())} for s, g in graphs],
+            "links": {"delay_s": links.delay_s.tolist(), "jitter_s": links.jitter_s.tolist(),
+                      "drop": links.drop.tolist(),
+                      "rate_hz": None if links.rate_hz is None else links.rate_hz.tolist(),
+                      "max_age_s": links.max_age_s, "seed": links.seed,
+                      "candidate_edges": (links.edges + 1).tolist()}}
+
+
+# --------------------------------------------------------------------------- the scenario
+
+@dataclass(frozen=True, eq=False)
+class NetworkScenario:
+    """A decentralised run's definition (module docstring).
+
+    Attributes
+    ----------
+    name, title, source : str
+    team : Team
+        One model for every robot.
+    motion : TeamMotion
+        The desired points over time.
+    law : object
+        The :class:`~quatform.control.local.LocalController` every robot runs.
+    links : Links
+        The graph (or switching schedule) and the radio.
+    duration_s, dt_s, metrics_from_s : float
+    initial : dict
+        ``position_m`` (m, each robot's random offset, normal per axis), ``angle_rad`` (each
+        pose robot turned by this angle about a random axis; a yaw robot's yaw by a uniform
+        draw in ``+-angle_rad``), ``antipodal`` (robot indices whose quaternion starts as -q),
+        ``seed``.
+    converged_below : float
+        The consensus error at the end at or under which the run counts as converged.
+    switching : (tuple of (float, Graph), float) or None
+        A repeated switching schedule: one period's ``(start_s, Graph)`` intervals and the
+        period, s (``links`` holds them repeated over the run).
+    """
+
+    name: str
+    team: Team
+    motion: TeamMotion
+    law: object
+    links: Links
+    duration_s: float
+    dt_s: float = 0.02
+    metrics_from_s: float = 0.0
+    title: str = ""
+    source: str = ""
+    groups: tuple = ()
+    initial: dict = field(default_factory=dict)
+    converged_below: float = 1e-3
+    switching: tuple | None = None
+
+    @property
+    def times(self) -> np.ndarray:
+        n = int(math.floor(self.duration_s / self.dt_s + 1e-9))
+        return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
+
+    def controller(self) -> NetworkedController:
+        return NetworkedController(self.law, self.team, self.links, self.dt_s)
+
+
+def _desired_at_zero(team: Team, motion: TeamMotion) -> np.ndarray:
+    e, _ = motion(np.zeros(1))
+    return TeamChart(team.layout).robots(e[0])
+
+
+def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkScenario:
+    """A :class:`NetworkScenario` of parsed TOML; every mistake is one line naming the key."""
+    check_keys(data, _TOP_KEYS, where, hint=_HINT)
+    text(data, "kind", where, choices=("network",))
+    try:
+        duration = number(data, "duration_s", where, low=0.0, low_open=True)
+        dt = number(data, "dt_s", where, 0.02, low=0.0, low_open=True, high=duration)
+        groups, team = _robots(data, where)
+        if len(groups) != 1:
+            raise InvalidInputError(f"{where}: a network team is one robot model; give one [[robots]] entry "
+                                    f"(got {len(groups)})")
+        team = Team.uniform(team.robots[0], team.layout.n, common_limit=False)
+        n = team.layout.n
+        check_team_work(where, duration, dt, n)
+        template, scale, moves = _shape(data, where, n, duration)
+        motion = TeamMotion(team.layout, template, _path(data, where), _attitude(data, where, duration), scale,
+                            moves, _headings(data, where, n))
+        r0 = _desired_at_zero(team, motion)
+        pos0 = _positions(team.layout, r0)
+        law = _law(text(data, "law", where), table(data, "gains", where, default={}), where)
+        if "switching" in data and "graph" in data:
+            raise InvalidInputError(f"{where}: give [graph] or [[switching]], not both (a switching schedule lists "
+                                    f"each interval's graph)")
+        period = None
+        if "switching_period_s" in data and "switching" not in data:
+            raise InvalidInputError(f"{where}: switching_period_s repeats a [[switching]] schedule, and there is "
+                                    f"none; remove it or give [[switching]] intervals")
+        if "switching" in data:
+            pattern = [(number(s, "start_s", w, low=0.0, high=duration), _one_graph(s, w, "[[switching]]", n, pos0))
+                       for s, w in records(data, "switching", _SWITCH_KEYS, where, "switching", _HINT)]
+            if not pattern:
+                raise InvalidInputError(f"{where}: [[switching]] lists no graph; give at least one")
+            graph = pattern
+            if "switching_period_s" in data:
+                period = number(data, "switching_period_s", where, low=0.0, low_open=True)
+                if pattern[-1][0] >= period or pattern[0][0] != 0.0:
+                    raise InvalidInputError(f"{where}: a repeated [[switching]] schedule starts its first interval "
+                                            f"at 0 s and its last before switching_period_s = {period:g} s; got "
+                                            f"starts {', '.join(f'{s:g}' for s, _ in pattern)} s")
+                repeats = int(math.ceil(duration / period))
+                graph = [(r * period + s, g) for r in range(repeats) for s, g in pattern]
+        else:
+            g = table(data, "graph", where, default={"kind": "ring"})
+            check_keys(g, _GRAPH_KEYS, where, "[graph]", _HINT)
+            graph = _one_graph(g, where, "[graph]", n, pos0)
+        lk = table(data, "links", where, default={})
+        check_keys(lk, _LINK_KEYS, where, "[links]", _HINT)
+        at = {"place": "[links]"}
+        rate = number(lk, "rate_hz", where, None, **at, low=0.0, low_open=True) if "rate_hz" in lk else None
+        links = Links(graph, delay_s=number(lk, "delay_s", where, 0.0, **at, low=0.0),
+                      jitter_s=number(lk, "jitter_s", where, 0.0, **at, low=0.0),
+                      drop=number(lk, "drop", where, 0.0, **at, low=0.0, high=1.0), rate_hz=rate,
+                      max_age_s=number(lk, "max_age_s", where, 1.0, **at, low=0.0, low_open=True),
+                      seed=integer(lk, "seed", where, 0, **at, low=0))
+        ini = table(data, "initial", where, default={})
+        check_keys(ini, _INITIAL_KEYS, where, "[initial]", _HINT)
+        at = {"place": "[initial]"}
+        antipodal = ini.get("antipodal", [])
+        if not isinstance(antipodal, list) or not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= n
+                                                      for v in antipodal):
+            raise InvalidInputError(f"{where}: [initial] antipodal must list robot numbers in 1..{n} (their "
+                                    f"quaternions start as -q), got {short(antipodal)}")
+        initial = {"position_m": number(ini, "position_m", where, 0.0, **at, low=0.0),
+                   "angle_rad": number(ini, "angle_rad", where, 0.0, **at, low=0.0, high=math.pi),
+                   "antipodal": tuple(v - 1 for v in antipodal), "seed": integer(ini, "seed", where, 0, **at, low=0)}
+        metrics_from = number(data, "metrics_from_s", where, 0.0, low=0.0, high=duration)
+        sc = NetworkScenario(name=text(data, "name", where, Path(where).stem), title=text(data, "title", where, ""),
+                             source=text(data, "source", where, ""), team=team, groups=groups, motion=motion,
+                             law=law, links=links, duration_s=duration, dt_s=dt, metrics_from_s=metrics_from,
+                             initial=initial,
+                             converged_below=number(data, "converged_below", where, 1e-3, low=0.0, low_open=True),
+                             switching=None if period is None else (tuple(pattern), period))
+        sc.controller()  # the law, robots and links fit together
+    except InvalidInputError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
+    return sc
+
+
+def start_points(sc: NetworkScenario, r0: np.ndarray) -> np.ndarray:
+    """The robots' points at ``t = 0``: the desired points ``r0`` with the scenario's random
+    offsets and turns (``[initial]``), drawn from ``numpy.random.default_rng(seed)``."""
+    ini, L = sc.initial, sc.team.layout
+    rng = np.random.default_rng(ini.get("seed", 0))
+    r = np.array(r0, dtype=float)
+    for i in range(L.n):
+        step = ini.get("position_m", 0.0) * rng.normal(size=3)
+        for axis, k in enumerate(L.position_index[i]):
+            if k < L.size:  # a planar robot has no z
+                r[k] += step[axis]
+    ang = ini.get("angle_rad", 0.0)
+    for i, o in enumerate(L.offsets):
+        comps = [c[0] for c in POINT_KINDS[L.kinds[i]].components]
+        if "q_w" in comps:
+            q0 = o + comps.index("q_w")
+            axis = rng.normal(size=3)
+            axis = axis / max(np.linalg.norm(axis), 1e-300)
+            turn = np.r_[math.cos(ang / 2), math.sin(ang / 2) * axis]
+            q = mul(turn, r[q0:q0 + 4])
+            q = q / np.linalg.norm(q)
+            r[q0:q0 + 4] = -q if i in ini.get("antipodal", ()) else q
+        elif "theta" in comps:
+            r[o + comps.index("theta")] += rng.uniform(-ang, ang)
+    return r
+
+
+def measured_rate(t: np.ndarray, err: np.ndarray, t_from: float = 0.0, floor: float = 1e-12):
+    """The exponential decay rate of ``err`` (1/s): minus the least-squares slope of ``log err``
+    over the samples from ``t_from`` on where the error has fallen to half its largest value
+    there and is still above ``floor`` times that largest value (rounding's noise below); None
+    with fewer than 10 such samples or no decay."""
+    t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
+    keep = (t >= t_from) & np.isfinite(err)
+    if keep.sum() < 10:
+        return None
+    top = float(np.max(err[keep]))
+    if not top > 0.0:
+        return None
+    start = int(np.argmax(keep & (err <= 0.5 * top)))
+    use = keep & (np.arange(len(t)) >= start) & (err > floor * top) & (err > 0.0)
+    if use.sum() < 10 or not np.any(keep & (err <= 0.5 * top)):
+        return None
+    slope = np.polyfit(t[use], np.log(err[use]), 1)[0]
+    return float(-slope) if slope < 0 else None
+
+
+class NetworkKind(ScenarioKind):
+    """Robots that each run a local law on their neighbours' delayed and lost messages."""
+
+    name = "network"
+    scenario_type = NetworkScenario
+    compare_over = "law"
+
+    @property
+    def options(self) -> tuple:
+        """The run's options; the law's choices are the local laws registered now."""
+        import quatform.control.local_laws  # noqa: F401  (registers the laws)
+
+        return (Option("law", "the local law every robot runs (default: the scenario's)",
+                       tuple(sorted(LOCAL_CONTROLLERS)), None),)
+    not_sweepable = "a network run's sweep parameters are not registered yet; run each setting as its own file"
+    table_columns = (("graph_lambda2", "lambda2", "{:.4g}"), ("predicted_rate", "predicted 1/s", "{:.4g}"),
+                     ("measured_rate", "measured 1/s", "{:.4g}"), ("converged", "converged", "{}"),
+                     ("messages_dropped", "dropped", "{}"))
+
+    def from_dict(self, data: dict, where: str) -> NetworkScenario:
+        return network_scenario_from_dict(data, where)
+
+    def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
+        """Over ``law``: the laws that can drive the scenario's robots (with their default gains),
+        and the others with their one-line refusal."""
+        if axis != "law" or not isinstance(scenario, NetworkScenario):
+            return super().compare_choices(scenario, axis)
+        run, skipped = [], {}
+        for name in self.options[0].choices:
+            try:
+                law = scenario.law if name == scenario.law.name else _law(name, {}, f"scenario {scenario.name!r}")
+                dataclasses.replace(scenario, law=law).controller()
+            except InvalidInputError as exc:
+                skipped[name] = str(exc)
+            else:
+                run.append(name)
+        return tuple(run), skipped
+
+    def experiment(self, scenario: NetworkScenario, law=None) -> Experiment:
+        if not isinstance(scenario, NetworkScenario):
+            raise InvalidInputError(f"network experiment: scenario must be a NetworkScenario, got "
+                                    f"{type(scenario).__name__}")
+        if law is not None and law != scenario.law.name:  # another law, with its default gains
+            scenario = dataclasses.replace(scenario, law=_law(law, {}, f"scenario {scenario.name!r}"))
+        ctrl = scenario.controller()
+        team, L = scenario.team, scenario.team.layout
+        chart = TeamChart(L)
+        t = scenario.times
+        e_des, ed_des = scenario.motion(t)
+        r_des, rd_des = chart.robots(e_des), chart.robot_rates(e_des, ed_des)
+        x0 = start_points(scenario, r_des[0])
+        plant = KinematicTeam(team)
+        graphs = [scenario.links.graph] if isinstance(scenario.links.graph, Graph) else \
+            [g for _, g in scenario.links.graph]
+        lam = min(float(g.lambda2()) for g in graphs)
+        law_obj = scenario.law
+        if len(graphs) == 1:
+            predicted = law_obj.predicted_rate(graphs[0], scenario.dt_s)
+        elif scenario.switching is not None:
+            pattern, period = scenario.switching
+            predicted = law_obj.predicted_rate(list(pattern), scenario.dt_s, switching_period_s=period)
+            lam = float(averaged_graph(pattern, period).lambda2())
+        else:
+            predicted = None
+        meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "law": law_obj.name,
+                "n_robots": L.n, "layout": L, "team": team, "graph": graph_record(scenario.links),
+                "graph_lambda2": lam, "predicted_rate": predicted}
+
+        def reference_at(k):
+            return {"robots": r_des[k], "robots_rate": rd_des[k]}
+
+        own = ctrl.own_index()
+
+        def finish_one(log: Log) -> Log:
+            m = np.asarray(log["measured"], dtype=float)
+            err = law_obj.consensus_error(m[..., own], r_des[..., own])
+            world = log.meta.get("world") or ()
+            b = int(np.ravel_multi_index(world, log.meta["batch"])) if world else 0
+            links = dataclasses.replace(scenario.links, seed=scenario.links.seed + b)  # world b's draws
+            delivered = links.schedule(t, scenario.dt_s)["new"]
+            return log.with_channels(Channel("points", L.names, team.point(np.asarray(log["state"], dtype=float))),
+                                     Channel("r_des", tuple(n + "_des" for n in L.names), r_des),
+                                     Channel("consensus_error", ("consensus_error",), err[..., None]),
+                                     delivered=delivered)
+
+        def finish(log: Log) -> Log:
+            return finish_worlds(log.with_channels(batch=log.batch_shape), finish_one)
+
+        def metrics(log: Log) -> dict:
+            return network_metrics(log, scenario, ctrl)
+
+        csv = ("consensus_error", "command", "network", ("measured", "r_des"))
+        return Experiment(scenario=scenario, label=law_obj.name, plant=plant, controller=ctrl,
+                          reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish, metrics=metrics,
+                          csv_channels=csv, meta=meta)
+
+
+def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedController) -> dict:
+    """One world's ``metrics.json`` of a network run (``docs/networks.md``, "Scenarios")."""
+    from scipy.spatial import cKDTree
+
+    t = log.t
+    err = np.asarray(log["consensus_error"], dtype=float)[:, 0]
+    net = np.asarray(log["network"], dtype=float)
+    u = np.asarray(log["command"], dtype=float)
+    L = scenario.team.layout
+    pos = _positions(L, np.asarray(log["measured"], dtype=float))
+    sep = np.array([cKDTree(p).query(p, k=2)[0][:, 1].min() if np.all(np.isfinite(p)) else np.nan for p in pos])
+    final = float(err[-1])
+    rate = measured_rate(t, err, scenario.metrics_from_s)
+    return {"scenario": scenario.name, "law": scenario.law.name, "n_robots": L.n,
+            "graph_edges": int(len(ctrl.links.edges)),
+            "graph_lambda2": log.meta["graph_lambda2"], "predicted_rate": log.meta["predicted_rate"],
+            "measured_rate": rate, "converged": bool(np.isfinite(final) and final <= scenario.converged_below),
+            "consensus_error_initial": float(err[0]), "consensus_error_final": final,
+            "consensus_error_threshold": scenario.converged_below,
+            "messages_sent": int(net[:, 0].sum()), "messages_dropped": int(net[:, 1].sum()),
+            "messages_delivered": int(net[:, 2].sum()), "max_message_age_s": float(np.nanmax(net[:, 3])),
+            "min_separation_m": float(np.nanmin(sep)), "safety_distance_m": None,
+            "nonfinite_commands": int(np.sum(~np.all(np.isfinite(u), axis=-1))),
+            "failed": bool(log.meta.get("failed", False) is True)}
+
+
+#: Most edges a network run's bag draws per tick (a larger graph's are thinned evenly).
+SCENE_EDGES = 600
+
+
+def network_scene(log):
+    """The robots of a network run (:func:`quatform.bags.scene.team_scene`) with the edges that
+    delivered a message at each tick as the markers (``/formation/edges``): a segment from the
+    sender to the receiver, collapsed onto the receiver at a tick its edge delivered nothing."""
+    scene = team_scene(log)
+    new = np.asarray(log.meta["delivered"], dtype=bool)
+    edges = np.asarray(log.meta["graph"]["links"]["candidate_edges"], dtype=int) - 1
+    pick = np.linspace(0, len(edges) - 1, min(len(edges), SCENE_EDGES)).astype(int) if len(edges) else \
+        np.zeros(0, dtype=int)
+    p = scene.position
+    recv, send = p[:, edges[pick, 0]], p[:, edges[pick, 1]]
+    other = np.where(new[:, pick, None], send, recv)
+    seg = np.stack([recv, other], axis=2).reshape(len(p), 2 * len(pick), 3)
+    return dataclasses.replace(scene, edges=seg, edges_desired=None)
+
+
+def network_plots(scene) -> tuple:
+    """The plots of a network run's layout: the consensus error, and what the links carried per
+    tick with the oldest message used (the channels ``consensus_error`` and ``network``)."""
+    return (Plot("consensus", "Consensus error (the law's unit: m for the position laws)",
+                 (("/quatform/consensus_error.consensus_error", "consensus error"),)),
+            Plot("links", "Links per tick: messages sent, lost, delivered (count); oldest message used (s)",
+                 tuple((f"/quatform/network.{c}", c) for c in NETWORK_SIGNALS)))
+
+
+SCENES.add("network", SceneKind(network_scene, network_plots))
+
+#: The network kind (registered in :data:`quatform.scenarios.KINDS`).
+NETWORK = KINDS[NetworkKind.name]

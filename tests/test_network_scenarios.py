@@ -1,0 +1,98 @@
+"""The network scenario kind: files, runs, metrics, graph.json, figures, refusals.
+
+Oracles: the periodic switching schedule's transition-matrix rate (one period's product of
+``I - k dt L_s``), the documented failure of a schedule whose union has no spanning tree (the
+disagreement between the parts that never hear each other stays), NumPy against JAX.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from quatform.errors import InvalidInputError
+from quatform.runs import run
+from quatform.scenarios import KINDS, builtin_scenarios, load_scenario
+from quatform.tomlio import read_toml
+
+NET = KINDS["network"]
+
+
+def _data(**changes):
+    data, _ = read_toml("net-switching", builtin_scenarios(), "scenario")
+    data = json.loads(json.dumps(data))
+    for key, value in changes.items():
+        if value is None:
+            data.pop(key, None)
+        else:
+            data[key] = value
+    return data
+
+
+def test_switching_converges_at_the_period_rate(tmp_path):
+    run("net-switching", tmp_path / "out", plots=True, quiet=True)
+    out = tmp_path / "out"
+    got = json.loads((out / "metrics.json").read_text())
+    assert got["converged"] and got["nonfinite_commands"] == 0
+    assert abs(got["measured_rate"] - got["predicted_rate"]) <= 0.05 * got["predicted_rate"]
+    graph = json.loads((out / "graph.json").read_text())
+    assert graph["graphs"][0]["edges"] == [[1, 2], [3, 4], [5, 6], [7, 8]]
+    assert graph["graphs"][1]["start_s"] == 0.5 and graph["graphs"][2]["start_s"] == 1.0
+    for f in ("consensus_error.png", "message_age.png", "graph.png", "run.mcap", "timeseries.csv"):
+        assert (out / f).is_file(), f
+    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+    assert "consensus_error" in header and "messages_delivered" in header
+
+
+def test_a_union_without_spanning_tree_does_not_converge():
+    """Two halves that never hear each other: each reaches its own consensus, the team does not
+    (the documented failure: the predicted rate is 0 and the error stays)."""
+    data = _data(switching=[{"start_s": 0.0, "kind": "edges", "edges": [[1, 2], [2, 3], [3, 4], [4, 1]]},
+                            {"start_s": 0.5, "kind": "edges", "edges": [[5, 6], [6, 7], [7, 8], [8, 5]]}],
+                 duration_s=30.0)
+    sc = NET.from_dict(data, "union-split")
+    ex = NET.experiment(sc)
+    log = ex.run()
+    met = ex.metrics(log)
+    assert met["predicted_rate"] == 0.0 and met["graph_lambda2"] == 0.0
+    assert not met["converged"]
+    err = np.asarray(log["consensus_error"])[:, 0]
+    assert err[-1] >= 0.1 * err[0]
+    assert np.all(np.diff(err[-100:]) <= 1e-12)  # each half settled: the error stays
+
+
+def test_jax_equals_numpy():
+    pytest.importorskip("jax")
+    sc = dataclasses.replace(load_scenario("net-switching"), duration_s=2.0)
+    ex = NET.experiment(sc)
+    a = ex.run()
+    b = ex.run(backend="jax")
+    for name in ("state", "command", "network", "consensus_error"):
+        np.testing.assert_allclose(b[name], a[name], rtol=1e-9, atol=1e-12, err_msg=name)
+
+
+@pytest.mark.parametrize("changes, match", [
+    ({"law": "telepathy"}, "unknown law 'telepathy'"),
+    ({"graph": {"kind": "ring"}}, "give \\[graph\\] or \\[\\[switching\\]\\], not both"),
+    ({"switching": None}, "switching_period_s repeats"),
+    ({"switching_period_s": 0.4}, "starts its first interval at 0 s and its last before"),
+    ({"gains": {"gain": 1.0, "k": 2.0}}, "takes gain"),
+    ({"switching": [{"start_s": 0.0, "kind": "edges", "edges": [[1, 9]]}]}, "edge \\[1, 9\\] must be two robot"),
+    ({"robots": [{"model": "holonomic", "count": 4}, {"model": "free-body", "count": 4}]}, "one robot model"),
+    ({"links": {"max_age_s": 0.0}}, "max_age_s"),
+    ({"initial": {"antipodal": [0]}}, "antipodal must list robot numbers"),
+])
+def test_a_bad_file_is_one_line(changes, match):
+    with pytest.raises(InvalidInputError, match=match) as err:
+        NET.from_dict(_data(**changes), "bad.toml")
+    assert "\n" not in str(err.value) and str(err.value).startswith("bad.toml")
+
+
+def test_compare_over_law_leaves_out_the_laws_that_cannot_drive_the_robots():
+    run_, skipped = NET.compare_choices(load_scenario("net-switching"), "law")
+    assert "position-consensus" in run_
+    for why in skipped.values():
+        assert "\n" not in why
