@@ -1,9 +1,9 @@
-"""A new formation, team description, robot model, law, scenario kind, writer and sweep parameter is one file.
+"""A new formation, team description, robot model, law, local law, scenario kind, writer and sweep parameter is one file.
 
 Each toy below is the text of one module, written to a temporary folder and imported as a
 user would import their own file; nothing else changes. The test checks that its registry
 picked it up and that it runs where a user would use it: the formation passes the contract
-test, the team description is a controller of the team kind with its own gains, the robot model is read from a team file and moves in a run, the law steps a block,
+test, the team description is a controller of the team kind with its own gains, the robot model is read from a team file and moves in a run, the law steps a block, the local law runs a network scenario,
 the kind runs and compares through ``quatform.runs``, the writer writes its file in a run
 (and the CLI offers its flag), the sweep parameter is varied in a sweep.
 """
@@ -11,6 +11,7 @@ the kind runs and compares through ``quatform.runs``, the writer writes its file
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import json
 import sys
@@ -296,6 +297,43 @@ sweep_parameter(Parameter("toy_settle_s", "s", "when the metrics start (replaces
                           kinds=("pair",), apply=_settle))
 '''
 
+TOY_LOCAL_LAW = '''
+"""A toy local law: each robot moves towards the mean of what its neighbours send (no offsets)."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from quatform.algebra.kernels import common_namespace
+from quatform.control.local import LocalController, LocalTick
+
+
+@dataclass(frozen=True)
+class ToyHerd(LocalController):
+    gain: float = 0.5
+
+    name = "toy-herd"
+    message_columns = ("x", "y", "z")
+    own_columns = ("x", "y", "z")
+    command_columns = ("v_x", "v_y", "v_z")
+
+    def example(self, n, rng):
+        return rng.normal(size=(n, 3)), {}
+
+    def signal_columns(self):
+        return {"held": ("held",)}
+
+    def message(self, state, own, reference, t):
+        return own
+
+    def tick(self, state, own, inbox, reference, t):
+        xp = common_namespace(own, inbox["messages"])
+        w = xp.where(inbox["valid"], 1.0, 0.0)
+        count = xp.sum(w, axis=-1)
+        pull = xp.sum(w[..., None] * (inbox["messages"] - own[..., None, :]), axis=-2)
+        u = self.gain * pull / xp.maximum(count, 1.0)[..., None]
+        return LocalTick(None, u, {"held": count[..., None]}, xp.zeros(own.shape[:-1], dtype=xp.int64))
+'''
+
 
 def _import(tmp_path, name: str, source: str):
     """Write ``source`` to ``tmp_path/name.py`` and import it as a user's module."""
@@ -313,15 +351,17 @@ def registries():
     """Every registry as it was before the test (the toys leave them when it ends)."""
     from quatform.bags.scene import SCENES
     from quatform.control.laws import LAWS
+    from quatform.control.local import LOCAL_CONTROLLERS
     from quatform.report import FIGURES
 
     saved = [(reg, dict(reg)) for reg in (FORMATION_TYPES, ROBOT_MODELS, KINDS, WRITERS, PARAMETERS, FIGURES,
-                                          SCENES, LAWS)]
+                                          SCENES, LAWS, LOCAL_CONTROLLERS)]
     yield
     for reg, before in saved:
         reg.clear()
         reg.update(before)
-    for name in ("toy_formation", "toy_team", "toy_robot", "toy_law", "toy_kind", "toy_writer", "toy_parameter"):
+    for name in ("toy_formation", "toy_team", "toy_robot", "toy_law", "toy_local_law", "toy_kind", "toy_writer",
+                 "toy_parameter"):
         sys.modules.pop(name, None)
 
 
@@ -435,6 +475,18 @@ def test_a_law_is_one_file(tmp_path, registries):
     law = BlockLaw((Block("toy-clipped", 0, 2, (1.0, 1.0)),))
     err, rate = law((3.0, 0.5), (0.0, 0.0), (0.1, 0.0))
     assert err == (3.0, 0.5) and rate == (pytest.approx(0.1 - 1.0), pytest.approx(-0.5))
+
+
+def test_a_local_law_is_one_file(tmp_path, registries):
+    from quatform import runs
+    from quatform.control.local import LOCAL_CONTROLLERS
+
+    module = _import(tmp_path, "toy_local_law", TOY_LOCAL_LAW)
+    assert LOCAL_CONTROLLERS["toy-herd"] is module.ToyHerd
+    sc = dataclasses.replace(load_scenario("net-switching"), duration_s=1.0)
+    assert "toy-herd" in KINDS["network"].options[0].choices  # --law offers it
+    runs.run(sc, tmp_path / "out", plots=False, quiet=True, mcap=False, law="toy-herd")
+    assert json.loads((tmp_path / "out" / "metrics.json").read_text())["law"] == "toy-herd"
 
 
 def test_a_scenario_kind_is_one_file(tmp_path, registries):
