@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..papers import with_names
+from ..scenarios.network import positions_of
 from ..sim.log import Log
 from .figure_set import FIGURES, FigureSet
 from .figures import decimate, new_figure, save, time_xlim
@@ -98,17 +99,10 @@ def plot_message_age(run: Log, path) -> Path:
     return save(fig, path)
 
 
-def _positions(run: Log) -> np.ndarray:
-    L = run.meta["layout"]
-    m = np.asarray(run["measured"], dtype=float)
-    ext = np.concatenate([m, np.zeros(m.shape[:-1] + (1,))], axis=-1)
-    return ext[..., np.minimum(L.position_index, L.size)]
-
-
 def plot_graph_snapshots(run: Log, path) -> Path:
     """The robots from above at three times with the edges of the graph active then."""
     t = run.t
-    p = _positions(run)
+    p = positions_of(run.meta["layout"], run["measured"])
     graph = run.meta.get("graph", {})
     graphs = graph.get("graphs", [])
     starts = [(-np.inf if g["start_s"] is None else g["start_s"]) for g in graphs]

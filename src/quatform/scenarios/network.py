@@ -39,7 +39,8 @@ from .base import Experiment, Option, ScenarioKind, finish_worlds
 from .team import _attitude, _headings, _path, _robots, _shape, check_team_work
 
 __all__ = ["NetworkScenario", "NetworkKind", "GRAPH_KINDS", "network_scenario_from_dict", "graph_record",
-           "averaged_graph", "measured_rate", "start_points", "network_metrics", "network_scene"]
+           "averaged_graph", "measured_rate", "start_points", "network_metrics", "network_scene",
+           "desired_at_zero", "positions_of"]
 
 _HINT = "see docs/networks.md, scenarios"
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "law", "gains", "robots",
@@ -97,7 +98,7 @@ def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -
     return Graph(n, pairs, weights=weights)
 
 
-def _positions(layout, r) -> np.ndarray:
+def positions_of(layout, r) -> np.ndarray:
     """The robots' positions ``(..., N, 3)`` of points ``r`` ``(..., layout.size)`` (z = 0 for a planar robot)."""
     r = np.asarray(r, dtype=float)
     ext = np.concatenate([r, np.zeros(r.shape[:-1] + (1,))], axis=-1)
@@ -187,7 +188,8 @@ class NetworkScenario:
         return NetworkedController(self.law, self.team, self.links, self.dt_s)
 
 
-def _desired_at_zero(team: Team, motion: TeamMotion) -> np.ndarray:
+def desired_at_zero(team: Team, motion: TeamMotion) -> np.ndarray:
+    """The desired robot points at ``t = 0``, ``(layout.size,)``."""
     e, _ = motion(np.zeros(1))
     return TeamChart(team.layout).robots(e[0])
 
@@ -209,8 +211,8 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
         template, scale, moves = _shape(data, where, n, duration)
         motion = TeamMotion(team.layout, template, _path(data, where), _attitude(data, where, duration), scale,
                             moves, _headings(data, where, n))
-        r0 = _desired_at_zero(team, motion)
-        pos0 = _positions(team.layout, r0)
+        r0 = desired_at_zero(team, motion)
+        pos0 = positions_of(team.layout, r0)
         law = _law(text(data, "law", where), table(data, "gains", where, default={}), where)
         if "switching" in data and "graph" in data:
             raise InvalidInputError(f"{where}: give [graph] or [[switching]], not both (a switching schedule lists "
@@ -332,7 +334,6 @@ class NetworkKind(ScenarioKind):
 
         return (Option("law", "the local law every robot runs (default: the scenario's)",
                        tuple(sorted(LOCAL_CONTROLLERS)), None),)
-    not_sweepable = "a network run's sweep parameters are not registered yet; run each setting as its own file"
     table_columns = (("graph_lambda2", "lambda2", "{:.4g}"), ("predicted_rate", "predicted 1/s", "{:.4g}"),
                      ("measured_rate", "measured 1/s", "{:.4g}"), ("converged", "converged", "{}"),
                      ("messages_dropped", "dropped", "{}"))
@@ -385,6 +386,7 @@ class NetworkKind(ScenarioKind):
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "law": law_obj.name,
                 "n_robots": L.n, "layout": L, "team": team, "graph": graph_record(scenario.links),
+                "links": scenario.links,
                 "graph_lambda2": lam, "predicted_rate": predicted}
 
         def reference_at(k):
@@ -395,14 +397,9 @@ class NetworkKind(ScenarioKind):
         def finish_one(log: Log) -> Log:
             m = np.asarray(log["measured"], dtype=float)
             err = law_obj.consensus_error(m[..., own], r_des[..., own])
-            world = log.meta.get("world") or ()
-            b = int(np.ravel_multi_index(world, log.meta["batch"])) if world else 0
-            links = dataclasses.replace(scenario.links, seed=scenario.links.seed + b)  # world b's draws
-            delivered = links.schedule(t, scenario.dt_s)["new"]
             return log.with_channels(Channel("points", L.names, team.point(np.asarray(log["state"], dtype=float))),
                                      Channel("r_des", tuple(n + "_des" for n in L.names), r_des),
-                                     Channel("consensus_error", ("consensus_error",), err[..., None]),
-                                     delivered=delivered)
+                                     Channel("consensus_error", ("consensus_error",), err[..., None]))
 
         def finish(log: Log) -> Log:
             return finish_worlds(log.with_channels(batch=log.batch_shape), finish_one)
@@ -425,7 +422,7 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
     net = np.asarray(log["network"], dtype=float)
     u = np.asarray(log["command"], dtype=float)
     L = scenario.team.layout
-    pos = _positions(L, np.asarray(log["measured"], dtype=float))
+    pos = positions_of(L, np.asarray(log["measured"], dtype=float))
     sep = np.array([cKDTree(p).query(p, k=2)[0][:, 1].min() if np.all(np.isfinite(p)) else np.nan for p in pos])
     final = float(err[-1])
     rate = measured_rate(t, err, scenario.metrics_from_s)
@@ -437,7 +434,7 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
             "consensus_error_threshold": scenario.converged_below,
             "messages_sent": int(net[:, 0].sum()), "messages_dropped": int(net[:, 1].sum()),
             "messages_delivered": int(net[:, 2].sum()), "max_message_age_s": float(np.nanmax(net[:, 3])),
-            "min_separation_m": float(np.nanmin(sep)), "safety_distance_m": None,
+            "min_separation_m": float(np.nanmin(sep)), "safety_distance_m": None, "separation_kept": True,
             "nonfinite_commands": int(np.sum(~np.all(np.isfinite(u), axis=-1))),
             "failed": bool(log.meta.get("failed", False) is True)}
 
@@ -451,7 +448,11 @@ def network_scene(log):
     delivered a message at each tick as the markers (``/formation/edges``): a segment from the
     sender to the receiver, collapsed onto the receiver at a tick its edge delivered nothing."""
     scene = team_scene(log)
-    new = np.asarray(log.meta["delivered"], dtype=bool)
+    world, batch = log.meta.get("world") or (), log.meta.get("batch") or ()
+    b = int(np.ravel_multi_index(world, batch)) if world else 0
+    links = log.meta["links"]
+    links = dataclasses.replace(links, seed=links.seed + b)  # world b of a batch draws from seed + b
+    new = links.schedule(log.t, float(log.meta["dt_s"]))["new"]
     edges = np.asarray(log.meta["graph"]["links"]["candidate_edges"], dtype=int) - 1
     pick = np.linspace(0, len(edges) - 1, min(len(edges), SCENE_EDGES)).astype(int) if len(edges) else \
         np.zeros(0, dtype=int)

@@ -15,7 +15,7 @@ tick, each trial's random numbers from its own seed), on any executor, resumably
 * :mod:`.cli` - ``quatform sweep`` and ``quatform sweeps``.
 """
 
-from . import teleop, ugv_uav  # noqa: F401  (their sweep adapters and parameters register themselves)
+from . import network, teleop, ugv_uav  # noqa: F401  (their sweep adapters and parameters register themselves)
 from .runner import estimate, plan_chunks, run_sweep
 from .spec import PARAMETERS, SweepSpec, builtin_sweeps, load_sweep, sweep_parameter
 

@@ -163,7 +163,7 @@ SLURM_KEYS = ("queue", "account", "cores", "memory", "walltime", "processes", "j
 _TOP_KEYS = ("name", "title", "source", "scenario", "trials", "seed", "duration_s", "settle_s", "chunk_trials",
              "vary", "success", "slurm")
 _AXIS_KEYS = ("values", "start", "stop", "count", "random", "draws", "gain")
-_SUCCESS_KEYS = ("below", "false")
+_SUCCESS_KEYS = ("below", "false", "true")
 
 
 def builtin_sweeps() -> dict[str, Path]:
@@ -201,22 +201,24 @@ class Axis:
 
 @dataclass(frozen=True)
 class Success:
-    """What a successful trial is: not failed, each metric of ``below`` under its threshold and
-    each flag of ``false`` false."""
+    """What a successful trial is: not failed, each metric of ``below`` under its threshold,
+    each flag of ``false`` false and each flag of ``true`` true."""
 
     below: dict = field(default_factory=lambda: dict(DEFAULT_SUCCESS_BELOW))
     false: tuple = DEFAULT_SUCCESS_FALSE
+    true: tuple = ()
 
     def __call__(self, metrics: dict) -> bool:
         for key, limit in self.below.items():
             v = metrics.get(key)
             if v is None or not (isinstance(v, (int, float)) and math.isfinite(v) and v < limit):
                 return False
-        return not any(bool(metrics.get(key, True)) for key in self.false)
+        return not any(bool(metrics.get(key, True)) for key in self.false) and all(
+            metrics.get(key) is True for key in self.true)
 
     def check_metrics(self, metrics: dict, where: str) -> None:
         """Refuse criteria naming metrics the kind does not compute (one line, nearest name)."""
-        for key in (*self.below, *self.false):
+        for key in (*self.below, *self.false, *self.true):
             if key not in metrics:
                 raise InvalidInputError(f"{where}: [success] names the metric {key!r}, which this scenario's runs do "
                                         f"not compute{nearest(key, metrics)}; metrics: {', '.join(sorted(metrics))}")
@@ -225,11 +227,12 @@ class Success:
             if isinstance(metrics[key], (bool, str)):
                 raise InvalidInputError(f"{where}: [success] below = {{{key} = ...}}: {key} is not a number "
                                         f"({short(metrics[key])}); list flags in false = [...] instead")
-        for key in self.false:  # bool() of a number is true for any non-zero error: success would never hold
-            if not isinstance(metrics[key], bool):
-                raise InvalidInputError(f"{where}: [success] false = [{key!r}]: {key} is not a flag "
-                                        f"({short(metrics[key])}); put numbers in below = {{...}}; flags: "
-                                        f"{', '.join(flags)}")
+        for name, keys in (("false", self.false), ("true", self.true)):  # a number is no flag: refused
+            for key in keys:
+                if not isinstance(metrics[key], bool):
+                    raise InvalidInputError(f"{where}: [success] {name} = [{key!r}]: {key} is not a flag "
+                                            f"({short(metrics[key])}); put numbers in below = {{...}}; flags: "
+                                            f"{', '.join(flags)}")
 
 
 @dataclass(frozen=True)
@@ -405,13 +408,14 @@ def _success(data: dict, where: str, default: Success | None = None) -> Success:
     if "below" in s:
         b = table(s, "below", where, "[success]")
         below = {k: number(b, k, where, place="[success.below]") for k in b}
-    false = tuple(default.false)
-    if "false" in s:
-        f = s["false"]
-        if not isinstance(f, list) or not all(isinstance(x, str) for x in f):
-            raise InvalidInputError(f"{where}: [success] false = {short(f)} must be a list of metric names")
-        false = tuple(f)
-    return Success(below, false)
+    flags = {"false": tuple(default.false), "true": tuple(default.true)}
+    for name in flags:
+        if name in s:
+            f = s[name]
+            if not isinstance(f, list) or not all(isinstance(x, str) for x in f):
+                raise InvalidInputError(f"{where}: [success] {name} = {short(f)} must be a list of metric names")
+            flags[name] = tuple(f)
+    return Success(below, flags["false"], flags["true"])
 
 
 def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) -> SweepSpec:
