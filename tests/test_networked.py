@@ -127,3 +127,25 @@ def test_refusals_are_one_line():
         ctrl.schedule(np.arange(10) * 0.02)
     with pytest.raises(InvalidInputError, match="gain"):
         PositionConsensus(gain=math.nan)
+
+
+def test_radio_range_cuts_the_far_edges():
+    """Two groups 50 m apart on a complete graph: with a 10 m range they never hear each other
+    (each group agrees within itself, the team does not); without it the team agrees."""
+    g = Graph.complete(6)
+    team = Team.uniform(HolonomicRobot(max_speed=1e3, max_yaw_rate=1e3), 6, common_limit=False)
+    ref = (lambda k: {"desired": np.zeros((6, 3)), "desired_rate": np.zeros((6, 3))})
+    x0 = np.zeros((6, 4))
+    x0[:3, 0] = [0.0, 1.0, 2.0]
+    x0[3:, 0] = [50.0, 51.0, 52.0]
+    times = np.arange(400) * DT
+    out = {}
+    for r in (None, 10.0):
+        ctrl = NetworkedController(PositionConsensus(2.0), team, Links(g, max_age_s=0.1), DT, range_m=r)
+        x = simulate(KinematicTeam(team), ctrl, ref, times, x0.reshape(-1))["state"][-1].reshape(6, 4)[:, 0]
+        out[r] = x
+    assert np.ptp(out[None]) < 1e-3
+    assert np.ptp(out[10.0][:3]) < 1e-3 and np.ptp(out[10.0][3:]) < 1e-3
+    assert out[10.0][3] - out[10.0][0] == pytest.approx(50.0, abs=1e-6)
+    with pytest.raises(InvalidInputError, match="range_m"):
+        NetworkedController(PositionConsensus(), team, Links(g, max_age_s=0.1), DT, range_m=0.0)

@@ -7,11 +7,11 @@ pure tick, so the simulator's one loop (:mod:`quatform.sim.loop`) runs a decentr
 on NumPy and JAX, batched and swept, as it runs any other controller. One tick:
 
 1. each robot's own row of the measurement (its point's columns, by name);
-2. the messages every robot sends (:meth:`LocalController.message`), written to the links'
-   ring (:meth:`Links.write`);
+2. the messages every robot sends (:meth:`LocalController.message`), each with its sender's
+   position, written to the links' ring (:meth:`Links.write`);
 3. what each robot holds of its in-neighbours, by the tick's slice of the links' schedule
    (:meth:`Links.read`), grouped per robot (:func:`~quatform.network.links.inbox`, with each
-   slot's edge weight);
+   slot's edge weight), less what came from beyond the radio's range (``range_m``);
 4. the local controllers' tick, each robot's command mapped by name onto its model's
    command columns (a column the law does not set is 0) and saturated by its own model
    (each robot limits itself: no common factor, which would need the whole team).
@@ -70,12 +70,17 @@ class NetworkedController(contract.Controller):
         finite (the ring holds that long a history).
     period_s : float
         The control tick, s: the links' tick (the loop's ticks must be this far apart).
+    range_m : float, optional
+        Radio range, m: a message whose sender was farther than this from its receiver (the
+        sender's position when it sent, the receiver's now) is not used, so the graph the
+        robots use switches with their positions (None: every delivered message is used).
     """
 
     local: LocalController
     team: Team
     links: Links
     period_s: float
+    range_m: float | None = None
 
     pure = True
 
@@ -98,6 +103,11 @@ class NetworkedController(contract.Controller):
         if isinstance(p, bool) or not isinstance(p, (int, float, np.number)) or not math.isfinite(p) or p <= 0:
             raise InvalidInputError(f"networked controller: period_s = {p!r} must be a positive number of seconds "
                                     f"(the control tick)")
+        r = self.range_m
+        if r is not None and (isinstance(r, bool) or not isinstance(r, (int, float, np.number)) or not math.isfinite(r)
+                              or r <= 0):
+            raise InvalidInputError(f"networked controller: range_m = {r!r} must be a positive number of metres (the "
+                                    f"radio range) or None")
         if not math.isfinite(self.links.max_age_s):
             raise InvalidInputError("networked controller: links.max_age_s = inf; give a finite age beyond which a "
                                     "message is stale (e.g. max_age_s=1.0 s): a robot keeps that long a history")
@@ -159,7 +169,7 @@ class NetworkedController(contract.Controller):
 
     # ------------------------------------------------------------------ the contract
     def init(self, batch: tuple = ()):
-        d = len(self.local.message_columns)
+        d = len(self.local.message_columns) + 3  # the law's message and the sender's position
         return {"local": self.local.init(self.n, tuple(batch)),
                 "links": self.links.init(np.zeros((self.n, d)), tuple(batch), length=self._ring)}
 
@@ -189,15 +199,42 @@ class NetworkedController(contract.Controller):
                     ref[out] = np.asarray(ref.pop(key), dtype=float)[..., self._own]
         return self.local.reference_arrays(ref, self.n), links
 
+    def positions(self, measured):
+        """Each robot's position ``(*batch, N, 3)`` of the measurement, m (z = 0 for a planar robot)."""
+        xp = common_namespace(measured)
+        ext = xp.concatenate([measured, xp.zeros(measured.shape[:-1] + (1,), dtype=measured.dtype)], axis=-1)
+        L = self.team.layout
+        idx = np.minimum(L.position_index, L.size)
+        return xp.reshape(xp.take(ext, xp.asarray(idx.reshape(-1)), axis=-1), measured.shape[:-1] + idx.shape)
+
+    def received(self, ring, xs, p, t):
+        """Each robot's inbox (:func:`~quatform.network.links.inbox`, with the slots' ``weights``)
+        and its senders' positions when they sent ``(*batch, N, W, 3)``: the ring's messages
+        carry the sender's position after the law's columns. With :attr:`range_m`, a message
+        whose sender was farther than ``range_m`` from the receiver's position ``p`` now is not
+        valid (out of radio range)."""
+        xp = common_namespace(p)
+        box = inbox(self.links.read(ring, xs), self.links)
+        d = len(self.local.message_columns)
+        msgs = box["messages"]
+        sender = msgs[..., d:]
+        valid = box["valid"]
+        if self.range_m is not None:
+            gap = sender - p[..., :, None, :]
+            valid = valid & (xp.sum(gap * gap, axis=-1) <= self.range_m * self.range_m)
+        box.update(messages=xp.where(valid[..., None], msgs[..., :d], 0.0), valid=valid,
+                   stamps=xp.where(valid, box["stamps"], -math.inf), weights=self._slot_weights(box["senders"]))
+        return box, sender
+
     def tick(self, state, measured, reference, t) -> contract.Tick:
         ref, xs = reference
         xp = common_namespace(measured)
         own = xp.take(measured, xp.asarray(self._own.reshape(-1)), axis=-1)
         own = xp.reshape(own, own.shape[:-1] + self._own.shape)
-        outgoing = self.local.message(state["local"], own, ref, t)
+        p = self.positions(measured)
+        outgoing = xp.concatenate([self.local.message(state["local"], own, ref, t), p], axis=-1)
         ring = self.links.write(state["links"], outgoing, t)
-        box = inbox(self.links.read(ring, xs), self.links)
-        box["weights"] = self._slot_weights(box["senders"])
+        box, _ = self.received(ring, xs, p, t)
         out = self.local.tick(state["local"], own, box, ref, t)
         u = self._commands(out.u)
         batch = measured.shape[:-1]

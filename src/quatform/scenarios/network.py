@@ -47,7 +47,7 @@ _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_f
              "shape", "path", "attitude", "headings", "graph", "switching", "switching_period_s", "links", "initial", "converged_below")
 _GRAPH_KEYS = ("kind", "directed", "k", "radius_m", "edges", "weights")
 _SWITCH_KEYS = ("start_s",) + _GRAPH_KEYS
-_LINK_KEYS = ("delay_s", "jitter_s", "drop", "rate_hz", "max_age_s", "seed")
+_LINK_KEYS = ("delay_s", "jitter_s", "drop", "rate_hz", "max_age_s", "seed", "range_m")
 _INITIAL_KEYS = ("position_m", "angle_rad", "antipodal", "seed")
 #: The ``[graph]`` kinds: what each builds over the robots (numbered from 1 in files).
 GRAPH_KINDS = ("ring", "complete", "k-nearest", "disk", "edges")
@@ -162,6 +162,9 @@ class NetworkScenario:
     switching : (tuple of (float, Graph), float) or None
         A repeated switching schedule: one period's ``(start_s, Graph)`` intervals and the
         period, s (``links`` holds them repeated over the run).
+    range_m : float or None
+        The radio's range, m (``[links] range_m``): a message from a sender farther away is
+        not used (:class:`~quatform.control.networked.NetworkedController`).
     """
 
     name: str
@@ -178,6 +181,7 @@ class NetworkScenario:
     initial: dict = field(default_factory=dict)
     converged_below: float = 1e-3
     switching: tuple | None = None
+    range_m: float | None = None
 
     @property
     def times(self) -> np.ndarray:
@@ -185,7 +189,7 @@ class NetworkScenario:
         return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
 
     def controller(self) -> NetworkedController:
-        return NetworkedController(self.law, self.team, self.links, self.dt_s)
+        return NetworkedController(self.law, self.team, self.links, self.dt_s, range_m=self.range_m)
 
 
 def desired_at_zero(team: Team, motion: TeamMotion) -> np.ndarray:
@@ -265,7 +269,9 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
                              law=law, links=links, duration_s=duration, dt_s=dt, metrics_from_s=metrics_from,
                              initial=initial,
                              converged_below=number(data, "converged_below", where, 1e-3, low=0.0, low_open=True),
-                             switching=None if period is None else (tuple(pattern), period))
+                             switching=None if period is None else (tuple(pattern), period),
+                             range_m=number(lk, "range_m", where, None, place="[links]", low=0.0, low_open=True)
+                             if "range_m" in lk else None)
         sc.controller()  # the law, robots and links fit together
     except InvalidInputError as exc:
         msg = str(exc)
