@@ -1,6 +1,6 @@
 """Decentralised separation barrier: each robot filters its own velocity command against the neighbours it senses.
 
-Control layer (imports the algebra's array kernels, errors and the barrier's selection kernel).
+Control layer (imports the algebra's array kernels and the errors).
 
 :class:`~quatform.control.safety.SeparationBarrier` keeps every pair of a team apart from one
 process that sees every robot. Here each robot keeps itself apart from the neighbours it
@@ -23,14 +23,15 @@ makes ``u = 0`` satisfy every half. Two robots that obey their halves (and the s
 
 Each robot's programme, ``min |u - u_nom|^2`` over its halves and ``|u| <= v_max``, is solved
 with ``2 r |u|`` taken at its bound ``2 r v_max`` (a halfspace that implies the half inside
-the speed ball): exactly, by enumerating the active sets a 3-D programme can have (at most
-three halfspaces, or two and the sphere), over the :data:`CANDIDATES` halfspaces nearest to
-being violated at ``u_nom`` (all of them where a robot hears at most that many). A candidate
-that meets every halfspace of the robot is the programme's solution. Where none does (a
-linearised programme with no solution), the robot takes its saturated nominal command
-scaled by the largest factor in ``[0, 1]`` that keeps every half (0 keeps them all). The
-answer is then checked against every exact half and scaled where rounding or the
-linearisation left one short, so the command always satisfies them.
+the speed ball), exactly: in 3-D its solution is the projection of ``u_nom`` on the planes of
+at most three halfspaces, and among those projections whose multipliers are all >= 0 it is
+the one farthest from ``u_nom`` (weak duality), so a fixed number of closed-form candidates
+(the subsets of at most three of the :data:`CANDIDATES` halfspaces nearest to being broken
+at ``u_nom``; all of them where a robot hears at most that many) gives it, with no iteration.
+One test against every halfspace certifies it; where it fails (a linearised programme with
+no solution, or one the candidates do not span), the robot takes its saturated nominal
+command. A last step scales the command by the largest factor in ``[0, 1]`` that keeps every
+exact half and the speed bound (0 keeps them all), so the command always satisfies them.
 
 Pure and branch-free on the array namespace (:func:`quatform.algebra.kernels.common_namespace`):
 the same code runs on NumPy and under ``jax.jit``; row ``i`` of every output depends only on
@@ -49,7 +50,6 @@ import numpy as np
 from ..algebra.kernels import common_namespace
 from ..checks import short
 from ..errors import InvalidInputError, ShapeError
-from .barrier import _smallest
 
 __all__ = ["CANDIDATES", "SIGNALS", "NeighbourBarrier", "neighbour_filter"]
 
@@ -214,8 +214,9 @@ def neighbour_filter(barrier: NeighbourBarrier, u_nom, p, p_nb, age_s, valid):
         * ``scale``: the factor in ``[0, 1]`` of the last step, which scales the programme's
           answer (or the fallback's command) so every exact half and the speed bound hold
           (1 where they hold as they are);
-        * ``fallback`` (bool): the linearised programme had no solution, the command is the
-          saturated nominal scaled by ``scale``.
+        * ``fallback`` (bool): no certified solution of the linearised programme (it has
+          none, or, for a robot sensing more than :data:`CANDIDATES`, the candidates do not
+          reach it): the command is the saturated nominal scaled by ``scale``.
 
     Raises
     ------
@@ -294,7 +295,7 @@ def _filter(xp, d, gam, v, u_nom, p, p_nb, age_s, valid):
     K = min(W, CANDIDATES)
     if K < W:
         key = xp.where(sensed, s0 / xp.maximum(2.0 * ny, 1e-300), xp.inf)
-        idx = xp.transpose(_smallest(xp, xp.transpose(key), K))  # (K, R)
+        idx = xp.argsort(key, axis=0, stable=True)[:K]  # (K, R), ties by slot
         aK = tuple(xp.take_along_axis(c, idx, axis=0) for c in a)
         bK, sK, tK = (xp.take_along_axis(x, idx, axis=0) for x in (b, s0, tol))
     else:
