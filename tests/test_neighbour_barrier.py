@@ -110,10 +110,11 @@ def test_each_row_depends_only_on_its_own_inputs(seed, w):
 @given(seed=st.integers(0, 2 ** 32 - 1), w=st.integers(1, 2 * CANDIDATES))
 def test_fresh_information_solves_the_programme_exactly(seed, w):
     """Ages 0 and a speed bound that does not bind: the command is the solution of ``min |u -
-    u_nom|^2`` subject to each sensed neighbour's half ``2 y.u >= -gamma h / 2``."""
+    u_nom|^2`` subject to each sensed neighbour's half ``2 y.u >= -gamma h / 2`` (to the
+    filter's tightening, 1e-12 of ``2 |y| v_max``)."""
     rng = np.random.default_rng(seed)
     d, gamma = 0.5, 5.0
-    bar = NeighbourBarrier(d, 1e3, gamma=gamma)
+    bar = NeighbourBarrier(d, 50.0, gamma=gamma)
     u, p, p_nb, _, valid = _random_inputs(rng, (), 1, w, spread=1.0)
     u = 3.0 * u
     y = p[:, None] - p_nb
