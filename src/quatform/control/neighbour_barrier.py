@@ -74,6 +74,16 @@ def _subsets(K: int, k: int) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
+def _pairs_of_triples(K: int) -> tuple:
+    """For each 3-subset ``(j1, j2, j3)`` of ``range(K)``, the indices among the 2-subsets (of
+    :func:`_subsets`) of ``(j1, j2)``, ``(j1, j3)``, ``(j2, j3)``."""
+    index = {tuple(pair): k for k, pair in enumerate(_subsets(K, 2).tolist())}
+    triples = _subsets(K, 3).tolist()
+    return tuple(np.array([index[(t[a], t[b])] for t in triples], dtype=np.intp).reshape(-1)
+                 for a, b in ((0, 1), (0, 2), (1, 2)))
+
+
+@functools.lru_cache(maxsize=None)
 def _sets(K: int) -> np.ndarray:
     """``(3, S)``: the halfspaces of each candidate of :func:`_filter` (the empty set, then the
     subsets of 1, 2 and 3 of ``range(K)``), 0 where a candidate has fewer than three."""
@@ -300,48 +310,54 @@ def _filter(xp, d, gam, v, u_nom, p, p_nb, age_s, valid):
         bK, sK, tK = (xp.take_along_axis(x, idx, axis=0) for x in (b, s0, tol))
     else:
         aK, bK, sK, tK = a, b, s0, tol
-    C = _dot(tuple(c[:, None] for c in aK), tuple(c[None] for c in aK))  # (K, K, R): a_l . a_m
-
-    # -- the candidates: the projection of u0 on the planes of every subset of at most three
-    # of the K halfspaces, u = u0 + sum_l mu_l a_l with G_SS mu = -s0_S. A candidate whose mu
-    # are >= 0 is a dual-feasible point of value |u - u0|^2 / 2; the solution of the
-    # programme over the K is the one of largest value (docs/derivations.md)
+    # -- the candidates: the projection of u0 on the planes of every subset S of at most three
+    # of the K halfspaces, u = u0 + sum_l mu_l a_l with G_SS mu = -s0_S (G the Gram matrix). A
+    # candidate whose mu are >= 0 is a dual-feasible point of value |u - u0|^2 = -mu . s0_S;
+    # the solution of the programme over the K is the one of largest value (docs/derivations.md)
     zero = xp.zeros((1,) + s0.shape[1:], dtype=s0.dtype)
-    mus, dists = [(zero, zero, zero)], [zero]  # the empty subset: u0
+    groups = [((), zero)]  # (mu, value) of each group of candidates: first the empty set, u0
     if K >= 1:
-        g = xp.stack([C[k, k] for k in range(K)])
+        g = _dot(aK, aK)  # (K, R)
         ok = g > 0.0
         mu = -sK / xp.where(ok, g, 1.0)
-        z = xp.zeros_like(mu)
-        mus.append((mu, z, z))
-        dists.append(xp.where(ok & (mu >= 0.0), -mu * sK, -xp.inf))
+        groups.append(((mu,), xp.where(ok & (mu >= 0.0), -mu * sK, -xp.inf)))
     if K >= 2:
         i1, i2 = _subsets(K, 2).T
-        g11, g22, g12 = g[i1], g[i2], C[i1, i2]
-        det = g11 * g22 - g12 * g12  # |a1 x a2|^2
-        ok = det > 1e-12 * g11 * g22
-        det = xp.where(ok, det, 1.0)
+        gp = _dot(tuple(c[i1] for c in aK), tuple(c[i2] for c in aK))  # (P, R): a_1 . a_2 of each pair
+        g11, g22 = g[i1], g[i2]
+        det2 = g11 * g22 - gp * gp  # |a_1 x a_2|^2
+        ok = det2 > 1e-12 * g11 * g22
         s1, s2 = sK[i1], sK[i2]
-        mu1, mu2 = (g12 * s2 - g22 * s1) / det, (g12 * s1 - g11 * s2) / det
-        mus.append((mu1, mu2, xp.zeros_like(mu1)))
-        dists.append(xp.where(ok & (mu1 >= 0.0) & (mu2 >= 0.0), -(mu1 * s1 + mu2 * s2), -xp.inf))
+        n1, n2 = gp * s2 - g22 * s1, gp * s1 - g11 * s2  # Cramer's rule
+        den = xp.where(ok, det2, 1.0)
+        mu1, mu2 = n1 / den, n2 / den
+        groups.append(((mu1, mu2), xp.where(ok & (n1 >= 0.0) & (n2 >= 0.0), -(mu1 * s1 + mu2 * s2), -xp.inf)))
     if K >= 3:
         j1, j2, j3 = _subsets(K, 3).T
-        g11, g22, g33, g12, g13, g23 = g[j1], g[j2], g[j3], C[j1, j2], C[j1, j3], C[j2, j3]
-        c11, c22, c33 = g22 * g33 - g23 * g23, g11 * g33 - g13 * g13, g11 * g22 - g12 * g12  # cofactors
+        q12, q13, q23 = _pairs_of_triples(K)
+        g11, g22, g33, g12, g13, g23 = g[j1], g[j2], g[j3], gp[q12], gp[q13], gp[q23]
+        c11, c22, c33 = det2[q23], det2[q13], det2[q12]  # the cofactors of G_SS
         c12, c13, c23 = g13 * g23 - g12 * g33, g12 * g23 - g13 * g22, g12 * g13 - g11 * g23
-        det = g11 * c11 + g12 * c12 + g13 * c13  # (a1 . a2 x a3)^2
+        det = g11 * c11 + g12 * c12 + g13 * c13  # (a_1 . a_2 x a_3)^2
         ok = det > 1e-18 * g11 * g22 * g33
-        det = xp.where(ok, det, 1.0)
         s1, s2, s3 = sK[j1], sK[j2], sK[j3]
-        mu1 = -(c11 * s1 + c12 * s2 + c13 * s3) / det
-        mu2 = -(c12 * s1 + c22 * s2 + c23 * s3) / det
-        mu3 = -(c13 * s1 + c23 * s2 + c33 * s3) / det
-        mus.append((mu1, mu2, mu3))
-        dists.append(xp.where(ok & (mu1 >= 0.0) & (mu2 >= 0.0) & (mu3 >= 0.0), -(mu1 * s1 + mu2 * s2 + mu3 * s3),
-                              -xp.inf))
-    best = xp.argmax(xp.concatenate(dists, axis=0), axis=0)  # (R,): the first of the largest
-    MU = [xp.take_along_axis(xp.concatenate([m[q] for m in mus], axis=0), best[None], axis=0)[0] for q in range(3)]
+        n1 = -(c11 * s1 + c12 * s2 + c13 * s3)
+        n2 = -(c12 * s1 + c22 * s2 + c23 * s3)
+        n3 = -(c13 * s1 + c23 * s2 + c33 * s3)
+        den = xp.where(ok, det, 1.0)
+        mu1, mu2, mu3 = n1 / den, n2 / den, n3 / den
+        groups.append(((mu1, mu2, mu3), xp.where(ok & (n1 >= 0.0) & (n2 >= 0.0) & (n3 >= 0.0),
+                                                 -(mu1 * s1 + mu2 * s2 + mu3 * s3), -xp.inf)))
+    best = xp.argmax(xp.concatenate([value for _, value in groups], axis=0), axis=0)  # (R,): the first largest
+    MU = [xp.zeros_like(u0[0])] * 3  # the best candidate's mu
+    start = 0
+    for mus, value in groups:
+        size = value.shape[0]
+        inside = (best >= start) & (best < start + size)
+        at = xp.clip(best - start, 0, size - 1)[None]
+        for q, m_q in enumerate(mus):
+            MU[q] = xp.where(inside, xp.take_along_axis(m_q, at, axis=0)[0], MU[q])
+        start += size
     L = xp.asarray(_sets(K))[:, best]  # (3, R): the best candidate's halfspaces
     if K:
         ub = tuple(u0[k] + sum(MU[q] * xp.take_along_axis(aK[k], L[q][None], axis=0)[0] for q in range(3))
