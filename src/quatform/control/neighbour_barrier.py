@@ -61,11 +61,8 @@ CANDIDATES = 8
 SIGNALS = ("binding", "clearance_m", "scale", "fallback")
 
 #: Relative margin by which the programme's halfspaces are tightened, so that its solution
-#: meets the exact halves despite rounding (a few hundred ulps of the terms of a half).
+#: meets the exact halves despite rounding (about 5 000 ulps of the terms of a half).
 _MARGIN = 1e-12
-#: Relative slack of the speed bound in a candidate's check (below ``_MARGIN / 2``, so an
-#: accepted candidate still meets every exact half).
-_BALL = 1e-13
 
 
 def _subsets(K: int, k: int) -> np.ndarray:
