@@ -59,7 +59,7 @@ from . import special_sets as sp
 from .base import MIN_SEPARATION_M, Formation, Preset, Variable
 from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair
 from .layout import POINT_KINDS, RobotLayout
-from .quaternion_pair import TILT_TOL, QuaternionPair
+from .quaternion_team import TILT_TOL, QuaternionPair
 from .special_sets import SpecialSet
 from .team_chart import (
     LawGroup,
