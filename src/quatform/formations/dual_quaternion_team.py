@@ -556,9 +556,9 @@ class DualQuaternionTeam(Formation):
         apart, and which one is meant is the sign of ``qs`` (seed 000 eq. (26)). The yaw
         part of the rotation is used (the state is checked to be a yaw first).
         """
-        rh = g.q_yaw(np.arctan2(qs[..., 3], qs[..., 0]))
-        t = 0.5 * kern.pack(kern.translation(kern.unpack(np.asarray(qs))))
-        return kern.pack(kern.pose(kern.unpack(np.asarray(rh)), kern.unpack(np.asarray(t))))
+        rh = g.q_yaw(array_namespace(qs).arctan2(qs[..., 3], qs[..., 0]))
+        t = 0.5 * kern.pack(kern.translation(kern.unpack(qs)))
+        return kern.pack(kern.pose(kern.unpack(rh), kern.unpack(t)))
 
     def _relative_inverse(self, c, near_r):
         """Seed 000 eqs. (26)-(27) solved for the robots: ``qhat_2 = qhat_c h*``, ``qhat_1 =
@@ -570,22 +570,26 @@ class DualQuaternionTeam(Formation):
                     f"{what} tilts by {float(np.max(tilt)):.3g} rad; with 4-DOF robots its rotation "
                     "must be about z"
                 )
-        qc, qs = kern.unpack(c[..., 0:8]), kern.unpack(c[..., 8:16])
-        sep = np.linalg.norm(kern.pack(kern.translation(qs)), axis=-1)
+        sep = np.linalg.norm(kern.pack(kern.translation(kern.unpack(c[..., 8:16]))), axis=-1)
         if np.any(sep < MIN_SEPARATION_M):
             raise DegenerateInputError(
                 f"qhat_s translates by {float(np.min(sep)):.3g} m: the two robots would coincide; "
                 f"the shape must separate them by at least {MIN_SEPARATION_M:g} m"
             )
-        dq2 = kern.dqmul(qc, kern.dqconj(kern.unpack(self._root(c[..., 8:16]))))  # qhat_2 = qhat_c h*
+        return self._relative_robots(c, near_r)
+
+    def _relative_robots(self, c, near_r=None):
+        """:meth:`_relative_inverse` without its checks, on arrays of any namespace."""
+        xp = array_namespace(c)
+        qs = kern.unpack(c[..., 8:16])
+        dq2 = kern.dqmul(kern.unpack(c[..., 0:8]), kern.dqconj(kern.unpack(self._root(c[..., 8:16]))))  # qhat_c h*
         dq1 = kern.dqmul(dq2, qs)  # qhat_1 = qhat_2 qhat_s
         L = self.layout
-        r = L.compose(np.stack([kern.pack(kern.translation(dq1)), kern.pack(kern.translation(dq2))], axis=-2),
-                      np.stack([g.yaw_of(kern.pack(dq1[:4])), g.yaw_of(kern.pack(dq2[:4]))], axis=-1))
+        P = xp.stack([kern.pack(kern.translation(dq1)), kern.pack(kern.translation(dq2))], axis=-2)
+        yaws = xp.stack([g.yaw_of(kern.pack(dq1[:4])), g.yaw_of(kern.pack(dq2[:4]))], axis=-1)
         if near_r is not None:
-            for k in L.yaw_indices:
-                r[..., k] = g.unwrap_near(r[..., k], near_r[..., k])
-        return r
+            yaws = g.unwrap_near(yaws, near_r[..., list(L.yaw_indices)])
+        return L.compose(P, yaws) if xp is np else team_compose(L, P, yaws)
 
     # -- rate maps: directional derivatives on (..., N, 8) arrays, O(N) ------------------------------
     def cluster_rate(self, r, r_dot, *, near_c=None):
@@ -712,12 +716,12 @@ class DualQuaternionTeam(Formation):
         (1)-(8).
         """
         if self.chart_kind == "pair":
+            if near_e is not None:
+                near_e = EuclideanPair().check_cluster_state(near_e, "near_e")
             near = r if r is not None else (None if near_e is None else EuclideanPair().inverse(near_e))
-            r = self.inverse(c, near_r=near)
-            if near_e is None:
-                return EuclideanPair().forward(r)
-            qp = QuaternionPair()
-            return qp.to_chart(qp.forward(r, near_c=qp.from_chart(near_e)), near_e=near_e)
+            c = self.check_cluster_state(c)
+            self._relative_inverse(c, None if near is None else self.check_robot_state(near, "near_r"))  # its checks
+            return self.to_chart_arrays(c, near_e, None if near is None else np.asarray(near, dtype=float))
         near = r
         if near is None and near_e is not None:
             near = self.chart.robots(near_e)
@@ -751,6 +755,23 @@ class DualQuaternionTeam(Formation):
             qh, qd = r[..., rows], r_dot[..., rows] / n
             r_dot[..., rows] = qd - qh * np.sum(qh * qd, axis=-1, keepdims=True)
         return c, self.cluster_rate(r, r_dot, near_c=c)
+
+    @property
+    def chart_on_arrays(self) -> bool:
+        """The pair chart runs on any array namespace (:meth:`to_chart_arrays`); the team chart on NumPy."""
+        return self.chart_kind == "pair"
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of the pair chart on checked arrays of any namespace (NumPy, JAX):
+        the robots of ``c`` (their yaws unwrapped near ``r``'s), eqs. (1)-(8) of them, or with
+        ``near_e`` the quaternion pair's chart of them on ``near_e``'s branch."""
+        if self.chart_kind != "pair":
+            return super().to_chart_arrays(c, near_e, r)
+        robots = self._relative_robots(c, r)
+        if near_e is None:
+            return EuclideanPair().forward_arrays(robots)
+        qp = QuaternionPair()
+        return qp.to_chart_arrays(qp.forward_arrays(robots, qp.from_chart_arrays(near_e)), near_e)
 
     def _from_pair_chart(self, e, e_dot):
         E = EuclideanPair()

@@ -783,22 +783,26 @@ class QuaternionTeam(Formation):
         return map_entries(e, (3, 4, 6, 7), lambda a, b: g.unwrap_near(e[..., a:b], near_e[..., a:b]))
 
     @staticmethod
-    def _from_pair_chart(e, e_dot=None):
-        """The separation state (and rate) of seed 000's Euclidean variables: ``q_c = q_z(beta +
-        pi/2) q_y(-gamma)``, ``q_ci = q_c* q_z(phi_i + beta)``, continuous in ``e``."""
-        e = EuclideanPair().check_cluster_state(e, "e")
+    def from_chart_arrays(e):
+        """The separation state of seed 000's Euclidean variables ``e`` (checked arrays of any
+        namespace): ``q_c = q_z(beta + pi/2) q_y(-gamma)``, ``q_ci = q_c* q_z(phi_i + beta)``,
+        continuous in ``e``."""
         beta, gamma = e[..., 3], e[..., 4]
-        qz, qy = g.q_yaw(beta + 0.5 * np.pi), g.q_pitch_y(-gamma)
-        qc = g.mul(qz, qy)
+        qc = g.mul(g.q_yaw(beta + 0.5 * np.pi), g.q_pitch_y(-gamma))
         q1, q2 = g.q_yaw(e[..., 6] + beta), g.q_yaw(e[..., 7] + beta)
-        c = np.empty(e.shape[:-1] + (16,))
-        c[..., _XC] = e[..., 0:3]
-        c[..., _QC] = qc
-        c[..., _D] = e[..., 5]
-        c[..., _Q1] = g.mul(g.conj(qc), q1)
-        c[..., _Q2] = g.mul(g.conj(qc), q2)
+        return g.concat([e[..., 0:3], qc, e[..., 5:6], g.mul(g.conj(qc), q1), g.mul(g.conj(qc), q2)])
+
+    @classmethod
+    def _from_pair_chart(cls, e, e_dot=None):
+        """The separation state (and rate) of seed 000's Euclidean variables (:meth:`from_chart_arrays`)."""
+        e = EuclideanPair().check_cluster_state(e, "e")
+        c = cls.from_chart_arrays(e)
         if e_dot is None:
             return c
+        beta, gamma = e[..., 3], e[..., 4]
+        qz, qy = g.q_yaw(beta + 0.5 * np.pi), g.q_pitch_y(-gamma)
+        qc = c[..., _QC]
+        q1, q2 = g.q_yaw(e[..., 6] + beta), g.q_yaw(e[..., 7] + beta)
         ed = as_array(e_dot, "e_dot", 8)
         qc_dot = ed[..., 3, None] * g.mul(_yaw_rate_column(qz), qy) + g.mul(
             qz, -ed[..., 4, None] * 0.5 * g.mul(qy, np.array([0.0, 0.0, 1.0, 0.0]))
