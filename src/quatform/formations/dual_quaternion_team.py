@@ -38,7 +38,7 @@ Two shapes:
   reference: the relative shape is the pair's only.
 
 The relative shape's maps are seed 000's closed forms on components
-(:func:`~.pair_kernels.dq_forward`, :func:`~.pair_kernels.dq_inverse_jvp`): Python floats for
+(:func:`dq_forward`, :func:`dq_inverse_jvp`): Python floats for
 one formation (a controller's real-time path, :attr:`component_kernels`), NumPy or JAX arrays
 for a batch, one formula each.
 """
@@ -50,6 +50,7 @@ import math
 
 import numpy as np
 
+from ..algebra.angles import TIE_TURNS
 from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array, as_unit_dual_quaternion
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
@@ -80,6 +81,7 @@ SHAPES = ("frame", "relative")
 CHARTS = ("team", "pair")
 
 _TWO_PI = 2.0 * math.pi
+_THREE_HALF_PI = 1.5 * math.pi
 _KZ = np.array([0.0, 0.0, 0.0, 1.0])
 _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 _DQ_CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
@@ -149,21 +151,18 @@ def _translation(dq):
     return 2.0 * _qm(dq[..., 4:], _conj(r))[..., 1:] / array_namespace(dq).sum(r * r, axis=-1, keepdims=True)
 
 
-def _yaw_and_translation_rates(dq, dqd, unit=False):
+def _yaw_and_translation_rates(dq, dqd):
     """Yaw rate and translation rate of the pose ``dq`` moving at ``dqd``.
 
     ``theta' = 2 (r' r*)_z / |r|^2`` (the z component of the world angular velocity; exact
-    for a yaw, the projection of any other rate; pair_kernels' rule) and ``t' = (2 vec(d' r*
-    + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of :func:`_translation` along any rate.
-    ``unit=True``: pair_kernels' form for a unit ``dq`` and a tangent rate (``|r| = 1``,
-    ``r . r' = 0`` taken as given, so off-tangent rates are projected as the pair projects them).
+    for a yaw, the projection of any other rate; the pair's rule, :func:`_pose_rates`) and
+    ``t' = (2 vec(d' r* + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of
+    :func:`_translation` along any rate.
     """
     r, d, rd, dd = dq[..., :4], dq[..., 4:], dqd[..., :4], dqd[..., 4:]
     rc = _conj(r)
     w = _qm(rd, rc)
     m = _qm(dd, rc) + _qm(d, _conj(rd))
-    if unit:
-        return 2.0 * w[..., 3], 2.0 * m[..., 1:]
     xp = array_namespace(dqd)
     n2 = xp.sum(r * r, axis=-1, keepdims=True)
     t = 2.0 * _qm(d, rc)[..., 1:] / n2
@@ -195,6 +194,110 @@ def _join(C, S):
 
 def _dq_variables(prefix):
     return tuple(Variable(f"{prefix}_{p}{c}", "1", "quaternion") for p in "rd" for c in "wxyz")
+
+
+# -- seed 000's pair (shape="relative"): closed forms on components ---------------------------------
+# Components are Python floats (one formation: a controller's real-time path) or broadcastable
+# arrays of any namespace (a batch; JAX under jax.jit), one formula for all (pair_kernels'
+# component algebra).
+
+def dq_forward(r, qch=None, stage=None):
+    """Eqs. (26)-(27) in closed form on the branch of the given (real) yaws (16 components).
+
+    ``qhat_c``: yaw ``(th1 + th2)/2`` at the midpoint; ``qhat_s``: yaw ``th1 - th2`` at
+    ``R_z(-th2)(p1 - p2)``. ``qch`` (the rotation part of a hint's ``qhat_c``) sets the sign
+    of ``qhat_c``, which means nothing. The sign of ``qhat_s`` is the branch of the
+    half-way yaw and is never flipped: ``(qhat_c, -qhat_s)`` is the formation turned half a
+    turn (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
+    ``stage`` (optional, a compiled loop's hold, as
+    :func:`~.quaternion_team.quat_forward`'s) maps the yaws' cosines and sines to equal ones
+    computed once.
+    """
+    x1, y1, z1, t1, x2, y2, z2, t2 = r
+    L = kern.lib(t2)
+    ha, hb = kern.qyaw(0.5 * (t1 + t2)), kern.qyaw(t1 - t2)
+    c2, s2 = L.cos(t2), L.sin(t2)
+    if stage is not None:
+        ca, sa, cb, sb, c2, s2 = stage((ha[0], ha[3], hb[0], hb[3], c2, s2))
+        ha, hb = (ca, ha[1], ha[2], sa), (cb, hb[1], hb[2], sb)
+    qc = kern.pose(ha, (0.5 * (x1 + x2), 0.5 * (y1 + y2), 0.5 * (z1 + z2)))
+    dx, dy, dz = x1 - x2, y1 - y2, z1 - z2
+    qs = kern.pose(hb, (c2 * dx + s2 * dy, -s2 * dx + c2 * dy, dz))
+    if qch is not None:
+        qc = kern.neg_if(kern.qdot(qc[:4], qch) < 0.0, qc)
+    return qc + qs
+
+
+def dq_yaws(c):
+    """Real yaws ``(theta_1, theta_2)`` that :func:`dq_forward` maps to the state ``c``.
+
+    ``theta_c = 2 atan2(qc_z, qc_w)`` (mod 4 pi: the sign of ``qhat_c``) and
+    ``theta_s / 2 = atan2(qs_z, qs_w)`` (mod 2 pi: the sign of ``qhat_s``);
+    ``theta_1,2 = theta_c +- theta_s / 2``, the inverse of ``qhat_c = q_yaw((th1 + th2)/2)``,
+    ``qhat_s = q_yaw(th1 - th2)``. Exact for yaw rotations; the yaw part of any other.
+    """
+    th_c = 2.0 * kern.atan2(c[3], c[0])
+    half_s = kern.atan2(c[11], c[8])
+    return th_c + half_s, th_c - half_s
+
+
+def dq_align_yaws(r, t1, t2):
+    """``r`` (8 components) with its yaws moved by whole turns onto the branch of the
+    desired yaws ``t1``, ``t2`` (real numbers, :func:`dq_yaws` of the desired state).
+
+    Each yaw goes to within pi of its desired one (``theta - t`` in ``(-pi, pi]``, the rule of
+    :meth:`Formation.align`): the cluster's yaw error ``(a1 + a2)/2`` is then within pi and
+    the shape's ``a1 - a2`` within 2 pi. Where the shape's exceeds ``3 pi / 2`` robot 1's yaw
+    is taken a turn back (the other lift of the same formation): the shape law drives
+    ``qhat_s`` to ``+qhat_s_des`` and has its unstable equilibrium at a shape error of
+    ``2 pi`` (``qe_s = -1``), which this keeps at least ``pi / 2`` away
+    (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
+    """
+    flt = isinstance(r[3], float) and isinstance(t1, float)
+    fl = math.floor if flt else kern.lib(r[3], t1).floor
+    a1 = r[3] + _TWO_PI * fl((t1 - r[3]) / _TWO_PI + 0.5 + TIE_TURNS)  # a half turn's tie: the rule's way
+    a2 = r[7] + _TWO_PI * fl((t2 - r[7]) / _TWO_PI + 0.5 + TIE_TURNS)
+    rel = (a1 - t1) - (a2 - t2)
+    if flt:
+        a1 -= _TWO_PI if rel > _THREE_HALF_PI else (-_TWO_PI if rel < -_THREE_HALF_PI else 0.0)
+    else:
+        a1 = a1 - _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)
+    return (r[0], r[1], r[2], a1, r[4], r[5], r[6], a2)
+
+
+def _pose_rates(q, qd):
+    """Yaw rate and translation rate of a unit pose ``q`` moving at ``qd``.
+
+    ``theta_dot = 2 (r_dot r*)_z`` (the z component of the world angular velocity; exact
+    for a yaw, the projection of any other rate) and ``t_dot = 2 vec(d_dot r* + d r_dot*)``.
+    """
+    r, d, rd, dd = q[:4], q[4:], qd[:4], qd[4:]
+    w = kern.qmul(*rd, *kern.qconj(r))
+    m = kern.qadd(kern.qmul(*dd, *kern.qconj(r)), kern.qmul(*d, *kern.qconj(rd)))
+    return 2.0 * w[3], (2.0 * m[1], 2.0 * m[2], 2.0 * m[3])
+
+
+def dq_inverse_jvp(c, cd, r):
+    """Robot rates ``d INVKIN(c) [cd]`` of eqs. (26)-(27) on the branch of the robots ``r``.
+
+    On the description's manifold (both dual quaternions a yaw and a translation) the
+    inverse kinematics reads ``theta_1,2 = theta_c +- theta_s/2``,
+    ``p_1,2 = x_c +- 1/2 R_z(theta_2) t_s``; its derivative along ``cd`` is this. Only
+    ``theta_2`` is taken from ``r``: it fixes the square-root branch. Rates off the
+    manifold are projected (yaw rate = z component of the angular velocity).
+    """
+    thc_d, xc_d = _pose_rates(c[:8], cd[:8])
+    ths_d, ts_d = _pose_rates(c[8:], cd[8:])
+    ts = kern.translation(c[8:])
+    L = kern.lib(r[7])
+    c2, s2 = L.cos(r[7]), L.sin(r[7])
+    th1_d, th2_d = thc_d + 0.5 * ths_d, thc_d - 0.5 * ths_d
+    ax, ay = c2 * ts[0] - s2 * ts[1], s2 * ts[0] + c2 * ts[1]  # R_z(theta_2) t_s = p1 - p2
+    vx = 0.5 * (c2 * ts_d[0] - s2 * ts_d[1] - th2_d * ay)  # half of d/dt (p1 - p2)
+    vy = 0.5 * (s2 * ts_d[0] + c2 * ts_d[1] + th2_d * ax)
+    vz = 0.5 * ts_d[2]
+    return (xc_d[0] + vx, xc_d[1] + vy, xc_d[2] + vz, th1_d,
+            xc_d[0] - vx, xc_d[1] - vy, xc_d[2] - vz, th2_d)
 
 
 class DualQuaternionTeam(Formation):
@@ -429,7 +532,7 @@ class DualQuaternionTeam(Formation):
         near_c : array_like, shape (..., n_c), optional
             A state to stay near (the controller's reference): the yaws of ``r`` are first
             moved by whole turns onto its branch (each within pi of the desired robot's;
-            ``relative``: :func:`~.pair_kernels.dq_align_yaws`, as the controller does), and
+            ``relative``: :func:`dq_align_yaws`, as the controller does), and
             ``qhat_c`` takes its sign. The result is the same formation as ``r`` whatever
             ``near_c``.
         """
@@ -442,12 +545,12 @@ class DualQuaternionTeam(Formation):
     def forward_arrays(self, r, near_c=None):
         """:meth:`forward` without its checks, on arrays of any namespace (NumPy; JAX under
         ``jax.jit``): the caller has checked ``r`` (finite, robots apart) and ``near_c``.
-        ``relative``: seed 000 eqs. (26)-(27) in closed form (:func:`~.pair_kernels.dq_forward`)."""
+        ``relative``: seed 000 eqs. (26)-(27) in closed form (:func:`dq_forward`)."""
         if self.shape == "relative":
             if near_c is None:
-                return kern.pack(kern.dq_forward(kern.unpack(r)))
+                return kern.pack(dq_forward(kern.unpack(r)))
             h = kern.unpack(near_c)
-            return kern.pack(kern.dq_forward(kern.dq_align_yaws(kern.unpack(r), *kern.dq_yaws(h)), h[0:4]))
+            return kern.pack(dq_forward(dq_align_yaws(kern.unpack(r), *dq_yaws(h)), h[0:4]))
         yaws, P, xc, qc = self._parts_arrays(r, near_c)
         C = _pose(qc, xc)
         S = _dqmul((C * _DQ_CONJ)[..., None, :], _pose(self._robot_rotations(r, yaws), P))  # qhat_c* qhat_i
@@ -466,18 +569,18 @@ class DualQuaternionTeam(Formation):
         by whole turns onto ``near_c``'s branch (each within pi of the desired robot's, the
         shape's relative-yaw error within 3 pi / 2; the sign of ``qhat_s`` is the branch),
         ``qhat_c`` with ``near_c``'s sign: ``(c, rc)`` with ``rc`` the wound robots
-        (``stage``: :func:`~.pair_kernels.dq_forward`'s)."""
+        (``stage``: :func:`dq_forward`'s)."""
         if not self.component_kernels:
             return super().forward_components(rc, near_c, stage)
-        rc = kern.dq_align_yaws(rc, *kern.dq_yaws(near_c))
+        rc = dq_align_yaws(rc, *dq_yaws(near_c))
         kern.check_apart(rc, MIN_SEPARATION_M)
-        return kern.dq_forward(rc, near_c[0:4], stage=stage), rc
+        return dq_forward(rc, near_c[0:4], stage=stage), rc
 
     def robot_rate_components(self, c, c_dot, rc):
-        """``relative``: :meth:`robot_rate` on components (:func:`~.pair_kernels.dq_inverse_jvp`)."""
+        """``relative``: :meth:`robot_rate` on components (:func:`dq_inverse_jvp`)."""
         if not self.component_kernels:
             return super().robot_rate_components(c, c_dot, rc)
-        return kern.dq_inverse_jvp(c, c_dot, rc)
+        return dq_inverse_jvp(c, c_dot, rc)
 
     def _check_yaws(self, rot, what, labels):
         """Refuse rotations ``rot (..., M, 4)`` (of robots with a yaw, named by ``labels``) that
@@ -670,8 +773,8 @@ class DualQuaternionTeam(Formation):
         quaternion ``qhat_c qhat_ci`` as ``c`` gives it: the robots' own sign when ``c =
         forward(r)``). O(N): a constant number of NumPy calls. ``relative``: the derivative of
         ``theta_1,2 = theta_c +- theta_s / 2``, ``p_1,2 = x_c +- 1/2 R_z(theta_2) t_s``
-        (:func:`~.pair_kernels.dq_inverse_jvp`) with ``theta_2`` from ``r``, the robots of ``c``
-        (without ``r``: :func:`~.pair_kernels.dq_yaws` of ``c``, the same angle mod 2 pi).
+        (:func:`dq_inverse_jvp`) with ``theta_2`` from ``r``, the robots of ``c``
+        (without ``r``: :func:`dq_yaws` of ``c``, the same angle mod 2 pi).
         """
         c = np.asarray(c, dtype=float)
         cd = as_array(c_dot, "c_dot", self.n_c)
@@ -682,8 +785,8 @@ class DualQuaternionTeam(Formation):
         ``jax.jit``); ``relative``: ``r`` the robots of ``c`` (or None: their yaws from ``c``)."""
         if self.shape == "relative":
             cc = kern.unpack(c)
-            rc = kern.unpack(r) if r is not None else (None,) * 7 + (kern.dq_yaws(cc)[1],)  # only theta_2 is read
-            return kern.pack(kern.dq_inverse_jvp(cc, kern.unpack(cd), rc))
+            rc = kern.unpack(r) if r is not None else (None,) * 7 + (dq_yaws(cc)[1],)  # only theta_2 is read
+            return kern.pack(dq_inverse_jvp(cc, kern.unpack(cd), rc))
         B, Bd = self._blocks(c), self._blocks(cd)
         L = self.layout
         xp = array_namespace(cd)

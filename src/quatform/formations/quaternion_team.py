@@ -11,8 +11,8 @@ robots' degrees of freedom (``shape="frame"``).
 ``shape="separation"`` is seed 000's pair (§3.2, eqs. (9)-(19)), two ``xyz_yaw`` robots:
 ``c = (x_c, q_c, d_c, q_c1, q_c2)``, 16 numbers, the shape written by the one number ``d_c``,
 half the separation, along the frame's x axis (``s_1 = (d_c, 0, 0) = -s_2``, eqs. (16), (18)).
-Its maps are the seed's closed forms on components (:func:`~.pair_kernels.quat_forward`,
-:func:`~.pair_kernels.quat_inverse_jvp`): Python floats for one formation (a controller's
+Its maps are the seed's closed forms on components (:func:`quat_forward`,
+:func:`quat_inverse_jvp`): Python floats for one formation (a controller's
 real-time path, :attr:`component_kernels`), NumPy or JAX arrays for a batch.
 :class:`QuaternionPair` is that shape with seed 000's Euclidean chart. The twist of ``q_c``
 about the segment is not a function of the robots' positions: the seed fixes it with the
@@ -115,6 +115,83 @@ def _skew(w):
 
 def _mT(a):
     return np.swapaxes(a, -1, -2)
+
+
+# -- seed 000's pair (shape="separation"): closed forms on components -----------------------------
+# Components are Python floats (one formation: a controller's real-time path, no NumPy call
+# overhead) or broadcastable arrays of any namespace (a batch; JAX under jax.jit), one formula
+# for all (pair_kernels' component algebra).
+
+#: Below this norm the minimal rotation of eqs. (14)-(15) is taken as 0/0 (segment opposite the hint).
+_EPS_ANTI = 1e-12
+
+
+def quat_forward(r, qh, q1h=None, q2h=None, stage=None):
+    """Forward kinematics, eqs. (9)-(15), with the twist of ``q_c`` taken from ``qh``.
+
+    ``qh = (1, 0, 0, 0)`` gives the seed's minimal rotation from ``i`` (eqs. (14)-(15));
+    any other ``qh`` gives the point of the measured fibre nearest ``qh``. ``q1h``, ``q2h``
+    (optional) set the signs of ``q_c1``, ``q_c2``. ``stage`` (optional, a compiled loop's
+    hold: ``ClusterController.chain``) maps the robots' half-yaw cosines and sines to equal
+    ones computed once (each output component's loop would recompute them). Returns 16
+    components.
+    """
+    x1, y1, z1, t1, x2, y2, z2, t2 = r
+    dx, dy, dz = x1 - x2, y1 - y2, z1 - z2
+    D = (dx * dx + dy * dy + dz * dz) ** 0.5
+    ux, uy, uz = dx / D, dy / D, dz / D
+    ax, ay, az = kern.x_axis(qh)
+    # minimal rotation taking the hint's x axis to the segment: (1 + a.u, a x u), normalised;
+    # for a.u < 0, 1 + a.u = |a x u|^2 / (1 - a.u) (no cancellation near the opposite direction)
+    c = ax * ux + ay * uy + az * uz
+    vx, vy, vz = ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux
+    vv = vx * vx + vy * vy + vz * vz
+    if isinstance(c, float):
+        w = 1.0 + c if c >= 0.0 else vv / (1.0 - c)
+    else:
+        L = kern.lib(c)
+        w = L.where(c >= 0.0, 1.0 + c, vv / L.maximum(1.0 - c, 1.0))  # 1 - c >= 1 where used
+    s = (w, vx, vy, vz)
+    n = kern.qdot(s, s) ** 0.5
+    anti = n < _EPS_ANTI
+    if kern.any_true(anti):  # segment opposite the hint: half turn about the hint's z axis
+        zx, zy, zz = kern.z_axis(qh)
+        s = kern.select(anti, (0.0 * n, zx, zy, zz), s)
+        n = kern.select(anti, (1.0 + 0.0 * n,), (n,))[0]
+    s = kern.qscale(1.0 / n, s)
+    qc = kern.qmul(*s, *qh)
+    qcc = kern.qconj(qc)
+    h1, h2 = kern.qyaw(t1), kern.qyaw(t2)
+    if stage is not None:
+        c1, s1, c2, s2 = stage((h1[0], h1[3], h2[0], h2[3]))
+        h1, h2 = (c1, h1[1], h1[2], s1), (c2, h2[1], h2[2], s2)
+    q1 = kern.qmul(*qcc, *h1)  # eqs. (12)-(13)
+    q2 = kern.qmul(*qcc, *h2)
+    if q1h is not None:
+        q1 = kern.neg_if(kern.qdot(q1, q1h) < 0.0, q1)
+        q2 = kern.neg_if(kern.qdot(q2, q2h) < 0.0, q2)
+    return (0.5 * (x1 + x2), 0.5 * (y1 + y2), 0.5 * (z1 + z2), *qc, 0.5 * D, *q1, *q2)
+
+
+def quat_inverse_jvp(c, cd):
+    """Robot rates ``d INVKIN(c) [cd]`` of eqs. (16)-(19): the inverse Jacobian times ``cd``.
+
+    ``x1 = x_c + d q_c i q_c*``; its rate is ``x_c' + d' u + 2 d vec(q_c' i q_c*)``;
+    ``theta_i = yaw(q_c q_ci)``. Returns 8 components.
+    """
+    qc, d, q1, q2 = c[3:7], c[7], c[8:12], c[12:16]
+    qcd, dd = cd[3:7], cd[7]
+    ux, uy, uz = kern.x_axis(qc)
+    m = kern.qmul(*kern.qmul(*qcd, 0.0, 1.0, 0.0, 0.0), *kern.qconj(qc))
+    vx = dd * ux + 2.0 * d * m[1]
+    vy = dd * uy + 2.0 * d * m[2]
+    vz = dd * uz + 2.0 * d * m[3]
+    out = []
+    for qi_c, qi_cd, sign in ((q1, cd[8:12], 1.0), (q2, cd[12:16], -1.0)):
+        qi = kern.qmul(*qc, *qi_c)
+        qid = kern.qadd(kern.qmul(*qcd, *qi_c), kern.qmul(*qc, *qi_cd))
+        out += [cd[0] + sign * vx, cd[1] + sign * vy, cd[2] + sign * vz, kern.yaw_rate(qi, qid)]
+    return tuple(out)
 
 
 class QuaternionTeam(Formation):
@@ -354,13 +431,13 @@ class QuaternionTeam(Formation):
         """:meth:`forward` without its checks, on arrays of any namespace (NumPy; JAX under
         ``jax.jit``, where the sign flip is a select): the caller has checked ``r`` (finite,
         robots apart) and ``near_c``. ``separation``: seed 000 eqs. (9)-(15) in closed form
-        (:func:`~.pair_kernels.quat_forward`; without ``near_c`` the seed's minimal rotation from
+        (:func:`quat_forward`; without ``near_c`` the seed's minimal rotation from
         ``i``, eqs. (14)-(15))."""
         if self.shape == "separation":
             if near_c is None:
-                return kern.pack(kern.quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0)))
+                return kern.pack(quat_forward(kern.unpack(r), (1.0, 0.0, 0.0, 0.0)))
             h = kern.unpack(near_c)
-            return kern.pack(kern.quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16]))
+            return kern.pack(quat_forward(kern.unpack(r), h[3:7], h[8:12], h[12:16]))
         xp = array_namespace(r)
         L = self.layout
         p = team_positions(L, r)
@@ -394,17 +471,17 @@ class QuaternionTeam(Formation):
     def forward_components(self, rc, near_c, stage=None):
         """``separation``: eqs. (10)-(15) on components, the twists of ``q_c``, ``q_c1``, ``q_c2``
         from ``near_c`` (the controller's reference): ``(c, rc)`` (``stage``:
-        :func:`~.pair_kernels.quat_forward`'s)."""
+        :func:`quat_forward`'s)."""
         if not self.component_kernels:
             return super().forward_components(rc, near_c, stage)
         kern.check_apart(rc, MIN_SEPARATION_M)
-        return kern.quat_forward(rc, near_c[3:7], near_c[8:12], near_c[12:16], stage=stage), rc
+        return quat_forward(rc, near_c[3:7], near_c[8:12], near_c[12:16], stage=stage), rc
 
     def robot_rate_components(self, c, c_dot, rc):
-        """``separation``: :meth:`robot_rate` on components (:func:`~.pair_kernels.quat_inverse_jvp`)."""
+        """``separation``: :meth:`robot_rate` on components (:func:`quat_inverse_jvp`)."""
         if not self.component_kernels:
             return super().robot_rate_components(c, c_dot, rc)
-        return kern.quat_inverse_jvp(c, c_dot)
+        return quat_inverse_jvp(c, c_dot)
 
     def inverse(self, c, *, near_r=None):
         """``p_i = x_c + R(q_c) s_i`` (eqs. (16), (18)), ``q_i = q_c q_ci`` (eqs. (17), (19));
@@ -604,9 +681,9 @@ class QuaternionTeam(Formation):
     def robot_rate_arrays(self, c, cd):
         """:meth:`robot_rate` without its checks, on arrays of any namespace (NumPy; JAX under
         ``jax.jit``). ``separation``: the derivative of seed 000 eqs. (16)-(19), the 8 x 16 matrix
-        of Fig. 6 applied to ``cd`` (:func:`~.pair_kernels.quat_inverse_jvp`)."""
+        of Fig. 6 applied to ``cd`` (:func:`quat_inverse_jvp`)."""
         if self.shape == "separation":
-            return kern.pack(kern.quat_inverse_jvp(kern.unpack(c), kern.unpack(cd)))
+            return kern.pack(quat_inverse_jvp(kern.unpack(c), kern.unpack(cd)))
         xp = array_namespace(cd)
         q, qd = c[..., 3:7], cd[..., 3:7]
         nq = xp.sqrt(xp.sum(q * q, axis=-1, keepdims=True))
