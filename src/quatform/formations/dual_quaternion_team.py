@@ -31,8 +31,8 @@ Two shapes:
   -qhat_s)`` (``k`` the half turn about the cluster's z axis) are one formation, and
   ``(qhat_c, -qhat_s)`` is that formation turned half a turn (the robots swapped), so
   ``inverse(forward(r)) = r`` without a hint (law group ``relative-pose``;
-  ``docs/derivations.md``, "The dual-quaternion pair"). :class:`DualQuaternionPair` is this
-  description with seed 000's Euclidean chart. For N >= 3 robots one relative state would
+  ``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
+  :class:`DualQuaternionPair` is this description with seed 000's Euclidean chart. For N >= 3 robots one relative state would
   be the state of N formations turned by ``4 pi j / N`` about the centroid (the signs fix
   ``sum_k theta_sk`` only mod 4 pi), so a zero error would not mean the robots are at the
   reference: the relative shape is the pair's only.
@@ -603,7 +603,7 @@ class DualQuaternionTeam(Formation):
         ``qhat_1 = qhat_c h* qhat_s`` with ``h`` the root of the signed ``qhat_s``
         (:meth:`_root`), so the result needs no branch choice. The form printed under seed 000
         eq. (27) fails at a relative half turn; this one is exact (``docs/derivations.md``,
-        "The dual-quaternion pair").
+        "The two-robot formations and controllers (seed 000)").
 
         Parameters
         ----------
