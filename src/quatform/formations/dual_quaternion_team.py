@@ -32,15 +32,14 @@ Two shapes:
   ``(qhat_c, -qhat_s)`` is that formation turned half a turn (the robots swapped), so
   ``inverse(forward(r)) = r`` without a hint (law group ``relative-pose``;
   ``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
-  :class:`DualQuaternionPair` is this description with seed 000's Euclidean chart. For N >= 3 robots one relative state would
-  be the state of N formations turned by ``4 pi j / N`` about the centroid (the signs fix
-  ``sum_k theta_sk`` only mod 4 pi), so a zero error would not mean the robots are at the
-  reference: the relative shape is the pair's only.
+  :class:`DualQuaternionPair` is this description with seed 000's Euclidean chart. For N >= 3
+  robots one relative state would be the state of N formations turned by ``4 pi j / N`` about
+  the centroid (the signs fix ``sum_k theta_sk`` only mod 4 pi), so a zero error would not
+  mean the robots are at the reference: the relative shape is the pair's only.
 
-The relative shape's maps are seed 000's closed forms on components
-(:func:`dq_forward`, :func:`dq_inverse_jvp`): Python floats for
-one formation (a controller's real-time path, :attr:`component_kernels`), NumPy or JAX arrays
-for a batch, one formula each.
+The relative shape's maps are seed 000's closed forms on components (:func:`dq_forward`,
+:func:`dq_inverse_jvp`): Python floats for one formation (a controller's real-time path,
+:attr:`component_kernels`), NumPy or JAX arrays for a batch, one formula each.
 """
 
 from __future__ import annotations

@@ -379,10 +379,9 @@ class QuaternionTeam(Formation):
         """``s_i`` of ``c`` as rows ``(..., N, 3)``: a view (the block ``self._s`` is contiguous);
         ``separation``: ``s_1 = (d_c, 0, 0) = -s_2`` (seed 000 eqs. (16), (18))."""
         if self.shape == "separation":
-            d = c[..., 7]
-            z = 0.0 * d
-            return array_namespace(c).stack([array_namespace(c).stack([d, z, z], axis=-1),
-                                             array_namespace(c).stack([-d, z, z], axis=-1)], axis=-2)
+            xp, d = array_namespace(c), c[..., _D]
+            z = xp.zeros_like(d)
+            return xp.stack([xp.stack([d, z, z], axis=-1), xp.stack([-d, z, z], axis=-1)], axis=-2)
         return c[..., 7:7 + self._s.size].reshape(c.shape[:-1] + self._s.shape)
 
     def _heading_rows(self, c):
