@@ -48,8 +48,8 @@ def test_winding_a_half_turn_is_the_same_whatever_its_rounding():
     import math
 
     from quatform.algebra.angles import TIE_TURNS
-    from quatform.formations import pair_kernels as kern
     from quatform.formations.base import PAIR_LAYOUT
+    from quatform.formations.dual_quaternion_team import dq_align_yaws
 
     for t in (math.pi, math.nextafter(math.pi, 0.0), math.pi - 4e-16, 3 * math.pi, -math.pi):
         r = np.zeros(8)
@@ -57,7 +57,7 @@ def test_winding_a_half_turn_is_the_same_whatever_its_rounding():
         ref[[3, 7]] = t
         wound = PAIR_LAYOUT.wind(r, ref)  # the float path
         batch = PAIR_LAYOUT.wind(r[None], ref[None])[0]  # the array path
-        aligned = kern.dq_align_yaws(tuple(r.tolist()), t, t)
+        aligned = dq_align_yaws(tuple(r.tolist()), t, t)
         want = r[3] + 2 * math.pi * math.floor(t / (2 * math.pi) + 0.5 + 0.5 * TIE_TURNS)
         assert wound[3] == batch[3] == aligned[3] == want
         assert -math.pi < wound[3] - t <= math.pi + 1e-12

@@ -745,7 +745,7 @@ def _assert_rollout_is_compute_metrics(res, ex, logged, worlds):
                 assert float(got) == pytest.approx(float(exp), rel=1e-9, abs=TOL), key
 
 
-@pytest.mark.parametrize("controller", ["quaternion", "robot-space"])
+@pytest.mark.parametrize("controller", ["quaternion", "dual-quaternion", "robot-space"])
 def test_rollout_metrics_equal_compute_metrics(controller):
     """The reduced rollout's metrics equal compute_metrics of each world of a logged NumPy batch,
     the singularity measure and the recovered Euclidean error included."""

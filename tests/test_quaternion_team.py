@@ -101,6 +101,24 @@ def _tangent(c, w, blocks=(slice(3, 7), slice(8, 12), slice(12, 16))):
     return w
 
 
+def test_the_pair_is_the_separation_shape_with_the_pair_chart():
+    """QuaternionPair is QuaternionTeam(2, shape="separation", chart="pair"): seed 000's state
+    (x_c, q_c, d_c, q_c1, q_c2) and names, one implementation; the shape is two xyz_yaw robots'
+    and is read in the pair chart."""
+    P = QuaternionPair()
+    assert isinstance(P, QuaternionTeam) and (P.shape, P.chart_name) == ("separation", "pair")
+    assert P.n_c == 16 and P.names[7] == "d_c" and P.component_kernels and not P.team
+    assert [grp.role for grp in P.law_groups] == ["centroid", "attitude", "separation", "orientation"]
+    with pytest.raises(InvalidInputError, match="two xyz_yaw robots"):
+        QuaternionTeam(3, shape="separation", chart="pair")
+    with pytest.raises(InvalidInputError, match="give chart='pair'"):
+        QuaternionTeam(2, shape="separation")
+    with pytest.raises(InvalidInputError, match="shape 'ring' unknown"):
+        QuaternionTeam(2, shape="ring")
+    with pytest.raises(InvalidInputError, match="frame state"):
+        P.to_pair(P.forward(P.sample_robot_state(np.random.default_rng(0))))
+
+
 def test_two_robots_are_the_quaternion_pair():
     """Forward (with and without a hint), inverse, the rates on the state's own branch and the
     inverse's rate along unit-preserving directions equal QuaternionPair's, within 1e-12."""

@@ -141,3 +141,32 @@ def test_pair_runs_equal_the_pair_quaternion_controller(name, duration):
         else:
             assert a == b, (k, a, b)
     assert mn["formation"] == "quaternion-team" and mn["min_singularity_measure"] > 0.1
+
+
+@pytest.mark.parametrize("name", ["mas-kitts-spiral", "mas-kitts-helix"])
+def test_team_controller_on_the_separation_shape_is_the_quaternion_controller(name):
+    """TeamController(QuaternionTeam(2, shape="separation", chart="pair")) with seed 000's Table 1
+    gains (k_d on the separation law group) commands what QuaternionController does at every
+    reference sample, measured robots displaced and wound (one batched call each)."""
+    import math
+
+    from quatform.control import QuaternionController, Reference
+    from quatform.control.team import TeamController
+    from quatform.formations import RobotSpace
+    from quatform.scenarios import load_scenario
+
+    sc = load_scenario(name)
+    e, ed = sc.path(sc.times)
+    F = QuaternionTeam(2, shape="separation", chart="pair")
+    c, cd = F.from_chart(e, ed)
+    rng = np.random.default_rng(4)
+    r = RobotSpace().from_chart(e) + 0.3 * rng.normal(size=(len(e), 8))
+    r[:, [3, 7]] += 2 * math.pi * rng.integers(-2, 3, (len(e), 2))
+    gains = sc.gains["quaternion"]
+    team = TeamController(F, {**gains, "k_theta": 1.0}, sc.team, feedforward=sc.feedforward, name="quaternion")
+    pair = QuaternionController(k_x=gains["k_x"], k_d=gains["k_d"], k_w=gains["k_w"], team=sc.team,
+                                feedforward=sc.feedforward)
+    a = team.update(0.0, r, Reference(c, cd))
+    b = pair.update(0.0, r, Reference(c, cd), pair.init((len(e),)))
+    assert np.max(np.abs(a.u - b.u)) < 1e-12
+    assert np.max(np.abs(a.signals["cluster"] - b.signals["cluster"])) < 1e-12

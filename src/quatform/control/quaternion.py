@@ -26,7 +26,7 @@ from ..formations import DualQuaternionPair, QuaternionPair
 from ..formations import geometry as g
 from ..formations import pair_kernels as kern
 from ..formations.base import MIN_SEPARATION_M, Formation
-from ..formations.quaternion_pair import TILT_TOL
+from ..formations.quaternion_team import TILT_TOL
 from ..robots import Team
 from .base import check_units, gains
 from .cluster import ClusterController

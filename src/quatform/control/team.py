@@ -45,6 +45,7 @@ __all__ = ["TeamController", "TEAM_GAIN_KEYS", "TEAM_CONTROLLERS", "team_control
 TEAM_GAIN_KEYS = {
     "centroid": ("proportional", "k_x", 3),
     "shape": ("proportional", "k_d", 1),
+    "separation": ("proportional", "k_d", 1),
     "attitude": ("quaternion", "k_w", 3),
     "orientation": ("quaternion", "k_w", 3),
     "pose": ("dual-quaternion", "k_dw", 3),

@@ -19,11 +19,9 @@ from .base import (FORMATION_TYPES, FORMATIONS, PAIR_LAYOUT, ROBOT_PAIR_VARIABLE
                    Variable)
 from .layout import POINT_KINDS, RobotLayout
 from .special_sets import SpecialSet
-from .dual_quaternion_pair import DualQuaternionPair
-from .dual_quaternion_team import DualQuaternionTeam
+from .dual_quaternion_team import DualQuaternionPair, DualQuaternionTeam
 from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair, EuclideanTeam, segment_direction
-from .quaternion_pair import QuaternionPair
-from .quaternion_team import QuaternionTeam
+from .quaternion_team import QuaternionPair, QuaternionTeam
 from .robot_space_team import RobotSpace, RobotSpaceTeam
 from .team_chart import LawGroup, TeamChart, default_template, fit_attitude
 from .ugv_uav import (

@@ -19,15 +19,27 @@ Two shapes:
   robot's pose in the formation frame; ``c = (qhat_c, qhat_c1, ..., qhat_cN)``. The inverse
   is ``qhat_i = qhat_c qhat_ci``: no root, no branch, so **every block's sign means
   nothing** (all law groups ``pose``) and ``inverse(forward(r)) = r`` always.
-* ``shape="relative"`` (eq. (27) for N robots, yaw robots only): ``qhat_sk = qhat_N* qhat_k``,
-  ``k = 1 .. N-1``, robot ``k``'s pose in the last robot's frame, in closed form on the real
-  yaws (``qhat_sk = pose(q_yaw(theta_k - theta_N), R_z(-theta_N)(p_k - p_N))``), so the sign
-  of ``qhat_sk`` is the branch of ``theta_k - theta_N`` mod 4 pi (law group
-  ``relative-pose``), as :class:`~.dual_quaternion_pair.DualQuaternionPair`'s ``qhat_s``.
-  For N = 2 it *is* the pair (eqs. (26)-(27)). For N >= 3 one ``c`` would be the state of N
-  formations turned by ``4 pi j / N`` about the centroid (the signs fix ``sum_k theta_sk``
-  only mod 4 pi), so a zero error would not mean the robots are at the reference: the
-  relative shape is refused beyond two robots (the code reads N generally; N = 2 is its use).
+* ``shape="relative"``: seed 000's pair (§3.3, eqs. (26)-(27)), two ``xyz_yaw`` robots,
+  ``c = (qhat_c, qhat_s)``. ``qhat_s = qhat_2* qhat_1`` is robot 1's pose in robot 2's frame,
+  ``qhat_c = qhat_2 h`` the cluster frame, ``h`` the *decoupled* square root of ``qhat_s``
+  (half the relative rotation, half the relative translation), so that ``qhat_c`` sits at
+  the robots' midpoint with the half-way yaw. In closed form on the real yaws: ``qhat_c =
+  pose(q_yaw((theta_1 + theta_2) / 2), (p_1 + p_2) / 2)``, ``qhat_s = pose(q_yaw(theta_1 -
+  theta_2), R_z(-theta_2)(p_1 - p_2))``. The half-way yaw of two yaws is only defined mod pi;
+  the description takes the branch of the robots' continuous yaws and records it in the
+  **sign of** ``qhat_s`` (``h^2 = +qhat_s``): ``(+-qhat_c, qhat_s)`` and ``(+-qhat_c k,
+  -qhat_s)`` (``k`` the half turn about the cluster's z axis) are one formation, and
+  ``(qhat_c, -qhat_s)`` is that formation turned half a turn (the robots swapped), so
+  ``inverse(forward(r)) = r`` without a hint (law group ``relative-pose``;
+  ``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
+  :class:`DualQuaternionPair` is this description with seed 000's Euclidean chart. For N >= 3
+  robots one relative state would be the state of N formations turned by ``4 pi j / N`` about
+  the centroid (the signs fix ``sum_k theta_sk`` only mod 4 pi), so a zero error would not
+  mean the robots are at the reference: the relative shape is the pair's only.
+
+The relative shape's maps are seed 000's closed forms on components (:func:`dq_forward`,
+:func:`dq_inverse_jvp`): Python floats for one formation (a controller's real-time path,
+:attr:`component_kernels`), NumPy or JAX arrays for a batch, one formula each.
 """
 
 from __future__ import annotations
@@ -37,16 +49,17 @@ import math
 
 import numpy as np
 
+from ..algebra.angles import TIE_TURNS
 from ..algebra.kernels import array_namespace
 from ..algebra.validate import as_array, as_unit_dual_quaternion
-from ..errors import InvalidInputError, UnreachableError
+from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
 from . import pair_kernels as kern
-from .base import Formation, Variable
-from .dual_quaternion_pair import DualQuaternionPair
-from .euclidean_team import EUCLIDEAN_VARIABLES
+from . import special_sets as sp
+from .base import MIN_SEPARATION_M, Formation, Preset, Variable
+from .euclidean_team import EUCLIDEAN_VARIABLES, EuclideanPair
 from .layout import POINT_KINDS, RobotLayout
-from .quaternion_pair import TILT_TOL
+from .quaternion_team import TILT_TOL, QuaternionPair
 from .special_sets import SpecialSet
 from .team_chart import (
     LawGroup,
@@ -58,7 +71,7 @@ from .team_chart import (
     team_positions,
 )
 
-__all__ = ["CHARTS", "SHAPES", "DualQuaternionTeam"]
+__all__ = ["CHARTS", "SHAPES", "DualQuaternionTeam", "DualQuaternionPair"]
 
 #: The two shape definitions (module docstring).
 SHAPES = ("frame", "relative")
@@ -137,21 +150,18 @@ def _translation(dq):
     return 2.0 * _qm(dq[..., 4:], _conj(r))[..., 1:] / array_namespace(dq).sum(r * r, axis=-1, keepdims=True)
 
 
-def _yaw_and_translation_rates(dq, dqd, unit=False):
+def _yaw_and_translation_rates(dq, dqd):
     """Yaw rate and translation rate of the pose ``dq`` moving at ``dqd``.
 
     ``theta' = 2 (r' r*)_z / |r|^2`` (the z component of the world angular velocity; exact
-    for a yaw, the projection of any other rate; pair_kernels' rule) and ``t' = (2 vec(d' r*
-    + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of :func:`_translation` along any rate.
-    ``unit=True``: pair_kernels' form for a unit ``dq`` and a tangent rate (``|r| = 1``,
-    ``r . r' = 0`` taken as given, so off-tangent rates are projected as the pair projects them).
+    for a yaw, the projection of any other rate; the pair's rule, :func:`_pose_rates`) and
+    ``t' = (2 vec(d' r* + d r'*) - 2 (r . r') t) / |r|^2``, the derivative of
+    :func:`_translation` along any rate.
     """
     r, d, rd, dd = dq[..., :4], dq[..., 4:], dqd[..., :4], dqd[..., 4:]
     rc = _conj(r)
     w = _qm(rd, rc)
     m = _qm(dd, rc) + _qm(d, _conj(rd))
-    if unit:
-        return 2.0 * w[..., 3], 2.0 * m[..., 1:]
     xp = array_namespace(dqd)
     n2 = xp.sum(r * r, axis=-1, keepdims=True)
     t = 2.0 * _qm(d, rc)[..., 1:] / n2
@@ -166,11 +176,6 @@ def _rot_z(theta, v, inverse=False):
         s = -s
     return np.stack(np.broadcast_arrays(c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1], v[..., 2]),
                     axis=-1)
-
-
-def _z_cross(v):
-    """``e_z x v``."""
-    return np.stack(np.broadcast_arrays(-v[..., 1], v[..., 0], 0.0 * v[..., 2]), axis=-1)
 
 
 def _wind(a, t):
@@ -188,6 +193,110 @@ def _join(C, S):
 
 def _dq_variables(prefix):
     return tuple(Variable(f"{prefix}_{p}{c}", "1", "quaternion") for p in "rd" for c in "wxyz")
+
+
+# -- seed 000's pair (shape="relative"): closed forms on components ---------------------------------
+# Components are Python floats (one formation: a controller's real-time path) or broadcastable
+# arrays of any namespace (a batch; JAX under jax.jit), one formula for all (pair_kernels'
+# component algebra).
+
+def dq_forward(r, qch=None, stage=None):
+    """Eqs. (26)-(27) in closed form on the branch of the given (real) yaws (16 components).
+
+    ``qhat_c``: yaw ``(th1 + th2)/2`` at the midpoint; ``qhat_s``: yaw ``th1 - th2`` at
+    ``R_z(-th2)(p1 - p2)``. ``qch`` (the rotation part of a hint's ``qhat_c``) sets the sign
+    of ``qhat_c``, which means nothing. The sign of ``qhat_s`` is the branch of the
+    half-way yaw and is never flipped: ``(qhat_c, -qhat_s)`` is the formation turned half a
+    turn (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
+    ``stage`` (optional, a compiled loop's hold, as
+    :func:`~.quaternion_team.quat_forward`'s) maps the yaws' cosines and sines to equal ones
+    computed once.
+    """
+    x1, y1, z1, t1, x2, y2, z2, t2 = r
+    L = kern.lib(t2)
+    ha, hb = kern.qyaw(0.5 * (t1 + t2)), kern.qyaw(t1 - t2)
+    c2, s2 = L.cos(t2), L.sin(t2)
+    if stage is not None:
+        ca, sa, cb, sb, c2, s2 = stage((ha[0], ha[3], hb[0], hb[3], c2, s2))
+        ha, hb = (ca, ha[1], ha[2], sa), (cb, hb[1], hb[2], sb)
+    qc = kern.pose(ha, (0.5 * (x1 + x2), 0.5 * (y1 + y2), 0.5 * (z1 + z2)))
+    dx, dy, dz = x1 - x2, y1 - y2, z1 - z2
+    qs = kern.pose(hb, (c2 * dx + s2 * dy, -s2 * dx + c2 * dy, dz))
+    if qch is not None:
+        qc = kern.neg_if(kern.qdot(qc[:4], qch) < 0.0, qc)
+    return qc + qs
+
+
+def dq_yaws(c):
+    """Real yaws ``(theta_1, theta_2)`` that :func:`dq_forward` maps to the state ``c``.
+
+    ``theta_c = 2 atan2(qc_z, qc_w)`` (mod 4 pi: the sign of ``qhat_c``) and
+    ``theta_s / 2 = atan2(qs_z, qs_w)`` (mod 2 pi: the sign of ``qhat_s``);
+    ``theta_1,2 = theta_c +- theta_s / 2``, the inverse of ``qhat_c = q_yaw((th1 + th2)/2)``,
+    ``qhat_s = q_yaw(th1 - th2)``. Exact for yaw rotations; the yaw part of any other.
+    """
+    th_c = 2.0 * kern.atan2(c[3], c[0])
+    half_s = kern.atan2(c[11], c[8])
+    return th_c + half_s, th_c - half_s
+
+
+def dq_align_yaws(r, t1, t2):
+    """``r`` (8 components) with its yaws moved by whole turns onto the branch of the
+    desired yaws ``t1``, ``t2`` (real numbers, :func:`dq_yaws` of the desired state).
+
+    Each yaw goes to within pi of its desired one (``theta - t`` in ``(-pi, pi]``, the rule of
+    :meth:`Formation.align`): the cluster's yaw error ``(a1 + a2)/2`` is then within pi and
+    the shape's ``a1 - a2`` within 2 pi. Where the shape's exceeds ``3 pi / 2`` robot 1's yaw
+    is taken a turn back (the other lift of the same formation): the shape law drives
+    ``qhat_s`` to ``+qhat_s_des`` and has its unstable equilibrium at a shape error of
+    ``2 pi`` (``qe_s = -1``), which this keeps at least ``pi / 2`` away
+    (``docs/derivations.md``, "The two-robot formations and controllers (seed 000)").
+    """
+    flt = isinstance(r[3], float) and isinstance(t1, float)
+    fl = math.floor if flt else kern.lib(r[3], t1).floor
+    a1 = r[3] + _TWO_PI * fl((t1 - r[3]) / _TWO_PI + 0.5 + TIE_TURNS)  # a half turn's tie: the rule's way
+    a2 = r[7] + _TWO_PI * fl((t2 - r[7]) / _TWO_PI + 0.5 + TIE_TURNS)
+    rel = (a1 - t1) - (a2 - t2)
+    if flt:
+        a1 -= _TWO_PI if rel > _THREE_HALF_PI else (-_TWO_PI if rel < -_THREE_HALF_PI else 0.0)
+    else:
+        a1 = a1 - _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)
+    return (r[0], r[1], r[2], a1, r[4], r[5], r[6], a2)
+
+
+def _pose_rates(q, qd):
+    """Yaw rate and translation rate of a unit pose ``q`` moving at ``qd``.
+
+    ``theta_dot = 2 (r_dot r*)_z`` (the z component of the world angular velocity; exact
+    for a yaw, the projection of any other rate) and ``t_dot = 2 vec(d_dot r* + d r_dot*)``.
+    """
+    r, d, rd, dd = q[:4], q[4:], qd[:4], qd[4:]
+    w = kern.qmul(*rd, *kern.qconj(r))
+    m = kern.qadd(kern.qmul(*dd, *kern.qconj(r)), kern.qmul(*d, *kern.qconj(rd)))
+    return 2.0 * w[3], (2.0 * m[1], 2.0 * m[2], 2.0 * m[3])
+
+
+def dq_inverse_jvp(c, cd, r):
+    """Robot rates ``d INVKIN(c) [cd]`` of eqs. (26)-(27) on the branch of the robots ``r``.
+
+    On the description's manifold (both dual quaternions a yaw and a translation) the
+    inverse kinematics reads ``theta_1,2 = theta_c +- theta_s/2``,
+    ``p_1,2 = x_c +- 1/2 R_z(theta_2) t_s``; its derivative along ``cd`` is this. Only
+    ``theta_2`` is taken from ``r``: it fixes the square-root branch. Rates off the
+    manifold are projected (yaw rate = z component of the angular velocity).
+    """
+    thc_d, xc_d = _pose_rates(c[:8], cd[:8])
+    ths_d, ts_d = _pose_rates(c[8:], cd[8:])
+    ts = kern.translation(c[8:])
+    L = kern.lib(r[7])
+    c2, s2 = L.cos(r[7]), L.sin(r[7])
+    th1_d, th2_d = thc_d + 0.5 * ths_d, thc_d - 0.5 * ths_d
+    ax, ay = c2 * ts[0] - s2 * ts[1], s2 * ts[0] + c2 * ts[1]  # R_z(theta_2) t_s = p1 - p2
+    vx = 0.5 * (c2 * ts_d[0] - s2 * ts_d[1] - th2_d * ay)  # half of d/dt (p1 - p2)
+    vy = 0.5 * (s2 * ts_d[0] + c2 * ts_d[1] + th2_d * ax)
+    vz = 0.5 * ts_d[2]
+    return (xc_d[0] + vx, xc_d[1] + vy, xc_d[2] + vz, th1_d,
+            xc_d[0] - vx, xc_d[1] - vy, xc_d[2] - vz, th2_d)
 
 
 class DualQuaternionTeam(Formation):
@@ -208,19 +317,14 @@ class DualQuaternionTeam(Formation):
         ``frame``: ``qhat_ci = qhat_c* qhat_i``; ``relative``: ``qhat_sk = qhat_N* qhat_k``.
     chart : {"team", "pair"}
         The operator's chart: the team chart (default) or, for two ``xyz_yaw`` robots with
-        ``shape="relative"``, seed 000's Euclidean variables through
-        :class:`~.dual_quaternion_pair.DualQuaternionPair` (so pair scenarios run on it).
+        ``shape="relative"``, seed 000's Euclidean variables (:class:`DualQuaternionPair`).
     """
 
     name = "dual-quaternion-team"
     key = "dual-quaternion-team"
     rates_read_robots = True
-
-    @property
-    def singularity_on_arrays(self) -> bool:
-        """Formation.singularity_measure_arrays (robot_rate_arrays of the unit vectors) on any
-        namespace for ``shape="frame"``; the ``relative`` shape's rates run on NumPy only."""
-        return self.shape == "frame"
+    #: Formation.singularity_measure_arrays (robot_rate_arrays of the unit vectors) on any namespace.
+    singularity_on_arrays = True
     team = True
     #: ``--controller dual-quaternion``.
     controller = "dual-quaternion"
@@ -242,24 +346,24 @@ class DualQuaternionTeam(Formation):
             raise InvalidInputError(f"DualQuaternionTeam: shape {shape!r} unknown; choose one of {', '.join(SHAPES)}")
         if chart not in CHARTS:
             raise InvalidInputError(f"DualQuaternionTeam: chart {chart!r} unknown; choose one of {', '.join(CHARTS)}")
-        if shape == "relative":
-            other = [f"robot {lab} ({k})" for lab, k in zip(L.display_names, L.kinds) if POINT_KINDS[k].yaw is None]
-            if other:
-                raise InvalidInputError(
-                    f"DualQuaternionTeam(shape='relative') reads real yaws (eq. (27)'s branch) and represents "
-                    f"xy_yaw / xyz_yaw robots only, not {', '.join(other)}; use shape='frame' for this layout")
         if shape == "relative" and L.n != 2:
             raise InvalidInputError(
                 f"DualQuaternionTeam(shape='relative') is seed 000's pair (eq. (27)); for {L.n} robots one relative "
                 f"state stands for {L.n} formations turned by 4 pi j / {L.n} about the centroid, so a zero error "
                 "would not mean the robots are at the reference; use shape='frame' (each robot's pose in the "
                 "formation frame)")
+        if shape == "relative" and L.kinds != ("xyz_yaw", "xyz_yaw"):
+            raise InvalidInputError(
+                f"DualQuaternionTeam(shape='relative') is seed 000's pair of two xyz_yaw robots, the layout has "
+                f"{', '.join(L.kinds)}; use shape='frame' for this layout")
         if chart == "pair" and (shape != "relative" or L.kinds != ("xyz_yaw", "xyz_yaw")):
             raise InvalidInputError(
                 "DualQuaternionTeam: chart='pair' (seed 000's Euclidean variables) is for two xyz_yaw robots with "
                 f"shape='relative', got {L.n} robots ({', '.join(L.kinds)}) with shape={shape!r}; use chart='team'")
         self.layout = L
         self.shape = shape
+        #: The relative shape (seed 000's pair) runs a controller on its component kernels.
+        self.component_kernels = shape == "relative"
         self.chart_kind = chart
         self.chart = TeamChart(L)
         self.template = default_template(L) if template is None else check_template(template, L.n)
@@ -267,10 +371,8 @@ class DualQuaternionTeam(Formation):
         self._n_blocks = N + 1 if shape == "frame" else N
         if shape == "frame":
             rest = sum((_dq_variables(f"qhat_c{lab}") for lab in L.labels), ())
-        elif N == 2:
-            rest = _dq_variables("qhat_s")  # the pair's names (eqs. (26)-(27))
         else:
-            rest = sum((_dq_variables(f"qhat_s{lab}") for lab in L.labels[:-1]), ())
+            rest = _dq_variables("qhat_s")  # the pair's names (eqs. (26)-(27))
         self.variables = _dq_variables("qhat_c") + rest
         self.chart_variables = EUCLIDEAN_VARIABLES if chart == "pair" else self.chart.variables
         kinds = L.kinds
@@ -279,7 +381,6 @@ class DualQuaternionTeam(Formation):
         self._planar_robots = np.array([i for i, k in enumerate(kinds) if k == "xy_yaw"], dtype=np.intp)
         #: how q_c is made: "pose" (first pose robot), "yaw" (mean real yaw), "none" (identity)
         self.mean_rule = "pose" if len(self._pose_robots) else ("yaw" if len(self._yaw_robots) else "none")
-        self._pair = DualQuaternionPair() if chart == "pair" else None
 
     def __repr__(self):
         return f"DualQuaternionTeam(layout={self.layout!r}, shape={self.shape!r}, chart={self.chart_kind!r})"
@@ -355,49 +456,19 @@ class DualQuaternionTeam(Formation):
         return Qd
 
     def _desired_yaws(self, near_c):
-        """Real yaws ``(..., N_yaw)`` of the yaw robots of the state ``near_c``, and (frame) its
+        """Real yaws ``(..., N_yaw)`` of the yaw robots of the frame-shape state ``near_c``, and its
         formation yaw: the branch the measured yaws are wound onto."""
         B = self._blocks(near_c)
-        if self.shape == "relative":
-            th_c = 2.0 * np.arctan2(B[..., 0, 3], B[..., 0, 0])  # seed 000 eq. (26): mod 4 pi (sign of qhat_c)
-            th_s = 2.0 * np.arctan2(B[..., 1:, 3], B[..., 1:, 0])  # mod 4 pi: the sign of qhat_sk is the branch
-            t_n = th_c - np.sum(th_s, axis=-1) / self.layout.n
-            return np.concatenate([t_n[..., None] + th_s, t_n[..., None]], axis=-1), None
         rot = _qm(B[..., :1, :4], B[..., 1:, :4])[..., self._yaw_robots, :]  # q_c q_ci: the desired robots
         xp = array_namespace(near_c)
         if xp is not np:  # geometry.yaw_of's kernel on the namespace's axes
             return (kern.yaw_of(tuple(xp.moveaxis(rot, -1, 0))), kern.yaw_of(tuple(xp.moveaxis(B[..., 0, :4], -1, 0))))
         return g.yaw_of(rot), g.yaw_of(B[..., 0, :4])
 
-    def _candidate(self, t_n, th_n):
-        """The formation of a relative-shape state whose robot N's yaw is nearest ``th_n``: the
-        offset ``o`` (rad) to add to every yaw (``4 pi j / N`` mod 2 pi, for N odd every multiple
-        of ``2 pi / N``, for N even every even one) and ``j``."""
-        N = self.layout.n
-        unit = _TWO_PI / N if N % 2 else 2.0 * _TWO_PI / N
-        q = np.round(g.wrap(th_n - t_n) / unit) * (unit / (_TWO_PI / N))  # o = q 2 pi / N
-        j = (q * ((N + 1) // 2)) % N if N % 2 else 0.5 * q
-        return q * (_TWO_PI / N), j
-
     def _align(self, yaws, near_c):
-        """The measured yaws moved by whole turns onto ``near_c``'s branch, and the whole turns
-        (of ``2 pi / N_yaw``) to add to their mean (frame)."""
+        """The measured yaws moved by whole turns onto the frame-shape state ``near_c``'s
+        branch, and the whole turns (of ``2 pi / N_yaw``) to add to their mean."""
         t, th_c = self._desired_yaws(near_c)
-        if self.shape == "relative":
-            N = self.layout.n
-            if N >= 3:  # near_c is N formations: the one whose robot N is nearest the measured one's yaw,
-                # on the lift (every yaw + 4 pi j / N, robot 1's - 4 pi j) whose mean and signs are near_c's
-                _, j = self._candidate(t[..., -1], yaws[..., -1])
-                t = t + (2.0 * _TWO_PI / N) * j[..., None]
-                t = t - np.concatenate([2.0 * _TWO_PI * j[..., None], np.zeros(j.shape + (N - 1,))], axis=-1)
-            a = _wind(yaws, t)
-            # the pair's rule (DualQuaternionPair, pair_kernels.dq_align_yaws) for each k against robot N:
-            # a relative-yaw error beyond 3 pi / 2 is taken a turn back (the shape law's unstable
-            # equilibrium at 2 pi stays at least pi / 2 away; docs/derivations.md, "The two-robot formations and controllers (seed 000)")
-            rel = (a[..., :-1] - t[..., :-1]) - (a[..., -1:] - t[..., -1:])
-            a = a.copy()
-            a[..., :-1] -= _TWO_PI * ((rel > _THREE_HALF_PI) * 1.0 - (rel < -_THREE_HALF_PI) * 1.0)
-            return a, 0.0
         a = _wind(yaws, t)
         n = t.shape[-1]
         xp = array_namespace(t)
@@ -442,7 +513,7 @@ class DualQuaternionTeam(Formation):
         shift, hint = 0.0, None
         if near_c is not None:
             hint = near_c[..., :4]
-            if yaws.shape[-1] and (self.mean_rule == "yaw" or self.shape == "relative"):
+            if yaws.shape[-1] and self.mean_rule == "yaw":
                 yaws, shift = self._align(yaws, near_c)
         P = team_positions(L, r)
         xc = array_namespace(r).mean(P, axis=-2)
@@ -460,8 +531,9 @@ class DualQuaternionTeam(Formation):
         near_c : array_like, shape (..., n_c), optional
             A state to stay near (the controller's reference): the yaws of ``r`` are first
             moved by whole turns onto its branch (each within pi of the desired robot's;
-            ``relative``: the pair's rule of ``pair_kernels.dq_align_yaws``), and ``qhat_c``
-            takes its sign. The result is the same formation as ``r`` whatever ``near_c``.
+            ``relative``: :func:`dq_align_yaws`, as the controller does), and
+            ``qhat_c`` takes its sign. The result is the same formation as ``r`` whatever
+            ``near_c``.
         """
         r = self.check_robot_state(r)
         self.check_apart(r)
@@ -471,13 +543,14 @@ class DualQuaternionTeam(Formation):
 
     def forward_arrays(self, r, near_c=None):
         """:meth:`forward` without its checks, on arrays of any namespace (NumPy; JAX under
-        ``jax.jit``: ``shape="frame"`` of robots with a yaw): the caller has checked ``r``
-        (finite, robots apart) and ``near_c``."""
-        if self.shape == "relative" and array_namespace(r) is not np:
-            raise InvalidInputError("DualQuaternionTeam(shape='relative') on JAX arrays: use shape='frame'")
-        yaws, P, xc, qc = self._parts_arrays(r, near_c)
+        ``jax.jit``): the caller has checked ``r`` (finite, robots apart) and ``near_c``.
+        ``relative``: seed 000 eqs. (26)-(27) in closed form (:func:`dq_forward`)."""
         if self.shape == "relative":
-            return self._relative_forward(P, xc, yaws, qc)
+            if near_c is None:
+                return kern.pack(dq_forward(kern.unpack(r)))
+            h = kern.unpack(near_c)
+            return kern.pack(dq_forward(dq_align_yaws(kern.unpack(r), *dq_yaws(h)), h[0:4]))
+        yaws, P, xc, qc = self._parts_arrays(r, near_c)
         C = _pose(qc, xc)
         S = _dqmul((C * _DQ_CONJ)[..., None, :], _pose(self._robot_rotations(r, yaws), P))  # qhat_c* qhat_i
         return _join(C, S * self._block_signs(S, near_c))
@@ -490,13 +563,23 @@ class DualQuaternionTeam(Formation):
         ref = (np.asarray(near_c, dtype=float) if xp is np else near_c)[..., 8:].reshape(near_c.shape[:-1] + (-1, 8))
         return xp.where(xp.sum(S[..., :4] * ref[..., :4], axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
 
-    def _relative_forward(self, P, xc, yaws, qc):
-        """Eq. (27) for N robots in closed form: ``qhat_sk = pose(q_yaw(th_k - th_N), R_z(-th_N)(p_k - p_N))``."""
-        th_n = yaws[..., -1]
-        ts = _rot_z(th_n[..., None], P[..., :-1, :] - P[..., -1:, :], inverse=True)
-        S = _pose(_q_yaw(yaws[..., :-1] - th_n[..., None]), ts)
-        C = _pose(qc, xc)
-        return _join(C, S)
+    def forward_components(self, rc, near_c, stage=None):
+        """``relative``: eqs. (26)-(27) on components for a controller: the measured yaws moved
+        by whole turns onto ``near_c``'s branch (each within pi of the desired robot's, the
+        shape's relative-yaw error within 3 pi / 2; the sign of ``qhat_s`` is the branch),
+        ``qhat_c`` with ``near_c``'s sign: ``(c, rc)`` with ``rc`` the wound robots
+        (``stage``: :func:`dq_forward`'s)."""
+        if not self.component_kernels:
+            return super().forward_components(rc, near_c, stage)
+        rc = dq_align_yaws(rc, *dq_yaws(near_c))
+        kern.check_apart(rc, MIN_SEPARATION_M)
+        return dq_forward(rc, near_c[0:4], stage=stage), rc
+
+    def robot_rate_components(self, c, c_dot, rc):
+        """``relative``: :meth:`robot_rate` on components (:func:`dq_inverse_jvp`)."""
+        if not self.component_kernels:
+            return super().robot_rate_components(c, c_dot, rc)
+        return dq_inverse_jvp(c, c_dot, rc)
 
     def _check_yaws(self, rot, what, labels):
         """Refuse rotations ``rot (..., M, 4)`` (of robots with a yaw, named by ``labels``) that
@@ -515,26 +598,26 @@ class DualQuaternionTeam(Formation):
         """The robots of ``c``, shape ``(..., n_r)`` (yaws in ``(-pi, pi]`` without ``near_r``).
 
         ``frame``: ``qhat_i = qhat_c qhat_ci`` (no branch: ``inverse(forward(r)) = r`` with
-        yaws mod 2 pi and ``pose`` quaternions as given). ``relative``: ``theta_N = theta_c -
-        sum_k theta_sk / N``, ``p_N = x_c - R_z(theta_N) sum_k t_sk / N``, ``qhat_k = qhat_N
-        qhat_sk`` (for N = 2 the pair's ``qhat_2 = qhat_c h*``).
+        yaws mod 2 pi and ``pose`` quaternions as given). ``relative``: ``qhat_2 = qhat_c h*``,
+        ``qhat_1 = qhat_c h* qhat_s`` with ``h`` the root of the signed ``qhat_s``
+        (:meth:`_root`), so the result needs no branch choice. The form printed under seed 000
+        eq. (27) fails at a relative half turn; this one is exact (``docs/derivations.md``,
+        "The two-robot formations and controllers (seed 000)").
 
         Parameters
         ----------
         c : array_like, shape (..., n_c)
         near_r : array_like, shape (..., n_r), optional
             Robots whose yaws the result's are unwrapped near (within pi) and whose ``pose``
-            quaternions' signs it takes; for ``relative`` with N >= 3 required: it picks
-            which of the N formations of ``c`` (turned by ``4 pi j / N``) is meant.
+            quaternions' signs it takes; it does not change the formation.
 
         Raises
         ------
         UnreachableError
-            A yaw robot's rotation tilts.
+            A yaw robot's rotation tilts (a 4-DOF robot cannot roll or pitch).
         DegenerateInputError
-            Two robots of ``c`` coincide.
-        InvalidInputError
-            ``relative`` with N >= 3 and no ``near_r``.
+            Two robots of ``c`` coincide (``relative``: the shape translates less than the
+            robots' minimum separation).
         """
         c = self.check_cluster_state(c)
         L = self.layout
@@ -566,27 +649,49 @@ class DualQuaternionTeam(Formation):
         self.check_apart(r, "the robots of c")
         return r
 
+    @staticmethod
+    def _root(qs):
+        """The decoupled square root ``h`` of the signed shape ``qs``, shape ``(..., 8)``.
+
+        ``h = (q_yaw(theta_s / 2), t_s / 2)`` with ``theta_s / 2 = atan2(qs_z, qs_w)``, so that
+        ``h_p^2 = +qs_p`` (not ``-qs_p``): the root of ``qs`` and of ``-qs`` are half a turn
+        apart, and which one is meant is the sign of ``qs`` (seed 000 eq. (26)). The yaw
+        part of the rotation is used (the state is checked to be a yaw first).
+        """
+        rh = g.q_yaw(array_namespace(qs).arctan2(qs[..., 3], qs[..., 0]))
+        t = 0.5 * kern.pack(kern.translation(kern.unpack(qs)))
+        return kern.pack(kern.pose(kern.unpack(rh), kern.unpack(t)))
+
     def _relative_inverse(self, c, near_r):
-        L, N = self.layout, self.layout.n
-        B = self._blocks(c)
-        self._check_yaws(B[..., :4], "c", [v.name[:-3] for v in self.variables[::8]])
-        if N >= 3 and near_r is None:
-            raise InvalidInputError(
-                f"DualQuaternionTeam(shape='relative') with {N} robots: one state is {N if N % 2 else N // 2} formations "
-                f"turned by 4 pi j / {N} about the centroid (the signs of qhat_sk fix sum theta_sk mod 4 pi only); give "
-                "near_r (robots near the intended ones) or use shape='frame'")
-        th_c = 2.0 * np.arctan2(B[..., 0, 3], B[..., 0, 0])
-        th_s = 2.0 * np.arctan2(B[..., 1:, 3], B[..., 1:, 0])
-        t_n = th_c - np.sum(th_s, axis=-1) / N
-        if N >= 3:
-            t_n = t_n + self._candidate(t_n, L.yaws(near_r)[..., -1])[0]
-        xc = _translation(B[..., 0, :])
-        ts = _translation(B[..., 1:, :])
-        p_n = xc - _rot_z(t_n, np.sum(ts, axis=-2) / N)
-        P = np.concatenate([p_n[..., None, :] + _rot_z(t_n[..., None], ts), p_n[..., None, :]], axis=-2)
-        yaws = np.concatenate([t_n[..., None] + th_s, t_n[..., None]], axis=-1)
-        yaws = g.wrap(yaws) if near_r is None else g.unwrap_near(yaws, L.yaws(near_r))
-        return L.compose(P, yaws)
+        """Seed 000 eqs. (26)-(27) solved for the robots: ``qhat_2 = qhat_c h*``, ``qhat_1 =
+        qhat_2 qhat_s`` (:meth:`inverse`)."""
+        for s, what in ((slice(0, 8), "qhat_c"), (slice(8, 16), "qhat_s")):
+            tilt = np.linalg.norm(g.z_axis(c[..., s][..., :4]) - g.EZ, axis=-1)
+            if np.any(tilt > TILT_TOL):
+                raise UnreachableError(
+                    f"{what} tilts by {float(np.max(tilt)):.3g} rad; with 4-DOF robots its rotation "
+                    "must be about z"
+                )
+        sep = np.linalg.norm(kern.pack(kern.translation(kern.unpack(c[..., 8:16]))), axis=-1)
+        if np.any(sep < MIN_SEPARATION_M):
+            raise DegenerateInputError(
+                f"qhat_s translates by {float(np.min(sep)):.3g} m: the two robots would coincide; "
+                f"the shape must separate them by at least {MIN_SEPARATION_M:g} m"
+            )
+        return self._relative_robots(c, near_r)
+
+    def _relative_robots(self, c, near_r=None):
+        """:meth:`_relative_inverse` without its checks, on arrays of any namespace."""
+        xp = array_namespace(c)
+        qs = kern.unpack(c[..., 8:16])
+        dq2 = kern.dqmul(kern.unpack(c[..., 0:8]), kern.dqconj(kern.unpack(self._root(c[..., 8:16]))))  # qhat_c h*
+        dq1 = kern.dqmul(dq2, qs)  # qhat_1 = qhat_2 qhat_s
+        L = self.layout
+        P = xp.stack([kern.pack(kern.translation(dq1)), kern.pack(kern.translation(dq2))], axis=-2)
+        yaws = xp.stack([g.yaw_of(kern.pack(dq1[:4])), g.yaw_of(kern.pack(dq2[:4]))], axis=-1)
+        if near_r is not None:
+            yaws = g.unwrap_near(yaws, near_r[..., list(L.yaw_indices)])
+        return L.compose(P, yaws) if xp is np else team_compose(L, P, yaws)
 
     # -- rate maps: directional derivatives on (..., N, 8) arrays, O(N) ------------------------------
     def cluster_rate(self, r, r_dot, *, near_c=None):
@@ -595,14 +700,15 @@ class DualQuaternionTeam(Formation):
         ``x_c' = mean v_i``; ``q_c' = 1/2 theta_c' k q_c`` with ``theta_c' = mean theta_i'``
         (yaw rule), the derivative of the first pose robot's normalised quaternion (pose rule)
         or 0; a pose ``(q, p)`` moves at ``(q', 1/2 (p' q + p q'))``; ``qhat_ci' = qhat_c'* qhat_i +
-        qhat_c* qhat_i'`` (frame); ``t_sk' = R_z(-th_N)(v_k - v_N) - th_N' e_z x t_sk`` (relative).
+        qhat_c* qhat_i'`` (frame); for ``relative`` :meth:`_relative_rate`.
         """
         r = self.check_robot_state(r)
+        if self.shape == "relative":
+            return self._relative_rate(r, as_array(r_dot, "r_dot", self.n_r), near_c)
         self.check_apart(r)
         yaws, P, xc, qc = self._parts(r, near_c)
         L = self.layout
         r_dot = as_array(r_dot, "r_dot", self.n_r)
-        c = self._relative_forward(P, xc, yaws, qc) if self.shape == "relative" else None
         v = L.positions(r_dot)
         xcd = np.mean(v, axis=-2)
         yd = L.yaws(r_dot)
@@ -618,24 +724,45 @@ class DualQuaternionTeam(Formation):
         else:
             qcd = np.zeros(np.broadcast_shapes(qc.shape, xcd.shape[:-1] + (4,)))
         Cd = _pose_rate(qc, xc, qcd, xcd)
-        if self.shape == "relative":
-            B = self._blocks(c)
-            ts = _translation(B[..., 1:, :])
-            th_n = L.yaws(r)[..., -1]
-            thd_n = yd[..., -1]
-            tsd = _rot_z(th_n[..., None], v[..., :-1, :] - v[..., -1:, :], inverse=True) - thd_n[..., None, None] * _z_cross(ts)
-            qs = B[..., 1:, :4]
-            qsd = 0.5 * (yd[..., :-1] - thd_n[..., None])[..., None] * _qm(_KZ, qs)
-            Sd = _pose_rate(qs, ts, qsd, tsd)
-        else:
-            Q = self._robot_rotations(r, yaws)
-            Qd = self._robot_rotation_rates(Q, r_dot)
-            Qi, Qid = _pose(Q, P), _pose_rate(Q, P, Qd, v)
-            Cc = (_pose(qc, xc) * _DQ_CONJ)[..., None, :]
-            Sd = _dqmul((Cd * _DQ_CONJ)[..., None, :], Qi) + _dqmul(Cc, Qid)  # (qhat_c* qhat_i)'
-            if near_c is not None:
-                Sd = Sd * self._block_signs(_dqmul(Cc, Qi), near_c)
+        Q = self._robot_rotations(r, yaws)
+        Qd = self._robot_rotation_rates(Q, r_dot)
+        Qi, Qid = _pose(Q, P), _pose_rate(Q, P, Qd, v)
+        Cc = (_pose(qc, xc) * _DQ_CONJ)[..., None, :]
+        Sd = _dqmul((Cd * _DQ_CONJ)[..., None, :], Qi) + _dqmul(Cc, Qid)  # (qhat_c* qhat_i)'
+        if near_c is not None:
+            Sd = Sd * self._block_signs(_dqmul(Cc, Qi), near_c)
         return _join(Cd, Sd)
+
+    def _relative_rate(self, r, r_dot, near_c):
+        """``c_dot`` of the pair (``relative``): the derivative of the closed form of seed 000 eqs.
+        (26)-(27), ``qhat_c = (yaw (th1+th2)/2, midpoint)``, ``qhat_s = (yaw th1-th2,
+        R_z(-th2)(p1-p2))``.
+
+        A pose ``(q_yaw(theta), t)`` moves at ``theta' d_angle + (0, 1/2 (0, t') q)`` with
+        ``d_angle = (1/2 k q, 1/4 (0, t) k q)``; ``t_s' = R_z(-th2)(p1' - p2') - th2' (z x t_s)``.
+        """
+        c = self.forward(r, near_c=near_c)
+        L = self.layout
+        v, w = L.positions(r_dot), L.yaws(r_dot)
+        parts = []
+        for s in (slice(0, 8), slice(8, 16)):
+            q = c[..., s]
+            rot, t = q[..., :4], kern.pack(kern.translation(kern.unpack(np.asarray(q))))
+            d_rot = 0.5 * g.mul(_KZ, rot)  # d rot / d angle
+            d_angle = np.concatenate([d_rot, 0.5 * g.mul(_pure(t), d_rot)], axis=-1)
+            # d (dual part) / d t = 1/2 (0, e_k) rot, k = x, y, z: (..., 4, 3)
+            d_t = np.stack([0.5 * g.mul(_pure(e), rot) for e in np.eye(3)], axis=-1)
+            if s.start == 0:
+                angle_dot = 0.5 * (w[..., 0] + w[..., 1])
+                dual = np.einsum("...ij,...j->...i", 0.5 * d_t, v[..., 0, :] + v[..., 1, :])
+            else:
+                # t_s' = R_z(-th2)(p1' - p2') - th2' (z x t_s)
+                zx_t = np.stack([-t[..., 1], t[..., 0], np.zeros_like(t[..., 0])], axis=-1)
+                angle_dot = w[..., 0] - w[..., 1]
+                dual = (np.einsum("...ij,...j->...i", d_t @ _rot_z_T(L.yaws(r)[..., 1]), v[..., 0, :] - v[..., 1, :])
+                        - w[..., 1, None] * np.einsum("...ij,...j->...i", d_t, zx_t))
+            parts.append(angle_dot[..., None] * d_angle + g.concat([np.zeros(dual.shape[:-1] + (4,)), dual]))
+        return g.concat(parts)
 
     def robot_rate(self, c, c_dot, *, r=None):
         """``r_dot`` of the cluster rate ``c_dot`` at ``c``: the derivative of :meth:`inverse`.
@@ -643,45 +770,30 @@ class DualQuaternionTeam(Formation):
         ``frame``: ``qhat_i' = qhat_c' qhat_ci + qhat_c qhat_ci'``, then each robot's
         translation rate, yaw rate (z of the world angular velocity) or quaternion rate (of the
         quaternion ``qhat_c qhat_ci`` as ``c`` gives it: the robots' own sign when ``c =
-        forward(r)``). ``relative``: the derivative of ``theta_N = theta_c - sum theta_sk / N``,
-        ``p_N = x_c - R_z(theta_N) S``, ``p_k = p_N + R_z(theta_N) t_sk`` with ``theta_N`` from
-        ``r`` (computed by :meth:`inverse` if not given; for N = 2 the pair's
-        ``pair_kernels.dq_inverse_jvp``). O(N): a constant number of NumPy calls.
+        forward(r)``). O(N): a constant number of NumPy calls. ``relative``: the derivative of
+        ``theta_1,2 = theta_c +- theta_s / 2``, ``p_1,2 = x_c +- 1/2 R_z(theta_2) t_s``
+        (:func:`dq_inverse_jvp`) with ``theta_2`` from ``r``, the robots of ``c``
+        (without ``r``: :func:`dq_yaws` of ``c``, the same angle mod 2 pi).
         """
         c = np.asarray(c, dtype=float)
         cd = as_array(c_dot, "c_dot", self.n_c)
-        return self.robot_rate_arrays(c, cd, r=r)
+        return self.robot_rate_arrays(c, cd, r=None if r is None else np.asarray(r, dtype=float))
 
     def robot_rate_arrays(self, c, cd, r=None):
         """:meth:`robot_rate` without its checks, on arrays of any namespace (NumPy; JAX under
-        ``jax.jit``: ``shape="frame"`` of robots with a yaw)."""
+        ``jax.jit``); ``relative``: ``r`` the robots of ``c`` (or None: their yaws from ``c``)."""
+        if self.shape == "relative":
+            cc = kern.unpack(c)
+            rc = kern.unpack(r) if r is not None else (None,) * 7 + (dq_yaws(cc)[1],)  # only theta_2 is read
+            return kern.pack(dq_inverse_jvp(cc, kern.unpack(cd), rc))
         B, Bd = self._blocks(c), self._blocks(cd)
         L = self.layout
         xp = array_namespace(cd)
         if xp is not np:
-            if self.shape == "relative":
-                raise InvalidInputError("DualQuaternionTeam on JAX arrays: use shape='frame'")
             Qi = _dqmul(B[..., :1, :], B[..., 1:, :])
             Qid = _dqmul(Bd[..., :1, :], B[..., 1:, :]) + _dqmul(B[..., :1, :], Bd[..., 1:, :])
             yd, V = _yaw_and_translation_rates(Qi, Qid)
             return team_compose(L, V, yd[..., self._yaw_robots], Qid[..., self._pose_robots, :4])
-        if self.shape == "relative":
-            if r is None:
-                r = self.inverse(c)
-            r = np.asarray(r, dtype=float)
-            thcd, xcd = _yaw_and_translation_rates(B[..., 0, :], Bd[..., 0, :], unit=True)
-            thsd, tsd = _yaw_and_translation_rates(B[..., 1:, :], Bd[..., 1:, :], unit=True)
-            ts = _translation(B[..., 1:, :])
-            N = L.n
-            th_n = L.yaws(r)[..., -1]
-            thnd = thcd - np.sum(thsd, axis=-1) / N
-            Rts = _rot_z(th_n[..., None], ts)
-            Rtsd = _rot_z(th_n[..., None], tsd)
-            pk = thnd[..., None, None] * _z_cross(Rts) + Rtsd  # d/dt R_z(theta_N) t_sk
-            pnd = xcd - np.sum(pk, axis=-2) / N
-            V = np.concatenate([pnd[..., None, :] + pk, pnd[..., None, :]], axis=-2)
-            yd = np.concatenate([thnd[..., None] + thsd, thnd[..., None]], axis=-1)
-            return L.compose(V, yd)
         C, Cd = B[..., :1, :], Bd[..., :1, :]
         S, Sd = B[..., 1:, :], Bd[..., 1:, :]
         Qi = _dqmul(C, S)
@@ -695,12 +807,23 @@ class DualQuaternionTeam(Formation):
     # -- the operator's chart -------------------------------------------------------------------------
     def to_chart(self, c, *, near_e=None, r=None):
         """The chart of the robots of ``c``: :meth:`TeamChart.from_robots` with this
-        description's template where no ``near_e`` is given (``chart="pair"``: seed 000's
-        Euclidean variables through :meth:`DualQuaternionPair.to_chart`). ``r`` (else the
-        robots of ``near_e``) only unwraps the yaws and signs the quaternions (and for
-        ``relative`` with N >= 3 picks the formation)."""
-        if self._pair is not None:
-            return self._pair.to_chart(c, near_e=near_e, r=r)
+        description's template where no ``near_e`` is given. ``r`` (else the robots of
+        ``near_e``) only unwraps the yaws and signs the quaternions: ``c`` itself fixes the
+        formation.
+
+        ``chart="pair"``: seed 000's Euclidean variables of the robots of ``c``, read through
+        the quaternion cluster frame. The dual quaternions carry no frame on the segment, so
+        the branch of ``(beta_c, gamma_c)`` near the vertical is taken from ``near_e`` (the
+        desired Euclidean state) through :meth:`QuaternionPair.to_chart`; without it, eqs.
+        (1)-(8).
+        """
+        if self.chart_kind == "pair":
+            if near_e is not None:
+                near_e = EuclideanPair().check_cluster_state(near_e, "near_e")
+            near = r if r is not None else (None if near_e is None else EuclideanPair().inverse(near_e))
+            c = self.check_cluster_state(c)
+            self._relative_inverse(c, None if near is None else self.check_robot_state(near, "near_r"))  # its checks
+            return self.to_chart_arrays(c, near_e, None if near is None else np.asarray(near, dtype=float))
         near = r
         if near is None and near_e is not None:
             near = self.chart.robots(near_e)
@@ -710,9 +833,15 @@ class DualQuaternionTeam(Formation):
     def from_chart(self, e, e_dot=None):
         """``c`` (and ``c_dot``) of chart values ``e`` (and rates): the chart's robots
         (:meth:`TeamChart.robots`, :meth:`TeamChart.robot_rates`), then :meth:`forward` on their
-        real yaws (so ``c`` is continuous in ``e``) and :meth:`cluster_rate`."""
-        if self._pair is not None:
-            return self._pair.from_chart(e, e_dot)
+        real yaws (so ``c`` is continuous in ``e``) and :meth:`cluster_rate`.
+
+        ``chart="pair"``: closed form, continuous in ``e``: ``qhat_c`` = yaw ``beta + (phi1 +
+        phi2)/2`` at the centroid, ``qhat_s`` = yaw ``phi1 - phi2`` at ``R_z(-theta_2)(p1 -
+        p2)`` (seed 000 eqs. (1)-(8) and (26)-(27)); the rate through the dense matrices of
+        :class:`EuclideanPair` and :meth:`jacobian` (the rounding the reference runs were
+        recorded with)."""
+        if self.chart_kind == "pair":
+            return self._from_pair_chart(e, e_dot)
         e = self.chart.check(e, "e")
         r = self.chart.robots(e)
         rows = self.layout.orientation_index
@@ -729,6 +858,38 @@ class DualQuaternionTeam(Formation):
             r_dot[..., rows] = qd - qh * np.sum(qh * qd, axis=-1, keepdims=True)
         return c, self.cluster_rate(r, r_dot, near_c=c)
 
+    @property
+    def chart_on_arrays(self) -> bool:
+        """The pair chart runs on any array namespace (:meth:`to_chart_arrays`); the team chart on NumPy."""
+        return self.chart_kind == "pair"
+
+    def to_chart_arrays(self, c, near_e=None, r=None):
+        """:meth:`to_chart` of the pair chart on checked arrays of any namespace (NumPy, JAX):
+        the robots of ``c`` (their yaws unwrapped near ``r``'s), eqs. (1)-(8) of them, or with
+        ``near_e`` the quaternion pair's chart of them on ``near_e``'s branch."""
+        if self.chart_kind != "pair":
+            return super().to_chart_arrays(c, near_e, r)
+        robots = self._relative_robots(c, r)
+        if near_e is None:
+            return EuclideanPair().forward_arrays(robots)
+        qp = QuaternionPair()
+        return qp.to_chart_arrays(qp.forward_arrays(robots, qp.from_chart_arrays(near_e)), near_e)
+
+    def _from_pair_chart(self, e, e_dot):
+        E = EuclideanPair()
+        e = E.check_cluster_state(e, "e")
+        r = E.inverse(e)
+        beta = e[..., 3]
+        qc = _pair_pose(g.q_yaw(beta + 0.5 * (e[..., 6] + e[..., 7])), e[..., 0:3])
+        p = self.layout.positions(r)
+        ts = np.einsum("...ij,...j->...i", _rot_z_T(self.layout.yaws(r)[..., 1]), p[..., 0, :] - p[..., 1, :])
+        qs = _pair_pose(g.q_yaw(e[..., 6] - e[..., 7]), ts)
+        c = np.concatenate([qc, qs], axis=-1)
+        if e_dot is None:
+            return c
+        r_dot = np.einsum("...ij,...j->...i", E.inverse_jacobian_at(e), as_array(e_dot, "e_dot", 8))
+        return c, np.einsum("...ij,...j->...i", self.jacobian(r, near_c=c), r_dot)
+
     # -- special sets -------------------------------------------------------------------------------
     def special_sets(self):
         """Where another description divides by zero, takes an undefined angle or meets ``q``
@@ -737,6 +898,8 @@ class DualQuaternionTeam(Formation):
         Coincident robots are not a set of the description but bad input: :meth:`forward` and
         :meth:`inverse` raise DegenerateInputError naming the robots.
         """
+        if self.shape == "relative":
+            return sp.pair_sets("beta_c is undefined here; the dual quaternions are regular")
         L = self.layout
         sets = []
         gen = _TeamStates(L)
@@ -767,6 +930,33 @@ class DualQuaternionTeam(Formation):
                        gen.anti_x),
         ]
         return tuple(sets)
+
+
+class DualQuaternionPair(Preset, DualQuaternionTeam):
+    """Seed 000 §3.3: ``DualQuaternionTeam(2, shape="relative", chart="pair")``, the cluster frame
+    ``qhat_c`` and the shape ``qhat_s`` of two 4-DOF robots (eqs. (26)-(27)), two unit dual
+    quaternions, in seed 000's Euclidean chart; its controller is
+    :class:`~quatform.control.quaternion.DualQuaternionController` (eq. (28))."""
+
+    name = "dual-quaternion"
+    key = "dual-quaternion"
+    arguments = {"n": 2, "shape": "relative", "chart": "pair"}
+
+
+def _pure(v):
+    return np.concatenate([np.zeros(np.shape(v)[:-1] + (1,)), v], axis=-1)
+
+
+def _pair_pose(q, t):
+    """:func:`~.pair_kernels.pose` of arrays ``q (..., 4)``, ``t (..., 3)``."""
+    return kern.pack(kern.pose(kern.unpack(np.asarray(q)), kern.unpack(np.asarray(t))))
+
+
+def _rot_z_T(theta):
+    """``R_z(theta)^T`` (``(..., 3, 3)``)."""
+    c, s = np.cos(theta), np.sin(theta)
+    z, o = np.zeros_like(c), np.ones_like(c)
+    return np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1), np.stack([z, z, o], -1)], -2)
 
 
 class _TeamStates:

@@ -47,12 +47,11 @@ def q_yaw(theta):
 
 
 def q_pitch_y(angle):
-    """Rotation by ``angle`` about ``y``."""
-    angle = np.asarray(angle, dtype=float)
-    q = np.zeros(angle.shape + (4,))
-    q[..., 0] = np.cos(0.5 * angle)
-    q[..., 2] = np.sin(0.5 * angle)
-    return q
+    """Rotation by ``angle`` about ``y``: ``(cos angle/2, 0, sin angle/2, 0)``, shape ``(..., 4)`` (any namespace)."""
+    angle = as_floats(angle)
+    xp = _xp(angle)
+    z = xp.zeros_like(angle)
+    return xp.stack([xp.cos(0.5 * angle), z, xp.sin(0.5 * angle), z], axis=-1)
 
 
 def yaw_of(q):

@@ -41,8 +41,8 @@ __all__ = ["TeamChart", "LawGroup", "ROLE_WIDTHS", "fit_attitude", "default_temp
 
 #: Width of each block role (the last axis of :attr:`LawGroup.index`); ``control.team`` maps
 #: a role to its law and gain key.
-ROLE_WIDTHS = {"centroid": 3, "shape": 3, "attitude": 4, "orientation": 4, "pose": 8, "relative-pose": 8,
-               "position": 3, "planar": 2, "heading": 1, "variables": 1}
+ROLE_WIDTHS = {"centroid": 3, "shape": 3, "separation": 1, "attitude": 4, "orientation": 4, "pose": 8,
+               "relative-pose": 8, "position": 3, "planar": 2, "heading": 1, "variables": 1}
 
 #: Eigenvalue gaps (relative to the fit's size) at which two attitudes fit equally: the weight
 #: of an eigenvector is exactly 1 for a gap ``lambda_top - lambda_k`` up to ``TIE * size``
@@ -59,7 +59,8 @@ class LawGroup:
     Attributes
     ----------
     role : str
-        A :data:`ROLE_WIDTHS` key (``centroid``, ``shape``, ``attitude``, ``orientation``,
+        A :data:`ROLE_WIDTHS` key (``centroid``, ``shape``, ``separation`` (seed 000's ``d_c``),
+        ``attitude``, ``orientation``,
         ``pose``, ``relative-pose``, ``position``, ``planar`` (a ground robot's x, y),
         ``heading``, ``variables``).
     index : ndarray of int, shape (M, k)

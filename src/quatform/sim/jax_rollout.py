@@ -16,8 +16,8 @@ own: its ``finish`` applied to a log of the reference (:func:`_desired`). The si
 metrics need the description's :meth:`~quatform.formations.base.Formation.singularity_measure_arrays`
 and the recovered chart error its :meth:`~quatform.formations.base.Formation.to_chart_arrays`
 on JAX; a description that does not offer them on the array namespace (its
-``singularity_on_arrays`` / ``chart_on_arrays`` False: the dual-quaternion pair's chart, the
-team descriptions' charts) has those keys absent from the result, as has a run with
+``singularity_on_arrays`` / ``chart_on_arrays`` False: the team descriptions' team
+charts) has those keys absent from the result, as has a run with
 ``formation_metrics=False``; its sweep runs :func:`~quatform.sim.loop.simulate_jax`
 and ``Experiment.metrics`` on a logged batch.
 """
