@@ -13,8 +13,9 @@ on NumPy and JAX, batched and swept, as it runs any other controller. One tick:
    (:meth:`Links.read`), grouped per robot (:func:`~quatform.network.links.inbox`, with each
    slot's edge weight), less what came from beyond the radio's range (``range_m``);
 4. the local controllers' tick, each robot's command mapped by name onto its model's
-   command columns (a column the law does not set is 0) and saturated by its own model
-   (each robot limits itself: no common factor, which would need the whole team).
+   command columns (a column the law does not set is 0), its velocity filtered against the
+   neighbours it knows of (``safety``, :mod:`.neighbour_barrier`) and saturated by its own
+   model (each robot limits itself: no common factor, which would need the whole team).
 
 The links' delivery lags are drawn up front per world (:meth:`schedule`, the contract's
 hook): the loop hands each tick's slice beside the reference, so the tick's reference is
@@ -35,11 +36,16 @@ from ..network.links import Links, inbox
 from ..robots import Team
 from . import contract
 from .local import LocalController
+from .neighbour_barrier import SIGNALS, NeighbourBarrier
 
-__all__ = ["NetworkedController", "NETWORK_SIGNALS"]
+__all__ = ["NetworkedController", "NETWORK_SIGNALS", "SAFETY_SIGNALS", "VELOCITY_COLUMNS"]
 
 #: The per-world signal of the links at each tick (columns of the ``network`` signal).
 NETWORK_SIGNALS = ("messages_sent", "messages_dropped", "messages_delivered", "max_age_s")
+#: Each robot's columns of the ``safety`` signal (:func:`.neighbour_barrier.neighbour_filter`'s signals).
+SAFETY_SIGNALS = SIGNALS
+#: The command columns the separation filter sets: the robot's linear velocity, m/s.
+VELOCITY_COLUMNS = ("v_x", "v_y", "v_z")
 
 
 def _edge_weights(links: Links) -> np.ndarray:
@@ -74,6 +80,14 @@ class NetworkedController(contract.Controller):
         Radio range, m: a message whose sender was farther than this from its receiver (the
         sender's position when it sent, the receiver's now) is not used, so the graph the
         robots use switches with their positions (None: every delivered message is used).
+    safety : NeighbourBarrier, optional
+        Each robot filters its own velocity against the neighbours it holds messages of (their
+        positions when they sent, and the age of each: :mod:`.neighbour_barrier`); its
+        ``max_speed_m_s`` must be at least the robots' own speed limit.
+    hold_unheard : bool
+        With ``safety``: an in-neighbour without a valid message is a neighbour of unknown
+        position and the robot stays until it is heard (the safe reading of a fixed graph;
+        :meth:`NeighbourBarrier.filter_inbox`).
     """
 
     local: LocalController
@@ -81,6 +95,8 @@ class NetworkedController(contract.Controller):
     links: Links
     period_s: float
     range_m: float | None = None
+    safety: NeighbourBarrier | None = None
+    hold_unheard: bool = False
 
     pure = True
 
@@ -117,6 +133,19 @@ class NetworkedController(contract.Controller):
             raise InvalidInputError(f"networked controller: {self.local.name} commands {', '.join(unknown)}, which "
                                     f"the {model.name} robot has not (its commands: "
                                     f"{', '.join(model.command_columns)}); choose a robot model it can drive")
+        if self.safety is not None:
+            if not isinstance(self.safety, NeighbourBarrier):
+                raise InvalidInputError(f"networked controller: safety must be a NeighbourBarrier, got "
+                                        f"{type(self.safety).__name__}")
+            if any(c not in model.command_columns for c in VELOCITY_COLUMNS):
+                raise InvalidInputError(f"networked controller: the separation filter commands a velocity "
+                                        f"(v_x, v_y, v_z), which the {model.name} robot does not take (its "
+                                        f"commands: {', '.join(model.command_columns)}); choose a holonomic model")
+            limit = getattr(model, "max_speed", None)
+            if limit is None or limit > self.safety.max_speed_m_s * (1 + 1e-12):
+                raise InvalidInputError(f"networked controller: the separation filter assumes every robot within "
+                                        f"{self.safety.max_speed_m_s:g} m/s, and the {model.name} robots go up to "
+                                        f"{limit} m/s; give the filter max_speed_m_s >= the robots' max_speed")
         own = self.own_index()  # raises where a robot lacks a column
         object.__setattr__(self, "_own", own)
         object.__setattr__(self, "_weights", _edge_weights(self.links))
@@ -142,12 +171,15 @@ class NetworkedController(contract.Controller):
         return tuple(f"{c}{label}" for label in self.team.layout.labels for c in self.model.command_columns)
 
     def signal_columns(self) -> dict[str, tuple[str, ...]]:
-        """The local controller's signals, robot after robot (``<column><label>``), and ``network``
-        (:data:`NETWORK_SIGNALS`, per world)."""
+        """The local controller's signals, robot after robot (``<column><label>``), ``network``
+        (:data:`NETWORK_SIGNALS`, per world) and, with ``safety``, each robot's
+        :data:`SAFETY_SIGNALS`."""
         labels = self.team.layout.labels
         out = {k: tuple(f"{c}{label}" for label in labels for c in cols)
                for k, cols in self.local.signal_columns().items()}
         out["network"] = NETWORK_SIGNALS
+        if self.safety is not None:
+            out["safety"] = tuple(f"{c}{label}" for label in labels for c in SAFETY_SIGNALS)
         return out
 
     def own_index(self) -> np.ndarray:
@@ -234,11 +266,19 @@ class NetworkedController(contract.Controller):
         p = self.positions(measured)
         outgoing = xp.concatenate([self.local.message(state["local"], own, ref, t), p], axis=-1)
         ring = self.links.write(state["links"], outgoing, t)
-        box, _ = self.received(ring, xs, p, t)
+        box, sender = self.received(ring, xs, p, t)
         out = self.local.tick(state["local"], own, box, ref, t)
-        u = self._commands(out.u)
         batch = measured.shape[:-1]
         signals = {k: xp.reshape(v, batch + (-1,)) for k, v in out.signals.items()}
+        safe = None
+        if self.safety is not None:  # each robot filters its own velocity against what it knows of its neighbours
+            valid = box["valid"]
+            sensed = (valid | xp.asarray(box["senders"] >= 0)) if self.hold_unheard else valid
+            age = xp.where(valid, t - xp.where(valid, box["stamps"], 0.0), math.inf)
+            safe, sig = self.safety.filter(self._velocity(out.u), p, sender, age, sensed)
+            signals["safety"] = xp.reshape(xp.stack([xp.asarray(sig[k], dtype=measured.dtype) for k in SAFETY_SIGNALS],
+                                                    axis=-1), batch + (-1,))
+        u = self._commands(out.u, safe)
         age = xp.where(box["valid"], t - box["stamps"], 0.0)
         columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], xp.sum(xp.asarray(xs["new"], dtype=xp.int32), axis=-1),
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
@@ -272,13 +312,24 @@ class NetworkedController(contract.Controller):
         idx = np.searchsorted(code, rows * n + np.maximum(senders, 0))
         return np.where(senders >= 0, self._weights[np.minimum(idx, len(code) - 1)] if len(code) else 0.0, 0.0)
 
-    def _commands(self, u):
+    def _commands(self, u, safe=None):
         """The local commands ``(*batch, N, n_local)`` as the team's ``(*batch, N n_u)``, each robot
-        saturated by its model."""
+        saturated by its model; ``safe`` (``(*batch, N, 3)``, m/s) replaces the velocity columns
+        (the separation filter's output)."""
         xp = common_namespace(u)
         cols = self.model.command_columns
         local = self.local.command_columns
         zero = xp.zeros(u.shape[:-1], dtype=u.dtype)
-        full = xp.stack([u[..., local.index(c)] if c in local else zero for c in cols], axis=-1)
-        full = self.model.saturate(full)
+        parts = [u[..., local.index(c)] if c in local else zero for c in cols]
+        if safe is not None:
+            for a, c in enumerate(VELOCITY_COLUMNS):
+                parts[cols.index(c)] = safe[..., a]
+        full = self.model.saturate(xp.stack(parts, axis=-1))  # scaling a safe command down keeps it safe
         return xp.reshape(full, full.shape[:-2] + (-1,))
+
+    def _velocity(self, u):
+        """The linear velocity ``(*batch, N, 3)`` m/s the law commands (0 where it sets none)."""
+        xp = common_namespace(u)
+        local = self.local.command_columns
+        zero = xp.zeros(u.shape[:-1], dtype=u.dtype)
+        return xp.stack([u[..., local.index(c)] if c in local else zero for c in VELOCITY_COLUMNS], axis=-1)

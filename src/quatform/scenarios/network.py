@@ -24,6 +24,7 @@ import numpy as np
 from ..bags.scene import SCENES, Plot, SceneKind, team_scene
 from ..checks import MISSING, check_keys, flag, integer, number, records, short, table, text, vector
 from ..control.local import LOCAL_CONTROLLERS
+from ..control.neighbour_barrier import NeighbourBarrier
 from ..control.networked import NETWORK_SIGNALS, NetworkedController
 from ..errors import InvalidInputError
 from ..formations import TeamChart
@@ -44,11 +45,12 @@ __all__ = ["NetworkScenario", "NetworkKind", "GRAPH_KINDS", "network_scenario_fr
 
 _HINT = "see docs/networks.md, scenarios"
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "law", "gains", "robots",
-             "shape", "path", "attitude", "headings", "graph", "switching", "switching_period_s", "links", "initial", "converged_below")
+             "shape", "path", "attitude", "headings", "graph", "switching", "switching_period_s", "links", "initial", "converged_below", "safety")
 _GRAPH_KEYS = ("kind", "directed", "k", "radius_m", "edges", "weights")
 _SWITCH_KEYS = ("start_s",) + _GRAPH_KEYS
 _LINK_KEYS = ("delay_s", "jitter_s", "drop", "rate_hz", "max_age_s", "seed", "range_m")
 _INITIAL_KEYS = ("position_m", "angle_rad", "antipodal", "seed")
+_SAFETY_KEYS = ("min_separation_m", "gamma", "hold_unheard")
 #: The ``[graph]`` kinds: what each builds over the robots (numbered from 1 in files).
 GRAPH_KINDS = ("ring", "complete", "k-nearest", "disk", "edges")
 
@@ -165,6 +167,10 @@ class NetworkScenario:
     range_m : float or None
         The radio's range, m (``[links] range_m``): a message from a sender farther away is
         not used (:class:`~quatform.control.networked.NetworkedController`).
+    safety : dict or None
+        ``[safety]``: ``min_separation_m`` (m), ``gamma`` (1/s), ``hold_unheard``: each robot's
+        separation filter (:class:`~quatform.control.neighbour_barrier.NeighbourBarrier`, its
+        speed bound the robots' ``max_speed``); None: no filter.
     """
 
     name: str
@@ -182,6 +188,7 @@ class NetworkScenario:
     converged_below: float = 1e-3
     switching: tuple | None = None
     range_m: float | None = None
+    safety: dict | None = None
 
     @property
     def times(self) -> np.ndarray:
@@ -189,7 +196,13 @@ class NetworkScenario:
         return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
 
     def controller(self) -> NetworkedController:
-        return NetworkedController(self.law, self.team, self.links, self.dt_s, range_m=self.range_m)
+        barrier, hold = None, False
+        if self.safety is not None:
+            barrier = NeighbourBarrier(self.safety["min_separation_m"], getattr(self.team.robots[0], "max_speed", 0.0)
+                                       or 1.0, gamma=self.safety["gamma"], dt_s=self.dt_s)
+            hold = self.safety["hold_unheard"]
+        return NetworkedController(self.law, self.team, self.links, self.dt_s, range_m=self.range_m, safety=barrier,
+                                   hold_unheard=hold)
 
 
 def desired_at_zero(team: Team, motion: TeamMotion) -> np.ndarray:
@@ -263,6 +276,14 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
         initial = {"position_m": number(ini, "position_m", where, 0.0, **at, low=0.0),
                    "angle_rad": number(ini, "angle_rad", where, 0.0, **at, low=0.0, high=math.pi),
                    "antipodal": tuple(v - 1 for v in antipodal), "seed": integer(ini, "seed", where, 0, **at, low=0)}
+        safety = None
+        if "safety" in data:
+            sf = table(data, "safety", where)
+            check_keys(sf, _SAFETY_KEYS, where, "[safety]", _HINT)
+            at = {"place": "[safety]"}
+            safety = {"min_separation_m": number(sf, "min_separation_m", where, **at, low=0.0, low_open=True),
+                      "gamma": number(sf, "gamma", where, min(5.0, 1.0 / dt), **at, low=0.0, low_open=True),
+                      "hold_unheard": flag(sf, "hold_unheard", where, False, **at)}
         metrics_from = number(data, "metrics_from_s", where, 0.0, low=0.0, high=duration)
         sc = NetworkScenario(name=text(data, "name", where, Path(where).stem), title=text(data, "title", where, ""),
                              source=text(data, "source", where, ""), team=team, groups=groups, motion=motion,
@@ -271,12 +292,31 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
                              converged_below=number(data, "converged_below", where, 1e-3, low=0.0, low_open=True),
                              switching=None if period is None else (tuple(pattern), period),
                              range_m=number(lk, "range_m", where, None, place="[links]", low=0.0, low_open=True)
-                             if "range_m" in lk else None)
+                             if "range_m" in lk else None, safety=safety)
         sc.controller()  # the law, robots and links fit together
+        if safety is not None:
+            _check_start_apart(sc, where)
     except InvalidInputError as exc:
         msg = str(exc)
         raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
     return sc
+
+
+def _check_start_apart(sc: NetworkScenario, where: str) -> None:
+    """Refuse a start whose robots are closer than the separation filter's distance (its promise
+    needs robots that start at least that far apart)."""
+    from scipy.spatial import cKDTree
+
+    d = sc.safety["min_separation_m"]
+    p = positions_of(sc.team.layout, start_points(sc, desired_at_zero(sc.team, sc.motion)))
+    dist, idx = cKDTree(p).query(p, k=2)
+    i = int(np.argmin(dist[:, 1]))
+    if dist[i, 1] < d:
+        j = int(idx[i, 1])
+        raise InvalidInputError(f"{where}: robots {min(i, j) + 1} and {max(i, j) + 1} start {dist[i, 1]:.3g} m apart, "
+                                f"closer than [safety] min_separation_m = {d:g} m (the filter keeps robots apart that "
+                                f"start apart); lower [initial] position_m, space the shape wider or lower "
+                                f"min_separation_m")
 
 
 def start_points(sc: NetworkScenario, r0: np.ndarray) -> np.ndarray:
@@ -432,6 +472,7 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
     sep = np.array([cKDTree(p).query(p, k=2)[0][:, 1].min() if np.all(np.isfinite(p)) else np.nan for p in pos])
     final = float(err[-1])
     rate = measured_rate(t, err, scenario.metrics_from_s)
+    d_min = None if scenario.safety is None else float(scenario.safety["min_separation_m"])
     return {"scenario": scenario.name, "law": scenario.law.name, "n_robots": L.n,
             "graph_edges": int(len(ctrl.links.edges)),
             "graph_lambda2": log.meta["graph_lambda2"], "predicted_rate": log.meta["predicted_rate"],
@@ -440,7 +481,8 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
             "consensus_error_threshold": scenario.converged_below,
             "messages_sent": int(net[:, 0].sum()), "messages_dropped": int(net[:, 1].sum()),
             "messages_delivered": int(net[:, 2].sum()), "max_message_age_s": float(np.nanmax(net[:, 3])),
-            "min_separation_m": float(np.nanmin(sep)), "safety_distance_m": None, "separation_kept": True,
+            "min_separation_m": float(np.nanmin(sep)), "safety_distance_m": d_min,
+            "separation_kept": bool(d_min is None or np.nanmin(sep) >= d_min * (1.0 - 1e-9)),
             "nonfinite_commands": int(np.sum(~np.all(np.isfinite(u), axis=-1))),
             "failed": bool(log.meta.get("failed", False) is True)}
 
