@@ -366,6 +366,11 @@ def measured_rate(t: np.ndarray, err: np.ndarray, t_from: float = 0.0, floor: fl
     return float(-slope) if slope < 0 else None
 
 
+#: Teams up to this size write every robot's columns to ``timeseries.csv`` (a larger one's are
+#: in ``run.mcap``; its CSV holds the consensus error and the links' counts).
+CSV_ROBOTS = 100
+
+
 class NetworkKind(ScenarioKind):
     """Robots that each run a local law on their neighbours' delayed and lost messages."""
 
@@ -453,7 +458,8 @@ class NetworkKind(ScenarioKind):
         def metrics(log: Log) -> dict:
             return network_metrics(log, scenario, ctrl)
 
-        csv = ("consensus_error", "command", "network", ("measured", "r_des"))
+        csv = ("consensus_error", "network") + (("command", ("measured", "r_des"), *(("safety",) if ctrl.safety else ()))
+                                                 if L.n <= CSV_ROBOTS else ())
         return Experiment(scenario=scenario, label=law_obj.name, plant=plant, controller=ctrl,
                           reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish, metrics=metrics,
                           csv_channels=csv, meta=meta)
