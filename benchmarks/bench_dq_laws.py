@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from quatform.algebra import dq_from_pose, dqmul, pose_from_dq
-from quatform.control.local_laws import _dq_pose as dqk
+from quatform.control.local_laws import dq_pose as dqk
 from quatform.control.local_laws.dq_consensus import DQConsensus, log_coordinates
 from quatform.control.local_laws.dq_laplacian import DQLaplacian
 from quatform.control.networked import NetworkedController

@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 
 from quatform.algebra import dq_from_pose, dqconj, dqexp, dqlog_decoupled, dqmul, pose_from_dq, qmul
 from quatform.control.local import LOCAL_CONTROLLERS
-from quatform.control.local_laws import _dq_pose as dqk
+from quatform.control.local_laws import dq_pose as dqk
 from quatform.control.local_laws.dq_consensus import DQConsensus, left_jacobian_times, log_coordinates
 from quatform.control.local_laws.dq_laplacian import DQLaplacian
 from quatform.control.networked import NetworkedController

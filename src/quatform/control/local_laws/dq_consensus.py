@@ -21,7 +21,7 @@ at a root of the spanning tree (the leader) the whole team tracks its desired po
 1``, at the rate ``k min Re λ(L + diag(b))``. The rotation vector's rate becomes the angular
 velocity of ``y_i`` through the left Jacobian of SO(3), ``w = J_l(theta) theta_dot`` (``Q4``'s
 content in world coordinates), and the robot's command adds its desired pose's motion,
-``x_dot x* = zeta_i + y_i xi_i^d y_i*`` (:func:`._dq_pose.pose_twist_commands`): the
+``x_dot x* = zeta_i + y_i xi_i^d y_i*`` (:func:`.dq_pose.pose_twist_commands`): the
 time-varying formation is tracked without lag.
 
 **What each robot knows.** Its own pose; its row of the reference: its desired pose
@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 from ...algebra.kernels import common_namespace, dot_last
 from ..local import LocalController, LocalTick
-from . import _dq_pose as dq
+from . import dq_pose as dq
 
 __all__ = ["DQConsensus", "log_coordinates", "left_jacobian_times"]
 

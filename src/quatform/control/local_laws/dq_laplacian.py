@@ -17,13 +17,13 @@ y_j) x_i^d``, is the graph Laplacian on the ``y``: each robot moves its ``y_i`` 
     u_i = k sum_j a_ij valid_ij (y~_j - y_i)          (in R^8)
     y_i_dot = zeta_i y_i,   zeta_i = vec(u_i y_i*)    (both parts' vector parts)
 
-with ``y~_j`` the sign of ``y_j`` nearest ``y_i`` (:func:`._dq_pose.aligned`). ``zeta_i`` is the
+with ``y~_j`` the sign of ``y_j`` nearest ``y_i`` (:func:`.dq_pose.aligned`). ``zeta_i`` is the
 projection of ``u_i`` onto the tangent space of the unit dual quaternions at ``y_i`` (written
 as a twist), the continuous counterpart of the paper's projected iteration; near consensus
 ``u_i y_i*`` has scalar parts of second order, so the linearisation is ``y_dot = -k (L ⊗ I) y``
 and the consensus error decays at ``k Re λ₂`` (:meth:`quatform.network.Graph.predicted_rate`;
 the loop's discrete rate with ``dt_s``). The robot's command adds its desired pose's motion:
-``x_dot x* = zeta_i + y_i xi_i^d y_i*`` (:func:`._dq_pose.pose_twist_commands`).
+``x_dot x* = zeta_i + y_i xi_i^d y_i*`` (:func:`.dq_pose.pose_twist_commands`).
 
 The team reaches ``x_i = c x_i^d`` for one constant ``c`` common to all (here a left factor:
 quatform's poses are frames in the world, ``x = q + eps 1/2 t q``, so ``c`` moves the whole
@@ -34,7 +34,7 @@ desired pose and twist) and the ``y_j`` its inbox holds.
 **Double cover.** ``x``, ``-x``, ``x^d`` and ``-x^d`` give the same command: flipping ``x_i``
 or ``x_i^d`` flips ``y_i``, which flips every ``y~_j`` and ``u_i``, and ``u_i y_i*`` stays;
 flipping ``x_j`` leaves ``y~_j``. Half a turn apart (orthogonal primary parts) the sign is
-decided without a tie (:func:`._dq_pose.aligned`). No step divides or takes an angle.
+decided without a tie (:func:`.dq_pose.aligned`). No step divides or takes an angle.
 
 **Almost global, not global.** Consensus is reached from almost every start, not every one:
 a ring holds twisted equilibria (the robots' rotations spread round a full turn, each pulled
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 from ...algebra.kernels import common_namespace
 from ..local import LocalController, LocalTick
-from . import _dq_pose as dq
+from . import dq_pose as dq
 
 __all__ = ["DQLaplacian"]
 

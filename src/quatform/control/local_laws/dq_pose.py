@@ -1,4 +1,4 @@
-"""Unchecked dual-quaternion kernels shared by the dual-quaternion local laws (internal).
+"""Unchecked dual-quaternion kernels of the dual-quaternion local laws (internal: shared by those laws, not part of the user API).
 
 Control layer. Pure and branch-free on any array namespace (NumPy, JAX under ``jax.jit``):
 products and conjugates of ``(..., 8)`` dual quaternions (primary part first,
