@@ -381,3 +381,26 @@ def test_jax_equals_numpy(law):
     b = simulate_jax(KinematicTeam(_team(n)), ctrl, ref, times, x0).channels
     for key in a:
         np.testing.assert_allclose(np.asarray(b[key].data), np.asarray(a[key].data), rtol=0, atol=1e-9, err_msg=key)
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_each_robot_computes_from_its_own_row(law):
+    # One robot's node (its row of everything, N = 1) computes the team's row bit for bit.
+    rng = np.random.default_rng(8)
+    n, w, b = 4, 3, 2
+    c = LAWS[law](1.2)
+    own = _state(dq_from_pose(_unit_q(rng, (b, n)), rng.normal(size=(b, n, 3)))).reshape(b, n, 7)
+    ref = c.reference_arrays({"pose": dq_from_pose(_unit_q(rng, (n,)), rng.normal(size=(n, 3))),
+                              "twist": rng.normal(size=(n, 6)), "leader": rng.random(n)}, n)
+    senders = rng.integers(0, n, size=(n, w))
+    sent = c.message(None, own, ref, 0.0)
+    box = {"senders": senders, "weights": rng.random((n, w)), "valid": rng.random((b, n, w)) > 0.3,
+           "stamps": np.zeros((b, n, w)), "messages": sent[:, senders]}
+    full = c.tick(None, own, box, ref, 0.0)
+    for i in range(n):
+        row = {"senders": senders[[i]], "weights": box["weights"][[i]], "valid": box["valid"][:, [i]],
+               "stamps": box["stamps"][:, [i]], "messages": box["messages"][:, [i]]}
+        one = c.tick(None, own[:, [i]], row, {k: v[[i]] for k, v in ref.items()}, 0.0)
+        np.testing.assert_array_equal(one.u, full.u[:, [i]])
+        for key in full.signals:
+            np.testing.assert_array_equal(one.signals[key], full.signals[key][:, [i]])
