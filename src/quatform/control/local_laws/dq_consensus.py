@@ -46,6 +46,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 
 from ...algebra.kernels import common_namespace, dot_last
 from ..local import LocalController, LocalTick
@@ -118,6 +120,25 @@ class DQConsensus(LocalController):
 
     def reference_arrays(self, reference, n: int):
         return dq.check_reference(self.name, reference, n, {"leader": ((n,), "1 (a weight)", 0.0)})
+
+    def example(self, n, rng):
+        q = rng.normal(size=(n, 4))
+        q /= np.linalg.norm(q, axis=-1, keepdims=True)
+        desired = np.concatenate([rng.normal(size=(n, 3)), q], axis=-1)
+        q2 = q + 0.3 * rng.normal(size=(n, 4))
+        own = np.concatenate([rng.normal(size=(n, 3)), q2 / np.linalg.norm(q2, axis=-1, keepdims=True)], axis=-1)
+        return own, {"desired": desired, "desired_rate": 0.1 * rng.normal(size=(n, 7))}
+
+    def consensus_error(self, own, desired):
+        """:func:`.dq_pose.consensus_error`: zero where every ``x_i = c x_d_i``."""
+        return dq.consensus_error(own, desired)
+
+    def predicted_rate(self, graph, period_s, switching_period_s=None):
+        """The linearisation ``y <- (I - k dt L) y`` of ``y = x x_d*`` near consensus (leaderless):
+        :meth:`Graph.predicted_rate` at the control period; None for a switching schedule."""
+        if switching_period_s is not None:
+            return None
+        return graph.predicted_rate(self.gain, dt_s=period_s)
 
     def message(self, state, own, reference, t):
         return dq.formation_variable(dq.pose_dq(own), reference["pose"])

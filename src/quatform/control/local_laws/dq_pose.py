@@ -139,6 +139,45 @@ def pose_twist_commands(zeta, y, x_d, desired_twist, t):
     return twist_commands(zeta + dqmul(dqmul(y, xi_d), dqconj(y)), t)
 
 
+def from_desired(law: str, reference: dict, n: int) -> dict:
+    """``reference`` with each robot's desired pose point and its rate (``desired``,
+    ``desired_rate`` ``(*batch?, n, 7)``: ``(x, y, z, q_w, q_x, q_y, q_z)`` and its rate, what
+    :class:`~quatform.control.networked.NetworkedController` gives from the team's desired
+    points) as ``pose`` (unit dual quaternions) and ``twist`` (world ``(v, w)``, ``w = 2 vec(q_dot
+    q*)``, seed 001 eq. (2.32))."""
+    out = dict(reference)
+    rows = np.asarray(out.pop("desired"), dtype=float)
+    rate = np.asarray(out.pop("desired_rate", np.zeros(rows.shape)), dtype=float)
+    if rows.ndim < 2 or rows.shape[-2:] != (n, 7) or rate.shape[-2:] != (n, 7):
+        raise ShapeError(f"{law}: reference 'desired' and 'desired_rate' must have shape (*batch, {n}, 7) (pose points "
+                         f"x, y, z, q_w, q_x, q_y, q_z and their rates), got {rows.shape} and {rate.shape}")
+    q = rows[..., 3:7]
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(rows)) or not np.all(np.isfinite(rate)) or np.any(np.abs(norm - 1.0) > UNIT_TOLERANCE):
+        raise NonUnitError(f"{law}: reference 'desired' must hold finite poses with unit quaternions and finite "
+                           f"rates; build the desired points of a pose robot with unit orientations")
+    q = q / norm
+    out["pose"] = pose_dq(np.concatenate([rows[..., 0:3], q], axis=-1))
+    w = 2.0 * qmul(rate[..., 3:7], q * _CONJ8[:4])[..., 1:4]
+    out["twist"] = np.concatenate([rate[..., 0:3], w], axis=-1)
+    return out
+
+
+def consensus_error(own, desired) -> np.ndarray:
+    """The team's disagreement ``(...)`` of the dual-quaternion laws, from the robots' pose points
+    and their desired ones (``(..., N, 7)`` each, NumPy): the root mean square over the robots of
+    ``|y~_i - mean(y~)|``, ``y = x x_d*`` (8 components; the rotation part dimensionless, the
+    dual part half a translation in m), each ``y_i`` signed nearest robot 1's: zero exactly where
+    every ``x_i = c x_d_i`` for one ``c`` (the laws' invariant), whatever the signs of the poses."""
+    q = np.asarray(desired, dtype=float)[..., 3:7]
+    x_d = pose_dq(np.concatenate([np.asarray(desired, dtype=float)[..., 0:3],
+                                  q / np.linalg.norm(q, axis=-1, keepdims=True)], axis=-1))
+    y = formation_variable(pose_dq(np.asarray(own, dtype=float)), x_d)
+    y = aligned(y, y[..., :1, :])
+    dev = y - y.mean(axis=-2, keepdims=True)
+    return np.sqrt(np.mean(np.sum(dev * dev, axis=-1), axis=-1))
+
+
 def check_reference(law: str, reference, n: int, extra: dict | None = None) -> dict:
     """The reference of a dual-quaternion law as NumPy arrays, checked on the host.
 
@@ -150,6 +189,8 @@ def check_reference(law: str, reference, n: int, extra: dict | None = None) -> d
     if not isinstance(reference, dict):
         raise InvalidInputError(f"{law}: the reference must be a dict with 'pose' (n, 8), each robot's desired pose "
                                 f"as a unit dual quaternion, got {type(reference).__name__}")
+    if "desired" in reference and "pose" not in reference:
+        reference = from_desired(law, reference, n)
     out = {}
     try:
         pose = np.asarray(reference["pose"], dtype=float)
