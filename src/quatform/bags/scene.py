@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..control.networked import NETWORK_SIGNALS
 from ..errors import InvalidInputError
 from ..formations import FORMATIONS
 from ..formations import geometry as g
@@ -605,6 +606,39 @@ def teleop_plots(scene: Scene) -> tuple:
     return tuple(p for p in plots if p.series)
 
 
+#: Most edges a network run's bag draws per tick (a larger graph's are thinned evenly).
+SCENE_EDGES = 600
+
+
+def network_scene(log):
+    """The robots of a network run (:func:`team_scene`) with the edges that
+    delivered a message at each tick as the markers (``/formation/edges``): a segment from the
+    sender to the receiver, collapsed onto the receiver at a tick its edge delivered nothing."""
+    scene = team_scene(log)
+    world, batch = log.meta.get("world") or (), log.meta.get("batch") or ()
+    b = int(np.ravel_multi_index(world, batch)) if world else 0
+    links = log.meta["links"]
+    links = dataclasses.replace(links, seed=links.seed + b)  # world b of a batch draws from seed + b
+    new = links.schedule(log.t, float(log.meta["dt_s"]))["new"]
+    edges = np.asarray(log.meta["graph"]["links"]["candidate_edges"], dtype=int) - 1
+    pick = np.linspace(0, len(edges) - 1, min(len(edges), SCENE_EDGES)).astype(int) if len(edges) else \
+        np.zeros(0, dtype=int)
+    p = scene.position
+    recv, send = p[:, edges[pick, 0]], p[:, edges[pick, 1]]
+    other = np.where(new[:, pick, None], send, recv)
+    seg = np.stack([recv, other], axis=2).reshape(len(p), 2 * len(pick), 3)
+    return dataclasses.replace(scene, edges=seg, edges_desired=None)
+
+
+def network_plots(scene) -> tuple:
+    """The plots of a network run's layout: the consensus error, and what the links carried per
+    tick with the oldest message used (the channels ``consensus_error`` and ``network``)."""
+    return (Plot("consensus", "Consensus error (the law's unit: m for the position laws)",
+                 (("/quatform/consensus_error.consensus_error", "consensus error"),)),
+            Plot("links", "Links per tick: messages sent, lost, delivered (count); oldest message used (s)",
+                 tuple((f"/quatform/network.{c}", c) for c in NETWORK_SIGNALS)))
+
+
 @dataclass(frozen=True)
 class SceneKind:
     """What a scenario kind's run shows: ``build(log) -> Scene`` (its bodies, frames, edges ...)
@@ -626,6 +660,7 @@ SCENES.add("pair", SceneKind(pair_scene, formation_plots))
 SCENES.add("ugv-uav", SceneKind(ugv_uav_scene, formation_plots))
 SCENES.add("team", SceneKind(team_scene, formation_plots))
 SCENES.add("teleop", SceneKind(teleop_scene, teleop_plots))
+SCENES.add("network", SceneKind(network_scene, network_plots))
 
 
 def scene_of(log, kind: str | None = None) -> Scene:

@@ -223,7 +223,8 @@ def neighbour_filter(barrier: NeighbourBarrier, u_nom, p, p_nb, age_s, valid):
           (1 where they hold as they are);
         * ``fallback`` (bool): no certified solution of the linearised programme (it has
           none, or, for a robot sensing more than :data:`CANDIDATES`, the candidates do not
-          reach it): the command is the saturated nominal scaled by ``scale``.
+          reach it): the command is the saturated nominal scaled by ``scale`` (False for a
+          robot that stays for a neighbour of unknown position or its own lost position).
 
     Raises
     ------
@@ -381,6 +382,9 @@ def _filter(xp, d, gam, v, u_nom, p, p_nb, age_s, valid):
 
     none = xp.full((1,) + lo.shape[1:], xp.inf)
     clearance = xp.min(xp.concatenate([none, xp.where(sensed, lo - d, xp.inf)], axis=0), axis=0)
+    # a robot that stays for a neighbour of unknown position (or its own lost) is no fallback:
+    # its programme has no solution by construction, and its command is 0 on every namespace
+    stays = ~own | xp.any(sensed & ~(known & (age < xp.inf)), axis=0)
     signals = {"binding": xp.sum(binding.astype(xp.int32), axis=0), "clearance_m": clearance,
-               "scale": s, "fallback": ~solved}
+               "scale": s, "fallback": ~solved & ~stays}
     return u, signals

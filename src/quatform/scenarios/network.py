@@ -21,11 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bags.scene import SCENES, Plot, SceneKind, team_scene
 from ..checks import MISSING, check_keys, flag, integer, number, records, short, table, text, vector
 from ..control.local import LOCAL_CONTROLLERS
 from ..control.neighbour_barrier import NeighbourBarrier
-from ..control.networked import NETWORK_SIGNALS, NetworkedController
+from ..control.networked import NetworkedController
 from ..errors import InvalidInputError
 from ..formations import TeamChart
 from ..formations.geometry import mul
@@ -37,11 +36,11 @@ from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind, finish_worlds
-from .team import _attitude, _headings, _path, _robots, _shape, check_team_work
+from .team import check_team_work, read_motion, read_robots
 
 __all__ = ["NetworkScenario", "NetworkKind", "GRAPH_KINDS", "network_scenario_from_dict", "graph_record",
-           "averaged_graph", "measured_rate", "start_points", "network_metrics", "network_scene",
-           "desired_at_zero", "positions_of"]
+           "averaged_graph", "measured_rate", "start_points", "network_metrics",
+           "desired_at_zero", "positions_of", "CSV_ROBOTS"]
 
 _HINT = "see docs/networks.md, scenarios"
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "law", "gains", "robots",
@@ -218,16 +217,14 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
     try:
         duration = number(data, "duration_s", where, low=0.0, low_open=True)
         dt = number(data, "dt_s", where, 0.02, low=0.0, low_open=True, high=duration)
-        groups, team = _robots(data, where)
+        groups, team = read_robots(data, where)
         if len(groups) != 1:
             raise InvalidInputError(f"{where}: a network team is one robot model; give one [[robots]] entry "
                                     f"(got {len(groups)})")
         team = Team.uniform(team.robots[0], team.layout.n, common_limit=False)
         n = team.layout.n
         check_team_work(where, duration, dt, n)
-        template, scale, moves = _shape(data, where, n, duration)
-        motion = TeamMotion(team.layout, template, _path(data, where), _attitude(data, where, duration), scale,
-                            moves, _headings(data, where, n))
+        motion = read_motion(data, where, team, duration)
         r0 = desired_at_zero(team, motion)
         pos0 = positions_of(team.layout, r0)
         law = _law(text(data, "law", where), table(data, "gains", where, default={}), where)
@@ -493,40 +490,6 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
             "failed": bool(log.meta.get("failed", False) is True)}
 
 
-#: Most edges a network run's bag draws per tick (a larger graph's are thinned evenly).
-SCENE_EDGES = 600
-
-
-def network_scene(log):
-    """The robots of a network run (:func:`quatform.bags.scene.team_scene`) with the edges that
-    delivered a message at each tick as the markers (``/formation/edges``): a segment from the
-    sender to the receiver, collapsed onto the receiver at a tick its edge delivered nothing."""
-    scene = team_scene(log)
-    world, batch = log.meta.get("world") or (), log.meta.get("batch") or ()
-    b = int(np.ravel_multi_index(world, batch)) if world else 0
-    links = log.meta["links"]
-    links = dataclasses.replace(links, seed=links.seed + b)  # world b of a batch draws from seed + b
-    new = links.schedule(log.t, float(log.meta["dt_s"]))["new"]
-    edges = np.asarray(log.meta["graph"]["links"]["candidate_edges"], dtype=int) - 1
-    pick = np.linspace(0, len(edges) - 1, min(len(edges), SCENE_EDGES)).astype(int) if len(edges) else \
-        np.zeros(0, dtype=int)
-    p = scene.position
-    recv, send = p[:, edges[pick, 0]], p[:, edges[pick, 1]]
-    other = np.where(new[:, pick, None], send, recv)
-    seg = np.stack([recv, other], axis=2).reshape(len(p), 2 * len(pick), 3)
-    return dataclasses.replace(scene, edges=seg, edges_desired=None)
-
-
-def network_plots(scene) -> tuple:
-    """The plots of a network run's layout: the consensus error, and what the links carried per
-    tick with the oldest message used (the channels ``consensus_error`` and ``network``)."""
-    return (Plot("consensus", "Consensus error (the law's unit: m for the position laws)",
-                 (("/quatform/consensus_error.consensus_error", "consensus error"),)),
-            Plot("links", "Links per tick: messages sent, lost, delivered (count); oldest message used (s)",
-                 tuple((f"/quatform/network.{c}", c) for c in NETWORK_SIGNALS)))
-
-
-SCENES.add("network", SceneKind(network_scene, network_plots))
 
 #: The network kind (registered in :data:`quatform.scenarios.KINDS`).
 NETWORK = KINDS[NetworkKind.name]

@@ -255,7 +255,8 @@ _OFFSET_KEYS = ("position", "yaw", "scale")
 _REFERENCE_KEYS = ("time_scale", "altitude_m", "headings")
 
 
-def _robots(data: dict, where: str):
+def read_robots(data: dict, where: str):
+    """``(groups, team)`` of a file's ``[[robots]]`` entries (one line naming a bad key)."""
     items = data.get("robots", MISSING)
     if items is MISSING:
         raise InvalidInputError(f"{where}: missing [[robots]] (e.g. [[robots]] model = 'quadrotor', count = 4)")
@@ -406,6 +407,15 @@ def _gains(data: dict, where: str, dt: float) -> dict:
     return gains
 
 
+def read_motion(data: dict, where: str, team: Team, duration: float) -> TeamMotion:
+    """The :class:`TeamMotion` of a file's ``[shape]``, ``[path]``, ``[attitude]`` and
+    ``[headings]`` for the robots of ``team`` over ``duration`` s (one line naming a bad key)."""
+    n = team.layout.n
+    template, scale, moves = _shape(data, where, n, duration)
+    return TeamMotion(team.layout, template, _path(data, where), _attitude(data, where, duration), scale, moves,
+                      _headings(data, where, n))
+
+
 def team_scenario_from_dict(data: dict, where: str = "scenario") -> TeamScenario:
     """Build a :class:`TeamScenario` from parsed TOML; every mistake is one line naming the key."""
     check_keys(data, _TOP_KEYS, where, hint=_HINT)
@@ -413,13 +423,11 @@ def team_scenario_from_dict(data: dict, where: str = "scenario") -> TeamScenario
     try:
         duration = number(data, "duration_s", where, low=0.0, low_open=True)
         dt = number(data, "dt_s", where, 0.01, low=0.0, low_open=True, high=duration)
-        groups, team = _robots(data, where)
+        groups, team = read_robots(data, where)
         n = team.layout.n
         check_team_work(where, duration, dt, n)  # before anything is sampled
         metrics_from = number(data, "metrics_from_s", where, 5.0 if duration > 5.0 else 0.0, low=0.0)
-        template, scale, moves = _shape(data, where, n, duration)
-        motion = TeamMotion(team.layout, template, _path(data, where), _attitude(data, where, duration), scale,
-                            moves, _headings(data, where, n))
+        motion = read_motion(data, where, team, duration)
         off = table(data, "initial_offset", where, default={})
         check_keys(off, _OFFSET_KEYS, where, "[initial_offset]", _HINT)
         offset = {"position": vector(off, "position", 3, where, (0.0, 0.0, 0.0), place="[initial_offset]"),
