@@ -400,7 +400,7 @@ def zhao2018_example() -> AffineExample:
     m. The maneuver follows the paper's sequence for single integrators as keyframes of
     ``A(t), b(t)`` (Zhao drives double-integrator leaders by accelerations): a translation, a
     scaling in ``y`` to pass a narrow passage and back, a rotation by -90° while turning
-    downwards, a shear that lays the formation on one line (``s_y = 0``, robots 1 m apart) to
+    downwards, a shear that lays the formation on one line (``s_y = 0``, robots at least 1 m apart) to
     pass a second passage, and back to the nominal shape, held from 60 s to 70 s.
     """
     r = np.array([[2.0, 0.0], [1.0, 1.0], [1.0, -1.0], [0.0, 1.0], [0.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
