@@ -27,7 +27,7 @@ is positive, a certificate checked directly. When ``s = 1`` this is the sign of 
 stress. Where no certificate is found the call raises one line; when the sets do not meet
 the iterates' gap tends to their distance, so it is a failure to find, stated as such.
 
-Zhao's condition for leaders (2018, Theorem 1 and Lemma 2): with such a stress, the
+Zhao's condition for leaders (2018, Sec. III, affine localizability): with such a stress, the
 followers' positions are fixed by the leaders' (``Ω_ff`` nonsingular, then positive
 definite) iff the leaders' nominal positions affinely span ``R^d`` (at least ``d + 1`` of them,
 not on one hyperplane). :meth:`Stress.check_leaders` checks both, one line per failure.
@@ -135,7 +135,7 @@ class Stress:
             raise DegenerateInputError(
                 f"stress: the {n} nominal positions span an affine space of dimension {_affine_rank(p, tol)}, not "
                 f"R^{d} (collinear or coplanar); give nominal positions that span R^{d}, or give them in "
-                f"{_affine_rank(p, tol)} dimensions")
+                f"d = {_affine_rank(p, tol)}")
         e = np.sort(Graph.from_edges(n, self.edges, directed=False).edges, axis=1)
         e = np.unique(e, axis=0)
         degree = np.bincount(e.ravel(), minlength=n)
@@ -236,7 +236,7 @@ class Stress:
 
     def check_leaders(self, leaders) -> dict:
         """Zhao's condition: ``leaders``' nominal positions affinely span ``R^d``, and ``Ω_ff`` is
-        positive definite (Zhao 2018, Theorem 1, Lemma 2).
+        positive definite (Zhao 2018, Sec. III).
 
         Parameters
         ----------
