@@ -48,7 +48,8 @@ def test_zhao_example_has_the_papers_stress():
     assert ev[3] > 0.5
     info = S.check_leaders(ex.leaders)
     assert info["omega_ff_min_eig"] > 0.04 and info["gamma_min"] > 0.0
-    assert 0.0 < info["relay_factor"] < 1.0
+    assert info["relay_step"] == pytest.approx(1.0) and 0.0 < info["relay_factor"] < 1.0
+    assert info["relay_factor"] == pytest.approx(S.relay_factor(ex.leaders))  # 0.932
     g = S.graph()
     assert g.undirected and len(g.edges) == 2 * len(ex.edges)
     rows = S.rows()
@@ -69,6 +70,8 @@ def test_random_generic_configurations_have_a_psd_stress_of_full_rank(seed, d, e
     Off = np.delete(np.delete(S.matrix(), lead, 0), lead, 1)
     assert info["omega_ff_min_eig"] == pytest.approx(np.min(np.linalg.eigvalsh(Off)))
     assert info["omega_ff_min_eig"] > 0.0
+    # the relay step contracts the followers' relayed velocities at least as fast as β = 1
+    assert info["relay_factor"] < 1.0 and info["relay_factor"] <= S.relay_factor(lead) + 1e-12
 
 
 def test_a_collinear_nominal_configuration_is_one_line():

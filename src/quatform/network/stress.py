@@ -247,8 +247,8 @@ class Stress:
         -------
         dict
             ``omega_ff_min_eig`` (the least eigenvalue of ``Ω_ff``, ``Ω`` scaled as
-            :attr:`weights`), ``gamma_min`` (the least ``γ_i`` of a follower) and
-            ``relay_factor`` (:meth:`relay_factor`).
+            :attr:`weights`), ``gamma_min`` (the least ``γ_i`` of a follower), ``relay_step``
+            (:meth:`relay_step`) and ``relay_factor`` (:meth:`relay_factor` at that step).
 
         Raises
         ------
@@ -277,24 +277,45 @@ class Stress:
                 f"stress: Ω_ff of followers {robots_text(follow)} is singular (least eigenvalue {lam:.3g}) although "
                 f"the leaders span R^{d}; the stress is not of rank n - d - 1 within tolerance, so add edges")
         return {"omega_ff_min_eig": lam, "gamma_min": float(np.min(np.diag(off))) if len(follow) else math.inf,
-                "relay_factor": self.relay_factor(lead)}
+                "relay_step": self.relay_step(lead), "relay_factor": self.relay_factor(lead, self.relay_step(lead))}
 
-    def relay_factor(self, leaders) -> float:
-        """``ρ(Γ_f^-1 |W_ff|)``: the contraction of the followers' relayed velocities.
-
-        A follower of the sampled law uses its neighbours' velocities as last received (a
-        Jacobi sweep on ``Ω_ff v_f = ...`` per tick, with delays); below 1 the relayed
-        velocities converge, whatever the bounded delays (Chazan & Miranker 1969, asynchronous
-        iterations). ``Γ_f`` is the followers' ``γ_i``, ``W_ff`` their ``ω_ij`` among themselves.
-        """
+    def _relay_spectrum(self, leaders) -> np.ndarray:
+        """Eigenvalues of ``Γ_f^-1 Ω_ff`` (real, positive where Zhao's condition holds: it is
+        similar to ``Γ_f^-1/2 Ω_ff Γ_f^-1/2``), ascending; empty without followers."""
         lead = self._leaders(leaders)
         follow = np.setdiff1d(np.arange(self.n), lead)
         if not len(follow):
-            return 0.0
+            return np.zeros(0)
         Om = self.matrix()[np.ix_(follow, follow)]
-        gamma = np.diag(Om)
-        W = np.abs(np.diag(gamma) - Om) / gamma[:, None]
-        return float(np.max(np.abs(np.linalg.eigvals(W))))
+        g = 1.0 / np.sqrt(np.diag(Om))
+        return np.linalg.eigvalsh(g[:, None] * Om * g[None, :])
+
+    def relay_step(self, leaders) -> float:
+        """The relay step ``β`` that contracts the followers' relayed velocities fastest:
+        ``min(1, 2 / (λ_min + λ_max))`` over the eigenvalues of ``Γ_f^-1 Ω_ff`` (1 without
+        followers). :class:`~quatform.control.local_laws.affine.AffineManeuver`'s ``relay``."""
+        lam = self._relay_spectrum(leaders)
+        return float(min(1.0, 2.0 / (lam[0] + lam[-1]))) if len(lam) else 1.0
+
+    def relay_factor(self, leaders, step: float = 1.0) -> float:
+        """``ρ(I - β Γ_f^-1 Ω_ff)``: the contraction per tick of the followers' relayed velocities.
+
+        A follower of the sampled law moves its velocity by ``β`` towards Zhao's, computed
+        with its neighbours' velocities as last received (``β = 1``: a Jacobi sweep on
+        ``Ω_ff v_f = ...`` per tick). With perfect links the relayed velocities converge iff
+        this is below 1, at this rate per tick; ``Γ_f`` is the followers' ``γ_i``.
+
+        Parameters
+        ----------
+        leaders : sequence of int
+            0-based leader indices.
+        step : float
+            ``β`` in (0, 1].
+        """
+        if isinstance(step, bool) or not isinstance(step, (int, float, np.number)) or not 0.0 < step <= 1.0:
+            raise InvalidInputError(f"stress: relay step = {short(step)} must be a number in (0, 1]")
+        lam = self._relay_spectrum(leaders)
+        return float(np.max(np.abs(1.0 - step * lam))) if len(lam) else 0.0
 
 
 def _positive_combination(Mk: np.ndarray, tol: float):

@@ -4,7 +4,7 @@ Control layer. The team tracks a target formation that is a time-varying affine 
 nominal configuration, ``p*_i(t) = A(t) p̄_i + b(t)``; only the leaders know ``A(t), b(t)``.
 The followers' law (Zhao 2018, IEEE TAC 63(12), Sec. IV, the single-integrator law for
 leaders with time-varying velocities) uses the stress ``ω_ij`` of the nominal configuration
-(:class:`quatform.network.Stress`) and its neighbours' positions and velocities:
+(:class:`quatform.network.stress.Stress`) and its neighbours' positions and velocities:
 
     p_dot_i = -(1 / γ_i) sum_j ω_ij (k (p_i - p_j) - p_dot_j),    γ_i = sum_j ω_ij
 
@@ -12,14 +12,21 @@ leaders with time-varying velocities) uses the stress ``ω_ij`` of the nominal c
 ``δ = Ω_ff p_f + Ω_fl p_l`` decays like ``exp(-k t)``, and with the leaders on their targets the
 followers' error ``p_f - p*_f = Ω_ff^-1 δ`` follows, for any maneuver, where Zhao's condition
 holds (``Ω`` PSD of rank ``n - d - 1``, leaders affinely spanning ``R^d``:
-:meth:`quatform.network.Stress.check_leaders`). A leader tracks its own target,
+:meth:`quatform.network.stress.Stress.check_leaders`). A leader tracks its own target,
 ``p_dot_i = v*_i + k_l (p*_i - p_i)`` with ``v*_i = A_dot p̄_i + b_dot``.
 
 On a network (:class:`~quatform.control.networked.NetworkedController`) each robot sends its
 position and velocity; a leader's velocity is its command of the tick, a follower's its
-command of the previous tick (the law's state), so the followers' velocities are relayed
-one Jacobi sweep per tick (converging where :meth:`~quatform.network.Stress.relay_factor` is
-below 1). A neighbour's position is extrapolated over its message's age,
+command of the previous tick (the law's state). Zhao's law is an algebraic loop over the
+followers' velocities; sampled, a follower moves its command by a step ``β`` (``relay``)
+towards Zhao's, computed with the velocities last heard,
+
+    u_i(k) = (1 - β) u_i(k - 1) + β (Zhao's p_dot_i with the neighbours' last velocities),
+
+``β = 1`` one Jacobi sweep per tick. With perfect links the relayed velocities converge iff
+:meth:`~quatform.network.stress.Stress.relay_factor` ``ρ(I - β Γ_f^-1 Ω_ff) < 1``;
+:meth:`~quatform.network.stress.Stress.relay_step` gives the fastest ``β`` (1 on Zhao's example; a
+generic stress often needs less). A neighbour's position is extrapolated over its message's age,
 ``p_j + (t - stamp_j) v_j`` (no change with perfect links). A follower that holds no valid
 message of one of its stress neighbours (none arrived within the links' ``max_age_s``) holds
 still (commands 0) until it does: its equation is not determined without every term, and
@@ -49,7 +56,8 @@ REFERENCE_KEYS = {"target": (3, "m"), "target_rate": (3, "m/s"), "leader": (1, "
 
 
 def _gain(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value) or value <= 0:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not (np.isfinite(value)
+                                                                                         and value > 0):
         raise InvalidInputError(f"affine-maneuver: {name} = {short(value)} must be a positive number in 1/s")
     return float(value)
 
@@ -64,15 +72,18 @@ class AffineManeuver(LocalController):
         ``k``, the followers' position gain, 1/s (Zhao's law: 1).
     leader_gain : float
         ``k_l``, the leaders' tracking gain, 1/s.
+    relay : float
+        ``β`` in (0, 1], the followers' relay step (:meth:`quatform.network.stress.Stress.relay_step`).
 
     Reference (per tick, row ``i`` robot ``i``'s): ``{"target": (*batch?, N, 3) m, "target_rate":
     (*batch?, N, 3) m/s, "leader": (*batch?, N, 1) 1 or 0, "stress": (*batch?, N, N)}``, the
-    stress rows :meth:`quatform.network.Stress.rows` (:func:`affine_reference` builds it).
+    stress rows :meth:`quatform.network.stress.Stress.rows` (:func:`affine_reference` builds it).
     The followers' command does not read their target; the ``target_error`` signal does.
     """
 
     gain: float = 1.0
     leader_gain: float = 1.0
+    relay: float = 1.0
 
     name = "affine-maneuver"
     message_columns = ("x", "y", "z", "v_x", "v_y", "v_z")
@@ -82,6 +93,10 @@ class AffineManeuver(LocalController):
     def __post_init__(self):
         _gain(self.gain, "gain")
         _gain(self.leader_gain, "leader_gain")
+        b = self.relay
+        if isinstance(b, bool) or not isinstance(b, (int, float, np.number)) or not 0.0 < b <= 1.0:
+            raise InvalidInputError(f"affine-maneuver: relay = {short(b)} must be a number in (0, 1] (the followers' "
+                                    f"relay step; quatform.network.stress.Stress.relay_step gives one)")
 
     @classmethod
     def examples(cls) -> dict:
@@ -116,14 +131,14 @@ class AffineManeuver(LocalController):
         w = out["stress"]
         if np.any(np.diagonal(w, axis1=-2, axis2=-1) != 0.0):
             raise InvalidInputError("affine-maneuver: reference 'stress' has a nonzero diagonal; give each robot's "
-                                    "ω_ij with ω_ii = 0 (quatform.network.Stress.rows())")
+                                    "ω_ij with ω_ii = 0 (quatform.network.stress.Stress.rows())")
         gamma = np.sum(w, axis=-1)
         bad = (lead == 0.0) & (gamma <= 0.0)
         if np.any(bad):
             rows = np.unique(np.argwhere(bad)[:, -1])
             raise InvalidInputError(f"affine-maneuver: follower(s) {robots_text(rows)} have γ_i = sum_j ω_ij <= 0; "
                                     f"a positive semidefinite stress with Ω_ff positive definite has γ_i > 0 for "
-                                    f"every follower: build the rows with quatform.network.Stress and check the "
+                                    f"every follower: build the rows with quatform.network.stress.Stress and check the "
                                     f"leaders with Stress.check_leaders")
         return out
 
@@ -155,7 +170,8 @@ class AffineManeuver(LocalController):
         missing = neighbours - heard                                                     # (*b, N)
         gamma = xp.sum(stress, axis=-1)
         safe = xp.where(gamma > 0.0, gamma, 1.0)
-        follower = xp.where((missing < 0.5)[..., None], total / safe[..., None], 0.0)
+        zhao = (1.0 - self.relay) * state + self.relay * total / safe[..., None]
+        follower = xp.where((missing < 0.5)[..., None], zhao, 0.0)
         leader = reference["leader"] > 0.5
         u = xp.where(leader, self._leader_command(own, reference), follower)
         u = xp.broadcast_to(u, own.shape)
@@ -165,7 +181,7 @@ class AffineManeuver(LocalController):
         return LocalTick(u, u, {"target_error": err, "missing": missing[..., None]}, code)
 
 
-def affine_reference(stress: Stress, leaders, targets, rates):
+def affine_reference(stress: Stress, leaders, targets, rates, relay: float = 1.0):
     """The per-tick reference of :class:`AffineManeuver`: ``reference(k)`` for tick ``k``.
 
     Parameters
@@ -177,8 +193,16 @@ def affine_reference(stress: Stress, leaders, targets, rates):
     targets, rates : array_like, shape (T, n, d) or (T, *batch, n, d)
         ``p*_i(t_k) = A p̄_i + b`` (m) and ``v*_i = A_dot p̄_i + b_dot`` (m/s) of every robot at
         each tick, ``d <= 3`` (padded with zeros to ``x, y, z``).
+    relay : float
+        The law's ``relay`` step; refused in one line where the followers' relayed velocities
+        do not contract (:meth:`Stress.relay_factor` ``>= 1``).
     """
     stress.check_leaders(leaders)
+    rho = stress.relay_factor(leaders, relay)
+    if rho >= 1.0:
+        raise InvalidInputError(f"affine reference: at relay = {relay:.6g} the followers' relayed velocities do not "
+                                f"contract (ρ(I - β Γ_f^-1 Ω_ff) = {rho:.6g} >= 1); give AffineManeuver(relay="
+                                f"{stress.relay_step(leaders):.6g}) and the same relay here (Stress.relay_step)")
     lead = stress._leaders(leaders)
     n = stress.n
     targets = np.asarray(targets, dtype=float)
@@ -194,8 +218,8 @@ def affine_reference(stress: Stress, leaders, targets, rates):
     return lambda k: {"target": targets[k], "target_rate": rates[k], "leader": flag, "stress": rows}
 
 
-def example_reference(example: AffineExample, times, stress: Stress | None = None):
+def example_reference(example: AffineExample, times, stress: Stress | None = None, relay: float = 1.0):
     """``(reference, stress)``: :func:`affine_reference` of ``example``'s maneuver at ``times`` (s)."""
     stress = Stress(example.nominal, example.edges) if stress is None else stress
     p, v = example.targets(np.asarray(times, dtype=float))
-    return affine_reference(stress, example.leaders, p, v), stress
+    return affine_reference(stress, example.leaders, p, v, relay), stress
