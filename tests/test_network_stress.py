@@ -57,7 +57,7 @@ def test_zhao_example_has_the_papers_stress():
 
 
 @settings(max_examples=25, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), d=st.integers(1, 3), extra=st.integers(1, 5), tri=st.booleans())
+@given(seed=st.integers(0, 2**31 - 1), d=st.integers(1, 3), extra=st.integers(1, 9), tri=st.booleans())
 def test_random_generic_configurations_have_a_psd_stress_of_full_rank(seed, d, extra, tri):
     n = d + 1 + extra
     p = _generic(seed, n, d)
@@ -72,6 +72,16 @@ def test_random_generic_configurations_have_a_psd_stress_of_full_rank(seed, d, e
     assert info["omega_ff_min_eig"] > 0.0
     # the relay step contracts the followers' relayed velocities at least as fast as β = 1
     assert info["relay_factor"] < 1.0 and info["relay_factor"] <= S.relay_factor(lead) + 1e-12
+
+
+def test_the_barrier_search_finds_the_stress_where_the_projection_of_the_identity_fails():
+    """A 12-robot planar trilateration graph: nine independent stresses, the stress nearest to
+    M = I is not positive definite on the complement, the barrier method's is."""
+    p = _generic(11, 12, 2)
+    S = Stress(p, _trilateration(12, 2))
+    assert S.iterations > 0
+    ev = _is_stress(S, p)
+    assert ev[3] > 1e-9 * ev[-1]
 
 
 def test_a_collinear_nominal_configuration_is_one_line():
@@ -106,7 +116,7 @@ def test_graphs_without_the_stress_are_one_line():
     # edge (not universally rigid), so no combination has rank n - d - 1 = 3
     k4 = lambda v: [(a, b) for i, a in enumerate(v) for b in v[i + 1:]]  # noqa: E731
     edges = sorted(set(k4([0, 1, 2, 3]) + k4([0, 1, 4, 5])))
-    with pytest.raises(UnreachableError, match="no positive semidefinite stress of rank n - d - 1 = 3 found"):
+    with pytest.raises(UnreachableError, match="no positive semidefinite stress of rank n - d - 1 = 3 on these 11 edges"):
         Stress(p, edges)
 
 

@@ -18,14 +18,19 @@ equations are linear in the edge weights, ``E ω = 0`` (``E``: ``(d n, m)``); th
 (SVD) is spanned by ``b_1 ... b_s``. With ``Q`` ``(n, n - d - 1)`` an orthonormal basis of the
 complement of ``span[1, P̄]``, every stress has ``Ω = Q M Q^T``, ``M = sum_k x_k M_k``,
 ``M_k = Q^T H^T diag(b_k) H Q`` (``H`` the incidence matrix), and ``Ω`` is PSD of rank
-``n - d - 1`` iff ``M`` is positive definite. The linear matrix inequality ``sum_k x_k M_k ⪰ I``
-(Zhao's) is solved by alternating projections between the subspace ``span{M_k}`` (a least
-squares solve) and the convex set ``{Y ⪰ I}`` (eigenvalues clipped at 1): when the inequality
-is feasible the iterates converge to a point of both (Cheney & Goldstein 1959; Bregman
-1965), and the method stops at the first projection onto the subspace whose least eigenvalue
-is positive, a certificate checked directly. When ``s = 1`` this is the sign of the one
-stress. Where no certificate is found the call raises one line; when the sets do not meet
-the iterates' gap tends to their distance, so it is a failure to find, stated as such.
+``n - d - 1`` iff ``M`` is positive definite, the linear matrix inequality Zhao solves with an
+LMI solver. Here: with one stress (``s = 1``) its sign decides; otherwise the stress nearest
+to ``M = I`` (a least-squares projection) is taken where it is positive definite, and else
+a barrier method (Boyd & Vandenberghe 2004, Convex Optimization, Sec. 11.6) maximises the
+least eigenvalue ``t`` of ``M`` over ``||x|| <= 1`` (``||x|| = ||ω||``: the basis is
+orthonormal), the semidefinite programme ``max t`` s.t. ``M(x) - t I ⪰ 0``: Newton steps on
+``-c t - log det(M(x) - t I) - log(1 - ||x||^2)`` for ``c = 1, 8, 64, ...``. On the central
+path the optimum is at most ``(n - d) / c`` above ``t`` (the barrier's degree over ``c``), so the
+method stops with ``t`` within ``tol`` of the optimum, or as soon as the optimum is below
+``tol``: then no stress of rank ``n - d - 1`` exists (within ``tol``, relative to the largest
+``||M_k||_F``) and the call raises one line. Cost: ``O(m s r^2)`` to form the ``M_k``
+(``r = n - d - 1``), ``O(s^2 r^2)`` per Newton step (60 robots in the plane: a trilateration
+graph 0.3 s, the complete graph 2 s).
 
 Zhao's condition for leaders (2018, Sec. III, affine localizability): with such a stress, the
 followers' positions are fixed by the leaders' (``Ω_ff`` nonsingular, then positive
@@ -39,6 +44,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 
 from ..checks import short
 from ..errors import DegenerateInputError, InvalidInputError, NonFiniteError, ShapeError, UnreachableError
@@ -49,7 +55,7 @@ __all__ = ["Stress", "AffineExample", "zhao2018_example", "TOL", "MAX_ITERATIONS
 #: Relative tolerance of a rank decision (singular values and eigenvalues below ``TOL`` times
 #: the largest count as zero).
 TOL = 1e-9
-#: Largest number of alternating projections while searching a positive definite combination.
+#: Largest number of Newton steps while searching a positive definite combination.
 MAX_ITERATIONS = 5000
 
 
@@ -72,10 +78,10 @@ def _nominal(nominal) -> np.ndarray:
 
 
 def _affine_rank(p: np.ndarray, tol: float) -> int:
-    """Dimension of the affine hull of the rows of ``p`` (a decision relative to its spread)."""
-    c = p - p.mean(axis=0)
-    s = np.linalg.svd(c, compute_uv=False)
-    return int(np.sum(s > tol * max(float(s[0]) if len(s) else 0.0, 1e-300))) if len(s) and s[0] > 0 else 0
+    """Dimension of the affine hull of the rows of ``p``: the singular values of the centred rows
+    above ``tol`` times the largest (0 where all rows coincide)."""
+    s = np.linalg.svd(p - p.mean(axis=0), compute_uv=False)
+    return int(np.sum(s > tol * s[0])) if len(s) and s[0] > 0.0 else 0
 
 
 def _complement(p: np.ndarray) -> np.ndarray:
@@ -106,7 +112,8 @@ class Stress:
         ``ω_ij`` of each pair, scaled so the largest ``|ω_ij|`` is 1 (the law divides by
         ``γ_i = sum_j ω_ij``, so the scale does not matter).
     iterations : int
-        Alternating projections the search took (0 where one stress spans the solutions).
+        Newton steps the search took (0 where one stress spans the solutions, or the stress
+        nearest to ``M = I`` is positive definite).
 
     Raises
     ------
@@ -166,13 +173,14 @@ class Stress:
                 f"robot joined to d + 1 = {d + 1} robots already placed)")
         Q = _complement(p)
         HQ = H @ Q
-        Mk = np.einsum("ea,ek,eb->kab", HQ, basis, HQ)                 # M_k = (HQ)^T diag(b_k) HQ
+        r = HQ.shape[1]                                                 # M_k = (HQ)^T diag(b_k) HQ
+        Mk = (basis.T @ (HQ[:, :, None] * HQ[:, None, :]).reshape(m, r * r)).reshape(-1, r, r)
         x, iterations, lam = _positive_combination(Mk, tol)
-        if lam <= 0.0:
+        if lam <= tol:
             raise UnreachableError(
-                f"stress: no positive semidefinite stress of rank n - d - 1 = {n - d - 1} found on these {m} edges "
-                f"({basis.shape[1]} independent stresses; the best combination after {iterations} projections has "
-                f"least eigenvalue {lam:.3g} on the complement of span[1, P̄]); add edges (a universally rigid "
+                f"stress: no positive semidefinite stress of rank n - d - 1 = {n - d - 1} on these {m} edges "
+                f"({basis.shape[1]} independent stresses; the largest least eigenvalue on the complement of "
+                f"span[1, P̄] is {lam:.3g}, relative); add edges (a universally rigid "
                 f"framework has one) or move the nominal positions off special positions")
         w = basis @ x
         w = w / np.max(np.abs(w))
@@ -319,32 +327,72 @@ class Stress:
 
 
 def _positive_combination(Mk: np.ndarray, tol: float):
-    """``(x (s,), iterations, least eigenvalue of sum x_k M_k)``: ``x`` with ``sum_k x_k M_k``
-    positive definite, by alternating projections onto ``span{M_k}`` and ``{Y ⪰ I}`` (module
-    docstring); the least eigenvalue is ``<= 0`` where none is found."""
-    s = Mk.shape[0]
-    G = np.einsum("kab,lab->kl", Mk, Mk)
-    scale = max(float(np.max(np.abs(np.linalg.eigvalsh(Mk)))), 1e-300)
-
-    def least(x):
-        return float(np.min(np.linalg.eigvalsh(np.einsum("k,kab->ab", x, Mk))))
-
+    """``(x (s,), newton_steps, λ)``: ``x`` with ``sum_k x_k M_k`` positive definite and its least
+    eigenvalue ``λ`` per unit ``||x||`` (relative to the largest ``||M_k||_F``): the sign of one
+    stress, the projection of ``I``, or the barrier method's maximiser over ``||x|| <= 1``
+    (module docstring); ``λ <= tol`` where no positive definite combination exists."""
+    s, r = Mk.shape[0], Mk.shape[1]
+    scale = max(float(np.max(np.sqrt(np.sum(Mk * Mk, axis=(1, 2))))), 1e-300)       # the largest ||M_k||_F
+    M = Mk / scale
     if s == 1:
-        x = np.array([1.0 if least(np.ones(1)) >= least(-np.ones(1)) else -1.0])
-        return x, 0, least(x) / scale
-    eye = np.eye(Mk.shape[1])
-    x = np.linalg.lstsq(G, np.einsum("kab,ab->k", Mk, eye), rcond=None)[0]
-    best, best_lam = x, least(x)
-    for it in range(1, MAX_ITERATIONS + 1):
-        Y = np.einsum("k,kab->ab", x, Mk)
-        lam, V = np.linalg.eigh(Y)
-        if lam[0] > tol * max(float(lam[-1]), 0.0) and lam[0] > 0.0:
-            return x, it - 1, float(lam[0]) / (scale * float(np.linalg.norm(x)))
-        if lam[0] > best_lam:
-            best, best_lam = x, float(lam[0])
-        Y = (V * np.maximum(lam, 1.0)) @ V.T
-        x = np.linalg.lstsq(G, np.einsum("kab,ab->k", Mk, Y), rcond=None)[0]
-    return best, MAX_ITERATIONS, min(best_lam, 0.0)
+        lam = float(np.linalg.eigvalsh(M[0])[0]), float(np.linalg.eigvalsh(-M[0])[0])
+        return (np.ones(1), 0, lam[0]) if lam[0] >= lam[1] else (-np.ones(1), 0, lam[1])
+    flat = M.reshape(s, r * r)
+    # the Gram matrix is positive definite: Ω determines ω, so the M_k are independent
+    x = scipy.linalg.solve(flat @ flat.T, np.einsum("kaa->k", M), assume_a="pos")
+    if np.any(x):                                                      # the stress nearest to Q^T Q = I
+        x = x / np.linalg.norm(x)
+        lam = float(np.linalg.eigvalsh(np.tensordot(x, M, 1))[0])
+        if lam > tol:
+            return x, 0, lam
+        x = 0.5 * x
+    else:
+        x = np.full(s, 0.5 / math.sqrt(s))
+    A = np.concatenate([M, -np.eye(r)[None]])                          # F(z) = sum_a z_a A_a, z = (x, t)
+    z = np.append(x, np.linalg.eigvalsh(np.tensordot(x, M, 1))[0] - 1.0)
+    theta = r + 1.0                                                    # the barrier's degree
+
+    def terms(z):
+        """(psi's barrier part, L^-1 A_a L^-T (s+1, r, r)) or None outside the domain."""
+        F = np.tensordot(z, A, 1)
+        room = 1.0 - float(z[:-1] @ z[:-1])
+        try:
+            L = np.linalg.cholesky(F)
+        except np.linalg.LinAlgError:
+            return None
+        if room <= 0.0:
+            return None
+        Li = np.linalg.inv(L)
+        return -2.0 * float(np.sum(np.log(np.diag(L)))) - math.log(room), Li @ A @ Li.T, room
+
+    steps, c = 0, 1.0
+    while theta / c > tol and steps < MAX_ITERATIONS:
+        for _ in range(100):                                           # centring: Newton on -c t + barrier
+            phi, B, room = terms(z)
+            x = z[:-1]
+            g = -np.einsum("aii->a", B)
+            g[-1] -= c
+            g[:-1] += 2.0 * x / room
+            Bf = B.reshape(s + 1, r * r)
+            H = Bf @ Bf.T
+            H[:-1, :-1] += 2.0 * np.eye(s) / room + 4.0 * np.outer(x, x) / room ** 2
+            dz = -np.linalg.solve(H, g)
+            dec = -float(g @ dz)
+            if dec / 2.0 <= 1e-10:
+                break
+            value, step = -c * z[-1] + phi, 1.0
+            while True:                                                # backtracking, staying inside
+                new = terms(z + step * dz)
+                if new is not None and -c * (z[-1] + step * dz[-1]) + new[0] <= value - 0.25 * step * dec:
+                    break
+                step *= 0.5
+            z = z + step * dz
+            steps += 1
+        if z[-1] + theta / c <= tol:                                   # the optimum is below tol: none exists
+            break
+        c *= 8.0
+    x = z[:-1]
+    return x, steps, float(np.linalg.eigvalsh(np.tensordot(x, M, 1))[0]) / max(float(np.linalg.norm(x)), 1e-300)
 
 
 # ---------------------------------------------------------------------- Zhao 2018's example
