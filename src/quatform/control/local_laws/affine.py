@@ -31,6 +31,8 @@ generic stress often needs less). A neighbour's position is extrapolated over it
 message of one of its stress neighbours (none arrived within the links' ``max_age_s``) holds
 still (commands 0) until it does: its equation is not determined without every term, and
 dropping a term with a signed weight would make the command depend on the frame's origin.
+The links must carry every stress edge (:meth:`~quatform.network.stress.Stress.graph`); the
+``missing`` signal counts a robot's stress neighbours without a valid message.
 ``docs/networks.md`` ("Affine formation maneuvers") has the measured errors,
 ``docs/derivations.md`` the deviations from the paper.
 """
