@@ -107,8 +107,13 @@ def test_too_few_and_collinear_leaders_are_one_line():
 
 def test_graphs_without_the_stress_are_one_line():
     p = _generic(3, 6, 2)
-    with pytest.raises(UnreachableError, match=r"robot 6 has 2 neighbour\(s\).*at least d \+ 1 = 3"):
+    with pytest.raises(UnreachableError, match=r"robot 6 has 2 neighbour\(s\) in independent directions.*at least "
+                                               r"d \+ 1 = 3"):
         Stress(p, [(0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (2, 3), (0, 4), (1, 4), (2, 4), (3, 4), (4, 5), (3, 5)])
+    # a robot midway between its two neighbours carries a stress: no refusal by its degree
+    mid = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 0.0], [0.0, 2.0], [2.0, 2.0]])
+    edges = [(0, 2), (1, 2), (0, 1), (0, 3), (1, 3), (0, 4), (1, 4), (3, 4)]
+    _is_stress(Stress(mid, edges), mid)
     prism = [(0, 1), (1, 2), (0, 2), (3, 4), (4, 5), (3, 5), (0, 3), (1, 4), (2, 5)]
     with pytest.raises(UnreachableError, match="carry no stress"):
         Stress(p, prism)

@@ -146,13 +146,17 @@ class Stress:
         e = np.sort(Graph.from_edges(n, self.edges, directed=False).edges, axis=1)
         e = np.unique(e, axis=0)
         degree = np.bincount(e.ravel(), minlength=n)
-        low = np.flatnonzero(degree < d + 1)
-        if len(low):
+        # A robot with at most d neighbours in independent directions carries no stress (its
+        # equilibrium forces its weights to 0), so Ω's rank falls short: name it.
+        low = [i for i in np.flatnonzero(degree < d + 1)
+               if _affine_rank(np.vstack([p[i], p[e[e[:, 0] == i, 1]], p[e[e[:, 1] == i, 0]]]), tol) == degree[i]]
+        if low:
             raise UnreachableError(
                 f"stress: robot{'s' if len(low) > 1 else ''} {robots_text(low)} "
                 f"{'have' if len(low) > 1 else 'has'} {int(degree[low[0]])}{'...' if len(low) > 1 else ''} "
-                f"neighbour(s); a stress of rank n - d - 1 needs every robot to have at least d + 1 = {d + 1} "
-                f"(Zhao 2018, universal rigidity); add edges to {'them' if len(low) > 1 else 'it'}")
+                f"neighbour(s) in independent directions, so no stress reaches {'them' if len(low) > 1 else 'it'}; "
+                f"a stress of rank n - d - 1 needs every robot to have at least d + 1 = {d + 1} (Zhao 2018, "
+                f"universal rigidity); add edges to {'them' if len(low) > 1 else 'it'}")
         m = len(e)
         H = np.zeros((m, n))
         H[np.arange(m), e[:, 0]] = -1.0
