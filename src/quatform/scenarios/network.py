@@ -30,6 +30,7 @@ from ..formations import TeamChart
 from ..formations.geometry import mul
 from ..formations.layout import POINT_KINDS
 from ..network import Graph, Links
+from ..network.stress import AffineExample, Stress
 from ..references.team_motion import TeamMotion
 from ..robots import Team
 from ..sim.log import Channel, Log
@@ -40,16 +41,17 @@ from .team import check_team_work, read_motion, read_robots
 
 __all__ = ["NetworkScenario", "NetworkKind", "GRAPH_KINDS", "network_scenario_from_dict", "graph_record",
            "averaged_graph", "measured_rate", "start_points", "network_metrics",
-           "desired_at_zero", "positions_of", "CSV_ROBOTS"]
+           "desired_at_zero", "positions_of", "CSV_ROBOTS", "AffineMotion", "desired", "affine_extras"]
 
 _HINT = "see docs/networks.md, scenarios"
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "law", "gains", "robots",
-             "shape", "path", "attitude", "headings", "graph", "switching", "switching_period_s", "links", "initial", "converged_below", "safety")
+             "shape", "path", "attitude", "headings", "graph", "switching", "switching_period_s", "links", "initial", "converged_below", "safety", "affine")
 _GRAPH_KEYS = ("kind", "directed", "k", "radius_m", "edges", "weights")
 _SWITCH_KEYS = ("start_s",) + _GRAPH_KEYS
 _LINK_KEYS = ("delay_s", "jitter_s", "drop", "rate_hz", "max_age_s", "seed", "range_m")
-_INITIAL_KEYS = ("position_m", "angle_rad", "antipodal", "seed")
+_INITIAL_KEYS = ("position_m", "angle_rad", "antipodal", "seed", "offsets")
 _SAFETY_KEYS = ("min_separation_m", "gamma", "hold_unheard")
+_AFFINE_KEYS = ("leaders", "keyframes")
 #: The ``[graph]`` kinds: what each builds over the robots (numbered from 1 in files).
 GRAPH_KINDS = ("ring", "complete", "k-nearest", "disk", "edges")
 
@@ -71,10 +73,12 @@ def _law(name: str, gains: dict, where: str):
 
 def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -> Graph:
     kind = text(g, "kind", where, "ring", place=place, choices=GRAPH_KINDS)
-    only = {"directed": "ring", "k": "k-nearest", "radius_m": "disk", "edges": "edges", "weights": "edges"}
-    for key, owner in only.items():
-        if key in g and kind != owner:
-            raise InvalidInputError(f"{where}: {place} {key} is for kind = {owner!r}, not {kind!r}; remove it")
+    only = {"directed": ("ring", "edges"), "k": ("k-nearest",), "radius_m": ("disk",), "edges": ("edges",),
+            "weights": ("edges",)}
+    for key, owners in only.items():
+        if key in g and kind not in owners:
+            raise InvalidInputError(f"{where}: {place} {key} is for kind = {' or '.join(map(repr, owners))}, not "
+                                    f"{kind!r}; remove it")
     if kind == "ring":
         return Graph.ring(n, directed=flag(g, "directed", where, True, place=place))
     if kind == "complete":
@@ -96,7 +100,7 @@ def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -
     weights = None
     if "weights" in g:
         weights = vector(g, "weights", len(pairs), where, place=place)
-    return Graph(n, pairs, weights=weights)
+    return Graph.from_edges(n, pairs, weights=weights, directed=flag(g, "directed", where, True, place=place))
 
 
 def positions_of(layout, r) -> np.ndarray:
@@ -146,7 +150,7 @@ class NetworkScenario:
     name, title, source : str
     team : Team
         One model for every robot.
-    motion : TeamMotion
+    motion : TeamMotion or AffineMotion
         The desired points over time.
     law : object
         The :class:`~quatform.control.local.LocalController` every robot runs.
@@ -174,7 +178,7 @@ class NetworkScenario:
 
     name: str
     team: Team
-    motion: TeamMotion
+    motion: object
     law: object
     links: Links
     duration_s: float
@@ -204,10 +208,90 @@ class NetworkScenario:
                                    hold_unheard=hold)
 
 
-def desired_at_zero(team: Team, motion: TeamMotion) -> np.ndarray:
+@dataclass(frozen=True, eq=False)
+class AffineMotion:
+    """The robots' desired positions as an affine image of a nominal configuration: ``p*_i(t) =
+    A(t) p̄_i + b(t)`` in the plane of ``x, y`` (each robot's ``z`` and heading its nominal one),
+    ``A`` and ``b`` moving between keyframes (:class:`~quatform.network.stress.AffineExample`'s
+    quintic; Zhao 2018's maneuvers).
+
+    Attributes
+    ----------
+    layout : RobotLayout
+    nominal : ndarray, shape (N, 3)
+        ``p̄``, m (the file's ``[shape]`` positions).
+    keyframes : ndarray, shape (K, 7)
+        ``(t_s, θ_rad, s_x, s_y, h, b_x_m, b_y_m)``: ``A = R(θ) [[s_x, h], [0, s_y]]``.
+    leaders : tuple of int
+        0-based indices of the leaders (the robots that track their targets).
+    """
+
+    layout: object
+    nominal: np.ndarray
+    keyframes: np.ndarray
+    leaders: tuple
+
+    def example(self) -> AffineExample:
+        return AffineExample(self.nominal[:, :2], np.zeros((0, 2), dtype=int), self.leaders, self.nominal[:, :2],
+                             self.keyframes)
+
+    def robots(self, t) -> tuple:
+        """The desired robot points and their rates at times ``t`` (``(T,)``): ``(T, layout.size)``
+        each (headings and orientations held at their nominal values)."""
+        p, v = self.example().targets(np.asarray(t, dtype=float))
+        T = len(np.atleast_1d(t))
+        r = np.zeros((T, self.layout.size))
+        rd = np.zeros_like(r)
+        idx = self.layout.position_index
+        for i in range(self.layout.n):
+            for axis in range(3):
+                k = idx[i, axis]
+                if k < self.layout.size:
+                    r[:, k] = p[:, i, axis] if axis < 2 else self.nominal[i, 2]
+                    rd[:, k] = v[:, i, axis] if axis < 2 else 0.0
+        return r, rd
+
+
+def desired(motion, layout, t) -> tuple:
+    """``(r, r_dot)`` ``(T, layout.size)``: the desired robot points of a :class:`TeamMotion` (its
+    chart's robots) or an :class:`AffineMotion` at times ``t``."""
+    if isinstance(motion, AffineMotion):
+        return motion.robots(t)
+    e, ed = motion(np.asarray(t, dtype=float))
+    chart = TeamChart(layout)
+    return chart.robots(e), chart.robot_rates(e, ed)
+
+
+def desired_at_zero(team: Team, motion) -> np.ndarray:
     """The desired robot points at ``t = 0``, ``(layout.size,)``."""
-    e, _ = motion(np.zeros(1))
-    return TeamChart(team.layout).robots(e[0])
+    return desired(motion, team.layout, np.zeros(1))[0][0]
+
+
+def _affine_motion(data: dict, where: str, team: Team, motion: TeamMotion, duration: float) -> AffineMotion:
+    """``[affine]``: the leaders (robot numbers) and the keyframes of ``A(t), b(t)`` over the
+    ``[shape]`` template as the nominal configuration."""
+    af = table(data, "affine", where)
+    check_keys(af, _AFFINE_KEYS, where, "[affine]", _HINT)
+    n = team.layout.n
+    leaders = af.get("leaders", MISSING)
+    if not isinstance(leaders, list) or not leaders or not all(
+            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= n for v in leaders):
+        raise InvalidInputError(f"{where}: [affine] leaders must list robot numbers in 1..{n} (the robots that track "
+                                f"their targets; at least 3 in the plane), got {short(leaders)}")
+    kf = af.get("keyframes", MISSING)
+    try:
+        kf = np.asarray(kf, dtype=float)
+    except (TypeError, ValueError):
+        kf = np.zeros((0,))
+    if kf.ndim != 2 or kf.shape[1] != 7 or len(kf) < 2 or not np.all(np.isfinite(kf)):
+        raise InvalidInputError(f"{where}: [affine] keyframes must be at least two rows [t_s, theta_rad, s_x, s_y, h, "
+                                f"b_x_m, b_y_m] of finite numbers (A = R(theta) [[s_x, h], [0, s_y]], b = (b_x, b_y))")
+    if kf[0, 0] != 0.0 or np.any(np.diff(kf[:, 0]) <= 0.0):
+        raise InvalidInputError(f"{where}: [affine] keyframes' times must start at 0 s and increase, got "
+                                f"{', '.join(f'{v:g}' for v in kf[:, 0])}")
+    nominal = np.asarray(motion.template, dtype=float) + motion.path(np.zeros(1))[0][0]
+    kf.setflags(write=False)
+    return AffineMotion(team.layout, nominal, kf, tuple(sorted(v - 1 for v in leaders)))
 
 
 def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkScenario:
@@ -225,6 +309,8 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
         n = team.layout.n
         check_team_work(where, duration, dt, n)
         motion = read_motion(data, where, team, duration)
+        if "affine" in data:
+            motion = _affine_motion(data, where, team, motion, duration)
         r0 = desired_at_zero(team, motion)
         pos0 = positions_of(team.layout, r0)
         law = _law(text(data, "law", where), table(data, "gains", where, default={}), where)
@@ -270,7 +356,16 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
                                                       for v in antipodal):
             raise InvalidInputError(f"{where}: [initial] antipodal must list robot numbers in 1..{n} (their "
                                     f"quaternions start as -q), got {short(antipodal)}")
-        initial = {"position_m": number(ini, "position_m", where, 0.0, **at, low=0.0),
+        offsets = None
+        if "offsets" in ini:
+            try:
+                offsets = np.asarray(ini["offsets"], dtype=float)
+            except (TypeError, ValueError):
+                offsets = np.zeros((0,))
+            if offsets.shape != (n, 3) or not np.all(np.isfinite(offsets)):
+                raise InvalidInputError(f"{where}: [initial] offsets must be {n} rows [dx, dy, dz] of finite numbers "
+                                        f"(m), one per robot, got shape {offsets.shape}")
+        initial = {"offsets": offsets, "position_m": number(ini, "position_m", where, 0.0, **at, low=0.0),
                    "angle_rad": number(ini, "angle_rad", where, 0.0, **at, low=0.0, high=math.pi),
                    "antipodal": tuple(v - 1 for v in antipodal), "seed": integer(ini, "seed", where, 0, **at, low=0)}
         safety = None
@@ -322,8 +417,11 @@ def start_points(sc: NetworkScenario, r0: np.ndarray) -> np.ndarray:
     ini, L = sc.initial, sc.team.layout
     rng = np.random.default_rng(ini.get("seed", 0))
     r = np.array(r0, dtype=float)
+    fixed = ini.get("offsets")
     for i in range(L.n):
         step = ini.get("position_m", 0.0) * rng.normal(size=3)
+        if fixed is not None:
+            step = step + fixed[i]
         for axis, k in enumerate(L.position_index[i]):
             if k < L.size:  # a planar robot has no z
                 r[k] += step[axis]
@@ -341,6 +439,20 @@ def start_points(sc: NetworkScenario, r0: np.ndarray) -> np.ndarray:
         elif "theta" in comps:
             r[o + comps.index("theta")] += rng.uniform(-ang, ang)
     return r
+
+
+def affine_extras(sc: NetworkScenario) -> dict:
+    """The static reference of an affine maneuver: ``stress`` (each robot's row of the stress of
+    the nominal configuration on the graph's undirected edges, :class:`Stress`, Zhao's leader
+    condition checked) and ``leader`` (1 for a leader, ``(N, 1)``)."""
+    graphs = [sc.links.graph] if isinstance(sc.links.graph, Graph) else [g for _, g in sc.links.graph]
+    pairs = sorted({(min(i, j), max(i, j)) for g in graphs for i, j in g.edges.tolist()})
+    motion = sc.motion
+    stress = Stress(motion.nominal[:, :2], np.asarray(pairs, dtype=int))
+    stress.check_leaders(list(motion.leaders))
+    flag = np.zeros((sc.team.layout.n, 1))
+    flag[list(motion.leaders)] = 1.0
+    return {"stress": stress.rows(), "leader": flag}
 
 
 def measured_rate(t: np.ndarray, err: np.ndarray, t_from: float = 0.0, floor: float = 1e-12):
@@ -398,7 +510,8 @@ class NetworkKind(ScenarioKind):
         for name in self.options[0].choices:
             try:
                 law = scenario.law if name == scenario.law.name else _law(name, {}, f"scenario {scenario.name!r}")
-                dataclasses.replace(scenario, law=law).controller()
+                ex = self.experiment(dataclasses.replace(scenario, law=law))
+                ex.controller.reference_arrays((ex.reference(0), None))  # the law reads this scenario's reference
             except InvalidInputError as exc:
                 skipped[name] = str(exc)
             else:
@@ -413,10 +526,11 @@ class NetworkKind(ScenarioKind):
             scenario = dataclasses.replace(scenario, law=_law(law, {}, f"scenario {scenario.name!r}"))
         ctrl = scenario.controller()
         team, L = scenario.team, scenario.team.layout
-        chart = TeamChart(L)
         t = scenario.times
-        e_des, ed_des = scenario.motion(t)
-        r_des, rd_des = chart.robots(e_des), chart.robot_rates(e_des, ed_des)
+        r_des, rd_des = desired(scenario.motion, L, t)
+        extra = {}
+        if isinstance(scenario.motion, AffineMotion):  # the stress of the graph's edges and the leaders
+            extra = affine_extras(scenario)
         x0 = start_points(scenario, r_des[0])
         plant = KinematicTeam(team)
         graphs = [scenario.links.graph] if isinstance(scenario.links.graph, Graph) else \
@@ -438,7 +552,7 @@ class NetworkKind(ScenarioKind):
                 "graph_lambda2": lam, "predicted_rate": predicted}
 
         def reference_at(k):
-            return {"robots": r_des[k], "robots_rate": rd_des[k]}
+            return {"robots": r_des[k], "robots_rate": rd_des[k], **extra}
 
         own = ctrl.own_index()
 

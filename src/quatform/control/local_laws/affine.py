@@ -47,7 +47,7 @@ from ...algebra.kernels import common_namespace
 from ...checks import short
 from ...errors import InvalidInputError, ShapeError
 from ...network.graph import robots_text
-from ...network.stress import AffineExample, Stress
+from ...network.stress import AffineExample, Stress, zhao2018_example
 from ..local import LocalController, LocalTick
 
 __all__ = ["AffineManeuver", "affine_reference", "example_reference"]
@@ -104,6 +104,20 @@ class AffineManeuver(LocalController):
     def examples(cls) -> dict:
         return {cls.name: (cls(), 7)}
 
+    def example(self, n, rng):
+        ex = zhao2018_example()
+        if n != len(ex.nominal):
+            raise NotImplementedError("affine-maneuver's example is Zhao's 7 robots")
+        reference, _ = example_reference(ex, np.array([3.0]), relay=self.relay)
+        own = np.pad(ex.initial, ((0, 0), (0, 1))) + 0.1 * rng.normal(size=(n, 3))
+        return own, reference(0)
+
+    def consensus_error(self, own, desired):
+        """The root mean square over the robots of ``|p_i - (A p̄_i + b)|``, m (the law's invariant:
+        every robot on its target, the leaders pinning ``A`` and ``b``)."""
+        d = np.asarray(own, dtype=float)[..., :3] - np.asarray(desired, dtype=float)[..., :3]
+        return np.sqrt(np.mean(np.sum(d * d, axis=-1), axis=-1))
+
     def init(self, n: int, batch: tuple = ()):
         """Each robot's last command ``(*batch, n, 3)`` m/s (0 before the first tick)."""
         return np.zeros(tuple(batch) + (n, 3))
@@ -112,6 +126,9 @@ class AffineManeuver(LocalController):
         return {"target_error": ("target_error",), "missing": ("missing",)}
 
     def reference_arrays(self, reference, n: int):
+        if isinstance(reference, dict) and "desired" in reference and "target" not in reference:
+            reference = dict(reference, target=reference["desired"],  # the targets: the desired positions
+                             target_rate=reference.get("desired_rate", np.zeros(np.shape(reference["desired"]))))
         out = {}
         for key, (width, unit) in REFERENCE_KEYS.items():
             try:
