@@ -404,3 +404,46 @@ def test_each_robot_computes_from_its_own_row(law):
         np.testing.assert_array_equal(one.u, full.u[:, [i]])
         for key in full.signals:
             np.testing.assert_array_equal(one.signals[key], full.signals[key][:, [i]])
+
+
+def test_pose_consensus_under_switching_reaches_the_period_rate():
+    """Free bodies on two halves of a directed ring, switching every 0.5 s (neither alone has a
+    spanning tree, their union has one; Thunberg, Goncalves & Hu's setting on SE(3)): the pose
+    consensus converges at the rate of one period's transition matrix of the linearisation;
+    with the two halves never joined (a union without spanning tree) it does not."""
+    from quatform.control.local_laws.dq_consensus import DQConsensus
+    from quatform.control.networked import NetworkedController
+    from quatform.network import Graph, Links
+    from quatform.network.graph import switching_rate
+    from quatform.robots import FreeBodyRobot, Team
+    from quatform.sim import simulate
+    from quatform.sim.plants.kinematic import KinematicTeam
+
+    n, dt = 6, 0.02
+    a = [(0.0, Graph(n, [(0, 1), (2, 3), (4, 5)])), (0.5, Graph(n, [(1, 2), (3, 4), (5, 0)]))]
+    split = [(0.0, Graph(n, [(0, 1), (1, 2), (2, 0)])), (0.5, Graph(n, [(3, 4), (4, 5), (5, 3)]))]
+    rng = np.random.default_rng(7)
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    x0 = np.concatenate([rng.normal(size=(n, 3)), q], axis=-1).reshape(-1)
+    team = Team.uniform(FreeBodyRobot(max_speed=50.0, max_angular_rate=50.0), n, common_limit=False)
+    desired = np.tile([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], (n, 1))
+    desired[:, 0] = np.arange(n)
+    ref = (lambda k: {"desired": desired, "desired_rate": np.zeros((n, 7))})
+    times = np.arange(3000) * dt
+    law = DQConsensus(2.0)
+    errs = {}
+    for label, pattern in (("union", a), ("split", split)):
+        sched = [(r + s, g) for r in range(60) for s, g in pattern]
+        ctrl = NetworkedController(law, team, Links(sched, max_age_s=0.01), dt)
+        log = simulate(KinematicTeam(team), ctrl, ref, times, x0)
+        own = np.asarray(log["measured"]).reshape(len(times), n, 7)
+        errs[label] = law.consensus_error(own, np.broadcast_to(desired, own.shape))
+    e = errs["union"]
+    k0, k1 = int(np.argmax(e < 0.3 * e.max())), int(np.argmax(e < 1e-9 * e.max()) or len(e) - 1)
+    measured = -np.polyfit(times[k0:k1], np.log(e[k0:k1]), 1)[0]
+    predicted = law.predicted_rate(a, dt, switching_period_s=1.0)
+    assert predicted == switching_rate(a, 1.0, 2.0, dt) > 0.0
+    assert abs(measured - predicted) <= 0.1 * predicted
+    assert law.predicted_rate(split, dt, switching_period_s=1.0) == 0.0
+    assert errs["split"][-1] >= 0.1 * errs["split"][0]

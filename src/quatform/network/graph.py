@@ -23,7 +23,7 @@ from scipy.sparse import csgraph
 from ..checks import short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError, UnreachableError
 
-__all__ = ["Graph", "positive", "robots_text"]
+__all__ = ["Graph", "positive", "robots_text", "switching_rate"]
 
 #: Rows of the distance matrix that ``Graph.k_nearest`` and ``Graph.disk`` hold at once
 #: (a block of ``ROWS x N`` distances: 2 MB at N = 1000).
@@ -367,3 +367,34 @@ class Graph:
             return 0.0
         return -math.log(rho) / dt if rho > 0.0 else math.inf
 
+
+def switching_rate(pattern, period_s: float, gain: float, dt_s: float) -> float:
+    """Rate (1/s) at which the consensus error of ``x <- (I - k dt L(t)) x`` decays under a
+    switching schedule repeated every ``period_s``: ``-log rho / period_s``, ``rho`` the largest
+    eigenvalue modulus, after the consensus mode (the eigenvalue 1 of ``Phi 1 = 1``), of one
+    period's transition matrix ``Phi = prod_s (I - k dt L_s)^(n_s)`` (``n_s``: the ticks of
+    ``dt_s`` graph ``s`` holds). 0 where ``rho`` is 1: the union over a period has no spanning
+    tree and the parts that never hear each other keep their disagreement (Jadbabaie, Lin &
+    Morse 2003, IEEE TAC 48(6); Ren & Beard 2005).
+
+    Parameters
+    ----------
+    pattern : sequence of (float, Graph)
+        One period's intervals: start, s (the first at 0, increasing, each before ``period_s``)
+        and the graph that holds from then.
+    period_s, gain, dt_s : float
+        The period, s; ``k``, 1/s; the tick, s.
+    """
+    k, dt, T = positive(gain, "gain", " 1/s"), positive(dt_s, "dt_s", " s"), positive(period_s, "period_s", " s")
+    n = pattern[0][1].n
+    ends = [float(s) for s, _ in pattern[1:]] + [T]
+    phi = np.eye(n)
+    for (start, g), end in zip(pattern, ends):
+        ticks = int(round((end - float(start)) / dt))
+        phi = np.linalg.matrix_power(np.eye(n) - k * dt * g.laplacian(), ticks) @ phi
+    lam = np.linalg.eigvals(phi)
+    lam = np.delete(lam, int(np.argmin(np.abs(lam - 1.0))))
+    rho = float(np.max(np.abs(lam), initial=0.0))
+    if rho >= 1.0 - 1e-12:
+        return 0.0
+    return -math.log(rho) / T if rho > 0.0 else math.inf

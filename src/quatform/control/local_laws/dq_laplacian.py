@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...algebra.kernels import common_namespace
+from ...network.graph import switching_rate
 from ..local import LocalController, LocalTick
 from . import dq_pose as dq
 
@@ -101,9 +102,10 @@ class DQLaplacian(LocalController):
 
     def predicted_rate(self, graph, period_s, switching_period_s=None):
         """The linearisation ``y <- (I - k dt L) y`` of ``y = x x_d*`` near consensus (leaderless):
-        :meth:`Graph.predicted_rate` at the control period; None for a switching schedule."""
+        :meth:`Graph.predicted_rate` at the control period, or for a repeated switching schedule
+        :func:`~quatform.network.graph.switching_rate`."""
         if switching_period_s is not None:
-            return None
+            return switching_rate(graph, switching_period_s, self.gain, period_s)
         return graph.predicted_rate(self.gain, dt_s=period_s)
 
     def message(self, state, own, reference, t):

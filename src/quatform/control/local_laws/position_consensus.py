@@ -17,13 +17,13 @@ around a common point.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ...algebra.kernels import common_namespace
 from ...errors import InvalidInputError, ShapeError
+from ...network.graph import switching_rate
 from ..local import LocalController, LocalTick
 
 __all__ = ["PositionConsensus"]
@@ -82,27 +82,13 @@ class PositionConsensus(LocalController):
 
         One graph: the discrete loop's ``-log(max |1 - k dt lambda|) / dt``
         (:meth:`Graph.predicted_rate`). A schedule ``[(start_s, Graph), ...]`` repeated every
-        ``switching_period_s``: ``-log rho / T`` of the transition matrix of one period,
-        ``Phi = prod_s (I - k dt L_s)^(n_s)`` (``n_s`` ticks of graph ``s``), ``rho`` its largest
-        eigenvalue modulus after the consensus mode (the eigenvalue 1 of ``Phi 1 = 1``): the
-        disagreement shrinks by ``rho`` per period (Jadbabaie, Lin & Morse 2003, IEEE TAC 48(6);
-        Ren & Beard 2005: consensus iff the union over a period has a spanning tree, rate 0
-        where it has none).
+        ``switching_period_s``: the rate of one period's transition matrix
+        (:func:`~quatform.network.graph.switching_rate`; 0 where the union over a period has
+        no spanning tree).
         """
         if switching_period_s is None:
             return graph.predicted_rate(self.gain, dt_s=period_s)
-        n = graph[0][1].n
-        starts = [s for s, _ in graph] + [switching_period_s]
-        phi = np.eye(n)
-        for (start, g), end in zip(graph, starts[1:]):
-            ticks = int(round((end - start) / period_s))
-            phi = np.linalg.matrix_power(np.eye(n) - self.gain * period_s * g.laplacian(), ticks) @ phi
-        lam = np.linalg.eigvals(phi)
-        lam = np.delete(lam, int(np.argmin(np.abs(lam - 1.0))))
-        rho = float(np.max(np.abs(lam), initial=0.0))
-        if rho >= 1.0 - 1e-12:
-            return 0.0
-        return -math.log(rho) / switching_period_s if rho > 0.0 else math.inf
+        return switching_rate(graph, switching_period_s, self.gain, period_s)
 
     def message(self, state, own, reference, t):
         return own - reference["desired"]
