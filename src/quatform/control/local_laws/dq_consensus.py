@@ -46,12 +46,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 
 
 from ...algebra.kernels import common_namespace, dot_last
-from ...network.graph import switching_rate
-from ..local import LocalController, LocalTick
+from ..local import LocalTick
 from . import dq_pose as dq
 
 __all__ = ["DQConsensus", "log_coordinates", "left_jacobian_times"]
@@ -89,7 +87,7 @@ def left_jacobian_times(theta, rate):
 
 
 @dataclass(frozen=True)
-class DQConsensus(LocalController):
+class DQConsensus(dq.PoseLaw):
     """Each robot: linear consensus on the log coordinates of ``y = x x_d*``, pinned by ``b`` (module docstring).
 
     Parameters
@@ -106,44 +104,13 @@ class DQConsensus(LocalController):
     is from its desired pose) and ``neighbours``.
     """
 
-    gain: float = 1.0
-
     name = "dq-consensus"
-    message_columns = dq.Y_COLUMNS
-    own_columns = dq.POSE_COLUMNS
-    command_columns = dq.TWIST_COLUMNS
-
-    def __post_init__(self):
-        dq.check_gain(self.name, self.gain)
 
     def signal_columns(self):
         return {"disagreement": ("disagreement",), "pose_error": ("pose_error",), "neighbours": ("neighbours",)}
 
     def reference_arrays(self, reference, n: int):
         return dq.check_reference(self.name, reference, n, {"leader": ((n,), "1 (a weight)", 0.0)})
-
-    def example(self, n, rng):
-        q = rng.normal(size=(n, 4))
-        q /= np.linalg.norm(q, axis=-1, keepdims=True)
-        desired = np.concatenate([rng.normal(size=(n, 3)), q], axis=-1)
-        q2 = q + 0.3 * rng.normal(size=(n, 4))
-        own = np.concatenate([rng.normal(size=(n, 3)), q2 / np.linalg.norm(q2, axis=-1, keepdims=True)], axis=-1)
-        return own, {"desired": desired, "desired_rate": 0.1 * rng.normal(size=(n, 7))}
-
-    def consensus_error(self, own, desired):
-        """:func:`.dq_pose.consensus_error`: zero where every ``x_i = c x_d_i``."""
-        return dq.consensus_error(own, desired)
-
-    def predicted_rate(self, graph, period_s, switching_period_s=None):
-        """The linearisation ``y <- (I - k dt L) y`` of ``y = x x_d*`` near consensus (leaderless):
-        :meth:`Graph.predicted_rate` at the control period, or for a repeated switching schedule
-        :func:`~quatform.network.graph.switching_rate`."""
-        if switching_period_s is not None:
-            return switching_rate(graph, switching_period_s, self.gain, period_s)
-        return graph.predicted_rate(self.gain, dt_s=period_s)
-
-    def message(self, state, own, reference, t):
-        return dq.formation_variable(dq.pose_dq(own), reference["pose"])
 
     def tick(self, state, own, inbox, reference, t) -> LocalTick:
         xp = common_namespace(own, inbox["messages"])

@@ -46,18 +46,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ...algebra.kernels import common_namespace
-from ...network.graph import switching_rate
-from ..local import LocalController, LocalTick
+from ..local import LocalTick
 from . import dq_pose as dq
 
 __all__ = ["DQLaplacian"]
 
 
 @dataclass(frozen=True)
-class DQLaplacian(LocalController):
+class DQLaplacian(dq.PoseLaw):
     """Each robot: ``y_i_dot = vec(k sum_j a_ij (y~_j - y_i) y_i*) y_i``, ``y = x x_d*`` (module docstring).
 
     Parameters
@@ -72,44 +69,13 @@ class DQLaplacian(LocalController):
     and ``neighbours`` (how many messages it holds).
     """
 
-    gain: float = 1.0
-
     name = "dq-laplacian"
-    message_columns = dq.Y_COLUMNS
-    own_columns = dq.POSE_COLUMNS
-    command_columns = dq.TWIST_COLUMNS
-
-    def __post_init__(self):
-        dq.check_gain(self.name, self.gain)
 
     def signal_columns(self):
         return {"disagreement": ("disagreement",), "neighbours": ("neighbours",)}
 
     def reference_arrays(self, reference, n: int):
         return dq.check_reference(self.name, reference, n)
-
-    def example(self, n, rng):
-        q = rng.normal(size=(n, 4))
-        q /= np.linalg.norm(q, axis=-1, keepdims=True)
-        desired = np.concatenate([rng.normal(size=(n, 3)), q], axis=-1)
-        q2 = q + 0.3 * rng.normal(size=(n, 4))
-        own = np.concatenate([rng.normal(size=(n, 3)), q2 / np.linalg.norm(q2, axis=-1, keepdims=True)], axis=-1)
-        return own, {"desired": desired, "desired_rate": 0.1 * rng.normal(size=(n, 7))}
-
-    def consensus_error(self, own, desired):
-        """:func:`.dq_pose.consensus_error`: zero where every ``x_i = c x_d_i``."""
-        return dq.consensus_error(own, desired)
-
-    def predicted_rate(self, graph, period_s, switching_period_s=None):
-        """The linearisation ``y <- (I - k dt L) y`` of ``y = x x_d*`` near consensus (leaderless):
-        :meth:`Graph.predicted_rate` at the control period, or for a repeated switching schedule
-        :func:`~quatform.network.graph.switching_rate`."""
-        if switching_period_s is not None:
-            return switching_rate(graph, switching_period_s, self.gain, period_s)
-        return graph.predicted_rate(self.gain, dt_s=period_s)
-
-    def message(self, state, own, reference, t):
-        return dq.formation_variable(dq.pose_dq(own), reference["pose"])
 
     def tick(self, state, own, inbox, reference, t) -> LocalTick:
         xp = common_namespace(own, inbox["messages"])

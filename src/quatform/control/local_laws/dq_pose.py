@@ -1,4 +1,4 @@
-"""Unchecked dual-quaternion kernels of the dual-quaternion local laws (internal: shared by those laws, not part of the user API).
+"""Unchecked dual-quaternion kernels of the dual-quaternion local laws and their shared base (internal: not part of the user API).
 
 Control layer. Pure and branch-free on any array namespace (NumPy, JAX under ``jax.jit``):
 products and conjugates of ``(..., 8)`` dual quaternions (primary part first,
@@ -11,11 +11,15 @@ argument on the host; these only compute, so they trace under ``jax.jit``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...algebra import UNIT_TOLERANCE
 from ...algebra.kernels import common_namespace, dot_last, dqmul_components, qmul_components
 from ...errors import InvalidInputError, NonUnitError, ShapeError
+from ...network.graph import switching_rate
+from ..local import LocalController
 
 #: What a robot of a dual-quaternion law measures of itself: its pose point.
 POSE_COLUMNS = ("x", "y", "z", "q_w", "q_x", "q_y", "q_z")
@@ -236,3 +240,44 @@ def check_gain(law: str, k) -> None:
     """A positive finite gain in 1/s, else one line."""
     if isinstance(k, bool) or not isinstance(k, (int, float, np.number)) or not np.isfinite(k) or k <= 0:
         raise InvalidInputError(f"{law}: gain = {k!r} must be a positive number in 1/s")
+
+
+@dataclass(frozen=True)
+class PoseLaw(LocalController):
+    """The part the dual-quaternion laws share: each robot measures its pose point, commands its
+    world twist and sends its formation variable ``y = x x_d*``; the reference is each robot's
+    desired pose (:func:`check_reference`); the team's error is :func:`consensus_error` and the
+    predicted rate that of the linearisation ``y <- (I - k dt L) y`` near consensus (no name: a
+    base, not a law)."""
+
+    gain: float = 1.0
+
+    message_columns = Y_COLUMNS
+    own_columns = POSE_COLUMNS
+    command_columns = TWIST_COLUMNS
+
+    def __post_init__(self):
+        check_gain(self.name, self.gain)
+
+    def example(self, n, rng):
+        q = rng.normal(size=(n, 4))
+        q /= np.linalg.norm(q, axis=-1, keepdims=True)
+        desired = np.concatenate([rng.normal(size=(n, 3)), q], axis=-1)
+        q2 = q + 0.3 * rng.normal(size=(n, 4))
+        own = np.concatenate([rng.normal(size=(n, 3)), q2 / np.linalg.norm(q2, axis=-1, keepdims=True)], axis=-1)
+        return own, {"desired": desired, "desired_rate": 0.1 * rng.normal(size=(n, 7))}
+
+    def consensus_error(self, own, desired):
+        """:func:`consensus_error`: zero where every ``x_i = c x_d_i``."""
+        return consensus_error(own, desired)
+
+    def predicted_rate(self, graph, period_s, switching_period_s=None):
+        """The linearisation ``y <- (I - k dt L) y`` of ``y = x x_d*`` near consensus (leaderless):
+        :meth:`Graph.predicted_rate` at the control period, or for a repeated switching schedule
+        :func:`~quatform.network.graph.switching_rate`."""
+        if switching_period_s is not None:
+            return switching_rate(graph, switching_period_s, self.gain, period_s)
+        return graph.predicted_rate(self.gain, dt_s=period_s)
+
+    def message(self, state, own, reference, t):
+        return formation_variable(pose_dq(own), reference["pose"])
