@@ -46,8 +46,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-
-
 from ...algebra.kernels import common_namespace, dot_last
 from ..local import LocalTick
 from . import dq_pose as dq
