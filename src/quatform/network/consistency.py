@@ -18,7 +18,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.sparse import csgraph
 
 from ..algebra.dual_quaternion import DQ_IDENTITY, dqconj, dqmul, pose_from_dq
 from ..algebra.quaternion import q_angle
@@ -42,6 +41,8 @@ def _forest(graph: Graph):
     e = graph.edges
     pairs = np.unique(np.sort(e, axis=1), axis=0) if len(e) else np.zeros((0, 2), dtype=np.int64)
     U = graph.laplacian(sparse=True) != 0
+    from scipy.sparse import csgraph  # imported where used: the CLI's --help stays light
+
     count, label = csgraph.connected_components(U, directed=False)
     pred = np.full(graph.n, -1)
     depth = np.zeros(graph.n, dtype=np.int64)

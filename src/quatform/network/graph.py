@@ -17,8 +17,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse
-from scipy.sparse import csgraph
 
 from ..checks import short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError, UnreachableError
@@ -232,6 +230,8 @@ class Graph:
         -------
         ndarray, shape (n, n), or scipy.sparse.csr_array with ``sparse=True`` (large n)
         """
+        import scipy.sparse  # imported where used: the CLI's --help stays light
+
         A = scipy.sparse.csr_array((self.weights, (self.edges[:, 0], self.edges[:, 1])), shape=(self.n, self.n))
         L = scipy.sparse.diags_array(np.asarray(A.sum(axis=1)).reshape(-1)).tocsr() - A
         return L if sparse else L.toarray()
@@ -245,6 +245,8 @@ class Graph:
 
     def _flow(self):
         """Sparse ``F[j, i] = 1`` for each edge ``(i, j)``: the direction messages travel."""
+        import scipy.sparse
+
         return scipy.sparse.csr_array((np.ones(len(self.edges)), (self.edges[:, 1], self.edges[:, 0])),
                                       shape=(self.n, self.n))
 
@@ -252,6 +254,8 @@ class Graph:
         """Indices of the robots whose messages depend on robot ``i``'s: those that hear it
         directly or through others, ``i`` included (sorted)."""
         self.in_neighbours(i)
+        from scipy.sparse import csgraph
+
         return np.sort(csgraph.breadth_first_order(self._flow(), int(i), directed=True,
                                                    return_predecessors=False))
 
@@ -259,6 +263,8 @@ class Graph:
     def _sources(self) -> list[np.ndarray]:
         """The robots of each strongly connected component of the information flow that no edge
         enters, in order of their lowest index."""
+        from scipy.sparse import csgraph
+
         count, label = csgraph.connected_components(self._flow(), directed=True, connection="strong")
         e = self.edges
         entered = np.zeros(count, dtype=bool)

@@ -44,7 +44,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
 from ..checks import short
 from ..errors import DegenerateInputError, InvalidInputError, NonFiniteError, ShapeError, UnreachableError
@@ -343,6 +342,8 @@ def _positive_combination(Mk: np.ndarray, tol: float):
         return (np.ones(1), 0, lam[0]) if lam[0] >= lam[1] else (-np.ones(1), 0, lam[1])
     flat = M.reshape(s, r * r)
     # the Gram matrix is positive definite: Ω determines ω, so the M_k are independent
+    import scipy.linalg  # imported where used: the CLI's --help stays light
+
     x = scipy.linalg.solve(flat @ flat.T, np.einsum("kaa->k", M), assume_a="pos")
     if np.any(x):                                                      # the stress nearest to Q^T Q = I
         x = x / np.linalg.norm(x)
