@@ -17,8 +17,8 @@ What it holds:
 * its own pose, converted to its model's state on arrival (the robot model's ROS I/O,
   through :class:`~quatform.ros2.bridge.FormationBridge`, which also checks the robots file
   against the scenario);
-* the newest message of each in-neighbour with its stamp (the sender's send time, the
-  message header's, integer ns): an older or equal stamp arriving later never replaces it;
+* the messages of each in-neighbour of the last ``links.max_age_s``, each with its stamp (the
+  sender's send time, the message header's, integer ns);
 * the law's state and the reference time ``tau``, which advances by the time between
   consecutive running ticks (as :class:`FormationBridge`'s).
 
@@ -32,10 +32,12 @@ Each tick at ``now_ns``:
   filters need it);
 * else the message and the command.
 
-A held message of neighbour ``j`` is valid at the tick when its age ``now_ns - stamp`` is at
-most ``links.max_age_s``, the scenario's graph at its send time (``tau - age`` on this
-robot's reference clock) has the edge ``j -> i`` (a switching schedule), and, with
-``range_m``, its sender was within ``range_m`` of this robot's position now. The law sees the
+At a tick, robot ``i`` uses of neighbour ``j`` the newest message the graph carried: the
+scenario's graph at its send time (``tau - age`` on this robot's reference clock) has the
+edge ``j -> i`` (a switching schedule; a message sent while it has not is not carried, as on
+the simulated links); a reordered older message never replaces a newer one. It is valid when
+its age ``now_ns - stamp`` is at most ``links.max_age_s`` and, with ``range_m``, its sender
+was within ``range_m`` of this robot's position now. The law sees the
 time ``t = tau`` and each stamp as ``tau - age`` (a stamp ahead of this robot's clock counts
 as age 0), so ages, not clocks, reach it, as in the simulator.
 
@@ -162,9 +164,7 @@ class LocalBridge:
         """Forget the pose and every message; the law's initial state; reference time 0; e-stop released."""
         self.io.reset()
         W = self.senders.shape[1]
-        self.held = np.zeros((W, len(self.columns)))
-        self.stamps_ns = np.zeros(W, dtype=np.int64)
-        self.has_message = np.zeros(W, dtype=bool)
+        self.history: list[dict] = [{} for _ in range(W)]  # per slot: {stamp_ns: values} of the last max_age_s
         self.lost_messages = 0
         self.state = self.law.init(1, ())
         self.tau_ns = 0
@@ -215,7 +215,7 @@ class LocalBridge:
 
     def on_message(self, j: int, msg) -> bool:
         """Neighbour ``j``'s message (a :data:`MESSAGE_TYPE`); False where it is refused (names
-        that are not this law's, a value that is not finite) or older than the one held."""
+        that are not this law's, a value that is not finite) or already held (:meth:`receive`)."""
         names = tuple(msg.name)
         values = np.asarray(msg.position, dtype=float)
         if names != self.columns or values.shape != (len(self.columns),) or not np.all(np.isfinite(values)):
@@ -224,18 +224,49 @@ class LocalBridge:
         return self.receive(j, values, messages.nanoseconds(msg.header.stamp))
 
     def receive(self, j: int, values, stamp_ns: int) -> bool:
-        """Neighbour ``j``'s message ``values`` ``(d + 3,)`` sent at ``stamp_ns``: held where it is
-        newer than the one held (True), else ignored (False)."""
+        """Neighbour ``j``'s message ``values`` ``(d + 3,)`` sent at ``stamp_ns``; False where a
+        message of that stamp is held already. The slot keeps the messages of the last
+        ``max_age_s`` (by their stamps), so a tick takes the newest one the graph carried."""
         w = self._slots.get(int(j))
         if w is None:
             raise InvalidInputError(f"robot {self.names[self.robot]!r} does not hear robot {j + 1} in the scenario's "
                                     f"graph (its in-neighbours: {', '.join(str(k + 1) for k in self._slots) or 'none'})")
-        if self.has_message[w] and int(stamp_ns) <= self.stamps_ns[w]:
+        box, stamp_ns = self.history[w], int(stamp_ns)
+        if stamp_ns in box:
             return False
-        self.held[w] = values
-        self.stamps_ns[w] = int(stamp_ns)
-        self.has_message[w] = True
+        box[stamp_ns] = np.array(values, dtype=float)
+        self._forget(w, max(box) - self.max_age_ns)
         return True
+
+    def _forget(self, w: int, before_ns: int) -> None:
+        """Drop slot ``w``'s messages stamped before ``before_ns`` (never valid again)."""
+        box = self.history[w]
+        for stamp in [s for s in box if s < before_ns]:
+            del box[stamp]
+
+    def held(self, now_ns: int, tau: float):
+        """``(values (W, d + 3), age_ns (W,), valid (W,))``: each slot's newest message carried
+        by the graph (the edge active at its send time ``tau - age`` on this robot's reference
+        clock: a message sent while the graph has not the edge is not carried, as on the
+        simulated links), valid where one is held and at most ``max_age_s`` old; a reordered
+        older message never replaces a newer one."""
+        links, W = self.ctrl.links, self.senders.shape[1]
+        values = np.zeros((W, len(self.columns)))
+        age_ns = np.zeros(W, dtype=np.int64)
+        valid = np.zeros(W, dtype=bool)
+        for w, box in enumerate(self.history):
+            self._forget(w, now_ns - self.max_age_ns)
+            if not box:
+                continue
+            stamps = np.fromiter(box, dtype=np.int64, count=len(box))
+            age = np.maximum(now_ns - stamps, 0) * 1e-9
+            sent = np.maximum(np.searchsorted(links.starts, tau - age + TICK_TOL * self.ctrl.period_s,
+                                              side="right") - 1, 0)
+            carried = links.active[sent, self._edge[w]]
+            if np.any(carried):
+                newest = int(np.max(stamps[carried]))
+                values[w], age_ns[w], valid[w] = box[newest], now_ns - newest, True
+        return values, age_ns, valid
 
     def stale(self, now_ns: int) -> bool:
         """Its pose is missing or older than its ``timeout_s``."""
@@ -283,13 +314,9 @@ class LocalBridge:
         senders' positions ``(1, W, 3)`` (0 where none is held)."""
         ctrl = self.ctrl
         d = len(self.law.message_columns)
-        age_ns = now_ns - self.stamps_ns
+        held, age_ns, valid = self.held(now_ns, tau)
         age = np.maximum(age_ns, 0) * 1e-9
-        links = ctrl.links
-        sent = np.maximum(np.searchsorted(links.starts, tau - age + TICK_TOL * ctrl.period_s, side="right") - 1, 0)
-        active = links.active[sent, self._edge] if len(self._edge) else np.zeros(0, dtype=bool)
-        valid = self.has_message & (self.senders[0] >= 0) & (age_ns <= self.max_age_ns) & active
-        held = np.where(valid[:, None], self.held, 0.0)
+        held = np.where(valid[:, None], held, 0.0)
         sender = held[None, :, d:]
         if ctrl.range_m is not None:
             gap = sender - p[:, None, :]
