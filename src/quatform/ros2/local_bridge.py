@@ -1,4 +1,4 @@
-"""One robot's side of a decentralised formation on ROS 2: its pose and its neighbours' messages in, its command and its message out.
+"""One robot's side of a decentralised formation on ROS 2: pose and neighbours' messages in, command and message out.
 
 ROS 2 bridge layer (no rclpy: the node is :mod:`.local_node`). :class:`LocalBridge` runs, for
 one robot of a ``kind = "network"`` scenario, the scenario's
@@ -153,7 +153,8 @@ class LocalBridge:
         self.weights = ctrl._slot_weights(senders)[i:i + 1]
         slot = np.maximum(self.senders[0], 0)
         code = ctrl.links.edges[:, 0] * n + ctrl.links.edges[:, 1]
-        self._edge = np.minimum(np.searchsorted(code, i * n + slot), max(E - 1, 0))  # each slot's edge (padding: masked)
+        # each slot's candidate edge (padding: masked by its sender -1)
+        self._edge = np.minimum(np.searchsorted(code, i * n + slot), max(E - 1, 0))
         self._slots = {int(j): w for w, j in enumerate(self.senders[0]) if j >= 0}
         self.max_age_ns = math.floor(ctrl.links.max_age_s * 1e9 + 0.5)
         self.timeout_ns = int(self.io.timeouts_ns[i])
@@ -197,9 +198,9 @@ class LocalBridge:
 
     def zero_messages(self, stamp) -> tuple:
         """``(topic, message)`` of its zero command, stamped ``stamp``."""
-        zero = np.zeros(3)
-        return COMMAND_WRITERS[self.link.command_type].build(self.link, stamp, zero, zero,
-                                                            self.robots.settings.world_frame, self.io.frames[self.robot])
+        zero, world = np.zeros(3), self.robots.settings.world_frame
+        return COMMAND_WRITERS[self.link.command_type].build(self.link, stamp, zero, zero, world,
+                                                            self.io.frames[self.robot])
 
     def on_pose(self, i: int, msg, received_ns: int) -> bool:
         """Its pose message, arrived at ``received_ns``; False for a lost frame
@@ -229,8 +230,9 @@ class LocalBridge:
         ``max_age_s`` (by their stamps), so a tick takes the newest one the graph carried."""
         w = self._slots.get(int(j))
         if w is None:
+            heard = ", ".join(str(k + 1) for k in self._slots) or "none"
             raise InvalidInputError(f"robot {self.names[self.robot]!r} does not hear robot {j + 1} in the scenario's "
-                                    f"graph (its in-neighbours: {', '.join(str(k + 1) for k in self._slots) or 'none'})")
+                                    f"graph (its in-neighbours: {heard})")
         box, stamp_ns = self.history[w], int(stamp_ns)
         if stamp_ns in box:
             return False
