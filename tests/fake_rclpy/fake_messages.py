@@ -8,7 +8,7 @@ import sys
 import types
 from dataclasses import dataclass
 
-PACKAGES = ("geometry_msgs", "nav_msgs", "std_msgs", "builtin_interfaces", "px4_msgs")
+PACKAGES = ("geometry_msgs", "nav_msgs", "std_msgs", "builtin_interfaces", "px4_msgs", "sensor_msgs")
 
 
 @dataclass

@@ -12,6 +12,8 @@ Top layer (beside :mod:`quatform.runs`). rclpy is imported only when a node is b
 * :mod:`.bridge` - :class:`FormationBridge`: poses in, one control tick, commands out (stale
   poses, e-stop, the reference time);
 * :mod:`.node` - the rclpy node;
+* :mod:`.local_bridge`, :mod:`.local_node` - one robot's node of a network scenario
+  (decentralised: its pose and its neighbours' messages in, its command and its message out);
 * :mod:`.bag_poses`, :mod:`.replay` - ``quatform replay``;
 * :mod:`.cli` - the ``ros2`` and ``replay`` subcommands.
 
@@ -19,6 +21,7 @@ See ``docs/ros2.md``.
 """
 
 from .bridge import FormationBridge, Tick, experiment_for
+from .local_bridge import LocalBridge, RobotTick
 from .robots_file import RobotsFile, read_robots_file
 
-__all__ = ["FormationBridge", "Tick", "experiment_for", "RobotsFile", "read_robots_file"]
+__all__ = ["FormationBridge", "Tick", "experiment_for", "LocalBridge", "RobotTick", "RobotsFile", "read_robots_file"]

@@ -192,6 +192,14 @@ class FormationBridge:
         """``(topic, msg_type, qos)`` of everything the bridge publishes."""
         return tuple(t for link in self.robots.robots for t in COMMAND_WRITERS[link.command_type].topics(link))
 
+    def zero_messages(self, stamp) -> tuple:
+        """``(topic, message)`` of a zero command to every robot, stamped ``stamp`` (a
+        ``builtin_interfaces/Time``): what the e-stop and the shutdown publish."""
+        zero = np.zeros(3)
+        return tuple(m for link, frame in zip(self.robots.robots, self.frames)
+                     for m in COMMAND_WRITERS[link.command_type].build(link, stamp, zero, zero,
+                                                                       self.robots.settings.world_frame, frame))
+
     def on_pose(self, i: int, msg, received_ns: int) -> bool:
         """Robot ``i``'s pose message, arrived at ``received_ns``; False for a lost frame (a NaN,
         a non-unit quaternion, or no velocity where the model's state holds one: not used, so

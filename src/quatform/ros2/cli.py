@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 
-__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay"]
+__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay", "robot_index"]
 
 
 def ros2_arguments(p) -> None:
@@ -15,12 +15,34 @@ def ros2_arguments(p) -> None:
         "of SCENARIO at --rate on its reference (or a plan.npz) and publishes each robot's commands (Twist, "
         "TwistStamped, MAVROS or PX4 velocity setpoints). Stale poses zero and hold every command; a robot "
         "without a pose within [bridge] start_timeout_s stops the start; the e-stop topic/service latches zero "
-        "commands until released. Needs rclpy: source your ROS 2 installation first. See docs/ros2.md.")
+        "commands until released. With --robot, a network scenario's node of one robot (one per robot): its "
+        "pose in, its neighbours' messages from /<their namespace>/quatform/message, its command and its "
+        "message out (docs/networks.md, \"One robot's node\"). Needs rclpy: source your ROS 2 installation "
+        "first. See docs/ros2.md.")
     p.add_argument("--scenario", required=True, metavar="SCENARIO", help="built-in name or file.toml")
     p.add_argument("--robots", required=True, metavar="ROBOTS_TOML", help="robots file (docs/ros2.md)")
     p.add_argument("--controller", metavar="NAME", help="the kind's controller (ugv-uav: its formation)")
     p.add_argument("--rate", type=float, metavar="HZ", help="control rate (default: the scenario's control rate)")
     p.add_argument("--reference", metavar="PLAN_NPZ", help="a plan.npz to follow instead of the scenario's path")
+    p.add_argument("--robot", metavar="I", help="run robot I's node of a network scenario (its number 1..N in the "
+                   "scenario's and the robots file's order, or its name there)")
+
+
+def robot_index(robot: str, robots, n: int, where: str) -> int:
+    """The 0-based index of ``--robot`` (a number 1..n or a name of the robots file ``robots``)."""
+    from ..errors import InvalidInputError
+
+    names = robots.names
+    if robot in names:
+        return names.index(robot)
+    try:
+        k = int(robot)
+    except ValueError:
+        raise InvalidInputError(f"--robot {robot!r} is neither a robot number (1..{n}) nor a robot of "
+                                f"{robots.where} ({', '.join(names)})") from None
+    if not 1 <= k <= n:
+        raise InvalidInputError(f"--robot {k} is out of range: {where} has robots 1..{n}")
+    return k - 1
 
 
 def replay_arguments(p) -> None:
@@ -43,21 +65,35 @@ def replay_arguments(p) -> None:
 
 
 def run_ros2(args) -> None:
-    """``quatform ros2``: build the bridge (refusing bad files before ROS is touched), then the node."""
+    """``quatform ros2``: build the bridge (refusing bad files before ROS is touched), then the node:
+    every robot's (:class:`~.node.BridgeNode`), or with ``--robot`` one robot's of a network
+    scenario (:class:`~.local_node.LocalNode`)."""
+    from ..errors import InvalidInputError
     from .bridge import FormationBridge, experiment_for
     from .node import BridgeNode, import_rclpy
     from .robots_file import read_robots_file
 
     if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):
-        from ..errors import InvalidInputError
-
         raise InvalidInputError(f"--rate {args.rate!r} must be a positive number of Hz")
     robots = read_robots_file(args.robots)
     experiment = experiment_for(args.scenario, args.controller, args.reference)
-    bridge = FormationBridge(experiment, robots)
-    rclpy = import_rclpy()
-    rate = args.rate if args.rate is not None else 1.0 / bridge.ref_dt
-    node = BridgeNode(bridge, rate, rclpy)
+    where = str(experiment.scenario.name)
+    if getattr(args, "robot", None) is not None:
+        from .local_bridge import LocalBridge, local_experiment
+        from .local_node import LocalNode
+
+        ctrl = local_experiment(experiment, where)
+        bridge = LocalBridge(experiment, robot_index(args.robot, robots, ctrl.n, where), robots)
+        rate = args.rate if args.rate is not None else 1.0 / ctrl.period_s
+        node = LocalNode(bridge, rate, import_rclpy())
+    else:
+        if experiment.meta.get("kind") == "network":
+            raise InvalidInputError(f"{where} is a network scenario: every robot runs its own node; start one per "
+                                    f"robot with --robot I (docs/networks.md, \"One robot's node\")")
+        bridge = FormationBridge(experiment, robots)
+        rclpy = import_rclpy()
+        rate = args.rate if args.rate is not None else 1.0 / bridge.ref_dt
+        node = BridgeNode(bridge, rate, rclpy)
     try:
         node.start()
     except BaseException:

@@ -106,9 +106,12 @@ class BridgeNode:
         The ``rclpy`` to use (default: :func:`import_rclpy`; tests pass a fake one).
     name : str
         The node's name.
+    namespace : str, optional
+        The node's namespace (its topics are absolute names: it names the node only).
     """
 
-    def __init__(self, bridge: FormationBridge, rate_hz: float, rclpy=None, name: str = "quatform_bridge"):
+    def __init__(self, bridge: FormationBridge, rate_hz: float, rclpy=None, name: str = "quatform_bridge",
+                 namespace: str | None = None):
         if not (isinstance(rate_hz, (int, float)) and np.isfinite(rate_hz) and rate_hz > 0):
             raise InvalidInputError(f"--rate {rate_hz!r} must be a positive number of Hz")
         self.rclpy = import_rclpy() if rclpy is None else rclpy
@@ -120,15 +123,23 @@ class BridgeNode:
         if not self.rclpy.ok():  # without rclpy's signal handlers: the zero command on Ctrl-C still goes out
             no_handlers = importlib.import_module("rclpy.signals").SignalHandlerOptions.NO
             self.rclpy.init(signal_handler_options=no_handlers)
-        self.node = importlib.import_module("rclpy.node").Node(name)
+        self.node = importlib.import_module("rclpy.node").Node(name, namespace=namespace)
         s = bridge.robots.settings
-        for i, (topic, typ, qos) in enumerate(bridge.pose_topics()):
-            self.node.create_subscription(ros_class(typ), topic, self._pose_callback(i), _qos(self.rclpy, qos))
+        self._subscribe()
         self.publishers = {}
         for topic, typ, qos in bridge.command_topics():
             self.publishers[topic] = self.node.create_publisher(ros_class(typ), topic, _qos(self.rclpy, qos))
         self.node.create_subscription(ros_class("std_msgs/msg/Bool"), s.estop_topic, self._estop_topic, 10)
-        self.node.create_service(ros_class("std_srvs/srv/SetBool"), s.estop_service, self._estop_service)
+        self.node.create_service(ros_class("std_srvs/srv/SetBool"), self.estop_service(), self._estop_service)
+
+    def estop_service(self) -> str:
+        """The name of its e-stop service: the robots file's ``[bridge] estop_service``."""
+        return self.bridge.robots.settings.estop_service
+
+    def _subscribe(self) -> None:
+        """Subscribe to every robot's pose topic (sensor-data QoS, PX4's for ``/fmu``)."""
+        for i, (topic, typ, qos) in enumerate(self.bridge.pose_topics()):
+            self.node.create_subscription(ros_class(typ), topic, self._pose_callback(i), _qos(self.rclpy, qos))
 
     # -- callbacks ----------------------------------------------------------------------------
     def now_ns(self) -> int:
@@ -175,16 +186,8 @@ class BridgeNode:
             self.publishers[topic].publish(to_ros(msg))
 
     def publish_zero(self) -> None:
-        """Zero commands to every robot now."""
-        b = self.bridge
-        msgs = []
-        from .endpoints import COMMAND_WRITERS
-
-        zero = np.zeros(3)
-        for link, frame in zip(b.robots.robots, b.frames):
-            msgs.extend(COMMAND_WRITERS[link.command_type].build(link, messages.stamp_ns(self.now_ns()), zero,
-                                                                 zero, b.robots.settings.world_frame, frame))
-        self._publish(msgs)
+        """Zero commands to every robot the bridge drives, now."""
+        self._publish(self.bridge.zero_messages(messages.stamp_ns(self.now_ns())))
 
     # -- running ------------------------------------------------------------------------------
     def wait_for_robots(self, timeout_s: float | None = None) -> None:

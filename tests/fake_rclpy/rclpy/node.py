@@ -80,6 +80,7 @@ class Node:
     def __init__(self, node_name, *, namespace=None, **kwargs):
         _context_valid("node")
         self.name = node_name
+        self.namespace = namespace
         self.timers: list[Timer] = []
         self._clock = Clock()
         self._logger = Logger(node_name)
