@@ -255,7 +255,7 @@ class NetworkedController(contract.Controller):
             gap = sender - p[..., :, None, :]
             valid = valid & (xp.sum(gap * gap, axis=-1) <= self.range_m * self.range_m)
         box.update(messages=xp.where(valid[..., None], msgs[..., :d], 0.0), valid=valid,
-                   stamps=xp.where(valid, box["stamps"], -math.inf), weights=self._slot_weights(box["senders"]))
+                   stamps=xp.where(valid, box["stamps"], -math.inf), weights=self.slot_weights(box["senders"]))
         return box, sender
 
     def tick(self, state, measured, reference, t) -> contract.Tick:
@@ -275,10 +275,10 @@ class NetworkedController(contract.Controller):
             valid = box["valid"]
             sensed = (valid | xp.asarray(box["senders"] >= 0)) if self.hold_unheard else valid
             age = xp.where(valid, t - xp.where(valid, box["stamps"], 0.0), math.inf)
-            safe, sig = self.safety.filter(self._velocity(out.u), p, sender, age, sensed)
+            safe, sig = self.safety.filter(self.law_velocity(out.u), p, sender, age, sensed)
             signals["safety"] = xp.reshape(xp.stack([xp.asarray(sig[k], dtype=measured.dtype) for k in SAFETY_SIGNALS],
                                                     axis=-1), batch + (-1,))
-        u = self._commands(out.u, safe)
+        u = self.commands(out.u, safe)
         age = xp.where(box["valid"], t - box["stamps"], 0.0)
         columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], xp.sum(xp.asarray(xs["new"], dtype=xp.int32), axis=-1),
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
@@ -303,8 +303,8 @@ class NetworkedController(contract.Controller):
             raise InvalidInputError(f"{self.name}: {self.failure_reasons.get(int(np.max(code)), 'failure')}")
         return contract.Step(out.u, out.state, dict(out.signals))
 
-    # ------------------------------------------------------------------ helpers
-    def _slot_weights(self, senders: np.ndarray) -> np.ndarray:
+    # ------------------------------------------------------------------ one robot's composition (also LocalBridge's)
+    def slot_weights(self, senders: np.ndarray) -> np.ndarray:
         """``(N, W)`` the weight of each inbox slot's edge (0 at padding)."""
         n = self.n
         code = self.links.edges[:, 0] * n + self.links.edges[:, 1]
@@ -312,7 +312,7 @@ class NetworkedController(contract.Controller):
         idx = np.searchsorted(code, rows * n + np.maximum(senders, 0))
         return np.where(senders >= 0, self._weights[np.minimum(idx, len(code) - 1)] if len(code) else 0.0, 0.0)
 
-    def _commands(self, u, safe=None):
+    def commands(self, u, safe=None):
         """The local commands ``(*batch, N, n_local)`` as the team's ``(*batch, N n_u)``, each robot
         saturated by its model; ``safe`` (``(*batch, N, 3)``, m/s) replaces the velocity columns
         (the separation filter's output)."""
@@ -327,7 +327,7 @@ class NetworkedController(contract.Controller):
         full = self.model.saturate(xp.stack(parts, axis=-1))  # scaling a safe command down keeps it safe
         return xp.reshape(full, full.shape[:-2] + (-1,))
 
-    def _velocity(self, u):
+    def law_velocity(self, u):
         """The linear velocity ``(*batch, N, 3)`` m/s the law commands (0 where it sets none)."""
         xp = common_namespace(u)
         local = self.local.command_columns

@@ -150,7 +150,7 @@ class LocalBridge:
         E = len(ctrl.links.edges)
         senders = inbox((np.zeros((E, 1)), np.zeros(E), np.zeros(E, dtype=bool)), ctrl.links)["senders"]
         self.senders = senders[i:i + 1]
-        self.weights = ctrl._slot_weights(senders)[i:i + 1]
+        self.weights = ctrl.slot_weights(senders)[i:i + 1]
         slot = np.maximum(self.senders[0], 0)
         code = ctrl.links.edges[:, 0] * n + ctrl.links.edges[:, 1]
         # each slot's candidate edge (padding: masked by its sender -1)
@@ -359,9 +359,9 @@ class LocalBridge:
                     valid = box["valid"]
                     sensed = (valid | (self.senders >= 0)) if ctrl.hold_unheard else valid
                     age = np.where(valid, tau - np.where(valid, box["stamps"], 0.0), math.inf)
-                    safe, sig = ctrl.safety.filter(ctrl._velocity(out.u), p, sender, age, sensed)
+                    safe, sig = ctrl.safety.filter(ctrl.law_velocity(out.u), p, sender, age, sensed)
                     signals["safety"] = np.array([float(np.asarray(sig[k])[0]) for k in SAFETY_SIGNALS])
-                u = np.asarray(ctrl._commands(out.u, safe), dtype=float).reshape(n_u)
+                u = np.asarray(ctrl.commands(out.u, safe), dtype=float).reshape(n_u)
                 if not np.all(np.isfinite(u)):  # never pass on a command that is not finite
                     raise InvalidInputError(f"robot {self.names[self.robot]!r}: {law.name} returned a non-finite "
                                             f"command at t = {tau:.3f} s; the node stops rather than publish it")
