@@ -23,7 +23,8 @@ from quatform.formations import TEAM_FORMATIONS, DualQuaternionPair, EuclideanPa
 from quatform.formations import geometry as g
 from quatform.scenarios import load_scenario
 from quatform.scenarios import pair as pair_kind
-from quatform.scenarios.pair import PAIR, run_pair
+from quatform.scenarios.pair import run_pair
+from quatform.scenarios.team import TEAM
 from quatform.sim import compute_metrics
 
 #: The reproducer's formation: robots 3.77 m apart (2 d_c), and its yaw-only start.
@@ -85,7 +86,7 @@ def test_scenario_safety_table_holds_the_reproducer_apart(tmp_path):
     sc = load_scenario(scenario_file(tmp_path, f"[safety]\nmin_separation_m = {HALF}\n"))
     assert sc.safety == {"enabled": True, "min_separation_m": HALF}
     run = run_pair(sc, "dual-quaternion")
-    m = PAIR.experiment(sc, controller="dual-quaternion").metrics(run)
+    m = TEAM.experiment(sc, controller="dual-quaternion").metrics(run)
     assert m["min_robot_separation_m"] >= HALF
     assert m["safety_min_separation_m"] == HALF and 0 < m["safety_active_time_s"] < 5
     assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
@@ -102,9 +103,9 @@ def test_random_yaw_only_starts_never_come_within_the_set_distance(tmp_path):
     rd = RobotSpace().from_euclidean(E)
     r0 = np.tile(rd, (50, 1))
     r0[:, [3, 7]] += rng.uniform(-np.pi, np.pi, (50, 2))
-    bare = PAIR.experiment(sc, controller="dual-quaternion", r0=r0).run()
+    bare = TEAM.experiment(sc, controller="dual-quaternion", r0=r0).run()
     assert np.count_nonzero(pair_separation(bare["state"]).min(axis=0) < HALF) >= 2
-    run = PAIR.experiment(sc, controller="dual-quaternion", r0=r0, min_separation=HALF).run()
+    run = TEAM.experiment(sc, controller="dual-quaternion", r0=r0, min_separation=HALF).run()
     assert pair_separation(run["state"]).min() >= HALF
     assert pair_robot_error(run["state"][-1], np.broadcast_to(rd, r0.shape)) < 1e-6
 
@@ -148,9 +149,9 @@ def test_builtin_pair_scenarios_run_without_the_barrier(scenario):
     """The seed's scenarios show the robots' own paths: no barrier unless asked."""
     sc = load_scenario(scenario)
     assert sc.safety["enabled"] is False
-    ex = PAIR.experiment(sc, controller="dual-quaternion")
+    ex = TEAM.experiment(sc, controller="dual-quaternion")
     assert isinstance(ex.controller, DualQuaternionController) and "safety" not in ex.meta
-    assert isinstance(PAIR.experiment(sc, controller="robot-space", min_separation=0.5).controller, SafeController)
+    assert isinstance(TEAM.experiment(sc, controller="robot-space", min_separation=0.5).controller, SafeController)
 
 
 def test_barrier_the_run_cannot_keep_is_refused(tmp_path):
@@ -160,7 +161,7 @@ def test_barrier_the_run_cannot_keep_is_refused(tmp_path):
         load_scenario(scenario_file(tmp_path, "[safety]\nmin_separation_m = 4.0\n"))
     sc = load_scenario(scenario_file(tmp_path))
     with pytest.raises(InvalidInputError, match=r"min_separation = 4 m"):
-        PAIR.experiment(sc, controller="quaternion", min_separation=4.0)
+        TEAM.experiment(sc, controller="quaternion", min_separation=4.0)
     with pytest.raises(InvalidInputError, match=r"'min_sep' at \[safety\].*'min_separation_m'"):
         load_scenario(scenario_file(tmp_path, "[safety]\nmin_sep = 1.0\n"))
     with pytest.raises(InvalidInputError, match=r"\[safety\] min_separation_m"):
