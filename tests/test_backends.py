@@ -216,7 +216,7 @@ def test_builtin_scenario_to_its_end_equals_numpy(name, choice, backend):
     exp = kind.experiment(sc, **choice)
     a, b = exp.run(), exp.run(backend=backend)
     assert a.t[-1] >= sc.duration_s - exp.dt * exp.substeps - 1e-9  # to its end
-    assert_runs_agree(kind.name, exp, a, b)
+    assert_runs_agree(kind.parts_of(sc), exp, a, b)
 
 
 # -- the other choices, on short pieces ---------------------------------------------------------------

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import check_keys, check_within_run, check_work, flag, number, records, short, table, text, vector
-from ..control import CONTROLLERS, TABLE1, TABLE2, Reference, SafeController, SeparationBarrier
+from ..control import CONTROLLERS, TABLE1, TABLE2, SeparationBarrier
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
 from ..references import EuclideanPath, Ramp, Step as StepChange
