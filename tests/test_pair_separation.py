@@ -22,7 +22,7 @@ from quatform.errors import DegenerateInputError, InvalidInputError
 from quatform.formations import TEAM_FORMATIONS, DualQuaternionPair, EuclideanPair, QuaternionPair, RobotSpace
 from quatform.formations import geometry as g
 from quatform.scenarios import load_scenario
-from quatform.scenarios import pair as pair_kind
+from quatform.scenarios.separation import separation_barrier
 from quatform.scenarios.pair import run_pair
 from quatform.scenarios.team import TEAM
 from quatform.sim import compute_metrics
@@ -63,10 +63,10 @@ def test_the_law_alone_brings_yaw_only_starts_together():
 
 
 def test_the_reproducer_with_the_barrier_never_comes_within_the_set_distance(tmp_path):
-    """The issue's loop, the controller in a SafeController with the pair kind's barrier at
+    """The issue's loop, the controller in a SafeController with the run's barrier at
     half the separation: the robots stay 1.885 m apart or more and reach the reference."""
     sc = load_scenario(scenario_file(tmp_path))
-    C = SafeController(DualQuaternionController(), pair_kind.separation_barrier(sc, HALF))
+    C = SafeController(DualQuaternionController(), separation_barrier(HALF, sc.dt_s))
     rd = RobotSpace().from_euclidean(E)
     c, cd = C.inner.formation.from_euclidean(E, np.zeros(8))
     r, seps = rd + YAWS, []

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import check_keys, check_within_run, check_work, flag, number, records, short, table, text, vector
-from ..control import CONTROLLERS, TABLE1, TABLE2, SeparationBarrier
+from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
 from ..references import EuclideanPath, Ramp, Step as StepChange
@@ -41,7 +41,7 @@ from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table
 from .team import TEAM, TEAM_CHARTS, TeamChartParts, TeamScenario
 
 __all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "check_barrier_reference",
-           "separation_barrier", "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
+           "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
            "SECONDS_PER_STEP", "PairMotion", "PairChartParts", "TABLE_COLUMNS", "run_pair", "simulate_physics",
            "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
            "PLAN_RUN_SECONDS_PER_STEP"]
@@ -167,7 +167,7 @@ class Scenario(TeamScenario):
         through the separation barrier (:class:`~quatform.control.SeparationBarrier`), which
         holds the robots at least ``min_separation_m`` apart. Off unless the file has a
         ``[safety]`` table (the seed's runs show the robots' own paths, e.g. Fig. 4b's
-        robot-space robots crossing); :func:`separation_barrier` and ``docs/scenarios.md`` say
+        robot-space robots crossing); :func:`~quatform.scenarios.separation.separation_barrier` and ``docs/scenarios.md`` say
         which starts need it.
 
     Raises
@@ -317,21 +317,6 @@ def check_barrier_reference(sc: Scenario, d: float, where: str, label: str, e_de
     if sep[k] < d:
         raise InvalidInputError(f"{where}: the reference brings the robots to {sep[k]:.4g} m at t = {t[k]:g} s, below "
                                 f"{label} = {d:g} m (the barrier would hold them apart); raise d_c or lower it")
-
-
-def separation_barrier(sc: Scenario, d: float) -> SeparationBarrier:
-    """The barrier a pair run of ``sc`` with ``min_separation_m = d`` filters its commands
-    through: the team kind's (Wang, Ames and Egerstedt 2017; :mod:`quatform.control.safety`),
-    its rate ``gamma`` at most ``1 / dt_s`` so that the sampled robots keep ``h >= 0``.
-
-    Which starts need it: under the dual-quaternion law (seed 000 eq. (28)) a start with
-    the robots in place and their yaws off by more than about 2 rad each (within +-pi) can
-    bring them arbitrarily close (the shape ``qhat_s`` carries robot 2's yaw error as a
-    rotation of the relative position, corrected along a chord; ``docs/derivations.md``,
-    "The dual-quaternion pair's yaw-only starts"); the robot-space law drives robots straight
-    through each other's paths (seed 000 Fig. 4b).
-    """
-    return SeparationBarrier(d, gamma=min(SeparationBarrier.gamma, 1.0 / sc.dt_s), dt_s=sc.dt_s)
 
 
 #: Keys of ``[path]`` that only one centroid kind uses (seed 000 §4: the circle of §4.1, the

@@ -44,7 +44,7 @@ from ..checks import (
 )
 from ..control import TEAM_CONTROLLERS, Reference, team_controller
 from ..control.team import check_gain, team_descriptions, team_gain_sizes
-from ..control.safety import SafeController, SeparationBarrier, start_floor
+from ..control.safety import SafeController, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
 from ..formations.team_chart import check_template
@@ -71,7 +71,7 @@ from ..sim.plants import KinematicTeam
 from ..sim.metrics import TEAM_CHART, compute_metrics, min_separations
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind, finish_worlds
-from .separation import FILE_LABEL, safety_table, with_option
+from .separation import FILE_LABEL, safety_table, separation_barrier, with_option
 
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict",
            "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_PHYSICS", "TEAM_BYTES_PER_ROBOT_STEP",
@@ -403,7 +403,7 @@ def _gains(data: dict, where: str, dt: float) -> dict:
                 k = check_gain(mine[key], key, size, where=where, place=place)
                 gains[name][key] = k.tolist() if isinstance(mine[key], list) else float(k[0])
     k = max(float(x) for gg in gains.values() for v in gg.values() for x in np.ravel(v))
-    if k * dt >= 2.0:  # one Euler step multiplies an error by 1 - k dt (pair kind: check_step_stable)
+    if k * dt >= 2.0:  # one Euler step multiplies an error by 1 - k dt (seed 000's files: check_step_stable)
         raise InvalidInputError(f"{where}: dt_s = {dt:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = "
                                 f"{k * dt:.3g} >= 2: the discrete control loop would be unstable; use dt_s < "
                                 f"{2.0 / k:.3g} s (smaller gains allow a larger step)")
@@ -812,10 +812,7 @@ class TeamKind(ScenarioKind):
         csv = parts.csv_channels(scenario, ctrl)
         finish = parts.finisher(scenario, ctrl, t, e_des, c_des, r_des, record)
         if safety["applied"]:
-            # the barrier's rate gamma at most 1 / dt_s: the sampled-time guarantee h_{k+1} >= (1 - gamma dt) h_k
-            gamma = min(SeparationBarrier.gamma, 1.0 / scenario.dt_s)
-            ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], gamma=gamma,
-                                                          dt_s=scenario.dt_s), team)
+            ctrl = SafeController(ctrl, separation_barrier(safety["min_separation_m"], scenario.dt_s), team)
             csv = csv + ("min_separation", "safety_active")
 
         def reference_at(k):
