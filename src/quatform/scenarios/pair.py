@@ -38,9 +38,9 @@ from ..sim.log import Channel, Log
 from ..sim.metrics import EUCLIDEAN_CHART
 from ..sim.plants import KinematicTeam
 from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table
-from .team import TEAM, TEAM_CHARTS, TeamChartParts, TeamScenario
+from .team import TEAM, TEAM_CHARTS, TeamChartParts, TeamScenario, check_step_stable
 
-__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "check_barrier_reference",
+__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_barrier_reference",
            "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
            "SECONDS_PER_STEP", "PairMotion", "PairChartParts", "TABLE_COLUMNS", "run_pair", "simulate_physics",
            "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
@@ -106,31 +106,6 @@ def _last_step(duration_s: float, dt_s: float) -> int:
     """Index of the last sample: the most whole steps of ``dt_s`` that fit in ``duration_s``
     (never past it; a ``dt_s`` that does not divide ``duration_s`` ends the run short)."""
     return int(math.floor(duration_s / dt_s + _STEP_SLACK))
-
-
-def _largest_gain(where: str, gains: dict) -> float:
-    """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
-    try:
-        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
-    return max(vals, default=0.0)
-
-
-def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
-    """Refuse a ``dt_s`` at which the explicit Euler loop of a proportional law diverges.
-
-    Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
-    (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
-    by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
-    largest gain of any controller the scenario can run (``docs/derivations.md``, "The
-    two-robot scenario loader (seed 000)")."""
-    k = _largest_gain(where, gains)
-    if k * dt_s >= 2.0:
-        raise InvalidInputError(
-            f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
-            f">= 2: the discrete control loop would be unstable; use dt_s < {2.0 / k:.3g} s (smaller gains "
-            "allow a larger step)")
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

@@ -76,7 +76,7 @@ from .separation import FILE_LABEL, safety_table, separation_barrier, with_optio
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict",
            "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_PHYSICS", "TEAM_BYTES_PER_ROBOT_STEP",
            "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples", "available_controllers",
-           "with_plan", "TeamChartParts", "TEAM_CHARTS"]
+           "with_plan", "TeamChartParts", "TEAM_CHARTS", "check_step_stable"]
 
 _HINT = "see docs/scenarios.md, team scenarios"
 
@@ -382,6 +382,31 @@ def _headings(data: dict, where: str, n: int) -> Headings:
     return Headings(mode, np.array(vals))
 
 
+def _largest_gain(where: str, gains: dict) -> float:
+    """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
+    try:
+        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
+    return max(vals, default=0.0)
+
+
+def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
+    """Refuse a ``dt_s`` at which the explicit Euler loop of a proportional law diverges.
+
+    Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
+    (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
+    by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
+    largest gain of any controller the scenario can run, seed 000's files and team files alike
+    (``docs/derivations.md``, "The two-robot scenario loader (seed 000)")."""
+    k = _largest_gain(where, gains)
+    if k * dt_s >= 2.0:
+        raise InvalidInputError(
+            f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
+            f">= 2: the discrete control loop would be unstable; use dt_s < {2.0 / k:.3g} s (smaller gains "
+            "allow a larger step)")
+
+
 def _gains(data: dict, where: str, dt: float) -> dict:
     g = data.get("gains", "table1")
     if isinstance(g, str):
@@ -402,11 +427,7 @@ def _gains(data: dict, where: str, dt: float) -> dict:
             if key in mine:
                 k = check_gain(mine[key], key, size, where=where, place=place)
                 gains[name][key] = k.tolist() if isinstance(mine[key], list) else float(k[0])
-    k = max(float(x) for gg in gains.values() for v in gg.values() for x in np.ravel(v))
-    if k * dt >= 2.0:  # one Euler step multiplies an error by 1 - k dt (seed 000's files: check_step_stable)
-        raise InvalidInputError(f"{where}: dt_s = {dt:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = "
-                                f"{k * dt:.3g} >= 2: the discrete control loop would be unstable; use dt_s < "
-                                f"{2.0 / k:.3g} s (smaller gains allow a larger step)")
+    check_step_stable(where, dt, gains)
     return gains
 
 
