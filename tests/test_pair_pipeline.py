@@ -47,6 +47,18 @@ def test_seed_000_files_read_into_the_team_kind_with_the_pair_chart():
     assert "backend" not in opts  # the compute backend is Experiment.run(backend=...), --compute
 
 
+def test_a_file_of_kind_pair_reads_into_the_team_kind_and_a_bad_key_is_one_line(tmp_path):
+    good = tmp_path / "p.toml"
+    good.write_text('kind = "pair"\nname = "p"\nduration_s = 2.0\n[path]\nd_c = 0.5\n')
+    sc = load_scenario(good)
+    assert isinstance(sc, Scenario) and kind_of(sc) is TEAM and sc.chart == "pair" and sc.metrics_from_s == 0.0
+    bad = tmp_path / "q.toml"
+    bad.write_text('kind = "pair"\nduration_s = 2.0\n[path]\nraduis = 1.0\n')
+    with pytest.raises(InvalidInputError, match="raduis") as err:
+        load_scenario(bad)
+    assert "\n" not in str(err.value) and "radius" in str(err.value)
+
+
 @pytest.mark.parametrize("controller", list(CONTROLLERS))
 def test_a_batch_of_worlds_equals_the_worlds_run_one_by_one(controller):
     sc = _short_spiral()

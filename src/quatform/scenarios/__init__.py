@@ -27,7 +27,7 @@ from .base import KINDS, Experiment, Option, ScenarioKind
 DEFAULT_KIND = "pair"
 
 __all__ = ["Experiment", "Option", "ScenarioKind", "KINDS", "DEFAULT_KIND", "load_scenario", "builtin_scenarios",
-           "kind_of", "kind_named", "kind_aliases"]
+           "kind_of", "kind_aliases"]
 
 
 def builtin_scenarios() -> dict[str, Path]:
