@@ -38,7 +38,7 @@ from ..sim.log import Channel, Log
 from ..sim.metrics import EUCLIDEAN_CHART
 from ..sim.plants import KinematicTeam
 from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table
-from .team import TEAM, TEAM_CHARTS, TeamChartParts, TeamScenario, check_step_stable
+from .team import TEAM, TeamChartParts, TeamScenario, check_step_stable
 
 __all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_barrier_reference",
            "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
@@ -602,9 +602,6 @@ class PairChartParts(TeamChartParts):
 
     def csv_channels(self, sc, ctrl) -> tuple:
         return pair_csv_channels(ctrl.formation)
-
-
-TEAM_CHARTS.add("pair", PairChartParts())
 
 
 def run_pair(scenario: Scenario, controller, feedforward: bool | None = None, r0=None,

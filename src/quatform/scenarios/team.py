@@ -566,6 +566,13 @@ def singularity_samples(n_times: int, n_c: int) -> np.ndarray:
     return np.unique(np.linspace(0, n_times - 1, k).round().astype(int))
 
 
+#: The parts of a team run that depend on its scenario's chart, by :attr:`TeamScenario.chart`:
+#: one instance of each :class:`TeamChartParts` subclass that sets a ``name``, registered when
+#: the class is defined (the team chart here, seed 000's variables of two robots in
+#: :mod:`quatform.scenarios.pair`).
+TEAM_CHARTS = Registry("team chart")
+
+
 class TeamChartParts:
     """What a team run reads from the chart its motion is stated in: here the team chart
     (centroid, attitude, shape, headings; :class:`~quatform.formations.TeamChart`).
@@ -582,6 +589,12 @@ class TeamChartParts:
     name = "team"
     #: Columns of the comparison table: (metrics key, header, format).
     table_columns = TEAM_TABLE_COLUMNS
+
+    def __init_subclass__(cls, register: bool = True, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if register and cls.__dict__.get("name"):
+            TEAM_CHARTS.add(cls.name, cls())
+
     #: The motions a scenario of this chart follows (``t -> (e, e_dot)`` in the chart).
     motion_types = (TeamMotion, PlanMotion)
 
@@ -686,11 +699,7 @@ class TeamChartParts:
                 "command", "singularity")
 
 
-#: The parts of a team run that depend on its scenario's chart, by :attr:`TeamScenario.chart`
-#: (``TEAM_CHARTS.add(name, parts)`` beside the parts: the team chart here, seed 000's
-#: variables of two robots in :mod:`quatform.scenarios.pair`).
-TEAM_CHARTS = Registry("team chart")
-TEAM_CHARTS.add("team", TeamChartParts())
+TEAM_CHARTS.add(TeamChartParts.name, TeamChartParts())
 
 
 class TeamKind(ScenarioKind):
