@@ -36,7 +36,6 @@ from ..references import EuclideanPath, Ramp, Step as StepChange
 from ..robots import HolonomicRobot, Team
 from ..sim.log import Channel, Log
 from ..sim.metrics import EUCLIDEAN_CHART
-from ..sim.plants import KinematicTeam
 from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table
 from .team import TEAM, TeamChartParts, TeamScenario, check_step_stable
 
@@ -547,8 +546,7 @@ class PairChartParts(TeamChartParts):
         a controller given by name with the physics gains
         (:func:`~quatform.sim.mujoco_backend.physics_controller`)."""
         if physics != "mujoco":
-            ctrl = sc.controller(controller, feedforward) if isinstance(controller, str) else controller
-            return ctrl, KinematicTeam(ctrl.team), None, None
+            return super().plant(sc, controller, feedforward, physics, x0, options)
         from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
         from ..sim.plants import mujoco as mjp
 
