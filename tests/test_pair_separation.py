@@ -1,6 +1,6 @@
 """The two-robot formations keep robots apart where asked, and refuse robots on each other.
 
-* The pair kind's separation barrier (``[safety] min_separation_m``, ``--min-separation``):
+* The separation barrier of seed 000's files (``[safety] min_separation_m``, ``--min-separation``):
   the dual-quaternion law of seed 000 eq. (28) brings robots that start in place with their
   yaws off (by more than about 2 rad each) close together; with the barrier they never come
   within the set distance and still reach the reference.

@@ -96,7 +96,7 @@ def test_a_clean_batch_has_no_failure_keys(helix):
 
 @pytest.mark.parametrize("controller", ["cluster-space", "quaternion", "dual-quaternion"])
 def test_finish_reads_a_failed_world_as_nan(helix, controller):
-    """The pair kind's finish on a batch with a failed world (robots on each other; robot
+    """Seed 000's chart's finish on a batch with a failed world (robots on each other; robot
     space has no formation to lose, so its robots go on): its chart and singularity measure
     NaN from its failure on, the healthy world's as its own run."""
     exp = KINDS["team"].experiment(helix, controller=controller)
