@@ -40,7 +40,8 @@ from _common import best_of, fmt, machine_description
 from quatform.control import CONTROLLERS
 from quatform.formations import EuclideanPair
 from quatform.scenarios import load_scenario
-from quatform.scenarios.pair import PAIR, run_pair
+from quatform.scenarios.pair import run_pair
+from quatform.scenarios.team import TEAM
 from quatform.sim import simulate
 
 #: Spread of the random initial offsets of the batched worlds (Euclidean variables: m for
@@ -101,7 +102,7 @@ def batched(worlds: int, duration: float, separate: int, controllers):
     print("|---|---|---|---|---|---|---|")
     for c in controllers:
         def run(x0):
-            exp = PAIR.experiment(sc, controller=c, r0=x0)
+            exp = TEAM.experiment(sc, controller=c, r0=x0)
             t0 = time.perf_counter()
             log = simulate(exp.plant, exp.controller, exp.reference, exp.times, exp.x0, dt=exp.dt, meta=exp.meta)
             t1 = time.perf_counter()

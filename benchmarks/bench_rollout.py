@@ -48,7 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import fmt, machine_description, optional_import
 
 from quatform.scenarios import load_scenario
-from quatform.scenarios.pair import PAIR
+from quatform.scenarios.team import TEAM
 from quatform.sim import simulate
 from quatform.sim.trial_measurement import TickMeasurement
 
@@ -76,7 +76,7 @@ print(worlds * steps / best)
 def experiment(controller: str, ticks: int):
     sc = load_scenario("mas-kitts-helix")
     sc = dataclasses.replace(sc, duration_s=(ticks - 1) * sc.dt_s, metrics_from_s=0.0)
-    return PAIR.experiment(sc, controller=controller)
+    return TEAM.experiment(sc, controller=controller)
 
 
 def starts(ex, worlds: int, seed: int = 0, spread: float = 0.02):
@@ -129,7 +129,7 @@ def monte_carlo(trials: int, seed: int = 0, trials_per_call: int | None = None) 
     t0 = time.perf_counter()
     sc = load_scenario("mas-kitts-helix")
     sc = dataclasses.replace(sc, duration_s=60.0)
-    ex = PAIR.experiment(sc, controller="quaternion")
+    ex = TEAM.experiment(sc, controller="quaternion")
     T = ex.times.size
     rng = np.random.default_rng(seed)
     x0 = ex.x0 + np.concatenate([rng.normal(0.0, 0.02, (trials, 3)), rng.normal(0.0, 0.02, (trials, 1)),

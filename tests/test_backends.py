@@ -68,7 +68,7 @@ from quatform.errors import InvalidInputError, MissingDependencyError, NonFinite
 from quatform.formations import EuclideanTeam, UgvUavSpherical  # noqa: E402
 from quatform.robots import Pioneer  # noqa: E402
 from quatform.scenarios import KINDS, builtin_scenarios, kind_of, load_scenario  # noqa: E402
-from quatform.scenarios.pair import PAIR  # noqa: E402
+from quatform.scenarios.team import TEAM  # noqa: E402
 from quatform.scenarios.ugv_uav import ugv_uav_experiment, with_profile  # noqa: E402
 from quatform.sim import loop  # noqa: E402
 from quatform.sim.backends import SIM_BACKENDS, simulator  # noqa: E402
@@ -216,7 +216,7 @@ def test_builtin_scenario_to_its_end_equals_numpy(name, choice, backend):
     exp = kind.experiment(sc, **choice)
     a, b = exp.run(), exp.run(backend=backend)
     assert a.t[-1] >= sc.duration_s - exp.dt * exp.substeps - 1e-9  # to its end
-    assert_runs_agree(kind.name, exp, a, b)
+    assert_runs_agree(kind.parts_of(sc), exp, a, b)
 
 
 # -- the other choices, on short pieces ---------------------------------------------------------------
@@ -226,7 +226,7 @@ def test_pair_half_turn_step_turns_the_same_way(controller, backend):
     """Seed 000 Fig. 4's 180 deg yaw step (t = 1 s) is a tie between the two ways round: a
     backend that rounds ``d / 2 pi`` or ``atan2`` apart would turn the other way; the tie rule
     (algebra.angles.TIE_TURNS) turns both the same way. Metrics equal."""
-    ex = PAIR.experiment(short_scenario("mas-kitts-yaw-step", 1.3), controller=controller)
+    ex = TEAM.experiment(short_scenario("mas-kitts-yaw-step", 1.3), controller=controller)
     a, b = ex.run(backend="numpy"), ex.run(backend=backend)
     assert_logs_equal(a, b)
     assert_metrics_equal(ex.metrics(a), ex.metrics(b))
@@ -411,7 +411,7 @@ def test_teleop_rpy_law_equals_numpy(name, preload, duration_s, backend):
 @pytest.mark.parametrize("controller", PAIR_CONTROLLERS)
 def test_pair_batch_with_tick_measurement_equals_numpy(controller, backend):
     """Three worlds from offset starts, with noise, two ticks of latency and dropped frames."""
-    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.5), controller=controller)
+    ex = TEAM.experiment(short_scenario("mas-kitts-spiral", 0.5), controller=controller)
     T = ex.times.size
     rng = np.random.default_rng(7)
     x0 = ex.x0 + rng.normal(0.0, 0.2, (3, 8))
@@ -423,7 +423,7 @@ def test_pair_batch_with_tick_measurement_equals_numpy(controller, backend):
 
 
 def test_batch_axes_kept_and_progress_in_chunks(backend):
-    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.33), controller="quaternion", feedforward=False)
+    ex = TEAM.experiment(short_scenario("mas-kitts-helix", 0.33), controller="quaternion", feedforward=False)
     x0 = np.broadcast_to(ex.x0, (2, 2, 8)) + np.arange(4.0).reshape(2, 2, 1) * 0.05
     ex = dataclasses.replace(ex, x0=x0)
     seen = []
@@ -472,7 +472,7 @@ def test_pair_failures_are_numpys_and_fail_alone(backend):
     reasons, frozen; robot space (defined with robots on each other) goes on as on NumPy; one
     world raises NumPy's error."""
     for controller in ("quaternion", "robot-space"):
-        ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.1), controller=controller)
+        ex = TEAM.experiment(short_scenario("mas-kitts-helix", 0.1), controller=controller)
         x0 = np.repeat(ex.x0[None], 3, axis=0)
         x0[1, 0] = np.nan
         x0[2, 4:7] = x0[2, 0:3]
@@ -486,7 +486,7 @@ def test_pair_failures_are_numpys_and_fail_alone(backend):
             np.testing.assert_array_equal(b["state"][:, 2], np.broadcast_to(x0[2], b["state"][:, 2].shape))
             assert np.all(b["command"][:, 2] == 0.0) and np.all(np.isnan(b["cluster"][:, 2]))
     with pytest.raises(InvalidInputError, match="coincide"):
-        dataclasses.replace(PAIR.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="dual-quaternion"),
+        dataclasses.replace(TEAM.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="dual-quaternion"),
                             x0=x0[2]).run(backend=backend)
 
 
@@ -636,7 +636,7 @@ class UpdateOnly:
 def test_refuses_what_has_no_pure_step_in_one_line(backend):
     """Decided from what the parts declare: a controller's ``pure``, a plant's ``batchable``,
     a measurement model's contract."""
-    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.1), controller="quaternion")
+    ex = TEAM.experiment(short_scenario("mas-kitts-spiral", 0.1), controller="quaternion")
     user = dataclasses.replace(ex, controller=UpdateOnly(ex.controller))
     np.testing.assert_allclose(user.run(backend="numpy")["state"], ex.run(backend="numpy")["state"], rtol=0, atol=0)
 
@@ -672,7 +672,7 @@ def test_mujoco_physics_is_refused_in_one_line(scenario, choice, backend):
 def test_unknown_backend_missing_jax_and_bad_shapes_in_one_line(monkeypatch):
     with pytest.raises(InvalidInputError, match="unknown compute backend 'jaks'.*jax"):
         simulator("jaks")
-    ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="quaternion")
+    ex = TEAM.experiment(short_scenario("mas-kitts-spiral", 0.2), controller="quaternion")
     with pytest.raises(ShapeError, match="holds no world"):
         dataclasses.replace(ex, x0=np.zeros((0, 8))).run(backend="jax")
     with pytest.raises(ShapeError, match=r"noise of shape \(3, 8\) for 21 ticks"):
@@ -696,12 +696,12 @@ def test_unknown_backend_missing_jax_and_bad_shapes_in_one_line(monkeypatch):
 def test_global_x64_left_alone_and_equal_configurations_compile_once():
     before = jax.config.jax_enable_x64
     sc = short_scenario("mas-kitts-helix", 0.1)
-    a, b = (PAIR.experiment(sc, controller="quaternion") for _ in range(2))
+    a, b = (TEAM.experiment(sc, controller="quaternion") for _ in range(2))
     assert a.run(backend="jax")["state"].dtype == np.float64
     assert jax.config.jax_enable_x64 == before
     assert a.controller is not b.controller
     assert loop.config_key(a.plant, a.controller, None) == loop.config_key(b.plant, b.controller, None)
-    other = PAIR.experiment(dataclasses.replace(sc, gains={"quaternion": {"k_x": [1, 1, 1]}}), controller="quaternion")
+    other = TEAM.experiment(dataclasses.replace(sc, gains={"quaternion": {"k_x": [1, 1, 1]}}), controller="quaternion")
     assert loop.config_key(other.plant, other.controller, None) != loop.config_key(a.plant, a.controller, None)
 
 
@@ -749,7 +749,7 @@ def _assert_rollout_is_compute_metrics(res, ex, logged, worlds):
 def test_rollout_metrics_equal_compute_metrics(controller):
     """The reduced rollout's metrics equal compute_metrics of each world of a logged NumPy batch,
     the singularity measure and the recovered Euclidean error included."""
-    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.8), controller=controller)
+    ex = TEAM.experiment(short_scenario("mas-kitts-helix", 0.8), controller=controller)
     ex = dataclasses.replace(ex, meta={**ex.meta, "metrics_from_s": 0.3})
     T = ex.times.size
     rng = np.random.default_rng(3)
@@ -758,14 +758,14 @@ def test_rollout_metrics_equal_compute_metrics(controller):
     meas = TickMeasurement(rng.normal(0.0, 0.004, (T, 5, 8)), 1, rng.random((T, 5)) < 0.05)
     res = rollout_metrics(ex, x0, meas, trials_per_call=2)  # chunks of 2, the last one padded
     assert {"min_singularity_measure", "max_recovered_euclidean_error_rad"} <= set(res)
-    log = PAIR.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8), metrics_from_s=0.3),
+    log = TEAM.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8), metrics_from_s=0.3),
                           controller=controller)
     log = dataclasses.replace(log, x0=x0, measurement=meas, finish=lambda log: log)
     raw = log.run(backend="numpy")
     assert res["failed"].tolist() == raw.meta["failed"].tolist() == [False] * 4 + [True]
     assert res["failure"] == raw.meta["failure"]
     healthy = TickMeasurement(meas.noise[:, :4], 1, meas.dropped[:, :4])
-    ex = dataclasses.replace(PAIR.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8),
+    ex = dataclasses.replace(TEAM.experiment(dataclasses.replace(short_scenario("mas-kitts-helix", 0.8),
                                                                  metrics_from_s=0.3), controller=controller),
                              x0=x0[:4], measurement=healthy)
     _assert_rollout_is_compute_metrics(res, ex, ex.run(backend="numpy"), range(4))
@@ -794,7 +794,7 @@ def test_rollout_metrics_of_a_team_equal_compute_metrics(scenario, controller, b
 
 @pytest.mark.parametrize("bad", [0, -1, 0.5, "3", True, float("nan")])
 def test_rollout_refusals_are_one_line(bad):
-    ex = PAIR.experiment(short_scenario("mas-kitts-helix", 0.05), controller="quaternion")
+    ex = TEAM.experiment(short_scenario("mas-kitts-helix", 0.05), controller="quaternion")
     with pytest.raises(InvalidInputError, match="trials_per_call"):
         rollout_metrics(ex, np.broadcast_to(ex.x0, (2, 8)), trials_per_call=bad)
     with pytest.raises(ShapeError, match="at least one world"):

@@ -74,7 +74,7 @@ def runs(tmp_path_factory):
         sc = dataclasses.replace(sc, **changes) if changes else sc
         kind = kind_of(sc)
         log = kind.experiment(sc, **options).run(None)
-        out[case] = (kind.name, log, write_mcap(log, folder / f"{case}.mcap", kind=kind.name))
+        out[case] = (kind.parts_of(sc), log, write_mcap(log, folder / f"{case}.mcap", kind=kind.parts_of(sc)))
     return out
 
 
@@ -475,7 +475,7 @@ def test_a_mujoco_run_adds_each_quadrotors_rotors_and_full_attitude(tmp_path):
     kind = kind_of(sc)
     log = kind.experiment(sc, controller="quaternion", physics="mujoco").run(None)
     record = log.meta["physics_record"]
-    topics = _read_all(write_mcap(log, tmp_path / "mj.mcap", kind=kind.name))
+    topics = _read_all(write_mcap(log, tmp_path / "mj.mcap", kind=kind.parts_of(sc)))
     n = len(log)
     for i in (1, 2):
         msgs = topics[f"/robot_{i}/rotors"][1]
@@ -489,7 +489,7 @@ def test_a_mujoco_run_adds_each_quadrotors_rotors_and_full_attitude(tmp_path):
         yaw = log["state"][-1, 4 * (i - 1) + 3]
         assert abs(np.angle(np.exp(1j * (g.yaw_of(q) - yaw)))) < 1e-6  # its yaw is the state's
     np.testing.assert_array_equal(read_log(tmp_path / "mj.mcap")["state"], log["state"])
-    rotors = foxglove_layout(kind.name, scene_of(log, kind.name))["configById"]["Plot!rotors"]["paths"]
+    rotors = foxglove_layout(kind.parts_of(sc), scene_of(log, kind.parts_of(sc)))["configById"]["Plot!rotors"]["paths"]
     assert [s["value"] for s in rotors] == ["/robot_1/rotors.thrust", "/robot_2/rotors.thrust"]
 
 
@@ -561,16 +561,16 @@ def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
                                                     {"metrics_from_s": 0.0}))
     kind = kind_of(sc)
     log = kind.experiment(sc, **({"controller": controller} if controller else {})).run(None)
-    topics = _read_all(write_mcap(log, tmp_path / "run.mcap", kind=kind.name))
+    topics = _read_all(write_mcap(log, tmp_path / "run.mcap", kind=kind.parts_of(sc)))
     for topic in ("/formation/pose", "/formation/pose_desired"):
         assert len(topics[topic][1]) == len(log)
     k = len(log) - 1
     _, p, q, _ = messages.pose_from_msg(topics["/formation/pose"][1][k][1])
-    if kind.name == "team":
+    if kind.parts_of(sc) == "team":
         e, ec = log["e"], log.columns("e")
         np.testing.assert_array_equal(np.r_[p, q], e[k, [ec.index(c) for c in ("x_c", "y_c", "z_c", "q_c_w", "q_c_x",
                                                                                    "q_c_y", "q_c_z")]])
-    elif kind.name == "pair":
+    elif kind.parts_of(sc) == "pair":
         F = FORMATIONS["quaternion"]
         want = F.forward(log["state"][k], near_c=F.from_chart(log["e_des"][k]))[:7]
         np.testing.assert_allclose(np.r_[p, q], want, atol=1e-12)
@@ -579,7 +579,7 @@ def test_every_controller_gets_the_formation_frame(tmp_path, name, controller):
     err = topics["/formation/error"][1][k][1]
     np.testing.assert_allclose([err.x, err.y, err.z], pd - p, atol=1e-12)
     assert err.angle == pytest.approx(2 * np.arccos(min(1.0, abs(float(np.dot(q, qd))))), abs=1e-9)
-    assert len(_layout_values(topics, log, kind.name)) >= 10  # the layout's plots have data for every controller
+    assert len(_layout_values(topics, log, kind.parts_of(sc))) >= 10  # the layout's plots have data for every controller
 
 
 def test_a_read_back_team_log_is_refused_with_one_line(runs, tmp_path):

@@ -28,7 +28,7 @@ HUGE = 2 ** 62
 def _short_run():
     sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=0.2, metrics_from_s=0.0)
     kind = kind_of(sc)
-    return kind.name, kind.experiment(sc, controller="quaternion").run(None)
+    return kind.parts_of(sc), kind.experiment(sc, controller="quaternion").run(None)
 
 
 @pytest.fixture
@@ -174,7 +174,7 @@ def test_tf_static_is_offered_transient_local():
     from pathlib import Path
 
     with tempfile.TemporaryDirectory() as d:
-        path = write_mcap(log, Path(d) / "run.mcap", kind=kind.name)
+        path = write_mcap(log, Path(d) / "run.mcap", kind=kind.parts_of(sc))
         with AnyReader([path]) as reader:
             qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
     (static,) = qos["/tf_static"]

@@ -45,7 +45,7 @@ def _run(name):
     kind = kind_of(sc)
     exp = kind.experiment(sc, controller="quaternion")
     log = exp.run(None)
-    return kind.name, log, exp.metrics(log)
+    return kind.parts_of(sc), log, exp.metrics(log)
 
 
 def _segments(p):
@@ -213,7 +213,7 @@ def test_a_ugv_uav_runs_error_angle_is_the_angle_between_its_segments():
     sc = dataclasses.replace(load_scenario("marciano-circle"), duration_s=2.0, transient_s=0.0)
     kind = kind_of(sc)
     log = kind.experiment(sc).run(None)
-    scene = scene_of(log, kind.name)
+    scene = scene_of(log, kind.parts_of(sc))
     angle = _angle(scene.formation[1], scene.formation_desired[1])
     p, pd = (np.asarray(log[c]).reshape(len(log), 2, 3) for c in ("r_true", "r_des"))
     d, dd = p[:, 1] - p[:, 0], pd[:, 1] - pd[:, 0]

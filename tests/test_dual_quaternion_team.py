@@ -160,15 +160,15 @@ def test_team_controller_commands_equal_the_pair_controllers_along_the_whole_ref
 def test_spiral_metrics_equal_the_pair_run():
     """The closed loop of the first 12 s of the spiral (the yaw turn): every metric within 1e-9 of its scale
     (the full spiral and helix: docs/derivations.md, "The dual-quaternion team")."""
-    from quatform.scenarios.pair import PAIR
+    from quatform.scenarios.team import TEAM
 
     sc = _pair_reference("mas-kitts-spiral", 12.0)
-    ref_exp = PAIR.experiment(sc, controller="dual-quaternion")
+    ref_exp = TEAM.experiment(sc, controller="dual-quaternion")
     m1 = ref_exp.metrics(ref_exp.run())
     ctrl = TeamController(DualQuaternionTeam(2, shape="relative", chart="pair"),
                           {"k_dw": TABLE1["dual-quaternion"]["k_dw"]}, sc.team, feedforward=sc.feedforward,
                           name="dual-quaternion")
-    exp = PAIR.experiment(sc, controller=ctrl)
+    exp = TEAM.experiment(sc, controller=ctrl)
     m2 = exp.metrics(exp.run())
     assert (m1["formation"], m2["formation"]) == ("dual-quaternion", "dual-quaternion-team")
     assert_metrics_equal(m1, m2, skip=("formation",))

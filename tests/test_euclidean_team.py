@@ -21,7 +21,7 @@ from quatform.formations.testing import SINGULAR, check_formation, robot_distanc
 from quatform.references.team_motion import template_positions
 from quatform.robots import HolonomicRobot, Team
 from quatform.scenarios import load_scenario
-from quatform.scenarios.pair import PAIR
+from quatform.scenarios.team import TEAM
 from quatform.sim import simulate
 from quatform.sim.metrics import singular_threshold
 from quatform.sim.plants.kinematic import KinematicTeam
@@ -92,12 +92,12 @@ def test_two_robots_are_the_seeds_pair():
 def test_the_team_controller_reproduces_the_pair_cluster_space_runs(name, table):
     sc = load_scenario(name)
     sc = dataclasses.replace(sc, duration_s=32.0)  # past the seed's singular pose (27.5 s, 30 s)
-    pair = PAIR.experiment(sc, controller="cluster-space")
+    pair = TEAM.experiment(sc, controller="cluster-space")
     pair_log = pair.run()
     want = pair.metrics(pair_log)
     ctrl = TeamController(EuclideanTeam(2, chart="pair"), {"k": table["cluster-space"]["k"]}, pair.controller.team,
                           name="cluster-space")
-    team = PAIR.experiment(sc, controller=ctrl)
+    team = TEAM.experiment(sc, controller=ctrl)
     log = team.run()
     got = team.metrics(log)
     assert want["first_singular_time_s"] is not None  # the run meets the seed's singular pose

@@ -46,13 +46,13 @@ SCRIPT = r"""
 import dataclasses, json, sys
 import numpy as np
 from conftest import assert_logs_equal, short_scenario
-from quatform.scenarios.pair import PAIR
+from quatform.scenarios.team import TEAM
 from quatform.sim.loop import require_jax
 from quatform.sim.jax_rollout import rollout_metrics
 from quatform.sim.metrics import compute_metrics
 from quatform.sim.trial_measurement import TickMeasurement
 jax = require_jax()
-ex = PAIR.experiment(short_scenario("mas-kitts-spiral", 0.4), controller="quaternion")
+ex = TEAM.experiment(short_scenario("mas-kitts-spiral", 0.4), controller="quaternion")
 T, B = ex.times.size, 4
 rng = np.random.default_rng(3)
 x0 = ex.x0 + rng.normal(0.0, 0.2, (B, 8))
@@ -121,8 +121,8 @@ CACHED = r"""
 import dataclasses, json, sys, time
 import numpy as np
 from quatform.scenarios import load_scenario
-from quatform.scenarios.pair import PAIR
-ex = PAIR.experiment(load_scenario("mas-kitts-spiral"), controller="quaternion")
+from quatform.scenarios.team import TEAM
+ex = TEAM.experiment(load_scenario("mas-kitts-spiral"), controller="quaternion")
 ex = dataclasses.replace(ex, times=ex.times[:40], x0=ex.x0 + np.linspace(0.0, 0.02, 3)[:, None],
                          finish=lambda log: log)
 from quatform.sim.loop import require_jax

@@ -25,7 +25,8 @@ from quatform.formations.testing import check_formation
 from quatform.outputs import WRITERS, add_output_flags, output_choices
 from quatform.robots import ROBOT_MODELS, file_models
 from quatform.robots.testing import check_robot_model
-from quatform.scenarios import KINDS, load_scenario
+from quatform.scenarios import KINDS, kind_of, load_scenario
+from quatform.scenarios.team import TEAM_CHARTS
 from quatform.sweeps import PARAMETERS
 
 TOY_FORMATION = '''
@@ -265,6 +266,26 @@ def _scene(log):
 SCENES.add("toy-integrator", SceneKind(_scene, lambda scene: ()))
 '''
 
+TOY_CHART = '''
+"""A chart of the team kind: the team chart, its robots starting on the reference whatever
+the scenario's initial offset."""
+from dataclasses import dataclass
+
+from quatform.scenarios.team import TeamChartParts, TeamScenario
+
+
+class OnReference(TeamChartParts):
+    name = "toy-on-reference"
+
+    def start(self, sc, e_des):
+        return self.robots(sc, e_des[:1])[0]
+
+
+@dataclass(frozen=True, eq=False)
+class OnReferenceScenario(TeamScenario):
+    chart = "toy-on-reference"
+'''
+
 TOY_WRITER = '''
 """A toy writer: the final state of a run as a text file, off unless asked for."""
 from quatform.outputs import Writer
@@ -355,13 +376,13 @@ def registries():
     from quatform.report import FIGURES
 
     saved = [(reg, dict(reg)) for reg in (FORMATION_TYPES, ROBOT_MODELS, KINDS, WRITERS, PARAMETERS, FIGURES,
-                                          SCENES, LAWS, LOCAL_CONTROLLERS)]
+                                          SCENES, LAWS, LOCAL_CONTROLLERS, TEAM_CHARTS)]
     yield
     for reg, before in saved:
         reg.clear()
         reg.update(before)
     for name in ("toy_formation", "toy_team", "toy_robot", "toy_law", "toy_local_law", "toy_kind", "toy_writer",
-                 "toy_parameter"):
+                 "toy_parameter", "toy_chart"):
         sys.modules.pop(name, None)
 
 
@@ -507,6 +528,27 @@ def test_a_scenario_kind_is_one_file(tmp_path, registries):
     pytest.importorskip("jax")  # its plant and pure controller, one file, run on every compute backend
     _, mj = runs.run(f, tmp_path / "run-jax", quiet=True, mcap=False, plots=False, compute="jax", gain="fast")
     assert mj["final_abs_x"] == pytest.approx(m["final_abs_x"], rel=1e-12)
+
+
+def test_a_chart_of_the_team_kind_is_one_file(tmp_path, registries):
+    from quatform import runs
+    from quatform.scenarios import load_scenario
+    from quatform.scenarios.team import TEAM
+
+    module = _import(tmp_path, "toy_chart", TOY_CHART)
+    assert isinstance(TEAM_CHARTS["toy-on-reference"], module.OnReference)
+    sc = load_scenario("team-tetrahedron-helix")
+    fields = {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc) if f.init}
+    toy = module.OnReferenceScenario(**{**fields, "duration_s": 0.3, "metrics_from_s": 0.0,
+                                        "initial_offset": {"position": (0.2, 0.0, 0.0), "yaw": 0.1, "scale": 1.0}})
+    assert kind_of(toy) is TEAM and TEAM.parts_of(toy) == "toy-on-reference"
+    exp = TEAM.experiment(toy, controller="quaternion")
+    np.testing.assert_array_equal(exp.x0, exp.reference(0).robots)  # its own start, the rest the team kind's
+    assert exp.meta["kind"] == "toy-on-reference"
+    _, m = runs.run(toy, tmp_path / "run", quiet=True, controller="quaternion")
+    names = {p.name for p in (tmp_path / "run").iterdir()}
+    assert {"metrics.json", "timeseries.csv", "run.mcap"} <= names
+    assert m["max_robot_position_error_m"] < 1e-9
 
 
 def test_a_writer_is_one_file(tmp_path, registries):

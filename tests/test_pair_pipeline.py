@@ -14,8 +14,9 @@ from quatform.control import CONTROLLERS
 from quatform.errors import InvalidInputError, ShapeError
 from quatform.formations import EuclideanPair, QuaternionPair, RobotSpace, RobotSpaceTeam
 from quatform.robots import HolonomicRobot, Team
-from quatform.scenarios import KINDS
-from quatform.scenarios.pair import PAIR, PairKind, Scenario, pair_csv_channels, run_pair
+from quatform.scenarios import KINDS, kind_aliases, kind_of
+from quatform.scenarios.pair import TABLE_COLUMNS, Scenario, pair_csv_channels, run_pair
+from quatform.scenarios.team import TEAM, TeamScenario
 from quatform.scenarios import load_scenario
 from quatform.sim import compute_metrics
 from quatform.report.writers import timeseries_table
@@ -34,13 +35,28 @@ def _starts(sc, offsets):
     return EuclideanPair().inverse(e0[0] + offsets)
 
 
-def test_the_pair_kind_is_registered_with_its_choices():
-    assert KINDS["pair"] is PAIR and isinstance(PAIR, PairKind) and PAIR.scenario_type is Scenario
-    opts = {o.name: o for o in PAIR.options}
-    assert opts["controller"].choices == tuple(CONTROLLERS) and opts["controller"].default is None
+def test_seed_000_files_read_into_the_team_kind_with_the_pair_chart():
+    sc = load_scenario("mas-kitts-spiral")
+    assert "pair" not in KINDS and kind_aliases()["pair"] == "team"
+    assert isinstance(sc, Scenario) and isinstance(sc, TeamScenario) and kind_of(sc) is TEAM
+    assert sc.chart == "pair" and TEAM.parts_of(sc) == "pair" and TEAM.columns_of(sc) == TABLE_COLUMNS
+    assert TEAM.compare_choices(sc, "controller") == (tuple(CONTROLLERS), {})
+    opts = {o.name: o for o in TEAM.options}
+    assert set(opts["controller"].choices) == set(CONTROLLERS) and opts["controller"].default is None
     assert opts["physics"].choices == ("kinematic", "mujoco") and opts["physics"].default == "kinematic"
     assert "backend" not in opts  # the compute backend is Experiment.run(backend=...), --compute
-    assert PAIR.compare_over == "controller" and PAIR.table_columns[0][0] == "controller"
+
+
+def test_a_file_of_kind_pair_reads_into_the_team_kind_and_a_bad_key_is_one_line(tmp_path):
+    good = tmp_path / "p.toml"
+    good.write_text('kind = "pair"\nname = "p"\nduration_s = 2.0\n[path]\nd_c = 0.5\n')
+    sc = load_scenario(good)
+    assert isinstance(sc, Scenario) and kind_of(sc) is TEAM and sc.chart == "pair" and sc.metrics_from_s == 0.0
+    bad = tmp_path / "q.toml"
+    bad.write_text('kind = "pair"\nduration_s = 2.0\n[path]\nraduis = 1.0\n')
+    with pytest.raises(InvalidInputError, match="raduis") as err:
+        load_scenario(bad)
+    assert "\n" not in str(err.value) and "radius" in str(err.value)
 
 
 @pytest.mark.parametrize("controller", list(CONTROLLERS))
@@ -121,7 +137,7 @@ _DQ = ",".join(f"qhat_{s}_{p}{c},qhat_{s}_{p}{c}_des" for s in "cs" for p in "rd
     ("dual-quaternion", f"{_ROBOTS},{_DQ},{_EUCLID},{_TAIL}"),
 ])
 def test_the_csv_header_is_todays(controller, header):
-    exp = PAIR.experiment(_short_spiral(0.05), controller=controller)
+    exp = TEAM.experiment(_short_spiral(0.05), controller=controller)
     assert exp.csv_channels == pair_csv_channels(exp.controller.formation)
     names, data = timeseries_table(exp.run(), exp.csv_channels)
     assert ",".join(names) == header and data.shape == (6, len(names))
@@ -154,15 +170,15 @@ def test_interleaved_csv_channels_must_have_one_width():
 def test_the_experiment_refuses_a_bad_physics_and_options():
     sc = _short_spiral(0.05)
     with pytest.raises(InvalidInputError, match="give a controller"):
-        PAIR.experiment(sc)
+        TEAM.experiment(sc)
     with pytest.raises(InvalidInputError, match="unknown physics 'gazebo'"):
-        PAIR.experiment(sc, controller="quaternion", physics="gazebo")
+        TEAM.experiment(sc, controller="quaternion", physics="gazebo")
     with pytest.raises(InvalidInputError, match="physics = 'mujoco' only"):
-        PAIR.experiment(sc, controller="quaternion", physics_options={"gains": {}})
+        TEAM.experiment(sc, controller="quaternion", physics_options={"gains": {}})
     with pytest.raises(InvalidInputError, match="timestep"):
-        PAIR.experiment(sc, controller="quaternion", physics="mujoco", physics_options={"timestep": 1e-3})
-    with pytest.raises(InvalidInputError, match="two-robot Scenario"):
-        PAIR.experiment("mas-kitts-spiral", controller="quaternion")
+        TEAM.experiment(sc, controller="quaternion", physics="mujoco", physics_options={"timestep": 1e-3})
+    with pytest.raises(InvalidInputError, match="must be a TeamScenario"):
+        TEAM.experiment("mas-kitts-spiral", controller="quaternion")
 
 
 def test_simulate_refuses_ticks_that_are_not_substeps_times_dt_apart():
@@ -170,10 +186,10 @@ def test_simulate_refuses_ticks_that_are_not_substeps_times_dt_apart():
     ticks 10 ms apart with dt = 0.1 ms logged t = 0.1 s for 1 ms of motion, silently."""
     from quatform.errors import InvalidInputError
     from quatform.scenarios import load_scenario
-    from quatform.scenarios.pair import PAIR
+    from quatform.scenarios.team import TEAM
     from quatform.sim import simulate
 
-    ex = PAIR.experiment(load_scenario("mas-kitts-yaw-step"), controller="quaternion")
+    ex = TEAM.experiment(load_scenario("mas-kitts-yaw-step"), controller="quaternion")
     args = (ex.plant, ex.controller, ex.reference)
     with pytest.raises(InvalidInputError, match="evenly spaced"):
         simulate(*args, ex.times[:11], ex.x0, dt=0.0001)
@@ -343,7 +359,7 @@ def test_a_description_whose_cluster_is_the_robots_leaves_it_out_of_the_csv():
 def test_a_shortened_experiment_is_finished_on_its_own_ticks():
     """``Experiment.times`` cut short (6 s, past metrics_from_s = 5 s): the finish reads the log's
     own ticks of the scenario's."""
-    ex = PAIR.experiment(load_scenario("mas-kitts-helix"), controller="quaternion")
+    ex = TEAM.experiment(load_scenario("mas-kitts-helix"), controller="quaternion")
     short = dataclasses.replace(ex, times=ex.times[:600])
     log = short.run()
     assert log["e_des"].shape == (600, 8) and log["singularity"].shape == (600, 1)

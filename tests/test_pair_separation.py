@@ -1,6 +1,6 @@
 """The two-robot formations keep robots apart where asked, and refuse robots on each other.
 
-* The pair kind's separation barrier (``[safety] min_separation_m``, ``--min-separation``):
+* The separation barrier of seed 000's files (``[safety] min_separation_m``, ``--min-separation``):
   the dual-quaternion law of seed 000 eq. (28) brings robots that start in place with their
   yaws off (by more than about 2 rad each) close together; with the barrier they never come
   within the set distance and still reach the reference.
@@ -22,8 +22,9 @@ from quatform.errors import DegenerateInputError, InvalidInputError
 from quatform.formations import TEAM_FORMATIONS, DualQuaternionPair, EuclideanPair, QuaternionPair, RobotSpace
 from quatform.formations import geometry as g
 from quatform.scenarios import load_scenario
-from quatform.scenarios import pair as pair_kind
-from quatform.scenarios.pair import PAIR, run_pair
+from quatform.scenarios.separation import separation_barrier
+from quatform.scenarios.pair import run_pair
+from quatform.scenarios.team import TEAM
 from quatform.sim import compute_metrics
 
 #: The reproducer's formation: robots 3.77 m apart (2 d_c), and its yaw-only start.
@@ -62,10 +63,10 @@ def test_the_law_alone_brings_yaw_only_starts_together():
 
 
 def test_the_reproducer_with_the_barrier_never_comes_within_the_set_distance(tmp_path):
-    """The issue's loop, the controller in a SafeController with the pair kind's barrier at
+    """The issue's loop, the controller in a SafeController with the run's barrier at
     half the separation: the robots stay 1.885 m apart or more and reach the reference."""
     sc = load_scenario(scenario_file(tmp_path))
-    C = SafeController(DualQuaternionController(), pair_kind.separation_barrier(sc, HALF))
+    C = SafeController(DualQuaternionController(), separation_barrier(HALF, sc.dt_s))
     rd = RobotSpace().from_euclidean(E)
     c, cd = C.inner.formation.from_euclidean(E, np.zeros(8))
     r, seps = rd + YAWS, []
@@ -85,7 +86,7 @@ def test_scenario_safety_table_holds_the_reproducer_apart(tmp_path):
     sc = load_scenario(scenario_file(tmp_path, f"[safety]\nmin_separation_m = {HALF}\n"))
     assert sc.safety == {"enabled": True, "min_separation_m": HALF}
     run = run_pair(sc, "dual-quaternion")
-    m = PAIR.experiment(sc, controller="dual-quaternion").metrics(run)
+    m = TEAM.experiment(sc, controller="dual-quaternion").metrics(run)
     assert m["min_robot_separation_m"] >= HALF
     assert m["safety_min_separation_m"] == HALF and 0 < m["safety_active_time_s"] < 5
     assert pair_robot_error(run["state"][-1], run["r_des"][-1]) < 1e-6
@@ -102,9 +103,9 @@ def test_random_yaw_only_starts_never_come_within_the_set_distance(tmp_path):
     rd = RobotSpace().from_euclidean(E)
     r0 = np.tile(rd, (50, 1))
     r0[:, [3, 7]] += rng.uniform(-np.pi, np.pi, (50, 2))
-    bare = PAIR.experiment(sc, controller="dual-quaternion", r0=r0).run()
+    bare = TEAM.experiment(sc, controller="dual-quaternion", r0=r0).run()
     assert np.count_nonzero(pair_separation(bare["state"]).min(axis=0) < HALF) >= 2
-    run = PAIR.experiment(sc, controller="dual-quaternion", r0=r0, min_separation=HALF).run()
+    run = TEAM.experiment(sc, controller="dual-quaternion", r0=r0, min_separation=HALF).run()
     assert pair_separation(run["state"]).min() >= HALF
     assert pair_robot_error(run["state"][-1], np.broadcast_to(rd, r0.shape)) < 1e-6
 
@@ -148,9 +149,9 @@ def test_builtin_pair_scenarios_run_without_the_barrier(scenario):
     """The seed's scenarios show the robots' own paths: no barrier unless asked."""
     sc = load_scenario(scenario)
     assert sc.safety["enabled"] is False
-    ex = PAIR.experiment(sc, controller="dual-quaternion")
+    ex = TEAM.experiment(sc, controller="dual-quaternion")
     assert isinstance(ex.controller, DualQuaternionController) and "safety" not in ex.meta
-    assert isinstance(PAIR.experiment(sc, controller="robot-space", min_separation=0.5).controller, SafeController)
+    assert isinstance(TEAM.experiment(sc, controller="robot-space", min_separation=0.5).controller, SafeController)
 
 
 def test_barrier_the_run_cannot_keep_is_refused(tmp_path):
@@ -160,7 +161,7 @@ def test_barrier_the_run_cannot_keep_is_refused(tmp_path):
         load_scenario(scenario_file(tmp_path, "[safety]\nmin_separation_m = 4.0\n"))
     sc = load_scenario(scenario_file(tmp_path))
     with pytest.raises(InvalidInputError, match=r"min_separation = 4 m"):
-        PAIR.experiment(sc, controller="quaternion", min_separation=4.0)
+        TEAM.experiment(sc, controller="quaternion", min_separation=4.0)
     with pytest.raises(InvalidInputError, match=r"'min_sep' at \[safety\].*'min_separation_m'"):
         load_scenario(scenario_file(tmp_path, "[safety]\nmin_sep = 1.0\n"))
     with pytest.raises(InvalidInputError, match=r"\[safety\] min_separation_m"):

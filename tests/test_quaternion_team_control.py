@@ -123,12 +123,12 @@ def test_pair_runs_equal_the_pair_quaternion_controller(name, duration):
 
     from quatform.control.team import TeamController
     from quatform.scenarios import load_scenario
-    from quatform.scenarios.pair import PAIR
+    from quatform.scenarios.team import TEAM
 
     sc = dataclasses.replace(load_scenario(name), duration_s=duration)
     ctrl = TeamController(QuaternionTeam(2, chart="pair"), sc.gains["quaternion"], sc.team,
                           feedforward=sc.feedforward, name="quaternion")
-    ref_exp, new_exp = PAIR.experiment(sc, controller="quaternion"), PAIR.experiment(sc, controller=ctrl)
+    ref_exp, new_exp = TEAM.experiment(sc, controller="quaternion"), TEAM.experiment(sc, controller=ctrl)
     ref_log, new_log = ref_exp.run(), new_exp.run()
     np.testing.assert_allclose(new_log["state"], ref_log["state"], rtol=0, atol=1e-12)
     mr, mn = ref_exp.metrics(ref_log), new_exp.metrics(new_log)

@@ -15,7 +15,7 @@ def _short_log(name, **options):
     sc = load_scenario(name)
     sc = dataclasses.replace(sc, duration_s=0.5, metrics_from_s=0.0)
     kind = kind_of(sc)
-    return kind.name, kind.experiment(sc, **options).run(None)
+    return kind.parts_of(sc), kind.experiment(sc, **options).run(None)
 
 
 def _entities(path):

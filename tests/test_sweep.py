@@ -70,7 +70,7 @@ def test_builtins_load_and_fit():
         est = estimate(spec, workers=2)
         assert est.seconds < 600  # the documented estimate of a built-in stays minutes
     helix = load_sweep("helix-noise-sweep")
-    assert helix.choices == tuple(KINDS["pair"].compare_choices(load_scenario("mas-kitts-helix"), "controller")[0])
+    assert helix.choices == tuple(KINDS["team"].compare_choices(load_scenario("mas-kitts-helix"), "controller")[0])
     assert max(helix.axis("noise_m").values) == pytest.approx(0.02)
     assert max(helix.axis("latency_s").values) == pytest.approx(0.05)
     assert max(load_sweep("team-size-sweep").axis("team_size").values) == 100
@@ -112,7 +112,7 @@ def test_a_clean_trial_equals_the_single_run(swept, small):
     rows = json.loads((out / "results.json").read_text())["rows"]
     sc = dataclasses.replace(load_scenario("mas-kitts-helix"), duration_s=1.0, metrics_from_s=0.5)
     for choice in small.choices:
-        exp = KINDS["pair"].experiment(sc, controller=choice)
+        exp = KINDS["team"].experiment(sc, controller=choice)
         ref = exp.metrics(exp.run())
         row = next(r for r in rows if r["controller"] == choice and r["noise_m"] == 0.0
                    and r["initial_offset_rad"] == 0.0)

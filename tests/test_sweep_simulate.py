@@ -20,7 +20,7 @@ def _batch(exp, x0):
 
 @pytest.mark.parametrize("controller", ["cluster-space", "quaternion"])
 def test_failing_worlds_are_marked_and_the_rest_go_on(helix, controller):
-    exp = KINDS["pair"].experiment(helix, controller=controller)
+    exp = KINDS["team"].experiment(helix, controller=controller)
     x0 = np.repeat(exp.x0[None], 4, axis=0)
     x0[1, 4:7] = x0[1, 0:3]  # robots on top of each other
     x0[2, 0] = np.nan  # a non-finite start
@@ -42,7 +42,7 @@ def test_failing_worlds_are_marked_and_the_rest_go_on(helix, controller):
 
 
 def test_non_finite_plant_state_is_caught(helix):
-    exp = KINDS["pair"].experiment(helix, controller="robot-space")
+    exp = KINDS["team"].experiment(helix, controller="robot-space")
 
     class Blowup:
         """The kinematic plant, except world 1 goes to infinity at the 5th step."""
@@ -72,7 +72,7 @@ def test_non_finite_plant_state_is_caught(helix):
 
 
 def test_all_worlds_failing_still_returns_a_log(helix):
-    exp = KINDS["pair"].experiment(helix, controller="quaternion")
+    exp = KINDS["team"].experiment(helix, controller="quaternion")
     x0 = np.repeat(exp.x0[None], 2, axis=0)
     x0[:, 4:7] = x0[:, 0:3]
     log = _batch(exp, x0)
@@ -81,7 +81,7 @@ def test_all_worlds_failing_still_returns_a_log(helix):
 
 
 def test_one_world_still_raises(helix):
-    exp = KINDS["pair"].experiment(helix, controller="quaternion")
+    exp = KINDS["team"].experiment(helix, controller="quaternion")
     x0 = exp.x0.copy()
     x0[4:7] = x0[0:3]
     with pytest.raises(InvalidInputError, match="coincide"):
@@ -89,17 +89,17 @@ def test_one_world_still_raises(helix):
 
 
 def test_a_clean_batch_has_no_failure_keys(helix):
-    exp = KINDS["pair"].experiment(helix, controller="dual-quaternion")
+    exp = KINDS["team"].experiment(helix, controller="dual-quaternion")
     log = _batch(exp, np.repeat(exp.x0[None], 2, axis=0))
     assert "failed" not in log.meta and "failure" not in log.meta
 
 
 @pytest.mark.parametrize("controller", ["cluster-space", "quaternion", "dual-quaternion"])
 def test_finish_reads_a_failed_world_as_nan(helix, controller):
-    """The pair kind's finish on a batch with a failed world (robots on each other; robot
+    """Seed 000's chart's finish on a batch with a failed world (robots on each other; robot
     space has no formation to lose, so its robots go on): its chart and singularity measure
     NaN from its failure on, the healthy world's as its own run."""
-    exp = KINDS["pair"].experiment(helix, controller=controller)
+    exp = KINDS["team"].experiment(helix, controller=controller)
     x0 = np.repeat(exp.x0[None], 2, axis=0)
     x0[1, 4:7] = x0[1, 0:3]
     log = dataclasses.replace(exp, x0=x0).run()

@@ -279,7 +279,7 @@ def _compare(scenario, out, options=None, over=None, plots=True, writers=None, c
                    over_spell=_dashed, **options)
     _say_options(kind, options)
     axis = over or kind.compare_over
-    print(format_table(rows, compare_columns(kind, axis)))
+    print(format_table(rows, compare_columns(kind, axis, sc)))
     drawn = ", the compare plots" if plots else ""
     print(f"\nfiles in {out}/ (one folder per {axis.replace('_', ' ')}{drawn}, comparison.md)")
     _say_recordings(writers)
@@ -358,7 +358,7 @@ def _run(args, kinds) -> None:
     writers = _writers(args)
     _, metrics = run(sc, args.out, plots=not args.no_plots, writers=writers, compute=args.compute, **options)
     _say_options(kind, options)
-    _print_run(metrics, kind.table_columns)
+    _print_run(metrics, kind.columns_of(sc))
     _say_recordings(writers)
 
 

@@ -188,7 +188,7 @@ class McapWriter(Writer):
     def write(self, run: RunFiles) -> None:
         from .bags import MCAP_FILE, SCENES, scene_of, write_foxglove_layout, write_mcap
 
-        kind = run.kind.name
+        kind = run.log.meta.get("kind", run.kind.name)  # the name its scene is registered under
         # a kind without a scene (quatform.bags.SCENES) still gets its channels, and no layout
         scene = scene_of(run.log, kind) if kind in SCENES else None
         write_mcap(run.log, run.folder / MCAP_FILE, kind=kind, scene=False if scene is None else scene)

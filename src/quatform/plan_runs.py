@@ -116,7 +116,7 @@ def meet_warning(metrics) -> str | None:
 
 def scenario_with_plan(sc, plan_file, yaws=(0.0, 0.0)):
     """Scenario ``sc`` (two robots, seed 000) with its path replaced by the saved plan
-    (:func:`quatform.scenarios.pair.with_plan`: the pair kind's ``reference`` option)."""
+    (:func:`quatform.scenarios.pair.with_plan`: the ``reference`` option of a seed-000 run)."""
     from .scenarios.pair import with_plan
 
     return with_plan(sc, plan_file, yaws)

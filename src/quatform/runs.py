@@ -110,7 +110,7 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
         metrics["compute_backend"] = compute
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
     if plots:
-        figures_of(kind.name).run(log, folder)
+        figures_of(kind.parts_of(sc)).run(log, folder)
     _picture(log, folder, plots, metrics)
     if writers is None:
         writers, _ = chosen_writers(writer_choices(), folder)
@@ -191,7 +191,7 @@ def _record(recordings: dict, logs: dict, kind, sc) -> None:
     """Every recording writer's file of ``logs``, written inside the run's staged folder: an
     interrupted or failed write leaves neither the recording nor the folder."""
     for writer, path in recordings.items():
-        writer.record(logs, path, kind.name, str(sc.name))
+        writer.record(logs, path, kind.parts_of(sc), str(sc.name))
 
 
 #: The physics every compute backend runs: the kinematic models (``--physics kinematic``).
@@ -275,7 +275,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
     if axis in given:
         raise InvalidInputError(f"{sc.name}: compare runs every {axis.replace('_', ' ')} "
                                 f"({', '.join(own[axis].choices)}); do not give {spell(own[axis])}")
-    columns = compare_columns(kind, axis)
+    columns = compare_columns(kind, axis, sc)
     simulator(compute)
     _check_physics_on(kind, sc, given, compute, over=axis)
     values, skipped = kind.compare_choices(sc, axis)
@@ -291,7 +291,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
             logs.append(log)
             rows.append({axis: value, **metrics})
         if plots:
-            figures_of(kind.name).compare(logs, tmp)
+            figures_of(kind.parts_of(sc)).compare(logs, tmp)
         table = format_table(rows, columns)
         left = "".join(f"\nNot run: {value} ({why})\n" for value, why in skipped.items())
         atomic_write_text(tmp / "comparison.md",
@@ -301,9 +301,10 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
     return rows
 
 
-def compare_columns(kind, axis: str) -> tuple:
-    """The table columns of a compare over ``axis``: the kind's, led by the axis when they lack it."""
-    columns = tuple(kind.table_columns)
+def compare_columns(kind, axis: str, scenario=None) -> tuple:
+    """The table columns of a compare over ``axis``: the kind's (of ``scenario``:
+    :meth:`~quatform.scenarios.ScenarioKind.columns_of`), led by the axis when they lack it."""
+    columns = tuple(kind.table_columns if scenario is None else kind.columns_of(scenario))
     if axis in [key for key, _, _ in columns]:
         return columns
     return ((axis, axis.replace("_", " "), "{}"), *columns)

@@ -228,7 +228,7 @@ class DualQuaternionController(ClusterController):
     the shape's translation error (robot 2's yaw error turning the relative position) is
     corrected along a chord and the robots can come arbitrarily close. To hold them apart
     wrap it: ``SafeController(DualQuaternionController(), SeparationBarrier(d, dt_s=dt))``
-    (:mod:`quatform.control.safety`; the pair kind's ``[safety] min_separation_m``,
+    (:mod:`quatform.control.safety`; a seed-000 file's ``[safety] min_separation_m``,
     ``docs/derivations.md``, "The dual-quaternion pair's yaw-only starts").
 
     Parameters

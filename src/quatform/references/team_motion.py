@@ -138,7 +138,7 @@ class OriginPath:
         if self.kind == "line":
             p += t[..., None] * self.velocity
             v[...] = self.velocity
-        elif self.kind == "spiral":  # seed 000 §4.1 (the pair kind's circle)
+        elif self.kind == "spiral":  # seed 000 §4.1 (the circle of its two-robot files)
             w = 2.0 * np.pi / self.period_s
             c, s = np.cos(w * t), np.sin(w * t)
             p[..., 0] += self.radius * c

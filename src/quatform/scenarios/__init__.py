@@ -22,11 +22,12 @@ from ..tomlio import builtin_files, read_toml
 from ..registry import import_package_modules
 from .base import KINDS, Experiment, Option, ScenarioKind
 
-#: The kind of a scenario file without a ``kind`` key (seed 000's two robots).
+#: The ``kind`` of a scenario file without a ``kind`` key: seed 000's two robots, an alias the
+#: team kind reads (:attr:`ScenarioKind.aliases`).
 DEFAULT_KIND = "pair"
 
 __all__ = ["Experiment", "Option", "ScenarioKind", "KINDS", "DEFAULT_KIND", "load_scenario", "builtin_scenarios",
-           "kind_of", "kind_named"]
+           "kind_of", "kind_aliases"]
 
 
 def builtin_scenarios() -> dict[str, Path]:
@@ -46,12 +47,21 @@ def load_scenario(name_or_file):
     -------
     object
         The scenario value of the file's kind (``KINDS[kind].scenario_type``): the ``kind``
-        key selects the kind (``pair`` when absent), whose strict reader refuses unknown keys
-        and bad values with one line naming the key.
+        key selects the kind (``pair`` when absent, an alias of the team kind:
+        :func:`kind_aliases`), whose strict reader refuses unknown keys and bad values with
+        one line naming the key.
     """
     data, p = read_toml(name_or_file, builtin_scenarios(), "scenario")
     where = str(p)
-    return KINDS[text(data, "kind", where, DEFAULT_KIND, choices=KINDS)].from_dict(data, where)
+    aliases = kind_aliases()
+    name = text(data, "kind", where, DEFAULT_KIND, choices=(*KINDS, *aliases))
+    return KINDS[aliases.get(name, name)].from_dict(data, where)
+
+
+def kind_aliases() -> dict[str, str]:
+    """``{alias: kind name}``: the other ``kind`` values each registered kind reads
+    (:attr:`ScenarioKind.aliases`)."""
+    return {alias: name for name, kind in KINDS.items() for alias in kind.aliases}
 
 
 def kind_of(scenario) -> ScenarioKind:

@@ -186,6 +186,19 @@ class ScenarioKind(ABC):
     compare_over: str | None = None
     #: Columns of the comparison table: (metrics key, header, format).
     table_columns: tuple = ()
+    #: Other values of the TOML ``kind`` key whose files this kind reads.
+    aliases: tuple = ()
+
+    def parts_of(self, scenario) -> str:
+        """The name ``scenario``'s figures (:data:`quatform.report.FIGURES`), bag scene
+        (:data:`quatform.bags.scene.SCENES`) and sweep adapter
+        (:data:`quatform.sweeps.trials.SWEEP_KINDS`) are registered under: the kind's own name
+        (the team kind's seed-000 files: ``"pair"``)."""
+        return self.name
+
+    def columns_of(self, scenario) -> tuple:
+        """The comparison table's columns of ``scenario`` (default :attr:`table_columns`)."""
+        return self.table_columns
 
     @abstractmethod
     def from_dict(self, data: dict, where: str):

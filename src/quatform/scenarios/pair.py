@@ -1,16 +1,21 @@
-"""The two-robot (pair) scenario kind of seed 000: its files, its runs, its metrics.
+"""Seed 000's two-robot scenario files, read into the team kind in seed 000's variables.
 
-Scenarios layer (above sim, below report and runs). A pair scenario file states a motion,
-the robots, the gains and the run (``docs/scenarios.md``); ``kind = "pair"`` is the default
-when a file names no kind. Every key is read with the shared typed readers of
+Scenarios layer (above sim, below report and runs). A seed-000 file (no ``kind`` key, or
+``kind = "pair"``) states a motion in seed 000's Euclidean cluster variables, the robots, the
+gains and the run (``docs/scenarios.md``); :func:`scenario_from_dict` reads it into a
+:class:`Scenario`, a :class:`~quatform.scenarios.team.TeamScenario` of two ``xyz_yaw``
+holonomic robots whose motion (:class:`PairMotion`) is the Euclidean path and whose initial
+offset is in Euclidean variables. Every key is read with the shared typed readers of
 :mod:`quatform.checks`: an unknown key names the nearest valid one, a wrong type, NaN,
 infinity or an out-of-range number is refused naming the key, and a run too long for this
 machine is refused before it starts (:func:`check_scenario_work`).
 
-:class:`PairKind` builds the :class:`~quatform.scenarios.base.Experiment` of a scenario and a
-controller: the kinematic team plant (:class:`~quatform.sim.plants.KinematicTeam`), the
-controller with the scenario's gains, the sampled reference and the initial state (one
-world, or a batch of worlds with leading axes on ``r0``); :func:`run_pair` runs it.
+:class:`~quatform.scenarios.team.TeamKind` runs it; :class:`PairChartParts` are the steps of
+its run that seed 000's chart decides (registered in
+:data:`~quatform.scenarios.team.TEAM_CHARTS` as ``"pair"``): the four seed-000 controllers
+(:data:`~quatform.control.CONTROLLERS`, whose descriptions are the pair presets), the start
+and the desired robots from the Euclidean variables, the two IRIS quadrotors of MuJoCo
+physics, the derived channels (``euclid_*``), the CSV channels and the table's columns.
 """
 
 from __future__ import annotations
@@ -24,21 +29,19 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import check_keys, check_within_run, check_work, flag, number, records, short, table, text, vector
-from ..control import CONTROLLERS, TABLE1, TABLE2, Reference, SafeController, SeparationBarrier
+from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError
 from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
 from ..references import EuclideanPath, Ramp, Step as StepChange
 from ..robots import HolonomicRobot, Team
 from ..sim.log import Channel, Log
-from ..sim.metrics import EUCLIDEAN_CHART, compute_metrics
-from ..sim.plants import KinematicTeam
-from . import KINDS
-from .base import Experiment, Option, ScenarioKind
-from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table, with_option
+from ..sim.metrics import EUCLIDEAN_CHART
+from .separation import DEFAULT_MIN_SEPARATION_M, SAFETY_KEYS, safety_table
+from .team import TEAM, TeamChartParts, TeamScenario, check_step_stable
 
-__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_step_stable", "check_barrier_reference",
-           "separation_barrier", "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
-           "SECONDS_PER_STEP", "PairKind", "PAIR", "TABLE_COLUMNS", "PHYSICS", "run_pair", "simulate_physics",
+__all__ = ["Scenario", "scenario_from_dict", "check_scenario_work", "check_barrier_reference",
+           "DEFAULT_MIN_SEPARATION_M", "BYTES_PER_STEP",
+           "SECONDS_PER_STEP", "PairMotion", "PairChartParts", "TABLE_COLUMNS", "run_pair", "simulate_physics",
            "with_plan", "PAIR_CSV_CHANNELS", "pair_csv_channels", "PLAN_RUN_BYTES_PER_STEP",
            "PLAN_RUN_SECONDS_PER_STEP"]
 
@@ -104,34 +107,11 @@ def _last_step(duration_s: float, dt_s: float) -> int:
     return int(math.floor(duration_s / dt_s + _STEP_SLACK))
 
 
-def _largest_gain(where: str, gains: dict) -> float:
-    """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
-    try:
-        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
-    return max(vals, default=0.0)
-
-
-def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
-    """Refuse a ``dt_s`` at which the explicit Euler loop of a proportional law diverges.
-
-    Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
-    (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
-    by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
-    largest gain of any controller the scenario can run (``docs/derivations.md``, "The
-    two-robot scenario loader (seed 000)")."""
-    k = _largest_gain(where, gains)
-    if k * dt_s >= 2.0:
-        raise InvalidInputError(
-            f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
-            f">= 2: the discrete control loop would be unstable; use dt_s < {2.0 / k:.3g} s (smaller gains "
-            "allow a larger step)")
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """A two-robot run's definition (seed 000; see ``docs/scenarios.md``).
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Scenario(TeamScenario):
+    """A seed-000 run's definition: a team scenario of two ``xyz_yaw`` robots whose motion is
+    seed 000's Euclidean path (:class:`PairMotion`, chart ``"pair"``; ``docs/scenarios.md``).
+    Its fields other than these are keywords, as :class:`~quatform.scenarios.team.TeamScenario`'s.
 
     Attributes
     ----------
@@ -155,13 +135,13 @@ class Scenario:
         Max errors are taken from this time on (``0 <= metrics_from_s <=`` the last sample).
     feedforward : bool
         Whether the controllers feed the reference's rate forward (default of
-        :meth:`controller` and :meth:`PairKind.experiment`).
+        :meth:`controller` and :meth:`~quatform.scenarios.team.TeamKind.experiment`).
     safety : dict
         ``enabled`` (bool) and ``min_separation_m`` (m, > 0): the controller's commands pass
         through the separation barrier (:class:`~quatform.control.SeparationBarrier`), which
         holds the robots at least ``min_separation_m`` apart. Off unless the file has a
         ``[safety]`` table (the seed's runs show the robots' own paths, e.g. Fig. 4b's
-        robot-space robots crossing); :func:`separation_barrier` and ``docs/scenarios.md`` say
+        robot-space robots crossing); :func:`~quatform.scenarios.separation.separation_barrier` and ``docs/scenarios.md`` say
         which starts need it.
 
     Raises
@@ -171,18 +151,17 @@ class Scenario:
         when ``duration_s / dt_s`` steps cannot fit in memory or the time budget.
     """
 
-    name: str
     path: EuclideanPath
-    duration_s: float
-    dt_s: float = 0.01
-    title: str = ""
-    source: str = ""
     team: Team = Team()
+    motion: PairMotion = field(default=None, init=False)
     initial_offset: np.ndarray = field(default_factory=lambda: np.zeros(8))
     gains: dict = field(default_factory=lambda: TABLE1)
     metrics_from_s: float = 5.0
     feedforward: bool = True
     safety: dict = field(default_factory=lambda: {"enabled": False, "min_separation_m": DEFAULT_MIN_SEPARATION_M})
+
+    #: Seed 000's Euclidean variables (:data:`~quatform.scenarios.team.TEAM_CHARTS` ``"pair"``).
+    chart = "pair"
 
     def __post_init__(self):
         where = f"scenario {self.name!r}"
@@ -208,13 +187,10 @@ class Scenario:
         if off.shape != (8,) or not np.all(np.isfinite(off)):
             raise InvalidInputError(f"{where}: initial_offset must be 8 finite numbers, got {short(self.initial_offset)}")
         object.__setattr__(self, "initial_offset", off)
-
-    @property
-    def times(self) -> np.ndarray:
-        """Sample times ``0, dt_s, ..., n dt_s``, s, ``n = floor(duration_s / dt_s)``: the run
-        never goes past ``duration_s``."""
-        n = _last_step(self.duration_s, self.dt_s)
-        return np.minimum(np.arange(n + 1) * self.dt_s, self.duration_s)
+        if not isinstance(self.team, Team) or self.team.layout.kinds != ("xyz_yaw", "xyz_yaw"):
+            raise InvalidInputError(f"{where}: team must be two xyz_yaw robots (a robots.Team), got {short(self.team)}")
+        object.__setattr__(self, "motion", PairMotion(self.path, self.team.layout))
+        super().__post_init__()
 
     def controller(self, name: str, feedforward: bool | None = None):
         """The controller ``name`` with this scenario's gains and robots; ``feedforward``
@@ -315,21 +291,6 @@ def check_barrier_reference(sc: Scenario, d: float, where: str, label: str, e_de
     if sep[k] < d:
         raise InvalidInputError(f"{where}: the reference brings the robots to {sep[k]:.4g} m at t = {t[k]:g} s, below "
                                 f"{label} = {d:g} m (the barrier would hold them apart); raise d_c or lower it")
-
-
-def separation_barrier(sc: Scenario, d: float) -> SeparationBarrier:
-    """The barrier a pair run of ``sc`` with ``min_separation_m = d`` filters its commands
-    through: the team kind's (Wang, Ames and Egerstedt 2017; :mod:`quatform.control.safety`),
-    its rate ``gamma`` at most ``1 / dt_s`` so that the sampled robots keep ``h >= 0``.
-
-    Which starts need it: under the dual-quaternion law (seed 000 eq. (28)) a start with
-    the robots in place and their yaws off by more than about 2 rad each (within +-pi) can
-    bring them arbitrarily close (the shape ``qhat_s`` carries robot 2's yaw error as a
-    rotation of the relative position, corrected along a chord; ``docs/derivations.md``,
-    "The dual-quaternion pair's yaw-only starts"); the robot-space law drives robots straight
-    through each other's paths (seed 000 Fig. 4b).
-    """
-    return SeparationBarrier(d, gamma=min(SeparationBarrier.gamma, 1.0 / sc.dt_s), dt_s=sc.dt_s)
 
 
 #: Keys of ``[path]`` that only one centroid kind uses (seed 000 §4: the circle of §4.1, the
@@ -463,10 +424,7 @@ def _gain(d: dict, key: str, n: int, where: str, place: str):
     return vals if n > 1 and isinstance(v, list) else vals[0]
 
 
-# --------------------------------------------------------------------------- the kind
-
-#: What moves the robots: their kinematic models, or MuJoCo physics (two quadrotors).
-PHYSICS = ("kinematic", "mujoco")
+# --------------------------------------------------------------------------- the chart
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
@@ -524,132 +482,102 @@ def with_plan(sc: Scenario, plan_file, yaws=(0.0, 0.0)) -> Scenario:
                                metrics_from_s=sc.metrics_from_s if sc.metrics_from_s < T else 0.0)
 
 
-class PairKind(ScenarioKind):
-    """Seed 000's two holonomic robots under one of the four formation controllers."""
+@dataclass(frozen=True)
+class PairMotion:
+    """Seed 000's motion of two robots: ``t -> (e, e_dot)`` in the Euclidean cluster variables
+    ``(x_c, y_c, z_c, beta_c, gamma_c, d_c, phi_1, phi_2)`` (seed 000 eqs. (1)-(8)).
+
+    Attributes
+    ----------
+    path : callable
+        An :class:`~quatform.references.EuclideanPath`, or a plan's
+        :class:`~quatform.planning.PlanPairPath`.
+    layout : RobotLayout
+        The two ``xyz_yaw`` robots.
+    """
+
+    path: object
+    layout: object
+
+    def __call__(self, t):
+        return self.path(t)
+
+
+class PairChartParts(TeamChartParts):
+    """The steps of a team run that seed 000's chart decides (:class:`~quatform.scenarios.team.TeamChartParts`)."""
 
     name = "pair"
-    scenario_type = Scenario
-    options = (
-        Option("controller", "formation controller (seed 000; required)", tuple(CONTROLLERS), None),
-        Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
-        Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", PHYSICS, "kinematic"),
-        Option("reference", "a plan.npz (quatform plan) to follow instead of the scenario's path: two robots for a "
-               "pair scenario, N for a team", None, None, str),
-        Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
-               "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
-    )
-    compare_over = "controller"
     table_columns = TABLE_COLUMNS
+    motion_types = (PairMotion,)
 
-    def from_dict(self, data: dict, where: str) -> Scenario:
-        return scenario_from_dict(data, where)
+    def controllers(self) -> tuple:
+        return tuple(CONTROLLERS)
 
-    def experiment(self, scenario: Scenario, controller=None, feedforward: bool | None = None,
-                   physics: str = "kinematic", reference=None, r0=None, physics_options: dict | None = None,
-                   min_separation: float | None = None) -> Experiment:
-        """The run of ``scenario`` with ``controller`` (a name of :data:`~quatform.control.CONTROLLERS`
-        or a controller object; required).
-
-        Parameters
-        ----------
-        feedforward : bool, optional
-            For a controller given by name: feed the reference's rate forward; default: the
-            scenario's (an object keeps its own).
-        physics : str
-            ``"kinematic"`` (the robots' models, :class:`~quatform.sim.plants.KinematicTeam`)
-            or ``"mujoco"`` (two IRIS quadrotors, :func:`quatform.sim.mujoco_backend.pair_plant`;
-            a controller given by name gets the physics gains; ``log.meta["physics_record"]``
-            is the run's :class:`~quatform.sim.mujoco_backend.PhysicsRecord`).
-        reference : str or path, optional
-            A saved two-robot plan to follow (:func:`with_plan`).
-        r0 : array_like, shape (*batch, 8), optional
-            Initial robot state of each world (leading axes: a batch of worlds run at once,
-            kinematic physics only); default the reference at ``t = 0`` displaced by
-            ``initial_offset`` (Euclidean variables).
-        physics_options : dict, optional
-            For ``physics="mujoco"``: ``gains`` (of
-            :func:`~quatform.sim.mujoco_backend.physics_controller`) and ``cascade_options``
-            (of :func:`~quatform.sim.mujoco_backend.pair_plant`).
-        min_separation : float, optional
-            Hold the robots at least this far apart, m (> 0; 0 turns the barrier off): the
-            controller in a :class:`~quatform.control.SafeController` with
-            :func:`separation_barrier`. Default: the scenario's ``safety``. The run then logs
-            ``min_separation`` and ``safety_active`` and its metrics hold
-            ``safety_min_separation_m`` and ``safety_active_time_s`` (the time any world's
-            commands were filtered, s).
-        """
-        if not isinstance(scenario, Scenario):
-            raise InvalidInputError(f"pair experiment: scenario must be a two-robot Scenario, got "
-                                    f"{type(scenario).__name__}")
-        if controller is None:
-            raise InvalidInputError(f"{scenario.name} is a two-robot scenario: give a controller "
-                                    f"(--controller {{{','.join(CONTROLLERS)}}})")
-        if physics not in PHYSICS:
-            raise InvalidInputError(f"unknown physics {physics!r}; choose one of {', '.join(PHYSICS)}")
-        physics_options = dict(physics_options or {})
-        check_keys(physics_options, ("gains", "cascade_options"), f"scenario {scenario.name!r}", "physics options",
+    def physics_options(self, sc, physics: str, options: dict | None) -> dict:
+        """``gains`` (of :func:`~quatform.sim.mujoco_backend.physics_controller`) and
+        ``cascade_options`` (of :func:`~quatform.sim.plants.mujoco.pair_plant`), for
+        ``physics="mujoco"`` only."""
+        options = dict(options or {})
+        check_keys(options, ("gains", "cascade_options"), f"scenario {sc.name!r}", "physics options",
                    "see quatform.sim.mujoco_backend.pair_plant")
-        if physics_options and physics != "mujoco":
-            raise InvalidInputError(f"physics options {sorted(physics_options)} apply to physics = 'mujoco' only")
-        safety, label = with_option(scenario.safety, min_separation, f"scenario {scenario.name!r}")
-        if reference is not None:
-            scenario = with_plan(scenario, reference)
-        # up front, before the reference is sampled (a Scenario checks this when built; its
-        # fields may have been swapped since by object.__setattr__)
-        check_scenario_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s)
-        t = scenario.times
-        e_des, ed_des = scenario.path(t)  # references.sample_reference, the chart part first
-        if safety["enabled"]:  # a given r0 is checked by SafeController's first update
-            check_barrier_reference(scenario, safety["min_separation_m"], f"scenario {scenario.name!r}", label,
-                                    e_des, t, start=r0 is None)
-        if r0 is None:
-            r0 = EuclideanPair().inverse(e_des[0] + scenario.initial_offset)
-        x0 = np.array(r0, dtype=float)
-        meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
-                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "physics": physics,
-                "physics_label": "kinematic"}
-        if physics == "mujoco":
-            from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
-            from ..sim.plants import mujoco as mjp
+        if options and physics != "mujoco":
+            raise InvalidInputError(f"physics options {sorted(options)} apply to physics = 'mujoco' only")
+        return options
 
-            ctrl, gains, source = mj.physics_controller(scenario, controller, feedforward, physics_options.get("gains"))
-            plant = mjp.pair_plant(scenario, x0, cascade_options=physics_options.get("cascade_options"))
-            meta["physics_label"] = mj.PHYSICS_LABEL
+    def with_plan(self, sc, plan_file):
+        return with_plan(sc, plan_file)
 
-            def record(log: Log) -> dict:
-                rec = mjp.physics_record(plant, log, f"{scenario.name}: {ctrl.name} controller", gains, source)
-                return {"physics_record": rec}
+    def check_work(self, sc) -> None:
+        # up front, before the reference is sampled (its fields may have been swapped since)
+        check_scenario_work(f"scenario {sc.name!r}", sc.duration_s, sc.dt_s)
 
-            def physics_metrics(log: Log) -> dict:
-                return {**mjp.physics_metrics(plant), **log.meta["physics_record"].metrics()}
-        else:
-            ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
-            plant = KinematicTeam(ctrl.team)
+    def check_barrier(self, sc, d: float, label: str, e_des, t, start: bool) -> None:
+        check_barrier_reference(sc, d, f"scenario {sc.name!r}", label, e_des, t, start=start)
 
-            def record(log: Log) -> dict:
-                return {}
+    def start(self, sc, e_des) -> np.ndarray:
+        """The reference at ``t = 0`` displaced by ``initial_offset`` (Euclidean variables)."""
+        return EuclideanPair().inverse(e_des[0] + sc.initial_offset)
 
-            def physics_metrics(log: Log) -> dict:
-                return {}
+    def robots(self, sc, e_des) -> np.ndarray:
+        return RobotSpace().from_chart(e_des)
+
+    def plant(self, sc, controller, feedforward, physics: str, x0, options: dict):
+        """On ``physics="mujoco"`` two IRIS quadrotors (:func:`quatform.sim.plants.mujoco.pair_plant`),
+        a controller given by name with the physics gains
+        (:func:`~quatform.sim.mujoco_backend.physics_controller`)."""
+        if physics != "mujoco":
+            return super().plant(sc, controller, feedforward, physics, x0, options)
+        from ..sim import mujoco_backend as mj  # MuJoCo only when asked for
+        from ..sim.plants import mujoco as mjp
+
+        ctrl, gains, source = mj.physics_controller(sc, controller, feedforward, options.get("gains"))
+        plant = mjp.pair_plant(sc, x0, cascade_options=options.get("cascade_options"))
+
+        def record(log: Log, c) -> dict:
+            return {"physics_record": mjp.physics_record(plant, log, f"{sc.name}: {c.name} controller", gains, source)}
+
+        def physics_metrics(log: Log) -> dict:
+            return {**mjp.physics_metrics(plant), **log.meta["physics_record"].metrics()}
+
+        return ctrl, plant, record, physics_metrics
+
+    def meta(self, sc, ctrl, safety: dict) -> dict:
+        return {"layout": ctrl.team.layout, "team": ctrl.team, "chart": EUCLIDEAN_CHART,
+                **({"safety": safety} if safety["enabled"] else {})}
+
+    def finisher(self, sc, ctrl, t, e_des, c_des, r_des, record):
+        """``finish(log) -> log`` adding the desired robots and cluster variables, the Euclidean
+        variables recovered by the controller's description (``euclid_*``), the desired ones and
+        the singularity measure, on any leading batch axes."""
         F = ctrl.formation
-        c_des, cd_des = F.from_chart(e_des, ed_des)
-        r_des = RobotSpace().from_chart(e_des)
-        meta.update(formation=F.name, cluster_variables=F.variables,
-                    feedforward=bool(ctrl.feedforward))
-        if safety["enabled"]:  # the barrier filters the controller's commands (SafeController)
-            ctrl = SafeController(ctrl, separation_barrier(scenario, safety["min_separation_m"]), ctrl.team)
-            meta["safety"] = safety
-
-        def reference_at(k):
-            return Reference(c_des[k], cd_des[k], r_des[k])
 
         def finish(log: Log) -> Log:
             r, c = log["state"], log["cluster"]
             shape = r.shape[:-1]
             k = np.minimum(np.searchsorted(t, log.t), t.size - 1)  # the log's own ticks of the scenario's
             if not np.array_equal(t[k], log.t):
-                raise InvalidInputError(f"scenario {scenario.name!r}: the log's times are not the scenario's "
-                                        f"ticks (dt_s = {scenario.dt_s:g} s from 0 to {t[-1]:g} s)")
+                raise InvalidInputError(f"scenario {sc.name!r}: the log's times are not the scenario's "
+                                        f"ticks (dt_s = {sc.dt_s:g} s from 0 to {t[-1]:g} s)")
             ed, cd, rd = (np.broadcast_to(a[k].reshape((k.size,) + (1,) * (r.ndim - 2) + a.shape[1:]),
                                           shape + a.shape[1:]) for a in (e_des, c_des, r_des))
             held = ~np.all(np.isfinite(c), axis=-1)  # a failed world's samples (sim.simulate: signals NaN)
@@ -662,45 +590,35 @@ class PairKind(ScenarioKind):
             names = [v.name for v in F.variables]
             euclid = ["euclid_" + v.name for v in EUCLIDEAN_VARIABLES]
             log = log.with_channels(
-                *_channels(("r_des", [n + "_des" for n in log.columns("state")], rd),
-                           ("c_des", [n + "_des" for n in names], cd),
-                           ("e", euclid, e), ("e_des", [n + "_des" for n in euclid], ed),
-                           ("singularity", ["singularity_measure"], np.asarray(sing)[..., None])))
-            return log.with_channels(**record(log), layout=ctrl.team.layout, team=ctrl.team, chart=EUCLIDEAN_CHART)
+                Channel("r_des", tuple(n + "_des" for n in log.columns("state")), rd),
+                Channel("c_des", tuple(n + "_des" for n in names), cd),
+                Channel("e", tuple(euclid), e), Channel("e_des", tuple(n + "_des" for n in euclid), ed),
+                Channel("singularity", ("singularity_measure",), np.asarray(sing)[..., None]))
+            return log.with_channels(**({} if record is None else record(log, ctrl)))
 
-        def metrics(log: Log) -> dict:
-            return {**compute_metrics(log), **physics_metrics(log)}
+        return finish
 
-        csv = pair_csv_channels(F) + (("min_separation", "safety_active") if safety["enabled"] else ())
-        return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl,
-                          reference=reference_at, times=t, x0=x0, dt=scenario.dt_s, finish=finish,
-                          metrics=metrics, csv_channels=csv, meta=meta)
-
-
-def _channels(*specs):
-    return [Channel(name, tuple(cols), data) for name, cols, data in specs]
-
-
-#: The pair kind (registered in :data:`quatform.scenarios.KINDS`).
-PAIR = KINDS[PairKind.name]
+    def csv_channels(self, sc, ctrl) -> tuple:
+        return pair_csv_channels(ctrl.formation)
 
 
 def run_pair(scenario: Scenario, controller, feedforward: bool | None = None, r0=None,
              progress=None) -> Log:
     """The complete log of ``scenario`` run with ``controller`` on the kinematic robots
-    (:meth:`PairKind.experiment` then :meth:`~quatform.scenarios.base.Experiment.run`)."""
-    return PAIR.experiment(scenario, controller=controller, feedforward=feedforward, r0=r0).run(progress)
+    (:meth:`~quatform.scenarios.team.TeamKind.experiment` then
+    :meth:`~quatform.scenarios.base.Experiment.run`)."""
+    return TEAM.experiment(scenario, controller=controller, feedforward=feedforward, r0=r0).run(progress)
 
 
 def simulate_physics(scenario: Scenario, controller, feedforward: bool | None = None, progress=None,
                      cascade_options: dict | None = None, gains: dict | None = None):
     """A seed 000 scenario on two simulated IRIS quadrotors (MuJoCo): ``(log, PhysicsRecord)``.
 
-    :meth:`PairKind.experiment` with ``physics="mujoco"``; ``controller`` a name (its gains
+    :meth:`~quatform.scenarios.team.TeamKind.experiment` with ``physics="mujoco"``; ``controller`` a name (its gains
     from :func:`~quatform.sim.mujoco_backend.physics_gains`, or ``gains``) or a controller
     object; ``feedforward`` ``None`` keeps the scenario's.
     """
     options = {k: v for k, v in (("cascade_options", cascade_options), ("gains", gains)) if v is not None}
-    log = PAIR.experiment(scenario, controller=controller, feedforward=feedforward, physics="mujoco",
+    log = TEAM.experiment(scenario, controller=controller, feedforward=feedforward, physics="mujoco",
                           physics_options=options).run(progress)
     return log, log.meta["physics_record"]

@@ -2,9 +2,9 @@
 
 Scenarios layer. A scenario file's ``[safety]`` table (``enabled``, ``min_separation_m``)
 and a run's ``min_separation`` option (``--min-separation X``: X m, 0 turns the barrier
-off, the file's table otherwise) read the same way for the pair and the team kinds; each
-kind checks the setting against its own reference (the pair's ``2 d_c``, the team's
-pairwise separations).
+off, the file's table otherwise) read the same way for every kind that holds robots apart;
+each checks the setting against its own reference (seed 000's ``2 d_c``, a team's pairwise
+separations), and :func:`separation_barrier` is the filter a run passes its commands through.
 """
 
 from __future__ import annotations
@@ -13,9 +13,11 @@ import math
 import numbers
 
 from ..checks import check_keys, flag, number, short, table
+from ..control.safety import SeparationBarrier
 from ..errors import InvalidInputError
 
-__all__ = ["SAFETY_KEYS", "DEFAULT_MIN_SEPARATION_M", "FILE_LABEL", "OPTION_LABEL", "safety_table", "with_option"]
+__all__ = ["SAFETY_KEYS", "DEFAULT_MIN_SEPARATION_M", "FILE_LABEL", "OPTION_LABEL", "safety_table", "with_option",
+           "separation_barrier"]
 
 #: The keys of a ``[safety]`` table.
 SAFETY_KEYS = ("enabled", "min_separation_m")
@@ -51,3 +53,19 @@ def with_option(safety: dict, min_separation, where: str) -> tuple[dict, str]:
                                 "m >= 0 (0 turns the separation barrier off)")
     safety.update(enabled=min_separation > 0, min_separation_m=float(min_separation or safety["min_separation_m"]))
     return safety, OPTION_LABEL
+
+
+def separation_barrier(d: float, dt_s: float) -> SeparationBarrier:
+    """The barrier a run of step ``dt_s`` (s) with ``min_separation_m = d`` filters its
+    commands through (Wang, Ames and Egerstedt 2017; :mod:`quatform.control.safety`): its rate
+    ``gamma`` at most ``1 / dt_s``, so that the sampled robots keep ``h_{k+1} >= (1 - gamma dt)
+    h_k >= 0``.
+
+    Which starts of seed 000's files need it: under the dual-quaternion law (seed 000 eq.
+    (28)) a start with the robots in place and their yaws off by more than about 2 rad each
+    (within +-pi) can bring them arbitrarily close (the shape ``qhat_s`` carries robot 2's yaw
+    error as a rotation of the relative position, corrected along a chord;
+    ``docs/derivations.md``, "The dual-quaternion pair's yaw-only starts"); the robot-space law
+    drives robots straight through each other's paths (seed 000 Fig. 4b).
+    """
+    return SeparationBarrier(d, gamma=min(SeparationBarrier.gamma, 1.0 / dt_s), dt_s=dt_s)

@@ -44,7 +44,7 @@ from ..checks import (
 )
 from ..control import TEAM_CONTROLLERS, Reference, team_controller
 from ..control.team import check_gain, team_descriptions, team_gain_sizes
-from ..control.safety import SafeController, SeparationBarrier, start_floor
+from ..control.safety import SafeController, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
 from ..formations.team_chart import check_template
@@ -64,19 +64,19 @@ from ..references.team_motion import (
     Turn,
     template_positions,
 )
-from ..registry import RegistryView
+from ..registry import Registry, RegistryView
 from ..robots import Team, file_models
 from ..sim.log import Channel, Log
 from ..sim.plants import KinematicTeam
 from ..sim.metrics import TEAM_CHART, compute_metrics, min_separations
 from . import KINDS
 from .base import Experiment, Option, ScenarioKind, finish_worlds
-from .separation import FILE_LABEL, safety_table, with_option
+from .separation import FILE_LABEL, safety_table, separation_barrier, with_option
 
 __all__ = ["TeamScenario", "RobotGroupSpec", "TeamKind", "TEAM", "team_scenario_from_dict",
            "TEAM_TABLES", "TEAM_TABLE_COLUMNS", "TEAM_PHYSICS", "TEAM_BYTES_PER_ROBOT_STEP",
            "TEAM_SECONDS_PER_ROBOT_STEP", "check_team_work", "singularity_samples", "available_controllers",
-           "with_plan"]
+           "with_plan", "TeamChartParts", "TEAM_CHARTS", "check_step_stable"]
 
 _HINT = "see docs/scenarios.md, team scenarios"
 
@@ -169,6 +169,9 @@ class TeamScenario:
     safety: dict = field(default_factory=lambda: {"enabled": True, "min_separation_m": 0.3})
     reference: dict = field(default_factory=lambda: {"time_scale": 1.0, "altitude_m": 0.0, "headings": 0.0})
 
+    #: The chart its motion is stated in (the key of its parts in :data:`TEAM_CHARTS`).
+    chart = "team"
+
     def __post_init__(self):
         where = f"scenario {self.name!r}"
         for key in ("duration_s", "dt_s", "metrics_from_s"):
@@ -177,13 +180,14 @@ class TeamScenario:
         number({"dt_s": self.dt_s}, "dt_s", where, low=0.0, low_open=True, high=self.duration_s)
         if not isinstance(self.team, Team):
             raise InvalidInputError(f"{where}: team must be a robots.Team, got {type(self.team).__name__}")
-        check_team_work(where, self.duration_s, self.dt_s, self.team.layout.n)
+        TEAM_CHARTS[self.chart].check_work(self)
         check_within_run(where, "metrics_from_s", self.metrics_from_s, self.duration_s,
                          _last_step(self.duration_s, self.dt_s) * self.dt_s,
                          "no sample is measured and every error would read 0")
-        if not isinstance(self.motion, (TeamMotion, PlanMotion)):
-            raise InvalidInputError(f"{where}: motion must be a TeamMotion or a PlanMotion (quatform.references."
-                                    f"team_motion), got {type(self.motion).__name__}")
+        types = TEAM_CHARTS[self.chart].motion_types
+        if not isinstance(self.motion, types):
+            raise InvalidInputError(f"{where}: motion must be a {' or a '.join(m.__name__ for m in types)}, got "
+                                    f"{type(self.motion).__name__}")
         if self.motion.layout != self.team.layout:
             raise InvalidInputError(f"{where}: the motion is of robots {self.motion.layout.kinds}, the team offers "
                                     f"{self.team.layout.kinds}; build both from one layout")
@@ -379,6 +383,31 @@ def _headings(data: dict, where: str, n: int) -> Headings:
     return Headings(mode, np.array(vals))
 
 
+def _largest_gain(where: str, gains: dict) -> float:
+    """Largest gain, 1/s, over every controller's gains in ``gains`` (scalars or lists)."""
+    try:
+        vals = [float(x) for g in gains.values() for v in g.values() for x in np.ravel(v)]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: gains = {short(gains)} must hold numbers (seed 000 Tables 1-2)") from None
+    return max(vals, default=0.0)
+
+
+def check_step_stable(where: str, dt_s: float, gains: dict) -> None:
+    """Refuse a ``dt_s`` at which the explicit Euler loop of a proportional law diverges.
+
+    Every controller here commands ``c_dot = -k (c - c_des)`` (seed 000 Fig. 2; eqs. (20),
+    (28) with ``k`` on the quaternion error's vector part); one Euler step multiplies the error
+    by ``1 - k dt_s``, which shrinks it only while ``k dt_s < 2``. The bound is taken on the
+    largest gain of any controller the scenario can run, seed 000's files and team files alike
+    (``docs/derivations.md``, "The two-robot scenario loader (seed 000)")."""
+    k = _largest_gain(where, gains)
+    if k * dt_s >= 2.0:
+        raise InvalidInputError(
+            f"{where}: dt_s = {dt_s:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = {k * dt_s:.3g} "
+            f">= 2: the discrete control loop would be unstable; use dt_s < {2.0 / k:.3g} s (smaller gains "
+            "allow a larger step)")
+
+
 def _gains(data: dict, where: str, dt: float) -> dict:
     g = data.get("gains", "table1")
     if isinstance(g, str):
@@ -399,11 +428,7 @@ def _gains(data: dict, where: str, dt: float) -> dict:
             if key in mine:
                 k = check_gain(mine[key], key, size, where=where, place=place)
                 gains[name][key] = k.tolist() if isinstance(mine[key], list) else float(k[0])
-    k = max(float(x) for gg in gains.values() for v in gg.values() for x in np.ravel(v))
-    if k * dt >= 2.0:  # one Euler step multiplies an error by 1 - k dt (pair kind: check_step_stable)
-        raise InvalidInputError(f"{where}: dt_s = {dt:g} s with a largest gain of {k:g} 1/s gives gain x dt_s = "
-                                f"{k * dt:.3g} >= 2: the discrete control loop would be unstable; use dt_s < "
-                                f"{2.0 / k:.3g} s (smaller gains allow a larger step)")
+    check_step_stable(where, dt, gains)
     return gains
 
 
@@ -549,124 +574,100 @@ def singularity_samples(n_times: int, n_c: int) -> np.ndarray:
     return np.unique(np.linspace(0, n_times - 1, k).round().astype(int))
 
 
-class TeamKind(ScenarioKind):
-    """N robots of any mix under one of the four team controllers."""
+#: The parts of a team run that depend on its scenario's chart, by :attr:`TeamScenario.chart`:
+#: one instance of each :class:`TeamChartParts` subclass that sets a ``name``, registered when
+#: the class is defined (the team chart here, seed 000's variables of two robots in
+#: :mod:`quatform.scenarios.pair`).
+TEAM_CHARTS = Registry("team chart")
+
+
+class TeamChartParts:
+    """What a team run reads from the chart its motion is stated in: here the team chart
+    (centroid, attitude, shape, headings; :class:`~quatform.formations.TeamChart`).
+
+    :meth:`TeamKind.experiment` is one flow for every team scenario; the steps that depend on
+    the scenario's chart (:attr:`TeamScenario.chart`) are this object's methods, and
+    :data:`TEAM_CHARTS` holds one per chart (seed 000's Euclidean variables of two robots:
+    :class:`quatform.scenarios.pair.PairChartParts`). Its :attr:`name` is the key the run's
+    figures (:data:`quatform.report.FIGURES`), bag scene (:data:`quatform.bags.scene.SCENES`)
+    and sweep adapter (:data:`quatform.sweeps.trials.SWEEP_KINDS`) are registered under and
+    the log's ``meta["kind"]``.
+    """
 
     name = "team"
-    scenario_type = TeamScenario
-    _OTHER_OPTIONS = (
-        Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
-        Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", TEAM_PHYSICS, "kinematic"),
-        Option("reference", "an N-robot plan.npz to follow instead of the scenario's motion", None, None, str),
-        Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
-               "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
-    )
-    compare_over = "controller"
-
-    @property
-    def options(self) -> tuple:
-        """The run's options; the controller's choices are the team descriptions registered now."""
-        return (Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
-                *self._OTHER_OPTIONS)
+    #: Columns of the comparison table: (metrics key, header, format).
     table_columns = TEAM_TABLE_COLUMNS
 
-    def from_dict(self, data: dict, where: str) -> TeamScenario:
-        return team_scenario_from_dict(data, where)
+    def __init_subclass__(cls, register: bool = True, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if register and cls.__dict__.get("name"):
+            TEAM_CHARTS.add(cls.name, cls())
 
-    def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
-        """The controllers whose description can represent the scenario's robots (the
-        Euclidean team baseline refuses a mix of planar and spatial robots), and the others
-        with the description's one-line refusal; over ``physics``, MuJoCo only where it can
-        simulate every robot (a quadrotor or a Pioneer), else left out with the reason."""
-        if axis == "physics" and isinstance(scenario, TeamScenario):
-            run, skipped = [], {}
-            for name in TEAM_PHYSICS:
-                try:
-                    if name == "mujoco":
-                        from ..sim.plants.mujoco_team import physics_kinds
-                        physics_kinds(scenario.team, f"scenario {scenario.name!r}")
-                except InvalidInputError as exc:
-                    skipped[name] = str(exc)
-                else:
-                    run.append(name)
-            return tuple(run), skipped
-        if axis != "controller" or not isinstance(scenario, TeamScenario):
-            return super().compare_choices(scenario, axis)
-        run, skipped = [], {}
-        for name in available_controllers():
-            try:
-                scenario.controller(name)
-            except InvalidInputError as exc:
-                skipped[name] = str(exc)
-            else:
-                run.append(name)
-        return tuple(run), skipped
+    #: The motions a scenario of this chart follows (``t -> (e, e_dot)`` in the chart).
+    motion_types = (TeamMotion, PlanMotion)
 
-    def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
-                   physics: str = "kinematic", reference=None, min_separation: float | None = None) -> Experiment:
-        """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_CONTROLLERS`
-        name or a controller object of the scenario's team; required).
+    def controllers(self) -> tuple:
+        """The controller names a compare runs, in its order."""
+        return available_controllers()
 
-        ``reference``: a saved N-robot plan to follow (:func:`with_plan`). ``min_separation``
-        (m, >= 0): the separation barrier's minimum instead of the scenario's ``[safety]``
-        ``min_separation_m``, 0 turns the barrier off (:func:`.separation.with_option`); a
-        reference that brings two robots closer is refused as the file's value is.
-        """
-        if not isinstance(scenario, TeamScenario):
-            raise InvalidInputError(f"team experiment: scenario must be a TeamScenario, got {type(scenario).__name__}")
-        if controller is None:
-            raise InvalidInputError(f"{scenario.name} is a team scenario: give a controller "
-                                    f"(--controller {{{','.join(available_controllers())}}})")
-        if physics not in TEAM_PHYSICS:
-            raise InvalidInputError(f"unknown physics {physics!r} for a team scenario; choose one of "
-                                    f"{', '.join(TEAM_PHYSICS)}")
-        where = f"scenario {scenario.name!r}"
-        safety, label = with_option(scenario.safety, min_separation, where)
-        if reference is not None:
-            scenario = with_plan(scenario, reference)
-        if label != FILE_LABEL and safety["enabled"]:  # the file's value was checked when the file was read
-            _check_barrier_reference(scenario, safety["min_separation_m"], where, label)
-        check_team_work(f"scenario {scenario.name!r}", scenario.duration_s, scenario.dt_s, scenario.team.layout.n)
-        ctrl = scenario.controller(controller, feedforward) if isinstance(controller, str) else controller
-        team, F, ff = ctrl.team, ctrl.formation, bool(ctrl.feedforward)
-        if team.n_state != team.layout.size:
-            raise InvalidInputError(f"{scenario.name}: a team robot's state must be its point (the models of "
-                                    f"{', '.join(file_models())}); this team's state has {team.n_state} entries for "
-                                    f"points of {team.layout.size}")
-        if team.layout != scenario.team.layout:
-            raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the "
-                                    f"scenario's {scenario.team.layout.kinds}")
+    def physics_options(self, sc, physics: str, options: dict | None) -> dict:
+        """The options of the physics (none for the team chart: one given is refused)."""
+        if options:
+            raise InvalidInputError(f"scenario {sc.name!r}: physics options {sorted(options)} apply to seed 000's "
+                                    "two-robot scenarios only")
+        return {}
+
+    def with_plan(self, sc, plan_file):
+        """``sc`` following the saved plan ``plan_file`` (the ``reference`` option)."""
+        return with_plan(sc, plan_file)
+
+    def check_work(self, sc) -> None:
+        """Refuse a run that cannot fit in memory or the time budget (before anything is sampled)."""
+        check_team_work(f"scenario {sc.name!r}", sc.duration_s, sc.dt_s, sc.team.layout.n)
+
+    def check_barrier(self, sc, d: float, label: str, e_des, t, start: bool) -> None:
+        """Refuse a barrier of ``d`` m (the setting ``label``) that the reference breaks; the
+        file's own value was checked when the file was read."""
+        if label != FILE_LABEL:
+            _check_barrier_reference(sc, d, f"scenario {sc.name!r}", label)
+
+    def start(self, sc, e_des) -> np.ndarray:
+        """The robots' state at ``t = 0``: the reference moved by the initial offset (every
+        team model's state is its point)."""
+        return _start_points(sc, sc.motion)
+
+    def robots(self, sc, e_des) -> np.ndarray:
+        """The desired robots of the chart values ``e_des``."""
+        return TeamChart(sc.team.layout).robots(e_des)
+
+    def plant(self, sc, controller, feedforward, physics: str, x0, options: dict):
+        """``(controller, plant, record, physics_metrics)``: the controller ``controller`` (a
+        name or an object) and what moves the robots; ``record(log, ctrl) -> dict`` adds the
+        physics record to the log's meta, ``physics_metrics(log) -> dict`` to the metrics."""
+        ctrl = sc.controller(controller, feedforward) if isinstance(controller, str) else controller
+        if physics != "mujoco":
+            return ctrl, KinematicTeam(ctrl.team), None, None
+        from ..sim.plants import mujoco as mjp  # MuJoCo only when asked for
+        from ..sim.plants.mujoco_team import team_plant
+
+        plant = team_plant(ctrl.team, x0, dt=sc.dt_s)
+        return (ctrl, plant, lambda log, c: {"physics_record": mjp.physics_record(plant, log,
+                                                                                  f"{sc.name}: {c.name} controller")},
+                lambda log: mjp.physics_metrics(plant))
+
+    def meta(self, sc, ctrl, safety: dict) -> dict:
+        """The chart's entries of the log's meta."""
+        team = ctrl.team
+        return {"n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
+                "chart_variables": TeamChart(team.layout).variables, "chart": TEAM_CHART}
+
+    def finisher(self, sc, ctrl, t, e_des, c_des, r_des, record):
+        """``finish(log) -> log`` adding the desired robots, the chart recovered by the
+        controller's description, the desired chart, the singularity measure and the Euler
+        reading (:func:`_reading`) to each world's log."""
+        team, F = ctrl.team, ctrl.formation
         chart = TeamChart(team.layout)
-        t = scenario.times
-        e_des, ed_des = scenario.motion(t)
-        c_des, cd_des = F.from_chart(e_des, ed_des)
-        r_des = chart.robots(e_des)
-        x0 = _start_points(scenario, scenario.motion)  # every team model's state is its point
-        physics_plant = None
-        if physics == "mujoco":  # MuJoCo only when asked for
-            from ..sim import mujoco_backend as mj
-            from ..sim.plants import mujoco as mjp
-            from ..sim.plants.mujoco_team import team_plant
-
-            plant = physics_plant = team_plant(team, x0, dt=scenario.dt_s)
-        else:
-            plant = KinematicTeam(team)
-        safety["applied"] = bool(safety["enabled"])
-        if safety["applied"]:  # the barrier is on by default for teams
-            # the barrier's rate gamma at most 1 / dt_s: the sampled-time guarantee h_{k+1} >= (1 - gamma dt) h_k
-            gamma = min(SeparationBarrier.gamma, 1.0 / scenario.dt_s)
-            ctrl = SafeController(ctrl, SeparationBarrier(safety["min_separation_m"], gamma=gamma,
-                                                          dt_s=scenario.dt_s), team)
-        meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
-                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "physics": physics,
-                "physics_label": "kinematic" if physics_plant is None else mj.PHYSICS_LABEL, "formation": F.name,
-                "feedforward": ff, "n_robots": team.layout.n, "layout": team.layout, "team": team, "safety": safety,
-                "chart_variables": chart.variables, "chart": TEAM_CHART}
-
-        def reference_at(k):
-            return Reference(c_des[k], cd_des[k], r_des[k])
-
-        reader = _euclidean_reader(F, team.layout, scenario.template)
+        reader = _euclidean_reader(F, team.layout, sc.template)
         reading_des = None if reader is None else reader.follow_reading(r_des)
 
         def finish_one(log: Log) -> Log:
@@ -691,27 +692,182 @@ class TeamKind(ScenarioKind):
                 chans += [Channel("reading", reader.reading_names,
                                   np.where(held[..., None], np.nan, reading) if held.any() else reading),
                           Channel("reading_des", tuple(n + "_des" for n in reader.reading_names), reading_des)]
-            extra = {}
-            if physics_plant is not None:
-                extra["physics_record"] = mjp.physics_record(physics_plant, log,
-                                                             f"{scenario.name}: {ctrl.name} controller")
+            extra = {} if record is None else record(log, ctrl)
             return log.with_channels(*chans, singularity_samples=int(idx.size), **extra)
 
         def finish(log: Log) -> Log:  # a batch of worlds: each world's own finish
             return finish_worlds(log, finish_one)
 
-        def metrics(log: Log) -> dict:
-            out = compute_metrics(log)
-            if physics_plant is not None:
-                out.update(mjp.physics_metrics(physics_plant))
-            return out
+        return finish
 
-        csv = (("points", "r_des"), ("e", "e_des"), *((("reading", "reading_des"),) if reader is not None else ()),
-               "command", "singularity",
-               *(("min_separation", "safety_active") if safety["applied"] else ()))
+    def csv_channels(self, sc, ctrl) -> tuple:
+        """The channels of ``timeseries.csv`` before the barrier's (a tuple's channels interleaved)."""
+        reader = _euclidean_reader(ctrl.formation, ctrl.team.layout, sc.template)
+        return (("points", "r_des"), ("e", "e_des"), *((("reading", "reading_des"),) if reader is not None else ()),
+                "command", "singularity")
+
+
+TEAM_CHARTS.add(TeamChartParts.name, TeamChartParts())
+
+
+class TeamKind(ScenarioKind):
+    """N robots of any mix under one of the four team controllers; seed 000's two-robot files
+    (no ``kind`` key, or ``kind = "pair"``) read into it with seed 000's chart."""
+
+    name = "team"
+    #: The ``kind`` values of files this kind reads besides its own (seed 000's two robots).
+    aliases = ("pair",)
+    scenario_type = TeamScenario
+    _OTHER_OPTIONS = (
+        Option("feedforward", "feed the reference's rate forward (default: the scenario's)", None, None, bool),
+        Option("physics", "what moves the robots: their kinematic models or MuJoCo physics", TEAM_PHYSICS, "kinematic"),
+        Option("reference", "a plan.npz (quatform plan) to follow instead of the scenario's motion: two robots for a "
+               "seed-000 file, N for a team", None, None, str),
+        Option("min_separation", "hold the robots at least this far apart, m, with the separation barrier "
+               "(default: the scenario's [safety]; 0 turns it off)", None, None, float),
+    )
+    compare_over = "controller"
+
+    @property
+    def options(self) -> tuple:
+        """The run's options; the controller's choices are the team descriptions registered now."""
+        return (Option("controller", "team controller (seed 000 for N robots; required)", available_controllers(), None),
+                *self._OTHER_OPTIONS)
+    table_columns = TEAM_TABLE_COLUMNS
+
+    def from_dict(self, data: dict, where: str) -> TeamScenario:
+        """A team file (``kind = "team"``), or seed 000's two-robot file (no ``kind``, or
+        ``kind = "pair"``: :func:`quatform.scenarios.pair.scenario_from_dict`)."""
+        if data.get("kind", "pair") == "pair":
+            from .pair import scenario_from_dict
+
+            return scenario_from_dict(data, where)
+        return team_scenario_from_dict(data, where)
+
+    def parts_of(self, scenario) -> str:
+        """The name the scenario's chart parts, figures, bag scene, sweep adapter and table are
+        registered under: its chart's (:data:`TEAM_CHARTS`)."""
+        return TEAM_CHARTS[scenario.chart].name if isinstance(scenario, TeamScenario) else self.name
+
+    def columns_of(self, scenario) -> tuple:
+        """The comparison table's columns of ``scenario``: its chart's."""
+        return TEAM_CHARTS[scenario.chart].table_columns if isinstance(scenario, TeamScenario) else self.table_columns
+
+    def compare_choices(self, scenario, axis: str) -> tuple[tuple, dict]:
+        """The controllers whose description can represent the scenario's robots (the
+        Euclidean team baseline refuses a mix of planar and spatial robots), and the others
+        with the description's one-line refusal; over ``physics``, MuJoCo only where it can
+        simulate every robot (a quadrotor or a Pioneer), else left out with the reason."""
+        if axis == "physics" and isinstance(scenario, TeamScenario):
+            run, skipped = [], {}
+            for name in TEAM_PHYSICS:
+                try:
+                    if name == "mujoco":
+                        from ..sim.plants.mujoco_team import physics_kinds
+                        physics_kinds(scenario.team, f"scenario {scenario.name!r}")
+                except InvalidInputError as exc:
+                    skipped[name] = str(exc)
+                else:
+                    run.append(name)
+            return tuple(run), skipped
+        if axis != "controller" or not isinstance(scenario, TeamScenario):
+            return super().compare_choices(scenario, axis)
+        run, skipped = [], {}
+        for name in TEAM_CHARTS[scenario.chart].controllers():
+            try:
+                scenario.controller(name)
+            except InvalidInputError as exc:
+                skipped[name] = str(exc)
+            else:
+                run.append(name)
+        return tuple(run), skipped
+
+    def experiment(self, scenario: TeamScenario, controller=None, feedforward: bool | None = None,
+                   physics: str = "kinematic", reference=None, min_separation: float | None = None, r0=None,
+                   physics_options: dict | None = None) -> Experiment:
+        """The run of ``scenario`` with ``controller`` (a :data:`~quatform.control.TEAM_CONTROLLERS`
+        name or a controller object of the scenario's team; required).
+
+        Parameters
+        ----------
+        feedforward : bool, optional
+            For a controller given by name: feed the reference's rate forward; default: the
+            scenario's (an object keeps its own).
+        physics : str
+            ``"kinematic"`` (the robots' models, :class:`~quatform.sim.plants.KinematicTeam`)
+            or ``"mujoco"`` (``log.meta["physics_record"]`` is the run's
+            :class:`~quatform.sim.mujoco_backend.PhysicsRecord`).
+        reference : str or path, optional
+            A saved plan to follow (the chart's ``with_plan``).
+        min_separation : float, optional
+            The separation barrier's minimum, m (>= 0), instead of the scenario's ``[safety]``
+            ``min_separation_m``; 0 turns the barrier off (:func:`.separation.with_option`); a
+            reference that brings two robots closer is refused as the file's value is.
+        r0 : array_like, shape (*batch, n_x), optional
+            Initial robot state of each world (leading axes: a batch of worlds run at once,
+            kinematic physics only); default the chart's start (the reference at ``t = 0``
+            moved by the initial offset).
+        physics_options : dict, optional
+            Of seed 000's chart on ``physics="mujoco"`` (:class:`quatform.scenarios.pair.PairChartParts`).
+        """
+        if not isinstance(scenario, TeamScenario):
+            raise InvalidInputError(f"team experiment: scenario must be a TeamScenario, got {type(scenario).__name__}")
+        if controller is None:
+            raise InvalidInputError(f"{scenario.name} is a team scenario: give a controller "
+                                    f"(--controller {{{','.join(available_controllers())}}})")
+        if physics not in TEAM_PHYSICS:
+            raise InvalidInputError(f"unknown physics {physics!r} for a team scenario; choose one of "
+                                    f"{', '.join(TEAM_PHYSICS)}")
+        parts = TEAM_CHARTS[scenario.chart]
+        where = f"scenario {scenario.name!r}"
+        physics_options = parts.physics_options(scenario, physics, physics_options)
+        safety, label = with_option(scenario.safety, min_separation, where)
+        if reference is not None:
+            scenario = parts.with_plan(scenario, reference)
+        parts.check_work(scenario)
+        t = scenario.times
+        e_des, ed_des = scenario.motion(t)
+        if safety["enabled"]:  # a given r0 is checked by SafeController's first update
+            parts.check_barrier(scenario, safety["min_separation_m"], label, e_des, t, start=r0 is None)
+        x0 = parts.start(scenario, e_des) if r0 is None else np.array(r0, dtype=float)
+        ctrl, plant, record, physics_metrics = parts.plant(scenario, controller, feedforward, physics, x0,
+                                                           physics_options)
+        team, F, ff = ctrl.team, ctrl.formation, bool(ctrl.feedforward)
+        if team.n_state != team.layout.size:
+            raise InvalidInputError(f"{scenario.name}: a team robot's state must be its point (the models of "
+                                    f"{', '.join(file_models())}); this team's state has {team.n_state} entries for "
+                                    f"points of {team.layout.size}")
+        if team.layout != scenario.team.layout:
+            raise InvalidInputError(f"{scenario.name}: the controller's team offers {team.layout.kinds}, the "
+                                    f"scenario's {scenario.team.layout.kinds}")
+        c_des, cd_des = F.from_chart(e_des, ed_des)
+        r_des = parts.robots(scenario, e_des)
+        safety["applied"] = bool(safety["enabled"])
+        meta = {"kind": parts.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
+                "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "physics": physics,
+                "physics_label": "kinematic" if physics != "mujoco" else _physics_label(), "formation": F.name,
+                "cluster_variables": F.variables, "feedforward": ff, **parts.meta(scenario, ctrl, safety)}
+        csv = parts.csv_channels(scenario, ctrl)
+        finish = parts.finisher(scenario, ctrl, t, e_des, c_des, r_des, record)
+        if safety["applied"]:
+            ctrl = SafeController(ctrl, separation_barrier(safety["min_separation_m"], scenario.dt_s), team)
+            csv = csv + ("min_separation", "safety_active")
+
+        def reference_at(k):
+            return Reference(c_des[k], cd_des[k], r_des[k])
+
+        def metrics(log: Log) -> dict:
+            return {**compute_metrics(log), **({} if physics_metrics is None else physics_metrics(log))}
+
         return Experiment(scenario=scenario, label=ctrl.name, plant=plant, controller=ctrl, reference=reference_at,
                           times=t, x0=x0, dt=scenario.dt_s, finish=finish, metrics=metrics, csv_channels=csv,
                           meta=meta)
+
+
+def _physics_label() -> str:
+    from ..sim import mujoco_backend as mj
+
+    return mj.PHYSICS_LABEL
 
 
 def _euclidean_reader(F, layout, template):

@@ -24,7 +24,7 @@ cache) in a folder of this user's (:func:`cache_dir`: ``$QUATFORM_JAX_CACHE``, e
 ``$XDG_CACHE_HOME/quatform/jax``, else ``~/.cache/quatform/jax``; ``QUATFORM_JAX_CACHE=off``
 keeps none), unless the user set JAX's own ``jax_compilation_cache_dir``: a sweep's worker
 processes, a resumed sweep and a rerun then load a configuration's compiled tick instead of
-compiling it again (about 1 s each for the pair kind, more for large teams). A loaded
+compiling it again (about 1 s each for seed 000's two robots, more for large teams). A loaded
 program is the one compiled before (JAX keys it by the program, the devices and its own
 version), so the floats are the same. The folder is trusted code (a program read from it
 runs): it is created readable by this user alone.

@@ -8,8 +8,8 @@ error signals of :func:`quatform.sim.metrics.error_signals` (the function
 :func:`~quatform.sim.metrics.compute_metrics` reads a log with): each trial's metrics come
 back as arrays over the batch, with the keys and the values of ``compute_metrics`` of the
 logged run (equal within 1e-9 in tests). It reduces any batched kinematic experiment with a
-pure controller whose reference gives the desired robots: the pair kind and the team kind
-(any N, with or without the separation barrier).
+pure controller whose reference gives the desired robots: the team kind in either chart
+(seed 000's two robots, any N, with or without the separation barrier).
 
 The desired chart and the ticks whose singularity measure a run computes are the kind's
 own: its ``finish`` applied to a log of the reference (:func:`_desired`). The singularity
@@ -64,8 +64,8 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
     Parameters
     ----------
     experiment : Experiment
-        Of the pair or the team kind (``PAIR.experiment(scenario, controller=...)``,
-        ``TEAM.experiment(...)``): kinematic robots whose state is their point, a pure
+        Of the team kind (``TEAM.experiment(scenario, controller=...)``, a seed-000 file's
+        too): kinematic robots whose state is their point, a pure
         controller, a reference that gives the desired robots, the ticks and
         ``meta["metrics_from_s"]``.
     x0 : array_like, shape (*batch, n_state), optional

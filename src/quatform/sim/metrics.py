@@ -1,4 +1,4 @@
-"""Run metrics of one world's log, of the pair kind and of the team kind: ``metrics.json``.
+"""Run metrics of one world's log of the team kind, in either chart: ``metrics.json``.
 
 Sim layer. The errors that compare controllers are computed from the robots' measured
 points against the desired ones, the same way for every description and every team
@@ -16,12 +16,12 @@ batched rollout's tick in :mod:`.jax_rollout`):
   desired robot-to-robot directions, seed 000 eq. (3)'s ``beta_c, gamma_c``);
 * ``robot_position`` / ``robot_yaw``: the worst robot; ``separation``: the closest pair;
 * the recovered chart's error: where the log's chart is seed 000's Euclidean variables
-  (the pair kind, eqs. (1)-(8)) the largest wrapped angle error of ``beta_c, gamma_c,
-  phi_1, phi_2``; where it is the team chart (the team kind) the attitude's angle and the
+  (seed 000's two-robot files, eqs. (1)-(8)) the largest wrapped angle error of ``beta_c, gamma_c,
+  phi_1, phi_2``; where it is the team chart the attitude's angle and the
   worst heading.
 
-The log is one world of the pair kind (:mod:`quatform.scenarios.pair`) or of the team kind
-(:mod:`quatform.scenarios.team`): channels ``points`` (the robots' points; the pair kind's
+The log is one world of the team kind (:mod:`quatform.scenarios.team`; seed 000's chart:
+:mod:`quatform.scenarios.pair`): channels ``points`` (the robots' points; a seed-000 run's
 ``state`` is its points), ``r_des``, ``e`` / ``e_des`` (the chart recovered by the
 controller's description and the desired one), ``command``, ``raw_finite``, ``singularity``
 (NaN where not computed) and, when the separation barrier runs, ``safety_active``; optional
@@ -266,7 +266,7 @@ def _reading_metrics(log: Log, late) -> dict:
     """``max_reading_error_rad`` (the formation's Euler reading against the reference's, the
     worst angle, away from the vertical) and ``reading_folded_time_s`` (how long ``beta_c`` read
     more than pi/2 off the reference's: the reading folded, seed 000's robot-space finding);
-    None without a ``reading`` channel (the pair kind, a team no minimal Euclidean chart takes)."""
+    None without a ``reading`` channel (seed 000's chart, a team no minimal Euclidean chart takes)."""
     if "reading" not in log:
         return {"max_reading_error_rad": None, "reading_folded_time_s": None}
     a, ad = np.asarray(log["reading"]), np.asarray(log["reading_des"])
@@ -280,12 +280,12 @@ def _reading_metrics(log: Log, late) -> dict:
 
 
 def compute_metrics(log: Log) -> dict:
-    """The metrics of one world's run, of the pair kind or of the team kind, as a JSON-ready
+    """The metrics of one world's run of the team kind (either chart), as a JSON-ready
     dict (units in the key names; ``docs/metrics.md`` lists every key).
 
     ``max_recovered_euclidean_error_rad`` where the log's chart is seed 000's Euclidean
-    variables (the pair kind); ``max_recovered_attitude_error_rad`` and
-    ``max_recovered_heading_error_rad`` where it is the team chart (the team kind).
+    variables (seed 000's two-robot files); ``max_recovered_attitude_error_rad`` and
+    ``max_recovered_heading_error_rad`` where it is the team chart.
 
     Raises
     ------

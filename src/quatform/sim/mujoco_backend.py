@@ -42,7 +42,7 @@ This module holds what the plants are made of:
 * :class:`PhysicsWorld` - the MJCF world of quadrotors and differential-drive robots
   (:mod:`quatform.robots.physics`), stepped with their low-level controllers in the
   loop, with a :class:`ContactMonitor` that reports collisions.
-* the kinds run their plants themselves (``quatform.scenarios.pair``,
+* the kinds run their plants themselves (``quatform.scenarios.pair.PairChartParts``,
   ``quatform.scenarios.ugv_uav.mujoco_experiment``).
 * :func:`identify_k` - ``K1..K8`` of the quadrotor in Bebop-like attitude mode (seed 001
   eq. (3.11)) for the controller's dynamic compensation (4.47).
@@ -157,7 +157,7 @@ def physics_controller_gains(scenario, controller_name: str) -> tuple[dict, str]
     return given, "table2" if _same_gains(given, TABLE2[controller_name]) else "scenario"
 
 
-#: Another name of :func:`physics_controller_gains` (callers of the pair kind use it).
+#: Another name of :func:`physics_controller_gains` (seed 000's physics runs use it).
 physics_gains = physics_controller_gains
 
 

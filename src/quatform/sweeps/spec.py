@@ -435,7 +435,7 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
         raise ResourceLimitError(f"{where}: the scenario is checked at its own length before the sweep's "
                                  f"duration_s = {short(data['duration_s'])} s applies, and refused: {exc}") from None
     kind = kind_of(sc)
-    kind_name = kind.name
+    kind_name = kind.parts_of(sc)  # its sweep adapter's key: the kind's name, or the name of its parts ("pair")
     if kind_name not in SWEEP_KINDS:
         sweepable = ", ".join(k for k in KINDS if k in SWEEP_KINDS)
         raise InvalidInputError(f"{where}: scenario {Path(scenario).stem!r} is of kind {kind_name!r}, which a sweep "

@@ -179,8 +179,9 @@ class PairSweep(SweepKind):
         return EuclideanPair().inverse(e)  # seed 000 eqs. (1)-(8) solved for the robots
 
 
-#: Sweep adapters by scenario kind (``SWEEP_KINDS.add(kind, adapter)`` beside the adapter; a
-#: new kind's file adds its own).
+#: Sweep adapters by scenario kind, by the name its parts are registered under
+#: (:meth:`~quatform.scenarios.ScenarioKind.parts_of`: the team kind's seed-000 files ``"pair"``;
+#: ``SWEEP_KINDS.add(name, adapter)`` beside the adapter; a new kind's file adds its own).
 SWEEP_KINDS = Registry("sweep kind")
 SWEEP_KINDS.add("pair", PairSweep("pair"))
 SWEEP_KINDS.add("team", SweepKind("team"))
@@ -209,11 +210,9 @@ def _scenario_data(ref: str) -> tuple:
 
 def cell_scenario(spec, values: dict, choice: str):
     """The scenario of one cell: the spec's overrides and the point's team size and gains."""
-    from ..scenarios import KINDS
-
     data, where = _scenario_data(spec.scenario)
-    kind = KINDS[spec.data["kind"]]
-    adapter = SWEEP_KINDS[kind.name]
+    kind = _kind(spec)
+    adapter = SWEEP_KINDS[spec.data["kind"]]
     data = adapter.data(dict(data), values, spec.where)
     try:
         sc = kind.from_dict(data, where)
@@ -246,10 +245,14 @@ def cell_scenario(spec, values: dict, choice: str):
 
 def cell_experiment(spec, values: dict, choice: str):
     """The single-world experiment of a cell (its scenario and choice, nothing drawn yet)."""
-    from ..scenarios import KINDS
+    return _kind(spec).experiment(cell_scenario(spec, values, choice), **{spec.compare_key: choice})
 
-    kind = KINDS[spec.data["kind"]]
-    return kind.experiment(cell_scenario(spec, values, choice), **{spec.compare_key: choice})
+
+def _kind(spec):
+    """The scenario kind of a sweep (its ``data["kind"]``: a kind's name or an alias it reads)."""
+    from ..scenarios import KINDS, kind_aliases
+
+    return KINDS[kind_aliases().get(spec.data["kind"], spec.data["kind"])]
 
 
 def trial_stream(seed: int, point: int, trial: int) -> np.random.Generator:
