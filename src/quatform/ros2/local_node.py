@@ -21,7 +21,7 @@ command published before the node is destroyed and rclpy shut down.
 from __future__ import annotations
 
 from .local_bridge import LocalBridge
-from .node import BridgeNode, _qos, ros_class
+from .node import BridgeNode, qos_profile, ros_class
 from .robots_file import resolve_topic
 
 __all__ = ["LocalNode"]
@@ -56,9 +56,9 @@ class LocalNode(BridgeNode):
         """Its own pose, and each in-neighbour's message."""
         b = self.bridge
         for topic, typ, qos in b.pose_topics():
-            self.node.create_subscription(ros_class(typ), topic, self._pose_callback(b.robot), _qos(self.rclpy, qos))
+            self.node.create_subscription(ros_class(typ), topic, self._pose_callback(b.robot), qos_profile(self.rclpy, qos))
         for j, topic, typ, qos in b.neighbour_topics():
-            self.node.create_subscription(ros_class(typ), topic, self._message_callback(j), _qos(self.rclpy, qos))
+            self.node.create_subscription(ros_class(typ), topic, self._message_callback(j), qos_profile(self.rclpy, qos))
 
     def _message_callback(self, j):
         said = []

@@ -84,7 +84,9 @@ def to_ros(msg):
     return out
 
 
-def _qos(rclpy, which: str):
+def qos_profile(rclpy, which: str):
+    """The rclpy QoS of the robots file's ``qos`` name: ``sensor`` rclpy's sensor-data profile,
+    ``px4`` best effort and transient local (px4_ros_com's), else a reliable queue of 10."""
     q = importlib.import_module("rclpy.qos")
     if which == "sensor":
         return q.qos_profile_sensor_data
@@ -128,7 +130,7 @@ class BridgeNode:
         self._subscribe()
         self.publishers = {}
         for topic, typ, qos in bridge.command_topics():
-            self.publishers[topic] = self.node.create_publisher(ros_class(typ), topic, _qos(self.rclpy, qos))
+            self.publishers[topic] = self.node.create_publisher(ros_class(typ), topic, qos_profile(self.rclpy, qos))
         self.node.create_subscription(ros_class("std_msgs/msg/Bool"), s.estop_topic, self._estop_topic, 10)
         self.node.create_service(ros_class("std_srvs/srv/SetBool"), self.estop_service(), self._estop_service)
 
@@ -139,7 +141,7 @@ class BridgeNode:
     def _subscribe(self) -> None:
         """Subscribe to every robot's pose topic (sensor-data QoS, PX4's for ``/fmu``)."""
         for i, (topic, typ, qos) in enumerate(self.bridge.pose_topics()):
-            self.node.create_subscription(ros_class(typ), topic, self._pose_callback(i), _qos(self.rclpy, qos))
+            self.node.create_subscription(ros_class(typ), topic, self._pose_callback(i), qos_profile(self.rclpy, qos))
 
     # -- callbacks ----------------------------------------------------------------------------
     def now_ns(self) -> int:
