@@ -181,3 +181,34 @@ def test_the_separation_filter_holds_every_pair_apart_under_delay_and_loss():
     b = simulate_jax(KinematicTeam(team), ctrl, ref, times[:60], x0.reshape(-1))
     a_ = simulate(KinematicTeam(team), ctrl, ref, times[:60], x0.reshape(-1))
     np.testing.assert_allclose(b["state"], a_["state"], rtol=1e-9, atol=1e-12)
+
+
+def test_a_law_whose_command_is_not_finite_fails_the_world():
+    """The robots' saturation would turn a NaN into 0: the world fails instead (one line), and a
+    run of one world raises it."""
+    import dataclasses as dc
+
+    @dc.dataclass(frozen=True)
+    class Broken(PositionConsensus):
+        def tick(self, state, own, inbox, reference, t):
+            out = super().tick(state, own, inbox, reference, t)
+            return dc.replace(out, u=out.u * np.nan)
+
+    g = Graph.ring(4)
+    team = Team.uniform(HolonomicRobot(), 4, common_limit=False)
+    ctrl = NetworkedController(Broken(), team, Links(g, max_age_s=0.1), DT)
+    ref = (lambda k: {"desired": np.zeros((4, 3)), "desired_rate": np.zeros((4, 3))})
+    log = simulate(KinematicTeam(team), ctrl, ref, np.arange(5) * DT, _x0(4, 0, (2,)))
+    assert np.all(log.meta["failed"])
+    assert "not finite" in log.meta["failure"][(0,)] and "\n" not in log.meta["failure"][(0,)]
+    with pytest.raises(InvalidInputError, match="not finite"):
+        simulate(KinematicTeam(team), ctrl, ref, np.arange(5) * DT, _x0(4))
+
+
+def test_the_ring_of_held_messages_is_bounded():
+    g = Graph.ring(3)
+    team = Team.uniform(HolonomicRobot(), 3, common_limit=False)
+    with pytest.raises(InvalidInputError, match="more than 1,000,000"):
+        NetworkedController(PositionConsensus(), team, Links(g, max_age_s=1e6), DT)
+    ctrl = NetworkedController(PositionConsensus(), team, Links(g, max_age_s=1e6), DT, run_ticks=50)
+    assert ctrl.init()["links"]["ring"].shape == (50, 3, 6)

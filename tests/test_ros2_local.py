@@ -51,12 +51,17 @@ def robots_file(n: int, timeout_s: float = 0.05, **extra):
 
 
 def safe_switching(folder: Path, hold_unheard: bool):
-    """net-switching, 2 s, with a 2.5 m radio range, messages valid 50 ms, and each robot's
-    separation filter at 0.9 m (it binds on 26 robot ticks from these starts)."""
+    """net-switching with undirected halves, 2 s, a 2.5 m radio range and messages valid 50 ms
+    (with hold_unheard: no range, 0.6 s), and each robot's separation filter at 0.9 m (it binds
+    on some robot ticks from these starts)."""
     src = builtin_scenarios()["net-switching"].read_text()
     src = re.sub(r"(?m)^duration_s = .*$", "duration_s = 2.0", src)
-    src = src.replace("max_age_s = 0.01", "max_age_s = 0.05\nrange_m = 2.5").replace("seed = 3", "seed = 5")
+    # with hold_unheard a neighbour not heard (out of range, or of the other half) stops the robot:
+    # no range, and messages held 0.6 s, longer than an interval
+    links = "max_age_s = 0.6" if hold_unheard else "max_age_s = 0.05\nrange_m = 2.5"
+    src = src.replace("max_age_s = 0.01", links).replace("seed = 3", "seed = 5")
     src = src.replace("position_m = 1.0", "position_m = 1.2")
+    src = src.replace('kind = "edges"\n', 'kind = "edges"\ndirected = false\n')  # the filter needs both ways
     src += f"\n[safety]\nmin_separation_m = 0.9\ngamma = 20.0\nhold_unheard = {str(hold_unheard).lower()}\n"
     return load_scenario(H.write(folder / "safe-switching.toml", src))
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..algebra.kernels import common_namespace
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS
 from ..network.links import Links, inbox
 from ..robots import Team
@@ -38,12 +38,17 @@ from . import contract
 from .local import LocalController
 from .neighbour_barrier import SIGNALS, NeighbourBarrier
 
-__all__ = ["NetworkedController", "NETWORK_SIGNALS", "SAFETY_SIGNALS", "VELOCITY_COLUMNS"]
+__all__ = ["NetworkedController", "NETWORK_SIGNALS", "SAFETY_SIGNALS", "VELOCITY_COLUMNS", "LAW_NOT_FINITE",
+           "MAX_RING_TICKS"]
 
 #: The per-world signal of the links at each tick (columns of the ``network`` signal).
 NETWORK_SIGNALS = ("messages_sent", "messages_dropped", "messages_delivered", "max_age_s")
 #: Each robot's columns of the ``safety`` signal (:func:`.neighbour_barrier.neighbour_filter`'s signals).
 SAFETY_SIGNALS = SIGNALS
+#: The tick's code where the local law's command is not finite (above the laws' own codes).
+LAW_NOT_FINITE = 1 << 20
+#: Longest ring of a run, in ticks (``max_age_s / period_s``, at most the run's ticks).
+MAX_RING_TICKS = 1_000_000
 #: The command columns the separation filter sets: the robot's linear velocity, m/s.
 VELOCITY_COLUMNS = ("v_x", "v_y", "v_z")
 
@@ -88,6 +93,10 @@ class NetworkedController(contract.Controller):
         With ``safety``: an in-neighbour without a valid message is a neighbour of unknown
         position and the robot stays until it is heard (the safe reading of a fixed graph;
         :meth:`NeighbourBarrier.filter_inbox`).
+    run_ticks : int, optional
+        The most ticks a run it drives has: the ring of held messages is at most that long
+        (no message is older than the run). None: ``max_age_s / period_s`` ticks, at most
+        :data:`MAX_RING_TICKS`.
     """
 
     local: LocalController
@@ -97,6 +106,7 @@ class NetworkedController(contract.Controller):
     range_m: float | None = None
     safety: NeighbourBarrier | None = None
     hold_unheard: bool = False
+    run_ticks: int | None = None
 
     pure = True
 
@@ -149,7 +159,18 @@ class NetworkedController(contract.Controller):
         own = self.own_index()  # raises where a robot lacks a column
         object.__setattr__(self, "_own", own)
         object.__setattr__(self, "_weights", _edge_weights(self.links))
-        object.__setattr__(self, "_ring", int(math.floor(self.links.max_age_s / float(p) + 1e-9)) + 1)
+        ring = int(min(math.floor(self.links.max_age_s / float(p) + 1e-9), 2 * MAX_RING_TICKS)) + 1
+        if self.run_ticks is not None:
+            if isinstance(self.run_ticks, bool) or not isinstance(self.run_ticks, (int, np.integer)) or \
+                    self.run_ticks < 1:
+                raise InvalidInputError(f"networked controller: run_ticks = {self.run_ticks!r} must be a whole "
+                                        f"number of ticks >= 1 (or None)")
+            ring = min(ring, int(self.run_ticks))
+        if ring > MAX_RING_TICKS:
+            raise InvalidInputError(f"networked controller: links.max_age_s = {self.links.max_age_s:g} s keeps "
+                                    f"{ring - 1:,} ticks of messages at {float(p):g} s a tick, more than "
+                                    f"{MAX_RING_TICKS:,}; give a shorter max_age_s or run_ticks (the run's ticks)")
+        object.__setattr__(self, "_ring", ring)
 
     # ------------------------------------------------------------------ names
     @property
@@ -240,23 +261,25 @@ class NetworkedController(contract.Controller):
         return xp.reshape(xp.take(ext, xp.asarray(idx.reshape(-1)), axis=-1), measured.shape[:-1] + idx.shape)
 
     def received(self, ring, xs, p, t):
-        """Each robot's inbox (:func:`~quatform.network.links.inbox`, with the slots' ``weights``)
-        and its senders' positions when they sent ``(*batch, N, W, 3)``: the ring's messages
-        carry the sender's position after the law's columns. With :attr:`range_m`, a message
-        whose sender was farther than ``range_m`` from the receiver's position ``p`` now is not
-        valid (out of radio range)."""
+        """Each robot's inbox (:func:`~quatform.network.links.inbox`, with the slots' ``weights``),
+        its senders' positions when they sent ``(*batch, N, W, 3)`` and the number of edges that
+        delivered a new message in range at the tick ``(*batch,)``: the ring's messages carry the
+        sender's position after the law's columns. With :attr:`range_m`, a message whose sender
+        was farther than ``range_m`` from the receiver's position ``p`` now is not valid (out of
+        radio range)."""
         xp = common_namespace(p)
-        box = inbox(self.links.read(ring, xs), self.links)
+        msgs, stamps, valid = self.links.read(ring, xs)            # per candidate edge (*batch, E, ...)
         d = len(self.local.message_columns)
-        msgs = box["messages"]
-        sender = msgs[..., d:]
-        valid = box["valid"]
         if self.range_m is not None:
-            gap = sender - p[..., :, None, :]
+            gap = msgs[..., d:] - xp.take(p, xp.asarray(self.links.edges[:, 0]), axis=-2)
             valid = valid & (xp.sum(gap * gap, axis=-1) <= self.range_m * self.range_m)
-        box.update(messages=xp.where(valid[..., None], msgs[..., :d], 0.0), valid=valid,
-                   stamps=xp.where(valid, box["stamps"], -math.inf), weights=self.slot_weights(box["senders"]))
-        return box, sender
+            msgs = xp.where(valid[..., None], msgs, 0.0)
+            stamps = xp.where(valid, stamps, -math.inf)
+        delivered = xp.sum(xp.asarray(xp.asarray(xs["new"]) & valid, dtype=xp.int32), axis=-1)
+        box = inbox((msgs, stamps, valid), self.links)
+        sender = box["messages"][..., d:]
+        box.update(messages=box["messages"][..., :d], weights=self.slot_weights(box["senders"]))
+        return box, sender, delivered
 
     def tick(self, state, measured, reference, t) -> contract.Tick:
         ref, xs = reference
@@ -266,9 +289,15 @@ class NetworkedController(contract.Controller):
         p = self.positions(measured)
         outgoing = xp.concatenate([self.local.message(state["local"], own, ref, t), p], axis=-1)
         ring = self.links.write(state["links"], outgoing, t)
-        box, sender = self.received(ring, xs, p, t)
+        box, sender, delivered = self.received(ring, xs, p, t)
         out = self.local.tick(state["local"], own, box, ref, t)
         batch = measured.shape[:-1]
+        n_u = len(self.local.command_columns)
+        if tuple(out.u.shape[-2:]) != (self.n, n_u):
+            raise ShapeError(f"networked controller: {self.local.name}'s tick commands shape {tuple(out.u.shape)}, "
+                             f"not (*batch, {self.n}, {n_u}) (its command_columns {self.local.command_columns})")
+        # a law whose command is not finite fails the world (the robots' saturation would hide it as 0)
+        law_bad = ~xp.all(xp.isfinite(out.u), axis=(-2, -1))
         signals = {k: xp.reshape(v, batch + (-1,)) for k, v in out.signals.items()}
         safe = None
         if self.safety is not None:  # each robot filters its own velocity against what it knows of its neighbours
@@ -280,16 +309,18 @@ class NetworkedController(contract.Controller):
                                                     axis=-1), batch + (-1,))
         u = self.commands(out.u, safe)
         age = xp.where(box["valid"], t - box["stamps"], 0.0)
-        columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], xp.sum(xp.asarray(xs["new"], dtype=xp.int32), axis=-1),
+        columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], delivered,
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
         signals["network"] = xp.stack([xp.broadcast_to(xp.asarray(c, dtype=measured.dtype), batch) for c in columns],
                                       axis=-1)
         code = xp.max(out.code, axis=-1) if out.code.shape[-1:] else xp.zeros(batch, dtype=xp.int64)
+        code = xp.where((code == 0) & law_bad, LAW_NOT_FINITE, code)
         return contract.Tick({"local": out.state, "links": ring}, u, signals, code)
 
     @property
     def failure_reasons(self):
-        return self.local.failure_reasons
+        return {LAW_NOT_FINITE: f"{self.local.name}'s command is not finite (a NaN or infinity from the law)",
+                **self.local.failure_reasons}
 
     def update(self, t, measured, reference, state=None) -> contract.Step:
         """:meth:`tick` on the host, raising the local controller's reason where a robot's code is set.

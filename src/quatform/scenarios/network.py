@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import MISSING, check_keys, flag, integer, number, records, short, table, text, vector
+from ..checks import MISSING, check_keys, check_work, flag, integer, number, records, short, table, text, vector
 from ..control.local import LOCAL_CONTROLLERS
 from ..control.neighbour_barrier import NeighbourBarrier
 from ..control.networked import NetworkedController
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, ResourceLimitError
 from ..formations import TeamChart
 from ..formations.geometry import mul
 from ..formations.layout import POINT_KINDS
@@ -71,6 +71,17 @@ def _law(name: str, gains: dict, where: str):
     return cls(**values)
 
 
+#: Most candidate edges a network run takes (a graph's arrays and the links' schedule hold a
+#: few bytes per edge and tick).
+MAX_EDGES = 2_000_000
+
+
+def _check_edges(count: int, what: str, where: str) -> None:
+    if count > MAX_EDGES:
+        raise ResourceLimitError(f"{where}: {what} gives {count:,} edges, more than {MAX_EDGES:,}; give each robot "
+                                 f"fewer neighbours (kind = 'k-nearest' or 'disk')")
+
+
 def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -> Graph:
     kind = text(g, "kind", where, "ring", place=place, choices=GRAPH_KINDS)
     only = {"directed": ("ring", "edges"), "k": ("k-nearest",), "radius_m": ("disk",), "edges": ("edges",),
@@ -82,9 +93,12 @@ def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -
     if kind == "ring":
         return Graph.ring(n, directed=flag(g, "directed", where, True, place=place))
     if kind == "complete":
+        _check_edges(n * (n - 1), f"{place} kind = 'complete' of {n} robots", where)
         return Graph.complete(n)
     if kind == "k-nearest":
-        return Graph.k_nearest(positions, integer(g, "k", where, place=place, low=1, high=n - 1))
+        k = integer(g, "k", where, place=place, low=1, high=n - 1)
+        _check_edges(n * k, f"{place} k = {k} of {n} robots", where)
+        return Graph.k_nearest(positions, k)
     if kind == "disk":
         return Graph.disk(positions, number(g, "radius_m", where, place=place, low=0.0, low_open=True))
     edges = g.get("edges", MISSING)
@@ -123,11 +137,25 @@ def averaged_graph(pattern, period: float) -> Graph:
     return Graph(n, list(acc), weights=list(acc.values()))
 
 
-def graph_record(links: Links) -> dict:
+def graph_record(links: Links, scenario=None, lambda2=None, extra=None) -> dict:
     """``graph.json``'s content: the robots (numbered from 1), every graph's edges ``[receiver,
-    sender]`` with their weights, and the switching schedule (``start_s`` of each graph)."""
+    sender]`` with their weights, and the switching schedule (``start_s`` of each graph; a
+    repeated one as one period's intervals and ``switching_period_s``); the radio range; the
+    λ₂ the run reports; an affine maneuver's leaders and stress weights."""
     graphs = [(None, links.graph)] if isinstance(links.graph, Graph) else list(links.graph)
-    return {"robots": list(range(1, links.n + 1)),
+    out = {}
+    if scenario is not None and scenario.switching is not None:
+        graphs, out["switching_period_s"] = list(scenario.switching[0]), float(scenario.switching[1])
+    if scenario is not None:
+        out["range_m"] = scenario.range_m
+    if lambda2 is not None:
+        out["graph_lambda2"] = float(lambda2)
+    if extra and "stress" in extra:
+        w = extra["stress"]
+        i, j = np.nonzero(w)
+        out["affine"] = {"leaders": [int(k) + 1 for k in np.flatnonzero(extra["leader"][:, 0])],
+                         "stress": [[int(a) + 1, int(b) + 1, float(w[a, b])] for a, b in zip(i, j)]}
+    return {"robots": list(range(1, links.n + 1)), **out,
             "convention": "edge [i, j]: robot i receives robot j's messages (robots numbered from 1)",
             "graphs": [{"start_s": None if s is None else float(s),
                         "edges": (g.edges + 1).tolist(), "weights": g.weights.tolist(),
@@ -205,7 +233,7 @@ class NetworkScenario:
                                        or 1.0, gamma=self.safety["gamma"], dt_s=self.dt_s)
             hold = self.safety["hold_unheard"]
         return NetworkedController(self.law, self.team, self.links, self.dt_s, range_m=self.range_m, safety=barrier,
-                                   hold_unheard=hold)
+                                   hold_unheard=hold, run_ticks=len(self.times))
 
 
 @dataclass(frozen=True, eq=False)
@@ -267,6 +295,42 @@ def desired_at_zero(team: Team, motion) -> np.ndarray:
     return desired(motion, team.layout, np.zeros(1))[0][0]
 
 
+def _check_graphs(graph, where: str) -> None:
+    """Refuse a graph (of a switching schedule: the union over its intervals) in which no robot's
+    messages reach every robot: no law reaches consensus there (one line naming the robots;
+    :meth:`Graph.check_spanning_tree`)."""
+    if isinstance(graph, Graph):
+        g, what = graph, "[graph]"
+    else:
+        pattern = graph
+        n = pattern[0][1].n
+        edges = sorted({tuple(e) for _, gr in pattern for e in gr.edges.tolist()})
+        g, what = Graph(n, edges), "the union of the [[switching]] graphs"
+    try:
+        g.check_spanning_tree()
+    except InvalidInputError as exc:
+        raise type(exc)(f"{what}: {exc}") from None
+
+
+def _check_links(links: Links, dt: float, duration: float, n: int, where: str) -> None:
+    """Refuse links over which no message is ever used, and a run too large for the machine."""
+    E = len(links.edges)
+    if np.all(links.drop >= 1.0):
+        raise InvalidInputError(f"{where}: [links] drop = 1 loses every message; give a probability below 1")
+    first = np.ceil(links.delay_s / dt - 1e-9)  # ticks to the earliest arrival
+    horizon = math.floor(links.max_age_s / dt + 1e-9)
+    if np.all(first > horizon):
+        raise InvalidInputError(f"{where}: [links] delay_s = {float(np.min(links.delay_s)):g} s reaches past max_age_s "
+                                f"= {links.max_age_s:g} s at a {dt:g} s tick: every message arrives stale; raise "
+                                f"max_age_s above the delay")
+    steps = duration / dt + 1.0
+    ring = min(horizon, steps) + 1
+    check_work(where, f"duration_s / dt_s = {duration:g} / {dt:g} with {n} robots and {E} candidate edges", steps,
+               bytes_per_step=3.0 * E + 8.0 * n * 40.0 + 48.0 * n * ring / steps,
+               seconds_per_step=2e-3 + 2e-7 * E + 2e-6 * n,
+               fix="shorten duration_s, raise dt_s, use fewer robots or fewer neighbours")
+
+
 def _affine_motion(data: dict, where: str, team: Team, motion: TeamMotion, duration: float) -> AffineMotion:
     """``[affine]``: the leaders (robot numbers) and the keyframes of ``A(t), b(t)`` over the
     ``[shape]`` template as the nominal configuration."""
@@ -289,6 +353,9 @@ def _affine_motion(data: dict, where: str, team: Team, motion: TeamMotion, durat
     if kf[0, 0] != 0.0 or np.any(np.diff(kf[:, 0]) <= 0.0):
         raise InvalidInputError(f"{where}: [affine] keyframes' times must start at 0 s and increase, got "
                                 f"{', '.join(f'{v:g}' for v in kf[:, 0])}")
+    if any(k == "pose" for k in team.layout.kinds):
+        raise InvalidInputError(f"{where}: [affine] moves points in the plane; the {team.robots[0].name} robots' "
+                                f"orientations have no affine image: give holonomic or planar robots")
     nominal = np.asarray(motion.template, dtype=float) + motion.path(np.zeros(1))[0][0]
     kf.setflags(write=False)
     return AffineMotion(team.layout, nominal, kf, tuple(sorted(v - 1 for v in leaders)))
@@ -339,6 +406,7 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
             g = table(data, "graph", where, default={"kind": "ring"})
             check_keys(g, _GRAPH_KEYS, where, "[graph]", _HINT)
             graph = _one_graph(g, where, "[graph]", n, pos0)
+        _check_graphs(graph, where)
         lk = table(data, "links", where, default={})
         check_keys(lk, _LINK_KEYS, where, "[links]", _HINT)
         at = {"place": "[links]"}
@@ -348,6 +416,7 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
                       drop=number(lk, "drop", where, 0.0, **at, low=0.0, high=1.0), rate_hz=rate,
                       max_age_s=number(lk, "max_age_s", where, 1.0, **at, low=0.0, low_open=True),
                       seed=integer(lk, "seed", where, 0, **at, low=0))
+        _check_links(links, dt, duration, n, where)
         ini = table(data, "initial", where, default={})
         check_keys(ini, _INITIAL_KEYS, where, "[initial]", _HINT)
         at = {"place": "[initial]"}
@@ -362,9 +431,14 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
                 offsets = np.asarray(ini["offsets"], dtype=float)
             except (TypeError, ValueError):
                 offsets = np.zeros((0,))
-            if offsets.shape != (n, 3) or not np.all(np.isfinite(offsets)):
-                raise InvalidInputError(f"{where}: [initial] offsets must be {n} rows [dx, dy, dz] of finite numbers "
-                                        f"(m), one per robot, got shape {offsets.shape}")
+            if offsets.shape != (n, 3):
+                raise InvalidInputError(f"{where}: [initial] offsets must be {n} rows [dx, dy, dz] (m), one per "
+                                        f"robot, got shape {offsets.shape}")
+            if not np.all(np.isfinite(offsets)):
+                raise InvalidInputError(f"{where}: [initial] offsets hold NaN or infinity; give finite metres")
+        if antipodal and not all(team.layout.kinds[v - 1] == "pose" for v in antipodal):
+            raise InvalidInputError(f"{where}: [initial] antipodal flips a robot's quaternion, and the "
+                                    f"{team.robots[0].name} robots have none; remove it")
         initial = {"offsets": offsets, "position_m": number(ini, "position_m", where, 0.0, **at, low=0.0),
                    "angle_rad": number(ini, "angle_rad", where, 0.0, **at, low=0.0, high=math.pi),
                    "antipodal": tuple(v - 1 for v in antipodal), "seed": integer(ini, "seed", where, 0, **at, low=0)}
@@ -386,8 +460,18 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
                              range_m=number(lk, "range_m", where, None, place="[links]", low=0.0, low_open=True)
                              if "range_m" in lk else None, safety=safety)
         sc.controller()  # the law, robots and links fit together
+        graphs = [links.graph] if isinstance(links.graph, Graph) else [gr for _, gr in links.graph]
+        if (safety is not None or isinstance(motion, AffineMotion)) and not all(gr.undirected for gr in graphs):
+            what = "[safety] needs every pair that can meet sensed by both robots" if safety is not None else \
+                "[affine] needs every stress edge carried both ways"
+            raise InvalidInputError(f"{where}: {what}, and the graph is directed; give an undirected graph "
+                                    f"(directed = false, kind = 'disk' or 'complete')")
+        if isinstance(motion, AffineMotion):
+            affine_extras(sc)  # Zhao's leader condition on the nominal configuration
         if safety is not None:
             _check_start_apart(sc, where)
+        if sc.switching is None and isinstance(links.graph, Graph):
+            law.predicted_rate(links.graph, dt)  # a gain the discrete loop cannot take: one line here
     except InvalidInputError as exc:
         msg = str(exc)
         raise type(exc)(msg if msg.startswith(where) else f"{where}: {msg}") from None
@@ -494,7 +578,7 @@ class NetworkKind(ScenarioKind):
 
         return (Option("law", "the local law every robot runs (default: the scenario's)",
                        tuple(sorted(LOCAL_CONTROLLERS)), None),)
-    table_columns = (("graph_lambda2", "lambda2", "{:.4g}"), ("predicted_rate", "predicted 1/s", "{:.4g}"),
+    table_columns = (("law", "law", "{}"), ("graph_lambda2", "lambda2", "{:.4g}"), ("predicted_rate", "predicted 1/s", "{:.4g}"),
                      ("measured_rate", "measured 1/s", "{:.4g}"), ("converged", "converged", "{}"),
                      ("messages_dropped", "dropped", "{}"))
 
@@ -541,13 +625,16 @@ class NetworkKind(ScenarioKind):
             predicted = law_obj.predicted_rate(graphs[0], scenario.dt_s)
         elif scenario.switching is not None:
             pattern, period = scenario.switching
-            predicted = law_obj.predicted_rate(list(pattern), scenario.dt_s, switching_period_s=period)
             lam = float(averaged_graph(pattern, period).lambda2())
+            shortest = min(np.diff([st for st, _ in pattern] + [period]))
+            # a message held longer than an interval carries an edge past its graph: no prediction
+            predicted = law_obj.predicted_rate(list(pattern), scenario.dt_s, switching_period_s=period) \
+                if scenario.links.max_age_s < shortest else None
         else:
             predicted = None
         meta = {"kind": self.name, "scenario": scenario.name, "title": scenario.title, "source": scenario.source,
                 "dt_s": scenario.dt_s, "metrics_from_s": scenario.metrics_from_s, "law": law_obj.name,
-                "n_robots": L.n, "layout": L, "team": team, "graph": graph_record(scenario.links),
+                "n_robots": L.n, "layout": L, "team": team, "graph": graph_record(scenario.links, scenario, lam, extra),
                 "links": scenario.links,
                 "graph_lambda2": lam, "predicted_rate": predicted}
 
@@ -588,7 +675,8 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
     pos = positions_of(L, np.asarray(log["measured"], dtype=float))
     sep = np.array([cKDTree(p).query(p, k=2)[0][:, 1].min() if np.all(np.isfinite(p)) else np.nan for p in pos])
     final = float(err[-1])
-    rate = measured_rate(t, err, scenario.metrics_from_s)
+    # a rate is measured against a prediction; a law with none (an affine maneuver) has no rate to compare
+    rate = measured_rate(t, err, scenario.metrics_from_s) if log.meta["predicted_rate"] is not None else None
     d_min = None if scenario.safety is None else float(scenario.safety["min_separation_m"])
     return {"scenario": scenario.name, "law": scenario.law.name, "n_robots": L.n,
             "graph_edges": int(len(ctrl.links.edges)),

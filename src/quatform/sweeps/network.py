@@ -22,6 +22,7 @@ import dataclasses
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from ..network import Graph
 from ..scenarios.network import NetworkScenario, desired_at_zero, positions_of, start_points
 from .spec import Parameter, Success, sweep_parameter
@@ -34,15 +35,29 @@ LINK_PARAMETERS = {"link_delay_s": "delay_s", "link_jitter_s": "jitter_s", "link
                    "send_rate_hz": "rate_hz", "max_age_s": "max_age_s"}
 
 
-def _links(sc: NetworkScenario, value, spec, choice, field: str):
-    return dataclasses.replace(sc, links=dataclasses.replace(sc.links, **{field: float(value)}))
+def _axis(name: str, value, spec, build):
+    """``build()``, its one-line refusal naming the spec and the ``[vary]`` axis."""
+    try:
+        sc = build()
+        sc.controller()
+        return sc
+    except InvalidInputError as exc:
+        raise type(exc)(f"{spec.where}: [vary.{name}] value {value:g}: {exc}") from None
+
+
+def _links(sc: NetworkScenario, value, spec, choice, field: str, name: str):
+    return _axis(name, value, spec,
+                 lambda: dataclasses.replace(sc, links=dataclasses.replace(sc.links, **{field: float(value)})))
 
 
 def _graph_k(sc: NetworkScenario, value, spec, choice):
     """``sc`` with each robot hearing its ``value`` nearest (of the desired points at ``t = 0``)."""
-    pos = positions_of(sc.team.layout, desired_at_zero(sc.team, sc.motion))
-    graph = Graph.k_nearest(pos, int(value))
-    return dataclasses.replace(sc, links=dataclasses.replace(sc.links, graph=graph), switching=None)
+    def build():
+        pos = positions_of(sc.team.layout, desired_at_zero(sc.team, sc.motion))
+        graph = Graph.k_nearest(pos, int(value))
+        return dataclasses.replace(sc, links=dataclasses.replace(sc.links, graph=graph), switching=None)
+
+    return _axis("graph_k", value, spec, build)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,6 +86,9 @@ class NetworkSweep(SweepKind):
         for key, field in (("initial_offset_m", "position_m"), ("initial_offset_rad", "angle_rad")):
             if key in values:
                 initial[field] = float(values[key])
+        if initial.get("angle_rad", 0.0) > np.pi:
+            raise InvalidInputError(f"sweep: initial_offset_rad = {initial['angle_rad']:g} turns a robot by more than "
+                                    f"pi (the same turn the other way round); give at most {np.pi:.6g} rad")
         r0 = np.asarray(exp.reference(0)["robots"], dtype=float)
         x0 = np.stack([start_points(dataclasses.replace(sc, initial={
             **initial, "seed": int(trial_stream(seed, point, i).integers(2**63 - 1))}), r0) for i in trials])
@@ -87,7 +105,8 @@ for _name, _field, _unit, _help, _extra in (
         ("send_rate_hz", "rate_hz", "Hz", "every robot's send rate (at most the control rate)", {"low": 1e-9}),
         ("max_age_s", "max_age_s", "s", "age beyond which a robot drops a message as stale", {"low": 1e-9})):
     sweep_parameter(Parameter(_name, _unit, _help, kinds=("network",), **_extra,
-                              apply=lambda sc, value, spec, choice, _f=_field: _links(sc, value, spec, choice, _f)))
+                              apply=lambda sc, value, spec, choice, _f=_field, _n=_name: _links(sc, value, spec, choice,
+                                                                                                  _f, _n)))
 sweep_parameter(Parameter("graph_k", "robots", "each robot hears its k nearest (a k-nearest graph of the desired "
                           "points at t = 0)", low=1, high=100_000, integer=True, kinds=("network",), apply=_graph_k))
 SWEEP_KINDS.add("network", NetworkSweep("network"))

@@ -135,7 +135,8 @@ class AffineManeuver(LocalController):
                 a = np.asarray(reference[key], dtype=float)
             except (KeyError, TypeError, ValueError):
                 raise InvalidInputError(f"affine-maneuver: the reference needs {key!r}, an array (N, "
-                                        f"{width or 'N'}) ({unit}); affine_reference builds it") from None
+                                        f"{width or 'N'}) ({unit}); affine_reference builds it (in a network "
+                                        f"scenario file: an [affine] table with leaders and keyframes)") from None
             want = (n, width or n)
             if a.shape[-2:] != want:
                 raise ShapeError(f"affine-maneuver: reference {key!r} must have shape (*batch, {want[0]}, {want[1]}), "
