@@ -336,6 +336,24 @@ def test_bad_switching_schedules_batches_and_runs_are_one_line():
         Links(ring3).init(np.zeros((3, 2)), (3,), Links(ring3).schedule(_times(5), DT, (2,)))
 
 
+def test_write_and_inbox_refuse_wrong_shapes_in_one_line():
+    links = Links(Graph.ring(3))
+    state = links.init(np.zeros((2, 3, 4)), (2,))
+    for bad, seen in ((np.zeros((3, 4)), r"shape \(3, 4\)"), (np.zeros((2, 3, 5)), r"shape \(2, 3, 5\)"),
+                      (None, "None")):
+        with pytest.raises(ShapeError, match=r"outgoing messages must be \(\*batch, N, d\) = \(2, 3, 4\) .*got "
+                                             + seen) as info:
+            links.write(state, bad, 0.0)
+        assert "\n" not in str(info.value)
+    got = links.read(links.write(state, np.ones((2, 3, 4)), 0.0), {"lag": np.zeros((2, 3), dtype=np.int16)})
+    assert inbox(got, links)["valid"].shape == (2, 3, 1)
+    for bad in (None, got[:2], (got[0], got[1][..., :1], got[2]), (np.zeros(3), got[1], got[2])):
+        with pytest.raises(ShapeError, match=r"received must be Links.read's \(messages \(\*batch, E, d\), "
+                                             r"stamps \(\*batch, E\), valid \(\*batch, E\)\), got ") as info:
+            inbox(bad, links)
+        assert "\n" not in str(info.value)
+
+
 def test_a_loop_drawing_chunk_by_chunk_reads_what_one_schedule_reads():
     links = Links(Graph.complete(3), delay_s=0.02, jitter_s=0.05, drop=0.3, rate_hz=50.0, max_age_s=0.09, seed=4)
     T, times = 90, _times(90)

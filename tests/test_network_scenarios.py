@@ -165,3 +165,14 @@ def test_a_bad_affine_table_is_one_line(changes, match):
     with pytest.raises(InvalidInputError, match=match) as err:
         NET.from_dict(data, "bad.toml")
     assert "\n" not in str(err.value)
+
+
+def test_a_compare_draws_every_laws_consensus_error_on_one_figure(tmp_path):
+    from quatform.report import figures_of
+    from quatform.report.network_plots import write_network_compare_plots
+    from quatform.runs import compare
+
+    assert figures_of("network").compare is write_network_compare_plots
+    compare(NET.from_dict(_data(duration_s=0.5), "short-switching"), tmp_path / "cmp", quiet=True, mcap=False)
+    assert (tmp_path / "cmp" / "compare_consensus_error.png").is_file()
+

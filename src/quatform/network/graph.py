@@ -53,6 +53,11 @@ def _count(n) -> int:
     return int(n)
 
 
+def _pair(row) -> str:
+    """``"(0, 1.5)"``: an edge as given, its numbers printed plainly."""
+    return "(" + ", ".join(f"{float(v):g}" for v in row) + ")"
+
+
 def _edge_array(n: int, edges) -> np.ndarray:
     try:
         e = np.asarray(edges, dtype=float)
@@ -66,20 +71,39 @@ def _edge_array(n: int, edges) -> np.ndarray:
     bad = ~np.isfinite(e) | (e != np.round(e))
     if np.any(bad):
         k = int(np.argmax(bad.any(axis=1)))
-        raise InvalidInputError(f"graph: edge #{k + 1} {short(tuple(e[k]))} must be two integer robot indices "
-                                f"0 .. {n - 1}")
+        raise InvalidInputError(f"graph: edge #{k + 1} {_pair(e[k])} must be two whole robot indices in "
+                                f"0 .. {n - 1} (0-based: robot 1 is index 0)")
     out = (e < 0) | (e > n - 1)
     if np.any(out):
         k = int(np.argmax(out.any(axis=1)))
-        raise InvalidInputError(f"graph: edge #{k + 1} ({int(e[k, 0])}, {int(e[k, 1])}) names an index outside "
-                                f"0 .. {n - 1} ({n} robots, 0-based); renumber it or raise n")
+        raise InvalidInputError(f"graph: edge #{k + 1} {_pair(e[k])} names index {e[k][out[k]][0]:g}, outside "
+                                f"0 .. {n - 1} ({n} robots, 0-based: robot 1 is index 0); renumber it or raise n")
     e = e.astype(np.int64)
     loop = e[:, 0] == e[:, 1]
     if np.any(loop):
         k = int(np.argmax(loop))
-        raise InvalidInputError(f"graph: edge #{k + 1} ({e[k, 0]}, {e[k, 1]}) is a self-loop (robot {e[k, 0] + 1} "
-                                f"hearing itself); remove it")
+        raise InvalidInputError(f"graph: edge #{k + 1}, robot {e[k, 0] + 1} hears robot {e[k, 1] + 1}, is a "
+                                f"self-loop (a robot hearing itself); remove it")
     return e
+
+
+def _given_once(e: np.ndarray, undirected: bool) -> None:
+    """Refuse, in one line, the first edge of ``e`` (in the order given) that repeats an earlier
+    one (``undirected``: ``(j, i)`` repeats ``(i, j)``)."""
+    keys = np.sort(e, axis=1) if undirected else e
+    if not len(keys):
+        return
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    earlier = first[inverse.reshape(-1)]
+    twice = earlier != np.arange(len(e))
+    if np.any(twice):
+        k = int(np.argmax(twice))
+        i, j = e[k] + 1
+        if undirected:
+            raise InvalidInputError(f"graph: edge #{k + 1}, robots {i} and {j}, is given twice (also as edge "
+                                    f"#{earlier[k] + 1}; an undirected edge links both ways); give each pair once")
+        raise InvalidInputError(f"graph: edge #{k + 1}, robot {i} hears robot {j}, is given twice (also as edge "
+                                f"#{earlier[k] + 1}); give it once with the summed weight")
 
 
 def _weight_array(weights, count: int) -> np.ndarray:
@@ -88,7 +112,7 @@ def _weight_array(weights, count: int) -> np.ndarray:
         raise ShapeError(f"graph: weights must have one entry per edge, shape ({count},), got shape {w.shape}")
     if not np.all(np.isfinite(w)):
         k = int(np.argmax(~np.isfinite(w)))
-        raise NonFiniteError(f"graph: weight of edge #{k + 1} is {w[k]}; give a finite positive weight")
+        raise NonFiniteError(f"graph: weight of edge #{k + 1} is {w[k]:g}; give a finite positive weight")
     if np.any(w <= 0.0):
         k = int(np.argmax(w <= 0.0))
         raise InvalidInputError(f"graph: weight of edge #{k + 1} is {w[k]:.6g}, must be > 0 (a_ij > 0; leave "
@@ -139,13 +163,9 @@ class Graph:
         n = _count(self.n)
         e = _edge_array(n, self.edges)
         w = _weight_array(self.weights, len(e))
+        _given_once(e, undirected=False)
         order = np.lexsort((e[:, 1], e[:, 0]))
         e, w = e[order], w[order]
-        twice = np.all(e[1:] == e[:-1], axis=1)
-        if np.any(twice):
-            i, j = e[int(np.argmax(twice))]
-            raise InvalidInputError(f"graph: edge ({i}, {j}) is given twice (for an undirected graph, give each "
-                                    f"pair once); give it once with the summed weight")
         e.setflags(write=False)
         w.setflags(write=False)
         object.__setattr__(self, "n", n)
@@ -161,6 +181,7 @@ class Graph:
         e = _edge_array(n, edges)
         w = _weight_array(weights, len(e))
         if not directed:
+            _given_once(e, undirected=True)
             e, w = np.concatenate([e, e[:, ::-1]]), np.concatenate([w, w])
         return cls(n, e, w)
 
@@ -239,7 +260,8 @@ class Graph:
     def in_neighbours(self, i: int) -> np.ndarray:
         """Indices of the robots robot ``i`` hears (sorted)."""
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < self.n:
-            raise InvalidInputError(f"graph: robot index {short(i)} must be an integer in 0 .. {self.n - 1}")
+            raise InvalidInputError(f"graph: robot index {short(i)} must be an integer in 0 .. {self.n - 1} "
+                                    f"(0-based: robot 1 is index 0)")
         lo, hi = np.searchsorted(self.edges[:, 0], [i, i + 1])
         return self.edges[lo:hi, 1].copy()
 

@@ -361,8 +361,21 @@ class Links:
     def write(state: dict, outgoing, t) -> dict:
         """``state`` with the tick's outgoing messages ``(*batch, N, d)``, sent at ``t`` (s), as the
         ring's newest entry (the oldest leaves). Write before :meth:`read` in a tick: a message of
-        delay 0 is read the tick it is sent. Pure (any array namespace)."""
+        delay 0 is read the tick it is sent. Pure (any array namespace); the shape check reads
+        static shapes only, so it holds under ``jax.jit``.
+
+        Raises
+        ------
+        ShapeError
+            ``outgoing`` not of the ring's ``(*batch, N, d)``.
+        """
         ring, stamps = state["ring"], state["stamps"]
+        want = tuple(ring.shape[:-3]) + tuple(ring.shape[-2:])
+        got = getattr(outgoing, "shape", None)
+        if got is None or tuple(got) != want:
+            seen = f"shape {tuple(got)}" if got is not None else short(outgoing)
+            raise ShapeError(f"links: outgoing messages must be (*batch, N, d) = {want} (the ring's batch, robots "
+                             f"and message size), got {seen}; write one message per robot of each world")
         xp = common_namespace(ring, outgoing, t)
         now = xp.broadcast_to(xp.asarray(t, dtype=stamps.dtype), stamps.shape[:-1] + (1,))
         return {"ring": xp.concatenate([ring[..., 1:, :, :], outgoing[..., None, :, :]], axis=-3),
@@ -435,7 +448,19 @@ def inbox(received, graph) -> dict:
         ``senders`` ``(N, max_in)`` int (-1: padding), ``messages`` ``(*batch, N, max_in, d)``
         (0 at padding), ``stamps`` ``(*batch, N, max_in)`` s (``-inf`` at padding), ``valid``
         ``(*batch, N, max_in)`` bool (False at padding).
+
+    Raises
+    ------
+    ShapeError
+        ``received`` not a ``(messages, stamps, valid)`` triple of those shapes, or of another
+        edge count than ``graph``'s (static shapes only: it holds under ``jax.jit``).
     """
+    shapes = [getattr(a, "shape", None) for a in received] if isinstance(received, (tuple, list)) else []
+    if (len(shapes) != 3 or any(q is None for q in shapes) or len(shapes[0]) < 2
+            or tuple(shapes[1]) != tuple(shapes[0][:-1]) or tuple(shapes[2]) != tuple(shapes[1])):
+        seen = f"shapes {[None if q is None else tuple(q) for q in shapes]}" if shapes else short(received)
+        raise ShapeError(f"links: received must be Links.read's (messages (*batch, E, d), stamps (*batch, E), "
+                         f"valid (*batch, E)), got {seen}; pass what read returns")
     messages, stamps, valid = received
     edges, n = np.asarray(graph.edges), graph.n
     if messages.shape[-2] != len(edges):

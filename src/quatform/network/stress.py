@@ -150,12 +150,15 @@ class Stress:
         low = [i for i in np.flatnonzero(degree < d + 1)
                if _affine_rank(np.vstack([p[i], p[e[e[:, 0] == i, 1]], p[e[e[:, 1] == i, 0]]]), tol) == degree[i]]
         if low:
+            counts = sorted({int(degree[i]) for i in low})
+            many = len(low) > 1
+            held = (f"{counts[0]} neighbour{'s' if counts[0] != 1 else ''}" if len(counts) == 1
+                    else f"{counts[0]} to {counts[-1]} neighbours")
             raise UnreachableError(
-                f"stress: robot{'s' if len(low) > 1 else ''} {robots_text(low)} "
-                f"{'have' if len(low) > 1 else 'has'} {int(degree[low[0]])}{'...' if len(low) > 1 else ''} "
-                f"neighbour(s) in independent directions, so no stress reaches {'them' if len(low) > 1 else 'it'}; "
-                f"a stress of rank n - d - 1 needs every robot to have at least d + 1 = {d + 1} (Zhao 2018, "
-                f"universal rigidity); add edges to {'them' if len(low) > 1 else 'it'}")
+                f"stress: robot{'s' if many else ''} {robots_text(low)} {'have' if many else 'has'} {held} "
+                f"in independent directions{' each' if many and len(counts) == 1 else ''}, so no stress reaches "
+                f"{'them' if many else 'it'}; a stress of rank n - d - 1 needs every robot to have at least "
+                f"d + 1 = {d + 1} (Zhao 2018, universal rigidity); add edges to {'them' if many else 'it'}")
         m = len(e)
         H = np.zeros((m, n))
         H[np.arange(m), e[:, 0]] = -1.0
@@ -236,13 +239,16 @@ class Stress:
             a = np.array([None])
         if a.ndim != 1 or not (a.size == 0 or np.issubdtype(a.dtype, np.integer)):
             raise InvalidInputError(f"stress: leaders {short(leaders)} must be a sequence of robot indices "
-                                    f"0 .. {self.n - 1}")
+                                    f"0 .. {self.n - 1} (0-based: robot 1 is index 0)")
         a = a.astype(np.int64)
         if np.any((a < 0) | (a >= self.n)):
             raise InvalidInputError(f"stress: leader index {int(a[(a < 0) | (a >= self.n)][0])} is outside "
-                                    f"0 .. {self.n - 1} ({self.n} robots, 0-based)")
-        if len(np.unique(a)) != len(a):
-            raise InvalidInputError(f"stress: leaders {short(a.tolist())} name a robot twice; name each once")
+                                    f"0 .. {self.n - 1} ({self.n} robots, 0-based: robot 1 is index 0); "
+                                    f"renumber it")
+        values, counts = np.unique(a, return_counts=True)
+        if np.any(counts > 1):
+            raise InvalidInputError(f"stress: the leaders name robot{'s' if np.sum(counts > 1) > 1 else ''} "
+                                    f"{robots_text(values[counts > 1])} more than once; name each leader once")
         return np.sort(a)
 
     def check_leaders(self, leaders) -> dict:
