@@ -64,7 +64,7 @@ class PositionConsensus(LocalController):
                 a = np.asarray(reference[key], dtype=float)
             except (KeyError, TypeError, ValueError):
                 raise InvalidInputError(f"position-consensus: the reference needs {key!r}, an array (N, 3) in m"
-                                        f"{'/s' if key == 'offset_rate' else ''}") from None
+                                        f"{'/s' if key == 'desired_rate' else ''}") from None
             if a.shape[-2:] != (n, 3):
                 raise ShapeError(f"position-consensus: reference {key!r} must have shape (*batch, {n}, 3), got "
                                  f"{a.shape}")
