@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from quatform.control.contract import Controller, Step
+
+#: The fake rclpy of the ROS 2 bridge's tests.
+FAKE_RCLPY = Path(__file__).parent / "fake_rclpy"
 
 settings.register_profile("default", max_examples=60, deadline=None)
 settings.load_profile("default")
@@ -158,3 +164,21 @@ def pair_robot_error(a, b) -> float:
     yaw = list(RobotSpace().layout.yaw_indices)
     d[..., yaw] = g.wrap(d[..., yaw])
     return float(np.abs(d).max())
+
+
+@pytest.fixture
+def fake_ros(monkeypatch):
+    """The fake rclpy (``tests/fake_rclpy``, which refuses what rclpy refuses) on sys.path and its
+    message packages in sys.modules (both undone after)."""
+    monkeypatch.syspath_prepend(str(FAKE_RCLPY))
+    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.") or n == "fake_messages"]:
+        monkeypatch.delitem(sys.modules, name)
+    import fake_messages
+    import rclpy
+
+    fake_messages.install(monkeypatch)
+    rclpy.fake_bus.BUS.reset()
+    yield rclpy
+    rclpy.fake_bus.BUS.reset()
+    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.")]:
+        del sys.modules[name]

@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,23 +23,6 @@ FAKE = Path(__file__).parent / "fake_rclpy"
 _spec = importlib.util.spec_from_file_location("ros2_helpers", FAKE / "ros2_helpers.py")
 H = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(H)
-
-
-@pytest.fixture
-def fake_ros(monkeypatch):
-    """The fake rclpy on sys.path and its message packages in sys.modules (both undone after)."""
-    monkeypatch.syspath_prepend(str(FAKE))
-    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.") or n == "fake_messages"]:
-        monkeypatch.delitem(sys.modules, name)
-    import fake_messages
-    import rclpy
-
-    fake_messages.install(monkeypatch)
-    rclpy.fake_bus.BUS.reset()
-    yield rclpy
-    rclpy.fake_bus.BUS.reset()
-    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.")]:
-        del sys.modules[name]
 
 
 def robots_file(n: int, timeout_s: float = 0.05, **extra):

@@ -24,23 +24,6 @@ _spec.loader.exec_module(H)
 DT_NS = 10_000_000  # the helix's dt_s = 0.01 s
 
 
-@pytest.fixture
-def fake_ros(monkeypatch):
-    """The fake rclpy on sys.path and its message packages in sys.modules (both undone after)."""
-    monkeypatch.syspath_prepend(str(FAKE))
-    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.") or n == "fake_messages"]:
-        monkeypatch.delitem(sys.modules, name)
-    import fake_messages
-    import rclpy
-
-    fake_messages.install(monkeypatch)
-    rclpy.fake_bus.BUS.reset()
-    yield rclpy
-    rclpy.fake_bus.BUS.reset()
-    for name in [n for n in sys.modules if n == "rclpy" or n.startswith("rclpy.")]:
-        del sys.modules[name]
-
-
 def _pair_setup(tmp_path, duration_s=0.5, robots=H.PAIR_ROBOTS):
     exp = experiment_for(H.short_pair(duration_s), "quaternion")
     log = exp.run()
