@@ -213,10 +213,10 @@ class NetworkedController(contract.Controller):
             for c, col in enumerate(self.local.own_columns):
                 key = f"{col}{label}"
                 if key not in names:
+                    point = ", ".join(c[0] for c in POINT_KINDS[self.team.layout.kinds[i]].components)
                     raise InvalidInputError(f"networked controller: {self.local.name} reads {col!r} of each robot, "
                                             f"which the {self.model.name} robots do not offer (robot {label}'s "
-                                            f"point: {', '.join(c[0] for c in POINT_KINDS[self.team.layout.kinds[i]].components)}); choose a "
-                                            f"robot model whose point has it")
+                                            f"point: {point}); choose a robot model whose point has it")
                 out[i, c] = names.index(key)
         return out
 

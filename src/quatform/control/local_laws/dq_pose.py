@@ -1,4 +1,4 @@
-"""Unchecked dual-quaternion kernels of the dual-quaternion local laws and their shared base (internal: not part of the user API).
+"""The dual-quaternion local laws' unchecked kernels and their shared base (internal, not the user API).
 
 Control layer. Pure and branch-free on any array namespace (NumPy, JAX under ``jax.jit``):
 products and conjugates of ``(..., 8)`` dual quaternions (primary part first,
