@@ -212,3 +212,19 @@ def test_the_ring_of_held_messages_is_bounded():
         NetworkedController(PositionConsensus(), team, Links(g, max_age_s=1e6), DT)
     ctrl = NetworkedController(PositionConsensus(), team, Links(g, max_age_s=1e6), DT, run_ticks=50)
     assert ctrl.init()["links"]["ring"].shape == (50, 3, 6)
+
+
+def test_each_robot_acts_at_its_own_rate():
+    """A robot of rate r (links.rate_hz) computes and sends at its own ticks and holds its command
+    between them; at the loop's rate it acts every tick."""
+    g = Graph.ring(4, directed=False)
+    team = Team.uniform(HolonomicRobot(max_speed=1e3, max_yaw_rate=1e3), 4, common_limit=False)
+    ref = (lambda k: {"desired": np.zeros((4, 3)), "desired_rate": np.zeros((4, 3))})
+    rates = [100.0, 50.0, 25.0, 10.0]  # every 1, 2, 4 and 10 ticks of 10 ms
+    ctrl = NetworkedController(PositionConsensus(), team, Links(g, rate_hz=rates, max_age_s=0.5), DT)
+    times = np.arange(40) * DT
+    u = simulate(KinematicTeam(team), ctrl, ref, times, _x0(4, 3))["command"].reshape(40, 4, 4)[..., :3]
+    for i, every in enumerate((1, 2, 4, 10)):
+        changes = np.flatnonzero(np.any(np.diff(u[:, i], axis=0) != 0.0, axis=-1)) + 1
+        assert np.all(changes % every == 0), (i, changes)
+        assert len(changes) > 0

@@ -66,6 +66,17 @@ def _edge_weights(links: Links) -> np.ndarray:
     return out
 
 
+def tree_where(xp, acts, new, old, batch_ndim: int):
+    """``new`` where the robot acts, else ``old``, leaf by leaf of a local controller's state
+    (leaves ``(*batch, N, ...)``, ``batch_ndim`` leading axes; ``acts`` ``(*batch, N)`` bool)."""
+    if isinstance(new, dict):
+        return {k: tree_where(xp, acts, new[k], old[k], batch_ndim) for k in new}
+    if isinstance(new, (tuple, list)):
+        return type(new)(tree_where(xp, acts, a, b, batch_ndim) for a, b in zip(new, old))
+    rest = new.ndim - batch_ndim - 1
+    return xp.where(xp.reshape(acts, acts.shape + (1,) * rest), new, old)
+
+
 @dataclass(frozen=True, eq=False)
 class NetworkedController(contract.Controller):
     """Every robot of ``team`` runs ``local`` on its own measurement and what ``links`` deliver.
@@ -224,7 +235,8 @@ class NetworkedController(contract.Controller):
     def init(self, batch: tuple = ()):
         d = len(self.local.message_columns) + 3  # the law's message and the sender's position
         return {"local": self.local.init(self.n, tuple(batch)),
-                "links": self.links.init(np.zeros((self.n, d)), tuple(batch), length=self._ring)}
+                "links": self.links.init(np.zeros((self.n, d)), tuple(batch), length=self._ring),
+                "held": np.zeros(tuple(batch) + (self.n, len(self.model.command_columns)))}
 
     def schedule(self, times, batch: tuple = ()) -> dict:
         """The links' delivery schedule of the run's ticks ``times`` (``(T,)``, ``period_s`` apart),
@@ -237,6 +249,9 @@ class NetworkedController(contract.Controller):
         out = self.links.schedule(times, self.period_s, batch)
         for key in ("messages_sent", "messages_dropped"):  # a trailing axis: a per-world value of the loop
             out[key] = out[key][..., None]
+        acts = self.links.robot_ticks(times)  # (T, N): each robot's own control ticks, alike in every world
+        lead = (len(times),) + (1,) * len(tuple(batch))
+        out["acts"] = np.broadcast_to(acts.reshape(lead + (self.n,)), (len(times),) + tuple(batch) + (self.n,))
         return out
 
     def reference_arrays(self, reference):
@@ -308,6 +323,12 @@ class NetworkedController(contract.Controller):
             signals["safety"] = xp.reshape(xp.stack([xp.asarray(sig[k], dtype=measured.dtype) for k in SAFETY_SIGNALS],
                                                     axis=-1), batch + (-1,))
         u = self.commands(out.u, safe)
+        # a robot acts at its own rate (links.rate_hz): between its ticks it holds its command and state
+        acts = xp.asarray(xs["acts"]) if "acts" in xs else xp.ones(batch + (self.n,), dtype=bool)
+        u = xp.where(acts[..., None], xp.reshape(u, batch + (self.n, -1)), state["held"])
+        held = u
+        u = xp.reshape(u, batch + (-1,))
+        local_state = None if out.state is None else tree_where(xp, acts, out.state, state["local"], len(batch))
         age = xp.where(box["valid"], t - box["stamps"], 0.0)
         columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], delivered,
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
@@ -315,7 +336,7 @@ class NetworkedController(contract.Controller):
                                       axis=-1)
         code = xp.max(out.code, axis=-1) if out.code.shape[-1:] else xp.zeros(batch, dtype=xp.int64)
         code = xp.where((code == 0) & law_bad, LAW_NOT_FINITE, code)
-        return contract.Tick({"local": out.state, "links": ring}, u, signals, code)
+        return contract.Tick({"local": local_state, "links": ring, "held": held}, u, signals, code)
 
     @property
     def failure_reasons(self):

@@ -197,16 +197,23 @@ class Links:
         h = n_ticks - 1 if math.isinf(self.max_age_s) else math.floor(self.max_age_s / dt + TICK_TOL)
         return max(0, min(h, n_ticks - 1))
 
+    def robot_ticks(self, times, s0: int = 0, s1: int | None = None) -> np.ndarray:
+        """``(s1 - s0, N)`` bool: whether robot ``j`` acts (computes and sends) at the ticks ``s0 ..
+        s1 - 1`` of ``times`` (``(T,)``, s): at the first tick and wherever its clock ``t r_j``
+        crosses an integer (every tick without ``rate_hz``)."""
+        times = np.asarray(times, dtype=float)
+        s1 = len(times) if s1 is None else s1
+        if self.rate_hz is None:
+            return np.ones((s1 - s0, self.n), dtype=bool)
+        t = times[max(s0 - 1, 0):s1]
+        clock = np.floor(t[:, None] * self.rate_hz[None, :] + TICK_TOL)
+        robot = np.concatenate([np.ones((1, self.n), dtype=bool), clock[1:] > clock[:-1]])
+        return robot[(1 if s0 > 0 else 0):][:s1 - s0]
+
     def _sends(self, times: np.ndarray, dt: float, s0: int, s1: int) -> np.ndarray:
         """``(s1 - s0, E)`` bool: whether each candidate edge carries a message sent at ticks
         ``s0 .. s1 - 1`` (its sender's clock crossed a period and the tick's graph has the edge)."""
-        t = times[max(s0 - 1, 0):s1]
-        if self.rate_hz is None:
-            robot = np.ones((s1 - s0, self.n), dtype=bool)
-        else:
-            clock = np.floor(t[:, None] * self.rate_hz[None, :] + TICK_TOL)
-            robot = np.concatenate([np.ones((1, self.n), dtype=bool), clock[1:] > clock[:-1]])
-            robot = robot[(1 if s0 > 0 else 0):][:s1 - s0]
+        robot = self.robot_ticks(times, s0, s1)
         interval = np.maximum(np.searchsorted(self.starts, times[s0:s1] + TICK_TOL * dt, side="right") - 1, 0)
         return robot[:, self.edges[:, 1]] & self.active[interval]
 
