@@ -32,6 +32,7 @@ import numpy as np
 from ..algebra.kernels import common_namespace
 from ..errors import InvalidInputError, ShapeError
 from ..formations.layout import POINT_KINDS
+from ..formations.team_chart import team_positions
 from ..network.links import Links, inbox
 from ..robots import Team
 from . import contract
@@ -53,28 +54,28 @@ MAX_RING_TICKS = 1_000_000
 VELOCITY_COLUMNS = ("v_x", "v_y", "v_z")
 
 
-def _edge_weights(links: Links) -> np.ndarray:
-    """Each candidate edge's weight ``(E,)``: its weight in the first graph that has it."""
+def _slots(links: Links) -> tuple:
+    """``(senders, weights)`` ``(N, W)`` of every robot's inbox slots (:func:`inbox`'s layout):
+    each slot's sender (-1: padding) and the weight of its edge in the first graph that has it
+    (0 at padding)."""
     graphs = [links.graph] if not isinstance(links.graph, tuple) else [g for _, g in links.graph]
     n = links.n
     code = links.edges[:, 0] * n + links.edges[:, 1]
-    out = np.full(len(code), np.nan)
+    weights = np.full(len(code), np.nan)
     for g in reversed(graphs):
-        gc = g.edges[:, 0] * n + g.edges[:, 1]
-        idx = np.searchsorted(code, gc)
-        out[idx] = g.weights
-    return out
+        weights[np.searchsorted(code, g.edges[:, 0] * n + g.edges[:, 1])] = g.weights
+    box = inbox((weights[:, None], np.zeros(len(code)), np.ones(len(code), dtype=bool)), links)
+    return box["senders"], box["messages"][..., 0]
 
 
-def tree_where(xp, acts, new, old, batch_ndim: int):
+def tree_where(xp, acts, new, old):
     """``new`` where the robot acts, else ``old``, leaf by leaf of a local controller's state
-    (leaves ``(*batch, N, ...)``, ``batch_ndim`` leading axes; ``acts`` ``(*batch, N)`` bool)."""
+    (leaves ``(*batch, N, ...)``; ``acts`` ``(*batch, N)`` bool)."""
     if isinstance(new, dict):
-        return {k: tree_where(xp, acts, new[k], old[k], batch_ndim) for k in new}
+        return {k: tree_where(xp, acts, new[k], old[k]) for k in new}
     if isinstance(new, (tuple, list)):
-        return type(new)(tree_where(xp, acts, a, b, batch_ndim) for a, b in zip(new, old))
-    rest = new.ndim - batch_ndim - 1
-    return xp.where(xp.reshape(acts, acts.shape + (1,) * rest), new, old)
+        return type(new)(tree_where(xp, acts, a, b) for a, b in zip(new, old))
+    return xp.where(xp.reshape(acts, acts.shape + (1,) * (new.ndim - acts.ndim)), new, old)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,6 +109,12 @@ class NetworkedController(contract.Controller):
         The most ticks a run it drives has: the ring of held messages is at most that long
         (no message is older than the run). None: ``max_age_s / period_s`` ticks, at most
         :data:`MAX_RING_TICKS`.
+
+    Attributes
+    ----------
+    senders, slot_weights : ndarray, shape (N, W)
+        Every robot's inbox slots (:func:`~quatform.network.links.inbox`'s layout): each slot's
+        sender (-1: padding) and its edge's weight (0 at padding).
     """
 
     local: LocalController
@@ -169,7 +176,9 @@ class NetworkedController(contract.Controller):
                                         f"{limit} m/s; give the filter max_speed_m_s >= the robots' max_speed")
         own = self.own_index()  # raises where a robot lacks a column
         object.__setattr__(self, "_own", own)
-        object.__setattr__(self, "_weights", _edge_weights(self.links))
+        senders, weights = _slots(self.links)
+        object.__setattr__(self, "senders", senders)
+        object.__setattr__(self, "slot_weights", weights)
         ring = int(min(math.floor(self.links.max_age_s / float(p) + 1e-9), 2 * MAX_RING_TICKS)) + 1
         if self.run_ticks is not None:
             if isinstance(self.run_ticks, bool) or not isinstance(self.run_ticks, (int, np.integer)) or \
@@ -267,14 +276,6 @@ class NetworkedController(contract.Controller):
                     ref[out] = np.asarray(ref.pop(key), dtype=float)[..., self._own]
         return self.local.reference_arrays(ref, self.n), links
 
-    def positions(self, measured):
-        """Each robot's position ``(*batch, N, 3)`` of the measurement, m (z = 0 for a planar robot)."""
-        xp = common_namespace(measured)
-        ext = xp.concatenate([measured, xp.zeros(measured.shape[:-1] + (1,), dtype=measured.dtype)], axis=-1)
-        L = self.team.layout
-        idx = np.minimum(L.position_index, L.size)
-        return xp.reshape(xp.take(ext, xp.asarray(idx.reshape(-1)), axis=-1), measured.shape[:-1] + idx.shape)
-
     def received(self, ring, xs, p, t):
         """Each robot's inbox (:func:`~quatform.network.links.inbox`, with the slots' ``weights``),
         its senders' positions when they sent ``(*batch, N, W, 3)`` and the number of edges that
@@ -293,7 +294,7 @@ class NetworkedController(contract.Controller):
         delivered = xp.sum(xp.asarray(xp.asarray(xs["new"]) & valid, dtype=xp.int32), axis=-1)
         box = inbox((msgs, stamps, valid), self.links)
         sender = box["messages"][..., d:]
-        box.update(messages=box["messages"][..., :d], weights=self.slot_weights(box["senders"]))
+        box.update(messages=box["messages"][..., :d], weights=self.slot_weights)
         return box, sender, delivered
 
     def tick(self, state, measured, reference, t) -> contract.Tick:
@@ -301,7 +302,7 @@ class NetworkedController(contract.Controller):
         xp = common_namespace(measured)
         own = xp.take(measured, xp.asarray(self._own.reshape(-1)), axis=-1)
         own = xp.reshape(own, own.shape[:-1] + self._own.shape)
-        p = self.positions(measured)
+        p = team_positions(self.team.layout, measured)
         outgoing = xp.concatenate([self.local.message(state["local"], own, ref, t), p], axis=-1)
         ring = self.links.write(state["links"], outgoing, t)
         box, sender, delivered = self.received(ring, xs, p, t)
@@ -328,7 +329,7 @@ class NetworkedController(contract.Controller):
         u = xp.where(acts[..., None], xp.reshape(u, batch + (self.n, -1)), state["held"])
         held = u
         u = xp.reshape(u, batch + (-1,))
-        local_state = None if out.state is None else tree_where(xp, acts, out.state, state["local"], len(batch))
+        local_state = None if out.state is None else tree_where(xp, acts, out.state, state["local"])
         age = xp.where(box["valid"], t - box["stamps"], 0.0)
         columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], delivered,
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
@@ -356,23 +357,13 @@ class NetworkedController(contract.Controller):
         return contract.Step(out.u, out.state, dict(out.signals))
 
     # ------------------------------------------------------------------ one robot's composition (also LocalBridge's)
-    def slot_weights(self, senders: np.ndarray) -> np.ndarray:
-        """``(N, W)`` the weight of each inbox slot's edge (0 at padding)."""
-        n = self.n
-        code = self.links.edges[:, 0] * n + self.links.edges[:, 1]
-        rows = np.repeat(np.arange(n)[:, None], senders.shape[1], axis=1)
-        idx = np.searchsorted(code, rows * n + np.maximum(senders, 0))
-        return np.where(senders >= 0, self._weights[np.minimum(idx, len(code) - 1)] if len(code) else 0.0, 0.0)
-
     def commands(self, u, safe=None):
         """The local commands ``(*batch, N, n_local)`` as the team's ``(*batch, N n_u)``, each robot
         saturated by its model; ``safe`` (``(*batch, N, 3)``, m/s) replaces the velocity columns
         (the separation filter's output)."""
         xp = common_namespace(u)
         cols = self.model.command_columns
-        local = self.local.command_columns
-        zero = xp.zeros(u.shape[:-1], dtype=u.dtype)
-        parts = [u[..., local.index(c)] if c in local else zero for c in cols]
+        parts = self._columns(u, cols)
         if safe is not None:
             for a, c in enumerate(VELOCITY_COLUMNS):
                 parts[cols.index(c)] = safe[..., a]
@@ -381,7 +372,12 @@ class NetworkedController(contract.Controller):
 
     def law_velocity(self, u):
         """The linear velocity ``(*batch, N, 3)`` m/s the law commands (0 where it sets none)."""
+        return common_namespace(u).stack(self._columns(u, VELOCITY_COLUMNS), axis=-1)
+
+    def _columns(self, u, names) -> list:
+        """The law's commands ``u`` of the columns ``names``, each ``(*batch, N)`` (0 where the law
+        sets none)."""
         xp = common_namespace(u)
         local = self.local.command_columns
         zero = xp.zeros(u.shape[:-1], dtype=u.dtype)
-        return xp.stack([u[..., local.index(c)] if c in local else zero for c in VELOCITY_COLUMNS], axis=-1)
+        return [u[..., local.index(c)] if c in local else zero for c in names]

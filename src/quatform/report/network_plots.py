@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from ..papers import with_names
-from ..scenarios.network import positions_of
 from ..sim.log import Log
 from .figure_set import FIGURES, FigureSet
 from .figures import decimate, new_figure, save, time_xlim
@@ -127,7 +126,7 @@ def plot_message_age(run: Log, path) -> Path:
 def plot_graph_snapshots(run: Log, path) -> Path:
     """The robots from above at three times with the edges of the graph active then."""
     t = run.t
-    p = positions_of(run.meta["layout"], run["measured"])
+    p = run.meta["layout"].positions(np.asarray(run["measured"], dtype=float))
     graph = run.meta.get("graph", {})
     graphs = graph.get("graphs", [])
     starts = [(-np.inf if g["start_s"] is None else g["start_s"]) for g in graphs]

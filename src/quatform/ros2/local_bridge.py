@@ -60,7 +60,7 @@ from .. import messages
 from ..control.local import robot_rows
 from ..control.networked import SAFETY_SIGNALS, NetworkedController
 from ..errors import InvalidInputError
-from ..network.links import TICK_TOL, inbox
+from ..network.links import TICK_TOL
 from .bridge import FormationBridge, Tick
 from .endpoints import COMMAND_WRITERS, POSE_READERS
 from .robots_file import RobotsFile, resolve_topic
@@ -148,9 +148,8 @@ class LocalBridge:
         self._pos = np.where(np.asarray(L.position_index[i]) >= L.size, size, pos)
         # its inbox row: the candidate in-neighbours of the links (the simulator's padded width) and their weights
         E = len(ctrl.links.edges)
-        senders = inbox((np.zeros((E, 1)), np.zeros(E), np.zeros(E, dtype=bool)), ctrl.links)["senders"]
-        self.senders = senders[i:i + 1]
-        self.weights = ctrl.slot_weights(senders)[i:i + 1]
+        self.senders = ctrl.senders[i:i + 1]
+        self.weights = ctrl.slot_weights[i:i + 1]
         slot = np.maximum(self.senders[0], 0)
         code = ctrl.links.edges[:, 0] * n + ctrl.links.edges[:, 1]
         # each slot's candidate edge (padding: masked by its sender -1)

@@ -41,7 +41,7 @@ from .team import check_team_work, read_motion, read_robots
 
 __all__ = ["NetworkScenario", "NetworkKind", "GRAPH_KINDS", "network_scenario_from_dict", "graph_record",
            "averaged_graph", "measured_rate", "start_points", "network_metrics",
-           "desired_at_zero", "positions_of", "CSV_ROBOTS", "AffineMotion", "desired", "affine_extras"]
+           "desired_at_zero", "CSV_ROBOTS", "AffineMotion", "desired", "affine_extras"]
 
 _HINT = "see docs/networks.md, scenarios"
 _TOP_KEYS = ("kind", "name", "title", "source", "duration_s", "dt_s", "metrics_from_s", "law", "gains", "robots",
@@ -115,13 +115,6 @@ def _one_graph(g: dict, where: str, place: str, n: int, positions: np.ndarray) -
     if "weights" in g:
         weights = vector(g, "weights", len(pairs), where, place=place)
     return Graph.from_edges(n, pairs, weights=weights, directed=flag(g, "directed", where, True, place=place))
-
-
-def positions_of(layout, r) -> np.ndarray:
-    """The robots' positions ``(..., N, 3)`` of points ``r`` ``(..., layout.size)`` (z = 0 for a planar robot)."""
-    r = np.asarray(r, dtype=float)
-    ext = np.concatenate([r, np.zeros(r.shape[:-1] + (1,))], axis=-1)
-    return ext[..., np.minimum(layout.position_index, layout.size)]
 
 
 def averaged_graph(pattern, period: float) -> Graph:
@@ -265,19 +258,15 @@ class AffineMotion:
 
     def robots(self, t) -> tuple:
         """The desired robot points and their rates at times ``t`` (``(T,)``): ``(T, layout.size)``
-        each (headings and orientations held at their nominal values)."""
-        p, v = self.example().targets(np.asarray(t, dtype=float))
-        T = len(np.atleast_1d(t))
-        r = np.zeros((T, self.layout.size))
-        rd = np.zeros_like(r)
-        idx = self.layout.position_index
-        for i in range(self.layout.n):
-            for axis in range(3):
-                k = idx[i, axis]
-                if k < self.layout.size:
-                    r[:, k] = p[:, i, axis] if axis < 2 else self.nominal[i, 2]
-                    rd[:, k] = v[:, i, axis] if axis < 2 else 0.0
-        return r, rd
+        each (each robot's ``z`` its nominal one, its heading 0)."""
+        p, v = self.example().targets(np.asarray(t, dtype=float))          # (T, N, 2) each
+        z = np.broadcast_to(self.nominal[:, 2], p.shape[:-1])[..., None]
+        out = []
+        for xyz in (np.concatenate([p, z], axis=-1), np.concatenate([v, np.zeros_like(z)], axis=-1)):
+            padded = np.zeros((len(xyz), self.layout.size + 1))  # a planar robot's z: the column dropped
+            padded[:, self.layout.position_index] = xyz
+            out.append(padded[:, :-1])
+        return tuple(out)
 
 
 def desired(motion, layout, t) -> tuple:
@@ -379,7 +368,7 @@ def network_scenario_from_dict(data: dict, where: str = "scenario") -> NetworkSc
         if "affine" in data:
             motion = _affine_motion(data, where, team, motion, duration)
         r0 = desired_at_zero(team, motion)
-        pos0 = positions_of(team.layout, r0)
+        pos0 = team.layout.positions(r0)
         law = _law(text(data, "law", where), table(data, "gains", where, default={}), where)
         if "switching" in data and "graph" in data:
             raise InvalidInputError(f"{where}: give [graph] or [[switching]], not both (a switching schedule lists "
@@ -484,7 +473,7 @@ def _check_start_apart(sc: NetworkScenario, where: str) -> None:
     from scipy.spatial import cKDTree
 
     d = sc.safety["min_separation_m"]
-    p = positions_of(sc.team.layout, start_points(sc, desired_at_zero(sc.team, sc.motion)))
+    p = sc.team.layout.positions(start_points(sc, desired_at_zero(sc.team, sc.motion)))
     dist, idx = cKDTree(p).query(p, k=2)
     i = int(np.argmin(dist[:, 1]))
     if dist[i, 1] < d:
@@ -672,7 +661,7 @@ def network_metrics(log: Log, scenario: NetworkScenario, ctrl: NetworkedControll
     net = np.asarray(log["network"], dtype=float)
     u = np.asarray(log["command"], dtype=float)
     L = scenario.team.layout
-    pos = positions_of(L, np.asarray(log["measured"], dtype=float))
+    pos = L.positions(np.asarray(log["measured"], dtype=float))
     sep = np.array([cKDTree(p).query(p, k=2)[0][:, 1].min() if np.all(np.isfinite(p)) else np.nan for p in pos])
     final = float(err[-1])
     # a rate is measured against a prediction; a law with none (an affine maneuver) has no rate to compare

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..network import Graph
-from ..scenarios.network import NetworkScenario, desired_at_zero, positions_of, start_points
+from ..scenarios.network import NetworkScenario, desired_at_zero, start_points
 from .spec import Parameter, Success, sweep_parameter
 from .trials import SWEEP_KINDS, SweepKind, trial_stream
 
@@ -53,7 +53,7 @@ def _links(sc: NetworkScenario, value, spec, choice, field: str, name: str):
 def _graph_k(sc: NetworkScenario, value, spec, choice):
     """``sc`` with each robot hearing its ``value`` nearest (of the desired points at ``t = 0``)."""
     def build():
-        pos = positions_of(sc.team.layout, desired_at_zero(sc.team, sc.motion))
+        pos = sc.team.layout.positions(desired_at_zero(sc.team, sc.motion))
         graph = Graph.k_nearest(pos, int(value))
         return dataclasses.replace(sc, links=dataclasses.replace(sc.links, graph=graph), switching=None)
 
