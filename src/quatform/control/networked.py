@@ -287,8 +287,7 @@ class NetworkedController(contract.Controller):
         msgs, stamps, valid = self.links.read(ring, xs)            # per candidate edge (*batch, E, ...)
         d = len(self.local.message_columns)
         if self.range_m is not None:
-            gap = msgs[..., d:] - xp.take(p, xp.asarray(self.links.edges[:, 0]), axis=-2)
-            valid = valid & (xp.sum(gap * gap, axis=-1) <= self.range_m * self.range_m)
+            valid = valid & self.in_range(msgs[..., d:], xp.take(p, xp.asarray(self.links.edges[:, 0]), axis=-2))
             msgs = xp.where(valid[..., None], msgs, 0.0)
             stamps = xp.where(valid, stamps, -math.inf)
         delivered = xp.sum(xp.asarray(xp.asarray(xs["new"]) & valid, dtype=xp.int32), axis=-1)
@@ -357,6 +356,13 @@ class NetworkedController(contract.Controller):
         return contract.Step(out.u, out.state, dict(out.signals))
 
     # ------------------------------------------------------------------ one robot's composition (also LocalBridge's)
+    def in_range(self, sender, receiver):
+        """Whether a sender (its position when it sent) is within :attr:`range_m` of its receiver
+        (its position now), m, broadcast over leading axes: the radio's rule (a pair exactly
+        ``range_m`` apart hears)."""
+        gap = sender - receiver
+        return common_namespace(gap).sum(gap * gap, axis=-1) <= self.range_m * self.range_m
+
     def commands(self, u, safe=None):
         """The local commands ``(*batch, N, n_local)`` as the team's ``(*batch, N n_u)``, each robot
         saturated by its model; ``safe`` (``(*batch, N, 3)``, m/s) replaces the velocity columns

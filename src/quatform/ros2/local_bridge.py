@@ -320,8 +320,7 @@ class LocalBridge:
         held = np.where(valid[:, None], held, 0.0)
         sender = held[None, :, d:]
         if ctrl.range_m is not None:
-            gap = sender - p[:, None, :]
-            valid = valid & (np.sum(gap * gap, axis=-1)[0] <= ctrl.range_m * ctrl.range_m)
+            valid = valid & ctrl.in_range(sender, p[:, None, :])[0]
         valid = valid[None]
         box = {"senders": self.senders, "messages": np.where(valid[..., None], held[None, :, :d], 0.0),
                "stamps": np.where(valid, tau - age[None], -math.inf), "valid": valid, "weights": self.weights}
