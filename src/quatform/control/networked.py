@@ -318,7 +318,8 @@ class NetworkedController(contract.Controller):
         if self.safety is not None:  # each robot filters its own velocity against what it knows of its neighbours
             valid = box["valid"]
             sensed = (valid | xp.asarray(box["senders"] >= 0)) if self.hold_unheard else valid
-            age = xp.where(valid, t - xp.where(valid, box["stamps"], 0.0), math.inf)
+            now = xp.asarray(t, dtype=measured.dtype)[..., None, None]  # t: () or per world
+            age = xp.where(valid, now - xp.where(valid, box["stamps"], 0.0), math.inf)
             safe, sig = self.safety.filter(self.law_velocity(out.u), p, sender, age, sensed)
             signals["safety"] = xp.reshape(xp.stack([xp.asarray(sig[k], dtype=measured.dtype) for k in SAFETY_SIGNALS],
                                                     axis=-1), batch + (-1,))
@@ -329,7 +330,7 @@ class NetworkedController(contract.Controller):
         held = u
         u = xp.reshape(u, batch + (-1,))
         local_state = None if out.state is None else tree_where(xp, acts, out.state, state["local"])
-        age = xp.where(box["valid"], t - box["stamps"], 0.0)
+        age = xp.where(box["valid"], xp.asarray(t)[..., None, None] - box["stamps"], 0.0)
         columns = (xs["messages_sent"][..., 0], xs["messages_dropped"][..., 0], delivered,
                    xp.max(xp.reshape(age, age.shape[:-2] + (-1,)), axis=-1, initial=0.0))
         signals["network"] = xp.stack([xp.broadcast_to(xp.asarray(c, dtype=measured.dtype), batch) for c in columns],

@@ -384,7 +384,8 @@ class Links:
             raise ShapeError(f"links: outgoing messages must be (*batch, N, d) = {want} (the ring's batch, robots "
                              f"and message size), got {seen}; write one message per robot of each world")
         xp = common_namespace(ring, outgoing, t)
-        now = xp.broadcast_to(xp.asarray(t, dtype=stamps.dtype), stamps.shape[:-1] + (1,))
+        now = xp.asarray(t, dtype=stamps.dtype)[..., None]  # t: () or one per world
+        now = xp.broadcast_to(now, stamps.shape[:-1] + (1,))
         return {"ring": xp.concatenate([ring[..., 1:, :, :], outgoing[..., None, :, :]], axis=-3),
                 "stamps": xp.concatenate([stamps[..., 1:], now], axis=-1)}
 

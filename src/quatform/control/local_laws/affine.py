@@ -180,7 +180,7 @@ class AffineManeuver(LocalController):
         w = xp.where(xp.asarray(senders >= 0), xp.take_along_axis(stress, idx, axis=-1), 0.0)  # (*b, N, W)
         valid = inbox["valid"]
         msg = inbox["messages"]
-        age = xp.where(valid, t - inbox["stamps"], 0.0)                                  # (*b, N, W)
+        age = xp.where(valid, xp.asarray(t)[..., None, None] - inbox["stamps"], 0.0)  # (*b, N, W); t: () or per world
         pj = msg[..., :3] + age[..., None] * msg[..., 3:]
         term = self.gain * (pj - own[..., None, :]) + msg[..., 3:]                       # (*b, N, W, 3)
         held = xp.where(valid, w, 0.0)

@@ -1,0 +1,504 @@
+"""The learning environments' one functional core: ``reset(key, params)`` and ``step(key, state, action, params)``.
+
+Envs layer (beside runs and cli, above scenarios). A :class:`FormationCore` is built from a
+scenario (a team file, seed 000's pair files through it, or a network file) and runs the
+simulator's own tick (:func:`quatform.sim.loop.make_tick`) on the array namespace of its
+operands: the same function steps one NumPy world, a batch of NumPy worlds on leading axes,
+and JAX worlds under ``jax.jit`` and ``jax.vmap``. The policy's action reaches the tick
+through its reference input: :class:`ActionController` wraps the scenario's controller and
+reads ``(reference, action)``; with a zero residual its commands are the scenario
+controller's own, so an episode equals :meth:`~quatform.scenarios.base.Experiment.run`'s
+states bitwise (``docs/envs.md``).
+
+Randomness (the start's perturbation, the measurement noise) comes from ``key``, a
+``uint32`` array ``(*batch, 2)`` (the layout of ``jax.random.PRNGKey``), through a
+counter-based hash written on the array namespace (:func:`normal`): NumPy and JAX draw the
+same numbers from the same key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..algebra.kernels import common_namespace
+from ..control.contract import Controller, Tick
+from ..errors import InvalidInputError
+from ..formations.team_chart import team_positions
+from ..scenarios import kind_of, load_scenario
+from ..sim.loop import START_CODE, make_tick, plant_inputs, scheduled_reference, tree_map
+from ..sim.measurement import PerfectMeasurement
+
+__all__ = ["ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading", "functional", "key",
+           "split", "normal", "ACTION_MODES"]
+
+#: What an action is: a residual added to the scenario controller's commands, or the commands.
+ACTION_MODES = ("residual", "velocity")
+
+
+# --------------------------------------------------------------------------- randomness
+
+_M1, _M2 = 0x7FEB352D, 0x846CA68B  # lowbias32 (C. Wellons, "Prospecting for hash functions", 2018)
+_GOLDEN = 0x9E3779B9
+
+
+def _hash32(xp, x):
+    """Wellons' ``lowbias32`` integer hash of ``uint32`` ``x`` (wrapping products), any namespace."""
+    x = x ^ (x >> 16)
+    x = x * xp.asarray(_M1, dtype=xp.uint32)
+    x = x ^ (x >> 15)
+    x = x * xp.asarray(_M2, dtype=xp.uint32)
+    return x ^ (x >> 16)
+
+
+def _bits(key, stream: int, n: int):
+    """``(*batch, n)`` ``uint32`` hashes of ``key`` ``(*batch, 2)``, the stream and the counter ``0..n-1``."""
+    xp = common_namespace(key)
+    key = xp.asarray(key, dtype=xp.uint32)
+    count = xp.arange(n, dtype=xp.uint32) + xp.asarray((stream * _GOLDEN) & 0xFFFFFFFF, dtype=xp.uint32)
+    h = _hash32(xp, count ^ key[..., 1:2])
+    return _hash32(xp, h ^ _hash32(xp, key[..., 0:1] ^ xp.asarray(_GOLDEN, dtype=xp.uint32)))
+
+
+def _uniform(key, stream: int, n: int):
+    """``(*batch, n)`` floats in ``[0, 1)`` with 53 random bits (two 32-bit hashes)."""
+    xp = common_namespace(key)
+    hi = xp.asarray(_bits(key, 2 * stream, n) >> 5, dtype=xp.float64)   # 27 bits
+    lo = xp.asarray(_bits(key, 2 * stream + 1, n) >> 6, dtype=xp.float64)  # 26 bits
+    return (hi * 67108864.0 + lo) / 9007199254740992.0
+
+
+def normal(key, stream: int, n: int):
+    """``(*batch, n)`` standard normal draws of ``key`` (``uint32 (*batch, 2)``) and ``stream``
+    (Box and Muller 1958: ``sqrt(-2 ln u1) cos(2 pi u2)``), the same on NumPy and JAX."""
+    xp = common_namespace(key)
+    u1 = 1.0 - _uniform(key, 2 * stream, n)  # (0, 1]: its logarithm is finite
+    u2 = _uniform(key, 2 * stream + 1, n)
+    return xp.sqrt(-2.0 * xp.log(u1)) * xp.cos(2.0 * math.pi * u2)
+
+
+def key(seed: int) -> np.ndarray:
+    """The key ``uint32 (2,)`` of a whole-number ``seed`` (the words of ``jax.random.PRNGKey(seed)``)."""
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= int(seed) < 2 ** 64:
+        raise InvalidInputError(f"envs: a seed is a whole number in [0, 2**64), got {seed!r}")
+    seed = int(seed)
+    return np.array([seed >> 32, seed & 0xFFFFFFFF], dtype=np.uint32)
+
+
+def split(key, num: int = 2):
+    """``num`` new keys ``(num, *batch, 2)`` of ``key`` ``(*batch, 2)`` (any namespace)."""
+    xp = common_namespace(key)
+    words = _bits(key, 0x5EED, 2 * num)
+    words = xp.reshape(words, words.shape[:-1] + (num, 2))
+    return xp.moveaxis(words, -2, 0)
+
+
+# --------------------------------------------------------------------------- the action in the tick
+
+@dataclasses.dataclass(frozen=True)
+class ActionController(Controller):
+    """The scenario's controller ``base`` with the policy's action: the loop's controller of an env.
+
+    The tick's reference is ``(base reference arrays, action)``; the action ``(*batch, n_u)``
+    in ``[-1, 1]`` scaled by ``scale`` (``(n_u,)``, the commands' units) is
+
+    * ``"residual"``: added to ``base``'s commands, the sum saturated by the team's limits; a
+      world whose action is all zero takes ``base``'s commands as they are (bitwise);
+    * ``"velocity"``: the commands themselves, saturated.
+
+    ``base`` ticks in both modes (its state, signals and failure codes are the loop's).
+    """
+
+    base: Controller
+    team: Any
+    mode: str = "residual"
+    scale: Any = None
+
+    def __post_init__(self):
+        if self.mode not in ACTION_MODES:
+            raise InvalidInputError(f"envs: action = {self.mode!r}; choose one of {', '.join(ACTION_MODES)}")
+        object.__setattr__(self, "scale", np.asarray(self.scale, dtype=float))
+
+    @property
+    def name(self) -> str:
+        return self.base.name
+
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        return self.base.command_names
+
+    def signal_columns(self) -> dict:
+        return self.base.signal_columns()
+
+    @property
+    def pure(self) -> bool:
+        return self.base.pure
+
+    @property
+    def failure_reasons(self):
+        return self.base.failure_reasons
+
+    def init(self, batch: tuple = ()):
+        return self.base.init(batch)
+
+    def reference_arrays(self, reference):
+        """``base``'s (the env adds the action at each tick)."""
+        return self.base.reference_arrays(reference)
+
+    def update(self, t, measured, reference, state):
+        raise InvalidInputError("envs: ActionController runs through its pure tick only")
+
+    def tick(self, state, measured, reference, t) -> Tick:
+        ref, action = reference
+        out = self.base.tick(state, measured, ref, t)
+        xp = common_namespace(measured, out.u, action)
+        a = xp.asarray(action, dtype=xp.float64) * self.scale
+        if self.mode == "velocity":
+            u = self.team.saturate(xp.broadcast_to(a, out.u.shape))
+        else:
+            zero = xp.all(a == 0.0, axis=-1, keepdims=True)
+            u = xp.where(zero, out.u, self.team.saturate(out.u + a))
+        return Tick(out.state, u, out.signals, out.code)
+
+
+class NoisyReading:
+    """A measurement model: the plant's output plus the tick's ``noise`` (``xs["noise"]``,
+    drawn by the env from its key), at once; its state is the last output."""
+
+    columns = None
+
+    def schedule(self, times, dt: float, substeps: int, batch: tuple = ()) -> dict:
+        return {}
+
+    def init(self, y0, batch: tuple = (), schedule: dict | None = None):
+        return y0
+
+    def observe(self, state, y, j: int):
+        return y
+
+    def read(self, state, xs: dict):
+        return state, state + xs["noise"]
+
+
+# --------------------------------------------------------------------------- params and state
+
+class EnvParams(NamedTuple):
+    """What an episode reads (a pytree of arrays: ``jax.jit`` traces it, ``jax.vmap`` maps it
+    with ``in_axes=None``). Shapes for ``T`` control ticks, ``n_x`` plant states, ``n_m``
+    measured values, ``n_u`` commands, ``n_r`` robot points, ``n_c`` chart variables.
+
+    Attributes
+    ----------
+    refs : pytree, leaves ``(T, ...)``
+        The controller's reference arrays of every tick.
+    times : (T,)
+        Control ticks, s.
+    x0 : (n_x,)
+        Initial plant state (the scenario's start).
+    r_des : (T, n_r)
+        Desired robot points.
+    c_des : (T, n_c)
+        Desired cluster state of the description (``n_c = 0`` for a network scenario).
+    action_scale : (n_u,)
+        Units of an action entry of 1 (m/s, rad/s ...).
+    noise_std : (n_m,)
+        Standard deviation of the measurement noise of each measured value.
+    start_std : (n_x,)
+        Standard deviation of the start's perturbation of each state entry.
+    weights : (3,)
+        Reward weights ``(tracking, effort, separation)``.
+    separation_m : ()
+        Distance below which a pair is penalised, m.
+    collision_m : ()
+        Distance below which a pair has collided (termination), m.
+    loss_m : ()
+        Root-mean-square position error beyond which the formation is lost (termination), m.
+    loss_penalty : ()
+        Reward of a step that ends in a failure of the loop or a non-finite state.
+    """
+
+    refs: Any
+    times: Any
+    x0: Any
+    r_des: Any
+    c_des: Any
+    action_scale: Any
+    noise_std: Any
+    start_std: Any
+    weights: Any
+    separation_m: Any
+    collision_m: Any
+    loss_m: Any
+    loss_penalty: Any
+
+
+class EnvState(NamedTuple):
+    """An episode's state, leading axes the batch.
+
+    Attributes
+    ----------
+    x : (*batch, n_x)
+        Plant state.
+    ctrl, meas : pytree
+        The controller's and the measurement model's states.
+    fail_tick, reason : (*batch,) int64
+        The loop's failing tick (-1: none) and reason code (0: none).
+    k : (*batch,) int64
+        The next control tick.
+    noise : (*batch, n_m)
+        The noise of the next tick's reading.
+    """
+
+    x: Any
+    ctrl: Any
+    meas: Any
+    fail_tick: Any
+    reason: Any
+    k: Any
+    noise: Any
+
+
+# --------------------------------------------------------------------------- the core
+
+def _probe_limits(team, n_u: int) -> np.ndarray:
+    """The largest command each column alone takes through the team's saturation (``(n_u,)``)."""
+    big = 1e6 * np.eye(n_u)
+    lim = np.abs(np.diagonal(np.asarray(team.saturate(big), dtype=float)))
+    return np.where(lim > 0, lim, 1.0)
+
+
+class FormationCore:
+    """The functional environment of one scenario and controller (module docstring).
+
+    Build it with :func:`functional`. ``reset`` and ``step`` are pure functions of their
+    arguments (this object is configuration only).
+
+    Observation ``(n_obs,)`` float64, in order: the description's chart error ``e`` (``n_c``:
+    :meth:`~quatform.formations.base.Formation.errors` of its forward map of the measured
+    robots against the reference's cluster state: centroid, attitude, shape and headings in the
+    description's variables; none for a network scenario), the robots' error against their
+    desired points (``n_r``, yaws wound), the measured robots (``n_r``) and the episode's
+    elapsed fraction (1). Non-finite entries read 0.
+    """
+
+    def __init__(self, experiment, action: str = "residual", residual_scale: float = 0.25,
+                 noise_m: float = 0.0, noise_rad: float = 0.0, start_noise_m: float = 0.0,
+                 weights=(1.0, 0.01, 10.0), separation_m: float | None = None, collision_m: float | None = None,
+                 loss_m: float = 10.0, loss_penalty: float = 100.0, duration_s: float | None = None):
+        ex = experiment
+        self.experiment = ex
+        base = ex.controller
+        team = getattr(base, "team", None) or getattr(ex.plant, "team", None)
+        if team is None or not getattr(base, "pure", False) or not getattr(ex.plant, "batchable", False):
+            raise InvalidInputError(f"envs: {ex.label} needs a pure controller, a batchable plant and a team of robots "
+                                    "(the team and network scenarios on kinematic physics)")
+        if ex.measurement is not None:
+            raise InvalidInputError("envs: the scenario's measurement model is the env's own (noise_m, noise_rad)")
+        if plant_inputs(ex.plant, ex.times[:1], ex.dt, ex.substeps) is not None:
+            raise InvalidInputError("envs: a plant with exogenous inputs is not an env's")
+        self.team, self.layout, self.plant = team, team.layout, ex.plant
+        n_u = len(base.command_names)
+        limits = _probe_limits(team, n_u)
+        scale = limits if action == "velocity" else residual_scale * limits
+        self.controller = ActionController(base, team, action, scale)
+        self.action_mode = action
+        self.noisy = bool(noise_m > 0 or noise_rad > 0)
+        self.measurement = NoisyReading() if self.noisy else PerfectMeasurement()
+        self.dt, self.substeps = float(ex.dt), int(ex.substeps)
+        times = np.asarray(ex.times, dtype=float)
+        if duration_s is not None:
+            times = times[times <= float(duration_s) + 1e-9 * ex.dt]
+        if times.size < 2:
+            raise InvalidInputError("envs: an episode needs at least two control ticks (raise duration_s)")
+        self.T = int(times.size)
+        self.tick = make_tick(self.plant, self.controller, self.measurement, self.dt, self.substeps)
+        reference = scheduled_reference(base, ex.reference, times, ())
+        refs = [base.reference_arrays(reference(k)) for k in range(self.T)]
+        refs = tree_map(lambda *a: np.stack([np.asarray(v) for v in a]), refs[0], *refs[1:])
+        x0 = np.asarray(ex.x0, dtype=float)
+        y0 = np.asarray(self.plant.output(x0), dtype=float)
+        self.n_x, self.n_m, self.n_u, self.n_r = x0.shape[-1], y0.shape[-1], n_u, self.layout.size
+        inner = getattr(base, "inner", base)
+        self.formation = getattr(inner, "formation", None)
+        r_des, c_des = self._desired(ex, refs, times)
+        self.n_c = c_des.shape[-1]
+        self.n_obs = self.n_c + 2 * self.n_r + 1
+        yaw = np.zeros(self.n_m, dtype=bool)
+        if self.n_m == self.n_r:
+            yaw[list(self.layout.yaw_indices)] = True
+        sep = separation_m
+        if sep is None:
+            safety = ex.meta.get("safety") or {}
+            sep = float(safety.get("min_separation_m", 0.3)) if safety.get("enabled", True) else 0.3
+        col = 0.5 * sep if collision_m is None else float(collision_m)
+        start = np.zeros(self.n_x)
+        if self.n_x == self.n_r:
+            start[self.layout.position_index.ravel()[self.layout.position_index.ravel() < self.n_r]] = start_noise_m
+        self.default_params = EnvParams(
+            refs=refs, times=times, x0=x0, r_des=r_des, c_des=c_des, action_scale=scale,
+            noise_std=np.where(yaw, noise_rad, noise_m).astype(float), start_std=start,
+            weights=np.asarray(weights, dtype=float), separation_m=np.float64(sep), collision_m=np.float64(col),
+            loss_m=np.float64(loss_m), loss_penalty=np.float64(loss_penalty))
+
+    def _desired(self, ex, refs, times):
+        """``(r_des (T, n_r), c_des (T, n_c))`` of the experiment's reference."""
+        T = times.size
+        ref0 = ex.reference(0)
+        if hasattr(ref0, "robots") and ref0.robots is not None:  # a team scenario's Reference
+            r_des = np.stack([np.asarray(ex.reference(k).robots, dtype=float) for k in range(T)])
+            c_des = np.stack([np.asarray(ex.reference(k).c, dtype=float) for k in range(T)])
+            return r_des, c_des
+        if isinstance(ref0, dict) and "robots" in ref0:  # a network scenario's
+            return np.stack([np.asarray(ex.reference(k)["robots"], dtype=float) for k in range(T)]), np.zeros((T, 0))
+        raise InvalidInputError(f"envs: the reference of {ex.label} names no desired robots")
+
+    # -- the functional form ------------------------------------------------------------
+    def reset(self, key, params: EnvParams):
+        """``(obs, state)`` of a new episode: the scenario's start, perturbed by
+        ``params.start_std`` (stream 0 of ``key``), and the first reading's noise (stream 1)."""
+        xp = common_namespace(key, params.x0)
+        key = xp.asarray(key)
+        batch = tuple(key.shape[:-1])
+        x = params.x0 + params.start_std * normal(key, 0, self.n_x)
+        x = xp.broadcast_to(x, batch + (self.n_x,))
+        bad = ~xp.all(xp.isfinite(x), axis=-1)
+        fail_tick = xp.where(bad, 0, -1).astype(xp.int64)
+        reason = xp.where(bad, START_CODE, 0).astype(xp.int64)
+        ctrl = tree_map(lambda a: xp.asarray(a), self.controller.init(batch))
+        meas = self.measurement.init(self.plant.output(x), batch, {})
+        noise = params.noise_std * normal(key, 1, self.n_m)
+        state = EnvState(x, ctrl, meas, fail_tick, reason, xp.zeros(batch, dtype=xp.int64),
+                         xp.broadcast_to(noise, batch + (self.n_m,)))
+        return self.observe(state, params), state
+
+    def step(self, key, state: EnvState, action, params: EnvParams):
+        """``(obs, state, reward, terminated, truncated, info)`` of one control tick under
+        ``action`` (``(*batch, n_u)`` in ``[-1, 1]``): the loop's tick
+        (:func:`~quatform.sim.loop.make_tick`), then the next reading's noise from ``key``
+        (stream 1), the observation, the reward and the episode's end (``docs/envs.md``)."""
+        xp = common_namespace(key, state.x, action)
+        k = xp.minimum(state.k, self.T - 1)
+        ref = tree_map(lambda a: xp.asarray(a)[k], params.refs)
+        xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, xp.asarray(action, dtype=xp.float64)),
+              "meas": {"noise": state.noise} if self.noisy else {}, "plant": None}
+        carry, ys = self.tick((state.x, state.ctrl, state.meas, state.fail_tick, state.reason), xs)
+        u = ys[2]
+        noise = params.noise_std * normal(key, 1, self.n_m)
+        new = EnvState(*carry, state.k + 1, xp.broadcast_to(noise, state.noise.shape))
+        obs = self.observe(new, params)
+        reward, terminated, info = self.judge(new, u, params)
+        truncated = (new.k >= self.T - 1) & ~terminated
+        return obs, new, reward, terminated, truncated, info
+
+    # -- what an episode reads --------------------------------------------------------------
+    def desired(self, state: EnvState, params: EnvParams):
+        """``(r_des (*batch, n_r), c_des (*batch, n_c))`` at the state's tick."""
+        xp = common_namespace(state.x)
+        k = xp.minimum(state.k, self.T - 1)
+        return xp.asarray(params.r_des)[k], xp.asarray(params.c_des)[k]
+
+    def measured(self, state: EnvState):
+        """What the next tick reads: the plant's output plus the drawn noise, ``(*batch, n_m)``."""
+        y = self.plant.output(state.x)
+        return y + state.noise if self.noisy else y
+
+    def errors(self, m, r_des, c_des):
+        """``(chart error (*batch, n_c), robot error (*batch, n_r))`` of the measured robots
+        ``m`` against the reference; 0 where not finite (robots on each other)."""
+        xp = common_namespace(m, r_des)
+        wound = self.layout.wind(m, xp.broadcast_to(r_des, m.shape))
+        e_r = wound - r_des
+        if self.formation is None or self.n_c == 0:
+            e_c = xp.zeros(m.shape[:-1] + (0,))
+        else:
+            F = self.formation
+            with np.errstate(all="ignore"):
+                c = F.forward_arrays(F.align(m, xp.broadcast_to(r_des, m.shape)), xp.broadcast_to(c_des, m.shape[:-1]
+                                                                                                  + (self.n_c,)))
+                e_c = F.errors(c, c_des)
+        return _finite(xp, e_c), _finite(xp, e_r)
+
+    def observe(self, state: EnvState, params: EnvParams):
+        """The observation ``(*batch, n_obs)`` (class docstring)."""
+        xp = common_namespace(state.x)
+        m = self.measured(state)
+        r_des, c_des = self.desired(state, params)
+        e_c, e_r = self.errors(m, r_des, c_des)
+        frac = xp.asarray(state.k, dtype=xp.float64)[..., None] / (self.T - 1)
+        return xp.concatenate([e_c, e_r, _finite(xp, m), frac], axis=-1)
+
+    def separations(self, x):
+        """``(*batch, N, N)`` distances between the robots' positions (``inf`` on the diagonal), m."""
+        xp = common_namespace(x)
+        p = team_positions(self.layout, self.plant.output(x))
+        d2 = xp.sum((p[..., :, None, :] - p[..., None, :, :]) ** 2, axis=-1)
+        eye = np.eye(self.layout.n, dtype=bool)
+        return xp.where(eye, xp.inf, xp.sqrt(xp.where(eye, 1.0, d2)))
+
+    def judge(self, state: EnvState, u, params: EnvParams):
+        """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
+        (``docs/envs.md``): ``reward = -(w_t tracking + w_e effort + w_s separation)``, each
+        term per robot, or ``-loss_penalty`` where the loop failed or the state is not finite."""
+        xp = common_namespace(state.x, u)
+        N = self.layout.n
+        r_des, _ = self.desired(state, params)
+        y = self.plant.output(state.x)
+        finite = xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0)
+        e_r = _finite(xp, self.layout.wind(y, xp.broadcast_to(r_des, y.shape)) - r_des)
+        tracking = xp.sum(e_r * e_r, axis=-1) / N
+        effort = xp.sum(_finite(xp, u) ** 2, axis=-1) / N
+        d = self.separations(_finite(xp, state.x))
+        short = xp.maximum(params.separation_m - xp.where(xp.isfinite(d), d, params.separation_m), 0.0)
+        separation = 0.5 * xp.sum(short * short, axis=(-2, -1)) / N
+        w = params.weights
+        reward = -(w[0] * tracking + w[1] * effort + w[2] * separation)
+        reward = xp.where(finite & xp.isfinite(reward), reward, -params.loss_penalty)
+        min_sep = xp.min(xp.reshape(d, d.shape[:-2] + (-1,)), axis=-1)
+        pos = self.layout.position_index.ravel()
+        pos = pos[pos < self.n_r]
+        rms = xp.sqrt(xp.sum(xp.take(e_r, xp.asarray(pos), axis=-1) ** 2, axis=-1) / N)
+        collided = min_sep < params.collision_m
+        lost = ~finite | (rms > params.loss_m)
+        info = {"tracking": tracking, "effort": effort, "separation": separation, "min_separation_m": min_sep,
+                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason}
+        return reward, collided | lost, info
+
+
+def _finite(xp, a):
+    return xp.where(xp.isfinite(a), a, 0.0)
+
+
+def functional(scenario, controller: str | None = None, *, action: str = "residual", **options) -> FormationCore:
+    """The functional environment of ``scenario`` (a built-in name, a TOML path or a loaded team
+    or network scenario).
+
+    Parameters
+    ----------
+    controller : str, optional
+        The team kind's controller (default ``"quaternion"``); a network scenario's law (default:
+        its own).
+    action : {"residual", "velocity"}
+        What the policy's action is (:class:`ActionController`).
+    **options
+        Of :class:`FormationCore`: ``residual_scale``, ``noise_m``, ``noise_rad``,
+        ``start_noise_m``, ``weights``, ``separation_m``, ``collision_m``, ``loss_m``,
+        ``loss_penalty``, ``duration_s`` (an episode shorter than the scenario's), and
+        ``min_separation`` (the team kind's barrier, m; 0: off).
+    """
+    sc = load_scenario(scenario) if isinstance(scenario, (str, bytes)) or hasattr(scenario, "__fspath__") \
+        else scenario
+    kind = kind_of(sc)
+    build = {k: options.pop(k) for k in ("min_separation",) if k in options}
+    if kind.name == "team":
+        ex = kind.experiment(sc, controller=controller or "quaternion", **build)
+    elif kind.name == "network":
+        if build:
+            raise InvalidInputError("envs: min_separation is an option of the team kind's scenarios")
+        ex = kind.experiment(sc, law=controller)
+    else:
+        raise InvalidInputError(f"envs: {getattr(sc, 'name', sc)!r} is a {kind.name} scenario; the environments "
+                                "run the team and network kinds")
+    return FormationCore(ex, action=action, **options)
