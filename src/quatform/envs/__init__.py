@@ -14,5 +14,27 @@ from __future__ import annotations
 from .core import (ACTION_MODES, ActionController, EnvParams, EnvState, FormationCore, functional, key, normal,
                    split)
 
-__all__ = ["ACTION_MODES", "ActionController", "EnvParams", "EnvState", "FormationCore", "functional", "key",
+__all__ = ["ACTION_MODES", "ActionController", "EnvParams", "EnvState", "FormationCore", "functional", "key", "parallel_env",
            "normal", "split"]
+
+
+def parallel_env(scenario: str = "team-tetrahedron-helix", **options):
+    """The PettingZoo ``ParallelEnv`` of ``scenario`` (:class:`.parallel.FormationParallelEnv`)."""
+    from .parallel import FormationParallelEnv
+
+    return FormationParallelEnv(scenario, **options)
+
+
+def _register() -> None:
+    """Register ``quatform/Formation-v0`` with gymnasium, where it is installed (entry points
+    as strings: gymnasium imports :mod:`.gym` when an env is made)."""
+    try:
+        import gymnasium
+    except ImportError:
+        return
+    if "quatform/Formation-v0" not in gymnasium.registry:
+        gymnasium.register(id="quatform/Formation-v0", entry_point="quatform.envs.gym:FormationEnv",
+                           vector_entry_point="quatform.envs.gym:FormationVectorEnv")
+
+
+_register()

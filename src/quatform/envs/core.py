@@ -19,6 +19,7 @@ same numbers from the same key.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any, NamedTuple
 
@@ -32,11 +33,13 @@ from ..scenarios import kind_of, load_scenario
 from ..sim.loop import START_CODE, make_tick, plant_inputs, scheduled_reference, tree_map
 from ..sim.measurement import PerfectMeasurement
 
-__all__ = ["ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading", "functional", "key",
+__all__ = ["OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading", "functional", "key",
            "split", "normal", "ACTION_MODES"]
 
 #: What an action is: a residual added to the scenario controller's commands, or the commands.
 ACTION_MODES = ("residual", "velocity")
+#: Every observation entry lies in ``[-OBS_BOUND, OBS_BOUND]`` (m, rad, 1): clipped there.
+OBS_BOUND = 1e4
 
 
 # --------------------------------------------------------------------------- randomness
@@ -55,12 +58,17 @@ def _hash32(xp, x):
 
 
 def _bits(key, stream: int, n: int):
-    """``(*batch, n)`` ``uint32`` hashes of ``key`` ``(*batch, 2)``, the stream and the counter ``0..n-1``."""
+    """``(*batch, n)`` ``uint32`` hashes of ``key`` ``(*batch, 2)``, the stream and the counter
+    ``0..n-1``: two words of the key and stream, each mixing both key words, offset the counter
+    and mask its hash (no two keys' sequences overlap but by a 2^-64 chance)."""
     xp = common_namespace(key)
     key = xp.asarray(key, dtype=xp.uint32)
-    count = xp.arange(n, dtype=xp.uint32) + xp.asarray((stream * _GOLDEN) & 0xFFFFFFFF, dtype=xp.uint32)
-    h = _hash32(xp, count ^ key[..., 1:2])
-    return _hash32(xp, h ^ _hash32(xp, key[..., 0:1] ^ xp.asarray(_GOLDEN, dtype=xp.uint32)))
+    k0, k1 = key[..., 0:1], key[..., 1:2]
+    s1 = xp.asarray((stream * 2 * _GOLDEN + 1) & 0xFFFFFFFF, dtype=xp.uint32)
+    s2 = xp.asarray((stream * 2 * _GOLDEN + 2 * _GOLDEN) & 0xFFFFFFFF, dtype=xp.uint32)
+    b1 = _hash32(xp, k0 ^ _hash32(xp, k1 ^ s1))
+    b2 = _hash32(xp, k1 ^ _hash32(xp, k0 ^ s2))
+    return _hash32(xp, _hash32(xp, xp.arange(n, dtype=xp.uint32) + b1) ^ b2)
 
 
 def _uniform(key, stream: int, n: int):
@@ -281,7 +289,8 @@ class FormationCore:
     robots against the reference's cluster state: centroid, attitude, shape and headings in the
     description's variables; none for a network scenario), the robots' error against their
     desired points (``n_r``, yaws wound), the measured robots (``n_r``) and the episode's
-    elapsed fraction (1). Non-finite entries read 0.
+    elapsed fraction (1). Non-finite entries read 0; every entry is clipped to
+    ``[-OBS_BOUND, OBS_BOUND]``.
     """
 
     def __init__(self, experiment, action: str = "residual", residual_scale: float = 0.25,
@@ -405,30 +414,54 @@ class FormationCore:
         y = self.plant.output(state.x)
         return y + state.noise if self.noisy else y
 
-    def errors(self, m, r_des, c_des):
-        """``(chart error (*batch, n_c), robot error (*batch, n_r))`` of the measured robots
-        ``m`` against the reference; 0 where not finite (robots on each other)."""
+    @functools.cached_property
+    def _orientation(self):
+        """``(flat (4M,), owner (n_r,))``: the entries of the pose robots' quaternions and, for
+        every point entry, the quaternion it belongs to (``M``: none)."""
+        rows = np.asarray(self.layout.orientation_index, dtype=np.intp).reshape(-1, 4)
+        owner = np.full(self.n_r, rows.shape[0], dtype=np.intp)
+        for j, row in enumerate(rows):
+            owner[row] = j
+        return rows.ravel(), owner
+
+    def robot_error(self, m, r_des):
+        """The measured robots ``m`` minus their desired points ``(*batch, n_r)``, yaws wound
+        to within pi, a pose robot's quaternion signed nearest its desired one (``q`` and
+        ``-q`` are one attitude); 0 where not finite."""
         xp = common_namespace(m, r_des)
-        wound = self.layout.wind(m, xp.broadcast_to(r_des, m.shape))
-        e_r = wound - r_des
-        if self.formation is None or self.n_c == 0:
-            e_c = xp.zeros(m.shape[:-1] + (0,))
-        else:
-            F = self.formation
-            with np.errstate(all="ignore"):
-                c = F.forward_arrays(F.align(m, xp.broadcast_to(r_des, m.shape)), xp.broadcast_to(c_des, m.shape[:-1]
-                                                                                                  + (self.n_c,)))
-                e_c = F.errors(c, c_des)
-        return _finite(xp, e_c), _finite(xp, e_r)
+        r_des = xp.broadcast_to(r_des, m.shape)
+        m = self.layout.wind(m, r_des)
+        flat, owner = self._orientation
+        if flat.size:
+            q = xp.reshape(xp.take(m, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
+            qd = xp.reshape(xp.take(r_des, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
+            flip = xp.sum(q * qd, axis=-1) < 0.0
+            flip = xp.concatenate([flip, xp.zeros(flip.shape[:-1] + (1,), dtype=bool)], axis=-1)
+            m = xp.where(xp.take(flip, xp.asarray(owner), axis=-1), -m, m)
+        return _finite(xp, m - r_des)
+
+    def chart_error(self, m, r_des, c_des):
+        """The description's error ``(*batch, n_c)`` of its forward map of the measured robots
+        ``m`` (wound onto ``r_des``) against ``c_des`` (:meth:`Formation.errors`: angles
+        wrapped); 0 where not finite (robots on each other); ``(*batch, 0)`` for a network
+        scenario."""
+        xp = common_namespace(m, r_des)
+        if self.n_c == 0:
+            return xp.zeros(m.shape[:-1] + (0,))
+        F = self.formation
+        with np.errstate(all="ignore"):
+            near = xp.broadcast_to(c_des, m.shape[:-1] + (self.n_c,))
+            c = F.forward_arrays(F.align(m, xp.broadcast_to(r_des, m.shape)), near)
+            return _finite(xp, F.errors(c, c_des))
 
     def observe(self, state: EnvState, params: EnvParams):
         """The observation ``(*batch, n_obs)`` (class docstring)."""
         xp = common_namespace(state.x)
         m = self.measured(state)
         r_des, c_des = self.desired(state, params)
-        e_c, e_r = self.errors(m, r_des, c_des)
+        e_c, e_r = self.chart_error(m, r_des, c_des), self.robot_error(m, r_des)
         frac = xp.asarray(state.k, dtype=xp.float64)[..., None] / (self.T - 1)
-        return xp.concatenate([e_c, e_r, _finite(xp, m), frac], axis=-1)
+        return xp.clip(xp.concatenate([e_c, e_r, _finite(xp, m), frac], axis=-1), -OBS_BOUND, OBS_BOUND)
 
     def separations(self, x):
         """``(*batch, N, N)`` distances between the robots' positions (``inf`` on the diagonal), m."""
@@ -438,23 +471,53 @@ class FormationCore:
         eye = np.eye(self.layout.n, dtype=bool)
         return xp.where(eye, xp.inf, xp.sqrt(xp.where(eye, 1.0, d2)))
 
-    def judge(self, state: EnvState, u, params: EnvParams):
-        """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
-        (``docs/envs.md``): ``reward = -(w_t tracking + w_e effort + w_s separation)``, each
-        term per robot, or ``-loss_penalty`` where the loop failed or the state is not finite."""
+    @functools.cached_property
+    def _membership(self):
+        """One-hot ``(n_r, N)`` and ``(n_u, N)``: the robot of each point entry and command."""
+        L, team = self.layout, self.team
+        points = np.zeros((self.n_r, L.n))
+        commands = np.zeros((self.n_u, L.n))
+        for i in range(L.n):
+            points[L.slice(i), i] = 1.0
+            commands[team.command_slices[i], i] = 1.0
+        return points, commands
+
+    def robot_terms(self, state: EnvState, u, params: EnvParams):
+        """Each robot's reward terms ``(tracking, effort, separation)``, each ``(*batch, N)``, and
+        the robots' distances ``(*batch, N, N)`` (``docs/envs.md``): ``|e_i|^2`` of its error
+        against its desired point (yaws wound, rad counted as m), ``|u_i|^2`` of its commands,
+        ``sum_j max(0, d_sep - d_ij)^2 / 2``; of the true state, 0 where not finite."""
         xp = common_namespace(state.x, u)
-        N = self.layout.n
+        points, commands = self._membership
         r_des, _ = self.desired(state, params)
-        y = self.plant.output(state.x)
-        finite = xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0)
-        e_r = _finite(xp, self.layout.wind(y, xp.broadcast_to(r_des, y.shape)) - r_des)
-        tracking = xp.sum(e_r * e_r, axis=-1) / N
-        effort = xp.sum(_finite(xp, u) ** 2, axis=-1) / N
+        e_r = self.robot_error(_finite(xp, self.plant.output(state.x)), r_des)
         d = self.separations(_finite(xp, state.x))
-        short = xp.maximum(params.separation_m - xp.where(xp.isfinite(d), d, params.separation_m), 0.0)
-        separation = 0.5 * xp.sum(short * short, axis=(-2, -1)) / N
+        short = xp.maximum(params.separation_m - d, 0.0)  # the diagonal's inf: 0
+        return ((e_r * e_r) @ points, (_finite(xp, u) ** 2) @ commands, 0.5 * xp.sum(short * short, axis=-1), d, e_r)
+
+    def robot_rewards(self, state: EnvState, u, params: EnvParams):
+        """Each robot's reward ``(*batch, N)``: ``-(w_t tracking + w_e effort + w_s separation)``
+        (:meth:`robot_terms`), ``-loss_penalty`` where the loop failed or the state is not finite."""
+        xp = common_namespace(state.x, u)
+        tracking, effort, separation, _, _ = self.robot_terms(state, u, params)
         w = params.weights
         reward = -(w[0] * tracking + w[1] * effort + w[2] * separation)
+        ok = (xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0))[..., None] & xp.isfinite(reward)
+        return xp.where(ok, reward, -params.loss_penalty)
+
+    def judge(self, state: EnvState, u, params: EnvParams):
+        """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
+        (``docs/envs.md``): the reward is the robots' mean of :meth:`robot_rewards`
+        (``-loss_penalty`` where the loop failed or the state is not finite); the episode ends
+        on a collision (two robots nearer than ``collision_m``) or a loss (the loop's failure
+        code, a non-finite state, a root-mean-square position error beyond ``loss_m``)."""
+        xp = common_namespace(state.x, u)
+        N = self.layout.n
+        tracking, effort, separation, d, e_r = self.robot_terms(state, u, params)
+        finite = xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0)
+        w = params.weights
+        reward = -(w[0] * xp.sum(tracking, axis=-1) + w[1] * xp.sum(effort, axis=-1)
+                   + w[2] * xp.sum(separation, axis=-1)) / N
         reward = xp.where(finite & xp.isfinite(reward), reward, -params.loss_penalty)
         min_sep = xp.min(xp.reshape(d, d.shape[:-2] + (-1,)), axis=-1)
         pos = self.layout.position_index.ravel()
@@ -462,8 +525,9 @@ class FormationCore:
         rms = xp.sqrt(xp.sum(xp.take(e_r, xp.asarray(pos), axis=-1) ** 2, axis=-1) / N)
         collided = min_sep < params.collision_m
         lost = ~finite | (rms > params.loss_m)
-        info = {"tracking": tracking, "effort": effort, "separation": separation, "min_separation_m": min_sep,
-                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason}
+        info = {"tracking": xp.sum(tracking, axis=-1) / N, "effort": xp.sum(effort, axis=-1) / N,
+                "separation": xp.sum(separation, axis=-1) / N, "min_separation_m": min_sep,
+                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u}
         return reward, collided | lost, info
 
 

@@ -1,0 +1,223 @@
+"""The learning environments: the functional core on the simulator's tick, NumPy and JAX, and
+the ecosystem's own checkers (gymnasium's ``check_env``, PettingZoo's API and seed tests)."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+from quatform.envs import functional, key, split
+from quatform.scenarios import load_scenario
+
+TEAM = "team-tetrahedron-helix"
+NET = "net-consensus-ring"
+
+
+def short(name: str, duration_s: float):
+    """The built-in scenario ``name`` cut to ``duration_s`` (a shorter Experiment.run)."""
+    sc = load_scenario(name)
+    return dataclasses.replace(sc, duration_s=duration_s, metrics_from_s=min(sc.metrics_from_s, 0.0))
+
+
+def episode(core, params, seed: int, actions=None, steps=None):
+    """``(states, obs, rewards)`` of an episode of ``steps`` (default: to its end) on NumPy."""
+    k = key(seed)
+    k, first = split(k)
+    obs, st = core.reset(first, params)
+    xs, os, rs = [st.x], [obs], []
+    for j in range(core.T - 1 if steps is None else steps):
+        k, now = split(k)
+        a = np.zeros(core.n_u) if actions is None else actions[j]
+        obs, st, r, term, trunc, _ = core.step(now, st, a, params)
+        xs.append(st.x)
+        os.append(obs)
+        rs.append(r)
+        if term or trunc:
+            break
+    return np.array(xs), np.array(os), np.array(rs)
+
+
+@pytest.mark.parametrize("name,duration", [(TEAM, 0.6), ("mas-kitts-helix", 0.6), (NET, 0.6)])
+def test_zero_residual_episode_is_the_simulators_run(name, duration):
+    core = functional(short(name, duration))
+    log = core.experiment.run()
+    states, obs, rewards = episode(core, core.default_params, 0)
+    assert len(states) == core.T == len(log.t)
+    assert np.array_equal(states, log["state"])  # bitwise: the env steps the loop's own tick
+    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(rewards))
+    assert obs.shape[-1] == core.n_obs
+
+
+def test_seed_reproduces_the_episode_with_noise():
+    core = functional(TEAM, duration_s=0.3, noise_m=0.01, noise_rad=0.01, start_noise_m=0.05)
+    p = core.default_params
+    acts = np.random.default_rng(3).uniform(-1, 1, (core.T, core.n_u))
+    a, b, c = (episode(core, p, s, acts) for s in (7, 7, 8))
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+    assert not np.array_equal(a[0], c[0]) and not np.array_equal(a[1], c[1])
+
+
+def test_random_draws_are_normal_and_keys_split_apart():
+    from quatform.envs import normal
+
+    z = normal(np.stack([key(s) for s in range(200)]), 0, 500)
+    assert abs(float(z.mean())) < 0.01 and abs(float(z.std()) - 1.0) < 0.01
+    k1, k2 = split(key(0))
+    assert not np.array_equal(k1, k2) and k1.dtype == np.uint32
+
+
+def test_no_nan_at_coincident_robots_and_at_minus_q():
+    core = functional(TEAM, duration_s=0.1, min_separation=0.0)
+    p = core.default_params
+    together = p._replace(x0=np.zeros_like(p.x0))
+    obs, st = core.reset(key(0), together)
+    obs2, st, r, term, trunc, info = core.step(key(1), st, np.ones(core.n_u), together)
+    for v in (obs, obs2, r):
+        assert np.all(np.isfinite(v))
+    assert bool(term) and bool(info["collided"])
+    # the reference's attitude as -q: one attitude, finite errors
+    q = slice(3, 7) if core.formation.names[3].startswith("q") else None
+    if q is not None:
+        flipped = p._replace(c_des=np.concatenate([p.c_des[:, :3], -p.c_des[:, q], p.c_des[:, 7:]], axis=-1))
+        o_pos, _ = core.reset(key(0), p)
+        o_neg, _ = core.reset(key(0), flipped)
+        assert np.all(np.isfinite(o_neg))
+    net = functional(NET, duration_s=0.1)
+    pn = net.default_params
+    flat, _ = net._orientation
+    r0 = pn.r_des[0].copy()
+    r0[flat] = -r0[flat]  # every robot at its desired point, its quaternion as -q
+    o, _ = net.reset(key(0), pn._replace(x0=r0))
+    e_r = o[net.n_c:net.n_c + net.n_r]
+    assert np.all(np.isfinite(o)) and np.max(np.abs(e_r)) < 1e-12
+
+
+def test_jax_form_jits_vmaps_and_equals_numpy():
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    core = functional(TEAM, duration_s=0.1, noise_m=0.01, start_noise_m=0.02)
+    p = core.default_params
+    B = 4
+    keys = np.stack([key(s) for s in range(B)])
+    acts = np.random.default_rng(0).uniform(-1, 1, (core.T, B, core.n_u))
+    obs, st = core.reset(keys, p)
+    ref = [(obs, None, None)]
+    for k in range(core.T - 1):
+        obs, st, r, term, trunc, _ = core.step(keys + np.uint32(k + 1), st, acts[k], p)
+        ref.append((obs, r, trunc))
+    with jax.enable_x64(True):
+        jp = jax.tree_util.tree_map(jnp.asarray, p)
+        reset = jax.jit(jax.vmap(core.reset, in_axes=(0, None)))
+        step = jax.jit(jax.vmap(core.step, in_axes=(0, 0, 0, None)))
+        obs, st = reset(jnp.asarray(keys), jp)
+        np.testing.assert_allclose(np.asarray(obs), ref[0][0], rtol=1e-9, atol=1e-9)
+        for k in range(core.T - 1):
+            obs, st, r, term, trunc, _ = step(jnp.asarray(keys + np.uint32(k + 1)), st, jnp.asarray(acts[k]), jp)
+            np.testing.assert_allclose(np.asarray(obs), ref[k + 1][0], rtol=1e-9, atol=1e-9)
+            np.testing.assert_allclose(np.asarray(r), ref[k + 1][1], rtol=1e-9, atol=1e-12)
+            assert np.array_equal(np.asarray(trunc), ref[k + 1][2])
+
+
+def test_numpy_batch_equals_single_worlds_on_a_network():
+    core = functional(NET, duration_s=0.2, noise_m=0.01)
+    p = core.default_params
+    keys = np.stack([key(s) for s in range(3)])
+    obs, st = core.reset(keys, p)
+    singles = [core.reset(keys[i], p) for i in range(3)]
+    for i in range(3):
+        np.testing.assert_allclose(obs[i], singles[i][0], rtol=0, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- gymnasium
+
+def test_gymnasium_check_env_passes_without_warnings():
+    gymnasium = pytest.importorskip("gymnasium")
+    from gymnasium.utils.env_checker import check_env
+
+    import quatform.envs  # noqa: F401  (registers quatform/Formation-v0)
+
+    for name in (TEAM, NET):
+        env = gymnasium.make("quatform/Formation-v0", scenario=name, duration_s=0.2, noise_m=0.01)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_env(env.unwrapped)
+        obs, _ = env.reset(seed=0)
+        assert env.observation_space.contains(obs)
+
+
+def test_vector_env_is_single_envs_on_a_batch_axis_with_next_step_autoreset():
+    gymnasium = pytest.importorskip("gymnasium")
+    import quatform.envs  # noqa: F401
+
+    kw = dict(scenario=TEAM, duration_s=0.1, noise_m=0.01)
+    N = 3
+    venv = gymnasium.make_vec("quatform/Formation-v0", num_envs=N, vectorization_mode="vector_entry_point", **kw)
+    assert type(venv.unwrapped).__name__ == "FormationVectorEnv"
+    singles = [gymnasium.make("quatform/Formation-v0", **kw) for _ in range(N)]
+    obs, _ = venv.reset(seed=5)
+    single = np.array([e.reset(seed=5 + i)[0] for i, e in enumerate(singles)])
+    np.testing.assert_array_equal(obs, single)
+    rng = np.random.default_rng(1)
+    ended = np.zeros(N, dtype=bool)
+    resets = 0
+    for _ in range(2 * venv.unwrapped.core.T):
+        a = rng.uniform(-1, 1, (N, venv.unwrapped.core.n_u))
+        obs, r, term, trunc, info = venv.step(a)
+        for i, e in enumerate(singles):
+            if ended[i]:  # gymnasium's next-step autoreset: this step resets the world
+                o, _ = e.reset()
+                np.testing.assert_array_equal(obs[i], o)
+                assert r[i] == 0.0 and not term[i] and not trunc[i]
+                resets += 1
+            else:
+                o, ri, ti, tri, _ = e.step(a[i])
+                np.testing.assert_array_equal(obs[i], o)
+                assert r[i] == pytest.approx(ri, rel=1e-12, abs=1e-15)  # a batched sum's rounding
+                assert term[i] == ti and trunc[i] == tri
+        ended = term | trunc
+        assert info["min_separation_m"].shape == (N,) and info["_min_separation_m"].all()
+    assert resets >= N
+
+
+# ----------------------------------------------------------------------------- pettingzoo
+
+@pytest.mark.parametrize("name", [TEAM, NET])
+def test_pettingzoo_parallel_api_and_seed_tests(name):
+    pytest.importorskip("pettingzoo")
+    from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+    import quatform.envs
+
+    def make():
+        return quatform.envs.parallel_env(scenario=name, duration_s=0.2, noise_m=0.01)
+
+    env = make()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        parallel_api_test(env, num_cycles=30)
+        parallel_seed_test(make)
+    assert len(env.possible_agents) == env.core.layout.n
+    obs, _ = env.reset(seed=0)
+    acts = {a: np.zeros(env.action_space(a).shape) for a in env.agents}
+    _, rewards, _, _, _ = env.step(acts)
+    assert all(np.isfinite(v) for v in rewards.values())
+
+
+def test_network_agent_sees_what_its_inbox_delivered():
+    pytest.importorskip("pettingzoo")
+    import quatform.envs
+
+    env = quatform.envs.parallel_env(scenario=NET, duration_s=0.3)
+    obs, _ = env.reset(seed=0)
+    own = 2 * len(env._points[0])
+    rows = obs["robot_0"][own:own + 5 * env.slots].reshape(env.slots, 5)
+    assert not rows[:, 0].any()  # nothing delivered before the first tick
+    for _ in range(3):
+        obs, *_ = env.step({a: np.zeros(env.action_space(a).shape) for a in env.agents})
+    rows = obs["robot_0"][own:own + 5 * env.slots].reshape(env.slots, 5)
+    assert rows[:, 0].any() and np.all(rows[:, 4] >= 0.0)
