@@ -221,3 +221,16 @@ def test_network_agent_sees_what_its_inbox_delivered():
         obs, *_ = env.step({a: np.zeros(env.action_space(a).shape) for a in env.agents})
     rows = obs["robot_0"][own:own + 5 * env.slots].reshape(env.slots, 5)
     assert rows[:, 0].any() and np.all(rows[:, 4] >= 0.0)
+
+
+def test_velocity_action_is_the_commands_in_units_of_the_limits():
+    core = functional(TEAM, duration_s=0.1, action="velocity")
+    p = core.default_params
+    obs, st = core.reset(key(0), p)
+    _, st1, _, _, _, info = core.step(key(1), st, np.zeros(core.n_u), p)
+    assert np.array_equal(st1.x, st.x) and not np.any(info["commands"])  # no command: the robots hold
+    a = np.zeros(core.n_u)
+    a[0] = 1.0  # the first robot at its top speed along x
+    _, st2, _, _, _, info = core.step(key(1), st, a, p)
+    assert info["commands"][0] == pytest.approx(p.action_scale[0], rel=1e-12)
+    assert st2.x[0] - st.x[0] == pytest.approx(p.action_scale[0] * core.dt * core.substeps, rel=1e-9)

@@ -11,11 +11,11 @@
 
 from __future__ import annotations
 
-from .core import (ACTION_MODES, ActionController, EnvParams, EnvState, FormationCore, functional, key, normal,
-                   split)
+from .core import (ACTION_MODES, OBS_BOUND, ActionController, EnvParams, EnvState, FormationCore, functional, key,
+                   normal, split)
 
-__all__ = ["ACTION_MODES", "ActionController", "EnvParams", "EnvState", "FormationCore", "functional", "key", "parallel_env",
-           "normal", "split"]
+__all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "functional",
+           "key", "normal", "parallel_env", "split"]
 
 
 def parallel_env(scenario: str = "team-tetrahedron-helix", **options):

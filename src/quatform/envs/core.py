@@ -33,8 +33,8 @@ from ..scenarios import kind_of, load_scenario
 from ..sim.loop import START_CODE, make_tick, plant_inputs, scheduled_reference, tree_map
 from ..sim.measurement import PerfectMeasurement
 
-__all__ = ["OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading", "functional", "key",
-           "split", "normal", "ACTION_MODES"]
+__all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading",
+           "functional", "key", "normal", "split"]
 
 #: What an action is: a residual added to the scenario controller's commands, or the commands.
 ACTION_MODES = ("residual", "velocity")
@@ -71,20 +71,20 @@ def _bits(key, stream: int, n: int):
     return _hash32(xp, _hash32(xp, xp.arange(n, dtype=xp.uint32) + b1) ^ b2)
 
 
-def _uniform(key, stream: int, n: int):
-    """``(*batch, n)`` floats in ``[0, 1)`` with 53 random bits (two 32-bit hashes)."""
-    xp = common_namespace(key)
-    hi = xp.asarray(_bits(key, 2 * stream, n) >> 5, dtype=xp.float64)   # 27 bits
-    lo = xp.asarray(_bits(key, 2 * stream + 1, n) >> 6, dtype=xp.float64)  # 26 bits
-    return (hi * 67108864.0 + lo) / 9007199254740992.0
+def _unit(xp, hi, lo):
+    """Floats in ``[0, 1)`` of 53 random bits: 27 of ``hi``, 26 of ``lo`` (``uint32``)."""
+    return (xp.asarray(hi >> 5, dtype=xp.float64) * 67108864.0 + xp.asarray(lo >> 6, dtype=xp.float64)) \
+        / 9007199254740992.0
 
 
 def normal(key, stream: int, n: int):
     """``(*batch, n)`` standard normal draws of ``key`` (``uint32 (*batch, 2)``) and ``stream``
-    (Box and Muller 1958: ``sqrt(-2 ln u1) cos(2 pi u2)``), the same on NumPy and JAX."""
+    (Box and Muller 1958: ``sqrt(-2 ln u1) cos(2 pi u2)`` of two 53-bit uniforms), the same on
+    NumPy and JAX."""
     xp = common_namespace(key)
-    u1 = 1.0 - _uniform(key, 2 * stream, n)  # (0, 1]: its logarithm is finite
-    u2 = _uniform(key, 2 * stream + 1, n)
+    w = _bits(key, stream, 4 * n)
+    u1 = 1.0 - _unit(xp, w[..., 0:n], w[..., n:2 * n])  # (0, 1]: its logarithm is finite
+    u2 = _unit(xp, w[..., 2 * n:3 * n], w[..., 3 * n:])
     return xp.sqrt(-2.0 * xp.log(u1)) * xp.cos(2.0 * math.pi * u2)
 
 
