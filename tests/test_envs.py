@@ -234,3 +234,26 @@ def test_velocity_action_is_the_commands_in_units_of_the_limits():
     _, st2, _, _, _, info = core.step(key(1), st, a, p)
     assert info["commands"][0] == pytest.approx(p.action_scale[0], rel=1e-12)
     assert st2.x[0] - st.x[0] == pytest.approx(p.action_scale[0] * core.dt * core.substeps, rel=1e-9)
+
+
+@pytest.mark.parametrize("bad", [dict(noise_m=-1.0), dict(weights=(1.0, 2.0)), dict(loss_m=0.0), dict(action="fly"),
+                                 dict(collision_m=float("nan"))])
+def test_bad_options_are_one_line_errors(bad):
+    from quatform.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError) as exc:
+        functional(TEAM, duration_s=0.1, **bad)
+    assert "\n" not in str(exc.value) and str(exc.value).startswith("envs:")
+
+
+def test_without_gymnasium_the_env_modules_say_what_to_install(monkeypatch):
+    import importlib
+    import sys
+
+    from quatform.errors import MissingDependencyError
+
+    for module, missing in (("quatform.envs.gym", "gymnasium"), ("quatform.envs.parallel", "pettingzoo")):
+        monkeypatch.setitem(sys.modules, missing, None)
+        monkeypatch.delitem(sys.modules, module, raising=False)
+        with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[envs\]"'):
+            importlib.import_module(module)

@@ -299,6 +299,14 @@ class FormationCore:
                  loss_m: float = 10.0, loss_penalty: float = 100.0, duration_s: float | None = None):
         ex = experiment
         self.experiment = ex
+        _check_options(noise_m=noise_m, noise_rad=noise_rad, start_noise_m=start_noise_m, loss_penalty=loss_penalty)
+        _check_options(positive=True, residual_scale=residual_scale, loss_m=loss_m,
+                       **{k: v for k, v in (("separation_m", separation_m), ("collision_m", collision_m))
+                          if v is not None})
+        w = np.asarray(weights, dtype=float) if np.ndim(weights) == 1 else np.full(0, np.nan)
+        if w.shape != (3,) or not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise InvalidInputError(f"envs: weights = {weights!r} must be three finite numbers >= 0 (tracking, "
+                                    "effort, separation)")
         base = ex.controller
         team = getattr(base, "team", None) or getattr(ex.plant, "team", None)
         if team is None or not getattr(base, "pure", False) or not getattr(ex.plant, "batchable", False):
@@ -332,7 +340,7 @@ class FormationCore:
         self.n_x, self.n_m, self.n_u, self.n_r = x0.shape[-1], y0.shape[-1], n_u, self.layout.size
         inner = getattr(base, "inner", base)
         self.formation = getattr(inner, "formation", None)
-        r_des, c_des = self._desired(ex, refs, times)
+        r_des, c_des = self._desired(ex, times)
         self.n_c = c_des.shape[-1]
         self.n_obs = self.n_c + 2 * self.n_r + 1
         yaw = np.zeros(self.n_m, dtype=bool)
@@ -352,7 +360,7 @@ class FormationCore:
             weights=np.asarray(weights, dtype=float), separation_m=np.float64(sep), collision_m=np.float64(col),
             loss_m=np.float64(loss_m), loss_penalty=np.float64(loss_penalty))
 
-    def _desired(self, ex, refs, times):
+    def _desired(self, ex, times):
         """``(r_des (T, n_r), c_des (T, n_c))`` of the experiment's reference."""
         T = times.size
         ref0 = ex.reference(0)
@@ -529,6 +537,15 @@ class FormationCore:
                 "separation": xp.sum(separation, axis=-1) / N, "min_separation_m": min_sep,
                 "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u}
         return reward, collided | lost, info
+
+
+def _check_options(positive: bool = False, **values) -> None:
+    """Refuse (one line) an option that is not a finite number ``>= 0`` (``> 0`` if ``positive``)."""
+    for name, v in values.items():
+        ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v) \
+            and (v > 0 if positive else v >= 0)
+        if not ok:
+            raise InvalidInputError(f"envs: {name} = {v!r} must be a finite number {'>' if positive else '>='} 0")
 
 
 def _finite(xp, a):
