@@ -257,3 +257,24 @@ def test_without_gymnasium_the_env_modules_say_what_to_install(monkeypatch):
         monkeypatch.delitem(sys.modules, module, raising=False)
         with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[envs\]"'):
             importlib.import_module(module)
+
+
+@pytest.mark.parametrize("name", [TEAM, NET, "net-affine-maneuver"])
+def test_a_batch_of_worlds_at_different_ticks_steps_as_each_alone(name):
+    from quatform.sim.loop import tree_map
+
+    core = functional(name, duration_s=0.3, noise_m=0.01)
+    p = core.default_params
+    _, s0 = core.reset(key(0), p)
+    _, s1 = core.reset(key(1), p)
+    for j in range(3):
+        s1 = core.step(key(10 + j), s1, np.zeros(core.n_u), p)[1]
+    batch = tree_map(lambda a, b: np.stack([np.asarray(a), np.asarray(b)]), s0, s1)
+    keys = np.stack([key(20), key(21)])
+    acts = np.random.default_rng(0).uniform(-1, 1, (2, core.n_u))
+    out = core.step(keys, batch, acts, p)
+    for i, s in enumerate((s0, s1)):
+        alone = core.step(keys[i], s, acts[i], p)
+        np.testing.assert_allclose(out[0][i], alone[0], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(out[1].x[i], alone[1].x, rtol=1e-12, atol=1e-12)
+        assert out[1].k[i] == alone[1].k
