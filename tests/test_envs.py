@@ -96,11 +96,14 @@ def test_no_nan_at_coincident_robots_and_at_minus_q():
     assert np.all(np.isfinite(o)) and np.max(np.abs(e_r)) < 1e-12
 
 
-def test_jax_form_jits_vmaps_and_equals_numpy():
+@pytest.mark.parametrize("name", [TEAM, NET])
+def test_jax_form_jits_vmaps_and_equals_numpy(name):
     jax = pytest.importorskip("jax")
     import jax.numpy as jnp
 
-    core = functional(TEAM, duration_s=0.1, noise_m=0.01, start_noise_m=0.02)
+    from quatform.errors import InvalidInputError
+
+    core = functional(name, duration_s=0.1, noise_m=0.01, start_noise_m=0.02)
     p = core.default_params
     B = 4
     keys = np.stack([key(s) for s in range(B)])
@@ -121,6 +124,8 @@ def test_jax_form_jits_vmaps_and_equals_numpy():
             np.testing.assert_allclose(np.asarray(obs), ref[k + 1][0], rtol=1e-9, atol=1e-9)
             np.testing.assert_allclose(np.asarray(r), ref[k + 1][1], rtol=1e-9, atol=1e-12)
             assert np.array_equal(np.asarray(trunc), ref[k + 1][2])
+    with pytest.raises(InvalidInputError, match="float64"):  # JAX without x64 computes in float32
+        core.reset(jnp.asarray(keys), jax.tree_util.tree_map(jnp.asarray, p))
 
 
 def test_numpy_batch_equals_single_worlds_on_a_network():

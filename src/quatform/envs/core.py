@@ -377,6 +377,7 @@ class FormationCore:
         """``(obs, state)`` of a new episode: the scenario's start, perturbed by
         ``params.start_std`` (stream 0 of ``key``), and the first reading's noise (stream 1)."""
         xp = common_namespace(key, params.x0)
+        _check_float64(xp)
         key = xp.asarray(key)
         batch = tuple(key.shape[:-1])
         x = params.x0 + params.start_std * normal(key, 0, self.n_x)
@@ -397,6 +398,7 @@ class FormationCore:
         (:func:`~quatform.sim.loop.make_tick`), then the next reading's noise from ``key``
         (stream 1), the observation, the reward and the episode's end (``docs/envs.md``)."""
         xp = common_namespace(key, state.x, action)
+        _check_float64(xp)
         k = xp.minimum(state.k, self.T - 1)
         ref = tree_map(lambda a: xp.asarray(a)[k], params.refs)
         xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, xp.asarray(action, dtype=xp.float64)),
@@ -546,6 +548,14 @@ def _check_options(positive: bool = False, **values) -> None:
             and (v > 0 if positive else v >= 0)
         if not ok:
             raise InvalidInputError(f"envs: {name} = {v!r} must be a finite number {'>' if positive else '>='} 0")
+
+
+def _check_float64(xp) -> None:
+    """Refuse (one line) a namespace that computes in float32 (JAX without ``jax_enable_x64``):
+    the core is the simulator's float64 tick."""
+    if xp is not np and xp.asarray(0.0).dtype != np.float64:  # a float's default dtype: no warning
+        raise InvalidInputError("envs: the functional core runs in float64; on JAX call it inside "
+                                "jax.enable_x64(True) (or set jax.config.update('jax_enable_x64', True))")
 
 
 def _finite(xp, a):
