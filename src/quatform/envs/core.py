@@ -110,8 +110,8 @@ def split(key, num: int = 2):
 class ActionController(Controller):
     """The scenario's controller ``base`` with the policy's action: the loop's controller of an env.
 
-    The tick's reference is ``(base reference arrays, action)``; the action ``(*batch, n_u)``
-    in ``[-1, 1]`` scaled by ``scale`` (``(n_u,)``, the commands' units) is
+    The tick's reference is ``(base reference arrays, action)``; the action ``(*batch, n_u)``,
+    in the commands' units (the env scales the policy's ``[-1, 1]`` by ``params.action_scale``), is
 
     * ``"residual"``: added to ``base``'s commands, the sum saturated by the team's limits; a
       world whose action is all zero takes ``base``'s commands as they are (bitwise);
@@ -123,12 +123,10 @@ class ActionController(Controller):
     base: Controller
     team: Any
     mode: str = "residual"
-    scale: Any = None
 
     def __post_init__(self):
         if self.mode not in ACTION_MODES:
             raise InvalidInputError(f"envs: action = {self.mode!r}; choose one of {', '.join(ACTION_MODES)}")
-        object.__setattr__(self, "scale", np.asarray(self.scale, dtype=float))
 
     @property
     def name(self) -> str:
@@ -163,7 +161,7 @@ class ActionController(Controller):
         ref, action = reference
         out = self.base.tick(state, measured, ref, t)
         xp = common_namespace(measured, out.u, action)
-        a = xp.asarray(action, dtype=xp.float64) * self.scale
+        a = xp.asarray(action, dtype=xp.float64)
         if self.mode == "velocity":
             u = self.team.saturate(xp.broadcast_to(a, out.u.shape))
         else:
@@ -320,7 +318,7 @@ class FormationCore:
         n_u = len(base.command_names)
         limits = _probe_limits(team, n_u)
         scale = limits if action == "velocity" else residual_scale * limits
-        self.controller = ActionController(base, team, action, scale)
+        self.controller = ActionController(base, team, action)
         self.action_mode = action
         self.noisy = bool(noise_m > 0 or noise_rad > 0)
         self.measurement = NoisyReading() if self.noisy else PerfectMeasurement()
@@ -401,7 +399,8 @@ class FormationCore:
         _check_float64(xp)
         k = xp.minimum(state.k, self.T - 1)
         ref = tree_map(lambda a: xp.asarray(a)[k], params.refs)
-        xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, xp.asarray(action, dtype=xp.float64)),
+        a = xp.asarray(action, dtype=xp.float64) * params.action_scale
+        xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, a),
               "meas": {"noise": state.noise} if self.noisy else {}, "plant": None}
         carry, ys = self.tick((state.x, state.ctrl, state.meas, state.fail_tick, state.reason), xs)
         u = ys[2]
