@@ -283,3 +283,18 @@ def test_a_batch_of_worlds_at_different_ticks_steps_as_each_alone(name):
         np.testing.assert_allclose(out[0][i], alone[0], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(out[1].x[i], alone[1].x, rtol=1e-12, atol=1e-12)
         assert out[1].k[i] == alone[1].k
+
+
+def test_team_agent_sees_its_nearest_robots():
+    pytest.importorskip("pettingzoo")
+    import quatform.envs
+
+    env = quatform.envs.parallel_env(scenario=TEAM, duration_s=0.1, neighbours=2)
+    obs, _ = env.reset(seed=0)
+    p = env.core.layout.positions(env.state())
+    own = 2 * len(env._points[0])
+    rows = obs["robot_0"][own:own + 5 * env.slots].reshape(env.slots, 5)
+    d = np.linalg.norm(p[1:] - p[0], axis=-1)
+    nearest = 1 + np.argsort(d)[:2]
+    np.testing.assert_allclose(rows[:, 1:4], p[nearest] - p[0], rtol=0, atol=1e-12)
+    assert np.all(rows[:, 0] == 1.0) and np.all(rows[:, 4] == 0.0)

@@ -123,8 +123,9 @@ class FormationParallelEnv(ParallelEnv):
             rel = np.where(valid[..., None], np.asarray(sender) - p[:, None, :], 0.0)
             age = np.where(valid, t - np.where(valid, np.asarray(box["stamps"]), 0.0), 0.0)
             return np.concatenate([valid[..., None].astype(float), rel, age[..., None]], axis=-1)
-        d = core.separations(np.where(np.isfinite(state.x), state.x, 0.0))
-        near = np.argsort(d, axis=-1)[:, :self.slots]
+        d = np.linalg.norm(p[None, :, :] - p[:, None, :], axis=-1)
+        np.fill_diagonal(d, np.inf)  # a robot is not its own neighbour
+        near = np.argsort(d, axis=-1, kind="stable")[:, :self.slots]
         rel = p[near] - p[:, None, :]
         return np.concatenate([np.ones(near.shape + (1,)), rel, np.zeros(near.shape + (1,))], axis=-1)
 
