@@ -110,13 +110,13 @@ class Peer:
 
         return DataWriter(self.dp, self._topic(name, msg_type), qos=self._qos(reliable, transient_local, depth))
 
-    def reader(self, name: str, msg_type: str, *, depth=1000):
-        """A reliable DataReader on the DDS topic ``name``."""
+    def reader(self, name: str, msg_type: str, *, reliable=True, depth=1000):
+        """A DataReader on the DDS topic ``name`` (best effort matches a best-effort writer too)."""
         from cyclonedds.sub import DataReader
 
         from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
 
-        r = DataReader(self.dp, self._topic(name, msg_type), qos=self._qos(True, False, depth))
+        r = DataReader(self.dp, self._topic(name, msg_type), qos=self._qos(reliable, False, depth))
         r.msg_type = msg_type
         self.waitset.attach(ReadCondition(r, SampleState.Any | ViewState.Any | InstanceState.Any))
         return r

@@ -265,3 +265,96 @@ def test_latched_estop_wrong_type_and_nan_are_refused_in_one_line(tmp_path, loop
     assert len(wrong_type) == 1 and "reads geometry_msgs/msg/PoseStamped" in wrong_type[0]
     assert "e-stop engaged" in text
     assert all(len(b) > n and not np.any(b[-1][2]) for b, n in zip(cmd.got, n_before))  # SIGTERM: zero out
+
+
+def _ring3(folder: Path) -> Path:
+    """net-consensus-ring with three robots (no antipodal reports), 0.4 s, and links of one tick's
+    delay (20 ms): what a robot's node hears at a tick over the wire in lockstep, its neighbour's
+    message of the tick before."""
+    from quatform.scenarios import builtin_scenarios
+
+    src = builtin_scenarios()["net-consensus-ring"].read_text()
+    src = re.sub(r"(?m)^duration_s = .*$", "duration_s = 0.4", src)
+    src = src.replace("count = 12", "count = 3")
+    src = re.sub(r"(?m)^antipodal = .*\n", "", src)
+    src += "\n[links]\ndelay_s = 0.02\nmax_age_s = 0.05\n"
+    return H.write(folder / "ring3.toml", src)
+
+
+RING_ROBOTS = "".join(f"""
+[[robots]]
+name = "r{k}"
+pose_topic = "/mocap/r{k}/pose"
+timeout_s = 0.1
+""" for k in (1, 2, 3)) + "\n[bridge]\nstart_timeout_s = 5.0\n"
+
+
+def test_one_node_per_robot_over_dds_hears_its_neighbour_and_gives_the_simulations_commands(tmp_path, loopback):
+    """Three robots' nodes (three processes, each in its namespace) on the directed ring: each
+    reads its pose and its neighbour's /rJ/quatform/message over DDS; in lockstep on /clock their
+    commands are the simulator's (links of one tick's delay) within 1e-9."""
+    from quatform.ros2.local_bridge import LocalBridge
+
+    scenario = _ring3(tmp_path)
+    robots = H.write(tmp_path / "robots.toml", RING_ROBOTS)
+    exp = experiment_for(scenario)
+    log = exp.run()
+    rf = read_robots_file(robots)
+    b = LocalBridge(exp, 0, rf)
+    pr = b.io.plant_robots
+    poses = H.robot_poses(pr.models, pr.state_slices, log["state"])
+    procs = [P.quatform_process(["ros2", "--transport", "dds", "--use-sim-time", "--scenario", scenario, "--robots",
+                                 robots, "--robot", k], loopback, tmp_path / f"r{k}.log") for k in (1, 2, 3)]
+    try:
+        peer = P.Peer(int(loopback["ROS_DOMAIN_ID"]))
+        pose_w = [peer.writer(f"rt/mocap/r{k}/pose", "geometry_msgs/msg/PoseStamped") for k in (1, 2, 3)]
+        clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", depth=1)
+        cmd = _Commands(peer, [peer.reader(f"rt/r{k}/cmd_vel", "geometry_msgs/msg/TwistStamped") for k in (1, 2, 3)])
+        said = [peer.reader(f"rt/r{k}/quatform/message", "sensor_msgs/msg/JointState", reliable=False)
+                for k in (1, 2, 3)]
+        for proc in procs:
+            P.Peer.wait_matched(pose_w + [clock_w] + cmd.readers + said, 30.0, proc)
+        clock = messages.msg_type("rosgraph_msgs/msg/Clock")
+        sent = [[] for _ in said]
+
+        def step(k, c):
+            for w, (p, q) in zip(pose_w, poses):
+                peer.write(w, _pose(k, p, q, c))
+            peer.write(clock_w, clock(clock=messages.stamp_ns(c)))
+
+        dt = 20_000_000
+        c0 = 0
+        while True:  # state 0 until every node (each started on its pose) ticks at one /clock step
+            step(0, c0)
+            if cmd.wait_for(c0, 1.0):
+                break
+            assert all(p.poll() is None for p in procs) and c0 < 20 * dt
+            assert not any(cmd.stamped(c0)), "the robots' nodes started at different /clock steps"
+            c0 += dt
+        T = len(log.t)
+        t0 = time.monotonic()
+        for k in range(T):
+            if k:
+                _pace(t0, k, 0.02)
+                step(k, c0 + k * dt)
+                assert cmd.wait_for(c0 + k * dt, WAIT_S), f"no command at tick {k}"
+            end = time.monotonic() + WAIT_S  # every robot's message of this tick, before the next /clock step
+            while True:
+                for box, r in zip(sent, said):
+                    box.extend(m for _, m in peer.take(r))
+                if all(any(messages.nanoseconds(m.header.stamp) == c0 + k * dt for m in box) for box in sent):
+                    break
+                assert time.monotonic() < end, f"no message at tick {k}"
+                peer.wait(0.01)
+    finally:
+        codes = [P.stop(p, signal.SIGINT) for p in procs]
+    texts = [(tmp_path / f"r{k}.log").read_text() for k in (1, 2, 3)]
+    assert codes == [130] * 3 and not any("Traceback" in t for t in texts), texts
+    u = np.asarray(log["command"])
+    for i in range(3):
+        got = np.array([cmd.stamped(c0 + k * dt)[i][2] for k in range(T)])
+        np.testing.assert_allclose(got, u[:, 6 * i:6 * i + 6], rtol=0, atol=1e-9)
+        assert np.any(got[1:] != 0)
+        m = sent[i][-1]  # the law's columns and the sender's position, as LocalBridge names them
+        assert tuple(m.name) == b.columns
+        np.testing.assert_allclose(np.asarray(m.position)[-3:], poses[i][0][T - 1], rtol=0, atol=1e-12)

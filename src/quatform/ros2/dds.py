@@ -30,9 +30,15 @@ uses the sample identity), so the e-stop is its topic only; the ``ros_discovery_
 
 Clock: the system time, or with ``use_sim_time`` (ROS's parameter) the latest
 ``/clock`` (``rosgraph_msgs/Clock``): timers then fire as ``/clock`` passes them. Messages
-taken together are handed on in the order their writers wrote them (source timestamps), the
-``/clock`` reader read first, so a pose written before a ``/clock`` step reaches the node
-before the tick at that step.
+taken together are handed on in the order their writers wrote them (DDS source timestamps,
+the writers' system clocks), the ``/clock`` reader read first. With ``use_sim_time`` the node
+acts at ``/clock`` steps: a message written before a ``/clock`` sample reaches the node before
+the timers of that step, one written after it waits for the next ``/clock`` sample (the newest
+of each reader's QoS depth kept), however the packets race on the network. So a pose written
+before a step is read at that step's tick, and a neighbour's message sent at the tick of step
+``k`` is read at step ``k + 1`` in every node (a simulator's lockstep; machines whose clocks
+differ by more than a ``/clock`` period delay messages by that difference). An e-stop in sim
+time, too, acts at the next ``/clock`` step.
 
 A writer of another type on a topic this node reads (a ``PointStamped`` on a pose topic) is
 named in one warning line (from DDS's discovery of publications), and a sample that does not
@@ -42,6 +48,7 @@ decode is one warning line per topic: neither stops the node.
 from __future__ import annotations
 
 import importlib
+import itertools
 import sys
 import time
 from collections.abc import Callable
@@ -256,6 +263,10 @@ class DdsTransport(Transport):
         self.timers: list = []
         self._said: set = set()
         self._clock_ns = 0
+        self._clock_written = None  # the source timestamp of the newest /clock sample
+        self._pending: list = []  # (source timestamp, reader, sequence, sample) held for the next /clock step
+        self._seq = itertools.count()
+        self.depths: list = []
         self.publications = BuiltinDataReader(self.participant, BuiltinTopicDcpsPublication)
         self.waitset.attach(ReadCondition(self.publications, self._mask()))
         if self.use_sim_time:  # read first in every pass (see the module docstring)
@@ -293,6 +304,7 @@ class DdsTransport(Transport):
         reader = DataReader(self.participant, self._topic(topic, msg_type), qos=self._qos(qos))
         self.waitset.attach(ReadCondition(reader, self._mask()))
         self.readers.append((reader, msg_type, topic, callback))
+        self.depths.append(QOS[qos].depth)
         self.reads[dds_topic(topic)] = msg_type
 
     def publisher(self, topic, msg_type, qos):
@@ -350,8 +362,10 @@ class DdsTransport(Transport):
                 t.run_if_due(now)
 
     def _dispatch(self) -> None:
-        """Take every reader (``/clock`` first) and hand the samples on in the order they were written."""
-        samples = []
+        """Take every reader (``/clock`` first) and hand the samples on in the order they were
+        written; with ``use_sim_time``, a sample written after the newest ``/clock`` sample waits
+        for the next one (see the module docstring)."""
+        samples = self._pending
         for k, (reader, msg_type, topic, callback) in enumerate(self.readers):
             try:
                 got = reader.take(N=_TAKE)
@@ -359,14 +373,32 @@ class DdsTransport(Transport):
                 self._warn_once(("undecodable", topic), f"a message on {topic} does not decode as {msg_type} "
                                 f"({type(exc).__name__}); such messages are not read")
                 continue
-            for j, s in enumerate(got):
+            for s in got:
                 info = getattr(s, "sample_info", None)
                 if info is not None and info.valid_data:
-                    samples.append((info.source_timestamp, k, j, s))
+                    samples.append((info.source_timestamp, k, next(self._seq), s))
         samples.sort(key=lambda item: item[:3])
-        for _, k, _, s in samples:
+        cut = len(samples)
+        if self.use_sim_time:
+            clocks = [n for n, item in enumerate(samples) if item[1] == 0]
+            if clocks or self._clock_written is not None:
+                cut = clocks[-1] + 1 if clocks else 0
+        ready, self._pending = samples[:cut], self._held(samples[cut:])
+        for written, k, _, s in ready:
             _, msg_type, _, callback = self.readers[k]
+            if self.use_sim_time and k == 0:
+                self._clock_written = written
             callback(self.types.from_idl(s, msg_type))
+
+    def _held(self, samples: list) -> list:
+        """The samples waiting for the next ``/clock`` step, at most each reader's QoS depth of the newest."""
+        count: dict = {}
+        keep = []
+        for item in reversed(samples):
+            count[item[1]] = count.get(item[1], 0) + 1
+            if count[item[1]] <= self.depths[item[1]]:
+                keep.append(item)
+        return keep[::-1]
 
     def _check_publications(self) -> None:
         """One warning line per writer of another type on a topic this node reads."""
