@@ -15,7 +15,11 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 import quatform
+from quatform import messages
+from quatform.ros2.dds import dds_topic
 
 #: Cyclone DDS 0.10 / 11 configuration: loopback, no multicast, unicast peers on 127.0.0.1.
 CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
@@ -147,3 +151,62 @@ class Peer:
             if time.monotonic() > end:
                 raise AssertionError(f"no DDS match within {timeout_s} s")
             time.sleep(0.02)
+
+
+def _command(msg):
+    lin, ang = messages.twist_from_msg(msg)
+    return np.r_[lin, ang]
+
+
+class Commands:
+    """Every command the peer reads, per robot: ``[(receive ns, stamp ns, twist (6,))]``."""
+
+    def __init__(self, peer, readers):
+        self.peer, self.readers = peer, readers
+        self.got = [[] for _ in readers]
+
+    def poll(self, timeout_s: float) -> None:
+        self.peer.wait(timeout_s)
+        for box, r in zip(self.got, self.readers):
+            box.extend((t, messages.nanoseconds(m.header.stamp), _command(m)) for t, m in self.peer.take(r))
+
+    def stamped(self, stamp_ns: int) -> list:
+        """Each robot's last command stamped ``stamp_ns`` (None where none yet)."""
+        return [next((c for c in reversed(box) if c[1] == stamp_ns), None) for box in self.got]
+
+    def wait_for(self, stamp_ns: int, timeout_s: float) -> bool:
+        end = time.monotonic() + timeout_s
+        while any(c is None for c in self.stamped(stamp_ns)):
+            if time.monotonic() > end:
+                return False
+            self.poll(min(0.05, max(0.0, end - time.monotonic())))
+        return True
+
+
+def pose(k, p, q, stamp_ns):
+    """``PoseStamped`` of sample ``k`` of ``(p, q)`` stamped ``stamp_ns``."""
+    return messages.pose_stamped(messages.stamp_ns(stamp_ns), p[k], q[k])
+
+
+class PairPeer:
+    """The peer of the pair: pose writers (sensor QoS), ``/clock``, the latched e-stop, command readers."""
+
+    def __init__(self, domain_id: int, rf):
+        self.peer = peer = Peer(domain_id)
+        self.pose_w = [peer.writer(dds_topic(r.pose_topic), "geometry_msgs/msg/PoseStamped") for r in rf.robots]
+        self.clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", depth=1)
+        self.estop_w = peer.writer("rt/quatform/estop", "std_msgs/msg/Bool", reliable=True, transient_local=True,
+                                   depth=1)
+        self.cmd = Commands(peer, [peer.reader(dds_topic(r.command_topic), "geometry_msgs/msg/TwistStamped")
+                                    for r in rf.robots])
+        self.sent_ns: list = []
+
+    def step(self, clock_ns: int, poses, estop=None) -> None:
+        """Each robot's pose (None: not sent), the e-stop (if given), then ``/clock`` = ``clock_ns``."""
+        self.sent_ns.append(time.perf_counter_ns())
+        for w, msg in zip(self.pose_w, poses):
+            if msg is not None:
+                self.peer.write(w, msg)
+        if estop is not None:
+            self.peer.write(self.estop_w, messages.msg_type("std_msgs/msg/Bool")(data=estop))
+        self.peer.write(self.clock_w, messages.msg_type("rosgraph_msgs/msg/Clock")(clock=messages.stamp_ns(clock_ns)))

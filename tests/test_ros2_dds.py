@@ -77,64 +77,6 @@ def test_idl_types_are_ros2s_names_and_cdr():
     assert dds_topic("/r1/cmd_vel") == "rt/r1/cmd_vel"
 
 
-def _command(msg):
-    lin, ang = messages.twist_from_msg(msg)
-    return np.r_[lin, ang]
-
-
-class _Commands:
-    """Every command the peer reads, per robot: ``[(receive ns, stamp ns, twist (6,))]``."""
-
-    def __init__(self, peer, readers):
-        self.peer, self.readers = peer, readers
-        self.got = [[] for _ in readers]
-
-    def poll(self, timeout_s: float) -> None:
-        self.peer.wait(timeout_s)
-        for box, r in zip(self.got, self.readers):
-            box.extend((t, messages.nanoseconds(m.header.stamp), _command(m)) for t, m in self.peer.take(r))
-
-    def stamped(self, stamp_ns: int) -> list:
-        """Each robot's last command stamped ``stamp_ns`` (None where none yet)."""
-        return [next((c for c in reversed(box) if c[1] == stamp_ns), None) for box in self.got]
-
-    def wait_for(self, stamp_ns: int, timeout_s: float) -> bool:
-        end = time.monotonic() + timeout_s
-        while any(c is None for c in self.stamped(stamp_ns)):
-            if time.monotonic() > end:
-                return False
-            self.poll(min(0.05, max(0.0, end - time.monotonic())))
-        return True
-
-
-def _pose(k, p, q, stamp_ns):
-    return messages.pose_stamped(messages.stamp_ns(stamp_ns), p[k], q[k])
-
-
-class PairLockstep:
-    """The peer of the pair: pose writers (sensor QoS), ``/clock``, the latched e-stop, command readers."""
-
-    def __init__(self, loopback, rf):
-        self.peer = peer = P.Peer(int(loopback["ROS_DOMAIN_ID"]))
-        self.pose_w = [peer.writer(dds_topic(r.pose_topic), "geometry_msgs/msg/PoseStamped") for r in rf.robots]
-        self.clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", depth=1)
-        self.estop_w = peer.writer("rt/quatform/estop", "std_msgs/msg/Bool", reliable=True, transient_local=True,
-                                   depth=1)
-        self.cmd = _Commands(peer, [peer.reader(dds_topic(r.command_topic), "geometry_msgs/msg/TwistStamped")
-                                    for r in rf.robots])
-        self.sent_ns: list = []
-
-    def step(self, clock_ns: int, poses, estop=None) -> None:
-        """Each robot's pose (None: not sent), the e-stop (if given), then ``/clock`` = ``clock_ns``."""
-        self.sent_ns.append(time.perf_counter_ns())
-        for w, pose in zip(self.pose_w, poses):
-            if pose is not None:
-                self.peer.write(w, pose)
-        if estop is not None:
-            self.peer.write(self.estop_w, messages.msg_type("std_msgs/msg/Bool")(data=estop))
-        self.peer.write(self.clock_w, messages.msg_type("rosgraph_msgs/msg/Clock")(clock=messages.stamp_ns(clock_ns)))
-
-
 def _bridge(tmp_path, loopback, *extra, name="bridge"):
     robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
     args = ["ros2", "--transport", "dds", "--scenario", "mas-kitts-helix", "--robots", robots, "--controller",
@@ -154,12 +96,12 @@ def test_bridge_over_dds_gives_the_simulations_commands_and_holds_stops_and_zero
     try:
         pr = FormationBridge(exp, rf).plant_robots
         (p1, q1), (p2, q2) = H.robot_poses(pr.models, pr.state_slices, log["state"])
-        peer = PairLockstep(loopback, rf)
+        peer = P.PairPeer(int(loopback["ROS_DOMAIN_ID"]), rf)
         P.Peer.wait_matched(peer.pose_w + [peer.clock_w, peer.estop_w] + peer.cmd.readers, 30.0, proc)
         # the first tick: state 0 until the bridge (started on these poses) ticks at a /clock step
         c0 = 0
         while True:
-            peer.step(c0, (_pose(0, p1, q1, c0), _pose(0, p2, q2, c0)))
+            peer.step(c0, (P.pose(0, p1, q1, c0), P.pose(0, p2, q2, c0)))
             if peer.cmd.wait_for(c0, 1.0):
                 break
             assert proc.poll() is None and c0 < 20 * DT_NS, (tmp_path / "bridge.log").read_text()
@@ -169,7 +111,7 @@ def test_bridge_over_dds_gives_the_simulations_commands_and_holds_stops_and_zero
         for k in range(1, T):  # lockstep: state k, then the clock of tick k
             _pace(t0, k)
             c = c0 + k * DT_NS
-            peer.step(c, (_pose(k, p1, q1, c), _pose(k, p2, q2, c)))
+            peer.step(c, (P.pose(k, p1, q1, c), P.pose(k, p2, q2, c)))
             assert peer.cmd.wait_for(c, WAIT_S), f"no command at tick {k}"
             lat.append(max(x[0] for x in peer.cmd.stamped(c)) - peer.sent_ns[-1])
         u = np.asarray(log["command"])
@@ -184,8 +126,8 @@ def test_bridge_over_dds_gives_the_simulations_commands_and_holds_stops_and_zero
             k = T + j
             _pace(t0, k)
             c = c0 + k * DT_NS
-            r2 = None if j < 10 else _pose(last, p2, q2, c)
-            peer.step(c, (_pose(last, p1, q1, c), r2), estop=True if j == 18 else None)
+            r2 = None if j < 10 else P.pose(last, p2, q2, c)
+            peer.step(c, (P.pose(last, p1, q1, c), r2), estop=True if j == 18 else None)
             assert peer.cmd.wait_for(c, WAIT_S), f"no command at tick {k}"
             status[j] = [bool(np.any(x[2] != 0)) for x in peer.cmd.stamped(c)]
         # r2's last pose arrived with the clock at tick T - 2 (it reaches the bridge before the next
@@ -229,7 +171,7 @@ def test_latched_estop_wrong_type_and_nan_are_refused_in_one_line(tmp_path, loop
     pose_w = [peer.writer(dds_topic(r.pose_topic), "geometry_msgs/msg/PoseStamped") for r in rf.robots]
     wrong = P.Peer(domain)  # another node publishing the wrong type on r2's pose topic
     point_w = wrong.writer(dds_topic(rf.robots[1].pose_topic), "geometry_msgs/msg/PointStamped")
-    cmd = _Commands(peer, [peer.reader(dds_topic(r.command_topic), "geometry_msgs/msg/TwistStamped")
+    cmd = P.Commands(peer, [peer.reader(dds_topic(r.command_topic), "geometry_msgs/msg/TwistStamped")
                            for r in rf.robots])
     proc, _ = _bridge(tmp_path, loopback, "--rate", "100", name="bad")
     try:
@@ -241,9 +183,9 @@ def test_latched_estop_wrong_type_and_nan_are_refused_in_one_line(tmp_path, loop
         for k in range(60):  # 0.6 s of 100 Hz mocap; every 7th pose of r1 a NaN
             _pace(t0, k)
             t = time.time_ns()
-            m1 = _pose(k % len(x), p1, q1, t)
+            m1 = P.pose(k % len(x), p1, q1, t)
             peer.write(pose_w[0], _nan_pose(m1) if k % 7 == 3 else m1)
-            m2 = _pose(k % len(x), p2, q2, t)
+            m2 = P.pose(k % len(x), p2, q2, t)
             peer.write(pose_w[1], m2)
             wrong.write(point_w, point(header=m2.header, point=m2.pose.position))
             cmd.poll(0.0)
@@ -309,7 +251,7 @@ def test_one_node_per_robot_over_dds_hears_its_neighbour_and_gives_the_simulatio
         peer = P.Peer(int(loopback["ROS_DOMAIN_ID"]))
         pose_w = [peer.writer(f"rt/mocap/r{k}/pose", "geometry_msgs/msg/PoseStamped") for k in (1, 2, 3)]
         clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", depth=1)
-        cmd = _Commands(peer, [peer.reader(f"rt/r{k}/cmd_vel", "geometry_msgs/msg/TwistStamped") for k in (1, 2, 3)])
+        cmd = P.Commands(peer, [peer.reader(f"rt/r{k}/cmd_vel", "geometry_msgs/msg/TwistStamped") for k in (1, 2, 3)])
         said = [peer.reader(f"rt/r{k}/quatform/message", "sensor_msgs/msg/JointState", reliable=False)
                 for k in (1, 2, 3)]
         for proc in procs:
@@ -319,7 +261,7 @@ def test_one_node_per_robot_over_dds_hears_its_neighbour_and_gives_the_simulatio
 
         def step(k, c):
             for w, (p, q) in zip(pose_w, poses):
-                peer.write(w, _pose(k, p, q, c))
+                peer.write(w, P.pose(k, p, q, c))
             peer.write(clock_w, clock(clock=messages.stamp_ns(c)))
 
         dt = 20_000_000

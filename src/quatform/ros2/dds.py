@@ -188,7 +188,8 @@ class IdlTypes:
         return cls(**out)
 
     def from_idl(self, sample, msg_type: str):
-        """The ``rosbags`` message of the IDL sample ``sample`` (numeric arrays as NumPy arrays, as rosbags holds them)."""
+        """The ``rosbags`` message of the IDL sample ``sample`` (numeric arrays as NumPy arrays,
+        as rosbags holds them)."""
         out = {}
         for fname, kind, sub in self._plans[msg_type]:
             v = getattr(sample, fname)

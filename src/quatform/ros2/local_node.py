@@ -1,8 +1,9 @@
 """One robot's ROS 2 node of a decentralised formation, on any transport (rclpy or DDS).
 
 ROS 2 bridge layer. :class:`LocalNode` wraps a :class:`~quatform.ros2.local_bridge.LocalBridge`
-in a node of a :class:`~quatform.ros2.transport.Transport`, one per robot (``quatform ros2 --scenario NET --robots robots.toml --robot I``
-on each robot, or each in one launch file):
+in a node of a :class:`~quatform.ros2.transport.Transport`, one per robot (``quatform ros2
+--scenario NET --robots robots.toml --robot I [--transport dds]`` on each robot, or each in one
+launch file):
 
 * its own pose topic (the robots file's, sensor-data QoS; PX4's profile for ``/fmu`` topics);
 * each in-neighbour's message, ``/<neighbour namespace>/quatform/message``
@@ -68,6 +69,7 @@ class LocalNode(BridgeNode):
             if not self.bridge.on_message(j, msg) and names != self.bridge.columns and not said:
                 said.append(True)  # one line per neighbour, not one per message
                 self.transport.log(
-                    "warning", f"robot {self.bridge.names[j]!r} sends {', '.join(names)} on {self.bridge.message_topics[j]}, "
-                    f"not {', '.join(self.bridge.columns)}: its messages are not used (another law or scenario?)")
+                    "warning", f"robot {self.bridge.names[j]!r} sends {', '.join(names)} on "
+                    f"{self.bridge.message_topics[j]}, not {', '.join(self.bridge.columns)}: its messages are not "
+                    "used (another law or scenario?)")
         return callback
