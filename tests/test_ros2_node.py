@@ -328,5 +328,29 @@ def test_without_rclpy_one_line_says_to_source_ros(monkeypatch):
     from quatform.ros2.rclpy_transport import import_rclpy
 
     monkeypatch.setitem(sys.modules, "rclpy", None)  # import rclpy raises ImportError
-    with pytest.raises(MissingDependencyError, match="source your ROS 2 installation"):
+    with pytest.raises(MissingDependencyError, match="source your ROS 2 installation") as err:
         import_rclpy()
+    assert "--transport dds" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_without_cyclonedds_the_dds_transport_is_one_line(monkeypatch, tmp_path, capsys):
+    from quatform import cli
+    from quatform.ros2.dds import DdsTransport
+
+    monkeypatch.setitem(sys.modules, "cyclonedds", None)  # import cyclonedds raises ImportError
+    with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[dds\]"'):
+        DdsTransport()
+    robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
+    rc = cli.main(["ros2", "--transport", "dds", "--scenario", "mas-kitts-helix", "--robots", str(robots),
+                   "--controller", "quaternion"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and '.[dds]' in err
+
+
+def test_ros_domain_id_is_read_and_checked():
+    from quatform.ros2.transport import ros_domain_id
+
+    assert ros_domain_id({}) == 0 and ros_domain_id({"ROS_DOMAIN_ID": " 42 "}) == 42
+    for bad in ("x", "-1", "233"):
+        with pytest.raises(InvalidInputError, match="ROS_DOMAIN_ID"):
+            ros_domain_id({"ROS_DOMAIN_ID": bad})
