@@ -3,7 +3,8 @@ names written out (``rt/...``, ``pkg::msg::dds_::Name_``), the bridge in another
 
 Every participant (this process's and the bridge's) reads ``CYCLONEDDS_URI``: the loopback
 interface only, multicast off, unicast discovery of the peers on 127.0.0.1, so no packet
-leaves 127.0.0.1; each run has its own domain id (``ROS_DOMAIN_ID``).
+leaves 127.0.0.1; each test process has a domain id no other holds (``ROS_DOMAIN_ID``, a lock
+file per domain), so parallel workers and runs never hear each other.
 """
 
 from __future__ import annotations
@@ -39,12 +40,39 @@ CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
+#: The domains this process holds (their lock files stay open, so no other run takes them).
+_HELD: dict = {}
+
+
+def claim_domain() -> int:
+    """A DDS domain id (1..232) no other process of these tests holds: an exclusive lock on a file
+    per domain in the temporary directory, tried from a place drawn from the process id, kept
+    until the process exits."""
+    import fcntl
+    import tempfile
+
+    start = os.getpid() % 232
+    for n in range(232):
+        d = 1 + (start + n) % 232
+        if d in _HELD:
+            continue
+        f = open(Path(tempfile.gettempdir()) / f"quatform-dds-domain-{d}.lock", "a")  # noqa: SIM115 - held
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.close()
+            continue
+        _HELD[d] = f
+        return d
+    raise RuntimeError("every DDS domain id 1..232 is held by another test run")
+
+
 def loopback_env(folder: Path) -> dict:
-    """``CYCLONEDDS_URI`` (a config written into ``folder``) and a ``ROS_DOMAIN_ID`` of this run
-    (from the process id: 1..200), for this process and the bridge's."""
+    """``CYCLONEDDS_URI`` (a config written into ``folder``) and a ``ROS_DOMAIN_ID`` of its own
+    (:func:`claim_domain`), for this process and the bridge's."""
     path = folder / "cyclonedds.xml"
     path.write_text(CONFIG)
-    return {"CYCLONEDDS_URI": path.resolve().as_uri(), "ROS_DOMAIN_ID": str(1 + os.getpid() % 200)}
+    return {"CYCLONEDDS_URI": path.resolve().as_uri(), "ROS_DOMAIN_ID": str(claim_domain())}
 
 
 def quatform_process(args, env: dict, log: Path) -> subprocess.Popen:
