@@ -232,19 +232,16 @@ class DdsTransport(Transport):
         The node's clock is ``/clock``'s (ROS's ``use_sim_time``), else the system time.
     store : rosbags Typestore, optional
         The message definitions (:class:`IdlTypes`).
-    stream : file, optional
-        Where the log lines go (default stderr).
     """
 
     name = "dds"
     serves = False
 
-    def __init__(self, domain_id: int | None = None, use_sim_time: bool = False, store=None, stream=None):
+    def __init__(self, domain_id: int | None = None, use_sim_time: bool = False, store=None):
         import_cyclonedds()
         self.domain_id = ros_domain_id() if domain_id is None else int(domain_id)
         self.use_sim_time = bool(use_sim_time)
         self.types = IdlTypes(store)
-        self.stream = stream
         self.participant = None
         self._closed = False
 
@@ -331,9 +328,10 @@ class DdsTransport(Transport):
         return not self._closed and self.participant is not None
 
     def log(self, level, text):
+        """One line on stderr, as rcutils prints it: ``[WARN] [<time>] [<logger>]: text``."""
         stamp = self.now_ns()
         print(f"[{_LEVELS.get(level, level.upper())}] [{stamp // 10**9}.{stamp % 10**9:09d}] [{self.logger}]: {text}",
-              file=self.stream or sys.stderr, flush=True)
+              file=sys.stderr, flush=True)
 
     def _warn_once(self, key, text: str) -> None:
         if key not in self._said:
