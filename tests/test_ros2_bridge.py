@@ -292,11 +292,12 @@ def test_ugv_uav_tick_on_measured_poses():
     assert np.any(tick.u != 0)
 
 
-def test_importing_the_bridge_and_cli_does_not_import_rclpy():
+def test_importing_the_bridge_and_cli_does_not_import_rclpy_or_cyclonedds():
     import subprocess
     import sys
 
-    code = ("import sys, quatform.cli, quatform.ros2, quatform.ros2.node, quatform.ros2.replay; "
-            "quatform.cli._build_parser(); print('rclpy' in sys.modules)")
+    code = ("import sys, quatform.cli, quatform.ros2, quatform.ros2.node, quatform.ros2.replay, quatform.ros2.dds, "
+            "quatform.ros2.rclpy_transport; quatform.cli._build_parser(); "
+            "print('rclpy' in sys.modules, 'cyclonedds' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"
+    assert out.stdout.strip() == "False False"

@@ -201,6 +201,7 @@ def _node_setup(fake_ros, robot=2, duration_s=0.6, pose_until=None, extra=()):
     also at 0) and its neighbours' messages of tick k (stamped and delivered at (k + 1) dt,
     perfect links) scheduled on the fake bus: its tick j at j dt is the simulator's tick j - 1."""
     from quatform.ros2.local_node import LocalNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
     exp = experiment_for(short("net-switching", duration_s))
     log = exp.run()
@@ -220,14 +221,14 @@ def _node_setup(fake_ros, robot=2, duration_s=0.6, pose_until=None, extra=()):
                 bus.schedule(t, f"/r{j + 1}/quatform/message", msg)
     for t, topic, msg in extra:
         bus.schedule(t, topic, msg)
-    node = LocalNode(b, 50.0, fake_ros)
+    node = LocalNode(b, 50.0, RclpyTransport(fake_ros))
     return node, log, sent, rf
 
 
 def _spin_until(rclpy, node, t_ns):
     bus = rclpy.fake_bus.BUS
     while bus.now_ns <= t_ns:
-        rclpy.spin_once(node.node, timeout_sec=0.001)
+        rclpy.spin_once(node.transport.node, timeout_sec=0.001)
 
 
 def test_node_topics_in_the_neighbours_namespaces(fake_ros):
@@ -240,7 +241,7 @@ def test_node_topics_in_the_neighbours_namespaces(fake_ros):
     assert subs["/r4/quatform/message"].qos == fake_ros.qos.qos_profile_sensor_data  # best effort
     assert set(bus.publishers) == {"/r3/cmd_vel", "/r3/quatform/message"}
     assert bus.publishers["/r3/quatform/message"].qos == fake_ros.qos.qos_profile_sensor_data
-    assert node.node.namespace == "/r3" and node.node.name == "quatform_r3"
+    assert node.transport.node.namespace == "/r3" and node.transport.node.name == "quatform_r3"
     assert set(bus.services) == {"/r3/quatform/set_estop"}  # one service per robot's node
 
 

@@ -57,7 +57,7 @@ def _schedule_bag(bus, bag, rf):
 def _spin_until(rclpy, node, t_ns):
     bus = rclpy.fake_bus.BUS
     while bus.now_ns <= t_ns:  # every event at t_ns included
-        rclpy.spin_once(node.node, timeout_sec=0.001)
+        rclpy.spin_once(node.transport.node, timeout_sec=0.001)
 
 
 def _twists(bus, topic):
@@ -66,12 +66,13 @@ def _twists(bus, topic):
 
 def test_bag_through_the_node_gives_the_offline_commands(fake_ros, tmp_path):
     from quatform.ros2.node import BridgeNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
     exp, log, rf = _pair_setup(tmp_path)
     bag = _pair_bag(tmp_path, log, rf, exp)
     bus = fake_ros.fake_bus.BUS
     poses = _schedule_bag(bus, bag, rf)
-    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, RclpyTransport(fake_ros))
     node.start()
     assert bus.now_ns == 0  # every robot's first pose arrived at 0: the timer starts there
     _spin_until(fake_ros, node, int(poses.times_ns[0][-1]))
@@ -92,6 +93,7 @@ def test_bag_through_the_node_gives_the_offline_commands(fake_ros, tmp_path):
 
 def test_stale_pose_zeros_and_holds_then_resumes(fake_ros, tmp_path):
     from quatform.ros2.node import BridgeNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
     exp, log, rf = _pair_setup(tmp_path)
     bag = _pair_bag(tmp_path, log, rf, exp)
@@ -102,7 +104,7 @@ def test_stale_pose_zeros_and_holds_then_resumes(fake_ros, tmp_path):
         for t, m in zip(ts, ms):
             if not (i == 1 and gap[0] < t < gap[1]):
                 bus.schedule(int(t), link.pose_topic, m)
-    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, RclpyTransport(fake_ros))
     node.start()
     _spin_until(fake_ros, node, 45 * DT_NS)
     status = [t.status for t in node.ticks]
@@ -122,6 +124,7 @@ def test_stale_pose_zeros_and_holds_then_resumes(fake_ros, tmp_path):
 
 def test_estop_latches_until_released(fake_ros, tmp_path):
     from quatform.ros2.node import BridgeNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
     exp, log, rf = _pair_setup(tmp_path)
     bag = _pair_bag(tmp_path, log, rf, exp)
@@ -129,7 +132,7 @@ def test_estop_latches_until_released(fake_ros, tmp_path):
     _schedule_bag(bus, bag, rf)
     bool_ = messages.msg_type("std_msgs/msg/Bool")
     bus.schedule(10 * DT_NS + 1, "/quatform/estop", bool_(data=True))
-    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, RclpyTransport(fake_ros))
     node.start()
     _spin_until(fake_ros, node, 30 * DT_NS)
     status = [t.status for t in node.ticks]
@@ -151,8 +154,9 @@ def _started_pair(fake_ros, tmp_path):
     bag = _pair_bag(tmp_path, log, rf, exp)
     _schedule_bag(fake_ros.fake_bus.BUS, bag, rf)
     from quatform.ros2.node import BridgeNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
-    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, RclpyTransport(fake_ros))
     node.start()
     return node, rf
 
@@ -201,7 +205,7 @@ def test_sigterm_sends_zero_as_ctrl_c_does(fake_ros, tmp_path):
 
     node, rf = _started_pair(fake_ros, tmp_path)
     bus = fake_ros.fake_bus.BUS
-    node.node.create_timer(0.055, lambda: os.kill(os.getpid(), signal.SIGTERM))
+    node.transport.node.create_timer(0.055, lambda: os.kill(os.getpid(), signal.SIGTERM))
 
     def not_the_node(signum, frame):  # a node that does not take SIGTERM over ends up here, not killed
         raise RuntimeError("SIGTERM reached the test's handler")
@@ -235,11 +239,12 @@ def test_context_shut_down_elsewhere_logs_instead_of_raising(fake_ros, tmp_path)
 
 def test_missing_robot_refuses_to_start(fake_ros, tmp_path):
     from quatform.ros2.node import BridgeNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
     exp, _, rf = _pair_setup(tmp_path)
     bus = fake_ros.fake_bus.BUS
     bus.schedule(0, rf.robots[0].pose_topic, messages.pose_stamped(0.0, [0, 0, 1], [1, 0, 0, 0]))
-    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, RclpyTransport(fake_ros))
     with pytest.raises(InvalidInputError) as err:
         node.start()
     text = str(err.value)
@@ -267,6 +272,7 @@ command_type = "px4"
 def test_px4_odometry_in_and_setpoints_out(fake_ros, tmp_path):
     from quatform.ros2 import px4
     from quatform.ros2.node import BridgeNode
+    from quatform.ros2.rclpy_transport import RclpyTransport
 
     exp, log, rf = _pair_setup(tmp_path, 0.2, PX4_ROBOTS)
     assert rf.robots[0].pose_topic == "/px4_1/fmu/out/vehicle_odometry"
@@ -276,7 +282,7 @@ def test_px4_odometry_in_and_setpoints_out(fake_ros, tmp_path):
     for link, (p, q) in zip(rf.robots, H.robot_poses(pr.models, pr.state_slices, x)):
         for k in range(len(x)):
             bus.schedule(k * DT_NS, link.pose_topic, px4.vehicle_odometry(k * 0.01, p[k], q[k]))
-    node = BridgeNode(FormationBridge(exp, rf), 100.0, fake_ros)
+    node = BridgeNode(FormationBridge(exp, rf), 100.0, RclpyTransport(fake_ros))
     node.start()
     _spin_until(fake_ros, node, (len(x) - 1) * DT_NS)
     u = log["command"]
@@ -295,7 +301,7 @@ def test_px4_odometry_in_and_setpoints_out(fake_ros, tmp_path):
 
 def test_to_ros_copies_fields_into_another_class():
     """On a ROS machine a rosbags message becomes the installation's class, field by field."""
-    from quatform.ros2 import node as node_mod
+    from quatform.ros2 import rclpy_transport as node_mod
 
     class Vec:
         @classmethod
@@ -319,8 +325,32 @@ def test_to_ros_copies_fields_into_another_class():
 
 
 def test_without_rclpy_one_line_says_to_source_ros(monkeypatch):
-    from quatform.ros2.node import import_rclpy
+    from quatform.ros2.rclpy_transport import import_rclpy
 
     monkeypatch.setitem(sys.modules, "rclpy", None)  # import rclpy raises ImportError
-    with pytest.raises(MissingDependencyError, match="source your ROS 2 installation"):
+    with pytest.raises(MissingDependencyError, match="source your ROS 2 installation") as err:
         import_rclpy()
+    assert "--transport dds" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_without_cyclonedds_the_dds_transport_is_one_line(monkeypatch, tmp_path, capsys):
+    from quatform import cli
+    from quatform.ros2.dds import DdsTransport
+
+    monkeypatch.setitem(sys.modules, "cyclonedds", None)  # import cyclonedds raises ImportError
+    with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[dds\]"'):
+        DdsTransport()
+    robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
+    rc = cli.main(["ros2", "--transport", "dds", "--scenario", "mas-kitts-helix", "--robots", str(robots),
+                   "--controller", "quaternion"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and '.[dds]' in err
+
+
+def test_ros_domain_id_is_read_and_checked():
+    from quatform.ros2.transport import ros_domain_id
+
+    assert ros_domain_id({}) == 0 and ros_domain_id({"ROS_DOMAIN_ID": " 42 "}) == 42
+    for bad in ("x", "-1", "233"):
+        with pytest.raises(InvalidInputError, match="ROS_DOMAIN_ID"):
+            ros_domain_id({"ROS_DOMAIN_ID": bad})

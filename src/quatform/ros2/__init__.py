@@ -1,7 +1,7 @@
 """The ROS 2 bridge: a scenario's controller on real robots, and offline on recorded bags.
 
-Top layer (beside :mod:`quatform.runs`). rclpy is imported only when a node is built
-(:mod:`.node`); everything else runs without ROS:
+Top layer (beside :mod:`quatform.runs`). rclpy (:mod:`.rclpy_transport`) and Cyclone DDS
+(:mod:`.dds`) are imported only when a node is built on them; everything else runs without ROS:
 
 * :mod:`.robots_file` - ``robots.toml``: each robot's pose and command topics, types, frames
   and stale-pose timeout;
@@ -11,7 +11,9 @@ Top layer (beside :mod:`quatform.runs`). rclpy is imported only when a node is b
 * :mod:`.endpoints` - the pose readers and command writers, by type name;
 * :mod:`.bridge` - :class:`FormationBridge`: poses in, one control tick, commands out (stale
   poses, e-stop, the reference time);
-* :mod:`.node` - the rclpy node;
+* :mod:`.transport` - what a node needs from its middleware, and ROS 2's QoS profiles by name;
+* :mod:`.rclpy_transport`, :mod:`.dds` - the transports: rclpy, and DDS on the wire without ROS;
+* :mod:`.node` - the bridge's node, on either transport;
 * :mod:`.local_bridge`, :mod:`.local_node` - one robot's node of a network scenario
   (decentralised: its pose and its neighbours' messages in, its command and its message out);
 * :mod:`.bag_poses`, :mod:`.replay` - ``quatform replay``;

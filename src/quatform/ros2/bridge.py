@@ -3,7 +3,7 @@
 ROS 2 bridge layer. :class:`FormationBridge` holds a scenario kind's
 :class:`~quatform.scenarios.base.Experiment` (its controller, reference and plant: the robots
 and the layout of their states) and a :class:`~quatform.ros2.robots_file.RobotsFile`; the
-node (:mod:`quatform.ros2.node`) feeds it the messages rclpy delivers and calls
+node (:mod:`quatform.ros2.node`) feeds it the messages its transport delivers and calls
 :meth:`FormationBridge.tick` on its timer, and ``quatform replay`` feeds it a bag's poses, so
 both compute the same commands from the same inputs.
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 
-__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay", "robot_index"]
+__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay", "robot_index", "make_transport"]
 
 
 def ros2_arguments(p) -> None:
@@ -17,13 +17,20 @@ def ros2_arguments(p) -> None:
         "without a pose within [bridge] start_timeout_s stops the start; the e-stop topic/service latches zero "
         "commands until released. With --robot, a network scenario's node of one robot (one per robot): its "
         "pose in, its neighbours' messages from /<their namespace>/quatform/message, its command and its "
-        "message out (docs/networks.md, \"One robot's node\"). Needs rclpy: source your ROS 2 installation "
-        "first. See docs/ros2.md.")
+        "message out (docs/networks.md, \"One robot's node\"). --transport rclpy (the default) needs a sourced "
+        "ROS 2 installation; --transport dds speaks ROS 2 on the wire through Cyclone DDS without one (pip install -e "
+        "\".[dds]\"; ROS_DOMAIN_ID, CYCLONEDDS_URI). See docs/ros2.md.")
     p.add_argument("--scenario", required=True, metavar="SCENARIO", help="built-in name or file.toml")
     p.add_argument("--robots", required=True, metavar="ROBOTS_TOML", help="robots file (docs/ros2.md)")
     p.add_argument("--controller", metavar="NAME", help="the kind's controller (ugv-uav: its formation)")
     p.add_argument("--rate", type=float, metavar="HZ", help="control rate (default: the scenario's control rate)")
     p.add_argument("--reference", metavar="PLAN_NPZ", help="a plan.npz to follow instead of the scenario's path")
+    from .transport import TRANSPORTS
+
+    p.add_argument("--transport", choices=TRANSPORTS, default="rclpy",
+                   help="rclpy (a sourced ROS 2) or dds (Cyclone DDS, no ROS installation)")
+    p.add_argument("--use-sim-time", action="store_true",
+                   help="the node's clock is /clock's (ROS's use_sim_time: a simulator's time)")
     p.add_argument("--robot", metavar="I", help="run robot I's node of a network scenario (its number 1..N in the "
                    "scenario's and the robots file's order, or its name there)")
 
@@ -64,13 +71,24 @@ def replay_arguments(p) -> None:
     p.add_argument("--no-plots", action="store_true", help="no commands.png")
 
 
+def make_transport(name: str, use_sim_time: bool = False):
+    """The :class:`~.transport.Transport` of ``--transport`` (its middleware imported only here)."""
+    if name == "dds":
+        from .dds import DdsTransport
+
+        return DdsTransport(use_sim_time=use_sim_time)
+    from .rclpy_transport import RclpyTransport
+
+    return RclpyTransport(use_sim_time=use_sim_time)
+
+
 def run_ros2(args) -> None:
-    """``quatform ros2``: build the bridge (refusing bad files before ROS is touched), then the node:
-    every robot's (:class:`~.node.BridgeNode`), or with ``--robot`` one robot's of a network
-    scenario (:class:`~.local_node.LocalNode`)."""
+    """``quatform ros2``: build the bridge (refusing bad files before the middleware is touched), then
+    the node on ``--transport``: every robot's (:class:`~.node.BridgeNode`), or with ``--robot`` one
+    robot's of a network scenario (:class:`~.local_node.LocalNode`)."""
     from ..errors import InvalidInputError
     from .bridge import FormationBridge, experiment_for
-    from .node import BridgeNode, import_rclpy
+    from .node import BridgeNode
     from .robots_file import read_robots_file
 
     if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):
@@ -85,15 +103,14 @@ def run_ros2(args) -> None:
         ctrl = local_experiment(experiment, where)
         bridge = LocalBridge(experiment, robot_index(args.robot, robots, ctrl.n, where), robots)
         rate = args.rate if args.rate is not None else 1.0 / ctrl.period_s
-        node = LocalNode(bridge, rate, import_rclpy())
+        node = LocalNode(bridge, rate, make_transport(args.transport, args.use_sim_time))
     else:
         if experiment.meta.get("kind") == "network":
             raise InvalidInputError(f"{where} is a network scenario: every robot runs its own node; start one per "
                                     f"robot with --robot I (docs/networks.md, \"One robot's node\")")
         bridge = FormationBridge(experiment, robots)
-        rclpy = import_rclpy()
         rate = args.rate if args.rate is not None else 1.0 / bridge.ref_dt
-        node = BridgeNode(bridge, rate, rclpy)
+        node = BridgeNode(bridge, rate, make_transport(args.transport, args.use_sim_time))
     try:
         node.start()
     except BaseException:
