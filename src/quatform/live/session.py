@@ -108,7 +108,7 @@ class LiveSession:
         self.gains = self._gains(inner)
         self.min_separation = float(exp.meta["safety"]["min_separation_m"]) if self.safe else None
         self.paused = False
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self._pending: dict = {}
         self._goal = None  # (p (3,), q (4,)) the operator's goal
         self._pose = None  # the shaped pose (p, q) of the next tick, once a goal has come
@@ -158,58 +158,65 @@ class LiveSession:
             self._pending["goal"] = (p, q / n)
 
     def set_parameter(self, name: str, value) -> None:
-        """Check ``value`` for the parameter ``name`` and apply it from the next tick; an unknown
-        name or a value the controller's own checks refuse is one line
-        (:class:`~quatform.errors.InvalidInputError`) and nothing changes."""
+        """Check ``value`` for the parameter ``name`` and apply it from the next tick (:meth:`parameters`
+        reads it at once); an unknown name or a value the controller's own checks refuse is one
+        line (:class:`~quatform.errors.InvalidInputError`) and nothing changes."""
+        said = f"live parameter {name} refused"
         if name == PAUSED_PARAMETER:
             if not isinstance(value, bool):
-                raise InvalidInputError(f"{PAUSED_PARAMETER} = {value!r} must be true or false")
+                raise InvalidInputError(f"{said}: {value!r} must be true or false")
             with self._lock:
                 self.paused = value
             return
         if name.startswith(GAIN_PREFIX) and name[len(GAIN_PREFIX):] in self.gains:
             key = name[len(GAIN_PREFIX):]
-            size = team_gain_sizes()[key]
-            k = check_gain(value, key, size, where=f"live parameter {name}", place="(gain, 1/s)")
-            gains = {**self.gains, key: _plain(k if np.ndim(value) else k[0])}
-            controller = self._controller(gains, self.min_separation)
+            k = check_gain(value, key, team_gain_sizes()[key], where=said, place="gain")
             with self._lock:
-                self._pending["controller"] = (controller, gains, self.min_separation, (name, _plain(value)))
+                gains = {**self.gains, key: _plain(k if np.ndim(value) else k[0])}
+                controller = self._controller(gains, self.min_separation, said)
+                self.gains = gains
+                self._pending["controller"] = (controller, (name, gains[key]))
             return
         if name == SEPARATION_PARAMETER and self.min_separation is not None:
-            d = self._check_separation(value)
-            controller = self._controller(self.gains, d)
+            d = self._check_separation(value, said)
             with self._lock:
-                self._pending["controller"] = (controller, self.gains, d, (name, d))
+                controller = self._controller(self.gains, d, said)
+                self.min_separation = d
+                self._pending["controller"] = (controller, (name, d))
             return
-        raise InvalidInputError(f"unknown parameter {name!r}; parameters: {', '.join(self.parameters())}")
+        raise InvalidInputError(f"{said}: no such parameter; parameters: {', '.join(self.parameters())}")
 
-    def _check_separation(self, value) -> float:
+    def _check_separation(self, value, said: str) -> float:
         """The barrier's distance ``value`` checked: a number > 0 (the barrier stays on: turning it
         off changes the controller's state), not broken by the reference nor by the robots now."""
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
-            raise InvalidInputError(f"{SEPARATION_PARAMETER} = {value!r} must be a finite number of m > 0 (a live run "
-                                    "keeps its separation barrier on)")
+            raise InvalidInputError(f"{said}: {value!r} must be a finite number of m > 0 (a live run keeps its "
+                                    "separation barrier on)")
         d = float(value)
-        label = f"live parameter {SEPARATION_PARAMETER}"
-        self.parts.check_barrier(self.scenario, d, label, self._chart, self.times, start=False)
+        try:
+            self.parts.check_barrier(self.scenario, d, SEPARATION_PARAMETER, self._chart, self.times, start=False)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{said}: {exc}") from None
         x = self.stepper.carry[0]
         now = float(min_separations(self.scenario.team.layout, self.scenario.team.point(x)[None])[0])
         if now < d:
-            raise InvalidInputError(f"{label} = {d:g} m: the robots are now {now:.3g} m apart, closer than that; "
-                                    "give a distance they keep")
+            raise InvalidInputError(f"{said}: the robots are now {now:.3g} m apart, closer than {d:g} m; give a "
+                                    "distance they keep")
         return d
 
-    def _controller(self, gains: dict, d):
+    def _controller(self, gains: dict, d, said: str):
         """The run's controller with ``gains`` (the scenario's controller rebuilt by name: its own
-        checks, and seed 000's step stability) and, where the run has it, the barrier at ``d`` m."""
+        checks, and the loop's step stability) and, where the run has it, the barrier at ``d`` m."""
         sc = self.scenario
         all_gains = {**sc.gains, self.controller_name: gains}
-        check_step_stable(f"scenario {sc.name!r}", sc.dt_s, all_gains)
-        inner = dataclasses.replace(sc, gains=all_gains).controller(self.controller_name, self.feedforward)
-        if not self.safe:
-            return inner
-        return SafeController(inner, separation_barrier(d, sc.dt_s), self.experiment.controller.team)
+        try:
+            check_step_stable(f"scenario {sc.name!r}", sc.dt_s, all_gains)
+            inner = dataclasses.replace(sc, gains=all_gains).controller(self.controller_name, self.feedforward)
+            if not self.safe:
+                return inner
+            return SafeController(inner, separation_barrier(d, sc.dt_s), self.experiment.controller.team)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{said}: {exc}") from None
 
     # -- the loop (the driver's thread) -------------------------------------------------------
     @property
@@ -228,10 +235,8 @@ class LiveSession:
             self._goal = pending["goal"]
             self.goal_ticks.append(self.k)
         if "controller" in pending:
-            controller, gains, d, change = pending["controller"]
+            controller, change = pending["controller"]
             self.stepper.use(controller)
-            with self._lock:
-                self.gains, self.min_separation = gains, d
             self.changes.append((self.k, *change))
 
     def reference(self, k: int):
@@ -272,10 +277,12 @@ class LiveSession:
         return finish(log)
 
     def finish(self, out, *, plots: bool = True, writers: dict | None = None, stopped: bool = False,
-               wall_s: float | None = None):
+               wall_s: float | None = None, failure: str | None = None):
         """Write the ticks done into the folder ``out`` as a run writes it (atomically: the files
-        appear when all are written). ``metrics.json`` adds ``live``: ticks done, whether the run
-        was stopped, the goals' ticks and the parameter changes. Returns ``(log, metrics)``."""
+        appear when all are written). ``metrics.json`` adds ``live``: ticks done of the run's,
+        whether it was stopped (and the failure that stopped it), the goals' ticks, the parameter
+        changes (tick, name, value), the goal motion's bounds and, given the wall time ``wall_s``
+        (pauses included), ticks per second. Returns ``(log, metrics)``."""
         if self.k == 0:
             raise InvalidInputError("quatform run --live: stopped before the first tick; nothing to write")
         folder_writers, recordings = chosen_writers(writer_choices(writers=writers), out)
@@ -286,8 +293,11 @@ class LiveSession:
                                "goal_ticks": list(self.goal_ticks),
                                "parameter_changes": [list(c) for c in self.changes],
                                "goal_max_speed_m_s": self.max_speed, "goal_max_rate_rad_s": self.max_rate}
+            if failure is not None:
+                metrics["live"]["failure"] = failure
             if wall_s is not None:
                 metrics["wall_time_s"] = round(wall_s, 3)
+                metrics["live"]["ticks_per_s"] = round(self.k / max(wall_s, 1e-9), 1)
             write_outputs(self.kind, self.scenario, self.experiment, log, Path(tmp), metrics, plots, folder_writers)
             record_runs(recordings, {"": log}, self.kind, self.scenario)
         return log, metrics
