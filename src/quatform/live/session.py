@@ -73,6 +73,8 @@ class LiveSession:
     ----------
     times : ndarray, shape (T,)
         The run's ticks, s.
+    chart, chart_rate : ndarray, shape (T, n_e)
+        The scenario's reference in its chart at every tick, and its rate.
     max_speed, max_rate : float
         The goal motion's bounds, m/s and rad/s (:func:`~quatform.references.goal.goal_limits`).
     """
@@ -100,7 +102,7 @@ class LiveSession:
         self.inner = inner
         self.formation = inner.formation
         self.times = np.asarray(exp.times, dtype=float)
-        self._chart, self._chart_rate = sc.motion(self.times)
+        self.chart, self.chart_rate = sc.motion(self.times)
         self.stepper = Stepper(exp.plant, exp.controller, exp.reference, self.times, exp.x0, dt=exp.dt,
                                substeps=exp.substeps, measurement=exp.measurement)
         self.dt = float(self.times[1] - self.times[0]) if self.times.size > 1 else float(exp.dt)
@@ -120,7 +122,7 @@ class LiveSession:
     def _radius(self) -> float:
         """The farthest any desired robot is from the centroid over the run (sampled), m."""
         idx = np.unique(np.linspace(0, self.times.size - 1, min(self.times.size, 200)).round().astype(int))
-        e = self._chart[idx]
+        e = self.chart[idx]
         r = self.parts.robots(self.scenario, e)
         p = self.scenario.team.layout.positions(r)
         centre, _ = self.parts.pose(e)
@@ -175,14 +177,16 @@ class LiveSession:
                 gains = {**self.gains, key: _plain(k if np.ndim(value) else k[0])}
                 controller = self._controller(gains, self.min_separation, said)
                 self.gains = gains
-                self._pending["controller"] = (controller, (name, gains[key]))
+                self._pending["controller"] = controller
+                self._pending.setdefault("changes", []).append((name, gains[key]))
             return
         if name == SEPARATION_PARAMETER and self.min_separation is not None:
             d = self._check_separation(value, said)
             with self._lock:
                 controller = self._controller(self.gains, d, said)
                 self.min_separation = d
-                self._pending["controller"] = (controller, (name, d))
+                self._pending["controller"] = controller
+                self._pending.setdefault("changes", []).append((name, d))
             return
         raise InvalidInputError(f"{said}: no such parameter; parameters: {', '.join(self.parameters())}")
 
@@ -194,7 +198,7 @@ class LiveSession:
                                     "separation barrier on)")
         d = float(value)
         try:
-            self.parts.check_barrier(self.scenario, d, SEPARATION_PARAMETER, self._chart, self.times, start=False)
+            self.parts.check_barrier(self.scenario, d, SEPARATION_PARAMETER, self.chart, self.times, start=False)
         except InvalidInputError as exc:
             raise InvalidInputError(f"{said}: {exc}") from None
         x = self.stepper.carry[0]
@@ -235,14 +239,13 @@ class LiveSession:
             self._goal = pending["goal"]
             self.goal_ticks.append(self.k)
         if "controller" in pending:
-            controller, change = pending["controller"]
-            self.stepper.use(controller)
-            self.changes.append((self.k, *change))
+            self.stepper.use(pending["controller"])
+            self.changes.extend((self.k, *change) for change in pending["changes"])
 
     def reference(self, k: int):
         """Tick ``k``'s reference ``(e, Reference)``: the experiment's, or, once a goal has come,
         the scenario's chart values with the shaped pose; the shaped pose advances one tick."""
-        e, ed = self._chart[k], self._chart_rate[k]
+        e, ed = self.chart[k], self.chart_rate[k]
         if self._goal is None:
             return e, self.experiment.reference(k)
         if self._pose is None:

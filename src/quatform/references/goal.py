@@ -73,8 +73,9 @@ def approach_pose(p, q, p_goal, q_goal, max_speed, max_rate, dt):
     dist = xp.sqrt(dot_last(d, d))
     step = xp.minimum(dist, max_speed * dt)
     frac = xp.where(dist > _TINY, step / xp.where(dist > _TINY, dist, 1.0), 1.0)
-    p_next = p + frac[..., None] * d
-    v = (p_next - p) / dt
+    move = frac[..., None] * d
+    p_next = p + move
+    v = move / dt
     # attitude: the goal's sign nearer q (shortest arc), then the world-frame rotation q_goal q*
     q_goal = xp.where((dot_last(q, q_goal) < 0.0)[..., None], -q_goal, q_goal)
     conj = xp.asarray([1.0, -1.0, -1.0, -1.0])
