@@ -118,19 +118,20 @@ class LiveServer:
         """Send ticks ``start`` to ``session.k`` (every topic with one message per tick) and,
         when ``once``, the once-per-run topics of the whole run so far."""
         s = self.session
-        if s.k <= start:
-            return
-        msgs = run_messages(s.log(start), store=self.store)
-        self.store = msgs.store
-        for topic, msgtype, data in msgs.every:
-            channel = self._channel(topic, msgtype, msgs)
-            for k, stamp in enumerate(msgs.ns.tolist()):
-                channel.log(data[k].tobytes(), log_time=stamp)
-        if once:
-            whole = run_messages(s.log(0), store=self.store) if start else msgs
+        msgs = None
+        if s.k > start:
+            msgs = run_messages(s.log(start), store=self.store)
+            self.store = msgs.store
+            for topic, msgtype, data in msgs.every:
+                channel = self._channel(topic, msgtype, msgs)
+                for k, stamp in enumerate(msgs.ns.tolist()):
+                    channel.log(data[k].tobytes(), log_time=stamp)
+            self.server.broadcast_time(int(msgs.ns[-1]))
+        if once and s.k:
+            whole = msgs if start == 0 and msgs is not None else run_messages(s.log(0), store=self.store)
+            self.store = whole.store
             for topic, msgtype, raw in whole.once:
                 self._channel(topic, msgtype, whole).log(raw, log_time=int(whole.ns[-1]))
-        self.server.broadcast_time(int(msgs.ns[-1]))
 
     def _channel(self, topic: str, msgtype: str, msgs):
         ch = self.channels.get(topic)
@@ -316,8 +317,7 @@ def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
             signal.signal(signal.SIGTERM, old)
     interrupt = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
     try:  # a second Ctrl-C while the folder is written is ignored: the ticks done are kept
-        if session.k > sent:
-            server.publish(sent, True)
+        server.publish(sent, True)  # the last ticks, and the whole run's paths
         server.server.broadcast_playback_state(server.playback_state())
         wall = time.perf_counter() - t0
         log, metrics = session.finish(out, plots=plots, writers=writers, stopped=stopped, wall_s=wall,
