@@ -11,7 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quatform.errors import InvalidInputError
-from quatform.formations import TeamChart
 from quatform.formations import geometry as g
 from quatform.live import LiveSession
 from quatform.references.goal import approach_pose, goal_limits
@@ -220,3 +219,30 @@ def test_other_kinds_refused_in_one_line():
     with pytest.raises(InvalidInputError) as exc:
         LiveSession("teleop-free-motion", {})
     assert "\n" not in str(exc.value) and "--live" in str(exc.value)
+
+
+def test_jax_runs_the_same_step():
+    jax = pytest.importorskip("jax")
+    rng = np.random.default_rng(3)
+    p, pg = rng.normal(size=(2, 5, 3))
+    q, qg = rng.normal(size=(2, 5, 4))
+    q, qg = q / np.linalg.norm(q, axis=-1, keepdims=True), qg / np.linalg.norm(qg, axis=-1, keepdims=True)
+    qg[0] = -q[0]  # the goal is the attitude itself, of the other sign
+    with jax.enable_x64(True):
+        out = jax.jit(approach_pose, static_argnums=(4, 5, 6))(*(jax.numpy.asarray(a) for a in (p, q, pg, qg)),
+                                                                1.0, 2.0, 0.05)
+        out = [np.asarray(a) for a in out]
+    for a, b in zip(out, approach_pose(p, q, pg, qg, 1.0, 2.0, 0.05)):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
+    assert np.all(np.isfinite(out[3]))
+
+
+def test_live_server_without_the_sdk_names_the_extra(monkeypatch):
+    import sys
+
+    from quatform.errors import MissingDependencyError
+    from quatform.live.server import require_foxglove
+
+    monkeypatch.setitem(sys.modules, "foxglove", None)  # "not installed"
+    with pytest.raises(MissingDependencyError, match=r'pip install -e "\.\[live\]"'):
+        require_foxglove()

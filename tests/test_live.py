@@ -147,7 +147,8 @@ class Client:
             msg = T[GOAL_TYPE](T["std_msgs/msg/Header"](T["builtin_interfaces/msg/Time"](0, 0), "world"),
                                T["geometry_msgs/msg/Pose"](T["geometry_msgs/msg/Point"](*p),
                                                            T["geometry_msgs/msg/Quaternion"](q[1], q[2], q[3], q[0])))
-            schema, payload = store.generate_msgdef(GOAL_TYPE, ros_version=2)[0], bytes(store.serialize_cdr(msg, GOAL_TYPE))
+            schema = store.generate_msgdef(GOAL_TYPE, ros_version=2)[0]
+            payload = bytes(store.serialize_cdr(msg, GOAL_TYPE))
         await self.ws.send(json.dumps({"op": "advertise", "channels": [
             {"id": 5, "topic": GOAL_TOPIC, "encoding": encoding, "schemaName": GOAL_TYPE, "schema": schema,
              "schemaEncoding": "ros2msg" if encoding == "cdr" else "jsonschema"}]}))

@@ -52,8 +52,8 @@ from ..sim.output import writing
 from .cdr import Batch
 from .scene import Scene, scene_of
 
-__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "run_messages", "RunMessages", "read_log", "channel_topic", "PATH_POSES",
-           "FORMATION_ERROR_FIELDS"]
+__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "run_messages", "RunMessages", "read_log",
+           "channel_topic", "PATH_POSES", "FORMATION_ERROR_FIELDS"]
 
 #: The file every run writes.
 MCAP_FILE = "run.mcap"

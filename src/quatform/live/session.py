@@ -26,6 +26,7 @@ atomically): the log's desired channels are the references the ticks used.
 from __future__ import annotations
 
 import dataclasses
+import os
 import threading
 from pathlib import Path
 
@@ -35,10 +36,10 @@ from ..control import Reference, SafeController
 from ..control.team import check_gain, team_gain_sizes
 from ..errors import InvalidInputError
 from ..references.goal import approach_pose, goal_limits
-from ..runs import check_physics_on, given_options, record_options, record_runs, write_outputs
+from ..runs import given_options, record_options, record_runs, write_outputs
 from ..scenarios import kind_of, load_scenario
 from ..scenarios.separation import separation_barrier
-from ..scenarios.team import TEAM, TEAM_CHARTS, TeamScenario, check_step_stable
+from ..scenarios.team import TEAM, TEAM_CHARTS, check_step_stable
 from ..sim.loop import Stepper
 from ..sim.metrics import min_separations
 from ..sim.output import staged_dir
@@ -80,7 +81,7 @@ class LiveSession:
     """
 
     def __init__(self, scenario, options: dict):
-        sc = load_scenario(scenario) if not isinstance(scenario, TeamScenario) else scenario
+        sc = load_scenario(scenario) if isinstance(scenario, (str, os.PathLike)) else scenario
         kind = kind_of(sc)
         if kind is not TEAM:
             raise InvalidInputError(f"quatform run --live: {sc.name} is a {kind.name} scenario; a live run steps the "
@@ -88,9 +89,8 @@ class LiveSession:
                                     "goal can move; run it without --live")
         given = given_options(kind, options, where=str(sc.name))
         if given.get("physics", "kinematic") != "kinematic":
-            raise InvalidInputError(f"quatform run --live: {sc.name}: --physics {given['physics']} is not stepped live; "
-                                    "a live run moves the kinematic models (--physics kinematic)")
-        check_physics_on(kind, sc, given, "numpy")
+            raise InvalidInputError(f"quatform run --live: {sc.name}: --physics {given['physics']} is not stepped "
+                                    "live; a live run moves the kinematic models (--physics kinematic)")
         self.kind, self.options = kind, given
         self.experiment = exp = kind.experiment(sc, **given)
         self.scenario = sc = exp.scenario  # a --reference plan replaces the scenario's motion
