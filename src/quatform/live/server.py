@@ -242,14 +242,6 @@ class LiveServer:
         return self.playback_state(request.request_id)
 
 
-class _Stop(Exception):
-    """SIGTERM, as Ctrl-C stops a live run."""
-
-
-def _terminate(signum, frame):
-    raise _Stop()
-
-
 def serve(session: LiveSession, out, *, host: str = "127.0.0.1", port: int = 8765, realtime: float = 1.0,
           plots: bool = True, writers: dict | None = None, quiet: bool = False, ready=None):
     """Run ``session`` live (module docstring) and write its folder ``out`` when it ends or is
@@ -266,13 +258,25 @@ def serve(session: LiveSession, out, *, host: str = "127.0.0.1", port: int = 876
 
 def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
     """:func:`serve`'s loop: step paced, publish, stop on the duration, Ctrl-C, SIGTERM or a
-    failure (whose ticks before it are written, then it is raised), write the folder."""
+    failure (whose ticks before it are written, then it is raised), write the folder. A
+    signal sets a flag the loop reads between ticks, so no tick is cut in half; one that comes
+    while the folder is written changes nothing."""
+    stop = threading.Event()
     main = threading.current_thread() is threading.main_thread()
-    old = signal.signal(signal.SIGTERM, _terminate) if main else None
+    old = {sig: signal.signal(sig, lambda signum, frame: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)} \
+        if main else {}
+    try:
+        return _loop(session, server, out, host, realtime, plots, writers, quiet, ready, stop)
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def _loop(session, server, out, host, realtime, plots, writers, quiet, ready, stop):
     say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
     say(f"  {session.scenario.name}: live on ws://{host}:{server.port} (Foxglove: Open connection -> Foxglove "
         f"WebSocket); {session.times.size} ticks, real time x{realtime:g}; Ctrl-C stops and writes {out}")
-    stopped, failure, t0 = False, None, time.perf_counter()
+    failure, t0 = None, time.perf_counter()
     session.step()  # the first tick advertises every topic before a client is told to come
     server.publish(0, True)
     sent, last_pub, last_once, last_say = 1, time.perf_counter(), time.perf_counter(), 0.0
@@ -280,7 +284,7 @@ def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
         ready(server)
     anchor_wall, anchor_t = None, None
     try:
-        while not session.done:
+        while not session.done and not stop.is_set():
             now = time.perf_counter()
             if session.paused:
                 anchor_wall = None
@@ -289,7 +293,8 @@ def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
             if anchor_wall is None or server.realtime != realtime:
                 realtime = server.realtime
                 anchor_wall, anchor_t = now, float(session.times[session.k])
-            while not session.done and not session.paused and time.perf_counter() - now < PUBLISH_PERIOD_S and (
+            while not session.done and not session.paused and not stop.is_set() and \
+                    time.perf_counter() - now < PUBLISH_PERIOD_S and (
                     realtime == 0 or float(session.times[session.k]) - anchor_t
                     <= (time.perf_counter() - anchor_wall) * realtime):
                 session.step()
@@ -300,32 +305,24 @@ def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
                 sent, last_pub = session.k, now
                 last_once = now if once else last_once
             if now - last_say >= 1.0:
-                t = float(session.times[session.k - 1]) if session.k else 0.0
+                t = float(session.times[session.k - 1])
                 say(f"  {session.scenario.name}: t = {t:.2f} s ({session.k}/{session.times.size} ticks)")
                 last_say = now
             if realtime and not session.done:
                 wait = anchor_wall + (float(session.times[session.k]) - anchor_t) / realtime - time.perf_counter()
                 time.sleep(min(max(wait, 0.0), PUBLISH_PERIOD_S))
-    except (KeyboardInterrupt, _Stop):
-        stopped = True
-        say(f"\n  {session.scenario.name}: stopped at tick {session.k}; writing {out}")
     except QuatformError as exc:
-        stopped, failure = True, exc
-        say(f"\n  {session.scenario.name}: failed at tick {session.k}: {exc}; writing the ticks before it to {out}")
-    finally:
-        if main:
-            signal.signal(signal.SIGTERM, old)
-    interrupt = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-    try:  # a second Ctrl-C while the folder is written is ignored: the ticks done are kept
-        server.publish(sent, True)  # the last ticks, and the whole run's paths
-        server.server.broadcast_playback_state(server.playback_state())
-        wall = time.perf_counter() - t0
-        log, metrics = session.finish(out, plots=plots, writers=writers, stopped=stopped, wall_s=wall,
-                                      failure=None if failure is None else str(failure))
-        say(f"  {session.scenario.name}: {session.k} ticks in {wall:.1f} s -> {out}")
-    finally:
-        if main:
-            signal.signal(signal.SIGINT, interrupt)
+        failure = exc
+        say(f"  {session.scenario.name}: failed at tick {session.k}: {exc}; writing the ticks before it to {out}")
+    stopped = stop.is_set() or failure is not None
+    if stop.is_set():
+        say(f"\n  {session.scenario.name}: stopped at tick {session.k}; writing {out}")
+    server.publish(sent, True)  # the last ticks, and the whole run's paths
+    server.server.broadcast_playback_state(server.playback_state())
+    wall = time.perf_counter() - t0
+    log, metrics = session.finish(out, plots=plots, writers=writers, stopped=stopped, wall_s=wall,
+                                  failure=None if failure is None else str(failure))
+    say(f"  {session.scenario.name}: {session.k} ticks in {wall:.1f} s -> {out}")
     if failure is not None:
         raise failure
     return log, metrics
