@@ -281,21 +281,34 @@ def test_client_that_vanishes_leaves_the_run_going(scenario, tmp_path):
     assert (tmp_path / "out" / "metrics.json").is_file()
 
 
-def test_pause_holds_time(scenario, tmp_path):
+def _playback(command: int, speed: float, rid: str) -> bytes:
+    """A playback control request (opcode 3): command (0 play, 1 pause), speed, no seek, request id."""
+    return struct.pack("<BBfBQI", 3, command, speed, 0, 0, len(rid)) + rid.encode()
+
+
+@pytest.mark.parametrize("how", ["parameter", "playback"])
+def test_pause_holds_time(scenario, tmp_path, how):
     live = Live(scenario(2.0), tmp_path / "out", realtime=2.0)
 
     async def client():
         async with connect(live.port) as ws:
             c = Client(ws)
             await c.pump(2, until=lambda: c.times)
-            await c.set("paused", True)
-            await c.pump(2, until=lambda: c.params.get("paused") is True)
+            if how == "parameter":
+                await c.set("paused", True)
+                await c.pump(2, until=lambda: c.params.get("paused") is True)
+            else:  # Foxglove's playback bar
+                await ws.send(_playback(1, 2.0, "pause"))
+                await c.pump(2, until=lambda: live.session.paused)
             await c.pump(0.3)
             k, seen = live.session.k, len(c.times)
             held = max(c.times)
             await c.pump(0.5)
             after = (live.session.k, max(c.times[seen:], default=held))
-            await c.set("paused", False)
+            if how == "parameter":
+                await c.set("paused", False)
+            else:
+                await ws.send(_playback(0, 2.0, "play"))
             await c.pump(20)
             return k, held, after
 
