@@ -21,7 +21,7 @@ LAYERS = {
     "sim": 5,
     "scenarios": 6,
     "report": 7, "bags": 7,
-    "runs": 8, "plan_runs": 8, "envs": 8, "sweeps": 8, "ros2": 8, "cli": 8, "__main__": 8, "outputs": 8,
+    "runs": 8, "plan_runs": 8, "envs": 8, "sweeps": 8, "ros2": 8, "cli": 8, "__main__": 8, "outputs": 8, "live": 8,
 }
 #: Modules of a package that sit in another layer than the package (the longest dotted prefix
 #: of a module in LAYERS or here decides): the teleoperation package holds the arms'

@@ -175,6 +175,15 @@ def _run_arguments(run) -> None:
     run.add_argument("--no-plots", action="store_true", help="write metrics and time series only")
     _add_output_flags(run)
     _add_compute_flag(run)
+    run.add_argument("--live", metavar="[HOST:]PORT", default=None,
+                     help="serve the run over the Foxglove WebSocket protocol while it goes (team scenarios; "
+                          "Foxglove: Open connection -> Foxglove WebSocket -> ws://127.0.0.1:PORT): the topics of "
+                          "run.mcap, a goal pose on /formation/goal moves the formation, the gains and the barrier's "
+                          "distance are parameters, pause/resume; bound to 127.0.0.1 unless HOST is given; Ctrl-C "
+                          "stops and writes the ticks done (needs: pip install -e \".[live]\"; docs/ecosystem.md)")
+    run.add_argument("--realtime", metavar="FACTOR", type=float, default=None,
+                     help="with --live: scenario seconds per wall-clock second (1 = wall clock, the default; "
+                          "0 = as fast as it runs)")
     _add_kind_options(run, tuple(KINDS.values()))
 
 
@@ -356,10 +365,36 @@ def _run(args, kinds) -> None:
                                 f"with 'quatform run {args.scenario} ...'")
     options = given_options(kind, _options(args, kinds), where=str(sc.name), spell=_flag)
     writers = _writers(args)
-    _, metrics = run(sc, args.out, plots=not args.no_plots, writers=writers, compute=args.compute, **options)
+    live = getattr(args, "live", None)
+    if live is None and getattr(args, "realtime", None) is not None:
+        from .errors import InvalidInputError
+
+        raise InvalidInputError("--realtime paces a live run; give --live [HOST:]PORT too")
+    if live is not None:
+        metrics = _live(args, sc, options, writers)
+    else:
+        _, metrics = run(sc, args.out, plots=not args.no_plots, writers=writers, compute=args.compute, **options)
     _say_options(kind, options)
     _print_run(metrics, kind.columns_of(sc))
     _say_recordings(writers)
+
+
+def _live(args, sc, options, writers) -> dict:
+    """``quatform run --live``: the run served over the Foxglove WebSocket protocol
+    (:func:`quatform.live.server.serve`); its folder written when it ends or is stopped."""
+    from .errors import InvalidInputError
+    from .live import LiveSession
+    from .live.server import parse_address, require_foxglove, serve
+
+    if args.compute != "numpy":
+        raise InvalidInputError(f"--live steps the run on NumPy, tick by tick; drop --compute {args.compute}")
+    host, port = parse_address(args.live)
+    require_foxglove()  # before any work
+    session = LiveSession(sc, options)
+    realtime = 1.0 if args.realtime is None else args.realtime
+    _, metrics = serve(session, args.out, host=host, port=port, realtime=realtime, plots=not args.no_plots,
+                       writers=writers)
+    return metrics
 
 
 def _say_recordings(writers) -> None:

@@ -43,7 +43,8 @@ from .scenarios import Option, kind_of, load_scenario
 from .sim.backends import simulator
 from .sim.output import atomic_write_text, staged_dir
 
-__all__ = ["run", "compare", "format_table", "compare_columns", "progress_line", "given_options"]
+__all__ = ["run", "compare", "format_table", "compare_columns", "progress_line", "given_options", "write_outputs",
+           "record_options", "record_runs", "check_physics_on"]
 
 
 def progress_line(label: str):
@@ -84,7 +85,7 @@ def given_options(kind, options: dict, *, where: str, spell=None) -> dict:
     return given
 
 
-def _record_options(kind, experiment, metrics: dict) -> dict:
+def record_options(kind, experiment, metrics: dict) -> dict:
     """``metrics`` plus the resolved value of each of the kind's options that the experiment's
     ``meta`` records and the metrics do not already hold (e.g. ``feedforward``)."""
     for option in kind.options:
@@ -105,10 +106,24 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
     label = f"{sc.name} / {experiment.label}" if experiment.label else str(sc.name)
     shown_progress = None if quiet else progress_line(label)
     log = experiment.run(shown_progress) if compute == "numpy" else experiment.run(shown_progress, backend=compute)
-    metrics = _record_options(kind, experiment, dict(experiment.metrics(log)))
+    metrics = record_options(kind, experiment, dict(experiment.metrics(log)))
     if compute != "numpy":  # the reference's files stay as they were
         metrics["compute_backend"] = compute
     metrics["wall_time_s"] = round(time.perf_counter() - t0, 3)
+    write_outputs(kind, sc, experiment, log, folder, metrics, plots, writers)
+    if not quiet:
+        if log.meta.get("unreachable_at") is not None:
+            print(f"\r  {label}: reference unreachable from t = {log.meta['unreachable_at']:.2f} s: "
+                  f"{log.meta.get('unreachable_message')}", file=sys.stderr)
+        print(f"\r  {label}: done in {metrics['wall_time_s']:.1f} s -> {shown}", file=sys.stderr)
+    return log, metrics
+
+
+def write_outputs(kind, sc, experiment, log, folder: Path, metrics: dict, plots: bool = True, writers=None) -> None:
+    """A run's files in ``folder``: the kind's figures (when ``plots``), a physics run's
+    picture, and every writer's files in their order (``metrics.json``, holding ``metrics``,
+    last). ``experiment`` is the run's :class:`~quatform.scenarios.base.Experiment` (its
+    ``csv_channels``), ``writers`` as :func:`_run_into` takes them."""
     if plots:
         figures_of(kind.parts_of(sc)).run(log, folder)
     _picture(log, folder, plots, metrics)
@@ -117,12 +132,6 @@ def _run_into(kind, sc, folder: Path, shown, plots: bool, quiet: bool, options: 
     files = RunFiles(log, folder, kind, tuple(experiment.csv_channels), metrics)
     for writer in writers:  # in their order: metrics.json last
         writer.write(files)
-    if not quiet:
-        if log.meta.get("unreachable_at") is not None:
-            print(f"\r  {label}: reference unreachable from t = {log.meta['unreachable_at']:.2f} s: "
-                  f"{log.meta.get('unreachable_message')}", file=sys.stderr)
-        print(f"\r  {label}: done in {metrics['wall_time_s']:.1f} s -> {shown}", file=sys.stderr)
-    return log, metrics
 
 
 def _picture(log, folder: Path, plots: bool, metrics: dict) -> None:
@@ -179,15 +188,15 @@ def run(scenario, out, *, plots: bool = True, quiet: bool = False, mcap: bool = 
     kind = kind_of(sc)
     given = given_options(kind, options, where=str(sc.name))
     simulator(compute)  # an unknown backend: one line before any work
-    _check_physics_on(kind, sc, given, compute)
+    check_physics_on(kind, sc, given, compute)
     folder_writers, recordings = chosen_writers(writer_choices(mcap, rerun, writers), out)
     with staged_dir(out, inputs=(scenario, given.get("reference"))) as tmp:
         log, metrics = _run_into(kind, sc, tmp, Path(out), plots, quiet, given, folder_writers, compute)
-        _record(recordings, {"": log}, kind, sc)
+        record_runs(recordings, {"": log}, kind, sc)
     return log, metrics
 
 
-def _record(recordings: dict, logs: dict, kind, sc) -> None:
+def record_runs(recordings: dict, logs: dict, kind, sc) -> None:
     """Every recording writer's file of ``logs``, written inside the run's staged folder: an
     interrupted or failed write leaves neither the recording nor the folder."""
     for writer, path in recordings.items():
@@ -198,7 +207,7 @@ def _record(recordings: dict, logs: dict, kind, sc) -> None:
 KINEMATIC = "kinematic"
 
 
-def _check_physics_on(kind, sc, given: dict, compute: str, over: str | None = None) -> None:
+def check_physics_on(kind, sc, given: dict, compute: str, over: str | None = None) -> None:
     """Refuse, before any run, a physics other than the kinematic models (MuJoCo, which runs
     on NumPy) on another compute backend: the run's own ``physics`` or, in a compare over
     ``physics``, each of its choices."""
@@ -277,7 +286,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
                                 f"({', '.join(own[axis].choices)}); do not give {spell(own[axis])}")
     columns = compare_columns(kind, axis, sc)
     simulator(compute)
-    _check_physics_on(kind, sc, given, compute, over=axis)
+    check_physics_on(kind, sc, given, compute, over=axis)
     values, skipped = kind.compare_choices(sc, axis)
     folder_writers, recordings = chosen_writers(writer_choices(mcap, rerun, writers), out)
     if not quiet:
@@ -297,7 +306,7 @@ def compare(scenario, out, *, over: str | None = None, plots: bool = True, quiet
         atomic_write_text(tmp / "comparison.md",
                           f"# {sc.name}: {sc.title}{_suffix(given)}\n\nSource: {sc.source}\n\n{table}\n{left}")
         write_json(rows, tmp / "comparison.json")
-        _record(recordings, dict(zip(values, logs)), kind, sc)
+        record_runs(recordings, dict(zip(values, logs)), kind, sc)
     return rows
 
 

@@ -2,6 +2,7 @@
 
 * :func:`write_mcap` - one world of a log as one ``run.mcap`` (every run writes it;
   ``docs/ecosystem.md``: topics, types, rates, frames, quaternion orders);
+* :func:`run_messages` - the same messages by topic, CDR-encoded (what a live run streams);
 * :func:`read_log` - that file back into the :class:`~quatform.sim.log.Log`, exactly;
 * :func:`read_poses` - a user's ROS 2 bag of ``PoseStamped`` / ``Odometry`` topics as
   :class:`PoseTrack` arrays (``quatform replay``);
@@ -12,10 +13,10 @@
 """
 
 from .foxglove import FOXGLOVE_LAYOUT_FILE, foxglove_layout, write_foxglove_layout
-from .mcap import CHANNEL_PREFIX, INFO_TOPIC, MCAP_FILE, channel_topic, read_log, write_mcap
+from .mcap import CHANNEL_PREFIX, INFO_TOPIC, MCAP_FILE, RunMessages, channel_topic, read_log, run_messages, write_mcap
 from .scene import SCENES, Scene, SceneKind, scene_of
 from .user_bags import POSE_TYPES, PoseTrack, pose_topics, read_poses
 
-__all__ = ["write_mcap", "read_log", "read_poses", "pose_topics", "PoseTrack", "POSE_TYPES", "MCAP_FILE",
+__all__ = ["write_mcap", "run_messages", "RunMessages", "read_log", "read_poses", "pose_topics", "PoseTrack", "POSE_TYPES", "MCAP_FILE",
            "INFO_TOPIC", "CHANNEL_PREFIX", "channel_topic", "Scene", "SceneKind", "SCENES", "scene_of", "foxglove_layout",
            "write_foxglove_layout", "FOXGLOVE_LAYOUT_FILE"]

@@ -39,6 +39,7 @@ import math
 import os
 import re
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +52,8 @@ from ..sim.output import writing
 from .cdr import Batch
 from .scene import Scene, scene_of
 
-__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "read_log", "channel_topic", "PATH_POSES",
-           "FORMATION_ERROR_FIELDS"]
+__all__ = ["MCAP_FILE", "INFO_TOPIC", "CHANNEL_PREFIX", "write_mcap", "run_messages", "RunMessages", "read_log",
+           "channel_topic", "PATH_POSES", "FORMATION_ERROR_FIELDS"]
 
 #: The file every run writes.
 MCAP_FILE = "run.mcap"
@@ -360,6 +361,59 @@ def _fresh_store():
     return get_typestore(Stores.ROS2_HUMBLE)
 
 
+@dataclass(frozen=True)
+class RunMessages:
+    """A run's messages as ``run.mcap`` holds them, by topic (:func:`run_messages`).
+
+    Attributes
+    ----------
+    store : rosbags Typestore
+        The ROS 2 types, the run's own ``quatform_msgs`` among them.
+    ns : ndarray of int64, shape (T,)
+        Each sample's stamp (and log time), ns.
+    every : list of (topic, msgtype, ndarray)
+        The topics with one message per sample: their CDR bytes ``(T, nbytes)`` (uint8).
+    once : list of (topic, msgtype, bytes)
+        The topics with one message at the first sample (``/quatform/log``, the paths, ``/tf_static``).
+    """
+
+    store: object
+    ns: np.ndarray
+    every: list
+    once: list
+
+    def schema(self, msgtype: str) -> str:
+        """The ``ros2msg`` schema of ``msgtype`` as ``run.mcap`` embeds it (rosbags' writer's own text)."""
+        return self.store.generate_msgdef(msgtype, ros_version=2)[0]
+
+
+def run_messages(log: Log, *, kind: str | None = None, scene: bool | Scene = True, store=None) -> RunMessages:
+    """The messages of one world's ``log`` by topic, CDR-encoded: what :func:`write_mcap` writes
+    (``kind`` and ``scene`` as it takes them) and a live run streams. ``store``: the type store
+    of an earlier call on a log of the same run to reuse (rosbags compiles each type's
+    serialiser once per store: a fresh one costs about 0.1 s), default a fresh one."""
+    if len(log) == 0:
+        raise InvalidInputError("the log has no samples; there is nothing to write to an MCAP file")
+    ns = _stamps(log.t)
+    topics = _Topics(_fresh_store() if store is None else store, ns)
+    kind = kind or log.meta.get("kind")
+    if isinstance(scene, Scene):
+        _scene_topics(topics, scene, log.t)
+    elif scene:
+        if kind is None:
+            raise InvalidInputError("write_mcap needs the log's scenario kind for its poses: give kind= "
+                                    "(pair, team, teleop, ugv-uav) or scene=False")
+        _scene_topics(topics, scene_of(log, kind), log.t)
+    described = _channel_topics(topics, log)
+    meta = {k: v for k, v in ((k, _plain(v)) for k, v in log.meta.items()) if v is not _SKIP}
+    info = {"version": INFO_VERSION, "kind": kind, "samples": len(log), "channels": described, "meta": meta,
+            "topics": [topic for topic, _ in topics.every] + [topic for topic, _, _ in topics.once]}
+    topics.once.insert(0, (INFO_TOPIC, "std_msgs/msg/String", messages.string(json.dumps(info))))
+    once = [(topic, msgtype, bytes(msg) if isinstance(msg, np.ndarray) else
+             bytes(topics.store.serialize_cdr(msg, msgtype))) for topic, msgtype, msg in topics.once]
+    return RunMessages(topics.store, ns, [(topic, batch.msgtype, batch.data) for topic, batch in topics.every], once)
+
+
 def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bool | Scene = True) -> Path:
     """Write ``log`` as one MCAP file of ROS 2 messages (see the module docstring for the topics).
 
@@ -389,32 +443,15 @@ def write_mcap(log: Log, path, *, kind: str | None = None, world=None, scene: bo
             raise InvalidInputError(f"the log holds a batch of worlds {log.batch_shape}; an MCAP file holds one: "
                                     "give world=i (the world to write)")
         log = log.world(world)
-    if len(log) == 0:
-        raise InvalidInputError("the log has no samples; there is nothing to write to an MCAP file")
     path = Path(path)
-    ns = _stamps(log.t)
-    topics = _Topics(_fresh_store(), ns)
-    kind = kind or log.meta.get("kind")
-    if isinstance(scene, Scene):
-        _scene_topics(topics, scene, log.t)
-    elif scene:
-        if kind is None:
-            raise InvalidInputError("write_mcap needs the log's scenario kind for its poses: give kind= "
-                                    "(pair, team, teleop, ugv-uav) or scene=False")
-        _scene_topics(topics, scene_of(log, kind), log.t)
-    described = _channel_topics(topics, log)
-    meta = {k: v for k, v in ((k, _plain(v)) for k, v in log.meta.items()) if v is not _SKIP}
-    info = {"version": INFO_VERSION, "kind": kind, "samples": len(log), "channels": described, "meta": meta,
-            "topics": [topic for topic, _ in topics.every] + [topic for topic, _, _ in topics.once]}
-    topics.once.insert(0, (INFO_TOPIC, "std_msgs/msg/String", messages.string(json.dumps(info))))
-
+    msgs = run_messages(log, kind=kind, scene=scene)
+    ns = msgs.ns
     with mcap_writer(path) as writer:
-        once = [(writer.add_connection(topic, msgtype, typestore=topics.store, **_qos(topic)), msg)
-                for topic, msgtype, msg in topics.once]
-        every = [(writer.add_connection(topic, batch.msgtype, typestore=topics.store), batch.data)
-                 for topic, batch in topics.every]
-        for conn, msg in once:
-            raw = msg if isinstance(msg, np.ndarray) else topics.store.serialize_cdr(msg, conn.msgtype)
+        once = [(writer.add_connection(topic, msgtype, typestore=msgs.store, **_qos(topic)), raw)
+                for topic, msgtype, raw in msgs.once]
+        every = [(writer.add_connection(topic, msgtype, typestore=msgs.store), data)
+                 for topic, msgtype, data in msgs.every]
+        for conn, raw in once:
             writer.write(conn, int(ns[0]), memoryview(raw))
         views = [(conn, memoryview(data.tobytes()), data.shape[1]) for conn, data in every]
         write = writer.write

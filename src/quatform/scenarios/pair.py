@@ -31,7 +31,8 @@ import numpy as np
 from ..checks import check_keys, check_within_run, check_work, flag, number, records, short, table, text, vector
 from ..control import CONTROLLERS, TABLE1, TABLE2
 from ..errors import InvalidInputError
-from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace
+from ..formations import EUCLIDEAN_VARIABLES, EuclideanPair, RobotSpace, segment_direction
+from ..formations import geometry as g
 from ..references import EuclideanPath, Ramp, Step as StepChange
 from ..robots import HolonomicRobot, Team
 from ..sim.log import Channel, Log
@@ -503,6 +504,9 @@ class PairMotion:
         return self.path(t)
 
 
+_EX, _EZ = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+
+
 class PairChartParts(TeamChartParts):
     """The steps of a team run that seed 000's chart decides (:class:`~quatform.scenarios.team.TeamChartParts`)."""
 
@@ -540,6 +544,43 @@ class PairChartParts(TeamChartParts):
 
     def robots(self, sc, e_des) -> np.ndarray:
         return RobotSpace().from_chart(e_des)
+
+    def pose(self, e) -> tuple:
+        """The pair's formation frame in seed 000's variables ``e`` (``(..., 8)``): the midpoint
+        ``x_c`` and the minimal rotation from ``i`` to the segment from robot 2 to robot 1
+        (eqs. (4)-(5) inverted, then eqs. (14)-(15)), the frame ``/formation/pose`` shows."""
+        e = np.asarray(e, dtype=float)
+        u = segment_direction(e[..., 3], e[..., 4])
+        return e[..., 0:3], g.swing(np.broadcast_to(_EX, u.shape), u, _EZ)
+
+    def posed(self, e, e_dot, p, q, v, w, near=None) -> tuple:
+        """``(e, e_dot)`` with the pair's frame moved to ``(p, q)`` at ``(v, w)``: ``x_c = p``,
+        ``(beta_c, gamma_c)`` the angles of the frame's x axis ``u`` (eqs. (4)-(5):
+        ``(beta, asin u_z)`` or ``(beta + pi, pi - asin u_z)`` with ``beta = atan2(-u_x, u_y)``,
+        whichever is nearer ``near``'s, so the reference stays continuous past the vertical)
+        and their rates from ``u' = w x u``; ``d_c`` and the headings' offsets ``phi_i`` kept
+        (the robots' yaws turn with ``beta_c``, as the chart states them). The twist of ``q``
+        about ``u`` has no variable in this chart; at a vertical segment (``cos gamma_c = 0``,
+        the chart's singular set) ``beta_c`` is held and the rates it cannot express are 0."""
+        e, ed = np.array(e, dtype=float), np.array(e_dot, dtype=float)
+        u = g.x_axis(q)
+        ref = e if near is None else np.asarray(near, dtype=float)
+        flat = u[..., 0] ** 2 + u[..., 1] ** 2 > 1e-24
+        beta = np.where(flat, g.unwrap_near(np.arctan2(-u[..., 0], u[..., 1]), ref[..., 3]), ref[..., 3])
+        gamma = g.unwrap_near(np.arcsin(np.clip(u[..., 2], -1.0, 1.0)), ref[..., 4])
+        beta_b = g.unwrap_near(beta + np.pi, ref[..., 3])
+        gamma_b = g.unwrap_near(np.pi - gamma, ref[..., 4])
+        other = np.abs(beta_b - ref[..., 3]) + np.abs(gamma_b - ref[..., 4]) < \
+            np.abs(beta - ref[..., 3]) + np.abs(gamma - ref[..., 4])
+        beta, gamma = np.where(other & flat, beta_b, beta), np.where(other, gamma_b, gamma)
+        ud = np.cross(w, u)
+        cg = np.cos(gamma)
+        e[..., 0:3], e[..., 3], e[..., 4] = p, beta, gamma
+        ed[..., 0:3] = v
+        h2 = np.where(flat, cg * cg, 1.0)
+        ed[..., 3] = np.where(flat, (u[..., 0] * ud[..., 1] - u[..., 1] * ud[..., 0]) / h2, 0.0)
+        ed[..., 4] = np.where(flat, ud[..., 2] / np.where(flat, cg, 1.0), 0.0)
+        return e, ed
 
     def plant(self, sc, controller, feedforward, physics: str, x0, options: dict):
         """On ``physics="mujoco"`` two IRIS quadrotors (:func:`quatform.sim.plants.mujoco.pair_plant`),

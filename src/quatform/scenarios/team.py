@@ -47,6 +47,7 @@ from ..control.team import check_gain, team_descriptions, team_gain_sizes
 from ..control.safety import SafeController, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
+from ..formations import geometry as g
 from ..formations.team_chart import check_template
 from ..references.team_motion import (
     HEADING_MODES,
@@ -639,6 +640,24 @@ class TeamChartParts:
     def robots(self, sc, e_des) -> np.ndarray:
         """The desired robots of the chart values ``e_des``."""
         return TeamChart(sc.team.layout).robots(e_des)
+
+    def pose(self, e) -> tuple:
+        """The formation's pose in the chart values ``e`` (``(..., n_e)``): its centroid ``x_c``
+        ``(..., 3)`` m and attitude ``q_c`` ``(..., 4)`` (unit), what an operator's goal moves
+        (:func:`quatform.references.goal.approach_pose`)."""
+        e = np.asarray(e, dtype=float)
+        q = e[..., 3:7]
+        return e[..., 0:3], q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+    def posed(self, e, e_dot, p, q, v, w, near=None) -> tuple:
+        """``(e, e_dot)`` with the formation's pose replaced by ``(p, q)`` moving at the velocity
+        ``v`` (m/s) and the world angular velocity ``w`` (rad/s), the shape and headings kept:
+        ``x_c = p``, ``q_c = q``, ``x_c' = v``, ``q_c' = (0, w) q / 2`` (:meth:`TeamChart.robot_rates`
+        reads ``w = 2 (q_c' q_c*)_vec`` back). ``near`` (the previous chart values) is unused here."""
+        e, ed = np.array(e, dtype=float), np.array(e_dot, dtype=float)
+        e[..., 0:3], e[..., 3:7], ed[..., 0:3] = p, q, v
+        ed[..., 3:7] = 0.5 * g.mul(np.concatenate([np.zeros(np.shape(w)[:-1] + (1,)), w], axis=-1), q)
+        return e, ed
 
     def plant(self, sc, controller, feedforward, physics: str, x0, options: dict):
         """``(controller, plant, record, physics_metrics)``: the controller ``controller`` (a

@@ -61,7 +61,7 @@ from .measurement import PerfectMeasurement
 
 __all__ = ["COMMAND_CODE", "PLANT_CODE", "HOST_CODE", "START_CODE", "start_failures", "WORLD_ERRORS", "HostWorlds", "check_ticks", "config_key",
            "iterate_numpy", "jax_refusal", "make_tick", "map_worlds", "require_jax", "scan_ticks",
-           "scheduled_reference", "simulate_jax", "simulate_numpy",
+           "Stepper", "tick_inputs", "scheduled_reference", "simulate_jax", "simulate_numpy",
            "cached"]
 
 #: What a controller may raise because of some worlds of a batch (their measurement left the
@@ -446,32 +446,21 @@ def iterate_numpy(plant, controller, measurement, reference, times, dt, substeps
     carry = (x, controller.init(batch), ms) + (start_failures(x) if batch else (np.int64(-1), np.int64(0)))
     if host is not None:
         host.failed = carry[4] > 0
-    pure = controller.pure
     every = max(1, n // 10)
     ys = []
     for k in range(n):
         ref = reference(k)
-        xs = {"k": k, "t": float(times[k]), "ref": controller.reference_arrays(ref) if pure else ref,
-              "meas": {key: v[k] for key, v in sched.items()},
-              "plant": None if inputs is None else {key: v[k] for key, v in inputs.items()}}
+        xs = tick_inputs(controller, ref, times, k, sched, inputs)
         before = carry
         carry, y = tick(carry, xs)
         if host is not None:
             host.failed = carry[4] > 0
         elif not batch and carry[4] > 0:  # one world: its failure raises, as update raises it
-            _, m = measurement.read(before[2], xs["meas"])
-            _failure(controller, lambda _k: ref, times, dt, {(k,): m}, before[1], np.int64(k), carry[4], (), ())
+            _raise_failure(controller, measurement, ref, times, dt, xs, before, carry)
         ys.append(y)
         if progress is not None and (k + 1) % every == 0:
             progress((k + 1) / n)
-    names = ("state", "measured", "command") + tuple(controller.signal_columns())
-    widths = (len(plant.state_columns), None, len(controller.command_names)) + tuple(
-        len(c) for c in controller.signal_columns().values())
-    out_cols = measurement.columns if measurement.columns is not None else plant.output_columns
-    data = {}
-    for q, (name, width) in enumerate(zip(names, widths)):
-        shape = (n,) + batch + (len(out_cols) if width is None else width,)
-        data[name] = np.asarray([y[q] for y in ys], dtype=float).reshape(shape) if n else np.zeros(shape)
+    data = _channels(plant, controller, measurement, ys, batch)
     failure = {}
     reason, fail_tick = carry[4], carry[3]
     if batch and np.any(reason > 0):
@@ -481,6 +470,105 @@ def iterate_numpy(plant, controller, measurement, reference, times, dt, substeps
                                     batch, idx, host)
     return data, carry[1], failure
 
+
+
+def tick_inputs(controller, ref, times, k: int, sched: dict, inputs) -> dict:
+    """The NumPy driver's ``xs`` of tick ``k`` (module docstring): its index and time, the
+    controller's reference arrays of ``ref`` (``ref`` itself for a controller that is not
+    ``pure``), the tick's slice of the measurement's ``sched`` and of the plant's ``inputs``."""
+    return {"k": k, "t": float(times[k]), "ref": controller.reference_arrays(ref) if controller.pure else ref,
+            "meas": {key: v[k] for key, v in sched.items()},
+            "plant": None if inputs is None else {key: v[k] for key, v in inputs.items()}}
+
+
+def _raise_failure(controller, measurement, ref, times, dt, xs, before, carry):
+    """A one-world run's failure at tick ``xs["k"]``, raised as ``update`` raises it."""
+    k = xs["k"]
+    _, m = measurement.read(before[2], xs["meas"])
+    _failure(controller, lambda _k: ref, times, dt, {(k,): m}, before[1], np.int64(k), carry[4], (), ())
+
+
+def _channels(plant, controller, measurement, ys: list, batch: tuple) -> dict:
+    """The channels (name -> ``(T, *batch, k)``) of the ticks' outputs ``ys`` (:func:`make_tick`)."""
+    n = len(ys)
+    names = ("state", "measured", "command") + tuple(controller.signal_columns())
+    widths = (len(plant.state_columns), None, len(controller.command_names)) + tuple(
+        len(c) for c in controller.signal_columns().values())
+    out_cols = measurement.columns if measurement.columns is not None else plant.output_columns
+    data = {}
+    for q, (name, width) in enumerate(zip(names, widths)):
+        shape = (n,) + batch + (len(out_cols) if width is None else width,)
+        data[name] = np.asarray([y[q] for y in ys], dtype=float).reshape(shape) if n else np.zeros(shape)
+    return data
+
+
+class Stepper:
+    """The NumPy driver of one world, one tick at a time: :func:`make_tick` iterated by the
+    caller (a live run, which shapes each tick's reference as it goes and may replace the
+    controller between ticks).
+
+    Parameters
+    ----------
+    plant, controller, reference, times, x0, dt, substeps, measurement
+        As :func:`quatform.sim.simulate` takes them, for one world (``x0`` of shape ``(n_x,)``).
+
+    Attributes
+    ----------
+    k : int
+        Ticks done.
+    carry : tuple
+        The loop's carry after them.
+    """
+
+    def __init__(self, plant, controller, reference: Callable, times, x0, *, dt: float | None = None,
+                 substeps: int = 1, measurement=None):
+        self.times, self.dt = check_ticks(times, substeps, dt, "stepper")
+        x, batch = _initial(plant, x0, "stepper")
+        if batch:
+            raise ShapeError(f"stepper: one world at a time; give x0 of shape ({len(plant.state_columns)},), "
+                             f"got batch shape {batch}")
+        self.plant, self.substeps = plant, substeps
+        self.measurement = PerfectMeasurement() if measurement is None else measurement
+        self.sched = self.measurement.schedule(self.times, self.dt, substeps, ())
+        self.inputs = plant_inputs(plant, self.times, self.dt, substeps)
+        self.reference = scheduled_reference(controller, reference, self.times, ())
+        ms = self.measurement.init(plant.output(x), (), self.sched)
+        self.carry = (x, controller.init(()), ms, np.int64(-1), np.int64(0))
+        self.ys: list = []
+        self.use(controller)
+
+    @property
+    def k(self) -> int:
+        return len(self.ys)
+
+    def use(self, controller) -> None:
+        """Run the next ticks with ``controller`` (the loop's tick rebuilt; the carry kept: its
+        state must have the structure of the one it replaces, e.g. the same controller with
+        other gains)."""
+        self.controller = controller
+        self._tick = make_tick(self.plant, controller, self.measurement, self.dt, self.substeps, freeze=False)
+
+    def step(self, ref=None):
+        """Run tick :attr:`k` with the reference ``ref`` (default ``reference(k)``); a failure
+        raises as :func:`quatform.sim.simulate` raises it. Returns the tick's outputs ``ys``."""
+        k = self.k
+        if k >= self.times.size:
+            raise InvalidInputError(f"stepper: the run's {self.times.size} ticks are done")
+        ref = self.reference(k) if ref is None else ref
+        xs = tick_inputs(self.controller, ref, self.times, k, self.sched, self.inputs)
+        before = self.carry
+        self.carry, y = self._tick(self.carry, xs)
+        if self.carry[4] > 0:
+            _raise_failure(self.controller, self.measurement, ref, self.times, self.dt, xs, before, self.carry)
+        self.ys.append(y)
+        return y
+
+    def log(self, meta: dict | None = None, start: int = 0) -> Log:
+        """The :class:`Log` of ticks ``start`` to :attr:`k` (what :func:`quatform.sim.simulate`
+        returns for them; ``meta["controller_state"]`` the state after the last)."""
+        data = _channels(self.plant, self.controller, self.measurement, self.ys[start:], ())
+        return _log(self.plant, self.controller, self.measurement, self.times[start:self.k], (), data,
+                    self.carry[1], {}, meta)
 
 # -- the JAX driver -----------------------------------------------------------------------
 

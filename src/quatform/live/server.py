@@ -1,0 +1,328 @@
+"""A live run served over the Foxglove WebSocket protocol (live layer; extra ``live``).
+
+:func:`serve` steps a :class:`~quatform.live.session.LiveSession` paced by a real-time factor
+and streams every tick through a Foxglove SDK WebSocket server (``foxglove-sdk``, imported
+only here: :func:`require_foxglove`):
+
+* the topics of the run's ``run.mcap``, with the same ``ros2msg`` schemas and CDR bytes
+  (:func:`quatform.bags.run_messages` of the ticks just run; the once-per-run topics, the
+  paths and ``/quatform/log``, of the whole run so far, every few seconds and at the end);
+  each message's log time is its scenario time (ns), which the server also broadcasts
+  (Foxglove's time capability);
+* :data:`GOAL_TOPIC`: a client publishing ``geometry_msgs/PoseStamped`` there (CDR with the
+  ``ros2msg`` schema, or JSON) sets the formation's goal (:meth:`LiveSession.set_goal`);
+* parameters (Foxglove's parameters capability): ``gains.<key>`` (each of the controller's
+  gains), ``min_separation_m`` (where the run has the barrier) and ``paused``; a value the
+  session refuses is answered by a status message (level error) naming why, and not applied;
+* pause and resume: Foxglove's playback controls (the playback-control capability: the app's
+  play/pause button, its speed the real-time factor) and the ``paused`` parameter (for
+  clients without playback controls, such as Lichtblick's parameters panel).
+
+Stopping (the duration reached, Ctrl-C, SIGTERM) writes the ticks done into the run's folder
+as a run writes it (:meth:`LiveSession.finish`). A client that disconnects changes nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+import time
+
+import numpy as np
+
+from ..bags import run_messages
+from ..errors import InvalidInputError, MissingDependencyError, QuatformError
+from .session import PAUSED_PARAMETER, LiveSession
+
+__all__ = ["GOAL_TOPIC", "GOAL_TYPE", "require_foxglove", "LiveServer", "serve", "parse_address",
+           "PUBLISH_PERIOD_S", "ONCE_PERIOD_S"]
+
+#: The topic an operator's goal pose arrives on, and its type.
+GOAL_TOPIC = "/formation/goal"
+GOAL_TYPE = "geometry_msgs/msg/PoseStamped"
+#: Wall time between two publications of the ticks run (s), and between two of the
+#: once-per-run topics (the paths of the run so far, ``/quatform/log``).
+PUBLISH_PERIOD_S = 0.05
+ONCE_PERIOD_S = 5.0
+
+
+def require_foxglove():
+    """The ``foxglove`` module (the Foxglove SDK), or one line naming the install command."""
+    try:
+        import foxglove
+    except ImportError:
+        raise MissingDependencyError('quatform run --live needs the Foxglove SDK: pip install -e ".[live]"') from None
+    return foxglove
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``(host, port)`` of ``[HOST:]PORT`` (host default ``127.0.0.1``; port 0: any free one)."""
+    host, _, port = str(text).rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        number = int(port)
+    except ValueError:
+        number = -1
+    if not 0 <= number <= 65535:
+        raise InvalidInputError(f"--live {text}: give [HOST:]PORT with a port 0-65535 (e.g. 8765 or 0.0.0.0:8765)")
+    return host, number
+
+
+def _pose_of_json(data: bytes) -> tuple:
+    msg = json.loads(data)
+    pose = msg["pose"]
+    p, o = pose.get("position", {}), pose.get("orientation", {})
+    return ([float(p.get(a, 0.0)) for a in "xyz"],
+            [float(o.get("w", 1.0)), float(o.get("x", 0.0)), float(o.get("y", 0.0)), float(o.get("z", 0.0))])
+
+
+class LiveServer:
+    """The Foxglove WebSocket server of one live session (module docstring).
+
+    Parameters
+    ----------
+    session : LiveSession
+    host : str
+        Address to bind (``127.0.0.1``: this machine only).
+    port : int
+        Port (0: a free one, :attr:`port`).
+    realtime : float
+        Scenario seconds per wall second (0: as fast as it runs).
+    """
+
+    def __init__(self, session: LiveSession, host: str = "127.0.0.1", port: int = 8765, realtime: float = 1.0):
+        fg = require_foxglove()
+        from foxglove.websocket import Capability, PlaybackState, PlaybackStatus
+
+        self.fg, self.session, self.realtime = fg, session, float(realtime)
+        self._PlaybackState, self._PlaybackStatus = PlaybackState, PlaybackStatus
+        self.context = fg.Context()
+        self.channels: dict = {}
+        self.clients: dict = {}  # (client id, client channel id) -> (topic, encoding)
+        self.store = None
+        self._lock = threading.Lock()
+        end = int(round(float(session.times[-1]) * 1e9))
+        self.server = fg.start_server(
+            name=f"quatform {session.scenario.name}", host=host, port=port, context=self.context,
+            capabilities=[Capability.ClientPublish, Capability.Parameters, Capability.Time, Capability.PlaybackControl],
+            server_listener=self, supported_encodings=["cdr", "json"], playback_time_range=(0, end))
+
+    @property
+    def port(self) -> int:
+        return self.server.port
+
+    # -- the stream -------------------------------------------------------------------------
+    def publish(self, start: int, once: bool) -> None:
+        """Send ticks ``start`` to ``session.k`` (every topic with one message per tick) and,
+        when ``once``, the once-per-run topics of the whole run so far."""
+        s = self.session
+        msgs = None
+        if s.k > start:
+            msgs = run_messages(s.log(start), store=self.store)
+            self.store = msgs.store
+            for topic, msgtype, data in msgs.every:
+                channel = self._channel(topic, msgtype, msgs)
+                for k, stamp in enumerate(msgs.ns.tolist()):
+                    channel.log(data[k].tobytes(), log_time=stamp)
+            self.server.broadcast_time(int(msgs.ns[-1]))
+        if once and s.k:
+            whole = msgs if start == 0 and msgs is not None else run_messages(s.log(0), store=self.store)
+            self.store = whole.store
+            for topic, msgtype, raw in whole.once:
+                self._channel(topic, msgtype, whole).log(raw, log_time=int(whole.ns[-1]))
+
+    def _channel(self, topic: str, msgtype: str, msgs):
+        ch = self.channels.get(topic)
+        if ch is None:
+            schema = self.fg.Schema(name=msgtype, encoding="ros2msg", data=msgs.schema(msgtype).encode())
+            ch = self.channels[topic] = self.fg.Channel(topic, schema=schema, message_encoding="cdr",
+                                                         context=self.context)
+        return ch
+
+    def status(self, text: str, level: str = "Error") -> None:
+        self.server.publish_status(text, getattr(self.fg.StatusLevel, level))
+
+    def playback_state(self, request_id=None):
+        s = self.session
+        status = (self._PlaybackStatus.Ended if s.done else self._PlaybackStatus.Paused if s.paused
+                  else self._PlaybackStatus.Playing)
+        now = int(round(float(s.times[max(s.k - 1, 0)]) * 1e9))
+        return self._PlaybackState(status, now, self.realtime or 1.0, False, request_id)
+
+    def stop(self) -> None:
+        self.server.stop()
+
+    # -- what clients send (the SDK's threads; every callback of foxglove.websocket.ServerListener) --
+    def on_subscribe(self, client, channel) -> None:
+        return None
+
+    def on_unsubscribe(self, client, channel) -> None:
+        return None
+
+    def on_parameters_subscribe(self, param_names: list) -> None:
+        return None
+
+    def on_parameters_unsubscribe(self, param_names: list) -> None:
+        return None
+
+    def on_connection_graph_subscribe(self) -> None:
+        return None
+
+    def on_connection_graph_unsubscribe(self) -> None:
+        return None
+
+    def on_client_advertise(self, client, channel) -> None:
+        with self._lock:
+            self.clients[(client.id, channel.id)] = (channel.topic, channel.encoding)
+
+    def on_client_unadvertise(self, client, client_channel_id: int) -> None:
+        with self._lock:
+            self.clients.pop((client.id, client_channel_id), None)
+
+    def on_message_data(self, client, client_channel_id: int, data: bytes) -> None:
+        with self._lock:
+            topic, encoding = self.clients.get((client.id, client_channel_id), (None, None))
+        if topic != GOAL_TOPIC:
+            return
+        try:
+            if encoding == "json":
+                p, q = _pose_of_json(data)
+            elif encoding == "cdr":
+                if self.store is None:
+                    from rosbags.typesys import Stores, get_typestore
+
+                    self.store = get_typestore(Stores.ROS2_HUMBLE)
+                msg = self.store.deserialize_cdr(bytes(data), GOAL_TYPE)
+                pos, o = msg.pose.position, msg.pose.orientation
+                p, q = [pos.x, pos.y, pos.z], [o.w, o.x, o.y, o.z]
+            else:
+                raise InvalidInputError(f"{GOAL_TOPIC}: encoding {encoding!r} is not read; publish {GOAL_TYPE} as "
+                                        "cdr (ros2msg schema) or json")
+            self.session.set_goal(p, q)
+        except Exception as exc:  # noqa: BLE001 - whatever a client sends is answered, never raised in the SDK
+            self.status(f"{GOAL_TOPIC}: " + (str(exc) if isinstance(exc, InvalidInputError) else
+                                             f"not a {GOAL_TYPE} ({type(exc).__name__}: {exc})"))
+
+    def _parameters(self, names=None) -> list:
+        fg = self.fg
+        out = []
+        for name, value in self.session.parameters().items():
+            if names and name not in names:
+                continue
+            if isinstance(value, bool):
+                out.append(fg.Parameter(name, value=value))
+            elif isinstance(value, list):
+                out.append(fg.Parameter(name, value=value, type=fg.ParameterType.Float64Array))
+            else:
+                out.append(fg.Parameter(name, value=float(value), type=fg.ParameterType.Float64))
+        return out
+
+    def on_get_parameters(self, client, param_names: list, request_id=None) -> list:
+        return self._parameters(param_names)
+
+    def on_set_parameters(self, client, parameters: list, request_id=None) -> list:
+        for p in parameters:
+            try:
+                self.session.set_parameter(p.name, p.get_value())
+            except InvalidInputError as exc:
+                self.status(str(exc))
+        if any(p.name == PAUSED_PARAMETER for p in parameters):
+            self.server.broadcast_playback_state(self.playback_state())
+        return self._parameters()
+
+    def on_playback_control_request(self, request):
+        from foxglove.websocket import PlaybackCommand
+
+        self.session.set_parameter(PAUSED_PARAMETER, request.playback_command == PlaybackCommand.Pause)
+        if request.playback_speed and request.playback_speed > 0:
+            self.realtime = float(request.playback_speed)
+        self.server.publish_parameter_values(self._parameters([PAUSED_PARAMETER]))
+        return self.playback_state(request.request_id)
+
+
+def serve(session: LiveSession, out, *, host: str = "127.0.0.1", port: int = 8765, realtime: float = 1.0,
+          plots: bool = True, writers: dict | None = None, quiet: bool = False, ready=None):
+    """Run ``session`` live (module docstring) and write its folder ``out`` when it ends or is
+    stopped (Ctrl-C, SIGTERM). ``ready(server)`` is called once the server listens.
+    Returns ``(log, metrics)``."""
+    if not (isinstance(realtime, (int, float)) and np.isfinite(realtime) and realtime >= 0):
+        raise InvalidInputError(f"--realtime {realtime!r} must be a number >= 0 (1 = wall clock, 0 = unpaced)")
+    server = LiveServer(session, host, port, realtime)
+    try:
+        return _drive(session, server, out, host, realtime, plots, writers, quiet, ready)
+    finally:
+        server.stop()
+
+
+def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
+    """:func:`serve`'s loop: step paced, publish, stop on the duration, Ctrl-C, SIGTERM or a
+    failure (whose ticks before it are written, then it is raised), write the folder. A
+    signal sets a flag the loop reads between ticks, so no tick is cut in half; one that comes
+    while the folder is written changes nothing."""
+    stop = threading.Event()
+    main = threading.current_thread() is threading.main_thread()
+    old = {sig: signal.signal(sig, lambda signum, frame: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)} \
+        if main else {}
+    try:
+        return _loop(session, server, out, host, realtime, plots, writers, quiet, ready, stop)
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def _loop(session, server, out, host, realtime, plots, writers, quiet, ready, stop):
+    say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+    say(f"  {session.scenario.name}: live on ws://{host}:{server.port} (Foxglove: Open connection -> Foxglove "
+        f"WebSocket); {session.times.size} ticks, real time x{realtime:g}; Ctrl-C stops and writes {out}")
+    failure, t0 = None, time.perf_counter()
+    session.step()  # the first tick advertises every topic before a client is told to come
+    server.publish(0, True)
+    sent, last_pub, last_once, last_say = 1, time.perf_counter(), time.perf_counter(), 0.0
+    if ready is not None:
+        ready(server)
+    anchor_wall, anchor_t = None, None
+    try:
+        while not session.done and not stop.is_set():
+            now = time.perf_counter()
+            if session.paused:
+                anchor_wall = None
+                time.sleep(PUBLISH_PERIOD_S)
+                continue
+            if anchor_wall is None or server.realtime != realtime:
+                realtime = server.realtime
+                anchor_wall, anchor_t = now, float(session.times[session.k])
+            while not session.done and not session.paused and not stop.is_set() and \
+                    time.perf_counter() - now < PUBLISH_PERIOD_S and (
+                    realtime == 0 or float(session.times[session.k]) - anchor_t
+                    <= (time.perf_counter() - anchor_wall) * realtime):
+                session.step()
+            now = time.perf_counter()
+            if now - last_pub >= PUBLISH_PERIOD_S or session.done:
+                once = now - last_once >= ONCE_PERIOD_S
+                server.publish(sent, once)
+                sent, last_pub = session.k, now
+                last_once = now if once else last_once
+            if now - last_say >= 1.0:
+                t = float(session.times[session.k - 1])
+                say(f"  {session.scenario.name}: t = {t:.2f} s ({session.k}/{session.times.size} ticks)")
+                last_say = now
+            if realtime and not session.done:
+                wait = anchor_wall + (float(session.times[session.k]) - anchor_t) / realtime - time.perf_counter()
+                time.sleep(min(max(wait, 0.0), PUBLISH_PERIOD_S))
+    except QuatformError as exc:
+        failure = exc
+        say(f"  {session.scenario.name}: failed at tick {session.k}: {exc}; writing the ticks before it to {out}")
+    stopped = stop.is_set() or failure is not None
+    if stop.is_set():
+        say(f"\n  {session.scenario.name}: stopped at tick {session.k}; writing {out}")
+    server.publish(sent, True)  # the last ticks, and the whole run's paths
+    server.server.broadcast_playback_state(server.playback_state())
+    wall = time.perf_counter() - t0
+    log, metrics = session.finish(out, plots=plots, writers=writers, stopped=stopped, wall_s=wall,
+                                  failure=None if failure is None else str(failure))
+    say(f"  {session.scenario.name}: {session.k} ticks in {wall:.1f} s -> {out}")
+    if failure is not None:
+        raise failure
+    return log, metrics

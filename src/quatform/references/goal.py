@@ -1,0 +1,118 @@
+"""An operator's goal for the formation's pose, followed within rate limits (references layer).
+
+A live run (``quatform run --live``) lets an operator send the formation a goal pose: the
+reference's centroid ``x_c`` and attitude ``q_c`` then move toward it tick by tick, the
+rest of the reference (shape, headings) staying the scenario's. :func:`approach_pose` is the
+pure step of that motion, written once on the array namespace of its operands (NumPy or
+JAX, any leading batch axes, branch-free): the centroid moves along the straight line to the
+goal at most ``max_speed * dt`` per tick, the attitude along the shortest great arc
+(spherical linear interpolation, Shoemake 1985, "Animating rotation with quaternion
+curves", SIGGRAPH '85, eq. for ``slerp(q, p; s) = q (q* p)^s``) at most ``max_rate * dt``
+radians per tick, so the reference's speed and angular rate stay within the bounds and it
+lands on the goal exactly once it is within one step. The goal's sign is taken nearer the
+current attitude (``q`` and ``-q`` are one rotation: the arc is never the long way round),
+and a goal equal to the current pose (or its negative) is a step of zero, never a NaN.
+
+:func:`goal_limits` gives the bounds of a team from its robots' own limits.
+"""
+
+from __future__ import annotations
+
+from ..algebra.kernels import array_namespace, dot_last, qmul_components
+from ..errors import InvalidInputError
+
+__all__ = ["approach_pose", "goal_limits", "GOAL_SHARE"]
+
+#: The share of the slowest robot's speed limit the goal motion may take in translation, and
+#: again in rotation (:func:`goal_limits`): a robot at distance ``rho`` from the centroid moves
+#: at most ``v + w rho <= 2 GOAL_SHARE v_min = v_min`` with both, leaving the controller the
+#: robots' margin above the reference's own motion for its corrections.
+GOAL_SHARE = 0.5
+
+#: Below this (m, rad) a step is taken as arrived (the direction of a zero vector is not used).
+_TINY = 1e-12
+
+
+def _qmul(xp, q, p):
+    return xp.stack(qmul_components(*(q[..., i] for i in range(4)), *(p[..., i] for i in range(4))), axis=-1)
+
+
+def approach_pose(p, q, p_goal, q_goal, max_speed, max_rate, dt):
+    """One tick of the pose ``(p, q)`` toward ``(p_goal, q_goal)`` within rate limits.
+
+    Parameters
+    ----------
+    p, p_goal : array_like, shape (..., 3)
+        The current and the goal position, m (world).
+    q, q_goal : array_like, shape (..., 4)
+        The current and the goal attitude, unit quaternions ``(w, x, y, z)`` (world from
+        body); ``q_goal`` of either sign.
+    max_speed : float or array_like, shape (...)
+        Largest speed of the position, m/s (> 0).
+    max_rate : float or array_like, shape (...)
+        Largest angular rate of the attitude, rad/s (> 0).
+    dt : float
+        The tick, s (> 0).
+
+    Returns
+    -------
+    p_next : ndarray, shape (..., 3)
+        The position one tick later, m: ``p + v dt``.
+    q_next : ndarray, shape (..., 4)
+        The attitude one tick later (unit, the sign continuing ``q``'s): ``exp(w dt / 2) q``.
+    v : ndarray, shape (..., 3)
+        The position's velocity over the tick, m/s (``|v| <= max_speed``).
+    w : ndarray, shape (..., 3)
+        The attitude's angular velocity over the tick, rad/s, world frame (``|w| <= max_rate``);
+        the attitude's rate is ``q_dot = (0, w) q / 2``.
+    """
+    xp = array_namespace(p)
+    p, q, p_goal, q_goal = (xp.asarray(a, dtype=float) for a in (p, q, p_goal, q_goal))
+    # position: along the straight line, at most max_speed dt
+    d = p_goal - p
+    dist = xp.sqrt(dot_last(d, d))
+    step = xp.minimum(dist, max_speed * dt)
+    frac = xp.where(dist > _TINY, step / xp.where(dist > _TINY, dist, 1.0), 1.0)
+    move = frac[..., None] * d
+    p_next = p + move
+    v = move / dt
+    # attitude: the goal's sign nearer q (shortest arc), then the world-frame rotation q_goal q*
+    q_goal = xp.where((dot_last(q, q_goal) < 0.0)[..., None], -q_goal, q_goal)
+    conj = xp.asarray([1.0, -1.0, -1.0, -1.0])
+    rel = _qmul(xp, q_goal, q * conj)
+    s = xp.sqrt(dot_last(rel[..., 1:], rel[..., 1:]))
+    angle = 2.0 * xp.arctan2(s, xp.abs(rel[..., 0]))  # in [0, pi]: rel's scalar part is q . q_goal >= 0
+    axis = rel[..., 1:] / xp.where(s > _TINY, s, 1.0)[..., None]
+    axis = xp.where((s > _TINY)[..., None], axis, 0.0)
+    turn = xp.minimum(angle, max_rate * dt)
+    half = 0.5 * turn
+    rot = xp.concatenate([xp.cos(half)[..., None], xp.sin(half)[..., None] * axis], axis=-1)
+    q_next = _qmul(xp, rot, q)
+    q_next = q_next / xp.sqrt(dot_last(q_next, q_next))[..., None]
+    w = axis * (turn / dt)[..., None]
+    return p_next, q_next, v, w
+
+
+def _speed_limit(robot) -> float:
+    """The speed a robot's point can move at, m/s: its ``max_speed`` (holonomic, planar, free-body
+    robots, the Bebop), else its forward speed ``max_v`` (a Pioneer's control point moves at
+    ``max_v`` along its heading)."""
+    for name in ("max_speed", "max_v"):
+        value = getattr(robot, name, None)
+        if value is not None:
+            return float(value)
+    raise InvalidInputError(f"robot model {type(robot).__name__} declares no speed limit (max_speed or max_v); "
+                            "the live goal's speed cannot be bounded")
+
+
+def goal_limits(robots, radius: float) -> tuple[float, float]:
+    """``(max_speed m/s, max_rate rad/s)`` of a goal's motion for a team of ``robots`` whose
+    farthest robot is ``radius`` m from the centroid: :data:`GOAL_SHARE` of the slowest robot's
+    speed limit in translation, and the angular rate that moves the farthest robot at that
+    speed (``v_min / (2 radius)``; a robot at distance ``rho`` then moves at most ``v_min``
+    with both). None of the built-in scenarios or robots declares a limit for the formation as
+    a whole, so the robots' own limits bound it."""
+    v = min(_speed_limit(r) for r in robots)
+    share = GOAL_SHARE * v
+    return share, share / max(float(radius), _TINY)
+
