@@ -1,8 +1,9 @@
 """Command-line interface ``quatform`` (top layer).
 
 Errors are printed as one line, never a traceback: bad input (and a run too large for the
-machine's memory) exits with status 2, file-system errors with 1, Ctrl-C with 130 and an
-unexpected internal error with 3 (``QUATFORM_TRACEBACK=1`` shows its traceback).
+machine's memory) exits with status 2, file-system errors with 1, Ctrl-C with 130, SIGTERM
+where a command stops on it as on Ctrl-C (``quatform ros2``) with 143, and an unexpected
+internal error with 3 (``QUATFORM_TRACEBACK=1`` shows its traceback).
 """
 
 from __future__ import annotations
@@ -15,10 +16,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from . import __version__
-from .errors import QuatformError
+from .errors import QuatformError, Terminated
 
 #: Exit statuses.
-EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 2, 3, 130
+EXIT_FILE_SYSTEM, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_TERMINATED = 1, 2, 3, 130, 143
 
 #: The scenario kind ``quatform teleop`` runs (an alias of ``run`` for it).
 TELEOP_KIND = "teleop"
@@ -544,7 +545,8 @@ def _sigint_ignored():
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``quatform`` command; return its exit status (0 success, 1 file system, 2 bad
-    input or too large, 3 internal error, 130 interrupted). Nothing but one line reaches stderr."""
+    input or too large, 3 internal error, 130 interrupted, 143 terminated). Nothing but one line
+    reaches stderr."""
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = _build_parser(only=(_given_command(argv),))  # only the command given: 'quatform --help' stays light
     args = None
@@ -561,15 +563,16 @@ def main(argv: list[str] | None = None) -> int:
     except QuatformError as exc:
         _say(f"error: {exc}")
         return EXIT_FILE_SYSTEM if isinstance(exc, OSError) else EXIT_INPUT  # OutputWriteError: a full disk
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        why = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"
         with _sigint_ignored():  # a second Ctrl-C while saying so must not end the process by the signal
             out = getattr(args, "out", None)
             if getattr(args, "command", None) == "sweep" and out:  # a sweep keeps its finished chunks
-                _say(f"interrupted (Ctrl-C); the chunks finished so far are kept in {out}/chunks and no table was "
+                _say(f"{why}; the chunks finished so far are kept in {out}/chunks and no table was "
                      "written: rerun the same command to resume")
             else:
-                _say("interrupted (Ctrl-C)" + (f"; {out} left as it was, no partial files written" if out else ""))
-        return EXIT_INTERRUPTED
+                _say(why + (f"; {out} left as it was, no partial files written" if out else ""))
+        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
     except MemoryError:
         what = _what(args) if args is not None else "quatform"
         _say(f"error: out of memory running {what}; shorten the run or coarsen it (scenario duration_s / dt_s, "

@@ -21,6 +21,7 @@ __all__ = [
     "ResourceLimitError",
     "MissingDependencyError",
     "OutputWriteError",
+    "Terminated",
 ]
 
 
@@ -91,3 +92,9 @@ class OutputWriteError(QuatformError, OSError):
     """An output file could not be written: the disk is full, a quota is reached, the folder is
     read-only or not the user's (the message names the folder, the file and the fix; ``errno``
     is the system's). Nothing half-written is left under the file's name."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM asked the process to stop: raised where a command stops on it as on Ctrl-C (the
+    ROS 2 bridge's node), so the same clean-up runs; the command line says ``terminated
+    (SIGTERM)`` and exits with 143 (128 + 15, as a shell reports a process ended by SIGTERM)."""

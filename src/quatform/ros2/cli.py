@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import math
 
-__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay", "robot_index", "make_transport"]
+__all__ = ["ros2_arguments", "replay_arguments", "run_ros2", "run_replay", "robot_index", "make_transport",
+           "auto_transport", "BOTH_MISSING"]
 
 
 def ros2_arguments(p) -> None:
@@ -17,9 +18,10 @@ def ros2_arguments(p) -> None:
         "without a pose within [bridge] start_timeout_s stops the start; the e-stop topic/service latches zero "
         "commands until released. With --robot, a network scenario's node of one robot (one per robot): its "
         "pose in, its neighbours' messages from /<their namespace>/quatform/message, its command and its "
-        "message out (docs/networks.md, \"One robot's node\"). --transport rclpy (the default) needs a sourced "
-        "ROS 2 installation; --transport dds speaks ROS 2 on the wire through Cyclone DDS without one (pip install -e "
-        "\".[dds]\"; ROS_DOMAIN_ID, CYCLONEDDS_URI). See docs/ros2.md.")
+        "message out (docs/networks.md, \"One robot's node\"). --transport rclpy needs a sourced ROS 2 "
+        "installation; --transport dds speaks ROS 2 on the wire through Cyclone DDS without one (pip install -e "
+        "\".[dds]\"; ROS_DOMAIN_ID, CYCLONEDDS_URI); --transport auto (the default) takes rclpy where it is "
+        "importable, else dds. See docs/ros2.md.")
     p.add_argument("--scenario", required=True, metavar="SCENARIO", help="built-in name or file.toml")
     p.add_argument("--robots", required=True, metavar="ROBOTS_TOML", help="robots file (docs/ros2.md)")
     p.add_argument("--controller", metavar="NAME", help="the kind's controller (ugv-uav: its formation)")
@@ -27,8 +29,9 @@ def ros2_arguments(p) -> None:
     p.add_argument("--reference", metavar="PLAN_NPZ", help="a plan.npz to follow instead of the scenario's path")
     from .transport import TRANSPORTS
 
-    p.add_argument("--transport", choices=TRANSPORTS, default="rclpy",
-                   help="rclpy (a sourced ROS 2) or dds (Cyclone DDS, no ROS installation)")
+    p.add_argument("--transport", choices=("auto", *TRANSPORTS), default="auto",
+                   help="rclpy (a sourced ROS 2), dds (Cyclone DDS, no ROS installation) or auto (the default: "
+                   "rclpy where it is importable, else dds, saying which on stderr)")
     p.add_argument("--use-sim-time", action="store_true",
                    help="the node's clock is /clock's (ROS's use_sim_time: a simulator's time)")
     p.add_argument("--robot", metavar="I", help="run robot I's node of a network scenario (its number 1..N in the "
@@ -71,8 +74,38 @@ def replay_arguments(p) -> None:
     p.add_argument("--no-plots", action="store_true", help="no commands.png")
 
 
+#: The line ``--transport auto`` gives where neither middleware is importable.
+BOTH_MISSING = ("quatform ros2 needs a ROS 2 middleware and neither is importable here: source your ROS 2 "
+                "installation for rclpy (e.g. source /opt/ros/humble/setup.bash; rclpy is not a pip dependency), or "
+                "install Cyclone DDS's Python binding to speak ROS 2 on the wire without ROS: pip install -e \".[dds]\"")
+
+
+def auto_transport() -> str:
+    """``--transport auto``'s middleware: ``rclpy`` where it is importable, else ``dds`` where
+    ``cyclonedds`` is, said in one stderr line; neither is one line naming both installs."""
+    import sys
+
+    from ..errors import MissingDependencyError
+    from .dds import import_cyclonedds
+    from .rclpy_transport import import_rclpy
+
+    for name, load, what in (("rclpy", import_rclpy, "rclpy, a sourced ROS 2"),
+                             ("dds", import_cyclonedds, "dds, Cyclone DDS on the wire without ROS: rclpy is not "
+                              "importable here")):
+        try:
+            load()
+        except MissingDependencyError:
+            continue
+        print(f"quatform: --transport auto: {what}", file=sys.stderr, flush=True)
+        return name
+    raise MissingDependencyError(BOTH_MISSING)
+
+
 def make_transport(name: str, use_sim_time: bool = False):
-    """The :class:`~.transport.Transport` of ``--transport`` (its middleware imported only here)."""
+    """The :class:`~.transport.Transport` of ``--transport`` (its middleware imported only here;
+    ``auto``: :func:`auto_transport`)."""
+    if name == "auto":
+        name = auto_transport()
     if name == "dds":
         from .dds import DdsTransport
 

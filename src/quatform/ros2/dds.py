@@ -37,8 +37,15 @@ the timers of that step, one written after it waits for the next ``/clock`` samp
 of each reader's QoS depth kept), however the packets race on the network. So a pose written
 before a step is read at that step's tick, and a neighbour's message sent at the tick of step
 ``k`` is read at step ``k + 1`` in every node (a simulator's lockstep; machines whose clocks
-differ by more than a ``/clock`` period delay messages by that difference). An e-stop in sim
-time, too, acts at the next ``/clock`` step.
+differ by more than a ``/clock`` period delay messages by that difference). Only data waits
+(poses, neighbours' messages): a ``control`` subscription (the e-stop) is handed on as soon as
+it is read, in the order written, whether or not ``/clock`` moves, so an e-stop acts at once
+when the simulator pauses or dies; its reader keeps every sample (``QOS["estop"]``), so an
+engage followed by a release before the node reads them still engages (and zeroes) first.
+
+Configuration: a participant Cyclone cannot create (a ``CYCLONEDDS_URI`` naming a missing file,
+malformed XML, an interface this machine lacks) is one line naming ``CYCLONEDDS_URI``,
+``ROS_DOMAIN_ID`` and what Cyclone said (its own lines on stderr are caught for it).
 
 A writer of another type on a topic this node reads (a ``PointStamped`` on a pose topic) is
 named in one warning line (from DDS's discovery of publications), and a sample that does not
@@ -49,16 +56,19 @@ from __future__ import annotations
 
 import importlib
 import itertools
+import os
+import re
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 
 import numpy as np
 
 from ..errors import InvalidInputError, MissingDependencyError
-from .transport import QOS, Transport, ros_domain_id
+from .transport import QOS, QosProfile, Transport, ros_domain_id
 
-__all__ = ["import_cyclonedds", "dds_topic", "dds_type_name", "ros_type_name", "IdlTypes", "DdsTransport",
+__all__ = ["import_cyclonedds", "dds_topic", "dds_type_name", "ros_type_name", "dds_qos", "IdlTypes", "DdsTransport",
            "DDS_MISSING"]
 
 #: The line a machine without the binding gets.
@@ -99,6 +109,57 @@ def ros_type_name(dds_name: str) -> str:
     if len(parts) == 4 and parts[2] == "dds_" and parts[3].endswith("_"):
         return f"{parts[0]}/{parts[1]}/{parts[3][:-1]}"
     return dds_name
+
+
+def dds_qos(profile: QosProfile | str):
+    """The Cyclone DDS ``Qos`` of ``profile`` (a :class:`~quatform.ros2.transport.QosProfile` or
+    a name of :data:`~quatform.ros2.transport.QOS`): its reliability (a reliable writer blocks
+    up to 100 ms on a full history), durability and history, and the XCDR1 data representation."""
+    from cyclonedds.core import Policy, Qos
+    from cyclonedds.util import duration
+
+    p = QOS[profile] if isinstance(profile, str) else profile
+    return Qos(Policy.Reliability.Reliable(duration(milliseconds=100)) if p.reliable else
+               Policy.Reliability.BestEffort,
+               Policy.Durability.TransientLocal if p.transient_local else Policy.Durability.Volatile,
+               Policy.History.KeepAll if p.keep_all else Policy.History.KeepLast(p.depth),
+               Policy.DataRepresentation(use_cdrv0_representation=True))
+
+
+#: The prefix of Cyclone's own log lines (``<time> [<domain>] <thread>: ``).
+_CYCLONE_PREFIX = re.compile(r"^\s*\d+\.\d+\s+\[\d+\]\s+[^:]*:\s*")
+
+
+def _participant(domain_id: int, qos):
+    """A ``DomainParticipant``; one that Cyclone refuses is one line naming the configuration
+    (Cyclone's own lines on file descriptor 2 meanwhile are caught and quoted in it)."""
+    from cyclonedds.core import DDSException
+    from cyclonedds.domain import DomainParticipant
+
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as caught:
+        saved = os.dup(2)
+        os.dup2(caught.fileno(), 2)
+        try:
+            participant, failure = DomainParticipant(domain_id, qos=qos), None
+        except DDSException as exc:
+            participant, failure = None, exc
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        caught.seek(0)
+        said = caught.read().decode(errors="replace")
+    if failure is None:
+        sys.stderr.write(said)  # what Cyclone says on a participant it creates stays visible
+        return participant
+    lines = [_CYCLONE_PREFIX.sub("", line).strip().rstrip(".") for line in said.splitlines()]
+    why = "; ".join(line for line in lines if line) or str(failure)
+    env = {k: f"{k}={os.environ[k]!r}" if k in os.environ else f"{k} unset" for k in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")}
+    raise InvalidInputError(
+        f"Cyclone DDS cannot create its participant on domain {domain_id} ({env['ROS_DOMAIN_ID']}) with "
+        f"{env['CYCLONEDDS_URI']}: {why[:300]}; fix CYCLONEDDS_URI "
+        "(a file:// URI of an existing file, or inline XML, naming interfaces this machine has: ip addr) or unset "
+        "it for Cyclone's defaults")
 
 
 class IdlTypes:
@@ -249,12 +310,11 @@ class DdsTransport(Transport):
     def open(self, name, namespace=None):
         from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication
         from cyclonedds.core import Policy, Qos, ReadCondition, WaitSet
-        from cyclonedds.domain import DomainParticipant
 
         self.logger = ".".join(p for p in ((namespace or "").strip("/").replace("/", "."), name) if p)
-        self.participant = DomainParticipant(self.domain_id, qos=Qos(Policy.Userdata(data=b"enclave=/;")))
+        self.participant = _participant(self.domain_id, Qos(Policy.Userdata(data=b"enclave=/;")))
         self.waitset = WaitSet(self.participant)
-        self.readers: list = []  # (reader, msg_type, topic, callback)
+        self.readers: list = []  # (reader, msg_type, topic, callback, control)
         self.writers: list = []
         self.topics: dict = {}
         self.reads: dict = {}  # DDS topic -> the ROS type read there
@@ -262,7 +322,7 @@ class DdsTransport(Transport):
         self._said: set = set()
         self._clock_ns = 0
         self._clock_written = None  # the source timestamp of the newest /clock sample
-        self._pending: list = []  # (source timestamp, reader, sequence, sample) held for the next /clock step
+        self._pending: list = []  # data (source timestamp, reader, sequence, sample) held for the next /clock step
         self._seq = itertools.count()
         self.depths: list = []
         self.publications = BuiltinDataReader(self.participant, BuiltinTopicDcpsPublication)
@@ -276,17 +336,6 @@ class DdsTransport(Transport):
 
         return SampleState.Any | ViewState.Any | InstanceState.Any
 
-    def _qos(self, which: str):
-        from cyclonedds.core import Policy, Qos
-        from cyclonedds.util import duration
-
-        p = QOS[which]
-        return Qos(Policy.Reliability.Reliable(duration(milliseconds=100)) if p.reliable else
-                   Policy.Reliability.BestEffort,
-                   Policy.Durability.TransientLocal if p.transient_local else Policy.Durability.Volatile,
-                   Policy.History.KeepLast(p.depth),
-                   Policy.DataRepresentation(use_cdrv0_representation=True))
-
     def _topic(self, topic: str, msg_type: str):
         from cyclonedds.topic import Topic
 
@@ -295,20 +344,20 @@ class DdsTransport(Transport):
             self.topics[key] = Topic(self.participant, key[0], self.types.cls(msg_type))
         return self.topics[key]
 
-    def subscribe(self, topic, msg_type, qos, callback):
+    def subscribe(self, topic, msg_type, qos, callback, *, control=False):
         from cyclonedds.core import ReadCondition
         from cyclonedds.sub import DataReader
 
-        reader = DataReader(self.participant, self._topic(topic, msg_type), qos=self._qos(qos))
+        reader = DataReader(self.participant, self._topic(topic, msg_type), qos=dds_qos(qos))
         self.waitset.attach(ReadCondition(reader, self._mask()))
-        self.readers.append((reader, msg_type, topic, callback))
+        self.readers.append((reader, msg_type, topic, callback, bool(control)))
         self.depths.append(QOS[qos].depth)
         self.reads[dds_topic(topic)] = msg_type
 
     def publisher(self, topic, msg_type, qos):
         from cyclonedds.pub import DataWriter
 
-        writer = DataWriter(self.participant, self._topic(topic, msg_type), qos=self._qos(qos))
+        writer = DataWriter(self.participant, self._topic(topic, msg_type), qos=dds_qos(qos))
         self.writers.append((writer, QOS[qos].reliable))
         to_idl = self.types.to_idl
 
@@ -362,10 +411,10 @@ class DdsTransport(Transport):
 
     def _dispatch(self) -> None:
         """Take every reader (``/clock`` first) and hand the samples on in the order they were
-        written; with ``use_sim_time``, a sample written after the newest ``/clock`` sample waits
-        for the next one (see the module docstring)."""
+        written; with ``use_sim_time``, a data sample written after the newest ``/clock`` sample
+        waits for the next one, a control sample (the e-stop) never waits (see the module docstring)."""
         samples = self._pending
-        for k, (reader, msg_type, topic, callback) in enumerate(self.readers):
+        for k, (reader, msg_type, topic, _, _) in enumerate(self.readers):
             try:
                 got = reader.take(N=_TAKE)
             except Exception as exc:  # noqa: BLE001 - a peer's bytes that do not decode must not stop the node
@@ -382,15 +431,17 @@ class DdsTransport(Transport):
             clocks = [n for n, item in enumerate(samples) if item[1] == 0]
             if clocks or self._clock_written is not None:
                 cut = clocks[-1] + 1 if clocks else 0
-        ready, self._pending = samples[:cut], self._held(samples[cut:])
+        control = [r[4] for r in self.readers]
+        ready = [item for n, item in enumerate(samples) if n < cut or control[item[1]]]
+        self._pending = self._held([item for item in samples[cut:] if not control[item[1]]])
         for written, k, _, s in ready:
-            _, msg_type, _, callback = self.readers[k]
+            _, msg_type, _, callback, _ = self.readers[k]
             if self.use_sim_time and k == 0:
                 self._clock_written = written
             callback(self.types.from_idl(s, msg_type))
 
     def _held(self, samples: list) -> list:
-        """The samples waiting for the next ``/clock`` step, at most each reader's QoS depth of the newest."""
+        """The data samples waiting for the next ``/clock`` step, at most each reader's QoS depth of the newest."""
         count: dict = {}
         keep = []
         for item in reversed(samples):

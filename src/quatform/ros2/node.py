@@ -9,9 +9,11 @@ commands until released) and a timer at the control rate. The transport carries 
 :class:`~quatform.ros2.rclpy_transport.RclpyTransport` (default) or
 :class:`~quatform.ros2.dds.DdsTransport`.
 
-Shutdown: Ctrl-C (and SIGTERM, raised as ``KeyboardInterrupt`` while spinning) reaches the spin
-with the transport still able to publish; :meth:`BridgeNode.close` publishes the zero command
-to every robot first, then closes the transport.
+Shutdown: Ctrl-C (and SIGTERM, raised as :class:`~quatform.errors.Terminated`, a
+``KeyboardInterrupt``, while spinning) reaches the spin with the transport still able to
+publish; :meth:`BridgeNode.close` publishes the zero command to every robot first, then closes
+the transport, with SIGINT and SIGTERM ignored meanwhile, so a second Ctrl-C cannot cut the zero
+command short after some robots.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import threading
 import numpy as np
 
 from .. import messages
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, Terminated
 from .bridge import FormationBridge
 from .transport import Transport
 
@@ -64,7 +66,7 @@ class BridgeNode:
         s = bridge.robots.settings
         self._subscribe()
         self.publishers = {topic: transport.publisher(topic, typ, qos) for topic, typ, qos in bridge.command_topics()}
-        transport.subscribe(s.estop_topic, "std_msgs/msg/Bool", "latched", self._estop_topic)
+        transport.subscribe(s.estop_topic, "std_msgs/msg/Bool", "estop", self._estop_topic, control=True)
         if transport.serves:
             transport.service(self.estop_service(), "std_srvs/srv/SetBool", self._estop_service)
 
@@ -150,7 +152,8 @@ class BridgeNode:
 
     def spin(self) -> None:
         """Run until the transport shuts down, Ctrl-C or SIGTERM (raised here as
-        ``KeyboardInterrupt``); zero commands on the way out (:meth:`close`)."""
+        ``KeyboardInterrupt``, :class:`~quatform.errors.Terminated` for SIGTERM); zero commands
+        on the way out (:meth:`close`)."""
         with _sigterm_interrupts():
             try:
                 while self.transport.ok():
@@ -160,28 +163,45 @@ class BridgeNode:
 
     def close(self) -> None:
         """Zero commands to every robot while the transport can still carry them, then close it,
-        in that order. A context someone else already shut down can carry no message: the node
-        logs one error line saying so instead of raising."""
-        try:
-            if self.transport.ok():
-                self.publish_zero()
-            else:
-                self.transport.log("error", "ROS 2 was shut down before the zero command could be sent: the "
-                                   "robots keep their last command until their own timeout")
-        finally:
-            self.transport.close()
+        in that order, with SIGINT and SIGTERM ignored meanwhile (main thread; restored after): a
+        repeated Ctrl-C cannot cut the zero command short. A context someone else already shut
+        down can carry no message: the node logs one error line saying so instead of raising."""
+        with _signals_ignored():
+            try:
+                if self.transport.ok():
+                    self.publish_zero()
+                else:
+                    self.transport.log("error", "ROS 2 was shut down before the zero command could be sent: the "
+                                       "robots keep their last command until their own timeout")
+            finally:
+                self.transport.close()
+
+
+@contextlib.contextmanager
+def _signals_ignored():
+    """SIGINT and SIGTERM ignored (not queued) inside the block, in the main thread; restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 @contextlib.contextmanager
 def _sigterm_interrupts():
-    """SIGTERM raises ``KeyboardInterrupt`` inside the block (main thread only; restored after),
-    so a terminated bridge sends its zero command as on Ctrl-C."""
+    """SIGTERM raises :class:`~quatform.errors.Terminated` (a ``KeyboardInterrupt``) inside the
+    block (main thread only; restored after), so a terminated bridge sends its zero command as on
+    Ctrl-C."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def interrupt(signum, frame):
-        raise KeyboardInterrupt
+        raise Terminated
 
     previous = signal.signal(signal.SIGTERM, interrupt)
     try:

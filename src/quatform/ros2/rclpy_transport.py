@@ -82,7 +82,7 @@ def qos_profile(rclpy, which: str):
     return q.QoSProfile(
         reliability=q.ReliabilityPolicy.RELIABLE if p.reliable else q.ReliabilityPolicy.BEST_EFFORT,
         durability=q.DurabilityPolicy.TRANSIENT_LOCAL if p.transient_local else q.DurabilityPolicy.VOLATILE,
-        history=q.HistoryPolicy.KEEP_LAST, depth=p.depth)
+        history=q.HistoryPolicy.KEEP_ALL if p.keep_all else q.HistoryPolicy.KEEP_LAST, depth=p.depth)
 
 
 class RclpyTransport(Transport):
@@ -113,7 +113,8 @@ class RclpyTransport(Transport):
             extra["parameter_overrides"] = [param("use_sim_time", value=True)]
         self.node = importlib.import_module("rclpy.node").Node(name, namespace=namespace, **extra)
 
-    def subscribe(self, topic, msg_type, qos, callback):
+    def subscribe(self, topic, msg_type, qos, callback, *, control=False):
+        # rclpy's executor hands every message on as it is taken: a control topic needs nothing more
         self.node.create_subscription(ros_class(msg_type), topic, callback, qos_profile(self.rclpy, qos))
 
     def publisher(self, topic, msg_type, qos):

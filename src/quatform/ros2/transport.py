@@ -28,28 +28,34 @@ __all__ = ["QosProfile", "QOS", "Transport", "TRANSPORTS", "ros_domain_id"]
 
 @dataclass(frozen=True)
 class QosProfile:
-    """A keep-last QoS: ``reliable`` (else best effort), ``transient_local`` (else volatile), ``depth``."""
+    """A QoS: ``reliable`` (else best effort), ``transient_local`` (else volatile), keep last
+    ``depth`` samples, or with ``keep_all`` every sample not yet taken (``depth`` then unused)."""
 
     reliable: bool
     transient_local: bool
     depth: int
+    keep_all: bool = False
 
 
 #: ROS 2's profiles by the names the endpoints give (:mod:`quatform.ros2.endpoints`):
 #: ``sensor`` rmw_qos_profile_sensor_data (best effort, volatile, 5), ``default``
 #: rmw_qos_profile_default (reliable, volatile, 10: commands), ``px4`` px4_ros_com's offboard
 #: profile (best effort, transient local, 1), ``latched`` a latched topic such as ``/tf_static``
-#: (reliable, transient local, 1: the e-stop, so a node started later still sees an e-stop
-#: published before it), ``clock`` rclcpp's ClockQoS (best effort, volatile, 1: ``/clock``).
+#: (reliable, transient local, 1), ``estop`` the node's reader of the latched e-stop (reliable,
+#: transient local: a node started later still sees an e-stop published before it; keep all,
+#: so an engage followed by a release before the node reads them is read, engage first),
+#: ``clock`` rclcpp's ClockQoS (best effort, volatile, 1: ``/clock``).
 QOS = {
     "sensor": QosProfile(False, False, 5),
     "default": QosProfile(True, False, 10),
     "px4": QosProfile(False, True, 1),
     "latched": QosProfile(True, True, 1),
+    "estop": QosProfile(True, True, 1, keep_all=True),
     "clock": QosProfile(False, False, 1),
 }
 
-#: The ``--transport`` names, in order of preference.
+#: The ``--transport`` names of the middlewares, in order of preference (``auto`` takes the
+#: first importable one).
 TRANSPORTS = ("rclpy", "dds")
 
 
@@ -81,8 +87,10 @@ class Transport(ABC):
         """Create the node ``name`` in ``namespace`` (its topics are absolute: it names the node only)."""
 
     @abstractmethod
-    def subscribe(self, topic: str, msg_type: str, qos: str, callback: Callable) -> None:
-        """Call ``callback(msg)`` with every ``msg_type`` message on ``topic``."""
+    def subscribe(self, topic: str, msg_type: str, qos: str, callback: Callable, *, control: bool = False) -> None:
+        """Call ``callback(msg)`` with every ``msg_type`` message on ``topic``. A ``control``
+        topic (the e-stop) is handed on as soon as it is read, whatever the clock: a transport
+        that paces data to ``/clock`` steps never holds it."""
 
     @abstractmethod
     def publisher(self, topic: str, msg_type: str, qos: str) -> Callable:
