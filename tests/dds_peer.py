@@ -9,6 +9,7 @@ file per domain), so parallel workers and runs never hear each other.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -20,7 +21,8 @@ import numpy as np
 
 import quatform
 from quatform import messages
-from quatform.ros2.dds import dds_topic
+from quatform.ros2.dds import dds_qos, dds_topic
+from quatform.ros2.transport import QOS
 
 #: Cyclone DDS 0.10 / 11 configuration: loopback, no multicast, unicast peers on 127.0.0.1.
 CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
@@ -109,11 +111,10 @@ class Peer:
     """
 
     def __init__(self, domain_id: int):
+        from cyclonedds.core import WaitSet
         from cyclonedds.domain import DomainParticipant
 
         from quatform.ros2.dds import IdlTypes
-
-        from cyclonedds.core import WaitSet
 
         self.dp = DomainParticipant(domain_id)
         self.types = IdlTypes()
@@ -127,28 +128,21 @@ class Peer:
             self._topics[name, msg_type] = Topic(self.dp, name, self.types.cls(msg_type))
         return self._topics[name, msg_type]
 
-    @staticmethod
-    def _qos(reliable: bool, transient_local: bool, depth: int):
-        from cyclonedds.core import Policy, Qos
-        from cyclonedds.util import duration
-
-        return Qos(Policy.Reliability.Reliable(duration(seconds=1)) if reliable else Policy.Reliability.BestEffort,
-                   Policy.Durability.TransientLocal if transient_local else Policy.Durability.Volatile,
-                   Policy.History.KeepLast(depth))
-
-    def writer(self, name: str, msg_type: str, *, reliable=False, transient_local=False, depth=5):
-        """A DataWriter on the DDS topic ``name`` (``rt/...``); :meth:`write` writes a rosbags message on it."""
+    def writer(self, name: str, msg_type: str, qos: str = "sensor"):
+        """A DataWriter on the DDS topic ``name`` (``rt/...``) with the transport's QoS of the
+        :data:`~quatform.ros2.transport.QOS` name ``qos`` (:func:`~quatform.ros2.dds.dds_qos`);
+        :meth:`write` writes a rosbags message on it."""
         from cyclonedds.pub import DataWriter
 
-        return DataWriter(self.dp, self._topic(name, msg_type), qos=self._qos(reliable, transient_local, depth))
+        return DataWriter(self.dp, self._topic(name, msg_type), qos=dds_qos(qos))
 
-    def reader(self, name: str, msg_type: str, *, reliable=True, depth=1000):
-        """A DataReader on the DDS topic ``name`` (best effort matches a best-effort writer too)."""
+    def reader(self, name: str, msg_type: str, qos: str = "default", depth: int = 1000):
+        """A DataReader on the DDS topic ``name`` with the transport's QoS ``qos``, keeping the
+        last ``depth`` samples (a reader's own history, not matched against the writer's)."""
+        from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
         from cyclonedds.sub import DataReader
 
-        from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
-
-        r = DataReader(self.dp, self._topic(name, msg_type), qos=self._qos(reliable, False, depth))
+        r = DataReader(self.dp, self._topic(name, msg_type), qos=dds_qos(dataclasses.replace(QOS[qos], depth=depth)))
         r.msg_type = msg_type
         self.waitset.attach(ReadCondition(r, SampleState.Any | ViewState.Any | InstanceState.Any))
         return r
@@ -222,9 +216,8 @@ class PairPeer:
     def __init__(self, domain_id: int, rf):
         self.peer = peer = Peer(domain_id)
         self.pose_w = [peer.writer(dds_topic(r.pose_topic), "geometry_msgs/msg/PoseStamped") for r in rf.robots]
-        self.clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", depth=1)
-        self.estop_w = peer.writer("rt/quatform/estop", "std_msgs/msg/Bool", reliable=True, transient_local=True,
-                                   depth=1)
+        self.clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", "clock")
+        self.estop_w = peer.writer("rt/quatform/estop", "std_msgs/msg/Bool", "latched")
         self.cmd = Commands(peer, [peer.reader(dds_topic(r.command_topic), "geometry_msgs/msg/TwistStamped")
                                     for r in rf.robots])
         self.sent_ns: list = []

@@ -166,7 +166,7 @@ def test_latched_estop_wrong_type_and_nan_are_refused_in_one_line(tmp_path, loop
     domain = int(loopback["ROS_DOMAIN_ID"])
     peer = P.Peer(domain)
     rf = read_robots_file(H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS))
-    estop = peer.writer("rt/quatform/estop", "std_msgs/msg/Bool", reliable=True, transient_local=True, depth=1)
+    estop = peer.writer("rt/quatform/estop", "std_msgs/msg/Bool", "latched")
     peer.write(estop, messages.msg_type("std_msgs/msg/Bool")(data=True))  # latched, before the bridge exists
     pose_w = [peer.writer(dds_topic(r.pose_topic), "geometry_msgs/msg/PoseStamped") for r in rf.robots]
     wrong = P.Peer(domain)  # another node publishing the wrong type on r2's pose topic
@@ -250,9 +250,9 @@ def test_one_node_per_robot_over_dds_hears_its_neighbour_and_gives_the_simulatio
     try:
         peer = P.Peer(int(loopback["ROS_DOMAIN_ID"]))
         pose_w = [peer.writer(f"rt/mocap/r{k}/pose", "geometry_msgs/msg/PoseStamped") for k in (1, 2, 3)]
-        clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", depth=1)
+        clock_w = peer.writer("rt/clock", "rosgraph_msgs/msg/Clock", "clock")
         cmd = P.Commands(peer, [peer.reader(f"rt/r{k}/cmd_vel", "geometry_msgs/msg/TwistStamped") for k in (1, 2, 3)])
-        said = [peer.reader(f"rt/r{k}/quatform/message", "sensor_msgs/msg/JointState", reliable=False)
+        said = [peer.reader(f"rt/r{k}/quatform/message", "sensor_msgs/msg/JointState", "sensor")
                 for k in (1, 2, 3)]
         for proc in procs:
             P.Peer.wait_matched(pose_w + [clock_w] + cmd.readers + said, 30.0, proc)

@@ -223,6 +223,53 @@ def test_sigterm_sends_zero_as_ctrl_c_does(fake_ros, tmp_path):
     assert not fake_ros.ok()
 
 
+def test_a_second_signal_during_close_does_not_cut_the_zero_command_short(fake_ros, tmp_path):
+    """Ctrl-C and SIGTERM arriving while the node publishes its zero commands are ignored: every
+    robot still gets its zero command, and the signals' handlers are restored after."""
+    import os
+    import signal
+
+    node, rf = _started_pair(fake_ros, tmp_path)
+    bus = fake_ros.fake_bus.BUS
+    _spin_until(fake_ros, node, 3 * DT_NS)
+    first = rf.robots[0].command_topic
+    publish = node.publishers[first]
+
+    def publish_then_signal(msg):  # the first robot's zero command, then two more signals
+        publish(msg)
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    node.publishers[first] = publish_then_signal
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    node.close()
+    assert {sig: signal.getsignal(sig) for sig in handlers} == handlers
+    for link in rf.robots:
+        assert np.all(_twists(bus, link.command_topic)[-1] == 0)
+    assert not fake_ros.ok()
+
+
+def test_transport_auto_takes_rclpy_where_importable_else_dds_else_one_line(fake_ros, monkeypatch, capsys):
+    from quatform.ros2.cli import make_transport
+    from quatform.ros2.rclpy_transport import RclpyTransport
+
+    assert isinstance(make_transport("auto"), RclpyTransport)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--transport auto: rclpy" in err[0]
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    if importlib.util.find_spec("cyclonedds") is not None:
+        from quatform.ros2.dds import DdsTransport
+
+        assert isinstance(make_transport("auto"), DdsTransport)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--transport auto: dds" in err[0] and "rclpy is not importable" in err[0]
+    monkeypatch.setitem(sys.modules, "cyclonedds", None)
+    with pytest.raises(MissingDependencyError) as info:
+        make_transport("auto")
+    text = str(info.value)
+    assert "source your ROS 2 installation" in text and 'pip install -e ".[dds]"' in text and "\n" not in text
+
+
 def test_context_shut_down_elsewhere_logs_instead_of_raising(fake_ros, tmp_path):
     """rclpy initialised by someone else with its signal handlers: Ctrl-C shuts the context down
     before the node sees it; no message can go out, and the node says so in one line."""

@@ -160,9 +160,12 @@ def test_ros2_command_without_rclpy_is_one_line(pair_bag, capsys, monkeypatch):
     import sys
 
     monkeypatch.setitem(sys.modules, "rclpy", None)
-    err = _cli_error(["ros2", "--scenario", str(pair_bag["scenario"]), "--robots", str(pair_bag["robots"]),
-                      "--controller", "quaternion"], capsys)
-    assert "source your ROS 2 installation" in err
+    for transport in ("rclpy", "auto"):
+        if transport == "auto":  # neither middleware importable: one line naming both installs
+            monkeypatch.setitem(sys.modules, "cyclonedds", None)
+        err = _cli_error(["ros2", "--scenario", str(pair_bag["scenario"]), "--robots", str(pair_bag["robots"]),
+                          "--controller", "quaternion", "--transport", transport], capsys)
+        assert "source your ROS 2 installation" in err and ".[dds]" in err
 
 
 def test_replay_refuses_a_bag_without_a_tick(pair_bag, tmp_path):
