@@ -199,7 +199,7 @@ def test_latched_estop_wrong_type_and_nan_are_refused_in_one_line(tmp_path, loop
     while any(len(b) == n for b, n in zip(cmd.got, n_before)) and time.monotonic() < end:
         cmd.poll(0.05)
     text = (tmp_path / "bad.log").read_text()
-    assert rc == 130 and "Traceback" not in text, text
+    assert rc == 143 and "quatform: terminated (SIGTERM)" in text and "Traceback" not in text, text
     lines = text.splitlines()
     lost = [s for s in lines if "lost frame on /vrpn_client_node/r1/pose" in s]
     assert len(lost) >= 5 and all(s.startswith("[WARN]") for s in lost)
@@ -207,6 +207,88 @@ def test_latched_estop_wrong_type_and_nan_are_refused_in_one_line(tmp_path, loop
     assert len(wrong_type) == 1 and "reads geometry_msgs/msg/PoseStamped" in wrong_type[0]
     assert "e-stop engaged" in text
     assert all(len(b) > n and not np.any(b[-1][2]) for b, n in zip(cmd.got, n_before))  # SIGTERM: zero out
+
+
+def _started_in_lockstep(peer, proc, poses, log_path, ticks: int) -> int:
+    """Step ``/clock`` until the bridge (started on state 0) ticks, then ``ticks`` more lockstep
+    ticks; the ``/clock`` time of the last."""
+    (p1, q1), (p2, q2) = poses
+    c0 = 0
+    while True:
+        peer.step(c0, (P.pose(0, p1, q1, c0), P.pose(0, p2, q2, c0)))
+        if peer.cmd.wait_for(c0, 1.0):
+            break
+        assert proc.poll() is None and c0 < 20 * DT_NS, log_path.read_text()
+        c0 += DT_NS
+    for k in range(1, ticks + 1):
+        c = c0 + k * DT_NS
+        peer.step(c, (P.pose(k, p1, q1, c), P.pose(k, p2, q2, c)))
+        assert peer.cmd.wait_for(c, WAIT_S), f"no command at tick {k}"
+    return c0 + ticks * DT_NS
+
+
+def _new_commands(cmd, n_before, timeout_s: float = WAIT_S) -> list:
+    """Each robot's commands read after its first ``n_before`` (waiting up to ``timeout_s`` for one each)."""
+    end = time.monotonic() + timeout_s
+    while any(len(b) <= n for b, n in zip(cmd.got, n_before)) and time.monotonic() < end:
+        cmd.poll(0.05)
+    return [b[n:] for b, n in zip(cmd.got, n_before)]
+
+
+def test_estop_acts_at_once_while_the_clock_stands_still_and_an_engage_is_never_lost(tmp_path, loopback):
+    """With --use-sim-time and /clock stopped (a paused or dead simulator): an engage followed at
+    once by a release still zeroes every robot, released commands resume at the next /clock step,
+    and an engage alone zeroes every robot without a /clock step; SIGTERM exits with 143."""
+    exp = experiment_for(H.short_pair(0.5), "quaternion")
+    x = exp.run()["state"]
+    proc, rf = _bridge(tmp_path, loopback, "--use-sim-time", name="still")
+    log_path = tmp_path / "still.log"
+    try:
+        pr = FormationBridge(exp, rf).plant_robots
+        poses = H.robot_poses(pr.models, pr.state_slices, x)
+        (p1, q1), (p2, q2) = poses
+        peer = P.PairPeer(int(loopback["ROS_DOMAIN_ID"]), rf)
+        P.Peer.wait_matched(peer.pose_w + [peer.clock_w, peer.estop_w] + peer.cmd.readers, 30.0, proc)
+        c = _started_in_lockstep(peer, proc, poses, log_path, 3)
+        assert all(np.any(x[2] != 0) for x in peer.cmd.stamped(c))
+        bool_msg = messages.msg_type("std_msgs/msg/Bool")
+        n = [len(b) for b in peer.cmd.got]
+        peer.peer.write(peer.estop_w, bool_msg(data=True))  # engage and release between two /clock samples
+        peer.peer.write(peer.estop_w, bool_msg(data=False))
+        new = _new_commands(peer.cmd, n)
+        assert all(box and all(not np.any(m[2]) and m[1] == c for m in box) for box in new), log_path.read_text()
+        c += DT_NS  # released: the next /clock step's commands are the controller's again
+        peer.step(c, (P.pose(4, p1, q1, c), P.pose(4, p2, q2, c)))
+        assert peer.cmd.wait_for(c, WAIT_S) and all(np.any(x[2] != 0) for x in peer.cmd.stamped(c))
+        n = [len(b) for b in peer.cmd.got]
+        peer.peer.write(peer.estop_w, bool_msg(data=True))  # /clock stands still: zero at once all the same
+        new = _new_commands(peer.cmd, n)
+        assert all(box and not np.any(box[-1][2]) for box in new), log_path.read_text()
+        assert proc.poll() is None
+    finally:
+        rc = P.stop(proc, signal.SIGTERM)
+    text = log_path.read_text()
+    assert rc == 143 and "quatform: terminated (SIGTERM)" in text and "Traceback" not in text, text
+    assert text.count("e-stop engaged") == 2 and text.count("e-stop released") == 1, text
+
+
+@pytest.mark.parametrize("uri, said", [("file:///nonexistent-quatform.xml", "can't open configuration file"),
+                                       ("<General><Tag", "parser error"),
+                                       ('<General><Interfaces><NetworkInterface name="nosuch0"/></Interfaces>'
+                                        "</General>", "nosuch0")])
+def test_a_configuration_cyclone_refuses_is_one_line(uri, said, tmp_path, loopback, monkeypatch, capsys):
+    """A CYCLONEDDS_URI Cyclone cannot use (a missing file, malformed XML, an unknown interface) is
+    one line naming it and ROS_DOMAIN_ID, exit 2, not an internal error."""
+    from quatform import cli
+
+    monkeypatch.setenv("CYCLONEDDS_URI", uri)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(P.claim_domain()))  # a domain this process has not created yet
+    robots = H.write(tmp_path / "robots.toml", H.PAIR_ROBOTS)
+    rc = cli.main(["ros2", "--transport", "dds", "--scenario", "mas-kitts-helix", "--robots", str(robots),
+                   "--controller", "quaternion"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and "internal error" not in err, err
+    assert f"CYCLONEDDS_URI={uri!r}" in err and "ROS_DOMAIN_ID=" in err and said in err, err
 
 
 def _ring3(folder: Path) -> Path:
