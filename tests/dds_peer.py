@@ -3,7 +3,9 @@ names written out (``rt/...``, ``pkg::msg::dds_::Name_``), the bridge in another
 
 Every participant (this process's and the bridge's) reads ``CYCLONEDDS_URI``: the loopback
 interface only, multicast off, unicast discovery of the peers on 127.0.0.1, so no packet
-leaves 127.0.0.1; each test process has a domain id no other holds (``ROS_DOMAIN_ID``, a lock
+leaves 127.0.0.1 (Cyclone 11 still binds its unicast receive sockets to 0.0.0.0: no option
+changes that, docs/ros2.md); the peer's readers and writers take the transport's own QoS
+(:func:`~quatform.ros2.dds.dds_qos`); each test process has a domain id no other holds (``ROS_DOMAIN_ID``, a lock
 file per domain), so parallel workers and runs never hear each other.
 """
 

@@ -5,7 +5,10 @@ mocap poses (seed 000's helix, two robots, 100 Hz) and reading the commands (tes
 With ``--use-sim-time`` the peer steps ``/clock`` one control period at a time after the poses
 of that period (lockstep), so the bridge's ticks are the simulation's and its commands equal the
 simulated ones; the stale-pose hold, the e-stop (latched, transient local) and the zero command
-on exit show on the wire. No packet leaves 127.0.0.1 (CYCLONEDDS_URI: loopback, no multicast).
+on exit show on the wire. No packet leaves 127.0.0.1 (CYCLONEDDS_URI: loopback, no multicast,
+peers 127.0.0.1). Cyclone 11 binds its unicast receive sockets to 0.0.0.0 whatever the
+configuration (docs/ros2.md, "Without ROS: the dds transport"): they send nothing off the host,
+but a packet from another host to their ports would reach them.
 """
 
 from __future__ import annotations
