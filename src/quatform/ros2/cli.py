@@ -77,7 +77,8 @@ def replay_arguments(p) -> None:
 #: The line ``--transport auto`` gives where neither middleware is importable.
 BOTH_MISSING = ("quatform ros2 needs a ROS 2 middleware and neither is importable here: source your ROS 2 "
                 "installation for rclpy (e.g. source /opt/ros/humble/setup.bash; rclpy is not a pip dependency), or "
-                "install Cyclone DDS's Python binding to speak ROS 2 on the wire without ROS: pip install -e \".[dds]\"")
+                "install Cyclone DDS's Python binding to speak ROS 2 on the wire without ROS: "
+                "pip install -e \".[dds]\"")
 
 
 def auto_transport() -> str:

@@ -154,7 +154,8 @@ def _participant(domain_id: int, qos):
         return participant
     lines = [_CYCLONE_PREFIX.sub("", line).strip().rstrip(".") for line in said.splitlines()]
     why = "; ".join(line for line in lines if line) or str(failure)
-    env = {k: f"{k}={os.environ[k]!r}" if k in os.environ else f"{k} unset" for k in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")}
+    env = {k: f"{k}={os.environ[k]!r}" if k in os.environ else f"{k} unset"
+           for k in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")}
     raise InvalidInputError(
         f"Cyclone DDS cannot create its participant on domain {domain_id} ({env['ROS_DOMAIN_ID']}) with "
         f"{env['CYCLONEDDS_URI']}: {why[:300]}; fix CYCLONEDDS_URI "
