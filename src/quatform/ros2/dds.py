@@ -138,15 +138,20 @@ def _participant(domain_id: int, qos):
 
     sys.stderr.flush()
     with tempfile.TemporaryFile() as caught:
-        saved = os.dup(2)
-        os.dup2(caught.fileno(), 2)
+        try:
+            saved = os.dup(2)
+        except OSError:  # no file descriptor 2 (a daemon's): nothing to catch
+            saved = None
+        else:
+            os.dup2(caught.fileno(), 2)
         try:
             participant, failure = DomainParticipant(domain_id, qos=qos), None
         except DDSException as exc:
             participant, failure = None, exc
         finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+            if saved is not None:
+                os.dup2(saved, 2)
+                os.close(saved)
         caught.seek(0)
         said = caught.read().decode(errors="replace")
     if failure is None:
