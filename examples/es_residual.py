@@ -54,8 +54,8 @@ def parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--episodes", type=int, default=4, help="training episodes per policy and generation (default %(default)s)")
     ap.add_argument("--eval-episodes", type=int, default=16, help="held-out episodes (default %(default)s)")
     ap.add_argument("--episode-s", type=float, default=10.0, help="episode length, s (default %(default)s)")
-    ap.add_argument("--sigma", type=float, default=0.05, help="perturbation's standard deviation (default %(default)s)")
-    ap.add_argument("--lr", type=float, default=0.02, help="Adam's step size (default %(default)s)")
+    ap.add_argument("--sigma", type=float, default=0.02, help="perturbation's standard deviation (default %(default)s)")
+    ap.add_argument("--lr", type=float, default=0.01, help="Adam's step size (default %(default)s)")
     ap.add_argument("--hidden", type=int, default=0, help="hidden units (0: a linear policy; default %(default)s)")
     ap.add_argument("--residual-scale", type=float, default=0.25,
                     help="residual of an action of 1, as a fraction of each command's limit (default %(default)s)")
