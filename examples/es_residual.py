@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import csv
 import functools
+import importlib.util
 import sys
 import time
 from pathlib import Path
@@ -46,12 +47,16 @@ import numpy as np
 
 
 def parse(argv=None) -> argparse.Namespace:
+    """The command line's options (``--help``)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenario", default="team-tetrahedron-helix", help="team or network scenario (default %(default)s)")
+    ap.add_argument("--scenario", default="team-tetrahedron-helix",
+                    help="team or network scenario (default %(default)s)")
     ap.add_argument("--controller", default=None, help="the base controller (default: the scenario's)")
     ap.add_argument("--generations", type=int, default=60, help="ES generations (default %(default)s)")
-    ap.add_argument("--population", type=int, default=32, help="perturbed policies per generation, even (default %(default)s)")
-    ap.add_argument("--episodes", type=int, default=4, help="training episodes per policy and generation (default %(default)s)")
+    ap.add_argument("--population", type=int, default=32,
+                    help="perturbed policies per generation, even (default %(default)s)")
+    ap.add_argument("--episodes", type=int, default=4,
+                    help="training episodes per policy and generation (default %(default)s)")
     ap.add_argument("--eval-episodes", type=int, default=16, help="held-out episodes (default %(default)s)")
     ap.add_argument("--episode-s", type=float, default=10.0, help="episode length, s (default %(default)s)")
     ap.add_argument("--sigma", type=float, default=0.02, help="perturbation's standard deviation (default %(default)s)")
@@ -59,8 +64,10 @@ def parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--hidden", type=int, default=0, help="hidden units (0: a linear policy; default %(default)s)")
     ap.add_argument("--residual-scale", type=float, default=0.25,
                     help="residual of an action of 1, as a fraction of each command's limit (default %(default)s)")
-    ap.add_argument("--noise-m", type=float, default=0.01, help="motion capture's position noise, m (default %(default)s)")
-    ap.add_argument("--noise-rad", type=float, default=0.02, help="motion capture's yaw noise, rad (default %(default)s)")
+    ap.add_argument("--noise-m", type=float, default=0.01,
+                    help="motion capture's position noise, m (default %(default)s)")
+    ap.add_argument("--noise-rad", type=float, default=0.02,
+                    help="motion capture's yaw noise, rad (default %(default)s)")
     ap.add_argument("--start-noise-m", type=float, default=0.2,
                     help="start's displacement of the robots, m (default %(default)s)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the whole run (default %(default)s)")
@@ -75,9 +82,11 @@ def parse(argv=None) -> argparse.Namespace:
 
 @functools.lru_cache(maxsize=4)
 def build(scenario, controller, episode_s, residual_scale, noise_m, noise_rad, start_noise_m, hidden):
-    """The core, its params and the compiled ``returns(thetas (P, n), norm, keys (E, 2)) -> (P, E)``
-    with the observations' mean and mean square (cached: a second run with the same options
-    compiles nothing)."""
+    """``(core, returns, shapes, sizes)``: the functional core, the compiled
+    ``returns(thetas (P, n_theta), norm (2, n_obs), keys (E, 2), params)`` giving every policy's
+    episode returns ``(P, E)`` and the observations' mean and mean square over each episode
+    ``(P, E, n_obs)``, and the policy's parameter shapes and sizes in the flat ``theta``
+    (cached: a second run with the same options compiles nothing)."""
     import jax
     import jax.numpy as jnp
 
@@ -220,12 +229,11 @@ def write(rows, out: Path, title: str) -> None:
 
 def main(argv=None) -> list[dict]:
     args = parse(argv)
-    try:
-        import jax  # noqa: F401
-    except ImportError:
+    if importlib.util.find_spec("jax") is None:
         sys.exit('es_residual: needs JAX (pip install -e ".[jax]")')
     rows = train(args)
-    write(rows, Path(args.out), f"OpenAI-ES residual on {args.scenario}, noise {args.noise_m:g} m / {args.noise_rad:g} rad")
+    write(rows, Path(args.out),
+          f"OpenAI-ES residual on {args.scenario}, noise {args.noise_m:g} m / {args.noise_rad:g} rad")
     print(f"wrote {Path(args.out) / 'curve.csv'} and curve.png")
     return rows
 
