@@ -1,0 +1,159 @@
+"""Throughput of the environments' functional JAX form beside crazyflow's batched ``Sim.step``.
+
+One process, one table: for each batch size ``B`` (the number of simulated bodies),
+
+* crazyflow 0.4.0 (``Sim(n_worlds=B, n_drones=1)``, its default control and dynamics,
+  float32 as it ships): ``sim.step(n)`` after ``sim.reset()`` and a warm-up, best of
+  ``--repeat`` timings of ``n`` steps, ``jax.block_until_ready(sim.data)``; one drone-step is
+  one drone's physics step (500 Hz, the controllers at their own rates inside it);
+* quatform's functional core (:func:`quatform.envs.functional`, float64) on each
+  ``--scenarios`` entry with the scenario's own controller (its barrier included unless
+  ``--barrier off``) in residual mode, a zero residual (the base controller's commands, every
+  step still through the action's path), ``ceil(B / N)`` worlds of ``N`` robots (``--match
+  worlds``: ``B`` worlds); one agent-step is one robot's control tick (the plant's substeps,
+  the observation, the reward and the episode's end included). Two forms, both timed:
+
+  - ``scan``: ``jax.jit`` of ``lax.scan`` over ``n`` steps of
+    ``jax.vmap(core.step, in_axes=(0, 0, 0, None))`` (one dispatch per ``n`` steps);
+  - ``loop``: a Python loop of ``n`` calls of ``jax.jit(jax.vmap(core.step, ...))`` (one
+    dispatch per step, what a training loop stepping a policy on the host pays).
+
+Each prints steps/s and the ratio to crazyflow's drone-steps/s at the same ``B`` (above 1:
+quatform steps more agents per second). Compilation is left out of every timing (each form
+is called once before it is timed).
+
+crazyflow needs ``jax != 0.10.2`` (the project's environment pins it), so it is not in the
+``bench`` extra: it lives in its own virtual environment, e.g.::
+
+    python -m venv /work/cfvenv && /work/cfvenv/bin/pip install crazyflow==0.4.0 "jax==0.10.1" -e .
+    PYTHONPATH=src /work/cfvenv/bin/python benchmarks/bench_envs_crazyflow.py
+
+Without crazyflow the script says so in one line and prints quatform's numbers alone.
+
+Usage: ``python benchmarks/bench_envs_crazyflow.py [--sizes 64,1024,4096]
+[--scenarios team-tetrahedron-helix,team-grid-100] [--steps 20] [--repeat 5]
+[--forms scan,loop] [--barrier on|off] [--match agents|worlds]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+import warnings
+
+import numpy as np
+from _common import machine_description, optional_import
+
+from quatform.envs import functional, key
+
+
+def _best(fn, repeat: int) -> float:
+    """Least wall time, s, of ``repeat`` calls of ``fn`` (each ends with its result ready)."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def crazyflow_rate(jax, Sim, B: int, steps: int, repeat: int) -> float:
+    """crazyflow's drone-steps/s of ``Sim(n_worlds=B, n_drones=1).step(steps)``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Sim(n_worlds=B, n_drones=1)
+    sim.reset()
+    sim.step(steps)  # compiles step for this n
+    jax.block_until_ready(sim.data)
+
+    def run():
+        sim.step(steps)
+        jax.block_until_ready(sim.data)
+
+    return B * steps / _best(run, repeat)
+
+
+def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, barrier: bool, match: str) -> dict:
+    """Agent-steps/s of the functional core's forms (module docstring), with the worlds' count."""
+    jnp = jax.numpy
+    with jax.enable_x64(True):
+        core = functional(scenario, action="residual", **({} if barrier else {"min_separation": 0.0}))
+        N = core.layout.n
+        worlds = B if match == "worlds" else max(1, math.ceil(B / N))
+        params = jax.tree_util.tree_map(jnp.asarray, core.default_params)
+        keys = jnp.asarray(np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)])
+                           .reshape(steps, worlds, 2))
+        _, state0 = jax.jit(jax.vmap(core.reset, in_axes=(0, None)))(keys[0], params)
+        action = jnp.zeros((worlds, core.n_u))
+        vstep = jax.vmap(core.step, in_axes=(0, 0, 0, None))
+        out = {"N": N, "worlds": worlds}
+        if "scan" in forms:
+            def body(state, k):
+                _, state, reward, *_ = vstep(k, state, action, params)
+                return state, reward
+
+            scan = jax.jit(lambda state: jax.lax.scan(body, state, keys))
+            jax.block_until_ready(scan(state0))
+            out["scan"] = worlds * N * steps / _best(lambda: jax.block_until_ready(scan(state0)), repeat)
+        if "loop" in forms:
+            step = jax.jit(vstep)
+            jax.block_until_ready(step(keys[0], state0, action, params))
+
+            def loop():
+                state = state0
+                for s in range(steps):
+                    state = step(keys[s], state, action, params)[1]
+                jax.block_until_ready(state)
+
+            out["loop"] = worlds * N * steps / _best(loop, repeat)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="64,1024,4096", help="bodies per batch B (default 64,1024,4096)")
+    ap.add_argument("--scenarios", default="team-tetrahedron-helix,team-grid-100",
+                    help="team or network scenarios (default team-tetrahedron-helix,team-grid-100)")
+    ap.add_argument("--steps", type=int, default=20, help="steps per timing (default 20)")
+    ap.add_argument("--repeat", type=int, default=5, help="best of this many timings (default 5)")
+    ap.add_argument("--forms", default="scan,loop", help="quatform's forms: scan, loop (default both)")
+    ap.add_argument("--barrier", choices=("on", "off"), default="on",
+                    help="the team scenarios' separation barrier in the controller (default on, as the scenario)")
+    ap.add_argument("--match", choices=("agents", "worlds"), default="agents",
+                    help="quatform's batch: ceil(B/N) worlds of N robots (agents) or B worlds (default agents)")
+    args = ap.parse_args()
+    jax = optional_import("jax")
+    if jax is None:
+        raise SystemExit('bench_envs_crazyflow: needs JAX (pip install -e ".[jax]")')
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from crazyflow.sim import Sim
+    except ImportError:
+        Sim = None
+        print("crazyflow is not installed: quatform's numbers alone (see this script's docstring for its venv)")
+    sizes = [int(b) for b in args.sizes.split(",")]
+    scenarios = args.scenarios.split(",")
+    forms = [f for f in args.forms.split(",") if f in ("scan", "loop")]
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"envs vs crazyflow: {args.steps} steps per timing, best of {args.repeat}; quatform float64, zero "
+          f"residual on the scenario's controller (barrier {args.barrier}); load average at start {load:.2f}")
+    for line in machine_description({"jax": True, "crazyflow": Sim is not None}):
+        print(line)
+    print(f"{'B':>6} {'crazyflow drone-steps/s':>24} {'scenario':<24}{'N':>4}{'worlds':>7}"
+          + "".join(f"{f + ' agent-steps/s':>20}{'ratio':>7}" for f in forms))
+    for B in sizes:
+        cf = crazyflow_rate(jax, Sim, B, args.steps, args.repeat) if Sim is not None else float("nan")
+        for i, scenario in enumerate(scenarios):
+            q = quatform_rates(jax, scenario, B, args.steps, args.repeat, forms, args.barrier == "on", args.match)
+            cells = "".join(f"{q[f]:>20.4g}{q[f] / cf:>7.3f}" for f in forms)
+            head = f"{B:>6} {cf:>24.4g}" if i == 0 else f"{'':>6} {'':>24}"
+            print(f"{head} {scenario:<24}{q['N']:>4}{q['worlds']:>7}{cells}", flush=True)
+    if hasattr(os, "getloadavg"):
+        print(f"load average at end {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
