@@ -298,3 +298,20 @@ def test_team_agent_sees_its_nearest_robots():
     nearest = 1 + np.argsort(d)[:2]
     np.testing.assert_allclose(rows[:, 1:4], p[nearest] - p[0], rtol=0, atol=1e-12)
     assert np.all(rows[:, 0] == 1.0) and np.all(rows[:, 4] == 0.0)
+
+
+def test_a_deleted_parallel_env_is_freed():
+    pytest.importorskip("pettingzoo")
+    import gc
+    import weakref
+
+    import quatform.envs
+
+    env = quatform.envs.parallel_env(scenario=TEAM, duration_s=0.1)
+    env.reset(seed=0)
+    assert env.observation_space("robot_0") is env.observation_space("robot_0")  # one object per agent
+    env.action_space("robot_1")
+    ref = weakref.ref(env)
+    del env
+    gc.collect()
+    assert ref() is None

@@ -64,17 +64,29 @@ class FormationParallelEnv(ParallelEnv):
         self._commands = [np.arange(s.start, s.stop) for s in team.command_slices]
         self._key = self._state = None
 
-    # -- spaces (one object per agent: a seeded space stays seeded) --------------------------
-    @functools.lru_cache(maxsize=None)
-    def observation_space(self, agent):
-        i = self.possible_agents.index(agent)
-        n = 2 * len(self._points[i]) + 5 * self.slots + 1
-        return gymnasium.spaces.Box(-OBS_BOUND, OBS_BOUND, (n,), np.float64)
+    # -- spaces (one object per agent, held by the env: a seeded space stays seeded) -----------
+    @functools.cached_property
+    def _spaces(self) -> dict:
+        """``{agent: (observation space, action space)}`` of this env (built once, freed with it)."""
+        out = {}
+        for i, agent in enumerate(self.possible_agents):
+            n = 2 * len(self._points[i]) + 5 * self.slots + 1
+            out[agent] = (gymnasium.spaces.Box(-OBS_BOUND, OBS_BOUND, (n,), np.float64),
+                          gymnasium.spaces.Box(-1.0, 1.0, (len(self._commands[i]),), np.float64))
+        return out
 
-    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return self._spaces[self._agent(agent)][0]
+
     def action_space(self, agent):
-        i = self.possible_agents.index(agent)
-        return gymnasium.spaces.Box(-1.0, 1.0, (len(self._commands[i]),), np.float64)
+        return self._spaces[self._agent(agent)][1]
+
+    def _agent(self, agent) -> str:
+        """``agent`` if it is one of this env's, else a one-line error."""
+        if agent not in self._spaces:
+            raise InvalidInputError(f"parallel_env: no agent {agent!r}; the agents are robot_0 .. "
+                                    f"robot_{len(self.possible_agents) - 1}")
+        return agent
 
     # -- the episode ------------------------------------------------------------------------
     def reset(self, seed=None, options=None):
