@@ -315,3 +315,24 @@ def test_a_deleted_parallel_env_is_freed():
     del env
     gc.collect()
     assert ref() is None
+
+
+def test_env_reward_is_the_mean_of_the_agents_rewards():
+    pytest.importorskip("pettingzoo")
+    import quatform.envs
+
+    core = functional(TEAM, action="velocity", duration_s=0.5, collision_m=0.01)
+    p = core.default_params
+    _, st = core.reset(key(0), p)
+    rng = np.random.default_rng(0)
+    for j in range(5):
+        _, st, r, _, _, info = core.step(key(j), st, rng.uniform(-1, 1, core.n_u), p)
+        assert info["robot_rewards"].shape == (core.layout.n,)
+        assert r == pytest.approx(np.mean(info["robot_rewards"]), rel=1e-12, abs=1e-15)
+    env = quatform.envs.parallel_env(scenario=TEAM, duration_s=0.5, action="velocity", collision_m=0.01)
+    env.reset(seed=0)
+    k0, s0 = env._key, env._state
+    _, rewards, _, _, _ = env.step({a: np.full(env.action_space(a).shape, 0.5) for a in env.agents})
+    _, _, r, _, _, info = env.core.step(split(k0)[1], s0, np.full(core.n_u, 0.5), p)
+    assert [rewards[a] for a in env.possible_agents] == list(info["robot_rewards"])
+    assert np.mean(list(rewards.values())) == pytest.approx(r, rel=1e-12, abs=1e-15)

@@ -504,40 +504,32 @@ class FormationCore:
         short = xp.maximum(params.separation_m - d, 0.0)  # the diagonal's inf: 0
         return ((e_r * e_r) @ points, (_finite(xp, u) ** 2) @ commands, 0.5 * xp.sum(short * short, axis=-1), d, e_r)
 
-    def robot_rewards(self, state: EnvState, u, params: EnvParams):
-        """Each robot's reward ``(*batch, N)``: ``-(w_t tracking + w_e effort + w_s separation)``
-        (:meth:`robot_terms`), ``-loss_penalty`` where the loop failed or the state is not finite."""
-        xp = common_namespace(state.x, u)
-        tracking, effort, separation, _, _ = self.robot_terms(state, u, params)
-        w = params.weights
-        reward = -(w[0] * tracking + w[1] * effort + w[2] * separation)
-        ok = (xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0))[..., None] & xp.isfinite(reward)
-        return xp.where(ok, reward, -params.loss_penalty)
-
     def judge(self, state: EnvState, u, params: EnvParams):
         """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
-        (``docs/envs.md``): the reward is the robots' mean of :meth:`robot_rewards`
-        (``-loss_penalty`` where the loop failed or the state is not finite); the episode ends
-        on a collision (two robots nearer than ``collision_m``) or a loss (the loop's failure
-        code, a non-finite state, a root-mean-square position error beyond ``loss_m``)."""
+        (``docs/envs.md``). Robot ``i``'s reward is ``-(w_t tracking_i + w_e effort_i + w_s
+        separation_i)`` (:meth:`robot_terms`), ``-loss_penalty`` where the loop failed or the
+        state is not finite; the env's reward is the robots' mean; ``info["robot_rewards"]``
+        ``(*batch, N)`` holds each robot's (the PettingZoo agents'). The episode ends on a
+        collision (two robots nearer than ``collision_m``) or a loss (the loop's failure code, a
+        non-finite state, a root-mean-square position error beyond ``loss_m``)."""
         xp = common_namespace(state.x, u)
         N = self.layout.n
         tracking, effort, separation, d, e_r = self.robot_terms(state, u, params)
-        finite = xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0)
+        failed = ~xp.all(xp.isfinite(state.x), axis=-1) | (state.reason != 0)
         w = params.weights
-        reward = -(w[0] * xp.sum(tracking, axis=-1) + w[1] * xp.sum(effort, axis=-1)
-                   + w[2] * xp.sum(separation, axis=-1)) / N
-        reward = xp.where(finite & xp.isfinite(reward), reward, -params.loss_penalty)
+        per = -(w[0] * tracking + w[1] * effort + w[2] * separation)
+        per = xp.where(~failed[..., None] & xp.isfinite(per), per, -params.loss_penalty)
         min_sep = xp.min(xp.reshape(d, d.shape[:-2] + (-1,)), axis=-1)
         pos = self.layout.position_index.ravel()
         pos = pos[pos < self.n_r]
         rms = xp.sqrt(xp.sum(xp.take(e_r, xp.asarray(pos), axis=-1) ** 2, axis=-1) / N)
         collided = min_sep < params.collision_m
-        lost = ~finite | (rms > params.loss_m)
+        lost = failed | (rms > params.loss_m)
         info = {"tracking": xp.sum(tracking, axis=-1) / N, "effort": xp.sum(effort, axis=-1) / N,
                 "separation": xp.sum(separation, axis=-1) / N, "min_separation_m": min_sep,
-                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u}
-        return reward, collided | lost, info
+                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u,
+                "robot_rewards": per}
+        return xp.sum(per, axis=-1) / N, collided | lost, info
 
 
 def _check_options(positive: bool = False, **values) -> None:

@@ -106,7 +106,7 @@ class FormationParallelEnv(ParallelEnv):
         self._key, now = split(self._key)
         _, state, _, terminated, truncated, info = self.core.step(now, self._state, u, self.params)
         self._state = state
-        per = self.core.robot_rewards(state, info["commands"], self.params)
+        per = info["robot_rewards"]
         rewards = {a: float(per[i]) for i, a in enumerate(self.possible_agents)}
         obs = self._observe()
         done_t, done_tr = bool(terminated), bool(truncated)
