@@ -336,3 +336,56 @@ def test_env_reward_is_the_mean_of_the_agents_rewards():
     _, _, r, _, _, info = env.core.step(split(k0)[1], s0, np.full(core.n_u, 0.5), p)
     assert [rewards[a] for a in env.possible_agents] == list(info["robot_rewards"])
     assert np.mean(list(rewards.values())) == pytest.approx(r, rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("mode", ["residual", "velocity"])
+def test_a_nan_action_stops_its_robot_only_and_inf_is_the_limit(mode):
+    core = functional(TEAM, action=mode, duration_s=0.3)
+    p = core.default_params
+    _, st = core.reset(key(0), p)
+    for j in range(3):
+        st = core.step(key(j), st, np.full(core.n_u, 0.1), p)[1]
+    first = core.team.command_slices[0]
+    a = np.full(core.n_u, 0.1)
+    a[first.start] = np.nan
+    _, _, r, term, _, info = core.step(key(9), st, a, p)
+    _, _, _, _, _, clean = core.step(key(9), st, np.full(core.n_u, 0.1), p)
+    zero = np.full(core.n_u, 0.1)
+    zero[first] = 0.0
+    _, _, _, _, _, held = core.step(key(9), st, zero, p)
+    assert np.all(np.isfinite(info["commands"]))
+    np.testing.assert_array_equal(info["commands"], held["commands"])  # robot 0 takes no action
+    np.testing.assert_array_equal(info["commands"][first.stop:], clean["commands"][first.stop:])  # the others act
+    assert bool(info["bad_action"]) and bool(term) and r == -p.loss_penalty
+    assert not clean["bad_action"]
+    big = core.step(key(9), st, np.full(core.n_u, np.inf), p)[5]["commands"]
+    one = core.step(key(9), st, np.ones(core.n_u), p)[5]["commands"]
+    np.testing.assert_array_equal(big, one)
+    assert np.any(one != 0.0)
+
+
+def test_host_envs_refuse_non_finite_and_misshapen_actions():
+    gymnasium = pytest.importorskip("gymnasium")
+    pytest.importorskip("pettingzoo")
+    import quatform.envs
+    from quatform.errors import InvalidInputError, NonFiniteError, ShapeError
+
+    env = gymnasium.make("quatform/Formation-v0", scenario=TEAM, duration_s=0.1).unwrapped
+    env.reset(seed=0)
+    n = env.core.n_u
+    for bad, err in ((np.full(n, np.nan), NonFiniteError), (np.full(n, np.inf), NonFiniteError),
+                     (np.ones(n - 1), ShapeError), (["a"] * n, InvalidInputError)):
+        with pytest.raises(err) as exc:
+            env.step(bad)
+        assert "\n" not in str(exc.value)
+    venv = gymnasium.make_vec("quatform/Formation-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                              scenario=TEAM, duration_s=0.1)
+    venv.reset(seed=0)
+    with pytest.raises(ShapeError):
+        venv.step(np.zeros(n))
+    pz = quatform.envs.parallel_env(scenario=TEAM, duration_s=0.1)
+    pz.reset(seed=0)
+    with pytest.raises(NonFiniteError):
+        pz.step({"robot_0": np.full(pz.action_space("robot_0").shape, np.nan)})
+    with pytest.raises(InvalidInputError, match="robot_99"):
+        pz.step({"robot_99": np.zeros(4)})

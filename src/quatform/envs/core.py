@@ -27,14 +27,15 @@ import numpy as np
 
 from ..algebra.kernels import common_namespace
 from ..control.contract import Controller, Tick
-from ..errors import InvalidInputError
+from ..checks import short
+from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ..formations.team_chart import team_positions
 from ..scenarios import kind_of, load_scenario
 from ..sim.loop import START_CODE, make_tick, plant_inputs, scheduled_reference, tree_map
 from ..sim.measurement import PerfectMeasurement
 
 __all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading",
-           "functional", "key", "normal", "split"]
+           "functional", "host_action", "key", "normal", "split"]
 
 #: What an action is: a residual added to the scenario controller's commands, or the commands.
 ACTION_MODES = ("residual", "velocity")
@@ -399,7 +400,7 @@ class FormationCore:
         _check_float64(xp)
         k = xp.minimum(state.k, self.T - 1)
         ref = tree_map(lambda a: xp.asarray(a)[k], params.refs)
-        a = xp.asarray(action, dtype=xp.float64) * params.action_scale
+        a, bad_action = self.action_commands(action, params)
         xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, a),
               "meas": {"noise": state.noise} if self.noisy else {}, "plant": None}
         carry, ys = self.tick((state.x, state.ctrl, state.meas, state.fail_tick, state.reason), xs)
@@ -407,9 +408,27 @@ class FormationCore:
         noise = params.noise_std * normal(key, 1, self.n_m)
         new = EnvState(*carry, state.k + 1, xp.broadcast_to(noise, state.noise.shape))
         obs = self.observe(new, params)
-        reward, terminated, info = self.judge(new, u, params)
+        reward, terminated, info = self.judge(new, u, params, bad_action)
         truncated = (new.k >= self.T - 1) & ~terminated
         return obs, new, reward, terminated, truncated, info
+
+    def action_commands(self, action, params: EnvParams):
+        """``(a (*batch, n_u), bad (*batch,))``: the policy's ``action`` in the commands' units.
+
+        Each entry is clipped to ``[-1, 1]`` (an infinite entry is its limit) and scaled by
+        ``params.action_scale``. A robot with a NaN entry takes no action this tick (its entries
+        read 0: in ``"residual"`` mode the scenario controller's commands, in ``"velocity"``
+        mode zero) and ``bad`` flags its world (the step ends it as lost, ``info["bad_action"]``);
+        the other robots act as asked. The Gymnasium and PettingZoo envs refuse a non-finite
+        action before it reaches the core (one-line :class:`~quatform.errors.NonFiniteError`).
+        """
+        xp = common_namespace(action, params.action_scale)
+        a = xp.clip(xp.asarray(action, dtype=xp.float64), -1.0, 1.0)
+        _, commands = self._membership
+        commands = xp.asarray(commands)
+        bad_robot = xp.asarray(xp.isnan(a), dtype=xp.float64) @ commands > 0.0
+        bad = xp.asarray(bad_robot, dtype=xp.float64) @ commands.T > 0.0
+        return xp.where(bad, 0.0, a) * params.action_scale, xp.any(bad_robot, axis=-1)
 
     # -- what an episode reads --------------------------------------------------------------
     def desired(self, state: EnvState, params: EnvParams):
@@ -504,18 +523,19 @@ class FormationCore:
         short = xp.maximum(params.separation_m - d, 0.0)  # the diagonal's inf: 0
         return ((e_r * e_r) @ points, (_finite(xp, u) ** 2) @ commands, 0.5 * xp.sum(short * short, axis=-1), d, e_r)
 
-    def judge(self, state: EnvState, u, params: EnvParams):
+    def judge(self, state: EnvState, u, params: EnvParams, bad_action=False):
         """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
         (``docs/envs.md``). Robot ``i``'s reward is ``-(w_t tracking_i + w_e effort_i + w_s
         separation_i)`` (:meth:`robot_terms`), ``-loss_penalty`` where the loop failed or the
         state is not finite; the env's reward is the robots' mean; ``info["robot_rewards"]``
         ``(*batch, N)`` holds each robot's (the PettingZoo agents'). The episode ends on a
         collision (two robots nearer than ``collision_m``) or a loss (the loop's failure code, a
-        non-finite state, a root-mean-square position error beyond ``loss_m``)."""
+        non-finite state, a NaN in the action (``bad_action``, :meth:`action_commands`), a
+        root-mean-square position error beyond ``loss_m``)."""
         xp = common_namespace(state.x, u)
         N = self.layout.n
         tracking, effort, separation, d, e_r = self.robot_terms(state, u, params)
-        failed = ~xp.all(xp.isfinite(state.x), axis=-1) | (state.reason != 0)
+        failed = ~xp.all(xp.isfinite(state.x), axis=-1) | (state.reason != 0) | bad_action
         w = params.weights
         per = -(w[0] * tracking + w[1] * effort + w[2] * separation)
         per = xp.where(~failed[..., None] & xp.isfinite(per), per, -params.loss_penalty)
@@ -528,7 +548,7 @@ class FormationCore:
         info = {"tracking": xp.sum(tracking, axis=-1) / N, "effort": xp.sum(effort, axis=-1) / N,
                 "separation": xp.sum(separation, axis=-1) / N, "min_separation_m": min_sep,
                 "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u,
-                "robot_rewards": per}
+                "robot_rewards": per, "bad_action": xp.broadcast_to(xp.asarray(bad_action), failed.shape)}
         return xp.sum(per, axis=-1) / N, collided | lost, info
 
 
@@ -547,6 +567,23 @@ def _check_float64(xp) -> None:
     if xp is not np and xp.asarray(0.0).dtype != np.float64:  # a float's default dtype: no warning
         raise InvalidInputError("envs: the functional core runs in float64; on JAX call it inside "
                                 "jax.enable_x64(True) (or set jax.config.update('jax_enable_x64', True))")
+
+
+def host_action(action, shape: tuple, where: str) -> np.ndarray:
+    """The action of a host-side env as float64 ``shape``, or a one-line error: not numbers
+    (:class:`InvalidInputError`), another shape (:class:`ShapeError`), a NaN or infinite entry
+    (:class:`NonFiniteError`: a broken policy is refused, not stepped)."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: the action must be numbers of shape {shape}, got {short(action)}") \
+            from None
+    if a.shape != tuple(shape):
+        raise ShapeError(f"{where}: the action has shape {a.shape}; give an array of shape {tuple(shape)} in [-1, 1]")
+    if not np.all(np.isfinite(a)):
+        raise NonFiniteError(f"{where}: the action holds NaN or infinity at entries "
+                             f"{short(np.argwhere(~np.isfinite(a)).ravel().tolist())}; give finite numbers in [-1, 1]")
+    return a
 
 
 def _finite(xp, a):

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import MissingDependencyError
 from ..sim.loop import tree_map
-from .core import OBS_BOUND, functional, split
+from .core import OBS_BOUND, functional, host_action, split
 
 try:
     import gymnasium
@@ -77,7 +77,7 @@ class FormationEnv(gymnasium.Env):
 
     def step(self, action):
         self._key, now = split(self._key)
-        a = np.asarray(action, dtype=np.float64).reshape(self.core.n_u)
+        a = host_action(action, (self.core.n_u,), "FormationEnv.step")
         obs, self._state, reward, terminated, truncated, info = self.core.step(now, self._state, a, self.params)
         return obs, float(reward), bool(terminated), bool(truncated), _info(info)
 
@@ -124,7 +124,7 @@ class FormationVectorEnv(VectorEnv):
 
     def step(self, actions):
         self._keys, now = split(self._keys)
-        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, self.core.n_u)
+        a = host_action(actions, (self.num_envs, self.core.n_u), "FormationVectorEnv.step")
         obs, state, reward, terminated, truncated, info = self.core.step(now, self._state, a, self.params)
         ended = self._ended
         if ended.any():  # next-step autoreset: these worlds start again

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import InvalidInputError, MissingDependencyError
 from ..formations.team_chart import team_positions
-from .core import OBS_BOUND, functional, split
+from .core import OBS_BOUND, functional, host_action, split
 
 try:
     import gymnasium
@@ -102,7 +102,8 @@ class FormationParallelEnv(ParallelEnv):
             return {}, {}, {}, {}, {}
         u = np.zeros(self.core.n_u)
         for a, act in actions.items():
-            u[self._commands[self.possible_agents.index(a)]] = np.asarray(act, dtype=float).ravel()
+            cols = self._commands[self.possible_agents.index(self._agent(a))]
+            u[cols] = host_action(act, (len(cols),), f"parallel_env.step: {a}")
         self._key, now = split(self._key)
         _, state, _, terminated, truncated, info = self.core.step(now, self._state, u, self.params)
         self._state = state
