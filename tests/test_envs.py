@@ -242,13 +242,48 @@ def test_velocity_action_is_the_commands_in_units_of_the_limits():
 
 
 @pytest.mark.parametrize("bad", [dict(noise_m=-1.0), dict(weights=(1.0, 2.0)), dict(loss_m=0.0), dict(action="fly"),
-                                 dict(collision_m=float("nan"))])
+                                 dict(collision_m=float("nan")), dict(controller=3), dict(foo=1),
+                                 dict(duration_s="5"), dict(duration_s=1e9), dict(residual_scale=1e308),
+                                 dict(residual_scale=float("inf")), dict(residual_scale=-0.1)])
 def test_bad_options_are_one_line_errors(bad):
     from quatform.errors import InvalidInputError
 
+    bad = {"duration_s": 0.1, **bad}
     with pytest.raises(InvalidInputError) as exc:
-        functional(TEAM, duration_s=0.1, **bad)
+        functional(TEAM, **bad)
     assert "\n" not in str(exc.value) and str(exc.value).startswith("envs:")
+    name = next(k for k in bad if k != "duration_s") if len(bad) > 1 else "duration_s"
+    assert name in str(exc.value) or "action" in str(exc.value)
+
+
+def test_bad_env_arguments_are_one_line_errors():
+    gymnasium = pytest.importorskip("gymnasium")
+    pytest.importorskip("pettingzoo")
+    import quatform.envs
+    from quatform.errors import InvalidInputError
+
+    kw = dict(vectorization_mode="vector_entry_point", scenario=TEAM, duration_s=0.1)
+    for n in (0, -1, 2.5, "4", True):
+        with pytest.raises(InvalidInputError, match="num_envs"):
+            gymnasium.make_vec("quatform/Formation-v0", num_envs=n, **kw)
+    venv = gymnasium.make_vec("quatform/Formation-v0", num_envs=3, **kw)
+    with pytest.raises(InvalidInputError, match="call reset"):
+        venv.step(np.zeros((3, venv.unwrapped.core.n_u)))
+    for seed in ([1, 2], -1, "x", [1, 2, "3"]):
+        with pytest.raises(InvalidInputError, match="seed"):
+            venv.reset(seed=seed)
+    venv.reset(seed=[1, None, np.int64(3)])
+    env = gymnasium.make("quatform/Formation-v0", scenario=TEAM, duration_s=0.1).unwrapped
+    with pytest.raises(InvalidInputError, match="call reset"):
+        env.step(np.zeros(env.core.n_u))
+    pz = quatform.envs.parallel_env(scenario=TEAM, duration_s=0.1)
+    with pytest.raises(InvalidInputError, match="call reset"):
+        pz.step({})
+    for nb in (0, 2.5, "3", True):
+        with pytest.raises(InvalidInputError, match="neighbours"):
+            quatform.envs.parallel_env(scenario=TEAM, duration_s=0.1, neighbours=nb)
+    with pytest.raises(InvalidInputError, match="network scenario"):
+        quatform.envs.parallel_env(scenario=NET, duration_s=0.1, neighbours=2)
 
 
 def test_without_gymnasium_the_env_modules_say_what_to_install(monkeypatch):

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..algebra.kernels import common_namespace
 from ..control.contract import Controller, Tick
-from ..checks import short
+from ..checks import nearest, short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ..formations.team_chart import team_positions
 from ..scenarios import kind_of, load_scenario
@@ -41,6 +41,12 @@ __all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvSta
 ACTION_MODES = ("residual", "velocity")
 #: Every observation entry lies in ``[-OBS_BOUND, OBS_BOUND]`` (m, rad, 1): clipped there.
 OBS_BOUND = 1e4
+#: The largest ``residual_scale``: a residual of twice a command's limit moves the saturated
+#: sum from any base command to either limit, so a larger one only adds overflow.
+MAX_RESIDUAL_SCALE = 2.0
+#: The options of :func:`functional` besides ``scenario``, ``controller`` and ``action``.
+OPTIONS = ("residual_scale", "noise_m", "noise_rad", "start_noise_m", "weights", "separation_m", "collision_m",
+           "loss_m", "loss_penalty", "duration_s", "min_separation")
 
 
 # --------------------------------------------------------------------------- randomness
@@ -299,9 +305,17 @@ class FormationCore:
         ex = experiment
         self.experiment = ex
         _check_options(noise_m=noise_m, noise_rad=noise_rad, start_noise_m=start_noise_m, loss_penalty=loss_penalty)
+        if duration_s is not None:
+            _check_options(positive=True, duration_s=duration_s)
+            if duration_s > float(ex.times[-1]) + 1e-9 * ex.dt:
+                raise InvalidInputError(f"envs: duration_s = {duration_s!r} is beyond the scenario's "
+                                        f"{float(ex.times[-1]):g} s; give at most that (or a longer scenario)")
         _check_options(positive=True, residual_scale=residual_scale, loss_m=loss_m,
                        **{k: v for k, v in (("separation_m", separation_m), ("collision_m", collision_m))
                           if v is not None})
+        if residual_scale > MAX_RESIDUAL_SCALE:
+            raise InvalidInputError(f"envs: residual_scale = {residual_scale!r} must be at most {MAX_RESIDUAL_SCALE:g} "
+                                    "(a residual of twice the limits already spans every saturated command)")
         w = np.asarray(weights, dtype=float) if np.ndim(weights) == 1 else np.full(0, np.nan)
         if w.shape != (3,) or not np.all(np.isfinite(w)) or np.any(w < 0):
             raise InvalidInputError(f"envs: weights = {weights!r} must be three finite numbers >= 0 (tracking, "
@@ -607,6 +621,13 @@ def functional(scenario, controller: str | None = None, *, action: str = "residu
         ``loss_penalty``, ``duration_s`` (an episode shorter than the scenario's), and
         ``min_separation`` (the team kind's barrier, m; 0: off).
     """
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise InvalidInputError(f"envs: unknown option {unknown[0]!r}{nearest(unknown[0], OPTIONS)}; the options are "
+                                f"{', '.join(OPTIONS)} (docs/envs.md)")
+    if controller is not None and not isinstance(controller, str):
+        raise InvalidInputError(f"envs: controller = {short(controller)} must be a controller's name (a string), "
+                                "e.g. 'quaternion'")
     sc = load_scenario(scenario) if isinstance(scenario, (str, bytes)) or hasattr(scenario, "__fspath__") \
         else scenario
     kind = kind_of(sc)

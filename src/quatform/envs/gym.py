@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import MissingDependencyError
+from ..checks import short
+from ..errors import InvalidInputError, MissingDependencyError
 from ..sim.loop import tree_map
 from .core import OBS_BOUND, functional, host_action, split
 
@@ -76,6 +77,8 @@ class FormationEnv(gymnasium.Env):
         return obs, {}
 
     def step(self, action):
+        if self._state is None:
+            raise InvalidInputError("FormationEnv.step: call reset() before step()")
         self._key, now = split(self._key)
         a = host_action(action, (self.core.n_u,), "FormationEnv.step")
         obs, self._state, reward, terminated, truncated, info = self.core.step(now, self._state, a, self.params)
@@ -96,6 +99,8 @@ class FormationVectorEnv(VectorEnv):
                  action: str = "residual", render_mode=None, **options):
         self.core = functional(scenario, controller, action=action, **options)
         self.params = self.core.default_params
+        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
+            raise InvalidInputError(f"FormationVectorEnv: num_envs = {short(num_envs)} must be a whole number >= 1")
         self.num_envs = int(num_envs)
         self.single_observation_space, self.single_action_space = _spaces(self.core)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -104,6 +109,20 @@ class FormationVectorEnv(VectorEnv):
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
         self._keys = self._state = None
         self._ended = np.zeros(self.num_envs, dtype=bool)
+
+    def _seeds(self, seed) -> list:
+        """The worlds' seeds of ``reset(seed=...)``: ``seed + i`` of a whole number, or one per
+        world (whole numbers or ``None``), else a one-line error."""
+        def whole(s):
+            return isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0
+
+        if whole(seed):
+            return [int(seed) + i for i in range(self.num_envs)]
+        seeds = list(seed) if isinstance(seed, (list, tuple, np.ndarray)) else None
+        if seeds is None or len(seeds) != self.num_envs or not all(s is None or whole(s) for s in seeds):
+            raise InvalidInputError(f"FormationVectorEnv.reset: seed = {short(seed)} must be a whole number >= 0 or "
+                                    f"{self.num_envs} of them (one per world, None for an unseeded one)")
+        return [None if s is None else int(s) for s in seeds]
 
     def _draw(self, which) -> np.ndarray:
         """New episode keys ``(num_envs, 2)`` of the worlds ``which`` (bool) from their generators."""
@@ -114,8 +133,7 @@ class FormationVectorEnv(VectorEnv):
 
     def reset(self, *, seed=None, options=None):
         if seed is not None:
-            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else list(seed)
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+            self._rngs = [seeding.np_random(s)[0] for s in self._seeds(seed)]
         self._keys = self._draw(np.ones(self.num_envs, dtype=bool))
         self._keys, first = split(self._keys)
         obs, self._state = self.core.reset(first, self.params)
@@ -123,6 +141,8 @@ class FormationVectorEnv(VectorEnv):
         return obs, {}
 
     def step(self, actions):
+        if self._state is None:
+            raise InvalidInputError("FormationVectorEnv.step: call reset() before step()")
         self._keys, now = split(self._keys)
         a = host_action(actions, (self.num_envs, self.core.n_u), "FormationVectorEnv.step")
         obs, state, reward, terminated, truncated, info = self.core.step(now, self._state, a, self.params)

@@ -23,6 +23,7 @@ import functools
 
 import numpy as np
 
+from ..checks import short
 from ..errors import InvalidInputError, MissingDependencyError
 from ..formations.team_chart import team_positions
 from .core import OBS_BOUND, functional, host_action, split
@@ -45,7 +46,7 @@ class FormationParallelEnv(ParallelEnv):
     metadata = {"render_modes": [], "name": "quatform_formation_v0", "is_parallelizable": True}
 
     def __init__(self, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
-                 action: str = "residual", neighbours: int = 3, render_mode=None, **options):
+                 action: str = "residual", neighbours: int | None = None, render_mode=None, **options):
         self.core = core = functional(scenario, controller, action=action, **options)
         self.params = core.default_params
         team, L = core.team, core.layout
@@ -55,11 +56,15 @@ class FormationParallelEnv(ParallelEnv):
         base = core.controller.base
         self.networked = hasattr(base, "received") and hasattr(base, "links")
         if self.networked:
+            if neighbours is not None:
+                raise InvalidInputError(f"parallel_env: neighbours = {short(neighbours)} is for a team scenario; a "
+                                        "network scenario's agent observes its in-neighbours of the graph (drop it)")
             self.slots = int(base.slot_weights.shape[-1])  # the largest in-degree
         else:
-            if not (isinstance(neighbours, int) and neighbours >= 1):
-                raise InvalidInputError(f"parallel_env: neighbours = {neighbours!r} must be a whole number >= 1")
-            self.slots = min(neighbours, L.n - 1)
+            neighbours = 3 if neighbours is None else neighbours
+            if not (isinstance(neighbours, (int, np.integer)) and not isinstance(neighbours, bool) and neighbours >= 1):
+                raise InvalidInputError(f"parallel_env: neighbours = {short(neighbours)} must be a whole number >= 1")
+            self.slots = min(int(neighbours), L.n - 1)
         self._points = [np.arange(L.slice(i).start, L.slice(i).stop) for i in range(L.n)]
         self._commands = [np.arange(s.start, s.stop) for s in team.command_slices]
         self._key = self._state = None
@@ -98,6 +103,8 @@ class FormationParallelEnv(ParallelEnv):
         return self._observe(), {a: {} for a in self.agents}
 
     def step(self, actions):
+        if self._state is None:
+            raise InvalidInputError("parallel_env.step: call reset() before step()")
         if not self.agents:
             return {}, {}, {}, {}, {}
         u = np.zeros(self.core.n_u)
