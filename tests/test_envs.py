@@ -424,3 +424,16 @@ def test_host_envs_refuse_non_finite_and_misshapen_actions():
         pz.step({"robot_0": np.full(pz.action_space("robot_0").shape, np.nan)})
     with pytest.raises(InvalidInputError, match="robot_99"):
         pz.step({"robot_99": np.zeros(4)})
+
+
+def test_observation_is_a_function_of_the_attitude():
+    core = functional(NET, duration_s=0.3, start_noise_m=0.05)  # no reading noise: q + n is not -(-q + n)
+    p = core.default_params
+    _, st = core.reset(key(0), p)
+    for j in range(3):
+        st = core.step(key(j), st, np.full(core.n_u, 0.2), p)[1]
+    rows = np.asarray(core.layout.orientation_index).reshape(-1, 4)
+    assert rows.size
+    x = np.array(st.x)
+    x[rows[::2].ravel()] *= -1.0  # every other robot's quaternion as -q
+    np.testing.assert_array_equal(core.observe(st._replace(x=x), p), core.observe(st, p))

@@ -466,21 +466,29 @@ class FormationCore:
             owner[row] = j
         return rows.ravel(), owner
 
-    def robot_error(self, m, r_des):
-        """The measured robots ``m`` minus their desired points ``(*batch, n_r)``, yaws wound
-        to within pi, a pose robot's quaternion signed nearest its desired one (``q`` and
-        ``-q`` are one attitude); 0 where not finite."""
+    def signed(self, m, r_des):
+        """The robots ``m`` ``(*batch, n_r)`` with each pose robot's quaternion signed nearest
+        its desired one in ``r_des`` (``q`` and ``-q`` are one attitude: the result is a
+        function of the attitude); a quaternion exactly orthogonal to its desired one keeps its
+        sign (``q . q_des < 0`` flips)."""
+        flat, owner = self._orientation
+        if not flat.size:
+            return m
         xp = common_namespace(m, r_des)
         r_des = xp.broadcast_to(r_des, m.shape)
-        m = self.layout.wind(m, r_des)
-        flat, owner = self._orientation
-        if flat.size:
-            q = xp.reshape(xp.take(m, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
-            qd = xp.reshape(xp.take(r_des, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
-            flip = xp.sum(q * qd, axis=-1) < 0.0
-            flip = xp.concatenate([flip, xp.zeros(flip.shape[:-1] + (1,), dtype=bool)], axis=-1)
-            m = xp.where(xp.take(flip, xp.asarray(owner), axis=-1), -m, m)
-        return _finite(xp, m - r_des)
+        q = xp.reshape(xp.take(m, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
+        qd = xp.reshape(xp.take(r_des, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
+        flip = xp.sum(q * qd, axis=-1) < 0.0
+        flip = xp.concatenate([flip, xp.zeros(flip.shape[:-1] + (1,), dtype=bool)], axis=-1)
+        return xp.where(xp.take(flip, xp.asarray(owner), axis=-1), -m, m)
+
+    def robot_error(self, m, r_des):
+        """The measured robots ``m`` minus their desired points ``(*batch, n_r)``, yaws wound
+        to within pi, a pose robot's quaternion signed nearest its desired one
+        (:meth:`signed`); 0 where not finite."""
+        xp = common_namespace(m, r_des)
+        r_des = xp.broadcast_to(r_des, m.shape)
+        return _finite(xp, self.layout.wind(self.signed(m, r_des), r_des) - r_des)
 
     def chart_error(self, m, r_des, c_des):
         """The description's error ``(*batch, n_c)`` of its forward map of the measured robots
@@ -499,11 +507,20 @@ class FormationCore:
     def observe(self, state: EnvState, params: EnvParams):
         """The observation ``(*batch, n_obs)`` (class docstring)."""
         xp = common_namespace(state.x)
-        m = self.measured(state)
+        e_c, e_r, m, frac = self.observed(state, params)
+        return bounded(xp, xp.concatenate([e_c, e_r, m, frac], axis=-1))
+
+    def observed(self, state: EnvState, params: EnvParams, chart: bool = True):
+        """What an observation reads: ``(e_c (*batch, n_c), e_r (*batch, n_r), m (*batch, n_r),
+        frac (*batch, 1))``, the chart error (:meth:`chart_error`; ``(*batch, 0)`` unless
+        ``chart``), the robots' errors (:meth:`robot_error`), the measured robots (each
+        quaternion :meth:`signed`, 0 where not finite) and the elapsed fraction ``k / (T - 1)``."""
+        xp = common_namespace(state.x)
         r_des, c_des = self.desired(state, params)
-        e_c, e_r = self.chart_error(m, r_des, c_des), self.robot_error(m, r_des)
+        m = self.signed(self.measured(state), r_des)
+        e_c = self.chart_error(m, r_des, c_des) if chart else xp.zeros(m.shape[:-1] + (0,))
         frac = xp.asarray(state.k, dtype=xp.float64)[..., None] / (self.T - 1)
-        return xp.clip(xp.concatenate([e_c, e_r, _finite(xp, m), frac], axis=-1), -OBS_BOUND, OBS_BOUND)
+        return e_c, self.robot_error(m, r_des), _finite(xp, m), frac
 
     def separations(self, x):
         """``(*batch, N, N)`` distances between the robots' positions (``inf`` on the diagonal), m."""
@@ -598,6 +615,11 @@ def host_action(action, shape: tuple, where: str) -> np.ndarray:
         raise NonFiniteError(f"{where}: the action holds NaN or infinity at entries "
                              f"{short(np.argwhere(~np.isfinite(a)).ravel().tolist())}; give finite numbers in [-1, 1]")
     return a
+
+
+def bounded(xp, obs):
+    """An observation's entries: 0 where not finite, clipped to ``[-OBS_BOUND, OBS_BOUND]``."""
+    return xp.clip(_finite(xp, obs), -OBS_BOUND, OBS_BOUND)
 
 
 def _finite(xp, a):

@@ -26,7 +26,7 @@ import numpy as np
 from ..checks import short
 from ..errors import InvalidInputError, MissingDependencyError
 from ..formations.team_chart import team_positions
-from .core import OBS_BOUND, functional, host_action, split
+from .core import OBS_BOUND, bounded, functional, host_action, split
 
 try:
     import gymnasium
@@ -151,14 +151,10 @@ class FormationParallelEnv(ParallelEnv):
 
     def _observe(self) -> dict:
         core, state = self.core, self._state
-        m = core.measured(state)
-        r_des, _ = core.desired(state, self.params)
-        e_r = core.robot_error(m, r_des)
-        rows = self._neighbours(state, np.where(np.isfinite(m), m, 0.0))
-        frac = float(state.k) / (core.T - 1)
-        m = np.where(np.isfinite(m), m, 0.0)
-        return {a: np.clip(np.concatenate([m[self._points[i]], e_r[self._points[i]], rows[i].ravel(), [frac]]),
-                           -OBS_BOUND, OBS_BOUND) for i, a in enumerate(self.possible_agents)}
+        _, e_r, m, frac = core.observed(state, self.params, chart=False)
+        rows = self._neighbours(state, m)
+        return {a: bounded(np, np.concatenate([m[self._points[i]], e_r[self._points[i]], rows[i].ravel(), frac]))
+                for i, a in enumerate(self.possible_agents)}
 
     def state(self):
         """The plant state of every robot ``(n_x,)`` (the global state)."""
