@@ -437,3 +437,25 @@ def test_observation_is_a_function_of_the_attitude():
     x = np.array(st.x)
     x[rows[::2].ravel()] *= -1.0  # every other robot's quaternion as -q
     np.testing.assert_array_equal(core.observe(st._replace(x=x), p), core.observe(st, p))
+
+
+def test_a_world_stepped_past_its_end_stays_at_its_last_tick():
+    core = functional(TEAM, duration_s=0.1)
+    p = core.default_params
+    _, st = core.reset(key(0), p)
+    for j in range(core.T - 1):
+        obs, st, _, term, trunc, _ = core.step(key(j), st, np.zeros(core.n_u), p)
+    assert bool(trunc) and int(st.k) == core.T - 1 and obs[-1] == 1.0
+    last = st
+    for j in range(3):
+        obs, st, _, term, trunc, info = core.step(key(50 + j), st, np.ones(core.n_u), p)
+        assert bool(trunc) and not bool(term) and int(st.k) == core.T - 1 and obs[-1] == 1.0
+        np.testing.assert_array_equal(st.x, last.x)
+        assert not np.any(info["commands"])
+    # in a batch, the ended world stays and the other steps on
+    _, fresh = core.reset(key(1), p)
+    from quatform.sim.loop import tree_map
+    batch = tree_map(lambda a, b: np.stack([np.asarray(a), np.asarray(b)]), last, fresh)
+    _, out, _, _, trunc, _ = core.step(np.stack([key(7), key(8)]), batch, np.zeros((2, core.n_u)), p)
+    np.testing.assert_array_equal(out.x[0], last.x)
+    assert list(out.k) == [core.T - 1, 1] and list(trunc) == [True, False]

@@ -409,7 +409,11 @@ class FormationCore:
         """``(obs, state, reward, terminated, truncated, info)`` of one control tick under
         ``action`` (``(*batch, n_u)`` in ``[-1, 1]``): the loop's tick
         (:func:`~quatform.sim.loop.make_tick`), then the next reading's noise from ``key``
-        (stream 1), the observation, the reward and the episode's end (``docs/envs.md``)."""
+        (stream 1), the observation, the reward and the episode's end (``docs/envs.md``).
+
+        A world already at its last tick (``state.k == T - 1``: truncated) stays there: its
+        state is returned unchanged, its commands read 0, ``truncated`` stays True and the
+        elapsed fraction 1 (a batch of worlds steps on while some have ended)."""
         xp = common_namespace(key, state.x, action)
         _check_float64(xp)
         k = xp.minimum(state.k, self.T - 1)
@@ -418,9 +422,11 @@ class FormationCore:
         xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, a),
               "meas": {"noise": state.noise} if self.noisy else {}, "plant": None}
         carry, ys = self.tick((state.x, state.ctrl, state.meas, state.fail_tick, state.reason), xs)
-        u = ys[2]
         noise = params.noise_std * normal(key, 1, self.n_m)
         new = EnvState(*carry, state.k + 1, xp.broadcast_to(noise, state.noise.shape))
+        past = state.k >= self.T - 1  # a world stepped past its last tick stays there, unchanged
+        new = tree_map(lambda old, now: xp.where(_lead(xp, past, now), old, now), state, new)
+        u = xp.where(past[..., None], 0.0, ys[2])
         obs = self.observe(new, params)
         reward, terminated, info = self.judge(new, u, params, bad_action)
         truncated = (new.k >= self.T - 1) & ~terminated
@@ -615,6 +621,11 @@ def host_action(action, shape: tuple, where: str) -> np.ndarray:
         raise NonFiniteError(f"{where}: the action holds NaN or infinity at entries "
                              f"{short(np.argwhere(~np.isfinite(a)).ravel().tolist())}; give finite numbers in [-1, 1]")
     return a
+
+
+def _lead(xp, mask, a):
+    """``mask`` ``(*batch,)`` with ``a``'s trailing axes as ones (to select whole worlds)."""
+    return xp.reshape(mask, tuple(mask.shape) + (1,) * (xp.asarray(a).ndim - mask.ndim))
 
 
 def bounded(xp, obs):
