@@ -184,8 +184,10 @@ def test_vector_env_is_single_envs_on_a_batch_axis_with_next_step_autoreset():
                 np.testing.assert_array_equal(obs[i], o)
                 assert r[i] == pytest.approx(ri, rel=1e-12, abs=1e-15)  # a batched sum's rounding
                 assert term[i] == ti and trunc[i] == tri
+        if not ended.all():
+            assert info["min_separation_m"].shape == (N,)
+            assert np.array_equal(info["_min_separation_m"], ~ended)  # a reset world has no terms
         ended = term | trunc
-        assert info["min_separation_m"].shape == (N,) and info["_min_separation_m"].all()
     assert resets >= N
 
 
@@ -459,3 +461,31 @@ def test_a_world_stepped_past_its_end_stays_at_its_last_tick():
     _, out, _, _, trunc, _ = core.step(np.stack([key(7), key(8)]), batch, np.zeros((2, core.n_u)), p)
     np.testing.assert_array_equal(out.x[0], last.x)
     assert list(out.k) == [core.T - 1, 1] and list(trunc) == [True, False]
+
+
+def test_vector_env_steps_and_infos_are_gymnasiums_sync_vector_envs():
+    gymnasium = pytest.importorskip("gymnasium")
+    import quatform.envs  # noqa: F401
+
+    kw = dict(scenario=TEAM, duration_s=0.1, action="velocity", start_noise_m=0.05, noise_m=0.01)
+    N = 3
+    ours = gymnasium.make_vec("quatform/Formation-v0", num_envs=N, vectorization_mode="vector_entry_point", **kw)
+    sync = gymnasium.make_vec("quatform/Formation-v0", num_envs=N, vectorization_mode="sync", **kw)
+    np.testing.assert_array_equal(ours.reset(seed=7)[0], sync.reset(seed=7)[0])
+    rng = np.random.default_rng(0)
+    partial = empty = 0
+    for _ in range(3 * ours.unwrapped.core.T):
+        a = rng.uniform(-1, 1, (N, ours.unwrapped.core.n_u))
+        o1, r1, te1, tr1, i1 = ours.step(a)
+        o2, r2, te2, tr2, i2 = sync.step(a)
+        np.testing.assert_allclose(o1, o2, rtol=1e-12, atol=1e-15)  # a batch's rounding
+        np.testing.assert_allclose(r1, r2, rtol=1e-12, atol=1e-15)
+        assert np.array_equal(te1, te2) and np.array_equal(tr1, tr2)
+        assert sorted(i1) == sorted(i2)
+        for k in i1:
+            assert i1[k].shape == i2[k].shape and i1[k].dtype == i2[k].dtype, k
+            np.testing.assert_allclose(i1[k], i2[k], rtol=1e-12, atol=1e-15)
+        masks = [v for k, v in i1.items() if k.startswith("_")]
+        partial += bool(masks) and not masks[0].all()
+        empty += not i1
+    assert partial + empty > 0  # some step reset a world

@@ -90,7 +90,9 @@ class FormationVectorEnv(VectorEnv):
 
     Autoreset: gymnasium's next-step mode (``metadata["autoreset_mode"]``): the step after a
     world's episode ended resets it (its action is ignored; reward 0, not terminated, not
-    truncated). ``info`` holds each term as an array ``(num_envs,)`` with its ``_name`` mask.
+    truncated). ``info`` holds each term as an array ``(num_envs, ...)`` with its ``_name``
+    mask, as gymnasium's ``SyncVectorEnv`` batches single envs' infos: a world reset at this
+    step has no terms (mask False, entries 0); a step that resets every world has ``{}``.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -158,8 +160,9 @@ class FormationVectorEnv(VectorEnv):
         self._state = state
         self._ended = np.asarray(terminated | truncated)
         out = {}
-        for k, v in _info(info).items():
-            out[k], out["_" + k] = v, np.ones(self.num_envs, dtype=bool)
+        if not ended.all():  # gymnasium's SyncVectorEnv: a reset world's info is its reset's ({})
+            for k, v in _info(info).items():
+                out[k], out["_" + k] = _select(ended, np.zeros_like(v), v), ~ended
         return obs, np.asarray(reward, dtype=np.float64), np.asarray(terminated), np.asarray(truncated), out
 
 
