@@ -489,3 +489,43 @@ def test_vector_env_steps_and_infos_are_gymnasiums_sync_vector_envs():
         partial += bool(masks) and not masks[0].all()
         empty += not i1
     assert partial + empty > 0  # some step reset a world
+
+
+def test_the_barrier_filters_the_policys_residual_on_numpy_and_jax():
+    core = functional(TEAM, residual_scale=2.0, duration_s=2.0, collision_m=0.01)
+    assert core.controller.shielded
+    d_min = core.controller.base.barrier.min_separation_m
+    p = core.default_params
+    pos = core.layout.positions(core.plant.output(p.x0))
+    toward = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
+    a = np.zeros(core.n_u)
+    s0, s1 = core.team.command_slices[:2]
+    a[s0.start:s0.start + 3], a[s1.start:s1.start + 3] = toward, -toward  # robots 0 and 1 at each other, flat out
+    keys = [key(j) for j in range(core.T - 1)]
+
+    def run(c, params):
+        obs, st = c.reset(key(0), params)
+        out, ms = [obs], []
+        for k in keys:
+            obs, st, _, _, _, info = c.step(k, st, a, params)
+            out.append(obs)
+            ms.append(float(info["min_separation_m"]))
+        return np.array(out), ms
+
+    obs, ms = run(core, p)
+    assert min(ms) >= d_min - 1e-3 and min(ms) <= d_min + 0.05  # it binds, and holds
+    free = functional(TEAM, residual_scale=2.0, duration_s=2.0, collision_m=0.01, min_separation=0.0)
+    assert min(run(free, free.default_params)[1]) < 0.5 * d_min  # unshielded, the policy brings them together
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    with jax.enable_x64(True):
+        pj = jax.tree_util.tree_map(jnp.asarray, p)
+
+        def body(st, k):
+            obs, st, _, _, _, _ = core.step(k, st, jnp.asarray(a), pj)
+            return st, obs
+
+        _, s = core.reset(jnp.asarray(key(0)), pj)
+        _, oj = jax.jit(lambda s, ks: jax.lax.scan(body, s, ks))(s, jnp.asarray(np.stack(keys)))
+        np.testing.assert_allclose(np.asarray(oj), obs[1:], rtol=1e-9, atol=1e-9)

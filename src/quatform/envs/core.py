@@ -27,6 +27,7 @@ import numpy as np
 
 from ..algebra.kernels import common_namespace
 from ..control.contract import Controller, Tick
+from ..control.safety import SafeController
 from ..checks import nearest, short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ..formations.team_chart import team_positions
@@ -124,7 +125,11 @@ class ActionController(Controller):
       world whose action is all zero takes ``base``'s commands as they are (bitwise);
     * ``"velocity"``: the commands themselves, saturated.
 
-    ``base`` ticks in both modes (its state, signals and failure codes are the loop's).
+    ``base`` ticks in both modes (its state, signals and failure codes are the loop's). Where
+    ``base`` is :class:`~quatform.control.safety.SafeController` (the team kind's separation
+    barrier), the action acts on its inner controller's nominal commands and the barrier
+    filters the result (:meth:`SafeController.shield`): a policy cannot drive robots through
+    the barrier's distance.
     """
 
     base: Controller
@@ -164,9 +169,17 @@ class ActionController(Controller):
     def update(self, t, measured, reference, state):
         raise InvalidInputError("envs: ActionController runs through its pure tick only")
 
+    @property
+    def shielded(self) -> bool:
+        """Whether ``base`` filters its nominal commands through the team's separation barrier
+        (:class:`~quatform.control.safety.SafeController`): the action then joins the nominal
+        commands before the barrier, which filters the policy's commands too."""
+        return isinstance(self.base, SafeController)
+
     def tick(self, state, measured, reference, t) -> Tick:
         ref, action = reference
-        out = self.base.tick(state, measured, ref, t)
+        base = self.base
+        out = base.inner.tick(state.inner, measured, ref, t) if self.shielded else base.tick(state, measured, ref, t)
         xp = common_namespace(measured, out.u, action)
         a = xp.asarray(action, dtype=xp.float64)
         if self.mode == "velocity":
@@ -174,7 +187,8 @@ class ActionController(Controller):
         else:
             zero = xp.all(a == 0.0, axis=-1, keepdims=True)
             u = xp.where(zero, out.u, self.team.saturate(out.u + a))
-        return Tick(out.state, u, out.signals, out.code)
+        out = Tick(out.state, u, out.signals, out.code)
+        return base.shield(state, measured, out) if self.shielded else out
 
 
 class NoisyReading:
