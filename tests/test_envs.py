@@ -529,3 +529,31 @@ def test_the_barrier_filters_the_policys_residual_on_numpy_and_jax():
         _, s = core.reset(jnp.asarray(key(0)), pj)
         _, oj = jax.jit(lambda s, ks: jax.lax.scan(body, s, ks))(s, jnp.asarray(np.stack(keys)))
         np.testing.assert_allclose(np.asarray(oj), obs[1:], rtol=1e-9, atol=1e-9)
+
+
+def test_envs_pickle_mid_episode_and_go_on_alike():
+    gymnasium = pytest.importorskip("gymnasium")
+    pytest.importorskip("pettingzoo")
+    import copy
+    import pickle
+
+    import quatform.envs
+
+    kw = dict(scenario=TEAM, duration_s=0.2, noise_m=0.01, start_noise_m=0.02)
+    env = gymnasium.make("quatform/Formation-v0", **kw).unwrapped
+    venv = gymnasium.make_vec("quatform/Formation-v0", num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    pz = quatform.envs.parallel_env(**kw)
+    a = np.full(env.core.n_u, 0.3)
+    env.reset(seed=1)
+    venv.reset(seed=1)
+    pz.reset(seed=1)
+    env.step(a)
+    for original in (env, venv.unwrapped, pz):
+        for clone in (lambda e: pickle.loads(pickle.dumps(e)), copy.deepcopy):
+            twin = clone(original)
+            if original is pz:
+                acts = {n: np.full(pz.action_space(n).shape, 0.3) for n in pz.agents}
+                assert twin.step(acts)[0]["robot_0"].tolist() == original.step(acts)[0]["robot_0"].tolist()
+            else:
+                act = a if original is env else np.stack([a, a])
+                np.testing.assert_array_equal(twin.step(act)[0], original.step(act)[0])

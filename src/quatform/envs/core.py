@@ -603,6 +603,35 @@ class FormationCore:
         return xp.sum(per, axis=-1) / N, collided | lost, info
 
 
+class Rebuilt:
+    """Pickling of an env by its constructor's arguments (``self._init``, ``(args, kwargs)``)
+    and its episode's state (the attributes named in ``_episode``): unpickling builds the env
+    again and restores that state, so an env pickles (a scenario's experiment holds closures
+    that do not) and ``copy.deepcopy`` copies its attributes as they are."""
+
+    _episode: tuple = ()
+
+    def __getstate__(self) -> dict:
+        out = {"_init": self._init, **{k: self.__dict__[k] for k in self._episode if k in self.__dict__}}
+        if self.params is not self.core.default_params:
+            out["params"] = self.params
+        return out
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        args, kwargs = state.pop("_init")
+        self.__init__(*args, **kwargs)
+        self.__dict__.update(state)
+
+    def __deepcopy__(self, memo):
+        import copy
+
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        new.__dict__.update(copy.deepcopy(self.__dict__, memo))
+        return new
+
+
 def _check_options(positive: bool = False, **values) -> None:
     """Refuse (one line) an option that is not a finite number ``>= 0`` (``> 0`` if ``positive``)."""
     for name, v in values.items():

@@ -19,7 +19,7 @@ import numpy as np
 from ..checks import short
 from ..errors import InvalidInputError, MissingDependencyError
 from ..sim.loop import tree_map
-from .core import OBS_BOUND, functional, host_action, split
+from .core import OBS_BOUND, Rebuilt, functional, host_action, split
 
 try:
     import gymnasium
@@ -50,7 +50,7 @@ def _info(info: dict) -> dict:
     return {k: np.asarray(v) for k, v in info.items()}
 
 
-class FormationEnv(gymnasium.Env):
+class FormationEnv(Rebuilt, gymnasium.Env):
     """One world of a team or network scenario (:func:`~.core.functional`'s arguments).
 
     Observation ``Box(-OBS_BOUND, OBS_BOUND, (n_obs,), float64)``, action ``Box(-1, 1, (n_u,), float64)``
@@ -59,9 +59,12 @@ class FormationEnv(gymnasium.Env):
     """
 
     metadata = {"render_modes": []}
+    _episode = ("_np_random", "_np_random_seed", "_key", "_state", "observation_space", "action_space")
 
     def __init__(self, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
                  action: str = "residual", render_mode=None, **options):
+        self._init = ((), dict(scenario=scenario, controller=controller, action=action, render_mode=render_mode,
+                               **options))
         self.core = functional(scenario, controller, action=action, **options)
         self.params = self.core.default_params
         self.observation_space, self.action_space = _spaces(self.core)
@@ -85,7 +88,7 @@ class FormationEnv(gymnasium.Env):
         return obs, float(reward), bool(terminated), bool(truncated), _info(info)
 
 
-class FormationVectorEnv(VectorEnv):
+class FormationVectorEnv(Rebuilt, VectorEnv):
     """``num_envs`` worlds of one scenario stepped as one batch by the functional core.
 
     Autoreset: gymnasium's next-step mode (``metadata["autoreset_mode"]``): the step after a
@@ -96,9 +99,13 @@ class FormationVectorEnv(VectorEnv):
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    _episode = ("_rngs", "_keys", "_state", "_ended", "observation_space", "action_space", "single_observation_space",
+                "single_action_space")
 
     def __init__(self, num_envs: int = 1, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
                  action: str = "residual", render_mode=None, **options):
+        self._init = ((), dict(num_envs=num_envs, scenario=scenario, controller=controller, action=action,
+                               render_mode=render_mode, **options))
         self.core = functional(scenario, controller, action=action, **options)
         self.params = self.core.default_params
         if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:

@@ -26,7 +26,7 @@ import numpy as np
 from ..checks import short
 from ..errors import InvalidInputError, MissingDependencyError
 from ..formations.team_chart import team_positions
-from .core import OBS_BOUND, bounded, functional, host_action, split
+from .core import OBS_BOUND, Rebuilt, bounded, functional, host_action, split
 
 try:
     import gymnasium
@@ -38,15 +38,18 @@ except ImportError:
 __all__ = ["FormationParallelEnv"]
 
 
-class FormationParallelEnv(ParallelEnv):
+class FormationParallelEnv(Rebuilt, ParallelEnv):
     """One agent per robot of a team or network scenario (module docstring; the arguments of
     :func:`~.core.functional`, and ``neighbours``: how many nearest robots a team scenario's
     agent observes)."""
 
     metadata = {"render_modes": [], "name": "quatform_formation_v0", "is_parallelizable": True}
+    _episode = ("_rng", "_key", "_state", "agents", "_spaces")
 
     def __init__(self, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
                  action: str = "residual", neighbours: int | None = None, render_mode=None, **options):
+        self._init = ((), dict(scenario=scenario, controller=controller, action=action, neighbours=neighbours,
+                               render_mode=render_mode, **options))
         self.core = core = functional(scenario, controller, action=action, **options)
         self.params = core.default_params
         team, L = core.team, core.layout
