@@ -153,6 +153,13 @@ def test_gymnasium_check_env_passes_without_warnings():
             check_env(env.unwrapped)
         obs, _ = env.reset(seed=0)
         assert env.observation_space.contains(obs)
+        assert env.spec.max_episode_steps is None  # truncation is the scenario's duration
+        steps, trunc = 0, False
+        while not trunc:
+            obs, _, term, trunc, _ = env.step(np.zeros(env.action_space.shape))
+            steps += 1
+            assert not term and env.observation_space.contains(obs)
+        assert steps == env.unwrapped.core.T - 1
 
 
 def test_vector_env_is_single_envs_on_a_batch_axis_with_next_step_autoreset():
