@@ -458,10 +458,9 @@ class FormationCore:
         """
         xp = common_namespace(action, params.action_scale)
         a = xp.clip(xp.asarray(action, dtype=xp.float64), -1.0, 1.0)
-        _, commands = self._membership
-        commands = xp.asarray(commands)
-        bad_robot = xp.asarray(xp.isnan(a), dtype=xp.float64) @ commands > 0.0
-        bad = xp.asarray(bad_robot, dtype=xp.float64) @ commands.T > 0.0
+        _, commands, owner = self._groups
+        bad_robot = self._per_robot(xp.asarray(xp.isnan(a), dtype=xp.float64), commands) > 0.0
+        bad = xp.take(bad_robot, xp.asarray(owner), axis=-1)
         return xp.where(bad, 0.0, a) * params.action_scale, xp.any(bad_robot, axis=-1)
 
     # -- what an episode reads --------------------------------------------------------------
@@ -551,15 +550,32 @@ class FormationCore:
         return xp.where(eye, xp.inf, xp.sqrt(xp.where(eye, 1.0, d2)))
 
     @functools.cached_property
-    def _membership(self):
-        """One-hot ``(n_r, N)`` and ``(n_u, N)``: the robot of each point entry and command."""
+    def _groups(self):
+        """``(points (N, K_r), commands (N, K_u), owner (n_u,))``: each robot's point entries and
+        commands as indices, padded with the index one past the end (a padded 0 reads there),
+        and the robot of each command."""
         L, team = self.layout, self.team
-        points = np.zeros((self.n_r, L.n))
-        commands = np.zeros((self.n_u, L.n))
-        for i in range(L.n):
-            points[L.slice(i), i] = 1.0
-            commands[team.command_slices[i], i] = 1.0
-        return points, commands
+
+        def padded(slices, size):
+            width = max(s.stop - s.start for s in slices)
+            out = np.full((len(slices), width), size, dtype=np.intp)
+            for i, s in enumerate(slices):
+                out[i, :s.stop - s.start] = np.arange(s.start, s.stop)
+            return out
+
+        commands = padded(team.command_slices, self.n_u)
+        owner = np.zeros(self.n_u, dtype=np.intp)
+        for i, s in enumerate(team.command_slices):
+            owner[s] = i
+        return padded([L.slice(i) for i in range(L.n)], self.n_r), commands, owner
+
+    def _per_robot(self, v, index):
+        """``(*batch, N)``: the sum of ``v`` ``(*batch, n)`` over each robot's entries ``index``
+        (:attr:`_groups`)."""
+        xp = common_namespace(v)
+        v = xp.concatenate([v, xp.zeros(v.shape[:-1] + (1,), dtype=v.dtype)], axis=-1)
+        taken = xp.take(v, xp.asarray(index.ravel()), axis=-1)
+        return xp.sum(xp.reshape(taken, v.shape[:-1] + index.shape), axis=-1)
 
     def robot_terms(self, state: EnvState, u, params: EnvParams):
         """Each robot's reward terms ``(tracking, effort, separation)``, each ``(*batch, N)``, and
@@ -567,12 +583,13 @@ class FormationCore:
         against its desired point (yaws wound, rad counted as m), ``|u_i|^2`` of its commands,
         ``sum_j max(0, d_sep - d_ij)^2 / 2``; of the true state, 0 where not finite."""
         xp = common_namespace(state.x, u)
-        points, commands = self._membership
+        points, commands, _ = self._groups
         r_des, _ = self.desired(state, params)
         e_r = self.robot_error(_finite(xp, self.plant.output(state.x)), r_des)
         d = self.separations(_finite(xp, state.x))
         short = xp.maximum(params.separation_m - d, 0.0)  # the diagonal's inf: 0
-        return ((e_r * e_r) @ points, (_finite(xp, u) ** 2) @ commands, 0.5 * xp.sum(short * short, axis=-1), d, e_r)
+        return (self._per_robot(e_r * e_r, points), self._per_robot(_finite(xp, u) ** 2, commands),
+                0.5 * xp.sum(short * short, axis=-1), d, e_r)
 
     def judge(self, state: EnvState, u, params: EnvParams, bad_action=False):
         """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
