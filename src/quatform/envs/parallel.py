@@ -91,8 +91,8 @@ class FormationParallelEnv(Rebuilt, ParallelEnv):
 
     def _agent(self, agent) -> str:
         """``agent`` if it is one of this env's, else a one-line error."""
-        if agent not in self._spaces:
-            raise InvalidInputError(f"parallel_env: no agent {agent!r}; the agents are robot_0 .. "
+        if not isinstance(agent, str) or agent not in self._spaces:
+            raise InvalidInputError(f"parallel_env: no agent {short(agent)}; the agents are robot_0 .. "
                                     f"robot_{len(self.possible_agents) - 1}")
         return agent
 
