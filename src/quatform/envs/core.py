@@ -26,9 +26,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..algebra.kernels import common_namespace
+from ..checks import nearest, short
 from ..control.contract import Controller, Tick
 from ..control.safety import SafeController
-from ..checks import nearest, short
 from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ..formations.team_chart import team_positions
 from ..scenarios import kind_of, load_scenario
