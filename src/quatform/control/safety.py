@@ -568,11 +568,17 @@ class SafeController(contract.Controller):
         robots start closer than the barrier's minimum (:func:`start_floor`; :meth:`update`
         raises its one-line error), and on NumPy a world the host solver refuses.
         """
-        inner = self.inner.tick(state.inner, measured, reference, t)
-        u, signals, code = self._filter(measured, inner.u, inner.code, state.started)
+        return self.shield(state, measured, self.inner.tick(state.inner, measured, reference, t))
+
+    def shield(self, state, measured, nominal: contract.Tick) -> contract.Tick:
+        """The tick of the nominal tick ``nominal`` (the inner controller's, its commands
+        ``(*batch, n_u)`` possibly changed by a caller, e.g. a learning env's residual) through
+        the separation barrier: :meth:`tick`'s second half, so that a caller that changes the
+        nominal commands has them filtered too."""
+        u, signals, code = self._filter(measured, nominal.u, nominal.code, state.started)
         xp = array_namespace(u)
-        return contract.Tick(SafeState(inner.state, xp.ones(code.shape, dtype=bool)), u,
-                             {**inner.signals, **signals}, code)
+        return contract.Tick(SafeState(nominal.state, xp.ones(code.shape, dtype=bool)), u,
+                             {**nominal.signals, **signals}, code)
 
     def _filter(self, measured, u, code, started, raise_host=False):
         """``(u_safe, {"min_separation", "safety_active"}, code)`` of the nominal commands ``u``

@@ -26,20 +26,28 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..algebra.kernels import common_namespace
+from ..checks import nearest, short
 from ..control.contract import Controller, Tick
-from ..errors import InvalidInputError
+from ..control.safety import SafeController
+from ..errors import InvalidInputError, NonFiniteError, ShapeError
 from ..formations.team_chart import team_positions
 from ..scenarios import kind_of, load_scenario
 from ..sim.loop import START_CODE, make_tick, plant_inputs, scheduled_reference, tree_map
 from ..sim.measurement import PerfectMeasurement
 
 __all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "NoisyReading",
-           "functional", "key", "normal", "split"]
+           "functional", "host_action", "key", "normal", "split"]
 
 #: What an action is: a residual added to the scenario controller's commands, or the commands.
 ACTION_MODES = ("residual", "velocity")
 #: Every observation entry lies in ``[-OBS_BOUND, OBS_BOUND]`` (m, rad, 1): clipped there.
 OBS_BOUND = 1e4
+#: The largest ``residual_scale``: a residual of twice a command's limit moves the saturated
+#: sum from any base command to either limit, so a larger one only adds overflow.
+MAX_RESIDUAL_SCALE = 2.0
+#: The options of :func:`functional` besides ``scenario``, ``controller`` and ``action``.
+OPTIONS = ("residual_scale", "noise_m", "noise_rad", "start_noise_m", "weights", "separation_m", "collision_m",
+           "loss_m", "loss_penalty", "duration_s", "min_separation")
 
 
 # --------------------------------------------------------------------------- randomness
@@ -117,7 +125,11 @@ class ActionController(Controller):
       world whose action is all zero takes ``base``'s commands as they are (bitwise);
     * ``"velocity"``: the commands themselves, saturated.
 
-    ``base`` ticks in both modes (its state, signals and failure codes are the loop's).
+    ``base`` ticks in both modes (its state, signals and failure codes are the loop's). Where
+    ``base`` is :class:`~quatform.control.safety.SafeController` (the team kind's separation
+    barrier), the action acts on its inner controller's nominal commands and the barrier
+    filters the result (:meth:`SafeController.shield`): a policy cannot drive robots through
+    the barrier's distance.
     """
 
     base: Controller
@@ -157,9 +169,17 @@ class ActionController(Controller):
     def update(self, t, measured, reference, state):
         raise InvalidInputError("envs: ActionController runs through its pure tick only")
 
+    @property
+    def shielded(self) -> bool:
+        """Whether ``base`` filters its nominal commands through the team's separation barrier
+        (:class:`~quatform.control.safety.SafeController`): the action then joins the nominal
+        commands before the barrier, which filters the policy's commands too."""
+        return isinstance(self.base, SafeController)
+
     def tick(self, state, measured, reference, t) -> Tick:
         ref, action = reference
-        out = self.base.tick(state, measured, ref, t)
+        base = self.base
+        out = base.inner.tick(state.inner, measured, ref, t) if self.shielded else base.tick(state, measured, ref, t)
         xp = common_namespace(measured, out.u, action)
         a = xp.asarray(action, dtype=xp.float64)
         if self.mode == "velocity":
@@ -167,7 +187,8 @@ class ActionController(Controller):
         else:
             zero = xp.all(a == 0.0, axis=-1, keepdims=True)
             u = xp.where(zero, out.u, self.team.saturate(out.u + a))
-        return Tick(out.state, u, out.signals, out.code)
+        out = Tick(out.state, u, out.signals, out.code)
+        return base.shield(state, measured, out) if self.shielded else out
 
 
 class NoisyReading:
@@ -298,9 +319,17 @@ class FormationCore:
         ex = experiment
         self.experiment = ex
         _check_options(noise_m=noise_m, noise_rad=noise_rad, start_noise_m=start_noise_m, loss_penalty=loss_penalty)
+        if duration_s is not None:
+            _check_options(positive=True, duration_s=duration_s)
+            if duration_s > float(ex.times[-1]) + 1e-9 * ex.dt:
+                raise InvalidInputError(f"envs: duration_s = {duration_s!r} is beyond the scenario's "
+                                        f"{float(ex.times[-1]):g} s; give at most that (or a longer scenario)")
         _check_options(positive=True, residual_scale=residual_scale, loss_m=loss_m,
                        **{k: v for k, v in (("separation_m", separation_m), ("collision_m", collision_m))
                           if v is not None})
+        if residual_scale > MAX_RESIDUAL_SCALE:
+            raise InvalidInputError(f"envs: residual_scale = {residual_scale!r} must be at most {MAX_RESIDUAL_SCALE:g} "
+                                    "(a residual of twice the limits already spans every saturated command)")
         w = np.asarray(weights, dtype=float) if np.ndim(weights) == 1 else np.full(0, np.nan)
         if w.shape != (3,) or not np.all(np.isfinite(w)) or np.any(w < 0):
             raise InvalidInputError(f"envs: weights = {weights!r} must be three finite numbers >= 0 (tracking, "
@@ -394,22 +423,45 @@ class FormationCore:
         """``(obs, state, reward, terminated, truncated, info)`` of one control tick under
         ``action`` (``(*batch, n_u)`` in ``[-1, 1]``): the loop's tick
         (:func:`~quatform.sim.loop.make_tick`), then the next reading's noise from ``key``
-        (stream 1), the observation, the reward and the episode's end (``docs/envs.md``)."""
+        (stream 1), the observation, the reward and the episode's end (``docs/envs.md``).
+
+        A world already at its last tick (``state.k == T - 1``: truncated) stays there: its
+        state is returned unchanged, its commands read 0, ``truncated`` stays True and the
+        elapsed fraction 1 (a batch of worlds steps on while some have ended)."""
         xp = common_namespace(key, state.x, action)
         _check_float64(xp)
         k = xp.minimum(state.k, self.T - 1)
         ref = tree_map(lambda a: xp.asarray(a)[k], params.refs)
-        a = xp.asarray(action, dtype=xp.float64) * params.action_scale
+        a, bad_action = self.action_commands(action, params)
         xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, a),
               "meas": {"noise": state.noise} if self.noisy else {}, "plant": None}
         carry, ys = self.tick((state.x, state.ctrl, state.meas, state.fail_tick, state.reason), xs)
-        u = ys[2]
         noise = params.noise_std * normal(key, 1, self.n_m)
         new = EnvState(*carry, state.k + 1, xp.broadcast_to(noise, state.noise.shape))
+        past = state.k >= self.T - 1  # a world stepped past its last tick stays there, unchanged
+        new = tree_map(lambda old, now: xp.where(_lead(xp, past, now), old, now), state, new)
+        u = xp.where(past[..., None], 0.0, ys[2])
         obs = self.observe(new, params)
-        reward, terminated, info = self.judge(new, u, params)
+        reward, terminated, info = self.judge(new, u, params, bad_action)
         truncated = (new.k >= self.T - 1) & ~terminated
         return obs, new, reward, terminated, truncated, info
+
+    def action_commands(self, action, params: EnvParams):
+        """``(a (*batch, n_u), bad (*batch,))``: the policy's ``action`` in the commands' units.
+
+        Each entry is clipped to ``[-1, 1]`` (an infinite entry is its limit) and scaled by
+        ``params.action_scale``. A robot with a NaN entry takes no action this tick (its entries
+        read 0: in ``"residual"`` mode the scenario controller's commands, in ``"velocity"``
+        mode zero) and ``bad`` flags its world (the step ends it as lost, ``info["bad_action"]``);
+        the other robots act as asked. The Gymnasium and PettingZoo envs refuse a non-finite
+        action before it reaches the core (one-line :class:`~quatform.errors.NonFiniteError`).
+        """
+        xp = common_namespace(action, params.action_scale)
+        a = xp.clip(xp.asarray(action, dtype=xp.float64), -1.0, 1.0)
+        _, commands, owner = self._groups
+        bad_robot = self._per_robot(xp.asarray(xp.isnan(a), dtype=xp.float64), commands) > 0.0
+        bad = xp.take(bad_robot, xp.asarray(owner), axis=-1)
+        return xp.where(bad, 0.0, a) * params.action_scale, xp.any(bad_robot, axis=-1)
 
     # -- what an episode reads --------------------------------------------------------------
     def desired(self, state: EnvState, params: EnvParams):
@@ -433,21 +485,29 @@ class FormationCore:
             owner[row] = j
         return rows.ravel(), owner
 
-    def robot_error(self, m, r_des):
-        """The measured robots ``m`` minus their desired points ``(*batch, n_r)``, yaws wound
-        to within pi, a pose robot's quaternion signed nearest its desired one (``q`` and
-        ``-q`` are one attitude); 0 where not finite."""
+    def signed(self, m, r_des):
+        """The robots ``m`` ``(*batch, n_r)`` with each pose robot's quaternion signed nearest
+        its desired one in ``r_des`` (``q`` and ``-q`` are one attitude: the result is a
+        function of the attitude); a quaternion exactly orthogonal to its desired one keeps its
+        sign (``q . q_des < 0`` flips)."""
+        flat, owner = self._orientation
+        if not flat.size:
+            return m
         xp = common_namespace(m, r_des)
         r_des = xp.broadcast_to(r_des, m.shape)
-        m = self.layout.wind(m, r_des)
-        flat, owner = self._orientation
-        if flat.size:
-            q = xp.reshape(xp.take(m, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
-            qd = xp.reshape(xp.take(r_des, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
-            flip = xp.sum(q * qd, axis=-1) < 0.0
-            flip = xp.concatenate([flip, xp.zeros(flip.shape[:-1] + (1,), dtype=bool)], axis=-1)
-            m = xp.where(xp.take(flip, xp.asarray(owner), axis=-1), -m, m)
-        return _finite(xp, m - r_des)
+        q = xp.reshape(xp.take(m, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
+        qd = xp.reshape(xp.take(r_des, xp.asarray(flat), axis=-1), m.shape[:-1] + (-1, 4))
+        flip = xp.sum(q * qd, axis=-1) < 0.0
+        flip = xp.concatenate([flip, xp.zeros(flip.shape[:-1] + (1,), dtype=bool)], axis=-1)
+        return xp.where(xp.take(flip, xp.asarray(owner), axis=-1), -m, m)
+
+    def robot_error(self, m, r_des):
+        """The measured robots ``m`` minus their desired points ``(*batch, n_r)``, yaws wound
+        to within pi, a pose robot's quaternion signed nearest its desired one
+        (:meth:`signed`); 0 where not finite."""
+        xp = common_namespace(m, r_des)
+        r_des = xp.broadcast_to(r_des, m.shape)
+        return _finite(xp, self.layout.wind(self.signed(m, r_des), r_des) - r_des)
 
     def chart_error(self, m, r_des, c_des):
         """The description's error ``(*batch, n_c)`` of its forward map of the measured robots
@@ -466,11 +526,20 @@ class FormationCore:
     def observe(self, state: EnvState, params: EnvParams):
         """The observation ``(*batch, n_obs)`` (class docstring)."""
         xp = common_namespace(state.x)
-        m = self.measured(state)
+        e_c, e_r, m, frac = self.observed(state, params)
+        return bounded(xp, xp.concatenate([e_c, e_r, m, frac], axis=-1))
+
+    def observed(self, state: EnvState, params: EnvParams, chart: bool = True):
+        """What an observation reads: ``(e_c (*batch, n_c), e_r (*batch, n_r), m (*batch, n_r),
+        frac (*batch, 1))``, the chart error (:meth:`chart_error`; ``(*batch, 0)`` unless
+        ``chart``), the robots' errors (:meth:`robot_error`), the measured robots (each
+        quaternion :meth:`signed`, 0 where not finite) and the elapsed fraction ``k / (T - 1)``."""
+        xp = common_namespace(state.x)
         r_des, c_des = self.desired(state, params)
-        e_c, e_r = self.chart_error(m, r_des, c_des), self.robot_error(m, r_des)
+        m = self.signed(self.measured(state), r_des)
+        e_c = self.chart_error(m, r_des, c_des) if chart else xp.zeros(m.shape[:-1] + (0,))
         frac = xp.asarray(state.k, dtype=xp.float64)[..., None] / (self.T - 1)
-        return xp.clip(xp.concatenate([e_c, e_r, _finite(xp, m), frac], axis=-1), -OBS_BOUND, OBS_BOUND)
+        return e_c, self.robot_error(m, r_des), _finite(xp, m), frac
 
     def separations(self, x):
         """``(*batch, N, N)`` distances between the robots' positions (``inf`` on the diagonal), m."""
@@ -481,15 +550,32 @@ class FormationCore:
         return xp.where(eye, xp.inf, xp.sqrt(xp.where(eye, 1.0, d2)))
 
     @functools.cached_property
-    def _membership(self):
-        """One-hot ``(n_r, N)`` and ``(n_u, N)``: the robot of each point entry and command."""
+    def _groups(self):
+        """``(points (N, K_r), commands (N, K_u), owner (n_u,))``: each robot's point entries and
+        commands as indices, padded with the index one past the end (a padded 0 reads there),
+        and the robot of each command."""
         L, team = self.layout, self.team
-        points = np.zeros((self.n_r, L.n))
-        commands = np.zeros((self.n_u, L.n))
-        for i in range(L.n):
-            points[L.slice(i), i] = 1.0
-            commands[team.command_slices[i], i] = 1.0
-        return points, commands
+
+        def padded(slices, size):
+            width = max(s.stop - s.start for s in slices)
+            out = np.full((len(slices), width), size, dtype=np.intp)
+            for i, s in enumerate(slices):
+                out[i, :s.stop - s.start] = np.arange(s.start, s.stop)
+            return out
+
+        commands = padded(team.command_slices, self.n_u)
+        owner = np.zeros(self.n_u, dtype=np.intp)
+        for i, s in enumerate(team.command_slices):
+            owner[s] = i
+        return padded([L.slice(i) for i in range(L.n)], self.n_r), commands, owner
+
+    def _per_robot(self, v, index):
+        """``(*batch, N)``: the sum of ``v`` ``(*batch, n)`` over each robot's entries ``index``
+        (:attr:`_groups`)."""
+        xp = common_namespace(v)
+        v = xp.concatenate([v, xp.zeros(v.shape[:-1] + (1,), dtype=v.dtype)], axis=-1)
+        taken = xp.take(v, xp.asarray(index.ravel()), axis=-1)
+        return xp.sum(xp.reshape(taken, v.shape[:-1] + index.shape), axis=-1)
 
     def robot_terms(self, state: EnvState, u, params: EnvParams):
         """Each robot's reward terms ``(tracking, effort, separation)``, each ``(*batch, N)``, and
@@ -497,47 +583,70 @@ class FormationCore:
         against its desired point (yaws wound, rad counted as m), ``|u_i|^2`` of its commands,
         ``sum_j max(0, d_sep - d_ij)^2 / 2``; of the true state, 0 where not finite."""
         xp = common_namespace(state.x, u)
-        points, commands = self._membership
+        points, commands, _ = self._groups
         r_des, _ = self.desired(state, params)
         e_r = self.robot_error(_finite(xp, self.plant.output(state.x)), r_des)
         d = self.separations(_finite(xp, state.x))
         short = xp.maximum(params.separation_m - d, 0.0)  # the diagonal's inf: 0
-        return ((e_r * e_r) @ points, (_finite(xp, u) ** 2) @ commands, 0.5 * xp.sum(short * short, axis=-1), d, e_r)
+        return (self._per_robot(e_r * e_r, points), self._per_robot(_finite(xp, u) ** 2, commands),
+                0.5 * xp.sum(short * short, axis=-1), d, e_r)
 
-    def robot_rewards(self, state: EnvState, u, params: EnvParams):
-        """Each robot's reward ``(*batch, N)``: ``-(w_t tracking + w_e effort + w_s separation)``
-        (:meth:`robot_terms`), ``-loss_penalty`` where the loop failed or the state is not finite."""
-        xp = common_namespace(state.x, u)
-        tracking, effort, separation, _, _ = self.robot_terms(state, u, params)
-        w = params.weights
-        reward = -(w[0] * tracking + w[1] * effort + w[2] * separation)
-        ok = (xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0))[..., None] & xp.isfinite(reward)
-        return xp.where(ok, reward, -params.loss_penalty)
-
-    def judge(self, state: EnvState, u, params: EnvParams):
+    def judge(self, state: EnvState, u, params: EnvParams, bad_action=False):
         """``(reward, terminated, info)`` of the state a tick reached under the commands ``u``
-        (``docs/envs.md``): the reward is the robots' mean of :meth:`robot_rewards`
-        (``-loss_penalty`` where the loop failed or the state is not finite); the episode ends
-        on a collision (two robots nearer than ``collision_m``) or a loss (the loop's failure
-        code, a non-finite state, a root-mean-square position error beyond ``loss_m``)."""
+        (``docs/envs.md``). Robot ``i``'s reward is ``-(w_t tracking_i + w_e effort_i + w_s
+        separation_i)`` (:meth:`robot_terms`), ``-loss_penalty`` where the loop failed or the
+        state is not finite; the env's reward is the robots' mean; ``info["robot_rewards"]``
+        ``(*batch, N)`` holds each robot's (the PettingZoo agents'). The episode ends on a
+        collision (two robots nearer than ``collision_m``) or a loss (the loop's failure code, a
+        non-finite state, a NaN in the action (``bad_action``, :meth:`action_commands`), a
+        root-mean-square position error beyond ``loss_m``)."""
         xp = common_namespace(state.x, u)
         N = self.layout.n
         tracking, effort, separation, d, e_r = self.robot_terms(state, u, params)
-        finite = xp.all(xp.isfinite(state.x), axis=-1) & (state.reason == 0)
+        failed = ~xp.all(xp.isfinite(state.x), axis=-1) | (state.reason != 0) | bad_action
         w = params.weights
-        reward = -(w[0] * xp.sum(tracking, axis=-1) + w[1] * xp.sum(effort, axis=-1)
-                   + w[2] * xp.sum(separation, axis=-1)) / N
-        reward = xp.where(finite & xp.isfinite(reward), reward, -params.loss_penalty)
+        per = -(w[0] * tracking + w[1] * effort + w[2] * separation)
+        per = xp.where(~failed[..., None] & xp.isfinite(per), per, -params.loss_penalty)
         min_sep = xp.min(xp.reshape(d, d.shape[:-2] + (-1,)), axis=-1)
         pos = self.layout.position_index.ravel()
         pos = pos[pos < self.n_r]
         rms = xp.sqrt(xp.sum(xp.take(e_r, xp.asarray(pos), axis=-1) ** 2, axis=-1) / N)
         collided = min_sep < params.collision_m
-        lost = ~finite | (rms > params.loss_m)
+        lost = failed | (rms > params.loss_m)
         info = {"tracking": xp.sum(tracking, axis=-1) / N, "effort": xp.sum(effort, axis=-1) / N,
                 "separation": xp.sum(separation, axis=-1) / N, "min_separation_m": min_sep,
-                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u}
-        return reward, collided | lost, info
+                "position_rms_m": rms, "collided": collided, "lost": lost, "reason": state.reason, "commands": u,
+                "robot_rewards": per, "bad_action": xp.broadcast_to(xp.asarray(bad_action), failed.shape)}
+        return xp.sum(per, axis=-1) / N, collided | lost, info
+
+
+class Rebuilt:
+    """Pickling of an env by its constructor's arguments (``self._init``, ``(args, kwargs)``)
+    and its episode's state (the attributes named in ``_episode``): unpickling builds the env
+    again and restores that state, so an env pickles (a scenario's experiment holds closures
+    that do not) and ``copy.deepcopy`` copies its attributes as they are."""
+
+    _episode: tuple = ()
+
+    def __getstate__(self) -> dict:
+        out = {"_init": self._init, **{k: self.__dict__[k] for k in self._episode if k in self.__dict__}}
+        if self.params is not self.core.default_params:
+            out["params"] = self.params
+        return out
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        args, kwargs = state.pop("_init")
+        self.__init__(*args, **kwargs)
+        self.__dict__.update(state)
+
+    def __deepcopy__(self, memo):
+        import copy
+
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        new.__dict__.update(copy.deepcopy(self.__dict__, memo))
+        return new
 
 
 def _check_options(positive: bool = False, **values) -> None:
@@ -555,6 +664,33 @@ def _check_float64(xp) -> None:
     if xp is not np and xp.asarray(0.0).dtype != np.float64:  # a float's default dtype: no warning
         raise InvalidInputError("envs: the functional core runs in float64; on JAX call it inside "
                                 "jax.enable_x64(True) (or set jax.config.update('jax_enable_x64', True))")
+
+
+def host_action(action, shape: tuple, where: str) -> np.ndarray:
+    """The action of a host-side env as float64 ``shape``, or a one-line error: not numbers
+    (:class:`InvalidInputError`), another shape (:class:`ShapeError`), a NaN or infinite entry
+    (:class:`NonFiniteError`: a broken policy is refused, not stepped)."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: the action must be numbers of shape {shape}, got {short(action)}") \
+            from None
+    if a.shape != tuple(shape):
+        raise ShapeError(f"{where}: the action has shape {a.shape}; give an array of shape {tuple(shape)} in [-1, 1]")
+    if not np.all(np.isfinite(a)):
+        raise NonFiniteError(f"{where}: the action holds NaN or infinity at entries "
+                             f"{short(np.argwhere(~np.isfinite(a)).ravel().tolist())}; give finite numbers in [-1, 1]")
+    return a
+
+
+def _lead(xp, mask, a):
+    """``mask`` ``(*batch,)`` with ``a``'s trailing axes as ones (to select whole worlds)."""
+    return xp.reshape(mask, tuple(mask.shape) + (1,) * (xp.asarray(a).ndim - mask.ndim))
+
+
+def bounded(xp, obs):
+    """An observation's entries: 0 where not finite, clipped to ``[-OBS_BOUND, OBS_BOUND]``."""
+    return xp.clip(_finite(xp, obs), -OBS_BOUND, OBS_BOUND)
 
 
 def _finite(xp, a):
@@ -578,6 +714,13 @@ def functional(scenario, controller: str | None = None, *, action: str = "residu
         ``loss_penalty``, ``duration_s`` (an episode shorter than the scenario's), and
         ``min_separation`` (the team kind's barrier, m; 0: off).
     """
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise InvalidInputError(f"envs: unknown option {unknown[0]!r}{nearest(unknown[0], OPTIONS)}; the options are "
+                                f"{', '.join(OPTIONS)} (docs/envs.md)")
+    if controller is not None and not isinstance(controller, str):
+        raise InvalidInputError(f"envs: controller = {short(controller)} must be a controller's name (a string), "
+                                "e.g. 'quaternion'")
     sc = load_scenario(scenario) if isinstance(scenario, (str, bytes)) or hasattr(scenario, "__fspath__") \
         else scenario
     kind = kind_of(sc)

@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import MissingDependencyError
+from ..checks import short
+from ..errors import InvalidInputError, MissingDependencyError
 from ..sim.loop import tree_map
-from .core import OBS_BOUND, functional, split
+from .core import OBS_BOUND, Rebuilt, functional, host_action, split
 
 try:
     import gymnasium
@@ -49,7 +50,7 @@ def _info(info: dict) -> dict:
     return {k: np.asarray(v) for k, v in info.items()}
 
 
-class FormationEnv(gymnasium.Env):
+class FormationEnv(Rebuilt, gymnasium.Env):
     """One world of a team or network scenario (:func:`~.core.functional`'s arguments).
 
     Observation ``Box(-OBS_BOUND, OBS_BOUND, (n_obs,), float64)``, action ``Box(-1, 1, (n_u,), float64)``
@@ -58,9 +59,12 @@ class FormationEnv(gymnasium.Env):
     """
 
     metadata = {"render_modes": []}
+    _episode = ("_np_random", "_np_random_seed", "_key", "_state", "observation_space", "action_space")
 
     def __init__(self, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
                  action: str = "residual", render_mode=None, **options):
+        self._init = ((), dict(scenario=scenario, controller=controller, action=action, render_mode=render_mode,
+                               **options))
         self.core = functional(scenario, controller, action=action, **options)
         self.params = self.core.default_params
         self.observation_space, self.action_space = _spaces(self.core)
@@ -76,26 +80,36 @@ class FormationEnv(gymnasium.Env):
         return obs, {}
 
     def step(self, action):
+        if self._state is None:
+            raise InvalidInputError("FormationEnv.step: call reset() before step()")
         self._key, now = split(self._key)
-        a = np.asarray(action, dtype=np.float64).reshape(self.core.n_u)
+        a = host_action(action, (self.core.n_u,), "FormationEnv.step")
         obs, self._state, reward, terminated, truncated, info = self.core.step(now, self._state, a, self.params)
         return obs, float(reward), bool(terminated), bool(truncated), _info(info)
 
 
-class FormationVectorEnv(VectorEnv):
+class FormationVectorEnv(Rebuilt, VectorEnv):
     """``num_envs`` worlds of one scenario stepped as one batch by the functional core.
 
     Autoreset: gymnasium's next-step mode (``metadata["autoreset_mode"]``): the step after a
     world's episode ended resets it (its action is ignored; reward 0, not terminated, not
-    truncated). ``info`` holds each term as an array ``(num_envs,)`` with its ``_name`` mask.
+    truncated). ``info`` holds each term as an array ``(num_envs, ...)`` with its ``_name``
+    mask, as gymnasium's ``SyncVectorEnv`` batches single envs' infos: a world reset at this
+    step has no terms (mask False, entries 0); a step that resets every world has ``{}``.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    _episode = ("_rngs", "_keys", "_state", "_ended", "observation_space", "action_space", "single_observation_space",
+                "single_action_space")
 
     def __init__(self, num_envs: int = 1, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
                  action: str = "residual", render_mode=None, **options):
+        self._init = ((), dict(num_envs=num_envs, scenario=scenario, controller=controller, action=action,
+                               render_mode=render_mode, **options))
         self.core = functional(scenario, controller, action=action, **options)
         self.params = self.core.default_params
+        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
+            raise InvalidInputError(f"FormationVectorEnv: num_envs = {short(num_envs)} must be a whole number >= 1")
         self.num_envs = int(num_envs)
         self.single_observation_space, self.single_action_space = _spaces(self.core)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -104,6 +118,20 @@ class FormationVectorEnv(VectorEnv):
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
         self._keys = self._state = None
         self._ended = np.zeros(self.num_envs, dtype=bool)
+
+    def _seeds(self, seed) -> list:
+        """The worlds' seeds of ``reset(seed=...)``: ``seed + i`` of a whole number, or one per
+        world (whole numbers or ``None``), else a one-line error."""
+        def whole(s):
+            return isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0
+
+        if whole(seed):
+            return [int(seed) + i for i in range(self.num_envs)]
+        seeds = list(seed) if isinstance(seed, (list, tuple, np.ndarray)) else None
+        if seeds is None or len(seeds) != self.num_envs or not all(s is None or whole(s) for s in seeds):
+            raise InvalidInputError(f"FormationVectorEnv.reset: seed = {short(seed)} must be a whole number >= 0 or "
+                                    f"{self.num_envs} of them (one per world, None for an unseeded one)")
+        return [None if s is None else int(s) for s in seeds]
 
     def _draw(self, which) -> np.ndarray:
         """New episode keys ``(num_envs, 2)`` of the worlds ``which`` (bool) from their generators."""
@@ -114,8 +142,7 @@ class FormationVectorEnv(VectorEnv):
 
     def reset(self, *, seed=None, options=None):
         if seed is not None:
-            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else list(seed)
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+            self._rngs = [seeding.np_random(s)[0] for s in self._seeds(seed)]
         self._keys = self._draw(np.ones(self.num_envs, dtype=bool))
         self._keys, first = split(self._keys)
         obs, self._state = self.core.reset(first, self.params)
@@ -123,8 +150,10 @@ class FormationVectorEnv(VectorEnv):
         return obs, {}
 
     def step(self, actions):
+        if self._state is None:
+            raise InvalidInputError("FormationVectorEnv.step: call reset() before step()")
         self._keys, now = split(self._keys)
-        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, self.core.n_u)
+        a = host_action(actions, (self.num_envs, self.core.n_u), "FormationVectorEnv.step")
         obs, state, reward, terminated, truncated, info = self.core.step(now, self._state, a, self.params)
         ended = self._ended
         if ended.any():  # next-step autoreset: these worlds start again
@@ -138,8 +167,9 @@ class FormationVectorEnv(VectorEnv):
         self._state = state
         self._ended = np.asarray(terminated | truncated)
         out = {}
-        for k, v in _info(info).items():
-            out[k], out["_" + k] = v, np.ones(self.num_envs, dtype=bool)
+        if not ended.all():  # gymnasium's SyncVectorEnv: a reset world's info is its reset's ({})
+            for k, v in _info(info).items():
+                out[k], out["_" + k] = _select(ended, np.zeros_like(v), v), ~ended
         return obs, np.asarray(reward, dtype=np.float64), np.asarray(terminated), np.asarray(truncated), out
 
 

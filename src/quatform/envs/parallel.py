@@ -23,9 +23,10 @@ import functools
 
 import numpy as np
 
+from ..checks import short
 from ..errors import InvalidInputError, MissingDependencyError
 from ..formations.team_chart import team_positions
-from .core import OBS_BOUND, functional, split
+from .core import OBS_BOUND, Rebuilt, bounded, functional, host_action, split
 
 try:
     import gymnasium
@@ -37,15 +38,18 @@ except ImportError:
 __all__ = ["FormationParallelEnv"]
 
 
-class FormationParallelEnv(ParallelEnv):
+class FormationParallelEnv(Rebuilt, ParallelEnv):
     """One agent per robot of a team or network scenario (module docstring; the arguments of
     :func:`~.core.functional`, and ``neighbours``: how many nearest robots a team scenario's
     agent observes)."""
 
     metadata = {"render_modes": [], "name": "quatform_formation_v0", "is_parallelizable": True}
+    _episode = ("_rng", "_key", "_state", "agents", "_spaces")
 
     def __init__(self, scenario: str = "team-tetrahedron-helix", controller: str | None = None,
-                 action: str = "residual", neighbours: int = 3, render_mode=None, **options):
+                 action: str = "residual", neighbours: int | None = None, render_mode=None, **options):
+        self._init = ((), dict(scenario=scenario, controller=controller, action=action, neighbours=neighbours,
+                               render_mode=render_mode, **options))
         self.core = core = functional(scenario, controller, action=action, **options)
         self.params = core.default_params
         team, L = core.team, core.layout
@@ -55,26 +59,42 @@ class FormationParallelEnv(ParallelEnv):
         base = core.controller.base
         self.networked = hasattr(base, "received") and hasattr(base, "links")
         if self.networked:
+            if neighbours is not None:
+                raise InvalidInputError(f"parallel_env: neighbours = {short(neighbours)} is for a team scenario; a "
+                                        "network scenario's agent observes its in-neighbours of the graph (drop it)")
             self.slots = int(base.slot_weights.shape[-1])  # the largest in-degree
         else:
-            if not (isinstance(neighbours, int) and neighbours >= 1):
-                raise InvalidInputError(f"parallel_env: neighbours = {neighbours!r} must be a whole number >= 1")
-            self.slots = min(neighbours, L.n - 1)
+            neighbours = 3 if neighbours is None else neighbours
+            if not (isinstance(neighbours, (int, np.integer)) and not isinstance(neighbours, bool) and neighbours >= 1):
+                raise InvalidInputError(f"parallel_env: neighbours = {short(neighbours)} must be a whole number >= 1")
+            self.slots = min(int(neighbours), L.n - 1)
         self._points = [np.arange(L.slice(i).start, L.slice(i).stop) for i in range(L.n)]
         self._commands = [np.arange(s.start, s.stop) for s in team.command_slices]
         self._key = self._state = None
 
-    # -- spaces (one object per agent: a seeded space stays seeded) --------------------------
-    @functools.lru_cache(maxsize=None)
-    def observation_space(self, agent):
-        i = self.possible_agents.index(agent)
-        n = 2 * len(self._points[i]) + 5 * self.slots + 1
-        return gymnasium.spaces.Box(-OBS_BOUND, OBS_BOUND, (n,), np.float64)
+    # -- spaces (one object per agent, held by the env: a seeded space stays seeded) -----------
+    @functools.cached_property
+    def _spaces(self) -> dict:
+        """``{agent: (observation space, action space)}`` of this env (built once, freed with it)."""
+        out = {}
+        for i, agent in enumerate(self.possible_agents):
+            n = 2 * len(self._points[i]) + 5 * self.slots + 1
+            out[agent] = (gymnasium.spaces.Box(-OBS_BOUND, OBS_BOUND, (n,), np.float64),
+                          gymnasium.spaces.Box(-1.0, 1.0, (len(self._commands[i]),), np.float64))
+        return out
 
-    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return self._spaces[self._agent(agent)][0]
+
     def action_space(self, agent):
-        i = self.possible_agents.index(agent)
-        return gymnasium.spaces.Box(-1.0, 1.0, (len(self._commands[i]),), np.float64)
+        return self._spaces[self._agent(agent)][1]
+
+    def _agent(self, agent) -> str:
+        """``agent`` if it is one of this env's, else a one-line error."""
+        if not isinstance(agent, str) or agent not in self._spaces:
+            raise InvalidInputError(f"parallel_env: no agent {short(agent)}; the agents are robot_0 .. "
+                                    f"robot_{len(self.possible_agents) - 1}")
+        return agent
 
     # -- the episode ------------------------------------------------------------------------
     def reset(self, seed=None, options=None):
@@ -86,15 +106,18 @@ class FormationParallelEnv(ParallelEnv):
         return self._observe(), {a: {} for a in self.agents}
 
     def step(self, actions):
+        if self._state is None:
+            raise InvalidInputError("parallel_env.step: call reset() before step()")
         if not self.agents:
             return {}, {}, {}, {}, {}
         u = np.zeros(self.core.n_u)
         for a, act in actions.items():
-            u[self._commands[self.possible_agents.index(a)]] = np.asarray(act, dtype=float).ravel()
+            cols = self._commands[self.possible_agents.index(self._agent(a))]
+            u[cols] = host_action(act, (len(cols),), f"parallel_env.step: {a}")
         self._key, now = split(self._key)
         _, state, _, terminated, truncated, info = self.core.step(now, self._state, u, self.params)
         self._state = state
-        per = self.core.robot_rewards(state, info["commands"], self.params)
+        per = info["robot_rewards"]
         rewards = {a: float(per[i]) for i, a in enumerate(self.possible_agents)}
         obs = self._observe()
         done_t, done_tr = bool(terminated), bool(truncated)
@@ -131,14 +154,10 @@ class FormationParallelEnv(ParallelEnv):
 
     def _observe(self) -> dict:
         core, state = self.core, self._state
-        m = core.measured(state)
-        r_des, _ = core.desired(state, self.params)
-        e_r = core.robot_error(m, r_des)
-        rows = self._neighbours(state, np.where(np.isfinite(m), m, 0.0))
-        frac = float(state.k) / (core.T - 1)
-        m = np.where(np.isfinite(m), m, 0.0)
-        return {a: np.clip(np.concatenate([m[self._points[i]], e_r[self._points[i]], rows[i].ravel(), [frac]]),
-                           -OBS_BOUND, OBS_BOUND) for i, a in enumerate(self.possible_agents)}
+        _, e_r, m, frac = core.observed(state, self.params, chart=False)
+        rows = self._neighbours(state, m)
+        return {a: bounded(np, np.concatenate([m[self._points[i]], e_r[self._points[i]], rows[i].ravel(), frac]))
+                for i, a in enumerate(self.possible_agents)}
 
     def state(self):
         """The plant state of every robot ``(n_x,)`` (the global state)."""
