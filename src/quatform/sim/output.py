@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import OutputWriteError
 
-__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
+__all__ = ["atomic_file", "atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
            "WRITE_FAILURES", "writing", "write_failures"]
 
 
@@ -103,24 +103,34 @@ def write_failures(folder, staged=None):
 
 # --------------------------------------------------------------------------- atomic files
 
-def atomic_write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary sibling file renamed into place.
+@contextlib.contextmanager
+def atomic_file(path, mode: str = "wb"):
+    """Open a temporary sibling of ``path`` for writing (``mode``: ``"wb"``, or ``"w"``: UTF-8
+    text, no newline translation) and rename it into place when the block ends.
 
     A reader (or a run cut off half-way) sees the old file or the whole new one, never a
-    truncated one; the temporary file is removed on any error, KeyboardInterrupt included.
+    truncated one; the temporary file (``.NAME.tmp-PID``, hidden) is removed on any error,
+    KeyboardInterrupt included.
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    text = "b" not in mode
     try:
-        with writing(path), open(tmp, "wb") as f:
-            f.write(data)
+        with writing(path), open(tmp, mode, **({"encoding": "utf-8", "newline": ""} if text else {})) as f:
+            yield f
         with writing(path):
             os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
-    return path
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through :func:`atomic_file`."""
+    with atomic_file(path) as f:
+        f.write(data)
+    return Path(path)
 
 
 def atomic_write_text(path, text: str) -> Path:
