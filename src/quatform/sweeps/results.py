@@ -25,7 +25,7 @@ from ..errors import InvalidInputError
 from ..sim.output import OUTPUT_MARKER, atomic_file, atomic_write_text
 from .spec import RESULTS
 
-__all__ = ["ChunkStore", "summarize", "summarize_blocks", "summarize_shards", "write_table", "ordered_rows",
+__all__ = ["ChunkStore", "summarize", "summarize_blocks", "summarize_shards", "write_table", "write_csv", "ordered_rows",
            "SPEC_FILE", "CSV_MAX_TRIALS", "results_mode", "metric_values", "shard_metric_values"]
 
 #: The spec's identity in the output folder.
@@ -155,6 +155,17 @@ def _cell(v) -> str:
     return str(v)
 
 
+def write_csv(path, columns: list[str], rows) -> Path:
+    """``rows`` (an iterable of row dicts) as CSV with ``columns`` at ``path``, atomically, a row
+    at a time (a float by its ``repr``: exact; None: empty)."""
+    with atomic_file(path, "w") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([_cell(r.get(c)) for c in columns])
+    return Path(path)
+
+
 def write_table(folder, stem: str, rows, columns: list[str] | None = None) -> list[Path]:
     """``stem.csv`` and ``stem.json`` of ``rows`` in ``folder`` (atomic writes, a row at a time).
 
@@ -165,11 +176,7 @@ def write_table(folder, stem: str, rows, columns: list[str] | None = None) -> li
         columns, listed = _columns(rows), rows
         rows = lambda: listed  # noqa: E731
     folder = Path(folder)
-    with atomic_file(folder / f"{stem}.csv", "w") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(columns)
-        for r in rows():
-            w.writerow([_cell(r.get(c)) for c in columns])
+    write_csv(folder / f"{stem}.csv", columns, rows())
     # the bytes of json.dumps({"columns": ..., "rows": ...}, indent=1), a row at a time
     with atomic_file(folder / f"{stem}.json", "w") as f:
         f.write('{\n "columns": ' + json.dumps(columns, indent=1).replace("\n", "\n ") + ',\n "rows": [')

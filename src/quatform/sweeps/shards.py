@@ -106,15 +106,19 @@ def _encoding(pa, pc, column) -> str | None:
     return None
 
 
-def write_shard(path, table) -> Path:
+def write_shard(path, table, statistics=()) -> Path:
     """Write ``table`` to ``path`` atomically, each column encoded by its values (:func:`_encoding`),
-    zstd-compressed."""
+    zstd-compressed; min/max statistics for the columns ``statistics`` only (a reader's filters
+    on the cell, the parameters and the outcome skip shards by them; a metric's would cost a
+    shard about 40 B a column). The Parquet schema alone describes the columns (no Arrow
+    schema copy in the footer: the types read back are the same)."""
     pa, pq, pc = require_pyarrow()
     how = {f.name: _encoding(pa, pc, c) for f, c in zip(table.schema, table.columns)}
     with atomic_file(path) as f:
         pq.write_table(table, f, compression="zstd", compression_level=ZSTD_LEVEL, data_page_version="2.0",
                        use_dictionary=[k for k, v in how.items() if v == "dictionary"],
-                       column_encoding={k: v for k, v in how.items() if v not in (None, "dictionary")})
+                       column_encoding={k: v for k, v in how.items() if v not in (None, "dictionary")},
+                       store_schema=False, write_statistics=[n for n in table.column_names if n in statistics])
     return Path(path)
 
 
@@ -200,7 +204,7 @@ class ShardStore:
         self.schema = schema
         self.finish()  # the stored shards to a widened schema
         p = self.path(chunk)
-        write_shard(p, _cast(table, schema))
+        write_shard(p, _cast(table, schema), (*self.leading, *TRAILING))
         self._stored[p] = schema
 
     def finish(self) -> None:
@@ -209,7 +213,7 @@ class ShardStore:
         _, pq, _ = require_pyarrow()
         for p, schema in sorted(self._stored.items()):
             if not schema.equals(self.schema):
-                write_shard(p, _cast(pq.read_table(p), self.schema))
+                write_shard(p, _cast(pq.read_table(p), self.schema), (*self.leading, *TRAILING))
                 self._stored[p] = self.schema
 
     def _merged(self, schema):
