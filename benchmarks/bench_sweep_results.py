@@ -10,7 +10,10 @@ values:
   and the parameters, every metric of a cell without noise or initial error, whose trials are
   identical) is that value in every trial;
 * a varying float metric is drawn from the log-normal (all positive) or normal of the cell's
-  sampled values (continuous: every bit of the mantissa varies, as in the real rows);
+  sampled values (continuous: every bit of the mantissa varies, as in the real rows), rounded
+  to d decimals where every sampled value is within 1e-9 of d decimals (d <= 3: the times of
+  control ticks, such as ``first_lost_time_s``; the real ones may carry float noise in their
+  last digits, which only makes their CSV text longer);
 * a varying whole number uniformly between the cell's sampled least and most, a varying flag
   with the cell's sampled rate, a varying word (or null) from the cell's sampled ones;
 * ``trial`` counts up, ``seed`` is the spec's.
@@ -67,9 +70,12 @@ def _model(vals, rng):
         x = np.asarray(real, dtype=float)
         if np.all(x > 0) and np.all(np.isfinite(x)):
             mu, sd = np.log(x).mean(), max(np.log(x).std(), 1e-3)
-            draw = lambda n: np.exp(rng.normal(mu, sd, n))  # noqa: E731
+            cont = lambda n: np.exp(rng.normal(mu, sd, n))  # noqa: E731
         else:
-            draw = lambda n: rng.normal(x.mean(), max(x.std(), 1e-12), n)  # noqa: E731
+            cont = lambda n: rng.normal(x.mean(), max(x.std(), 1e-12), n)  # noqa: E731
+        d = next((d for d in range(4) if np.all(np.abs(x - np.round(x, d)) <= 1e-9 * np.maximum(1, np.abs(x)))),
+                 None)
+        draw = cont if d is None else (lambda n: np.round(cont(n), d))
     elif kinds == {int}:
         lo, hi = min(real), max(real)
         draw = lambda n: rng.integers(lo, hi + 1, n)  # noqa: E731
@@ -95,7 +101,7 @@ def _replica(spec, sample: list[dict], rows: int, chunk: int, seed: int = 0):
     for r in sample:
         by_cell.setdefault(r["cell"], []).append(r)
     cells = sorted(by_cell)
-    per_cell = rows // len(cells)
+    per_cell = -(-rows // len(cells))
     columns = list(dict.fromkeys(k for r in sample for k in r))
     for cell in cells:
         rs = by_cell[cell]
@@ -109,7 +115,7 @@ def _replica(spec, sample: list[dict], rows: int, chunk: int, seed: int = 0):
 _MEASURE = r"""
 import csv, json, sys
 from pathlib import Path
-import numpy as np, pyarrow
+import numpy as np, pyarrow, pyarrow.compute, pyarrow.parquet
 from quatform.sweeps import load_sweep
 from quatform.sweeps.results import summarize, summarize_shards
 what, out, name, trials = sys.argv[1], Path(sys.argv[2]), sys.argv[3], int(sys.argv[4])
@@ -174,7 +180,7 @@ def main(argv=None) -> int:
     run_sweep(small, root / "sample", quiet=True, plots=False, results="csv")
     sample = json.loads((root / "sample" / "results.json").read_text())["rows"]
     cells = len(small.cells())
-    per_cell = args.rows // cells
+    per_cell = -(-args.rows // cells)
     print(f"{args.sweep}: {cells} cells, {len(sample)} real trials sampled ({time.perf_counter() - t0:.0f} s); "
           f"replica: {cells} x {per_cell} = {cells * per_cell:,} rows, {len(sample[0])} columns, "
           f"shards of {args.chunk_trials} rows")
