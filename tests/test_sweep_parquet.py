@@ -187,7 +187,7 @@ def test_a_sweep_killed_mid_run_resumes_to_identical_rows(tmp_path):
     cmd = [sys.executable, "-m", "quatform.cli", "sweep", str(spec), "--no-plots", "--results", "parquet"]
     proc = subprocess.Popen([*cmd, "--out", str(out)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
-    while not any((out / "trials").glob("part-*.parquet")) if (out / "trials").is_dir() else True:
+    while not list((out / "trials").glob("part-*.parquet")):  # no folder yet: no files
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
         time.sleep(0.005)
     proc.send_signal(signal.SIGKILL)

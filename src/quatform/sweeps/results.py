@@ -47,10 +47,13 @@ def results_mode(spec, given: str | None = None) -> str:
 
 
 class ChunkStore:
-    """The finished chunks of one sweep in ``out/chunks/``.
+    """The finished chunks of one sweep: rows in ``out/chunks/*.json``, or with ``shards`` the
+    Parquet shards of :class:`~quatform.sweeps.shards.ShardStore` (``out/trials/``; ``load`` then
+    gives a chunk's row count, and ``shards`` is that store).
 
-    Opening refuses a folder that holds another spec's sweep, or files that are not a sweep's;
-    the folder and its ``sweep.json`` are made when the first chunk is saved.
+    Opening refuses a folder that holds another spec's or backend's sweep, the other store, or
+    files that are not a sweep's; the folder and its ``sweep.json`` are made when the first
+    chunk is saved.
     """
 
     def __init__(self, out, spec, backend: str, shards: bool = False):

@@ -201,8 +201,10 @@ class ShardStore:
         table = _table(rows)
         schema = self._merged(table.schema)
         self.folder.mkdir(parents=True, exist_ok=True)
+        widened = self.schema is not None and not schema.equals(self.schema)
         self.schema = schema
-        self.finish()  # the stored shards to a widened schema
+        if widened:
+            self.finish()  # the stored shards to the widened schema
         p = self.path(chunk)
         write_shard(p, _cast(table, schema), (*self.leading, *TRAILING))
         self._stored[p] = schema
