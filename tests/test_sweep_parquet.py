@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from quatform.cli import main
 from quatform.errors import InvalidInputError, MissingDependencyError
 from quatform.sweeps import load_sweep, run_sweep
+from quatform.sim.output import remove_dead_temporaries
 from quatform.sweeps.results import summarize, summarize_blocks, write_table
 from quatform.sweeps.trials import Chunk
 
@@ -234,6 +235,11 @@ def test_a_write_cut_off_leaves_no_shard_and_the_chunk_runs_again(tmp_path, monk
     assert shards.ShardStore(out, ("cell",)).load(ch) is None
     store.save(ch, rows)
     assert shards.ShardStore(out, ("cell",)).load(ch) == 2
+    dead, alive = (out / "trials" / f".part-00001-000000.parquet.tmp-{pid}" for pid in (2**22 + 12345, os.getppid()))
+    dead.write_bytes(b"PAR1")
+    alive.write_bytes(b"PAR1")
+    remove_dead_temporaries(out / "trials", "part-*.parquet")  # what a rerun's store does first
+    assert not dead.exists() and alive.exists()
 
 
 def test_a_later_chunk_widens_the_stored_shards(tmp_path):

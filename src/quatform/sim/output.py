@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import OutputWriteError
 
-__all__ = ["atomic_file", "atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
+__all__ = ["atomic_file", "remove_dead_temporaries", "atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
            "WRITE_FAILURES", "writing", "write_failures"]
 
 
@@ -124,6 +124,19 @@ def atomic_file(path, mode: str = "wb"):
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def remove_dead_temporaries(folder, stem: str = "*") -> None:
+    """Remove the temporary files :func:`atomic_file` left in ``folder`` for files named
+    ``stem`` (a glob) by processes no longer running (a run killed with no clean-up)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    for p in folder.glob(f".{stem}.tmp-*"):
+        pid = p.name.rsplit("-", 1)[-1]
+        if pid.isdigit() and int(pid) != os.getpid() and not _pid_alive(int(pid)):
+            with contextlib.suppress(OSError):
+                p.unlink()
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..sim.output import OUTPUT_MARKER, atomic_file, atomic_write_text
+from ..sim.output import OUTPUT_MARKER, atomic_file, atomic_write_text, remove_dead_temporaries
 from .spec import RESULTS
 
 __all__ = ["ChunkStore", "summarize", "summarize_blocks", "summarize_shards", "write_table", "write_csv", "ordered_rows",
@@ -89,10 +89,10 @@ class ChunkStore:
         self._ident, self._meta = ident, meta  # written with the first chunk: a sweep refused before it
         # (a [success] metric it does not compute) leaves no folder that locks --out to that spec
         if shards:
-            from .shards import ShardStore, remove_stale_temporaries
+            from .shards import SHARD_FOLDER, ShardStore
 
             self.shards = ShardStore(self.out, leading_columns(spec))
-            remove_stale_temporaries(self.out)
+            remove_dead_temporaries(self.out / SHARD_FOLDER, "part-*.parquet")
 
     def path(self, chunk) -> Path:
         return self.folder / f"{chunk.key}.json"

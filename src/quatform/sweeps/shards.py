@@ -23,16 +23,15 @@ pyarrow is optional (``pip install -e ".[dask]"``), imported only here.
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InvalidInputError, MissingDependencyError
-from ..sim.output import _pid_alive, atomic_file
+from ..sim.output import atomic_file
 
 __all__ = ["SHARD_FOLDER", "INSTALL_HINT", "require_pyarrow", "ShardStore", "shard_paths", "shard_batches",
-           "shard_rows", "shard_columns", "float_column", "remove_stale_temporaries", "write_shard", "ZSTD_LEVEL",
+           "shard_rows", "shard_columns", "float_column", "write_shard", "ZSTD_LEVEL",
            "DICTIONARY_FRACTION", "TRAILING"]
 
 #: The shards' folder in the sweep's output.
@@ -244,18 +243,6 @@ def _cast(table, schema):
     cols = [table.column(f.name).cast(f.type) if f.name in table.column_names else pa.nulls(n, f.type)
             for f in schema]
     return pa.Table.from_arrays(cols, schema=schema)
-
-
-def remove_stale_temporaries(out) -> None:
-    """Remove the hidden temporary shards (``.part-*.tmp-PID``) of processes no longer running."""
-    folder = Path(out) / SHARD_FOLDER
-    if not folder.is_dir():
-        return
-    for p in folder.glob(".part-*.tmp-*"):
-        pid = p.name.rsplit("-", 1)[-1]
-        if pid.isdigit() and not _pid_alive(int(pid)):
-            with contextlib.suppress(OSError):
-                p.unlink()
 
 
 def float_column(batch, name: str) -> np.ndarray:
