@@ -133,6 +133,27 @@ def test_the_streamed_summary_equals_the_rows_in_memory(runs):
     assert summary == summarize(spec, rows)
 
 
+def test_the_summary_reads_a_few_columns_a_batch_at_a_time(runs, monkeypatch):
+    """One row per batch (a cell split over many batches) and only the columns it needs: the
+    same summary."""
+    from quatform.sweeps import shards
+    from quatform.sweeps.results import summarize_shards
+
+    spec, _, both = runs
+    whole = summarize_shards(spec, both)
+    asked = []
+    real = shards.shard_batches
+
+    def one_row(out, columns=None):
+        asked.append(columns)
+        yield from real(out, columns)
+
+    monkeypatch.setattr(shards, "BATCH_ROWS", 1)
+    monkeypatch.setattr(shards, "shard_batches", one_row)
+    assert summarize_shards(spec, both) == whole
+    assert asked == [["cell", "failed", "lost", "success", *spec.success.below]]
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 3), st.booleans(), st.booleans(),
                           st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True, width=64),
