@@ -100,6 +100,8 @@ def test_both_writes_the_csv_runs_tables_byte_for_byte(runs):
     _, csv_out, both = runs
     for name in ("results.csv", "results.json", "summary.csv", "summary.json"):
         assert (both / name).read_bytes() == (csv_out / name).read_bytes(), name
+    assert {"errors_max_orientation_error_rad.png", "heatmap_noise_m_initial_offset_rad.png"} <= \
+        {p.name for p in (both / "figures").iterdir()}  # drawn from the shards
 
 
 def _frame_rows(columns, records) -> list[dict]:
