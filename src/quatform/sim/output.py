@@ -21,8 +21,8 @@ from pathlib import Path
 
 from ..errors import OutputWriteError
 
-__all__ = ["atomic_file", "remove_dead_temporaries", "atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
-           "WRITE_FAILURES", "writing", "write_failures"]
+__all__ = ["atomic_file", "remove_dead_temporaries", "atomic_write_text", "atomic_write_bytes", "staged_dir",
+           "check_inputs_outside", "OUTPUT_MARKER", "WRITE_FAILURES", "writing", "write_failures"]
 
 
 # --------------------------------------------------------------------------- write failures

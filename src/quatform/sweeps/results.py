@@ -25,8 +25,9 @@ from ..errors import InvalidInputError
 from ..sim.output import OUTPUT_MARKER, atomic_file, atomic_write_text, remove_dead_temporaries
 from .spec import RESULTS
 
-__all__ = ["ChunkStore", "summarize", "summarize_blocks", "summarize_shards", "write_table", "write_csv", "ordered_rows",
-           "SPEC_FILE", "CSV_MAX_TRIALS", "results_mode", "metric_values", "shard_metric_values"]
+__all__ = ["ChunkStore", "summarize", "summarize_blocks", "summarize_shards", "write_table", "write_csv",
+           "ordered_rows", "SPEC_FILE", "CSV_MAX_TRIALS", "results_mode", "metric_values", "shard_metric_values",
+           "leading_columns"]
 
 #: The spec's identity in the output folder.
 SPEC_FILE = "sweep.json"
