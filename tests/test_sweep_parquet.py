@@ -113,6 +113,9 @@ def test_pandas_polars_and_dask_read_the_csvs_rows(runs):
     want = _csv_rows(csv_out / "results.csv")
     folder = both / "trials"
     pd = pytest.importorskip("pandas")
+    plain = pd.read_parquet(folder)  # NumPy dtypes: a null float reads as NaN
+    assert list(plain.columns) == list(want[0]) and len(plain) == len(want)
+    assert [repr(v) for v in plain["max_orientation_error_rad"]] == [r["max_orientation_error_rad"] for r in want]
     df = pd.read_parquet(folder, dtype_backend="pyarrow")  # null apart from NaN
     assert _frame_rows(df.columns, ([None if v is pd.NA else v for v in r] for r in df.itertuples(index=False))) \
         == want
