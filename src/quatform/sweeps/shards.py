@@ -16,7 +16,7 @@ int64 column) rewrites the stored shards to the widened schema, so the schema at
 depends on the trials' values only, not on which chunk finished first. Values are exact:
 each column chunk is encoded by what its values are (few distinct values: a dictionary of
 run-length-coded indices; whole numbers: delta; floats: byte-stream split; booleans:
-run-length), then compressed with zstd.
+run-length), then compressed with zstd (level 19 for the split floats, 3 for the rest).
 
 pyarrow is optional (``pip install -e ".[dask]"``), imported only here.
 """
@@ -31,14 +31,17 @@ from ..errors import InvalidInputError, MissingDependencyError
 from ..sim.output import atomic_file
 
 __all__ = ["SHARD_FOLDER", "INSTALL_HINT", "require_pyarrow", "ShardStore", "shard_paths", "shard_batches",
-           "shard_rows", "shard_columns", "float_column", "write_shard", "ZSTD_LEVEL",
+           "shard_rows", "shard_columns", "float_column", "write_shard", "ZSTD_LEVEL", "FLOAT_ZSTD_LEVEL",
            "DICTIONARY_FRACTION", "TRAILING"]
 
 #: The shards' folder in the sweep's output.
 SHARD_FOLDER = "trials"
 INSTALL_HINT = 'pip install -e ".[dask]"'
-#: zstd level of the shards (3: the library's default trade of time for size).
+#: zstd level of the shards' columns (3: the library's default trade of time for size) ...
 ZSTD_LEVEL = 3
+#: ... and of their byte-stream-split floats, whose noisy low bytes level 19 packs 3-5 % tighter
+#: (measured on the ugv-uav sweep's 10^6-row replica: 51.0 -> 49.3 B a row, for 2.5 CPU s more).
+FLOAT_ZSTD_LEVEL = 19
 #: A numeric column chunk is dictionary-encoded when its distinct values are at most this
 #: fraction of its rows (the parameters, the constant metrics, the clean cells' repeated
 #: values); otherwise floats are byte-stream split and whole numbers delta-coded.
@@ -114,7 +117,9 @@ def write_shard(path, table, statistics=()) -> Path:
     pa, pq, pc = require_pyarrow()
     how = {f.name: _encoding(pa, pc, c) for f, c in zip(table.schema, table.columns)}
     with atomic_file(path) as f:
-        pq.write_table(table, f, compression="zstd", compression_level=ZSTD_LEVEL, data_page_version="2.0",
+        pq.write_table(table, f, compression="zstd", data_page_version="2.0",
+                       compression_level={k: FLOAT_ZSTD_LEVEL if v == "BYTE_STREAM_SPLIT" else ZSTD_LEVEL
+                                          for k, v in how.items()},
                        use_dictionary=[k for k, v in how.items() if v == "dictionary"],
                        column_encoding={k: v for k, v in how.items() if v not in (None, "dictionary")},
                        store_schema=False, write_statistics=[n for n in table.column_names if n in statistics])
