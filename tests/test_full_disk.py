@@ -148,7 +148,7 @@ def test_a_full_disk_leaves_a_previous_run_as_it_was(tmp_path, capsys, full_disk
 
 
 @pytest.mark.parametrize("match, named", [("sweep.json", "sweep.json"), ("results.csv", "results.csv"),
-                                           (".png", ".png")])
+                                           (".png", ".png"), ("part-", "part-00000-000000.parquet")])
 def test_a_sweep_on_a_full_disk_names_the_folder_and_keeps_only_whole_files(tmp_path, capsys, full_disk, match,
                                                                             named):
     spec = tmp_path / "tiny.toml"
@@ -156,7 +156,10 @@ def test_a_sweep_on_a_full_disk_names_the_folder_and_keeps_only_whole_files(tmp_
     out = tmp_path / "out"
     full_disk(match)
     plots = [] if match == ".png" else ["--no-plots"]
-    assert cli.main(["sweep", str(spec), "--out", str(out), "--quiet", *plots]) == 1
+    shards = ["--results", "parquet"] if match == "part-" else []  # a Parquet shard (pyarrow)
+    if shards:
+        pytest.importorskip("pyarrow")
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--quiet", *plots, *shards]) == 1
     assert _refused(capsys, out).endswith(named)
     left = [p for p in tmp_path.rglob("*") if ".tmp-" in p.name or ".partial" in p.name]
     assert left == []  # finished chunks may stay (a rerun resumes them), never a half-written file

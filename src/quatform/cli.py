@@ -568,7 +568,8 @@ def main(argv: list[str] | None = None) -> int:
         with _sigint_ignored():  # a second Ctrl-C while saying so must not end the process by the signal
             out = getattr(args, "out", None)
             if getattr(args, "command", None) == "sweep" and out:  # a sweep keeps its finished chunks
-                _say(f"{why}; the chunks finished so far are kept in {out}/chunks and no table was "
+                kept = "trials" if os.path.isdir(os.path.join(out, "trials")) else "chunks"  # Parquet shards or JSON
+                _say(f"{why}; the chunks finished so far are kept in {out}/{kept} and no table was "
                      "written: rerun the same command to resume")
             else:
                 _say(why + (f"; {out} left as it was, no partial files written" if out else ""))

@@ -21,8 +21,8 @@ from pathlib import Path
 
 from ..errors import OutputWriteError
 
-__all__ = ["atomic_write_text", "atomic_write_bytes", "staged_dir", "check_inputs_outside", "OUTPUT_MARKER",
-           "WRITE_FAILURES", "writing", "write_failures"]
+__all__ = ["atomic_file", "remove_dead_temporaries", "atomic_write_text", "atomic_write_bytes", "staged_dir",
+           "check_inputs_outside", "OUTPUT_MARKER", "WRITE_FAILURES", "writing", "write_failures"]
 
 
 # --------------------------------------------------------------------------- write failures
@@ -103,24 +103,47 @@ def write_failures(folder, staged=None):
 
 # --------------------------------------------------------------------------- atomic files
 
-def atomic_write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary sibling file renamed into place.
+@contextlib.contextmanager
+def atomic_file(path, mode: str = "wb"):
+    """Open a temporary sibling of ``path`` for writing (``mode``: ``"wb"``, or ``"w"``: UTF-8
+    text, no newline translation) and rename it into place when the block ends.
 
     A reader (or a run cut off half-way) sees the old file or the whole new one, never a
-    truncated one; the temporary file is removed on any error, KeyboardInterrupt included.
+    truncated one; the temporary file (``.NAME.tmp-PID``, hidden) is removed on any error,
+    KeyboardInterrupt included.
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    text = "b" not in mode
     try:
-        with writing(path), open(tmp, "wb") as f:
-            f.write(data)
+        with writing(path), open(tmp, mode, **({"encoding": "utf-8", "newline": ""} if text else {})) as f:
+            yield f
         with writing(path):
             os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
-    return path
+
+
+def remove_dead_temporaries(folder, stem: str = "*") -> None:
+    """Remove the temporary files :func:`atomic_file` left in ``folder`` for files named
+    ``stem`` (a glob) by processes no longer running (a run killed with no clean-up)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    for p in folder.glob(f".{stem}.tmp-*"):
+        pid = p.name.rsplit("-", 1)[-1]
+        if pid.isdigit() and int(pid) != os.getpid() and not _pid_alive(int(pid)):
+            with contextlib.suppress(OSError):
+                p.unlink()
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through :func:`atomic_file`."""
+    with atomic_file(path) as f:
+        f.write(data)
+    return Path(path)
 
 
 def atomic_write_text(path, text: str) -> Path:

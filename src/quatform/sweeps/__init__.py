@@ -11,7 +11,8 @@ tick, each trial's random numbers from its own seed), on any executor, resumably
   (the pair and team kinds there; :mod:`.ugv_uav` and :mod:`.teleop` add theirs);
 * :mod:`.executors` - in process, local processes, Dask (local, ``tcp://``, SLURM);
 * :mod:`.runner` - planning, the up-front estimate, progress, :func:`run_sweep`;
-* :mod:`.results`, :mod:`.figures` - the chunk store, the tables and the figures;
+* :mod:`.results`, :mod:`.figures` - the chunk store, the tables, the summary and the figures;
+* :mod:`.shards` - the trials as Parquet shards, one per chunk (pyarrow, ``pip install -e ".[dask]"``);
 * :mod:`.cli` - ``quatform sweep`` and ``quatform sweeps``.
 """
 

@@ -25,8 +25,9 @@ def sweep_arguments(p) -> None:
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.description = (
         "Run a sweep spec (docs/sweeps.md): every trial of every cell, batched, resumable. Writes\n"
-        "results.csv/json (a row per trial), summary.csv/json (a row per cell) and figures/ into\n"
-        "--out; a rerun into the same --out skips the chunks already stored. Progress on stderr.")
+        "results.csv/json or Parquet shards trials/*.parquet (a row per trial), summary.csv/json (a\n"
+        "row per cell) and figures/ into --out; a rerun into the same --out skips the chunks already\n"
+        "stored. Progress on stderr.")
     p.epilog = "parameters a spec's [vary] may hold:\n" + "\n".join(
         f"  {name} ({q.unit}){'' if q.kinds is None else ' [' + ', '.join(q.kinds) + ' only]'}: {q.help}"
         for name, q in PARAMETERS.items())
@@ -45,6 +46,9 @@ def sweep_arguments(p) -> None:
                    help="a dask-jobqueue SLURMCluster option (queue, account, cores, memory, walltime, jobs ...)")
     p.add_argument("--print-job-script", action="store_true",
                    help="with --scheduler slurm: print the job script dask-jobqueue would submit, run nothing")
+    p.add_argument("--results", metavar="FORMAT",
+                   help="csv (results.csv/json), parquet (trials/*.parquet, one shard per chunk; pyarrow: pip install "
+                        "-e \".[dask]\") or both; default the spec's results, else csv up to 100,000 trials")
     p.add_argument("--no-plots", action="store_true", help="write the tables only")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -75,6 +79,7 @@ def sweep_command(args) -> None:
 
     from ..errors import InvalidInputError
     from .executors import check_scheduler, slurm_job_script
+    from .results import results_mode
     from .runner import run_sweep
     from ..sim.output import check_inputs_outside
     from .spec import load_sweep
@@ -94,7 +99,7 @@ def sweep_command(args) -> None:
         print(slurm_job_script(spec.slurm))
         return
     summary = run_sweep(spec, args.out, backend=args.backend, workers=args.workers, scheduler=args.scheduler,
-                        plots=not args.no_plots, quiet=args.quiet)
+                        plots=not args.no_plots, quiet=args.quiet, results=args.results)
     key = spec.compare_key
     names = [a.name for a in spec.axes]
     print(f"{key:16s} " + " ".join(f"{n:>18s}" for n in names) + f" {'trials':>7s} {'failed':>7s} {'success':>8s}")
@@ -103,7 +108,9 @@ def sweep_command(args) -> None:
         print(f"{s[key]:16s} {vals} {s['trials']:7d} {s['failed']:7d} {s['success_rate']:8.2f}")
     if len(summary) > _MAX_PRINTED:
         print(f"... {len(summary) - _MAX_PRINTED} more cells in summary.csv")
-    print(f"\nfiles in {args.out}/: results.csv/json, summary.csv/json" + ("" if args.no_plots else ", figures/"),
+    mode = results_mode(spec, args.results)
+    tables = {"csv": "results.csv/json", "parquet": "trials/*.parquet", "both": "results.csv/json, trials/*.parquet"}
+    print(f"\nfiles in {args.out}/: {tables[mode]}, summary.csv/json" + ("" if args.no_plots else ", figures/"),
           file=sys.stdout)
 
 

@@ -48,8 +48,10 @@ def _rate(summary, key, choice, where: dict) -> float:
     return sum(s["success_rate"] * s["trials"] for s in sel) / n if n else np.nan
 
 
-def sweep_figures(spec, rows: list[dict], summary: list[dict], folder) -> list[Path]:
-    """Draw the sweep's figures into ``folder``; return their paths."""
+def sweep_figures(spec, values, summary: list[dict], folder) -> list[Path]:
+    """Draw the sweep's figures into ``folder``; return their paths. ``values(metric)`` gives a
+    success metric's values by choice over the trials that did not fail
+    (:func:`~quatform.sweeps.results.metric_values`, ``shard_metric_values``)."""
     folder = Path(folder)
     key = spec.compare_key
     files = []
@@ -94,9 +96,9 @@ def sweep_figures(spec, rows: list[dict], summary: list[dict], folder) -> list[P
         fig = new_figure((6.4, 4.0))
         ax = fig.add_subplot()
         data = []
+        by_choice = values(metric)
         for choice in spec.choices:
-            v = np.array([r.get(metric) for r in rows if r[key] == choice and not r["failed"]
-                          and isinstance(r.get(metric), (int, float))], dtype=float)
+            v = by_choice[choice]
             v = v[np.isfinite(v) & (v > 0)]
             data.append(v if v.size else np.array([np.nan]))
         ax.boxplot(data, showfliers=True)

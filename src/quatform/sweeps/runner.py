@@ -6,7 +6,8 @@ the numbers are the same everywhere); :func:`estimate` builds one experiment per
 run shape and refuses, before anything runs, a sweep whose batches cannot fit in memory
 (batch x T x channels x 8 B) or whose trials cannot finish in the time budget;
 :func:`run_sweep` runs the chunks not yet stored, shows progress on stderr (trials done,
-trials/s, time left) and writes the tables and figures.
+trials/s, time left) and writes the tables and figures: from the rows in memory
+(``results = "csv"``), or from the Parquet shards a batch at a time (``"parquet"``, ``"both"``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from ..checks import memory_budget_bytes, time_budget_s
 from ..errors import ResourceLimitError
 from ..sim.output import write_failures
 from .executors import check_scheduler, executor, parallel_workers
-from .results import ChunkStore, ordered_rows, summarize, write_table
+from .results import (CSV_MAX_TRIALS, ChunkStore, metric_values, ordered_rows, results_mode, shard_metric_values,
+                      summarize, summarize_shards, write_table)
 from .trials import SWEEP_KINDS, Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
 
 __all__ = ["plan_chunks", "estimate", "Estimate", "run_sweep", "SECONDS_PER_TICK", "SECONDS_PER_ROBOT_STEP",
@@ -129,10 +131,11 @@ class _Progress:
 
 
 def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler: str | None = None,
-              plots: bool = True, quiet: bool = False) -> list[dict]:
+              plots: bool = True, quiet: bool = False, results: str | None = None) -> list[dict]:
     """Run ``spec`` into the folder ``out`` (resuming the chunks stored there); return the
-    summary rows. Writes ``results.csv``/``.json``, ``summary.csv``/``.json`` and, with
-    ``plots``, the figures of :mod:`quatform.sweeps.figures`."""
+    summary rows. Writes ``results.csv``/``.json`` and/or the Parquet shards ``trials/`` (``results``:
+    ``csv``, ``parquet`` or ``both``; None: the spec's, :func:`~quatform.sweeps.results.results_mode`),
+    ``summary.csv``/``.json`` and, with ``plots``, the figures of :mod:`quatform.sweeps.figures`."""
     from ..errors import InvalidInputError, MissingDependencyError
     from ..sim.backends import SIM_BACKENDS, simulator
 
@@ -146,27 +149,38 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
     except ImportError as exc:
         raise MissingDependencyError(f"--compute {backend}: {exc}; pip install -e \".[{backend}]\"") from None
     check_scheduler(scheduler)  # Dask missing: one line before the experiments are built
+    mode = results_mode(spec, results)
+    if mode != "csv":
+        from .shards import require_pyarrow
+
+        require_pyarrow(f'results = "{mode}"' + ("" if results or spec.results else
+                                                 f" (the default above {CSV_MAX_TRIALS:,} trials)"))
     est = estimate(spec, parallel_workers(workers, scheduler))
     with write_failures(out):  # a full disk: one line naming --out and the file
-        return _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est)
+        return _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est, mode)
 
 
-def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est) -> list[dict]:
+def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est, mode) -> list[dict]:
     """The body of :func:`run_sweep` (its files written into ``out``)."""
     with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any file is made
-        store = ChunkStore(out, spec, backend)
-        rows: list[dict] = []
+        store = ChunkStore(out, spec, backend, shards=mode != "csv")
+        rows: list[dict] = []  # kept in memory for results = "csv" only
+        stored = 0
         todo = []
         for ch in plan_chunks(spec, backend):
             got = store.load(ch)
             if got is None:
                 todo.append(ch)
+            elif store.shards is not None:
+                stored += got
             else:
                 rows.extend(got)
-        progress = _Progress(spec.name, est.trials, len(rows), quiet=quiet)
-        checked = bool(rows)
-        if rows:
-            spec.success.check_metrics(row_metrics(spec, rows[0]), spec.where)
+                stored += len(got)
+        progress = _Progress(spec.name, est.trials, stored, quiet=quiet)
+        checked = bool(stored)
+        if stored:
+            first = rows[0] if store.shards is None else store.shards.first_row()
+            spec.success.check_metrics(row_metrics(spec, first), spec.where)
 
         def finished(ch, got):
             nonlocal checked
@@ -174,7 +188,8 @@ def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est) -> lis
                 spec.success.check_metrics(row_metrics(spec, got[0]), spec.where)
                 checked = True
             store.save(ch, got)
-            rows.extend(got)
+            if store.shards is None:
+                rows.extend(got)
             progress.add(len(got))
 
         if ex is None:
@@ -188,13 +203,23 @@ def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est) -> lis
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for fut in done:
                     finished(pending.pop(fut), fut.result())
-    rows = ordered_rows(rows)
-    summary = summarize(spec, rows)
     out = Path(out)
-    write_table(out, "results", rows)
+    if store.shards is None:
+        rows = ordered_rows(rows)
+        summary = summarize(spec, rows)
+        write_table(out, "results", rows)
+        values = metric_values(spec, rows)
+    else:
+        from .shards import shard_columns, shard_rows
+
+        store.shards.finish()
+        summary = summarize_shards(spec, out)
+        if mode == "both":
+            write_table(out, "results", lambda: shard_rows(out), shard_columns(out))
+        values = shard_metric_values(spec, out)
     write_table(out, "summary", summary)
     if plots:
         from .figures import sweep_figures
 
-        sweep_figures(spec, rows, summary, out / "figures")
+        sweep_figures(spec, values, summary, out / "figures")
     return summary

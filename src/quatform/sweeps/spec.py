@@ -31,7 +31,7 @@ from ..tomlio import builtin_files, read_toml
 
 __all__ = ["Parameter", "PARAMETERS", "sweep_parameter", "Axis", "Success", "SweepSpec", "load_sweep", "sweep_from_dict",
            "builtin_sweeps", "DEFAULT_SUCCESS_BELOW", "DEFAULT_SUCCESS_FALSE", "MAX_TRIALS", "SLURM_KEYS",
-           "SLURM_COUNTS", "check_slurm"]
+           "SLURM_COUNTS", "check_slurm", "RESULTS"]
 
 _HINT = "see docs/sweeps.md"
 
@@ -161,7 +161,10 @@ SLURM_KEYS = ("queue", "account", "cores", "memory", "walltime", "processes", "j
               "job_script_prologue", "interface", "local_directory", "log_directory", "jobs")
 
 _TOP_KEYS = ("name", "title", "source", "scenario", "trials", "seed", "duration_s", "settle_s", "chunk_trials",
-             "vary", "success", "slurm")
+             "vary", "success", "slurm", "results")
+#: What ``results`` may name: ``results.csv``/``.json`` (the rows in memory, the chunks in
+#: ``chunks/*.json``), Parquet shards (``trials/``, the summary streamed from them) or both.
+RESULTS = ("csv", "parquet", "both")
 _AXIS_KEYS = ("values", "start", "stop", "count", "random", "draws", "gain")
 _SUCCESS_KEYS = ("below", "false", "true")
 
@@ -259,6 +262,9 @@ class SweepSpec:
     success : Success
     slurm : dict
         The ``[slurm]`` table.
+    results : str or None
+        ``csv``, ``parquet`` or ``both``: how the trials are written (None: by the sweep's size,
+        :func:`quatform.sweeps.results.results_mode`); not part of the identity.
     where : str
         The file, for messages.
     data : dict
@@ -279,6 +285,7 @@ class SweepSpec:
     chunk_trials: int | None = None
     success: Success = field(default_factory=Success)
     slurm: dict = field(default_factory=dict)
+    results: str | None = None
     where: str = "sweep"
     data: dict = field(default_factory=dict)
 
@@ -296,8 +303,10 @@ class SweepSpec:
 
     @property
     def identity(self) -> str:
-        """A hash of the effective spec (what a resumed run must match)."""
-        blob = json.dumps(self.data, sort_keys=True, default=str).encode()
+        """A hash of the effective spec (what a resumed run must match; ``results``, how the
+        rows are written, left out)."""
+        blob = json.dumps({k: v for k, v in self.data.items() if k != "results"}, sort_keys=True,
+                          default=str).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
 
@@ -484,10 +493,11 @@ def sweep_from_dict(data: dict, where: str = "sweep", base: Path | None = None) 
     slurm = table(data, "slurm", where, default={})
     check_keys(slurm, SLURM_KEYS, where, "[slurm]", _HINT)
     check_slurm(slurm, f"{where}: [slurm]")
+    results = text(data, "results", where, None, choices=RESULTS)
     return SweepSpec(name=text(data, "name", where, Path(where).stem), title=text(data, "title", where, ""),
                      source=text(data, "source", where, ""), scenario=scenario, compare_key=key, choices=choices,
                      axes=axes, trials=trials, seed=seed, duration_s=duration, settle_s=settle, chunk_trials=chunk,
-                     success=_success(data, where, adapter.success), slurm=slurm, where=where,
+                     success=_success(data, where, adapter.success), slurm=slurm, results=results, where=where,
                      data={**data, "scenario": scenario, "kind": kind_name,
                            "scenario_sha256": _file_hash(scenario)})
 
