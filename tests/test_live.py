@@ -352,3 +352,40 @@ def test_help_names_live_and_realtime(capsys):
         main(["run", "--help"])
     text = capsys.readouterr().out
     assert "--live [HOST:]PORT" in text and "--realtime FACTOR" in text
+
+
+def test_publish_work_is_bounded(scenario, monkeypatch):
+    """A publish serialises the ticks since the last one, and the once-per-run topics from the
+    paths' thinned ticks only (at most PATH_POSES), however long the run has gone; their
+    messages are those of the whole run's."""
+    import quatform.live.server as live_server
+    from quatform.bags import run_messages
+    from quatform.bags.mcap import PATH_POSES
+
+    session = LiveSession(scenario(20.0), {"controller": "quaternion"})
+    server = live_server.LiveServer(session, port=0, realtime=0)
+    built = []
+
+    def counted(log, **kw):
+        built.append((len(log), kw.get("every", True)))
+        return run_messages(log, **kw)
+
+    monkeypatch.setattr(live_server, "run_messages", counted)
+    sent = {}
+    monkeypatch.setattr(server, "_channel", lambda topic, msgtype, msgs: type(
+        "C", (), {"log": lambda self, raw, log_time: sent.setdefault(topic, []).append(raw)})())
+    try:
+        for k in (400, 1000):
+            while session.k < k:
+                session.step()
+            built.clear()
+            server.publish(k - 5, True)
+            assert built == [(5, True), (min(k, PATH_POSES), False)]
+        whole = run_messages(session.log(0), store=server.store)
+        for topic, _, raw in whole.once:
+            if topic == "/quatform/log":
+                assert json.loads(bytes(sent[topic][-1][8:-1]).decode())["samples"] == 1000
+            else:
+                assert sent[topic][-1] == raw, topic
+    finally:
+        server.stop()

@@ -6,7 +6,8 @@ only here: :func:`require_foxglove`):
 
 * the topics of the run's ``run.mcap``, with the same ``ros2msg`` schemas and CDR bytes
   (:func:`quatform.bags.run_messages` of the ticks just run; the once-per-run topics, the
-  paths and ``/quatform/log``, of the whole run so far, every few seconds and at the end);
+  paths and ``/quatform/log``, of the run so far, every few seconds and at the end, built from
+  the paths' thinned ticks only, so that their cost stays bounded as the run goes);
   each message's log time is its scenario time (ns), which the server also broadcasts
   (Foxglove's time capability);
 * :data:`GOAL_TOPIC`: a client publishing ``geometry_msgs/PoseStamped`` there (CDR with the
@@ -33,6 +34,7 @@ import time
 import numpy as np
 
 from ..bags import run_messages
+from ..bags.mcap import PATH_POSES
 from ..errors import InvalidInputError, MissingDependencyError, QuatformError
 from .session import PAUSED_PARAMETER, LiveSession
 
@@ -116,9 +118,10 @@ class LiveServer:
     # -- the stream -------------------------------------------------------------------------
     def publish(self, start: int, once: bool) -> None:
         """Send ticks ``start`` to ``session.k`` (every topic with one message per tick) and,
-        when ``once``, the once-per-run topics of the whole run so far."""
+        when ``once``, the once-per-run topics of the run so far, built from the ticks its paths
+        keep only (at most :data:`~quatform.bags.mcap.PATH_POSES`, the thinning ``run.mcap``'s
+        paths use), so a publish's work does not grow with the run."""
         s = self.session
-        msgs = None
         if s.k > start:
             msgs = run_messages(s.log(start), store=self.store)
             self.store = msgs.store
@@ -128,10 +131,12 @@ class LiveServer:
                     channel.log(data[k].tobytes(), log_time=stamp)
             self.server.broadcast_time(int(msgs.ns[-1]))
         if once and s.k:
-            whole = msgs if start == 0 and msgs is not None else run_messages(s.log(0), store=self.store)
+            keep = np.unique(np.linspace(0, s.k - 1, min(s.k, PATH_POSES)).round().astype(int))
+            whole = run_messages(s.log(ticks=keep), store=self.store, every=False, samples=s.k)
             self.store = whole.store
+            last = int(round(float(s.times[s.k - 1]) * 1e9))
             for topic, msgtype, raw in whole.once:
-                self._channel(topic, msgtype, whole).log(raw, log_time=int(whole.ns[-1]))
+                self._channel(topic, msgtype, whole).log(raw, log_time=last)
 
     def _channel(self, topic: str, msgtype: str, msgs):
         ch = self.channels.get(topic)

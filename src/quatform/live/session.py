@@ -266,17 +266,18 @@ class LiveSession:
         self._c.append(np.asarray(ref.c, dtype=float))
         self._r.append(np.asarray(ref.robots, dtype=float))
 
-    def log(self, start: int = 0):
-        """The finished log of ticks ``start`` to :attr:`k` (the kind's derived channels of the
-        references those ticks used)."""
+    def log(self, start: int = 0, ticks=None):
+        """The finished log of ticks ``start`` to :attr:`k`, or of the increasing tick indices
+        ``ticks`` when given (the kind's derived channels of the references those ticks used)."""
         exp, n = self.experiment, self.k
-        t = self.times[start:n]
+        ticks = np.arange(start, n) if ticks is None else np.asarray(ticks, dtype=int)
         meta = {"label": exp.label, **exp.meta}
         if n and self.times[n - 1] < meta.get("metrics_from_s", 0.0):
             meta["metrics_from_s"] = 0.0  # a run stopped before the measured window: measured from its start
-        log = self.stepper.log(meta, start)
-        finish = self.parts.finisher(self.scenario, self.inner, t, np.asarray(self._e[start:n]),
-                                     np.asarray(self._c[start:n]), np.asarray(self._r[start:n]), None)
+        log = self.stepper.log(meta, ticks=ticks)
+        pick = ticks.tolist()
+        finish = self.parts.finisher(self.scenario, self.inner, self.times[ticks], np.asarray([self._e[i] for i in pick]),
+                                     np.asarray([self._c[i] for i in pick]), np.asarray([self._r[i] for i in pick]), None)
         return finish(log)
 
     def finish(self, out, *, plots: bool = True, writers: dict | None = None, stopped: bool = False,

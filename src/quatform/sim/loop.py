@@ -563,11 +563,13 @@ class Stepper:
         self.ys.append(y)
         return y
 
-    def log(self, meta: dict | None = None, start: int = 0) -> Log:
-        """The :class:`Log` of ticks ``start`` to :attr:`k` (what :func:`quatform.sim.simulate`
-        returns for them; ``meta["controller_state"]`` the state after the last)."""
-        data = _channels(self.plant, self.controller, self.measurement, self.ys[start:], ())
-        return _log(self.plant, self.controller, self.measurement, self.times[start:self.k], (), data,
+    def log(self, meta: dict | None = None, start: int = 0, ticks=None) -> Log:
+        """The :class:`Log` of ticks ``start`` to :attr:`k`, or of the increasing tick indices
+        ``ticks`` (int array, each below :attr:`k`) when given (what :func:`quatform.sim.simulate`
+        returns for them; ``meta["controller_state"]`` the state after the last tick done)."""
+        ticks = np.arange(start, self.k) if ticks is None else np.asarray(ticks, dtype=int)
+        data = _channels(self.plant, self.controller, self.measurement, [self.ys[i] for i in ticks.tolist()], ())
+        return _log(self.plant, self.controller, self.measurement, self.times[ticks], (), data,
                     self.carry[1], {}, meta)
 
 # -- the JAX driver -----------------------------------------------------------------------
