@@ -389,3 +389,15 @@ def test_publish_work_is_bounded(scenario, monkeypatch):
                 assert sent[topic][-1] == raw, topic
     finally:
         server.stop()
+
+
+def test_unusable_out_is_refused_before_serving(scenario, tmp_path):
+    from quatform.errors import QuatformError
+
+    (tmp_path / "afile").write_text("a file")
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    served = []
+    with pytest.raises((QuatformError, OSError)) as info:
+        serve(session, tmp_path / "afile" / "sub", port=0, realtime=0, quiet=True, ready=served.append)
+    assert not served and session.k == 0
+    assert "afile" in str(info.value)

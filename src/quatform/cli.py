@@ -393,7 +393,7 @@ def _live(args, sc, options, writers) -> dict:
     session = LiveSession(sc, options)
     realtime = 1.0 if args.realtime is None else args.realtime
     _, metrics = serve(session, args.out, host=host, port=port, realtime=realtime, plots=not args.no_plots,
-                       writers=writers)
+                       writers=writers, inputs=(args.scenario, options.get("reference")))
     return metrics
 
 

@@ -36,6 +36,8 @@ import numpy as np
 from ..bags import run_messages
 from ..bags.mcap import PATH_POSES
 from ..errors import InvalidInputError, MissingDependencyError, QuatformError
+from ..outputs import chosen_writers, writer_choices
+from ..sim.output import staged_dir
 from .session import PAUSED_PARAMETER, LiveSession
 
 __all__ = ["GOAL_TOPIC", "GOAL_TYPE", "require_foxglove", "LiveServer", "serve", "parse_address",
@@ -248,22 +250,30 @@ class LiveServer:
 
 
 def serve(session: LiveSession, out, *, host: str = "127.0.0.1", port: int = 8765, realtime: float = 1.0,
-          plots: bool = True, writers: dict | None = None, quiet: bool = False, ready=None):
+          plots: bool = True, writers: dict | None = None, quiet: bool = False, ready=None, inputs=()):
     """Run ``session`` live (module docstring) and write its folder ``out`` when it ends or is
-    stopped (Ctrl-C, SIGTERM). ``ready(server)`` is called once the server listens.
-    Returns ``(log, metrics)``."""
+    stopped (Ctrl-C, SIGTERM). The folder is checked and its staged sibling made before the
+    server starts (:func:`~quatform.sim.output.staged_dir`, ``inputs`` the files the run reads),
+    so an unusable ``out`` is one line before anything is served. ``ready(server)`` is called
+    once the server listens. Returns ``(log, metrics)``; a failure in a tick is raised after the
+    ticks before it are written."""
     if not (isinstance(realtime, (int, float)) and np.isfinite(realtime) and realtime >= 0):
         raise InvalidInputError(f"--realtime {realtime!r} must be a number >= 0 (1 = wall clock, 0 = unpaced)")
-    server = LiveServer(session, host, port, realtime)
-    try:
-        return _drive(session, server, out, host, realtime, plots, writers, quiet, ready)
-    finally:
-        server.stop()
+    chosen = chosen_writers(writer_choices(writers=writers), out)
+    with staged_dir(out, inputs=inputs) as tmp:
+        server = LiveServer(session, host, port, realtime)
+        try:
+            log, metrics, failure = _drive(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready)
+        finally:
+            server.stop()
+    if failure is not None:
+        raise failure
+    return log, metrics
 
 
-def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
+def _drive(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready):
     """:func:`serve`'s loop: step paced, publish, stop on the duration, Ctrl-C, SIGTERM or a
-    failure (whose ticks before it are written, then it is raised), write the folder. A
+    failure (whose ticks before it are written, then it is returned), write the folder. A
     signal sets a flag the loop reads between ticks, so no tick is cut in half; one that comes
     while the folder is written changes nothing."""
     stop = threading.Event()
@@ -271,13 +281,13 @@ def _drive(session, server, out, host, realtime, plots, writers, quiet, ready):
     old = {sig: signal.signal(sig, lambda signum, frame: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)} \
         if main else {}
     try:
-        return _loop(session, server, out, host, realtime, plots, writers, quiet, ready, stop)
+        return _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready, stop)
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
 
 
-def _loop(session, server, out, host, realtime, plots, writers, quiet, ready, stop):
+def _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready, stop):
     say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
     say(f"  {session.scenario.name}: live on ws://{host}:{server.port} (Foxglove: Open connection -> Foxglove "
         f"WebSocket); {session.times.size} ticks, real time x{realtime:g}; Ctrl-C stops and writes {out}")
@@ -325,9 +335,7 @@ def _loop(session, server, out, host, realtime, plots, writers, quiet, ready, st
     server.publish(sent, True)  # the last ticks, and the whole run's paths
     server.server.broadcast_playback_state(server.playback_state())
     wall = time.perf_counter() - t0
-    log, metrics = session.finish(out, plots=plots, writers=writers, stopped=stopped, wall_s=wall,
-                                  failure=None if failure is None else str(failure))
+    log, metrics = session.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall,
+                                      failure=None if failure is None else str(failure))
     say(f"  {session.scenario.name}: {session.k} ticks in {wall:.1f} s -> {out}")
-    if failure is not None:
-        raise failure
-    return log, metrics
+    return log, metrics, failure

@@ -283,26 +283,33 @@ class LiveSession:
     def finish(self, out, *, plots: bool = True, writers: dict | None = None, stopped: bool = False,
                wall_s: float | None = None, failure: str | None = None):
         """Write the ticks done into the folder ``out`` as a run writes it (atomically: the files
-        appear when all are written). ``metrics.json`` adds ``live``: ticks done of the run's,
-        whether it was stopped (and the failure that stopped it), the goals' ticks, the parameter
-        changes (tick, name, value), the goal motion's bounds and, given the wall time ``wall_s``
-        (pauses included), ticks per second. Returns ``(log, metrics)``."""
+        appear when all are written; :meth:`write_into` the staged folder). Returns ``(log, metrics)``."""
+        chosen = chosen_writers(writer_choices(writers=writers), out)
+        with staged_dir(out) as tmp:
+            return self.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall_s, failure=failure)
+
+    def write_into(self, folder, chosen: tuple, *, plots: bool = True, stopped: bool = False,
+                   wall_s: float | None = None, failure: str | None = None):
+        """Write the ticks done into ``folder`` (a staged output folder,
+        :func:`~quatform.sim.output.staged_dir`) with ``chosen``, the ``(folder writers, recordings)``
+        of :func:`~quatform.outputs.chosen_writers`. ``metrics.json`` adds ``live``: ticks done of
+        the run's, whether it was stopped (and the failure that stopped it), the goals' ticks, the
+        parameter changes (tick, name, value), the goal motion's bounds and, given the wall time
+        ``wall_s`` (pauses included), ticks per second. Returns ``(log, metrics)``."""
         if self.k == 0:
             raise InvalidInputError("quatform run --live: stopped before the first tick; nothing to write")
-        folder_writers, recordings = chosen_writers(writer_choices(writers=writers), out)
-        with staged_dir(out) as tmp:
-            log = self.log()
-            metrics = record_options(self.kind, self.experiment, dict(self.experiment.metrics(log)))
-            metrics["live"] = {"ticks": self.k, "of_ticks": int(self.times.size), "stopped": bool(stopped),
-                               "goal_ticks": list(self.goal_ticks),
-                               "parameter_changes": [list(c) for c in self.changes],
-                               "goal_max_speed_m_s": self.max_speed, "goal_max_rate_rad_s": self.max_rate}
-            if failure is not None:
-                metrics["live"]["failure"] = failure
-            if wall_s is not None:
-                metrics["wall_time_s"] = round(wall_s, 3)
-                metrics["live"]["ticks_per_s"] = round(self.k / max(wall_s, 1e-9), 1)
-            write_outputs(self.kind, self.scenario, self.experiment, log, Path(tmp), metrics, plots, folder_writers)
-            record_runs(recordings, {"": log}, self.kind, self.scenario)
+        folder_writers, recordings = chosen
+        log = self.log()
+        metrics = record_options(self.kind, self.experiment, dict(self.experiment.metrics(log)))
+        metrics["live"] = {"ticks": self.k, "of_ticks": int(self.times.size), "stopped": bool(stopped),
+                           "goal_ticks": list(self.goal_ticks),
+                           "parameter_changes": [list(c) for c in self.changes],
+                           "goal_max_speed_m_s": self.max_speed, "goal_max_rate_rad_s": self.max_rate}
+        if failure is not None:
+            metrics["live"]["failure"] = failure
+        if wall_s is not None:
+            metrics["wall_time_s"] = round(wall_s, 3)
+            metrics["live"]["ticks_per_s"] = round(self.k / max(wall_s, 1e-9), 1)
+        write_outputs(self.kind, self.scenario, self.experiment, log, Path(folder), metrics, plots, folder_writers)
+        record_runs(recordings, {"": log}, self.kind, self.scenario)
         return log, metrics
-
