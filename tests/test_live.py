@@ -401,3 +401,22 @@ def test_unusable_out_is_refused_before_serving(scenario, tmp_path):
         serve(session, tmp_path / "afile" / "sub", port=0, realtime=0, quiet=True, ready=served.append)
     assert not served and session.k == 0
     assert "afile" in str(info.value)
+
+
+def test_failure_writes_the_ticks_before_it(scenario, tmp_path, monkeypatch):
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    plain = session.reference
+
+    def failing(k):
+        if k == 30:
+            raise RuntimeError("injected")
+        return plain(k)
+
+    monkeypatch.setattr(session, "reference", failing)
+    with pytest.raises(RuntimeError, match="injected"):
+        serve(session, tmp_path / "out", port=0, realtime=0, plots=False, quiet=True)
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["live"]["ticks"] == 30 and metrics["live"]["stopped"]
+    assert metrics["live"]["failure"] == "RuntimeError: injected"
+    rows = (tmp_path / "out" / "timeseries.csv").read_text().strip().splitlines()
+    assert len(rows) - 1 == 30

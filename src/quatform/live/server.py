@@ -326,16 +326,21 @@ def _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready
             if realtime and not session.done:
                 wait = anchor_wall + (float(session.times[session.k]) - anchor_t) / realtime - time.perf_counter()
                 time.sleep(min(max(wait, 0.0), PUBLISH_PERIOD_S))
-    except QuatformError as exc:
+    except Exception as exc:  # noqa: BLE001 - any failure: the ticks before it are written, then it is raised
         failure = exc
-        say(f"  {session.scenario.name}: failed at tick {session.k}: {exc}; writing the ticks before it to {out}")
+        text = str(exc) if isinstance(exc, QuatformError) else f"{type(exc).__name__}: {exc}"
+        say(f"  {session.scenario.name}: failed at tick {session.k}: {text}; writing the ticks before it to {out}")
     stopped = stop.is_set() or failure is not None
     if stop.is_set():
         say(f"\n  {session.scenario.name}: stopped at tick {session.k}; writing {out}")
-    server.publish(sent, True)  # the last ticks, and the whole run's paths
-    server.server.broadcast_playback_state(server.playback_state())
+    try:
+        server.publish(sent, True)  # the last ticks, and the whole run's paths
+        server.server.broadcast_playback_state(server.playback_state())
+    except Exception as exc:  # noqa: BLE001 - a failing stream still leaves the ticks written
+        if failure is None:
+            failure, stopped, text = exc, True, f"{type(exc).__name__}: {exc}"
     wall = time.perf_counter() - t0
     log, metrics = session.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall,
-                                      failure=None if failure is None else str(failure))
+                                      failure=None if failure is None else text)
     say(f"  {session.scenario.name}: {session.k} ticks in {wall:.1f} s -> {out}")
     return log, metrics, failure
