@@ -420,3 +420,27 @@ def test_failure_writes_the_ticks_before_it(scenario, tmp_path, monkeypatch):
     assert metrics["live"]["failure"] == "RuntimeError: injected"
     rows = (tmp_path / "out" / "timeseries.csv").read_text().strip().splitlines()
     assert len(rows) - 1 == 30
+
+
+def test_port_in_use_is_one_line(scenario, tmp_path):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+        p = subprocess.run([sys.executable, "-m", "quatform", "run", str(scenario(2.0)), "--controller", "quaternion",
+                            "--out", str(tmp_path / "out"), "--no-plots", "--live", str(port)],
+                           capture_output=True, text=True, env=env, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.strip() == f"quatform: error: --live: port {port} on 127.0.0.1 is in use; give another or 0 (any free port)"
+    assert not (tmp_path / "out").exists()
+
+
+def test_ipv6_url_in_brackets():
+    from quatform.live.server import LiveServer, parse_address
+
+    assert parse_address("[::1]:8765") == ("::1", 8765)
+    assert LiveServer.url("::1", 8765) == "ws://[::1]:8765"
+    assert LiveServer.url("127.0.0.1", 0) == "ws://127.0.0.1:0"

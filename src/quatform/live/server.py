@@ -108,14 +108,27 @@ class LiveServer:
         self.store = None
         self._lock = threading.Lock()
         end = int(round(float(session.times[-1]) * 1e9))
-        self.server = fg.start_server(
-            name=f"quatform {session.scenario.name}", host=host, port=port, context=self.context,
-            capabilities=[Capability.ClientPublish, Capability.Parameters, Capability.Time, Capability.PlaybackControl],
-            server_listener=self, supported_encodings=["cdr", "json"], playback_time_range=(0, end))
+        try:
+            self.server = fg.start_server(
+                name=f"quatform {session.scenario.name}", host=host, port=port, context=self.context,
+                capabilities=[Capability.ClientPublish, Capability.Parameters, Capability.Time,
+                              Capability.PlaybackControl],
+                server_listener=self, supported_encodings=["cdr", "json"], playback_time_range=(0, end))
+        except RuntimeError as exc:  # the SDK's FoxgloveError: the address is refused
+            text = str(exc)
+            why = (f"port {port} on {host} is in use; give another or 0 (any free port)" if "in use" in text else
+                   f"cannot listen on {host}:{port} ({text.split(': ', 1)[-1]}); give a host of this machine, "
+                   "e.g. 127.0.0.1 or 0.0.0.0")
+            raise InvalidInputError(f"--live: {why}") from None
 
     @property
     def port(self) -> int:
         return self.server.port
+
+    @staticmethod
+    def url(host: str, port: int) -> str:
+        """``ws://HOST:PORT``, an IPv6 host in brackets."""
+        return f"ws://[{host}]:{port}" if ":" in host else f"ws://{host}:{port}"
 
     # -- the stream -------------------------------------------------------------------------
     def publish(self, start: int, once: bool) -> None:
@@ -289,7 +302,7 @@ def _drive(session, server, out, tmp, chosen, host, realtime, plots, quiet, read
 
 def _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready, stop):
     say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
-    say(f"  {session.scenario.name}: live on ws://{host}:{server.port} (Foxglove: Open connection -> Foxglove "
+    say(f"  {session.scenario.name}: live on {server.url(host, server.port)} (Foxglove: Open connection -> Foxglove "
         f"WebSocket); {session.times.size} ticks, real time x{realtime:g}; Ctrl-C stops and writes {out}")
     failure, t0 = None, time.perf_counter()
     session.step()  # the first tick advertises every topic before a client is told to come
