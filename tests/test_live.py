@@ -444,3 +444,33 @@ def test_ipv6_url_in_brackets():
     assert parse_address("[::1]:8765") == ("::1", 8765)
     assert LiveServer.url("::1", 8765) == "ws://[::1]:8765"
     assert LiveServer.url("127.0.0.1", 0) == "ws://127.0.0.1:0"
+
+
+def test_playback_speed_keeps_unpaced_and_refuses_absurd(scenario):
+    from types import SimpleNamespace
+
+    from foxglove.websocket import PlaybackCommand
+
+    from quatform.live.server import MAX_SPEED, LiveServer
+
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    server = LiveServer(session, port=0, realtime=0)
+    said = []
+    server.status = lambda text, level="Error": said.append(text)
+    try:
+        def request(command, speed):
+            return server.on_playback_control_request(SimpleNamespace(
+                playback_command=getattr(PlaybackCommand, command), playback_speed=speed, request_id="r"))
+
+        request("Pause", 1.0)
+        assert session.paused and server.speed() == 0
+        request("Play", 1.0)  # the stated speed of an unpaced run, unchanged by the client: still unpaced
+        assert not session.paused and server.speed() == 0 and not said
+        request("Play", 4.0)
+        assert server.speed() == 4.0
+        for bad in (float("inf"), float("nan"), 10 * MAX_SPEED, -1.0):
+            request("Play", bad)
+            assert server.speed() == 4.0
+        assert len(said) == 4 and all("refused" in text for text in said)
+    finally:
+        server.stop()

@@ -17,7 +17,12 @@ only here: :func:`require_foxglove`):
   session refuses is answered by a status message (level error) naming why, and not applied;
 * pause and resume: Foxglove's playback controls (the playback-control capability: the app's
   play/pause button, its speed the real-time factor) and the ``paused`` parameter (for
-  clients without playback controls, such as Lichtblick's parameters panel).
+  clients without playback controls, such as Lichtblick's parameters panel). The speed the
+  server states is the real-time factor (1 for an unpaced run, whose factor is 0); a play or
+  pause request changes the factor only when its speed differs from the one stated (the
+  client changed it), so pausing an unpaced run and playing it again keeps it unpaced; a speed
+  that is not finite, <= 0 or above :data:`MAX_SPEED` is answered by a status message and the
+  factor kept.
 
 Stopping (the duration reached, Ctrl-C, SIGTERM) writes the ticks done into the run's folder
 as a run writes it (:meth:`LiveSession.finish`). A client that disconnects changes nothing.
@@ -41,7 +46,7 @@ from ..sim.output import staged_dir
 from .session import PAUSED_PARAMETER, LiveSession
 
 __all__ = ["GOAL_TOPIC", "GOAL_TYPE", "require_foxglove", "LiveServer", "serve", "parse_address",
-           "PUBLISH_PERIOD_S", "ONCE_PERIOD_S"]
+           "PUBLISH_PERIOD_S", "ONCE_PERIOD_S", "MAX_SPEED"]
 
 #: The topic an operator's goal pose arrives on, and its type.
 GOAL_TOPIC = "/formation/goal"
@@ -50,6 +55,8 @@ GOAL_TYPE = "geometry_msgs/msg/PoseStamped"
 #: once-per-run topics (the paths of the run so far, ``/quatform/log``).
 PUBLISH_PERIOD_S = 0.05
 ONCE_PERIOD_S = 5.0
+#: The largest real-time factor a client may ask for (scenario seconds per wall second).
+MAX_SPEED = 1e3
 
 
 def require_foxglove():
@@ -105,7 +112,8 @@ class LiveServer:
         self.context = fg.Context()
         self.channels: dict = {}
         self.clients: dict = {}  # (client id, client channel id) -> (topic, encoding)
-        self.store = None
+        self.store = None  # the stream's type store (the stepping thread's)
+        self._goal_store = None  # the goals' (the SDK's threads', under the lock)
         self._lock = threading.Lock()
         end = int(round(float(session.times[-1]) * 1e9))
         try:
@@ -164,12 +172,23 @@ class LiveServer:
     def status(self, text: str, level: str = "Error") -> None:
         self.server.publish_status(text, getattr(self.fg.StatusLevel, level))
 
+    def speed(self) -> float:
+        """The real-time factor in force (0: unpaced)."""
+        with self._lock:
+            return self.realtime
+
+    def _stated_speed(self) -> float:
+        """The speed the playback state states: the factor, 1 for an unpaced run."""
+        return self.realtime or 1.0
+
     def playback_state(self, request_id=None):
         s = self.session
         status = (self._PlaybackStatus.Ended if s.done else self._PlaybackStatus.Paused if s.paused
                   else self._PlaybackStatus.Playing)
         now = int(round(float(s.times[max(s.k - 1, 0)]) * 1e9))
-        return self._PlaybackState(status, now, self.realtime or 1.0, False, request_id)
+        with self._lock:
+            stated = self._stated_speed()
+        return self._PlaybackState(status, now, stated, False, request_id)
 
     def stop(self) -> None:
         self.server.stop()
@@ -210,11 +229,12 @@ class LiveServer:
             if encoding == "json":
                 p, q = _pose_of_json(data)
             elif encoding == "cdr":
-                if self.store is None:
-                    from rosbags.typesys import Stores, get_typestore
+                with self._lock:
+                    if self._goal_store is None:
+                        from rosbags.typesys import Stores, get_typestore
 
-                    self.store = get_typestore(Stores.ROS2_HUMBLE)
-                msg = self.store.deserialize_cdr(bytes(data), GOAL_TYPE)
+                        self._goal_store = get_typestore(Stores.ROS2_HUMBLE)
+                    msg = self._goal_store.deserialize_cdr(bytes(data), GOAL_TYPE)
                 pos, o = msg.pose.position, msg.pose.orientation
                 p, q = [pos.x, pos.y, pos.z], [o.w, o.x, o.y, o.z]
             else:
@@ -256,8 +276,15 @@ class LiveServer:
         from foxglove.websocket import PlaybackCommand
 
         self.session.set_parameter(PAUSED_PARAMETER, request.playback_command == PlaybackCommand.Pause)
-        if request.playback_speed and request.playback_speed > 0:
-            self.realtime = float(request.playback_speed)
+        speed = float(request.playback_speed)
+        with self._lock:  # the request's speed is a float32: a changed one differs from the stated one as such
+            changed = np.float32(speed) != np.float32(self._stated_speed())
+            good = np.isfinite(speed) and 0 < speed <= MAX_SPEED
+            if changed and good:
+                self.realtime = speed
+        if changed and not good:
+            self.status(f"playback speed {speed!r} refused: give a real-time factor > 0 and <= {MAX_SPEED:g}; "
+                        "it stays as it was")
         self.server.publish_parameter_values(self._parameters([PAUSED_PARAMETER]))
         return self.playback_state(request.request_id)
 
@@ -318,8 +345,8 @@ def _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready
                 anchor_wall = None
                 time.sleep(PUBLISH_PERIOD_S)
                 continue
-            if anchor_wall is None or server.realtime != realtime:
-                realtime = server.realtime
+            if anchor_wall is None or server.speed() != realtime:
+                realtime = server.speed()
                 anchor_wall, anchor_t = now, float(session.times[session.k])
             while not session.done and not session.paused and not stop.is_set() and \
                     time.perf_counter() - now < PUBLISH_PERIOD_S and (
