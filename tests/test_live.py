@@ -474,3 +474,32 @@ def test_playback_speed_keeps_unpaced_and_refuses_absurd(scenario):
         assert len(said) == 4 and all("refused" in text for text in said)
     finally:
         server.stop()
+
+
+def test_changes_from_another_thread_land_between_ticks(scenario):
+    session = LiveSession(scenario(4.0), {"controller": "quaternion"})
+    done = threading.Event()
+    errors = []
+
+    def client():
+        i = 0
+        while not done.is_set():
+            try:
+                session.set_parameter("gains.k_d", 10.0 + i % 2)
+                session.set_parameter("min_separation_m", 0.3 - 0.05 * (i % 2))
+            except Exception as exc:  # noqa: BLE001 - handed to the test
+                errors.append(exc)
+            i += 1
+
+    t = threading.Thread(target=client, daemon=True)
+    t.start()
+    try:
+        while not session.done:
+            session.step()
+    finally:
+        done.set()
+        t.join(10)
+    assert not errors
+    ticks = [c[0] for c in session.changes]
+    assert ticks == sorted(ticks) and ticks and ticks[-1] < session.times.size
+    assert np.all(np.isfinite(session.log()["command"]))

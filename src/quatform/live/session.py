@@ -17,6 +17,10 @@ that between two ticks
   takes effect from the next tick (the loop's tick rebuilt with the new controller, the carry
   kept).
 
+A client's calls (:meth:`set_goal`, :meth:`set_parameter`, :meth:`parameters`) come from the
+server's threads, the ticks from the stepping thread: they hold one lock, so a change is
+checked against the state between two ticks and taken by the next one.
+
 Without a goal or a change, each tick's reference is the experiment's own and the run is the
 run :func:`quatform.runs.run` makes. :meth:`finish` writes the ticks done (all of them, or
 those before a stop) as a run writes its folder (:func:`quatform.runs.write_outputs`,
@@ -181,8 +185,8 @@ class LiveSession:
                 self._pending.setdefault("changes", []).append((name, gains[key]))
             return
         if name == SEPARATION_PARAMETER and self.min_separation is not None:
-            d = self._check_separation(value, said)
-            with self._lock:
+            with self._lock:  # the robots' state read between two ticks, and the change taken by the next
+                d = self._check_separation(value, said)
                 controller = self._controller(self.gains, d, said)
                 self.min_separation = d
                 self._pending["controller"] = controller
@@ -258,13 +262,15 @@ class LiveSession:
         return e, Reference(c[0], cd[0], self.parts.robots(self.scenario, e[None])[0])
 
     def step(self) -> None:
-        """Run the next tick (the pending goal and parameter changes first)."""
-        self._take_pending()
-        e, ref = self.reference(self.k)
-        self.stepper.step(ref)
-        self._e.append(np.asarray(e, dtype=float))
-        self._c.append(np.asarray(ref.c, dtype=float))
-        self._r.append(np.asarray(ref.robots, dtype=float))
+        """Run the next tick (the pending goal and parameter changes first), holding the session's
+        lock: a client's check of the state (:meth:`set_parameter`) sees it between two ticks."""
+        with self._lock:
+            self._take_pending()
+            e, ref = self.reference(self.k)
+            self.stepper.step(ref)
+            self._e.append(np.asarray(e, dtype=float))
+            self._c.append(np.asarray(ref.c, dtype=float))
+            self._r.append(np.asarray(ref.robots, dtype=float))
 
     def log(self, start: int = 0, ticks=None):
         """The finished log of ticks ``start`` to :attr:`k`, or of the increasing tick indices
