@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from quatform.errors import InvalidInputError
 from quatform.formations import geometry as g
 from quatform.live import LiveSession
-from quatform.references.goal import approach_pose, goal_limits
+from quatform.references.goal import GOAL_SHARE, approach_pose, goal_limits
 from quatform.robots import HolonomicRobot, Pioneer
 from quatform.runs import run
 from quatform.scenarios.team import TEAM_CHARTS
@@ -102,7 +102,7 @@ def test_lands_on_the_goal_and_batches():
 
 def test_limits_from_the_robots():
     v, w = goal_limits((HolonomicRobot(max_speed=2.0), Pioneer()), radius=1.5)
-    assert v == 0.5 * Pioneer().max_v
+    assert v == 0.5 * GOAL_SHARE * Pioneer().max_v and GOAL_SHARE < 1.0
     np.testing.assert_allclose(w, v / 1.5)
 
 
@@ -166,6 +166,12 @@ def test_goal_moves_the_reference_within_limits(tmp_path):
     np.testing.assert_allclose(abs(np.dot(e_des[-1, 3:7], g.q_yaw(np.pi / 2))), 1.0, atol=1e-12)
     steps = np.linalg.norm(np.diff(e_des[:, :3], axis=0), axis=1)
     assert np.all(steps <= s.max_speed * s.dt * (1 + 1e-9))
+    # the robots the reference implies move at most GOAL_SHARE of their limit (2.5 m/s): a margin
+    # of (1 - GOAL_SHARE) of it left for the controller (a chord is shorter than its arc)
+    robots = s.scenario.team.layout.positions(np.asarray(s._r))
+    speeds = np.linalg.norm(np.diff(robots[10:], axis=0), axis=-1) / s.dt
+    assert speeds.max() <= GOAL_SHARE * 2.5 * (1 + 1e-9)
+    assert speeds.max() >= 0.5 * GOAL_SHARE * 2.5  # the bound is used, not a loose one
     # the robots follow it: the actual centroid ends near the goal
     assert np.linalg.norm(log["e"][-1, :3] - goal) < 0.2
 

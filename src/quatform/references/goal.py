@@ -23,11 +23,12 @@ from ..errors import InvalidInputError
 
 __all__ = ["approach_pose", "goal_limits", "GOAL_SHARE"]
 
-#: The share of the slowest robot's speed limit the goal motion may take in translation, and
-#: again in rotation (:func:`goal_limits`): a robot at distance ``rho`` from the centroid moves
-#: at most ``v + w rho <= 2 GOAL_SHARE v_min = v_min`` with both, leaving the controller the
-#: robots' margin above the reference's own motion for its corrections.
-GOAL_SHARE = 0.5
+#: The share of the slowest robot's speed limit ``v_min`` the goal motion may take
+#: (:func:`goal_limits`), half in translation and half in rotation: a robot at distance
+#: ``rho <= radius`` from the centroid moves at most ``v + w rho <= GOAL_SHARE v_min``, so the
+#: reference leaves every robot ``(1 - GOAL_SHARE) v_min`` of its limit for the controller's
+#: corrections.
+GOAL_SHARE = 0.8
 
 #: Below this (m, rad) a step is taken as arrived (the direction of a zero vector is not used).
 _TINY = 1e-12
@@ -107,12 +108,12 @@ def _speed_limit(robot) -> float:
 
 def goal_limits(robots, radius: float) -> tuple[float, float]:
     """``(max_speed m/s, max_rate rad/s)`` of a goal's motion for a team of ``robots`` whose
-    farthest robot is ``radius`` m from the centroid: :data:`GOAL_SHARE` of the slowest robot's
-    speed limit in translation, and the angular rate that moves the farthest robot at that
-    speed (``v_min / (2 radius)``; a robot at distance ``rho`` then moves at most ``v_min``
-    with both). None of the built-in scenarios or robots declares a limit for the formation as
-    a whole, so the robots' own limits bound it."""
-    v = min(_speed_limit(r) for r in robots)
-    share = GOAL_SHARE * v
-    return share, share / max(float(radius), _TINY)
+    farthest robot is ``radius`` m from the centroid: half of :data:`GOAL_SHARE` of the slowest
+    robot's speed limit ``v_min`` in translation, ``v = GOAL_SHARE v_min / 2``, and the angular
+    rate that moves the farthest robot at that speed, ``w = v / radius``; a robot at distance
+    ``rho <= radius`` then moves at most ``v + w rho <= GOAL_SHARE v_min < v_min`` with both.
+    None of the built-in scenarios or robots declares a limit for the formation as a whole, so
+    the robots' own limits bound it."""
+    half = 0.5 * GOAL_SHARE * min(_speed_limit(r) for r in robots)
+    return half, half / max(float(radius), _TINY)
 
