@@ -503,3 +503,41 @@ def test_changes_from_another_thread_land_between_ticks(scenario):
     ticks = [c[0] for c in session.changes]
     assert ticks == sorted(ticks) and ticks and ticks[-1] < session.times.size
     assert np.all(np.isfinite(session.log()["command"]))
+
+
+@pytest.mark.parametrize("payload, said", [
+    ('{"pose": {}}', "no field pose.position.x"),
+    ('{"pose": {"position": {"x": 0, "y": 0, "z": 1}}}', "no field pose.orientation.w"),
+    ('{"pose": {"position": {"x": "0.5", "y": 0, "z": 1}, "orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}',
+     "pose.position.x = '0.5' is not a number"),
+    ('{"pose": {"position": {"x": 0, "y": true, "z": 1}, "orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}',
+     "pose.position.y = True is not a number"),
+    ('{"pose": {"position": {"x": 1e200, "y": 0, "z": 1}, "orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}',
+     "farther than 1e+06 m"),
+    ('{"pose": {', "not JSON"),
+])
+def test_goal_json_refused(scenario, payload, said):
+    from types import SimpleNamespace
+
+    from quatform.live.server import LiveServer
+
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    session.step()
+    server = LiveServer(session, port=0, realtime=0)
+    statuses = []
+    server.status = lambda text, level="Error": statuses.append(text)
+    client = SimpleNamespace(id=1)
+    try:
+        server.on_client_advertise(client, SimpleNamespace(id=5, topic=GOAL_TOPIC, encoding="json",
+                                                           schema_name=GOAL_TYPE))
+        server.on_message_data(client, 5, payload.encode())
+        assert len(statuses) == 1 and said in statuses[0] and statuses[0].startswith(GOAL_TOPIC + ": ")
+        assert not statuses[0].startswith(f"{GOAL_TOPIC}: {GOAL_TOPIC}")
+        assert "goal" not in session._pending
+        server.on_client_advertise(client, SimpleNamespace(id=6, topic=GOAL_TOPIC, encoding="json",
+                                                           schema_name="std_msgs/msg/String"))
+        server.on_message_data(client, 6, b'{"pose": {"position": {"x": 0, "y": 0, "z": 1}, '
+                                          b'"orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}')
+        assert "schema 'std_msgs/msg/String'" in statuses[-1] and "goal" not in session._pending
+    finally:
+        server.stop()

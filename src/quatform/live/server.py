@@ -11,7 +11,9 @@ only here: :func:`require_foxglove`):
   each message's log time is its scenario time (ns), which the server also broadcasts
   (Foxglove's time capability);
 * :data:`GOAL_TOPIC`: a client publishing ``geometry_msgs/PoseStamped`` there (CDR with the
-  ``ros2msg`` schema, or JSON) sets the formation's goal (:meth:`LiveSession.set_goal`);
+  ``ros2msg`` schema, or JSON with every field of the pose, numbers only; the channel's schema
+  name one of :data:`GOAL_SCHEMAS`) sets the formation's goal (:meth:`LiveSession.set_goal`);
+  anything else is answered by a status message naming what is wrong;
 * parameters (Foxglove's parameters capability): ``gains.<key>`` (each of the controller's
   gains), ``min_separation_m`` (where the run has the barrier) and ``paused``; a value the
   session refuses is answered by a status message (level error) naming why, and not applied;
@@ -45,7 +47,7 @@ from ..outputs import chosen_writers, writer_choices
 from ..sim.output import staged_dir
 from .session import PAUSED_PARAMETER, LiveSession
 
-__all__ = ["GOAL_TOPIC", "GOAL_TYPE", "require_foxglove", "LiveServer", "serve", "parse_address",
+__all__ = ["GOAL_TOPIC", "GOAL_TYPE", "GOAL_SCHEMAS", "require_foxglove", "LiveServer", "serve", "parse_address",
            "PUBLISH_PERIOD_S", "ONCE_PERIOD_S", "MAX_SPEED"]
 
 #: The topic an operator's goal pose arrives on, and its type.
@@ -81,12 +83,30 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, number
 
 
+#: The schema names a goal's channel may advertise (ROS 2's and ROS 1's spelling).
+GOAL_SCHEMAS = (GOAL_TYPE, "geometry_msgs/PoseStamped")
+
+
 def _pose_of_json(data: bytes) -> tuple:
-    msg = json.loads(data)
-    pose = msg["pose"]
-    p, o = pose.get("position", {}), pose.get("orientation", {})
-    return ([float(p.get(a, 0.0)) for a in "xyz"],
-            [float(o.get("w", 1.0)), float(o.get("x", 0.0)), float(o.get("y", 0.0)), float(o.get("z", 0.0))])
+    """``(position (3,), quaternion (w, x, y, z))`` of a JSON ``PoseStamped``; one line naming the
+    first field missing or not a number (a string or a boolean is not one)."""
+    try:
+        msg = json.loads(data)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InvalidInputError(f"{GOAL_TOPIC}: not JSON ({exc})") from None
+
+    def field(obj, *path):
+        for name in path:
+            if not isinstance(obj, dict) or name not in obj:
+                raise InvalidInputError(f"{GOAL_TOPIC}: the goal has no field {'.'.join(path)}; publish a whole "
+                                        f"{GOAL_TYPE}")
+            obj = obj[name]
+        if isinstance(obj, bool) or not isinstance(obj, (int, float)):
+            raise InvalidInputError(f"{GOAL_TOPIC}: field {'.'.join(path)} = {obj!r} is not a number")
+        return float(obj)
+
+    return ([field(msg, "pose", "position", a) for a in "xyz"],
+            [field(msg, "pose", "orientation", a) for a in "wxyz"])
 
 
 class LiveServer:
@@ -111,7 +131,7 @@ class LiveServer:
         self._PlaybackState, self._PlaybackStatus = PlaybackState, PlaybackStatus
         self.context = fg.Context()
         self.channels: dict = {}
-        self.clients: dict = {}  # (client id, client channel id) -> (topic, encoding)
+        self.clients: dict = {}  # (client id, client channel id) -> (topic, encoding, schema name)
         self.store = None  # the stream's type store (the stepping thread's)
         self._goal_store = None  # the goals' (the SDK's threads', under the lock)
         self._lock = threading.Lock()
@@ -214,7 +234,7 @@ class LiveServer:
 
     def on_client_advertise(self, client, channel) -> None:
         with self._lock:
-            self.clients[(client.id, channel.id)] = (channel.topic, channel.encoding)
+            self.clients[(client.id, channel.id)] = (channel.topic, channel.encoding, channel.schema_name)
 
     def on_client_unadvertise(self, client, client_channel_id: int) -> None:
         with self._lock:
@@ -222,10 +242,13 @@ class LiveServer:
 
     def on_message_data(self, client, client_channel_id: int, data: bytes) -> None:
         with self._lock:
-            topic, encoding = self.clients.get((client.id, client_channel_id), (None, None))
+            topic, encoding, schema = self.clients.get((client.id, client_channel_id), (None, None, None))
         if topic != GOAL_TOPIC:
             return
         try:
+            if schema not in GOAL_SCHEMAS:
+                raise InvalidInputError(f"{GOAL_TOPIC}: the channel advertises schema {schema!r}; publish "
+                                        f"{GOAL_TYPE}")
             if encoding == "json":
                 p, q = _pose_of_json(data)
             elif encoding == "cdr":
@@ -242,8 +265,8 @@ class LiveServer:
                                         "cdr (ros2msg schema) or json")
             self.session.set_goal(p, q)
         except Exception as exc:  # noqa: BLE001 - whatever a client sends is answered, never raised in the SDK
-            self.status(f"{GOAL_TOPIC}: " + (str(exc) if isinstance(exc, InvalidInputError) else
-                                             f"not a {GOAL_TYPE} ({type(exc).__name__}: {exc})"))
+            text = str(exc) if isinstance(exc, InvalidInputError) else f"not a {GOAL_TYPE} ({type(exc).__name__}: {exc})"
+            self.status(text if text.startswith(GOAL_TOPIC) else f"{GOAL_TOPIC}: {text}")
 
     def _parameters(self, names=None) -> list:
         fg = self.fg

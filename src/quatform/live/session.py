@@ -49,13 +49,16 @@ from ..sim.metrics import min_separations
 from ..sim.output import staged_dir
 from ..outputs import chosen_writers, writer_choices
 
-__all__ = ["LiveSession", "GAIN_PREFIX", "SEPARATION_PARAMETER", "PAUSED_PARAMETER"]
+__all__ = ["LiveSession", "GAIN_PREFIX", "SEPARATION_PARAMETER", "PAUSED_PARAMETER", "MAX_GOAL_DISTANCE_M"]
 
 #: Parameter names: ``gains.<key>`` for each of the controller's gains (``gains.k_x`` ...),
 #: the barrier's distance, and the pause switch.
 GAIN_PREFIX = "gains."
 SEPARATION_PARAMETER = "min_separation_m"
 PAUSED_PARAMETER = "paused"
+#: The farthest a goal may be from the reference's centroid now, m (a goal farther off is
+#: refused: no scenario's robots cover it, and its distance would overflow the step's arithmetic).
+MAX_GOAL_DISTANCE_M = 1e6
 
 
 def _plain(value):
@@ -153,7 +156,8 @@ class LiveSession:
     def set_goal(self, position, quaternion) -> None:
         """The operator's goal for the formation's centroid ``position`` (3,) m and attitude
         ``quaternion`` (4,) ``(w, x, y, z)``, from the next tick; one line for a goal that is not
-        finite or a quaternion of norm 0."""
+        finite, a quaternion of norm 0, or a position farther than :data:`MAX_GOAL_DISTANCE_M`
+        from the reference's centroid now."""
         p = np.asarray(position, dtype=float).reshape(3)
         q = np.asarray(quaternion, dtype=float).reshape(4)
         n = float(np.linalg.norm(q))
@@ -161,6 +165,12 @@ class LiveSession:
             raise InvalidInputError(f"goal pose refused: position {p.tolist()} and orientation (w, x, y, z) "
                                     f"{q.tolist()} must be finite with a nonzero quaternion")
         with self._lock:
+            now = self._pose[0] if self._pose is not None else self.parts.pose(self._e[-1] if self._e else
+                                                                               self.chart[0])[0]
+            far = float(np.max(np.abs(p - now)))  # the largest coordinate: no overflow where the norm would
+            if far > MAX_GOAL_DISTANCE_M:
+                raise InvalidInputError(f"goal pose refused: position {p.tolist()} is {far:.3g} m from the reference "
+                                        f"now, farther than {MAX_GOAL_DISTANCE_M:g} m")
             self._pending["goal"] = (p, q / n)
 
     def set_parameter(self, name: str, value) -> None:
