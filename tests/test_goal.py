@@ -198,6 +198,7 @@ def test_parameters_checked_by_the_controller(tmp_path):
             s.set_parameter(name, value)
         assert "\n" not in str(exc.value) and name in str(exc.value)
     assert s.parameters() == before
+    s.set_parameter("gains.k_d", 9.0)  # replaced before any tick runs with it: not a change applied
     s.set_parameter("gains.k_d", 3.5)
     s.set_parameter("gains.k_x", [1.0, 2.0, 3.0])
     s.set_parameter("min_separation_m", 0.4)
@@ -212,6 +213,17 @@ def test_parameters_checked_by_the_controller(tmp_path):
     _, m = s.finish(tmp_path / "o", plots=False)
     changes = json.loads((tmp_path / "o" / "metrics.json").read_text())["live"]["parameter_changes"]
     assert changes == [[1, "gains.k_d", 3.5], [1, "gains.k_x", [1.0, 2.0, 3.0]], [1, "min_separation_m", 0.4]]
+    assert m["safety_min_separation_m"] == 0.4  # the distance in force at the end
+
+
+def test_array_gain_set_by_one_number_stays_an_array(tmp_path):
+    _, s = _session(tmp_path)
+    s.step()
+    assert isinstance(s.parameters()["gains.k_x"], list)
+    s.set_parameter("gains.k_x", 5)
+    assert s.parameters()["gains.k_x"] == [5.0, 5.0, 5.0]
+    s.step()
+    assert s.changes == [(1, "gains.k_x", [5.0, 5.0, 5.0])]
 
 
 def test_goal_refused_when_not_finite(tmp_path):

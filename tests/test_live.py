@@ -337,9 +337,10 @@ def test_stop_writes_the_ticks_done(scenario, tmp_path, sig):
         rest = p.communicate(timeout=60)[1]
     finally:
         p.kill()
-    assert p.returncode == 0, rest
+    assert p.returncode == 128 + sig, rest  # 130, 143: after writing the folder
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["live"]["stopped"] and 0 < metrics["live"]["ticks"] < 3001
+    assert metrics["live"]["signal"] == sig
     assert (out / "run.mcap").is_file() and (out / "timeseries.csv").is_file()
     rows = (out / "timeseries.csv").read_text().strip().splitlines()
     assert len(rows) - 1 == metrics["live"]["ticks"]

@@ -27,7 +27,9 @@ only here: :func:`require_foxglove`):
   factor kept.
 
 Stopping (the duration reached, Ctrl-C, SIGTERM) writes the ticks done into the run's folder
-as a run writes it (:meth:`LiveSession.finish`). A client that disconnects changes nothing.
+as a run writes it (:meth:`LiveSession.write_into`; ``metrics.json``'s ``live.signal`` the
+signal's number, and ``quatform run --live`` then exits with ``128 +`` it: 130, 143). A client
+that disconnects changes nothing.
 """
 
 from __future__ import annotations
@@ -341,8 +343,13 @@ def _drive(session, server, out, tmp, chosen, host, realtime, plots, quiet, read
     while the folder is written changes nothing."""
     stop = threading.Event()
     main = threading.current_thread() is threading.main_thread()
-    old = {sig: signal.signal(sig, lambda signum, frame: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)} \
-        if main else {}
+
+    def stopped_by(signum, frame):
+        if not stop.is_set():
+            stop.signum = int(signum)
+            stop.set()
+
+    old = {sig: signal.signal(sig, stopped_by) for sig in (signal.SIGINT, signal.SIGTERM)} if main else {}
     try:
         return _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready, stop)
     finally:
@@ -404,6 +411,7 @@ def _loop(session, server, out, tmp, chosen, host, realtime, plots, quiet, ready
             failure, stopped, text = exc, True, f"{type(exc).__name__}: {exc}"
     wall = time.perf_counter() - t0
     log, metrics = session.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall,
-                                      failure=None if failure is None else text)
+                                      failure=None if failure is None else text,
+                                      signal=getattr(stop, "signum", None))
     say(f"  {session.scenario.name}: {session.k} ticks in {wall:.1f} s -> {out}")
     return log, metrics, failure

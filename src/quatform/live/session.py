@@ -188,11 +188,14 @@ class LiveSession:
             key = name[len(GAIN_PREFIX):]
             k = check_gain(value, key, team_gain_sizes()[key], where=said, place="gain")
             with self._lock:
-                gains = {**self.gains, key: _plain(k if np.ndim(value) else k[0])}
+                new = _plain(k if np.ndim(value) else k[0])
+                if isinstance(self.gains[key], list) and not isinstance(new, list):  # the declared type kept
+                    new = [new] * len(self.gains[key])
+                gains = {**self.gains, key: new}
                 controller = self._controller(gains, self.min_separation, said)
                 self.gains = gains
                 self._pending["controller"] = controller
-                self._pending.setdefault("changes", []).append((name, gains[key]))
+                self._pending.setdefault("changes", {})[name] = gains[key]
             return
         if name == SEPARATION_PARAMETER and self.min_separation is not None:
             with self._lock:  # the robots' state read between two ticks, and the change taken by the next
@@ -200,7 +203,7 @@ class LiveSession:
                 controller = self._controller(self.gains, d, said)
                 self.min_separation = d
                 self._pending["controller"] = controller
-                self._pending.setdefault("changes", []).append((name, d))
+                self._pending.setdefault("changes", {})[name] = d
             return
         raise InvalidInputError(f"{said}: no such parameter; parameters: {', '.join(self.parameters())}")
 
@@ -254,7 +257,7 @@ class LiveSession:
             self.goal_ticks.append(self.k)
         if "controller" in pending:
             self.stepper.use(pending["controller"])
-            self.changes.extend((self.k, *change) for change in pending["changes"])
+            self.changes.extend((self.k, name, value) for name, value in pending["changes"].items())
 
     def reference(self, k: int):
         """Tick ``k``'s reference ``(e, Reference)``: the experiment's, or, once a goal has come,
@@ -297,21 +300,24 @@ class LiveSession:
         return finish(log)
 
     def finish(self, out, *, plots: bool = True, writers: dict | None = None, stopped: bool = False,
-               wall_s: float | None = None, failure: str | None = None):
+               wall_s: float | None = None, failure: str | None = None, signal: int | None = None):
         """Write the ticks done into the folder ``out`` as a run writes it (atomically: the files
         appear when all are written; :meth:`write_into` the staged folder). Returns ``(log, metrics)``."""
         chosen = chosen_writers(writer_choices(writers=writers), out)
         with staged_dir(out) as tmp:
-            return self.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall_s, failure=failure)
+            return self.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall_s, failure=failure,
+                                   signal=signal)
 
     def write_into(self, folder, chosen: tuple, *, plots: bool = True, stopped: bool = False,
-                   wall_s: float | None = None, failure: str | None = None):
+                   wall_s: float | None = None, failure: str | None = None, signal: int | None = None):
         """Write the ticks done into ``folder`` (a staged output folder,
         :func:`~quatform.sim.output.staged_dir`) with ``chosen``, the ``(folder writers, recordings)``
         of :func:`~quatform.outputs.chosen_writers`. ``metrics.json`` adds ``live``: ticks done of
-        the run's, whether it was stopped (and the failure that stopped it), the goals' ticks, the
-        parameter changes (tick, name, value), the goal motion's bounds and, given the wall time
-        ``wall_s`` (pauses included), ticks per second. Returns ``(log, metrics)``."""
+        the run's, whether it was stopped (and the failure or the ``signal`` number that stopped
+        it), the goals' ticks, the parameter changes applied (tick, name, value: the last value
+        set before that tick, the one the tick ran with), the goal motion's bounds and, given the
+        wall time ``wall_s`` (pauses included), ticks per second; ``safety_min_separation_m`` is
+        the barrier's distance in force at the end. Returns ``(log, metrics)``."""
         if self.k == 0:
             raise InvalidInputError("quatform run --live: stopped before the first tick; nothing to write")
         folder_writers, recordings = chosen
@@ -323,6 +329,11 @@ class LiveSession:
                            "goal_max_speed_m_s": self.max_speed, "goal_max_rate_rad_s": self.max_rate}
         if failure is not None:
             metrics["live"]["failure"] = failure
+        if signal is not None:
+            metrics["live"]["signal"] = int(signal)
+        applied = [c[2] for c in self.changes if c[1] == SEPARATION_PARAMETER]
+        if applied:
+            metrics["safety_min_separation_m"] = applied[-1]
         if wall_s is not None:
             metrics["wall_time_s"] = round(wall_s, 3)
             metrics["live"]["ticks_per_s"] = round(self.k / max(wall_s, 1e-9), 1)
