@@ -8,7 +8,8 @@ that between two ticks
 * a goal pose (:meth:`set_goal`) moves the reference: from the tick it arrives, the
   reference's centroid and attitude go toward it along the pure step
   :func:`quatform.references.goal.approach_pose` (within :func:`~quatform.references.goal.goal_limits`
-  of the robots), stated in the scenario's chart (:meth:`~quatform.scenarios.team.TeamChartParts.pose`,
+  of the robots, its velocity changing by at most those bounds over
+  :data:`~quatform.references.goal.GOAL_RAMP_S` per second, from rest at the goal's first tick), stated in the scenario's chart (:meth:`~quatform.scenarios.team.TeamChartParts.pose`,
   :meth:`~quatform.scenarios.team.TeamChartParts.posed`) and mapped to the controller's
   description by its ``from_chart``; the shape and headings stay the scenario's;
 * the controller's gains and the separation barrier's distance (:meth:`set_parameter`) are
@@ -39,7 +40,7 @@ import numpy as np
 from ..control import Reference, SafeController
 from ..control.team import check_gain, team_gain_sizes
 from ..errors import InvalidInputError
-from ..references.goal import approach_pose, goal_limits
+from ..references.goal import GOAL_RAMP_S, approach_pose, goal_limits
 from ..runs import given_options, record_options, record_runs, write_outputs
 from ..scenarios import kind_of, load_scenario
 from ..scenarios.separation import separation_barrier
@@ -120,7 +121,7 @@ class LiveSession:
         self._lock = threading.RLock()
         self._pending: dict = {}
         self._goal = None  # (p (3,), q (4,)) the operator's goal
-        self._pose = None  # the shaped pose (p, q) of the next tick, once a goal has come
+        self._pose = None  # the shaped pose (p, q) of the next tick and its velocities (v, w), once a goal came
         self._e, self._c, self._r = [], [], []  # each tick's reference: chart, description, robots
         self.goal_ticks: list = []  # the ticks at which a goal arrived
         self.changes: list = []  # (tick, parameter, value) applied
@@ -265,12 +266,13 @@ class LiveSession:
         e, ed = self.chart[k], self.chart_rate[k]
         if self._goal is None:
             return e, self.experiment.reference(k)
-        if self._pose is None:
-            self._pose = self.parts.pose(e if not self._e else self._e[-1])
-        p, q = self._pose
-        p_next, q_next, v, w = approach_pose(p, q, *self._goal, self.max_speed, self.max_rate, self.dt)
+        if self._pose is None:  # from rest where the reference is (the scenario's own rate is not carried on)
+            self._pose = (*self.parts.pose(e if not self._e else self._e[-1]), np.zeros(3), np.zeros(3))
+        p, q, v0, w0 = self._pose
+        p_next, q_next, v, w = approach_pose(p, q, *self._goal, self.max_speed, self.max_rate, self.dt, v0, w0,
+                                             self.max_speed / GOAL_RAMP_S, self.max_rate / GOAL_RAMP_S)
         e, ed = self.parts.posed(e, ed, p, q, v, w, near=self._e[-1] if self._e else None)
-        self._pose = (p_next, q_next)
+        self._pose = (p_next, q_next, v, w)
         c, cd = self.formation.from_chart(e[None], ed[None])
         return e, Reference(c[0], cd[0], self.parts.robots(self.scenario, e[None])[0])
 
