@@ -435,7 +435,8 @@ def test_port_in_use_is_one_line(scenario, tmp_path):
                             "--out", str(tmp_path / "out"), "--no-plots", "--live", str(port)],
                            capture_output=True, text=True, env=env, timeout=60)
     assert p.returncode == 2, p.stderr
-    assert p.stderr.strip() == f"quatform: error: --live: port {port} on 127.0.0.1 is in use; give another or 0 (any free port)"
+    assert p.stderr.strip() == (f"quatform: error: --live: port {port} on 127.0.0.1 is in use; give another or 0 "
+                                "(any free port)")
     assert not (tmp_path / "out").exists()
 
 

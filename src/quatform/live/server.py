@@ -267,7 +267,8 @@ class LiveServer:
                                         "cdr (ros2msg schema) or json")
             self.session.set_goal(p, q)
         except Exception as exc:  # noqa: BLE001 - whatever a client sends is answered, never raised in the SDK
-            text = str(exc) if isinstance(exc, InvalidInputError) else f"not a {GOAL_TYPE} ({type(exc).__name__}: {exc})"
+            text = str(exc) if isinstance(exc, InvalidInputError) else \
+                f"not a {GOAL_TYPE} ({type(exc).__name__}: {exc})"
             self.status(text if text.startswith(GOAL_TOPIC) else f"{GOAL_TOPIC}: {text}")
 
     def _parameters(self, names=None) -> list:

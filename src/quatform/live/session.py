@@ -9,7 +9,8 @@ that between two ticks
   reference's centroid and attitude go toward it along the pure step
   :func:`quatform.references.goal.approach_pose` (within :func:`~quatform.references.goal.goal_limits`
   of the robots, its velocity changing by at most those bounds over
-  :data:`~quatform.references.goal.GOAL_RAMP_S` per second, from rest at the goal's first tick), stated in the scenario's chart (:meth:`~quatform.scenarios.team.TeamChartParts.pose`,
+  :data:`~quatform.references.goal.GOAL_RAMP_S` per second, from rest at the goal's first tick),
+  stated in the scenario's chart (:meth:`~quatform.scenarios.team.TeamChartParts.pose`,
   :meth:`~quatform.scenarios.team.TeamChartParts.posed`) and mapped to the controller's
   description by its ``from_chart``; the shape and headings stay the scenario's;
 * the controller's gains and the separation barrier's distance (:meth:`set_parameter`) are
@@ -296,10 +297,8 @@ class LiveSession:
         if n and self.times[n - 1] < meta.get("metrics_from_s", 0.0):
             meta["metrics_from_s"] = 0.0  # a run stopped before the measured window: measured from its start
         log = self.stepper.log(meta, ticks=ticks)
-        pick = ticks.tolist()
-        finish = self.parts.finisher(self.scenario, self.inner, self.times[ticks], np.asarray([self._e[i] for i in pick]),
-                                     np.asarray([self._c[i] for i in pick]), np.asarray([self._r[i] for i in pick]), None)
-        return finish(log)
+        e, c, r = (np.asarray([refs[i] for i in ticks.tolist()]) for refs in (self._e, self._c, self._r))
+        return self.parts.finisher(self.scenario, self.inner, self.times[ticks], e, c, r, None)(log)
 
     def finish(self, out, *, plots: bool = True, writers: dict | None = None, stopped: bool = False,
                wall_s: float | None = None, failure: str | None = None, signal: int | None = None):
