@@ -226,7 +226,8 @@ def test_parameters_checked_by_the_controller(tmp_path):
     assert before["gains.k_d"] > 0 and before["min_separation_m"] == 0.3 and before["paused"] is False
     for name, value in [("gains.k_d", -1.0), ("gains.k_d", float("nan")), ("gains.k_d", "fast"), ("gains.k_d", True),
                         ("gains.k_x", [1.0, 2.0]), ("gains.k_d", 200.0), ("min_separation_m", -0.1),
-                        ("min_separation_m", 5.0), ("min_separation_m", 0.0), ("paused", 1), ("nope", 1.0)]:
+                        ("min_separation_m", 5.0), ("min_separation_m", 0.0), ("paused", 1), ("nope", 1.0),
+                        ("gains.k_d", 10**400), ("gains.k_x", [1, 10**400, 1]), ("min_separation_m", -10**400)]:
         with pytest.raises(InvalidInputError) as exc:
             s.set_parameter(name, value)
         assert "\n" not in str(exc.value) and name in str(exc.value)

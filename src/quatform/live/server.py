@@ -292,8 +292,9 @@ class LiveServer:
         for p in parameters:
             try:
                 self.session.set_parameter(p.name, p.get_value())
-            except InvalidInputError as exc:
-                self.status(str(exc))
+            except Exception as exc:  # noqa: BLE001 - whatever a client sends is answered, never raised in the SDK
+                self.status(str(exc) if isinstance(exc, InvalidInputError) else
+                            f"live parameter {p.name} refused ({type(exc).__name__}: {exc})")
         if any(p.name == PAUSED_PARAMETER for p in parameters):
             self.server.broadcast_playback_state(self.playback_state())
         return self._parameters()

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import threading
 from pathlib import Path
 
@@ -180,6 +181,9 @@ class LiveSession:
         reads it at once); an unknown name or a value the controller's own checks refuse is one
         line (:class:`~quatform.errors.InvalidInputError`) and nothing changes."""
         said = f"live parameter {name} refused"
+        items = value if isinstance(value, (list, tuple)) else [value]
+        if any(isinstance(v, int) and not isinstance(v, bool) and abs(v) > sys.float_info.max for v in items):
+            raise InvalidInputError(f"{said}: an integer beyond the range of a float is not a finite number")
         if name == PAUSED_PARAMETER:
             if not isinstance(value, bool):
                 raise InvalidInputError(f"{said}: {value!r} must be true or false")
