@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from quatform.errors import InvalidInputError
 from quatform.formations import geometry as g
 from quatform.live import LiveSession
-from quatform.references.goal import approach_pose, goal_limits
+from quatform.references.goal import GOAL_RAMP_S, GOAL_SHARE, approach_pose, goal_limits
 from quatform.robots import HolonomicRobot, Pioneer
 from quatform.runs import run
 from quatform.scenarios.team import TEAM_CHARTS
@@ -100,9 +100,38 @@ def test_lands_on_the_goal_and_batches():
     np.testing.assert_allclose(np.linalg.norm(w, axis=-1), [0.1, 1.0], atol=1e-12)  # half turn: a rate-limited step
 
 
+@settings(max_examples=200, deadline=None)
+@given(vec, quat, vec, quat, positive, positive, st.floats(1e-3, 0.1), vec, vec, positive, positive)
+def test_approach_bounds_its_acceleration(p, q, pg, qg, vmax, wmax, dt, v0, w0, amax, alpha):
+    v0 = v0 * min(1.0, vmax / max(np.linalg.norm(v0), 1e-300))  # a velocity the bounds allowed
+    w0 = w0 * min(1.0, wmax / max(np.linalg.norm(w0), 1e-300))
+    p1, q1, v, w = approach_pose(p, q, pg, qg, vmax, wmax, dt, v0, w0, amax, alpha)
+    assert np.all(np.isfinite(np.r_[p1, q1, v, w]))
+    assert np.linalg.norm(v - v0) <= amax * dt * (1 + 1e-9) + 1e-12
+    assert np.linalg.norm(w - w0) <= alpha * dt * (1 + 1e-9) + 1e-12
+    assert np.linalg.norm(v) <= vmax * (1 + 1e-9) and np.linalg.norm(w) <= wmax * (1 + 1e-9)
+    np.testing.assert_allclose(p1, p + v * dt, atol=1e-12 * (1 + np.abs(p).max()))
+    np.testing.assert_allclose(np.linalg.norm(q1), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("amax, alpha", [(0.5, 0.7), (2.0, 5.0)])
+def test_bounded_approach_lands_from_rest(amax, alpha):
+    p, q, v, w = np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3)
+    pg, qg = np.array([2.0, -1.0, 0.5]), g.q_yaw(2.5)
+    vs = []
+    for _ in range(2000):
+        p, q, v, w = approach_pose(p, q, pg, qg, 1.0, 1.5, 0.02, v, w, amax, alpha)
+        vs.append(np.r_[v, w])
+    np.testing.assert_allclose(p, pg, atol=1e-12)
+    np.testing.assert_allclose(abs(np.dot(q, qg)), 1.0, atol=1e-12)
+    np.testing.assert_array_equal(vs[-1], 0.0)  # at rest there
+    jumps = np.abs(np.diff(np.asarray(vs), axis=0, prepend=0.0))
+    assert np.linalg.norm(jumps[:, :3], axis=1).max() <= amax * 0.02 * (1 + 1e-9)
+
+
 def test_limits_from_the_robots():
     v, w = goal_limits((HolonomicRobot(max_speed=2.0), Pioneer()), radius=1.5)
-    assert v == 0.5 * Pioneer().max_v
+    assert v == 0.5 * GOAL_SHARE * Pioneer().max_v and GOAL_SHARE < 1.0
     np.testing.assert_allclose(w, v / 1.5)
 
 
@@ -150,7 +179,7 @@ def test_session_without_goal_is_the_run(tmp_path):
 
 
 def test_goal_moves_the_reference_within_limits(tmp_path):
-    _, s = _session(tmp_path)
+    _, s = _session(tmp_path, text=TRIANGLE.replace("duration_s = 2.0", "duration_s = 3.0"))
     for _ in range(10):
         s.step()
     goal = np.array([1.0, 0.5, 1.2])
@@ -166,6 +195,16 @@ def test_goal_moves_the_reference_within_limits(tmp_path):
     np.testing.assert_allclose(abs(np.dot(e_des[-1, 3:7], g.q_yaw(np.pi / 2))), 1.0, atol=1e-12)
     steps = np.linalg.norm(np.diff(e_des[:, :3], axis=0), axis=1)
     assert np.all(steps <= s.max_speed * s.dt * (1 + 1e-9))
+    # no velocity jump: from rest, the centroid's velocity changes by at most max_speed / GOAL_RAMP_S per s
+    vel = np.diff(e_des[10:, :3], axis=0) / s.dt
+    assert np.linalg.norm(np.diff(vel, axis=0, prepend=0.0), axis=1).max() <= \
+        s.max_speed / GOAL_RAMP_S * s.dt * (1 + 1e-6)
+    # the robots the reference implies move at most GOAL_SHARE of their limit (2.5 m/s): a margin
+    # of (1 - GOAL_SHARE) of it left for the controller (a chord is shorter than its arc)
+    robots = s.scenario.team.layout.positions(np.asarray(s._r))
+    speeds = np.linalg.norm(np.diff(robots[10:], axis=0), axis=-1) / s.dt
+    assert speeds.max() <= GOAL_SHARE * 2.5 * (1 + 1e-9)
+    assert speeds.max() >= 0.5 * GOAL_SHARE * 2.5  # the bound is used, not a loose one
     # the robots follow it: the actual centroid ends near the goal
     assert np.linalg.norm(log["e"][-1, :3] - goal) < 0.2
 
@@ -187,11 +226,13 @@ def test_parameters_checked_by_the_controller(tmp_path):
     assert before["gains.k_d"] > 0 and before["min_separation_m"] == 0.3 and before["paused"] is False
     for name, value in [("gains.k_d", -1.0), ("gains.k_d", float("nan")), ("gains.k_d", "fast"), ("gains.k_d", True),
                         ("gains.k_x", [1.0, 2.0]), ("gains.k_d", 200.0), ("min_separation_m", -0.1),
-                        ("min_separation_m", 5.0), ("min_separation_m", 0.0), ("paused", 1), ("nope", 1.0)]:
+                        ("min_separation_m", 5.0), ("min_separation_m", 0.0), ("paused", 1), ("nope", 1.0),
+                        ("gains.k_d", 10**400), ("gains.k_x", [1, 10**400, 1]), ("min_separation_m", -10**400)]:
         with pytest.raises(InvalidInputError) as exc:
             s.set_parameter(name, value)
         assert "\n" not in str(exc.value) and name in str(exc.value)
     assert s.parameters() == before
+    s.set_parameter("gains.k_d", 9.0)  # replaced before any tick runs with it: not a change applied
     s.set_parameter("gains.k_d", 3.5)
     s.set_parameter("gains.k_x", [1.0, 2.0, 3.0])
     s.set_parameter("min_separation_m", 0.4)
@@ -206,6 +247,17 @@ def test_parameters_checked_by_the_controller(tmp_path):
     _, m = s.finish(tmp_path / "o", plots=False)
     changes = json.loads((tmp_path / "o" / "metrics.json").read_text())["live"]["parameter_changes"]
     assert changes == [[1, "gains.k_d", 3.5], [1, "gains.k_x", [1.0, 2.0, 3.0]], [1, "min_separation_m", 0.4]]
+    assert m["safety_min_separation_m"] == 0.4  # the distance in force at the end
+
+
+def test_array_gain_set_by_one_number_stays_an_array(tmp_path):
+    _, s = _session(tmp_path)
+    s.step()
+    assert isinstance(s.parameters()["gains.k_x"], list)
+    s.set_parameter("gains.k_x", 5)
+    assert s.parameters()["gains.k_x"] == [5.0, 5.0, 5.0]
+    s.step()
+    assert s.changes == [(1, "gains.k_x", [5.0, 5.0, 5.0])]
 
 
 def test_goal_refused_when_not_finite(tmp_path):
@@ -235,6 +287,13 @@ def test_jax_runs_the_same_step():
     for a, b in zip(out, approach_pose(p, q, pg, qg, 1.0, 2.0, 0.05)):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
     assert np.all(np.isfinite(out[3]))
+    v, w = rng.normal(size=(2, 5, 3))  # with acceleration bounds: the same step too
+    with jax.enable_x64(True):
+        step = jax.jit(approach_pose, static_argnums=(4, 5, 6, 9, 10))
+        out = [np.asarray(a) for a in step(*(jax.numpy.asarray(a) for a in (p, q, pg, qg)), 1.0, 2.0, 0.05,
+                                           jax.numpy.asarray(v), jax.numpy.asarray(w), 3.0, 4.0)]
+    for a, b in zip(out, approach_pose(p, q, pg, qg, 1.0, 2.0, 0.05, v, w, 3.0, 4.0)):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
 
 
 def test_live_server_without_the_sdk_names_the_extra(monkeypatch):

@@ -337,9 +337,10 @@ def test_stop_writes_the_ticks_done(scenario, tmp_path, sig):
         rest = p.communicate(timeout=60)[1]
     finally:
         p.kill()
-    assert p.returncode == 0, rest
+    assert p.returncode == 128 + sig, rest  # 130, 143: after writing the folder
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["live"]["stopped"] and 0 < metrics["live"]["ticks"] < 3001
+    assert metrics["live"]["signal"] == sig
     assert (out / "run.mcap").is_file() and (out / "timeseries.csv").is_file()
     rows = (out / "timeseries.csv").read_text().strip().splitlines()
     assert len(rows) - 1 == metrics["live"]["ticks"]
@@ -352,3 +353,193 @@ def test_help_names_live_and_realtime(capsys):
         main(["run", "--help"])
     text = capsys.readouterr().out
     assert "--live [HOST:]PORT" in text and "--realtime FACTOR" in text
+
+
+def test_publish_work_is_bounded(scenario, monkeypatch):
+    """A publish serialises the ticks since the last one, and the once-per-run topics from the
+    paths' thinned ticks only (at most PATH_POSES), however long the run has gone; their
+    messages are those of the whole run's."""
+    import quatform.live.server as live_server
+    from quatform.bags import run_messages
+    from quatform.bags.mcap import PATH_POSES
+
+    session = LiveSession(scenario(20.0), {"controller": "quaternion"})
+    server = live_server.LiveServer(session, port=0, realtime=0)
+    built = []
+
+    def counted(log, **kw):
+        built.append((len(log), kw.get("every", True)))
+        return run_messages(log, **kw)
+
+    monkeypatch.setattr(live_server, "run_messages", counted)
+    sent = {}
+    monkeypatch.setattr(server, "_channel", lambda topic, msgtype, msgs: type(
+        "C", (), {"log": lambda self, raw, log_time: sent.setdefault(topic, []).append(raw)})())
+    try:
+        for k in (400, 1000):
+            while session.k < k:
+                session.step()
+            built.clear()
+            server.publish(k - 5, True)
+            assert built == [(5, True), (min(k, PATH_POSES), False)]
+        whole = run_messages(session.log(0), store=server.store)
+        for topic, _, raw in whole.once:
+            if topic == "/quatform/log":
+                assert json.loads(bytes(sent[topic][-1][8:-1]).decode())["samples"] == 1000
+            else:
+                assert sent[topic][-1] == raw, topic
+    finally:
+        server.stop()
+
+
+def test_unusable_out_is_refused_before_serving(scenario, tmp_path):
+    from quatform.errors import QuatformError
+
+    (tmp_path / "afile").write_text("a file")
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    served = []
+    with pytest.raises((QuatformError, OSError)) as info:
+        serve(session, tmp_path / "afile" / "sub", port=0, realtime=0, quiet=True, ready=served.append)
+    assert not served and session.k == 0
+    assert "afile" in str(info.value)
+
+
+def test_failure_writes_the_ticks_before_it(scenario, tmp_path, monkeypatch):
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    plain = session.reference
+
+    def failing(k):
+        if k == 30:
+            raise RuntimeError("injected")
+        return plain(k)
+
+    monkeypatch.setattr(session, "reference", failing)
+    with pytest.raises(RuntimeError, match="injected"):
+        serve(session, tmp_path / "out", port=0, realtime=0, plots=False, quiet=True)
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["live"]["ticks"] == 30 and metrics["live"]["stopped"]
+    assert metrics["live"]["failure"] == "RuntimeError: injected"
+    rows = (tmp_path / "out" / "timeseries.csv").read_text().strip().splitlines()
+    assert len(rows) - 1 == 30
+
+
+def test_port_in_use_is_one_line(scenario, tmp_path):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+        p = subprocess.run([sys.executable, "-m", "quatform", "run", str(scenario(2.0)), "--controller", "quaternion",
+                            "--out", str(tmp_path / "out"), "--no-plots", "--live", str(port)],
+                           capture_output=True, text=True, env=env, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.strip() == (f"quatform: error: --live: port {port} on 127.0.0.1 is in use; give another or 0 "
+                                "(any free port)")
+    assert not (tmp_path / "out").exists()
+
+
+def test_ipv6_url_in_brackets():
+    from quatform.live.server import LiveServer, parse_address
+
+    assert parse_address("[::1]:8765") == ("::1", 8765)
+    assert LiveServer.url("::1", 8765) == "ws://[::1]:8765"
+    assert LiveServer.url("127.0.0.1", 0) == "ws://127.0.0.1:0"
+
+
+def test_playback_speed_keeps_unpaced_and_refuses_absurd(scenario):
+    from types import SimpleNamespace
+
+    from foxglove.websocket import PlaybackCommand
+
+    from quatform.live.server import MAX_SPEED, LiveServer
+
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    server = LiveServer(session, port=0, realtime=0)
+    said = []
+    server.status = lambda text, level="Error": said.append(text)
+    try:
+        def request(command, speed):
+            return server.on_playback_control_request(SimpleNamespace(
+                playback_command=getattr(PlaybackCommand, command), playback_speed=speed, request_id="r"))
+
+        request("Pause", 1.0)
+        assert session.paused and server.speed() == 0
+        request("Play", 1.0)  # the stated speed of an unpaced run, unchanged by the client: still unpaced
+        assert not session.paused and server.speed() == 0 and not said
+        request("Play", 4.0)
+        assert server.speed() == 4.0
+        for bad in (float("inf"), float("nan"), 10 * MAX_SPEED, -1.0):
+            request("Play", bad)
+            assert server.speed() == 4.0
+        assert len(said) == 4 and all("refused" in text for text in said)
+    finally:
+        server.stop()
+
+
+def test_changes_from_another_thread_land_between_ticks(scenario):
+    session = LiveSession(scenario(4.0), {"controller": "quaternion"})
+    done = threading.Event()
+    errors = []
+
+    def client():
+        i = 0
+        while not done.is_set():
+            try:
+                session.set_parameter("gains.k_d", 10.0 + i % 2)
+                session.set_parameter("min_separation_m", 0.3 - 0.05 * (i % 2))
+            except Exception as exc:  # noqa: BLE001 - handed to the test
+                errors.append(exc)
+            i += 1
+
+    t = threading.Thread(target=client, daemon=True)
+    t.start()
+    try:
+        while not session.done:
+            session.step()
+    finally:
+        done.set()
+        t.join(10)
+    assert not errors
+    ticks = [c[0] for c in session.changes]
+    assert ticks == sorted(ticks) and ticks and ticks[-1] < session.times.size
+    assert np.all(np.isfinite(session.log()["command"]))
+
+
+@pytest.mark.parametrize("payload, said", [
+    ('{"pose": {}}', "no field pose.position.x"),
+    ('{"pose": {"position": {"x": 0, "y": 0, "z": 1}}}', "no field pose.orientation.w"),
+    ('{"pose": {"position": {"x": "0.5", "y": 0, "z": 1}, "orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}',
+     "pose.position.x = '0.5' is not a number"),
+    ('{"pose": {"position": {"x": 0, "y": true, "z": 1}, "orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}',
+     "pose.position.y = True is not a number"),
+    ('{"pose": {"position": {"x": 1e200, "y": 0, "z": 1}, "orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}',
+     "farther than 1e+06 m"),
+    ('{"pose": {', "not JSON"),
+])
+def test_goal_json_refused(scenario, payload, said):
+    from types import SimpleNamespace
+
+    from quatform.live.server import LiveServer
+
+    session = LiveSession(scenario(2.0), {"controller": "quaternion"})
+    session.step()
+    server = LiveServer(session, port=0, realtime=0)
+    statuses = []
+    server.status = lambda text, level="Error": statuses.append(text)
+    client = SimpleNamespace(id=1)
+    try:
+        server.on_client_advertise(client, SimpleNamespace(id=5, topic=GOAL_TOPIC, encoding="json",
+                                                           schema_name=GOAL_TYPE))
+        server.on_message_data(client, 5, payload.encode())
+        assert len(statuses) == 1 and said in statuses[0] and statuses[0].startswith(GOAL_TOPIC + ": ")
+        assert not statuses[0].startswith(f"{GOAL_TOPIC}: {GOAL_TOPIC}")
+        assert "goal" not in session._pending
+        server.on_client_advertise(client, SimpleNamespace(id=6, topic=GOAL_TOPIC, encoding="json",
+                                                           schema_name="std_msgs/msg/String"))
+        server.on_message_data(client, 6, b'{"pose": {"position": {"x": 0, "y": 0, "z": 1}, '
+                                          b'"orientation": {"w": 1, "x": 0, "y": 0, "z": 0}}}')
+        assert "schema 'std_msgs/msg/String'" in statuses[-1] and "goal" not in session._pending
+    finally:
+        server.stop()

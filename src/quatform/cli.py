@@ -2,8 +2,9 @@
 
 Errors are printed as one line, never a traceback: bad input (and a run too large for the
 machine's memory) exits with status 2, file-system errors with 1, Ctrl-C with 130, SIGTERM
-where a command stops on it as on Ctrl-C (``quatform ros2``) with 143, and an unexpected
-internal error with 3 (``QUATFORM_TRACEBACK=1`` shows its traceback).
+where a command stops on it as on Ctrl-C (``quatform ros2``, a live run, which first writes its
+folder) with 143, and an unexpected internal error with 3 (``QUATFORM_TRACEBACK=1`` shows its
+traceback).
 """
 
 from __future__ import annotations
@@ -350,8 +351,9 @@ def _print_run(metrics, columns) -> None:
         print(f"picture: {metrics['render']} ({metrics['render_backend']})")
 
 
-def _run(args, kinds) -> None:
-    """``quatform run`` (and ``teleop``): one run of any kind with the given options."""
+def _run(args, kinds) -> int | None:
+    """``quatform run`` (and ``teleop``): one run of any kind with the given options; a live run
+    stopped by a signal returns ``128 + signal`` (130 SIGINT, 143 SIGTERM)."""
     from .runs import given_options, run
     from .scenarios import kind_of, load_scenario
     from .sim.output import check_inputs_outside
@@ -378,6 +380,8 @@ def _run(args, kinds) -> None:
     _say_options(kind, options)
     _print_run(metrics, kind.columns_of(sc))
     _say_recordings(writers)
+    signum = metrics.get("live", {}).get("signal")
+    return None if signum is None else 128 + int(signum)
 
 
 def _live(args, sc, options, writers) -> dict:
@@ -394,7 +398,7 @@ def _live(args, sc, options, writers) -> dict:
     session = LiveSession(sc, options)
     realtime = 1.0 if args.realtime is None else args.realtime
     _, metrics = serve(session, args.out, host=host, port=port, realtime=realtime, plots=not args.no_plots,
-                       writers=writers)
+                       writers=writers, inputs=(args.scenario, options.get("reference")))
     return metrics
 
 
@@ -503,9 +507,10 @@ COMMANDS = {
 }
 
 
-def _command(args) -> None:
-    """Run the parsed command (every error propagates to :func:`main`)."""
-    COMMANDS[args.command].run(args)
+def _command(args) -> int | None:
+    """Run the parsed command (every error propagates to :func:`main`); a nonzero exit status
+    it returns (a live run stopped by a signal) is the command's."""
+    return COMMANDS[args.command].run(args)
 
 
 def _say(line: str) -> None:
@@ -559,7 +564,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.command is None:
             parser.print_help()
             return 0
-        _command(args)
+        status = _command(args)
+        if type(status) is int and status:  # noqa: E721 - an exit status, never another command's value
+            return status
     except QuatformError as exc:
         _say(f"error: {exc}")
         return EXIT_FILE_SYSTEM if isinstance(exc, OSError) else EXIT_INPUT  # OutputWriteError: a full disk

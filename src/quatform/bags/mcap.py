@@ -156,8 +156,8 @@ def _stamps(t: np.ndarray) -> np.ndarray:
 class _Topics:
     """The topics of one file being built: ``(topic, msgtype, Batch or one message)`` in order."""
 
-    def __init__(self, store, ns: np.ndarray):
-        self.store, self.ns = store, ns
+    def __init__(self, store, ns: np.ndarray, every: bool = True):
+        self.store, self.ns, self.build_every = store, ns, every
         self.sec = (ns // 1_000_000_000).astype(np.int32)
         self.nanosec = (ns % 1_000_000_000).astype(np.uint32)
         self.every: list = []   # (topic, Batch): one message per sample
@@ -167,7 +167,9 @@ class _Topics:
         return {prefix + ("stamp", "sec"): self.sec, prefix + ("stamp", "nanosec"): self.nanosec}
 
     def add(self, topic: str, template, columns: dict) -> None:
-        self.every.append((topic, Batch.build(self.store, template, columns, self.ns.size)))
+        batch = Batch.build(self.store, template, columns, self.ns.size) if self.build_every else \
+            Batch(template.__msgtype__, np.zeros((0, 0), dtype=np.uint8))
+        self.every.append((topic, batch))
 
     def add_once(self, topic: str, msg) -> None:
         self.once.append((topic, msg.__msgtype__, msg))
@@ -387,15 +389,19 @@ class RunMessages:
         return self.store.generate_msgdef(msgtype, ros_version=2)[0]
 
 
-def run_messages(log: Log, *, kind: str | None = None, scene: bool | Scene = True, store=None) -> RunMessages:
+def run_messages(log: Log, *, kind: str | None = None, scene: bool | Scene = True, store=None, every: bool = True,
+                 samples: int | None = None) -> RunMessages:
     """The messages of one world's ``log`` by topic, CDR-encoded: what :func:`write_mcap` writes
     (``kind`` and ``scene`` as it takes them) and a live run streams. ``store``: the type store
     of an earlier call on a log of the same run to reuse (rosbags compiles each type's
-    serialiser once per store: a fresh one costs about 0.1 s), default a fresh one."""
+    serialiser once per store: a fresh one costs about 0.1 s), default a fresh one.
+    ``every=False`` serialises the once-per-run topics only (``every`` then holds each topic's
+    type with no bytes, ``(0, 0)``); ``samples``: the count ``/quatform/log`` states (default
+    ``len(log)``; a live run gives the ticks done with a log of the paths' thinned ticks)."""
     if len(log) == 0:
         raise InvalidInputError("the log has no samples; there is nothing to write to an MCAP file")
     ns = _stamps(log.t)
-    topics = _Topics(_fresh_store() if store is None else store, ns)
+    topics = _Topics(_fresh_store() if store is None else store, ns, every)
     kind = kind or log.meta.get("kind")
     if isinstance(scene, Scene):
         _scene_topics(topics, scene, log.t)
@@ -406,7 +412,7 @@ def run_messages(log: Log, *, kind: str | None = None, scene: bool | Scene = Tru
         _scene_topics(topics, scene_of(log, kind), log.t)
     described = _channel_topics(topics, log)
     meta = {k: v for k, v in ((k, _plain(v)) for k, v in log.meta.items()) if v is not _SKIP}
-    info = {"version": INFO_VERSION, "kind": kind, "samples": len(log), "channels": described, "meta": meta,
+    info = {"version": INFO_VERSION, "kind": kind, "samples": len(log) if samples is None else int(samples), "channels": described, "meta": meta,
             "topics": [topic for topic, _ in topics.every] + [topic for topic, _, _ in topics.once]}
     topics.once.insert(0, (INFO_TOPIC, "std_msgs/msg/String", messages.string(json.dumps(info))))
     once = [(topic, msgtype, bytes(msg) if isinstance(msg, np.ndarray) else

@@ -8,7 +8,9 @@ that between two ticks
 * a goal pose (:meth:`set_goal`) moves the reference: from the tick it arrives, the
   reference's centroid and attitude go toward it along the pure step
   :func:`quatform.references.goal.approach_pose` (within :func:`~quatform.references.goal.goal_limits`
-  of the robots), stated in the scenario's chart (:meth:`~quatform.scenarios.team.TeamChartParts.pose`,
+  of the robots, its velocity changing by at most those bounds over
+  :data:`~quatform.references.goal.GOAL_RAMP_S` per second, from rest at the goal's first tick),
+  stated in the scenario's chart (:meth:`~quatform.scenarios.team.TeamChartParts.pose`,
   :meth:`~quatform.scenarios.team.TeamChartParts.posed`) and mapped to the controller's
   description by its ``from_chart``; the shape and headings stay the scenario's;
 * the controller's gains and the separation barrier's distance (:meth:`set_parameter`) are
@@ -16,6 +18,10 @@ that between two ticks
   the controller's construction, the barrier's) and refused in one line otherwise; a change
   takes effect from the next tick (the loop's tick rebuilt with the new controller, the carry
   kept).
+
+A client's calls (:meth:`set_goal`, :meth:`set_parameter`, :meth:`parameters`) come from the
+server's threads, the ticks from the stepping thread: they hold one lock, so a change is
+checked against the state between two ticks and taken by the next one.
 
 Without a goal or a change, each tick's reference is the experiment's own and the run is the
 run :func:`quatform.runs.run` makes. :meth:`finish` writes the ticks done (all of them, or
@@ -27,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import threading
 from pathlib import Path
 
@@ -35,7 +42,7 @@ import numpy as np
 from ..control import Reference, SafeController
 from ..control.team import check_gain, team_gain_sizes
 from ..errors import InvalidInputError
-from ..references.goal import approach_pose, goal_limits
+from ..references.goal import GOAL_RAMP_S, approach_pose, goal_limits
 from ..runs import given_options, record_options, record_runs, write_outputs
 from ..scenarios import kind_of, load_scenario
 from ..scenarios.separation import separation_barrier
@@ -45,13 +52,16 @@ from ..sim.metrics import min_separations
 from ..sim.output import staged_dir
 from ..outputs import chosen_writers, writer_choices
 
-__all__ = ["LiveSession", "GAIN_PREFIX", "SEPARATION_PARAMETER", "PAUSED_PARAMETER"]
+__all__ = ["LiveSession", "GAIN_PREFIX", "SEPARATION_PARAMETER", "PAUSED_PARAMETER", "MAX_GOAL_DISTANCE_M"]
 
 #: Parameter names: ``gains.<key>`` for each of the controller's gains (``gains.k_x`` ...),
 #: the barrier's distance, and the pause switch.
 GAIN_PREFIX = "gains."
 SEPARATION_PARAMETER = "min_separation_m"
 PAUSED_PARAMETER = "paused"
+#: The farthest a goal may be from the reference's centroid now, m (a goal farther off is
+#: refused: no scenario's robots cover it, and its distance would overflow the step's arithmetic).
+MAX_GOAL_DISTANCE_M = 1e6
 
 
 def _plain(value):
@@ -113,7 +123,7 @@ class LiveSession:
         self._lock = threading.RLock()
         self._pending: dict = {}
         self._goal = None  # (p (3,), q (4,)) the operator's goal
-        self._pose = None  # the shaped pose (p, q) of the next tick, once a goal has come
+        self._pose = None  # the shaped pose (p, q) of the next tick and its velocities (v, w), once a goal came
         self._e, self._c, self._r = [], [], []  # each tick's reference: chart, description, robots
         self.goal_ticks: list = []  # the ticks at which a goal arrived
         self.changes: list = []  # (tick, parameter, value) applied
@@ -149,7 +159,8 @@ class LiveSession:
     def set_goal(self, position, quaternion) -> None:
         """The operator's goal for the formation's centroid ``position`` (3,) m and attitude
         ``quaternion`` (4,) ``(w, x, y, z)``, from the next tick; one line for a goal that is not
-        finite or a quaternion of norm 0."""
+        finite, a quaternion of norm 0, or a position farther than :data:`MAX_GOAL_DISTANCE_M`
+        from the reference's centroid now."""
         p = np.asarray(position, dtype=float).reshape(3)
         q = np.asarray(quaternion, dtype=float).reshape(4)
         n = float(np.linalg.norm(q))
@@ -157,6 +168,12 @@ class LiveSession:
             raise InvalidInputError(f"goal pose refused: position {p.tolist()} and orientation (w, x, y, z) "
                                     f"{q.tolist()} must be finite with a nonzero quaternion")
         with self._lock:
+            now = self._pose[0] if self._pose is not None else self.parts.pose(self._e[-1] if self._e else
+                                                                               self.chart[0])[0]
+            far = float(np.max(np.abs(p - now)))  # the largest coordinate: no overflow where the norm would
+            if far > MAX_GOAL_DISTANCE_M:
+                raise InvalidInputError(f"goal pose refused: position {p.tolist()} is {far:.3g} m from the reference "
+                                        f"now, farther than {MAX_GOAL_DISTANCE_M:g} m")
             self._pending["goal"] = (p, q / n)
 
     def set_parameter(self, name: str, value) -> None:
@@ -164,6 +181,9 @@ class LiveSession:
         reads it at once); an unknown name or a value the controller's own checks refuse is one
         line (:class:`~quatform.errors.InvalidInputError`) and nothing changes."""
         said = f"live parameter {name} refused"
+        items = value if isinstance(value, (list, tuple)) else [value]
+        if any(isinstance(v, int) and not isinstance(v, bool) and abs(v) > sys.float_info.max for v in items):
+            raise InvalidInputError(f"{said}: an integer beyond the range of a float is not a finite number")
         if name == PAUSED_PARAMETER:
             if not isinstance(value, bool):
                 raise InvalidInputError(f"{said}: {value!r} must be true or false")
@@ -174,19 +194,22 @@ class LiveSession:
             key = name[len(GAIN_PREFIX):]
             k = check_gain(value, key, team_gain_sizes()[key], where=said, place="gain")
             with self._lock:
-                gains = {**self.gains, key: _plain(k if np.ndim(value) else k[0])}
+                new = _plain(k if np.ndim(value) else k[0])
+                if isinstance(self.gains[key], list) and not isinstance(new, list):  # the declared type kept
+                    new = [new] * len(self.gains[key])
+                gains = {**self.gains, key: new}
                 controller = self._controller(gains, self.min_separation, said)
                 self.gains = gains
                 self._pending["controller"] = controller
-                self._pending.setdefault("changes", []).append((name, gains[key]))
+                self._pending.setdefault("changes", {})[name] = gains[key]
             return
         if name == SEPARATION_PARAMETER and self.min_separation is not None:
-            d = self._check_separation(value, said)
-            with self._lock:
+            with self._lock:  # the robots' state read between two ticks, and the change taken by the next
+                d = self._check_separation(value, said)
                 controller = self._controller(self.gains, d, said)
                 self.min_separation = d
                 self._pending["controller"] = controller
-                self._pending.setdefault("changes", []).append((name, d))
+                self._pending.setdefault("changes", {})[name] = d
             return
         raise InvalidInputError(f"{said}: no such parameter; parameters: {', '.join(self.parameters())}")
 
@@ -240,7 +263,7 @@ class LiveSession:
             self.goal_ticks.append(self.k)
         if "controller" in pending:
             self.stepper.use(pending["controller"])
-            self.changes.extend((self.k, *change) for change in pending["changes"])
+            self.changes.extend((self.k, name, value) for name, value in pending["changes"].items())
 
     def reference(self, k: int):
         """Tick ``k``'s reference ``(e, Reference)``: the experiment's, or, once a goal has come,
@@ -248,60 +271,77 @@ class LiveSession:
         e, ed = self.chart[k], self.chart_rate[k]
         if self._goal is None:
             return e, self.experiment.reference(k)
-        if self._pose is None:
-            self._pose = self.parts.pose(e if not self._e else self._e[-1])
-        p, q = self._pose
-        p_next, q_next, v, w = approach_pose(p, q, *self._goal, self.max_speed, self.max_rate, self.dt)
+        if self._pose is None:  # from rest where the reference is (the scenario's own rate is not carried on)
+            self._pose = (*self.parts.pose(e if not self._e else self._e[-1]), np.zeros(3), np.zeros(3))
+        p, q, v0, w0 = self._pose
+        p_next, q_next, v, w = approach_pose(p, q, *self._goal, self.max_speed, self.max_rate, self.dt, v0, w0,
+                                             self.max_speed / GOAL_RAMP_S, self.max_rate / GOAL_RAMP_S)
         e, ed = self.parts.posed(e, ed, p, q, v, w, near=self._e[-1] if self._e else None)
-        self._pose = (p_next, q_next)
+        self._pose = (p_next, q_next, v, w)
         c, cd = self.formation.from_chart(e[None], ed[None])
         return e, Reference(c[0], cd[0], self.parts.robots(self.scenario, e[None])[0])
 
     def step(self) -> None:
-        """Run the next tick (the pending goal and parameter changes first)."""
-        self._take_pending()
-        e, ref = self.reference(self.k)
-        self.stepper.step(ref)
-        self._e.append(np.asarray(e, dtype=float))
-        self._c.append(np.asarray(ref.c, dtype=float))
-        self._r.append(np.asarray(ref.robots, dtype=float))
+        """Run the next tick (the pending goal and parameter changes first), holding the session's
+        lock: a client's check of the state (:meth:`set_parameter`) sees it between two ticks."""
+        with self._lock:
+            self._take_pending()
+            e, ref = self.reference(self.k)
+            self.stepper.step(ref)
+            self._e.append(np.asarray(e, dtype=float))
+            self._c.append(np.asarray(ref.c, dtype=float))
+            self._r.append(np.asarray(ref.robots, dtype=float))
 
-    def log(self, start: int = 0):
-        """The finished log of ticks ``start`` to :attr:`k` (the kind's derived channels of the
-        references those ticks used)."""
+    def log(self, start: int = 0, ticks=None):
+        """The finished log of ticks ``start`` to :attr:`k`, or of the increasing tick indices
+        ``ticks`` when given (the kind's derived channels of the references those ticks used)."""
         exp, n = self.experiment, self.k
-        t = self.times[start:n]
+        ticks = np.arange(start, n) if ticks is None else np.asarray(ticks, dtype=int)
         meta = {"label": exp.label, **exp.meta}
         if n and self.times[n - 1] < meta.get("metrics_from_s", 0.0):
             meta["metrics_from_s"] = 0.0  # a run stopped before the measured window: measured from its start
-        log = self.stepper.log(meta, start)
-        finish = self.parts.finisher(self.scenario, self.inner, t, np.asarray(self._e[start:n]),
-                                     np.asarray(self._c[start:n]), np.asarray(self._r[start:n]), None)
-        return finish(log)
+        log = self.stepper.log(meta, ticks=ticks)
+        e, c, r = (np.asarray([refs[i] for i in ticks.tolist()]) for refs in (self._e, self._c, self._r))
+        return self.parts.finisher(self.scenario, self.inner, self.times[ticks], e, c, r, None)(log)
 
     def finish(self, out, *, plots: bool = True, writers: dict | None = None, stopped: bool = False,
-               wall_s: float | None = None, failure: str | None = None):
+               wall_s: float | None = None, failure: str | None = None, signal: int | None = None):
         """Write the ticks done into the folder ``out`` as a run writes it (atomically: the files
-        appear when all are written). ``metrics.json`` adds ``live``: ticks done of the run's,
-        whether it was stopped (and the failure that stopped it), the goals' ticks, the parameter
-        changes (tick, name, value), the goal motion's bounds and, given the wall time ``wall_s``
-        (pauses included), ticks per second. Returns ``(log, metrics)``."""
+        appear when all are written; :meth:`write_into` the staged folder). Returns ``(log, metrics)``."""
+        chosen = chosen_writers(writer_choices(writers=writers), out)
+        with staged_dir(out) as tmp:
+            return self.write_into(tmp, chosen, plots=plots, stopped=stopped, wall_s=wall_s, failure=failure,
+                                   signal=signal)
+
+    def write_into(self, folder, chosen: tuple, *, plots: bool = True, stopped: bool = False,
+                   wall_s: float | None = None, failure: str | None = None, signal: int | None = None):
+        """Write the ticks done into ``folder`` (a staged output folder,
+        :func:`~quatform.sim.output.staged_dir`) with ``chosen``, the ``(folder writers, recordings)``
+        of :func:`~quatform.outputs.chosen_writers`. ``metrics.json`` adds ``live``: ticks done of
+        the run's, whether it was stopped (and the failure or the ``signal`` number that stopped
+        it), the goals' ticks, the parameter changes applied (tick, name, value: the last value
+        set before that tick, the one the tick ran with), the goal motion's bounds and, given the
+        wall time ``wall_s`` (pauses included), ticks per second; ``safety_min_separation_m`` is
+        the barrier's distance in force at the end. Returns ``(log, metrics)``."""
         if self.k == 0:
             raise InvalidInputError("quatform run --live: stopped before the first tick; nothing to write")
-        folder_writers, recordings = chosen_writers(writer_choices(writers=writers), out)
-        with staged_dir(out) as tmp:
-            log = self.log()
-            metrics = record_options(self.kind, self.experiment, dict(self.experiment.metrics(log)))
-            metrics["live"] = {"ticks": self.k, "of_ticks": int(self.times.size), "stopped": bool(stopped),
-                               "goal_ticks": list(self.goal_ticks),
-                               "parameter_changes": [list(c) for c in self.changes],
-                               "goal_max_speed_m_s": self.max_speed, "goal_max_rate_rad_s": self.max_rate}
-            if failure is not None:
-                metrics["live"]["failure"] = failure
-            if wall_s is not None:
-                metrics["wall_time_s"] = round(wall_s, 3)
-                metrics["live"]["ticks_per_s"] = round(self.k / max(wall_s, 1e-9), 1)
-            write_outputs(self.kind, self.scenario, self.experiment, log, Path(tmp), metrics, plots, folder_writers)
-            record_runs(recordings, {"": log}, self.kind, self.scenario)
+        folder_writers, recordings = chosen
+        log = self.log()
+        metrics = record_options(self.kind, self.experiment, dict(self.experiment.metrics(log)))
+        metrics["live"] = {"ticks": self.k, "of_ticks": int(self.times.size), "stopped": bool(stopped),
+                           "goal_ticks": list(self.goal_ticks),
+                           "parameter_changes": [list(c) for c in self.changes],
+                           "goal_max_speed_m_s": self.max_speed, "goal_max_rate_rad_s": self.max_rate}
+        if failure is not None:
+            metrics["live"]["failure"] = failure
+        if signal is not None:
+            metrics["live"]["signal"] = int(signal)
+        applied = [c[2] for c in self.changes if c[1] == SEPARATION_PARAMETER]
+        if applied:
+            metrics["safety_min_separation_m"] = applied[-1]
+        if wall_s is not None:
+            metrics["wall_time_s"] = round(wall_s, 3)
+            metrics["live"]["ticks_per_s"] = round(self.k / max(wall_s, 1e-9), 1)
+        write_outputs(self.kind, self.scenario, self.experiment, log, Path(folder), metrics, plots, folder_writers)
+        record_runs(recordings, {"": log}, self.kind, self.scenario)
         return log, metrics
-

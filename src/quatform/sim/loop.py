@@ -449,14 +449,10 @@ def iterate_numpy(plant, controller, measurement, reference, times, dt, substeps
     every = max(1, n // 10)
     ys = []
     for k in range(n):
-        ref = reference(k)
-        xs = tick_inputs(controller, ref, times, k, sched, inputs)
-        before = carry
-        carry, y = tick(carry, xs)
+        carry, y = advance(tick, controller, measurement, reference(k), times, dt, k, sched, inputs, carry,
+                           one_world=not batch)
         if host is not None:
             host.failed = carry[4] > 0
-        elif not batch and carry[4] > 0:  # one world: its failure raises, as update raises it
-            _raise_failure(controller, measurement, ref, times, dt, xs, before, carry)
         ys.append(y)
         if progress is not None and (k + 1) % every == 0:
             progress((k + 1) / n)
@@ -470,6 +466,18 @@ def iterate_numpy(plant, controller, measurement, reference, times, dt, substeps
                                     batch, idx, host)
     return data, carry[1], failure
 
+
+
+def advance(tick, controller, measurement, ref, times, dt, k: int, sched: dict, inputs, carry, *, one_world: bool):
+    """Tick ``k`` of the NumPy driver, the loop body :func:`iterate_numpy` and :class:`Stepper`
+    share: ``tick`` (:func:`make_tick`) on ``carry`` with the tick's inputs
+    (:func:`tick_inputs` of the reference ``ref``). Returns ``(carry, y)``; with ``one_world``,
+    a failure in the tick raises as ``update`` raises it."""
+    xs = tick_inputs(controller, ref, times, k, sched, inputs)
+    after, y = tick(carry, xs)
+    if one_world and after[4] > 0:
+        _raise_failure(controller, measurement, ref, times, dt, xs, carry, after)
+    return after, y
 
 
 def tick_inputs(controller, ref, times, k: int, sched: dict, inputs) -> dict:
@@ -555,19 +563,18 @@ class Stepper:
         if k >= self.times.size:
             raise InvalidInputError(f"stepper: the run's {self.times.size} ticks are done")
         ref = self.reference(k) if ref is None else ref
-        xs = tick_inputs(self.controller, ref, self.times, k, self.sched, self.inputs)
-        before = self.carry
-        self.carry, y = self._tick(self.carry, xs)
-        if self.carry[4] > 0:
-            _raise_failure(self.controller, self.measurement, ref, self.times, self.dt, xs, before, self.carry)
+        self.carry, y = advance(self._tick, self.controller, self.measurement, ref, self.times, self.dt, k,
+                                self.sched, self.inputs, self.carry, one_world=True)
         self.ys.append(y)
         return y
 
-    def log(self, meta: dict | None = None, start: int = 0) -> Log:
-        """The :class:`Log` of ticks ``start`` to :attr:`k` (what :func:`quatform.sim.simulate`
-        returns for them; ``meta["controller_state"]`` the state after the last)."""
-        data = _channels(self.plant, self.controller, self.measurement, self.ys[start:], ())
-        return _log(self.plant, self.controller, self.measurement, self.times[start:self.k], (), data,
+    def log(self, meta: dict | None = None, start: int = 0, ticks=None) -> Log:
+        """The :class:`Log` of ticks ``start`` to :attr:`k`, or of the increasing tick indices
+        ``ticks`` (int array, each below :attr:`k`) when given (what :func:`quatform.sim.simulate`
+        returns for them; ``meta["controller_state"]`` the state after the last tick done)."""
+        ticks = np.arange(start, self.k) if ticks is None else np.asarray(ticks, dtype=int)
+        data = _channels(self.plant, self.controller, self.measurement, [self.ys[i] for i in ticks.tolist()], ())
+        return _log(self.plant, self.controller, self.measurement, self.times[ticks], (), data,
                     self.carry[1], {}, meta)
 
 # -- the JAX driver -----------------------------------------------------------------------
