@@ -52,6 +52,23 @@ def dot_last(a, b):
     return xp.sum(a * b, axis=-1)
 
 
+def small_matmul(a, b):
+    """``a @ b`` of broadcast ``(..., m, k)`` and ``(..., k, n)`` small matrices: NumPy's
+    ``matmul`` for NumPy arrays, the products' sum over ``k`` on another namespace.
+
+    XLA's CPU backend runs a batched ``dot`` of a few rows as one tiny matrix product per batch
+    entry (a library call each); the multiply-sum is one fused loop over the batch (measured in
+    ``docs/performance.md``, "The environments beside crazyflow"). The same values up to the
+    order of the sum's rounding.
+    """
+    xp = array_namespace(a)
+    if xp is np and array_namespace(b) is np:
+        return np.matmul(a, b)
+    xp = common_namespace(a, b)
+    a, b = xp.asarray(a), xp.asarray(b)
+    return xp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
+
+
 def hold(a):
     """``a`` (``(..., k)``) computed once: ``a`` itself on NumPy, ``a @ I`` on another namespace.
 
