@@ -293,7 +293,7 @@ def barrier_filter(barrier, team, m, u, live):
         seen = (sep <= R) & xp.isfinite(g)
     tol = 1e-12 * gam * d2  # SeparationBarrier._world's tolerance of a new violation
     planar = L.position_index[:, 2] == L.size  # a planar point's z velocity is no variable
-    zmask = xp.asarray(np.where(planar[:, None], np.array([1.0, 1.0, 0.0]), 1.0))  # (n, 3)
+    zmask = np.where(planar[:, None], np.array([1.0, 1.0, 0.0]), 1.0)  # (n, 3)
     # each command entry that is a point velocity: its (robot, axis) in V's flat (n * 3) entries
     src = np.zeros(u.shape[-1], dtype=np.intp)
     is_v = np.zeros(u.shape[-1], dtype=bool)
@@ -311,23 +311,30 @@ def barrier_filter(barrier, team, m, u, live):
         key = xp.where(seen, g, xp.inf)
         if K < n_pairs:
             idx = _smallest(xp, key, K)  # the K smallest g: the most violated or nearest pairs
-        else:
-            idx = xp.broadcast_to(xp.arange(n_pairs), key.shape)
-        valid = xp.isfinite(xp.take_along_axis(key, idx, axis=-1))
-        a, bb = ia[idx], ib[idx]  # (B, K) robots of each candidate
-        pc = xp.take_along_axis(pij, idx[..., None], axis=1)
-        c = xp.where(valid, -xp.take_along_axis(g, idx, axis=-1), 0.0)  # G w >= c
+            a, bb = ia[idx], ib[idx]  # (B, K) robots of each candidate
+            key_c, g_c = xp.take_along_axis(key, idx, axis=-1), xp.take_along_axis(g, idx, axis=-1)
+            pc = xp.take_along_axis(pij, idx[..., None], axis=1)
+            za, zb = xp.asarray(zmask)[a], xp.asarray(zmask)[bb]
+        else:  # every pair a candidate, in pair order: the robots and their masks are constants
+            a, bb = i[None, :], j[None, :]
+            key_c, g_c, pc, za, zb = key, g, pij, zmask[a], zmask[bb]
+        valid = xp.isfinite(key_c)
+        c = xp.where(valid, -g_c, 0.0)  # G w >= c
         # the candidates' rows of G: +2 p_ij at robot i, -2 p_ij at robot j (planar z zeroed)
-        va = xp.where(valid[..., None], 2.0 * pc * zmask[a], 0.0)
-        vb = xp.where(valid[..., None], -2.0 * pc * zmask[bb], 0.0)
-        Q = 0.0
-        for ra, wa in ((a, va), (bb, vb)):
-            for rb, wb in ((a, va), (bb, vb)):
-                Q = Q + xp.where(ra[:, :, None] == rb[:, None, :], small_matmul(wa, xp.swapaxes(wb, -1, -2)), 0.0)
+        va = xp.where(valid[..., None], 2.0 * pc * za, 0.0)
+        vb = xp.where(valid[..., None], -2.0 * pc * zb, 0.0)
+        # G G^T: two candidates share at most one robot, where their rows meet as +-4 p_k . p_l on
+        # its axes (a constant pattern C when every pair is a candidate)
+        def meet(ra, rb, z):
+            return (ra[:, :, None] == rb[:, None, :])[..., None] * z[:, :, None, :]
+
+        C = 4.0 * (meet(a, a, za) - meet(a, bb, za) - meet(bb, a, zb) + meet(bb, bb, zb))  # (B, K, K, 3)
+        both = valid[:, :, None] & valid[:, None, :]
+        Q = xp.where(both, xp.sum(pc[:, :, None, :] * pc[:, None, :, :] * C, axis=-1), 0.0)
         A = Q + c[:, :, None] * c[:, None, :]  # E^T E, E = [G^T; c^T]
         scale = 1.0 + xp.max(xp.abs(c), axis=-1)
         y, converged = nnls_gram(A, c, valid, 1e-14 * scale, 4 * K + 8, ~tried)
-        onehot = xp.arange(n)
+        onehot = np.arange(n)
         Gy = (small_matmul(xp.swapaxes((a[..., None] == onehot).astype(u.dtype), -1, -2), y[..., None] * va)
               + small_matmul(xp.swapaxes((bb[..., None] == onehot).astype(u.dtype), -1, -2), y[..., None] * vb))
         den = xp.sum(c * y, axis=-1) - 1.0  # r[-1]
