@@ -58,7 +58,7 @@ def small_matmul(a, b):
 
     XLA's CPU backend runs a batched ``dot`` of a few rows as one tiny matrix product per batch
     entry (a library call each); the multiply-sum is one fused loop over the batch (measured in
-    ``docs/performance.md``, "The environments beside crazyflow"). The same values up to the
+    ``docs/performance.md``, "Learning environments beside crazyflow"). The same values up to the
     order of the sum's rounding.
     """
     xp = array_namespace(a)
