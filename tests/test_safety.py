@@ -427,3 +427,27 @@ def test_kernel_equals_the_exact_programme(name, range_m, seed):
     np.testing.assert_allclose(got, expected, rtol=0, atol=TOL)
     np.testing.assert_array_equal(got[~active], u[~active])  # no pair binds: the commands bitwise
     np.testing.assert_allclose(sep.min(axis=-1), info.min_separation, rtol=0, atol=1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), P=st.sampled_from([33, 64, 65, 200, 4950]), levels=st.integers(1, 40))
+def test_candidate_selection_is_top_k_without_its_sort(seed, P, levels):
+    """The barrier's K smallest keys on JAX: the indices (and order) of ``lax.top_k(-key, K)``,
+    ties by index, ``-0.0`` before ``0.0``, ``inf`` (pairs out of range) last; NumPy's stable
+    sort gives the same indices where no zero is signed."""
+    jax = pytest.importorskip("jax")
+    from quatform.control.barrier import CANDIDATES, _smallest
+
+    rng = np.random.default_rng(seed)
+    key = rng.integers(-levels, levels + 1, (3, P)).astype(float) * 0.25  # many ties
+    key[rng.random(key.shape) < 0.3] = np.inf
+    key[rng.random(key.shape) < 0.05] = -0.0
+    K = min(CANDIDATES, P)
+    with jax.enable_x64(True):
+        got = np.asarray(jax.jit(lambda k: _smallest(jax.numpy, k, K))(key))
+        want = np.asarray(jax.lax.top_k(-jax.numpy.asarray(key), K)[1])
+    np.testing.assert_array_equal(got, want)
+    unsigned = key + 0.0  # -0.0 -> 0.0: the float order NumPy's sort uses
+    with jax.enable_x64(True):
+        got_u = np.asarray(jax.jit(lambda k: _smallest(jax.numpy, k, K))(unsigned))
+    np.testing.assert_array_equal(got_u, _smallest(np, unsigned, K))

@@ -52,6 +52,27 @@ def dot_last(a, b):
     return xp.sum(a * b, axis=-1)
 
 
+def small_matmul(a, b):
+    """``a @ b`` of broadcast ``(..., m, k)`` and ``(..., k, n)`` small matrices: NumPy's
+    ``matmul`` for NumPy arrays, the products' sum over ``k`` on another namespace.
+
+    XLA's CPU backend runs a batched ``dot`` of a few rows as one tiny matrix product per batch
+    entry (a library call each); the multiply-sum is one fused loop over the batch (measured in
+    ``docs/performance.md``, "Learning environments beside crazyflow"). The same values up to the
+    order of the sum's rounding.
+    """
+    xp = array_namespace(a)
+    if xp is np and array_namespace(b) is np:
+        return np.matmul(a, b)
+    xp = common_namespace(a, b)
+    a, b = xp.asarray(a), xp.asarray(b)
+    return xp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
+
+
+#: Entries per row of :func:`hold`'s product with the identity.
+HOLD_BLOCK = 4
+
+
 def hold(a):
     """``a`` (``(..., k)``) computed once: ``a`` itself on NumPy, ``a @ I`` on another namespace.
 
@@ -59,13 +80,21 @@ def hold(a):
     consumes it (each of a stage's output components recomputes the stages before it: the
     compiled tick of the quaternion controller held about 4 950 fused operations against
     the 1 052 of its jaxpr). ``optimization_barrier`` does not stop it on the CPU; a ``dot``
-    is not fused, so its operand is computed once. The product is exact for finite values
-    (``a_ik 1 + sum of +-0``), except that ``-0.0`` becomes ``+0.0``.
+    is not fused, so its operand is computed once. The dot is ``a``'s entries in rows of
+    :data:`HOLD_BLOCK` (zero-padded) times the identity of that size: ``O(k)`` work (the whole
+    ``k x k`` identity is ``O(k^2)``: 707 x 707 per world for a team of 100). The product is
+    exact for finite values (``a_ik 1 + sum of +-0``), except that ``-0.0`` becomes ``+0.0``;
+    a non-finite entry makes its row of :data:`HOLD_BLOCK` entries non-finite.
     """
     xp = array_namespace(a)
     if xp is np:
         return a
-    return a @ xp.eye(a.shape[-1], dtype=a.dtype)
+    k = a.shape[-1]
+    rows = -(-k // HOLD_BLOCK)
+    pad = xp.concatenate([a, xp.zeros(a.shape[:-1] + (rows * HOLD_BLOCK - k,), dtype=a.dtype)], axis=-1) \
+        if rows * HOLD_BLOCK > k else a
+    held = pad.reshape(a.shape[:-1] + (rows, HOLD_BLOCK)) @ xp.eye(HOLD_BLOCK, dtype=a.dtype)
+    return held.reshape(a.shape[:-1] + (rows * HOLD_BLOCK,))[..., :k]
 
 
 def concrete(x) -> bool:

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..algebra.kernels import array_namespace
+from ..algebra.kernels import array_namespace, small_matmul
 from ..formations.team_chart import team_positions
 
 __all__ = ["CANDIDATES", "HOST", "barrier_filter", "nnls_gram", "pair_constraints", "point_velocities", "solves"]
@@ -77,14 +77,47 @@ def _cond(xp, pred, yes, no):
     return jax.lax.cond(pred, yes, no, None)
 
 
+#: Entries per block of :func:`_smallest`'s selection on JAX.
+_BLOCK = 64
+
+
 def _smallest(xp, key, K):
-    """Indices of the ``K`` smallest entries of each row of ``key`` (``(B, P)``), smallest first,
-    ties by index (``lax.top_k`` on JAX, a stable sort on NumPy)."""
+    """Indices of the ``K`` smallest entries of each row of ``key`` (``(B, P)``, no NaN),
+    smallest first, ties by index: a stable sort on NumPy; on JAX the same indices as
+    ``lax.top_k(-key, K)`` (IEEE total order: ``-0.0`` before ``0.0``) without its sort.
+
+    ``lax.top_k`` of float64 sorts the whole row on the CPU (the library's fast top-k is
+    float32 only; 4 950 pairs x 32 candidates: 36 x this selection's time, ``docs/performance.md``).
+    Here the row is cut into blocks of :data:`_BLOCK` entries with their minima held; each of
+    the ``K`` rounds takes the smallest block minimum (the first block on a tie), that block's
+    smallest entry (the first on a tie), and replaces it by the largest key: ``P + K (P /
+    _BLOCK + 2 _BLOCK)`` comparisons instead of ``K P``. The keys compared are the floats' bit
+    patterns as integers, sign-folded (the total order: ``int64`` ``b`` or ``b ^ (2^63 - 1)``
+    where negative), so equal floats compare equal and ``argmin``'s first index is the tie rule.
+    """
     if xp is np:
         return np.argsort(key, axis=-1, kind="stable")[..., :K]
     import jax
 
-    return jax.lax.top_k(-key, K)[1]
+    jnp = jax.numpy
+    B, P = key.shape
+    nb = -(-P // _BLOCK)
+    top = jnp.iinfo(jnp.int64).max
+    bits = jax.lax.bitcast_convert_type(key.astype(jnp.float64), jnp.int64)
+    order = jnp.where(bits < 0, bits ^ jnp.int64(top), bits)
+    blocks = jnp.concatenate([order, jnp.full((B, nb * _BLOCK - P), top)], axis=-1).reshape(B, nb, _BLOCK)
+    least = jnp.min(blocks, axis=-1)  # (B, nb)
+    rows, within = jnp.arange(B), jnp.arange(_BLOCK)
+    out = []
+    for _ in range(K):
+        b = jnp.argmin(least, axis=-1)
+        block = blocks[rows, b]  # (B, _BLOCK)
+        j = jnp.argmin(block, axis=-1)
+        out.append(b * _BLOCK + j)
+        block = jnp.where(within == j[:, None], top, block)
+        blocks = blocks.at[rows, b].set(block)
+        least = least.at[rows, b].set(jnp.min(block, axis=-1))
+    return jnp.stack(out, axis=-1)
 
 
 def _solve(xp, A, b):
@@ -142,7 +175,7 @@ def nnls_gram(A, b, valid, tol, max_iter, skip):
         z = solve(passive)
         accept = xp.all(~passive | (z > 0.0), axis=-1)
         # z feasible: y = z, then the column of largest positive gradient enters (or y is optimal)
-        grad = b - xp.einsum("bkl,bl->bk", A, z)
+        grad = b - small_matmul(A, z[..., None])[..., 0]
         enter = ~passive & valid & (grad > tol[:, None])
         t = xp.argmax(xp.where(enter, grad, -xp.inf), axis=-1)
         more = xp.any(enter, axis=-1)
@@ -260,7 +293,7 @@ def barrier_filter(barrier, team, m, u, live):
         seen = (sep <= R) & xp.isfinite(g)
     tol = 1e-12 * gam * d2  # SeparationBarrier._world's tolerance of a new violation
     planar = L.position_index[:, 2] == L.size  # a planar point's z velocity is no variable
-    zmask = xp.asarray(np.where(planar[:, None], np.array([1.0, 1.0, 0.0]), 1.0))  # (n, 3)
+    zmask = np.where(planar[:, None], np.array([1.0, 1.0, 0.0]), 1.0)  # (n, 3)
     # each command entry that is a point velocity: its (robot, axis) in V's flat (n * 3) entries
     src = np.zeros(u.shape[-1], dtype=np.intp)
     is_v = np.zeros(u.shape[-1], dtype=bool)
@@ -278,25 +311,32 @@ def barrier_filter(barrier, team, m, u, live):
         key = xp.where(seen, g, xp.inf)
         if K < n_pairs:
             idx = _smallest(xp, key, K)  # the K smallest g: the most violated or nearest pairs
-        else:
-            idx = xp.broadcast_to(xp.arange(n_pairs), key.shape)
-        valid = xp.isfinite(xp.take_along_axis(key, idx, axis=-1))
-        a, bb = ia[idx], ib[idx]  # (B, K) robots of each candidate
-        pc = xp.take_along_axis(pij, idx[..., None], axis=1)
-        c = xp.where(valid, -xp.take_along_axis(g, idx, axis=-1), 0.0)  # G w >= c
+            a, bb = ia[idx], ib[idx]  # (B, K) robots of each candidate
+            key_c, g_c = xp.take_along_axis(key, idx, axis=-1), xp.take_along_axis(g, idx, axis=-1)
+            pc = xp.take_along_axis(pij, idx[..., None], axis=1)
+            za, zb = xp.asarray(zmask)[a], xp.asarray(zmask)[bb]
+        else:  # every pair a candidate, in pair order: the robots and their masks are constants
+            a, bb = i[None, :], j[None, :]
+            key_c, g_c, pc, za, zb = key, g, pij, zmask[a], zmask[bb]
+        valid = xp.isfinite(key_c)
+        c = xp.where(valid, -g_c, 0.0)  # G w >= c
         # the candidates' rows of G: +2 p_ij at robot i, -2 p_ij at robot j (planar z zeroed)
-        va = xp.where(valid[..., None], 2.0 * pc * zmask[a], 0.0)
-        vb = xp.where(valid[..., None], -2.0 * pc * zmask[bb], 0.0)
-        Q = 0.0
-        for ra, wa in ((a, va), (bb, vb)):
-            for rb, wb in ((a, va), (bb, vb)):
-                Q = Q + xp.where(ra[:, :, None] == rb[:, None, :], xp.einsum("bkd,bld->bkl", wa, wb), 0.0)
+        va = xp.where(valid[..., None], 2.0 * pc * za, 0.0)
+        vb = xp.where(valid[..., None], -2.0 * pc * zb, 0.0)
+        # G G^T: two candidates share at most one robot, where their rows meet as +-4 p_k . p_l on
+        # its axes (a constant pattern C when every pair is a candidate)
+        def meet(ra, rb, z):
+            return (ra[:, :, None] == rb[:, None, :])[..., None] * z[:, :, None, :]
+
+        C = 4.0 * (meet(a, a, za) - meet(a, bb, za) - meet(bb, a, zb) + meet(bb, bb, zb))  # (B, K, K, 3)
+        both = valid[:, :, None] & valid[:, None, :]
+        Q = xp.where(both, xp.sum(pc[:, :, None, :] * pc[:, None, :, :] * C, axis=-1), 0.0)
         A = Q + c[:, :, None] * c[:, None, :]  # E^T E, E = [G^T; c^T]
         scale = 1.0 + xp.max(xp.abs(c), axis=-1)
         y, converged = nnls_gram(A, c, valid, 1e-14 * scale, 4 * K + 8, ~tried)
-        onehot = xp.arange(n)
-        Gy = (xp.einsum("bkn,bkd->bnd", (a[..., None] == onehot).astype(u.dtype), y[..., None] * va)
-              + xp.einsum("bkn,bkd->bnd", (bb[..., None] == onehot).astype(u.dtype), y[..., None] * vb))
+        onehot = np.arange(n)
+        Gy = (small_matmul(xp.swapaxes((a[..., None] == onehot).astype(u.dtype), -1, -2), y[..., None] * va)
+              + small_matmul(xp.swapaxes((bb[..., None] == onehot).astype(u.dtype), -1, -2), y[..., None] * vb))
         den = xp.sum(c * y, axis=-1) - 1.0  # r[-1]
         feasible = xp.abs(den) >= 1e-14  # SeparationBarrier._solve's infeasibility test
         W = -Gy / xp.where(feasible, den, 1.0)[:, None, None]  # w = -r[:-1] / r[-1]

@@ -43,7 +43,7 @@ import functools
 import numpy as np
 
 from ..algebra.angles import map_entries
-from ..algebra.kernels import array_namespace
+from ..algebra.kernels import array_namespace, small_matmul
 from ..algebra.validate import as_array, as_unit_quaternion
 from ..errors import DegenerateInputError, InvalidInputError, UnreachableError
 from . import geometry as g
@@ -104,7 +104,7 @@ def _right(p):
 
 def _rotation(q):
     """``R(q)`` (3 x 3) of a unit quaternion: the vector block of ``L(q) R(q*)`` (``v -> q v q*``)."""
-    return (_left(q) @ _right(q * _CONJ))[..., 1:, 1:]
+    return small_matmul(_left(q), _right(q * _CONJ))[..., 1:, 1:]
 
 
 def _skew(w):
@@ -441,11 +441,11 @@ class QuaternionTeam(Formation):
         L = self.layout
         p = team_positions(L, r)
         mean_row = self._mean_row if xp is np else xp.asarray(self._mean_row)
-        xc = (mean_row @ p)[..., 0, :]  # eq. (9) for N robots (a matrix product: one BLAS call)
+        xc = small_matmul(mean_row, p)[..., 0, :]  # eq. (9) for N robots
         cen = p - xc[..., None, :]
         tmpl, hint = self._reference(near_c)
         q = fit_attitude(tmpl, cen, hint)  # Horn 1987; seed 000 eqs. (10), (14)-(15) for N = 2
-        s = cen @ _rotation(q)  # s_i = R^T (p_i - x_c), rows
+        s = small_matmul(cen, _rotation(q))  # s_i = R^T (p_i - x_c), rows
         Lc = _left(q * _CONJ)
         if self._all_yaw:  # q_c* q_yaw(theta) = cos(theta/2) q_c* + sin(theta/2) q_c* k (eqs. (12)-(13))
             half = 0.5 * r[..., self._yaw_r]
@@ -454,9 +454,9 @@ class QuaternionTeam(Formation):
                 cs[..., 0], cs[..., 1] = np.cos(half), np.sin(half)
             else:
                 cs = xp.stack([xp.cos(half), xp.sin(half)], axis=-1)
-            qci = cs @ _mT(Lc[..., :, 0::3])
+            qci = small_matmul(cs, _mT(Lc[..., :, 0::3]))
         else:
-            qci = self._headings(r) @ _mT(Lc)
+            qci = small_matmul(self._headings(r), _mT(Lc))
         if near_c is not None and len(self._o):
             if xp is np:
                 flip = np.einsum("...i,...i->...", qci, self._heading_rows(near_c)) < 0.0
@@ -687,14 +687,15 @@ class QuaternionTeam(Formation):
         q, qd = c[..., 3:7], cd[..., 3:7]
         nq = xp.sqrt(xp.sum(q * q, axis=-1, keepdims=True))
         qn = q / nq
-        wb = (2.0 / nq) * (_left(qn * _CONJ) @ qd[..., None])[..., 0]  # (., w_b) = 2 q* q_c' / |q_c|
+        wb = (2.0 / nq) * small_matmul(_left(qn * _CONJ), qd[..., None])[..., 0]  # (., w_b) = 2 q* q_c' / |q_c|
         R = _rotation(qn)
         # p_i' = x_c' + R (w_b x s_i + s_i') (eqs. (16), (18)), as rows: s (R [w_b]x)^T + s' R^T
-        v = cd[..., None, 0:3] + self._shape_rows(c) @ _mT(R @ _skew(wb)) + self._shape_rows(cd) @ _mT(R)
+        v = (cd[..., None, 0:3] + small_matmul(self._shape_rows(c), _mT(small_matmul(R, _skew(wb))))
+             + small_matmul(self._shape_rows(cd), _mT(R)))
         qci, qcid = self._heading_rows(c), self._heading_rows(cd)
         Lq = _mT(_left(q))
-        qi = qci @ Lq  # eqs. (17), (19)
-        qid = qci @ _mT(_left(qd)) + qcid @ Lq
+        qi = small_matmul(qci, Lq)  # eqs. (17), (19)
+        qid = small_matmul(qci, _mT(_left(qd))) + small_matmul(qcid, Lq)
         if self._all_yaw:
             th = kern.yaw_rate(tuple(xp.moveaxis(qi, -1, 0)), tuple(xp.moveaxis(qid, -1, 0)))
             return self.layout.compose(v, th) if xp is np else team_compose(self.layout, v, th)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..algebra.kernels import array_namespace, qmul_components
+from ..algebra.kernels import array_namespace, qmul_components, small_matmul
 from ..algebra.validate import as_array
 from ..errors import InvalidInputError, ShapeError
 from . import geometry as g
@@ -154,31 +154,31 @@ def check_template(template, n: int, name: str = "template", min_separation: flo
     return t - t.mean(axis=-2, keepdims=True)
 
 
-#: Horn's matrix as a linear map of the 9 entries of ``S`` (row-major ``S_xx, S_xy, ... S_zz``)
-#: to the 16 of ``N`` (:func:`horn_matrix`).
-_HORN = np.zeros((9, 16))
-for _row, _entries in enumerate((
-        ((0, 1), (4, 1), (8, 1)), ((5, 1), (7, -1)), ((6, 1), (2, -1)), ((1, 1), (3, -1)),
-        ((5, 1), (7, -1)), ((0, 1), (4, -1), (8, -1)), ((1, 1), (3, 1)), ((6, 1), (2, 1)),
-        ((6, 1), (2, -1)), ((1, 1), (3, 1)), ((0, -1), (4, 1), (8, -1)), ((5, 1), (7, 1)),
-        ((1, 1), (3, -1)), ((6, 1), (2, 1)), ((5, 1), (7, 1)), ((0, -1), (4, -1), (8, 1)))):
-    for _k, _sign in _entries:
-        _HORN[_k, _row] = _sign
-del _row, _entries, _k, _sign
-
-
 def horn_matrix(template, centred) -> np.ndarray:
     """Horn's 4 x 4 matrix of the fit of ``template`` onto ``centred`` (both ``(..., N, 3)``).
 
     Horn 1987 ("Closed-form solution of absolute orientation using unit quaternions",
     J. Opt. Soc. Am. A 4(4)) eq. (35) with ``S_ab = sum_i t_i,a c_i,b``: ``q^T N q =
     sum_i c_i . R(q) t_i`` for every unit ``q``, so the top eigenvector is the best
-    rotation. ``N`` is linear in ``S``: one product with a constant 9 x 16 matrix. Shape
-    ``(..., 4, 4)``; O(N).
+    rotation. ``N``'s 16 entries are sums of ``S``'s (eq. (35) written out), ``S`` a product
+    of the robots' rows (:func:`~quatform.algebra.kernels.small_matmul`). Shape ``(..., 4, 4)``;
+    O(N).
     """
     xp = array_namespace(centred)
-    S = xp.matmul(xp.swapaxes(xp.asarray(template), -1, -2), centred)
-    return (S.reshape(S.shape[:-2] + (9,)) @ (_HORN if xp is np else xp.asarray(_HORN))).reshape(S.shape[:-2] + (4, 4))
+    S = small_matmul(xp.swapaxes(xp.asarray(template), -1, -2), centred)
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = (S[..., a, b] for a in range(3) for b in range(3))
+    rows = ((xx + yy + zz, yz - zy, zx - xz, xy - yx),
+            (yz - zy, xx - yy - zz, xy + yx, zx + xz),
+            (zx - xz, xy + yx, yy - xx - zz, yz + zy),
+            (xy - yx, zx + xz, yz + zy, zz - xx - yy))
+    return xp.stack([xp.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def _project(V, w, v):
+    """``V diag(w) V^T v`` of eigenvectors ``V`` (``(..., 4, 4)``, columns), weights ``w`` and
+    ``v`` (``(..., 4)``), as products' sums (:func:`~quatform.algebra.kernels.small_matmul`)."""
+    c = small_matmul(v[..., None, :], V)[..., 0, :]  # V^T v
+    return small_matmul(V, (w * c)[..., :, None])[..., 0]
 
 
 _HALF_TURNS = (np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0, 0.0]), np.array([0.0, 1.0, 0.0, 0.0]))
@@ -223,18 +223,13 @@ def fit_attitude(template, centred, hint=None) -> np.ndarray:
     w = np.where(arg < -700.0, 0.0, np.exp(np.maximum(arg, -700.0)))  # (..., 4): 1 for the top, 0 past a gap
     h = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]) if hint is None else np.asarray(hint, dtype=float),
                         lam.shape)
-    Vt = np.swapaxes(V, -1, -2)
-
-    def project(v):
-        return (V @ (w * (Vt @ v[..., None])[..., 0])[..., None])[..., 0]
-
-    q = project(h)
+    q = _project(V, w, h)
     n = np.sqrt(np.einsum("...i,...i->...", q, q))
     for turn in _HALF_TURNS:  # the hint a half turn from every fit: seed 000's pair rule
         if not n.min() < 1e-9:
             break
         bad = n < 1e-9
-        alt = project(g.mul(h, turn))
+        alt = _project(V, w, g.mul(h, turn))
         an = np.linalg.norm(alt, axis=-1)
         q = np.where(bad[..., None], alt, q)
         n = np.where(bad, an, n)
@@ -269,16 +264,11 @@ def _fit_attitude_xp(xp, template, centred, hint):
     arg = -xp.maximum(lam[..., -1:] - lam - tie, 0.0) / tau
     w = xp.where(arg < -700.0, 0.0, xp.exp(xp.maximum(arg, -700.0)))
     h = xp.broadcast_to(xp.asarray([1.0, 0.0, 0.0, 0.0]) if hint is None else xp.asarray(hint), lam.shape)
-    Vt = xp.swapaxes(V, -1, -2)
-
-    def project(v):
-        return (V @ (w * (Vt @ v[..., None])[..., 0])[..., None])[..., 0]
-
-    q = project(h)
+    q = _project(V, w, h)
     n = xp.sqrt(xp.sum(q * q, axis=-1))
     for turn in _HALF_TURNS:  # the loop of fit_attitude with every step taken: where no entry is bad it changes nothing
         bad = n < 1e-9
-        alt = project(_mul_xp(xp, h, turn))
+        alt = _project(V, w, _mul_xp(xp, h, turn))
         an = xp.sqrt(xp.sum(alt * alt, axis=-1))
         q = xp.where(bad[..., None], alt, q)
         n = xp.where(bad, an, n)
