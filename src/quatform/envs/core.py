@@ -436,8 +436,10 @@ class FormationCore:
         xs = {"k": k, "t": xp.asarray(params.times)[k], "ref": (ref, a),
               "meas": {"noise": state.noise} if self.noisy else {}, "plant": None}
         carry, ys = self.tick((state.x, state.ctrl, state.meas, state.fail_tick, state.reason), xs)
-        noise = params.noise_std * normal(key, 1, self.n_m)
-        new = EnvState(*carry, state.k + 1, xp.broadcast_to(noise, state.noise.shape))
+        # the next reading's noise, drawn only where a reading carries it (noise_m or noise_rad > 0)
+        noise = (xp.broadcast_to(params.noise_std * normal(key, 1, self.n_m), state.noise.shape) if self.noisy
+                 else state.noise)
+        new = EnvState(*carry, state.k + 1, noise)
         past = state.k >= self.T - 1  # a world stepped past its last tick stays there, unchanged
         new = tree_map(lambda old, now: xp.where(_lead(xp, past, now), old, now), state, new)
         u = xp.where(past[..., None], 0.0, ys[2])
