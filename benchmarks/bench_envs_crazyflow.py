@@ -79,7 +79,9 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
     """Agent-steps/s of the functional core's forms (module docstring), with the worlds' count."""
     jnp = jax.numpy
     with jax.enable_x64(True):
-        core = functional(scenario, action="residual", **({} if barrier else {"min_separation": 0.0}))
+        name, _, controller = scenario.partition(":")
+        core = functional(name, controller or None, action="residual",
+                          **({} if barrier else {"min_separation": 0.0}))
         N = core.layout.n
         worlds = B if match == "worlds" else max(1, math.ceil(B / N))
         params = jax.tree_util.tree_map(jnp.asarray, core.default_params)
@@ -91,8 +93,8 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
         out = {"N": N, "worlds": worlds}
         if "scan" in forms:
             def body(state, k):
-                _, state, reward, *_ = vstep(k, state, action, params)
-                return state, reward
+                obs, state, reward, *_ = vstep(k, state, action, params)
+                return state, (obs, reward)  # what a learner reads: the observation kept
 
             scan = jax.jit(lambda state: jax.lax.scan(body, state, keys))
             jax.block_until_ready(scan(state0))
@@ -115,7 +117,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="64,1024,4096", help="bodies per batch B (default 64,1024,4096)")
     ap.add_argument("--scenarios", default="team-tetrahedron-helix,team-grid-100",
-                    help="team or network scenarios (default team-tetrahedron-helix,team-grid-100)")
+                    help="team or network scenarios, each NAME or NAME:CONTROLLER (the team kind's controller, "
+                         "default quaternion; a network scenario's law) (default team-tetrahedron-helix,team-grid-100)")
     ap.add_argument("--steps", type=int, default=20, help="steps per timing (default 20)")
     ap.add_argument("--repeat", type=int, default=5, help="best of this many timings (default 5)")
     ap.add_argument("--forms", default="scan,loop", help="quatform's forms: scan, loop (default both)")
@@ -142,7 +145,7 @@ def main() -> None:
           f"residual on the scenario's controller (barrier {args.barrier}); load average at start {load:.2f}")
     for line in machine_description({"jax": True, "crazyflow": Sim is not None}):
         print(line)
-    print(f"{'B':>6} {'crazyflow drone-steps/s':>24} {'scenario':<24}{'N':>4}{'worlds':>7}"
+    print(f"{'B':>6} {'crazyflow drone-steps/s':>24} {'scenario':<40}{'N':>4}{'worlds':>7}"
           + "".join(f"{f + ' agent-steps/s':>20}{'ratio':>7}" for f in forms))
     for B in sizes:
         cf = crazyflow_rate(jax, Sim, B, args.steps, args.repeat) if Sim is not None else float("nan")
@@ -150,7 +153,7 @@ def main() -> None:
             q = quatform_rates(jax, scenario, B, args.steps, args.repeat, forms, args.barrier == "on", args.match)
             cells = "".join(f"{q[f]:>20.4g}{q[f] / cf:>7.3f}" for f in forms)
             head = f"{B:>6} {cf:>24.4g}" if i == 0 else f"{'':>6} {'':>24}"
-            print(f"{head} {scenario:<24}{q['N']:>4}{q['worlds']:>7}{cells}", flush=True)
+            print(f"{head} {scenario:<40}{q['N']:>4}{q['worlds']:>7}{cells}", flush=True)
     if hasattr(os, "getloadavg"):
         print(f"load average at end {os.getloadavg()[0]:.2f}")
 
