@@ -41,7 +41,7 @@ first generations below the base (the perturbed policies' mean starts near -110)
 from generation 19. The room it uses: the scenario's gains are slow (time constants up to 50 s) and the
 robots start displaced, which a residual on the robots' observed error corrects faster. With
 the robots starting on the reference (``--start-noise-m 0``) the base controller's -0.053 is
-not beaten in 60 generations (-0.55 at the defaults, -0.069 with ``--sigma 0.002 --lr
+not beaten in 60 generations (-0.73 at the defaults, -0.068 with ``--sigma 0.002 --lr
 0.001``): a memoryless policy on the noisy reading has little to add to it.
 """
 
