@@ -44,19 +44,9 @@ import time
 import warnings
 
 import numpy as np
-from _common import machine_description, optional_import
+from _common import best_of, machine_description, optional_import
 
 from quatform.envs import functional, key
-
-
-def _best(fn, repeat: int) -> float:
-    """Least wall time, s, of ``repeat`` calls of ``fn`` (each ends with its result ready)."""
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def crazyflow_rate(jax, Sim, B: int, steps: int, repeat: int) -> float:
@@ -72,7 +62,7 @@ def crazyflow_rate(jax, Sim, B: int, steps: int, repeat: int) -> float:
         sim.step(steps)
         jax.block_until_ready(sim.data)
 
-    return B * steps / _best(run, repeat)
+    return B * steps / best_of(run, repeat)
 
 
 def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, barrier: bool, match: str) -> dict:
@@ -98,7 +88,7 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
 
             scan = jax.jit(lambda state: jax.lax.scan(body, state, keys))
             jax.block_until_ready(scan(state0))
-            out["scan"] = worlds * N * steps / _best(lambda: jax.block_until_ready(scan(state0)), repeat)
+            out["scan"] = worlds * N * steps / best_of(lambda: jax.block_until_ready(scan(state0)), repeat)
         if "loop" in forms:
             step = jax.jit(vstep)
             jax.block_until_ready(step(keys[0], state0, action, params))
@@ -109,7 +99,7 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
                     state = step(keys[s], state, action, params)[1]
                 jax.block_until_ready(state)
 
-            out["loop"] = worlds * N * steps / _best(loop, repeat)
+            out["loop"] = worlds * N * steps / best_of(loop, repeat)
     return out
 
 

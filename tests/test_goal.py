@@ -18,30 +18,9 @@ from quatform.robots import HolonomicRobot, Pioneer
 from quatform.runs import run
 from quatform.scenarios.team import TEAM_CHARTS
 
-TRIANGLE = """
-kind = "team"
-name = "live-triangle"
-title = "Three holonomic robots holding a triangle"
-source = "tests"
-duration_s = 2.0
-dt_s = 0.02
-metrics_from_s = 0.0
+from live_triangle import triangle
 
-[[robots]]
-model = "holonomic"
-count = 3
-
-[shape]
-template = "ring"
-radius = 1.0
-
-[path]
-kind = "fixed"
-center = [0.0, 0.0, 1.0]
-
-[safety]
-min_separation_m = 0.3
-"""
+TRIANGLE = triangle(2.0)
 
 vec = st.lists(st.floats(-10, 10), min_size=3, max_size=3).map(np.array)
 quat = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda a: np.linalg.norm(a) > 0.1).map(
@@ -179,7 +158,7 @@ def test_session_without_goal_is_the_run(tmp_path):
 
 
 def test_goal_moves_the_reference_within_limits(tmp_path):
-    _, s = _session(tmp_path, text=TRIANGLE.replace("duration_s = 2.0", "duration_s = 3.0"))
+    _, s = _session(tmp_path, text=triangle(3.0))
     for _ in range(10):
         s.step()
     goal = np.array([1.0, 0.5, 1.2])

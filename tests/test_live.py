@@ -25,40 +25,18 @@ from quatform.formations import geometry as g  # noqa: E402
 from quatform.live import LiveSession  # noqa: E402
 from quatform.live.server import GOAL_TOPIC, GOAL_TYPE, serve  # noqa: E402
 
+from live_triangle import triangle  # noqa: E402
+
 SUBPROTOCOL = "foxglove.sdk.v1"
 ROOT = Path(__file__).resolve().parents[1]
 
-TRIANGLE = """
-kind = "team"
-name = "live-triangle"
-title = "Three holonomic robots holding a triangle"
-source = "tests"
-duration_s = {duration}
-dt_s = 0.02
-metrics_from_s = 0.0
-
-[[robots]]
-model = "holonomic"
-count = 3
-
-[shape]
-template = "ring"
-radius = 1.0
-
-[path]
-kind = "fixed"
-center = [0.0, 0.0, 1.0]
-
-[safety]
-min_separation_m = 0.3
-"""
 
 
 @pytest.fixture
 def scenario(tmp_path):
     def make(duration=2.0):
         f = tmp_path / f"tri-{duration:g}.toml"
-        f.write_text(TRIANGLE.format(duration=duration))
+        f.write_text(triangle(duration))
         return f
     return make
 

@@ -191,20 +191,9 @@ class ActionController(Controller):
         return base.shield(state, measured, out) if self.shielded else out
 
 
-class NoisyReading:
+class NoisyReading(PerfectMeasurement):
     """A measurement model: the plant's output plus the tick's ``noise`` (``xs["noise"]``,
     drawn by the env from its key), at once; its state is the last output."""
-
-    columns = None
-
-    def schedule(self, times, dt: float, substeps: int, batch: tuple = ()) -> dict:
-        return {}
-
-    def init(self, y0, batch: tuple = (), schedule: dict | None = None):
-        return y0
-
-    def observe(self, state, y, j: int):
-        return y
 
     def read(self, state, xs: dict):
         return state, state + xs["noise"]
