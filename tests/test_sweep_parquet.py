@@ -145,17 +145,18 @@ def test_the_summary_reads_a_few_columns_a_batch_at_a_time(runs, monkeypatch):
     from quatform.sweeps.results import summarize_shards
 
     spec, _, both = runs
-    whole = summarize_shards(spec, both)
+    paths = sorted((both / "trials").glob("part-*.parquet"))
+    whole = summarize_shards(spec, paths)
     asked = []
     real = shards.shard_batches
 
-    def one_row(out, columns=None):
+    def one_row(paths, columns=None):
         asked.append(columns)
-        yield from real(out, columns)
+        yield from real(paths, columns)
 
     monkeypatch.setattr(shards, "BATCH_ROWS", 1)
     monkeypatch.setattr(shards, "shard_batches", one_row)
-    assert summarize_shards(spec, both) == whole
+    assert summarize_shards(spec, paths) == whole
     assert asked == [["cell", "failed", "lost", "success", *spec.success.below]]
 
 
@@ -330,3 +331,109 @@ def test_without_pyarrow_small_sweeps_write_csv_and_a_large_one_is_one_line(tmp_
     assert not (tmp_path / "big").exists()
     assert main(["sweep", str(tmp_path / "small.toml"), "--out", str(tmp_path / "b2"), "--results", "both"]) == 2
     assert 'pip install -e ".[dask]"' in capsys.readouterr().err
+
+
+def _sweep_cmd(tmp_path, out, *extra):
+    spec = tmp_path / "small.toml"
+    if not spec.exists():
+        spec.write_text(SMALL)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    return [sys.executable, "-m", "quatform.cli", "sweep", str(spec), "--no-plots", "--quiet", "--out", str(out),
+            *extra], env
+
+
+@pytest.mark.parametrize("results", ["csv", "parquet"])
+def test_a_second_sweep_into_a_locked_folder_is_one_line(runs, tmp_path, results):
+    """Guards against: two sweeps into one empty --out writing over each other, both exiting 0.
+    The lock is another process' (this one); a sweep started meanwhile is refused, and two
+    sweeps started together give the one sweep's tables (the second refused or resuming)."""
+    from quatform.sweeps.results import lock_folder
+
+    out = tmp_path / "o"
+    out.mkdir()
+    cmd, env = _sweep_cmd(tmp_path, out, "--results", results)
+    with lock_folder(out):
+        got = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert got.returncode == 2
+    assert got.stderr.strip().splitlines() == [f"quatform: error: another sweep is writing into {str(out)!r} "
+                                               f"(pid {os.getpid()}); wait or choose another --out"]
+    assert sorted(os.listdir(out)) == [".sweep.lock"]
+    both = tmp_path / "both"
+    cmd, env = _sweep_cmd(tmp_path, both, "--results", results)
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    codes = sorted(p.wait(timeout=300) for p in procs)
+    errs = [p.stderr.read() for p in procs]
+    assert codes in ([0, 0], [0, 2]), errs
+    assert (both / "summary.json").read_bytes() == (runs[1] / "summary.json").read_bytes()
+
+
+def _copy(folder, tmp_path):
+    import shutil
+
+    return Path(shutil.copytree(folder, tmp_path / "copy"))
+
+
+def test_files_in_trials_that_no_chunk_plans_are_never_read(runs, tmp_path):
+    """Guards against: a copied shard counted twice, another sweep's shard a KeyError."""
+    spec, _, both = runs
+    out = _copy(both, tmp_path)
+    first = sorted((out / "trials").glob("part-*.parquet"))[0]
+    (out / "trials" / "part-00099-000000.parquet").write_bytes(first.read_bytes())
+    pq.write_table(pa.table({"other": [1, 2]}), out / "trials" / "part-00000-000001.parquet")
+    run_sweep(spec, out, quiet=True, plots=False, results="both")
+    for name in ("summary.json", "results.csv", "results.json"):
+        assert (out / name).read_bytes() == (both / name).read_bytes(), name
+
+
+def test_a_shard_with_a_damaged_page_is_run_again(runs, tmp_path):
+    """Guards against: a shard whose data pages are damaged but footer intact accepted on
+    resume, every rerun then failing with a thrift error naming no file. Every page carries a
+    checksum: the damaged shard's chunk runs again, and a damaged shard read is named."""
+    from quatform.sweeps.shards import shard_batches
+
+    spec, _, both = runs
+    out = _copy(both, tmp_path)
+    shard = sorted((out / "trials").glob("part-*.parquet"))[1]
+    data = bytearray(shard.read_bytes())
+    meta = pq.read_metadata(shard)
+    col = meta.row_group(0).column(meta.num_columns - 5)  # a metric's column chunk
+    at = col.data_page_offset + (col.total_compressed_size // 2)
+    data[at] ^= 0xFF
+    shard.write_bytes(bytes(data))
+    assert pq.read_metadata(shard).num_rows == meta.num_rows  # the footer reads
+    with pytest.raises(InvalidInputError, match=f"the shard {str(shard)!r} is damaged.*delete it and rerun"):
+        list(shard_batches([shard]))
+    run_sweep(spec, out, quiet=True, plots=False, results="both")
+    for name in ("summary.json", "results.csv", "results.json"):
+        assert (out / name).read_bytes() == (both / name).read_bytes(), name
+    assert list(shard_batches([shard]))
+
+
+def test_temporaries_of_a_killed_sweep_are_removed_when_it_reopens(runs, tmp_path):
+    """Guards against: a kill during the first sweep.json write making every rerun refused, and
+    dead temporaries of the tables and chunks piling up. A live process' stay."""
+    spec, csv_out, _ = runs
+    dead, alive = 2**22 + 12345, os.getppid()
+    out = tmp_path / "new"
+    out.mkdir()
+    (out / f".sweep.json.tmp-{dead}").write_text("{")
+    run_sweep(spec, out, quiet=True, plots=False)
+    assert not (out / f".sweep.json.tmp-{dead}").exists()
+    old = _copy(csv_out, tmp_path)
+    made = [old / f".{n}.tmp-{pid}" for n in ("results.csv", "results.json", "summary.csv", "summary.json")
+            for pid in (dead, alive)] + [old / "chunks" / f".c.json.tmp-{dead}"]
+    for p in made:
+        p.write_text("x")
+    run_sweep(spec, old, quiet=True, plots=False)
+    assert [p.exists() for p in made] == [False, True] * 4 + [False]
+    assert (old / "summary.json").read_bytes() == (csv_out / "summary.json").read_bytes()
+
+
+def test_a_resumed_sweep_keeps_the_results_it_was_started_with(runs, tmp_path):
+    """Guards against: resuming a Parquet folder without --results refused though sweep.json
+    records its store."""
+    spec, _, both = runs
+    out = _copy(both, tmp_path)
+    run_sweep(spec, out, quiet=True, plots=False)  # no --results: the folder's (both)
+    assert (out / "summary.json").read_bytes() == (both / "summary.json").read_bytes()

@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import InvalidInputError, MissingDependencyError
 from ..sim.output import atomic_file
 
-__all__ = ["SHARD_FOLDER", "INSTALL_HINT", "require_pyarrow", "ShardStore", "shard_paths", "shard_batches",
+__all__ = ["SHARD_FOLDER", "INSTALL_HINT", "require_pyarrow", "ShardStore", "read_shard", "shard_batches",
            "shard_rows", "shard_columns", "float_column", "write_shard", "ZSTD_LEVEL", "FLOAT_ZSTD_LEVEL",
            "DICTIONARY_FRACTION", "TRAILING"]
 
@@ -112,7 +112,8 @@ def write_shard(path, table, statistics=()) -> Path:
     """Write ``table`` to ``path`` atomically, each column encoded by its values (:func:`_encoding`),
     zstd-compressed; min/max statistics for the columns ``statistics`` only (a reader's filters
     on the cell, the parameters and the outcome skip shards by them; a metric's would cost a
-    shard about 40 B a column). The Parquet schema alone describes the columns (no Arrow
+    shard about 40 B a column). Every page carries a CRC-32 of its bytes, checked whenever a
+    shard is read (:func:`read_shard`, :func:`shard_batches`). The Parquet schema alone describes the columns (no Arrow
     schema copy in the footer: the types read back are the same)."""
     pa, pq, pc = require_pyarrow()
     how = {f.name: _encoding(pa, pc, c) for f, c in zip(table.schema, table.columns)}
@@ -122,34 +123,47 @@ def write_shard(path, table, statistics=()) -> Path:
                                           for k, v in how.items()},
                        use_dictionary=[k for k, v in how.items() if v == "dictionary"],
                        column_encoding={k: v for k, v in how.items() if v not in (None, "dictionary")},
-                       store_schema=False, write_statistics=[n for n in table.column_names if n in statistics])
+                       store_schema=False, write_page_checksum=True,
+                       write_statistics=[n for n in table.column_names if n in statistics])
     return Path(path)
 
 
-def shard_paths(out) -> list[Path]:
-    """The sweep's shards in row order (their names' lexical order)."""
-    folder = Path(out) / SHARD_FOLDER
-    return sorted(folder.glob("part-*.parquet")) if folder.is_dir() else []
+def _damaged(path, exc) -> InvalidInputError:
+    return InvalidInputError(f"sweep results: the shard {str(path)!r} is damaged ({' '.join(str(exc).split())[:160]}); "
+                             "delete it and rerun the sweep to run its chunk again")
 
 
-def shard_batches(out, columns=None):
-    """The shards' rows as Arrow record batches in row order, ``columns`` only (None: all), at
-    most :data:`BATCH_ROWS` rows each: memory for one batch at a time."""
-    _, pq, _ = require_pyarrow()
-    for p in shard_paths(out):
-        yield from pq.ParquetFile(p).iter_batches(batch_size=BATCH_ROWS, columns=columns)
+def read_shard(path, columns=None):
+    """The whole shard at ``path`` as an Arrow table, every page's checksum verified."""
+    pa, pq, _ = require_pyarrow()
+    try:
+        return pq.read_table(path, columns=columns, page_checksum_verification=True)
+    except (OSError, pa.ArrowException) as exc:
+        raise _damaged(path, exc) from None
 
 
-def shard_rows(out):
-    """The shards' rows as dicts, one batch in memory at a time."""
-    for b in shard_batches(out):
+def shard_batches(paths, columns=None):
+    """The rows of the shards ``paths`` (in row order) as Arrow record batches, ``columns`` only
+    (None: all), at most :data:`BATCH_ROWS` rows each: memory for one batch at a time; one line
+    naming a damaged shard."""
+    pa, pq, _ = require_pyarrow()
+    for p in paths:
+        try:
+            yield from pq.ParquetFile(p, page_checksum_verification=True).iter_batches(batch_size=BATCH_ROWS,
+                                                                                      columns=columns)
+        except (OSError, pa.ArrowException) as exc:
+            raise _damaged(p, exc) from None
+
+
+def shard_rows(paths):
+    """The rows of the shards ``paths`` as dicts, one batch in memory at a time."""
+    for b in shard_batches(paths):
         yield from b.to_pylist()
 
 
-def shard_columns(out) -> list[str]:
+def shard_columns(paths) -> list[str]:
     """The shards' column names (of the first shard; every shard has the same)."""
     _, pq, _ = require_pyarrow()
-    paths = shard_paths(out)
     return list(pq.read_schema(paths[0]).names) if paths else []
 
 
@@ -176,22 +190,20 @@ class ShardStore:
         return self.folder / f"part-{chunk.cell:05d}-{chunk.start:06d}.parquet"
 
     def load(self, chunk) -> int | None:
-        """The number of rows of a finished chunk's shard, or None (not run, unreadable or of
-        another length: run again)."""
-        pa, pq, _ = require_pyarrow()
+        """The number of rows of a finished chunk's shard, or None (not run, unreadable, damaged
+        (a page whose checksum fails: the shard is read whole) or of another length: run again)."""
         p = self.path(chunk)
         if not p.is_file():
             return None
         try:
-            meta = pq.read_metadata(p)
-            schema = pq.read_schema(p)
-        except (OSError, pa.ArrowException):
+            table = read_shard(p)
+        except InvalidInputError:
             return None
-        if meta.num_rows != chunk.stop - chunk.start:
+        if table.num_rows != chunk.stop - chunk.start:
             return None
-        self.schema = self._merged(schema)
-        self._stored[p] = schema
-        return meta.num_rows
+        self.schema = self._merged(table.schema)
+        self._stored[p] = table.schema
+        return table.num_rows
 
     def first_row(self) -> dict:
         """The first stored row."""
@@ -213,14 +225,15 @@ class ShardStore:
         write_shard(p, _cast(table, schema), (*self.leading, *TRAILING))
         self._stored[p] = schema
 
-    def finish(self) -> None:
+    def finish(self) -> list[Path]:
         """Rewrite each stored shard whose schema is not the sweep's (widened since it was
-        written; or a run killed during such a rewrite)."""
-        _, pq, _ = require_pyarrow()
+        written; or a run killed during such a rewrite); return the stored shards in row order
+        (the planned chunks' only: another file in the folder is never read)."""
         for p, schema in sorted(self._stored.items()):
             if not schema.equals(self.schema):
-                write_shard(p, _cast(pq.read_table(p), self.schema), (*self.leading, *TRAILING))
+                write_shard(p, _cast(read_shard(p), self.schema), (*self.leading, *TRAILING))
                 self._stored[p] = self.schema
+        return sorted(self._stored)
 
     def _merged(self, schema):
         """The sweep's schema widened by ``schema`` (null -> a type, int64 -> float64), the
