@@ -270,8 +270,9 @@ def test_a_write_cut_off_leaves_no_shard_and_the_chunk_runs_again(tmp_path, monk
 
 
 def test_a_later_chunk_widens_the_stored_shards(tmp_path):
-    """A column null in the first chunk and words in a later one, whole numbers then floats:
-    every shard ends with the same widened schema, its values unchanged; a clash is one line."""
+    """A column null in the first chunk and words in a later one, whole numbers then floats,
+    a flag then a number: every shard ends with the same widened schema, its values unchanged
+    (two kinds in one column: each value as text, as results.csv writes it)."""
     from quatform.sweeps.shards import ShardStore
 
     spec = _spec(tmp_path)
@@ -288,8 +289,11 @@ def test_a_later_chunk_widens_the_stored_shards(tmp_path):
     assert schemas[0].field("reason").type == pa.string() and schemas[0].field("count").type == pa.float64()
     assert pq.read_table(paths[0]).to_pylist() == [{"cell": 0, "trial": 0, "reason": None, "count": 3.0,
                                                     "extra": None, "failed": False}]
-    with pytest.raises(InvalidInputError, match="one type"):
-        store.save(Chunk(spec, 0, 2, 3), [{"cell": 0, "trial": 2, "reason": 1.5, "failed": False}])
+    store.save(Chunk(spec, 0, 2, 3), [{"cell": 0, "trial": 2, "reason": 1.5, "extra": 2, "failed": False}])
+    tables = [pq.read_table(p) for p in sorted((out / "trials").glob("*.parquet"))]
+    assert all(t.schema.equals(tables[0].schema) for t in tables)
+    assert [r["reason"] for t in tables for r in t.to_pylist()] == [None, "stopped", "1.5"]  # two kinds: text
+    assert [r["extra"] for t in tables for r in t.to_pylist()] == [None, "True", "2"]
 
 
 def test_tables_written_a_row_at_a_time_are_json_dumps_bytes(tmp_path):
@@ -437,3 +441,51 @@ def test_a_resumed_sweep_keeps_the_results_it_was_started_with(runs, tmp_path):
     out = _copy(both, tmp_path)
     run_sweep(spec, out, quiet=True, plots=False)  # no --results: the folder's (both)
     assert (out / "summary.json").read_bytes() == (both / "summary.json").read_bytes()
+
+
+def test_csv_and_both_write_the_same_tables_for_columns_of_mixed_kinds(tmp_path, monkeypatch):
+    """Guards against: "both" writing 3.0 where csv writes 3 (whole numbers and floats in one
+    column), and a flag and a number in one column running as csv but stopping a Parquet sweep.
+    One rule in both stores: whole numbers with floats are floats, two other kinds are text."""
+    from quatform.sweeps import runner
+
+    real = runner.run_chunk
+
+    def synthetic(ch):  # three metrics more, before the trailing columns
+        out = []
+        for r in real(ch):
+            tail = {k: r.pop(k) for k in ("failed", "failure", "lost", "success")}
+            r["mixed_number"] = r["trial"] if r["trial"] % 2 == 0 else r["trial"] + 0.5
+            r["flag_or_count"] = True if r["cell"] == 0 else 7
+            r["late"] = None if r["cell"] < 2 else 1.25
+            out.append({**r, **tail})
+        return out
+
+    monkeypatch.setattr(runner, "run_chunk", synthetic)
+    spec = _spec(tmp_path)
+    run_sweep(spec, tmp_path / "csv", quiet=True, plots=False, results="csv")
+    run_sweep(spec, tmp_path / "both", quiet=True, plots=False, results="both")
+    for name in ("results.csv", "results.json", "summary.csv", "summary.json"):
+        assert (tmp_path / "csv" / name).read_bytes() == (tmp_path / "both" / name).read_bytes(), name
+    rows = _csv_rows(tmp_path / "csv" / "results.csv")
+    assert [r["mixed_number"] for r in rows[:3]] == ["0.0", "1.5", "2.0"]
+    assert {r["flag_or_count"] for r in rows} == {"True", "7"}
+
+
+def test_a_metric_null_so_far_is_stored_as_float_nulls(tmp_path):
+    """Guards against: shards written while a metric is null everywhere typed null, the later
+    ones float, so pandas and polars cannot read the folder mid-run. No shard is rewritten."""
+    from quatform.sweeps.shards import ShardStore
+
+    spec = _spec(tmp_path)
+    out = tmp_path / "o"
+    store = ShardStore(out, ("cell", "trial"))
+    store.save(Chunk(spec, 0, 0, 1), [{"cell": 0, "trial": 0, "late": None, "failed": False}])
+    first = sorted((out / "trials").glob("*.parquet"))[0]
+    before = first.stat().st_mtime_ns, first.read_bytes()
+    store.save(Chunk(spec, 0, 1, 2), [{"cell": 0, "trial": 1, "late": 0.5, "failed": False}])
+    assert (first.stat().st_mtime_ns, first.read_bytes()) == before
+    assert pq.read_schema(first).field("late").type == pa.float64()
+    pl = pytest.importorskip("polars")
+    got = pl.read_parquet(str(out / "trials" / "*.parquet"))
+    assert got["late"].dtype == pl.Float64 and got["late"].to_list() == [None, 0.5]

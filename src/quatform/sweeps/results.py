@@ -27,9 +27,9 @@ from ..sim.output import OUTPUT_MARKER, atomic_file, atomic_write_text, remove_d
 from .spec import RESULTS
 
 __all__ = ["ChunkStore", "summarize", "summarize_blocks", "summarize_shards", "write_table", "write_csv",
-           "ordered_rows", "stored_results", "SPEC_FILE", "LOCK_FILE", "lock_folder", "write_exclusive",
-           "CSV_MAX_TRIALS", "results_mode", "metric_values", "shard_metric_values",
-           "leading_columns"]
+           "ordered_rows", "typed_rows", "column_kind", "column_value", "text_value", "stored_results", "SPEC_FILE",
+           "LOCK_FILE", "lock_folder", "write_exclusive", "CSV_MAX_TRIALS", "results_mode", "metric_values",
+           "shard_metric_values", "leading_columns"]
 
 #: The spec's identity in the output folder.
 SPEC_FILE = "sweep.json"
@@ -251,12 +251,57 @@ def _columns(rows) -> list[str]:
     return cols
 
 
-def _cell(v) -> str:
+def text_value(v) -> str:
+    """A value as the tables' CSV writes it: a float by its ``repr`` (exact), None empty, any
+    other by ``str`` (``True``, ``3``, a word)."""
     if v is None:
         return ""
     if isinstance(v, float):
         return repr(v)
     return str(v)
+
+
+def column_kind(kinds) -> str:
+    """A column's kind from the Python types of its non-null values (every trial's, in both
+    stores): ``"null"`` (none yet), ``"bool"``, ``"int"``, ``"float"`` (floats, or whole
+    numbers and floats: the whole ones stored as floats) or ``"text"`` (words, or values of
+    two kinds, such as a flag and a number: each stored as :func:`text_value` writes it)."""
+    kinds = set(kinds)
+    if not kinds:
+        return "null"
+    if kinds == {bool}:
+        return "bool"
+    if kinds == {int}:
+        return "int"
+    if kinds <= {int, float}:
+        return "float"
+    return "text"
+
+
+def column_value(v, kind: str):
+    """``v`` as a column of ``kind`` (:func:`column_kind`) holds it."""
+    if v is None:
+        return None
+    if kind == "float":
+        return float(v)
+    if kind == "text":
+        return v if isinstance(v, str) else text_value(v)
+    return v
+
+
+def typed_rows(rows: list[dict]) -> list[dict]:
+    """``rows`` with each column's values as its kind over all the rows holds them (the rule the
+    Parquet shards follow, so ``results = "csv"`` and ``"both"`` write the same tables)."""
+    kinds: dict = {}
+    for r in rows:
+        for k, v in r.items():
+            seen = kinds.setdefault(k, set())
+            if v is not None:
+                seen.add(type(v))
+    mixed = {k: column_kind(t) for k, t in kinds.items() if len(t) > 1}
+    if not mixed:
+        return rows
+    return [{k: column_value(v, mixed[k]) if k in mixed else v for k, v in r.items()} for r in rows]
 
 
 def write_csv(path, columns: list[str], rows) -> Path:
@@ -266,7 +311,7 @@ def write_csv(path, columns: list[str], rows) -> Path:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(columns)
         for r in rows:
-            w.writerow([_cell(r.get(c)) for c in columns])
+            w.writerow([text_value(r.get(c)) for c in columns])
     return Path(path)
 
 

@@ -24,7 +24,7 @@ from ..errors import ResourceLimitError
 from ..sim.output import write_failures
 from .executors import check_scheduler, executor, parallel_workers
 from .results import (CSV_MAX_TRIALS, ChunkStore, metric_values, ordered_rows, results_mode, shard_metric_values,
-                      stored_results, summarize, summarize_shards, write_table)
+                      stored_results, summarize, summarize_shards, typed_rows, write_table)
 from .trials import SWEEP_KINDS, Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
 
 __all__ = ["plan_chunks", "estimate", "Estimate", "run_sweep", "SECONDS_PER_TICK", "SECONDS_PER_ROBOT_STEP",
@@ -209,7 +209,7 @@ def _run_chunks(spec, out, store, backend, workers, scheduler, plots, quiet, est
                 for fut in done:
                     finished(pending.pop(fut), fut.result())
     if store.shards is None:
-        rows = ordered_rows(rows)
+        rows = typed_rows(ordered_rows(rows))
         summary = summarize(spec, rows)
         write_table(out, "results", rows)
         values = metric_values(spec, rows)

@@ -10,10 +10,13 @@ shards are the resume store of such a sweep. Every shard has the same columns an
 
 The columns: ``cell``, ``point``, the choice, each varied parameter, ``latency_ticks``, ``trial``,
 ``seed``, the kind's metrics, ``failed``, ``failure``, ``lost``, ``success``; a column's type is that
-of its values (bool, int64, float64, string; a column null in every trial so far is of Arrow
-type null). A chunk whose values widen a column (its first non-null values, or floats in an
-int64 column) rewrites the stored shards to the widened schema, so the schema at the end
-depends on the trials' values only, not on which chunk finished first. Values are exact:
+of its values over every trial, by the rule the CSV path follows too
+(:func:`~quatform.sweeps.results.column_kind`: bool, int64, float64 for floats or whole numbers
+and floats, string for words or values of two other kinds, as text; a column null in every
+trial so far is float64 nulls). A chunk whose values widen a column rewrites the stored shards
+to the widened schema, so the schema at the end depends on the trials' values only, not on
+which chunk finished first. Every page carries a CRC-32 checksum, verified on every read; the
+sweep reads the shards of its planned chunks only. Values are exact:
 each column chunk is encoded by what its values are (few distinct values: a dictionary of
 run-length-coded indices; whole numbers: delta; floats: byte-stream split; booleans:
 run-length), then compressed with zstd (level 19 for the split floats, 3 for the rest).
@@ -64,35 +67,29 @@ def require_pyarrow(what: str = 'results = "parquet"'):
     return pa, pq, pc
 
 
-def _arrow_type(pa, name: str, values: list):
-    """The Arrow type of a column of Python values (one line for a column mixing words,
-    flags and numbers)."""
-    kinds = {type(v) for v in values if v is not None}
-    if not kinds:
-        return pa.null()
-    if kinds == {bool}:
-        return pa.bool_()
-    if kinds == {int}:
-        return pa.int64()
-    if kinds <= {int, float}:
-        return pa.float64()
-    if kinds == {str}:
-        return pa.string()
-    raise InvalidInputError(f"sweep results: column {name!r} holds {' and '.join(sorted(k.__name__ for k in kinds))} "
-                            "values; a Parquet column holds one type")
+def _arrow_type(pa, kind: str):
+    """The Arrow type of a column of ``kind`` (:func:`~quatform.sweeps.results.column_kind`); a
+    column null so far is float64 (the metrics' usual type), so that shards written while a
+    metric is null everywhere read together with the later ones."""
+    return {"bool": pa.bool_(), "int": pa.int64(), "text": pa.string()}.get(kind, pa.float64())
 
 
-def _table(rows: list[dict]):
-    """The chunk's rows as an Arrow table (columns in the rows' key order)."""
+def _kinds(column) -> set:
+    """The Python types of a stored column's non-null values (none: all null)."""
     pa, _, _ = require_pyarrow()
-    names: dict = {}
-    for r in rows:
-        names.update(dict.fromkeys(r))
-    cols = {}
-    for name in names:
-        values = [r.get(name) for r in rows]
-        cols[name] = pa.array(values, type=_arrow_type(pa, name, values))
-    return pa.table(cols)
+    if column.null_count == len(column):
+        return set()
+    t = column.type
+    return {bool} if pa.types.is_boolean(t) else {int} if pa.types.is_integer(t) else \
+        {float} if pa.types.is_floating(t) else {str}
+
+
+def _column(values: list, kind: str):
+    """Python values as an Arrow array of ``kind``, each converted as the CSV path does."""
+    from .results import column_value
+
+    pa, _, _ = require_pyarrow()
+    return pa.array([column_value(v, kind) for v in values], type=_arrow_type(pa, kind))
 
 
 def _encoding(pa, pc, column) -> str | None:
@@ -184,6 +181,7 @@ class ShardStore:
         self.folder = Path(out) / SHARD_FOLDER
         self.leading = tuple(leading)
         self.schema = None
+        self.kinds: dict[str, set] = {}  # each column's Python types of its non-null values, first seen first
         self._stored: dict[Path, object] = {}  # each stored shard's schema
 
     def path(self, chunk) -> Path:
@@ -201,7 +199,9 @@ class ShardStore:
             return None
         if table.num_rows != chunk.stop - chunk.start:
             return None
-        self.schema = self._merged(table.schema)
+        for name, column in zip(table.column_names, table.columns):
+            self.kinds.setdefault(name, set()).update(_kinds(column))
+        self.schema = self._schema()
         self._stored[p] = table.schema
         return table.num_rows
 
@@ -214,56 +214,60 @@ class ShardStore:
     def save(self, chunk, rows: list[dict]) -> None:
         """Write the chunk's shard in the sweep's schema (widened by its values; the stored
         shards rewritten to a widened one)."""
-        table = _table(rows)
-        schema = self._merged(table.schema)
+        pa, _, _ = require_pyarrow()
+        for r in rows:
+            for k, v in r.items():
+                seen = self.kinds.setdefault(k, set())
+                if v is not None:
+                    seen.add(type(v))
+        schema = self._schema()
         self.folder.mkdir(parents=True, exist_ok=True)
         widened = self.schema is not None and not schema.equals(self.schema)
         self.schema = schema
         if widened:
             self.finish()  # the stored shards to the widened schema
         p = self.path(chunk)
-        write_shard(p, _cast(table, schema), (*self.leading, *TRAILING))
+        table = pa.Table.from_arrays([_column([r.get(f.name) for r in rows], self._kind(f.name)) for f in schema],
+                                     schema=schema)
+        write_shard(p, table, (*self.leading, *TRAILING))
         self._stored[p] = schema
 
     def finish(self) -> list[Path]:
         """Rewrite each stored shard whose schema is not the sweep's (widened since it was
         written; or a run killed during such a rewrite); return the stored shards in row order
         (the planned chunks' only: another file in the folder is never read)."""
+        pa, _, _ = require_pyarrow()
         for p, schema in sorted(self._stored.items()):
             if not schema.equals(self.schema):
-                write_shard(p, _cast(read_shard(p), self.schema), (*self.leading, *TRAILING))
+                table = read_shard(p)
+                have = dict(zip(table.column_names, table.columns))
+                cols = [have[f.name] if f.name in have and have[f.name].type == f.type else
+                        _column(have[f.name].to_pylist() if f.name in have else [None] * table.num_rows,
+                                self._kind(f.name)) for f in self.schema]
+                write_shard(p, pa.Table.from_arrays(cols, schema=self.schema), (*self.leading, *TRAILING))
                 self._stored[p] = self.schema
         return sorted(self._stored)
 
-    def _merged(self, schema):
-        """The sweep's schema widened by ``schema`` (null -> a type, int64 -> float64), the
-        columns ordered leading, metrics (first seen first), trailing; one line for a clash."""
+    def _kind(self, name: str) -> str:
+        from .results import column_kind
+
+        return column_kind(self.kinds.get(name, ()))
+
+    def _schema(self):
+        """The sweep's schema: each column's type by the kinds of all its values stored so far,
+        the columns ordered leading, metrics (first seen first), trailing."""
         pa, _, _ = require_pyarrow()
-        if self.schema is None:
-            merged = schema
-        else:
-            try:
-                merged = pa.unify_schemas([self.schema, schema], promote_options="permissive")
-            except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError) as exc:
-                raise InvalidInputError(f"sweep results: a chunk's columns do not fit the stored shards' "
-                                        f"({' '.join(str(exc).split())[:200]}); a Parquet column holds one type"
-                                        ) from None
-        names = merged.names
+        names = list(self.kinds)
         order = [n for n in self.leading if n in names] + \
             [n for n in names if n not in self.leading and n not in TRAILING] + [n for n in TRAILING if n in names]
-        return pa.schema([merged.field(n) for n in order])
-
-
-def _cast(table, schema):
-    """``table`` with ``schema``'s columns (absent ones null) and types."""
-    pa, _, _ = require_pyarrow()
-    n = table.num_rows
-    cols = [table.column(f.name).cast(f.type) if f.name in table.column_names else pa.nulls(n, f.type)
-            for f in schema]
-    return pa.Table.from_arrays(cols, schema=schema)
+        return pa.schema([pa.field(n, _arrow_type(pa, self._kind(n))) for n in order])
 
 
 def float_column(batch, name: str) -> np.ndarray:
-    """A numeric column of a record batch as float64 (null: NaN)."""
+    """A column of a record batch as float64 (null, and every value of a text column: NaN, as
+    :func:`~quatform.sweeps.results._number` reads a word)."""
     pa, _, pc = require_pyarrow()
-    return pc.cast(batch.column(name), pa.float64()).to_numpy(zero_copy_only=False)
+    column = batch.column(name)
+    if pa.types.is_string(column.type):
+        return np.full(len(column), np.nan)
+    return pc.cast(column, pa.float64()).to_numpy(zero_copy_only=False)
