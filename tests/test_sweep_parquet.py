@@ -441,6 +441,20 @@ def test_a_resumed_sweep_keeps_the_results_it_was_started_with(runs, tmp_path):
     out = _copy(both, tmp_path)
     run_sweep(spec, out, quiet=True, plots=False)  # no --results: the folder's (both)
     assert (out / "summary.json").read_bytes() == (both / "summary.json").read_bytes()
+    meta = json.loads((out / "sweep.json").read_text())
+    del meta["results"]  # a folder of an earlier sweep.json: its store decides
+    (out / "sweep.json").write_text(json.dumps(meta))
+    (out / "results.csv").unlink()
+    run_sweep(spec, out, quiet=True, plots=False)
+    assert not (out / "results.csv").exists() and (out / "summary.csv").is_file()
+
+
+def test_the_results_help_says_the_default_above_the_csv_limit(capsys):
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "else the one --out's sweep was started with, else csv up to 100,000 trials (cells x trials) and " \
+           "parquet above" in text
 
 
 def test_csv_and_both_write_the_same_tables_for_columns_of_mixed_kinds(tmp_path, monkeypatch):

@@ -81,6 +81,7 @@ class ChunkStore:
         self.out = Path(out)
         self.folder = self.out / "chunks"
         self.shards = None
+        self.rows: list[dict] = []  # the JSON chunks' rows, loaded or saved (results = "csv")
         self.store = "json" if results == "csv" else "parquet"
         self._spec, self._backend = spec, backend
         self._ident = {"identity": spec.identity, "backend": backend, "name": spec.name, "spec": spec.data,
@@ -152,9 +153,9 @@ class ChunkStore:
     def path(self, chunk) -> Path:
         return self.folder / f"{chunk.key}.json"
 
-    def load(self, chunk) -> list | int | None:
-        """The rows of a finished chunk (Parquet shards: their count), or None (not run, or
-        unreadable: run again)."""
+    def load(self, chunk) -> int | None:
+        """The number of rows of a finished chunk (JSON chunks: kept in :attr:`rows`), or None
+        (not run, or unreadable: run again)."""
         if self.shards is not None:
             return self.shards.load(chunk)
         p = self.path(chunk)
@@ -164,9 +165,17 @@ class ChunkStore:
             rows = json.loads(p.read_text(encoding="utf-8"))["rows"]
         except (OSError, ValueError, KeyError, TypeError):
             return None
-        return rows if isinstance(rows, list) and len(rows) == chunk.stop - chunk.start else None
+        if not isinstance(rows, list) or len(rows) != chunk.stop - chunk.start:
+            return None
+        self.rows.extend(rows)
+        return len(rows)
+
+    def first_row(self) -> dict:
+        """The first stored row (of the chunks loaded)."""
+        return self.rows[0] if self.shards is None else self.shards.first_row()
 
     def save(self, chunk, rows: list) -> None:
+        """Store a finished chunk (JSON chunks: its rows kept in :attr:`rows` too)."""
         if not self._meta.is_file():
             write_exclusive(self._meta, json.dumps(self._ident, indent=2, sort_keys=True, default=str) + "\n")
         if self.shards is not None:
@@ -174,18 +183,23 @@ class ChunkStore:
             return
         self.folder.mkdir(parents=True, exist_ok=True)
         atomic_write_text(self.path(chunk), json.dumps({"chunk": chunk.key, "rows": rows}, default=_json) + "\n")
+        self.rows.extend(rows)
 
 
 def lock_folder(out):
     """An exclusive ``flock`` on ``out/.sweep.lock`` (the open file: closing it releases the
-    lock), holding this process' pid; one line naming the holder's pid when another sweep has it."""
-    import fcntl
-
+    lock), holding this process' pid; one line naming the holder's pid when another sweep has it.
+    Where the system has no ``flock`` (not POSIX) the file is made but not locked."""
+    try:
+        import fcntl
+    except ImportError:
+        fcntl = None
     path = Path(out) / LOCK_FILE
     while True:
         f = open(path, "a+", encoding="utf-8")
         try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if fcntl is not None:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             f.seek(0)
             pid = f.read().strip() or "?"
@@ -439,7 +453,7 @@ def shard_metric_values(spec, paths):
     def values(metric):
         parts: dict = {c: [] for c in spec.choices}
         for b in shard_batches(paths, [key, "failed", metric]):
-            choice = np.asarray(b.column(key).to_pylist(), dtype=object)
+            choice = b.column(key).to_numpy(zero_copy_only=False)
             ok = ~b.column("failed").to_numpy(zero_copy_only=False)
             v = float_column(b, metric)
             for c in spec.choices:

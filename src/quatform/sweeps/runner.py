@@ -169,23 +169,18 @@ def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est, mode) 
 def _run_chunks(spec, out, store, backend, workers, scheduler, plots, quiet, est, mode) -> list[dict]:
     """Run the chunks ``store`` lacks, then write the tables and figures."""
     with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any chunk
-        rows: list[dict] = []  # kept in memory for results = "csv" only
         stored = 0
         todo = []
         for ch in plan_chunks(spec, backend):
             got = store.load(ch)
             if got is None:
                 todo.append(ch)
-            elif store.shards is not None:
-                stored += got
             else:
-                rows.extend(got)
-                stored += len(got)
+                stored += got
         progress = _Progress(spec.name, est.trials, stored, quiet=quiet)
         checked = bool(stored)
         if stored:
-            first = rows[0] if store.shards is None else store.shards.first_row()
-            spec.success.check_metrics(row_metrics(spec, first), spec.where)
+            spec.success.check_metrics(row_metrics(spec, store.first_row()), spec.where)
 
         def finished(ch, got):
             nonlocal checked
@@ -193,8 +188,6 @@ def _run_chunks(spec, out, store, backend, workers, scheduler, plots, quiet, est
                 spec.success.check_metrics(row_metrics(spec, got[0]), spec.where)
                 checked = True
             store.save(ch, got)
-            if store.shards is None:
-                rows.extend(got)
             progress.add(len(got))
 
         if ex is None:
@@ -209,7 +202,7 @@ def _run_chunks(spec, out, store, backend, workers, scheduler, plots, quiet, est
                 for fut in done:
                     finished(pending.pop(fut), fut.result())
     if store.shards is None:
-        rows = typed_rows(ordered_rows(rows))
+        rows = typed_rows(ordered_rows(store.rows))
         summary = summarize(spec, rows)
         write_table(out, "results", rows)
         values = metric_values(spec, rows)
