@@ -145,17 +145,18 @@ def test_the_summary_reads_a_few_columns_a_batch_at_a_time(runs, monkeypatch):
     from quatform.sweeps.results import summarize_shards
 
     spec, _, both = runs
-    whole = summarize_shards(spec, both)
+    paths = sorted((both / "trials").glob("part-*.parquet"))
+    whole = summarize_shards(spec, paths)
     asked = []
     real = shards.shard_batches
 
-    def one_row(out, columns=None):
+    def one_row(paths, columns=None):
         asked.append(columns)
-        yield from real(out, columns)
+        yield from real(paths, columns)
 
     monkeypatch.setattr(shards, "BATCH_ROWS", 1)
     monkeypatch.setattr(shards, "shard_batches", one_row)
-    assert summarize_shards(spec, both) == whole
+    assert summarize_shards(spec, paths) == whole
     assert asked == [["cell", "failed", "lost", "success", *spec.success.below]]
 
 
@@ -269,8 +270,9 @@ def test_a_write_cut_off_leaves_no_shard_and_the_chunk_runs_again(tmp_path, monk
 
 
 def test_a_later_chunk_widens_the_stored_shards(tmp_path):
-    """A column null in the first chunk and words in a later one, whole numbers then floats:
-    every shard ends with the same widened schema, its values unchanged; a clash is one line."""
+    """A column null in the first chunk and words in a later one, whole numbers then floats,
+    a flag then a number: every shard ends with the same widened schema, its values unchanged
+    (two kinds in one column: each value as text, as results.csv writes it)."""
     from quatform.sweeps.shards import ShardStore
 
     spec = _spec(tmp_path)
@@ -287,8 +289,11 @@ def test_a_later_chunk_widens_the_stored_shards(tmp_path):
     assert schemas[0].field("reason").type == pa.string() and schemas[0].field("count").type == pa.float64()
     assert pq.read_table(paths[0]).to_pylist() == [{"cell": 0, "trial": 0, "reason": None, "count": 3.0,
                                                     "extra": None, "failed": False}]
-    with pytest.raises(InvalidInputError, match="one type"):
-        store.save(Chunk(spec, 0, 2, 3), [{"cell": 0, "trial": 2, "reason": 1.5, "failed": False}])
+    store.save(Chunk(spec, 0, 2, 3), [{"cell": 0, "trial": 2, "reason": 1.5, "extra": 2, "failed": False}])
+    tables = [pq.read_table(p) for p in sorted((out / "trials").glob("*.parquet"))]
+    assert all(t.schema.equals(tables[0].schema) for t in tables)
+    assert [r["reason"] for t in tables for r in t.to_pylist()] == [None, "stopped", "1.5"]  # two kinds: text
+    assert [r["extra"] for t in tables for r in t.to_pylist()] == [None, "True", "2"]
 
 
 def test_tables_written_a_row_at_a_time_are_json_dumps_bytes(tmp_path):
@@ -330,3 +335,171 @@ def test_without_pyarrow_small_sweeps_write_csv_and_a_large_one_is_one_line(tmp_
     assert not (tmp_path / "big").exists()
     assert main(["sweep", str(tmp_path / "small.toml"), "--out", str(tmp_path / "b2"), "--results", "both"]) == 2
     assert 'pip install -e ".[dask]"' in capsys.readouterr().err
+
+
+def _sweep_cmd(tmp_path, out, *extra):
+    spec = tmp_path / "small.toml"
+    if not spec.exists():
+        spec.write_text(SMALL)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    return [sys.executable, "-m", "quatform.cli", "sweep", str(spec), "--no-plots", "--quiet", "--out", str(out),
+            *extra], env
+
+
+@pytest.mark.parametrize("results", ["csv", "parquet"])
+def test_a_second_sweep_into_a_locked_folder_is_one_line(runs, tmp_path, results):
+    """Guards against: two sweeps into one empty --out writing over each other, both exiting 0.
+    The lock is another process' (this one); a sweep started meanwhile is refused, and two
+    sweeps started together give the one sweep's tables (the second refused or resuming)."""
+    from quatform.sweeps.results import lock_folder
+
+    out = tmp_path / "o"
+    out.mkdir()
+    cmd, env = _sweep_cmd(tmp_path, out, "--results", results)
+    with lock_folder(out):
+        got = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert got.returncode == 2
+    assert got.stderr.strip().splitlines() == [f"quatform: error: another sweep is writing into {str(out)!r} "
+                                               f"(pid {os.getpid()}); wait or choose another --out"]
+    assert sorted(os.listdir(out)) == [".sweep.lock"]
+    both = tmp_path / "both"
+    cmd, env = _sweep_cmd(tmp_path, both, "--results", results)
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    codes = sorted(p.wait(timeout=300) for p in procs)
+    errs = [p.stderr.read() for p in procs]
+    assert codes in ([0, 0], [0, 2]), errs
+    assert (both / "summary.json").read_bytes() == (runs[1] / "summary.json").read_bytes()
+
+
+def _copy(folder, tmp_path):
+    import shutil
+
+    return Path(shutil.copytree(folder, tmp_path / "copy"))
+
+
+def test_files_in_trials_that_no_chunk_plans_are_never_read(runs, tmp_path):
+    """Guards against: a copied shard counted twice, another sweep's shard a KeyError."""
+    spec, _, both = runs
+    out = _copy(both, tmp_path)
+    first = sorted((out / "trials").glob("part-*.parquet"))[0]
+    (out / "trials" / "part-00099-000000.parquet").write_bytes(first.read_bytes())
+    pq.write_table(pa.table({"other": [1, 2]}), out / "trials" / "part-00000-000001.parquet")
+    run_sweep(spec, out, quiet=True, plots=False, results="both")
+    for name in ("summary.json", "results.csv", "results.json"):
+        assert (out / name).read_bytes() == (both / name).read_bytes(), name
+
+
+def test_a_shard_with_a_damaged_page_is_run_again(runs, tmp_path):
+    """Guards against: a shard whose data pages are damaged but footer intact accepted on
+    resume, every rerun then failing with a thrift error naming no file. Every page carries a
+    checksum: the damaged shard's chunk runs again, and a damaged shard read is named."""
+    from quatform.sweeps.shards import shard_batches
+
+    spec, _, both = runs
+    out = _copy(both, tmp_path)
+    shard = sorted((out / "trials").glob("part-*.parquet"))[1]
+    data = bytearray(shard.read_bytes())
+    meta = pq.read_metadata(shard)
+    col = meta.row_group(0).column(meta.num_columns - 5)  # a metric's column chunk
+    at = col.data_page_offset + (col.total_compressed_size // 2)
+    data[at] ^= 0xFF
+    shard.write_bytes(bytes(data))
+    assert pq.read_metadata(shard).num_rows == meta.num_rows  # the footer reads
+    with pytest.raises(InvalidInputError, match=f"the shard {str(shard)!r} is damaged.*delete it and rerun"):
+        list(shard_batches([shard]))
+    run_sweep(spec, out, quiet=True, plots=False, results="both")
+    for name in ("summary.json", "results.csv", "results.json"):
+        assert (out / name).read_bytes() == (both / name).read_bytes(), name
+    assert list(shard_batches([shard]))
+
+
+def test_temporaries_of_a_killed_sweep_are_removed_when_it_reopens(runs, tmp_path):
+    """Guards against: a kill during the first sweep.json write making every rerun refused, and
+    dead temporaries of the tables and chunks piling up. A live process' stay."""
+    spec, csv_out, _ = runs
+    dead, alive = 2**22 + 12345, os.getppid()
+    out = tmp_path / "new"
+    out.mkdir()
+    (out / f".sweep.json.tmp-{dead}").write_text("{")
+    run_sweep(spec, out, quiet=True, plots=False)
+    assert not (out / f".sweep.json.tmp-{dead}").exists()
+    old = _copy(csv_out, tmp_path)
+    made = [old / f".{n}.tmp-{pid}" for n in ("results.csv", "results.json", "summary.csv", "summary.json")
+            for pid in (dead, alive)] + [old / "chunks" / f".c.json.tmp-{dead}"]
+    for p in made:
+        p.write_text("x")
+    run_sweep(spec, old, quiet=True, plots=False)
+    assert [p.exists() for p in made] == [False, True] * 4 + [False]
+    assert (old / "summary.json").read_bytes() == (csv_out / "summary.json").read_bytes()
+
+
+def test_a_resumed_sweep_keeps_the_results_it_was_started_with(runs, tmp_path):
+    """Guards against: resuming a Parquet folder without --results refused though sweep.json
+    records its store."""
+    spec, _, both = runs
+    out = _copy(both, tmp_path)
+    run_sweep(spec, out, quiet=True, plots=False)  # no --results: the folder's (both)
+    assert (out / "summary.json").read_bytes() == (both / "summary.json").read_bytes()
+    meta = json.loads((out / "sweep.json").read_text())
+    del meta["results"]  # a folder of an earlier sweep.json: its store decides
+    (out / "sweep.json").write_text(json.dumps(meta))
+    (out / "results.csv").unlink()
+    run_sweep(spec, out, quiet=True, plots=False)
+    assert not (out / "results.csv").exists() and (out / "summary.csv").is_file()
+
+
+def test_the_results_help_says_the_default_above_the_csv_limit(capsys):
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "else the one --out's sweep was started with, else csv up to 100,000 trials (cells x trials) and " \
+           "parquet above" in text
+
+
+def test_csv_and_both_write_the_same_tables_for_columns_of_mixed_kinds(tmp_path, monkeypatch):
+    """Guards against: "both" writing 3.0 where csv writes 3 (whole numbers and floats in one
+    column), and a flag and a number in one column running as csv but stopping a Parquet sweep.
+    One rule in both stores: whole numbers with floats are floats, two other kinds are text."""
+    from quatform.sweeps import runner
+
+    real = runner.run_chunk
+
+    def synthetic(ch):  # three metrics more, before the trailing columns
+        out = []
+        for r in real(ch):
+            tail = {k: r.pop(k) for k in ("failed", "failure", "lost", "success")}
+            r["mixed_number"] = r["trial"] if r["trial"] % 2 == 0 else r["trial"] + 0.5
+            r["flag_or_count"] = True if r["cell"] == 0 else 7
+            r["late"] = None if r["cell"] < 2 else 1.25
+            out.append({**r, **tail})
+        return out
+
+    monkeypatch.setattr(runner, "run_chunk", synthetic)
+    spec = _spec(tmp_path)
+    run_sweep(spec, tmp_path / "csv", quiet=True, plots=False, results="csv")
+    run_sweep(spec, tmp_path / "both", quiet=True, plots=False, results="both")
+    for name in ("results.csv", "results.json", "summary.csv", "summary.json"):
+        assert (tmp_path / "csv" / name).read_bytes() == (tmp_path / "both" / name).read_bytes(), name
+    rows = _csv_rows(tmp_path / "csv" / "results.csv")
+    assert [r["mixed_number"] for r in rows[:3]] == ["0.0", "1.5", "2.0"]
+    assert {r["flag_or_count"] for r in rows} == {"True", "7"}
+
+
+def test_a_metric_null_so_far_is_stored_as_float_nulls(tmp_path):
+    """Guards against: shards written while a metric is null everywhere typed null, the later
+    ones float, so pandas and polars cannot read the folder mid-run. No shard is rewritten."""
+    from quatform.sweeps.shards import ShardStore
+
+    spec = _spec(tmp_path)
+    out = tmp_path / "o"
+    store = ShardStore(out, ("cell", "trial"))
+    store.save(Chunk(spec, 0, 0, 1), [{"cell": 0, "trial": 0, "late": None, "failed": False}])
+    first = sorted((out / "trials").glob("*.parquet"))[0]
+    before = first.stat().st_mtime_ns, first.read_bytes()
+    store.save(Chunk(spec, 0, 1, 2), [{"cell": 0, "trial": 1, "late": 0.5, "failed": False}])
+    assert (first.stat().st_mtime_ns, first.read_bytes()) == before
+    assert pq.read_schema(first).field("late").type == pa.float64()
+    pl = pytest.importorskip("polars")
+    got = pl.read_parquet(str(out / "trials" / "*.parquet"))
+    assert got["late"].dtype == pl.Float64 and got["late"].to_list() == [None, 0.5]

@@ -48,7 +48,8 @@ def sweep_arguments(p) -> None:
                    help="with --scheduler slurm: print the job script dask-jobqueue would submit, run nothing")
     p.add_argument("--results", metavar="FORMAT",
                    help="csv (results.csv/json), parquet (trials/*.parquet, one shard per chunk; pyarrow: pip install "
-                        "-e \".[dask]\") or both; default the spec's results, else csv up to 100,000 trials")
+                        "-e \".[dask]\") or both; default the spec's results, else the one --out's sweep was started "
+                        "with, else csv up to 100,000 trials (cells x trials) and parquet above")
     p.add_argument("--no-plots", action="store_true", help="write the tables only")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -108,7 +109,7 @@ def sweep_command(args) -> None:
         print(f"{s[key]:16s} {vals} {s['trials']:7d} {s['failed']:7d} {s['success_rate']:8.2f}")
     if len(summary) > _MAX_PRINTED:
         print(f"... {len(summary) - _MAX_PRINTED} more cells in summary.csv")
-    mode = results_mode(spec, args.results)
+    mode = results_mode(spec, args.results, args.out)
     tables = {"csv": "results.csv/json", "parquet": "trials/*.parquet", "both": "results.csv/json, trials/*.parquet"}
     print(f"\nfiles in {args.out}/: {tables[mode]}, summary.csv/json" + ("" if args.no_plots else ", figures/"),
           file=sys.stdout)

@@ -24,7 +24,7 @@ from ..errors import ResourceLimitError
 from ..sim.output import write_failures
 from .executors import check_scheduler, executor, parallel_workers
 from .results import (CSV_MAX_TRIALS, ChunkStore, metric_values, ordered_rows, results_mode, shard_metric_values,
-                      summarize, summarize_shards, write_table)
+                      stored_results, summarize, summarize_shards, typed_rows, write_table)
 from .trials import SWEEP_KINDS, Chunk, cell_experiment, cell_scenario, row_metrics, run_chunk
 
 __all__ = ["plan_chunks", "estimate", "Estimate", "run_sweep", "SECONDS_PER_TICK", "SECONDS_PER_ROBOT_STEP",
@@ -149,11 +149,11 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
     except ImportError as exc:
         raise MissingDependencyError(f"--compute {backend}: {exc}; pip install -e \".[{backend}]\"") from None
     check_scheduler(scheduler)  # Dask missing: one line before the experiments are built
-    mode = results_mode(spec, results)
+    mode = results_mode(spec, results, out)
     if mode != "csv":
         from .shards import require_pyarrow
 
-        require_pyarrow(f'results = "{mode}"' + ("" if results or spec.results else
+        require_pyarrow(f'results = "{mode}"' + ("" if results or spec.results or stored_results(out) else
                                                  f" (the default above {CSV_MAX_TRIALS:,} trials)"))
     est = estimate(spec, parallel_workers(workers, scheduler))
     with write_failures(out):  # a full disk: one line naming --out and the file
@@ -162,25 +162,25 @@ def run_sweep(spec, out, *, backend: str = "numpy", workers: int = 1, scheduler:
 
 def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est, mode) -> list[dict]:
     """The body of :func:`run_sweep` (its files written into ``out``)."""
-    with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any file is made
-        store = ChunkStore(out, spec, backend, shards=mode != "csv")
-        rows: list[dict] = []  # kept in memory for results = "csv" only
+    with ChunkStore(out, spec, backend, mode) as store:  # the folder locked till the end
+        return _run_chunks(spec, Path(out), store, backend, workers, scheduler, plots, quiet, est, mode)
+
+
+def _run_chunks(spec, out, store, backend, workers, scheduler, plots, quiet, est, mode) -> list[dict]:
+    """Run the chunks ``store`` lacks, then write the tables and figures."""
+    with executor(workers, scheduler, spec.slurm) as ex:  # an unreachable scheduler: before any chunk
         stored = 0
         todo = []
         for ch in plan_chunks(spec, backend):
             got = store.load(ch)
             if got is None:
                 todo.append(ch)
-            elif store.shards is not None:
-                stored += got
             else:
-                rows.extend(got)
-                stored += len(got)
+                stored += got
         progress = _Progress(spec.name, est.trials, stored, quiet=quiet)
         checked = bool(stored)
         if stored:
-            first = rows[0] if store.shards is None else store.shards.first_row()
-            spec.success.check_metrics(row_metrics(spec, first), spec.where)
+            spec.success.check_metrics(row_metrics(spec, store.first_row()), spec.where)
 
         def finished(ch, got):
             nonlocal checked
@@ -188,8 +188,6 @@ def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est, mode) 
                 spec.success.check_metrics(row_metrics(spec, got[0]), spec.where)
                 checked = True
             store.save(ch, got)
-            if store.shards is None:
-                rows.extend(got)
             progress.add(len(got))
 
         if ex is None:
@@ -203,20 +201,19 @@ def _run_sweep(spec, out, backend, workers, scheduler, plots, quiet, est, mode) 
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for fut in done:
                     finished(pending.pop(fut), fut.result())
-    out = Path(out)
     if store.shards is None:
-        rows = ordered_rows(rows)
+        rows = typed_rows(ordered_rows(store.rows))
         summary = summarize(spec, rows)
         write_table(out, "results", rows)
         values = metric_values(spec, rows)
     else:
         from .shards import shard_columns, shard_rows
 
-        store.shards.finish()
-        summary = summarize_shards(spec, out)
+        paths = store.shards.finish()
+        summary = summarize_shards(spec, paths)
         if mode == "both":
-            write_table(out, "results", lambda: shard_rows(out), shard_columns(out))
-        values = shard_metric_values(spec, out)
+            write_table(out, "results", lambda: shard_rows(paths), shard_columns(paths))
+        values = shard_metric_values(spec, paths)
     write_table(out, "summary", summary)
     if plots:
         from .figures import sweep_figures
