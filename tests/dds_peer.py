@@ -233,3 +233,51 @@ class PairPeer:
         if estop is not None:
             self.peer.write(self.estop_w, messages.msg_type("std_msgs/msg/Bool")(data=estop))
         self.peer.write(self.clock_w, messages.msg_type("rosgraph_msgs/msg/Clock")(clock=messages.stamp_ns(clock_ns)))
+
+
+class ServiceClient:
+    """A client of a ROS 2 service on the wire of rmw_cyclonedds: a writer of the request on
+    ``rq/<name>Request`` and a reader of the reply on ``rr/<name>Reply``, both with the header
+    ``(guid, seq)`` first (:meth:`~quatform.ros2.dds.IdlTypes.service_cls`) and the transport's
+    service QoS (:func:`~quatform.ros2.dds.dds_qos`).
+
+    Parameters
+    ----------
+    peer : Peer
+    name : str
+        The absolute service name.
+    srv_type : str
+        ``pkg/srv/Name``.
+    """
+
+    def __init__(self, peer: Peer, name: str, srv_type: str):
+        from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        from quatform.ros2.dds import dds_service_topics
+
+        self.peer, self.srv_type = peer, srv_type
+        rq, rr = dds_service_topics(name)
+        req_cls = peer.types.service_cls(f"{srv_type}_Request")
+        resp_cls = peer.types.service_cls(f"{srv_type}_Response")
+        self.writer = DataWriter(peer.dp, Topic(peer.dp, rq, req_cls), qos=dds_qos("service"))
+        self.reader = DataReader(peer.dp, Topic(peer.dp, rr, resp_cls), qos=dds_qos("service"))
+        self.waitset = WaitSet(peer.dp)
+        self.waitset.attach(ReadCondition(self.reader, SampleState.Any | ViewState.Any | InstanceState.Any))
+        self.replies: list = []
+
+    def call(self, guid: int, seq: int, timeout_s: float, **fields):
+        """Write the request ``fields`` with the header ``(guid, seq)``; the IDL reply carrying that
+        header (None if none within ``timeout_s``). Every reply read is kept in :attr:`replies`."""
+        request = self.peer.types.store.types[f"{self.srv_type}_Request"](**fields)
+        self.writer.write(self.peer.types.to_idl(request, f"{self.srv_type}_Request", header=(guid, seq)))
+        end = time.monotonic() + timeout_s
+        while True:
+            self.replies += [s for s in self.reader.take(N=100)
+                             if getattr(s, "sample_info", None) is not None and s.sample_info.valid_data]
+            got = next((s for s in self.replies if (s.guid, s.seq) == (guid, seq)), None)
+            if got is not None or time.monotonic() > end:
+                return got
+            self.waitset.wait(max(0, round(min(0.05, end - time.monotonic()) * 1e9)))

@@ -18,17 +18,20 @@ import importlib.util
 import math
 import re
 import signal
+import struct
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 pytest.importorskip("cyclonedds", reason="the dds extra is not installed (pip install -e \".[dds]\")")
 
 from quatform import messages  # noqa: E402
 from quatform.ros2.bridge import FormationBridge, experiment_for  # noqa: E402
-from quatform.ros2.dds import IdlTypes, dds_topic, dds_type_name, ros_type_name  # noqa: E402
+from quatform.ros2.dds import IdlTypes, dds_service_topics, dds_topic, dds_type_name, ros_type_name  # noqa: E402
 from quatform.ros2.robots_file import read_robots_file  # noqa: E402
 
 
@@ -78,6 +81,31 @@ def test_idl_types_are_ros2s_names_and_cdr():
     assert dds_type_name("px4_msgs/msg/VehicleOdometry") == "px4_msgs::msg::dds_::VehicleOdometry_"
     assert ros_type_name("geometry_msgs::msg::dds_::PointStamped_") == "geometry_msgs/msg/PointStamped"
     assert dds_topic("/r1/cmd_vel") == "rt/r1/cmd_vel"
+
+
+@given(guid=st.integers(0, 2**64 - 1), seq=st.integers(-2**63, 2**63 - 1), data=st.booleans(),
+       message=st.text(st.characters(codec="ascii", exclude_characters="\x00"), max_size=40))
+@settings(max_examples=50, deadline=None)
+def test_service_cdr_is_the_request_header_then_rosbags_fields(guid, seq, data, message):
+    """The SetBool request and response on the wire of rmw_cyclonedds: Cyclone's own CDR of the
+    IDL sample is the 4-byte encapsulation, the header (uint64 guid, int64 seq: 16 bytes, so the
+    fields keep their 8-aligned start), then rosbags' CDR of the fields; it reads back."""
+    types = IdlTypes()
+    store = types.store
+    for name, msg in (("std_srvs/srv/SetBool_Request", store.types["std_srvs/srv/SetBool_Request"](data=data)),
+                      ("std_srvs/srv/SetBool_Response",
+                       store.types["std_srvs/srv/SetBool_Response"](success=data, message=message))):
+        sample = types.to_idl(msg, name, header=(guid, seq))
+        raw = sample.serialize()
+        fields = bytes(store.serialize_cdr(msg, name))
+        assert raw == fields[:4] + struct.pack("<Qq", guid, seq) + fields[4:], name
+        back = type(sample).deserialize(raw)
+        assert (back.guid, back.seq) == (guid, seq)
+        assert bytes(store.serialize_cdr(types.from_idl(back, name), name)) == fields
+    assert types.service_cls("std_srvs/srv/SetBool_Request").__idl_typename__ == "std_srvs::srv::dds_::SetBool_Request_"
+    assert types.service_cls("std_srvs/srv/SetBool_Response").__idl_typename__ == \
+        "std_srvs::srv::dds_::SetBool_Response_"
+    assert dds_service_topics("/quatform/set_estop") == ("rq/quatform/set_estopRequest", "rr/quatform/set_estopReply")
 
 
 def _bridge(tmp_path, loopback, *extra, name="bridge"):
@@ -273,6 +301,49 @@ def test_estop_acts_at_once_while_the_clock_stands_still_and_an_engage_is_never_
     text = log_path.read_text()
     assert rc == 143 and "quatform: terminated (SIGTERM)" in text and "Traceback" not in text, text
     assert text.count("e-stop engaged") == 2 and text.count("e-stop released") == 1, text
+
+
+def test_estop_service_answers_with_the_requests_header_and_zeroes_at_once(tmp_path, loopback):
+    """A client of /quatform/set_estop on rmw_cyclonedds's wire (tests/dds_peer.py): data=true is
+    answered with the request's (guid, seq) and success, and every robot's next commands are zero
+    while /clock stands still; data=false releases: the next /clock step's commands are the
+    controller's again."""
+    exp = experiment_for(H.short_pair(0.5), "quaternion")
+    x = exp.run()["state"]
+    proc, rf = _bridge(tmp_path, loopback, "--use-sim-time", name="srv")
+    log_path = tmp_path / "srv.log"
+    try:
+        pr = FormationBridge(exp, rf).plant_robots
+        poses = H.robot_poses(pr.models, pr.state_slices, x)
+        (p1, q1), (p2, q2) = poses
+        peer = P.PairPeer(int(loopback["ROS_DOMAIN_ID"]), rf)
+        client = P.ServiceClient(peer.peer, rf.settings.estop_service, "std_srvs/srv/SetBool")
+        P.Peer.wait_matched(peer.pose_w + [peer.clock_w] + peer.cmd.readers + [client.writer, client.reader],
+                            30.0, proc)
+        c = _started_in_lockstep(peer, proc, poses, log_path, 3)
+        assert all(np.any(x[2] != 0) for x in peer.cmd.stamped(c))
+        guid, n = 0x0110_2030_4050_6070, [len(b) for b in peer.cmd.got]
+        reply = client.call(guid, 41, WAIT_S, data=True)
+        assert reply is not None and (reply.guid, reply.seq) == (guid, 41) and reply.success, log_path.read_text()
+        assert "engaged" in reply.message
+        new = _new_commands(peer.cmd, n)
+        assert all(box and all(not np.any(m[2]) and m[1] == c for m in box) for box in new), log_path.read_text()
+        c += DT_NS  # engaged: the next /clock step's commands are zero too
+        peer.step(c, (P.pose(4, p1, q1, c), P.pose(4, p2, q2, c)))
+        assert peer.cmd.wait_for(c, WAIT_S) and not any(np.any(x[2]) for x in peer.cmd.stamped(c))
+        reply = client.call(guid, 42, WAIT_S, data=False)
+        assert reply is not None and (reply.guid, reply.seq) == (guid, 42) and reply.success
+        assert reply.message == "e-stop released"
+        c += DT_NS
+        peer.step(c, (P.pose(5, p1, q1, c), P.pose(5, p2, q2, c)))
+        assert peer.cmd.wait_for(c, WAIT_S) and all(np.any(x[2] != 0) for x in peer.cmd.stamped(c))
+        assert [(r.guid, r.seq) for r in client.replies] == [(guid, 41), (guid, 42)]  # one reply per request
+        assert proc.poll() is None
+    finally:
+        rc = P.stop(proc, signal.SIGTERM)
+    text = log_path.read_text()
+    assert rc == 143 and "Traceback" not in text, text
+    assert text.count("e-stop engaged") == 1 and text.count("e-stop released") == 1, text
 
 
 @pytest.mark.parametrize("uri, said", [("file:///nonexistent-quatform.xml", "can't open configuration file"),

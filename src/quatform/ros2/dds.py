@@ -9,6 +9,15 @@ rmw_fastrtps; the ROS 2 design article "Topic and Service name mapping to DDS"):
 
 * a topic ``/a/b`` is the DDS topic ``rt/a/b``; the type ``pkg/msg/Name`` the DDS type
   ``pkg::msg::dds_::Name_`` (:func:`dds_topic`, :func:`dds_type_name`);
+* a service ``/a/s`` of type ``pkg/srv/S`` is a reader of ``pkg::srv::dds_::S_Request_`` on
+  ``rq/a/sRequest`` and a writer of ``pkg::srv::dds_::S_Response_`` on ``rr/a/sReply``
+  (:func:`dds_service_topics`), QoS ``QOS["service"]`` (rmw_qos_profile_services_default), in
+  rmw_cyclonedds's wire format: the CDR of the request and of the reply starts with the request's
+  identity, ``struct { uint64 guid; int64 seq; }`` (rmw_cyclonedds_cpp ``serdata.hpp``,
+  ``cdds_request_header_t``: the last 8 bytes of the client's writer GUID, and the request's
+  sequence number), followed by the fields; a reply carries its request's header
+  (:meth:`IdlTypes.service_cls`). Fast DDS carries the request's identity in the RTPS inline QoS
+  instead, so a Fast DDS client does not reach the service;
 * the domain is ``ROS_DOMAIN_ID`` (default 0); Cyclone reads its configuration (interfaces,
   peers, multicast) from ``CYCLONEDDS_URI`` as for rmw_cyclonedds;
 * samples are XCDR1 (plain CDR, little endian), the data representation ROS 2 uses;
@@ -23,9 +32,7 @@ written twice; their CDR equals ``rosbags``' byte for byte (``tests/test_ros2_dd
 node logic's messages stay ``rosbags`` classes: :meth:`IdlTypes.to_idl` and
 :meth:`IdlTypes.from_idl` convert field by field.
 
-What ROS 2 nodes do that this transport does not: services (their request and reply carry an
-RMW-specific header: rmw_cyclonedds prepends the client's GUID and a sequence number, Fast DDS
-uses the sample identity), so the e-stop is its topic only; the ``ros_discovery_info`` topic
+What ROS 2 nodes do that this transport does not: the ``ros_discovery_info`` topic
 (``ros2 node list`` does not list the node; ``ros2 topic list`` and ``echo`` see its topics).
 
 Clock: the system time, or with ``use_sim_time`` (ROS's parameter) the latest
@@ -38,10 +45,11 @@ of each reader's QoS depth kept), however the packets race on the network. So a 
 before a step is read at that step's tick, and a neighbour's message sent at the tick of step
 ``k`` is read at step ``k + 1`` in every node (a simulator's lockstep; machines whose clocks
 differ by more than a ``/clock`` period delay messages by that difference). Only data waits
-(poses, neighbours' messages): a ``control`` subscription (the e-stop) is handed on as soon as
-it is read, in the order written, whether or not ``/clock`` moves, so an e-stop acts at once
-when the simulator pauses or dies; its reader keeps every sample (``QOS["estop"]``), so an
-engage followed by a release before the node reads them still engages (and zeroes) first.
+(poses, neighbours' messages): a ``control`` subscription (the e-stop) and a service's requests
+are handed on as soon as they are read, in the order written, whether or not ``/clock`` moves,
+so an e-stop acts at once when the simulator pauses or dies; its reader keeps every sample
+(``QOS["estop"]``), so an engage followed by a release before the node reads them still engages
+(and zeroes) first.
 
 Configuration: a participant Cyclone cannot create (a ``CYCLONEDDS_URI`` naming a missing file,
 malformed XML, an interface this machine lacks) is one line naming ``CYCLONEDDS_URI``,
@@ -68,8 +76,8 @@ import numpy as np
 from ..errors import InvalidInputError, MissingDependencyError
 from .transport import QOS, QosProfile, Transport, ros_domain_id
 
-__all__ = ["import_cyclonedds", "dds_topic", "dds_type_name", "ros_type_name", "dds_qos", "IdlTypes", "DdsTransport",
-           "DDS_MISSING"]
+__all__ = ["import_cyclonedds", "dds_topic", "dds_service_topics", "dds_type_name", "ros_type_name", "dds_qos",
+           "IdlTypes", "DdsTransport", "DDS_MISSING", "SERVICE_DEFINITIONS", "REQUEST_HEADER"]
 
 #: The line a machine without the binding gets.
 DDS_MISSING = ("--transport dds needs Cyclone DDS's Python binding (cyclonedds), which is not installed here: "
@@ -77,6 +85,14 @@ DDS_MISSING = ("--transport dds needs Cyclone DDS's Python binding (cyclonedds),
 
 #: Samples taken per reader and pass.
 _TAKE = 256
+
+#: The ROS 2 services the transport serves that ``rosbags``' type store lacks, as ``.srv`` text
+#: (request ``---`` response; std_srvs's ``SetBool.srv``, comments left out).
+SERVICE_DEFINITIONS = {"std_srvs/srv/SetBool": "bool data\n---\nbool success\nstring message\n"}
+
+#: The request identity rmw_cyclonedds puts before a request's and a reply's fields
+#: (``cdds_request_header_t``): the client's writer GUID's last 8 bytes, the sequence number.
+REQUEST_HEADER = (("guid", "uint64"), ("seq", "int64"))
 
 
 def import_cyclonedds():
@@ -95,6 +111,14 @@ def dds_topic(topic: str) -> str:
     if not topic.startswith("/"):
         raise InvalidInputError(f"topic {topic!r} is not an absolute ROS 2 name (/...)")
     return "rt" + topic
+
+
+def dds_service_topics(name: str) -> tuple[str, str]:
+    """The request and reply DDS topics of the absolute ROS 2 service ``name``:
+    ``/quatform/set_estop`` -> ``("rq/quatform/set_estopRequest", "rr/quatform/set_estopReply")``."""
+    if not name.startswith("/"):
+        raise InvalidInputError(f"service {name!r} is not an absolute ROS 2 name (/...)")
+    return f"rq{name}Request", f"rr{name}Reply"
 
 
 def dds_type_name(msg_type: str) -> str:
@@ -189,6 +213,25 @@ class IdlTypes:
         self.store = store
         self._classes: dict = {}
         self._plans: dict = {}
+        self._fields: dict = {}
+        self._service_classes: dict = {}
+        self._register_services()
+
+    def _register_services(self) -> None:
+        """Register the request and response messages of :data:`SERVICE_DEFINITIONS` the store
+        lacks, as ``pkg/srv/Name_Request`` and ``pkg/srv/Name_Response`` (rosidl's names)."""
+        from rosbags.typesys import get_types_from_msg
+
+        types = {}
+        for srv, text in SERVICE_DEFINITIONS.items():
+            request, response = text.split("---")
+            for part, fields in (("Request", request), ("Response", response)):
+                name = f"{srv}_{part}"
+                if name not in self.store.fielddefs:  # rosbags names it pkg/srv/msg/...: renamed as rosidl names it
+                    (definition,) = get_types_from_msg(fields, name).values()
+                    types[name] = definition
+        if types:
+            self.store.register(types)
 
     def _primitive(self, kind: str, bound: int):
         t = importlib.import_module("cyclonedds.idl.types")
@@ -230,11 +273,32 @@ class IdlTypes:
             fields[fname], kind = self._field(nodetype, desc)
             plan.append((fname, *kind))
         cls = make(msg_type.replace("/", "_"), dds_type_name(msg_type), fields)
-        self._classes[msg_type], self._plans[msg_type] = cls, tuple(plan)
+        self._classes[msg_type], self._plans[msg_type], self._fields[msg_type] = cls, tuple(plan), fields
         return cls
 
-    def to_idl(self, msg, msg_type: str | None = None):
-        """The IDL sample of the ``rosbags`` message ``msg``."""
+    def service_cls(self, msg_type: str):
+        """The :class:`cyclonedds.idl.IdlStruct` of a service's request or response ``msg_type``
+        (``pkg/srv/Name_Request``, ``pkg/srv/Name_Response``) on the wire of rmw_cyclonedds:
+        :data:`REQUEST_HEADER`'s ``guid`` (uint64) and ``seq`` (int64) first, then the fields,
+        typename ``pkg::srv::dds_::Name_Request_`` (16 header bytes: the fields keep their
+        alignment, so the CDR is the header's 16 bytes followed by the fields' own CDR)."""
+        if msg_type not in self._service_classes:
+            self.cls(msg_type)
+            t = importlib.import_module("cyclonedds.idl.types")
+            fields = {name: getattr(t, kind) for name, kind in REQUEST_HEADER}
+            clash = set(fields) & set(self._fields[msg_type])
+            if clash:
+                raise InvalidInputError(f"{msg_type} has a field named {sorted(clash)[0]}, which the dds "
+                                        "transport's request header takes")
+            fields.update(self._fields[msg_type])
+            make = importlib.import_module("cyclonedds.idl").make_idl_struct
+            self._service_classes[msg_type] = make(msg_type.replace("/", "_") + "_wire", dds_type_name(msg_type),
+                                                   fields)
+        return self._service_classes[msg_type]
+
+    def to_idl(self, msg, msg_type: str | None = None, header: tuple[int, int] | None = None):
+        """The IDL sample of the ``rosbags`` message ``msg``; with ``header`` ``(guid, seq)``, of a
+        service's request or response, that header first (:meth:`service_cls`)."""
         msg_type = msg_type or msg.__msgtype__
         cls = self.cls(msg_type)
         out = {}
@@ -252,6 +316,8 @@ class IdlTypes:
             else:
                 v = [self.to_idl(s, sub) for s in v]
             out[fname] = v
+        if header is not None:
+            return self.service_cls(msg_type)(**dict(zip((n for n, _ in REQUEST_HEADER), header)), **out)
         return cls(**out)
 
     def from_idl(self, sample, msg_type: str):
@@ -302,7 +368,6 @@ class DdsTransport(Transport):
     """
 
     name = "dds"
-    serves = False
 
     def __init__(self, domain_id: int | None = None, use_sim_time: bool = False, store=None):
         import_cyclonedds()
@@ -321,6 +386,7 @@ class DdsTransport(Transport):
         self.participant = _participant(self.domain_id, Qos(Policy.Userdata(data=b"enclave=/;")))
         self.waitset = WaitSet(self.participant)
         self.readers: list = []  # (reader, msg_type, topic, callback, control)
+        self._served: set = set()  # the readers of service requests: their callbacks take the IDL sample
         self.writers: list = []
         self.topics: dict = {}
         self.reads: dict = {}  # DDS topic -> the ROS type read there
@@ -370,6 +436,32 @@ class DdsTransport(Transport):
         def publish(msg):
             writer.write(to_idl(msg, msg_type))
         return publish
+
+    def service(self, name, srv_type, callback):
+        """Serve ``name`` as rmw_cyclonedds does (see the module docstring): each request read on
+        ``rq/<name>Request`` is answered at once (a control input, never held to ``/clock``) on
+        ``rr/<name>Reply`` with the request's header and ``callback(request)``'s fields."""
+        from cyclonedds.core import ReadCondition
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        rq, rr = dds_service_topics(name)
+        req_type, resp_type = f"{srv_type}_Request", f"{srv_type}_Response"
+        qos = dds_qos("service")
+        reader = DataReader(self.participant, Topic(self.participant, rq, self.types.service_cls(req_type)), qos=qos)
+        writer = DataWriter(self.participant, Topic(self.participant, rr, self.types.service_cls(resp_type)), qos=qos)
+        response = self.types.store.types[resp_type]
+
+        def serve(sample):
+            fields = callback(self.types.from_idl(sample, req_type))
+            writer.write(self.types.to_idl(response(**fields), resp_type, header=(sample.guid, sample.seq)))
+
+        self.waitset.attach(ReadCondition(reader, self._mask()))
+        self._served.add(len(self.readers))
+        self.readers.append((reader, req_type, name, serve, True))
+        self.depths.append(QOS["service"].depth)
+        self.writers.append((writer, True))
 
     def timer(self, period_s, callback):
         t = _Timer(max(1, round(period_s * 1e9)), callback, self.now_ns())
@@ -444,7 +536,7 @@ class DdsTransport(Transport):
             _, msg_type, _, callback, _ = self.readers[k]
             if self.use_sim_time and k == 0:
                 self._clock_written = written
-            callback(self.types.from_idl(s, msg_type))
+            callback(s if k in self._served else self.types.from_idl(s, msg_type))
 
     def _held(self, samples: list) -> list:
         """The data samples waiting for the next ``/clock`` step, at most each reader's QoS depth of the newest."""

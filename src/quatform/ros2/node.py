@@ -3,8 +3,8 @@
 :class:`BridgeNode` wraps a :class:`~quatform.ros2.bridge.FormationBridge` in a node of a
 :class:`~quatform.ros2.transport.Transport`: one subscription per robot's pose topic
 (sensor-data QoS; PX4's best-effort, transient-local profile for ``/fmu`` topics), the command
-publishers, the e-stop (a ``std_msgs/Bool`` topic, latched: true engages, false releases; and,
-where the transport serves services, a ``std_srvs/SetBool`` service doing the same; zero
+publishers, the e-stop (a ``std_msgs/Bool`` topic, latched: true engages, false releases; and
+a ``std_srvs/SetBool`` service doing the same; zero
 commands until released) and a timer at the control rate. The transport carries it:
 :class:`~quatform.ros2.rclpy_transport.RclpyTransport` (default) or
 :class:`~quatform.ros2.dds.DdsTransport`.
@@ -67,8 +67,7 @@ class BridgeNode:
         self._subscribe()
         self.publishers = {topic: transport.publisher(topic, typ, qos) for topic, typ, qos in bridge.command_topics()}
         transport.subscribe(s.estop_topic, "std_msgs/msg/Bool", "estop", self._estop_topic, control=True)
-        if transport.serves:
-            transport.service(self.estop_service(), "std_srvs/srv/SetBool", self._estop_service)
+        transport.service(self.estop_service(), "std_srvs/srv/SetBool", self._estop_service)
 
     def estop_service(self) -> str:
         """The name of its e-stop service: the robots file's ``[bridge] estop_service``."""

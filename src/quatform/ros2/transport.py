@@ -44,7 +44,8 @@ class QosProfile:
 #: (reliable, transient local, 1), ``estop`` the node's reader of the latched e-stop (reliable,
 #: transient local: a node started later still sees an e-stop published before it; keep all,
 #: so an engage followed by a release before the node reads them is read, engage first),
-#: ``clock`` rclcpp's ClockQoS (best effort, volatile, 1: ``/clock``).
+#: ``clock`` rclcpp's ClockQoS (best effort, volatile, 1: ``/clock``), ``service``
+#: rmw_qos_profile_services_default (reliable, volatile, 10: a service's requests and replies).
 QOS = {
     "sensor": QosProfile(False, False, 5),
     "default": QosProfile(True, False, 10),
@@ -52,6 +53,7 @@ QOS = {
     "latched": QosProfile(True, True, 1),
     "estop": QosProfile(True, True, 1, keep_all=True),
     "clock": QosProfile(False, False, 1),
+    "service": QosProfile(True, False, 10),
 }
 
 #: The ``--transport`` names of the middlewares, in order of preference (``auto`` takes the
@@ -79,8 +81,6 @@ class Transport(ABC):
 
     #: Its ``--transport`` name.
     name: str = ""
-    #: It serves ROS 2 services (the e-stop's ``std_srvs/SetBool``).
-    serves: bool = True
 
     @abstractmethod
     def open(self, name: str, namespace: str | None = None) -> None:
@@ -96,9 +96,10 @@ class Transport(ABC):
     def publisher(self, topic: str, msg_type: str, qos: str) -> Callable:
         """A function publishing a ``msg_type`` message on ``topic``."""
 
+    @abstractmethod
     def service(self, name: str, srv_type: str, callback: Callable) -> None:
-        """Serve ``name``: ``callback(request) -> {response field: value}``."""
-        raise NotImplementedError
+        """Serve ``name``: ``callback(request) -> {response field: value}``, called as soon as a
+        request is read, whatever the clock (a control input, as a ``control`` topic)."""
 
     @abstractmethod
     def timer(self, period_s: float, callback: Callable) -> object:
