@@ -1,7 +1,9 @@
 """quatform sweep: the spec reader, the trials' seeds and batches, outputs, resumability, bad input, Ctrl-C."""
 
 import dataclasses
+import errno
 import json
+import os
 import re
 import time
 
@@ -511,3 +513,19 @@ def test_an_out_holding_other_files_names_one(tmp_path, capsys):
     assert main(["sweep", str(_tiny(tmp_path)), "--out", str(out), "--no-plots", "--quiet"]) == 2
     assert "not a sweep's (no sweep.json; e.g. 'metrics.json')" in _one_line(capsys)
     assert sorted(p.name for p in out.iterdir()) == ["metrics.json"]
+
+
+@pytest.mark.parametrize("code", [errno.EPERM, errno.EOPNOTSUPP])
+def test_sweep_json_is_written_where_the_file_system_has_no_hard_links(tmp_path, monkeypatch, code):
+    """FAT, exFAT, SMB and FUSE mounts refuse link(): the sweep's identity is moved into place instead."""
+    from quatform.sweeps import results
+
+    def no_links(src, dst, **kw):
+        raise OSError(code, os.strerror(code), str(src))
+
+    monkeypatch.setattr(results.os, "link", no_links)
+    path = results.write_exclusive(tmp_path / "sweep.json", "{}\n")
+    assert path.read_text() == "{}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.json"]  # no temporary left
+    with pytest.raises(InvalidInputError, match="another sweep made its sweep.json"):
+        results.write_exclusive(tmp_path / "sweep.json", "{}\n")

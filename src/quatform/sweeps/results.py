@@ -221,13 +221,22 @@ def lock_folder(out):
 
 def write_exclusive(path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file linked into place: whole or absent,
-    and refused in one line if ``path`` exists (another sweep made it)."""
+    and refused in one line if ``path`` exists (another sweep made it). On a file system
+    without hard links the file is moved into place instead, where ``path`` does not exist
+    (the sweep holds the folder's lock, :func:`lock_folder`)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
         with writing(path), open(tmp, "w", encoding="utf-8", newline="") as f:
             f.write(text)
-        os.link(tmp, path)
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise
+        except OSError:  # no hard links here (FAT, exFAT, SMB, FUSE): under the folder's lock, moved in
+            if path.exists():
+                raise FileExistsError(path) from None
+            os.replace(tmp, path)
     except FileExistsError:
         raise InvalidInputError(f"--out {str(path.parent)!r}: another sweep made its {path.name} meanwhile; "
                                 "give a new --out") from None
