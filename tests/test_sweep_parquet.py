@@ -27,22 +27,7 @@ from quatform.sweeps.trials import Chunk
 pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
-SMALL = """
-name = "small"
-scenario = "mas-kitts-helix"
-controllers = ["robot-space", "quaternion"]
-trials = 3
-chunk_trials = 2
-seed = 7
-duration_s = 1.0
-settle_s = 0.5
-
-[vary.noise_m]
-values = [0.0, 0.01]
-
-[vary.initial_offset_rad]
-values = [0.0, 0.2]
-"""
+from test_sweep import SMALL  # noqa: E402  (the suite's small sweep spec)
 
 
 def _spec(tmp_path, text=SMALL):
