@@ -61,12 +61,7 @@ def lockstep(folder, env, poses, u, ticks):
         peer = P.PairPeer(int(env["ROS_DOMAIN_ID"]), rf)
         P.Peer.wait_matched(peer.pose_w + [peer.clock_w] + peer.cmd.readers, 30.0, proc)
         (p1, q1), (p2, q2) = poses
-        c0 = 0
-        while True:
-            peer.step(c0, (P.pose(0, p1, q1, c0), P.pose(0, p2, q2, c0)))
-            if peer.cmd.wait_for(c0, 1.0):
-                break
-            c0 += DT_NS
+        c0 = P.started(peer, poses, DT_NS, proc, folder / "bridge.log")
         out = {}
         k = 1
         for label, paced in (("lockstep 100 Hz", True), ("lockstep, unpaced", False)):

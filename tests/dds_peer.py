@@ -235,6 +235,19 @@ class PairPeer:
         self.peer.write(self.clock_w, messages.msg_type("rosgraph_msgs/msg/Clock")(clock=messages.stamp_ns(clock_ns)))
 
 
+def started(peer, poses, dt_ns: int, proc, log_path, steps: int = 20) -> int:
+    """Step ``/clock`` from 0 with each robot's first pose (``poses``: ``[(p, q)]`` samples) until
+    the bridge (started on state 0) answers a step; that step's ``/clock`` time, ns. An
+    AssertionError with the bridge's log if it exits or has not answered within ``steps``."""
+    c0 = 0
+    while True:
+        peer.step(c0, tuple(pose(0, p, q, c0) for p, q in poses))
+        if peer.cmd.wait_for(c0, 1.0):
+            return c0
+        assert proc.poll() is None and c0 < steps * dt_ns, Path(log_path).read_text()
+        c0 += dt_ns
+
+
 class ServiceClient:
     """A client of a ROS 2 service on the wire of rmw_cyclonedds: a writer of the request on
     ``rq/<name>Request`` and a reader of the reply on ``rr/<name>Reply``, both with the header

@@ -244,13 +244,7 @@ def _started_in_lockstep(peer, proc, poses, log_path, ticks: int) -> int:
     """Step ``/clock`` until the bridge (started on state 0) ticks, then ``ticks`` more lockstep
     ticks; the ``/clock`` time of the last."""
     (p1, q1), (p2, q2) = poses
-    c0 = 0
-    while True:
-        peer.step(c0, (P.pose(0, p1, q1, c0), P.pose(0, p2, q2, c0)))
-        if peer.cmd.wait_for(c0, 1.0):
-            break
-        assert proc.poll() is None and c0 < 20 * DT_NS, log_path.read_text()
-        c0 += DT_NS
+    c0 = P.started(peer, poses, DT_NS, proc, log_path)
     for k in range(1, ticks + 1):
         c = c0 + k * DT_NS
         peer.step(c, (P.pose(k, p1, q1, c), P.pose(k, p2, q2, c)))
