@@ -36,7 +36,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     gymnasium = optional_import("gymnasium")
     import quatform.envs  # noqa: F401  (registers quatform/Formation-v0)
-    from quatform.envs import functional, key
+    from quatform.envs import compiler_options, functional, key
 
     print("\n".join(machine_description({name: optional_import(name) is not None
                                          for name in ("gymnasium", "pettingzoo", "jax")})))
@@ -74,8 +74,9 @@ def main(argv=None) -> None:
         with jax.enable_x64(True):
             p = jax.tree_util.tree_map(jnp.asarray, core.default_params)
             keys = jnp.asarray(np.stack([key(s) for s in range(B)]))
-            reset = jax.jit(jax.vmap(core.reset, in_axes=(0, None)))
-            step = jax.jit(jax.vmap(core.step, in_axes=(0, 0, 0, None)))
+            options = compiler_options(jax)
+            reset = jax.jit(jax.vmap(core.reset, in_axes=(0, None)), compiler_options=options)
+            step = jax.jit(jax.vmap(core.step, in_axes=(0, 0, 0, None)), compiler_options=options)
             act = jnp.zeros((B, core.n_u))
             _, s0 = reset(keys, p)
             out = step(keys, s0, act, p)
@@ -94,7 +95,7 @@ def main(argv=None) -> None:
                 o, s, r, *_ = jax.vmap(core.step, in_axes=(0, 0, 0, None))(keys + j.astype(jnp.uint32), s, act, p)
                 return s, r
 
-            scan = jax.jit(lambda s: jax.lax.scan(body, s, jnp.arange(args.scan))[1])
+            scan = jax.jit(lambda s: jax.lax.scan(body, s, jnp.arange(args.scan))[1], compiler_options=options)
             jax.block_until_ready(scan(s0))
             t = best_of(lambda: jax.block_until_ready(scan(s0)), args.repeat) / args.scan
             rows.append((f"JAX jit(scan(vmap(step))), B = {B}", B, B / t))

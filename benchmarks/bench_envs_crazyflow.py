@@ -46,7 +46,7 @@ import warnings
 import numpy as np
 from _common import best_of, machine_description, optional_import
 
-from quatform.envs import functional, key
+from quatform.envs import compiler_options, functional, key
 
 
 def crazyflow_rate(jax, Sim, B: int, steps: int, repeat: int) -> float:
@@ -77,7 +77,8 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
         params = jax.tree_util.tree_map(jnp.asarray, core.default_params)
         keys = jnp.asarray(np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)])
                            .reshape(steps, worlds, 2))
-        _, state0 = jax.jit(jax.vmap(core.reset, in_axes=(0, None)))(keys[0], params)
+        options = compiler_options(jax)
+        _, state0 = jax.jit(jax.vmap(core.reset, in_axes=(0, None)), compiler_options=options)(keys[0], params)
         action = jnp.zeros((worlds, core.n_u))
         vstep = jax.vmap(core.step, in_axes=(0, 0, 0, None))
         out = {"N": N, "worlds": worlds}
@@ -86,11 +87,11 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
                 obs, state, reward, *_ = vstep(k, state, action, params)
                 return state, (obs, reward)  # what a learner reads: the observation kept
 
-            scan = jax.jit(lambda state: jax.lax.scan(body, state, keys))
+            scan = jax.jit(lambda state: jax.lax.scan(body, state, keys), compiler_options=options)
             jax.block_until_ready(scan(state0))
             out["scan"] = worlds * N * steps / best_of(lambda: jax.block_until_ready(scan(state0)), repeat)
         if "loop" in forms:
-            step = jax.jit(vstep)
+            step = jax.jit(vstep, compiler_options=options)
             jax.block_until_ready(step(keys[0], state0, action, params))
 
             def loop():

@@ -102,7 +102,7 @@ def build(scenario, controller, episode_s, residual_scale, noise_m, noise_rad, s
     import jax
     import jax.numpy as jnp
 
-    from quatform.envs import functional
+    from quatform.envs import compiler_options, functional
 
     core = functional(scenario, controller, action="residual", residual_scale=residual_scale, noise_m=noise_m,
                       noise_rad=noise_rad, start_noise_m=start_noise_m, duration_s=episode_s)
@@ -136,7 +136,7 @@ def build(scenario, controller, episode_s, residual_scale, noise_m, noise_rad, s
         return ret, jnp.mean(seen, axis=0), jnp.mean(seen * seen, axis=0)
 
     per_key = jax.vmap(episode, in_axes=(None, None, 0, None))
-    returns = jax.jit(jax.vmap(per_key, in_axes=(0, None, None, None)))
+    returns = jax.jit(jax.vmap(per_key, in_axes=(0, None, None, None)), compiler_options=compiler_options(jax))
     return core, returns, shapes, sizes
 
 

@@ -169,3 +169,42 @@ def test_cache_dir_default(monkeypatch, tmp_path):
     assert jax_devices.cache_dir() == tmp_path / "quatform" / "jax"
     monkeypatch.delenv("XDG_CACHE_HOME")
     assert jax_devices.cache_dir() == Path.home() / ".cache" / "quatform" / "jax"
+
+
+def options_of(monkeypatch, jax, flags: str = "") -> dict:
+    """:func:`jax_devices.compiler_options` asked afresh, with ``XLA_FLAGS`` set to ``flags``."""
+    monkeypatch.setenv("XLA_FLAGS", flags)
+    monkeypatch.setattr(jax_devices, "_ACCEPTED", [None])
+    return jax_devices.compiler_options(jax)
+
+
+def test_compiler_options_on_the_cpu(monkeypatch):
+    """On the CPU an XLA that knows the options gets them; one that refuses them (an older
+    jaxlib) gets none; ``XLA_FLAGS`` naming one, or ``$QUATFORM_XLA_OPTIONS=off``, leaves XLA's
+    choice; another backend gets none. A compiled program with them computes as without them."""
+    import jax
+    import jax.numpy as jnp
+
+    if jax.default_backend() != "cpu":
+        pytest.skip("the options are the CPU's")
+    try:
+        jax.jit(lambda: 0.0, compiler_options=jax_devices.CPU_COMPILER_OPTIONS).lower().compile()
+        known = True
+    except Exception:
+        known = False
+    assert options_of(monkeypatch, jax) == (jax_devices.CPU_COMPILER_OPTIONS if known else {})
+    assert options_of(monkeypatch, jax, "--xla_cpu_experimental_ynn_fusion_type=LIBRARY_FUSION_TYPE_REDUCE") == {}
+    monkeypatch.setenv(jax_devices.OPTIONS_ENV, "off")
+    assert options_of(monkeypatch, jax) == {}
+    monkeypatch.delenv(jax_devices.OPTIONS_ENV)
+
+    def refusing(*args, **kwargs):
+        raise RuntimeError("INVALID_ARGUMENT: No such compile option")
+
+    monkeypatch.setattr(jax_devices, "_ACCEPTED", [None])
+    assert jax_devices.compiler_options(SimpleNamespace(default_backend=lambda: "cpu", jit=refusing)) == {}
+    monkeypatch.setattr(jax_devices, "_ACCEPTED", [None])
+    assert jax_devices.compiler_options(SimpleNamespace(default_backend=lambda: "gpu", jit=refusing)) == {}
+    x = jnp.asarray([[0.1, 0.2, 0.3], [1.0, -2.0, 4.0]], dtype=jnp.float32)
+    f = lambda a: jnp.sum(a[:, :, None] * a[:, None, :], axis=1)  # noqa: E731
+    assert jnp.allclose(jax.jit(f, compiler_options=options_of(monkeypatch, jax))(x), jax.jit(f)(x), rtol=1e-6)

@@ -4,18 +4,21 @@
   ``reset(key, params)``, ``step(key, state, action, params)``) on NumPy or JAX;
 * ``gymnasium.make("quatform/Formation-v0", scenario=...)`` and ``gymnasium.make_vec(...)``
   (registered when gymnasium is installed: ``pip install -e ".[envs]"``);
-* :func:`parallel_env` - the PettingZoo ``ParallelEnv``, one agent per robot.
+* :func:`parallel_env` - the PettingZoo ``ParallelEnv``, one agent per robot;
+* :func:`compiler_options` - the ``compiler_options`` of ``jax.jit`` for the core on JAX's CPU
+  (:func:`quatform.sim.jax_devices.compiler_options`).
 
 ``docs/envs.md`` documents observations, actions, rewards and the episode's end.
 """
 
 from __future__ import annotations
 
+from ..sim.jax_devices import compiler_options
 from .core import (ACTION_MODES, OBS_BOUND, ActionController, EnvParams, EnvState, FormationCore, functional, key,
                    normal, split)
 
-__all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "functional",
-           "key", "normal", "parallel_env", "split"]
+__all__ = ["ACTION_MODES", "OBS_BOUND", "ActionController", "EnvParams", "EnvState", "FormationCore", "compiler_options",
+           "functional", "key", "normal", "parallel_env", "split"]
 
 
 def parallel_env(scenario: str = "team-tetrahedron-helix", **options):

@@ -19,6 +19,11 @@ length) in cache and bounds the memory of a large batch; on this project's 2-cor
 two devices run the helix rollouts 1.4-1.7x the rate of one, and chunks of a few hundred
 worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, "JAX"). On an accelerator one call takes the whole batch.
 
+:func:`compiler_options` gives the ``jax.jit`` options of a compiled tick: on the CPU, XLA's
+YNNPACK fusions off where its XLA has them (jaxlib 0.10.2 hands each small fused operation to a
+library call: a team tick runs 1.5-2.2x slower with them, docs/performance.md);
+``QUATFORM_XLA_OPTIONS=off`` keeps XLA's defaults.
+
 :func:`configure` also keeps JAX's compiled programs on disk (JAX's persistent compilation
 cache) in a folder of this user's (:func:`cache_dir`: ``$QUATFORM_JAX_CACHE``, else
 ``$XDG_CACHE_HOME/quatform/jax``, else ``~/.cache/quatform/jax``; ``QUATFORM_JAX_CACHE=off``
@@ -37,11 +42,24 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CACHE_ENV", "CPU_WORLDS_PER_DEVICE", "batch_devices", "cache_dir", "chunk_size", "configure", "place",
-           "share_cores", "usable_cores"]
+__all__ = ["CACHE_ENV", "CPU_COMPILER_OPTIONS", "CPU_WORLDS_PER_DEVICE", "OPTIONS_ENV", "batch_devices", "cache_dir",
+           "chunk_size", "compiler_options", "configure", "place", "share_cores", "usable_cores"]
 
 #: Environment variable naming the folder of the compiled programs (``off``: keep none).
 CACHE_ENV = "QUATFORM_JAX_CACHE"
+
+#: XLA options of quatform's compiled ticks on the CPU (:func:`compiler_options`): XLA's YNNPACK
+#: fusions off. From jaxlib 0.10.2 XLA hands chains of small reductions and elementwise
+#: operations to YNNPACK, one library call per fusion; a tick is a few hundred such operations on
+#: arrays of a few hundred worlds, and the calls cost more than the work (docs/performance.md,
+#: "XLA's YNNPACK fusions": the tetrahedron's rollouts 1.7x, the environments' step 2.2x slower).
+CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
+
+#: Environment variable: ``off`` compiles with XLA's own defaults (no :data:`CPU_COMPILER_OPTIONS`).
+OPTIONS_ENV = "QUATFORM_XLA_OPTIONS"
+
+#: The options :func:`compiler_options` found this process's XLA to accept (None: not yet asked).
+_ACCEPTED: list = [None]
 
 #: Worlds per CPU device in one compiled call (the cache-sized chunk; docs/performance.md).
 CPU_WORLDS_PER_DEVICE = 256
@@ -106,6 +124,28 @@ def configure(jax) -> None:
         jax.config.update("jax_num_cpu_devices", max(1, usable_cores() // _SHARERS[0]))
     except RuntimeError:  # JAX already ran something: its devices stay as they are
         pass
+
+
+def compiler_options(jax) -> dict:
+    """The ``compiler_options`` of ``jax.jit`` for a compiled tick: :data:`CPU_COMPILER_OPTIONS`
+    where JAX's default backend is the CPU, its XLA knows the options (asked once per process
+    by compiling a constant), ``XLA_FLAGS`` does not set them itself and ``$QUATFORM_XLA_OPTIONS``
+    is not ``off`` (XLA's defaults: to compare, or should a later XLA make them slower); else
+    none. The options choose how XLA emits the program, not its arithmetic: a world's floats
+    are those of the default emitters up to the order of a fused sum's rounding (tests: to 1e-9
+    of NumPy)."""
+    if _ACCEPTED[0] is None:
+        flags = os.environ.get("XLA_FLAGS", "")
+        wanted = os.environ.get(OPTIONS_ENV, "").strip().lower() != "off"
+        accepted = {}
+        if wanted and jax.default_backend() == "cpu" and not any(k in flags for k in CPU_COMPILER_OPTIONS):
+            try:
+                jax.jit(lambda: 0.0, compiler_options=CPU_COMPILER_OPTIONS).lower().compile()
+                accepted = dict(CPU_COMPILER_OPTIONS)
+            except Exception:  # an XLA without them (JAX's own error type varies by release)
+                accepted = {}
+        _ACCEPTED[0] = accepted
+    return dict(_ACCEPTED[0])
 
 
 def batch_devices(jax) -> list:

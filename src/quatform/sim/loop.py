@@ -869,8 +869,10 @@ def compiled_run(jax, plant, controller, measurement, reference, times, dt, subs
 
     def build():
         tick = make_tick(plant, controller, measurement, dt, substeps)
+        options = jax_devices.compiler_options(jax)
         if reduce is None:
-            return jax.jit(lambda c, s: jax.lax.scan(tick, c, s)[::-1]), (plant, controller, measurement)
+            return (jax.jit(lambda c, s: jax.lax.scan(tick, c, s)[::-1], compiler_options=options),
+                    (plant, controller, measurement))
         start, step = reduce
 
         def body(c, s):
@@ -878,7 +880,8 @@ def compiled_run(jax, plant, controller, measurement, reference, times, dt, subs
             inner, ys = tick(inner, s)
             return (inner, step(acc, ys, s)), None
 
-        return jax.jit(lambda c, s: jax.lax.scan(body, (c, start(c)), s)[0]), (plant, controller, measurement)
+        return (jax.jit(lambda c, s: jax.lax.scan(body, (c, start(c)), s)[0], compiler_options=options),
+                (plant, controller, measurement))
 
     key = (config_key(plant, controller, measurement), dt, substeps, reduce, jax.tree_util.tree_structure(xs))
     run, _ = cached(_CACHE, key, build)
