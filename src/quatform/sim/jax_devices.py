@@ -21,7 +21,8 @@ worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, "JAX").
 
 :func:`compiler_options` gives the ``jax.jit`` options of a compiled tick: on the CPU, XLA's
 YNNPACK fusions off where its XLA has them (jaxlib 0.10.2 hands each small fused operation to a
-library call: a team tick runs 1.5-2.2x slower with them, docs/performance.md);
+library call: the quaternion and robot-space teams' ticks run 1.3-2x slower with them,
+docs/performance.md);
 ``QUATFORM_XLA_OPTIONS=off`` keeps XLA's defaults.
 
 :func:`configure` also keeps JAX's compiled programs on disk (JAX's persistent compilation
@@ -52,7 +53,7 @@ CACHE_ENV = "QUATFORM_JAX_CACHE"
 #: fusions off. From jaxlib 0.10.2 XLA hands chains of small reductions and elementwise
 #: operations to YNNPACK, one library call per fusion; a tick is a few hundred such operations on
 #: arrays of a few hundred worlds, and the calls cost more than the work (docs/performance.md,
-#: "XLA's YNNPACK fusions": the tetrahedron's rollouts 1.7x, the environments' step 2.2x slower).
+#: "XLA's YNNPACK fusions": the quaternion and robot-space teams' ticks 1.3-2x slower).
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
 
 #: Environment variable: ``off`` compiles with XLA's own defaults (no :data:`CPU_COMPILER_OPTIONS`).
