@@ -37,7 +37,8 @@ from . import geometry as g
 from .layout import POINT_KINDS, RobotLayout, Variable
 
 __all__ = ["TeamChart", "LawGroup", "ROLE_WIDTHS", "fit_attitude", "default_template", "check_template",
-           "horn_matrix", "team_compose", "team_positions", "team_layout", "pair_chart", "TIE", "TIE_DECAY"]
+           "horn_matrix", "team_compose", "team_positions", "team_layout", "pair_chart", "TIE", "TIE_DECAY",
+           "CENTROID", "ATTITUDE"]
 
 #: Width of each block role (the last axis of :attr:`LawGroup.index`); ``control.team`` maps
 #: a role to its law and gain key.
@@ -50,6 +51,10 @@ ROLE_WIDTHS = {"centroid": 3, "shape": 3, "separation": 1, "attitude": 4, "orien
 #: / (TIE_DECAY size))``, continuous, and exactly 0 past about ``7.5e-7 size``.
 TIE = 1e-10
 TIE_DECAY = 1e-9
+
+#: The pose entries that open every team chart (:attr:`TeamChart.variables`): the centroid
+#: ``x_c`` (m) and the attitude ``q_c``; the shape ``s_1 .. s_N`` and the headings follow.
+CENTROID, ATTITUDE = slice(0, 3), slice(3, 7)
 
 
 @dataclass(frozen=True, eq=False)
@@ -316,13 +321,13 @@ class TeamChart:
     @functools.cached_property
     def shape_index(self) -> np.ndarray:
         """Indices of ``s_1 .. s_N`` in the chart, ``(N, 3)``."""
-        return 7 + np.arange(3 * self.layout.n).reshape(self.layout.n, 3)
+        return ATTITUDE.stop + np.arange(3 * self.layout.n).reshape(self.layout.n, 3)
 
     @functools.cached_property
     def _headings(self):
         """(chart yaw indices, robot yaw indices, chart quaternion rows, robot quaternion rows)."""
         L = self.layout
-        i = 7 + 3 * L.n
+        i = ATTITUDE.stop + 3 * L.n
         ey, eq = [], []
         for k in L.kinds:
             if POINT_KINDS[k].yaw is not None:
@@ -350,8 +355,8 @@ class TeamChart:
     # -- chart -> robots ----------------------------------------------------------------
     def parts(self, e):
         """``(x_c (..., 3), q_c (..., 4) normalised, s (..., N, 3))`` of chart values ``e``."""
-        q = e[..., 3:7]
-        return e[..., 0:3], q / np.linalg.norm(q, axis=-1, keepdims=True), e[..., self.shape_index]
+        q = e[..., ATTITUDE]
+        return e[..., CENTROID], q / np.linalg.norm(q, axis=-1, keepdims=True), e[..., self.shape_index]
 
     def robots(self, e) -> np.ndarray:
         """The robot state of chart values ``e``: ``p_i = x_c + R(q_c) s_i`` and the headings.
@@ -388,10 +393,10 @@ class TeamChart:
         e = self.check(e)
         ed = as_array(e_dot, "e_dot", self.size)
         xc, q, s = self.parts(e)
-        qd = ed[..., 3:7] / np.linalg.norm(e[..., 3:7], axis=-1, keepdims=True)
+        qd = ed[..., ATTITUDE] / np.linalg.norm(e[..., ATTITUDE], axis=-1, keepdims=True)
         w = 2.0 * g.mul(qd, g.conj(q))[..., 1:]
         Rs = g.rotate(q[..., None, :], s)
-        v = ed[..., None, 0:3] + np.cross(w[..., None, :], Rs) + g.rotate(q[..., None, :], ed[..., self.shape_index])
+        v = ed[..., None, CENTROID] + np.cross(w[..., None, :], Rs) + g.rotate(q[..., None, :], ed[..., self.shape_index])
         return self._compose(v, ed)
 
     # -- robots -> chart ------------------------------------------------------------------
@@ -418,8 +423,8 @@ class TeamChart:
         s = g.rotate(g.conj(q)[..., None, :], cen)
         shape = np.broadcast_shapes(r.shape[:-1], q.shape[:-1])
         e = np.zeros(shape + (self.size,))
-        e[..., 0:3] = xc
-        e[..., 3:7] = q
+        e[..., CENTROID] = xc
+        e[..., ATTITUDE] = q
         e[..., self.shape_index] = s
         ey, ry, eq, rq = self._headings
         yaw = r[..., ry]
@@ -440,7 +445,7 @@ class TeamChart:
         For figures and tables only: at pitch +-pi/2 yaw and roll are not separate (the
         gimbal lock of seed 000 eq. (5)); the controllers never use them.
         """
-        w, x, y, z = np.moveaxis(np.asarray(e, dtype=float)[..., 3:7], -1, 0)
+        w, x, y, z = np.moveaxis(np.asarray(e, dtype=float)[..., ATTITUDE], -1, 0)
         n = w * w + x * x + y * y + z * z
         yaw = np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
         pitch = np.arcsin(np.clip(2.0 * (w * y - z * x) / n, -1.0, 1.0))

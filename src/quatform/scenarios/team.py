@@ -48,7 +48,7 @@ from ..control.safety import SafeController, start_floor
 from ..errors import InvalidInputError
 from ..formations import EuclideanTeam, RobotSpaceTeam, TeamChart
 from ..formations import geometry as g
-from ..formations.team_chart import check_template
+from ..formations.team_chart import ATTITUDE, CENTROID, check_template
 from ..references.team_motion import (
     HEADING_MODES,
     PATH_KINDS,
@@ -646,8 +646,8 @@ class TeamChartParts:
         ``(..., 3)`` m and attitude ``q_c`` ``(..., 4)`` (unit), what an operator's goal moves
         (:func:`quatform.references.goal.approach_pose`)."""
         e = np.asarray(e, dtype=float)
-        q = e[..., 3:7]
-        return e[..., 0:3], q / np.linalg.norm(q, axis=-1, keepdims=True)
+        q = e[..., ATTITUDE]
+        return e[..., CENTROID], q / np.linalg.norm(q, axis=-1, keepdims=True)
 
     def posed(self, e, e_dot, p, q, v, w, near=None) -> tuple:
         """``(e, e_dot)`` with the formation's pose replaced by ``(p, q)`` moving at the velocity
@@ -655,8 +655,8 @@ class TeamChartParts:
         ``x_c = p``, ``q_c = q``, ``x_c' = v``, ``q_c' = (0, w) q / 2`` (:meth:`TeamChart.robot_rates`
         reads ``w = 2 (q_c' q_c*)_vec`` back). ``near`` (the previous chart values) is unused here."""
         e, ed = np.array(e, dtype=float), np.array(e_dot, dtype=float)
-        e[..., 0:3], e[..., 3:7], ed[..., 0:3] = p, q, v
-        ed[..., 3:7] = 0.5 * g.mul(np.concatenate([np.zeros(np.shape(w)[:-1] + (1,)), w], axis=-1), q)
+        e[..., CENTROID], e[..., ATTITUDE], ed[..., CENTROID] = p, q, v
+        ed[..., ATTITUDE] = 0.5 * g.mul(np.concatenate([np.zeros(np.shape(w)[:-1] + (1,)), w], axis=-1), q)
         return e, ed
 
     def plant(self, sc, controller, feedforward, physics: str, x0, options: dict):
