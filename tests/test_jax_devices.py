@@ -90,6 +90,39 @@ def test_three_devices_pad_and_equal_numpy():
     assert res["progress"] >= 2
 
 
+HORN = r"""
+import dataclasses, json, sys
+import numpy as np
+from conftest import short_scenario
+from quatform.scenarios.team import TEAM
+from quatform.sim.loop import require_jax
+from quatform.sim.jax_rollout import ROLLOUT_METRICS, rollout_metrics
+jax = require_jax()
+ex = TEAM.experiment(dataclasses.replace(short_scenario("team-tetrahedron-helix", 0.4), metrics_from_s=0.1),
+                     controller="quaternion")
+x0 = ex.x0 + np.random.default_rng(7).normal(0.0, 0.05, (5,) + ex.x0.shape)
+ex = dataclasses.replace(ex, x0=x0)
+r = rollout_metrics(ex, x0, formation_metrics=False, trials_per_call=int(sys.argv[1]))
+logged = ex.run(backend="numpy")
+worst = 0.0
+for i in range(5):
+    want = ex.metrics(logged.world(i))
+    for key in set(ROLLOUT_METRICS) & set(r):
+        if isinstance(want[key], float):
+            worst = max(worst, abs(float(r[key][i]) - want[key]) / max(1.0, abs(want[key])))
+print(json.dumps({"devices": len(jax.devices()), "worst": worst}))
+"""
+
+
+def test_horn_fits_shard_over_three_devices():
+    """A team of four (Horn's 4 x 4 eigensolve every tick) sharded over three CPU devices:
+    the scan ends (a sharded batch of larger LAPACK decompositions can stall; the subprocess's
+    timeout bounds it) and each world's metrics equal NumPy's."""
+    res = run_script({"XLA_FLAGS": "--xla_force_host_platform_device_count=3"}, HORN, per_call=6)
+    assert res["devices"] == 3
+    assert res["worst"] <= 1e-9
+
+
 COUNT = r"""
 import json, sys
 import jax

@@ -78,9 +78,9 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
         up to a multiple of the device count. Default: :func:`.jax_devices.chunk_size` (a
         cache-sized chunk per CPU core, the whole batch on a GPU). Each call's trials are
         spread over JAX's devices (:mod:`.jax_devices`), but for a reduction that batches an
-        SVD or an eigensolve (the singularity measure; Horn's fit of more than two robots),
-        which stays on one device: sharded over several CPU devices such a scan can wait
-        forever in XLA (:func:`~quatform.sim.loop.scan_ticks`).
+        SVD (the singularity measure), which stays on one device: sharded over several CPU
+        devices such a scan can wait forever in XLA (:func:`~quatform.sim.loop.scan_ticks`).
+        Horn's fit of more than two robots (a 4 x 4 eigensolve) shards.
     formation_metrics : bool
         Reduce the metrics that need the controller's description at every tick: its
         singularity measure (the singular values of its inverse Jacobian, at the ticks the kind
@@ -140,9 +140,9 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
              "sing_at": np.isfinite(np.asarray(desired["singularity"])[:, 0])}
     run, carry, xs, (carry_axes, xs_axes) = compiled_run(jax, plant, ctrl, measurement, experiment.reference, times,
                                                          dt, experiment.substeps, x, batch, sched, ms, reduce, extra)
-    # the reduction batches an SVD (the singularity measure) or an eigensolve (Horn's fit of more
-    # than two robots): such a scan stays on one device (loop.scan_ticks)
-    decomposes = spec["measure"] is not None or spec["layout"].n > 2
+    # the reduction batches an SVD (the singularity measure): such a scan stays on one device
+    # (loop.scan_ticks); Horn's 4 x 4 eigensolves (a fit of more than two robots) shard
+    decomposes = spec["measure"] is not None
     size = min(jax_devices.chunk_size(jax, B, trials_per_call), B)
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     leaves, tree = jax.tree_util.tree_flatten(xs)

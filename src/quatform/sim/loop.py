@@ -639,8 +639,10 @@ def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axe
     :func:`spread` pads it. ``carry_axes``: the batch axis of each leaf of ``carry``;
     ``xs_axes``: key of ``xs`` -> the batch axis of its every leaf (an int) or a pytree of
     them (-1 or a missing key: none). ``one_device``: the batch stays on JAX's default device
-    (a scan whose tick batches LAPACK decompositions, an SVD or an eigensolve, can wait forever
-    with its batch sharded over several CPU devices)."""
+    (a scan whose tick batches LAPACK decompositions of some size can wait forever with its
+    batch sharded over several CPU devices: measured with 256 worlds a device, an eigensolve of
+    16 x 16 or an SVD of 8 x 16 stalls, eigensolves up to 12 x 12 and SVDs of 8 x 8 do not;
+    docs/performance.md, "Sharded LAPACK calls")."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     if progress is not None:
         size = -(-n // 10)
