@@ -11,7 +11,10 @@ One process, one table: for each batch size ``B`` (the number of simulated bodie
   ``--barrier off``) in residual mode, a zero residual (the base controller's commands, every
   step still through the action's path), ``ceil(B / N)`` worlds of ``N`` robots (``--match
   worlds``: ``B`` worlds); one agent-step is one robot's control tick (the plant's substeps,
-  the observation, the reward and the episode's end included). Two forms, both timed:
+  the observation, the reward and the episode's end included), the worlds (rounded up to a
+  multiple of the devices) sharded over ``--devices`` JAX CPU devices (default one per usable
+  core, as quatform's rollouts spread a batch; crazyflow's ``Sim`` runs on one device as it
+  ships). Two forms, both timed:
 
   - ``scan``: ``jax.jit`` of ``lax.scan`` over ``n`` steps of
     ``jax.vmap(core.step, in_axes=(0, 0, 0, None))`` (one dispatch per ``n`` steps);
@@ -32,7 +35,7 @@ Without crazyflow the script says so in one line and prints quatform's numbers a
 
 Usage: ``python benchmarks/bench_envs_crazyflow.py [--sizes 64,1024,4096]
 [--scenarios team-tetrahedron-helix,team-grid-100] [--steps 20] [--repeat 5]
-[--forms scan,loop] [--barrier on|off] [--match agents|worlds]``.
+[--forms scan,loop] [--barrier on|off] [--devices N] [--match agents|worlds]``.
 """
 
 from __future__ import annotations
@@ -40,7 +43,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import time
 import warnings
 
 import numpy as np
@@ -74,11 +76,18 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
                           **({} if barrier else {"min_separation": 0.0}))
         N = core.layout.n
         worlds = B if match == "worlds" else max(1, math.ceil(B / N))
+        devices = jax.devices()
+        worlds = -(-worlds // len(devices)) * len(devices)  # an equal slice per device
         params = jax.tree_util.tree_map(jnp.asarray, core.default_params)
-        keys = jnp.asarray(np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)])
-                           .reshape(steps, worlds, 2))
+        keys = np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)]).reshape(steps, worlds, 2)
         options = compiler_options(jax)
         _, state0 = jax.jit(jax.vmap(core.reset, in_axes=(0, None)), compiler_options=options)(keys[0], params)
+        if len(devices) > 1:  # the worlds sharded over the devices, as quatform's rollouts spread them
+            from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+            mesh = Mesh(np.array(devices), ("worlds",))
+            state0 = jax.device_put(state0, NamedSharding(mesh, PartitionSpec("worlds")))
+            keys = jax.device_put(keys, NamedSharding(mesh, PartitionSpec(None, "worlds")))
         action = jnp.zeros((worlds, core.n_u))
         vstep = jax.vmap(core.step, in_axes=(0, 0, 0, None))
         out = {"N": N, "worlds": worlds}
@@ -87,9 +96,9 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
                 obs, state, reward, *_ = vstep(k, state, action, params)
                 return state, (obs, reward)  # what a learner reads: the observation kept
 
-            scan = jax.jit(lambda state: jax.lax.scan(body, state, keys), compiler_options=options)
-            jax.block_until_ready(scan(state0))
-            out["scan"] = worlds * N * steps / best_of(lambda: jax.block_until_ready(scan(state0)), repeat)
+            scan = jax.jit(lambda state, keys: jax.lax.scan(body, state, keys), compiler_options=options)
+            jax.block_until_ready(scan(state0, keys))
+            out["scan"] = worlds * N * steps / best_of(lambda: jax.block_until_ready(scan(state0, keys)), repeat)
         if "loop" in forms:
             step = jax.jit(vstep, compiler_options=options)
             jax.block_until_ready(step(keys[0], state0, action, params))
@@ -115,12 +124,18 @@ def main() -> None:
     ap.add_argument("--forms", default="scan,loop", help="quatform's forms: scan, loop (default both)")
     ap.add_argument("--barrier", choices=("on", "off"), default="on",
                     help="the team scenarios' separation barrier in the controller (default on, as the scenario)")
+    ap.add_argument("--devices", type=int, default=0,
+                    help="JAX CPU devices quatform's worlds are sharded over (default 0: one per usable core, as "
+                         "quatform's rollouts; 1: one device, as crazyflow's Sim runs)")
     ap.add_argument("--match", choices=("agents", "worlds"), default="agents",
                     help="quatform's batch: ceil(B/N) worlds of N robots (agents) or B worlds (default agents)")
     args = ap.parse_args()
     jax = optional_import("jax")
     if jax is None:
         raise SystemExit('bench_envs_crazyflow: needs JAX (pip install -e ".[jax]")')
+    from quatform.sim.jax_devices import usable_cores
+
+    jax.config.update("jax_num_cpu_devices", args.devices or usable_cores())  # before JAX starts its backends
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -133,7 +148,8 @@ def main() -> None:
     forms = [f for f in args.forms.split(",") if f in ("scan", "loop")]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"envs vs crazyflow: {args.steps} steps per timing, best of {args.repeat}; quatform float64, zero "
-          f"residual on the scenario's controller (barrier {args.barrier}); load average at start {load:.2f}")
+          f"residual on the scenario's controller (barrier {args.barrier}), its worlds on {len(jax.devices())} CPU "
+          f"device(s), crazyflow on one; load average at start {load:.2f}")
     for line in machine_description({"jax": True, "crazyflow": Sim is not None}):
         print(line)
     print(f"{'B':>6} {'crazyflow drone-steps/s':>24} {'scenario':<40}{'N':>4}{'worlds':>7}"

@@ -229,7 +229,6 @@ def _reducer(layout, team, chart, n_chart, chart_of, measure, threshold, finite,
     ``sing_at``, ``k``; ``n_chart`` chart values); ``chart_of`` and ``measure`` the description whose chart and
     singularity measure are reduced, or None. Built once per configuration
     (:func:`~quatform.sim.loop.cached`), so a compiled rollout is reused."""
-    import jax
     import jax.numpy as jnp
 
     probe, e = np.ones((1, layout.size)), None if chart_of is None else np.zeros((1, n_chart))
