@@ -13,8 +13,8 @@ One process, one table: for each batch size ``B`` (the number of simulated bodie
   worlds``: ``B`` worlds); one agent-step is one robot's control tick (the plant's substeps,
   the observation, the reward and the episode's end included), the worlds (rounded up to a
   multiple of the devices) sharded over ``--devices`` JAX CPU devices (default one per usable
-  core, as quatform's rollouts spread a batch; crazyflow's ``Sim`` runs on one device as it
-  ships). Two forms, both timed:
+  core, as quatform's rollouts spread a batch: ``jax.shard_map``, each device stepping its own
+  slice; crazyflow's ``Sim`` runs on one device as it ships). Two forms, both timed:
 
   - ``scan``: ``jax.jit`` of ``lax.scan`` over ``n`` steps of
     ``jax.vmap(core.step, in_axes=(0, 0, 0, None))`` (one dispatch per ``n`` steps);
@@ -82,31 +82,42 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
         keys = np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)]).reshape(steps, worlds, 2)
         options = compiler_options(jax)
         _, state0 = jax.jit(jax.vmap(core.reset, in_axes=(0, None)), compiler_options=options)(keys[0], params)
-        if len(devices) > 1:  # the worlds sharded over the devices, as quatform's rollouts spread them
-            from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-            mesh = Mesh(np.array(devices), ("worlds",))
-            state0 = jax.device_put(state0, NamedSharding(mesh, PartitionSpec("worlds")))
-            keys = jax.device_put(keys, NamedSharding(mesh, PartitionSpec(None, "worlds")))
-        action = jnp.zeros((worlds, core.n_u))
-        vstep = jax.vmap(core.step, in_axes=(0, 0, 0, None))
-        out = {"N": N, "worlds": worlds}
-        if "scan" in forms:
+        def vstep(k, state):  # a zero residual on the worlds of k (all, or one device's)
+            return jax.vmap(core.step, in_axes=(0, 0, 0, None))(k, state, jnp.zeros((k.shape[0], core.n_u)), params)
+
+        def scanned(state, keys):
             def body(state, k):
-                obs, state, reward, *_ = vstep(k, state, action, params)
+                obs, state, reward, *_ = vstep(k, state)
                 return state, (obs, reward)  # what a learner reads: the observation kept
 
-            scan = jax.jit(lambda state, keys: jax.lax.scan(body, state, keys), compiler_options=options)
+            return jax.lax.scan(body, state, keys)
+
+        scan_fn, step_fn = scanned, vstep
+        if len(devices) > 1:  # each device steps its own slice of the worlds (no collective)
+            from jax.sharding import Mesh, NamedSharding
+            from jax.sharding import PartitionSpec as P
+
+            mesh = Mesh(np.array(devices), ("worlds",))
+            state0 = jax.device_put(state0, NamedSharding(mesh, P("worlds")))
+            keys = jax.device_put(keys, NamedSharding(mesh, P(None, "worlds")))
+            scan_fn = jax.shard_map(scanned, mesh=mesh, in_specs=(P("worlds"), P(None, "worlds")),
+                                    out_specs=(P("worlds"), P(None, "worlds")), check_vma=False)
+            step_fn = jax.shard_map(vstep, mesh=mesh, in_specs=(P("worlds"), P("worlds")), out_specs=P("worlds"),
+                                    check_vma=False)
+        out = {"N": N, "worlds": worlds}
+        if "scan" in forms:
+            scan = jax.jit(scan_fn, compiler_options=options)
             jax.block_until_ready(scan(state0, keys))
             out["scan"] = worlds * N * steps / best_of(lambda: jax.block_until_ready(scan(state0, keys)), repeat)
         if "loop" in forms:
-            step = jax.jit(vstep, compiler_options=options)
-            jax.block_until_ready(step(keys[0], state0, action, params))
+            step = jax.jit(step_fn, compiler_options=options)
+            jax.block_until_ready(step(keys[0], state0))
 
             def loop():
                 state = state0
                 for s in range(steps):
-                    state = step(keys[s], state, action, params)[1]
+                    state = step(keys[s], state)[1]
                 jax.block_until_ready(state)
 
             out["loop"] = worlds * N * steps / best_of(loop, repeat)

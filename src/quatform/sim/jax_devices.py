@@ -9,9 +9,11 @@ core before JAX starts its backends (where the user has not chosen a number: the
 so a 2-core laptop runs two slices at once. On a GPU machine the devices are the GPUs.
 
 :func:`place` puts a chunk's arrays on the devices: the batch axis sharded
-(``jax.sharding.NamedSharding`` over a one-axis mesh), everything else replicated. The
-arithmetic of each world is that of one device, so the results equal the unsharded run
-(tests: to 1e-9 of NumPy, and sharded equal to unsharded).
+(``jax.sharding.NamedSharding`` over a one-axis mesh), everything else replicated, and the
+loop's scan runs as one program per device on its slice (:func:`quatform.sim.loop.per_device`,
+``jax.shard_map``: no collective between the devices). The arithmetic of each world is that
+of one device, so the results equal the unsharded run (tests: to 1e-9 of NumPy, and sharded
+equal to unsharded).
 
 :func:`chunk_size` picks how many worlds one compiled call runs. On the CPU a chunk of a
 few hundred worlds per device keeps a tick's working set (tens of arrays of the chunk's

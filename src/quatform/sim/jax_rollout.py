@@ -157,7 +157,7 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
             chunk_xs = jax.tree_util.tree_unflatten(tree, [np.take(np.asarray(a), take, axis=ax) if ax >= 0 else a
                                                            for a, ax in zip(leaves, axes)])
             inner, acc = scan_ticks(jax, run, chunk_carry, chunk_xs, n, None, size, carry_axes, xs_axes,
-                                    one_device=decomposes)
+                                    one_device=decomposes, out_axes=0)
             outs.append(({k: np.asarray(v)[:stop - start] for k, v in acc.items()},
                          np.asarray(inner[3])[:stop - start], np.asarray(inner[4])[:stop - start]))
     acc = {k: np.concatenate([o[0][k] for o in outs]).reshape(batch + v.shape[1:]) for k, v in outs[0][0].items()}
