@@ -241,3 +241,20 @@ def test_compiler_options_on_the_cpu(monkeypatch):
     x = jnp.asarray([[0.1, 0.2, 0.3], [1.0, -2.0, 4.0]], dtype=jnp.float32)
     f = lambda a: jnp.sum(a[:, :, None] * a[:, None, :], axis=1)  # noqa: E731
     assert jnp.allclose(jax.jit(f, compiler_options=options_of(monkeypatch, jax))(x), jax.jit(f)(x), rtol=1e-6)
+
+
+def test_jit_passes_options_only_where_there_are_some(monkeypatch):
+    """``jax_devices.jit`` gives ``jax.jit`` the options where there are some, none otherwise (a
+    JAX whose ``jit`` has no ``compiler_options`` keyword compiles too)."""
+    seen = []
+
+    def jit(fn, **kwargs):
+        seen.append(kwargs)
+        return fn
+
+    fake = SimpleNamespace(jit=jit)
+    monkeypatch.setattr(jax_devices, "_ACCEPTED", [{}])
+    assert jax_devices.jit(fake, abs)(-2) == 2 and seen[-1] == {}
+    monkeypatch.setattr(jax_devices, "_ACCEPTED", [dict(jax_devices.CPU_COMPILER_OPTIONS)])
+    jax_devices.jit(fake, abs)
+    assert seen[-1] == {"compiler_options": jax_devices.CPU_COMPILER_OPTIONS}

@@ -46,7 +46,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["CACHE_ENV", "CPU_COMPILER_OPTIONS", "CPU_WORLDS_PER_DEVICE", "OPTIONS_ENV", "batch_devices", "cache_dir",
-           "chunk_size", "compiler_options", "configure", "place", "share_cores", "usable_cores"]
+           "chunk_size", "compiler_options", "configure", "jit", "place", "shard_map", "share_cores",
+           "usable_cores"]
 
 #: Environment variable naming the folder of the compiled programs (``off``: keep none).
 CACHE_ENV = "QUATFORM_JAX_CACHE"
@@ -149,6 +150,24 @@ def compiler_options(jax) -> dict:
                 accepted = {}
         _ACCEPTED[0] = accepted
     return dict(_ACCEPTED[0])
+
+
+def jit(jax, fn):
+    """``jax.jit(fn)`` with :func:`compiler_options` (none passed where there are none, so a
+    JAX whose ``jit`` has no ``compiler_options`` compiles it too)."""
+    options = compiler_options(jax)
+    return jax.jit(fn, compiler_options=options) if options else jax.jit(fn)
+
+
+def shard_map(jax, fn, mesh, in_specs, out_specs):
+    """``fn`` as one program per device of ``mesh`` (``jax.shard_map``, or
+    ``jax.experimental.shard_map`` in a JAX without it), its replication left unchecked (each
+    device's worlds are its own)."""
+    if hasattr(jax, "shard_map"):
+        return jax.shard_map(fn, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False)
+    from jax.experimental.shard_map import shard_map as experimental
+
+    return experimental(fn, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_rep=False)
 
 
 def batch_devices(jax) -> list:

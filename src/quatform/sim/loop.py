@@ -657,8 +657,7 @@ def per_device(jax, run, carry, xs, carry_axes, xs_leaf_axes, out_axes):
                     jax.tree_util.tree_unflatten(tree_x, [spec(a) for a in xs_leaf_axes]))
         out_specs = jax.tree_util.tree_map(spec, out_axes)
         body = getattr(run, "__wrapped__", run)  # the scan itself (a jitted run's options go on the outer jit)
-        return jax.jit(jax.shard_map(body, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False),
-                       compiler_options=jax_devices.compiler_options(jax))
+        return jax_devices.jit(jax, jax_devices.shard_map(jax, body, mesh, in_specs, out_specs))
 
     return cached(_CACHE, key, build)
 
@@ -907,10 +906,8 @@ def compiled_run(jax, plant, controller, measurement, reference, times, dt, subs
 
     def build():
         tick = make_tick(plant, controller, measurement, dt, substeps)
-        options = jax_devices.compiler_options(jax)
         if reduce is None:
-            return (jax.jit(lambda c, s: jax.lax.scan(tick, c, s)[::-1], compiler_options=options),
-                    (plant, controller, measurement))
+            return jax_devices.jit(jax, lambda c, s: jax.lax.scan(tick, c, s)[::-1]), (plant, controller, measurement)
         start, step = reduce
 
         def body(c, s):
@@ -918,8 +915,8 @@ def compiled_run(jax, plant, controller, measurement, reference, times, dt, subs
             inner, ys = tick(inner, s)
             return (inner, step(acc, ys, s)), None
 
-        return (jax.jit(lambda c, s: jax.lax.scan(body, (c, start(c)), s)[0], compiler_options=options),
-                (plant, controller, measurement))
+        run = jax_devices.jit(jax, lambda c, s: jax.lax.scan(body, (c, start(c)), s)[0])
+        return run, (plant, controller, measurement)
 
     key = (config_key(plant, controller, measurement), dt, substeps, reduce, jax.tree_util.tree_structure(xs))
     run, _ = cached(_CACHE, key, build)
