@@ -24,8 +24,7 @@ worlds per device run 1.1x one call of 10^4 worlds (docs/performance.md, "JAX").
 :func:`compiler_options` gives the ``jax.jit`` options of a compiled tick: on the CPU, XLA's
 YNNPACK fusions off where its XLA has them (jaxlib 0.10.2 hands each small fused operation to a
 library call: the quaternion and robot-space teams' ticks run 1.3-2x slower with them,
-docs/performance.md);
-``QUATFORM_XLA_OPTIONS=off`` keeps XLA's defaults.
+docs/performance.md); ``QUATFORM_XLA_OPTIONS=off`` keeps XLA's defaults.
 
 :func:`configure` also keeps JAX's compiled programs on disk (JAX's persistent compilation
 cache) in a folder of this user's (:func:`cache_dir`: ``$QUATFORM_JAX_CACHE``, else
@@ -53,7 +52,7 @@ __all__ = ["CACHE_ENV", "CPU_COMPILER_OPTIONS", "CPU_WORLDS_PER_DEVICE", "OPTION
 CACHE_ENV = "QUATFORM_JAX_CACHE"
 
 #: XLA options of quatform's compiled ticks on the CPU (:func:`compiler_options`): XLA's YNNPACK
-#: fusions off. From jaxlib 0.10.2 XLA hands chains of small reductions and elementwise
+#: fusions off. jaxlib 0.10.2's XLA hands chains of small reductions and elementwise
 #: operations to YNNPACK, one library call per fusion; a tick is a few hundred such operations on
 #: arrays of a few hundred worlds, and the calls cost more than the work (docs/performance.md,
 #: "XLA's YNNPACK fusions": the quaternion and robot-space teams' ticks 1.3-2x slower).
