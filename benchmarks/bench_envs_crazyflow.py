@@ -12,9 +12,10 @@ One process, one table: for each batch size ``B`` (the number of simulated bodie
   step still through the action's path), ``ceil(B / N)`` worlds of ``N`` robots (``--match
   worlds``: ``B`` worlds); one agent-step is one robot's control tick (the plant's substeps,
   the observation, the reward and the episode's end included), the worlds (rounded up to a
-  multiple of the devices) sharded over ``--devices`` JAX CPU devices (default one per usable
-  core, as quatform's rollouts spread a batch: ``jax.shard_map``, each device stepping its own
-  slice; crazyflow's ``Sim`` runs on one device as it ships). Two forms, both timed:
+  multiple of the devices) on ``--devices`` JAX CPU devices (default 1, as crazyflow's ``Sim``
+  runs; more: ``jax.shard_map``, each device stepping its own slice, which with the barrier's
+  batched solves larger than 4 x 4 can stall: docs/performance.md, "Sharded scans"). Two
+  forms, both timed:
 
   - ``scan``: ``jax.jit`` of ``lax.scan`` over ``n`` steps of
     ``jax.vmap(core.step, in_axes=(0, 0, 0, None))`` (one dispatch per ``n`` steps);
@@ -135,18 +136,16 @@ def main() -> None:
     ap.add_argument("--forms", default="scan,loop", help="quatform's forms: scan, loop (default both)")
     ap.add_argument("--barrier", choices=("on", "off"), default="on",
                     help="the team scenarios' separation barrier in the controller (default on, as the scenario)")
-    ap.add_argument("--devices", type=int, default=0,
-                    help="JAX CPU devices quatform's worlds are sharded over (default 0: one per usable core, as "
-                         "quatform's rollouts; 1: one device, as crazyflow's Sim runs)")
+    ap.add_argument("--devices", type=int, default=1,
+                    help="JAX CPU devices quatform's worlds are sharded over (default 1, as crazyflow's Sim runs; "
+                         "more can stall with the barrier's solves: docs/performance.md, 'Sharded scans')")
     ap.add_argument("--match", choices=("agents", "worlds"), default="agents",
                     help="quatform's batch: ceil(B/N) worlds of N robots (agents) or B worlds (default agents)")
     args = ap.parse_args()
     jax = optional_import("jax")
     if jax is None:
         raise SystemExit('bench_envs_crazyflow: needs JAX (pip install -e ".[jax]")')
-    from quatform.sim.jax_devices import usable_cores
-
-    jax.config.update("jax_num_cpu_devices", args.devices or usable_cores())  # before JAX starts its backends
+    jax.config.update("jax_num_cpu_devices", max(1, args.devices))  # before JAX starts its backends
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

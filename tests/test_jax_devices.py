@@ -98,11 +98,12 @@ from quatform.scenarios.team import TEAM
 from quatform.sim.loop import require_jax
 from quatform.sim.jax_rollout import ROLLOUT_METRICS, rollout_metrics
 jax = require_jax()
-ex = TEAM.experiment(dataclasses.replace(short_scenario("team-tetrahedron-helix", 0.4), metrics_from_s=0.1),
-                     controller="quaternion")
+name, barrier = sys.argv[1].split(":")
+ex = TEAM.experiment(dataclasses.replace(short_scenario(name, 0.3), metrics_from_s=0.1), controller="quaternion",
+                     min_separation=None if barrier == "on" else 0.0)
 x0 = ex.x0 + np.random.default_rng(7).normal(0.0, 0.05, (5,) + ex.x0.shape)
 ex = dataclasses.replace(ex, x0=x0)
-r = rollout_metrics(ex, x0, formation_metrics=False, trials_per_call=int(sys.argv[1]))
+r = rollout_metrics(ex, x0, formation_metrics=False, trials_per_call=6)
 logged = ex.run(backend="numpy")
 worst = 0.0
 for i in range(5):
@@ -110,17 +111,48 @@ for i in range(5):
     for key in set(ROLLOUT_METRICS) & set(r):
         if isinstance(want[key], float):
             worst = max(worst, abs(float(r[key][i]) - want[key]) / max(1.0, abs(want[key])))
-print(json.dumps({"devices": len(jax.devices()), "worst": worst}))
+jx = ex.run(backend="jax")
+print(json.dumps({"devices": len(jax.devices()), "worst": worst, "applied": ex.meta["safety"]["applied"],
+                  "log": float(np.max(np.abs(np.asarray(jx["state"]) - np.asarray(logged["state"]))))}))
 """
 
 
-def test_horn_fits_shard_over_three_devices():
-    """A team of four (Horn's 4 x 4 eigensolve every tick) sharded over three CPU devices:
-    the scan ends (a sharded batch of larger LAPACK decompositions can stall; the subprocess's
-    timeout bounds it) and each world's metrics equal NumPy's."""
-    res = run_script({"XLA_FLAGS": "--xla_force_host_platform_device_count=3"}, HORN, per_call=6)
+@pytest.mark.parametrize("case", ["team-tetrahedron-helix:off", "team-ring-flip:on"])
+def test_teams_on_three_devices_end_and_equal_numpy(case):
+    """Three CPU devices: a team of four without the barrier (Horn's 4 x 4 eigensolve: the
+    batch sharded) and a team of ten under the barrier (its loop and 32 x 32 solves: one
+    device) both end within the subprocess's time limit, their rollout metrics and logged
+    states equal to NumPy's."""
+    res = run_script({"XLA_FLAGS": "--xla_force_host_platform_device_count=3"}, HORN, per_call=case)
     assert res["devices"] == 3
-    assert res["worst"] <= 1e-9
+    assert res["applied"] == case.endswith(":on")
+    assert res["worst"] <= 1e-9 and res["log"] <= 1e-9
+
+
+def test_shardable_reads_the_program(monkeypatch):
+    """``shardable``: one CPU device or an accelerator always; several CPU devices only for a
+    program without a loop and without a LAPACK call on matrices larger than 4 x 4."""
+    import jax
+    import jax.numpy as jnp
+
+    hazards = jax_devices.program_hazards
+    assert hazards(jax.make_jaxpr(lambda a: a * 2.0)(jnp.ones((3, 4, 4)))) == (False, 0)
+    assert hazards(jax.make_jaxpr(lambda a: jnp.linalg.eigh(a)[0])(jnp.ones((3, 4, 4)))) == (False, 4)
+    assert hazards(jax.make_jaxpr(lambda a: jnp.linalg.solve(a, a))(jnp.eye(6)[None]))[1] == 6
+
+    def looping(a):
+        return jax.lax.scan(lambda c, _: (jax.lax.while_loop(lambda v: v[0, 0] < 3.0, lambda v: v + 1.0, c), None),
+                            a, None, length=2)[0]
+
+    assert hazards(jax.make_jaxpr(looping)(jnp.zeros((2, 2)))) == (True, 0)
+    cpu = [SimpleNamespace(platform="cpu")] * 2
+    fake = SimpleNamespace(devices=lambda: cpu, make_jaxpr=jax.make_jaxpr, tree_util=jax.tree_util)
+    monkeypatch.setattr(jax_devices, "_SHARDABLE", {})
+    assert jax_devices.shardable(fake, jax.jit(lambda c, x: jnp.linalg.eigh(c)[0]), jnp.ones((2, 4, 4)), {})
+    assert not jax_devices.shardable(fake, jax.jit(lambda c, x: jnp.linalg.eigh(c)[0]), jnp.ones((2, 5, 5)), {})
+    assert not jax_devices.shardable(fake, jax.jit(lambda c, x: looping(c)), jnp.zeros((2, 2)), {})
+    gpu = SimpleNamespace(devices=lambda: [SimpleNamespace(platform="gpu")] * 2)
+    assert jax_devices.shardable(gpu, None, None, None)
 
 
 COUNT = r"""
@@ -234,6 +266,7 @@ def test_compiler_options_on_the_cpu(monkeypatch):
     def refusing(*args, **kwargs):
         raise RuntimeError("INVALID_ARGUMENT: No such compile option")
 
+    monkeypatch.setattr(jax_devices, "configure", lambda jax: None)  # a fake JAX has no settings
     monkeypatch.setattr(jax_devices, "_ACCEPTED", [None])
     assert jax_devices.compiler_options(SimpleNamespace(default_backend=lambda: "cpu", jit=refusing)) == {}
     monkeypatch.setattr(jax_devices, "_ACCEPTED", [None])

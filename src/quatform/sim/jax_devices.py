@@ -9,11 +9,14 @@ core before JAX starts its backends (where the user has not chosen a number: the
 so a 2-core laptop runs two slices at once. On a GPU machine the devices are the GPUs.
 
 :func:`place` puts a chunk's arrays on the devices: the batch axis sharded
-(``jax.sharding.NamedSharding`` over a one-axis mesh), everything else replicated, and the
-loop's scan runs as one program per device on its slice (:func:`quatform.sim.loop.per_device`,
-``jax.shard_map``: no collective between the devices). The arithmetic of each world is that
-of one device, so the results equal the unsharded run (tests: to 1e-9 of NumPy, and sharded
-equal to unsharded).
+(``jax.sharding.NamedSharding`` over a one-axis mesh), everything else replicated. The
+arithmetic of each world is that of one device, so the results equal the unsharded run
+(tests: to 1e-9 of NumPy, and sharded equal to unsharded). :func:`shardable` says whether a
+compiled scan may be sharded on the CPU at all: a loop in the tick (the separation barrier's
+solver, which iterates while any world of the batch does: an all-reduce across the devices
+at every iteration) or a LAPACK call on matrices larger than 4 x 4 (the barrier's batched
+solves, the singularity measure's SVD) can stall for good with the batch over several CPU
+devices (docs/performance.md, "Sharded scans"), so such a scan runs on one device.
 
 :func:`chunk_size` picks how many worlds one compiled call runs. On the CPU a chunk of a
 few hundred worlds per device keeps a tick's working set (tens of arrays of the chunk's
@@ -45,8 +48,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["CACHE_ENV", "CPU_COMPILER_OPTIONS", "CPU_WORLDS_PER_DEVICE", "OPTIONS_ENV", "batch_devices", "cache_dir",
-           "chunk_size", "compiler_options", "configure", "jit", "place", "shard_map", "share_cores",
-           "usable_cores"]
+           "LAPACK_PRIMITIVES", "SHARDABLE_LAPACK_SIZE", "chunk_size", "compiler_options", "configure", "jit", "place",
+           "program_hazards", "shardable", "share_cores", "usable_cores"]
 
 #: Environment variable naming the folder of the compiled programs (``off``: keep none).
 CACHE_ENV = "QUATFORM_JAX_CACHE"
@@ -136,8 +139,9 @@ def compiler_options(jax) -> dict:
     is not ``off`` (XLA's defaults: to compare, or should a later XLA make them slower); else
     none. The options choose how XLA emits the program, not its arithmetic: a world's floats
     are those of the default emitters up to the order of a fused sum's rounding (tests: to 1e-9
-    of NumPy)."""
+    of NumPy). Asking starts JAX's backends: :func:`configure` runs first."""
     if _ACCEPTED[0] is None:
+        configure(jax)
         flags = os.environ.get("XLA_FLAGS", "")
         wanted = os.environ.get(OPTIONS_ENV, "").strip().lower() != "off"
         accepted = {}
@@ -158,15 +162,57 @@ def jit(jax, fn):
     return jax.jit(fn, compiler_options=options) if options else jax.jit(fn)
 
 
-def shard_map(jax, fn, mesh, in_specs, out_specs):
-    """``fn`` as one program per device of ``mesh`` (``jax.shard_map``, or
-    ``jax.experimental.shard_map`` in a JAX without it), its replication left unchecked (each
-    device's worlds are its own)."""
-    if hasattr(jax, "shard_map"):
-        return jax.shard_map(fn, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False)
-    from jax.experimental.shard_map import shard_map as experimental
+#: JAX primitives that run a LAPACK (or BLAS) routine on the CPU, per matrix of a batch.
+LAPACK_PRIMITIVES = frozenset({"cholesky", "eig", "eigh", "geqp3", "geqrf", "hessenberg", "householder_product",
+                               "lu", "qr", "schur", "svd", "triangular_solve", "tridiagonal", "tridiagonal_solve"})
 
-    return experimental(fn, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_rep=False)
+#: The largest matrix (rows or columns) a LAPACK call of a sharded CPU scan may take: Horn's
+#: 4 x 4 eigensolve ran 150 scans and 34 rollouts without a stall; solves of 16 x 16 and SVDs
+#: of 8 x 16 stalled (docs/performance.md, "Sharded scans").
+SHARDABLE_LAPACK_SIZE = 4
+
+#: :func:`shardable`'s answers, by program and input layout.
+_SHARDABLE: dict = {}
+
+
+def program_hazards(closed_jaxpr) -> tuple[bool, int]:
+    """``(loops, size)`` of a traced program (a ``ClosedJaxpr`` or ``Jaxpr``, sub-programs
+    included): whether it holds a ``while`` loop, and the largest matrix dimension a
+    :data:`LAPACK_PRIMITIVES` call takes (0: none)."""
+    loops, size = False, 0
+    stack = [closed_jaxpr]
+    while stack:
+        j = stack.pop()
+        j = getattr(j, "jaxpr", j)
+        for eqn in j.eqns:
+            name = eqn.primitive.name
+            loops = loops or name == "while"
+            if name in LAPACK_PRIMITIVES:
+                dims = [d for v in eqn.invars for d in getattr(getattr(v, "aval", None), "shape", ())[-2:]]
+                size = max([size, *dims])
+            for value in eqn.params.values():
+                for sub in value if isinstance(value, (tuple, list)) else (value,):
+                    if hasattr(sub, "eqns") or hasattr(getattr(sub, "jaxpr", None), "eqns"):
+                        stack.append(sub)
+    return loops, size
+
+
+def shardable(jax, run, carry, xs) -> bool:
+    """Whether the jitted scan ``run(carry, xs)`` may run with its batch sharded over JAX's
+    devices: always on one device or an accelerator; on several CPU devices only when its
+    program (traced once per ``run`` and input layout) holds no ``while`` loop and no LAPACK
+    call on matrices larger than :data:`SHARDABLE_LAPACK_SIZE` (:func:`program_hazards`)."""
+    devices = batch_devices(jax)
+    if len(devices) == 1 or devices[0].platform != "cpu":
+        return True
+    key = (run, jax.tree_util.tree_structure((carry, xs)),
+           tuple(np.shape(a) for a in jax.tree_util.tree_leaves((carry, xs))))
+    if key not in _SHARDABLE:
+        loops, size = program_hazards(jax.make_jaxpr(getattr(run, "__wrapped__", run))(carry, xs))
+        _SHARDABLE[key] = not loops and size <= SHARDABLE_LAPACK_SIZE
+        while len(_SHARDABLE) > 64:
+            _SHARDABLE.pop(next(iter(_SHARDABLE)))
+    return _SHARDABLE[key]
 
 
 def batch_devices(jax) -> list:

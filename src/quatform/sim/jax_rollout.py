@@ -77,10 +77,9 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
         Trials per compiled call (one compilation; chunks bound the device memory), rounded
         up to a multiple of the device count. Default: :func:`.jax_devices.chunk_size` (a
         cache-sized chunk per CPU core, the whole batch on a GPU). Each call's trials are
-        spread over JAX's devices (:mod:`.jax_devices`), but for a reduction that batches an
-        SVD (the singularity measure), which stays on one device: sharded over several CPU
-        devices such a scan can wait forever in XLA (:func:`~quatform.sim.loop.scan_ticks`).
-        Horn's fit of more than two robots (a 4 x 4 eigensolve) shards.
+        spread over JAX's devices (:mod:`.jax_devices`) where that is safe on the CPU
+        (:func:`.jax_devices.shardable`): a rollout with the separation barrier (its solver
+        loop and batched solves) or the singularity measure (an SVD) stays on one device.
     formation_metrics : bool
         Reduce the metrics that need the controller's description at every tick: its
         singularity measure (the singular values of its inverse Jacobian, at the ticks the kind
@@ -140,9 +139,6 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
              "sing_at": np.isfinite(np.asarray(desired["singularity"])[:, 0])}
     run, carry, xs, (carry_axes, xs_axes) = compiled_run(jax, plant, ctrl, measurement, experiment.reference, times,
                                                          dt, experiment.substeps, x, batch, sched, ms, reduce, extra)
-    # the reduction batches an SVD (the singularity measure): such a scan stays on one device
-    # (loop.scan_ticks); Horn's 4 x 4 eigensolves (a fit of more than two robots) shard
-    decomposes = spec["measure"] is not None
     size = min(jax_devices.chunk_size(jax, B, trials_per_call), B)
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     leaves, tree = jax.tree_util.tree_flatten(xs)
@@ -156,8 +152,7 @@ def rollout_metrics(experiment, x0=None, measurement=None, *, trials_per_call: i
             chunk_carry = jax.tree_util.tree_map(lambda a: np.asarray(a)[take], carry)
             chunk_xs = jax.tree_util.tree_unflatten(tree, [np.take(np.asarray(a), take, axis=ax) if ax >= 0 else a
                                                            for a, ax in zip(leaves, axes)])
-            inner, acc = scan_ticks(jax, run, chunk_carry, chunk_xs, n, None, size, carry_axes, xs_axes,
-                                    one_device=decomposes, out_axes=0)
+            inner, acc = scan_ticks(jax, run, chunk_carry, chunk_xs, n, None, size, carry_axes, xs_axes)
             outs.append(({k: np.asarray(v)[:stop - start] for k, v in acc.items()},
                          np.asarray(inner[3])[:stop - start], np.asarray(inner[4])[:stop - start]))
     acc = {k: np.concatenate([o[0][k] for o in outs]).reshape(batch + v.shape[1:]) for k, v in outs[0][0].items()}

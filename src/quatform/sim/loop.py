@@ -631,51 +631,17 @@ def spread(jax, carry, xs, B: int, carry_axes, xs_axes):
             jax.tree_util.tree_unflatten(tree_x, [arrays[f"x{q}"] for q in range(len(leaves_x))]))
 
 
-def per_device(jax, run, carry, xs, carry_axes, xs_leaf_axes, out_axes):
-    """``run`` as one program per device (``jax.shard_map`` over the batch devices): each device
-    scans its own slice of the worlds, so the compiled scan holds no collective. Partitioned
-    automatically, a reduction over the batch inside the tick (the barrier's NNLS loop runs
-    while any world of the batch still iterates) becomes an all-reduce across the devices at
-    every step, and on the CPU those rendezvous can wait on each other for good (XLA aborts the
-    process after 40 s). ``carry_axes``, ``xs_leaf_axes``: the batch axis of each input leaf
-    (-1: none, replicated); ``out_axes``: a prefix of ``run``'s outputs giving their batch
-    axis. Built once per ``run``, layout and device set (:func:`cached`)."""
-    from jax.sharding import Mesh, PartitionSpec
-
-    devices = jax_devices.batch_devices(jax)
-
-    def spec(axis):
-        return PartitionSpec() if axis < 0 else PartitionSpec(*([None] * axis + ["batch"]))
-
-    tree_c, tree_x = jax.tree_util.tree_structure(carry), jax.tree_util.tree_structure(xs)
-    key = ("per_device", run, tuple(d.id for d in devices), tree_c, tuple(carry_axes), tree_x, tuple(xs_leaf_axes),
-           repr(out_axes))
-
-    def build():
-        mesh = Mesh(np.array(devices), ("batch",))
-        in_specs = (jax.tree_util.tree_unflatten(tree_c, [spec(a) for a in carry_axes]),
-                    jax.tree_util.tree_unflatten(tree_x, [spec(a) for a in xs_leaf_axes]))
-        out_specs = jax.tree_util.tree_map(spec, out_axes)
-        body = getattr(run, "__wrapped__", run)  # the scan itself (a jitted run's options go on the outer jit)
-        return jax_devices.jit(jax, jax_devices.shard_map(jax, body, mesh, in_specs, out_specs))
-
-    return cached(_CACHE, key, build)
-
-
-def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axes: dict, one_device: bool = False,
-               out_axes=(1, 0)):
+def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axes: dict, one_device: bool = False):
     """``run`` (the jitted ``lax.scan`` of a tick: ``(carry, xs) -> (ys, carry)``) over the
     ``n`` ticks of ``xs`` (a dict, each leaf ``(T, ...)``), in one call or in ten chunks of
     one shape when ``progress`` is given (``xs["valid"]`` marks the padded ticks), the batch
     spread over the devices (:func:`spread`): ``(ys, carry)``, the batch padded as
     :func:`spread` pads it. ``carry_axes``: the batch axis of each leaf of ``carry``;
     ``xs_axes``: key of ``xs`` -> the batch axis of its every leaf (an int) or a pytree of
-    them (-1 or a missing key: none). ``out_axes``: the batch axis of ``run``'s outputs (a prefix
-    of them: ``(1, 0)`` for ``(ys, carry)``), for :func:`per_device`, which runs the sharded
-    batch. ``one_device``: the batch stays on JAX's default device (a scan whose tick batches
-    larger LAPACK decompositions, such as the singularity measure's SVD, can stall for good
-    with its batch on several CPU devices, even one program per device; Horn's 4 x 4
-    eigensolve does not: docs/performance.md, "Sharded scans: collectives and LAPACK calls")."""
+    them (-1 or a missing key: none). ``one_device``: the batch stays on JAX's default device;
+    it does too wherever the scan cannot be sharded safely on the CPU
+    (:func:`.jax_devices.shardable`: a loop in the tick, or a LAPACK call on matrices larger
+    than 4 x 4, can stall with the batch over several CPU devices)."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     if progress is not None:
         size = -(-n // 10)
@@ -687,10 +653,8 @@ def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axe
         return jax.tree_util.tree_map(lambda _: axis, value) if isinstance(axis, int) else axis
 
     leaf_axes = jax.tree_util.tree_leaves({key: axes_of(key, v) for key, v in xs.items()})
-    if not one_device:
+    if not one_device and jax_devices.shardable(jax, run, carry, xs):
         carry, xs = spread(jax, carry, xs, B, carry_axes, leaf_axes)
-        if len(jax_devices.batch_devices(jax)) > 1:
-            run = per_device(jax, run, carry, xs, carry_axes, leaf_axes, out_axes)
     if progress is None:
         return run(carry, xs)
     parts = []
