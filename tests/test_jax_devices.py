@@ -129,7 +129,7 @@ def test_teams_on_three_devices_end_and_equal_numpy(case):
     assert res["worst"] <= 1e-9 and res["log"] <= 1e-9
 
 
-def test_shardable_reads_the_program(monkeypatch):
+def test_shardable_reads_the_program():
     """``shardable``: one CPU device or an accelerator always; several CPU devices only for a
     program without a loop and without a LAPACK call on matrices larger than 4 x 4."""
     import jax
@@ -147,7 +147,6 @@ def test_shardable_reads_the_program(monkeypatch):
     assert hazards(jax.make_jaxpr(looping)(jnp.zeros((2, 2)))) == (True, 0)
     cpu = [SimpleNamespace(platform="cpu")] * 2
     fake = SimpleNamespace(devices=lambda: cpu, make_jaxpr=jax.make_jaxpr, tree_util=jax.tree_util)
-    monkeypatch.setattr(jax_devices, "_SHARDABLE", {})
     assert jax_devices.shardable(fake, jax.jit(lambda c, x: jnp.linalg.eigh(c)[0]), jnp.ones((2, 4, 4)), {})
     assert not jax_devices.shardable(fake, jax.jit(lambda c, x: jnp.linalg.eigh(c)[0]), jnp.ones((2, 5, 5)), {})
     assert not jax_devices.shardable(fake, jax.jit(lambda c, x: looping(c)), jnp.zeros((2, 2)), {})

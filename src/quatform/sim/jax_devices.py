@@ -171,10 +171,6 @@ LAPACK_PRIMITIVES = frozenset({"cholesky", "eig", "eigh", "geqp3", "geqrf", "hes
 #: of 8 x 16 stalled (docs/performance.md, "Sharded scans").
 SHARDABLE_LAPACK_SIZE = 4
 
-#: :func:`shardable`'s answers, by program and input layout.
-_SHARDABLE: dict = {}
-
-
 def program_hazards(closed_jaxpr) -> tuple[bool, int]:
     """``(loops, size)`` of a traced program (a ``ClosedJaxpr`` or ``Jaxpr``, sub-programs
     included): whether it holds a ``while`` loop, and the largest matrix dimension a
@@ -200,19 +196,14 @@ def program_hazards(closed_jaxpr) -> tuple[bool, int]:
 def shardable(jax, run, carry, xs) -> bool:
     """Whether the jitted scan ``run(carry, xs)`` may run with its batch sharded over JAX's
     devices: always on one device or an accelerator; on several CPU devices only when its
-    program (traced once per ``run`` and input layout) holds no ``while`` loop and no LAPACK
-    call on matrices larger than :data:`SHARDABLE_LAPACK_SIZE` (:func:`program_hazards`)."""
+    program (traced here: :func:`quatform.sim.loop.scan_ticks` keeps the answer per ``run`` and
+    input layout) holds no ``while`` loop and no LAPACK call on matrices larger than
+    :data:`SHARDABLE_LAPACK_SIZE` (:func:`program_hazards`)."""
     devices = batch_devices(jax)
     if len(devices) == 1 or devices[0].platform != "cpu":
         return True
-    key = (run, jax.tree_util.tree_structure((carry, xs)),
-           tuple(np.shape(a) for a in jax.tree_util.tree_leaves((carry, xs))))
-    if key not in _SHARDABLE:
-        loops, size = program_hazards(jax.make_jaxpr(getattr(run, "__wrapped__", run))(carry, xs))
-        _SHARDABLE[key] = not loops and size <= SHARDABLE_LAPACK_SIZE
-        while len(_SHARDABLE) > 64:
-            _SHARDABLE.pop(next(iter(_SHARDABLE)))
-    return _SHARDABLE[key]
+    loops, size = program_hazards(jax.make_jaxpr(getattr(run, "__wrapped__", run))(carry, xs))
+    return not loops and size <= SHARDABLE_LAPACK_SIZE
 
 
 def batch_devices(jax) -> list:

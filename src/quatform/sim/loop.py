@@ -594,6 +594,8 @@ def require_jax():
 #: Compiled scans of recent runs, newest last (:func:`cached`).
 _CACHE: dict = {}
 _CACHE_SIZE = 8
+#: :func:`.jax_devices.shardable`'s answers, by compiled run and input layout.
+_SHARDABLE: dict = {}
 
 
 def cached(cache: dict, key: tuple, build: Callable):
@@ -631,17 +633,17 @@ def spread(jax, carry, xs, B: int, carry_axes, xs_axes):
             jax.tree_util.tree_unflatten(tree_x, [arrays[f"x{q}"] for q in range(len(leaves_x))]))
 
 
-def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axes: dict, one_device: bool = False):
+def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axes: dict):
     """``run`` (the jitted ``lax.scan`` of a tick: ``(carry, xs) -> (ys, carry)``) over the
     ``n`` ticks of ``xs`` (a dict, each leaf ``(T, ...)``), in one call or in ten chunks of
     one shape when ``progress`` is given (``xs["valid"]`` marks the padded ticks), the batch
     spread over the devices (:func:`spread`): ``(ys, carry)``, the batch padded as
     :func:`spread` pads it. ``carry_axes``: the batch axis of each leaf of ``carry``;
     ``xs_axes``: key of ``xs`` -> the batch axis of its every leaf (an int) or a pytree of
-    them (-1 or a missing key: none). ``one_device``: the batch stays on JAX's default device;
-    it does too wherever the scan cannot be sharded safely on the CPU
-    (:func:`.jax_devices.shardable`: a loop in the tick, or a LAPACK call on matrices larger
-    than 4 x 4, can stall with the batch over several CPU devices)."""
+    them (-1 or a missing key: none). The batch stays on JAX's default device where the scan
+    cannot be sharded safely on the CPU (:func:`.jax_devices.shardable`: a loop in the tick, or
+    a LAPACK call on matrices larger than 4 x 4, can stall with the batch over several CPU
+    devices), an answer kept per ``run`` and input layout."""
     xs = dict(xs, k=np.arange(n, dtype=np.int64))
     if progress is not None:
         size = -(-n // 10)
@@ -653,7 +655,9 @@ def scan_ticks(jax, run, carry, xs, n: int, progress, B: int, carry_axes, xs_axe
         return jax.tree_util.tree_map(lambda _: axis, value) if isinstance(axis, int) else axis
 
     leaf_axes = jax.tree_util.tree_leaves({key: axes_of(key, v) for key, v in xs.items()})
-    if not one_device and jax_devices.shardable(jax, run, carry, xs):
+    layout = (run, jax.tree_util.tree_structure((carry, xs)),
+              tuple(np.shape(a) for a in jax.tree_util.tree_leaves((carry, xs))))
+    if cached(_SHARDABLE, layout, lambda: jax_devices.shardable(jax, run, carry, xs)):
         carry, xs = spread(jax, carry, xs, B, carry_axes, leaf_axes)
     if progress is None:
         return run(carry, xs)
