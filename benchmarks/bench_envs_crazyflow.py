@@ -68,8 +68,10 @@ def crazyflow_rate(jax, Sim, B: int, steps: int, repeat: int) -> float:
     return B * steps / best_of(run, repeat)
 
 
-def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, barrier: bool, match: str) -> dict:
-    """Agent-steps/s of the functional core's forms (module docstring), with the worlds' count."""
+def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, barrier: bool, match: str,
+                   devices=None) -> dict:
+    """Agent-steps/s of the functional core's forms (module docstring), with the worlds' count,
+    on ``devices`` (default all of JAX's)."""
     jnp = jax.numpy
     with jax.enable_x64(True):
         name, _, controller = scenario.partition(":")
@@ -77,7 +79,7 @@ def quatform_rates(jax, scenario: str, B: int, steps: int, repeat: int, forms, b
                           **({} if barrier else {"min_separation": 0.0}))
         N = core.layout.n
         worlds = B if match == "worlds" else max(1, math.ceil(B / N))
-        devices = jax.devices()
+        devices = jax.devices() if devices is None else list(devices)
         worlds = -(-worlds // len(devices)) * len(devices)  # an equal slice per device
         params = jax.tree_util.tree_map(jnp.asarray, core.default_params)
         keys = np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)]).reshape(steps, worlds, 2)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import math
 import os
 import subprocess
 import sys
@@ -56,32 +55,12 @@ def rollout_rate(jax, scenario: str, worlds: int, ticks: int, repeat: int) -> fl
     return worlds * ex.times.size * ex.plant.team.layout.n / t
 
 
-def envs_rate(jax, scenario: str, bodies: int, repeat: int, steps: int = 20) -> float:
-    """Agent-steps/s of the functional core's scan (module docstring)."""
-    import jax.numpy as jnp
+def envs_rate(jax, scenario: str, bodies: int, repeat: int) -> float:
+    """Agent-steps/s of the functional core's scan on one device (module docstring):
+    :func:`bench_envs_crazyflow.quatform_rates`' scan form."""
+    from bench_envs_crazyflow import quatform_rates
 
-    from quatform.envs import compiler_options, functional, key
-
-    name, _, controller = scenario.partition(":")
-    with jax.enable_x64(True):
-        core = functional(name, controller or None, action="residual")
-        N = core.layout.n
-        worlds = max(1, math.ceil(bodies / N))
-        params = jax.tree_util.tree_map(jnp.asarray, core.default_params)
-        keys = jnp.asarray(np.stack([key(s * worlds + w) for s in range(steps) for w in range(worlds)])
-                           .reshape(steps, worlds, 2))
-        options = compiler_options(jax)
-        _, state0 = jax.jit(jax.vmap(core.reset, in_axes=(0, None)), compiler_options=options)(keys[0], params)
-        action = jnp.zeros((worlds, core.n_u))
-        vstep = jax.vmap(core.step, in_axes=(0, 0, 0, None))
-
-        def body(state, k):
-            obs, state, reward, *_ = vstep(k, state, action, params)
-            return state, (obs, reward)
-
-        scan = jax.jit(lambda state: jax.lax.scan(body, state, keys), compiler_options=options)
-        jax.block_until_ready(scan(state0))
-        return worlds * N * steps / best_of(lambda: jax.block_until_ready(scan(state0)), repeat)
+    return quatform_rates(jax, scenario, bodies, 20, repeat, ["scan"], True, "agents", jax.devices()[:1])["scan"]
 
 
 def child(args) -> None:
