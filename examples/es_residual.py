@@ -35,7 +35,7 @@ A return is the sum of the core's per-step rewards over an episode (until it ter
 Measured (the defaults: ``team-tetrahedron-helix``'s quaternion controller, its separation
 barrier filtering the policy's command too, 10 s episodes of 500 ticks, a linear policy of
 1 104 parameters, 32 x 4 episodes a generation, 16 held-out episodes, 0.01 m / 0.02 rad
-noise, 0.2 m start displacement; 60 generations in 76 s on the project's 2-core VM, load 3-4, jax 0.10.2 on the CPU): the
+noise, 0.2 m start displacement; 60 generations in 33 s on the project's 2-core VM, load below 1, jax 0.10.2 on the CPU): the
 held-out return goes from the base controller's -6.59 to -3.04 (seed 0), 54 % less cost, the
 first generations below the base (the perturbed policies' mean starts near -110) and above it
 from generation 19. The room it uses: the scenario's gains are slow (time constants up to 50 s) and the
