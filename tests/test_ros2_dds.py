@@ -13,6 +13,7 @@ but a packet from another host to their ports would reach them.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.util
 import math
@@ -21,6 +22,7 @@ import signal
 import struct
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -252,6 +254,26 @@ def _started_in_lockstep(peer, proc, poses, log_path, ticks: int) -> int:
     return c0 + ticks * DT_NS
 
 
+@contextlib.contextmanager
+def _sim_time_pair(tmp_path, loopback, name: str):
+    """The bridge on the helix's pair with ``--use-sim-time`` (log ``<name>.log``) and its
+    ``PairPeer``: a namespace of ``proc``, ``rf``, ``log_path``, ``poses`` (the simulation's robot
+    poses) and ``peer``; on leaving, the bridge is stopped by SIGTERM and ``rc`` and ``text`` (its
+    log) are set."""
+    exp = experiment_for(H.short_pair(0.5), "quaternion")
+    x = exp.run()["state"]
+    proc, rf = _bridge(tmp_path, loopback, "--use-sim-time", name=name)
+    run = SimpleNamespace(proc=proc, rf=rf, log_path=tmp_path / f"{name}.log")
+    try:
+        pr = FormationBridge(exp, rf).plant_robots
+        run.poses = H.robot_poses(pr.models, pr.state_slices, x)
+        run.peer = P.PairPeer(int(loopback["ROS_DOMAIN_ID"]), rf)
+        yield run
+    finally:
+        run.rc = P.stop(proc, signal.SIGTERM)
+        run.text = run.log_path.read_text()
+
+
 def _new_commands(cmd, n_before, timeout_s: float = WAIT_S) -> list:
     """Each robot's commands read after its first ``n_before`` (waiting up to ``timeout_s`` for one each)."""
     end = time.monotonic() + timeout_s
@@ -264,15 +286,9 @@ def test_estop_acts_at_once_while_the_clock_stands_still_and_an_engage_is_never_
     """With --use-sim-time and /clock stopped (a paused or dead simulator): an engage followed at
     once by a release still zeroes every robot, released commands resume at the next /clock step,
     and an engage alone zeroes every robot without a /clock step; SIGTERM exits with 143."""
-    exp = experiment_for(H.short_pair(0.5), "quaternion")
-    x = exp.run()["state"]
-    proc, rf = _bridge(tmp_path, loopback, "--use-sim-time", name="still")
-    log_path = tmp_path / "still.log"
-    try:
-        pr = FormationBridge(exp, rf).plant_robots
-        poses = H.robot_poses(pr.models, pr.state_slices, x)
+    with _sim_time_pair(tmp_path, loopback, "still") as run:
+        proc, log_path, poses, peer = run.proc, run.log_path, run.poses, run.peer
         (p1, q1), (p2, q2) = poses
-        peer = P.PairPeer(int(loopback["ROS_DOMAIN_ID"]), rf)
         P.Peer.wait_matched(peer.pose_w + [peer.clock_w, peer.estop_w] + peer.cmd.readers, 30.0, proc)
         c = _started_in_lockstep(peer, proc, poses, log_path, 3)
         assert all(np.any(x[2] != 0) for x in peer.cmd.stamped(c))
@@ -290,9 +306,7 @@ def test_estop_acts_at_once_while_the_clock_stands_still_and_an_engage_is_never_
         new = _new_commands(peer.cmd, n)
         assert all(box and not np.any(box[-1][2]) for box in new), log_path.read_text()
         assert proc.poll() is None
-    finally:
-        rc = P.stop(proc, signal.SIGTERM)
-    text = log_path.read_text()
+    rc, text = run.rc, run.text
     assert rc == 143 and "quatform: terminated (SIGTERM)" in text and "Traceback" not in text, text
     assert text.count("e-stop engaged") == 2 and text.count("e-stop released") == 1, text
 
@@ -302,16 +316,10 @@ def test_estop_service_answers_with_the_requests_header_and_zeroes_at_once(tmp_p
     answered with the request's (guid, seq) and success, and every robot's next commands are zero
     while /clock stands still; data=false releases: the next /clock step's commands are the
     controller's again."""
-    exp = experiment_for(H.short_pair(0.5), "quaternion")
-    x = exp.run()["state"]
-    proc, rf = _bridge(tmp_path, loopback, "--use-sim-time", name="srv")
-    log_path = tmp_path / "srv.log"
-    try:
-        pr = FormationBridge(exp, rf).plant_robots
-        poses = H.robot_poses(pr.models, pr.state_slices, x)
+    with _sim_time_pair(tmp_path, loopback, "srv") as run:
+        proc, log_path, poses, peer = run.proc, run.log_path, run.poses, run.peer
         (p1, q1), (p2, q2) = poses
-        peer = P.PairPeer(int(loopback["ROS_DOMAIN_ID"]), rf)
-        client = P.ServiceClient(peer.peer, rf.settings.estop_service, "std_srvs/srv/SetBool")
+        client = P.ServiceClient(peer.peer, run.rf.settings.estop_service, "std_srvs/srv/SetBool")
         P.Peer.wait_matched(peer.pose_w + [peer.clock_w] + peer.cmd.readers + [client.writer, client.reader],
                             30.0, proc)
         c = _started_in_lockstep(peer, proc, poses, log_path, 3)
@@ -333,9 +341,7 @@ def test_estop_service_answers_with_the_requests_header_and_zeroes_at_once(tmp_p
         assert peer.cmd.wait_for(c, WAIT_S) and all(np.any(x[2] != 0) for x in peer.cmd.stamped(c))
         assert [(r.guid, r.seq) for r in client.replies] == [(guid, 41), (guid, 42)]  # one reply per request
         assert proc.poll() is None
-    finally:
-        rc = P.stop(proc, signal.SIGTERM)
-    text = log_path.read_text()
+    rc, text = run.rc, run.text
     assert rc == 143 and "Traceback" not in text, text
     assert text.count("e-stop engaged") == 1 and text.count("e-stop released") == 1, text
 
